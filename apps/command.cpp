@@ -1,0 +1,44 @@
+#include "command.h"
+
+#include <fmt/core.h>
+
+#include <cstdio>
+#include <exception>
+
+namespace microsim::app {
+namespace {
+struct Selected {
+  CLI::App* sub = nullptr;
+  std::function<int()> action;
+};
+std::vector<Selected>& actions() {
+  static std::vector<Selected> a;
+  return a;
+}
+}  // namespace
+
+std::vector<Command>& command_registry() {
+  static std::vector<Command> commands;
+  return commands;
+}
+
+void on_selected(CLI::App* sub, std::function<int()> action) { actions().push_back({sub, std::move(action)}); }
+
+int run_selected() {
+  for (auto& s : actions()) {
+    if (!s.sub->parsed()) continue;
+    try {
+      return s.action();
+    } catch (const UsageError& e) {
+      fmt::print(stderr, "microsim: error: {}\n", e.what());
+      return kExitUsage;
+    } catch (const std::exception& e) {
+      fmt::print(stderr, "microsim: error: {}\n", e.what());
+      return kExitUsage;
+    }
+  }
+  fmt::print(stderr, "microsim: no subcommand given (see --help)\n");
+  return kExitUsage;
+}
+
+}  // namespace microsim::app

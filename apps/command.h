@@ -1,0 +1,44 @@
+// microsim: subcommand registration for the thin command-line front ends.
+//
+// Each apps/cmd_NAME.cpp defines a static CommandRegistration that adds a CLI11 subcommand in its setup
+// function and stores the action to run when that subcommand was selected. Exit codes follow the
+// project's convention.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace microsim::app {
+
+inline constexpr int kExitOk = 0;        // ok / the statistical test passed
+inline constexpr int kExitRejected = 1;  // a statistical test rejected
+inline constexpr int kExitUsage = 2;     // bad usage or bad input
+
+struct Command {
+  std::string name;
+  std::function<void(CLI::App&)> setup;  // adds the subcommand and its options to the app
+};
+
+std::vector<Command>& command_registry();
+
+// Called from a setup function: runs `action` if `sub` was the parsed subcommand.
+void on_selected(CLI::App* sub, std::function<int()> action);
+
+// Runs the action of the selected subcommand; returns its exit code.
+int run_selected();
+
+struct CommandRegistration {
+  CommandRegistration(std::string name, std::function<void(CLI::App&)> setup) {
+    command_registry().push_back({std::move(name), std::move(setup)});
+  }
+};
+
+// Thrown by front ends for bad input (exit 2); the message names the bad value.
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+}  // namespace microsim::app
