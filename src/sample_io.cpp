@@ -1,0 +1,412 @@
+// microsim: NPY and text files of sampled directions (see microsim/sample_io.h).
+//
+// The NPY format is tiny and specified at numpy.org (numpy.lib.format): the magic "\x93NUMPY", a major
+// and minor version byte, a little-endian header length (uint16 for version 1.0, uint32 for 2.0 and
+// 3.0), then an ASCII (1.0, 2.0) or UTF-8 (3.0) Python dict literal with exactly the keys 'descr',
+// 'fortran_order' and 'shape', padded with spaces and ended by '\n'; the raw array data follows.
+#include "microsim/sample_io.h"
+
+#include <array>
+#include <bit>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <string_view>
+#include <system_error>
+
+namespace microsim {
+namespace {
+
+constexpr std::string_view kNpyMagic = "\x93NUMPY";
+
+[[noreturn]] void fail(const std::filesystem::path& path, const std::string& what) {
+  throw SampleFileError(path.string() + ": " + what);
+}
+
+std::string format_double(double x) {
+  std::array<char, 64> buf{};
+  const auto r = std::to_chars(buf.data(), buf.data() + buf.size(), x);
+  return std::string(buf.data(), r.ptr);
+}
+
+std::string format_vector(const Vec3<double>& w) {
+  std::string s = "(";  // appended piecewise: GCC 12 warns falsely (-Wrestrict) on "lit" + string&&
+  s += format_double(w.x()) + ", " + format_double(w.y()) + ", " + format_double(w.z()) + ")";
+  return s;
+}
+
+// Tolerances are powers of ten: print them as "1e-4" (to_chars would give "1e-04").
+std::string format_tolerance(double t) {
+  const double e = std::round(std::log10(t));
+  return t == std::pow(10.0, e) ? "1e" + std::to_string(static_cast<int>(e)) : format_double(t);
+}
+
+std::string read_whole_file(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) fail(path, "is a directory, not a sample file");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) fail(path, "cannot open for reading");
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) fail(path, "read error");
+  return bytes;
+}
+
+// Checks one row and returns it renormalised. `where` names the row ("line 12" or "row 5").
+Vec3<double> checked_direction(const std::filesystem::path& path, const std::string& where,
+                               const Vec3<double>& w, double tolerance, const char* precision_name) {
+  if (!(std::isfinite(w.x()) && std::isfinite(w.y()) && std::isfinite(w.z())))
+    fail(path, where + ": non-finite value in " + format_vector(w));
+  const double len = w.norm();
+  if (!(std::abs(len - 1.0) <= tolerance)) {
+    fail(path, where + ": vector " + format_vector(w) + " has length " + format_double(len) +
+                   ", not unit length (| |w| - 1 | must be <= " + format_tolerance(tolerance) + " for " +
+                   precision_name + ")");
+  }
+  return w / len;
+}
+
+// ---- NPY -----------------------------------------------------------------------------------------------
+
+struct NpyHeader {
+  std::string descr;
+  bool fortran_order = false;
+  std::vector<std::uint64_t> shape;
+};
+
+// A recursive-descent reader for the one Python dict literal that NPY headers contain.
+class NpyHeaderParser {
+public:
+  NpyHeaderParser(const std::filesystem::path& path, std::string_view text) : path_(path), s_(text) {}
+
+  NpyHeader parse() {
+    NpyHeader h;
+    bool have_descr = false, have_order = false, have_shape = false;
+    skip_space();
+    expect('{');
+    for (;;) {
+      skip_space();
+      if (peek() == '}') break;
+      const std::string key = parse_string("a key");
+      skip_space();
+      expect(':');
+      skip_space();
+      if (key == "descr") {
+        if (peek() != '\'' && peek() != '"')
+          error("unsupported dtype: 'descr' is not a simple type string (structured arrays are not "
+                "supported; expected '<f4' or '<f8')");
+        h.descr = parse_string("the 'descr' value");
+        have_descr = true;
+      } else if (key == "fortran_order") {
+        h.fortran_order = parse_bool();
+        have_order = true;
+      } else if (key == "shape") {
+        h.shape = parse_tuple();
+        have_shape = true;
+      } else {
+        error("unexpected key '" + key + "' (an NPY header has exactly 'descr', 'fortran_order', 'shape')");
+      }
+      skip_space();
+      if (peek() == ',') {
+        ++pos_;
+        continue;
+      }
+      if (peek() != '}') error("expected ',' or '}' after the value of '" + key + "'");
+    }
+    ++pos_;  // '}'
+    skip_space();
+    if (pos_ != s_.size()) error("unexpected text after the header dict");
+    if (!have_descr || !have_order || !have_shape)
+      error("the header dict lacks one of 'descr', 'fortran_order', 'shape'");
+    return h;
+  }
+
+private:
+  [[noreturn]] void error(const std::string& what) const { fail(path_, "NPY header: " + what); }
+
+  char peek() const { return pos_ < s_.size() ? s_[pos_] : '\0'; }
+  void skip_space() {
+    while (pos_ < s_.size() && (s_[pos_] == ' ' || s_[pos_] == '\t' || s_[pos_] == '\n' || s_[pos_] == '\r'))
+      ++pos_;
+  }
+  void expect(char c) {
+    if (peek() != c) error(std::string("expected '") + c + "' at offset " + std::to_string(pos_));
+    ++pos_;
+  }
+  std::string parse_string(const char* what) {
+    const char quote = peek();
+    if (quote != '\'' && quote != '"') error(std::string("expected a quoted string as ") + what);
+    ++pos_;
+    const std::size_t end = s_.find(quote, pos_);
+    if (end == std::string_view::npos) error("unterminated string");
+    std::string out(s_.substr(pos_, end - pos_));
+    pos_ = end + 1;
+    return out;
+  }
+  bool parse_bool() {
+    if (s_.substr(pos_, 4) == "True") {
+      pos_ += 4;
+      return true;
+    }
+    if (s_.substr(pos_, 5) == "False") {
+      pos_ += 5;
+      return false;
+    }
+    error("'fortran_order' must be True or False");
+  }
+  std::vector<std::uint64_t> parse_tuple() {
+    std::vector<std::uint64_t> dims;
+    expect('(');
+    for (;;) {
+      skip_space();
+      if (peek() == ')') break;
+      const char* first = s_.data() + pos_;
+      std::uint64_t v = 0;
+      const auto r = std::from_chars(first, s_.data() + s_.size(), v);
+      if (r.ec != std::errc() || r.ptr == first) error("'shape' must be a tuple of non-negative integers");
+      pos_ += static_cast<std::size_t>(r.ptr - first);
+      if (peek() == 'L') ++pos_;  // Python 2 long suffix, written by old NumPy versions
+      dims.push_back(v);
+      skip_space();
+      if (peek() == ',') {
+        ++pos_;
+        continue;
+      }
+      if (peek() != ')') error("'shape' must be a tuple of non-negative integers");
+    }
+    ++pos_;  // ')'
+    return dims;
+  }
+
+  const std::filesystem::path& path_;
+  std::string_view s_;
+  std::size_t pos_ = 0;
+};
+
+std::uint64_t read_le(const unsigned char* p, int bytes) {
+  std::uint64_t v = 0;
+  for (int i = bytes - 1; i >= 0; --i) v = (v << 8) | p[i];
+  return v;
+}
+
+std::string shape_string(const std::vector<std::uint64_t>& shape) {
+  std::string s = "(";
+  for (std::size_t i = 0; i < shape.size(); ++i) s += (i ? ", " : "") + std::to_string(shape[i]);
+  if (shape.size() == 1) s += ",";
+  return s + ")";
+}
+
+std::vector<Vec3<double>> read_npy(const std::filesystem::path& path, const std::string& bytes) {
+  const auto* data = reinterpret_cast<const unsigned char*>(bytes.data());
+  const std::size_t size = bytes.size();
+  if (size < kNpyMagic.size() + 2) fail(path, "truncated NPY file (no complete version field)");
+  const int major = data[6], minor = data[7];
+  if (!((major == 1 || major == 2 || major == 3) && minor == 0))
+    fail(path, "unsupported NPY version " + std::to_string(major) + "." + std::to_string(minor) +
+                   " (supported: 1.0, 2.0, 3.0)");
+  const std::size_t len_bytes = major == 1 ? 2 : 4;
+  const std::size_t prefix = kNpyMagic.size() + 2 + len_bytes;
+  if (size < prefix) fail(path, "truncated NPY file (no complete header length)");
+  const std::uint64_t header_len = read_le(data + 8, static_cast<int>(len_bytes));
+  if (header_len > size - prefix)
+    fail(path, "truncated NPY header (declares " + std::to_string(header_len) + " bytes, file has " +
+                   std::to_string(size - prefix) + ")");
+  // Versions 1.0 and 2.0 have a latin-1 header, 3.0 UTF-8; every byte we accept is ASCII either way.
+  const std::string_view header(bytes.data() + prefix, static_cast<std::size_t>(header_len));
+  const NpyHeader h = NpyHeaderParser(path, header).parse();
+
+  std::size_t item = 0;
+  bool is_float32 = false;
+  if (h.descr == "<f4") {
+    item = 4;
+    is_float32 = true;
+  } else if (h.descr == "<f8") {
+    item = 8;
+  } else if (h.descr == ">f4" || h.descr == ">f8") {
+    fail(path, "unsupported NPY dtype '" + h.descr +
+                   "' (big-endian; convert with arr.astype('<f8') or arr.astype('<f4'))");
+  } else {
+    fail(path, "unsupported NPY dtype '" + h.descr + "' (expected '<f4' float32 or '<f8' float64)");
+  }
+  if (h.fortran_order)
+    fail(path, "unsupported NPY array in Fortran order (save np.ascontiguousarray(arr) instead)");
+  if (h.shape.size() != 2 || h.shape[1] != 3)
+    fail(path, "unsupported NPY shape " + shape_string(h.shape) + " (expected (N, 3))");
+  const std::uint64_t rows = h.shape[0];
+  if (rows == 0) fail(path, "empty: the NPY array has 0 rows (shape (0, 3))");
+
+  const std::size_t row_bytes = 3 * item;
+  const std::size_t available = size - prefix - static_cast<std::size_t>(header_len);
+  const std::uint64_t complete_rows = available / row_bytes;
+  if (complete_rows < rows)
+    fail(path, "truncated NPY data: shape " + shape_string(h.shape) + " declares " + std::to_string(rows) +
+                   " rows but the data ends in row " + std::to_string(complete_rows) + " (0-based; " +
+                   std::to_string(available) + " data bytes for " + std::to_string(rows * row_bytes) + ")");
+  if (available != rows * row_bytes)
+    fail(path, "NPY data has " + std::to_string(available - rows * row_bytes) +
+                   " unexpected trailing bytes after the " + std::to_string(rows) + " declared rows");
+
+  const unsigned char* p = data + prefix + header_len;
+  const double tolerance = is_float32 ? kUnitLengthToleranceFloat32 : kUnitLengthToleranceFloat64;
+  const char* precision_name = is_float32 ? "float32 data" : "float64 data";
+  std::vector<Vec3<double>> out;
+  out.reserve(static_cast<std::size_t>(rows));
+  for (std::uint64_t r = 0; r < rows; ++r, p += row_bytes) {
+    Vec3<double> w;
+    for (int c = 0; c < 3; ++c) {
+      if (is_float32)
+        w[c] = std::bit_cast<float>(static_cast<std::uint32_t>(read_le(p + 4 * c, 4)));
+      else
+        w[c] = std::bit_cast<double>(read_le(p + 8 * c, 8));
+    }
+    out.push_back(checked_direction(path, "row " + std::to_string(r) + " (0-based)", w, tolerance,
+                                    precision_name));
+  }
+  return out;
+}
+
+// ---- text ----------------------------------------------------------------------------------------------
+
+bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
+
+std::vector<Vec3<double>> read_text(const std::filesystem::path& path, std::string_view text) {
+  if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);  // UTF-8 byte order mark
+  std::vector<Vec3<double>> out;
+  std::size_t line_no = 0;
+  while (!text.empty()) {
+    ++line_no;
+    const std::size_t nl = text.find('\n');
+    std::string_view line = text.substr(0, nl);
+    text.remove_prefix(nl == std::string_view::npos ? text.size() : nl + 1);
+    if (const std::size_t hash = line.find('#'); hash != std::string_view::npos) line = line.substr(0, hash);
+
+    const std::string where = "line " + std::to_string(line_no);
+    const auto malformed = [&](const std::string& why) {
+      fail(path, where + ": malformed line: " + why + " (expected three numbers separated by whitespace "
+                         "or commas)");
+    };
+    std::vector<double> values;
+    std::size_t i = 0;
+    const auto skip_blanks = [&] {
+      while (i < line.size() && is_blank(line[i])) ++i;
+    };
+    skip_blanks();
+    if (i == line.size()) continue;  // blank or comment-only line
+    for (;;) {
+      // One number.
+      const std::size_t start = i;
+      if (i < line.size() && line[i] == '+') ++i;  // from_chars rejects a leading '+'
+      double v = 0.0;
+      const auto r = std::from_chars(line.data() + i, line.data() + line.size(), v);
+      const std::size_t end = static_cast<std::size_t>(r.ptr - line.data());
+      std::size_t token_end = start;
+      while (token_end < line.size() && !is_blank(line[token_end]) && line[token_end] != ',') ++token_end;
+      const std::string token(line.substr(start, token_end - start));
+      if (r.ec == std::errc::result_out_of_range)
+        fail(path, where + ": value '" + token + "' is out of the range of a double");
+      if (r.ec != std::errc() || end != token_end) {
+        malformed(token.empty() ? std::string("empty field") : "'" + token + "' is not a number");
+      }
+      values.push_back(v);
+      i = end;
+      // One separator: blanks, optionally one comma with blanks around it; or the end of the line.
+      skip_blanks();
+      if (i == line.size()) break;
+      if (line[i] == ',') {
+        ++i;
+        skip_blanks();
+        if (i == line.size()) malformed("trailing comma");
+      }
+    }
+    if (values.size() != 3)
+      fail(path, where + ": wrong column count: found " + std::to_string(values.size()) +
+                     " numbers, expected 3 (x y z)");
+    out.push_back(checked_direction(path, where, Vec3<double>(values[0], values[1], values[2]),
+                                    kUnitLengthToleranceText, "text data"));
+  }
+  if (out.empty()) fail(path, "empty: no samples (only blank or comment lines)");
+  return out;
+}
+
+// ---- writing -------------------------------------------------------------------------------------------
+
+// Writes `bytes` to a temporary sibling of `path` and renames it over `path`.
+void write_atomically(const std::filesystem::path& path, const std::string& bytes) {
+  std::filesystem::path tmp = path;
+  tmp += ".partial";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) fail(path, "cannot open '" + tmp.string() + "' for writing");
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    out.close();
+    if (!out) {
+      std::error_code ec;
+      std::filesystem::remove(tmp, ec);
+      fail(path, "write error");
+    }
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) {
+    std::error_code ignored;
+    std::filesystem::remove(tmp, ignored);
+    fail(path, "cannot rename the temporary file into place: " + ec.message());
+  }
+}
+
+void append_le(std::string& out, std::uint64_t v, int bytes) {
+  for (int i = 0; i < bytes; ++i) out.push_back(static_cast<char>((v >> (8 * i)) & 0xFF));
+}
+
+}  // namespace
+
+std::vector<Vec3<double>> read_direction_samples(const std::filesystem::path& path) {
+  const std::string bytes = read_whole_file(path);
+  if (bytes.empty()) fail(path, "empty file: no samples");
+  if (bytes.compare(0, kNpyMagic.size(), kNpyMagic) == 0) return read_npy(path, bytes);
+  if (path.extension() == ".npy")
+    fail(path, "not an NPY file (the magic string \\x93NUMPY is missing) although the name ends in .npy");
+  return read_text(path, bytes);
+}
+
+void write_npy(const std::filesystem::path& path, std::span<const Vec3<double>> samples, bool as_float32) {
+  std::string header = "{'descr': '";
+  header += as_float32 ? "<f4" : "<f8";
+  header += "', 'fortran_order': False, 'shape': (" + std::to_string(samples.size()) + ", 3), }";
+  // Pad with spaces so that magic + version + length + header (ending in '\n') is a multiple of 64.
+  const std::size_t prefix = kNpyMagic.size() + 2 + 2;
+  const std::size_t total = (prefix + header.size() + 1 + 63) / 64 * 64;
+  header.append(total - prefix - header.size() - 1, ' ');
+  header.push_back('\n');
+
+  std::string out(kNpyMagic);
+  out.push_back('\x01');
+  out.push_back('\x00');
+  append_le(out, header.size(), 2);
+  out += header;
+  out.reserve(out.size() + samples.size() * 3 * (as_float32 ? 4 : 8));
+  for (const Vec3<double>& w : samples) {
+    for (int c = 0; c < 3; ++c) {
+      if (as_float32)
+        append_le(out, std::bit_cast<std::uint32_t>(static_cast<float>(w[c])), 4);
+      else
+        append_le(out, std::bit_cast<std::uint64_t>(w[c]), 8);
+    }
+  }
+  write_atomically(path, out);
+}
+
+void write_text_samples(const std::filesystem::path& path, std::span<const Vec3<double>> samples) {
+  std::string out = "# microsim direction samples, local z-up frame: x y z (" + std::to_string(samples.size()) +
+                    " rows)\n";
+  for (const Vec3<double>& w : samples)
+    out += format_double(w.x()) + " " + format_double(w.y()) + " " + format_double(w.z()) + "\n";
+  write_atomically(path, out);
+}
+
+}  // namespace microsim

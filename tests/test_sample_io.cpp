@@ -1,0 +1,294 @@
+// Tests of the sample file reader/writers (microsim/sample_io.h): round trips, every accepted text and
+// NPY variant, and every error path (each message must name the file and the line or row).
+#include "microsim/sample_io.h"
+
+#include <gtest/gtest.h>
+
+#include <bit>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+#include <unistd.h>
+
+using namespace microsim;
+namespace fs = std::filesystem;
+
+namespace {
+
+// A fresh directory per test, removed afterwards.
+class SampleIo : public ::testing::Test {
+protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = fs::temp_directory_path() /
+           ("microsim_sample_io_" + std::to_string(::getpid()) + "_" + info->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override {
+    std::error_code ec;
+    fs::remove_all(dir_, ec);
+  }
+  fs::path file(const std::string& name) const { return dir_ / name; }
+  fs::path write_bytes(const std::string& name, const std::string& bytes) const {
+    const fs::path p = file(name);
+    std::ofstream(p, std::ios::binary) << bytes;
+    return p;
+  }
+  // Expects read_direction_samples to throw a SampleFileError whose message contains the file name and
+  // every one of `fragments`.
+  void expect_error(const fs::path& p, std::initializer_list<std::string> fragments) const {
+    try {
+      read_direction_samples(p);
+      ADD_FAILURE() << "no error for " << p;
+    } catch (const SampleFileError& e) {
+      const std::string msg = e.what();
+      EXPECT_NE(msg.find(p.string()), std::string::npos) << "message does not name the file: " << msg;
+      for (const std::string& f : fragments)
+        EXPECT_NE(msg.find(f), std::string::npos) << "message lacks '" << f << "': " << msg;
+    }
+  }
+  fs::path dir_;
+};
+
+std::vector<Vec3<double>> random_unit_vectors(int n, unsigned seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> g;
+  std::vector<Vec3<double>> v;
+  while (static_cast<int>(v.size()) < n) {
+    const Vec3<double> w(g(rng), g(rng), g(rng));
+    if (w.norm() > 1e-3) v.push_back(w.normalized());
+  }
+  // Awkward values: poles, axes, a horizon direction, tiny components.
+  v.push_back({0, 0, 1});
+  v.push_back({0, 0, -1});
+  v.push_back({1, 0, 0});
+  v.push_back(Vec3<double>(1e-300, -1e-17, 1).normalized());
+  return v;
+}
+
+void append_le(std::string& s, std::uint64_t v, int bytes) {
+  for (int i = 0; i < bytes; ++i) s.push_back(static_cast<char>((v >> (8 * i)) & 0xFF));
+}
+
+// An NPY file: magic, version, header (padded to 64 bytes with a final '\n' unless `pad` is false),
+// and the raw data.
+std::string npy_bytes(int major, int minor, const std::string& dict, const std::string& data, bool pad = true) {
+  std::string header = dict;
+  const std::size_t prefix = 8 + (major == 1 ? 2 : 4);
+  if (pad) {
+    const std::size_t total = (prefix + header.size() + 1 + 63) / 64 * 64;
+    header.append(total - prefix - header.size() - 1, ' ');
+    header.push_back('\n');
+  }
+  std::string out = "\x93NUMPY";
+  out.push_back(static_cast<char>(major));
+  out.push_back(static_cast<char>(minor));
+  append_le(out, header.size(), major == 1 ? 2 : 4);
+  return out + header + data;
+}
+
+std::string f8_data(std::initializer_list<double> values) {
+  std::string s;
+  for (double v : values) append_le(s, std::bit_cast<std::uint64_t>(v), 8);
+  return s;
+}
+std::string f4_data(std::initializer_list<float> values) {
+  std::string s;
+  for (float v : values) append_le(s, std::bit_cast<std::uint32_t>(v), 4);
+  return s;
+}
+
+std::string dict(const std::string& descr, const std::string& shape, const std::string& order = "False") {
+  return "{'descr': '" + descr + "', 'fortran_order': " + order + ", 'shape': " + shape + ", }";
+}
+
+}  // namespace
+
+// ---- round trips ----------------------------------------------------------------------------------------
+
+TEST_F(SampleIo, NpyFloat64RoundTripIsExactUpToRenormalisation) {
+  const auto v = random_unit_vectors(1000, 1);
+  write_npy(file("a.npy"), v, /*as_float32=*/false);
+  const auto r = read_direction_samples(file("a.npy"));
+  ASSERT_EQ(r.size(), v.size());
+  for (std::size_t i = 0; i < v.size(); ++i) EXPECT_LE((r[i] - v[i]).norm(), 4e-16) << i;
+  EXPECT_FALSE(fs::exists(file("a.npy.partial")));
+  // The header ends on a 64-byte boundary as the NPY spec asks.
+  EXPECT_EQ((fs::file_size(file("a.npy")) - v.size() * 24) % 64, 0u);
+}
+
+TEST_F(SampleIo, NpyFloat32RoundTripWithinFloatRounding) {
+  const auto v = random_unit_vectors(1000, 2);
+  write_npy(file("a.npy"), v, /*as_float32=*/true);
+  EXPECT_EQ((fs::file_size(file("a.npy")) - v.size() * 12) % 64, 0u);
+  const auto r = read_direction_samples(file("a.npy"));
+  ASSERT_EQ(r.size(), v.size());
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    EXPECT_LE((r[i] - v[i]).norm(), 2e-7) << i;  // float32 rounding: <= 2^-24 relative per component
+    EXPECT_NEAR(r[i].norm(), 1.0, 1e-15);        // renormalised in double
+  }
+}
+
+TEST_F(SampleIo, TextRoundTripIsExactUpToRenormalisation) {
+  const auto v = random_unit_vectors(1000, 3);
+  write_text_samples(file("a.txt"), v);
+  const auto r = read_direction_samples(file("a.txt"));
+  ASSERT_EQ(r.size(), v.size());
+  for (std::size_t i = 0; i < v.size(); ++i) EXPECT_LE((r[i] - v[i]).norm(), 4e-16) << i;
+  EXPECT_FALSE(fs::exists(file("a.txt.partial")));
+}
+
+TEST_F(SampleIo, WriterReplacesAnExistingFileAndFailsCleanlyOnABadDirectory) {
+  const auto v = random_unit_vectors(5, 4);
+  write_text_samples(file("a.txt"), v);
+  write_text_samples(file("a.txt"), std::span(v).first(2));
+  EXPECT_EQ(read_direction_samples(file("a.txt")).size(), 2u);
+  EXPECT_THROW(write_npy(file("missing_dir/a.npy"), v, false), SampleFileError);
+  EXPECT_THROW(write_text_samples(file("missing_dir/a.txt"), v), SampleFileError);
+  EXPECT_FALSE(fs::exists(file("missing_dir")));
+}
+
+// ---- accepted text variants -----------------------------------------------------------------------------
+
+TEST_F(SampleIo, TextAcceptsSeparatorsCommentsBlankLinesCrlfAndBom) {
+  const std::string text =
+      "\xEF\xBB\xBF# header comment\n"
+      "\n"
+      "0 0 1\n"
+      "   \t  \n"
+      "0,0,1\n"
+      "0 , 0 ,\t1   # trailing comment\n"
+      "+0.6\t-0.8 0\r\n"
+      "6e-1, 8E-1, 0.0\n"
+      "# 1 2 3  (a commented-out line is not data)\n"
+      "-1 0 -0"; // no final newline
+  const auto r = read_direction_samples(write_bytes("a.txt", text));
+  ASSERT_EQ(r.size(), 6u);
+  EXPECT_EQ(r[0], Vec3<double>(0, 0, 1));
+  EXPECT_EQ(r[1], Vec3<double>(0, 0, 1));
+  EXPECT_EQ(r[2], Vec3<double>(0, 0, 1));
+  EXPECT_NEAR((r[3] - Vec3<double>(0.6, -0.8, 0)).norm(), 0.0, 1e-15);
+  EXPECT_NEAR((r[4] - Vec3<double>(0.6, 0.8, 0)).norm(), 0.0, 1e-15);
+  EXPECT_EQ(r[5], Vec3<double>(-1, 0, 0));
+}
+
+TEST_F(SampleIo, TextUnitToleranceIsOneInTenThousand) {
+  // 4 printed decimals: |w| - 1 = 5e-5 is accepted and renormalised; 2e-4 is rejected.
+  const auto ok = read_direction_samples(write_bytes("ok.txt", "0 0 1.00005\n"));
+  EXPECT_EQ(ok[0], Vec3<double>(0, 0, 1));
+  expect_error(write_bytes("bad.txt", "0 0 1\n0 0 1.0002\n"), {"line 2", "length", "1e-4"});
+}
+
+// ---- text errors ----------------------------------------------------------------------------------------
+
+TEST_F(SampleIo, TextErrorsNameTheLine) {
+  expect_error(write_bytes("word.txt", "0 0 1\n0 abc 1\n"), {"line 2", "malformed", "'abc'"});
+  expect_error(write_bytes("header.txt", "x y z\n0 0 1\n"), {"line 1", "malformed", "'x'"});
+  expect_error(write_bytes("glued.txt", "0 0 1\n\n0 0 1x\n"), {"line 3", "'1x'"});
+  expect_error(write_bytes("twodots.txt", "0 0 1.0.0\n"), {"line 1", "'1.0.0'"});
+  expect_error(write_bytes("two.txt", "# c\n0 1\n"), {"line 2", "column count", "found 2"});
+  expect_error(write_bytes("four.txt", "0 0 1\n0 0 1 0\n"), {"line 2", "column count", "found 4"});
+  expect_error(write_bytes("doublecomma.txt", "0,,0,1\n"), {"line 1", "empty field"});
+  expect_error(write_bytes("leadcomma.txt", ",0,0,1\n"), {"line 1", "empty field"});
+  expect_error(write_bytes("trailcomma.txt", "0 0 1\n0,0,1,\n"), {"line 2", "trailing comma"});
+  expect_error(write_bytes("nan.txt", "0 0 1\n0 0 1\n0 nan 1\n"), {"line 3", "non-finite"});
+  expect_error(write_bytes("inf.txt", "-inf 0 1\n"), {"line 1", "non-finite"});
+  expect_error(write_bytes("huge.txt", "0 0 1\n1e999 0 0\n"), {"line 2", "out of the range"});
+  expect_error(write_bytes("short.txt", "0 0 1\n0.5 0 0\n"), {"line 2", "length 0.5", "not unit length"});
+  expect_error(write_bytes("zero.txt", "0 0 0\n"), {"line 1", "not unit length"});
+  expect_error(write_bytes("halfvec.txt", "0.6 0.8 1\n"), {"line 1", "not unit length"});
+}
+
+TEST_F(SampleIo, EmptyInputsAreErrors) {
+  expect_error(write_bytes("empty.txt", ""), {"empty"});
+  expect_error(write_bytes("comments.txt", "# nothing\n\n  # here\n"), {"empty", "no samples"});
+  expect_error(write_bytes("empty.npy", npy_bytes(1, 0, dict("<f8", "(0, 3)"), "")), {"empty", "0 rows"});
+  expect_error(file("does_not_exist.txt"), {"cannot open"});
+  expect_error(dir_, {"directory"});
+}
+
+// ---- accepted NPY variants ------------------------------------------------------------------------------
+
+TEST_F(SampleIo, NpyVersions2And3AndHeaderSpellingsAreAccepted) {
+  const std::string d = f8_data({0, 0, 1, 0.6, 0, -0.8});
+  for (int major : {1, 2, 3}) {
+    const std::string name = std::to_string(major) + "v.npy";
+    const auto r = read_direction_samples(write_bytes(name, npy_bytes(major, 0, dict("<f8", "(2, 3)"), d)));
+    ASSERT_EQ(r.size(), 2u);
+    EXPECT_EQ(r[1], Vec3<double>(0.6, 0, -0.8));
+  }
+  // Key order, double quotes, no trailing comma, Python 2 'L' suffixes, no padding: all valid dicts.
+  const std::string odd = "{\"shape\": (2L, 3L), \"fortran_order\": False, \"descr\": \"<f8\"}";
+  EXPECT_EQ(read_direction_samples(write_bytes("odd.npy", npy_bytes(1, 0, odd, d, /*pad=*/false))).size(), 2u);
+  // A file named .txt with NPY content is read as NPY (detection is by the magic string).
+  EXPECT_EQ(read_direction_samples(write_bytes("npy.txt", npy_bytes(1, 0, dict("<f8", "(2,3)"), d))).size(), 2u);
+}
+
+TEST_F(SampleIo, NpyUnitTolerancesDependOnThePrecision) {
+  // float32: 5e-6 off is accepted (GPU rsqrt), 5e-5 off is rejected.
+  const auto ok32 = read_direction_samples(
+      write_bytes("ok32.npy", npy_bytes(1, 0, dict("<f4", "(1, 3)"), f4_data({0, 0, 1.000005f}))));
+  EXPECT_EQ(ok32[0], Vec3<double>(0, 0, 1));
+  expect_error(write_bytes("bad32.npy", npy_bytes(1, 0, dict("<f4", "(2, 3)"), f4_data({0, 0, 1, 0, 0, 1.00005f}))),
+               {"row 1", "not unit length", "float32"});
+  // float64: 5e-7 off is accepted, 5e-6 off is rejected.
+  EXPECT_EQ(read_direction_samples(
+                write_bytes("ok64.npy", npy_bytes(1, 0, dict("<f8", "(1, 3)"), f8_data({0, 0, 1.0000005}))))
+                .size(),
+            1u);
+  expect_error(write_bytes("bad64.npy", npy_bytes(1, 0, dict("<f8", "(1, 3)"), f8_data({0, 1.000005, 0}))),
+               {"row 0", "not unit length", "float64"});
+}
+
+// ---- NPY errors -----------------------------------------------------------------------------------------
+
+TEST_F(SampleIo, NpyDataErrorsNameTheRow) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  expect_error(write_bytes("nan.npy", npy_bytes(1, 0, dict("<f4", "(3, 3)"), f4_data({0, 0, 1, 0, 0, 1, nan, 0, 1}))),
+               {"row 2", "non-finite"});
+  expect_error(write_bytes("inf.npy", npy_bytes(1, 0, dict("<f8", "(2, 3)"), f8_data({0, 0, 1, 0, 0, -inf}))),
+               {"row 1", "non-finite"});
+  expect_error(write_bytes("zero.npy", npy_bytes(1, 0, dict("<f8", "(1, 3)"), f8_data({0, 0, 0}))),
+               {"row 0", "not unit length"});
+  // Truncated in the middle of row 1 (0-based) of 3.
+  expect_error(write_bytes("trunc.npy", npy_bytes(1, 0, dict("<f8", "(3, 3)"), f8_data({0, 0, 1, 0}))),
+               {"truncated", "row 1", "3 rows"});
+  expect_error(write_bytes("trunc0.npy", npy_bytes(1, 0, dict("<f4", "(2, 3)"), "")), {"truncated", "row 0"});
+  expect_error(write_bytes("trailing.npy", npy_bytes(1, 0, dict("<f8", "(1, 3)"), f8_data({0, 0, 1, 0}))),
+               {"trailing bytes"});
+}
+
+TEST_F(SampleIo, NpyHeaderErrors) {
+  const std::string d = f8_data({0, 0, 1});
+  expect_error(write_bytes("v4.npy", npy_bytes(4, 0, dict("<f8", "(1, 3)"), d)), {"version 4.0"});
+  expect_error(write_bytes("v11.npy", npy_bytes(1, 1, dict("<f8", "(1, 3)"), d)), {"version 1.1"});
+  expect_error(write_bytes("be.npy", npy_bytes(1, 0, dict(">f8", "(1, 3)"), d)), {"'>f8'", "big-endian"});
+  expect_error(write_bytes("int.npy", npy_bytes(1, 0, dict("<i8", "(1, 3)"), d)), {"dtype '<i8'"});
+  expect_error(write_bytes("half.npy", npy_bytes(1, 0, dict("<f2", "(1, 3)"), d)), {"dtype '<f2'"});
+  expect_error(write_bytes("struct.npy",
+                           npy_bytes(1, 0, "{'descr': [('x', '<f8')], 'fortran_order': False, 'shape': (1,), }", d)),
+               {"structured"});
+  expect_error(write_bytes("fortran.npy", npy_bytes(1, 0, dict("<f8", "(1, 3)", "True"), d)), {"Fortran order"});
+  expect_error(write_bytes("badbool.npy", npy_bytes(1, 0, dict("<f8", "(1, 3)", "0"), d)), {"True or False"});
+  expect_error(write_bytes("1d.npy", npy_bytes(1, 0, dict("<f8", "(3,)"), d)), {"shape (3,)", "(N, 3)"});
+  expect_error(write_bytes("n4.npy", npy_bytes(1, 0, dict("<f8", "(1, 4)"), d)), {"shape (1, 4)"});
+  expect_error(write_bytes("3d.npy", npy_bytes(1, 0, dict("<f8", "(1, 3, 1)"), d)), {"shape (1, 3, 1)"});
+  expect_error(write_bytes("neg.npy", npy_bytes(1, 0, dict("<f8", "(-1, 3)"), d)), {"non-negative integers"});
+  expect_error(write_bytes("nokey.npy", npy_bytes(1, 0, "{'descr': '<f8', 'shape': (1, 3), }", d)), {"lacks"});
+  expect_error(write_bytes("extrakey.npy",
+                           npy_bytes(1, 0, "{'descr': '<f8', 'fortran_order': False, 'shape': (1, 3), 'x': 1}", d)),
+               {"unexpected key 'x'"});
+  expect_error(write_bytes("nobrace.npy", npy_bytes(1, 0, "'descr': '<f8'", d)), {"NPY header", "'{'"});
+  expect_error(write_bytes("junk.npy", npy_bytes(1, 0, dict("<f8", "(1, 3)") + " junk", d)), {"after the header"});
+  // Cut inside the version field, the length field and the header itself.
+  expect_error(write_bytes("cut1.npy", std::string("\x93NUMPY\x01", 7)), {"truncated"});
+  expect_error(write_bytes("cut2.npy", std::string("\x93NUMPY\x01\x00\x76", 9)), {"truncated"});
+  expect_error(write_bytes("cut3.npy", npy_bytes(1, 0, dict("<f8", "(1, 3)"), d).substr(0, 30)),
+               {"truncated NPY header"});
+  expect_error(write_bytes("fake.npy", "0 0 1\n"), {"not an NPY file"});
+}
