@@ -292,3 +292,38 @@ TEST_F(SampleIo, NpyHeaderErrors) {
                {"truncated NPY header"});
   expect_error(write_bytes("fake.npy", "0 0 1\n"), {"not an NPY file"});
 }
+
+// ---- files written by NumPy itself (tests/data/README.md says how) --------------------------------------
+
+namespace {
+const fs::path kData = MICROSIM_TEST_DATA;
+const std::vector<Vec3<double>> kFixtureRows = {{0, 0, 1}, {0.6, 0, 0.8}, {0, -0.6, 0.8}, {0.48, 0.64, 0.6}, {-1, 0, 0}};
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+}  // namespace
+
+TEST_F(SampleIo, ReadsFilesWrittenByNumpy) {
+  for (const char* name : {"npy_samples_f8.npy", "npy_samples_f8_v2.npy", "text_samples_numpy.txt"}) {
+    const auto r = read_direction_samples(kData / name);
+    ASSERT_EQ(r.size(), kFixtureRows.size()) << name;
+    for (std::size_t i = 0; i < r.size(); ++i) EXPECT_LE((r[i] - kFixtureRows[i]).norm(), 4e-16) << name << i;
+  }
+  for (const char* name : {"npy_samples_f4.npy", "npy_samples_f4_v3.npy"}) {
+    const auto r = read_direction_samples(kData / name);
+    ASSERT_EQ(r.size(), kFixtureRows.size()) << name;
+    for (std::size_t i = 0; i < r.size(); ++i) EXPECT_LE((r[i] - kFixtureRows[i]).norm(), 2e-7) << name << i;
+  }
+  expect_error(kData / "npy_samples_fortran.npy", {"Fortran order"});
+  expect_error(kData / "npy_samples_int.npy", {"dtype '<i8'"});
+  expect_error(kData / "npy_samples_f4_be.npy", {"'>f4'", "big-endian"});
+}
+
+TEST_F(SampleIo, WriterOutputIsByteIdenticalToNumpySave) {
+  write_npy(file("f8.npy"), kFixtureRows, /*as_float32=*/false);
+  write_npy(file("f4.npy"), kFixtureRows, /*as_float32=*/true);
+  EXPECT_EQ(slurp(file("f8.npy")), slurp(kData / "npy_samples_f8.npy"));
+  EXPECT_EQ(slurp(file("f4.npy")), slurp(kData / "npy_samples_f4.npy"));
+}
