@@ -24,6 +24,16 @@ struct Command {
 
 std::vector<Command>& command_registry();
 
+// Returns the subcommand `name` of `parent`, adding it (with `description`) if no registration has yet.
+// Lets several apps/cmd_*.cpp files add leaves under one group (`trace vndf`, `trace masking`).
+inline CLI::App* get_or_add_subcommand(CLI::App& parent, const std::string& name, const std::string& description) {
+  for (CLI::App* sub : parent.get_subcommands([](CLI::App*) { return true; }))
+    if (sub->get_name() == name) return sub;
+  CLI::App* sub = parent.add_subcommand(name, description);
+  sub->require_subcommand(1);
+  return sub;
+}
+
 // Called from a setup function: runs `action` if `sub` was the parsed subcommand.
 void on_selected(CLI::App* sub, std::function<int()> action);
 
