@@ -1,0 +1,88 @@
+// microsim: a reusable chi-square harness for histograms of directions (or anything else binned).
+//
+// - goodness_of_fit: Pearson's chi-square test of observed counts against expected probabilities
+//   (Pearson 1900). Cells whose expected count is below `min_expected` (5, the classical rule of
+//   thumb, e.g. Cochran 1954) are pooled into one cell, smallest first; if the pool itself stays below
+//   the threshold, the next smallest cells join it. The statistic sum (O - E)^2 / E has
+//   cells - 1 degrees of freedom; the p-value is the upper tail of the chi-squared distribution
+//   (Boost.Math, complement form: accurate down to 1e-300). A sample in a cell whose expected
+//   probability is 0, or outside every cell, is impossible under the null: the test rejects at once
+//   with p = 0. (Mitsuba 3's chi2.py follows the same scheme; this is an independent implementation.)
+// - two_sample_homogeneity: chi-square test that two histograms with unequal totals Na, Nb come from
+//   the same distribution: sum (K1 a_i - K2 b_i)^2 / (a_i + b_i), K1 = sqrt(Nb / Na),
+//   K2 = sqrt(Na / Nb) (NIST/SEMATECH e-Handbook of Statistical Methods, sec. 1.3.5.15, "Chi-square
+//   two sample test"; Press et al., Numerical Recipes, 3rd ed., sec. 14.3), sparse cells pooled the same
+//   way, cells - 1 degrees of freedom.
+// - Sidak correction for a batch of n independent tests at family-wise level alpha (Sidak 1967):
+//   each test is run at 1 - (1 - alpha)^(1/n).
+#pragma once
+
+#include <nlohmann/json_fwd.hpp>
+
+#include <functional>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace microsim {
+
+// One cell of a report: a bin of the caller's histogram (bin >= 0) or the pooled cell (bin = -1).
+struct CellReport {
+  int bin = -1;
+  double observed = 0;
+  double expected = 0;      // expected count under the null
+  double contribution = 0;  // its term of the statistic
+  std::string location;     // where the bin is (from ChiSquareOptions::describe_cell), or "pooled (k cells)"
+};
+
+struct ChiSquareResult {
+  std::string test;        // "goodness_of_fit" or "two_sample_homogeneity"
+  double statistic = 0;
+  int dof = 0;
+  double p_value = 1;
+  double significance = 0.01;  // the level the verdict below used
+  bool rejected = false;       // p_value < significance (or an impossible sample)
+  std::string reason;          // why the test rejected at once, or why it could not run ("" otherwise)
+  double samples = 0;          // N (goodness of fit) or Na + Nb (two samples)
+  int cells = 0;               // cells in the statistic, the pooled cell included
+  int pooled_cells = 0;        // histogram cells merged into the pooled cell
+  std::vector<CellReport> worst_cells;  // largest contributions first
+};
+
+struct ChiSquareOptions {
+  double min_expected = 5;     // pooling threshold on the expected count
+  double significance = 0.01;  // level of the verdict `rejected`
+  int worst_cells = 8;         // how many cells to report
+  // Names a bin for the report (e.g. DirectionBinning::describe_bin); empty: "bin i".
+  std::function<std::string(int)> describe_cell;
+};
+
+// observed[i]: count in cell i; expected_probability[i]: its probability under the null; n_samples:
+// the number of samples drawn (the expected count of cell i is n_samples * expected_probability[i]);
+// outside_domain: samples that fell in no cell at all (rejects when > 0). The sizes must agree
+// (std::invalid_argument otherwise).
+ChiSquareResult goodness_of_fit(std::span<const double> observed, std::span<const double> expected_probability,
+                                double n_samples, const ChiSquareOptions& options = {}, double outside_domain = 0);
+
+// Two histograms over the same cells; throws std::invalid_argument when the sizes differ or a
+// histogram is empty.
+ChiSquareResult two_sample_homogeneity(std::span<const double> counts_a, std::span<const double> counts_b,
+                                       const ChiSquareOptions& options = {});
+
+// Per-test level that keeps the family-wise level alpha over n independent tests: 1 - (1 - alpha)^(1/n).
+double sidak_significance(double alpha, int n_tests);
+// The family-wise p-value of the smallest of n p-values: 1 - (1 - p_min)^n.
+double sidak_adjusted_p(double p_min, int n_tests);
+
+// One-sample Kolmogorov-Smirnov test of values against the uniform distribution on [0, 1]
+// (e.g. p-values under a null): D = sup |F_n - F|, p from the asymptotic Kolmogorov distribution
+// with Stephens' small-sample correction (Stephens 1970): lambda = (sqrt(n) + 0.12 + 0.11 / sqrt(n)) D.
+struct KolmogorovResult {
+  double statistic = 0;
+  double p_value = 1;
+};
+KolmogorovResult ks_test_uniform(std::span<const double> values);
+
+nlohmann::json to_json(const ChiSquareResult& result);
+
+}  // namespace microsim

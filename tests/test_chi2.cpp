@@ -1,0 +1,182 @@
+// Tests of the chi-square harness: pooling and statistic by hand, impossible samples, uniformity of
+// p-values under the null (Kolmogorov-Smirnov over 200 p-values at a fixed seed, level 0.01), power
+// against a shifted distribution, the two-sample test, and the Sidak helpers.
+#include "microsim/chi2.h"
+#include "microsim/random.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <vector>
+
+using namespace microsim;
+
+namespace {
+
+// Counts of n draws from the discrete distribution p (inverse CDF), from CounterRng(seed, stream).
+std::vector<double> multinomial(const std::vector<double>& p, int n, std::uint64_t seed, std::uint64_t stream) {
+  std::vector<double> cdf(p.size());
+  std::partial_sum(p.begin(), p.end(), cdf.begin());
+  std::vector<double> counts(p.size(), 0.0);
+  CounterRng rng(seed, stream);
+  for (int i = 0; i < n; ++i) {
+    const double u = rng.uniform() * cdf.back();
+    const auto it = std::upper_bound(cdf.begin(), cdf.end(), u);
+    counts[std::min<std::size_t>(it - cdf.begin(), p.size() - 1)] += 1;
+  }
+  return counts;
+}
+
+// 40 cells, probabilities falling geometrically so that the tail cells need pooling at N = 1000.
+std::vector<double> geometric_cells() {
+  std::vector<double> p(40);
+  double s = 0;
+  for (int i = 0; i < 40; ++i) s += (p[i] = std::pow(0.88, i));
+  for (double& x : p) x /= s;
+  return p;
+}
+
+// The same distribution with 10% of the mass of cell 0 moved to cell 1.
+std::vector<double> shifted_cells() {
+  std::vector<double> p = geometric_cells();
+  const double moved = 0.1 * p[0];
+  p[0] -= moved;
+  p[1] += moved;
+  return p;
+}
+
+// Upper tail of chi-squared with 3 degrees of freedom, closed form: erfc(sqrt(x/2)) + sqrt(2x/pi) e^(-x/2).
+double chi2_sf_3(double x) { return std::erfc(std::sqrt(x / 2)) + std::sqrt(2 * x / std::numbers::pi) * std::exp(-x / 2); }
+
+}  // namespace
+
+TEST(ChiSquare, StatisticAndPoolingByHand) {
+  const std::vector<double> p = {0.5, 0.3, 0.15, 0.03, 0.02};  // expected counts 50, 30, 15, 3, 2 at N = 100
+  const std::vector<double> o = {48, 33, 14, 4, 1};
+  const ChiSquareResult r = goodness_of_fit(o, p, 100);
+  // Cells 3 and 4 (expected 3 + 2 = 5) form the pool; pooled O = 5, E = 5.
+  const double stat = 4.0 / 50 + 9.0 / 30 + 1.0 / 15 + 0.0;
+  EXPECT_NEAR(r.statistic, stat, 1e-12);
+  EXPECT_EQ(r.cells, 4);
+  EXPECT_EQ(r.pooled_cells, 2);
+  EXPECT_EQ(r.dof, 3);
+  EXPECT_NEAR(r.p_value, chi2_sf_3(stat), 1e-12);
+  EXPECT_FALSE(r.rejected);
+  EXPECT_TRUE(r.reason.empty());
+  ASSERT_FALSE(r.worst_cells.empty());
+  EXPECT_EQ(r.worst_cells.front().bin, 1);  // (33 - 30)^2 / 30 is the largest term
+  EXPECT_DOUBLE_EQ(r.worst_cells.front().observed, 33);
+  EXPECT_DOUBLE_EQ(r.worst_cells.front().expected, 30);
+}
+
+TEST(ChiSquare, PoolGrowsUntilItReachesTheThreshold) {
+  const std::vector<double> p = {0.9, 0.06, 0.02, 0.01, 0.01};  // expected 90, 6, 2, 1, 1
+  const std::vector<double> o = {88, 7, 3, 1, 1};
+  const ChiSquareResult r = goodness_of_fit(o, p, 100);
+  // The pool {1, 1, 2} has 4 < 5 expected: cell 1 (6 expected) joins it. Cells: {90}, pool {10}.
+  EXPECT_EQ(r.cells, 2);
+  EXPECT_EQ(r.pooled_cells, 4);
+  EXPECT_EQ(r.dof, 1);
+  EXPECT_NEAR(r.statistic, 4.0 / 90 + 4.0 / 10, 1e-12);
+}
+
+TEST(ChiSquare, ImpossibleSamplesRejectAtOnce) {
+  const std::vector<double> p = {0.5, 0.5, 0.0};
+  const ChiSquareResult r = goodness_of_fit(std::vector<double>{50, 49, 1}, p, 100);
+  EXPECT_TRUE(r.rejected);
+  EXPECT_EQ(r.p_value, 0.0);
+  EXPECT_NE(r.reason.find("expected probability is 0"), std::string::npos);
+  const ChiSquareResult outside = goodness_of_fit(std::vector<double>{50, 49, 0}, p, 100, {}, 1);
+  EXPECT_TRUE(outside.rejected);
+  EXPECT_EQ(outside.p_value, 0.0);
+  EXPECT_NE(outside.reason.find("outside the domain"), std::string::npos);
+  // Cells with zero probability and no samples are simply left out.
+  const ChiSquareResult fine = goodness_of_fit(std::vector<double>{50, 50, 0}, p, 100);
+  EXPECT_FALSE(fine.rejected);
+  EXPECT_EQ(fine.cells, 2);
+  EXPECT_THROW(goodness_of_fit(std::vector<double>{1, 2}, p, 3), std::invalid_argument);
+  EXPECT_THROW(goodness_of_fit(std::vector<double>{1, 2, 0}, p, 0), std::invalid_argument);
+}
+
+// Under the null, 200 p-values (N = 1000 each, fixed seed) are uniform: Kolmogorov-Smirnov at level 0.01.
+TEST(ChiSquare, PValuesAreUniformUnderTheNull) {
+  const std::vector<double> p = geometric_cells();
+  std::vector<double> pvalues;
+  for (int rep = 0; rep < 200; ++rep) pvalues.push_back(goodness_of_fit(multinomial(p, 1000, 2024, rep), p, 1000).p_value);
+  const KolmogorovResult ks = ks_test_uniform(pvalues);
+  EXPECT_GT(ks.p_value, 0.01) << "KS statistic " << ks.statistic;
+  const auto small = std::count_if(pvalues.begin(), pvalues.end(), [](double x) { return x < 0.01; });
+  EXPECT_LE(small, 8);  // expected 2 of 200; P(>= 9) < 1e-3 under the null
+}
+
+TEST(ChiSquare, RejectsAShiftedDistribution) {
+  const std::vector<double> p = geometric_cells();
+  const ChiSquareResult r = goodness_of_fit(multinomial(shifted_cells(), 200000, 7, 0), p, 200000);
+  EXPECT_TRUE(r.rejected);
+  EXPECT_LT(r.p_value, 1e-6);
+  ASSERT_FALSE(r.worst_cells.empty());
+  EXPECT_LE(r.worst_cells.front().bin, 1);  // the worst cell is one of the two that changed
+}
+
+TEST(ChiSquare, TwoSampleHomogeneityIsUniformUnderTheNullAndHasPower) {
+  const std::vector<double> p = geometric_cells();
+  std::vector<double> pvalues;
+  for (int rep = 0; rep < 200; ++rep)
+    pvalues.push_back(two_sample_homogeneity(multinomial(p, 1000, 99, 2 * rep), multinomial(p, 3000, 99, 2 * rep + 1)).p_value);
+  const KolmogorovResult ks = ks_test_uniform(pvalues);
+  EXPECT_GT(ks.p_value, 0.01) << "KS statistic " << ks.statistic;
+
+  const auto a = multinomial(p, 100000, 5, 0), b = multinomial(shifted_cells(), 300000, 5, 1);
+  const ChiSquareResult r = two_sample_homogeneity(a, b);
+  EXPECT_TRUE(r.rejected);
+  EXPECT_LT(r.p_value, 1e-6);
+  // The statistic is symmetric in the two histograms.
+  EXPECT_NEAR(two_sample_homogeneity(b, a).statistic, r.statistic, 1e-9 * r.statistic);
+  EXPECT_THROW(two_sample_homogeneity(std::vector<double>{1, 2}, std::vector<double>{1}), std::invalid_argument);
+  EXPECT_THROW(two_sample_homogeneity(std::vector<double>{0, 0}, std::vector<double>{1, 1}), std::invalid_argument);
+}
+
+TEST(ChiSquare, TwoSampleStatisticByHand) {
+  // Na = 100, Nb = 400: K1 = 2, K2 = 0.5. Cells (a, b): (60, 250), (40, 150).
+  const ChiSquareResult r = two_sample_homogeneity(std::vector<double>{60, 40}, std::vector<double>{250, 150});
+  const double stat = std::pow(2 * 60 - 0.5 * 250, 2) / 310 + std::pow(2 * 40 - 0.5 * 150, 2) / 190;
+  EXPECT_NEAR(r.statistic, stat, 1e-12);
+  EXPECT_EQ(r.dof, 1);
+}
+
+TEST(ChiSquare, Sidak) {
+  EXPECT_NEAR(sidak_significance(0.01, 1), 0.01, 1e-15);
+  EXPECT_NEAR(sidak_significance(0.05, 10), 1 - std::pow(0.95, 0.1), 1e-15);
+  EXPECT_NEAR(sidak_adjusted_p(sidak_significance(0.01, 250), 250), 0.01, 1e-14);
+  EXPECT_NEAR(sidak_adjusted_p(1e-20, 100), 1e-18, 1e-30);  // no cancellation at tiny p
+  EXPECT_EQ(sidak_adjusted_p(0.0, 5), 0.0);
+  EXPECT_EQ(sidak_adjusted_p(1.0, 5), 1.0);
+  EXPECT_THROW(sidak_significance(0.01, 0), std::invalid_argument);
+}
+
+TEST(ChiSquare, KolmogorovSmirnov) {
+  std::vector<double> grid;
+  for (int i = 0; i < 100; ++i) grid.push_back((i + 0.5) / 100);
+  EXPECT_NEAR(ks_test_uniform(grid).statistic, 0.005, 1e-12);
+  EXPECT_GT(ks_test_uniform(grid).p_value, 0.99);
+  std::vector<double> clumped(100, 0.1);
+  EXPECT_NEAR(ks_test_uniform(clumped).statistic, 0.9, 1e-12);
+  EXPECT_LT(ks_test_uniform(clumped).p_value, 1e-20);
+  // Asymptotic critical value at level 0.05 for large n: lambda = 1.358.
+  std::vector<double> edge;
+  const int n = 10000;
+  const double d = 1.358 / (std::sqrt(double(n)) + 0.12 + 0.11 / std::sqrt(double(n)));
+  for (int i = 0; i < n; ++i) edge.push_back(std::min(1.0, double(i) / n + d));  // D = d exactly
+  EXPECT_NEAR(ks_test_uniform(edge).p_value, 0.05, 2e-3);
+}
+
+TEST(ChiSquare, JsonCarriesTheVerdict) {
+  const nlohmann::json j = to_json(goodness_of_fit(std::vector<double>{48, 33, 14, 4, 1},
+                                                   std::vector<double>{0.5, 0.3, 0.15, 0.03, 0.02}, 100));
+  for (const char* key : {"statistic", "dof", "p_value", "rejected", "samples", "worst_cells", "cells"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  EXPECT_EQ(j["dof"], 3);
+}
