@@ -1,0 +1,501 @@
+// microsim surface build | stats | import: periodic heightfield microsurfaces (microgeom/assembly.h).
+//
+//   surface build  --assembly NAME --alpha AX[,AY] --res N [--seed S] [--corr-cells C] [--tile-size L]
+//                  [--iterations K] --out SURF.exr [--mesh F.ply|obj] [--mesh-crop C] [--normals F.exr]
+//                  [--json PATH]
+//   surface stats  SURF.exr [--tile-size L] [--alpha AX[,AY]] [--reference ggx|beckmann] [--corr-cells C]
+//                  [--check] [--json PATH] [--mesh F] [--mesh-crop C] [--normals F]
+//   surface import EXTERNAL.exr --tile-size L --out SURF.exr
+//
+// Tables on stdout, progress and diagnostics on stderr. A built surface whose measured NDF misses the
+// stated tolerance (microgeom/surface_stats.h) is an error: exit 2 and nothing written. Every output is
+// staged to a temporary file in its directory and renamed only once all outputs are complete.
+#include "command.h"
+
+#include "microgeom/assembly.h"
+#include "microgeom/heightfield.h"
+#include "microgeom/mesh_io.h"
+#include "microgeom/surface_stats.h"
+#include "microsim/progress.h"
+
+#include <fmt/core.h>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <atomic>
+#include <cctype>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <optional>
+
+#include <sys/resource.h>
+#include <unistd.h>
+
+namespace fs = std::filesystem;
+using microsim::app::UsageError;
+
+namespace {
+
+// ---- staged outputs: write everything to temporaries, rename all at the end ---------------------------
+class StagedOutputs {
+public:
+  ~StagedOutputs() {
+    for (auto& [tmp, final_path] : staged_) {
+      std::error_code ec;
+      fs::remove(tmp, ec);
+    }
+  }
+  // Checks up front (before long work) that the destination's directory exists.
+  static void check_destination(const std::string& option, const fs::path& path) {
+    const fs::path parent = fs::absolute(path).parent_path();
+    if (!fs::is_directory(parent))
+      throw UsageError(fmt::format("{} '{}': directory '{}' does not exist", option, path.string(), parent.string()));
+    if (fs::is_directory(path)) throw UsageError(fmt::format("{} '{}' is a directory", option, path.string()));
+  }
+  // A temporary path next to `path` with the same extension; writer(tmp) must create it.
+  void stage(const fs::path& path, const std::function<void(const fs::path&)>& writer) {
+    static std::atomic<int> counter{0};
+    const fs::path tmp = fs::absolute(path).parent_path() /
+                         fmt::format(".{}.staged-{}-{}{}", path.stem().string(), ::getpid(), counter++,
+                                     path.extension().string());
+    staged_.emplace_back(tmp, path);
+    writer(tmp);
+  }
+  void commit() {
+    for (auto& [tmp, final_path] : staged_) {
+      std::error_code ec;
+      fs::rename(tmp, final_path, ec);
+      if (ec) throw std::runtime_error(fmt::format("cannot move output into '{}': {}", final_path.string(), ec.message()));
+    }
+    staged_.clear();
+  }
+
+private:
+  std::vector<std::pair<fs::path, fs::path>> staged_;
+};
+
+void write_json_file(const fs::path& path, const nlohmann::json& j) {
+  std::ofstream out(path, std::ios::trunc);
+  if (!out) throw std::runtime_error(fmt::format("cannot write JSON '{}'", path.string()));
+  out << j.dump(2) << '\n';
+  out.close();
+  if (!out) throw std::runtime_error(fmt::format("write error on JSON '{}'", path.string()));
+}
+
+// ---- option parsing -----------------------------------------------------------------------------------
+double parse_number(const std::string& option, const std::string& text) {
+  std::size_t used = 0;
+  double v = 0;
+  try {
+    v = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != text.size() || !std::isfinite(v))
+    throw UsageError(fmt::format("{} '{}' is not a finite number", option, text));
+  return v;
+}
+
+// "AX" or "AX,AY".
+std::pair<double, double> parse_alpha(const std::string& text) {
+  const auto comma = text.find(',');
+  if (comma == std::string::npos) {
+    const double a = parse_number("--alpha", text);
+    return {a, a};
+  }
+  return {parse_number("--alpha", text.substr(0, comma)), parse_number("--alpha", text.substr(comma + 1))};
+}
+
+void check_mesh_extension(const std::string& path) {
+  std::string ext = fs::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  if (ext != ".ply" && ext != ".obj" && ext != ".off" && ext != ".stl")
+    throw UsageError(fmt::format("--mesh '{}': unknown mesh format '{}' (use .ply or .obj)", path, ext));
+}
+
+double peak_rss_bytes() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return double(usage.ru_maxrss) * 1024.0;  // Linux: kilobytes
+}
+
+// ---- reports ------------------------------------------------------------------------------------------
+void print_stats(const microgeom::SurfaceStats& st, const microgeom::Heightfield& field) {
+  using microgeom::to_string;
+  fmt::print("surface: {} x {} vertices, tile {:.6g}, cell {:.6g}, {} triangles\n", field.resolution(),
+             field.resolution(), st.tile_size, st.cell_size, st.triangles);
+  fmt::print("NDF reference: {} with alpha = ({:.6g}, {:.6g}){}; fitted from median |slope|: ({:.6g}, {:.6g})\n",
+             to_string(st.reference), st.alpha_x, st.alpha_y, st.alpha_fitted ? " (fitted)" : "",
+             st.fitted_alpha_x, st.fitted_alpha_y);
+  fmt::print("\nslope-radius quantiles (normalised slopes |(sx/ax, sy/ay)|) against the reference:\n");
+  fmt::print("| {:>7} | {:>12} | {:>12} | {:>9} |\n", "q", "measured", "reference", "rel.err");
+  fmt::print("|{:-<9}|{:-<14}|{:-<14}|{:-<11}|\n", "", "", "", "");
+  for (const auto& q : st.quantiles)
+    fmt::print("| {:>7} | {:>12.6g} | {:>12.6g} | {:>+8.3f}% |{}\n", q.q, q.measured, q.expected, 100 * q.rel_error,
+               q.q > 0.999 + 1e-12 ? " (not checked)" : "");
+  fmt::print("\nradius bins ({} of equal reference probability), relative error in %:\n", st.radius_bins.size());
+  for (std::size_t b = 0; b < st.radius_bins.size(); ++b)
+    fmt::print("{:+6.2f}{}", 100 * st.radius_bins[b].rel_error, (b + 1) % 10 == 0 ? "\n" : " ");
+  fmt::print("(radius, angle) bins ({} rings x {} sectors), relative error in %:\n", microgeom::kRingBins,
+             microgeom::kAngleBins);
+  for (int b = 0; b < microgeom::kAngularBins; ++b)
+    fmt::print("{:+6.2f}{}", 100 * st.angular_bin_errors[b], (b + 1) % microgeom::kAngleBins == 0 ? "\n" : " ");
+  fmt::print("\n| NDF check                | max error | tolerance |\n|{:-<26}|{:-<11}|{:-<11}|\n", "", "", "");
+  fmt::print("| quantiles q<=0.999       | {:>8.3f}% | {:>8.3f}% |\n", 100 * st.max_quantile_error,
+             100 * st.tolerance.quantile);
+  fmt::print("| radius bins              | {:>8.3f}% | {:>8.3f}% |\n", 100 * st.max_radius_bin_error,
+             100 * st.tolerance.radius_bin);
+  fmt::print("| (radius, angle) bins     | {:>8.3f}% | {:>8.3f}% |\n", 100 * st.max_angular_bin_error,
+             100 * st.tolerance.angular_bin);
+  fmt::print("NDF verdict: {}\n", st.ndf_verdict);
+  fmt::print("\nslopes: mean ({:.3g}, {:.3g}); rms ({:.6g}, {:.6g}); normalised second moment per axis ({:.4g}, {:.4g})"
+             "; max normalised radius {:.6g}\n",
+             st.mean_slope_x, st.mean_slope_y, st.rms_slope_x, st.rms_slope_y, st.normalised_second_moment_x,
+             st.normalised_second_moment_y, st.max_normalised_radius);
+  fmt::print("heights: mean {:.4g}, sd {:.6g}, range [{:.6g}, {:.6g}] (= {:.4g} tiles), skewness {:.4g}, excess "
+             "kurtosis {:.4g}\n",
+             st.height_mean, st.height_sd, st.height_min, st.height_max, (st.height_max - st.height_min) / st.tile_size,
+             st.height_skewness, st.height_excess_kurtosis);
+  fmt::print("height-slope coupling: Spearman(height, slope radius) {:+.4f}; Spearman(|height - median|, slope "
+             "radius) {:+.4f}; mean height of the steepest 1% / 0.1% of facets: {:+.3f} / {:+.3f} sd\n",
+             st.spearman_height_slope, st.spearman_extremity_slope, st.steepest_1pct_height_z,
+             st.steepest_01pct_height_z);
+}
+
+nlohmann::json stats_json(const microgeom::SurfaceStats& st) {
+  nlohmann::json j;
+  j["triangles"] = st.triangles;
+  j["reference"] = std::string(microgeom::to_string(st.reference));
+  j["alpha"] = {st.alpha_x, st.alpha_y};
+  j["alpha_fitted"] = st.alpha_fitted;
+  j["fitted_alpha"] = {st.fitted_alpha_x, st.fitted_alpha_y};
+  for (const auto& q : st.quantiles)
+    j["quantiles"].push_back({{"q", q.q}, {"measured", q.measured}, {"expected", q.expected}, {"rel_error", q.rel_error}});
+  for (const auto& b : st.radius_bins)
+    j["radius_bins"].push_back({{"lo", b.lo},
+                                {"hi", std::isfinite(b.hi) ? nlohmann::json(b.hi) : nlohmann::json("inf")},
+                                {"expected_fraction", b.expected_fraction},
+                                {"measured_fraction", b.measured_fraction},
+                                {"rel_error", b.rel_error}});
+  j["angular_bins"] = {{"rings", microgeom::kRingBins},
+                       {"sectors", microgeom::kAngleBins},
+                       {"rel_errors", std::vector<double>(st.angular_bin_errors.begin(), st.angular_bin_errors.end())}};
+  j["max_quantile_error"] = st.max_quantile_error;
+  j["max_radius_bin_error"] = st.max_radius_bin_error;
+  j["max_angular_bin_error"] = st.max_angular_bin_error;
+  j["tolerance"] = {{"quantile", st.tolerance.quantile},
+                    {"radius_bin", st.tolerance.radius_bin},
+                    {"angular_bin", st.tolerance.angular_bin}};
+  j["ndf_within_tolerance"] = st.ndf_within_tolerance;
+  j["ndf_verdict"] = st.ndf_verdict;
+  j["slopes"] = {{"mean", {st.mean_slope_x, st.mean_slope_y}},
+                 {"rms", {st.rms_slope_x, st.rms_slope_y}},
+                 {"normalised_second_moment", {st.normalised_second_moment_x, st.normalised_second_moment_y}},
+                 {"max_normalised_radius", st.max_normalised_radius}};
+  j["heights"] = {{"mean", st.height_mean}, {"sd", st.height_sd},         {"min", st.height_min},
+                  {"max", st.height_max},   {"skewness", st.height_skewness}, {"excess_kurtosis", st.height_excess_kurtosis}};
+  j["tile_size"] = st.tile_size;
+  j["cell_size"] = st.cell_size;
+  j["coupling"] = {{"spearman_height_slope", st.spearman_height_slope},
+                   {"spearman_extremity_slope", st.spearman_extremity_slope},
+                   {"steepest_1pct_height_z", st.steepest_1pct_height_z},
+                   {"steepest_01pct_height_z", st.steepest_01pct_height_z}};
+  return j;
+}
+
+std::string assembly_help() {
+  std::string s;
+  for (const auto& a : microgeom::assembly_registry())
+    s += fmt::format("\n  {:<9} {} (NDF: {})", a.name, a.summary, microgeom::to_string(a.reference));
+  return s;
+}
+
+// ---- surface build ------------------------------------------------------------------------------------
+struct BuildOptions {
+  std::string assembly, alpha, out, mesh, normals, json;
+  int resolution = 0, mesh_crop = 0, iterations = 0;
+  std::uint64_t seed = 1;
+  double corr_cells = 0, tile_size = 1.0;
+  bool quiet = false;
+};
+
+int run_build(const BuildOptions& o) {
+  microgeom::AssemblyParams p;
+  p.assembly = o.assembly;
+  std::tie(p.alpha_x, p.alpha_y) = parse_alpha(o.alpha);
+  p.resolution = o.resolution;
+  p.seed = o.seed;
+  p.corr_cells = o.corr_cells;
+  p.tile_size = o.tile_size;
+  p.iterations = o.iterations;
+  try {
+    microgeom::validate(p);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
+  StagedOutputs::check_destination("--out", o.out);
+  if (!o.mesh.empty()) {
+    StagedOutputs::check_destination("--mesh", o.mesh);
+    check_mesh_extension(o.mesh);
+  }
+  if (o.mesh_crop < 0 || o.mesh_crop > o.resolution)
+    throw UsageError(fmt::format("--mesh-crop {} must be in [1, {}] (0 = whole tile)", o.mesh_crop, o.resolution));
+  if (!o.normals.empty()) StagedOutputs::check_destination("--normals", o.normals);
+  if (!o.json.empty()) StagedOutputs::check_destination("--json", o.json);
+
+  const microgeom::AssemblyInfo* info = microgeom::find_assembly(p.assembly);
+  const double l = p.corr_cells == 0 ? microgeom::default_corr_cells(p.resolution) : p.corr_cells;
+  if (p.resolution / l < 64 && !o.quiet)
+    fmt::print(stderr, "surface build: note: the tile is only {:.3g} correlation lengths wide (64-128 advised for "
+                       "masking statistics)\n", p.resolution / l);
+
+  const auto t0 = std::chrono::steady_clock::now();
+  microgeom::BuildReport report;
+  microgeom::Heightfield field;
+  {
+    microsim::ProgressBar bar(fmt::format("surface build {} {}^2", p.assembly, p.resolution), 1000, !o.quiet);
+    std::uint64_t shown = 0;
+    field = microgeom::build_assembly(p, &report, [&](std::string_view, double fraction) {
+      const auto target = std::uint64_t(std::clamp(fraction, 0.0, 1.0) * 1000);
+      if (target > shown) {
+        bar.add(target - shown);
+        shown = target;
+      }
+    });
+  }
+  const double build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+  microgeom::StatsOptions so;
+  so.reference = info->reference;
+  so.alpha_x = p.alpha_x;
+  so.alpha_y = p.alpha_y;
+  so.tolerance = microgeom::tolerance_for(info->reference, p.resolution, l);
+  const auto t1 = std::chrono::steady_clock::now();
+  const microgeom::SurfaceStats st = microgeom::measure_surface(field, so);
+  const double stats_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+
+  fmt::print("surface build: assembly {}, alpha ({:.6g}, {:.6g}), resolution {}, seed {}, correlation length {:.6g} "
+             "cells ({:.4g} per tile), {} slope-matching iterations\n",
+             p.assembly, p.alpha_x, p.alpha_y, p.resolution, p.seed, l, p.resolution / l, report.iterations);
+  for (const auto& note : report.notes) fmt::print("  {}\n", note);
+  if (!report.residuals.empty()) {
+    fmt::print("slope-matching residual per iteration:");
+    for (double r : report.residuals) fmt::print(" {:.2e}", r);
+    fmt::print("\n");
+  }
+  print_stats(st, field);
+  const double rss = peak_rss_bytes();
+  fmt::print("\nbuild {:.3f} s, statistics {:.3f} s, peak RSS {:.1f} MiB ({:.1f} bytes per texel)\n", build_seconds,
+             stats_seconds, rss / (1024.0 * 1024.0), rss / double(field.texel_count()));
+
+  if (!st.ndf_within_tolerance)
+    throw UsageError(fmt::format("the {} surface misses its {} NDF: {} (nothing written)", p.assembly,
+                                 microgeom::to_string(info->reference), st.ndf_verdict));
+
+  StagedOutputs outputs;
+  outputs.stage(o.out, [&](const fs::path& tmp) { microgeom::save_heightmap_exr(tmp, field); });
+  if (!o.normals.empty())
+    outputs.stage(o.normals, [&](const fs::path& tmp) { microgeom::save_normal_map_exr(tmp, field); });
+  if (!o.mesh.empty())
+    outputs.stage(o.mesh, [&](const fs::path& tmp) { microgeom::write_heightfield_mesh(tmp, field, o.mesh_crop); });
+  if (!o.json.empty()) {
+    nlohmann::json j;
+    j["command"] = "surface build";
+    j["assembly"] = p.assembly;
+    j["alpha"] = {p.alpha_x, p.alpha_y};
+    j["resolution"] = p.resolution;
+    j["seed"] = p.seed;
+    j["corr_cells"] = l;
+    j["tile_size"] = p.tile_size;
+    j["iterations"] = report.iterations;
+    j["residuals"] = report.residuals;
+    j["notes"] = report.notes;
+    j["build_seconds"] = build_seconds;
+    j["stats_seconds"] = stats_seconds;
+    j["peak_rss_bytes"] = rss;
+    j["stats"] = stats_json(st);
+    j["outputs"] = {{"heightmap", o.out}, {"normals", o.normals}, {"mesh", o.mesh}};
+    outputs.stage(o.json, [&](const fs::path& tmp) { write_json_file(tmp, j); });
+  }
+  outputs.commit();
+  if (!o.quiet) fmt::print(stderr, "surface build: wrote {}\n", o.out);
+  return microsim::app::kExitOk;
+}
+
+// ---- surface stats ------------------------------------------------------------------------------------
+struct StatsCliOptions {
+  std::string path, alpha, reference, json, mesh, normals;
+  double tile_size = 0, corr_cells = 0;
+  int mesh_crop = 0;
+  bool check = false;
+};
+
+std::optional<double> metadata_number(const microgeom::Heightfield& f, const std::string& key) {
+  auto it = f.metadata.find(key);
+  if (it == f.metadata.end()) return {};
+  try {
+    std::size_t used = 0;
+    const double v = std::stod(it->second, &used);
+    if (used == it->second.size() && std::isfinite(v)) return v;
+  } catch (const std::exception&) {
+  }
+  return {};
+}
+
+microgeom::Heightfield load_for_cli(const std::string& path, double tile_size_option) {
+  if (tile_size_option != 0 && !(tile_size_option > 0))
+    throw UsageError(fmt::format("--tile-size {} must be > 0", tile_size_option));
+  try {
+    return microgeom::load_heightmap_exr(path, tile_size_option > 0 ? std::optional<double>(tile_size_option)
+                                                                    : std::nullopt);
+  } catch (const std::exception& e) {
+    throw UsageError(e.what());
+  }
+}
+
+int run_stats(const StatsCliOptions& o) {
+  if (!o.json.empty()) StagedOutputs::check_destination("--json", o.json);
+  if (!o.mesh.empty()) {
+    StagedOutputs::check_destination("--mesh", o.mesh);
+    check_mesh_extension(o.mesh);
+  }
+  if (!o.normals.empty()) StagedOutputs::check_destination("--normals", o.normals);
+  const microgeom::Heightfield field = load_for_cli(o.path, o.tile_size);
+  if (o.mesh_crop < 0 || o.mesh_crop > field.resolution())
+    throw UsageError(fmt::format("--mesh-crop {} must be in [1, {}] (0 = whole tile)", o.mesh_crop, field.resolution()));
+
+  microgeom::StatsOptions so;
+  // Reference: option, else the file's, else GGX.
+  std::string ref = o.reference;
+  if (ref.empty()) {
+    auto it = field.metadata.find("reference_ndf");
+    ref = it != field.metadata.end() ? it->second : "ggx";
+  }
+  if (ref == "ggx") so.reference = microgeom::ReferenceNdf::ggx;
+  else if (ref == "beckmann") so.reference = microgeom::ReferenceNdf::beckmann;
+  else throw UsageError(fmt::format("--reference '{}' must be ggx or beckmann", ref));
+  // Alpha: option, else the file's, else fitted.
+  if (!o.alpha.empty()) {
+    const auto [ax, ay] = parse_alpha(o.alpha);
+    if (!(ax > 0 && ay > 0)) throw UsageError(fmt::format("--alpha '{}' must be > 0", o.alpha));
+    so.alpha_x = ax;
+    so.alpha_y = ay;
+  } else if (auto ax = metadata_number(field, "alpha_x"), ay = metadata_number(field, "alpha_y");
+             ax && ay && *ax > 0 && *ay > 0) {
+    so.alpha_x = *ax;
+    so.alpha_y = *ay;
+  }
+  // Tolerance: scaled by the correlation length (option, else the file's, else the fixed bounds).
+  double l = o.corr_cells;
+  if (l < 0) throw UsageError(fmt::format("--corr-cells {} must be > 0", l));
+  if (l == 0) l = metadata_number(field, "corr_cells").value_or(0.0);
+  so.tolerance = l > 0 ? microgeom::tolerance_for(so.reference, field.resolution(), l) : microgeom::NdfTolerance{};
+
+  const microgeom::SurfaceStats st = microgeom::measure_surface(field, so);
+  fmt::print("surface stats: {}", o.path);
+  if (auto it = field.metadata.find("assembly"); it != field.metadata.end()) fmt::print(" (assembly {})", it->second);
+  fmt::print("{}\n", l > 0 ? fmt::format(", tolerance for {:.4g} correlation lengths per tile", field.resolution() / l)
+                           : ", fixed tolerance (no correlation length known)");
+  print_stats(st, field);
+
+  StagedOutputs outputs;
+  if (!o.normals.empty())
+    outputs.stage(o.normals, [&](const fs::path& tmp) { microgeom::save_normal_map_exr(tmp, field); });
+  if (!o.mesh.empty())
+    outputs.stage(o.mesh, [&](const fs::path& tmp) { microgeom::write_heightfield_mesh(tmp, field, o.mesh_crop); });
+  if (!o.json.empty()) {
+    nlohmann::json j;
+    j["command"] = "surface stats";
+    j["path"] = o.path;
+    j["resolution"] = field.resolution();
+    j["metadata"] = field.metadata;
+    j["stats"] = stats_json(st);
+    outputs.stage(o.json, [&](const fs::path& tmp) { write_json_file(tmp, j); });
+  }
+  outputs.commit();
+  if (o.check && !st.ndf_within_tolerance) return microsim::app::kExitRejected;
+  return microsim::app::kExitOk;
+}
+
+// ---- surface import -----------------------------------------------------------------------------------
+struct ImportOptions {
+  std::string path, out;
+  double tile_size = 0;
+};
+
+int run_import(const ImportOptions& o) {
+  if (!(o.tile_size > 0)) throw UsageError(fmt::format("--tile-size {} must be > 0", o.tile_size));
+  StagedOutputs::check_destination("--out", o.out);
+  microgeom::Heightfield field = load_for_cli(o.path, o.tile_size);
+  field.metadata["assembly"] = "imported";
+  field.metadata["source"] = fs::absolute(o.path).string();
+  StagedOutputs outputs;
+  outputs.stage(o.out, [&](const fs::path& tmp) { microgeom::save_heightmap_exr(tmp, field); });
+  outputs.commit();
+  fmt::print("surface import: {} ({} x {}, tile size {:.6g}, heights [{:.6g}, {:.6g}]) -> {}\n", o.path,
+             field.resolution(), field.resolution(), field.tile_size(), field.min_height(), field.max_height(), o.out);
+  return microsim::app::kExitOk;
+}
+
+microsim::app::CommandRegistration reg{"surface", [](CLI::App& app) {
+  CLI::App* group = microsim::app::get_or_add_subcommand(
+      app, "surface", "Periodic heightfield microsurfaces: build an assembly, measure a heightmap, import one.");
+
+  // build
+  auto b = std::make_shared<BuildOptions>();
+  auto* build = group->add_subcommand(
+      "build",
+      "Build a periodic heightfield with a prescribed NDF, check its measured NDF against the analytic one "
+      "(an error if it misses the stated tolerance) and write it as an EXR heightmap.");
+  build->footer("Assemblies (all reproducible from --seed, isotropic or anisotropic):" + assembly_help() +
+                "\nAnisotropy stretches the spectra: the surface is the affine image of an isotropic one.");
+  build->add_option("--assembly", b->assembly, "assembly name (see above)")->required();
+  build->add_option("--alpha", b->alpha, "GGX/Beckmann roughness AX or AX,AY, each in [0.005, 2]")->required();
+  build->add_option("--res", b->resolution, "vertices per side N (a power of two, 16..16384)")->required();
+  build->add_option("--seed", b->seed, "random seed (default 1)");
+  build->add_option("--corr-cells", b->corr_cells,
+                    "correlation length l in cells, in [2, N/8] (default min(16, N/16)); the mixture's patches are 8 l");
+  build->add_option("--tile-size", b->tile_size, "physical side L of the tile (default 1)");
+  build->add_option("--iterations", b->iterations, "slope-matching iterations (default 8)");
+  build->add_option("--out", b->out, "heightmap EXR (channel 'height', attributes microsim.*)")->required();
+  build->add_option("--mesh", b->mesh, "also write the mesh (.ply or .obj) through OpenMesh");
+  build->add_option("--mesh-crop", b->mesh_crop, "write only the first C x C cells to --mesh (default: whole tile)");
+  build->add_option("--normals", b->normals, "also write the normal map EXR (R, G, B = unit cell normals)");
+  build->add_option("--json", b->json, "also write the build report and statistics as JSON");
+  build->add_flag("--quiet", b->quiet, "no progress on stderr");
+  microsim::app::on_selected(build, [b] { return run_build(*b); });
+
+  // stats
+  auto s = std::make_shared<StatsCliOptions>();
+  auto* stats = group->add_subcommand(
+      "stats",
+      "Measure a heightmap EXR (built or imported): its NDF against GGX or Beckmann (slope-radius quantiles, "
+      "equal-probability bins), slope and height statistics, and the height-slope correlation.");
+  stats->add_option("heightmap", s->path, "heightmap EXR")->required();
+  stats->add_option("--tile-size", s->tile_size, "physical tile size (required if the file has no microsim.tile_size)");
+  stats->add_option("--alpha", s->alpha, "normalising roughness AX[,AY] (default: the file's, else fitted)");
+  stats->add_option("--reference", s->reference, "ggx or beckmann (default: the file's, else ggx)");
+  stats->add_option("--corr-cells", s->corr_cells, "correlation length for the tolerance (default: the file's)");
+  stats->add_flag("--check", s->check, "exit 1 when the NDF misses the tolerance");
+  stats->add_option("--json", s->json, "also write the statistics as JSON");
+  stats->add_option("--mesh", s->mesh, "also write the mesh (.ply or .obj)");
+  stats->add_option("--mesh-crop", s->mesh_crop, "write only the first C x C cells to --mesh");
+  stats->add_option("--normals", s->normals, "also write the normal map EXR");
+  microsim::app::on_selected(stats, [s] { return run_stats(*s); });
+
+  // import
+  auto im = std::make_shared<ImportOptions>();
+  auto* import = group->add_subcommand(
+      "import",
+      "Import an external heightmap EXR (channel 'height' or 'Y' or a single channel; square; heights in the "
+      "unit of --tile-size) as a microsim heightmap, so a measured surface can be studied like a built one.");
+  import->add_option("heightmap", im->path, "external heightmap EXR")->required();
+  import->add_option("--tile-size", im->tile_size, "physical side of the tile, same unit as the heights")->required();
+  import->add_option("--out", im->out, "microsim heightmap EXR")->required();
+  microsim::app::on_selected(import, [im] { return run_import(*im); });
+}};
+
+}  // namespace

@@ -1,0 +1,514 @@
+#include "microgeom/assembly.h"
+
+#include "microsim/random.h"
+
+#include <fftw3.h>
+#include <fmt/core.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <complex>
+#include <cstring>
+#include <mutex>
+#include <numbers>
+#include <stdexcept>
+
+namespace microgeom {
+
+std::string_view to_string(ReferenceNdf r) { return r == ReferenceNdf::ggx ? "ggx" : "beckmann"; }
+
+const std::vector<AssemblyInfo>& assembly_registry() {
+  static const std::vector<AssemblyInfo> registry = {
+      {"smith",
+       "Smith-like random assembly: a Gaussian random field whose triangle slopes are rank-matched to the GGX "
+       "ellipsoid's slope law and re-integrated (iterated), so facet slopes are GGX and heights are as "
+       "little tied to facet normals as a stationary single-scale field allows.",
+       ReferenceNdf::ggx},
+      {"beckmann",
+       "Gaussian control surface: spectral synthesis with a Gaussian spectrum exp(-|k|^2 l^2/4), rescaled to "
+       "slope second moment alpha^2/2 per axis (Beckmann NDF), the case with published ray-traced results.",
+       ReferenceNdf::beckmann},
+      {"mixture",
+       "Gaussian scale mixture: Beckmann patches 8 correlation lengths wide, each with roughness "
+       "alpha/sqrt(E), E ~ Exp(1), then slope-matched to exact GGX: same NDF, but rough and smooth regions "
+       "are spatially separated so masking follows a blend of Beckmann-Smith laws.",
+       ReferenceNdf::ggx},
+      {"sorted",
+       "Facets sorted by height: a Gaussian field h0 mapped through a monotone G with slope factor "
+       "G'(h0) = 1/sqrt(E), E = -log(1 - Phi(h0/sd)) ~ Exp(1), so slopes are exactly GGX pointwise and the "
+       "steep facets sit low (in pits), then slope-matched.",
+       ReferenceNdf::ggx},
+      {"spikes",
+       "The sorted surface upside down (same seed, heights negated): the same NDF with the steep facets "
+       "sitting high, on spikes that mask their surroundings.",
+       ReferenceNdf::ggx},
+  };
+  return registry;
+}
+
+const AssemblyInfo* find_assembly(std::string_view name) {
+  for (const auto& a : assembly_registry())
+    if (a.name == name) return &a;
+  return nullptr;
+}
+
+double default_corr_cells(int resolution) { return std::max(2.0, std::min(16.0, resolution / 16.0)); }
+
+namespace {
+
+bool is_power_of_two(long n) { return n > 0 && (n & (n - 1)) == 0; }
+
+}  // namespace
+
+void validate(const AssemblyParams& p) {
+  using std::invalid_argument;
+  if (!find_assembly(p.assembly)) {
+    std::string names;
+    for (const auto& a : assembly_registry()) names += (names.empty() ? "" : ", ") + a.name;
+    throw invalid_argument(fmt::format("unknown assembly '{}' (known: {})", p.assembly, names));
+  }
+  for (double a : {p.alpha_x, p.alpha_y})
+    if (!(std::isfinite(a) && a >= kMinAssemblyAlpha && a <= kMaxAssemblyAlpha))
+      throw invalid_argument(
+          fmt::format("alpha {} is out of range [{}, {}]", a, kMinAssemblyAlpha, kMaxAssemblyAlpha));
+  if (!is_power_of_two(p.resolution) || p.resolution < kMinAssemblyResolution ||
+      p.resolution > kMaxAssemblyResolution)
+    throw invalid_argument(fmt::format("resolution {} must be a power of two in [{}, {}]", p.resolution,
+                                       kMinAssemblyResolution, kMaxAssemblyResolution));
+  const double l = p.corr_cells == 0 ? default_corr_cells(p.resolution) : p.corr_cells;
+  if (!(std::isfinite(l) && l >= 2 && l <= p.resolution / 8.0))
+    throw invalid_argument(fmt::format("correlation length {} cells must be in [2, N/8 = {}]", p.corr_cells,
+                                       p.resolution / 8.0));
+  if (!(std::isfinite(p.tile_size) && p.tile_size > 0))
+    throw invalid_argument(fmt::format("tile size {} must be a finite number > 0", p.tile_size));
+  if (p.iterations < 0 || p.iterations > 100)
+    throw invalid_argument(fmt::format("iterations {} must be in [0, 100]", p.iterations));
+}
+
+namespace {
+
+// ---- FFTW on an N x N periodic grid (double precision) ---------------------------------------------------
+// FFTW plan creation is not thread-safe: guarded by one mutex. FFTW_ESTIMATE does not touch the arrays and
+// picks the plan deterministically, so results do not depend on timing.
+std::mutex& fftw_planner_mutex() {
+  static std::mutex m;
+  return m;
+}
+
+class Spectral {
+public:
+  explicit Spectral(int n) : n_(n), nh_(n / 2 + 1) {
+    real_ = fftw_alloc_real(std::size_t(n) * n);
+    spec_ = fftw_alloc_complex(std::size_t(n) * nh_);
+    if (!real_ || !spec_) {
+      fftw_free(real_);
+      fftw_free(spec_);
+      throw std::bad_alloc();
+    }
+    std::lock_guard lock(fftw_planner_mutex());
+    forward_ = fftw_plan_dft_r2c_2d(n, n, real_, spec_, FFTW_ESTIMATE);
+    inverse_ = fftw_plan_dft_c2r_2d(n, n, spec_, real_, FFTW_ESTIMATE);
+  }
+  ~Spectral() {
+    std::lock_guard lock(fftw_planner_mutex());
+    fftw_destroy_plan(forward_);
+    fftw_destroy_plan(inverse_);
+    fftw_free(real_);
+    fftw_free(spec_);
+  }
+  Spectral(const Spectral&) = delete;
+  Spectral& operator=(const Spectral&) = delete;
+
+  int n() const { return n_; }
+  int nh() const { return nh_; }
+  double& real(int i, int j) { return real_[std::size_t(j) * n_ + i]; }
+  std::complex<double>* spectrum() { return reinterpret_cast<std::complex<double>*>(spec_); }
+  std::complex<double>& spec(int fx, int fy) { return spectrum()[std::size_t(fy) * nh_ + fx]; }
+  // Signed frequency of index f in [0, N): f or f - N.
+  int signed_frequency(int f) const { return f <= n_ / 2 ? f : f - n_; }
+
+  void forward() { fftw_execute(forward_); }
+  // Inverse transform, normalised (FFTW's c2r is unnormalised); destroys the spectrum.
+  void inverse() {
+    fftw_execute(inverse_);
+    const double s = 1.0 / (double(n_) * n_);
+    tbb::parallel_for(std::size_t(0), std::size_t(n_), [&](std::size_t j) {
+      double* row = real_ + j * n_;
+      for (int i = 0; i < n_; ++i) row[i] *= s;
+    });
+  }
+
+private:
+  int n_, nh_;
+  double* real_ = nullptr;
+  fftw_complex* spec_ = nullptr;
+  fftw_plan forward_ = nullptr, inverse_ = nullptr;
+};
+
+template <class F> void parallel_rows(int n, F&& f) {
+  tbb::parallel_for(tbb::blocked_range<int>(0, n), [&](const tbb::blocked_range<int>& r) {
+    for (int j = r.begin(); j != r.end(); ++j) f(j);
+  });
+}
+
+// Distinct CounterRng stream families (stream = family << 40 | index).
+constexpr std::uint64_t kStreamNoise = 1ull << 40;
+constexpr std::uint64_t kStreamPatches = 2ull << 40;
+
+// A periodic Gaussian random field on the N x N grid by spectral synthesis with random phases: Fourier
+// amplitudes sqrt(S(k)), S(k) = exp(-(kx^2 lx^2 + ky^2 ly^2)/4) (k in radians per cell; a Gaussian
+// autocorrelation exp(-x^2/lx^2 - y^2/ly^2)), and phases uniform in [0, 2 pi), Hermitian-symmetric so the
+// field is real; integer wavenumbers make it exactly periodic. Fixed amplitudes make the realised slope
+// second moments exactly those of the spectrum; the one-point law is Gaussian by the central limit
+// theorem (a sum of ~(N/l)^2 independent random-phase waves). The phases of row fy come from
+// CounterRng(seed, kStreamNoise | fy), one draw per fx. Unit-free amplitude: callers rescale or rank-match.
+std::vector<double> gaussian_field(Spectral& fft, std::uint64_t seed, double lx, double ly) {
+  const int n = fft.n(), nh = fft.nh();
+  const double w = 2.0 * std::numbers::pi / n;
+  auto amplitude = [&](int fx, int fy) {
+    const double kx = w * fft.signed_frequency(fx), ky = w * fft.signed_frequency(fy);
+    return std::exp(-(kx * kx * lx * lx + ky * ky * ly * ly) / 8.0);  // sqrt(S)
+  };
+  auto phase = [&](int fx, int fy) {
+    microsim::CounterRng rng(seed, kStreamNoise | std::uint64_t(fy));
+    rng.seek(std::uint64_t(fx));
+    return 2.0 * std::numbers::pi * rng.uniform();
+  };
+  parallel_rows(n, [&](int fy) {
+    for (int fx = 0; fx < nh; ++fx) {
+      // Columns fx = 0 and fx = N/2 hold both k and -k: pair (fx, fy) with (fx, N - fy).
+      const bool self_conjugate_column = fx == 0 || 2 * fx == n;
+      std::complex<double> c;
+      if (!self_conjugate_column || (fy > 0 && 2 * fy < n)) {
+        c = std::polar(amplitude(fx, fy), phase(fx, fy));
+      } else if (fy == 0 || 2 * fy == n) {
+        c = phase(fx, fy) < std::numbers::pi ? amplitude(fx, fy) : -amplitude(fx, fy);  // real: random sign
+      } else {
+        c = std::conj(std::polar(amplitude(fx, n - fy), phase(fx, n - fy)));
+      }
+      fft.spec(fx, fy) = c;
+    }
+  });
+  fft.spec(0, 0) = 0;  // mean 0
+  fft.inverse();
+  std::vector<double> h(std::size_t(n) * n);
+  parallel_rows(n, [&](int j) {
+    for (int i = 0; i < n; ++i) h[std::size_t(j) * n + i] = fft.real(i, j);
+  });
+  return h;
+}
+
+// Triangle slopes of a grid field (cell units), normalised by (ax, ay): see heightfield.h for the split.
+void triangle_slopes(const std::vector<double>& h, int n, double ax, double ay, std::vector<float>& ux,
+                     std::vector<float>& uy) {
+  parallel_rows(n, [&](int j) {
+    const int j1 = j + 1 == n ? 0 : j + 1;
+    for (int i = 0; i < n; ++i) {
+      const int i1 = i + 1 == n ? 0 : i + 1;
+      const double h00 = h[std::size_t(j) * n + i], h10 = h[std::size_t(j) * n + i1],
+                   h01 = h[std::size_t(j1) * n + i], h11 = h[std::size_t(j1) * n + i1];
+      const std::size_t t0 = 2 * (std::size_t(j) * n + i), t1 = t0 + 1;
+      ux[t0] = float((h10 - h00) / ax);
+      uy[t0] = float((h11 - h10) / ay);
+      ux[t1] = float((h11 - h01) / ax);
+      uy[t1] = float((h01 - h00) / ay);
+    }
+  });
+}
+
+// Periodic least-squares re-integration. Given per-triangle target slopes (normalised, tx/ty = target
+// slope / alpha), finds the grid heights h (cell units, mean 0) minimising
+//   sum over triangles ((sx - ax tx)/ax)^2 + ((sy - ay ty)/ay)^2.
+// Each horizontal edge difference Dx(i,j) enters two triangles (t0 of cell (i,j), t1 of cell (i,j-1)), so
+// the objective is 2 sum ((Dx - Gx)/ax)^2 + 2 sum ((Dy - Gy)/ay)^2 + const with Gx, Gy the averages of
+// the two targets; with forward differences Dx <-> (e^{2 pi i fx/N} - 1) H in Fourier space the normal
+// equations decouple per frequency:
+//   H = (conj(dx) Gx / ax^2 + conj(dy) Gy / ay^2) / (|dx|^2 / ax^2 + |dy|^2 / ay^2),  H(0) = 0.
+std::vector<double> reintegrate(Spectral& fft, const std::vector<float>& tx, const std::vector<float>& ty,
+                                double ax, double ay, std::vector<std::complex<double>>& gx_spec) {
+  const int n = fft.n(), nh = fft.nh();
+  // Gx (physical slope, cell units) -> spectrum, saved in gx_spec.
+  parallel_rows(n, [&](int j) {
+    const int jm = j == 0 ? n - 1 : j - 1;
+    for (int i = 0; i < n; ++i)
+      fft.real(i, j) = 0.5 * ax * (double(tx[2 * (std::size_t(j) * n + i)]) +
+                                   double(tx[2 * (std::size_t(jm) * n + i) + 1]));
+  });
+  fft.forward();
+  gx_spec.resize(std::size_t(n) * nh);
+  std::memcpy(static_cast<void*>(gx_spec.data()), fft.spectrum(), gx_spec.size() * sizeof(gx_spec[0]));
+  parallel_rows(n, [&](int j) {
+    for (int i = 0; i < n; ++i) {
+      const int im = i == 0 ? n - 1 : i - 1;
+      fft.real(i, j) = 0.5 * ay * (double(ty[2 * (std::size_t(j) * n + i) + 1]) +
+                                   double(ty[2 * (std::size_t(j) * n + im)]));
+    }
+  });
+  fft.forward();
+  const double w = 2.0 * std::numbers::pi / n, wx = 1.0 / (ax * ax), wy = 1.0 / (ay * ay);
+  parallel_rows(n, [&](int fy) {
+    const std::complex<double> dy = std::polar(1.0, w * fy) - 1.0;
+    for (int fx = 0; fx < nh; ++fx) {
+      const std::complex<double> dx = std::polar(1.0, w * fx) - 1.0;
+      const double denom = std::norm(dx) * wx + std::norm(dy) * wy;
+      std::complex<double>& out = fft.spec(fx, fy);
+      if (denom <= 0) {  // only the mean (fx = fy = 0): heights are defined up to a constant
+        out = 0;
+        continue;
+      }
+      out = (std::conj(dx) * gx_spec[std::size_t(fy) * nh + fx] * wx + std::conj(dy) * out * wy) / denom;
+    }
+  });
+  fft.inverse();
+  std::vector<double> h(std::size_t(n) * n);
+  parallel_rows(n, [&](int j) {
+    for (int i = 0; i < n; ++i) h[std::size_t(j) * n + i] = fft.real(i, j);
+  });
+  return h;
+}
+
+// Sort keys: a non-negative float's bit pattern orders like the float; the low 32 bits (the index)
+// break ties deterministically.
+std::uint64_t sort_key(float nonneg_value, std::uint32_t index) {
+  return (std::uint64_t(std::bit_cast<std::uint32_t>(nonneg_value)) << 32) | index;
+}
+
+// One marginal-matching step: (mx, my) = the normalised slopes (ux, uy) with each radius replaced by the
+// GGX (alpha = 1) quantile of its rank, P(r < R) = R^2 / (1 + R^2) => R = sqrt(q / (1 - q)),
+// q = rank / (n + 1) (ranks from 1), keeping the angle. Zero slopes keep angle 0 (atan2(0, 0) = 0).
+void match_ggx_marginal(const std::vector<float>& ux, const std::vector<float>& uy, std::vector<float>& mx,
+                        std::vector<float>& my, std::vector<std::uint64_t>& keys) {
+  const std::size_t n = ux.size();
+  keys.resize(n);
+  tbb::parallel_for(std::size_t(0), n, [&](std::size_t k) {
+    const float r = std::sqrt(ux[k] * ux[k] + uy[k] * uy[k]);  // >= +0
+    keys[k] = sort_key(r, std::uint32_t(k));
+  });
+  tbb::parallel_sort(keys.begin(), keys.end());
+  tbb::parallel_for(std::size_t(0), n, [&](std::size_t rank) {
+    const std::uint32_t k = std::uint32_t(keys[rank]);
+    const double q = double(rank + 1) / double(n + 1);
+    const double radius = std::sqrt(q / (1.0 - q));
+    const double r = std::hypot(double(ux[k]), double(uy[k]));
+    if (r > 0) {
+      mx[k] = float(radius * ux[k] / r);
+      my[k] = float(radius * uy[k] / r);
+    } else {
+      mx[k] = float(radius);
+      my[k] = 0.0f;
+    }
+  });
+}
+
+// mean |u - t| / mean |t| over triangles (deterministic: per-row partial sums added in order).
+double slope_residual(const std::vector<float>& ux, const std::vector<float>& uy, const std::vector<float>& tx,
+                      const std::vector<float>& ty, int n) {
+  std::vector<double> diff(n), norm(n);
+  parallel_rows(n, [&](int j) {
+    double d = 0, s = 0;
+    for (std::size_t k = 2 * std::size_t(j) * n; k < 2 * (std::size_t(j) + 1) * n; ++k) {
+      d += std::hypot(double(ux[k]) - tx[k], double(uy[k]) - ty[k]);
+      s += std::hypot(double(tx[k]), double(ty[k]));
+    }
+    diff[j] = d;
+    norm[j] = s;
+  });
+  double d = 0, s = 0;
+  for (int j = 0; j < n; ++j) {
+    d += diff[j];
+    s += norm[j];
+  }
+  return s > 0 ? d / s : 0.0;
+}
+
+// Iterated slope-marginal matching starting from h (cell units); returns the final re-integrated field.
+// Alternating projections onto the GGX radius marginal (non-linear) and onto gradient fields (linear,
+// least squares); the residual typically falls below 1e-3 within 8 iterations (BuildReport::residuals).
+// Only the radius is matched: matching the angle as well was measured to stall the iteration at a ~5%
+// residual, and the angular law of the re-integrated field relaxes back to that of the start field anyway.
+std::vector<double> match_ggx(Spectral& fft, std::vector<double> h, double ax, double ay, int iterations,
+                              BuildReport& report, const BuildProgress& progress, double progress_from,
+                              double progress_to) {
+  const int n = fft.n();
+  const std::size_t tris = 2 * std::size_t(n) * n;
+  std::vector<float> ux(tris), uy(tris), mx(tris), my(tris);
+  std::vector<std::uint64_t> keys;
+  std::vector<std::complex<double>> gx_spec;
+  for (int it = 0; it < iterations; ++it) {
+    if (progress)
+      progress(fmt::format("slope matching {}/{}", it + 1, iterations),
+               progress_from + (progress_to - progress_from) * it / iterations);
+    triangle_slopes(h, n, ax, ay, ux, uy);
+    match_ggx_marginal(ux, uy, mx, my, keys);
+    if (it > 0) report.residuals.push_back(slope_residual(ux, uy, mx, my, n));
+    h = reintegrate(fft, mx, my, ax, ay, gx_spec);
+  }
+  if (iterations > 0) {  // the residual of the final field
+    triangle_slopes(h, n, ax, ay, ux, uy);
+    match_ggx_marginal(ux, uy, mx, my, keys);
+    report.residuals.push_back(slope_residual(ux, uy, mx, my, n));
+  }
+  return h;
+}
+
+// Mean over triangles of (sx/ax)^2 + (sy/ay)^2 (deterministic order).
+double normalised_second_moment(const std::vector<double>& h, int n, double ax, double ay) {
+  std::vector<double> rows(n);
+  parallel_rows(n, [&](int j) {
+    const int j1 = j + 1 == n ? 0 : j + 1;
+    double s = 0;
+    for (int i = 0; i < n; ++i) {
+      const int i1 = i + 1 == n ? 0 : i + 1;
+      // Each edge difference is shared by two triangles: the triangle mean equals the edge mean.
+      const double dx = h[std::size_t(j) * n + i1] - h[std::size_t(j) * n + i];
+      const double dy = h[std::size_t(j1) * n + i] - h[std::size_t(j) * n + i];
+      s += dx * dx / (ax * ax) + dy * dy / (ay * ay);
+    }
+    rows[j] = s;
+  });
+  double s = 0;
+  for (double r : rows) s += r;
+  return s / (double(n) * n);
+}
+
+// E(t) = -log(1 - Phi(t)) for the standard normal CDF Phi, accurate in both tails: an Exp(1) variable
+// when t is standard normal.
+double exp_quantile_of_normal(double t) {
+  if (t < 0) return -std::log1p(-0.5 * std::erfc(-t / std::numbers::sqrt2));  // 1 - Phi(t) near 1
+  return -std::log(0.5 * std::erfc(t / std::numbers::sqrt2));                 // 1 - Phi(t) small
+}
+
+// The "sorted" map: h0 (a Gaussian field, rescaled so its normalised slopes have second moment 1, i.e.
+// N(0, 1/2) per axis, and with height sd sigma) becomes h = sigma G(h0 / sigma), G' = 1 / sqrt(E(t)). Then
+// grad h = G'(xi) grad h0 with xi = h0 / sigma standard normal and, for a stationary Gaussian field,
+// independent of grad h0 at the same point: grad h = (N(0, 1/2) per axis) / sqrt(Exp(1)), the Gaussian
+// scale mixture that is exactly the GGX (alpha = 1) slope law (Student-t, nu = 2). G' is large where
+// E is small, i.e. for low h0: the steepest facets sit lowest. G is tabulated (trapezoid rule, step
+// 1/1024 on [-9, 9], linear interpolation); the grid's secant slopes differ slightly from G' grad h0,
+// which the slope matching that follows absorbs.
+void sort_slopes_by_height(std::vector<double>& h, int n, double ax, double ay) {
+  const double m2 = normalised_second_moment(h, n, ax, ay);
+  if (!(m2 > 0)) return;
+  const double scale = 1.0 / std::sqrt(m2);
+  double sum2 = 0;
+  for (double& z : h) {
+    z *= scale;
+    sum2 += z * z;
+  }
+  const double sigma = std::sqrt(sum2 / double(h.size()));
+  if (!(sigma > 0)) return;
+  constexpr double lo = -9.0, hi = 9.0, step = 1.0 / 1024;
+  const int count = int((hi - lo) / step) + 1;
+  std::vector<double> g(count);
+  const int zero = int(-lo / step);  // G(0) = 0
+  auto slope_factor = [](double t) { return 1.0 / std::sqrt(exp_quantile_of_normal(t)); };
+  g[zero] = 0;
+  for (int k = zero + 1; k < count; ++k)
+    g[k] = g[k - 1] + 0.5 * step * (slope_factor(lo + (k - 1) * step) + slope_factor(lo + k * step));
+  for (int k = zero - 1; k >= 0; --k)
+    g[k] = g[k + 1] - 0.5 * step * (slope_factor(lo + (k + 1) * step) + slope_factor(lo + k * step));
+  tbb::parallel_for(std::size_t(0), h.size(), [&](std::size_t k) {
+    const double pos = std::clamp((h[k] / sigma - lo) / step, 0.0, double(count - 1) - 1e-9);
+    const int i = int(pos);
+    const double f = pos - i;
+    h[k] = sigma * (g[i] + f * (g[i + 1] - g[i]));
+  });
+}
+
+}  // namespace
+
+Heightfield build_assembly(const AssemblyParams& p, BuildReport* report_out, const BuildProgress& progress) {
+  validate(p);
+  BuildReport report;
+  const int n = p.resolution;
+  const double ax = p.alpha_x, ay = p.alpha_y;
+  const double l = p.corr_cells == 0 ? default_corr_cells(n) : p.corr_cells;
+  const int iterations = p.iterations == 0 ? kDefaultIterations : p.iterations;
+  report.corr_cells = l;
+  // Stretched spectra: correlation length l lambda / a per axis (the shorter one is l).
+  const double lambda = std::max(ax, ay), lx = l * lambda / ax, ly = l * lambda / ay;
+  if (progress) progress("noise", 0.0);
+
+  std::vector<double> h;  // cell units: slopes are height differences between neighbouring vertices
+  if (p.assembly == "beckmann") {
+    Spectral fft(n);
+    h = gaussian_field(fft, p.seed, lx, ly);
+    // Slopes of a Gaussian field are Gaussian; one scale factor sets E[(sx/ax)^2 + (sy/ay)^2] = 1, i.e.
+    // alpha^2/2 per axis for the isotropic-equivalent field.
+    const double m2 = normalised_second_moment(h, n, ax, ay);
+    const double scale = m2 > 0 ? 1.0 / std::sqrt(m2) : 0.0;
+    for (double& z : h) z *= scale;
+    report.iterations = 0;
+  } else if (p.assembly == "smith" || p.assembly == "mixture") {
+    Spectral fft(n);
+    h = gaussian_field(fft, p.seed, lx, ly);
+    if (p.assembly == "mixture") {
+      // Patches of 8 l cells (K x K patches of equal size); patch p scales the field's slopes by
+      // 1/sqrt(E_p), E_p ~ Exp(1) from CounterRng(seed, kStreamPatches | p); then re-integrate.
+      const int patches = std::max(1, int(std::lround(n / (8.0 * l))));
+      report.notes.push_back(fmt::format("{} x {} patches of {:.4g} cells", patches, patches, double(n) / patches));
+      std::vector<double> scale(std::size_t(patches) * patches);
+      for (std::size_t q = 0; q < scale.size(); ++q) {
+        microsim::CounterRng rng(p.seed, kStreamPatches | q);
+        // E = -log(1 - U); clamped at 1e-6 (scale <= 1000) to keep the first re-integration well scaled:
+        // only the ranks of the slopes matter after matching, and clamping preserves them up to ties.
+        const double e = std::max(1e-6, -std::log1p(-rng.uniform()));
+        scale[q] = 1.0 / std::sqrt(e);
+      }
+      const std::size_t tris = 2 * std::size_t(n) * n;
+      std::vector<float> ux(tris), uy(tris);
+      triangle_slopes(h, n, 1.0, 1.0, ux, uy);
+      parallel_rows(n, [&](int j) {
+        for (int i = 0; i < n; ++i) {
+          const double s = scale[std::size_t(j * patches / n) * patches + std::size_t(i * patches / n)];
+          for (int t = 0; t < 2; ++t) {
+            const std::size_t k = 2 * (std::size_t(j) * n + i) + t;
+            ux[k] = float(ux[k] * s / ax);
+            uy[k] = float(uy[k] * s / ay);
+          }
+        }
+      });
+      std::vector<std::complex<double>> gx_spec;
+      h = reintegrate(fft, ux, uy, ax, ay, gx_spec);
+    }
+    h = match_ggx(fft, std::move(h), ax, ay, iterations, report, progress, 0.05, 1.0);
+    report.iterations = iterations;
+  } else if (p.assembly == "sorted" || p.assembly == "spikes") {
+    Spectral fft(n);
+    h = gaussian_field(fft, p.seed, lx, ly);
+    sort_slopes_by_height(h, n, ax, ay);
+    h = match_ggx(fft, std::move(h), ax, ay, iterations, report, progress, 0.05, 1.0);
+    if (p.assembly == "spikes")
+      for (double& z : h) z = -z;
+    report.iterations = iterations;
+  }
+
+  // Physical units: slopes are dimensionless, so heights scale with the cell size. Mean 0.
+  const double cell = p.tile_size / n;
+  double mean = 0;
+  for (double z : h) mean += z;
+  mean /= double(h.size());
+  std::vector<float> heights(h.size());
+  for (std::size_t k = 0; k < h.size(); ++k) heights[k] = float((h[k] - mean) * cell);
+  h.clear();
+  h.shrink_to_fit();
+
+  Heightfield field(n, p.tile_size, std::move(heights));
+  const AssemblyInfo* info = find_assembly(p.assembly);
+  field.metadata["assembly"] = p.assembly;
+  field.metadata["alpha_x"] = fmt::format("{:.17g}", ax);
+  field.metadata["alpha_y"] = fmt::format("{:.17g}", ay);
+  field.metadata["seed"] = std::to_string(p.seed);
+  field.metadata["corr_cells"] = fmt::format("{:.17g}", l);
+  field.metadata["iterations"] = std::to_string(report.iterations);
+  field.metadata["reference_ndf"] = std::string(to_string(info->reference));
+  if (progress) progress("done", 1.0);
+  if (report_out) *report_out = std::move(report);
+  return field;
+}
+
+}  // namespace microgeom

@@ -1,0 +1,87 @@
+// microgeom: assemblies of periodic heightfields with a prescribed NDF (see ../shared/design/oracle.md
+// sections 3-5). Each assembly is selected by name and is a pure function of its parameters and seed
+// (CounterRng streams; FFTW plans with FFTW_ESTIMATE; sorting with index tie-breaks): the same parameters
+// give the same heights whatever the thread count.
+//
+// Common construction (all grids are exactly periodic: integer wavenumbers on the N x N tile):
+// - Work in "normalised slope space": the triangle slopes (sx/ax, sy/ay) of the target surface follow the
+//   isotropic alpha = 1 law (GGX: P22 with density 1/(pi (1 + r^2)^2); Beckmann: N(0, 1/2) per axis).
+//   Anisotropy is obtained by stretching spectra: the starting Gaussian field has correlation lengths
+//   (l lambda/ax, l lambda/ay) with lambda = max(ax, ay), i.e. it is the affine image of an isotropic field
+//   (the shorter correlation length is l cells); slope targets are scaled back by (ax, ay) and the
+//   re-integration weighs x and y residuals by 1/ax^2 and 1/ay^2.
+// - Slope-marginal matching (IAAFT-like; design note sec. 4): take the triangle slopes of the current
+//   field, replace each normalised slope radius by the GGX quantile of its rank, sqrt(q/(1-q)) with
+//   q = rank/(n+1) (ranks from 1), keeping its angle; then re-integrate: the heights minimising the sum over triangles of the squared (weighted) slope residuals,
+//   solved exactly in Fourier space (periodic least squares, mean height 0). Iterate.
+//
+// References: Heitz 2018 JCGT 7(4) (ellipsoid facets, GGX slopes = P22); Heitz 2014 JCGT 3(2) eq. 39
+// (P22); Schreiber & Schmitz 1996, Phys. Rev. Lett. 77, "Improved surrogate data for nonlinearity tests"
+// (IAAFT: alternate projections onto a marginal and a linear constraint); the Gaussian-scale-mixture form
+// of the Student-t (P22 with nu = 2 is N(0, 1/2)/sqrt(E), E ~ Exp(1)).
+#pragma once
+
+#include "microgeom/heightfield.h"
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace microgeom {
+
+enum class ReferenceNdf { ggx, beckmann };
+std::string_view to_string(ReferenceNdf r);
+
+struct AssemblyInfo {
+  std::string name;
+  std::string summary;    // one sentence, for --help and the docs
+  ReferenceNdf reference;  // the NDF the surface is built to have (and is checked against)
+};
+const std::vector<AssemblyInfo>& assembly_registry();
+const AssemblyInfo* find_assembly(std::string_view name);
+
+inline constexpr double kMinAssemblyAlpha = 0.005;
+inline constexpr double kMaxAssemblyAlpha = 2.0;
+inline constexpr int kMinAssemblyResolution = 16;
+inline constexpr int kMaxAssemblyResolution = 16384;
+
+struct AssemblyParams {
+  std::string assembly = "smith";
+  double alpha_x = 0.5, alpha_y = 0.5;
+  int resolution = 1024;       // N, a power of two in [16, 16384]
+  std::uint64_t seed = 1;
+  double corr_cells = 0;       // feature size l in cells; 0 -> default_corr_cells(N)
+  double tile_size = 1.0;      // L, physical units
+  int iterations = 0;          // marginal-matching iterations; 0 -> kDefaultIterations
+};
+
+inline constexpr int kDefaultIterations = 8;
+// min(16, N/16): l >= 16 keeps the finite-difference slope bias near 0.1% (design note sec. 4) while the
+// tile stays >= 16 correlation lengths.
+double default_corr_cells(int resolution);
+
+// Throws std::invalid_argument naming the bad value: unknown assembly, alpha outside
+// [kMinAssemblyAlpha, kMaxAssemblyAlpha] or not finite, resolution not a power of two or out of range,
+// corr_cells < 2 or > N/8, tile size <= 0, iterations < 0 or > 100.
+void validate(const AssemblyParams& params);
+
+struct BuildReport {
+  double corr_cells = 0;
+  int iterations = 0;
+  // Per marginal-matching iteration: mean |normalised slope of the re-integrated surface - target| over
+  // triangles, divided by the mean |target| (0 = the matched slopes were exactly integrable).
+  std::vector<double> residuals;
+  std::vector<std::string> notes;  // construction details (e.g. the mixture's patch size)
+};
+
+// (stage, fraction of the whole build done in [0, 1]); called from the building thread.
+using BuildProgress = std::function<void(std::string_view stage, double fraction)>;
+
+// Builds the surface (heights in the unit of tile_size, mean 0). Metadata: assembly, alpha, seed,
+// corr_cells, iterations, reference. Validates first. Memory: about 80 bytes per texel at the peak.
+Heightfield build_assembly(const AssemblyParams& params, BuildReport* report = nullptr,
+                           const BuildProgress& progress = {});
+
+}  // namespace microgeom

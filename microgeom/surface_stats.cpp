@@ -1,0 +1,296 @@
+#include "microgeom/surface_stats.h"
+
+#include <fmt/core.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
+
+#include <algorithm>
+#include <array>
+#include <limits>
+#include <bit>
+#include <cmath>
+#include <numbers>
+
+namespace microgeom {
+
+double reference_radius_cdf(ReferenceNdf ref, double r) {
+  if (!(r > 0)) return 0.0;
+  if (ref == ReferenceNdf::ggx) return std::isinf(r) ? 1.0 : r * r / (1.0 + r * r);
+  return -std::expm1(-r * r);
+}
+
+double reference_radius_quantile(ReferenceNdf ref, double q) {
+  if (!(q > 0)) return 0.0;
+  if (q >= 1) return std::numeric_limits<double>::infinity();
+  if (ref == ReferenceNdf::ggx) return std::sqrt(q / (1.0 - q));
+  return std::sqrt(-std::log1p(-q));
+}
+
+double effective_patches(int resolution, double corr_cells) {
+  const double cells = std::max(corr_cells, 1.0);
+  return std::pow(resolution / cells, 2.0);
+}
+
+NdfTolerance tolerance_for(ReferenceNdf ref, int resolution, double corr_cells) {
+  // A single tile of a random field is a sample of about n_eff = (N/l)^2 independent patches: a histogram
+  // fraction p fluctuates with relative sd ~ sqrt((1 - p) / (p n_eff)) even when the ensemble law is exact.
+  // The GGX assemblies force the radius law on every tile (slope matching), so only the angular bins carry
+  // this noise; the Beckmann control forces nothing but the second moment, so all its bounds carry it.
+  // The constants are calibrated over seeds and resolutions (docs/surfaces.md): about 1.5 x the largest
+  // ratio error / sqrt(1/(p n_eff)) observed.
+  NdfTolerance t;
+  const double n_eff = effective_patches(resolution, corr_cells);
+  t.angular_bin = std::max(t.angular_bin, kAngularNoiseFactor * std::sqrt(kAngularBins / n_eff));
+  if (ref == ReferenceNdf::beckmann) {
+    t.quantile = std::max(t.quantile, kBeckmannQuantileNoiseFactor / std::sqrt(n_eff));
+    t.radius_bin = std::max(t.radius_bin, kBeckmannRadiusNoiseFactor * std::sqrt(kRadiusBins / n_eff));
+  }
+  return t;
+}
+
+namespace {
+
+template <class F> void parallel_chunks(std::size_t n, F&& f) {
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1 << 14),
+                    [&](const tbb::blocked_range<std::size_t>& r) { f(r.begin(), r.end()); });
+}
+
+// Orders like the float for all finite values (negative floats: flip all bits; others: flip the sign).
+std::uint32_t ordered_bits(float v) {
+  const std::uint32_t b = std::bit_cast<std::uint32_t>(v);
+  return (b & 0x80000000u) ? ~b : (b | 0x80000000u);
+}
+
+// Ranks 0..n-1 of the values (ties broken by index).
+std::vector<std::uint32_t> ranks_of(const std::vector<float>& v) {
+  std::vector<std::uint64_t> keys(v.size());
+  parallel_chunks(v.size(), [&](std::size_t b, std::size_t e) {
+    for (std::size_t k = b; k < e; ++k) keys[k] = (std::uint64_t(ordered_bits(v[k])) << 32) | std::uint32_t(k);
+  });
+  tbb::parallel_sort(keys.begin(), keys.end());
+  std::vector<std::uint32_t> rank(v.size());
+  parallel_chunks(v.size(), [&](std::size_t b, std::size_t e) {
+    for (std::size_t r = b; r < e; ++r) rank[std::uint32_t(keys[r])] = std::uint32_t(r);
+  });
+  return rank;
+}
+
+// Spearman correlation of two arrays (Pearson correlation of ranks; ties broken by index).
+double spearman(const std::vector<float>& a, const std::vector<float>& b) {
+  const std::size_t n = a.size();
+  if (n < 2) return 0.0;
+  const auto ra = ranks_of(a);
+  const auto rb = ranks_of(b);
+  const double mean = (double(n) - 1.0) / 2.0;
+  const std::size_t chunk = 1 << 16, chunks = (n + chunk - 1) / chunk;
+  std::vector<double> partial(chunks);
+  tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
+    double s = 0;
+    for (std::size_t k = c * chunk; k < std::min(n, (c + 1) * chunk); ++k) s += (ra[k] - mean) * (rb[k] - mean);
+    partial[c] = s;
+  });
+  double cov = 0;
+  for (double s : partial) cov += s;
+  const double var = (double(n) * n - 1.0) / 12.0 * double(n);  // sum of (rank - mean)^2 over a permutation
+  return var > 0 ? cov / var : 0.0;
+}
+
+// Deterministic parallel sum of f(k) over k in [0, n).
+template <class F> double parallel_sum(std::size_t n, F&& f) {
+  const std::size_t chunk = 1 << 16, chunks = (n + chunk - 1) / chunk;
+  std::vector<double> partial(chunks);
+  tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
+    double s = 0;
+    for (std::size_t k = c * chunk; k < std::min(n, (c + 1) * chunk); ++k) s += f(k);
+    partial[c] = s;
+  });
+  double s = 0;
+  for (double p : partial) s += p;
+  return s;
+}
+
+double median_abs(std::vector<float> v) {
+  if (v.empty()) return 0.0;
+  for (float& x : v) x = std::fabs(x);
+  const std::size_t mid = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(mid), v.end());
+  double m = v[mid];
+  if (v.size() % 2 == 0) m = 0.5 * (m + *std::max_element(v.begin(), v.begin() + std::ptrdiff_t(mid)));
+  return m;
+}
+
+}  // namespace
+
+SurfaceStats measure_surface(const Heightfield& field, const StatsOptions& opt) {
+  SurfaceStats st;
+  const int n = field.resolution();
+  const std::size_t tris = field.triangle_count();
+  st.triangles = tris;
+  st.reference = opt.reference;
+  st.tolerance = opt.tolerance;
+  st.tile_size = field.tile_size();
+  st.cell_size = field.cell_size();
+
+  // Per-triangle physical slopes and centroid heights.
+  std::vector<float> sx(tris), sy(tris), hc(tris);
+  tbb::parallel_for(0, n, [&](int j) {
+    for (int i = 0; i < n; ++i)
+      for (int t = 0; t < 2; ++t) {
+        const std::size_t k = field.triangle_id(i, j, t);
+        const Eigen::Vector2d s = field.triangle_slope(i, j, t);
+        sx[k] = float(s.x());
+        sy[k] = float(s.y());
+        hc[k] = float(field.triangle_centroid_height(i, j, t));
+      }
+  });
+
+  // Roughness: given, or fitted from the median |slope| per axis. GGX: the x-slope marginal is a Student-t
+  // with nu = 2 and scale ax/sqrt(2), whose |.| has median ax/sqrt(3). Beckmann: N(0, ax^2/2), median of
+  // |.| = 0.67449 ax / sqrt(2).
+  const double med_x = median_abs(sx), med_y = median_abs(sy);
+  const double fit = opt.reference == ReferenceNdf::ggx ? std::sqrt(3.0) : std::sqrt(2.0) / 0.6744897501960817;
+  st.fitted_alpha_x = fit * med_x;
+  st.fitted_alpha_y = fit * med_y;
+  st.alpha_fitted = !(opt.alpha_x && opt.alpha_y);
+  st.alpha_x = opt.alpha_x ? *opt.alpha_x : st.fitted_alpha_x;
+  st.alpha_y = opt.alpha_y ? *opt.alpha_y : st.fitted_alpha_y;
+  const double ax = st.alpha_x > 0 ? st.alpha_x : 1.0, ay = st.alpha_y > 0 ? st.alpha_y : 1.0;  // flat: avoid 0/0
+
+  // Slope moments.
+  const double dn = double(tris);
+  st.mean_slope_x = parallel_sum(tris, [&](std::size_t k) { return double(sx[k]); }) / dn;
+  st.mean_slope_y = parallel_sum(tris, [&](std::size_t k) { return double(sy[k]); }) / dn;
+  const double m2x = parallel_sum(tris, [&](std::size_t k) { return double(sx[k]) * sx[k]; }) / dn;
+  const double m2y = parallel_sum(tris, [&](std::size_t k) { return double(sy[k]) * sy[k]; }) / dn;
+  st.rms_slope_x = std::sqrt(m2x);
+  st.rms_slope_y = std::sqrt(m2y);
+  st.normalised_second_moment_x = m2x / (ax * ax);
+  st.normalised_second_moment_y = m2y / (ay * ay);
+
+  // Normalised radius and angle; histograms in bins of equal reference probability.
+  std::vector<float> radius(tris);
+  const std::size_t chunk = 1 << 16, chunks = (tris + chunk - 1) / chunk;
+  std::vector<std::array<std::uint64_t, kRadiusBins>> rb(chunks);
+  std::vector<std::array<std::uint64_t, kAngularBins>> ab(chunks);
+  tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
+    rb[c].fill(0);
+    ab[c].fill(0);
+    for (std::size_t k = c * chunk; k < std::min(tris, (c + 1) * chunk); ++k) {
+      const double u = sx[k] / ax, v = sy[k] / ay;
+      const double r = std::hypot(u, v);
+      radius[k] = float(r);
+      const double F = reference_radius_cdf(opt.reference, r);
+      const int bin = std::min(kRadiusBins - 1, int(F * kRadiusBins));
+      ++rb[c][bin];
+      const int ring = std::min(kRingBins - 1, int(F * kRingBins));
+      const double phi = std::atan2(v, u);  // (-pi, pi]
+      const int sector = std::clamp(int((phi + std::numbers::pi) / (2 * std::numbers::pi) * kAngleBins), 0,
+                                    kAngleBins - 1);
+      ++ab[c][ring * kAngleBins + sector];
+    }
+  });
+  std::array<double, kRadiusBins> rcount{};
+  std::array<double, kAngularBins> acount{};
+  for (std::size_t c = 0; c < chunks; ++c) {
+    for (int b = 0; b < kRadiusBins; ++b) rcount[b] += double(rb[c][b]);
+    for (int b = 0; b < kAngularBins; ++b) acount[b] += double(ab[c][b]);
+  }
+  for (int b = 0; b < kRadiusBins; ++b) {
+    BinRow row;
+    row.lo = reference_radius_quantile(opt.reference, double(b) / kRadiusBins);
+    row.hi = reference_radius_quantile(opt.reference, double(b + 1) / kRadiusBins);
+    row.expected_fraction = 1.0 / kRadiusBins;
+    row.measured_fraction = rcount[b] / dn;
+    row.rel_error = row.measured_fraction / row.expected_fraction - 1.0;
+    st.max_radius_bin_error = std::max(st.max_radius_bin_error, std::fabs(row.rel_error));
+    st.radius_bins.push_back(row);
+  }
+  for (int b = 0; b < kAngularBins; ++b) {
+    st.angular_bin_errors[b] = acount[b] / dn * kAngularBins - 1.0;
+    st.max_angular_bin_error = std::max(st.max_angular_bin_error, std::fabs(st.angular_bin_errors[b]));
+  }
+
+  // Quantiles of the normalised radius (linear interpolation between order statistics).
+  {
+    std::vector<float> sorted = radius;
+    tbb::parallel_sort(sorted.begin(), sorted.end());
+    st.max_normalised_radius = sorted.back();
+    for (double q : {0.01, 0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95, 0.99, 0.995, 0.999, 0.9999}) {
+      const double pos = q * (dn - 1.0);
+      const std::size_t lo = std::size_t(pos);
+      const std::size_t hi = std::min(lo + 1, tris - 1);
+      const double measured = sorted[lo] + (pos - double(lo)) * (double(sorted[hi]) - sorted[lo]);
+      const double expected = reference_radius_quantile(opt.reference, q);
+      const double rel = measured / expected - 1.0;
+      st.quantiles.push_back({q, measured, expected, rel});
+      if (q <= 0.999 + 1e-12) st.max_quantile_error = std::max(st.max_quantile_error, std::fabs(rel));
+    }
+  }
+
+  // Verdict against the tolerance.
+  std::vector<std::string> misses;
+  if (!(st.max_quantile_error <= st.tolerance.quantile))
+    misses.push_back(fmt::format("slope-radius quantile error {:.3g}% > {:.3g}%", 100 * st.max_quantile_error,
+                                 100 * st.tolerance.quantile));
+  if (!(st.max_radius_bin_error <= st.tolerance.radius_bin))
+    misses.push_back(fmt::format("radius-bin error {:.3g}% > {:.3g}%", 100 * st.max_radius_bin_error,
+                                 100 * st.tolerance.radius_bin));
+  if (!(st.max_angular_bin_error <= st.tolerance.angular_bin))
+    misses.push_back(fmt::format("(radius, angle)-bin error {:.3g}% > {:.3g}%", 100 * st.max_angular_bin_error,
+                                 100 * st.tolerance.angular_bin));
+  st.ndf_within_tolerance = misses.empty();
+  if (misses.empty()) {
+    st.ndf_verdict = "ok";
+  } else {
+    for (std::size_t k = 0; k < misses.size(); ++k) st.ndf_verdict += (k ? "; " : "") + misses[k];
+  }
+
+  // Vertex height moments.
+  const auto& hv = field.heights();
+  const double nv = double(hv.size());
+  st.height_mean = parallel_sum(hv.size(), [&](std::size_t k) { return double(hv[k]); }) / nv;
+  const double mu = st.height_mean;
+  const double c2 = parallel_sum(hv.size(), [&](std::size_t k) { return std::pow(hv[k] - mu, 2); }) / nv;
+  const double c3 = parallel_sum(hv.size(), [&](std::size_t k) { return std::pow(hv[k] - mu, 3); }) / nv;
+  const double c4 = parallel_sum(hv.size(), [&](std::size_t k) { return std::pow(hv[k] - mu, 4); }) / nv;
+  st.height_sd = std::sqrt(c2);
+  st.height_min = field.min_height();
+  st.height_max = field.max_height();
+  st.height_skewness = c2 > 0 ? c3 / std::pow(c2, 1.5) : 0.0;
+  st.height_excess_kurtosis = c2 > 0 ? c4 / (c2 * c2) - 3.0 : 0.0;
+
+  // Height-slope coupling.
+  st.spearman_height_slope = spearman(hc, radius);
+  {
+    std::vector<float> tmp = hc;
+    const std::size_t mid = tmp.size() / 2;
+    std::nth_element(tmp.begin(), tmp.begin() + std::ptrdiff_t(mid), tmp.end());
+    const float median = tmp[mid];
+    for (std::size_t k = 0; k < hc.size(); ++k) tmp[k] = std::fabs(hc[k] - median);
+    st.spearman_extremity_slope = spearman(tmp, radius);
+  }
+  {
+    // Mean centroid height (in sd of centroid heights) of the steepest fractions.
+    const double hmean = parallel_sum(tris, [&](std::size_t k) { return double(hc[k]); }) / dn;
+    const double hsd =
+        std::sqrt(parallel_sum(tris, [&](std::size_t k) { return std::pow(hc[k] - hmean, 2); }) / dn);
+    std::vector<std::uint64_t> keys(tris);
+    parallel_chunks(tris, [&](std::size_t b, std::size_t e) {
+      for (std::size_t k = b; k < e; ++k)
+        keys[k] = (std::uint64_t(ordered_bits(radius[k])) << 32) | std::uint32_t(k);
+    });
+    tbb::parallel_sort(keys.begin(), keys.end());
+    auto top_mean = [&](double fraction) {
+      const std::size_t count = std::max<std::size_t>(1, std::size_t(fraction * dn));
+      double s = 0;
+      for (std::size_t r = tris - count; r < tris; ++r) s += hc[std::uint32_t(keys[r])];
+      return hsd > 0 ? (s / double(count) - hmean) / hsd : 0.0;
+    };
+    st.steepest_1pct_height_z = top_mean(0.01);
+    st.steepest_01pct_height_z = top_mean(0.001);
+  }
+  return st;
+}
+
+}  // namespace microgeom
