@@ -116,6 +116,14 @@ void check_mesh_extension(const std::string& path) {
     throw UsageError(fmt::format("--mesh '{}': unknown mesh format '{}' (use .ply or .obj)", path, ext));
 }
 
+// CPU seconds (user + system, all threads) used by the process so far: a load-independent cost measure.
+double cpu_seconds() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return double(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
+         1e-6 * double(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
+}
+
 double peak_rss_bytes() {
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);
@@ -253,6 +261,7 @@ int run_build(const BuildOptions& o) {
                        "masking statistics)\n", p.resolution / l);
 
   const auto t0 = std::chrono::steady_clock::now();
+  const double cpu0 = cpu_seconds();
   microgeom::BuildReport report;
   microgeom::Heightfield field;
   {
@@ -267,6 +276,8 @@ int run_build(const BuildOptions& o) {
     });
   }
   const double build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double build_rss = peak_rss_bytes();  // peak so far: the build itself
+  const double build_cpu = cpu_seconds() - cpu0;
 
   microgeom::StatsOptions so;
   so.reference = info->reference;
@@ -276,6 +287,7 @@ int run_build(const BuildOptions& o) {
   const auto t1 = std::chrono::steady_clock::now();
   const microgeom::SurfaceStats st = microgeom::measure_surface(field, so);
   const double stats_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+  const double stats_cpu = cpu_seconds() - cpu0 - build_cpu;
 
   fmt::print("surface build: assembly {}, alpha ({:.6g}, {:.6g}), resolution {}, seed {}, correlation length {:.6g} "
              "cells ({:.4g} per tile), {} slope-matching iterations\n",
@@ -288,8 +300,10 @@ int run_build(const BuildOptions& o) {
   }
   print_stats(st, field);
   const double rss = peak_rss_bytes();
-  fmt::print("\nbuild {:.3f} s, statistics {:.3f} s, peak RSS {:.1f} MiB ({:.1f} bytes per texel)\n", build_seconds,
-             stats_seconds, rss / (1024.0 * 1024.0), rss / double(field.texel_count()));
+  fmt::print("\nbuild {:.3f} s wall, {:.3f} s CPU (peak RSS {:.1f} MiB, {:.1f} bytes per texel); statistics {:.3f} s "
+             "wall, {:.3f} s CPU (peak RSS {:.1f} MiB)\n",
+             build_seconds, build_cpu, build_rss / (1024.0 * 1024.0), build_rss / double(field.texel_count()),
+             stats_seconds, stats_cpu, rss / (1024.0 * 1024.0));
 
   if (!st.ndf_within_tolerance)
     throw UsageError(fmt::format("the {} surface misses its {} NDF: {} (nothing written)", p.assembly,
@@ -315,6 +329,9 @@ int run_build(const BuildOptions& o) {
     j["notes"] = report.notes;
     j["build_seconds"] = build_seconds;
     j["stats_seconds"] = stats_seconds;
+    j["build_cpu_seconds"] = build_cpu;
+    j["stats_cpu_seconds"] = stats_cpu;
+    j["peak_rss_bytes_build"] = build_rss;
     j["peak_rss_bytes"] = rss;
     j["stats"] = stats_json(st);
     j["outputs"] = {{"heightmap", o.out}, {"normals", o.normals}, {"mesh", o.mesh}};

@@ -6,9 +6,9 @@
 #include <fmt/core.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_sort.h>
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 #include <complex>
@@ -18,6 +18,38 @@
 #include <stdexcept>
 
 namespace microgeom {
+
+namespace detail {
+void radix_sort_by_high32(std::vector<std::uint64_t>& keys, std::vector<std::uint64_t>& scratch) {
+  const std::size_t n = keys.size();
+  scratch.resize(n);
+  constexpr int kBits = 11, kBuckets = 1 << kBits, kChunks = 32;
+  std::vector<std::array<std::size_t, kBuckets>> offsets(kChunks);
+  auto chunk_begin = [&](int c) { return n * std::size_t(c) / kChunks; };
+  for (int pass = 0; pass < 3; ++pass) {
+    const int shift = 32 + kBits * pass;
+    tbb::parallel_for(0, kChunks, [&](int c) {
+      auto& count = offsets[c];
+      count.fill(0);
+      for (std::size_t k = chunk_begin(c); k < chunk_begin(c + 1); ++k) ++count[(keys[k] >> shift) & (kBuckets - 1)];
+    });
+    // Exclusive prefix over (bucket, chunk): chunk c's items of bucket b follow those of chunks < c.
+    std::size_t running = 0;
+    for (int b = 0; b < kBuckets; ++b)
+      for (int c = 0; c < kChunks; ++c) {
+        const std::size_t count = offsets[c][b];
+        offsets[c][b] = running;
+        running += count;
+      }
+    tbb::parallel_for(0, kChunks, [&](int c) {
+      auto& next = offsets[c];
+      for (std::size_t k = chunk_begin(c); k < chunk_begin(c + 1); ++k)
+        scratch[next[(keys[k] >> shift) & (kBuckets - 1)]++] = keys[k];
+    });
+    keys.swap(scratch);
+  }
+}
+}  // namespace detail
 
 std::string_view to_string(ReferenceNdf r) { return r == ReferenceNdf::ggx ? "ggx" : "beckmann"; }
 
@@ -281,14 +313,15 @@ std::uint64_t sort_key(float nonneg_value, std::uint32_t index) {
 // GGX (alpha = 1) quantile of its rank, P(r < R) = R^2 / (1 + R^2) => R = sqrt(q / (1 - q)),
 // q = rank / (n + 1) (ranks from 1), keeping the angle. Zero slopes keep angle 0 (atan2(0, 0) = 0).
 void match_ggx_marginal(const std::vector<float>& ux, const std::vector<float>& uy, std::vector<float>& mx,
-                        std::vector<float>& my, std::vector<std::uint64_t>& keys) {
+                        std::vector<float>& my, std::vector<std::uint64_t>& keys,
+                        std::vector<std::uint64_t>& scratch) {
   const std::size_t n = ux.size();
   keys.resize(n);
   tbb::parallel_for(std::size_t(0), n, [&](std::size_t k) {
     const float r = std::sqrt(ux[k] * ux[k] + uy[k] * uy[k]);  // >= +0
     keys[k] = sort_key(r, std::uint32_t(k));
   });
-  tbb::parallel_sort(keys.begin(), keys.end());
+  detail::radix_sort_by_high32(keys, scratch);
   tbb::parallel_for(std::size_t(0), n, [&](std::size_t rank) {
     const std::uint32_t k = std::uint32_t(keys[rank]);
     const double q = double(rank + 1) / double(n + 1);
@@ -336,20 +369,20 @@ std::vector<double> match_ggx(Spectral& fft, std::vector<double> h, double ax, d
   const int n = fft.n();
   const std::size_t tris = 2 * std::size_t(n) * n;
   std::vector<float> ux(tris), uy(tris), mx(tris), my(tris);
-  std::vector<std::uint64_t> keys;
+  std::vector<std::uint64_t> keys, scratch;
   std::vector<std::complex<double>> gx_spec;
   for (int it = 0; it < iterations; ++it) {
     if (progress)
       progress(fmt::format("slope matching {}/{}", it + 1, iterations),
                progress_from + (progress_to - progress_from) * it / iterations);
     triangle_slopes(h, n, ax, ay, ux, uy);
-    match_ggx_marginal(ux, uy, mx, my, keys);
+    match_ggx_marginal(ux, uy, mx, my, keys, scratch);
     if (it > 0) report.residuals.push_back(slope_residual(ux, uy, mx, my, n));
     h = reintegrate(fft, mx, my, ax, ay, gx_spec);
   }
   if (iterations > 0) {  // the residual of the final field
     triangle_slopes(h, n, ax, ay, ux, uy);
-    match_ggx_marginal(ux, uy, mx, my, keys);
+    match_ggx_marginal(ux, uy, mx, my, keys, scratch);
     report.residuals.push_back(slope_residual(ux, uy, mx, my, n));
   }
   return h;

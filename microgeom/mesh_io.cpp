@@ -56,8 +56,9 @@ void write_heightfield_mesh(const std::filesystem::path& path, const Heightfield
   OpenMesh::IO::Options options;
   if (ext == ".ply" || ext == ".stl") options += OpenMesh::IO::Options::Binary;
   // OpenMesh logs on its info stream; keep stdout/stderr for our own messages.
-  const bool log_was_enabled = omlog().is_enabled();
+  const bool log_was_enabled = omlog().is_enabled(), err_was_enabled = omerr().is_enabled();
   omlog().disable();
+  omerr().disable();  // failures are reported by our exception, naming the path
   bool written = false;
   try {
     written = OpenMesh::IO::write_mesh(mesh, tmp.string(), options, 9);
@@ -65,6 +66,7 @@ void write_heightfield_mesh(const std::filesystem::path& path, const Heightfield
     written = false;
   }
   if (log_was_enabled) omlog().enable();
+  if (err_was_enabled) omerr().enable();
   std::error_code ec;
   if (written) std::filesystem::rename(tmp, path, ec);
   if (!written || ec) {

@@ -3,7 +3,6 @@
 #include <fmt/core.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_sort.h>
 
 #include <algorithm>
 #include <array>
@@ -62,26 +61,29 @@ std::uint32_t ordered_bits(float v) {
   return (b & 0x80000000u) ? ~b : (b | 0x80000000u);
 }
 
-// Ranks 0..n-1 of the values (ties broken by index).
-std::vector<std::uint32_t> ranks_of(const std::vector<float>& v) {
-  std::vector<std::uint64_t> keys(v.size());
+// Keys (ordered value bits << 32 | index) sorted by (value, index).
+std::vector<std::uint64_t> sorted_keys(const std::vector<float>& v) {
+  std::vector<std::uint64_t> keys(v.size()), scratch;
   parallel_chunks(v.size(), [&](std::size_t b, std::size_t e) {
     for (std::size_t k = b; k < e; ++k) keys[k] = (std::uint64_t(ordered_bits(v[k])) << 32) | std::uint32_t(k);
   });
-  tbb::parallel_sort(keys.begin(), keys.end());
-  std::vector<std::uint32_t> rank(v.size());
-  parallel_chunks(v.size(), [&](std::size_t b, std::size_t e) {
-    for (std::size_t r = b; r < e; ++r) rank[std::uint32_t(keys[r])] = std::uint32_t(r);
+  detail::radix_sort_by_high32(keys, scratch);
+  return keys;
+}
+
+// Ranks 0..n-1 from sorted keys (ties broken by index).
+std::vector<std::uint32_t> ranks_from(const std::vector<std::uint64_t>& sorted) {
+  std::vector<std::uint32_t> rank(sorted.size());
+  parallel_chunks(sorted.size(), [&](std::size_t b, std::size_t e) {
+    for (std::size_t r = b; r < e; ++r) rank[std::uint32_t(sorted[r])] = std::uint32_t(r);
   });
   return rank;
 }
 
-// Spearman correlation of two arrays (Pearson correlation of ranks; ties broken by index).
-double spearman(const std::vector<float>& a, const std::vector<float>& b) {
-  const std::size_t n = a.size();
+// Spearman correlation from two rank permutations (Pearson correlation of the ranks).
+double spearman(const std::vector<std::uint32_t>& ra, const std::vector<std::uint32_t>& rb) {
+  const std::size_t n = ra.size();
   if (n < 2) return 0.0;
-  const auto ra = ranks_of(a);
-  const auto rb = ranks_of(b);
   const double mean = (double(n) - 1.0) / 2.0;
   const std::size_t chunk = 1 << 16, chunks = (n + chunk - 1) / chunk;
   std::vector<double> partial(chunks);
@@ -212,15 +214,15 @@ SurfaceStats measure_surface(const Heightfield& field, const StatsOptions& opt) 
   }
 
   // Quantiles of the normalised radius (linear interpolation between order statistics).
+  const std::vector<std::uint64_t> radius_order = sorted_keys(radius);
   {
-    std::vector<float> sorted = radius;
-    tbb::parallel_sort(sorted.begin(), sorted.end());
-    st.max_normalised_radius = sorted.back();
+    auto order_stat = [&](std::size_t r) { return double(radius[std::uint32_t(radius_order[r])]); };
+    st.max_normalised_radius = order_stat(tris - 1);
     for (double q : {0.01, 0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95, 0.99, 0.995, 0.999, 0.9999}) {
       const double pos = q * (dn - 1.0);
       const std::size_t lo = std::size_t(pos);
       const std::size_t hi = std::min(lo + 1, tris - 1);
-      const double measured = sorted[lo] + (pos - double(lo)) * (double(sorted[hi]) - sorted[lo]);
+      const double measured = order_stat(lo) + (pos - double(lo)) * (order_stat(hi) - order_stat(lo));
       const double expected = reference_radius_quantile(opt.reference, q);
       const double rel = measured / expected - 1.0;
       st.quantiles.push_back({q, measured, expected, rel});
@@ -260,31 +262,26 @@ SurfaceStats measure_surface(const Heightfield& field, const StatsOptions& opt) 
   st.height_skewness = c2 > 0 ? c3 / std::pow(c2, 1.5) : 0.0;
   st.height_excess_kurtosis = c2 > 0 ? c4 / (c2 * c2) - 3.0 : 0.0;
 
-  // Height-slope coupling.
-  st.spearman_height_slope = spearman(hc, radius);
+  // Height-slope coupling (ranks: ties broken by index).
   {
+    const auto radius_rank = ranks_from(radius_order);
+    st.spearman_height_slope = spearman(ranks_from(sorted_keys(hc)), radius_rank);
     std::vector<float> tmp = hc;
     const std::size_t mid = tmp.size() / 2;
     std::nth_element(tmp.begin(), tmp.begin() + std::ptrdiff_t(mid), tmp.end());
     const float median = tmp[mid];
     for (std::size_t k = 0; k < hc.size(); ++k) tmp[k] = std::fabs(hc[k] - median);
-    st.spearman_extremity_slope = spearman(tmp, radius);
+    st.spearman_extremity_slope = spearman(ranks_from(sorted_keys(tmp)), radius_rank);
   }
   {
     // Mean centroid height (in sd of centroid heights) of the steepest fractions.
     const double hmean = parallel_sum(tris, [&](std::size_t k) { return double(hc[k]); }) / dn;
     const double hsd =
         std::sqrt(parallel_sum(tris, [&](std::size_t k) { return std::pow(hc[k] - hmean, 2); }) / dn);
-    std::vector<std::uint64_t> keys(tris);
-    parallel_chunks(tris, [&](std::size_t b, std::size_t e) {
-      for (std::size_t k = b; k < e; ++k)
-        keys[k] = (std::uint64_t(ordered_bits(radius[k])) << 32) | std::uint32_t(k);
-    });
-    tbb::parallel_sort(keys.begin(), keys.end());
     auto top_mean = [&](double fraction) {
       const std::size_t count = std::max<std::size_t>(1, std::size_t(fraction * dn));
       double s = 0;
-      for (std::size_t r = tris - count; r < tris; ++r) s += hc[std::uint32_t(keys[r])];
+      for (std::size_t r = tris - count; r < tris; ++r) s += hc[std::uint32_t(radius_order[r])];
       return hsd > 0 ? (s / double(count) - hmean) / hsd : 0.0;
     };
     st.steepest_1pct_height_z = top_mean(0.01);

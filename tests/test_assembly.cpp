@@ -208,3 +208,20 @@ TEST(Assembly, MixtureSpreadsRoughnessOverPatches) {
   const double smith = spread(build_assembly(psm), 0.3, 32);
   EXPECT_GT(mixture, 2.5 * smith) << "mixture " << mixture << " smith " << smith;
 }
+
+TEST(Assembly, RadixSortMatchesAStableSortByTheUpperHalf) {
+  std::vector<std::uint64_t> keys(100000), scratch;
+  std::uint64_t state = 12345;
+  for (std::size_t k = 0; k < keys.size(); ++k) {
+    state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+    const std::uint32_t value = std::uint32_t(state >> 33) % 5000u * 859433u;  // many ties, all bit ranges
+    keys[k] = (std::uint64_t(value) << 32) | std::uint32_t(k);
+  }
+  auto expected = keys;
+  std::sort(expected.begin(), expected.end());  // (value, index): the stable order
+  detail::radix_sort_by_high32(keys, scratch);
+  EXPECT_EQ(keys, expected);
+  std::vector<std::uint64_t> empty;
+  detail::radix_sort_by_high32(empty, scratch);
+  EXPECT_TRUE(empty.empty());
+}

@@ -84,4 +84,12 @@ using BuildProgress = std::function<void(std::string_view stage, double fraction
 Heightfield build_assembly(const AssemblyParams& params, BuildReport* report = nullptr,
                            const BuildProgress& progress = {});
 
+namespace detail {
+// Sorts 64-bit keys by their upper 32 bits, stably (an LSD radix sort, 3 passes of 11 bits, parallel over
+// a fixed number of chunks, so the result does not depend on the thread count). Keys packed as
+// (value bits << 32 | index) and given in index order thus end up sorted by (value, index). `scratch` is
+// resized to keys.size(). O(n); used for the ranks of the slope matching and of the statistics.
+void radix_sort_by_high32(std::vector<std::uint64_t>& keys, std::vector<std::uint64_t>& scratch);
+}  // namespace detail
+
 }  // namespace microgeom
