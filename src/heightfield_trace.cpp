@@ -28,7 +28,9 @@ constexpr unsigned int kNoSkip = RTC_INVALID_GEOMETRY_ID;
 
 // The intersect context handed to rtcIntersect1/rtcOccluded1, extended with the primitive to skip.
 // Embree passes the context pointer through to the filter, which casts it back (the Embree-documented way
-// of giving per-ray data to filter functions); `base` must stay the first member.
+// of giving per-ray data to filter functions); `base` must stay the first member. The filter is a CONTEXT
+// filter (RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION), set only on the calls that skip a primitive: plain
+// calls on the same scene (benchmarks, tests) never run it, so it never reads past a plain context.
 struct SkipContext {
   RTCIntersectContext base;
   unsigned int skip_primitive;  // extended primitive index (see below) or kNoSkip
@@ -55,7 +57,7 @@ struct ExtendedGrid {
   }
 };
 
-// Embree intersection/occlusion filter: rejects hits on the skipped primitive.
+// Embree context filter (intersect and occluded): rejects hits on the skipped primitive.
 void skip_filter(const RTCFilterFunctionNArguments* args) {
   const auto* ctx = reinterpret_cast<const SkipContext*>(args->context);
   if (ctx->skip_primitive == kNoSkip) return;
@@ -115,6 +117,8 @@ HeightfieldScene::HeightfieldScene(const microgeom::Heightfield& field, Heightfi
   rtcSetDeviceMemoryMonitorFunction(device_->handle(), &HeightfieldScene::on_memory, this);
   device_->check("rtcSetDeviceMemoryMonitorFunction");
   scene_ = std::make_unique<embree::Scene>(*device_, quality, /*robust=*/true);
+  rtcSetSceneFlags(scene_->handle(), RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
+  device_->check("rtcSetSceneFlags");
 
   const ExtendedGrid grid{n};
   const int w = grid.vertices(), m = grid.cells();
@@ -176,8 +180,6 @@ HeightfieldScene::HeightfieldScene(const microgeom::Heightfield& field, Heightfi
     grid_resolution_ = n;
     rtcSetGeometryUserData(geom, &grid_resolution_);
   }
-  rtcSetGeometryIntersectFilterFunction(geom, &skip_filter);
-  rtcSetGeometryOccludedFilterFunction(geom, &skip_filter);
   rtcCommitGeometry(geom);
   rtcAttachGeometry(scene_->handle(), geom);
   rtcReleaseGeometry(geom);
@@ -247,6 +249,7 @@ HeightfieldHit HeightfieldScene::trace_impl(const Vec3<double>& origin_in, const
     const double tfar = std::min(t_exit + overlap, t_slab);
 
     ctx.skip_primitive = segment == 0 ? skip : kNoSkip;
+    ctx.base.filter = ctx.skip_primitive == kNoSkip ? nullptr : &skip_filter;
     RTCRayHit rh;
     rh.ray.org_x = float(o.x());
     rh.ray.org_y = float(o.y());

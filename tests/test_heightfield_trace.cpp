@@ -232,6 +232,27 @@ TEST(HeightfieldTrace, SkipsOnlyTheStartTriangleInTheFirstCopy) {
     if (h.is_hit() && h.triangle == tri) ++self_hits;
   }
   EXPECT_EQ(self_hits, 0);
+  // The skip is by primitive id, not only by the lift: from a point 1e-3 cells BELOW the centre of a
+  // facet, a ray along the facet normal crosses the facet itself. Without the skip it reports the facet;
+  // with it (both geometry kinds: the grid maps its (u, v) to the triangle) never.
+  for (auto g : {HeightfieldGeometry::triangles, HeightfieldGeometry::grid}) {
+    const HeightfieldScene gs(field, g);
+    int crossed = 0, skipped = 0;
+    for (std::uint32_t tri = 0; tri < field.triangle_count(); tri += 37) {
+      const auto verts = field.triangle_vertices(field.triangle_index(tri).i, field.triangle_index(tri).j,
+                                                 field.triangle_index(tri).t);
+      const Vec3<double> centre = (verts[0] + verts[1] + verts[2]) / 3.0;
+      const Vec3<double> n = field.triangle_normal(tri);
+      const Vec3<double> below = centre - 1e-3 * field.cell_size() * n;
+      const HeightfieldHit plain = gs.trace(below, n);
+      if (plain.is_hit() && plain.triangle == tri) ++crossed;
+      const HeightfieldHit skip = gs.trace(below, n, tri);
+      if (!(skip.is_hit() && skip.triangle == tri)) ++skipped;
+    }
+    const int tested = int((field.triangle_count() + 36) / 37);
+    EXPECT_EQ(crossed, tested) << to_string(g);
+    EXPECT_EQ(skipped, tested) << to_string(g);
+  }
   // A known blocker: from flat ground in front of a ridge (row j = 8 at height 0.5), a ray rising along +y
   // meets the ridge's flank at y = 7.3 cells, x = 3.2 cells: triangle 1 (v > u) of cell (3, 7).
   std::vector<float> z(16 * 16, 0.0f);

@@ -107,6 +107,9 @@ public:
   // p + surface_offset() * (unit normal of the triangle): the origin actually traced from p.
   Vec3<double> lifted(const Vec3<double>& p, std::uint32_t triangle) const;
 
+  // The Embree scene (for benchmarks comparing against raw rtcIntersect1 calls).
+  const embree::Scene& embree_scene() const { return *scene_; }
+
   // The Embree primitive that is the given heightfield triangle in the tile proper (not an overlap copy).
   unsigned int embree_primitive(std::uint32_t triangle) const;
 
