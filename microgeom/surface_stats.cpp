@@ -180,7 +180,7 @@ SurfaceStats measure_surface(const Heightfield& field, const StatsOptions& opt) 
     ab[c].fill(0);
     for (std::size_t k = c * chunk; k < std::min(tris, (c + 1) * chunk); ++k) {
       const double u = sx[k] / ax, v = sy[k] / ay;
-      const double r = std::hypot(u, v);
+      const double r = std::sqrt(u * u + v * v);
       radius[k] = float(r);
       const double F = reference_radius_cdf(opt.reference, r);
       const int bin = std::min(kRadiusBins - 1, int(F * kRadiusBins));
@@ -253,9 +253,10 @@ SurfaceStats measure_surface(const Heightfield& field, const StatsOptions& opt) 
   const double nv = double(hv.size());
   st.height_mean = parallel_sum(hv.size(), [&](std::size_t k) { return double(hv[k]); }) / nv;
   const double mu = st.height_mean;
-  const double c2 = parallel_sum(hv.size(), [&](std::size_t k) { return std::pow(hv[k] - mu, 2); }) / nv;
-  const double c3 = parallel_sum(hv.size(), [&](std::size_t k) { return std::pow(hv[k] - mu, 3); }) / nv;
-  const double c4 = parallel_sum(hv.size(), [&](std::size_t k) { return std::pow(hv[k] - mu, 4); }) / nv;
+  auto dev = [&](std::size_t k) { return double(hv[k]) - mu; };
+  const double c2 = parallel_sum(hv.size(), [&](std::size_t k) { return dev(k) * dev(k); }) / nv;
+  const double c3 = parallel_sum(hv.size(), [&](std::size_t k) { return dev(k) * dev(k) * dev(k); }) / nv;
+  const double c4 = parallel_sum(hv.size(), [&](std::size_t k) { const double d2 = dev(k) * dev(k); return d2 * d2; }) / nv;
   st.height_sd = std::sqrt(c2);
   st.height_min = field.min_height();
   st.height_max = field.max_height();
@@ -277,7 +278,7 @@ SurfaceStats measure_surface(const Heightfield& field, const StatsOptions& opt) 
     // Mean centroid height (in sd of centroid heights) of the steepest fractions.
     const double hmean = parallel_sum(tris, [&](std::size_t k) { return double(hc[k]); }) / dn;
     const double hsd =
-        std::sqrt(parallel_sum(tris, [&](std::size_t k) { return std::pow(hc[k] - hmean, 2); }) / dn);
+        std::sqrt(parallel_sum(tris, [&](std::size_t k) { const double d = hc[k] - hmean; return d * d; }) / dn);
     auto top_mean = [&](double fraction) {
       const std::size_t count = std::max<std::size_t>(1, std::size_t(fraction * dn));
       double s = 0;

@@ -85,7 +85,7 @@ Heightfield build_assembly(const AssemblyParams& params, BuildReport* report = n
                            const BuildProgress& progress = {});
 
 namespace detail {
-// Sorts 64-bit keys by their upper 32 bits, stably (an LSD radix sort, 3 passes of 11 bits, parallel over
+// Sorts 64-bit keys by their upper 32 bits, stably (an LSD radix sort, 4 passes of 8 bits, parallel over
 // a fixed number of chunks, so the result does not depend on the thread count). Keys packed as
 // (value bits << 32 | index) and given in index order thus end up sorted by (value, index). `scratch` is
 // resized to keys.size(). O(n); used for the ranks of the slope matching and of the statistics.
