@@ -1,0 +1,597 @@
+// microsim trace masking: masking and masking-shadowing of an explicit heightfield, measured by ray
+// tracing, beside Smith's predictions with the analytic NDF and with the surface's own NDF
+// (src/microsim/masking.h, src/microsim/smith_prediction.h).
+//
+//   trace masking --surface SURF.exr --theta DEG [--phi DEG] [--samples N] [--seed S] [--theta-l DEG
+//                 [--phi-l DEG]] [--cone DEG] [--bins K] [--vndf-rays N] [--geometry triangles|grid]
+//                 [--tile-size L] [--threads T] [--json PATH]
+//   trace masking --table [--assemblies a,b,..] [--alphas 0.1,0.5,1] [--thetas 30,60,75,85] [--phi DEG]
+//                 [--res N] [--corr-cells C] [--seed S] [--samples N] [--vndf-rays N] [--markdown PATH]
+//                 [--json PATH]
+//
+// Also defines run_trace_vndf_heightfield(), called by `trace vndf --surface SURF.exr` (cmd_trace.cpp).
+//
+// Exit codes: 0 done; 1 the leak test failed (the weighted visible fraction / cos(theta_v) is more than
+// kLeakSigmas standard errors from 1, or a ray leaked through the surface); 2 bad usage or input (nothing
+// written); 130 interrupted (what was measured is written, marked partial).
+#include "command.h"
+
+#include "microgeom/assembly.h"
+#include "microgeom/heightfield.h"
+#include "microsim/histogram_io.h"
+#include "microsim/masking.h"
+#include "microsim/progress.h"
+
+#include <fmt/core.h>
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <sys/resource.h>
+
+namespace microsim::app {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// The leak test's threshold in standard errors: at 4 SE a correct tracer fails with probability 6e-5
+// per view (normal tails).
+constexpr double kLeakSigmas = 4.0;
+constexpr int kVndfRows = 8;  // lobe and sphere bins of the VNDF comparison (lobe: 8 x 16 cells)
+
+double peak_rss_mib() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return double(usage.ru_maxrss) / 1024.0;  // Linux: kilobytes
+}
+
+std::vector<double> parse_list(const std::string& option, const std::string& text) {
+  std::vector<double> values;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    std::size_t used = 0;
+    double v = 0;
+    try {
+      v = std::stod(item, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != item.size() || !std::isfinite(v))
+      throw UsageError(fmt::format("{} '{}': '{}' is not a finite number", option, text, item));
+    values.push_back(v);
+  }
+  if (values.empty()) throw UsageError(fmt::format("{} '{}': empty list", option, text));
+  return values;
+}
+
+std::vector<std::string> split_names(const std::string& text) {
+  std::vector<std::string> names;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) names.push_back(item);
+  return names;
+}
+
+void check_theta(const std::string& option, double theta) {
+  if (!std::isfinite(theta) || theta < 0 || theta >= 90)
+    throw UsageError(fmt::format("{} {}: the direction must be in [0, 90) degrees", option, theta));
+}
+
+void check_output(const std::string& option, const std::string& path) {
+  if (path.empty()) return;
+  try {
+    check_writable(path);
+  } catch (const HistogramIoError& e) {
+    throw UsageError(fmt::format("{}: {}", option, e.what()));
+  }
+}
+
+microgeom::Heightfield load_surface(const std::string& path, std::optional<double> tile_size) {
+  if (tile_size && !(*tile_size > 0 && std::isfinite(*tile_size)))
+    throw UsageError(fmt::format("--tile-size {}: must be positive and finite", *tile_size));
+  if (!fs::exists(path)) throw UsageError(fmt::format("--surface '{}': no such file", path));
+  try {
+    return microgeom::load_heightmap_exr(path, tile_size);
+  } catch (const std::exception& e) {
+    throw UsageError(fmt::format("--surface '{}': {}", path, e.what()));
+  }
+}
+
+std::string pm(const Estimate& e, int digits = 4) { return fmt::format("{:.{}f} ± {:.{}f}", e.value, digits, e.se, digits); }
+
+// ---- single surface -------------------------------------------------------------------------------------------
+
+struct MaskingArgs {
+  std::string surface;
+  std::optional<double> tile_size;
+  double theta = std::nan(""), phi = 0;
+  std::optional<double> theta_l;
+  double phi_l = 0;
+  double cone = 5.0;
+  long long samples = 1'000'000;
+  long long vndf_rays = 0;
+  unsigned long long seed = 1;
+  int threads = 0;
+  int bins = 10;
+  std::string geometry = "triangles";
+  std::string json;
+  // table mode
+  bool table = false;
+  std::string assemblies = "smith,beckmann,mixture,sorted,spikes";
+  std::string alphas = "0.1,0.5,1";
+  std::string thetas = "30,60,75,85";
+  double table_phi = 30;
+  int res = 1024;
+  double corr_cells = 0;
+  long long table_vndf_rays = 2'000'000;
+  std::string markdown;
+};
+
+void print_masking(const MaskingResult& r, const AnalyticSmith& analytic) {
+  fmt::print("samples {}  front-facing {}  shadow rays {}  {:.2f} s  {:.3f} Mrays/s{}\n", r.samples, r.front_facing,
+             r.rays, r.seconds, r.rays_per_second() * 1e-6, r.partial ? "  PARTIAL (interrupted)" : "");
+  fmt::print("leak test  E[w V] / cos(theta_v) = {}  ({:+.2f} SE from 1; leaked rays {}, unresolved {})\n",
+             pm(r.leak_ratio), r.leak_ratio.se > 0 ? (r.leak_ratio.value - 1) / r.leak_ratio.se : 0.0, r.leaked,
+             r.unresolved);
+  fmt::print("\n| quantity | measured | Smith, {} | Smith, own NDF |\n|---|---|---|---|\n", analytic.describe());
+  fmt::print("| Lambda(v) | | {:.5f} | {:.5f} |\n", r.lambda_analytic, r.lambda_empirical);
+  fmt::print("| G1(v) | {} | {:.4f} | {:.4f} |\n", pm(r.g1), r.g1_smith_analytic, r.g1_smith_empirical);
+  auto g2_row = [](const char* name, const G2Result& g) {
+    fmt::print("| {} ({} samples) | {} | {:.4f} (sep. {:.4f}) | {:.4f} (sep. {:.4f}) |\n", name, g.samples,
+               pm(g.value), g.smith_analytic, g.separable_analytic, g.smith_empirical, g.separable_empirical);
+    fmt::print("| {} / Smith height-correlated | | {} | {} |\n", name, pm(g.ratio_analytic), pm(g.ratio_empirical));
+  };
+  if (r.mirror) g2_row("G2 mirror, l = reflect(v, m)", *r.mirror);
+  if (r.pair) {
+    g2_row("G2(v, l), facets facing both", *r.pair);
+    g2_row(fmt::format("G2(v, l), m within {} deg of h", r.cone_deg).c_str(), *r.pair_cone);
+  }
+  fmt::print("\nG1(v | m): bins of <v, m> holding equal shares of the front-facing projected area "
+             "(first = most grazing, last = facing v). Smith: ratio 1.\n");
+  fmt::print("| bin | angle(m, v) deg | share | samples | G1(v given m) | ratio to G1(v) |\n|---|---|---|---|---|---|\n");
+  for (std::size_t b = 0; b < r.by_normal.size(); ++b) {
+    const auto& c = r.by_normal[b];
+    fmt::print("| {} | {:.1f} .. {:.1f} | {:.3f} | {} | {} | {} |\n", b, std::acos(std::min(c.hi, 1.0)) * 180 / kPi<double>,
+               std::acos(std::min(c.lo, 1.0)) * 180 / kPi<double>, c.share, c.samples, pm(c.g1), pm(c.ratio));
+  }
+  fmt::print("\nG1(v | h): equal-count bins of the vertex heights (first = lowest). "
+             "Smith: C1(h)^Lambda(v) averaged over the bin.\n");
+  fmt::print("| bin | height | share | G1(v given h) | Smith, analytic | Smith, own NDF |\n|---|---|---|---|---|---|\n");
+  for (std::size_t b = 0; b < r.by_height.size(); ++b) {
+    const auto& c = r.by_height[b];
+    fmt::print("| {} | {:.4g} .. {:.4g} | {:.3f} | {} | {:.4f} | {:.4f} |\n", b, c.lo, c.hi, c.share, pm(c.g1),
+               c.smith_analytic, c.smith_empirical);
+  }
+}
+
+bool leak_failed(const MaskingResult& r) {
+  if (r.leaked > 0) return true;
+  return std::abs(r.leak_ratio.value - 1.0) > kLeakSigmas * r.leak_ratio.se;
+}
+
+nlohmann::json surface_json(const microgeom::Heightfield& field, const std::string& path, const AnalyticSmith& analytic,
+                            const std::string& source) {
+  nlohmann::json j;
+  j["path"] = path;
+  j["resolution"] = field.resolution();
+  j["tile_size"] = field.tile_size();
+  j["min_height"] = field.min_height();
+  j["max_height"] = field.max_height();
+  j["metadata"] = field.metadata;
+  j["analytic_reference"] = {{"ndf", to_string(analytic.ndf())},
+                             {"alpha", {analytic.alpha_x(), analytic.alpha_y()}},
+                             {"source", source}};
+  return j;
+}
+
+int run_masking(const MaskingArgs& a) {
+  // ---- validate everything before any work ----
+  if (a.surface.empty()) throw UsageError("--surface is required (or --table)");
+  check_theta("--theta", a.theta);
+  if (!std::isfinite(a.phi)) throw UsageError(fmt::format("--phi {}: must be finite", a.phi));
+  if (a.theta_l) check_theta("--theta-l", *a.theta_l);
+  if (!std::isfinite(a.phi_l)) throw UsageError(fmt::format("--phi-l {}: must be finite", a.phi_l));
+  if (a.samples <= 0) throw UsageError(fmt::format("--samples {}: must be positive", a.samples));
+  if (a.vndf_rays < 0) throw UsageError(fmt::format("--vndf-rays {}: must be >= 0", a.vndf_rays));
+  if (a.bins < 1 || a.bins > 1000) throw UsageError(fmt::format("--bins {}: must be in [1, 1000]", a.bins));
+  if (!(a.cone > 0 && a.cone <= 90)) throw UsageError(fmt::format("--cone {}: must be in (0, 90] degrees", a.cone));
+  if (a.threads < 0) throw UsageError(fmt::format("--threads {}: must be >= 0", a.threads));
+  HeightfieldGeometry geometry;
+  try {
+    geometry = heightfield_geometry_from_string(a.geometry);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(fmt::format("--geometry: {}", e.what()));
+  }
+  check_output("--json", a.json);
+  const microgeom::Heightfield field = load_surface(a.surface, a.tile_size);
+
+  // ---- trace ----
+  install_interrupt_handler();
+  std::string source;
+  const AnalyticSmith analytic = analytic_reference(field, &source);
+  const EmpiricalSmith empirical(field);
+  const HeightfieldScene scene(field, geometry);
+  const Vec3<double> v = direction_from_degrees(a.theta, a.phi);
+  fmt::print(stderr, "trace masking: {} ({} x {}, tile {}), {} geometry built in {:.2f} s, theta {} phi {}, {} samples\n",
+             a.surface, field.resolution(), field.resolution(), field.tile_size(), to_string(geometry),
+             scene.build_seconds(), a.theta, a.phi, a.samples);
+  MaskingOptions opts;
+  opts.samples = std::uint64_t(a.samples);
+  opts.seed = a.seed;
+  opts.threads = a.threads;
+  opts.normal_bins = opts.height_bins = a.bins;
+  opts.cone_deg = a.cone;
+  if (a.theta_l) opts.light = direction_from_degrees(*a.theta_l, a.phi_l);
+  const MaskingResult r = estimate_masking(scene, analytic, empirical, v, opts);
+
+  nlohmann::json j;
+  j["surface"] = surface_json(field, a.surface, analytic, source);
+  j["geometry"] = to_string(geometry);
+  j["build_seconds"] = scene.build_seconds();
+  j["embree_peak_bytes"] = scene.embree_peak_bytes();
+  j["theta"] = a.theta;
+  j["phi"] = a.phi;
+  if (a.theta_l) j["theta_l"] = *a.theta_l, j["phi_l"] = a.phi_l;
+  j["seed"] = a.seed;
+  j["threads"] = a.threads;
+  j["masking"] = to_json(r);
+  j["leak_test"] = {{"sigmas", kLeakSigmas}, {"failed", leak_failed(r)}};
+
+  std::optional<TraceResult> vndf;
+  std::vector<VndfComparison> comparisons;
+  if (a.vndf_rays > 0 && !interrupted()) {
+    const std::vector<DirectionBinning> binnings = {
+        DirectionBinning::sphere(2 * kVndfRows + 1),
+        DirectionBinning::lobe(GGX<double>(analytic.alpha_x(), analytic.alpha_y()), v, SampleDomain::microfacet_normal,
+                               kVndfRows)};
+    TraceOptions to;
+    to.rays = std::uint64_t(a.vndf_rays);
+    to.seed = a.seed;
+    to.threads = a.threads;
+    HeightfieldVndfDiagnostics diag;
+    vndf = trace_vndf_heightfield(scene, v, binnings, to, &diag);
+    nlohmann::json jv;
+    jv["rays"] = vndf->rays;
+    jv["hits"] = vndf->hits;
+    jv["backfacing"] = diag.backfacing;
+    jv["leaked"] = diag.leaked;
+    jv["rays_per_second"] = vndf->rays_per_second();
+    jv["partial"] = vndf->partial;
+    for (std::size_t k = 0; k < binnings.size(); ++k) {
+      comparisons.push_back(compare_vndf(vndf->counts[k], vndf->unbinned[k], binnings[k], v, analytic, empirical));
+      jv["comparisons"].push_back(to_json(comparisons.back()));
+    }
+    j["vndf"] = jv;
+  }
+  j["peak_rss_mib"] = peak_rss_mib();
+  const bool partial = r.partial || (vndf && vndf->partial);
+  j["partial"] = partial;
+  if (!a.json.empty()) write_text_atomically(a.json, j.dump(2) + "\n");
+
+  // ---- report ----
+  fmt::print("trace masking  {}  ({} x {}, tile {:.6g})  theta {}  phi {}  seed {}\n", a.surface, field.resolution(),
+             field.resolution(), field.tile_size(), a.theta, a.phi, a.seed);
+  fmt::print("analytic reference: {} ({})\n", analytic.describe(), source);
+  print_masking(r, analytic);
+  if (vndf) {
+    fmt::print("\nVNDF: {} rays along -v, {} front-facing first hits, {:.3f} Mrays/s\n", vndf->rays, vndf->hits,
+               vndf->rays_per_second() * 1e-6);
+    fmt::print("| bins | cells | TV to Smith (analytic) | TV to Smith (own NDF) | TV noise floor | p (analytic) | p (own NDF) |\n"
+               "|---|---|---|---|---|---|---|\n");
+    for (const auto& c : comparisons)
+      fmt::print("| {} | {} | {:.5f} | {:.5f} | {:.5f} | {:.3g} | {:.3g} |\n", c.binning, c.bins, c.tv_analytic,
+                 c.tv_empirical, c.tv_noise, c.p_value_analytic, c.p_value_empirical);
+  }
+  fmt::print("peak RSS {:.1f} MiB\n", peak_rss_mib());
+  const bool failed = leak_failed(r);
+  fmt::print("leak test ({} SE): {}\n", kLeakSigmas, failed ? "FAILED" : "passed");
+  if (partial) return 130;
+  return failed ? kExitRejected : kExitOk;
+}
+
+// ---- the table ---------------------------------------------------------------------------------------------------
+
+struct TableRow {
+  std::string assembly;
+  double alpha = 0, theta = 0;
+  VndfComparison vndf;  // lobe bins
+  MaskingResult masking;
+};
+
+int run_table(const MaskingArgs& a) {
+  const auto alphas = parse_list("--alphas", a.alphas);
+  const auto thetas = parse_list("--thetas", a.thetas);
+  const auto names = split_names(a.assemblies);
+  for (double t : thetas) check_theta("--thetas", t);
+  for (double al : alphas)
+    if (!(al >= microgeom::kMinAssemblyAlpha && al <= microgeom::kMaxAssemblyAlpha))
+      throw UsageError(fmt::format("--alphas: {} outside [{}, {}]", al, microgeom::kMinAssemblyAlpha, microgeom::kMaxAssemblyAlpha));
+  for (const auto& n : names)
+    if (!microgeom::find_assembly(n)) throw UsageError(fmt::format("--assemblies: unknown assembly '{}'", n));
+  if (a.samples <= 0) throw UsageError(fmt::format("--samples {}: must be positive", a.samples));
+  if (a.table_vndf_rays <= 0) throw UsageError(fmt::format("--vndf-rays {}: must be positive", a.table_vndf_rays));
+  if (!std::isfinite(a.table_phi)) throw UsageError(fmt::format("--phi {}: must be finite", a.table_phi));
+  {
+    microgeom::AssemblyParams p;
+    p.resolution = a.res;
+    p.corr_cells = a.corr_cells;
+    try {
+      microgeom::validate(p);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(e.what());
+    }
+  }
+  check_output("--json", a.json);
+  check_output("--markdown", a.markdown);
+  install_interrupt_handler();
+
+  const auto t_start = std::chrono::steady_clock::now();
+  std::vector<TableRow> rows;
+  nlohmann::json j;
+  j["parameters"] = {{"assemblies", names}, {"alphas", alphas}, {"thetas", thetas}, {"phi", a.table_phi},
+                     {"resolution", a.res}, {"corr_cells", a.corr_cells}, {"seed", a.seed},
+                     {"samples", a.samples}, {"vndf_rays", a.table_vndf_rays}, {"vndf_lobe_rows", kVndfRows}};
+  bool partial = false;
+  for (const auto& name : names) {
+    for (double alpha : alphas) {
+      if (interrupted()) break;
+      microgeom::AssemblyParams p;
+      p.assembly = name;
+      p.alpha_x = p.alpha_y = alpha;
+      p.resolution = a.res;
+      p.seed = a.seed;
+      p.corr_cells = a.corr_cells;
+      const auto tb = std::chrono::steady_clock::now();
+      microgeom::BuildReport report;
+      const microgeom::Heightfield field = microgeom::build_assembly(p, &report);
+      const double build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - tb).count();
+      const AnalyticSmith analytic = analytic_reference(field);
+      const EmpiricalSmith empirical(field);
+      const HeightfieldScene scene(field);
+      nlohmann::json js;
+      js["assembly"] = name;
+      js["alpha"] = alpha;
+      js["corr_cells"] = report.corr_cells;
+      js["build_seconds"] = build_s;
+      js["scene_seconds"] = scene.build_seconds();
+      js["analytic_reference"] = analytic.describe();
+      for (double theta : thetas) {
+        if (interrupted()) break;
+        const auto tr = std::chrono::steady_clock::now();
+        const Vec3<double> v = direction_from_degrees(theta, a.table_phi);
+        const std::vector<DirectionBinning> binnings = {DirectionBinning::lobe(
+            GGX<double>(analytic.alpha_x(), analytic.alpha_y()), v, SampleDomain::microfacet_normal, kVndfRows)};
+        TraceOptions to;
+        to.rays = std::uint64_t(a.table_vndf_rays);
+        to.seed = a.seed;
+        to.progress = false;
+        const TraceResult tres = trace_vndf_heightfield(scene, v, binnings, to);
+        TableRow row;
+        row.assembly = name;
+        row.alpha = alpha;
+        row.theta = theta;
+        row.vndf = compare_vndf(tres.counts[0], tres.unbinned[0], binnings[0], v, analytic, empirical);
+        MaskingOptions mo;
+        mo.samples = std::uint64_t(a.samples);
+        mo.seed = a.seed;
+        mo.progress = false;
+        row.masking = estimate_masking(scene, analytic, empirical, v, mo);
+        partial = partial || tres.partial || row.masking.partial;
+        const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - tr).count();
+        const auto& nb = row.masking.by_normal;
+        fmt::print(stderr, "{:<9} alpha {:<4} theta {:<3}: TV {:.4f} (own NDF {:.4f}, floor {:.4f}) facing {:.3f} grazing "
+                   "{:.3f} G2mir/HC {:.3f} leak {:.4f} ({:.1f} s)\n",
+                   name, alpha, theta, row.vndf.tv_analytic, row.vndf.tv_empirical, row.vndf.tv_noise,
+                   nb.back().ratio.value, nb.front().ratio.value,
+                   row.masking.mirror ? row.masking.mirror->ratio_analytic.value : 0.0, row.masking.leak_ratio.value, secs);
+        nlohmann::json jr;
+        jr["theta"] = theta;
+        jr["vndf"] = to_json(row.vndf);
+        jr["vndf_rays"] = tres.rays;
+        jr["vndf_rays_per_second"] = tres.rays_per_second();
+        jr["masking"] = to_json(row.masking);
+        js["views"].push_back(jr);
+        rows.push_back(std::move(row));
+      }
+      j["surfaces"].push_back(js);
+    }
+  }
+  const double total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  j["seconds"] = total_s;
+  j["peak_rss_mib"] = peak_rss_mib();
+  j["partial"] = partial;
+
+  std::string md;
+  md += fmt::format("Surfaces {}^2, correlation length {} cells (0 = default), seed {}, view azimuth {} deg; per view "
+                    "{} VNDF rays (lobe bins {} x {}) and {} surface points. {:.0f} s in all.\n\n",
+                    a.res, a.corr_cells, a.seed, a.table_phi, a.table_vndf_rays, kVndfRows, 2 * kVndfRows, a.samples,
+                    total_s);
+  md += "| assembly | alpha | theta | TV Smith | TV own NDF | TV floor | G1 | G1 Smith | facing G1(v\\|m)/G1 | "
+        "grazing G1(v\\|m)/G1 | G2 mirror | G2 / HC Smith | G2 / HC own NDF | leak |\n";
+  md += "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const auto& r : rows) {
+    const auto& m = r.masking;
+    const auto& nb = m.by_normal;
+    md += fmt::format("| {} | {} | {} | {:.4f} | {:.4f} | {:.4f} | {:.4f} | {:.4f} | {} | {} | {} | {} | {} | {} |\n",
+                      r.assembly, r.alpha, r.theta, r.vndf.tv_analytic, r.vndf.tv_empirical, r.vndf.tv_noise,
+                      m.g1.value, m.g1_smith_analytic, pm(nb.back().ratio, 3), pm(nb.front().ratio, 3),
+                      pm(m.mirror->value, 4), pm(m.mirror->ratio_analytic, 3), pm(m.mirror->ratio_empirical, 3),
+                      pm(m.leak_ratio, 4));
+  }
+  if (!a.json.empty()) write_text_atomically(a.json, j.dump(2) + "\n");
+  if (!a.markdown.empty()) write_text_atomically(a.markdown, md);
+  fmt::print("{}", md);
+  fmt::print("peak RSS {:.1f} MiB\n", peak_rss_mib());
+  bool failed = false;
+  for (const auto& r : rows) failed = failed || leak_failed(r.masking);
+  if (partial) return 130;
+  return failed ? kExitRejected : kExitOk;
+}
+
+}  // namespace
+
+// `trace vndf --surface SURF.exr`: the heightfield counterpart of the ellipsoid oracle, same histogram EXR
+// and JSON keys (total_variation, noise_floor_tv and p_value refer to the lobe bins and Smith's D_v with
+// the surface's analytic reference NDF; the comparison with the surface's own NDF is added).
+int run_trace_vndf_heightfield(const std::string& surface, std::optional<double> tile_size, double theta, double phi,
+                               long long rays, unsigned long long seed, int threads, int rows, const std::string& out,
+                               const std::string& json) {
+  check_theta("--theta", theta);
+  if (!std::isfinite(phi)) throw UsageError(fmt::format("--phi {}: must be finite", phi));
+  if (rays <= 0) throw UsageError(fmt::format("--rays {}: must be positive", rays));
+  if (threads < 0) throw UsageError(fmt::format("--threads {}: must be >= 0", threads));
+  if (rows < 1 || rows % 2 == 0 || rows > 501) throw UsageError(fmt::format("--rows {}: must be odd, in [1, 501]", rows));
+  if (fs::path(out).extension() != ".exr") throw UsageError(fmt::format("--out '{}': must be an .exr file", out));
+  check_output("--out", out);
+  check_output("--json", json);
+  const microgeom::Heightfield field = load_surface(surface, tile_size);
+
+  install_interrupt_handler();
+  std::string source;
+  const AnalyticSmith analytic = analytic_reference(field, &source);
+  const EmpiricalSmith empirical(field);
+  const HeightfieldScene scene(field);
+  const Vec3<double> wi = direction_from_degrees(theta, phi);
+  fmt::print(stderr, "trace vndf: heightfield {} ({} x {}, tile {}), scene built in {:.2f} s, theta {} phi {}, {} rays, seed {}\n",
+             surface, field.resolution(), field.resolution(), field.tile_size(), scene.build_seconds(), theta, phi,
+             rays, seed);
+  TracedHistogram h;
+  h.binnings = {DirectionBinning::sphere(rows),
+                DirectionBinning::lobe(GGX<double>(analytic.alpha_x(), analytic.alpha_y()), wi,
+                                       SampleDomain::microfacet_normal, rows)};
+  TraceOptions options;
+  options.rays = std::uint64_t(rays);
+  options.seed = seed;
+  options.threads = threads;
+  HeightfieldVndfDiagnostics diag;
+  const TraceResult r = trace_vndf_heightfield(scene, wi, h.binnings, options, &diag);
+  h.counts = r.counts;
+  h.rays = r.rays;
+  h.hits = r.hits;
+  h.partial = r.partial;
+  std::vector<VndfComparison> comparisons;
+  for (std::size_t k = 0; k < h.binnings.size(); ++k) {
+    comparisons.push_back(compare_vndf(r.counts[k], r.unbinned[k], h.binnings[k], wi, analytic, empirical));
+    h.probability.push_back(comparisons.back().p_analytic);
+  }
+  const auto g17 = [](double x) { return fmt::format("{:.17g}", x); };
+  h.attributes["surface"] = surface;
+  h.attributes["target"] = fmt::format("heightfield {} x {} tile {}", field.resolution(), field.resolution(), g17(field.tile_size()));
+  h.attributes["mesh_level"] = "-1";
+  h.attributes["alpha"] = g17(analytic.alpha_x()) + "," + g17(analytic.alpha_y());
+  h.attributes["reference_ndf"] = to_string(analytic.ndf());
+  h.attributes["theta"] = g17(theta);
+  h.attributes["phi"] = g17(phi);
+  h.attributes["wi"] = g17(wi.x()) + "," + g17(wi.y()) + "," + g17(wi.z());
+  h.attributes["seed"] = std::to_string(seed);
+  h.attributes["rays_requested"] = std::to_string(rays);
+  h.attributes["threads"] = std::to_string(threads);
+  h.attributes["rays_per_second"] = g17(r.rays_per_second());
+  write_histogram_exr(out, h);
+
+  const VndfComparison& lobe = comparisons.back();
+  nlohmann::json j;
+  j["surface"] = surface_json(field, surface, analytic, source);
+  j["target"] = h.attributes["target"];
+  j["alpha"] = {analytic.alpha_x(), analytic.alpha_y()};
+  j["theta"] = theta;
+  j["phi"] = phi;
+  j["wi"] = {wi.x(), wi.y(), wi.z()};
+  j["rays_requested"] = rays;
+  j["rays"] = r.rays;
+  j["hits"] = r.hits;
+  j["hit_fraction"] = r.rays ? double(r.hits) / double(r.rays) : 0.0;
+  j["expected_hit_fraction"] = 1.0;  // every downward ray hits a heightfield
+  j["backfacing_hits"] = diag.backfacing;
+  j["leaked_rays"] = diag.leaked;
+  j["seconds"] = r.seconds;
+  j["rays_per_second"] = r.rays_per_second();
+  j["seed"] = seed;
+  j["threads"] = threads;
+  j["rows"] = rows;
+  j["partial"] = r.partial;
+  j["output"] = out;
+  j["total_variation"] = lobe.tv_analytic;
+  j["total_variation_own_ndf"] = lobe.tv_empirical;
+  j["noise_floor_tv"] = lobe.tv_noise;
+  j["p_value"] = lobe.p_value_analytic;
+  j["p_value_own_ndf"] = lobe.p_value_empirical;
+  for (const auto& c : comparisons) j["comparisons"].push_back(to_json(c));
+  if (!json.empty()) write_text_atomically(json, j.dump(2) + "\n");
+
+  fmt::print("trace vndf  heightfield {}  theta {}  phi {}  reference {} ({})\n", surface, theta, phi,
+             analytic.describe(), source);
+  fmt::print("rays {}  front-facing first hits {}  back-facing {}  leaked {}  {:.2f} s  {:.3f} Mrays/s{}\n", r.rays,
+             r.hits, diag.backfacing, diag.leaked, r.seconds, r.rays_per_second() * 1e-6,
+             r.partial ? "  PARTIAL (interrupted)" : "");
+  fmt::print("| bins | cells | TV to Smith (analytic) | TV to Smith (own NDF) | TV noise floor | p (analytic) | p (own NDF) |\n"
+             "|---|---|---|---|---|---|---|\n");
+  for (const auto& c : comparisons)
+    fmt::print("| {} | {} | {:.5f} | {:.5f} | {:.5f} | {:.3g} | {:.3g} |\n", c.binning, c.bins, c.tv_analytic,
+               c.tv_empirical, c.tv_noise, c.p_value_analytic, c.p_value_empirical);
+  fmt::print("wrote {}{}\n", out, json.empty() ? "" : " and " + json);
+  return r.partial ? 130 : kExitOk;
+}
+
+namespace {
+
+CommandRegistration reg{"trace masking", [](CLI::App& app) {
+  CLI::App* trace = get_or_add_subcommand(app, "trace", "Ray-trace microsurfaces (the exact oracle)");
+  auto args = std::make_shared<MaskingArgs>();
+  auto* sub = trace->add_subcommand(
+      "masking",
+      "Masking of an explicit heightfield (an EXR from `microsim surface build`), by ray tracing: surface "
+      "points uniform in (x, y) weighted by <v,m>+/mz, each with a shadow ray toward v. Reports the leak test "
+      "(weighted visible fraction / cos(theta_v), must be 1), G1(v), G1(v | m) in equal-area bins of <v, m> "
+      "(grazing .. facing v), G1(v | h) in height bins, and G2 in the mirror configuration (l = reflect(v, m)) "
+      "and for a light --theta-l/--phi-l; every estimate with its standard error, beside Smith's predictions "
+      "with the analytic NDF and with the surface's own measured NDF. --vndf-rays also traces the VNDF. "
+      "--table builds the assemblies and prints the masking table of docs/masking.md. Exit 0 done, 1 leak test "
+      "failed, 2 bad input, 130 interrupted.");
+  sub->add_option("--surface", args->surface, "heightmap EXR (microsim surface build/import)");
+  sub->add_option("--tile-size", args->tile_size, "physical tile size, for heightmaps without the microsim.tile_size attribute");
+  sub->add_option("--theta", args->theta, "view polar angle in degrees, [0, 90)");
+  sub->add_option("--phi", args->phi, "view azimuth in degrees (single surface; default 0)");
+  sub->add_option("--theta-l", args->theta_l, "light polar angle in degrees, [0, 90): adds G2(v, l)");
+  sub->add_option("--phi-l", args->phi_l, "light azimuth in degrees")->capture_default_str();
+  sub->add_option("--cone", args->cone, "half-angle (deg) of the mirror cone around the half vector for G2(v, l)")
+      ->capture_default_str();
+  sub->add_option("--samples", args->samples, "surface points per view")->capture_default_str();
+  sub->add_option("--vndf-rays", args->vndf_rays,
+                  "also trace the VNDF with this many rays (single surface; table: rays per view, default 2e6)");
+  sub->add_option("--seed", args->seed, "random seed (same seed, same result, whatever --threads)")->capture_default_str();
+  sub->add_option("--threads", args->threads, "worker threads (0: all cores)")->capture_default_str();
+  sub->add_option("--bins", args->bins, "bins of <v, m> and of height")->capture_default_str();
+  sub->add_option("--geometry", args->geometry, "Embree geometry: triangles or grid")->capture_default_str();
+  sub->add_option("--json", args->json, "write the results as JSON");
+  sub->add_flag("--table", args->table, "build the assemblies and print the masking table (docs/masking.md)");
+  sub->add_option("--assemblies", args->assemblies, "table: assemblies")->capture_default_str();
+  sub->add_option("--alphas", args->alphas, "table: roughnesses")->capture_default_str();
+  sub->add_option("--thetas", args->thetas, "table: view angles (deg)")->capture_default_str();
+  sub->add_option("--table-phi", args->table_phi, "table: view azimuth (deg), off the grid axes")->capture_default_str();
+  sub->add_option("--res", args->res, "table: surface resolution N")->capture_default_str();
+  sub->add_option("--corr-cells", args->corr_cells, "table: correlation length in cells (0: assembly default)")
+      ->capture_default_str();
+  sub->add_option("--markdown", args->markdown, "table: also write the markdown table to this file");
+  on_selected(sub, [args] {
+    if (args->table) {
+      MaskingArgs a = *args;
+      if (a.vndf_rays > 0) a.table_vndf_rays = a.vndf_rays;
+      return run_table(a);
+    }
+    return run_masking(*args);
+  });
+}};
+
+}  // namespace
+
+}  // namespace microsim::app
