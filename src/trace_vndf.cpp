@@ -4,6 +4,7 @@
 #include "microsim/random.h"
 
 #include <fmt/core.h>
+#include <nlohmann/json.hpp>
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
@@ -16,6 +17,96 @@
 #include <stdexcept>
 
 namespace microsim {
+
+// ---- fast binning -----------------------------------------------------------------------------------------
+
+FastDirectionBinner::FastDirectionBinner(const DirectionBinning& b) : binning_(&b) {
+  const nlohmann::json d = b.describe();
+  lobe_ = b.kind() == BinningKind::lobe;
+  rows_ = b.rows();
+  cols_ = b.cols();
+  z_min_ = b.z_min();
+  z_max_ = b.z_max();
+  inv_dz_ = rows_ / (z_max_ - z_min_);
+  if (lobe_) {
+    inv_ax_ = 1.0 / d.at("alpha").at(0).get<double>();
+    inv_ay_ = 1.0 / d.at("alpha").at(1).get<double>();
+    exact_only_ = d.at("domain").get<std::string>() != "microfacet_normal";
+  }
+  if (cols_ < 8) exact_only_ = true;  // sectors of pi/4 or wider: keep the simple path
+  cols_per_radian_ = cols_ / (2 * kPi<double>);
+  edge_cos_.resize(std::size_t(cols_) + 1);
+  edge_sin_.resize(std::size_t(cols_) + 1);
+  for (int j = 0; j <= cols_; ++j) {
+    const double phi = 2 * kPi<double> * double(j % cols_) / double(cols_);
+    edge_cos_[std::size_t(j)] = std::cos(phi);
+    edge_sin_[std::size_t(j)] = std::sin(phi);
+  }
+}
+
+namespace {
+// arctan on [0, 1] (Abramowitz & Stegun 1964, eq. 4.4.47: |error| <= 1e-5 rad): only a first guess of
+// the sector, which the edge tests below correct and confirm.
+inline double atan_unit(double t) {
+  const double t2 = t * t;
+  return t * (0.9998660 + t2 * (-0.3302995 + t2 * (0.1801410 + t2 * (-0.0851330 + t2 * 0.0208351))));
+}
+
+// phi = base + sign * atan(min / max) by octant, index = (|y| > |x|) + 2 (x < 0) + 4 (y < 0):
+// first quadrant q = a or pi/2 - a, then pi - q, pi + q, 2 pi - q for the other quadrants.
+struct OctantMap {
+  double base[8], sign[8];
+  constexpr OctantMap() : base{}, sign{} {
+    const double half_pi = kPi<double> / 2;
+    for (int i = 0; i < 8; ++i) {
+      const bool swap = i & 1, x_negative = i & 2, y_negative = i & 4;
+      const double qb = swap ? half_pi : 0.0, qs = swap ? -1.0 : 1.0;  // q = qb + qs a
+      double pb = 0.0, ps = 1.0;                                        // phi = pb + ps q
+      if (x_negative && !y_negative) pb = kPi<double>, ps = -1.0;
+      if (x_negative && y_negative) pb = kPi<double>, ps = 1.0;
+      if (!x_negative && y_negative) pb = 2 * kPi<double>, ps = -1.0;
+      base[i] = pb + ps * qb;
+      sign[i] = ps * qs;
+    }
+  }
+};
+constexpr OctantMap kOctants;
+}  // namespace
+
+int FastDirectionBinner::operator()(const Vec3<double>& direction) const {
+  if (exact_only_ || !direction.allFinite()) return exact(direction);
+  // A point along the parameter-space direction (not normalised: the column needs only its direction).
+  const Vec3<double> v = lobe_ ? Vec3<double>(direction.x() * inv_ax_, direction.y() * inv_ay_, direction.z()) : direction;
+  const double len2 = v.squaredNorm();
+  if (!(len2 > 1e-280) || !(len2 < 1e280)) return exact(direction);  // zero, or near under/overflow
+  const double z = v.z() / std::sqrt(len2);
+  if (lobe_ && (z < z_min_ || z > z_max_)) {
+    // Outside the lobe's parameter space (bin_of: nullopt) unless within round-off of its rim.
+    if (z < z_min_ - 1e-12 || z > z_max_ + 1e-12) return -1;
+    return exact(direction);
+  }
+  // Row, with a guard band where round-off could move u.z across a row edge. r >= -1e-15 here, so
+  // truncation is floor except in the guard band.
+  const double r = (z_max_ - z) * inv_dz_;
+  const double r_floor = double(static_cast<long long>(r));
+  const double frac = r - r_floor;
+  // Column: arctangent by octant (branch-free), then the sector whose edges bracket (x, y).
+  const double x = v.x(), y = v.y(), ax = std::abs(x), ay = std::abs(y);
+  const bool swap = ay > ax;
+  const double lo = swap ? ax : ay, hi = swap ? ay : ax;
+  const int octant = int(swap) | (int(x < 0) << 1) | (int(y < 0) << 2);
+  if ((frac < 1e-9) | (frac > 1 - 1e-9) | !(hi > 1e-150 * std::sqrt(len2))) return exact(direction);  // row edge or pole
+  const int row = std::min(int(r_floor), rows_ - 1);
+  const double phi = kOctants.base[octant] + kOctants.sign[octant] * atan_unit(lo / hi);
+  int col = std::clamp(int(phi * cols_per_radian_), 0, cols_ - 1);
+  // cross(e_j, p) >= 0: p is at or counter-clockwise of edge j (less than pi away).
+  const auto side = [&](int j) { return edge_cos_[std::size_t(j)] * y - edge_sin_[std::size_t(j)] * x; };
+  while (col > 0 && side(col) < 0) --col;
+  while (col < cols_ - 1 && side(col + 1) >= 0) ++col;
+  const double margin = 1e-12 * hi;
+  if (!((side(col) >= margin) & (side(col + 1) <= -margin))) return exact(direction);  // near an edge, or wrapped
+  return row * cols_ + col;
+}
 
 // ---- the target ------------------------------------------------------------------------------------------
 
@@ -85,6 +176,10 @@ inline void disk_point(CounterRng& rng, double& x, double& y) {
   } while (x * x + y * y >= 1.0);
 }
 
+constexpr std::size_t kMaxBinnings = 8;
+constexpr int kUnknownBin = std::numeric_limits<int>::min();
+constexpr int kNotCounted = -2;
+
 struct LocalHistograms {
   std::vector<std::vector<std::uint64_t>> counts;
   std::vector<std::uint64_t> unbinned;
@@ -101,6 +196,20 @@ TraceResult trace_vndf(const EllipsoidTarget& target, const Vec3<double>& wi_in,
   const Vec3<float> dir = beam.direction().cast<float>();
   const std::uint64_t blocks = (options.rays + kRaysPerBlock - 1) / kRaysPerBlock;
   const std::size_t nb = binnings.size();
+  if (nb > kMaxBinnings) throw std::invalid_argument(fmt::format("trace_vndf: at most {} binnings", kMaxBinnings));
+  std::vector<FastDirectionBinner> binners;
+  for (const DirectionBinning& b : binnings) binners.emplace_back(b);
+  // Mesh targets: per-triangle cache of its bins (kUnknownBin until first hit, kNotCounted for faces
+  // whose hits do not count), `stride` ints per triangle.
+  const std::size_t stride = std::max<std::size_t>(nb, 1);
+  std::unique_ptr<std::atomic<int>[]> face_cache;
+  if (target.is_mesh()) {
+    const std::size_t n = target.triangle_count() * stride;
+    face_cache.reset(new std::atomic<int>[n]);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, std::size_t(1) << 16), [&](const auto& r) {
+      for (std::size_t i = r.begin(); i != r.end(); ++i) face_cache[i].store(kUnknownBin, std::memory_order_relaxed);
+    });
+  }
 
   tbb::enumerable_thread_specific<LocalHistograms> locals([&] {
     LocalHistograms h;
@@ -150,15 +259,35 @@ TraceResult trace_vndf(const EllipsoidTarget& target, const Vec3<double>& wi_in,
         rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
         rtcIntersect1(rtc_scene, &context, &rh);
         if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
-        const embree::Hit hit{rh.ray.tfar, rh.hit.primID, rh.hit.geomID,
-                              Vec3<float>(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z), rh.hit.u, rh.hit.v};
-        const auto n = target.counted_normal(hit, wi);
-        if (!n) continue;
+        int bins[kMaxBinnings];
+        if (face_cache) {
+          // Mesh: a triangle has one normal, so its bins (or "not counted") are computed on its first
+          // hit and cached; racing threads store the same value.
+          std::atomic<int>* slot = &face_cache[std::size_t(rh.hit.primID) * stride];
+          int first_value = slot[0].load(std::memory_order_relaxed);
+          if (first_value == kUnknownBin) {
+            Vec3<double> n;
+            const embree::Hit hit{rh.ray.tfar, rh.hit.primID, rh.hit.geomID, Vec3<float>::Zero(), 0.0f, 0.0f};
+            const bool counted = target.counted_normal(hit, wi, n);
+            for (std::size_t k = 0; k < stride; ++k) {
+              const int value = !counted ? kNotCounted : (k < nb ? binners[k](n) : 0);
+              slot[k].store(value, std::memory_order_relaxed);
+            }
+            first_value = slot[0].load(std::memory_order_relaxed);
+          }
+          if (first_value == kNotCounted) continue;
+          for (std::size_t k = 0; k < nb; ++k) bins[k] = slot[k].load(std::memory_order_relaxed);
+        } else {
+          const embree::Hit hit{rh.ray.tfar, rh.hit.primID, rh.hit.geomID,
+                                Vec3<float>(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z), rh.hit.u, rh.hit.v};
+          Vec3<double> n;
+          if (!target.counted_normal(hit, wi, n)) continue;
+          for (std::size_t k = 0; k < nb; ++k) bins[k] = binners[k](n);
+        }
         ++local.hits;
         for (std::size_t k = 0; k < nb; ++k) {
-          const auto bin = binnings[k].bin_of(*n);
-          if (bin) {
-            ++local.counts[k][std::size_t(*bin)];
+          if (bins[k] >= 0) {
+            ++local.counts[k][std::size_t(bins[k])];
           } else {
             ++local.unbinned[k];
           }
