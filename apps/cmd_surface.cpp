@@ -471,7 +471,7 @@ microsim::app::CommandRegistration reg{"surface", [](CLI::App& app) {
                 "\nAnisotropy stretches the spectra: the surface is the affine image of an isotropic one.");
   build->add_option("--assembly", b->assembly, "assembly name (see above)")->required();
   build->add_option("--alpha", b->alpha, "GGX/Beckmann roughness AX or AX,AY, each in [0.005, 2]")->required();
-  build->add_option("--res", b->resolution, "vertices per side N (a power of two, 16..16384)")->required();
+  build->add_option("--res", b->resolution, "vertices per side N (a power of two, 16..8192; 8192 needs ~6.7 GiB)")->required();
   build->add_option("--seed", b->seed, "random seed (default 1)");
   build->add_option("--corr-cells", b->corr_cells,
                     "correlation length l in cells, in [2, N/8] (default min(16, N/16)); the mixture's patches are 8 l");

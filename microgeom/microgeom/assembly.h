@@ -45,12 +45,12 @@ const AssemblyInfo* find_assembly(std::string_view name);
 inline constexpr double kMinAssemblyAlpha = 0.005;
 inline constexpr double kMaxAssemblyAlpha = 2.0;
 inline constexpr int kMinAssemblyResolution = 16;
-inline constexpr int kMaxAssemblyResolution = 16384;
+inline constexpr int kMaxAssemblyResolution = 8192;  // ~6.7 GiB at the peak (105 bytes per texel)
 
 struct AssemblyParams {
   std::string assembly = "smith";
   double alpha_x = 0.5, alpha_y = 0.5;
-  int resolution = 1024;       // N, a power of two in [16, 16384]
+  int resolution = 1024;       // N, a power of two in [16, 8192]
   std::uint64_t seed = 1;
   double corr_cells = 0;       // feature size l in cells; 0 -> default_corr_cells(N)
   double tile_size = 1.0;      // L, physical units
