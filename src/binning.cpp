@@ -226,31 +226,142 @@ BinIntegrals DirectionBinning::integrate(const std::function<double(const Vec3<d
   }
 
   // g(theta, phi) = pdf(w(u)) |dw/du| sin(theta): the integrand per unit d theta d phi.
-  auto evaluate = [&](Cell& c) {
-    const double tc = 0.5 * (c.t0 + c.t1), th = 0.5 * (c.t1 - c.t0);
-    const double pc = 0.5 * (c.p0 + c.p1), ph = 0.5 * (c.p1 - c.p0);
-    std::array<double, 15> st{}, ct{}, sp{}, cp{};
-    for (int i = 0; i < 15; ++i) {
-      const double t = tc + th * rule.x[i], p = pc + ph * rule.x[i];
-      st[i] = std::sin(t);
-      ct[i] = std::cos(t);
-      sp[i] = std::sin(p);
-      cp[i] = std::cos(p);
-    }
-    double k = 0, g = 0;
-    for (int i = 0; i < 15; ++i) {
-      double row_k = 0, row_g = 0;
-      for (int j = 0; j < 15; ++j) {
-        const Vec3<double> u(st[i] * cp[j], st[i] * sp[j], ct[i]);
-        const double v = pdf(from_param(u)) * jacobian(u);
-        row_k += rule.wk[j] * v;
-        row_g += rule.wg[j] * v;
+  // The integrand at u(theta, phi) per unit d theta d phi: pdf(w(u)) |dw/du| sin(theta).
+  auto integrand = [&](double theta, double phi) {
+    const double st = std::sin(theta);
+    const Vec3<double> u(st * std::cos(phi), st * std::sin(phi), std::cos(theta));
+    return pdf(from_param(u)) * jacobian(u) * st;
+  };
+  const auto& breaks = options.breaks;
+  auto break_value = [&](std::size_t k, double theta, double phi) {
+    const double st = std::sin(theta);
+    return breaks[k](from_param(Vec3<double>(st * std::cos(phi), st * std::sin(phi), std::cos(theta))));
+  };
+  // Break-function values on the 15 inner lines x 17 points (the line's two ends and its 15 nodes) of
+  // a cell, inner direction theta (theta_inner) or phi; returns how many lines see a sign change.
+  const std::size_t n_breaks = breaks.size();
+  auto break_grid = [&](const Cell& c, bool theta_inner, std::vector<double>& values, long long& evals) {
+    const double i0 = theta_inner ? c.t0 : c.p0, i1 = theta_inner ? c.t1 : c.p1;
+    const double o0 = theta_inner ? c.p0 : c.t0, o1 = theta_inner ? c.p1 : c.t1;
+    values.resize(n_breaks * 15 * 17);
+    int lines_cut = 0;
+    for (int j = 0; j < 15; ++j) {
+      const double outer = 0.5 * (o0 + o1) + 0.5 * (o1 - o0) * rule.x[j];
+      bool cut = false;
+      for (std::size_t b = 0; b < n_breaks; ++b) {
+        for (int i = 0; i < 17; ++i) {
+          const double inner = i == 0 ? i0 : i == 16 ? i1 : 0.5 * (i0 + i1) + 0.5 * (i1 - i0) * rule.x[i - 1];
+          const double v = theta_inner ? break_value(b, inner, outer) : break_value(b, outer, inner);
+          values[(b * 15 + j) * 17 + i] = v;
+          if (i > 0 && (v >= 0) != (values[(b * 15 + j) * 17 + i - 1] >= 0)) cut = true;
+        }
       }
-      k += rule.wk[i] * st[i] * row_k;
-      g += rule.wg[i] * st[i] * row_g;
+      evals += static_cast<long long>(n_breaks) * 17;
+      lines_cut += cut;
     }
-    c.value = k * th * ph;
-    c.error = std::abs(k - g) * th * ph;
+    return lines_cut;
+  };
+  // Nested Gauss-Kronrod (K15 x K15, error against G7 x G7) over a cell, the inner integral along theta
+  // (theta_inner) or along phi. Each inner line is cut where a break function changes sign between
+  // two of its 17 grid points; the root is found by the Illinois variant of regula falsi (Dowell &
+  // Jarratt 1971) and the line integrated piecewise.
+  auto nested = [&](Cell& c, bool theta_inner, const std::vector<double>& grid, long long& evals) {
+    const double i0 = theta_inner ? c.t0 : c.p0, i1 = theta_inner ? c.t1 : c.p1;
+    const double o0 = theta_inner ? c.p0 : c.t0, o1 = theta_inner ? c.p1 : c.t1;
+    const double oc = 0.5 * (o0 + o1), oh = 0.5 * (o1 - o0);
+    const double ic = 0.5 * (i0 + i1), ih = 0.5 * (i1 - i0);
+    auto f = [&](double inner, double outer) { return theta_inner ? integrand(inner, outer) : integrand(outer, inner); };
+    auto brk = [&](std::size_t b, double inner, double outer) {
+      return theta_inner ? break_value(b, inner, outer) : break_value(b, outer, inner);
+    };
+    std::array<double, 17> xs{};
+    xs[0] = i0;
+    for (int i = 0; i < 15; ++i) xs[i + 1] = ic + ih * rule.x[i];
+    xs[16] = i1;
+    double k = 0, g = 0;
+    for (int j = 0; j < 15; ++j) {
+      const double outer = oc + oh * rule.x[j];
+      constexpr int kMaxCuts = 32;
+      std::array<double, kMaxCuts + 2> cuts{};
+      int n_cuts = 0;
+      cuts[n_cuts++] = i0;
+      for (std::size_t b = 0; b < n_breaks; ++b) {
+        const double* v = &grid[(b * 15 + j) * 17];
+        for (int i = 1; i < 17; ++i) {
+          if ((v[i] >= 0) == (v[i - 1] >= 0)) continue;
+          double lo = xs[i - 1], hi = xs[i], flo = v[i - 1], fhi = v[i];
+          int side = 0;
+          for (int it = 0; it < 60 && hi - lo > 1e-14 * std::max(1.0, std::abs(hi)); ++it) {
+            double x = (lo * fhi - hi * flo) / (fhi - flo);
+            if (!(x > lo && x < hi)) x = 0.5 * (lo + hi);
+            const double fx = brk(b, x, outer);
+            evals += 1;
+            if ((fx >= 0) == (flo >= 0)) {
+              lo = x;
+              flo = fx;
+              if (side == -1) fhi *= 0.5;  // Illinois: halve the stale end's value
+              side = -1;
+            } else {
+              hi = x;
+              fhi = fx;
+              if (side == 1) flo *= 0.5;
+              side = 1;
+            }
+          }
+          if (n_cuts < kMaxCuts + 1) cuts[n_cuts++] = 0.5 * (lo + hi);
+        }
+      }
+      double lk = 0, lg = 0;
+      if (n_cuts == 1) {
+        for (int i = 0; i < 15; ++i) {
+          const double val = f(xs[i + 1], outer);
+          lk += rule.wk[i] * val;
+          lg += rule.wg[i] * val;
+        }
+        evals += 15;
+        lk *= ih;
+        lg *= ih;
+      } else {
+        cuts[n_cuts++] = i1;
+        std::sort(cuts.begin(), cuts.begin() + n_cuts);
+        for (int s = 0; s + 1 < n_cuts; ++s) {
+          const double a = cuts[s], b = cuts[s + 1];
+          if (!(b > a)) continue;
+          const double mc = 0.5 * (a + b), mh = 0.5 * (b - a);
+          double ks = 0, gs = 0;
+          for (int i = 0; i < 15; ++i) {
+            const double val = f(mc + mh * rule.x[i], outer);
+            ks += rule.wk[i] * val;
+            gs += rule.wg[i] * val;
+          }
+          evals += 15;
+          lk += ks * mh;
+          lg += gs * mh;
+        }
+      }
+      k += rule.wk[j] * lk;
+      g += rule.wg[j] * lg;
+    }
+    c.value = k * oh;
+    c.error = std::abs(k - g) * oh;
+  };
+  // With break curves, the inner direction is the one whose lines the curves cross most often: lines
+  // parallel to a curve can miss it (a sliver between two nodes), lines across it cannot.
+  auto evaluate = [&](Cell& c, long long& evals) {
+    if (n_breaks == 0) {
+      static const std::vector<double> none;
+      nested(c, true, none, evals);
+      return;
+    }
+    std::vector<double> theta_grid, phi_grid;
+    const int theta_cuts = break_grid(c, true, theta_grid, evals);
+    // Every theta line cut: the phi order cannot see more crossings.
+    const int phi_cuts = theta_cuts == 15 ? 0 : break_grid(c, false, phi_grid, evals);
+    if (phi_cuts > theta_cuts) {
+      nested(c, false, phi_grid, evals);
+    } else {
+      nested(c, true, theta_grid, evals);
+    }
   };
 
   std::vector<double> probability(n_bins, 0.0), error(n_bins, 0.0);
@@ -347,8 +458,7 @@ BinIntegrals DirectionBinning::integrate(const std::function<double(const Vec3<d
     double value = 0, err = 0;
     long long evals = 0;
     for (Cell& c : leaves) {
-      evaluate(c);
-      evals += 225;
+      evaluate(c, evals);
       value += c.value;
       err += c.error;
       queue.push(c);
@@ -360,9 +470,8 @@ BinIntegrals DirectionBinning::integrate(const std::function<double(const Vec3<d
       if (std::max(theta_side(worst), phi_side(worst)) <= options.min_cell_size) break;
       queue.pop();
       auto [a, b] = split(worst);
-      evaluate(a);
-      evaluate(b);
-      evals += 450;
+      evaluate(a, evals);
+      evaluate(b, evals);
       value += a.value + b.value - worst.value;
       err += a.error + b.error - worst.error;
       queue.push(a);

@@ -66,6 +66,10 @@ struct IntegrationOptions {
   // Parameter-space heights z where the pdf may jump (e.g. the equator for normals): every band that
   // straddles one is integrated in two pieces, so the jump falls on a cell edge.
   std::vector<double> z_breaks;
+  // Functions of the direction whose zero set is a curve where the pdf jumps (or has a kink), e.g. the
+  // boundary of a sampler's support: on every theta line of a cell where one changes sign, the line is
+  // integrated piecewise between the roots (bisection), so the jump no longer costs refinement.
+  std::vector<std::function<double(const Vec3<double>&)>> breaks;
 };
 
 struct BinIntegrals {
