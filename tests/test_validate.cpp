@@ -1,0 +1,286 @@
+// Tests of the statistical validator: negative controls are rejected, correct samplers pass, each
+// sub-test fails on the input it is meant to catch. All at fixed seeds; levels stated per test.
+#include "microsim/random.h"
+#include "microsim/validate.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <tbb/global_control.h>
+
+#include <map>
+#include <mutex>
+#include <tuple>
+
+using namespace microsim;
+
+namespace {
+
+// References are expensive (adaptive cubature over 2 x 1922 bins): share them between tests.
+std::shared_ptr<const ReferenceDistribution> cached_claimed(const SamplerInfo& s, double ax, double ay, double theta,
+                                                            double phi) {
+  static std::mutex mutex;
+  static std::map<std::tuple<const void*, double, double, double, double>, std::shared_ptr<const ReferenceDistribution>> cache;
+  std::lock_guard lock(mutex);
+  auto& ref = cache[{reinterpret_cast<const void*>(s.claimed_pdf), ax, ay, theta, phi}];
+  if (!ref) ref = claimed_reference(s, GGX<double>(ax, ay), direction_from_degrees(theta, phi), 31);
+  return ref;
+}
+
+// Normals drawn by a sampler of the zoo with another roughness, or any sampling function.
+template <class F> std::vector<Vec3<double>> draw(F&& sample, std::uint64_t n, std::uint64_t seed) {
+  std::vector<Vec3<double>> out;
+  out.reserve(n);
+  for (std::uint64_t i = 0; i < n; ++i) {
+    CounterRng rng(seed, i);
+    const auto s = sample(Vec2<double>(rng.uniform(), rng.uniform()));
+    if (s) out.push_back(s->direction);
+  }
+  return out;
+}
+
+// A deliberately wrong sampler for the returned-pdf test: heitz2018's samples with 5% too much pdf.
+SampleResult<double> heitz2018_pdf_too_high(const GGX<double>& g, const Vec3<double>& wi, Vec2<double> u) {
+  auto s = sample_heitz2018<double>(g, wi, u);
+  if (s) s->pdf *= 1.05;
+  return s;
+}
+SampleResult<float> heitz2018_pdf_too_high_f(const GGX<float>& g, const Vec3<float>& wi, Vec2<float> u) {
+  auto s = sample_heitz2018<float>(g, wi, u);
+  if (s) s->pdf *= 1.05f;
+  return s;
+}
+
+const SamplerInfo& sampler(const char* name) {
+  const SamplerInfo* s = find_sampler(name);
+  if (!s) throw std::runtime_error(name);
+  return *s;
+}
+
+}  // namespace
+
+// The negative control of the zoo (the 2018 talk's listing) is rejected at every theta of the grid for
+// alpha = 0.3, with 200k samples at seed 7, family-wise level 0.01, and p < 1e-6.
+TEST(Validate, TalkListingIsRejectedAtEveryTheta) {
+  const SamplerInfo& talk = sampler("heitz2018-talk");
+  for (double theta : {0.0, 30.0, 60.0, 80.0, 89.0}) {
+    ValidationOptions o;
+    o.samples = 200'000;
+    o.seed = 7;
+    const ValidationReport r = validate_sampler(talk, GGX<double>(0.3), direction_from_degrees(theta, 0.0), o,
+                                                cached_claimed(talk, 0.3, 0.3, theta, 0));
+    EXPECT_FALSE(r.passed) << "theta " << theta;
+    EXPECT_LT(r.p_value, 1e-6) << "theta " << theta;
+    EXPECT_FALSE(r.failures.empty());
+  }
+}
+
+// Every correct sampler passes a small grid (100k samples per validation, fixed seeds), with the Sidak
+// correction over the 5 x 8 validations of the grid at family-wise level 0.01.
+class CorrectSamplerGrid : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(CorrectSamplerGrid, PassesTheGrid) {
+  const SamplerInfo& s = sampler(GetParam());
+  struct Config {
+    double ax, ay, theta, phi;
+  };
+  const Config grid[] = {{1e-3, 1e-3, 30, 0}, {1e-3, 1e-3, 89, 0}, {0.3, 0.3, 30, 0},   {0.3, 0.3, 89, 0},
+                         {2, 2, 30, 0},       {2, 2, 89, 0},       {0.05, 0.5, 60, 30}, {1e-3, 0.3, 0, 30}};
+  const int n_validations = 5 * int(std::size(grid));
+  int k = 0;
+  for (const Config& c : grid) {
+    ValidationOptions o;
+    o.samples = 100'000;
+    o.seed = 1000 + k++;
+    o.significance = sidak_significance(0.01, n_validations);
+    const ValidationReport r = validate_sampler(s, GGX<double>(c.ax, c.ay), direction_from_degrees(c.theta, c.phi), o,
+                                                cached_claimed(s, c.ax, c.ay, c.theta, c.phi));
+    EXPECT_TRUE(r.passed) << s.name << " alpha (" << c.ax << ", " << c.ay << ") theta " << c.theta << ": "
+                          << (r.failures.empty() ? "" : r.failures.front());
+    EXPECT_NEAR(r.integral.value, 1.0, 1e-6);
+    EXPECT_EQ(r.failed_samples, 0u);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Zoo, CorrectSamplerGrid,
+                         ::testing::Values("ndf", "heitz2014", "heitz2018", "dupuy2023", "bounded2023"));
+
+// The float versions pass too (the returned pdf within the float tolerance).
+TEST(Validate, FloatVersionsPass) {
+  for (const char* name : {"heitz2018", "dupuy2023", "bounded2023"}) {
+    const SamplerInfo& s = sampler(name);
+    ValidationOptions o;
+    o.samples = 100'000;
+    o.seed = 11;
+    o.precision = Precision::float32;
+    o.significance = sidak_significance(0.01, 3);
+    const ValidationReport r =
+        validate_sampler(s, GGX<double>(0.3), direction_from_degrees(60.0, 0.0), o, cached_claimed(s, 0.3, 0.3, 60, 0));
+    EXPECT_TRUE(r.passed) << name << ": " << (r.failures.empty() ? "" : r.failures.front());
+    EXPECT_LE(r.pdf.value, kPdfToleranceFloat);
+  }
+}
+
+// ndf samples D(m) m.z: validated against the pdf it claims it passes; its normals validated as VNDF
+// samples (against D_v) are rejected at theta = 60 degrees (200k samples, seed 3, level 0.01).
+TEST(Validate, NdfIsNotAVndfSampler) {
+  const SamplerInfo& ndf = sampler("ndf");
+  const GGX<double> ggx(0.3);
+  const Vec3<double> wi = direction_from_degrees(60.0, 0.0);
+  ValidationOptions o;
+  o.samples = 200'000;
+  o.seed = 3;
+  const ValidationReport own = validate_sampler(ndf, ggx, wi, o, cached_claimed(ndf, 0.3, 0.3, 60, 0));
+  EXPECT_TRUE(own.passed) << (own.failures.empty() ? "" : own.failures.front());
+  EXPECT_TRUE(own.weight.applicable);
+  const auto normals = draw([&](Vec2<double> u) { return sample_ndf<double>(ggx, wi, u); }, o.samples, o.seed);
+  const ValidationReport as_vndf = validate_samples(normals, SampleDomain::microfacet_normal, ggx, wi, o);
+  EXPECT_FALSE(as_vndf.passed);
+  EXPECT_LT(as_vndf.p_value, 1e-6);
+  EXPECT_FALSE(as_vndf.pdf.applicable);
+  EXPECT_FALSE(as_vndf.weight.applicable);
+}
+
+// A subtly wrong sampler: heitz2018 run with alpha 5% too large, checked against the VNDF of alpha = 0.3
+// at theta = 60 degrees, is rejected at 1e6 samples (seed 5, level 0.01).
+TEST(Validate, SubtlyWrongRoughnessIsRejected) {
+  const GGX<double> ggx(0.3), wrong(0.3 * 1.05);
+  const Vec3<double> wi = direction_from_degrees(60.0, 0.0);
+  ValidationOptions o;
+  o.seed = 5;
+  const auto normals = draw([&](Vec2<double> u) { return sample_heitz2018<double>(wrong, wi, u); }, 1'000'000, o.seed);
+  const ValidationReport r = validate_samples(normals, SampleDomain::microfacet_normal, ggx, wi, o);
+  EXPECT_FALSE(r.passed);
+  EXPECT_LT(r.p_value, 1e-4);
+  // The same samples are accepted against the roughness they were drawn with.
+  const ValidationReport ok = validate_samples(normals, SampleDomain::microfacet_normal, wrong, wi, o);
+  EXPECT_TRUE(ok.passed) << (ok.failures.empty() ? "" : ok.failures.front());
+}
+
+// At alpha = 1e-3 the whole lobe sits in the polar sphere bins: only the lobe bins see a 5% error of
+// the roughness (300k samples, seed 9; level 0.01).
+TEST(Validate, LobeBinsKeepPowerAtSmallAlpha) {
+  const GGX<double> ggx(1e-3), wrong(1.05e-3);
+  const Vec3<double> wi = direction_from_degrees(30.0, 0.0);
+  ValidationOptions o;
+  o.seed = 9;
+  const auto normals = draw([&](Vec2<double> u) { return sample_heitz2018<double>(wrong, wi, u); }, 300'000, o.seed);
+  const ValidationReport r = validate_samples(normals, SampleDomain::microfacet_normal, ggx, wi, o);
+  EXPECT_FALSE(r.passed);
+  EXPECT_LT(r.lobe.p_value, 1e-6);
+  EXPECT_GT(r.sphere.p_value, 1e-3) << "sphere bins were expected to be blind here";
+}
+
+// Reflected directions: VNDF reflections pass against the VNDF reflection pdf (the --from --reflected
+// path); the bounded sampler's reflections do not (its support is smaller), at alpha 0.3, theta 60.
+TEST(Validate, ReflectedDirections) {
+  const GGX<double> ggx(0.3);
+  const Vec3<double> wi = direction_from_degrees(60.0, 0.0);
+  ValidationOptions o;
+  o.seed = 13;
+  o.significance = sidak_significance(0.01, 2);
+  const auto vndf = draw(
+      [&](Vec2<double> u) {
+        auto s = sample_heitz2018<double>(ggx, wi, u);
+        if (s) s->direction = reflect(wi, s->direction);
+        return s;
+      },
+      200'000, o.seed);
+  const ValidationReport ok = validate_samples(vndf, SampleDomain::reflected_direction, ggx, wi, o);
+  EXPECT_TRUE(ok.passed) << (ok.failures.empty() ? "" : ok.failures.front());
+  const auto bounded = draw([&](Vec2<double> u) { return sample_bounded2023<double>(ggx, wi, u); }, 200'000, o.seed);
+  const ValidationReport bad = validate_samples(bounded, SampleDomain::reflected_direction, ggx, wi, o);
+  EXPECT_FALSE(bad.passed);
+  EXPECT_LT(bad.p_value, 1e-6);
+}
+
+// Samples outside the domain (NaN, not unit length) reject at once with p = 0.
+TEST(Validate, SamplesOutsideTheDomainReject) {
+  const GGX<double> ggx(0.3);
+  const Vec3<double> wi = direction_from_degrees(30.0, 0.0);
+  auto normals = draw([&](Vec2<double> u) { return sample_heitz2018<double>(ggx, wi, u); }, 20'000, 17);
+  ValidationOptions o;
+  const ValidationReport good = validate_samples(normals, SampleDomain::microfacet_normal, ggx, wi, o);
+  EXPECT_TRUE(good.passed) << (good.failures.empty() ? "" : good.failures.front());
+  normals[10] = Vec3<double>(std::nan(""), 0, 1);
+  normals[20] *= 1.01;
+  const ValidationReport bad = validate_samples(normals, SampleDomain::microfacet_normal, ggx, wi, o);
+  EXPECT_FALSE(bad.passed);
+  EXPECT_EQ(bad.outside_domain, 2u);
+  EXPECT_EQ(bad.p_value, 0.0);
+  EXPECT_FALSE(bad.domain_check.passed);
+}
+
+// A claimed pdf that integrates to more than 1 is rejected; one that integrates to less than 1 makes the
+// chi-square reject (the samples exceed the claimed mass).
+TEST(Validate, ClaimedPdfIntegralIsChecked) {
+  const GGX<double> ggx(0.3);
+  const Vec3<double> wi = direction_from_degrees(30.0, 0.0);
+  const auto normals = draw([&](Vec2<double> u) { return sample_heitz2018<double>(ggx, wi, u); }, 100'000, 19);
+  ValidationOptions o;
+  for (double scale : {1.01, 0.97}) {
+    const auto ref = prepare_reference([&](const Vec3<double>& m) { return scale * ggx.visible_normal_pdf(wi, m); },
+                                       SampleDomain::microfacet_normal, ggx, wi, 31);
+    EXPECT_NEAR(ref->sphere_probability.total, scale, 1e-6);
+    const ValidationReport r = validate_samples(normals, SampleDomain::microfacet_normal, ggx, wi, o, ref);
+    EXPECT_FALSE(r.passed) << "scale " << scale;
+    EXPECT_EQ(r.integral.passed, scale < 1) << "scale " << scale;
+  }
+}
+
+// A sampler whose returned pdf is 5% off fails the returned-pdf check, in double and float.
+TEST(Validate, ReturnedPdfIsChecked) {
+  const SamplerInfo& h = sampler("heitz2018");
+  SamplerInfo wrong = h;
+  wrong.name = "heitz2018-pdf-too-high";
+  wrong.sample_double = &heitz2018_pdf_too_high;
+  wrong.sample_float = &heitz2018_pdf_too_high_f;
+  for (Precision precision : {Precision::float64, Precision::float32}) {
+    ValidationOptions o;
+    o.samples = 50'000;
+    o.precision = precision;
+    const ValidationReport r =
+        validate_sampler(wrong, GGX<double>(0.3), direction_from_degrees(45.0, 0.0), o, cached_claimed(h, 0.3, 0.3, 45, 0));
+    EXPECT_FALSE(r.passed);
+    EXPECT_FALSE(r.pdf.passed);
+    EXPECT_NEAR(r.pdf.value, 0.05 / 1.05, 1e-3);
+    // The weight D <wi, m> / pdf is 5% low on every sample: the E[weight] test sees it too.
+    EXPECT_FALSE(r.weight.passed);
+  }
+}
+
+// Same seed, same result, whatever the number of threads.
+TEST(Validate, DeterministicWhateverTheThreadCount) {
+  const SamplerInfo& s = sampler("heitz2014");
+  ValidationOptions o;
+  o.samples = 150'000;
+  o.seed = 23;
+  const auto ref = cached_claimed(s, 0.3, 0.3, 60, 0);
+  ValidationReport one;
+  {
+    tbb::global_control single(tbb::global_control::max_allowed_parallelism, 1);
+    one = validate_sampler(s, GGX<double>(0.3), direction_from_degrees(60.0, 0.0), o, ref);
+  }
+  const ValidationReport many = validate_sampler(s, GGX<double>(0.3), direction_from_degrees(60.0, 0.0), o, ref);
+  EXPECT_EQ(one.sphere.statistic, many.sphere.statistic);
+  EXPECT_EQ(one.lobe.statistic, many.lobe.statistic);
+  EXPECT_EQ(one.weight.value, many.weight.value);
+  EXPECT_EQ(one.p_value, many.p_value);
+  // And a reference computed twice is bit-identical (parallel cubature, one task per bin).
+  const auto again = claimed_reference(s, GGX<double>(0.3), direction_from_degrees(60.0, 0.0), 31);
+  EXPECT_EQ(again->lobe_probability.probability, ref->lobe_probability.probability);
+}
+
+TEST(Validate, JsonCarriesTheVerdictAndSubTests) {
+  const SamplerInfo& s = sampler("heitz2018");
+  ValidationOptions o;
+  o.samples = 20'000;
+  const ValidationReport r =
+      validate_sampler(s, GGX<double>(0.3), direction_from_degrees(60.0, 0.0), o, cached_claimed(s, 0.3, 0.3, 60, 0));
+  const nlohmann::json j = to_json(r);
+  for (const char* key : {"verdict", "p_value", "statistic", "dof", "samples", "tests", "sampler", "alpha", "seed"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  EXPECT_EQ(j["verdict"], r.passed ? "pass" : "fail");
+  EXPECT_EQ(j["samples"], 20000);
+  for (const char* key : {"chi2_sphere", "chi2_lobe", "weight_mean", "returned_pdf", "pdf_integral", "domain"})
+    EXPECT_TRUE(j["tests"].contains(key)) << key;
+}
