@@ -38,7 +38,7 @@ namespace microgeom {
 
 class Heightfield {
 public:
-  Heightfield() = default;
+  Heightfield() = default;  // empty (resolution 0): only assignment and resolution() are meaningful
   // Throws std::invalid_argument if n < 2, heights.size() != n*n, tile_size is not finite and > 0, or a
   // height is NaN/inf (the message names the first bad value and its texel).
   Heightfield(int n, double tile_size, std::vector<float> heights);
