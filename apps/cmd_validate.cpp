@@ -1,0 +1,383 @@
+// microsim validate: statistical validation of a sampler of the zoo, of samples from a file, or of the
+// whole zoo over a grid (--all). Tables on stdout, progress on stderr, --json for machines.
+// Exit codes: 0 pass, 1 rejected, 2 bad usage or bad input. See docs/validation.md.
+#include "command.h"
+
+#include "microsim/progress.h"
+#include "microsim/sample_io.h"
+#include "microsim/validate.h"
+
+#include <fmt/core.h>
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace {
+
+using microsim::app::UsageError;
+namespace fs = std::filesystem;
+
+struct Args {
+  std::string sampler;
+  std::string from;
+  bool reflected = false;
+  bool all = false;
+  std::string alpha;
+  std::optional<double> theta;
+  double phi = 0;
+  std::optional<long long> samples;
+  unsigned long long seed = 1;
+  bool use_float = false;
+  int rows = 31;
+  double significance = 0.01;
+  std::string json;
+};
+
+// The --all grid (issue 2, section 4).
+constexpr double kAllThetas[] = {0, 30, 60, 80, 89};
+struct AlphaConfig {
+  double ax, ay, phi;
+};
+// Isotropic roughness at phi = 0; anisotropic pairs seen from phi = 30 degrees so that both axes matter.
+constexpr AlphaConfig kAllAlphas[] = {{1e-3, 1e-3, 0}, {0.05, 0.05, 0}, {0.3, 0.3, 0},    {1, 1, 0},
+                                      {2, 2, 0},       {0.05, 0.5, 30}, {0.5, 0.05, 30}, {1e-3, 0.3, 30}};
+constexpr long long kAllDefaultSamples = 200'000;
+constexpr double kNegativeControlP = 1e-6;  // a negative control must be rejected with p below this
+
+// Writes to PATH.partial, then renames it into place: a failure leaves nothing half-written.
+void write_json_atomically(const fs::path& path, const nlohmann::json& j) {
+  fs::path tmp = path;
+  tmp += ".partial";
+  {
+    std::ofstream out(tmp, std::ios::trunc);
+    if (!out) throw UsageError(fmt::format("--json: cannot write '{}'", tmp.string()));
+    out << j.dump(2) << '\n';
+    out.close();
+    if (!out) {
+      std::error_code ec;
+      fs::remove(tmp, ec);
+      throw std::runtime_error(fmt::format("--json: write error on '{}'", tmp.string()));
+    }
+  }
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  if (ec) {
+    std::error_code ignored;
+    fs::remove(tmp, ignored);
+    throw std::runtime_error(fmt::format("--json: cannot rename into '{}': {}", path.string(), ec.message()));
+  }
+}
+
+double parse_number(const std::string& text, const std::string& what) {
+  std::size_t pos = 0;
+  double v = 0;
+  try {
+    v = std::stod(text, &pos);
+  } catch (const std::exception&) {
+    throw UsageError(fmt::format("{}: '{}' is not a number", what, text));
+  }
+  if (pos != text.size()) throw UsageError(fmt::format("{}: '{}' is not a number", what, text));
+  return v;
+}
+
+std::pair<double, double> parse_alpha(const std::string& text) {
+  const auto comma = text.find(',');
+  const double ax = parse_number(text.substr(0, comma), "--alpha");
+  const double ay = comma == std::string::npos ? ax : parse_number(text.substr(comma + 1), "--alpha");
+  for (double a : {ax, ay})
+    if (!(a > 0) || !std::isfinite(a))
+      throw UsageError(fmt::format("--alpha: roughness must be positive and finite, got '{}'", text));
+  return {ax, ay};
+}
+
+std::string names_list() {
+  std::string s;
+  for (const auto& n : microsim::sampler_names()) s += (s.empty() ? "" : ", ") + n;
+  return s;
+}
+
+std::string fmt_p(double p) { return p >= 1e-3 ? fmt::format("{:.4f}", p) : fmt::format("{:.2e}", p); }
+
+std::string fmt_alpha(double ax, double ay) {
+  return ax == ay ? fmt::format("{:g}", ax) : fmt::format("{:g},{:g}", ax, ay);
+}
+
+const char* pass_fail(bool passed) { return passed ? "pass" : "FAIL"; }
+
+void print_worst(const char* title, const microsim::ChiSquareResult& c, int n) {
+  if (c.worst_cells.empty()) return;
+  fmt::print("\nworst cells, {} (observed vs expected counts):\n", title);
+  fmt::print("  {:<52} {:>12} {:>14} {:>12}\n", "cell", "observed", "expected", "(O-E)^2/E");
+  int shown = 0;
+  for (const auto& cell : c.worst_cells) {
+    if (shown++ >= n) break;
+    fmt::print("  {:<52} {:>12.0f} {:>14.2f} {:>12.3g}\n", cell.location, cell.observed, cell.expected, cell.contribution);
+  }
+}
+
+void print_report(const microsim::ValidationReport& r, const std::string& source) {
+  using namespace microsim;
+  const double theta = std::acos(std::clamp(r.wi.z(), -1.0, 1.0)) * 180 / kPi<double>;
+  const double phi = std::atan2(r.wi.y(), r.wi.x()) * 180 / kPi<double>;
+  fmt::print("microsim validate: {} ({}), alpha {}, theta {:g} deg, phi {:g} deg, {} samples ({}), seed {}\n", source,
+             to_string(r.domain), fmt_alpha(r.alpha_x, r.alpha_y), theta, phi, r.samples, to_string(r.precision), r.seed);
+  fmt::print("verdict: {}   p-value {} (Sidak-adjusted over {} statistical tests, level {})   statistic {:.2f}   dof {}\n\n",
+             r.passed ? "PASS" : "FAIL", fmt_p(r.p_value), r.statistical_tests, r.significance, r.statistic, r.dof);
+  fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", "test", "statistic", "dof", "p-value", "result");
+  auto chi = [&](const char* name, const ChiSquareResult& c) {
+    fmt::print("  {:<34} {:>14.2f} {:>7} {:>11}  {}{}\n", name, c.statistic, c.dof, fmt_p(c.p_value),
+               pass_fail(!c.rejected), c.reason.empty() ? "" : "  (" + c.reason + ")");
+  };
+  chi(fmt::format("chi2, sphere bins ({} cells)", r.sphere.cells).c_str(), r.sphere);
+  chi(fmt::format("chi2, lobe bins ({} cells)", r.lobe.cells).c_str(), r.lobe);
+  if (r.weight.applicable) {
+    fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", "E[weight] = |wi.z|/G1", fmt::format("{:.6g}", r.weight.value), "",
+               fmt_p(r.weight.p_value), pass_fail(r.weight.passed));
+  } else {
+    fmt::print("  {:<34} {:>14} {:>7} {:>11}  n/a\n", "E[weight] = |wi.z|/G1", "", "", "");
+  }
+  if (r.pdf.applicable) {
+    fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", "returned pdf (max rel. error)", fmt::format("{:.2e}", r.pdf.value),
+               "", fmt::format("<= {:.0e}", r.pdf.tolerance), pass_fail(r.pdf.passed));
+  } else {
+    fmt::print("  {:<34} {:>14} {:>7} {:>11}  n/a\n", "returned pdf (max rel. error)", "", "", "");
+  }
+  fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", "claimed pdf integral", fmt::format("{:.9f}", r.integral.value), "",
+             fmt::format("<= 1+{:.0e}", r.integral.tolerance), pass_fail(r.integral.passed));
+  fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", "samples outside the domain", r.outside_domain, "", "0",
+             pass_fail(r.domain_check.passed));
+  if (r.failed_samples > 0) fmt::print("  ({} sample(s) failed: counted in the remainder cells)\n", r.failed_samples);
+  const bool sphere_first = r.sphere.p_value <= r.lobe.p_value;
+  print_worst(sphere_first ? "sphere bins" : "lobe bins", sphere_first ? r.sphere : r.lobe, 6);
+  print_worst(sphere_first ? "lobe bins" : "sphere bins", sphere_first ? r.lobe : r.sphere, 3);
+  if (!r.failures.empty()) {
+    fmt::print("\nrejected because:\n");
+    for (const auto& f : r.failures) fmt::print("  - {}\n", f);
+  }
+  fmt::print("\ntime {:.2f} s\n", r.seconds);
+}
+
+microsim::ValidationOptions base_options(const Args& a) {
+  microsim::ValidationOptions o;
+  o.seed = a.seed;
+  o.rows = a.rows;
+  o.significance = a.significance;
+  o.precision = a.use_float ? microsim::Precision::float32 : microsim::Precision::float64;
+  return o;
+}
+
+int run_single(const Args& a) {
+  using namespace microsim;
+  if (a.alpha.empty()) throw UsageError("--alpha is required (e.g. --alpha 0.3 or --alpha 0.05,0.5)");
+  if (!a.theta) throw UsageError("--theta is required (degrees in [0, 90))");
+  const auto [ax, ay] = parse_alpha(a.alpha);
+  const GGX<double> ggx(ax, ay);
+  const Vec3<double> wi = direction_from_degrees(*a.theta, a.phi);
+  ValidationOptions o = base_options(a);
+  o.progress = true;
+  ValidationReport report;
+  std::string source;
+  if (!a.from.empty()) {
+    std::vector<Vec3<double>> samples;
+    try {
+      samples = read_direction_samples(a.from);
+    } catch (const SampleFileError& e) {
+      throw UsageError(e.what());
+    }
+    const SampleDomain domain = a.reflected ? SampleDomain::reflected_direction : SampleDomain::microfacet_normal;
+    report = validate_samples(samples, domain, ggx, wi, o);
+    report.sampler = a.from;
+    source = fmt::format("samples from '{}'", a.from);
+  } else {
+    const SamplerInfo* s = find_sampler(a.sampler);
+    if (!s) throw UsageError(fmt::format("--sampler: unknown sampler '{}' (valid: {})", a.sampler, names_list()));
+    o.samples = std::uint64_t(a.samples.value_or(1'000'000));
+    report = validate_sampler(*s, ggx, wi, o);
+    source = fmt::format("sampler {}", s->name);
+  }
+  print_report(report, source);
+  if (!a.json.empty()) write_json_atomically(a.json, to_json(report));
+  return report.passed ? microsim::app::kExitOk : microsim::app::kExitRejected;
+}
+
+int run_all(const Args& a) {
+  using namespace microsim;
+  if (!a.alpha.empty() || a.theta) throw UsageError("--all runs its own grid: drop --alpha/--theta/--phi");
+  install_interrupt_handler();
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto samplers = sampler_registry();
+  const int n_configs = int(std::size(kAllAlphas) * std::size(kAllThetas));
+  const int n_validations = n_configs * int(samplers.size());
+  ValidationOptions o = base_options(a);
+  o.samples = std::uint64_t(a.samples.value_or(kAllDefaultSamples));
+  // Sidak over the batch: each validation (itself Sidak over its own tests) runs at the level that
+  // keeps the family-wise level of the whole batch at --significance.
+  o.significance = sidak_significance(a.significance, n_validations);
+
+  fmt::print("microsim validate --all: {} samplers x {} configurations, {} samples each ({}), seed {}\n",
+             samplers.size(), n_configs, o.samples, to_string(o.precision), a.seed);
+  fmt::print("family-wise level {} over {} validations (Sidak): each validation at {:.3e}; negative controls must "
+             "be rejected with p < {:g}\n\n",
+             a.significance, n_validations, o.significance, kNegativeControlP);
+  fmt::print("{:<15} {:>10} {:>6} {:>6}  {:>9} {:>10} {:>10} {:>10} {:>10} {:>9}  {:>7}\n", "sampler", "alpha", "theta",
+             "phi", "verdict", "p-value", "p sphere", "p lobe", "p weight", "pdf err", "time s");
+
+  ProgressBar bar("validate --all", std::uint64_t(n_validations));
+  nlohmann::json results = nlohmann::json::array();
+  struct Summary {
+    int total = 0, passed = 0;
+    double min_p = 1, max_p = 0, seconds = 0;
+    bool expectation_met = true;  // correct: all pass; negative control: all rejected with p < 1e-6
+  };
+  std::map<std::string, Summary> summary;
+  bool partial = false;
+  int index = 0;
+  for (const AlphaConfig& ac : kAllAlphas) {
+    for (double theta : kAllThetas) {
+      const GGX<double> ggx(ac.ax, ac.ay);
+      const Vec3<double> wi = direction_from_degrees(theta, ac.phi);
+      // One reference per claimed pdf, shared by the samplers that claim it.
+      std::map<double (*)(const GGX<double>&, const Vec3<double>&, const Vec3<double>&),
+               std::shared_ptr<const ReferenceDistribution>>
+          references;
+      for (const SamplerInfo& s : samplers) {
+        if (interrupted()) {
+          partial = true;
+          break;
+        }
+        auto& ref = references[s.claimed_pdf];
+        if (!ref) ref = claimed_reference(s, ggx, wi, o.rows);
+        ValidationOptions vo = o;
+        vo.seed = a.seed + std::uint64_t(index);  // independent streams per validation
+        ++index;
+        const auto t_start = std::chrono::steady_clock::now();
+        ValidationReport r = validate_sampler(s, ggx, wi, vo, ref);
+        r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+        Summary& sm = summary[std::string(s.name)];
+        sm.total += 1;
+        sm.passed += r.passed;
+        sm.min_p = std::min(sm.min_p, r.p_value);
+        sm.max_p = std::max(sm.max_p, r.p_value);
+        sm.seconds += r.seconds;
+        if (s.negative_control) {
+          if (r.passed || !(r.p_value < kNegativeControlP)) sm.expectation_met = false;
+        } else if (!r.passed) {
+          sm.expectation_met = false;
+        }
+        fmt::print("{:<15} {:>10} {:>6g} {:>6g}  {:>9} {:>10} {:>10} {:>10} {:>10} {:>9}  {:>7.2f}\n", s.name,
+                   fmt_alpha(ac.ax, ac.ay), theta, ac.phi,
+                   r.passed ? "pass" : (s.negative_control ? "rejected" : "FAIL"), fmt_p(r.p_value),
+                   fmt_p(r.sphere.p_value), fmt_p(r.lobe.p_value), r.weight.applicable ? fmt_p(r.weight.p_value) : "n/a",
+                   r.pdf.applicable ? fmt::format("{:.1e}", r.pdf.value) : "n/a", r.seconds);
+        std::fflush(stdout);
+        nlohmann::json j = to_json(r);
+        j["negative_control"] = s.negative_control;
+        j["theta_deg"] = theta;
+        j["phi_deg"] = ac.phi;
+        results.push_back(std::move(j));
+        bar.add(1);
+      }
+      if (partial) break;
+    }
+    if (partial) break;
+  }
+  bar.finish();
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+  bool all_met = !partial;
+  fmt::print("\nsummary per sampler:\n");
+  fmt::print("{:<15} {:>8} {:>12} {:>12} {:>12} {:>9}  {}\n", "sampler", "passed", "min p", "max p", "expected", "time s",
+             "outcome");
+  nlohmann::json summary_json = nlohmann::json::array();
+  for (const SamplerInfo& s : samplers) {
+    const auto it = summary.find(std::string(s.name));
+    if (it == summary.end()) continue;
+    const Summary& sm = it->second;
+    all_met = all_met && sm.expectation_met;
+    fmt::print("{:<15} {:>4}/{:<3} {:>12} {:>12} {:>12} {:>9.1f}  {}\n", s.name, sm.passed, sm.total, fmt_p(sm.min_p),
+               fmt_p(sm.max_p), s.negative_control ? "all rejected" : "all pass", sm.seconds,
+               sm.expectation_met ? "as expected" : "UNEXPECTED");
+    summary_json.push_back({{"sampler", s.name},
+                            {"negative_control", s.negative_control},
+                            {"passed", sm.passed},
+                            {"total", sm.total},
+                            {"min_p_value", sm.min_p},
+                            {"max_p_value", sm.max_p},
+                            {"expectation_met", sm.expectation_met},
+                            {"seconds", sm.seconds}});
+  }
+  fmt::print("\noverall: {} ({} validations in {:.1f} s{})\n",
+             all_met ? "PASS: every correct sampler passes and every negative control is rejected" : "FAIL",
+             results.size(), seconds, partial ? ", INTERRUPTED: partial results" : "");
+  if (!a.json.empty()) {
+    nlohmann::json j;
+    j["verdict"] = all_met ? "pass" : "fail";
+    j["partial"] = partial;
+    j["samples"] = o.samples;
+    j["seed"] = a.seed;
+    j["precision"] = to_string(o.precision);
+    j["significance"] = a.significance;
+    j["per_validation_significance"] = o.significance;
+    j["negative_control_p_threshold"] = kNegativeControlP;
+    j["seconds"] = seconds;
+    j["summary"] = summary_json;
+    j["results"] = results;
+    write_json_atomically(a.json, j);
+  }
+  return all_met ? microsim::app::kExitOk : microsim::app::kExitRejected;
+}
+
+int run(const Args& a) {
+  const int modes = int(!a.sampler.empty()) + int(!a.from.empty()) + int(a.all);
+  if (modes != 1) throw UsageError("give exactly one of --sampler NAME, --from FILE, --all");
+  if (a.reflected && a.from.empty()) throw UsageError("--reflected applies to --from FILE only");
+  if (a.use_float && !a.from.empty()) throw UsageError("--float applies to --sampler and --all, not to --from");
+  if (a.samples && !a.from.empty()) throw UsageError("--samples does not apply to --from (the file gives the samples)");
+  if (a.samples && *a.samples <= 0)
+    throw UsageError(fmt::format("--samples must be a positive integer, got {}", *a.samples));
+  if (a.theta && !(*a.theta >= 0 && *a.theta < 90))
+    throw UsageError(fmt::format("--theta must be in [0, 90) degrees, got {}", *a.theta));
+  if (!std::isfinite(a.phi)) throw UsageError(fmt::format("--phi must be finite, got {}", a.phi));
+  if (a.rows < 3 || a.rows % 2 == 0) throw UsageError(fmt::format("--rows must be odd and >= 3, got {}", a.rows));
+  if (!(a.significance > 0 && a.significance < 1))
+    throw UsageError(fmt::format("--significance must be in (0, 1), got {}", a.significance));
+  if (!a.json.empty()) {
+    const fs::path parent = fs::path(a.json).parent_path();
+    if (!parent.empty() && !fs::is_directory(parent))
+      throw UsageError(fmt::format("--json: directory '{}' does not exist", parent.string()));
+  }
+  return a.all ? run_all(a) : run_single(a);
+}
+
+microsim::app::CommandRegistration reg{"validate", [](CLI::App& app) {
+  auto args = std::make_shared<Args>();
+  auto* sub = app.add_subcommand(
+      "validate",
+      "Statistical validation of a GGX sampler (chi-square in sphere and lobe bins, returned pdf, E[weight], pdf "
+      "integral). Exit 0 pass, 1 rejected, 2 bad usage/input.");
+  sub->add_option("--sampler", args->sampler, "sampler of the zoo to validate (" + names_list() + ")");
+  sub->add_option("--from", args->from,
+                  "validate samples from FILE instead: .npy (float32/float64, shape (N,3)) or text, one x y z per line");
+  sub->add_flag("--reflected", args->reflected,
+                "with --from: rows are reflected directions (tested against the VNDF reflection pdf), not normals");
+  sub->add_flag("--all", args->all, "validate the whole zoo over the standard grid (Sidak-corrected over the batch)");
+  sub->add_option("--alpha", args->alpha, "roughness AX or AX,AY (> 0)");
+  sub->add_option("--theta", args->theta, "view zenith angle in degrees, [0, 90)");
+  sub->add_option("--phi", args->phi, "view azimuth in degrees (default 0)");
+  sub->add_option("--samples", args->samples, "number of samples (default 1000000; 200000 per validation with --all)");
+  sub->add_option("--seed", args->seed, "random seed (default 1)");
+  sub->add_flag("--float", args->use_float, "run the sampler's float version (default: double)");
+  sub->add_option("--rows", args->rows, "rows of the sphere and lobe binnings (odd; cols = 2 rows; default 31)");
+  sub->add_option("--significance", args->significance, "family-wise significance level (default 0.01)");
+  sub->add_option("--json", args->json, "write the results as JSON to PATH (atomically)");
+  microsim::app::on_selected(sub, [args] { return run(*args); });
+}};
+
+}  // namespace
