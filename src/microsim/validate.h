@@ -53,10 +53,12 @@ struct ValidationOptions {
   Precision precision = Precision::float64;
   int worst_cells = 8;
   double pdf_tolerance = 0;            // 0: kPdfToleranceDouble / kPdfToleranceFloat by precision
-  // Fraction of samples allowed above pdf_tolerance; negative: 0 in double, 1e-5 in float (float
-  // rounding can carry a sample across a jump of the claimed pdf, e.g. the bounded sampler's cap edge,
-  // where the analytic pdf at the rounded direction is 0).
-  double pdf_outlier_fraction = -1;
+  // A sample fails the returned-pdf check when its relative error exceeds pdf_tolerance plus twice the
+  // relative change of the claimed pdf under a perturbation of the direction by its rounding (2^-23
+  // in float, 2^-52 in double): float rounding alone can carry a sample across a jump of the claimed
+  // pdf (the bounded sampler's cap edge) or move D by percents at alpha = 1e-3 when the half vector of
+  // two nearly opposite grazing directions is recomputed. Fraction of samples allowed to fail: 0.
+  double pdf_outlier_fraction = 0;
   double integral_tolerance = 1e-5;    // the claimed pdf may integrate to at most 1 + this
   double unit_tolerance = 1e-5;        // samples with | |w| - 1 | above this are outside the domain
   // Relative floor of the weight test's standard error (rounding of pdf and D, not statistics):
