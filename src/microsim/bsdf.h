@@ -99,7 +99,12 @@ template <class T> T dielectric_bsdf(const GGX<T>& ggx, T eta, const Vec3<T>& wi
   if (im * ci <= T(0) || om * co <= T(0)) return T(0);
   const T denom = sqr(eta_i * im + eta_o * om);
   if (!(denom > T(0))) return T(0);
-  const T F = fresnel_dielectric(im, eta);
+  // F is the same for both directions of a refracted pair (Stokes), but evaluating it from the denser
+  // side computes the thinner side's cosine as sqrt(1 - sin^2 (n_dense/n_thin)^2), which cancels near
+  // grazing refraction (relative error of 1 - F ~ eps / cos^2). Evaluate it from the thinner side's
+  // cosine: accurate, and the same value for wi -> wo and wo -> wi (exact reciprocity).
+  const bool wi_on_thin_side = (eta_o >= eta_i);
+  const T F = wi_on_thin_side ? fresnel_dielectric(im, eta) : fresnel_dielectric(om, eta);
   return std::abs(im) * std::abs(om) / (std::abs(ci) * std::abs(co)) * sqr(eta_o) * (T(1) - F) * ggx.D(m) *
          ggx.G2(wi, wo) / denom;
 }
