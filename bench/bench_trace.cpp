@@ -4,15 +4,18 @@
 // same beam and seed), in the same parallel structure (TBB blocks of kRaysPerBlock rays, FTZ/DAZ set),
 // on 1 and 2 threads. Scenes: the exact quadric and meshes of levels 3, 5 and 7 (alpha 0.5, theta 45).
 //
-// After the benchmarks, a table of pipeline / raw ratios (best repetition of each, so that load from
-// other processes biases both the same way) is printed. Run with --benchmark_repetitions=5 or more on a
-// shared machine.
+// After the benchmarks, a table of pipeline / raw ratios is printed, from two measures: wall-clock rays
+// per second (best repetition of each), and process CPU time per ray (all threads; robust to load from
+// other processes on a shared machine, where wall-clock rates fluctuate). Run with
+// --benchmark_repetitions=5 or more on a shared machine.
 #include "microsim/trace_vndf.h"
 
 #include <benchmark/benchmark.h>
 #include <fmt/core.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
+
+#include <time.h>
 
 #include <atomic>
 #include <map>
@@ -46,6 +49,12 @@ Fixture& fixture(int level) {
   return f;
 }
 
+double process_cpu_seconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
+}
+
 std::string scene_name(int level) { return level < 0 ? "quadric" : fmt::format("mesh{}", level); }
 
 void BM_Pipeline(benchmark::State& state) {
@@ -58,11 +67,13 @@ void BM_Pipeline(benchmark::State& state) {
   o.progress = false;
   o.stop_on_interrupt = false;
   std::uint64_t hits = 0;
+  const double cpu0 = process_cpu_seconds();
   for (auto _ : state) {
     const TraceResult r = trace_vndf(*f.target, direction_from_degrees(kTheta, kPhi), f.binnings, o);
     hits = r.hits;
     benchmark::DoNotOptimize(hits);
   }
+  state.counters["cpu_ns_per_ray"] = 1e9 * (process_cpu_seconds() - cpu0) / (double(state.iterations()) * double(kRays));
   state.SetItemsProcessed(std::int64_t(state.iterations()) * std::int64_t(kRays));
   state.counters["hit_fraction"] = double(hits) / double(kRays);
   state.SetLabel(scene_name(level));
@@ -75,6 +86,7 @@ void BM_RawIntersect1(benchmark::State& state) {
   const std::uint64_t blocks = (kRays + kRaysPerBlock - 1) / kRaysPerBlock;
   tbb::task_arena arena(threads);
   std::uint64_t hits = 0;
+  const double cpu0 = process_cpu_seconds();
   for (auto _ : state) {
     std::atomic<std::uint64_t> total{0};
     arena.execute([&] {
@@ -110,6 +122,7 @@ void BM_RawIntersect1(benchmark::State& state) {
     hits = total.load();
     benchmark::DoNotOptimize(hits);
   }
+  state.counters["cpu_ns_per_ray"] = 1e9 * (process_cpu_seconds() - cpu0) / (double(state.iterations()) * double(kRays));
   state.SetItemsProcessed(std::int64_t(state.iterations()) * std::int64_t(kRays));
   state.counters["hit_fraction"] = double(hits) / double(kRays);
   state.SetLabel(scene_name(level));
@@ -132,27 +145,33 @@ public:
     for (const Run& run : runs) {
       if (run.run_type != Run::RT_Iteration || run.error_occurred) continue;
       const auto it = run.counters.find("items_per_second");
-      if (it == run.counters.end()) continue;
+      const auto cpu = run.counters.find("cpu_ns_per_ray");
+      if (it == run.counters.end() || cpu == run.counters.end()) continue;
       double& best = best_[run.benchmark_name()];
       best = std::max(best, double(it->second));
+      double& best_cpu = best_cpu_[run.benchmark_name()];
+      best_cpu = best_cpu > 0 ? std::min(best_cpu, double(cpu->second)) : double(cpu->second);
     }
   }
   void PrintRatios() const {
     fmt::print("\npipeline vs raw rtcIntersect1 (best repetition), alpha {} theta {}:\n", kAlpha, kTheta);
-    fmt::print("| scene | threads | raw Mrays/s | pipeline Mrays/s | pipeline / raw |\n|---|---|---|---|---|\n");
+    fmt::print("| scene | threads | raw Mrays/s | pipeline Mrays/s | pipeline / raw (wall) | raw CPU ns/ray | "
+               "pipeline CPU ns/ray | pipeline / raw (CPU) |\n|---|---|---|---|---|---|---|---|\n");
     for (int level : {-1, 3, 5, 7}) {
       for (int threads : {1, 2}) {
         const std::string args = fmt::format("/level:{}/threads:{}/min_time:0.500/real_time", level, threads);
         const auto raw = best_.find("BM_RawIntersect1" + args), pipe = best_.find("BM_Pipeline" + args);
         if (raw == best_.end() || pipe == best_.end()) continue;
-        fmt::print("| {} | {} | {:.2f} | {:.2f} | {:.1f}% |\n", scene_name(level), threads, raw->second * 1e-6,
-                   pipe->second * 1e-6, 100.0 * pipe->second / raw->second);
+        const double raw_cpu = best_cpu_.at("BM_RawIntersect1" + args), pipe_cpu = best_cpu_.at("BM_Pipeline" + args);
+        fmt::print("| {} | {} | {:.2f} | {:.2f} | {:.1f}% | {:.1f} | {:.1f} | {:.1f}% |\n", scene_name(level), threads,
+                   raw->second * 1e-6, pipe->second * 1e-6, 100.0 * pipe->second / raw->second, raw_cpu, pipe_cpu,
+                   100.0 * raw_cpu / pipe_cpu);
       }
     }
   }
 
 private:
-  std::map<std::string, double> best_;
+  std::map<std::string, double> best_, best_cpu_;
 };
 
 }  // namespace

@@ -15,6 +15,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <time.h>
 
 namespace microsim {
 
@@ -176,6 +177,12 @@ inline void disk_point(CounterRng& rng, double& x, double& y) {
   } while (x * x + y * y >= 1.0);
 }
 
+double process_cpu_seconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
+}
+
 constexpr std::size_t kMaxBinnings = 8;
 constexpr int kUnknownBin = std::numeric_limits<int>::min();
 constexpr int kNotCounted = -2;
@@ -224,7 +231,35 @@ TraceResult trace_vndf(const EllipsoidTarget& target, const Vec3<double>& wi_in,
   const RTCScene rtc_scene = scene.handle();
   constexpr float kInf = std::numeric_limits<float>::infinity();
 
+  // Mesh: a triangle has one normal, so its bins (or "not counted") are computed on its first hit and
+  // cached; racing threads store the same values.
+  constexpr unsigned int kNoFace = RTC_INVALID_GEOMETRY_ID;
+  auto count_face = [&](LocalHistograms& local, unsigned int face) {
+    std::atomic<int>* slot = &face_cache[std::size_t(face) * stride];
+    int first_value = slot[0].load(std::memory_order_relaxed);
+    if (first_value == kUnknownBin) {
+      Vec3<double> n;
+      const embree::Hit hit{0.0f, face, 0, Vec3<float>::Zero(), 0.0f, 0.0f};
+      const bool counted = target.counted_normal(hit, wi, n);
+      for (std::size_t k = 0; k < stride; ++k) {
+        slot[k].store(!counted ? kNotCounted : (k < nb ? binners[k](n) : 0), std::memory_order_relaxed);
+      }
+      first_value = slot[0].load(std::memory_order_relaxed);
+    }
+    if (first_value == kNotCounted) return;
+    ++local.hits;
+    for (std::size_t k = 0; k < nb; ++k) {
+      const int bin = slot[k].load(std::memory_order_relaxed);
+      if (bin >= 0) {
+        ++local.counts[k][std::size_t(bin)];
+      } else {
+        ++local.unbinned[k];
+      }
+    }
+  };
+
   const auto start = std::chrono::steady_clock::now();
+  const double cpu_start = process_cpu_seconds();
   auto body = [&](const tbb::blocked_range<std::uint64_t>& range) {
     embree::FlushDenormalsScope ftz;  // Embree wants FTZ/DAZ in every tracing thread
     LocalHistograms& local = locals.local();
@@ -238,6 +273,7 @@ TraceResult trace_vndf(const EllipsoidTarget& target, const Vec3<double>& wi_in,
       const std::uint64_t first = block * kRaysPerBlock;
       const std::uint64_t count = std::min(kRaysPerBlock, options.rays - first);
       CounterRng rng(options.seed, block);
+      unsigned int pending_face = kNoFace;
       for (std::uint64_t i = 0; i < count; ++i) {
         double x, y;
         disk_point(rng, x, y);
@@ -259,40 +295,30 @@ TraceResult trace_vndf(const EllipsoidTarget& target, const Vec3<double>& wi_in,
         rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
         rtcIntersect1(rtc_scene, &context, &rh);
         if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
-        int bins[kMaxBinnings];
         if (face_cache) {
-          // Mesh: a triangle has one normal, so its bins (or "not counted") are computed on its first
-          // hit and cached; racing threads store the same value.
-          std::atomic<int>* slot = &face_cache[std::size_t(rh.hit.primID) * stride];
-          int first_value = slot[0].load(std::memory_order_relaxed);
-          if (first_value == kUnknownBin) {
-            Vec3<double> n;
-            const embree::Hit hit{rh.ray.tfar, rh.hit.primID, rh.hit.geomID, Vec3<float>::Zero(), 0.0f, 0.0f};
-            const bool counted = target.counted_normal(hit, wi, n);
-            for (std::size_t k = 0; k < stride; ++k) {
-              const int value = !counted ? kNotCounted : (k < nb ? binners[k](n) : 0);
-              slot[k].store(value, std::memory_order_relaxed);
-            }
-            first_value = slot[0].load(std::memory_order_relaxed);
-          }
-          if (first_value == kNotCounted) continue;
-          for (std::size_t k = 0; k < nb; ++k) bins[k] = slot[k].load(std::memory_order_relaxed);
-        } else {
-          const embree::Hit hit{rh.ray.tfar, rh.hit.primID, rh.hit.geomID,
-                                Vec3<float>(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z), rh.hit.u, rh.hit.v};
-          Vec3<double> n;
-          if (!target.counted_normal(hit, wi, n)) continue;
-          for (std::size_t k = 0; k < nb; ++k) bins[k] = binners[k](n);
+          // Software pipelining: fetch this triangle's cache line now, bin the previous hit while it
+          // arrives (the order of integer increments does not matter).
+          __builtin_prefetch(&face_cache[std::size_t(rh.hit.primID) * stride]);
+          if (pending_face != kNoFace) count_face(local, pending_face);
+          pending_face = rh.hit.primID;
+          continue;
         }
+        const embree::Hit hit{rh.ray.tfar, rh.hit.primID, rh.hit.geomID,
+                              Vec3<float>(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z), rh.hit.u, rh.hit.v};
+        Vec3<double> n;
+        if (!target.counted_normal(hit, wi, n)) continue;
         ++local.hits;
         for (std::size_t k = 0; k < nb; ++k) {
-          if (bins[k] >= 0) {
-            ++local.counts[k][std::size_t(bins[k])];
+          const int bin = binners[k](n);
+          if (bin >= 0) {
+            ++local.counts[k][std::size_t(bin)];
           } else {
             ++local.unbinned[k];
           }
         }
       }
+      if (pending_face != kNoFace) count_face(local, pending_face);
+      pending_face = kNoFace;
       local.rays += count;
       progress.add(count);
     }
@@ -305,6 +331,7 @@ TraceResult trace_vndf(const EllipsoidTarget& target, const Vec3<double>& wi_in,
     tbb::parallel_for(tbb::blocked_range<std::uint64_t>(0, blocks, 1), body);
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double cpu_seconds = process_cpu_seconds() - cpu_start;
   progress.finish();
   scene.device().check("rtcIntersect1");
 
@@ -322,6 +349,7 @@ TraceResult trace_vndf(const EllipsoidTarget& target, const Vec3<double>& wi_in,
     }
   }
   result.seconds = seconds;
+  result.cpu_seconds = cpu_seconds;
   result.partial = stopped.load() || result.rays < options.rays;
   return result;
 }

@@ -134,9 +134,11 @@ struct TraceResult {
   std::uint64_t hits = 0;  // counted first hits
   std::vector<std::vector<std::uint64_t>> counts;  // per binning, per bin
   std::vector<std::uint64_t> unbinned;              // per binning: counted hits outside its parameter space
-  double seconds = 0;
-  bool partial = false;  // interrupted before all rays were traced
+  double seconds = 0;      // wall-clock time of the tracing loop
+  double cpu_seconds = 0;  // CPU time of the process (all threads) during the loop: robust to other load
+  bool partial = false;    // interrupted before all rays were traced
   double rays_per_second() const { return seconds > 0 ? double(rays) / seconds : 0.0; }
+  double cpu_ns_per_ray() const { return rays > 0 ? 1e9 * cpu_seconds / double(rays) : 0.0; }
 };
 
 // Traces `options.rays` rays of the beam seen from wi (unit, wi.z > 0) and histograms the counted

@@ -1,0 +1,379 @@
+#include "microsim/compare.h"
+
+#include "microsim/progress.h"
+#include "microsim/random.h"
+
+#include <fmt/core.h>
+#include <nlohmann/json.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <numeric>
+#include <stdexcept>
+
+namespace microsim {
+
+// ---- traced histogram vs analytic D_v ------------------------------------------------------------------
+
+double total_variation(std::span<const std::uint64_t> counts, std::uint64_t hits, std::span<const double> probability) {
+  if (counts.size() != probability.size()) throw std::invalid_argument("total_variation: size mismatch");
+  if (hits == 0) return 0.0;
+  double sum = 0, mass = 0;
+  for (std::size_t i = 0; i < counts.size(); ++i) {
+    sum += std::abs(double(counts[i]) / double(hits) - probability[i]);
+    mass += probability[i];
+  }
+  // Hits outside the bins and probability outside them form one more cell.
+  const double outside_observed = 1.0 - double(std::accumulate(counts.begin(), counts.end(), std::uint64_t(0))) / double(hits);
+  sum += std::abs(outside_observed - std::max(0.0, 1.0 - mass));
+  return 0.5 * sum;
+}
+
+double noise_floor_tv(std::span<const double> probability, std::uint64_t hits) {
+  if (hits == 0) return 0.0;
+  double sum = 0;
+  for (double p : probability) sum += std::sqrt(std::max(0.0, p * (1 - p)) / (2 * kPi<double> * double(hits)));
+  return sum;
+}
+
+TraceAnalysis analyse_against_vndf(TracedHistogram& h, const GGX<double>& ggx, const Vec3<double>& wi,
+                                   std::span<const std::uint64_t> unbinned, double significance) {
+  if (h.binnings.empty()) throw std::invalid_argument("analyse_against_vndf: no binning");
+  const int rows = h.binnings.front().rows();
+  const auto ref = vndf_reference(SampleDomain::microfacet_normal, ggx, wi, rows);
+  TraceAnalysis a;
+  a.significance = significance;
+  h.probability.assign(h.binnings.size(), {});
+  const int n_tests = int(h.binnings.size());
+  const double per_test = sidak_significance(significance, n_tests);
+  double p_min = 1;
+  for (std::size_t k = 0; k < h.binnings.size(); ++k) {
+    const DirectionBinning& b = h.binnings[k];
+    const BinIntegrals& bi = b.kind() == BinningKind::sphere ? ref->sphere_probability : ref->lobe_probability;
+    const DirectionBinning& rb = b.kind() == BinningKind::sphere ? ref->sphere : ref->lobe;
+    if (rb.size() != b.size()) throw std::invalid_argument("analyse_against_vndf: binning mismatch");
+    h.probability[k] = bi.probability;
+    TraceFit fit;
+    fit.binning = b.name();
+    fit.total_variation = total_variation(h.counts[k], h.hits, bi.probability);
+    fit.noise_floor_tv = noise_floor_tv(bi.probability, h.hits);
+    if (h.hits > 0) {
+      std::vector<double> observed(h.counts[k].begin(), h.counts[k].end());
+      std::vector<double> expected = bi.probability;
+      const std::uint64_t binned = std::accumulate(h.counts[k].begin(), h.counts[k].end(), std::uint64_t(0));
+      observed.push_back(double(k < unbinned.size() ? unbinned[k] : h.hits - binned));
+      expected.push_back(std::max(0.0, 1.0 - bi.total));
+      ChiSquareOptions chi;
+      chi.significance = per_test;
+      chi.describe_cell = [&b](int bin) { return bin < b.size() ? b.describe_bin(bin) : std::string("remainder (outside the bins)"); };
+      fit.chi2 = goodness_of_fit(observed, expected, double(h.hits), chi);
+    } else {
+      fit.chi2.reason = "no hits";
+      fit.chi2.significance = per_test;
+    }
+    p_min = std::min(p_min, fit.chi2.p_value);
+    a.rejected = a.rejected || fit.chi2.rejected;
+    a.fits.push_back(std::move(fit));
+  }
+  a.p_value = sidak_adjusted_p(p_min, n_tests);
+  return a;
+}
+
+nlohmann::json to_json(const TraceAnalysis& a) {
+  nlohmann::json j;
+  j["significance"] = a.significance;
+  j["p_value"] = a.p_value;
+  j["verdict"] = a.rejected ? "fail" : "pass";
+  j["binnings"] = nlohmann::json::array();
+  for (const TraceFit& f : a.fits) {
+    j["binnings"].push_back({{"binning", f.binning},
+                             {"total_variation", f.total_variation},
+                             {"noise_floor_tv", f.noise_floor_tv},
+                             {"chi2", to_json(f.chi2)}});
+  }
+  return j;
+}
+
+TracedHistogram trace_vndf_histogram(const GGX<double>& ggx, const Vec3<double>& wi_in, const OracleTraceOptions& options,
+                                     TraceResult* raw) {
+  const Vec3<double> wi = wi_in.normalized();
+  const EllipsoidTarget target(ggx.alpha_x(), ggx.alpha_y(), options.mesh_level);
+  TracedHistogram h;
+  h.binnings = {DirectionBinning::sphere(options.rows),
+                DirectionBinning::lobe(ggx, wi, SampleDomain::microfacet_normal, options.rows)};
+  TraceOptions t;
+  t.rays = options.rays;
+  t.seed = options.seed;
+  t.threads = options.threads;
+  t.progress = options.progress;
+  TraceResult r = trace_vndf(target, wi, h.binnings, t);
+  h.counts = r.counts;
+  h.rays = r.rays;
+  h.hits = r.hits;
+  h.partial = r.partial;
+  const auto g17 = [](double x) { return fmt::format("{:.17g}", x); };
+  h.attributes["surface"] = "ellipsoid";
+  h.attributes["target"] = target.describe();
+  h.attributes["mesh_level"] = std::to_string(target.mesh_level());
+  h.attributes["alpha"] = g17(ggx.alpha_x()) + "," + g17(ggx.alpha_y());
+  h.attributes["wi"] = g17(wi.x()) + "," + g17(wi.y()) + "," + g17(wi.z());
+  h.attributes["seed"] = std::to_string(options.seed);
+  h.attributes["rays_per_second"] = g17(r.rays_per_second());
+  if (raw) *raw = std::move(r);
+  return h;
+}
+
+// ---- sampler vs traced histogram -------------------------------------------------------------------------
+
+namespace {
+
+std::vector<double> parse_numbers(const TracedHistogram& h, const std::string& key, std::size_t n) {
+  const auto it = h.attributes.find(key);
+  if (it == h.attributes.end()) throw HistogramIoError(fmt::format("traced histogram: attribute '{}' is missing", key));
+  std::vector<double> values;
+  std::size_t pos = 0;
+  const std::string& s = it->second;
+  while (pos <= s.size()) {
+    const std::size_t comma = s.find(',', pos);
+    const std::string item = s.substr(pos, comma == std::string::npos ? std::string::npos : comma - pos);
+    try {
+      std::size_t used = 0;
+      values.push_back(std::stod(item, &used));
+      if (used != item.size()) throw std::invalid_argument(item);
+    } catch (const std::exception&) {
+      throw HistogramIoError(fmt::format("traced histogram: attribute {} = '{}' is malformed", key, s));
+    }
+    if (comma == std::string::npos) break;
+    pos = comma + 1;
+  }
+  if (values.size() != n || !std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v); })) {
+    throw HistogramIoError(fmt::format("traced histogram: attribute {} = '{}' needs {} finite numbers", key, s, n));
+  }
+  return values;
+}
+
+struct SampleSet {
+  std::vector<Vec3<double>> directions;
+  std::vector<std::uint8_t> valid;  // 0 where the sampler returned nothing
+};
+
+// The same draws as validate_sampler: sample i from CounterRng(seed, i), two uniforms.
+template <class T>
+SampleSet draw(SampleResult<T> (*sample)(const GGX<T>&, const Vec3<T>&, Vec2<T>), const GGX<double>& ggx,
+               const Vec3<double>& wi, const ValidationOptions& options) {
+  const std::uint64_t n = options.samples, block = 1 << 16;
+  SampleSet set;
+  set.directions.assign(n, Vec3<double>::Zero());
+  set.valid.assign(n, 0);
+  const GGX<T> g(T(ggx.alpha_x()), T(ggx.alpha_y()));
+  const Vec3<T> w = wi.template cast<T>();
+  ProgressBar bar("sampling", n, options.progress);
+  tbb::parallel_for(std::uint64_t(0), (n + block - 1) / block, [&](std::uint64_t b) {
+    const std::uint64_t end = std::min(n, (b + 1) * block);
+    for (std::uint64_t i = b * block; i < end; ++i) {
+      CounterRng rng(options.seed, i);
+      Vec2<T> u;
+      if constexpr (std::is_same_v<T, float>) {
+        u = Vec2<T>(rng.uniform_float(), rng.uniform_float());
+      } else {
+        u = Vec2<T>(rng.uniform(), rng.uniform());
+      }
+      const SampleResult<T> s = sample(g, w, u);
+      if (!s) continue;
+      set.directions[i] = s->direction.template cast<double>();
+      set.valid[i] = 1;
+    }
+    bar.add(end - b * block);
+  });
+  bar.finish();
+  return set;
+}
+
+void check_configuration(const TracedHistogram& traced, const GGX<double>& ggx, const Vec3<double>& wi) {
+  const GGX<double> tg = histogram_ggx(traced);
+  const Vec3<double> twi = histogram_wi(traced);
+  const double tol = 1e-9;
+  if (std::abs(tg.alpha_x() - ggx.alpha_x()) > tol * ggx.alpha_x() ||
+      std::abs(tg.alpha_y() - ggx.alpha_y()) > tol * ggx.alpha_y() || (twi - wi.normalized()).norm() > tol) {
+    throw std::invalid_argument(fmt::format(
+        "the traced histogram was made for alpha ({}, {}) and wi ({:.9f}, {:.9f}, {:.9f}), not for alpha ({}, {}) "
+        "and wi ({:.9f}, {:.9f}, {:.9f})",
+        tg.alpha_x(), tg.alpha_y(), twi.x(), twi.y(), twi.z(), ggx.alpha_x(), ggx.alpha_y(), wi.x(), wi.y(), wi.z()));
+  }
+  if (traced.hits == 0) throw std::invalid_argument("the traced histogram has no hits");
+}
+
+ValidationReport compare_set(std::string name, const SampleSet& set, const GGX<double>& ggx, const Vec3<double>& wi,
+                             const ValidationOptions& options, Precision precision, const TracedHistogram& traced) {
+  check_configuration(traced, ggx, wi);
+  const auto start = std::chrono::steady_clock::now();
+  ValidationReport r;
+  r.sampler = std::move(name);
+  r.domain = SampleDomain::microfacet_normal;
+  r.alpha_x = ggx.alpha_x();
+  r.alpha_y = ggx.alpha_y();
+  r.wi = wi.normalized();
+  r.samples = set.directions.size();
+  r.seed = options.seed;
+  r.precision = precision;
+  r.significance = options.significance;
+  if (r.samples == 0) throw std::invalid_argument("comparison needs at least one sample");
+
+  // Histograms of the samples in the traced histogram's binnings, plus a remainder cell (failed samples
+  // or directions outside the binning's parameter space; for the trace: hits outside the bins).
+  const std::size_t nk = traced.binnings.size();
+  std::vector<std::vector<double>> sampled(nk), oracle(nk);
+  for (std::size_t k = 0; k < nk; ++k) {
+    sampled[k].assign(std::size_t(traced.binnings[k].size()) + 1, 0.0);
+    oracle[k].assign(traced.counts[k].begin(), traced.counts[k].end());
+    const std::uint64_t binned = std::accumulate(traced.counts[k].begin(), traced.counts[k].end(), std::uint64_t(0));
+    oracle[k].push_back(double(traced.hits - binned));
+  }
+  // Bin in parallel into per-thread integer histograms (exact sums: independent of the thread count).
+  // FastDirectionBinner gives exactly DirectionBinning::bin_of, three times faster.
+  std::vector<FastDirectionBinner> binners;
+  for (const DirectionBinning& b : traced.binnings) binners.emplace_back(b);
+  struct Local {
+    std::vector<std::vector<std::uint64_t>> counts;
+    std::uint64_t failed = 0, outside = 0;
+  };
+  tbb::enumerable_thread_specific<Local> locals([&] {
+    Local l;
+    l.counts.resize(nk);
+    for (std::size_t k = 0; k < nk; ++k) l.counts[k].assign(sampled[k].size(), 0);
+    return l;
+  });
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, set.directions.size(), 1 << 14), [&](const auto& range) {
+    Local& l = locals.local();
+    for (std::size_t i = range.begin(); i != range.end(); ++i) {
+      if (!set.valid[i]) {
+        ++l.failed;
+        for (std::size_t k = 0; k < nk; ++k) ++l.counts[k].back();
+        continue;
+      }
+      const Vec3<double>& w = set.directions[i];
+      if (!w.allFinite() || !(std::abs(w.norm() - 1) <= options.unit_tolerance)) {
+        ++l.outside;
+        continue;
+      }
+      for (std::size_t k = 0; k < nk; ++k) {
+        const int bin = binners[k](w);
+        ++l.counts[k][bin >= 0 ? std::size_t(bin) : l.counts[k].size() - 1];
+      }
+    }
+  });
+  for (const Local& l : locals) {
+    r.failed_samples += l.failed;
+    r.outside_domain += l.outside;
+    for (std::size_t k = 0; k < nk; ++k)
+      for (std::size_t b = 0; b < l.counts[k].size(); ++b) sampled[k][b] += double(l.counts[k][b]);
+  }
+
+  const int n_tests = int(nk);
+  r.statistical_tests = n_tests;
+  r.per_test_significance = sidak_significance(options.significance, n_tests);
+  double p_min = 1;
+  std::vector<ChiSquareResult> results;
+  for (std::size_t k = 0; k < nk; ++k) {
+    const DirectionBinning& b = traced.binnings[k];
+    ChiSquareOptions chi;
+    chi.significance = r.per_test_significance;
+    chi.worst_cells = options.worst_cells;
+    chi.describe_cell = [&b](int bin) { return bin < b.size() ? b.describe_bin(bin) : std::string("remainder (failed or outside the bins)"); };
+    ChiSquareResult c;
+    if (std::accumulate(sampled[k].begin(), sampled[k].end(), 0.0) > 0) {
+      c = two_sample_homogeneity(sampled[k], oracle[k], chi);
+    } else {
+      c.test = "two_sample_homogeneity";
+      c.p_value = 0;
+      c.rejected = true;
+      c.reason = "no sample inside the domain";
+    }
+    c.significance = r.per_test_significance;
+    c.rejected = c.rejected || c.p_value < r.per_test_significance;
+    p_min = std::min(p_min, c.p_value);
+    if (b.kind() == BinningKind::sphere) r.sphere = c;
+    else r.lobe = c;
+    results.push_back(std::move(c));
+  }
+  r.p_value = sidak_adjusted_p(p_min, n_tests);
+  const ChiSquareResult& headline = *std::min_element(
+      results.begin(), results.end(), [](const auto& a, const auto& b) { return a.p_value < b.p_value; });
+  r.statistic = headline.statistic;
+  r.dof = headline.dof;
+
+  r.domain_check.name = "domain";
+  r.domain_check.value = double(r.outside_domain);
+  r.domain_check.passed = r.outside_domain == 0;
+  r.domain_check.detail = fmt::format("{} sample(s) non-finite or with | |w| - 1 | > {}", r.outside_domain,
+                                      options.unit_tolerance);
+  const std::string not_here = "not applicable: comparison with the traced oracle (two-sample test only)";
+  for (SubTest* t : {&r.weight, &r.pdf, &r.integral}) {
+    t->applicable = false;
+    t->statistical = false;
+    t->passed = true;
+    t->detail = not_here;
+  }
+  r.weight.name = "weight_mean";
+  r.pdf.name = "returned_pdf";
+  r.integral.name = "pdf_integral";
+
+  if (!r.domain_check.passed) r.failures.push_back(r.domain_check.detail);
+  for (std::size_t k = 0; k < nk; ++k) {
+    const ChiSquareResult& c = results[k];
+    if (c.rejected) {
+      r.failures.push_back(fmt::format("two-sample chi-square against the traced oracle in {} bins rejects: p = {:.3g} < {:.3g}{}",
+                                       traced.binnings[k].name(), c.p_value, r.per_test_significance,
+                                       c.reason.empty() ? "" : " (" + c.reason + ")"));
+    }
+  }
+  r.passed = r.failures.empty();
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return r;
+}
+
+}  // namespace
+
+GGX<double> histogram_ggx(const TracedHistogram& h) {
+  const auto a = parse_numbers(h, "alpha", 2);
+  if (!(a[0] > 0) || !(a[1] > 0)) throw HistogramIoError("traced histogram: alpha must be positive");
+  return GGX<double>(a[0], a[1]);
+}
+
+Vec3<double> histogram_wi(const TracedHistogram& h) {
+  const auto w = parse_numbers(h, "wi", 3);
+  const Vec3<double> wi(w[0], w[1], w[2]);
+  if (!(wi.norm() > 0)) throw HistogramIoError("traced histogram: wi must be a non-zero direction");
+  return wi.normalized();
+}
+
+ValidationReport compare_sampler_to_trace(const SamplerInfo& sampler, const GGX<double>& ggx, const Vec3<double>& wi,
+                                          const ValidationOptions& options, const TracedHistogram& traced) {
+  if (sampler.domain != SampleDomain::microfacet_normal) {
+    throw std::invalid_argument(fmt::format(
+        "sampler '{}' samples reflected directions; the traced oracle measures microfacet normals", sampler.name));
+  }
+  const auto start = std::chrono::steady_clock::now();
+  const SampleSet set = options.precision == Precision::float32 ? draw(sampler.sample_float, ggx, wi, options)
+                                                                : draw(sampler.sample_double, ggx, wi, options);
+  ValidationReport r = compare_set(std::string(sampler.name), set, ggx, wi, options, options.precision, traced);
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return r;
+}
+
+ValidationReport compare_samples_to_trace(std::span<const Vec3<double>> samples, std::string source,
+                                          const GGX<double>& ggx, const Vec3<double>& wi,
+                                          const ValidationOptions& options, const TracedHistogram& traced) {
+  SampleSet set;
+  set.directions.assign(samples.begin(), samples.end());
+  set.valid.assign(samples.size(), 1);
+  ValidationOptions o = options;
+  o.samples = samples.size();
+  return compare_set(std::move(source), set, ggx, wi, o, Precision::float64, traced);
+}
+
+}  // namespace microsim
