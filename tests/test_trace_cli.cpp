@@ -2,6 +2,9 @@
 // mesh), exit codes, bad input (exit 2, a message naming the bad value, nothing written), and Ctrl-C
 // (exit 130, a partial histogram written).
 #include "microsim/histogram_io.h"
+#include "microsim/random.h"
+#include "microsim/sample_io.h"
+#include "microsim/samplers.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -159,5 +162,55 @@ TEST(TraceCli, InterruptWritesPartialHistogram) {
   EXPECT_EQ(j["partial"], true);
   EXPECT_EQ(j["rays"].get<std::uint64_t>(), h.rays);
   EXPECT_NE(slurp(dir / "stdout.txt").find("PARTIAL"), std::string::npos);
+  fs::remove_all(dir);
+}
+
+// `microsim validate --against ellipsoid | HIST.exr` (the validator's front end calling compare.h): same
+// verdicts and exit codes as the analytic validation; --from works too; bad combinations exit 2.
+TEST(TraceCli, ValidateAgainstTracedOracle) {
+  const auto dir = scratch_dir("against");
+  const std::string cfg = " --alpha 0.3,0.6 --theta 70 --phi 20";
+  const CliRun good = run(dir, "validate --sampler heitz2018" + cfg + " --against ellipsoid --rays 1000000 "
+                                "--samples 300000 --json v.json");
+  EXPECT_EQ(good.exit_code, 0) << good.out << good.err;
+  const nlohmann::json j = nlohmann::json::parse(slurp(dir / "v.json"));
+  for (const char* key : {"verdict", "p_value", "statistic", "dof", "samples", "against", "oracle_rays"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  EXPECT_EQ(j["verdict"], "pass");
+  const CliRun bad = run(dir, "validate --sampler heitz2018-talk" + cfg + " --against ellipsoid --rays 1000000 "
+                               "--samples 300000");
+  EXPECT_EQ(bad.exit_code, 1) << bad.out << bad.err;
+  // A histogram traced once, then samples from a file validated against it.
+  ASSERT_EQ(run(dir, "trace vndf" + cfg + " --rays 1000000 --out h.exr").exit_code, 0);
+  std::vector<microsim::Vec3<double>> heitz, ndf;
+  const microsim::GGX<double> ggx(0.3, 0.6);
+  const auto wi = microsim::direction_from_degrees(70.0, 20.0);
+  microsim::CounterRng rng(77, 0);
+  for (int i = 0; i < 300'000; ++i) {
+    const microsim::Vec2<double> u(rng.uniform(), rng.uniform());
+    heitz.push_back(microsim::sample_heitz2018(ggx, wi, u)->direction);
+    ndf.push_back(microsim::sample_ndf(ggx, wi, u)->direction);
+  }
+  microsim::write_npy(dir / "heitz.npy", heitz, /*as_float32=*/true);
+  microsim::write_npy(dir / "ndf.npy", ndf, /*as_float32=*/false);
+  EXPECT_EQ(run(dir, "validate --from heitz.npy" + cfg + " --against h.exr").exit_code, 0);
+  EXPECT_EQ(run(dir, "validate --from ndf.npy" + cfg + " --against h.exr").exit_code, 1);
+  EXPECT_EQ(run(dir, "validate --sampler dupuy2023" + cfg + " --samples 300000 --against h.exr").exit_code, 0);
+  // Bad combinations: exit 2 with a message.
+  const std::pair<std::string, std::string> cases[] = {
+      {"validate --sampler heitz2018 --alpha 0.3,0.6 --theta 71 --phi 20 --against h.exr", "made for"},
+      {"validate --sampler bounded2023" + cfg + " --against h.exr", "reflected"},
+      {"validate --all --against ellipsoid", "--all"},
+      {"validate --sampler heitz2018" + cfg + " --against h.txt", "h.txt"},
+      {"validate --sampler heitz2018" + cfg + " --against missing.exr", "missing.exr"},
+      {"validate --sampler heitz2018" + cfg + " --rays 1000", "--rays"},
+      {"validate --sampler heitz2018" + cfg + " --against ellipsoid --rays 0", "--rays"},
+      {"validate --from heitz.npy --reflected" + cfg + " --against h.exr", "reflected"},
+  };
+  for (const auto& [args, needle] : cases) {
+    const CliRun r = run(dir, args);
+    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.err;
+    EXPECT_NE(r.err.find(needle), std::string::npos) << args << "\nstderr: " << r.err;
+  }
   fs::remove_all(dir);
 }

@@ -17,6 +17,7 @@
 
 #include "microsim/chi2.h"
 #include "microsim/histogram_io.h"
+#include "microsim/random.h"
 #include "microsim/trace_vndf.h"
 #include "microsim/validate.h"
 
@@ -53,6 +54,11 @@ struct TraceAnalysis {
 TraceAnalysis analyse_against_vndf(TracedHistogram& histogram, const GGX<double>& ggx, const Vec3<double>& wi,
                                    std::span<const std::uint64_t> unbinned = {}, double significance = 0.01);
 nlohmann::json to_json(const TraceAnalysis& analysis);
+
+// The seed of the oracle's trace when a sampler is compared with it on the fly: a mix of the sampler's
+// seed, so that the two samples never share counter-based streams (CounterRng(seed, i) for sample i and
+// CounterRng(seed, b) for ray block b would otherwise coincide).
+constexpr std::uint64_t oracle_seed(std::uint64_t sampler_seed) { return mix64(sampler_seed ^ 0x6f7261636c65ULL); }
 
 // Traces the exact (mesh_level < 0) or meshed ellipsoid for (ggx, wi) into a histogram with the
 // validator's binnings of `rows` rows, run parameters in histogram.attributes; no analytic fit.
