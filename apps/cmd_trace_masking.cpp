@@ -384,15 +384,17 @@ int run_table(const MaskingArgs& a) {
         mo.samples = std::uint64_t(a.samples);
         mo.seed = a.seed;
         mo.progress = false;
+        // The specular pair: l = v mirrored through the mean normal, facets within the cone around z.
+        mo.light = Vec3<double>(-v.x(), -v.y(), v.z());
         row.masking = estimate_masking(scene, analytic, empirical, v, mo);
         partial = partial || tres.partial || row.masking.partial;
         const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - tr).count();
         const auto& nb = row.masking.by_normal;
         fmt::print(stderr, "{:<9} alpha {:<4} theta {:<3}: TV {:.4f} (own NDF {:.4f}, floor {:.4f}) facing {:.3f} grazing "
-                   "{:.3f} G2mir/HC {:.3f} leak {:.4f} ({:.1f} s)\n",
+                   "{:.3f} G2 pair/HC {:.3f} lobe/HC {:.3f} leak {:.4f} ({:.1f} s)\n",
                    name, alpha, theta, row.vndf.tv_analytic, row.vndf.tv_empirical, row.vndf.tv_noise,
-                   nb.back().ratio.value, nb.front().ratio.value,
-                   row.masking.mirror ? row.masking.mirror->ratio_analytic.value : 0.0, row.masking.leak_ratio.value, secs);
+                   nb.back().ratio.value, nb.front().ratio.value, row.masking.pair_cone->ratio_analytic.value,
+                   row.masking.mirror->ratio_analytic.value, row.masking.leak_ratio.value, secs);
         nlohmann::json jr;
         jr["theta"] = theta;
         jr["vndf"] = to_json(row.vndf);
@@ -415,17 +417,17 @@ int run_table(const MaskingArgs& a) {
                     "{} VNDF rays (lobe bins {} x {}) and {} surface points. {:.0f} s in all.\n\n",
                     a.res, a.corr_cells, a.seed, a.table_phi, a.table_vndf_rays, kVndfRows, 2 * kVndfRows, a.samples,
                     total_s);
-  md += "| assembly | alpha | theta | TV Smith | TV own NDF | TV floor | G1 | G1 Smith | facing G1(v\\|m)/G1 | "
-        "grazing G1(v\\|m)/G1 | G2 mirror | G2 / HC Smith | G2 / HC own NDF | leak |\n";
-  md += "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  md += "| assembly | alpha | theta | TV to Smith | TV to Smith, own NDF | TV noise | G1 / Smith G1 | facing: G1(v\\|m) / G1 | "
+        "grazing: G1(v\\|m) / G1 | mirror pair: G2 / HC Smith | mirror lobe: G2 / HC Smith | leak ratio |\n";
+  md += "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& r : rows) {
     const auto& m = r.masking;
     const auto& nb = m.by_normal;
-    md += fmt::format("| {} | {} | {} | {:.4f} | {:.4f} | {:.4f} | {:.4f} | {:.4f} | {} | {} | {} | {} | {} | {} |\n",
-                      r.assembly, r.alpha, r.theta, r.vndf.tv_analytic, r.vndf.tv_empirical, r.vndf.tv_noise,
-                      m.g1.value, m.g1_smith_analytic, pm(nb.back().ratio, 3), pm(nb.front().ratio, 3),
-                      pm(m.mirror->value, 4), pm(m.mirror->ratio_analytic, 3), pm(m.mirror->ratio_empirical, 3),
-                      pm(m.leak_ratio, 4));
+    const Estimate g1_ratio{m.g1.value / m.g1_smith_analytic, m.g1.se / m.g1_smith_analytic};
+    md += fmt::format("| {} | {} | {} | {:.4f} | {:.4f} | {:.4f} | {} | {} | {} | {} | {} | {} |\n", r.assembly, r.alpha,
+                      r.theta, r.vndf.tv_analytic, r.vndf.tv_empirical, r.vndf.tv_noise, pm(g1_ratio, 3),
+                      pm(nb.back().ratio, 3), pm(nb.front().ratio, 3), pm(m.pair_cone->ratio_analytic, 3),
+                      pm(m.mirror->ratio_analytic, 3), pm(m.leak_ratio, 4));
   }
   if (!a.json.empty()) write_text_atomically(a.json, j.dump(2) + "\n");
   if (!a.markdown.empty()) write_text_atomically(a.markdown, md);

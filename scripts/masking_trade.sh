@@ -1,0 +1,53 @@
+#!/usr/bin/env bash
+# microsim: regenerates the measurements of docs/heightfield-trade.md (the speed/accuracy trade of the
+# heightfield surface) and the masking table of docs/masking.md. Every number comes from the CLI:
+#   microsim trace masking --table   (builds the surfaces in memory, traces VNDF and masking per view)
+#   microsim surface build           (build time and peak RSS per resolution)
+#   microsim trace masking --surface (tracing a stored 4096^2 tile: peak RSS, rays per second)
+# Usage: scripts/masking_trade.sh [OUTDIR] [PART...]   parts: table res corr tile seeds build big (default all)
+# Runtime on 2 cores: table ~15 min, the trade parts ~30 min, big ~10 min.
+set -euo pipefail
+here=$(cd "$(dirname "$0")/.." && pwd)
+B=${MICROSIM:-$here/build/microsim}
+out=${1:-$here/out/masking}
+shift || true
+parts=${*:-table res corr tile seeds build big}
+mkdir -p "$out"
+has() { [[ " $parts " == *" $1 "* ]]; }
+tm() { /usr/bin/time -f "%e s wall, %U s user, peak RSS %M KiB" "$@"; }
+trade() {  # name res corr
+  tm "$B" trace masking --table --assemblies smith --alphas 0.5 --thetas 60,75,85 --res "$2" --corr-cells "$3" \
+    --samples 1000000 --vndf-rays 2000000 --markdown "$out/$1.md" --json "$out/$1.json" > /dev/null 2> "$out/$1.log"
+}
+
+# The masking table (docs/masking.md): 5 assemblies x alpha {0.1, 0.5, 1} x theta {30, 60, 75, 85}.
+has table && tm "$B" trace masking --table --res 1024 --markdown "$out/table-1024.md" --json "$out/table-1024.json" \
+  > /dev/null 2> "$out/table-1024.log"
+# Resolution at a fixed correlation length of 16 cells (tile = N/16 correlation lengths).
+if has res; then for n in 256 512 2048; do trade "res-$n-l16" "$n" 16; done; fi
+# Correlation length in cells at N = 1024 (discretisation of a feature vs tile size in features).
+if has corr; then for c in 4 8 32; do trade "res-1024-l$c" 1024 "$c"; done; fi
+# Fixed tile of 64 correlation lengths, finer and finer cells.
+if has tile; then trade "res-256-l4" 256 4; trade "res-512-l8" 512 8; trade "res-2048-l32" 2048 32; fi
+# Seed-to-seed spread at the default setting (realisations of the same random surface).
+if has seeds; then
+  for s in 2 3; do
+    tm "$B" trace masking --table --assemblies smith --alphas 0.5 --thetas 60,75,85 --res 1024 --corr-cells 16 --seed "$s" \
+      --samples 1000000 --vndf-rays 2000000 --markdown "$out/res-1024-l16-seed$s.md" --json "$out/res-1024-l16-seed$s.json" \
+      > /dev/null 2> "$out/res-1024-l16-seed$s.log"
+  done
+fi
+# Build time and peak RSS of the surface itself.
+if has build; then
+  for n in 256 1024 4096; do
+    tm "$B" surface build --assembly smith --alpha 0.5 --res "$n" --out "$out/smith-$n.exr" > "$out/build-$n.txt" 2> "$out/build-$n.log" || true
+  done
+fi
+# A 4096^2 tile traced with both Embree geometries (peak RSS, build and tracing rates).
+if has big; then
+  for g in triangles grid; do
+    tm "$B" trace masking --surface "$out/smith-4096.exr" --theta 75 --phi 30 --samples 1000000 --vndf-rays 2000000 \
+      --geometry "$g" --json "$out/big-4096-$g.json" > "$out/big-4096-$g.txt" 2> "$out/big-4096-$g.log"
+  done
+fi
+echo "done: $out"
