@@ -39,6 +39,7 @@ public:
   T D(const Vec3<T>& m) const {
     if (!(m.z() > T(0))) return T(0);
     const T len2 = m.squaredNorm();
+    if (!(len2 < std::numeric_limits<T>::infinity())) return T(0);  // non-finite m: inf / inf
     const T e = sqr(m.x() / ax_) + sqr(m.y() / ay_) + sqr(m.z());  // for unit m; rescaled below
     return sqr(len2) / (kPi<T> * ax_ * ay_ * sqr(e));
   }
@@ -46,7 +47,12 @@ public:
   // Density of microfacet slopes (sx, sy) = (-mx/mz, -my/mz) per unit slope area: a bivariate Student-t
   // with nu = 2 (Heitz 2014 eq. 39 for GGX): P22 = 1 / (pi ax ay (1 + sx^2/ax^2 + sy^2/ay^2)^2).
   T slope_pdf(T sx, T sy) const {
-    return T(1) / (kPi<T> * ax_ * ay_ * sqr(T(1) + sqr(sx / ax_) + sqr(sy / ay_)));
+    const T q = sqr(sx / ax_) + sqr(sy / ay_);
+    if (std::isnan(q)) return T(0);  // NaN slope (infinite slopes give 0 below)
+    // Squared last: (1 + q)^2 alone overflows float for slopes past ~1e19 alpha, long before the
+    // density leaves float's range.
+    const T r = T(1) / (std::sqrt(kPi<T> * ax_ * ay_) * (T(1) + q));
+    return r * r;
   }
 
   // t = |(ax wx, ay wy, wz)|: the length of w in the hemisphere (stretched) configuration.
@@ -58,6 +64,7 @@ public:
   // (t - |wz|) / (2 |wz|) = (ax^2 wx^2 + ay^2 wy^2) / (2 |wz| (t + |wz|)) to avoid cancellation at
   // small alpha. +inf on the horizon.
   T Lambda(const Vec3<T>& w) const {
+    if (!w.allFinite()) return T(0);  // degenerate input: 0 by convention
     const T z = std::abs(w.z());
     const T num = sqr(ax_ * w.x()) + sqr(ay_ * w.y());
     if (num == T(0)) return T(0);
@@ -67,6 +74,7 @@ public:
 
   // Smith masking G1 = 1 / (1 + Lambda) = 2 |wz| / (|wz| + t): finite everywhere, 0 on the horizon.
   T G1(const Vec3<T>& w) const {
+    if (!w.allFinite()) return T(0);  // degenerate input: 0 by convention (inf / inf otherwise)
     const T z = std::abs(w.z());
     const T denom = z + stretched_length(w);
     return denom > T(0) ? T(2) * z / denom : T(0);
@@ -91,6 +99,7 @@ public:
   // 2 D(m) <w, m>+ / (wz + t) that stays finite at wz = 0. Per unit solid angle of m. Back-side views
   // (w.z < 0) use D_v(-w, -m).
   T visible_normal_pdf(const Vec3<T>& w, const Vec3<T>& m) const {
+    if (!w.allFinite() || !m.allFinite()) return T(0);  // degenerate input: 0 by convention
     if (w.z() < T(0)) return visible_normal_pdf(Vec3<T>(-w), Vec3<T>(-m));
     const T wm = w.dot(m);
     if (!(wm > T(0))) return T(0);
