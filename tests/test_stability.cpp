@@ -9,10 +9,16 @@
 #include "microsim/samplers.h"
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <sys/wait.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <iterator>
 #include <limits>
 #include <string>
 
@@ -375,4 +381,33 @@ TEST(CosSin2Pi, ExactAtQuarterTurns) {
     EXPECT_NEAR(cs.x(), std::cos(2 * kPi<double> * u), 1e-15);
     EXPECT_NEAR(cs.y(), std::sin(2 * kPi<double> * u), 1e-15);
   }
+}
+
+// ---- the command line -----------------------------------------------------------------------------------
+
+TEST(StabilityCli, PrintsTheTableWritesJsonAndRejectsBadPaths) {
+  const std::string json = ::testing::TempDir() + "microsim_stability_test.json";
+  std::remove(json.c_str());
+  const std::string out = ::testing::TempDir() + "microsim_stability_test.md";
+  const std::string cmd = std::string(MICROSIM_BINARY) + " stability --random-u 4 --json " + json + " > " + out + " 2>/dev/null";
+  const int rc = std::system(cmd.c_str());
+  ASSERT_TRUE(WIFEXITED(rc));
+  EXPECT_EQ(WEXITSTATUS(rc), 0);
+  std::ifstream in(json);
+  ASSERT_TRUE(in.good());
+  const nlohmann::json j = nlohmann::json::parse(in);
+  EXPECT_EQ(j.at("violations").get<int>(), 0);
+  EXPECT_GT(j.at("rows").size(), 100u);
+  EXPECT_EQ(j.at("grid").at("random_u_per_view").get<int>(), 4);
+  std::ifstream table(out);
+  const std::string text((std::istreambuf_iterator<char>(table)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("| heitz2018 | grazing 85-90 |"), std::string::npos);
+  EXPECT_NE(text.find("PASS"), std::string::npos);
+  // A --json path in a missing directory: exit 2 before any work, nothing written.
+  const std::string bad = "/nonexistent-microsim-dir/x.json";
+  const int rc2 = std::system((std::string(MICROSIM_BINARY) + " stability --json " + bad + " > /dev/null 2>&1").c_str());
+  ASSERT_TRUE(WIFEXITED(rc2));
+  EXPECT_EQ(WEXITSTATUS(rc2), 2);
+  std::remove(json.c_str());
+  std::remove(out.c_str());
 }

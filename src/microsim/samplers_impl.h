@@ -284,7 +284,10 @@ template <class T> SampleResult<T> sample_heitz2018(const GGX<T>& ggx, const Vec
     // a -+ r sin(phi), one of which cancels near the rim: (a - rs)(a + rs) = 1 - r^2.
     const T a_minus_rs = rs > T(0) ? one_minus_r2 / (a + rs) : a - rs;
     const T a_plus_rs = rs < T(0) ? one_minus_r2 / (a - rs) : a + rs;
-    const T p2 = a - s * a_minus_rs;
+    // p2 = a - s (a - rs), written as s (a + rs) - Vh.z a (the two are equal since 2s - 1 = Vh.z): at grazing
+    // views (Vh.z -> 0) this form loses nothing, where a - s (a - rs) leaves an error of eps a in a p2 that
+    // then sets Nh.z ~ p2 alone.
+    const T p2 = s * a_plus_rs - vh.z() * a;
     // Section 4.3: reproject onto the hemisphere. The height above the disk is <Vh, Nh> =
     // sqrt(1 - p1^2 - p2^2) = sqrt((a - p2)(a + p2)), with a - p2 = s (a - rs) and
     // a + p2 = 2 (1 - s) a + s (a + rs): both sums of non-negative terms.
