@@ -7,6 +7,7 @@
 #include "microsim/samplers.h"
 
 #include "lune_quadrature.h"
+#include "worst_error.h"
 
 #include <gtest/gtest.h>
 
@@ -68,23 +69,7 @@ std::string label(double ax, double ay, double theta) {
   return buf;
 }
 
-struct WorstError {
-  std::string name;
-  double worst = 0;
-  std::string where{};
-  void add(double err, const std::string& w) {
-    if (!(err <= worst)) {
-      worst = err;
-      where = w;
-    }
-  }
-  ~WorstError() {
-    std::printf("[ identity ] %-50s worst |error| = %.3g at %s\n", name.c_str(), worst, where.c_str());
-    char value[32];
-    std::snprintf(value, sizeof value, "%.3g", worst);
-    ::testing::Test::RecordProperty("worst_error_" + name, value);
-  }
-};
+using microsim::test::WorstError;
 
 }  // namespace
 

@@ -1,5 +1,6 @@
 // Tests of `microsim validate` as a user runs it: exit codes 0 (pass) / 1 (rejected) / 2 (bad usage or
 // input), the JSON keys, --from with sample files, and nothing written on bad input.
+#include "cli_helpers.h"
 #include "microsim/random.h"
 #include "microsim/sample_io.h"
 #include "microsim/samplers.h"
@@ -20,36 +21,18 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct CliRun {
-  int code = -1;
-  std::string out, err;
-};
+using microsim::test::CliRun;
+using microsim::test::slurp;
 
+// One directory for the whole test program (not cleared between runs: tests write sample files there
+// before running the command on them).
 fs::path scratch_dir() {
   const fs::path dir = fs::temp_directory_path() / ("microsim_cli_validate_" + std::to_string(::getpid()));
   fs::create_directories(dir);
   return dir;
 }
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-CliRun run(const std::string& args) {
-  const fs::path dir = scratch_dir();
-  const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
-  const std::string cmd = std::string(MICROSIM_BINARY) + " validate " + args + " > '" + out.string() + "' 2> '" +
-                          err.string() + "'";
-  const int status = std::system(cmd.c_str());
-  CliRun r;
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.out = slurp(out);
-  r.err = slurp(err);
-  return r;
-}
+CliRun run(const std::string& args) { return microsim::test::run_cli(scratch_dir(), "validate " + args); }
 
 // Directions from a sampler of the zoo (reflected with `reflected`), for --from files.
 std::vector<Vec3<double>> samples_of(const char* name, double alpha, double theta, int n, bool reflected = false) {
@@ -71,7 +54,7 @@ TEST(CliValidate, PassRejectAndJson) {
   const fs::path json = scratch_dir() / "pass.json";
   fs::remove(json);
   const CliRun ok = run("--sampler heitz2018 --alpha 0.3 --theta 30 --samples 100000 --seed 3 --json '" + json.string() + "'");
-  EXPECT_EQ(ok.code, 0) << ok.out << ok.err;
+  EXPECT_EQ(ok.exit_code, 0) << ok.out << ok.err;
   EXPECT_NE(ok.out.find("verdict: PASS"), std::string::npos) << ok.out;
   EXPECT_NE(ok.out.find("worst cells"), std::string::npos);
   ASSERT_TRUE(fs::exists(json));
@@ -82,11 +65,11 @@ TEST(CliValidate, PassRejectAndJson) {
   EXPECT_FALSE(fs::exists(json.string() + ".partial"));
 
   const CliRun bad = run("--sampler heitz2018-talk --alpha 0.3 --theta 30 --samples 100000");
-  EXPECT_EQ(bad.code, 1) << bad.out << bad.err;
+  EXPECT_EQ(bad.exit_code, 1) << bad.out << bad.err;
   EXPECT_NE(bad.out.find("verdict: FAIL"), std::string::npos);
 
   const CliRun aniso = run("--sampler dupuy2023 --alpha 0.05,0.5 --theta 60 --phi 30 --samples 50000 --float");
-  EXPECT_EQ(aniso.code, 0) << aniso.out << aniso.err;
+  EXPECT_EQ(aniso.exit_code, 0) << aniso.out << aniso.err;
 }
 
 TEST(CliValidate, BadUsageExitsTwoAndWritesNothing) {
@@ -94,7 +77,7 @@ TEST(CliValidate, BadUsageExitsTwoAndWritesNothing) {
   fs::remove(json);
   const std::string j = " --json '" + json.string() + "'";
   const CliRun unknown = run("--sampler nope --alpha 0.3 --theta 30" + j);
-  EXPECT_EQ(unknown.code, 2);
+  EXPECT_EQ(unknown.exit_code, 2);
   EXPECT_NE(unknown.err.find("nope"), std::string::npos) << unknown.err;
   EXPECT_NE(unknown.err.find("heitz2018"), std::string::npos) << "the valid names are listed: " << unknown.err;
   for (const std::string& args : {std::string("--sampler ndf --alpha 0 --theta 30"), std::string("--sampler ndf --alpha -1 --theta 30"),
@@ -107,7 +90,7 @@ TEST(CliValidate, BadUsageExitsTwoAndWritesNothing) {
                                   std::string("--sampler ndf --alpha 0.3 --theta 30 --reflected"),
                                   std::string("--all --alpha 0.3"), std::string("--sampler ndf --alpha 0.3 --theta 30 --rows 30")}) {
     const CliRun r = run(args + j);
-    EXPECT_EQ(r.code, 2) << args << "\n" << r.out << r.err;
+    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.out << r.err;
     EXPECT_FALSE(r.err.empty()) << args;
   }
   EXPECT_FALSE(fs::exists(json));
@@ -121,16 +104,16 @@ TEST(CliValidate, FromFile) {
   write_text_samples(reflected, samples_of("heitz2018", 0.3, 40, 100000, true));
 
   const CliRun ok = run("--from '" + good.string() + "' --alpha 0.3 --theta 40");
-  EXPECT_EQ(ok.code, 0) << ok.out << ok.err;
+  EXPECT_EQ(ok.exit_code, 0) << ok.out << ok.err;
   const CliRun rejected = run("--from '" + talk.string() + "' --alpha 0.3 --theta 40");
-  EXPECT_EQ(rejected.code, 1) << rejected.out << rejected.err;
+  EXPECT_EQ(rejected.exit_code, 1) << rejected.out << rejected.err;
   // The same normals seen from another view are rejected too.
   const CliRun wrong_view = run("--from '" + good.string() + "' --alpha 0.3 --theta 60");
-  EXPECT_EQ(wrong_view.code, 1) << wrong_view.out;
+  EXPECT_EQ(wrong_view.exit_code, 1) << wrong_view.out;
   const CliRun refl = run("--from '" + reflected.string() + "' --reflected --alpha 0.3 --theta 40");
-  EXPECT_EQ(refl.code, 0) << refl.out << refl.err;
+  EXPECT_EQ(refl.exit_code, 0) << refl.out << refl.err;
   const CliRun refl_as_normals = run("--from '" + reflected.string() + "' --alpha 0.3 --theta 40");
-  EXPECT_EQ(refl_as_normals.code, 1) << refl_as_normals.out;
+  EXPECT_EQ(refl_as_normals.exit_code, 1) << refl_as_normals.out;
 
   // Malformed, non-unit and missing files: exit 2 with a message naming the line.
   const fs::path malformed = dir / "malformed.txt", non_unit = dir / "non_unit.txt";
@@ -139,11 +122,11 @@ TEST(CliValidate, FromFile) {
     std::ofstream(non_unit) << "# normals\n0 0 1\n0 0 2\n";
   }
   const CliRun m = run("--from '" + malformed.string() + "' --alpha 0.3 --theta 40");
-  EXPECT_EQ(m.code, 2);
+  EXPECT_EQ(m.exit_code, 2);
   EXPECT_NE(m.err.find("2"), std::string::npos) << m.err;
   const CliRun n = run("--from '" + non_unit.string() + "' --alpha 0.3 --theta 40");
-  EXPECT_EQ(n.code, 2);
+  EXPECT_EQ(n.exit_code, 2);
   EXPECT_NE(n.err.find("3"), std::string::npos) << n.err;
   const CliRun missing = run("--from '" + (dir / "missing.txt").string() + "' --alpha 0.3 --theta 40");
-  EXPECT_EQ(missing.code, 2);
+  EXPECT_EQ(missing.exit_code, 2);
 }

@@ -6,6 +6,7 @@
 #include "microsim/ggx.h"
 
 #include "lune_quadrature.h"
+#include "worst_error.h"
 
 #include <gtest/gtest.h>
 
@@ -46,24 +47,7 @@ std::string label(const AlphaPair& a, double theta = -1, double phi = -1) {
   return buf;
 }
 
-// Tracks and reports the worst error of one identity.
-struct WorstError {
-  std::string name;
-  double worst = 0;
-  std::string where{};
-  void add(double err, const std::string& w) {
-    if (!(err <= worst)) {  // NaN counts as worst
-      worst = err;
-      where = w;
-    }
-  }
-  ~WorstError() {
-    std::printf("[ identity ] %-44s worst |error| = %.3g at %s\n", name.c_str(), worst, where.c_str());
-    char value[32];
-    std::snprintf(value, sizeof value, "%.3g", worst);
-    ::testing::Test::RecordProperty("worst_error_" + name, value);
-  }
-};
+using microsim::test::WorstError;
 
 }  // namespace
 

@@ -1,5 +1,6 @@
 // End-to-end tests of `microsim surface build | stats | import`: outputs, exit codes, and that bad input
 // gets exit 2, a message naming the bad value, and nothing written.
+#include "cli_helpers.h"
 #include "microgeom/exr_io.h"
 #include "microgeom/heightfield.h"
 
@@ -17,37 +18,11 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct CliRun {
-  int exit_code;
-  std::string out, err;
-};
+using microsim::test::CliRun;
+using microsim::test::file_count;
 
-CliRun run(const fs::path& dir, const std::string& args) {
-  const std::string cmd = std::string("cd '") + dir.string() + "' && '" + MICROSIM_BINARY + "' " + args +
-                          " > stdout.txt 2> stderr.txt";
-  const int status = std::system(cmd.c_str());
-  auto slurp = [&](const char* name) {
-    std::ifstream in(dir / name);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    fs::remove(dir / name);
-    return ss.str();
-  };
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp("stdout.txt"), slurp("stderr.txt")};
-}
-
-fs::path scratch_dir(const std::string& name) {
-  auto dir = fs::temp_directory_path() / ("microsim_test_cli_" + name + "_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
-
-std::size_t file_count(const fs::path& dir) {
-  std::size_t n = 0;
-  for ([[maybe_unused]] auto& e : fs::directory_iterator(dir)) ++n;
-  return n;
-}
+CliRun run(const fs::path& dir, const std::string& args) { return microsim::test::run_cli(dir, args); }
+fs::path scratch_dir(const std::string& name) { return microsim::test::scratch_dir("surface_cli", name); }
 
 }  // namespace
 

@@ -1,6 +1,7 @@
 // End-to-end tests of `microsim trace vndf --surface ellipsoid`: outputs (EXR histogram, JSON summary,
 // mesh), exit codes, bad input (exit 2, a message naming the bad value, nothing written), and Ctrl-C
 // (exit 130, a partial histogram written).
+#include "cli_helpers.h"
 #include "microsim/histogram_io.h"
 #include "microsim/random.h"
 #include "microsim/sample_io.h"
@@ -24,42 +25,12 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct CliRun {
-  int exit_code;
-  std::string out, err;
-};
+using microsim::test::CliRun;
+using microsim::test::file_count;
+using microsim::test::slurp;
 
-std::string slurp(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-CliRun run(const fs::path& dir, const std::string& args) {
-  const std::string cmd = "cd '" + dir.string() + "' && '" + MICROSIM_BINARY + "' " + args + " > ../" +
-                          dir.filename().string() + ".stdout 2> ../" + dir.filename().string() + ".stderr";
-  const int status = std::system(cmd.c_str());
-  const fs::path out = dir.parent_path() / (dir.filename().string() + ".stdout");
-  const fs::path err = dir.parent_path() / (dir.filename().string() + ".stderr");
-  CliRun r{WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(out), slurp(err)};
-  fs::remove(out);
-  fs::remove(err);
-  return r;
-}
-
-fs::path scratch_dir(const std::string& name) {
-  auto dir = fs::temp_directory_path() / ("microsim_trace_cli_" + name + "_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
-
-std::size_t file_count(const fs::path& dir) {
-  std::size_t n = 0;
-  for ([[maybe_unused]] auto& e : fs::directory_iterator(dir)) ++n;
-  return n;
-}
+CliRun run(const fs::path& dir, const std::string& args) { return microsim::test::run_cli(dir, args); }
+fs::path scratch_dir(const std::string& name) { return microsim::test::scratch_dir("trace_cli", name); }
 
 }  // namespace
 
