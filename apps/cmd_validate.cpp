@@ -184,6 +184,16 @@ microsim::ValidationOptions base_options(const Args& a) {
   return o;
 }
 
+// A --from file's directions; a malformed file is bad input (exit 2, the reader's message names the line
+// or index).
+std::vector<microsim::Vec3<double>> read_samples_or_usage_error(const std::string& path) {
+  try {
+    return microsim::read_direction_samples(path);
+  } catch (const microsim::SampleFileError& e) {
+    throw UsageError(e.what());
+  }
+}
+
 // --against ellipsoid | HIST.exr: two-sample chi-square against the traced oracle (compare.h); same report,
 // verdict, exit codes and JSON keys (plus "against").
 int run_against(const Args& a, const microsim::GGX<double>& ggx, const microsim::Vec3<double>& wi,
@@ -215,12 +225,7 @@ int run_against(const Args& a, const microsim::GGX<double>& ggx, const microsim:
   std::string source;
   try {
     if (!a.from.empty()) {
-      std::vector<Vec3<double>> samples;
-      try {
-        samples = read_direction_samples(a.from);
-      } catch (const SampleFileError& e) {
-        throw UsageError(e.what());
-      }
+      const std::vector<Vec3<double>> samples = read_samples_or_usage_error(a.from);
       report = compare_samples_to_trace(samples, a.from, ggx, wi, o, traced);
       source = fmt::format("samples from '{}'", a.from);
     } else {
@@ -258,12 +263,7 @@ int run_single(const Args& a) {
   ValidationReport report;
   std::string source;
   if (!a.from.empty()) {
-    std::vector<Vec3<double>> samples;
-    try {
-      samples = read_direction_samples(a.from);
-    } catch (const SampleFileError& e) {
-      throw UsageError(e.what());
-    }
+    const std::vector<Vec3<double>> samples = read_samples_or_usage_error(a.from);
     const SampleDomain domain = a.reflected ? SampleDomain::reflected_direction : SampleDomain::microfacet_normal;
     report = validate_samples(samples, domain, ggx, wi, o);
     report.sampler = a.from;

@@ -57,6 +57,19 @@ void keep_worst(std::vector<CellReport>& cells, int n) {
   if (int(cells.size()) > n) cells.resize(std::max(n, 0));
 }
 
+// The common end of both tests: degrees of freedom (cells after pooling - 1), p-value, verdict, and the
+// worst cells by contribution, named.
+void finish_test(ChiSquareResult& r, std::vector<CellReport> reports, const ChiSquareOptions& options) {
+  r.dof = r.cells - 1;
+  if (r.dof < 1) r.reason = "fewer than two cells after pooling: no test possible";
+  r.p_value = chi2_upper_tail(r.statistic, r.dof);
+  r.rejected = r.p_value < options.significance;
+  keep_worst(reports, options.worst_cells);
+  for (CellReport& c : reports)
+    if (c.bin >= 0) c.location = cell_name(options, c.bin);
+  r.worst_cells = std::move(reports);
+}
+
 }  // namespace
 
 ChiSquareResult goodness_of_fit(std::span<const double> observed, std::span<const double> expected_probability,
@@ -127,14 +140,7 @@ ChiSquareResult goodness_of_fit(std::span<const double> observed, std::span<cons
     r.cells += 1;
     r.pooled_cells = int(pooling.pooled.size());
   }
-  r.dof = r.cells - 1;
-  if (r.dof < 1) r.reason = "fewer than two cells after pooling: no test possible";
-  r.p_value = chi2_upper_tail(r.statistic, r.dof);
-  r.rejected = r.p_value < options.significance;
-  keep_worst(reports, options.worst_cells);
-  for (CellReport& c : reports)
-    if (c.bin >= 0) c.location = cell_name(options, c.bin);
-  r.worst_cells = std::move(reports);
+  finish_test(r, std::move(reports), options);
   return r;
 }
 
@@ -189,14 +195,7 @@ ChiSquareResult two_sample_homogeneity(std::span<const double> a, std::span<cons
     r.cells += 1;
     r.pooled_cells = int(pooling.pooled.size());
   }
-  r.dof = r.cells - 1;
-  if (r.dof < 1) r.reason = "fewer than two cells after pooling: no test possible";
-  r.p_value = chi2_upper_tail(r.statistic, r.dof);
-  r.rejected = r.p_value < options.significance;
-  keep_worst(reports, options.worst_cells);
-  for (CellReport& c : reports)
-    if (c.bin >= 0) c.location = cell_name(options, c.bin);
-  r.worst_cells = std::move(reports);
+  finish_test(r, std::move(reports), options);
   return r;
 }
 
