@@ -4,6 +4,7 @@
 #include "command.h"
 
 #include "microsim/compare.h"
+#include "microsim/histogram_io.h"
 #include "microsim/progress.h"
 #include "microsim/sample_io.h"
 #include "microsim/validate.h"
@@ -41,6 +42,7 @@ struct Args {
   std::string json;
   std::string against;             // "ellipsoid" or a traced histogram HIST.exr (compare.h)
   std::optional<long long> rays;   // with --against ellipsoid
+  std::string plot;                // a figure of the binned counts (SVG), single validations only
 };
 
 // The --all grid (issue 2, section 4).
@@ -122,6 +124,23 @@ void print_worst(const char* title, const microsim::ChiSquareResult& c, int n) {
   for (const auto& cell : c.worst_cells) {
     if (shown++ >= n) break;
     fmt::print("  {:<52} {:>12.0f} {:>14.2f} {:>12.3g}\n", cell.location, cell.observed, cell.expected, cell.contribution);
+  }
+}
+
+// --plot: observed, expected and residual maps of both binnings (figure.h), written atomically.
+void write_plot(const std::string& path, const microsim::ValidationReport& r, const std::string& source) {
+  using namespace microsim;
+  const double theta = std::acos(std::clamp(r.wi.z(), -1.0, 1.0)) * 180 / kPi<double>;
+  const double phi = std::atan2(r.wi.y(), r.wi.x()) * 180 / kPi<double>;
+  const std::string title = fmt::format("alpha {}, theta {:g} deg, phi {:g} deg, {} samples ({})",
+                                        fmt_alpha(r.alpha_x, r.alpha_y), theta, phi, r.samples, to_string(r.precision));
+  const std::string subtitle =
+      fmt::format("{}\nverdict {}: p = {:.3g} (Sidak-adjusted); sphere bins p = {:.3g}, lobe bins p = {:.3g}", source,
+                  r.passed ? "PASS" : "FAIL", r.p_value, r.sphere.p_value, r.lobe.p_value);
+  try {
+    write_text_atomically(path, histogram_figure_svg(title, subtitle, r.histograms));
+  } catch (const HistogramIoError& e) {
+    throw UsageError(fmt::format("--plot: {}", e.what()));
   }
 }
 
@@ -247,6 +266,7 @@ int run_against(const Args& a, const microsim::GGX<double>& ggx, const microsim:
     j["oracle_hits"] = traced.hits;
     write_json_atomically(a.json, j);
   }
+  if (!a.plot.empty()) write_plot(a.plot, report, source);
   return report.passed ? microsim::app::kExitOk : microsim::app::kExitRejected;
 }
 
@@ -277,6 +297,7 @@ int run_single(const Args& a) {
   }
   print_report(report, source);
   if (!a.json.empty()) write_json_atomically(a.json, to_json(report));
+  if (!a.plot.empty()) write_plot(a.plot, report, source);
   return report.passed ? microsim::app::kExitOk : microsim::app::kExitRejected;
 }
 
@@ -444,6 +465,14 @@ int run(const Args& a) {
     if (!parent.empty() && !fs::is_directory(parent))
       throw UsageError(fmt::format("--json: directory '{}' does not exist", parent.string()));
   }
+  if (!a.plot.empty()) {
+    if (a.all) throw UsageError("--plot draws one validation; it does not apply to --all");
+    if (fs::path(a.plot).extension() != ".svg")
+      throw UsageError(fmt::format("--plot: '{}' must end in .svg (the figure is SVG)", a.plot));
+    const fs::path parent = fs::path(a.plot).parent_path();
+    if (!parent.empty() && !fs::is_directory(parent))
+      throw UsageError(fmt::format("--plot: directory '{}' does not exist", parent.string()));
+  }
   return a.all ? run_all(a) : run_single(a);
 }
 
@@ -472,6 +501,8 @@ microsim::app::CommandRegistration reg{"validate", [](CLI::App& app) {
                   "compare with the traced oracle instead of the analytic pdf (two-sample chi-square): 'ellipsoid' "
                   "(traced now) or a histogram HIST.exr from `microsim trace vndf`");
   sub->add_option("--rays", args->rays, "rays traced for --against ellipsoid (default 4000000)");
+  sub->add_option("--plot", args->plot,
+                  "also draw FIG.svg: observed and expected counts and Pearson residuals in the sphere and lobe bins");
   microsim::app::on_selected(sub, [args] { return run(*args); });
 }};
 

@@ -299,6 +299,14 @@ ValidationReport compare_set(std::string name, const SampleSet& set, const GGX<d
     if (b.kind() == BinningKind::sphere) r.sphere = c;
     else r.lobe = c;
     results.push_back(std::move(c));
+    // For figures: the oracle's counts rescaled to the samples' total (remainder cells included in both).
+    const double total_sampled = std::accumulate(sampled[k].begin(), sampled[k].end(), 0.0);
+    const double total_oracle = std::accumulate(oracle[k].begin(), oracle[k].end(), 0.0);
+    BinnedComparison figure{b, std::vector<double>(sampled[k].begin(), sampled[k].begin() + b.size()),
+                            std::vector<double>(oracle[k].begin(), oracle[k].begin() + b.size()),
+                            "traced oracle (rescaled)"};
+    for (double& e : figure.expected) e *= total_oracle > 0 ? total_sampled / total_oracle : 0.0;
+    r.histograms.push_back(std::move(figure));
   }
   r.p_value = sidak_adjusted_p(p_min, n_tests);
   const ChiSquareResult& headline = *std::min_element(

@@ -201,6 +201,13 @@ ValidationReport validate_set(std::string name, const SampleSet& set, const Refe
     return bin < nl ? ref.lobe.describe_bin(bin) : std::string("remainder (failed or outside the lobe space)");
   };
   r.lobe = goodness_of_fit(lobe_obs, with_remainder(ref.lobe_probability), double(n), chi, double(r.outside_domain));
+  auto comparison = [&](const DirectionBinning& b, const std::vector<double>& obs, const BinIntegrals& p) {
+    BinnedComparison c{b, std::vector<double>(obs.begin(), obs.begin() + b.size()), p.probability, "analytic pdf"};
+    for (double& e : c.expected) e *= double(n);
+    return c;
+  };
+  r.histograms = {comparison(ref.sphere, sphere_obs, ref.sphere_probability),
+                  comparison(ref.lobe, lobe_obs, ref.lobe_probability)};
 
   // ---- hard checks ---------------------------------------------------------------------------------------
   r.domain_check.name = "domain";

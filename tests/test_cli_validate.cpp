@@ -130,3 +130,22 @@ TEST(CliValidate, FromFile) {
   const CliRun missing = run("--from '" + (dir / "missing.txt").string() + "' --alpha 0.3 --theta 40");
   EXPECT_EQ(missing.exit_code, 2);
 }
+
+TEST(CliValidate, PlotWritesAFigureAndRejectsBadPaths) {
+  const fs::path dir = scratch_dir();
+  const fs::path svg = dir / "fig.svg";
+  fs::remove(svg);
+  const CliRun ok = run("--sampler heitz2018-talk --alpha 0.3 --theta 60 --samples 50000 --plot '" + svg.string() + "'");
+  EXPECT_EQ(ok.exit_code, 1) << ok.err;  // rejected, and the figure shows why
+  const std::string text = slurp(svg);
+  EXPECT_NE(text.find("verdict FAIL"), std::string::npos);
+  EXPECT_NE(text.find("lobe bins: analytic pdf"), std::string::npos);
+  EXPECT_NE(text.find("</svg>"), std::string::npos);
+  // Not .svg, a missing directory, or with --all: exit 2, nothing written.
+  const fs::path png = dir / "fig.png";
+  EXPECT_EQ(run("--sampler heitz2018 --alpha 0.3 --theta 60 --samples 1000 --plot '" + png.string() + "'").exit_code, 2);
+  EXPECT_FALSE(fs::exists(png));
+  EXPECT_EQ(run("--sampler heitz2018 --alpha 0.3 --theta 60 --samples 1000 --plot /nonexistent-dir/f.svg").exit_code, 2);
+  EXPECT_EQ(run("--all --plot '" + (dir / "all.svg").string() + "'").exit_code, 2);
+  EXPECT_FALSE(fs::exists(dir / "all.svg"));
+}

@@ -23,6 +23,7 @@
 
 #include "microsim/binning.h"
 #include "microsim/chi2.h"
+#include "microsim/figure.h"
 #include "microsim/ggx.h"
 #include "microsim/samplers.h"
 
@@ -132,6 +133,11 @@ struct ValidationReport {
   bool passed = false;
   std::vector<std::string> failures;  // why it failed (empty when passed)
   double seconds = 0;
+  // The binned counts behind the two chi-square tests (sphere, then lobe; bins only, without the
+  // remainder cell), for figures (figure.h): expected = samples x the reference's bin probability, or,
+  // against a traced oracle, the oracle's counts rescaled to the samples' total (then the figure's
+  // residual ignores the oracle's own noise: trace many more rays than samples for a fair picture).
+  std::vector<BinnedComparison> histograms;
 };
 
 // Draws options.samples samples from the sampler (float or double version) and validates them
