@@ -4,10 +4,12 @@
 //
 //   trace masking --surface SURF.exr --theta DEG [--phi DEG] [--samples N] [--seed S] [--theta-l DEG
 //                 [--phi-l DEG]] [--cone DEG] [--bins K] [--vndf-rays N] [--geometry triangles|grid]
-//                 [--tile-size L] [--threads T] [--json PATH]
+//                 [--tile-size L] [--threads T] [--grazing-share Q] [--json PATH]
 //   trace masking --table [--assemblies a,b,..] [--alphas 0.1,0.5,1] [--thetas 30,60,75,85] [--phi DEG]
-//                 [--res N] [--corr-cells C] [--seed S] [--samples N] [--vndf-rays N] [--markdown PATH]
-//                 [--json PATH]
+//                 [--res N] [--corr-cells C] [--seed S | --seeds S1,S2,..] [--samples N] [--vndf-rays N]
+//                 [--grazing-share Q] [--markdown PATH] [--json PATH]
+//   With --seeds each table cell is the mean over the surface realisations ± its standard error across
+//   them, beside the Monte Carlo error of that mean.
 //
 // Also defines run_trace_vndf_heightfield(), called by `trace vndf --surface SURF.exr` (cmd_trace.cpp).
 //
@@ -25,6 +27,7 @@
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -86,6 +89,11 @@ void check_theta(const std::string& option, double theta) {
     throw UsageError(fmt::format("{} {}: the direction must be in [0, 90) degrees", option, theta));
 }
 
+void check_grazing_share(double share) {
+  if (!(share > 0 && share < 0.5))
+    throw UsageError(fmt::format("--grazing-share {}: must be in (0, 0.5)", share));
+}
+
 void check_output(const std::string& option, const std::string& path) {
   if (path.empty()) return;
   try {
@@ -122,6 +130,7 @@ struct MaskingArgs {
   unsigned long long seed = 1;
   int threads = 0;
   int bins = 10;
+  double grazing_share = 0.02;
   std::string geometry = "triangles";
   std::string json;
   // table mode
@@ -134,6 +143,7 @@ struct MaskingArgs {
   double corr_cells = 0;
   long long table_vndf_rays = 2'000'000;
   std::string markdown;
+  std::string seeds;  // table: several realisations per cell ("1,2,3"); empty: --seed only
 };
 
 void print_masking(const MaskingResult& r, const AnalyticSmith& analytic) {
@@ -162,6 +172,12 @@ void print_masking(const MaskingResult& r, const AnalyticSmith& analytic) {
     const auto& c = r.by_normal[b];
     fmt::print("| {} | {:.1f} .. {:.1f} | {:.3f} | {} | {} | {} |\n", b, std::acos(std::min(c.hi, 1.0)) * 180 / kPi<double>,
                std::acos(std::min(c.lo, 1.0)) * 180 / kPi<double>, c.share, c.samples, pm(c.g1), pm(c.ratio));
+  }
+  {
+    const auto& c = r.near_grazing;
+    fmt::print("| near-grazing ({:.1f}% of the area) | {:.2f} .. 90.0 | {:.3f} | {} | {} | {} |\n",
+               100.0 * c.share, std::acos(std::min(c.hi, 1.0)) * 180 / kPi<double>, c.share, c.samples, pm(c.g1),
+               pm(c.ratio));
   }
   fmt::print("\nG1(v | h): equal-count bins of the vertex heights (first = lowest). "
              "Smith: C1(h)^Lambda(v) averaged over the bin.\n");
@@ -203,6 +219,7 @@ int run_masking(const MaskingArgs& a) {
   if (a.samples <= 0) throw UsageError(fmt::format("--samples {}: must be positive", a.samples));
   if (a.vndf_rays < 0) throw UsageError(fmt::format("--vndf-rays {}: must be >= 0", a.vndf_rays));
   if (a.bins < 1 || a.bins > 1000) throw UsageError(fmt::format("--bins {}: must be in [1, 1000]", a.bins));
+  check_grazing_share(a.grazing_share);
   if (!(a.cone > 0 && a.cone <= 90)) throw UsageError(fmt::format("--cone {}: must be in (0, 90] degrees", a.cone));
   if (a.threads < 0) throw UsageError(fmt::format("--threads {}: must be >= 0", a.threads));
   HeightfieldGeometry geometry;
@@ -230,6 +247,7 @@ int run_masking(const MaskingArgs& a) {
   opts.threads = a.threads;
   opts.normal_bins = opts.height_bins = a.bins;
   opts.cone_deg = a.cone;
+  opts.grazing_share = a.grazing_share;
   if (a.theta_l) opts.light = direction_from_degrees(*a.theta_l, a.phi_l);
   const MaskingResult r = estimate_masking(scene, analytic, empirical, v, opts);
 
@@ -303,14 +321,103 @@ int run_masking(const MaskingArgs& a) {
 struct TableRow {
   std::string assembly;
   double alpha = 0, theta = 0;
+  unsigned long long seed = 0;
   VndfComparison vndf;  // lobe bins
   MaskingResult masking;
 };
+
+// One column of the table: a measured quantity of a row with its Monte Carlo standard error (none for the
+// VNDF distances, whose noise is the separate noise-floor column).
+struct TableColumn {
+  std::string header, key;
+  int digits = 3;
+  bool has_mc_error = true;
+  Estimate (*get)(const TableRow&) = nullptr;
+};
+
+std::vector<TableColumn> table_columns(double grazing_share) {
+  return {
+      {"TV to Smith", "tv_smith_analytic", 4, false, [](const TableRow& r) { return Estimate{r.vndf.tv_analytic, 0}; }},
+      {"TV to Smith, own NDF", "tv_smith_empirical", 4, false,
+       [](const TableRow& r) { return Estimate{r.vndf.tv_empirical, 0}; }},
+      {"TV noise", "tv_noise_floor", 4, false, [](const TableRow& r) { return Estimate{r.vndf.tv_noise, 0}; }},
+      {"G1 / Smith G1", "g1_ratio_to_smith_analytic", 3, true,
+       [](const TableRow& r) {
+         const auto& m = r.masking;
+         return Estimate{m.g1.value / m.g1_smith_analytic, m.g1.se / m.g1_smith_analytic};
+       }},
+      {"facing: G1(v\\|m) / G1", "facing_ratio", 3, true, [](const TableRow& r) { return r.masking.by_normal.back().ratio; }},
+      {"grazing decile: G1(v\\|m) / G1", "grazing_decile_ratio", 3, true,
+       [](const TableRow& r) { return r.masking.by_normal.front().ratio; }},
+      {fmt::format("near-grazing {:g}%: G1(v\\|m) / G1", 100 * grazing_share), "near_grazing_ratio", 3, true,
+       [](const TableRow& r) { return r.masking.near_grazing.ratio; }},
+      {"near-grazing: angle(m, v) from", "near_grazing_angle_min_deg", 1, false,
+       [](const TableRow& r) {
+         return Estimate{std::acos(std::clamp(r.masking.near_grazing.hi, -1.0, 1.0)) * 180.0 / kPi<double>, 0};
+       }},
+      {"mirror pair: G2 / HC Smith", "mirror_pair_g2_ratio", 3, true,
+       [](const TableRow& r) { return r.masking.pair_cone->ratio_analytic; }},
+      {"mirror lobe: G2 / HC Smith", "mirror_lobe_g2_ratio", 3, true,
+       [](const TableRow& r) { return r.masking.mirror->ratio_analytic; }},
+      {"leak ratio", "leak_ratio", 4, true, [](const TableRow& r) { return r.masking.leak_ratio; }},
+  };
+}
+
+// A column over the realisations of one cell: the mean, the standard deviation across realisations and the
+// standard error of the mean (sd / sqrt(k); it contains the Monte Carlo noise too), and the Monte Carlo
+// error of the mean, sqrt(sum se_i^2) / k.
+struct CellSummary {
+  std::vector<double> values;
+  double mean = 0, sd = 0, se_across = 0, mc_se = 0, min = 0, max = 0;
+};
+
+CellSummary summarise(const std::vector<Estimate>& xs) {
+  CellSummary c;
+  const double k = double(xs.size());
+  double mc = 0;
+  c.min = xs.front().value;
+  c.max = xs.front().value;
+  for (const auto& x : xs) {
+    c.values.push_back(x.value);
+    c.mean += x.value / k;
+    mc += x.se * x.se;
+    c.min = std::min(c.min, x.value);
+    c.max = std::max(c.max, x.value);
+  }
+  double ss = 0;
+  for (const auto& x : xs) ss += sqr(x.value - c.mean);
+  c.sd = xs.size() > 1 ? std::sqrt(ss / (k - 1.0)) : 0.0;
+  c.se_across = c.sd / std::sqrt(k);
+  c.mc_se = std::sqrt(mc) / k;
+  return c;
+}
+
+std::vector<unsigned long long> parse_seeds(const MaskingArgs& a) {
+  if (a.seeds.empty()) return {a.seed};
+  std::vector<unsigned long long> seeds;
+  for (const auto& item : split_names(a.seeds)) {
+    std::size_t used = 0;
+    unsigned long long s = 0;
+    try {
+      if (!item.empty() && item[0] != '-') s = std::stoull(item, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != item.size())
+      throw UsageError(fmt::format("--seeds '{}': '{}' is not a non-negative integer", a.seeds, item));
+    if (std::find(seeds.begin(), seeds.end(), s) != seeds.end())
+      throw UsageError(fmt::format("--seeds '{}': seed {} appears twice", a.seeds, s));
+    seeds.push_back(s);
+  }
+  if (seeds.empty()) throw UsageError(fmt::format("--seeds '{}': empty list", a.seeds));
+  return seeds;
+}
 
 int run_table(const MaskingArgs& a) {
   const auto alphas = parse_list("--alphas", a.alphas);
   const auto thetas = parse_list("--thetas", a.thetas);
   const auto names = split_names(a.assemblies);
+  const auto seeds = parse_seeds(a);
   for (double t : thetas) check_theta("--thetas", t);
   for (double al : alphas)
     if (!(al >= microgeom::kMinAssemblyAlpha && al <= microgeom::kMaxAssemblyAlpha))
@@ -320,6 +427,7 @@ int run_table(const MaskingArgs& a) {
   if (a.samples <= 0) throw UsageError(fmt::format("--samples {}: must be positive", a.samples));
   if (a.table_vndf_rays <= 0) throw UsageError(fmt::format("--vndf-rays {}: must be positive", a.table_vndf_rays));
   if (!std::isfinite(a.table_phi)) throw UsageError(fmt::format("--phi {}: must be finite", a.table_phi));
+  check_grazing_share(a.grazing_share);
   {
     microgeom::AssemblyParams p;
     p.resolution = a.res;
@@ -335,76 +443,85 @@ int run_table(const MaskingArgs& a) {
   install_interrupt_handler();
 
   const auto t_start = std::chrono::steady_clock::now();
+  const std::vector<TableColumn> columns = table_columns(a.grazing_share);
   std::vector<TableRow> rows;
   nlohmann::json j;
   j["parameters"] = {{"assemblies", names}, {"alphas", alphas}, {"thetas", thetas}, {"phi", a.table_phi},
-                     {"resolution", a.res}, {"corr_cells", a.corr_cells}, {"seed", a.seed},
-                     {"samples", a.samples}, {"vndf_rays", a.table_vndf_rays}, {"vndf_lobe_rows", kVndfRows}};
+                     {"resolution", a.res}, {"corr_cells", a.corr_cells}, {"seeds", seeds},
+                     {"samples", a.samples}, {"vndf_rays", a.table_vndf_rays}, {"vndf_lobe_rows", kVndfRows},
+                     {"grazing_share", a.grazing_share}};
   bool partial = false;
   for (const auto& name : names) {
     for (double alpha : alphas) {
-      if (interrupted()) break;
-      microgeom::AssemblyParams p;
-      p.assembly = name;
-      p.alpha_x = p.alpha_y = alpha;
-      p.resolution = a.res;
-      p.seed = a.seed;
-      p.corr_cells = a.corr_cells;
-      const auto tb = std::chrono::steady_clock::now();
-      microgeom::BuildReport report;
-      const microgeom::Heightfield field = microgeom::build_assembly(p, &report);
-      const double build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - tb).count();
-      const AnalyticSmith analytic = analytic_reference(field);
-      const EmpiricalSmith empirical(field);
-      const HeightfieldScene scene(field);
-      nlohmann::json js;
-      js["assembly"] = name;
-      js["alpha"] = alpha;
-      js["corr_cells"] = report.corr_cells;
-      js["build_seconds"] = build_s;
-      js["scene_seconds"] = scene.build_seconds();
-      js["analytic_reference"] = analytic.describe();
-      for (double theta : thetas) {
+      for (const unsigned long long seed : seeds) {
         if (interrupted()) break;
-        const auto tr = std::chrono::steady_clock::now();
-        const Vec3<double> v = direction_from_degrees(theta, a.table_phi);
-        const std::vector<DirectionBinning> binnings = {DirectionBinning::lobe(
-            GGX<double>(analytic.alpha_x(), analytic.alpha_y()), v, SampleDomain::microfacet_normal, kVndfRows)};
-        TraceOptions to;
-        to.rays = std::uint64_t(a.table_vndf_rays);
-        to.seed = a.seed;
-        to.progress = false;
-        const TraceResult tres = trace_vndf_heightfield(scene, v, binnings, to);
-        TableRow row;
-        row.assembly = name;
-        row.alpha = alpha;
-        row.theta = theta;
-        row.vndf = compare_vndf(tres.counts[0], tres.unbinned[0], binnings[0], v, analytic, empirical);
-        MaskingOptions mo;
-        mo.samples = std::uint64_t(a.samples);
-        mo.seed = a.seed;
-        mo.progress = false;
-        // The specular pair: l = v mirrored through the mean normal, facets within the cone around z.
-        mo.light = Vec3<double>(-v.x(), -v.y(), v.z());
-        row.masking = estimate_masking(scene, analytic, empirical, v, mo);
-        partial = partial || tres.partial || row.masking.partial;
-        const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - tr).count();
-        const auto& nb = row.masking.by_normal;
-        fmt::print(stderr, "{:<9} alpha {:<4} theta {:<3}: TV {:.4f} (own NDF {:.4f}, floor {:.4f}) facing {:.3f} grazing "
-                   "{:.3f} G2 pair/HC {:.3f} lobe/HC {:.3f} leak {:.4f} ({:.1f} s)\n",
-                   name, alpha, theta, row.vndf.tv_analytic, row.vndf.tv_empirical, row.vndf.tv_noise,
-                   nb.back().ratio.value, nb.front().ratio.value, row.masking.pair_cone->ratio_analytic.value,
-                   row.masking.mirror->ratio_analytic.value, row.masking.leak_ratio.value, secs);
-        nlohmann::json jr;
-        jr["theta"] = theta;
-        jr["vndf"] = to_json(row.vndf);
-        jr["vndf_rays"] = tres.rays;
-        jr["vndf_rays_per_second"] = tres.rays_per_second();
-        jr["masking"] = to_json(row.masking);
-        js["views"].push_back(jr);
-        rows.push_back(std::move(row));
+        microgeom::AssemblyParams p;
+        p.assembly = name;
+        p.alpha_x = p.alpha_y = alpha;
+        p.resolution = a.res;
+        p.seed = seed;
+        p.corr_cells = a.corr_cells;
+        const auto tb = std::chrono::steady_clock::now();
+        microgeom::BuildReport report;
+        const microgeom::Heightfield field = microgeom::build_assembly(p, &report);
+        const double build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - tb).count();
+        const AnalyticSmith analytic = analytic_reference(field);
+        const EmpiricalSmith empirical(field);
+        const HeightfieldScene scene(field);
+        nlohmann::json js;
+        js["assembly"] = name;
+        js["alpha"] = alpha;
+        js["seed"] = seed;
+        js["corr_cells"] = report.corr_cells;
+        js["build_seconds"] = build_s;
+        js["scene_seconds"] = scene.build_seconds();
+        js["analytic_reference"] = analytic.describe();
+        for (double theta : thetas) {
+          if (interrupted()) break;
+          const auto tr = std::chrono::steady_clock::now();
+          const Vec3<double> v = direction_from_degrees(theta, a.table_phi);
+          const std::vector<DirectionBinning> binnings = {DirectionBinning::lobe(
+              GGX<double>(analytic.alpha_x(), analytic.alpha_y()), v, SampleDomain::microfacet_normal, kVndfRows)};
+          TraceOptions to;
+          to.rays = std::uint64_t(a.table_vndf_rays);
+          to.seed = seed;
+          to.progress = false;
+          const TraceResult tres = trace_vndf_heightfield(scene, v, binnings, to);
+          TableRow row;
+          row.assembly = name;
+          row.alpha = alpha;
+          row.theta = theta;
+          row.seed = seed;
+          row.vndf = compare_vndf(tres.counts[0], tres.unbinned[0], binnings[0], v, analytic, empirical);
+          MaskingOptions mo;
+          mo.samples = std::uint64_t(a.samples);
+          mo.seed = seed;
+          mo.progress = false;
+          mo.grazing_share = a.grazing_share;
+          // The specular pair: l = v mirrored through the mean normal, facets within the cone around z.
+          mo.light = Vec3<double>(-v.x(), -v.y(), v.z());
+          row.masking = estimate_masking(scene, analytic, empirical, v, mo);
+          partial = partial || tres.partial || row.masking.partial;
+          const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - tr).count();
+          const auto& nb = row.masking.by_normal;
+          fmt::print(stderr,
+                     "{:<9} alpha {:<4} seed {:<3} theta {:<3}: TV {:.4f} (own NDF {:.4f}, floor {:.4f}) facing {:.3f} "
+                     "grazing decile {:.3f} near-grazing {:.3f} G2 pair/HC {:.3f} lobe/HC {:.3f} leak {:.4f} ({:.1f} s)\n",
+                     name, alpha, seed, theta, row.vndf.tv_analytic, row.vndf.tv_empirical, row.vndf.tv_noise,
+                     nb.back().ratio.value, nb.front().ratio.value, row.masking.near_grazing.ratio.value,
+                     row.masking.pair_cone->ratio_analytic.value, row.masking.mirror->ratio_analytic.value,
+                     row.masking.leak_ratio.value, secs);
+          nlohmann::json jr;
+          jr["theta"] = theta;
+          jr["vndf"] = to_json(row.vndf);
+          jr["vndf_rays"] = tres.rays;
+          jr["vndf_rays_per_second"] = tres.rays_per_second();
+          jr["masking"] = to_json(row.masking);
+          js["views"].push_back(jr);
+          rows.push_back(std::move(row));
+        }
+        j["surfaces"].push_back(js);
       }
-      j["surfaces"].push_back(js);
     }
   }
   const double total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
@@ -412,22 +529,55 @@ int run_table(const MaskingArgs& a) {
   j["peak_rss_mib"] = peak_rss_mib();
   j["partial"] = partial;
 
+  // One table row per (assembly, alpha, theta), over the realisations that were traced.
+  const bool several = seeds.size() > 1;
+  std::string seed_text;
+  for (std::size_t k = 0; k < seeds.size(); ++k) seed_text += (k ? "," : "") + std::to_string(seeds[k]);
   std::string md;
-  md += fmt::format("Surfaces {}^2, correlation length {} cells (0 = default), seed {}, view azimuth {} deg; per view "
-                    "{} VNDF rays (lobe bins {} x {}) and {} surface points. {:.0f} s in all.\n\n",
-                    a.res, a.corr_cells, a.seed, a.table_phi, a.table_vndf_rays, kVndfRows, 2 * kVndfRows, a.samples,
-                    total_s);
-  md += "| assembly | alpha | theta | TV to Smith | TV to Smith, own NDF | TV noise | G1 / Smith G1 | facing: G1(v\\|m) / G1 | "
-        "grazing: G1(v\\|m) / G1 | mirror pair: G2 / HC Smith | mirror lobe: G2 / HC Smith | leak ratio |\n";
-  md += "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
-  for (const auto& r : rows) {
-    const auto& m = r.masking;
-    const auto& nb = m.by_normal;
-    const Estimate g1_ratio{m.g1.value / m.g1_smith_analytic, m.g1.se / m.g1_smith_analytic};
-    md += fmt::format("| {} | {} | {} | {:.4f} | {:.4f} | {:.4f} | {} | {} | {} | {} | {} | {} |\n", r.assembly, r.alpha,
-                      r.theta, r.vndf.tv_analytic, r.vndf.tv_empirical, r.vndf.tv_noise, pm(g1_ratio, 3),
-                      pm(nb.back().ratio, 3), pm(nb.front().ratio, 3), pm(m.pair_cone->ratio_analytic, 3),
-                      pm(m.mirror->ratio_analytic, 3), pm(m.leak_ratio, 4));
+  md += fmt::format("Surfaces {}^2, correlation length {} cells (0 = default), seed{} {}, view azimuth {} deg; per view "
+                    "{} VNDF rays (lobe bins {} x {}) and {} surface points; near-grazing class: the bottom {:g}% of "
+                    "the front-facing projected area. {:.0f} s in all.\n",
+                    a.res, a.corr_cells, several ? "s" : "", seed_text, a.table_phi, a.table_vndf_rays, kVndfRows,
+                    2 * kVndfRows, a.samples, 100 * a.grazing_share, total_s);
+  if (several) {
+    md += fmt::format("Each cell: the mean over the {} realisations ± its standard error across them (sd / sqrt({})), "
+                      "then in brackets the Monte Carlo error of that mean.\n",
+                      seeds.size(), seeds.size());
+  }
+  md += "\n| assembly | alpha | theta |";
+  for (const auto& c : columns) md += " " + c.header + " |";
+  md += "\n|---|---|---|";
+  for (std::size_t k = 0; k < columns.size(); ++k) md += "---|";
+  md += "\n";
+  for (const auto& name : names) {
+    for (double alpha : alphas) {
+      for (double theta : thetas) {
+        std::vector<const TableRow*> cell;
+        for (const auto& r : rows)
+          if (r.assembly == name && r.alpha == alpha && r.theta == theta) cell.push_back(&r);
+        if (cell.empty()) continue;
+        nlohmann::json jc = {{"assembly", name}, {"alpha", alpha}, {"theta", theta}, {"realisations", cell.size()}};
+        md += fmt::format("| {} | {} | {} |", name, alpha, theta);
+        for (const auto& col : columns) {
+          std::vector<Estimate> xs;
+          for (const TableRow* r : cell) xs.push_back(col.get(*r));
+          const CellSummary s = summarise(xs);
+          jc[col.key] = {{"values", s.values}, {"mean", s.mean}, {"sd_across", s.sd}, {"se_across", s.se_across},
+                         {"mc_se", s.mc_se}, {"min", s.min}, {"max", s.max}};
+          if (!several) {
+            md += col.has_mc_error ? " " + pm(xs.front(), col.digits) + " |"
+                                   : fmt::format(" {:.{}f} |", xs.front().value, col.digits);
+          } else if (col.has_mc_error) {
+            md += fmt::format(" {:.{}f} ± {:.{}f} [{:.{}f}] |", s.mean, col.digits, s.se_across, col.digits, s.mc_se,
+                              col.digits);
+          } else {
+            md += fmt::format(" {:.{}f} ± {:.{}f} |", s.mean, col.digits, s.se_across, col.digits);
+          }
+        }
+        md += "\n";
+        j["cells"].push_back(jc);
+      }
+    }
   }
   if (!a.json.empty()) write_text_atomically(a.json, j.dump(2) + "\n");
   if (!a.markdown.empty()) write_text_atomically(a.markdown, md);
@@ -573,6 +723,10 @@ CommandRegistration reg{"trace masking", [](CLI::App& app) {
   sub->add_option("--seed", args->seed, "random seed (same seed, same result, whatever --threads)")->capture_default_str();
   sub->add_option("--threads", args->threads, "worker threads (0: all cores)")->capture_default_str();
   sub->add_option("--bins", args->bins, "bins of <v, m> and of height")->capture_default_str();
+  sub->add_option("--grazing-share", args->grazing_share,
+                  "share of the front-facing projected area in the fine near-grazing class of G1(v | m) "
+                  "(the facets with the smallest <v, m>), in (0, 0.5)")
+      ->capture_default_str();
   sub->add_option("--geometry", args->geometry, "Embree geometry: triangles or grid")->capture_default_str();
   sub->add_option("--json", args->json, "write the results as JSON");
   sub->add_flag("--table", args->table, "build the assemblies and print the masking table (docs/masking.md)");
@@ -583,6 +737,9 @@ CommandRegistration reg{"trace masking", [](CLI::App& app) {
   sub->add_option("--res", args->res, "table: surface resolution N")->capture_default_str();
   sub->add_option("--corr-cells", args->corr_cells, "table: correlation length in cells (0: assembly default)")
       ->capture_default_str();
+  sub->add_option("--seeds", args->seeds,
+                  "table: several surface realisations per cell, e.g. 1,2,3 (each cell: mean over the realisations "
+                  "± its standard error across them, and the Monte Carlo error of the mean); default: --seed only");
   sub->add_option("--markdown", args->markdown, "table: also write the markdown table to this file");
   on_selected(sub, [args] {
     if (args->table) {

@@ -259,14 +259,16 @@ struct BlockSums {
   double leak_y = 0, leak_yy = 0;  // sum of w V and (w V)^2 over all samples
   RatioSums g1;
   std::vector<RatioSums> normal, height;
+  RatioSums near_grazing;
   std::vector<double> height_pred_analytic, height_pred_empirical;  // sum of w C1^Lambda
   G2Sums mirror, pair, cone;
 };
 
 // Equal-area quantiles of <v, m> over the front-facing projected area (weight <v,m>+/mz per triangle):
-// edges[0] = 0 < ... < edges[k] = 1, and the exact share of each bin.
+// edges[0] = 0 < ... < edges[k] = 1, and the exact share of each bin. Also the edge below which the facets
+// hold the share `fine` of the projected area (the near-grazing class [0, fine_edge)) and its exact share.
 void normal_bin_edges(const microgeom::Heightfield& field, const Vec3<double>& v, int k, std::vector<double>& edges,
-                      std::vector<double>& shares) {
+                      std::vector<double>& shares, double fine, double& fine_edge, double& fine_share) {
   const int n = field.resolution();
   std::vector<std::vector<std::pair<float, float>>> rows(static_cast<std::size_t>(n));
   tbb::parallel_for(0, n, [&](int j) {
@@ -315,6 +317,19 @@ void normal_bin_edges(const microgeom::Heightfield& field, const Vec3<double>& v
     ++next;
   }
   shares[std::size_t(k - 1)] = total > 0 ? (total - last_cum) / total : 0.0;
+  // The near-grazing edge: the first facet at which the cumulative share reaches `fine`; the edge lies
+  // between it and the next facet, as for the bins.
+  fine_edge = 1.0;
+  fine_share = 1.0;
+  cum = 0;
+  for (std::size_t idx = 0; idx < all.size(); ++idx) {
+    cum += all[idx].second;
+    if (cum >= total * fine) {
+      fine_edge = idx + 1 < all.size() ? 0.5 * (double(all[idx].first) + double(all[idx + 1].first)) : 1.0;
+      fine_share = total > 0 ? cum / total : 0.0;
+      break;
+    }
+  }
 }
 
 // Draws triangles with probability proportional to w = <v, m>+ / mz: a CDF over rows (double) and, per
@@ -393,6 +408,9 @@ MaskingResult estimate_masking(const HeightfieldScene& scene, const AnalyticSmit
   if (options.light && (!(options.light->z() > 0.0) || !options.light->allFinite())) {
     throw std::invalid_argument("estimate_masking: the light direction must point above the horizon");
   }
+  if (!(options.grazing_share > 0.0 && options.grazing_share < 1.0)) {
+    throw std::invalid_argument(fmt::format("estimate_masking: near-grazing share {} must be in (0, 1)", options.grazing_share));
+  }
   if (!(options.cone_deg > 0.0 && options.cone_deg <= 90.0)) {
     throw std::invalid_argument(fmt::format("estimate_masking: cone half-angle {} must be in (0, 90] degrees", options.cone_deg));
   }
@@ -423,7 +441,8 @@ MaskingResult estimate_masking(const HeightfieldScene& scene, const AnalyticSmit
   result.g1_smith_empirical = 1.0 / (1.0 + result.lambda_empirical);
 
   std::vector<double> nedges, nshares;
-  normal_bin_edges(field, v, kn, nedges, nshares);
+  double grazing_edge = 1.0, grazing_share = 1.0;
+  normal_bin_edges(field, v, kn, nedges, nshares, options.grazing_share, grazing_edge, grazing_share);
   std::vector<double> hedges(std::size_t(kh) + 1);
   {
     const auto& hs = empirical.sorted_heights();
@@ -511,6 +530,7 @@ MaskingResult estimate_masking(const HeightfieldScene& scene, const AnalyticSmit
         bs.leak_yy += y_v * y_v;
         bs.g1.add(w, y_v);
         bs.normal[std::size_t(bin_index(nedges, vm))].add(w, y_v);
+        if (vm < grazing_edge) bs.near_grazing.add(w, y_v);
         const std::size_t hb = std::size_t(bin_index(hedges, z));
         bs.height[hb].add(w, y_v);
         const double c1 = empirical.height_cdf(z);
@@ -569,6 +589,7 @@ MaskingResult estimate_masking(const HeightfieldScene& scene, const AnalyticSmit
     total.leak_yy += bs.leak_yy;
     total.g1.merge(bs.g1);
     for (int b = 0; b < kn; ++b) total.normal[std::size_t(b)].merge(bs.normal[std::size_t(b)]);
+    total.near_grazing.merge(bs.near_grazing);
     for (int b = 0; b < kh; ++b) {
       total.height[std::size_t(b)].merge(bs.height[std::size_t(b)]);
       total.height_pred_analytic[std::size_t(b)] += bs.height_pred_analytic[std::size_t(b)];
@@ -606,6 +627,17 @@ MaskingResult estimate_masking(const HeightfieldScene& scene, const AnalyticSmit
     cb.smith_analytic = g1a_v;
     cb.smith_empirical = g1e_v;
     result.by_normal.push_back(cb);
+  }
+  {
+    ConditionalBin& cb = result.near_grazing;
+    cb.lo = 0.0;
+    cb.hi = grazing_edge;
+    cb.share = grazing_share;
+    cb.samples = total.near_grazing.n;
+    cb.g1 = total.near_grazing.proportion();
+    cb.ratio = ratio_of_ratios(total.near_grazing, total.g1);
+    cb.smith_analytic = g1a_v;
+    cb.smith_empirical = g1e_v;
   }
   for (int b = 0; b < kh; ++b) {
     ConditionalBin cb;
@@ -688,6 +720,7 @@ nlohmann::json to_json(const MaskingResult& r) {
   j["g1_smith_empirical"] = r.g1_smith_empirical;
   j["g1_given_normal"] = bins_json(r.by_normal, true);
   j["g1_given_height"] = bins_json(r.by_height, false);
+  j["g1_near_grazing"] = bins_json({r.near_grazing}, true).front();
   if (r.mirror) j["g2_mirror"] = g2_json(*r.mirror);
   if (r.light) {
     j["light"] = {r.light->x(), r.light->y(), r.light->z()};

@@ -174,6 +174,21 @@ TEST(Masking, Identities) {
   for (const auto& b : r.by_normal) EXPECT_NEAR(b.share, 0.1, 0.002);
   EXPECT_EQ(r.by_normal.front().lo, 0.0);
   EXPECT_EQ(r.by_normal.back().hi, 1.0);
+  // The fine near-grazing class: the bottom 2% of the projected area (exact share, to one facet's weight),
+  // inside the first decile, its samples a subset of the decile's.
+  EXPECT_EQ(r.near_grazing.lo, 0.0);
+  EXPECT_GT(r.near_grazing.hi, 0.0);
+  EXPECT_LT(r.near_grazing.hi, r.by_normal.front().hi);
+  EXPECT_NEAR(r.near_grazing.share, 0.02, 0.001);
+  EXPECT_GE(r.near_grazing.share, 0.02);
+  EXPECT_LE(r.near_grazing.samples, r.by_normal.front().samples);
+  EXPECT_GT(r.near_grazing.samples, 200u);  // ~2% of 20 000
+  EXPECT_LT(r.near_grazing.samples, 600u);
+  MaskingOptions bad = quiet(10);
+  for (double share : {0.0, 1.0, -0.1, std::nan("")}) {
+    bad.grazing_share = share;
+    EXPECT_THROW(estimate_masking(*s.scene, *s.analytic, *s.empirical, v, bad), std::invalid_argument) << share;
+  }
   // Both samplings estimate the same thing: uniform (x, y) with weights agrees with the projected-area
   // sampling within their standard errors (at 60 degrees, where the uniform weights are still tame).
   MaskingOptions u = quiet(60'000, 8);
@@ -187,7 +202,7 @@ TEST(Masking, Identities) {
 }
 
 // The standard errors are calibrated: over 24 independent seeds the z-scores of G1, of the facing-bin
-// ratio and of the mirror G2 against their pooled mean have a chi-square consistent with 23 degrees of
+// ratio, of the near-grazing (2%) ratio and of the mirror G2 against their pooled mean have a chi-square consistent with 23 degrees of
 // freedom (two-sided 0.1% bounds: 7.5 .. 51.2).
 TEST(Masking, StandardErrorsAreCalibrated) {
   const Surface& s = surface("beckmann", 0.5);
@@ -204,11 +219,15 @@ TEST(Masking, StandardErrorsAreCalibrated) {
   };
   const double c_g1 = chi2([](const MaskingResult& r) { return r.g1; });
   const double c_facing = chi2([](const MaskingResult& r) { return r.by_normal.back().ratio; });
+  const double c_near = chi2([](const MaskingResult& r) { return r.near_grazing.ratio; });
   const double c_g2 = chi2([](const MaskingResult& r) { return r.mirror->value; });
-  for (double c : {c_g1, c_facing, c_g2}) {
+  for (double c : {c_g1, c_facing, c_near, c_g2}) {
     EXPECT_GT(c, 7.5);
     EXPECT_LT(c, 51.2);
   }
+  // Negative control: the near-grazing ratio's standard error halved would not pass (the test has power).
+  const double c_near_halved = chi2([](const MaskingResult& r) { return Estimate{r.near_grazing.ratio.value, 0.5 * r.near_grazing.ratio.se}; });
+  EXPECT_GT(c_near_halved, 51.2);
 }
 
 // At normal incidence a heightfield masks nothing: the traced VNDF is exactly the empirical-NDF VNDF,

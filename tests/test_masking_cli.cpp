@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <vector>
 #include <sys/wait.h>
 
 namespace {
@@ -75,6 +76,9 @@ TEST_F(MaskingCli, SmallRunWritesJson) {
   EXPECT_TRUE(j["masking"].contains("g2_mirror"));
   EXPECT_TRUE(j["masking"].contains("g2_pair"));
   EXPECT_EQ(j["masking"]["g1_given_normal"].size(), 10u);
+  EXPECT_NEAR(j["masking"]["g1_near_grazing"]["share"].get<double>(), 0.02, 0.005);
+  EXPECT_GT(j["masking"]["g1_near_grazing"]["angle_m_v_deg_min"].get<double>(),
+            j["masking"]["g1_given_normal"][0]["angle_m_v_deg_min"].get<double>());
   EXPECT_EQ(j["vndf"]["comparisons"].size(), 2u);
   EXPECT_EQ(j["surface"]["analytic_reference"]["source"], "fitted");  // no assembly metadata
   // Same seed, same result (the JSON holds the estimates to full precision).
@@ -84,6 +88,33 @@ TEST_F(MaskingCli, SmallRunWritesJson) {
   const auto j2 = nlohmann::json::parse(in2);
   EXPECT_EQ(j["masking"]["g1"], j2["masking"]["g1"]);
   EXPECT_EQ(j["masking"]["g1_given_height"], j2["masking"]["g1_given_height"]);
+}
+
+// --seeds: each cell holds one value per realisation, their mean and spread; the realisation of seed 2
+// inside a multi-seed table is the same as a table of seed 2 alone (same surface, same samples).
+TEST_F(MaskingCli, TableWithSeveralSeeds) {
+  const std::string common = "trace masking --table --assemblies beckmann --alphas 0.5 --thetas 60 --res 64 "
+                             "--samples 2000 --vndf-rays 2000";
+  const fs::path many = dir_ / "many.json", one = dir_ / "one.json";
+  ASSERT_EQ(run(common + " --seeds 1,2,3 --json " + many.string()), 0);
+  ASSERT_EQ(run(common + " --seed 2 --json " + one.string()), 0);
+  std::ifstream in(many), in1(one);
+  const auto j = nlohmann::json::parse(in), j1 = nlohmann::json::parse(in1);
+  ASSERT_EQ(j["cells"].size(), 1u);
+  const auto& c = j["cells"][0];
+  EXPECT_EQ(c["realisations"], 3);
+  EXPECT_EQ(j["surfaces"].size(), 3u);
+  const auto& f = c["facing_ratio"];
+  const auto values = f["values"].get<std::vector<double>>();
+  ASSERT_EQ(values.size(), 3u);
+  EXPECT_NEAR(f["mean"].get<double>(), (values[0] + values[1] + values[2]) / 3, 1e-12);
+  double ss = 0;
+  for (double x : values) ss += (x - f["mean"].get<double>()) * (x - f["mean"].get<double>());
+  EXPECT_NEAR(f["se_across"].get<double>(), std::sqrt(ss / 2 / 3), 1e-12);
+  EXPECT_GT(f["mc_se"].get<double>(), 0.0);
+  EXPECT_EQ(values[1], j1["cells"][0]["facing_ratio"]["values"][0].get<double>());
+  EXPECT_EQ(j1["cells"][0]["facing_ratio"]["sd_across"].get<double>(), 0.0);
+  EXPECT_TRUE(c.contains("near_grazing_ratio"));
 }
 
 TEST_F(MaskingCli, BadInputExitsTwoAndWritesNothing) {
@@ -106,6 +137,11 @@ TEST_F(MaskingCli, BadInputExitsTwoAndWritesNothing) {
   EXPECT_EQ(run("trace masking --table --alphas 3" + out), 2);
   EXPECT_EQ(run("trace masking --table --assemblies nonsense" + out), 2);
   EXPECT_EQ(run("trace masking --table --res 100" + out), 2);
+  EXPECT_EQ(run("trace masking --table --seeds 1,x" + out), 2);
+  EXPECT_EQ(run("trace masking --table --seeds 1,1" + out), 2);
+  EXPECT_EQ(run("trace masking --table --seeds -3" + out), 2);
+  EXPECT_EQ(run("trace masking --table --grazing-share 0.5" + out), 2);
+  EXPECT_EQ(run("trace masking --surface " + good_ + " --theta 30 --grazing-share 0" + out), 2);
   EXPECT_FALSE(fs::exists(json));
   EXPECT_EQ(run("trace masking --surface " + good_ + " --theta 30 --json " + (dir_ / "no" / "such" / "dir.json").string()), 2);
   // Nothing else was left in the directory (no temporaries).

@@ -26,6 +26,11 @@
 //                equal share of the front-facing projected area (exact quantiles over all triangles): the
 //                first bin holds the most grazing facets, the last those facing v.
 //                Smith: G1(v | m) = G1(v) for every front-facing m.
+//   G1(v | near-grazing m)  the same over the facets with the smallest <v, m> that hold the bottom
+//                `grazing_share` (default 2%) of the front-facing projected area (exact quantile over all
+//                triangles): a finer near-grazing class than the first of the `normal_bins` bins. Its
+//                angle(m, v) range is reported (it starts 5-7 deg below 90 at 75-85 deg views, where the
+//                first decile starts 12-15 deg below). Smith: ratio 1.
 //   G1(v | h)    over points whose height lies in one of `height_bins` equal-count bins of the vertex
 //                heights. Smith: E_w[C1(h)^Lambda(v) | bin] with the surface's height CDF C1.
 //   G2 mirror    l = reflect(v, m) per sample: E_w[V_v V_l] (V_l = 0 when l is below the horizon), the
@@ -105,6 +110,11 @@ struct MaskingOptions {
   bool stop_on_interrupt = true;
   int normal_bins = 10;
   int height_bins = 10;
+  // The fine near-grazing class: the facets with the smallest <v, m> holding this share of the front-facing
+  // projected area, in (0, 1). Defined by projected area rather than by an angle threshold so that the
+  // class is never empty and holds the same share of samples (hence a comparable error) at every view and
+  // on every assembly; its angle range is reported beside it.
+  double grazing_share = 0.02;
   bool mirror = true;                  // G2 in the per-sample mirror configuration
   std::optional<Vec3<double>> light;   // G2 for the pair (v, light), if given (unit, light.z > 0)
   double cone_deg = 5.0;               // half-angle of the mirror cone for the pair
@@ -144,6 +154,8 @@ struct MaskingResult {
   double lambda_analytic = 0, lambda_empirical = 0;
   double g1_smith_analytic = 0, g1_smith_empirical = 0;
   std::vector<ConditionalBin> by_normal, by_height;
+  ConditionalBin near_grazing;     // G1(v | m) over the bottom grazing_share of the projected area
+                                   // (lo = 0, hi = its <v, m> edge, share = exact share)
   std::optional<G2Result> mirror;
   std::optional<Vec3<double>> light;
   std::optional<G2Result> pair, pair_cone;
@@ -153,7 +165,8 @@ struct MaskingResult {
   double rays_per_second() const { return seconds > 0 ? double(rays) / seconds : 0.0; }
 };
 
-// Throws std::invalid_argument for v.z <= 0, samples == 0, bins < 1, or a light below the horizon.
+// Throws std::invalid_argument for v.z <= 0, samples == 0, bins < 1, grazing_share outside (0, 1), or a
+// light below the horizon.
 MaskingResult estimate_masking(const HeightfieldScene& scene, const AnalyticSmith& analytic,
                                const EmpiricalSmith& empirical, const Vec3<double>& v, const MaskingOptions& options);
 
