@@ -20,6 +20,7 @@
 #include <atomic>
 #include <map>
 #include <memory>
+#include <span>
 #include <string>
 
 using namespace microsim;
@@ -79,6 +80,28 @@ void BM_Pipeline(benchmark::State& state) {
   state.SetLabel(scene_name(level));
 }
 
+// The overhead broken down (quadric only): the pipeline with its binnings restricted to the first
+// `binnings` of the fixture's (0: ray generation, tracing and hit filtering only; 1: the sphere bins).
+void BM_PipelinePart(benchmark::State& state) {
+  const int threads = int(state.range(0)), binnings = int(state.range(1));
+  Fixture& f = fixture(-1);
+  TraceOptions o;
+  o.rays = kRays;
+  o.seed = 1;
+  o.threads = threads;
+  o.progress = false;
+  o.stop_on_interrupt = false;
+  const std::span<const DirectionBinning> used(f.binnings.data(), std::size_t(binnings));
+  const double cpu0 = process_cpu_seconds();
+  for (auto _ : state) {
+    const TraceResult r = trace_vndf(*f.target, direction_from_degrees(kTheta, kPhi), used, o);
+    benchmark::DoNotOptimize(r.hits);
+  }
+  state.counters["cpu_ns_per_ray"] = 1e9 * (process_cpu_seconds() - cpu0) / (double(state.iterations()) * double(kRays));
+  state.SetItemsProcessed(std::int64_t(state.iterations()) * std::int64_t(kRays));
+  state.SetLabel(binnings == 0 ? "quadric, no binning" : "quadric, sphere binning only");
+}
+
 void BM_RawIntersect1(benchmark::State& state) {
   const int level = int(state.range(0)), threads = int(state.range(1));
   Fixture& f = fixture(level);
@@ -136,6 +159,12 @@ void scenes_and_threads(benchmark::internal::Benchmark* b) {
 
 BENCHMARK(BM_RawIntersect1)->Apply(scenes_and_threads);
 BENCHMARK(BM_Pipeline)->Apply(scenes_and_threads);
+BENCHMARK(BM_PipelinePart)
+    ->ArgsProduct({{1, 2}, {0, 1}})
+    ->ArgNames({"threads", "binnings"})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->MinTime(0.5);
 
 // Keeps the best rate of every benchmark (over repetitions) for the ratio table.
 class RatioReporter : public benchmark::ConsoleReporter {

@@ -9,7 +9,10 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
+#include <optional>
 #include <numeric>
 #include <random>
 #include <unistd.h>
@@ -233,10 +236,56 @@ TEST(FastDirectionBinner, EqualsBinOf) {
           }
         }
       }
+      // Every row edge, at a few azimuths, nudged.
+      const double dz = (b.z_max() - b.z_min()) / b.rows();
+      for (int k = 0; k <= b.rows(); ++k) {
+        for (double nudge : {0.0, 1e-15, -1e-15, 1e-7, -1e-7, 1e-6, -1e-6}) {
+          const double z = std::clamp(b.z_max() - k * dz + nudge, -1.0, 1.0), s = std::sqrt(1 - z * z);
+          for (double phi : {0.3, 2.0, 4.0}) dirs.push_back(b.from_param(Vec3<double>(s * std::cos(phi), s * std::sin(phi), z)));
+        }
+      }
       for (const Vec3<double>& d : {Vec3<double>(0, 0, 1), Vec3<double>(0, 0, -1), Vec3<double>(1, 0, 0),
-                                    Vec3<double>(0, -1, 0), Vec3<double>(1e-300, 0, 1), Vec3<double>(0, 0, 0)})
+                                    Vec3<double>(0, -1, 0), Vec3<double>(1e-300, 0, 1), Vec3<double>(0, 0, 0),
+                                    Vec3<double>(1e-40, 1e-41, 1e-40), Vec3<double>(3e38, 1, 1), Vec3<double>(-1, -0.0, 0),
+                                    Vec3<double>(std::nan(""), 0, 1), Vec3<double>(0, 0, INFINITY)})
         dirs.push_back(d);
       for (const Vec3<double>& d : dirs) ASSERT_EQ(fast(d), b.bin_of(d).value_or(-1)) << b.name() << " rows " << rows << " d " << d.transpose();
+      // The tracer's batch path on single-precision directions: in one call (the AVX2 loop where the CPU
+      // has it, then the SSE2 loop and the scalar tail: the count is not a multiple of 4) and in calls of
+      // 7 (SSE2 for 4, scalar for 3).
+      std::vector<float> x, y, z;
+      for (const Vec3<double>& d : dirs) {
+        x.push_back(float(d.x()));
+        y.push_back(float(d.y()));
+        z.push_back(float(d.z()));
+      }
+      x.push_back(0.5f), y.push_back(-0.25f), z.push_back(0.75f);
+      if (x.size() % 4 == 0) x.push_back(0.1f), y.push_back(0.2f), z.push_back(-0.3f);
+      // The tracer runs with FTZ/DAZ set (then a denormal float reads as zero, in bin_of too: the
+      // expected bins are computed in the same environment).
+      for (const bool flush_denormals : {false, true}) {
+        std::vector<int> bins(x.size()), expected(x.size()), bins_one_call;
+        {
+          std::optional<embree::FlushDenormalsScope> ftz;
+          if (flush_denormals) ftz.emplace();
+          for (const std::size_t chunk : {x.size(), std::size_t(7)}) {
+            for (std::size_t first = 0; first < x.size(); first += chunk) {
+              const int n = int(std::min(chunk, x.size() - first));
+              fast.bin_floats(x.data() + first, y.data() + first, z.data() + first, n, bins.data() + first);
+            }
+            for (std::size_t i = 0; i < x.size(); ++i) {
+              if (chunk == 7) ASSERT_EQ(bins[i], bins_one_call[i]) << "chunks of 7 differ at " << i;
+            }
+            if (chunk != 7) bins_one_call = bins;
+          }
+          for (std::size_t i = 0; i < x.size(); ++i) expected[i] = b.bin_of(Vec3<double>(x[i], y[i], z[i])).value_or(-1);
+        }
+        for (std::size_t i = 0; i < x.size(); ++i) {
+          const Vec3<double> d(x[i], y[i], z[i]);
+          ASSERT_EQ(bins[i], expected[i])
+              << b.name() << " rows " << rows << " float d " << d.transpose() << " ftz " << flush_denormals;
+        }
+      }
     }
   }
 }
