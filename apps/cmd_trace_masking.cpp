@@ -281,6 +281,7 @@ int run_masking(const MaskingArgs& a) {
     jv["rays"] = vndf->rays;
     jv["hits"] = vndf->hits;
     jv["backfacing"] = diag.backfacing;
+    jv["edge_grazes"] = diag.edge_grazes;
     jv["leaked"] = diag.leaked;
     jv["rays_per_second"] = vndf->rays_per_second();
     jv["partial"] = vndf->partial;
@@ -664,6 +665,7 @@ int run_trace_vndf_heightfield(const std::string& surface, std::optional<double>
   j["hit_fraction"] = r.rays ? double(r.hits) / double(r.rays) : 0.0;
   j["expected_hit_fraction"] = 1.0;  // every downward ray hits a heightfield
   j["backfacing_hits"] = diag.backfacing;
+  j["edge_grazes"] = diag.edge_grazes;
   j["leaked_rays"] = diag.leaked;
   j["seconds"] = r.seconds;
   j["rays_per_second"] = r.rays_per_second();
@@ -682,8 +684,8 @@ int run_trace_vndf_heightfield(const std::string& surface, std::optional<double>
 
   fmt::print("trace vndf  heightfield {}  theta {}  phi {}  reference {} ({})\n", surface, theta, phi,
              analytic.describe(), source);
-  fmt::print("rays {}  front-facing first hits {}  back-facing {}  leaked {}  {:.2f} s  {:.3f} Mrays/s{}\n", r.rays,
-             r.hits, diag.backfacing, diag.leaked, r.seconds, r.rays_per_second() * 1e-6,
+  fmt::print("rays {}  front-facing first hits {}  back-facing {}  convex-edge grazes passed over {}  leaked {}  {:.2f} s  "
+             "{:.3f} Mrays/s{}\n", r.rays, r.hits, diag.backfacing, diag.edge_grazes, diag.leaked, r.seconds, r.rays_per_second() * 1e-6,
              r.partial ? "  PARTIAL (interrupted)" : "");
   fmt::print("| bins | cells | TV to Smith (analytic) | TV to Smith (own NDF) | TV noise floor | p (analytic) | p (own NDF) |\n"
              "|---|---|---|---|---|---|---|\n");

@@ -4,14 +4,15 @@
 #   microsim trace masking --table   (builds the surfaces in memory, traces VNDF and masking per view)
 #   microsim surface build           (build time and peak RSS per resolution)
 #   microsim trace masking --surface (tracing a stored 4096^2 tile: peak RSS, rays per second)
-# Usage: scripts/masking_trade.sh [OUTDIR] [PART...]   parts: table res corr tile seeds build big (default all)
-# Runtime on 2 cores: table ~15 min, the trade parts ~30 min, big ~10 min.
+# Usage: scripts/masking_trade.sh [OUTDIR] [PART...]
+#   parts: table table1 res corr tile seeds build big backface (default: all but backface)
+# Runtime on 2 cores (shared, loaded): table ~35 min, table1 ~20 min, the trade parts ~30 min, big ~10 min.
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 B=${MICROSIM:-$here/build/microsim}
 out=${1:-$here/out/masking}
 shift || true
-parts=${*:-table res corr tile seeds build big}
+parts=${*:-table table1 res corr tile seeds build big}
 mkdir -p "$out"
 has() { [[ " $parts " == *" $1 "* ]]; }
 tm() { /usr/bin/time -f "%e s wall, %U s user, peak RSS %M KiB" "$@"; }
@@ -20,8 +21,12 @@ trade() {  # name res corr
     --samples 1000000 --vndf-rays 2000000 --markdown "$out/$1.md" --json "$out/$1.json" > /dev/null 2> "$out/$1.log"
 }
 
-# The masking table (docs/masking.md): 5 assemblies x alpha {0.1, 0.5, 1} x theta {30, 60, 75, 85}.
-has table && tm "$B" trace masking --table --res 1024 --markdown "$out/table-1024.md" --json "$out/table-1024.json" \
+# The masking table (docs/masking.md): 5 assemblies x alpha {0.1, 0.5, 1} x theta {30, 60, 75, 85}, three
+# realisations (seeds 1, 2, 3) per cell, 5e5 surface points and 1e6 VNDF rays per view and realisation.
+has table && tm "$B" trace masking --table --res 1024 --seeds 1,2,3 --samples 500000 --vndf-rays 1000000 \
+  --markdown "$out/table-1024-seeds123.md" --json "$out/table-1024-seeds123.json" > /dev/null 2> "$out/table-1024-seeds123.log"
+# The one-realisation table (seed 1, 1e6 points and 2e6 VNDF rays per view).
+has table1 && tm "$B" trace masking --table --res 1024 --markdown "$out/table-1024.md" --json "$out/table-1024.json" \
   > /dev/null 2> "$out/table-1024.log"
 # Resolution at a fixed correlation length of 16 cells (tile = N/16 correlation lengths).
 if has res; then for n in 256 512 2048; do trade "res-$n-l16" "$n" 16; done; fi
@@ -31,11 +36,9 @@ if has corr; then for c in 4 8 32; do trade "res-1024-l$c" 1024 "$c"; done; fi
 if has tile; then trade "res-256-l4" 256 4; trade "res-512-l8" 512 8; trade "res-2048-l32" 2048 32; fi
 # Seed-to-seed spread at the default setting (realisations of the same random surface).
 if has seeds; then
-  for s in 2 3; do
-    tm "$B" trace masking --table --assemblies smith --alphas 0.5 --thetas 60,75,85 --res 1024 --corr-cells 16 --seed "$s" \
-      --samples 1000000 --vndf-rays 2000000 --markdown "$out/res-1024-l16-seed$s.md" --json "$out/res-1024-l16-seed$s.json" \
-      > /dev/null 2> "$out/res-1024-l16-seed$s.log"
-  done
+  tm "$B" trace masking --table --assemblies smith --alphas 0.5 --thetas 60,75,85 --res 1024 --corr-cells 16 --seeds 1,2,3 \
+    --samples 1000000 --vndf-rays 2000000 --markdown "$out/res-1024-l16-seeds123.md" --json "$out/res-1024-l16-seeds123.json" \
+    > /dev/null 2> "$out/res-1024-l16-seeds123.log"
 fi
 # Build time and peak RSS of the surface itself.
 if has build; then
@@ -48,6 +51,15 @@ if has big; then
   for g in triangles grid; do
     tm "$B" trace masking --surface "$out/smith-4096.exr" --theta 75 --phi 30 --samples 1000000 --vndf-rays 2000000 \
       --geometry "$g" --json "$out/big-4096-$g.json" > "$out/big-4096-$g.txt" 2> "$out/big-4096-$g.log"
+  done
+fi
+# Back-facing first hits (convex-edge grazes, docs/heightfield-trade.md section 1): the VNDF diagnostics of
+# `trace vndf --surface` (back-facing hits left, grazes passed over) at the steepest views.
+if has backface; then
+  "$B" surface build --assembly smith --alpha 1 --res 1024 --seed 1 --out "$out/smith-a1-1024.exr" > /dev/null 2>&1
+  for th in 75 85; do
+    "$B" trace vndf --surface "$out/smith-a1-1024.exr" --theta "$th" --phi 30 --rays 8000000 --out "$out/backface-$th.exr" \
+      --json "$out/backface-$th.json" > "$out/backface-$th.txt" 2> "$out/backface-$th.log"
   done
 fi
 echo "done: $out"

@@ -33,7 +33,8 @@ constexpr unsigned int kNoSkip = RTC_INVALID_GEOMETRY_ID;
 // calls on the same scene (benchmarks, tests) never run it, so it never reads past a plain context.
 struct SkipContext {
   RTCIntersectContext base;
-  unsigned int skip_primitive;  // extended primitive index (see below) or kNoSkip
+  unsigned int skip_primitive = kNoSkip;  // the start primitive: extended primitive index (see below) or kNoSkip
+  unsigned int skip_grazed = kNoSkip;     // a primitive just passed over at a convex edge (trace_impl)
 };
 
 // Extended primitive index e = 2 (b M + a) + t of triangle t of the cell (a, b) of the overlapped grid,
@@ -60,14 +61,14 @@ struct ExtendedGrid {
 // Embree context filter (intersect and occluded): rejects hits on the skipped primitive.
 void skip_filter(const RTCFilterFunctionNArguments* args) {
   const auto* ctx = reinterpret_cast<const SkipContext*>(args->context);
-  if (ctx->skip_primitive == kNoSkip) return;
+  if (ctx->skip_primitive == kNoSkip && ctx->skip_grazed == kNoSkip) return;
   // The grid geometry's user data is the heightfield resolution (triangles: null, primID is exact).
   const auto* grid_n = static_cast<const int*>(args->geometryUserPtr);
   for (unsigned int i = 0; i < args->N; ++i) {
     if (args->valid[i] != -1) continue;
     const unsigned int prim = grid_n ? ExtendedGrid{*grid_n}.grid_primitive(RTCHitN_u(args->hit, args->N, i), RTCHitN_v(args->hit, args->N, i))
                                    : RTCHitN_primID(args->hit, args->N, i);
-    if (prim == ctx->skip_primitive) args->valid[i] = 0;
+    if (prim == ctx->skip_primitive || prim == ctx->skip_grazed) args->valid[i] = 0;
   }
 }
 
@@ -195,9 +196,13 @@ unsigned int HeightfieldScene::embree_primitive(std::uint32_t triangle) const {
   return ExtendedGrid{field_.resolution()}.primitive(c.i + 1, c.j + 1, c.t);
 }
 
+unsigned int HeightfieldScene::extended_primitive(unsigned int prim_id, float u, float v) const {
+  return geometry_ == HeightfieldGeometry::grid ? ExtendedGrid{field_.resolution()}.grid_primitive(u, v) : prim_id;
+}
+
 std::uint32_t HeightfieldScene::hit_triangle(unsigned int prim_id, float u, float v) const {
   const ExtendedGrid grid{field_.resolution()};
-  const unsigned int e = geometry_ == HeightfieldGeometry::grid ? grid.grid_primitive(u, v) : prim_id;
+  const unsigned int e = extended_primitive(prim_id, u, v);
   const int m = grid.cells();
   const unsigned int cell = e >> 1;
   const int a = int(cell % unsigned(m)), b = int(cell / unsigned(m));
@@ -220,6 +225,10 @@ HeightfieldHit HeightfieldScene::trace_impl(const Vec3<double>& origin_in, const
   // Half a cell of overlap past the tile edge, in ray distance: covered by the overlap strip.
   const double overlap = dxy > 0 ? 0.5 * cell_ / dxy : kInf;
   const unsigned int skip = skip_triangle ? embree_primitive(*skip_triangle) : kNoSkip;
+  // Whether the ray provably starts outside the solid (above the surface at its (x, y): a point lifted
+  // off its start facet, or a primary ray from above): only then is a leaving first hit a convex-edge graze
+  // to pass over. A ray started inside the solid (tests, negative controls) reports what it hits.
+  const bool starts_outside = o.z() > escape_height_ || o.z() > field_.height_at(o.x(), o.y());
   const RTCScene scene = scene_->handle();
   double travelled = 0;
 
@@ -248,42 +257,61 @@ HeightfieldHit HeightfieldScene::trace_impl(const Vec3<double>& origin_in, const
     else if (dz < 0) t_slab = (floor_height_ - o.z()) / dz;
     const double tfar = std::min(t_exit + overlap, t_slab);
 
-    ctx.skip_primitive = segment == 0 ? skip : kNoSkip;
-    ctx.base.filter = ctx.skip_primitive == kNoSkip ? nullptr : &skip_filter;
-    RTCRayHit rh;
-    rh.ray.org_x = float(o.x());
-    rh.ray.org_y = float(o.y());
-    rh.ray.org_z = float(o.z());
-    rh.ray.dir_x = df.x();
-    rh.ray.dir_y = df.y();
-    rh.ray.dir_z = df.z();
-    rh.ray.tnear = 0.0f;
-    rh.ray.tfar = std::isfinite(tfar) ? float(tfar) : std::numeric_limits<float>::infinity();
-    rh.ray.time = 0.0f;
-    rh.ray.mask = 0xffffffffu;
-    rh.ray.id = 0;
-    rh.ray.flags = 0;
-    ++out.segments;
-    if constexpr (kOcclusionOnly) {
-      rtcOccluded1(scene, &ctx.base, &rh.ray);
-      if (rh.ray.tfar == -std::numeric_limits<float>::infinity()) {
-        out.outcome = RayOutcome::hit;
-        return out;
+    // One Embree call per segment, plus one per convex-edge graze passed over (below).
+    float tnear = 0.0f;
+    unsigned int grazed = kNoSkip;
+    for (;;) {
+      ctx.skip_primitive = segment == 0 ? skip : kNoSkip;
+      ctx.skip_grazed = grazed;
+      ctx.base.filter = ctx.skip_primitive == kNoSkip && grazed == kNoSkip ? nullptr : &skip_filter;
+      RTCRayHit rh;
+      rh.ray.org_x = float(o.x());
+      rh.ray.org_y = float(o.y());
+      rh.ray.org_z = float(o.z());
+      rh.ray.dir_x = df.x();
+      rh.ray.dir_y = df.y();
+      rh.ray.dir_z = df.z();
+      rh.ray.tnear = tnear;
+      rh.ray.tfar = std::isfinite(tfar) ? float(tfar) : std::numeric_limits<float>::infinity();
+      rh.ray.time = 0.0f;
+      rh.ray.mask = 0xffffffffu;
+      rh.ray.id = 0;
+      rh.ray.flags = 0;
+      ++out.segments;
+      if constexpr (kOcclusionOnly) {
+        rtcOccluded1(scene, &ctx.base, &rh.ray);
+        if (rh.ray.tfar == -std::numeric_limits<float>::infinity()) {
+          out.outcome = RayOutcome::hit;
+          return out;
+        }
+      } else {
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+        rtcIntersect1(scene, &ctx.base, &rh);
+        if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
+          const std::uint32_t triangle = hit_triangle(rh.hit.primID, rh.hit.u, rh.hit.v);
+          // A ray that starts outside the solid (above the surface) must ENTER it first: a first hit on a
+          // facet it leaves through (dir . m >= 0) means that in float it passed within about one ulp of
+          // a convex edge, over the entering facet, and Embree's float t of that nearly parallel facet
+          // ordered the two the wrong way round (docs/heightfield-trade.md, section 1). The ray is taken
+          // to pass over the edge: it continues from the hit, skipping that facet.
+          if (starts_outside && dir.dot(field_.triangle_normal(triangle)) >= 0.0 && out.edge_grazes < kMaxEdgeGrazes) {
+            ++out.edge_grazes;
+            tnear = rh.ray.tfar;
+            grazed = extended_primitive(rh.hit.primID, rh.hit.u, rh.hit.v);
+            continue;
+          }
+          const double t = rh.ray.tfar;
+          out.outcome = RayOutcome::hit;
+          out.t = travelled + t;
+          out.triangle = triangle;
+          const Vec3<double> p = o + t * dir;
+          out.point = Vec3<double>(wrap_coordinate(p.x(), tile_), wrap_coordinate(p.y(), tile_), p.z());
+          return out;
+        }
       }
-    } else {
-      rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-      rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
-      rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-      rtcIntersect1(scene, &ctx.base, &rh);
-      if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
-        const double t = rh.ray.tfar;
-        out.outcome = RayOutcome::hit;
-        out.t = travelled + t;
-        out.triangle = hit_triangle(rh.hit.primID, rh.hit.u, rh.hit.v);
-        const Vec3<double> p = o + t * dir;
-        out.point = Vec3<double>(wrap_coordinate(p.x(), tile_), wrap_coordinate(p.y(), tile_), p.z());
-        return out;
-      }
+      break;
     }
     if (t_slab <= t_exit) {  // left the slab before the tile edge: nothing more to hit
       out.outcome = dz > 0 ? RayOutcome::escaped : RayOutcome::leaked;

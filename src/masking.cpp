@@ -56,7 +56,7 @@ TraceResult trace_vndf_heightfield(const HeightfieldScene& scene, const Vec3<dou
   struct Local {
     std::vector<std::vector<std::uint64_t>> counts;
     std::vector<std::uint64_t> unbinned;
-    std::uint64_t rays = 0, hits = 0, backfacing = 0, leaked = 0, unresolved = 0;
+    std::uint64_t rays = 0, hits = 0, backfacing = 0, edge_grazes = 0, leaked = 0, unresolved = 0;
   };
   tbb::enumerable_thread_specific<Local> locals([&] {
     Local l;
@@ -82,6 +82,7 @@ TraceResult trace_vndf_heightfield(const HeightfieldScene& scene, const Vec3<dou
       for (std::uint64_t i = 0; i < count; ++i) {
         const double x = tile * rng.uniform(), y = tile * rng.uniform();
         const HeightfieldHit hit = scene.trace(Vec3<double>(x, y, z0), dir);
+        if (hit.edge_grazes > 0) ++local.edge_grazes;
         if (!hit.is_hit()) {
           if (hit.outcome == RayOutcome::unresolved) ++local.unresolved;
           else ++local.leaked;  // a downward ray must hit: escaping or leaking is a leak
@@ -115,6 +116,7 @@ TraceResult trace_vndf_heightfield(const HeightfieldScene& scene, const Vec3<dou
     result.rays += l.rays;
     result.hits += l.hits;
     diag.backfacing += l.backfacing;
+    diag.edge_grazes += l.edge_grazes;
     diag.leaked += l.leaked;
     diag.unresolved += l.unresolved;
     for (std::size_t k = 0; k < nb; ++k) {

@@ -22,6 +22,19 @@
 // The lift is 2^-20 of the coordinate scale: 0.4% of a cell at N = 4096 (L = 1); it changes a shadow
 // ray's fate only for start points that close to an edge whose neighbour the ray grazes.
 //
+// Convex-edge grazes (trace() only). A ray that starts above the surface must enter the solid before it
+// can leave it, so its first hit faces it (dir . m < 0). In float, a ray passing within about one ulp of
+// the coordinates of a convex edge between a facet it nearly runs along (entering, at a grazing angle)
+// and a steeper facet beyond (leaving) can be reported on the leaving facet: Embree is watertight, but
+// its float distance to the nearly parallel facet is off by more than the two hits' separation. Measured
+// (docs/heightfield-trade.md): ~6e-7 per primary ray at alpha 1, 85 deg, N = 1024, every case within
+// 0.1-2.5 ulp(1) of an edge. For a ray that starts above the surface at its (x, y) (a primary ray, or a
+// point lifted off its start facet; not one started inside the solid, which legitimately leaves it first),
+// trace() then takes the ray to pass over the edge: it continues from that hit
+// with the leaving facet skipped (the same context filter), at most kMaxEdgeGrazes times, and counts it
+// in edge_grazes. escapes() (rtcOccluded1, any hit) cannot tell and counts such a graze as blocked: a
+// shadow ray within an ulp of a convex edge, of the same ~1e-6 frequency.
+//
 // Scale. Nothing depends on the absolute units: segment overlaps are in cells, the escape plane sits a
 // relative 2^-20 of the height range (plus float ulps of the coordinates) above the maximum height, the
 // surface offset is relative to max(L, |heights|).
@@ -55,6 +68,7 @@ std::string to_string(HeightfieldGeometry g);
 HeightfieldGeometry heightfield_geometry_from_string(const std::string& s);
 
 inline constexpr int kMaxSegments = 1 << 20;  // per ray; beyond, the ray is reported unresolved
+inline constexpr int kMaxEdgeGrazes = 8;       // per ray; beyond, the exiting hit is returned as it is
 
 enum class RayOutcome {
   hit,         // hit a triangle
@@ -69,6 +83,8 @@ struct HeightfieldHit {
   double t = 0;                                   // distance along the unit direction, through all wraps
   Vec3<double> point = Vec3<double>::Zero();      // hit point, x and y wrapped into [0, L)
   int segments = 0;                               // Embree calls made
+  int edge_grazes = 0;                            // first hits on a facet the ray leaves the solid through,
+                                                  // passed over (convex-edge grazes, trace() only; see above)
   bool is_hit() const { return outcome == RayOutcome::hit; }
 };
 
@@ -118,6 +134,7 @@ private:
   HeightfieldHit trace_impl(const Vec3<double>& origin, const Vec3<double>& dir,
                             std::optional<std::uint32_t> skip_triangle) const;
   std::uint32_t hit_triangle(unsigned int prim_id, float u, float v) const;
+  unsigned int extended_primitive(unsigned int prim_id, float u, float v) const;
   static bool on_memory(void* user, ssize_t bytes, bool post);
 
   const microgeom::Heightfield& field_;

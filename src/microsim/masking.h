@@ -64,7 +64,10 @@ inline constexpr std::uint64_t kSamplesPerBlock = 4096;
 // ---- VNDF --------------------------------------------------------------------------------------------------
 
 struct HeightfieldVndfDiagnostics {
-  std::uint64_t backfacing = 0;  // first hits on a facet facing away from v (a tracer bug if ever > 0)
+  std::uint64_t backfacing = 0;  // first hits on a facet facing away from v (left out of the histogram;
+                                 // after the convex-edge pass-over of HeightfieldScene::trace, never seen)
+  std::uint64_t edge_grazes = 0; // rays that passed within float precision over a convex edge (their
+                                 // reported hit is the next front-facing one; heightfield_trace.h)
   std::uint64_t leaked = 0, unresolved = 0;
 };
 
