@@ -4,6 +4,8 @@
 // same beam and seed), in the same parallel structure (TBB blocks of kRaysPerBlock rays, FTZ/DAZ set),
 // on 1 and 2 threads. Scenes: the exact quadric and meshes of levels 3, 5 and 7 (alpha 0.5, theta 45).
 //
+// BM_PipelinePart breaks the quadric's overhead down (no binning, sphere binning only).
+//
 // After the benchmarks, a table of pipeline / raw ratios is printed, from two measures: wall-clock rays
 // per second (best repetition of each), and process CPU time per ray (all threads; robust to load from
 // other processes on a shared machine, where wall-clock rates fluctuate). Run with
@@ -196,6 +198,22 @@ public:
                    raw->second * 1e-6, pipe->second * 1e-6, 100.0 * pipe->second / raw->second, raw_cpu, pipe_cpu,
                    100.0 * raw_cpu / pipe_cpu);
       }
+    }
+    // The quadric's overhead over raw, stage by stage (CPU ns/ray, best repetition).
+    const auto cpu = [&](const std::string& name) {
+      const auto it = best_cpu_.find(name);
+      return it == best_cpu_.end() ? -1.0 : it->second;
+    };
+    fmt::print("\nquadric, CPU ns/ray: raw | + ray generation and hit filter | + sphere binning | + lobe binning "
+               "(full pipeline)\n|---|---|---|---|---|\n");
+    for (int threads : {1, 2}) {
+      const std::string args = fmt::format("/threads:{}/min_time:0.500/real_time", threads);
+      const double raw = cpu(fmt::format("BM_RawIntersect1/level:-1{}", args));
+      const double none = cpu(fmt::format("BM_PipelinePart/threads:{}/binnings:0/min_time:0.500/real_time", threads));
+      const double sphere = cpu(fmt::format("BM_PipelinePart/threads:{}/binnings:1/min_time:0.500/real_time", threads));
+      const double full = cpu(fmt::format("BM_Pipeline/level:-1{}", args));
+      if (raw < 0 || none < 0 || sphere < 0 || full < 0) continue;
+      fmt::print("| {} thread(s) | {:.1f} | {:.1f} | {:.1f} | {:.1f} |\n", threads, raw, none, sphere, full);
     }
   }
 
