@@ -29,8 +29,9 @@
 //   G1(v | near-grazing m)  the same over the facets with the smallest <v, m> that hold the bottom
 //                `grazing_share` (default 2%) of the front-facing projected area (exact quantile over all
 //                triangles): a finer near-grazing class than the first of the `normal_bins` bins. Its
-//                angle(m, v) range is reported (it starts 5-7 deg below 90 at 75-85 deg views, where the
-//                first decile starts 12-15 deg below). Smith: ratio 1.
+//                angle(m, v) range is reported (at 75-85 deg views it starts at 81-85 deg for alpha 0.5-1
+//                and 88 deg for alpha 0.1, where the first decile starts at 70-80 deg and 79-86 deg).
+//                Smith: ratio 1.
 //   G1(v | h)    over points whose height lies in one of `height_bins` equal-count bins of the vertex
 //                heights. Smith: E_w[C1(h)^Lambda(v) | bin] with the surface's height CDF C1.
 //   G2 mirror    l = reflect(v, m) per sample: E_w[V_v V_l] (V_l = 0 when l is below the horizon), the
