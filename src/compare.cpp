@@ -156,43 +156,6 @@ std::vector<double> parse_numbers(const TracedHistogram& h, const std::string& k
   return values;
 }
 
-struct SampleSet {
-  std::vector<Vec3<double>> directions;
-  std::vector<std::uint8_t> valid;  // 0 where the sampler returned nothing
-};
-
-// The same draws as validate_sampler: sample i from CounterRng(seed, i), two uniforms.
-template <class T>
-SampleSet draw(SampleResult<T> (*sample)(const GGX<T>&, const Vec3<T>&, Vec2<T>), const GGX<double>& ggx,
-               const Vec3<double>& wi, const ValidationOptions& options) {
-  const std::uint64_t n = options.samples, block = 1 << 16;
-  SampleSet set;
-  set.directions.assign(n, Vec3<double>::Zero());
-  set.valid.assign(n, 0);
-  const GGX<T> g(T(ggx.alpha_x()), T(ggx.alpha_y()));
-  const Vec3<T> w = wi.template cast<T>();
-  ProgressBar bar("sampling", n, options.progress);
-  tbb::parallel_for(std::uint64_t(0), (n + block - 1) / block, [&](std::uint64_t b) {
-    const std::uint64_t end = std::min(n, (b + 1) * block);
-    for (std::uint64_t i = b * block; i < end; ++i) {
-      CounterRng rng(options.seed, i);
-      Vec2<T> u;
-      if constexpr (std::is_same_v<T, float>) {
-        u = Vec2<T>(rng.uniform_float(), rng.uniform_float());
-      } else {
-        u = Vec2<T>(rng.uniform(), rng.uniform());
-      }
-      const SampleResult<T> s = sample(g, w, u);
-      if (!s) continue;
-      set.directions[i] = s->direction.template cast<double>();
-      set.valid[i] = 1;
-    }
-    bar.add(end - b * block);
-  });
-  bar.finish();
-  return set;
-}
-
 void check_configuration(const TracedHistogram& traced, const GGX<double>& ggx, const Vec3<double>& wi) {
   const GGX<double> tg = histogram_ggx(traced);
   const Vec3<double> twi = histogram_wi(traced);
@@ -366,8 +329,7 @@ ValidationReport compare_sampler_to_trace(const SamplerInfo& sampler, const GGX<
         "sampler '{}' samples reflected directions; the traced oracle measures microfacet normals", sampler.name));
   }
   const auto start = std::chrono::steady_clock::now();
-  const SampleSet set = options.precision == Precision::float32 ? draw(sampler.sample_float, ggx, wi, options)
-                                                                : draw(sampler.sample_double, ggx, wi, options);
+  const SampleSet set = draw_samples(sampler, ggx, wi, options);
   ValidationReport r = compare_set(std::string(sampler.name), set, ggx, wi, options, options.precision, traced);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return r;
@@ -376,12 +338,9 @@ ValidationReport compare_sampler_to_trace(const SamplerInfo& sampler, const GGX<
 ValidationReport compare_samples_to_trace(std::span<const Vec3<double>> samples, std::string source,
                                           const GGX<double>& ggx, const Vec3<double>& wi,
                                           const ValidationOptions& options, const TracedHistogram& traced) {
-  SampleSet set;
-  set.directions.assign(samples.begin(), samples.end());
-  set.valid.assign(samples.size(), 1);
   ValidationOptions o = options;
   o.samples = samples.size();
-  return compare_set(std::move(source), set, ggx, wi, o, Precision::float64, traced);
+  return compare_set(std::move(source), SampleSet::from_directions(samples), ggx, wi, o, Precision::float64, traced);
 }
 
 }  // namespace microsim

@@ -20,14 +20,8 @@ namespace {
 // keep every floating-point result independent of the thread count.
 constexpr std::uint64_t kBlock = 1 << 16;
 
-struct SampleSet {
-  std::vector<Vec3<double>> directions;
-  std::vector<double> pdfs;          // returned pdfs; empty when the samples came without one
-  std::vector<std::uint8_t> valid;   // 0 where the sampler returned nothing
-};
-
 template <class T>
-SampleSet draw_samples(SampleResult<T> (*sample)(const GGX<T>&, const Vec3<T>&, Vec2<T>), const GGX<double>& ggx,
+SampleSet draw_samples_as(SampleResult<T> (*sample)(const GGX<T>&, const Vec3<T>&, Vec2<T>), const GGX<double>& ggx,
                        const Vec3<double>& wi, const ValidationOptions& options) {
   const std::uint64_t n = options.samples;
   SampleSet set;
@@ -384,14 +378,25 @@ std::shared_ptr<const ReferenceDistribution> vndf_reference(SampleDomain domain,
                            rows);
 }
 
+SampleSet SampleSet::from_directions(std::span<const Vec3<double>> directions) {
+  SampleSet set;
+  set.directions.assign(directions.begin(), directions.end());
+  set.valid.assign(directions.size(), 1);
+  return set;
+}
+
+SampleSet draw_samples(const SamplerInfo& sampler, const GGX<double>& ggx, const Vec3<double>& wi,
+                       const ValidationOptions& options) {
+  return options.precision == Precision::float32 ? draw_samples_as<float>(sampler.sample_float, ggx, wi, options)
+                                                 : draw_samples_as<double>(sampler.sample_double, ggx, wi, options);
+}
+
 ValidationReport validate_sampler(const SamplerInfo& sampler, const GGX<double>& ggx, const Vec3<double>& wi,
                                   const ValidationOptions& options, std::shared_ptr<const ReferenceDistribution> reference) {
   const auto t0 = std::chrono::steady_clock::now();
   if (options.samples == 0) throw std::invalid_argument("validation needs at least one sample");
   if (!reference) reference = claimed_reference(sampler, ggx, wi, options.rows);
-  const SampleSet set = options.precision == Precision::float32
-                            ? draw_samples<float>(sampler.sample_float, ggx, reference->wi, options)
-                            : draw_samples<double>(sampler.sample_double, ggx, reference->wi, options);
+  const SampleSet set = draw_samples(sampler, ggx, reference->wi, options);
   ValidationReport r = validate_set(std::string(sampler.name), set, *reference, options, options.precision);
   r.seconds = elapsed(t0);
   return r;
@@ -403,12 +408,9 @@ ValidationReport validate_samples(std::span<const Vec3<double>> samples, SampleD
   const auto t0 = std::chrono::steady_clock::now();
   if (samples.empty()) throw std::invalid_argument("validation needs at least one sample");
   if (!reference) reference = vndf_reference(domain, ggx, wi, options.rows);
-  SampleSet set;
-  set.directions.assign(samples.begin(), samples.end());
-  set.valid.assign(samples.size(), 1);
   ValidationOptions o = options;
   o.samples = samples.size();
-  ValidationReport r = validate_set("samples", set, *reference, o, Precision::float64);
+  ValidationReport r = validate_set("samples", SampleSet::from_directions(samples), *reference, o, Precision::float64);
   r.seconds = elapsed(t0);
   return r;
 }

@@ -274,7 +274,9 @@ TEST(FastDirectionBinner, EqualsBinOf) {
               fast.bin_floats(x.data() + first, y.data() + first, z.data() + first, n, bins.data() + first);
             }
             for (std::size_t i = 0; i < x.size(); ++i) {
-              if (chunk == 7) ASSERT_EQ(bins[i], bins_one_call[i]) << "chunks of 7 differ at " << i;
+              if (chunk == 7) {
+                ASSERT_EQ(bins[i], bins_one_call[i]) << "chunks of 7 differ at " << i;
+              }
             }
             if (chunk != 7) bins_one_call = bins;
           }

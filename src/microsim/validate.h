@@ -140,6 +140,19 @@ struct ValidationReport {
   std::vector<BinnedComparison> histograms;
 };
 
+// Samples as every validation draws them (validate_sampler, and compare.h against the traced oracle):
+// sample i from CounterRng(options.seed, i), two uniforms, in the sampler's float or double version
+// (options.precision), in parallel blocks; identical whatever the thread count.
+struct SampleSet {
+  std::vector<Vec3<double>> directions;
+  std::vector<double> pdfs;         // returned pdfs; empty when the samples came without one
+  std::vector<std::uint8_t> valid;  // 0 where the sampler returned nothing
+  // Samples from elsewhere (a file): all valid, no pdfs.
+  static SampleSet from_directions(std::span<const Vec3<double>> directions);
+};
+SampleSet draw_samples(const SamplerInfo& sampler, const GGX<double>& ggx, const Vec3<double>& wi,
+                       const ValidationOptions& options);
+
 // Draws options.samples samples from the sampler (float or double version) and validates them
 // against the pdf the sampler claims (reference: claimed_reference unless given).
 ValidationReport validate_sampler(const SamplerInfo& sampler, const GGX<double>& ggx, const Vec3<double>& wi,
