@@ -123,21 +123,9 @@ void BM_RawIntersect1(benchmark::State& state) {
         const std::uint64_t end = std::min(kRays, (block + 1) * kRaysPerBlock);
         for (std::uint64_t i = block * kRaysPerBlock; i < end; ++i) {
           const BeamRay& ray = f.rays[i];
-          RTCRayHit rh;
-          rh.ray.org_x = ray.origin.x();
-          rh.ray.org_y = ray.origin.y();
-          rh.ray.org_z = ray.origin.z();
-          rh.ray.dir_x = ray.dir.x();
-          rh.ray.dir_y = ray.dir.y();
-          rh.ray.dir_z = ray.dir.z();
-          rh.ray.tnear = 0.0f;
-          rh.ray.tfar = std::numeric_limits<float>::infinity();
-          rh.ray.time = 0.0f;
-          rh.ray.mask = 0xffffffffu;
-          rh.ray.id = 0;
-          rh.ray.flags = 0;
-          rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-          rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+          // The same inline ray set-up as the pipeline's (embree.h), so that only the pipeline's own work differs.
+          RTCRayHit rh =
+              embree::make_ray_hit(ray.origin, ray.dir, 0.0f, std::numeric_limits<float>::infinity());
           rtcIntersect1(scene, &context, &rh);
           local += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
         }

@@ -167,33 +167,12 @@ RTCBounds Scene::bounds() const {
   return b;
 }
 
-namespace {
-RTCRayHit make_rayhit(const Vec3<float>& origin, const Vec3<float>& dir, float tnear, float tfar) {
-  RTCRayHit rh;
-  rh.ray.org_x = origin.x();
-  rh.ray.org_y = origin.y();
-  rh.ray.org_z = origin.z();
-  rh.ray.dir_x = dir.x();
-  rh.ray.dir_y = dir.y();
-  rh.ray.dir_z = dir.z();
-  rh.ray.tnear = tnear;
-  rh.ray.tfar = tfar;
-  rh.ray.time = 0.0f;
-  rh.ray.mask = 0xffffffffu;
-  rh.ray.id = 0;
-  rh.ray.flags = 0;
-  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-  rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
-  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-  return rh;
-}
-}  // namespace
 
 std::optional<Hit> Scene::intersect(const Vec3<float>& origin, const Vec3<float>& dir, float tnear,
                                     float tfar) const {
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
-  RTCRayHit rh = make_rayhit(origin, dir, tnear, tfar);
+  RTCRayHit rh = make_ray_hit(origin, dir, tnear, tfar);
   rtcIntersect1(scene_, &context, &rh);
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
   return Hit{rh.ray.tfar, rh.hit.primID, rh.hit.geomID, Vec3<float>(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z),
@@ -203,7 +182,7 @@ std::optional<Hit> Scene::intersect(const Vec3<float>& origin, const Vec3<float>
 bool Scene::occluded(const Vec3<float>& origin, const Vec3<float>& dir, float tnear, float tfar) const {
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
-  RTCRay ray = make_rayhit(origin, dir, tnear, tfar).ray;
+  RTCRay ray = make_ray_hit(origin, dir, tnear, tfar).ray;
   rtcOccluded1(scene_, &context, &ray);
   // Embree sets tfar to -inf when the ray is occluded.
   return ray.tfar == -std::numeric_limits<float>::infinity();

@@ -526,21 +526,8 @@ TraceResult trace_vndf(const EllipsoidTarget& target, const Vec3<double>& wi_in,
         // A lean loop of rtcIntersect1 calls, as the raw benchmark's; quadric normals (zero for a miss,
         // which does not count) go to b.nx/ny/nz and are filtered in a separate loop below.
         for (int i = 0; i < n; ++i) {
-          RTCRayHit rh;
-          rh.ray.org_x = b.org_x[i];
-          rh.ray.org_y = b.org_y[i];
-          rh.ray.org_z = b.org_z[i];
-          rh.ray.dir_x = dir.x();
-          rh.ray.dir_y = dir.y();
-          rh.ray.dir_z = dir.z();
-          rh.ray.tnear = 0.0f;
-          rh.ray.tfar = kInf;
-          rh.ray.time = 0.0f;
-          rh.ray.mask = 0xffffffffu;
-          rh.ray.id = 0;
-          rh.ray.flags = 0;
-          rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-          rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+          RTCRayHit rh =
+              embree::make_ray_hit(b.org_x[i], b.org_y[i], b.org_z[i], dir.x(), dir.y(), dir.z(), 0.0f, kInf);
           rtcIntersect1(rtc_scene, &context, &rh);
           const bool hit = rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
           if (face_cache) {
