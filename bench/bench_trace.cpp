@@ -60,15 +60,21 @@ double process_cpu_seconds() {
 
 std::string scene_name(int level) { return level < 0 ? "quadric" : fmt::format("mesh{}", level); }
 
-void BM_Pipeline(benchmark::State& state) {
-  const int level = int(state.range(0)), threads = int(state.range(1));
-  Fixture& f = fixture(level);
+// The trace options of every pipeline benchmark: kRays rays, seed 1, no progress bar, no Ctrl-C check.
+TraceOptions pipeline_options(int threads) {
   TraceOptions o;
   o.rays = kRays;
   o.seed = 1;
   o.threads = threads;
   o.progress = false;
   o.stop_on_interrupt = false;
+  return o;
+}
+
+void BM_Pipeline(benchmark::State& state) {
+  const int level = int(state.range(0)), threads = int(state.range(1));
+  Fixture& f = fixture(level);
+  const TraceOptions o = pipeline_options(threads);
   std::uint64_t hits = 0;
   const double cpu0 = process_cpu_seconds();
   for (auto _ : state) {
@@ -87,12 +93,7 @@ void BM_Pipeline(benchmark::State& state) {
 void BM_PipelinePart(benchmark::State& state) {
   const int threads = int(state.range(0)), binnings = int(state.range(1));
   Fixture& f = fixture(-1);
-  TraceOptions o;
-  o.rays = kRays;
-  o.seed = 1;
-  o.threads = threads;
-  o.progress = false;
-  o.stop_on_interrupt = false;
+  const TraceOptions o = pipeline_options(threads);
   const std::span<const DirectionBinning> used(f.binnings.data(), std::size_t(binnings));
   const double cpu0 = process_cpu_seconds();
   for (auto _ : state) {
