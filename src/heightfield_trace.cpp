@@ -290,13 +290,16 @@ HeightfieldHit HeightfieldScene::trace_impl(const Vec3<double>& origin_in, const
         rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
         rtcIntersect1(scene, &ctx.base, &rh);
         if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
-          const std::uint32_t triangle = hit_triangle(rh.hit.primID, rh.hit.u, rh.hit.v);
           // A ray that starts outside the solid (above the surface) must ENTER it first: a first hit on a
-          // facet it leaves through (dir . m >= 0) means that in float it passed within about one ulp of
-          // a convex edge, over the entering facet, and Embree's float t of that nearly parallel facet
-          // ordered the two the wrong way round (docs/heightfield-trade.md, section 1). The ray is taken
-          // to pass over the edge: it continues from the hit, skipping that facet.
-          if (starts_outside && dir.dot(field_.triangle_normal(triangle)) >= 0.0 && out.edge_grazes < kMaxEdgeGrazes) {
+          // facet it leaves through (dir . m >= 0, m the upward normal) means that in float it passed
+          // within about one ulp of a convex edge, over the entering facet, and Embree's float t of that
+          // nearly parallel facet ordered the two the wrong way round (docs/heightfield-trade.md, section
+          // 1). The ray is taken to pass over the edge: it continues from the hit, skipping that facet.
+          // Embree's geometric normal Ng is +-m (its sign depends on the winding); every facet of a
+          // heightfield has m_z > 0, so m ~ Ng sign(Ng_z) (no lookup of the facet's heights).
+          const float ng_dot_dir = rh.hit.Ng_x * df.x() + rh.hit.Ng_y * df.y() + rh.hit.Ng_z * df.z();
+          const bool leaving = rh.hit.Ng_z > 0.0f ? ng_dot_dir >= 0.0f : (rh.hit.Ng_z < 0.0f && ng_dot_dir <= 0.0f);
+          if (starts_outside && leaving && out.edge_grazes < kMaxEdgeGrazes) {
             ++out.edge_grazes;
             tnear = rh.ray.tfar;
             grazed = extended_primitive(rh.hit.primID, rh.hit.u, rh.hit.v);
@@ -305,7 +308,7 @@ HeightfieldHit HeightfieldScene::trace_impl(const Vec3<double>& origin_in, const
           const double t = rh.ray.tfar;
           out.outcome = RayOutcome::hit;
           out.t = travelled + t;
-          out.triangle = triangle;
+          out.triangle = hit_triangle(rh.hit.primID, rh.hit.u, rh.hit.v);
           const Vec3<double> p = o + t * dir;
           out.point = Vec3<double>(wrap_coordinate(p.x(), tile_), wrap_coordinate(p.y(), tile_), p.z());
           return out;
