@@ -196,7 +196,7 @@ int run_trace_vndf(const TraceVndfArgs& a) {
   fmt::print("distance to analytic D_v: Sidak-combined p = {:.4g} ({} at level {})\n", analysis.p_value,
              analysis.rejected ? "distinguishable" : "indistinguishable", analysis.significance);
   fmt::print("wrote {}{}\n", a.out, a.json.empty() ? "" : " and " + a.json);
-  return r.partial ? 130 : microsim::app::kExitOk;
+  return r.partial ? microsim::app::kExitInterrupted : microsim::app::kExitOk;
 }
 
 microsim::app::CommandRegistration reg{"trace", [](CLI::App& app) {

@@ -313,7 +313,7 @@ int run_masking(const MaskingArgs& a) {
   fmt::print("peak RSS {:.1f} MiB\n", peak_rss_mib());
   const bool failed = leak_failed(r);
   fmt::print("leak test ({} SE): {}\n", kLeakSigmas, failed ? "FAILED" : "passed");
-  if (partial) return 130;
+  if (partial) return microsim::app::kExitInterrupted;
   return failed ? kExitRejected : kExitOk;
 }
 
@@ -586,7 +586,7 @@ int run_table(const MaskingArgs& a) {
   fmt::print("peak RSS {:.1f} MiB\n", peak_rss_mib());
   bool failed = false;
   for (const auto& r : rows) failed = failed || leak_failed(r.masking);
-  if (partial) return 130;
+  if (partial) return microsim::app::kExitInterrupted;
   return failed ? kExitRejected : kExitOk;
 }
 
@@ -693,7 +693,7 @@ int run_trace_vndf_heightfield(const std::string& surface, std::optional<double>
     fmt::print("| {} | {} | {:.5f} | {:.5f} | {:.5f} | {:.3g} | {:.3g} |\n", c.binning, c.bins, c.tv_analytic,
                c.tv_empirical, c.tv_noise, c.p_value_analytic, c.p_value_empirical);
   fmt::print("wrote {}{}\n", out, json.empty() ? "" : " and " + json);
-  return r.partial ? 130 : kExitOk;
+  return r.partial ? microsim::app::kExitInterrupted : kExitOk;
 }
 
 namespace {

@@ -4,6 +4,7 @@
 
 #include <cstdio>
 #include <exception>
+#include <new>
 
 namespace microsim::app {
 namespace {
@@ -32,6 +33,9 @@ int run_selected() {
     } catch (const UsageError& e) {
       fmt::print(stderr, "microsim: error: {}\n", e.what());
       return kExitUsage;
+    } catch (const std::bad_alloc&) {
+      fmt::print(stderr, "microsim: internal error: out of memory\n");
+      return kExitInternal;
     } catch (const std::exception& e) {
       fmt::print(stderr, "microsim: error: {}\n", e.what());
       return kExitUsage;

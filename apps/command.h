@@ -13,9 +13,12 @@
 
 namespace microsim::app {
 
-inline constexpr int kExitOk = 0;        // ok / the statistical test passed
-inline constexpr int kExitRejected = 1;  // a statistical test rejected
-inline constexpr int kExitUsage = 2;     // bad usage or bad input
+// The exit codes of every command (README, "Exit codes"). One place: no command returns a bare number.
+inline constexpr int kExitOk = 0;            // ok / the statistical test passed
+inline constexpr int kExitRejected = 1;      // a statistical test rejected
+inline constexpr int kExitUsage = 2;         // bad usage or bad input
+inline constexpr int kExitInternal = 3;      // internal error: out of memory, an Embree failure, a bug
+inline constexpr int kExitInterrupted = 130; // interrupted (Ctrl-C): what was done is kept, marked partial
 
 struct Command {
   std::string name;

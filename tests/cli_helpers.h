@@ -7,6 +7,9 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <map>
+#include <ostream>
 #include <sstream>
 #include <string>
 
@@ -55,6 +58,45 @@ inline std::size_t file_count(const fs::path& dir) {
   std::size_t n = 0;
   for ([[maybe_unused]] auto& e : fs::directory_iterator(dir)) ++n;
   return n;
+}
+
+}  // namespace microsim::test
+
+namespace microsim::test {
+
+// Every regular file below DIR with its size and contents: two snapshots compare equal exactly when no
+// file was created, removed or changed.
+inline std::map<std::string, std::string> snapshot_files(const fs::path& dir) {
+  std::map<std::string, std::string> files;
+  for (const auto& e : fs::recursive_directory_iterator(dir))
+    if (e.is_regular_file()) files[fs::relative(e.path(), dir).string()] = slurp(e.path());
+  return files;
+}
+
+// One row of a bad-input table (issue 8): the command's arguments, the exit code it must give and a piece
+// of text its stderr must contain (the bad value, named). The command runs in a scratch directory that
+// `prepare` fills with the inputs it needs; afterwards no file there may have been created or changed.
+struct BadInputCase {
+  std::string name;     // a gtest-safe identifier
+  std::string args;     // after `microsim`
+  int exit_code = 2;
+  std::string message;  // must appear in stderr
+  std::function<void(const fs::path&)> prepare = nullptr;
+};
+
+inline std::ostream& operator<<(std::ostream& os, const BadInputCase& c) { return os << c.name; }
+
+// Runs one case: exit code, message, and "nothing written, nothing changed".
+inline void expect_bad_input(const BadInputCase& c, const std::string& suite) {
+  const fs::path dir = scratch_dir(suite, c.name);
+  if (c.prepare) c.prepare(dir);
+  const auto before = snapshot_files(dir);
+  const CliRun r = run_cli(dir, c.args);
+  EXPECT_EQ(r.exit_code, c.exit_code) << "microsim " << c.args << "\nstderr: " << r.err;
+  EXPECT_NE(r.err.find(c.message), std::string::npos)
+      << "microsim " << c.args << "\nstderr does not contain '" << c.message << "': " << r.err;
+  EXPECT_TRUE(snapshot_files(dir) == before) << "microsim " << c.args << " created or changed a file";
+  fs::remove_all(dir);
 }
 
 }  // namespace microsim::test

@@ -1,6 +1,7 @@
 // Round-trip and failure tests of the OpenEXR helper (microgeom/exr_io.h).
 #include "microgeom/exr_io.h"
 
+#include <fmt/core.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -126,4 +127,19 @@ TEST(ExrIo, ReadingGarbageOrMissingFilesThrowsNamingThePath) {
   fs::resize_file(good, size / 2);
   EXPECT_THROW(microgeom::read_exr(good), std::runtime_error);
   fs::remove_all(dir);
+}
+
+// Regression (issue 8, defect 1): add_channel returned a reference into a vector that the next
+// add_channel reallocated, so every multi-channel writer wrote through freed memory. The reference to the
+// first channel must still name the stored channel after many more are added.
+TEST(ExrIo, AddChannelReferencesSurviveLaterChannels) {
+  ExrImage img;
+  img.width = 3;
+  img.height = 2;
+  auto& first = img.add_channel("first");
+  first.data[5] = 7.0f;
+  for (int i = 0; i < 64; ++i) img.add_channel(fmt::format("c{}", i)).data[0] = float(i);
+  EXPECT_EQ(&first, img.find("first"));
+  EXPECT_EQ(img.find("first")->data[5], 7.0f);
+  EXPECT_EQ(img.find("c63")->data[0], 63.0f);
 }

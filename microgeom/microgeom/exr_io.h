@@ -8,6 +8,7 @@
 // over the destination only once complete; on failure nothing is left behind.
 #pragma once
 
+#include <deque>
 #include <filesystem>
 #include <map>
 #include <string>
@@ -24,13 +25,16 @@ struct ExrChannel {
 struct ExrImage {
   int width = 0, height = 0;
   // On read, channels come in the file's order (OpenEXR sorts channel names alphabetically).
-  std::vector<ExrChannel> channels;
+  // A deque, not a vector: appending a channel never moves the others, so the reference that
+  // add_channel returns stays valid while further channels are added.
+  std::deque<ExrChannel> channels;
   std::map<std::string, std::string> attributes;  // string attributes only
 
   // The channel of that exact name, or nullptr.
   const ExrChannel* find(std::string_view name) const;
   ExrChannel* find(std::string_view name);
-  // Appends a channel of width * height zeros and returns it (throws if the name is taken).
+  // Appends a channel of width * height zeros and returns it (throws if the name is taken). The reference
+  // stays valid until the channel itself is removed, whatever is added after it.
   ExrChannel& add_channel(std::string name);
 };
 
