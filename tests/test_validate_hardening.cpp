@@ -137,14 +137,21 @@ TEST(ReturnedPdf, Bounded2023AtGrazingTinyAlphaPassesAndAWrongPdfIsCaught) {
 
 // ---- defect 11: streaming, bit-identical, bounded memory ---------------------------------------------
 
+namespace {
+const GGX<double> kGgx03(0.3);
+const Vec3<double> kWi60 = direction_from_degrees(60.0, 0.0);
+ValidationOptions seeded(std::uint64_t samples, std::uint64_t seed) {
+  ValidationOptions o;
+  o.samples = samples;
+  o.seed = seed;
+  return o;
+}
+}  // namespace
+
 // Figures of the in-memory implementation (commit 59518dc, `microsim validate ... --json`), to the bit.
 TEST(Streaming, DrawnSamplesGiveTheFormerResultsBitForBit) {
-  const GGX<double> ggx(0.3);
-  const Vec3<double> wi = direction_from_degrees(60.0, 0.0);
-  ValidationOptions o;
-  o.samples = 100'000;
-  o.seed = 1;
-  const ValidationReport d = validate_sampler(sampler("heitz2018"), ggx, wi, o);
+  ValidationOptions o = seeded(100'000, 1);
+  const ValidationReport d = validate_sampler(sampler("heitz2018"), kGgx03, kWi60, o);
   EXPECT_EQ(d.p_value, 0.4589443247903953);
   EXPECT_EQ(d.sphere.statistic, 579.98184436605);
   EXPECT_EQ(d.lobe.statistic, 1636.3169125637278);
@@ -154,7 +161,7 @@ TEST(Streaming, DrawnSamplesGiveTheFormerResultsBitForBit) {
   o.samples = 1'500'000;
   o.seed = 2;
   o.precision = Precision::float32;
-  const ValidationReport f = validate_sampler(sampler("dupuy2023"), ggx, wi, o);
+  const ValidationReport f = validate_sampler(sampler("dupuy2023"), kGgx03, kWi60, o);
   EXPECT_EQ(f.p_value, 0.1604168405971407);
   EXPECT_EQ(f.sphere.statistic, 675.4987071609509);
   EXPECT_EQ(f.lobe.statistic, 1727.5885182360487);
@@ -164,19 +171,15 @@ TEST(Streaming, DrawnSamplesGiveTheFormerResultsBitForBit) {
 }
 
 TEST(Streaming, FilesGiveTheFormerResultsBitForBit) {
-  const GGX<double> ggx(0.3);
-  const Vec3<double> wi = direction_from_degrees(60.0, 0.0);
-  ValidationOptions o;
-  o.samples = 200'000;
-  o.seed = 7;
-  const SampleSet set = draw_samples(sampler("heitz2018"), ggx, wi, o);
+  const SampleSet set = draw_samples(sampler("heitz2018"), kGgx03, kWi60, seeded(200'000, 7));
   const fs::path dir = scratch();
   write_npy(dir / "s.npy", set.directions, false);
   write_npy(dir / "s_f4.npy", set.directions, true);
   write_text_samples(dir / "s.txt", set.directions);
   for (const char* name : {"s.npy", "s_f4.npy", "s.txt"}) {
     DirectionSampleReader reader(dir / name);
-    const ValidationReport r = validate_sample_file(reader, SampleDomain::microfacet_normal, ggx, wi, ValidationOptions{});
+    const ValidationReport r =
+        validate_sample_file(reader, SampleDomain::microfacet_normal, kGgx03, kWi60, ValidationOptions{});
     EXPECT_EQ(r.samples, 200'000u) << name;
     EXPECT_EQ(r.p_value, 0.7094498516745257) << name;
     EXPECT_EQ(r.sphere.statistic, 638.8322918847076) << name;
