@@ -225,6 +225,8 @@ microsim::DirectionSampleReader open_samples_or_usage_error(const std::string& p
 int run_against(const Args& a, const microsim::GGX<double>& ggx, const microsim::Vec3<double>& wi,
                 microsim::ValidationOptions o) {
   using namespace microsim;
+  // Too few samples for any test: refused before the oracle is traced.
+  if (a.from.empty()) usage_errors_of([&] { require_samples_for_any_test(std::uint64_t(a.samples.value_or(1'000'000))); });
   TracedHistogram traced;
   std::string oracle;
   if (a.against == "ellipsoid") {
