@@ -1,0 +1,252 @@
+// Issue 8, defect 8 (interruption), end to end: Ctrl-C (SIGINT) sent to a running `microsim` mid-run.
+// Interrupted is exit 130 everywhere, with what was done written and marked partial (JSON "partial": true,
+// a PARTIAL line in markdown and on stdout), or nothing written and a note on stderr.
+//
+// Robust on a slow, loaded machine: the signal is sent only once the process has installed its SIGINT
+// handler (read from /proc/PID/status) and, where a phase matters, once its output shows that phase; the
+// work is large enough (seconds to minutes) that the signal always arrives mid-run, and the command then
+// stops at its next check, so no test waits for the whole work.
+#include "cli_helpers.h"
+
+#include "microgeom/assembly.h"
+#include "microgeom/heightfield.h"
+#include "microsim/histogram_io.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <csignal>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <thread>
+
+#include <fcntl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+namespace {
+
+namespace fs = std::filesystem;
+using microsim::test::slurp;
+using Clock = std::chrono::steady_clock;
+
+// Whether process `pid` catches SIGINT (its handler is installed): the SigCgt mask of /proc/PID/status.
+bool catches_sigint(pid_t pid) {
+  std::ifstream status("/proc/" + std::to_string(pid) + "/status");
+  std::string line;
+  while (std::getline(status, line)) {
+    if (line.rfind("SigCgt:", 0) != 0) continue;
+    const unsigned long long mask = std::stoull(line.substr(7), nullptr, 16);
+    return (mask >> (SIGINT - 1)) & 1u;
+  }
+  return false;
+}
+
+struct InterruptedRun {
+  int exit_code = -1;        // -1: killed by a signal
+  bool ended_early = false;  // finished before the signal could be sent (the work was too small)
+  std::string out, err;
+};
+
+// Runs `microsim ARGS` in DIR; once it catches SIGINT, `phase(stdout, stderr)` holds and `delay` has passed
+// since, sends SIGINT and waits for the process to end (a hang is killed after 180 s and fails).
+InterruptedRun run_and_interrupt(const fs::path& dir, const std::string& args,
+                                 const std::function<bool(const std::string&, const std::string&)>& phase,
+                                 std::chrono::milliseconds delay) {
+  const fs::path out = dir.parent_path() / (dir.filename().string() + ".stdout");
+  const fs::path err = dir.parent_path() / (dir.filename().string() + ".stderr");
+  const std::string command = "exec '" + std::string(MICROSIM_BINARY) + "' " + args;
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    if (::chdir(dir.c_str()) != 0) ::_exit(127);
+    const int fo = ::open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    const int fe = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    ::dup2(fo, 1);
+    ::dup2(fe, 2);
+    ::execl("/bin/sh", "sh", "-c", command.c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  InterruptedRun r;
+  int status = 0;
+  std::optional<Clock::time_point> ready_since;
+  const auto give_up = Clock::now() + std::chrono::seconds(300);
+  while (true) {
+    if (::waitpid(pid, &status, WNOHANG) == pid) {
+      r.ended_early = true;
+      break;
+    }
+    if (!ready_since && catches_sigint(pid) && phase(slurp(out), slurp(err))) ready_since = Clock::now();
+    if (ready_since && Clock::now() - *ready_since >= delay) {
+      ::kill(pid, SIGINT);
+      break;
+    }
+    if (Clock::now() > give_up) {
+      ::kill(pid, SIGKILL);
+      ::waitpid(pid, &status, 0);
+      ADD_FAILURE() << "microsim " << args << ": the phase to interrupt never came";
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  if (!r.ended_early && !::testing::Test::HasFailure()) {
+    const auto deadline = Clock::now() + std::chrono::seconds(180);
+    while (::waitpid(pid, &status, WNOHANG) != pid) {
+      if (Clock::now() > deadline) {
+        ::kill(pid, SIGKILL);
+        ::waitpid(pid, &status, 0);
+        ADD_FAILURE() << "microsim " << args << " did not stop within 180 s of SIGINT";
+        break;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  }
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  r.out = slurp(out);
+  r.err = slurp(err);
+  fs::remove(out);
+  fs::remove(err);
+  return r;
+}
+
+const auto kAnyPhase = [](const std::string&, const std::string&) { return true; };
+auto stderr_has(std::string text) {
+  return [text](const std::string&, const std::string& err) { return err.find(text) != std::string::npos; };
+}
+
+// Exit 130, and the run was really interrupted (not finished before the signal, not killed by it).
+void expect_interrupted(const InterruptedRun& r, const std::string& what) {
+  ASSERT_FALSE(r.ended_early) << what << " finished before it could be interrupted: make its work larger";
+  EXPECT_EQ(r.exit_code, 130) << what << "\nstdout: " << r.out << "\nstderr: " << r.err;
+  EXPECT_NE(r.err.find("interrupted"), std::string::npos) << what << " says nothing on stderr: " << r.err;
+}
+
+nlohmann::json read_json(const fs::path& p) {
+  EXPECT_TRUE(fs::exists(p)) << p;
+  return fs::exists(p) ? nlohmann::json::parse(slurp(p)) : nlohmann::json();
+}
+
+// A 256^2 heightmap in DIR/s.exr (built with the library).
+void put_heightmap(const fs::path& dir) {
+  microgeom::AssemblyParams p;
+  p.assembly = "beckmann";
+  p.resolution = 256;
+  microgeom::save_heightmap_exr(dir / "s.exr", microgeom::build_assembly(p));
+}
+
+TEST(CliInterrupt, TraceMaskingTableWhileBuildingSurfaces) {
+  const fs::path dir = microsim::test::scratch_dir("interrupt", "table_build");
+  // A 2048^2 surface takes seconds to build: 300 ms after the handler is installed the build is running.
+  const auto r = run_and_interrupt(dir,
+                                   "trace masking --table --assemblies smith --alphas 0.5 --thetas 30 --res 2048 "
+                                   "--samples 100000 --vndf-rays 100000 --json t.json --markdown t.md",
+                                   kAnyPhase, std::chrono::milliseconds(300));
+  expect_interrupted(r, "trace masking --table");
+  const auto j = read_json(dir / "t.json");
+  EXPECT_EQ(j.value("partial", false), true);
+  EXPECT_EQ(j.value("views_complete", -1), 0);
+  EXPECT_NE(slurp(dir / "t.md").find("PARTIAL"), std::string::npos) << slurp(dir / "t.md");
+  fs::remove_all(dir);
+}
+
+TEST(CliInterrupt, TraceMaskingTableWhileTracing) {
+  const fs::path dir = microsim::test::scratch_dir("interrupt", "table_trace");
+  // The first view's line on stderr: the second view (tens of millions of rays) is being traced.
+  const auto r = run_and_interrupt(dir,
+                                   "trace masking --table --assemblies beckmann --alphas 0.5 --thetas 30,60 --res 256 "
+                                   "--samples 2000 --vndf-rays 20000000 --json t.json --markdown t.md",
+                                   stderr_has(": TV "), std::chrono::milliseconds(300));
+  expect_interrupted(r, "trace masking --table");
+  const auto j = read_json(dir / "t.json");
+  EXPECT_EQ(j.value("partial", false), true);
+  EXPECT_EQ(j.value("views_complete", -1), 1);
+  const std::string md = slurp(dir / "t.md");
+  EXPECT_NE(md.find("PARTIAL"), std::string::npos) << md;
+  EXPECT_NE(md.find("| beckmann | 0.5 | 30 |"), std::string::npos) << "the complete view is in the table: " << md;
+  EXPECT_EQ(md.find("| beckmann | 0.5 | 60 |"), std::string::npos) << "the interrupted view is not: " << md;
+  EXPECT_NE(r.out.find("PARTIAL"), std::string::npos) << r.out;
+  fs::remove_all(dir);
+}
+
+TEST(CliInterrupt, ValidateAllMarksItsResultsPartial) {
+  const fs::path dir = microsim::test::scratch_dir("interrupt", "validate_all");
+  // Once the first row of the table is out, the batch is under way.
+  const auto first_row = [](const std::string& out, const std::string&) { return out.find("\nndf ") != std::string::npos; };
+  const auto r = run_and_interrupt(dir, "validate --all --samples 200000 --json all.json", first_row,
+                                   std::chrono::milliseconds(0));
+  expect_interrupted(r, "validate --all");
+  const auto j = read_json(dir / "all.json");
+  EXPECT_EQ(j.value("verdict", ""), "interrupted");
+  EXPECT_EQ(j.value("partial", false), true);
+  EXPECT_GE(j["results"].size(), 1u);
+  EXPECT_LT(j["results"].size(), j.value("validations_requested", 0u));
+  EXPECT_NE(r.out.find("INTERRUPTED"), std::string::npos) << r.out;
+  fs::remove_all(dir);
+}
+
+TEST(CliInterrupt, ValidateAgainstEllipsoidWritesNothing) {
+  const fs::path dir = microsim::test::scratch_dir("interrupt", "validate_against");
+  const auto r = run_and_interrupt(dir,
+                                   "validate --sampler heitz2018 --alpha 0.5 --theta 30 --against ellipsoid "
+                                   "--rays 400000000 --json v.json",
+                                   kAnyPhase, std::chrono::milliseconds(500));
+  expect_interrupted(r, "validate --against ellipsoid");
+  EXPECT_EQ(microsim::test::file_count(dir), 0u) << "an interrupted validation has no verdict to write";
+  fs::remove_all(dir);
+}
+
+TEST(CliInterrupt, ValidateSamplerWritesNothing) {
+  const fs::path dir = microsim::test::scratch_dir("interrupt", "validate_sampler");
+  const auto r = run_and_interrupt(dir, "validate --sampler heitz2018 --alpha 0.5 --theta 30 --samples 10000000 --json v.json",
+                                   kAnyPhase, std::chrono::milliseconds(300));
+  expect_interrupted(r, "validate --sampler");
+  EXPECT_EQ(microsim::test::file_count(dir), 0u);
+  fs::remove_all(dir);
+}
+
+TEST(CliInterrupt, SurfaceBuildStopsAndWritesNothing) {
+  const fs::path dir = microsim::test::scratch_dir("interrupt", "surface_build");
+  const auto r = run_and_interrupt(dir, "surface build --assembly smith --alpha 0.5 --res 2048 --out s.exr --json s.json",
+                                   kAnyPhase, std::chrono::milliseconds(300));
+  expect_interrupted(r, "surface build");
+  EXPECT_NE(r.err.find("nothing written"), std::string::npos) << r.err;
+  EXPECT_EQ(microsim::test::file_count(dir), 0u) << "no output and no temporary may be left";
+  fs::remove_all(dir);
+}
+
+TEST(CliInterrupt, TraceVndfEllipsoidWritesAPartialHistogram) {
+  const fs::path dir = microsim::test::scratch_dir("interrupt", "trace_vndf");
+  const auto r = run_and_interrupt(dir, "trace vndf --alpha 0.5 --theta 30 --rays 400000000 --out h.exr --json h.json",
+                                   stderr_has("trace vndf: ellipsoid"), std::chrono::milliseconds(300));
+  expect_interrupted(r, "trace vndf");
+  EXPECT_EQ(read_json(dir / "h.json").value("partial", false), true);
+  EXPECT_TRUE(microsim::read_histogram_exr(dir / "h.exr").partial);
+  fs::remove_all(dir);
+}
+
+TEST(CliInterrupt, TraceVndfHeightfieldWritesAPartialHistogram) {
+  const fs::path dir = microsim::test::scratch_dir("interrupt", "trace_vndf_surface");
+  put_heightmap(dir);
+  const auto r = run_and_interrupt(dir, "trace vndf --surface s.exr --theta 30 --rays 400000000 --out h.exr --json h.json",
+                                   stderr_has("trace vndf: heightfield"), std::chrono::milliseconds(300));
+  expect_interrupted(r, "trace vndf --surface");
+  EXPECT_EQ(read_json(dir / "h.json").value("partial", false), true);
+  EXPECT_TRUE(microsim::read_histogram_exr(dir / "h.exr").partial);
+  fs::remove_all(dir);
+}
+
+TEST(CliInterrupt, TraceMaskingWritesPartialResults) {
+  const fs::path dir = microsim::test::scratch_dir("interrupt", "trace_masking");
+  put_heightmap(dir);
+  const auto r = run_and_interrupt(dir, "trace masking --surface s.exr --theta 30 --samples 400000000 --json m.json",
+                                   stderr_has("trace masking:"), std::chrono::milliseconds(300));
+  expect_interrupted(r, "trace masking");
+  EXPECT_EQ(read_json(dir / "m.json").value("partial", false), true);
+  fs::remove_all(dir);
+}
+
+}  // namespace
