@@ -670,6 +670,7 @@ int run_trace_vndf_heightfield(const std::string& surface, std::optional<double>
   options.threads = threads;
   HeightfieldVndfDiagnostics diag;
   const TraceResult r = trace_vndf_heightfield(scene, wi, h.binnings, options, &diag);
+  if (r.partial) fmt::print(stderr, "trace vndf: interrupted after {} of {} rays; writing a partial histogram\n", r.rays, rays);
   h.counts = r.counts;
   h.rays = r.rays;
   h.hits = r.hits;

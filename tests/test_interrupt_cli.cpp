@@ -158,7 +158,7 @@ TEST(CliInterrupt, TraceMaskingTableWhileTracing) {
   // The first view's line on stderr: the second view (tens of millions of rays) is being traced.
   const auto r = run_and_interrupt(dir,
                                    "trace masking --table --assemblies beckmann --alphas 0.5 --thetas 30,60 --res 256 "
-                                   "--samples 2000 --vndf-rays 20000000 --json t.json --markdown t.md",
+                                   "--samples 2000 --vndf-rays 5000000 --json t.json --markdown t.md",
                                    stderr_has(": TV "), std::chrono::milliseconds(300));
   expect_interrupted(r, "trace masking --table");
   const auto j = read_json(dir / "t.json");
@@ -201,7 +201,7 @@ TEST(CliInterrupt, ValidateAgainstEllipsoidWritesNothing) {
 
 TEST(CliInterrupt, ValidateSamplerWritesNothing) {
   const fs::path dir = microsim::test::scratch_dir("interrupt", "validate_sampler");
-  const auto r = run_and_interrupt(dir, "validate --sampler heitz2018 --alpha 0.5 --theta 30 --samples 10000000 --json v.json",
+  const auto r = run_and_interrupt(dir, "validate --sampler heitz2018 --alpha 0.5 --theta 30 --samples 4000000 --json v.json",
                                    kAnyPhase, std::chrono::milliseconds(300));
   expect_interrupted(r, "validate --sampler");
   EXPECT_EQ(microsim::test::file_count(dir), 0u);
