@@ -138,6 +138,29 @@ void put_heightmap(const fs::path& dir) {
   microgeom::save_heightmap_exr(dir / "s.exr", microgeom::build_assembly(p));
 }
 
+// The builder polls its cancel callback between steps and throws BuildCancelled (no surface) once it says
+// stop; a callback that never says stop changes nothing (same heights as without one).
+TEST(BuildCancel, StopsBetweenStepsAndChangesNothingOtherwise) {
+  for (const char* assembly : {"beckmann", "smith", "mixture", "sorted", "spikes"}) {
+    microgeom::AssemblyParams p;
+    p.assembly = assembly;
+    p.resolution = 64;
+    p.corr_cells = 4;
+    int polls = 0;
+    const auto never = [&] { return ++polls < 0; };
+    EXPECT_EQ(microgeom::build_assembly(p, nullptr, {}, never).heights(), microgeom::build_assembly(p).heights())
+        << assembly;
+    EXPECT_GE(polls, 1) << assembly;
+    for (const int stop_at : {1, polls}) {
+      int calls = 0;
+      EXPECT_THROW(microgeom::build_assembly(p, nullptr, {}, [&] { return ++calls >= stop_at; }),
+                   microgeom::BuildCancelled)
+          << assembly << " stopped at poll " << stop_at;
+      EXPECT_EQ(calls, stop_at) << assembly;
+    }
+  }
+}
+
 TEST(CliInterrupt, TraceMaskingTableWhileBuildingSurfaces) {
   const fs::path dir = microsim::test::scratch_dir("interrupt", "table_build");
   // A 2048^2 surface takes seconds to build: 300 ms after the handler is installed the build is running.
