@@ -91,9 +91,19 @@ const std::string kTable =
     "trace masking --table --assemblies beckmann --alphas 0.5 --thetas 30 --res 64 --samples 2000 --vndf-rays 2000";
 const std::string kBuild = "surface build --assembly beckmann --alpha 0.5 --res 64 --quiet";
 
+// The messages: an output on an input, two outputs on one file.
+std::string on_input(const std::string& out_option, const std::string& out, const std::string& in_option,
+                     const std::string& in) {
+  return out_option + " '" + out + "' is the same file as the input " + in_option + " '" + in + "'";
+}
+std::string same_outputs(const std::string& option1, const std::string& path1, const std::string& option2,
+                         const std::string& path2) {
+  return option1 + " '" + path1 + "' and " + option2 + " '" + path2 + "' are the same file";
+}
+
 std::vector<BadInputCase> cases() {
   const auto in_txt = [](const std::string& out_option, const std::string& spelling) {
-    return out_option + " '" + spelling + "' is the same file as the input --from 'in.txt'";
+    return on_input(out_option, spelling, "--from", "in.txt");
   };
   return {
       // an output on an input: every command with an input
@@ -105,61 +115,61 @@ std::vector<BadInputCase> cases() {
       {"ValidateJsonOnFromHardLink", kValidateFrom + " --json hard.txt", 2, in_txt("--json", "hard.txt"), kSamples},
       {"ValidateJsonOnFromSymlink", kValidateFrom + " --json sym.txt", 2, in_txt("--json", "sym.txt"), kSamples},
       {"ValidateFromOnSymlinkedJson", "validate --from sym.txt --alpha 0.3 --theta 30 --json in.txt", 2,
-       "--json 'in.txt' is the same file as the input --from 'sym.txt'", kSamples},
+       on_input("--json", "in.txt", "--from", "sym.txt"), kSamples},
       {"ValidatePlotOnFrom", kValidateFrom + " --plot in.txt", 2, in_txt("--plot", "in.txt"), kSamples},
       {"ValidateJsonOnAgainst", kValidateAgainst + " --json hist.exr", 2,
-       "--json 'hist.exr' is the same file as the input --against 'hist.exr'", kHistogram},
+       on_input("--json", "hist.exr", "--against", "hist.exr"), kHistogram},
       {"ValidateJsonOnAgainstHardLink", kValidateAgainst + " --json hard.exr", 2,
-       "--json 'hard.exr' is the same file as the input --against 'hist.exr'", kHistogram},
+       on_input("--json", "hard.exr", "--against", "hist.exr"), kHistogram},
       {"TraceVndfOutOnSurface", kTraceSurface + " --out in.exr", 2,
-       "--out 'in.exr' is the same file as the input --surface 'in.exr'", kHeightmap},
+       on_input("--out", "in.exr", "--surface", "in.exr"), kHeightmap},
       {"TraceVndfOutOnSurfaceSymlink", kTraceSurface + " --out sym.exr", 2,
-       "--out 'sym.exr' is the same file as the input --surface 'in.exr'", kHeightmap},
+       on_input("--out", "sym.exr", "--surface", "in.exr"), kHeightmap},
       {"TraceVndfJsonOnSurface", kTraceSurface + " --out h.exr --json in.exr", 2,
-       "--json 'in.exr' is the same file as the input --surface 'in.exr'", kHeightmap},
+       on_input("--json", "in.exr", "--surface", "in.exr"), kHeightmap},
       {"TraceMaskingJsonOnSurface", kMasking + " --json in.exr", 2,
-       "--json 'in.exr' is the same file as the input --surface 'in.exr'", kHeightmap},
+       on_input("--json", "in.exr", "--surface", "in.exr"), kHeightmap},
       {"TraceMaskingJsonOnSurfaceHardLink", kMasking + " --json hard.exr", 2,
-       "--json 'hard.exr' is the same file as the input --surface 'in.exr'", kHeightmap},
+       on_input("--json", "hard.exr", "--surface", "in.exr"), kHeightmap},
       {"SurfaceStatsJsonOnInput", "surface stats in.exr --json in.exr", 2,
-       "--json 'in.exr' is the same file as the input heightmap 'in.exr'", kHeightmap},
+       on_input("--json", "in.exr", "heightmap", "in.exr"), kHeightmap},
       {"SurfaceStatsNormalsOnInputDotDot", "surface stats in.exr --normals sub/../in.exr", 2,
-       "--normals 'sub/../in.exr' is the same file as the input heightmap 'in.exr'", kHeightmap},
+       on_input("--normals", "sub/../in.exr", "heightmap", "in.exr"), kHeightmap},
       {"SurfaceStatsMeshOnInputSymlink", "surface stats in.exr --mesh sym.exr", 2,
-       "--mesh 'sym.exr' is the same file as the input heightmap 'in.exr'", kHeightmap},
+       on_input("--mesh", "sym.exr", "heightmap", "in.exr"), kHeightmap},
       {"SurfaceImportOutOnInput", "surface import in.exr --tile-size 1 --out in.exr", 2,
-       "--out 'in.exr' is the same file as the input heightmap 'in.exr'", kHeightmap},
+       on_input("--out", "in.exr", "heightmap", "in.exr"), kHeightmap},
       {"SurfaceImportOutOnInputHardLink", "surface import in.exr --tile-size 1 --out hard.exr", 2,
-       "--out 'hard.exr' is the same file as the input heightmap 'in.exr'", kHeightmap},
+       on_input("--out", "hard.exr", "heightmap", "in.exr"), kHeightmap},
       {"PlotOutOnHistogram", "plot hist.exr --out hist.exr", 2,
-       "--out 'hist.exr' is the same file as the input histogram 'hist.exr'", kHistogram},
+       on_input("--out", "hist.exr", "histogram", "hist.exr"), kHistogram},
       {"PlotOutOnHistogramSymlink", "plot hist.exr --out sym.exr", 2,
-       "--out 'sym.exr' is the same file as the input histogram 'hist.exr'", kHistogram},
+       on_input("--out", "sym.exr", "histogram", "hist.exr"), kHistogram},
       // two outputs of one command on one file (existing or not yet)
       {"ValidateJsonAndPlot", kValidateFrom + " --json fig.svg --plot fig.svg", 2,
-       "--json 'fig.svg' and --plot 'fig.svg' are the same file", kSamples},
+       same_outputs("--json", "fig.svg", "--plot", "fig.svg"), kSamples},
       {"ValidateJsonAndPlotSpelled", kValidateFrom + " --json fig.svg --plot ./sub/../fig.svg", 2,
-       "--json 'fig.svg' and --plot './sub/../fig.svg' are the same file", kSamples},
+       same_outputs("--json", "fig.svg", "--plot", "./sub/../fig.svg"), kSamples},
       {"TraceVndfOutAndJson", kTraceEllipsoid + " --out o.exr --json o.exr", 2,
-       "--out 'o.exr' and --json 'o.exr' are the same file", kNothing},
+       same_outputs("--out", "o.exr", "--json", "o.exr"), kNothing},
       {"TraceVndfOutAndJsonExistingHardLink", kTraceEllipsoid + " --out in.exr --json hard.exr", 2,
-       "--out 'in.exr' and --json 'hard.exr' are the same file", kHeightmap},
+       same_outputs("--out", "in.exr", "--json", "hard.exr"), kHeightmap},
       {"TraceVndfOutAndMeshOut", kTraceEllipsoid + " --mesh-level 1 --out o.exr --mesh-out ./o.exr", 2,
-       "--out 'o.exr' and --mesh-out './o.exr' are the same file", kNothing},
+       same_outputs("--out", "o.exr", "--mesh-out", "./o.exr"), kNothing},
       {"TraceVndfSurfaceOutAndJson", kTraceSurface + " --out o.exr --json sub/../o.exr", 2,
-       "--out 'o.exr' and --json 'sub/../o.exr' are the same file", kHeightmap},
+       same_outputs("--out", "o.exr", "--json", "sub/../o.exr"), kHeightmap},
       {"TraceMaskingTableJsonAndMarkdown", kTable + " --json t.md --markdown t.md", 2,
-       "--json 't.md' and --markdown 't.md' are the same file", kNothing},
+       same_outputs("--json", "t.md", "--markdown", "t.md"), kNothing},
       {"SurfaceBuildOutAndNormals", kBuild + " --out o.exr --normals o.exr", 2,
-       "--out 'o.exr' and --normals 'o.exr' are the same file", kNothing},
+       same_outputs("--out", "o.exr", "--normals", "o.exr"), kNothing},
       {"SurfaceBuildOutAndJsonSymlink", kBuild + " --out in.exr --json sym.exr", 2,
-       "--out 'in.exr' and --json 'sym.exr' are the same file", kHeightmap},
+       same_outputs("--out", "in.exr", "--json", "sym.exr"), kHeightmap},
       {"SurfaceBuildMeshAndJson", kBuild + " --out o.exr --mesh m.ply --json ./m.ply", 2,
-       "--mesh 'm.ply' and --json './m.ply' are the same file", kNothing},
+       same_outputs("--mesh", "m.ply", "--json", "./m.ply"), kNothing},
       {"SurfaceStatsMeshAndJson", "surface stats in.exr --json m.ply --mesh m.ply", 2,
-       "--json 'm.ply' and --mesh 'm.ply' are the same file", kHeightmap},
+       same_outputs("--json", "m.ply", "--mesh", "m.ply"), kHeightmap},
       {"SurfaceStatsNormalsAndJson", "surface stats in.exr --json n.exr --normals sub/../n.exr", 2,
-       "--json 'n.exr' and --normals 'sub/../n.exr' are the same file", kHeightmap},
+       same_outputs("--json", "n.exr", "--normals", "sub/../n.exr"), kHeightmap},
   };
 }
 

@@ -21,6 +21,7 @@
 #include <fstream>
 #include <functional>
 #include <optional>
+#include <ostream>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -45,6 +46,15 @@ bool catches_sigint(pid_t pid) {
     return (mask >> (SIGINT - 1)) & 1u;
   }
   return false;
+}
+
+// Polls every 20 ms until done() holds (true) or the deadline passes (false).
+bool poll_until(Clock::time_point deadline, const std::function<bool()>& done) {
+  while (!done()) {
+    if (Clock::now() > deadline) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  return true;
 }
 
 struct InterruptedRun {
@@ -73,37 +83,25 @@ InterruptedRun run_and_interrupt(const fs::path& dir, const std::string& args,
   }
   InterruptedRun r;
   int status = 0;
+  bool exited = false;
+  const auto reaped = [&] { return exited = exited || ::waitpid(pid, &status, WNOHANG) == pid; };
+  const auto kill_hard = [&](const std::string& why) {
+    ::kill(pid, SIGKILL);
+    ::waitpid(pid, &status, 0);
+    ADD_FAILURE() << "microsim " << args << ": " << why;
+  };
   std::optional<Clock::time_point> ready_since;
-  const auto give_up = Clock::now() + std::chrono::seconds(300);
-  while (true) {
-    if (::waitpid(pid, &status, WNOHANG) == pid) {
-      r.ended_early = true;
-      break;
-    }
+  const bool ready = poll_until(Clock::now() + std::chrono::seconds(300), [&] {
+    if (reaped()) return true;
     if (!ready_since && catches_sigint(pid) && phase(slurp(out), slurp(err))) ready_since = Clock::now();
-    if (ready_since && Clock::now() - *ready_since >= delay) {
-      ::kill(pid, SIGINT);
-      break;
-    }
-    if (Clock::now() > give_up) {
-      ::kill(pid, SIGKILL);
-      ::waitpid(pid, &status, 0);
-      ADD_FAILURE() << "microsim " << args << ": the phase to interrupt never came";
-      break;
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  if (!r.ended_early && !::testing::Test::HasFailure()) {
-    const auto deadline = Clock::now() + std::chrono::seconds(180);
-    while (::waitpid(pid, &status, WNOHANG) != pid) {
-      if (Clock::now() > deadline) {
-        ::kill(pid, SIGKILL);
-        ::waitpid(pid, &status, 0);
-        ADD_FAILURE() << "microsim " << args << " did not stop within 180 s of SIGINT";
-        break;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
+    return ready_since && Clock::now() - *ready_since >= delay;
+  });
+  r.ended_early = exited;
+  if (!ready) {
+    kill_hard("the phase to interrupt never came");
+  } else if (!exited) {
+    ::kill(pid, SIGINT);
+    if (!poll_until(Clock::now() + std::chrono::seconds(180), reaped)) kill_hard("did not stop within 180 s of SIGINT");
   }
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   r.out = slurp(out);
@@ -211,65 +209,69 @@ TEST(CliInterrupt, ValidateAllMarksItsResultsPartial) {
   fs::remove_all(dir);
 }
 
-TEST(CliInterrupt, ValidateAgainstEllipsoidWritesNothing) {
-  const fs::path dir = microsim::test::scratch_dir("interrupt", "validate_against");
-  const auto r = run_and_interrupt(dir,
-                                   "validate --sampler heitz2018 --alpha 0.5 --theta 30 --against ellipsoid "
-                                   "--rays 400000000 --json v.json",
-                                   kAnyPhase, std::chrono::milliseconds(500));
-  expect_interrupted(r, "validate --against ellipsoid");
-  EXPECT_EQ(microsim::test::file_count(dir), 0u) << "an interrupted validation has no verdict to write";
-  fs::remove_all(dir);
-}
+// Commands with no partial result to keep: Ctrl-C stops them with nothing written, said on stderr.
+struct NothingWrittenCase {
+  std::string name, args;
+};
+std::ostream& operator<<(std::ostream& os, const NothingWrittenCase& c) { return os << c.name; }
 
-TEST(CliInterrupt, ValidateSamplerWritesNothing) {
-  const fs::path dir = microsim::test::scratch_dir("interrupt", "validate_sampler");
-  const auto r = run_and_interrupt(dir, "validate --sampler heitz2018 --alpha 0.5 --theta 30 --samples 4000000 --json v.json",
-                                   kAnyPhase, std::chrono::milliseconds(300));
-  expect_interrupted(r, "validate --sampler");
-  EXPECT_EQ(microsim::test::file_count(dir), 0u);
-  fs::remove_all(dir);
-}
+class InterruptWritesNothing : public ::testing::TestWithParam<NothingWrittenCase> {};
 
-TEST(CliInterrupt, SurfaceBuildStopsAndWritesNothing) {
-  const fs::path dir = microsim::test::scratch_dir("interrupt", "surface_build");
-  const auto r = run_and_interrupt(dir, "surface build --assembly smith --alpha 0.5 --res 2048 --out s.exr --json s.json",
-                                   kAnyPhase, std::chrono::milliseconds(300));
-  expect_interrupted(r, "surface build");
+TEST_P(InterruptWritesNothing, ExitsInterruptedAndLeavesNoFile) {
+  const NothingWrittenCase& c = GetParam();
+  const fs::path dir = microsim::test::scratch_dir("interrupt", c.name);
+  const auto r = run_and_interrupt(dir, c.args, kAnyPhase, std::chrono::milliseconds(300));
+  expect_interrupted(r, c.args);
   EXPECT_NE(r.err.find("nothing written"), std::string::npos) << r.err;
   EXPECT_EQ(microsim::test::file_count(dir), 0u) << "no output and no temporary may be left";
   fs::remove_all(dir);
 }
 
-TEST(CliInterrupt, TraceVndfEllipsoidWritesAPartialHistogram) {
-  const fs::path dir = microsim::test::scratch_dir("interrupt", "trace_vndf");
-  const auto r = run_and_interrupt(dir, "trace vndf --alpha 0.5 --theta 30 --rays 400000000 --out h.exr --json h.json",
-                                   stderr_has("trace vndf: ellipsoid"), std::chrono::milliseconds(300));
-  expect_interrupted(r, "trace vndf");
-  EXPECT_EQ(read_json(dir / "h.json").value("partial", false), true);
-  EXPECT_TRUE(microsim::read_histogram_exr(dir / "h.exr").partial);
+INSTANTIATE_TEST_SUITE_P(
+    CliInterrupt, InterruptWritesNothing,
+    ::testing::Values(
+        NothingWrittenCase{"ValidateAgainstEllipsoid", "validate --sampler heitz2018 --alpha 0.5 --theta 30 --against "
+                                                       "ellipsoid --rays 400000000 --json v.json"},
+        // The sampling has no check (the signal takes effect at its end): a few seconds of it.
+        NothingWrittenCase{"ValidateSampler", "validate --sampler heitz2018 --alpha 0.5 --theta 30 --samples 4000000 "
+                                              "--json v.json"},
+        NothingWrittenCase{"SurfaceBuild", "surface build --assembly smith --alpha 0.5 --res 2048 --out s.exr --json s.json"},
+        NothingWrittenCase{"Stability", "stability --json st.json"}),
+    [](const auto& info) { return info.param.name; });
+
+// Commands that keep what they measured: Ctrl-C mid-trace writes it, JSON (and histogram) marked partial.
+struct PartialCase {
+  std::string name, args;
+  std::string phase;      // stderr text printed just before the long trace starts
+  std::string histogram;  // the histogram EXR written, if any
+};
+std::ostream& operator<<(std::ostream& os, const PartialCase& c) { return os << c.name; }
+
+class InterruptWritesPartial : public ::testing::TestWithParam<PartialCase> {};
+
+TEST_P(InterruptWritesPartial, ExitsInterruptedWithResultsMarkedPartial) {
+  const PartialCase& c = GetParam();
+  const fs::path dir = microsim::test::scratch_dir("interrupt", c.name);
+  put_heightmap(dir);
+  const auto r = run_and_interrupt(dir, c.args, stderr_has(c.phase), std::chrono::milliseconds(300));
+  expect_interrupted(r, c.args);
+  EXPECT_EQ(read_json(dir / "r.json").value("partial", false), true);
+  if (!c.histogram.empty()) {
+    EXPECT_TRUE(microsim::read_histogram_exr(dir / c.histogram).partial);
+  }
   fs::remove_all(dir);
 }
 
-TEST(CliInterrupt, TraceVndfHeightfieldWritesAPartialHistogram) {
-  const fs::path dir = microsim::test::scratch_dir("interrupt", "trace_vndf_surface");
-  put_heightmap(dir);
-  const auto r = run_and_interrupt(dir, "trace vndf --surface s.exr --theta 30 --rays 400000000 --out h.exr --json h.json",
-                                   stderr_has("trace vndf: heightfield"), std::chrono::milliseconds(300));
-  expect_interrupted(r, "trace vndf --surface");
-  EXPECT_EQ(read_json(dir / "h.json").value("partial", false), true);
-  EXPECT_TRUE(microsim::read_histogram_exr(dir / "h.exr").partial);
-  fs::remove_all(dir);
-}
-
-TEST(CliInterrupt, TraceMaskingWritesPartialResults) {
-  const fs::path dir = microsim::test::scratch_dir("interrupt", "trace_masking");
-  put_heightmap(dir);
-  const auto r = run_and_interrupt(dir, "trace masking --surface s.exr --theta 30 --samples 400000000 --json m.json",
-                                   stderr_has("trace masking:"), std::chrono::milliseconds(300));
-  expect_interrupted(r, "trace masking");
-  EXPECT_EQ(read_json(dir / "m.json").value("partial", false), true);
-  fs::remove_all(dir);
-}
+INSTANTIATE_TEST_SUITE_P(
+    CliInterrupt, InterruptWritesPartial,
+    ::testing::Values(
+        PartialCase{"TraceVndfEllipsoid", "trace vndf --alpha 0.5 --theta 30 --rays 400000000 --out h.exr --json r.json",
+                    "trace vndf: ellipsoid", "h.exr"},
+        PartialCase{"TraceVndfHeightfield",
+                    "trace vndf --surface s.exr --theta 30 --rays 400000000 --out h.exr --json r.json",
+                    "trace vndf: heightfield", "h.exr"},
+        PartialCase{"TraceMasking", "trace masking --surface s.exr --theta 30 --samples 400000000 --json r.json",
+                    "trace masking:", ""}),
+    [](const auto& info) { return info.param.name; });
 
 }  // namespace
