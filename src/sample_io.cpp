@@ -6,6 +6,8 @@
 // 'fortran_order' and 'shape', padded with spaces and ended by '\n'; the raw array data follows.
 #include "microsim/sample_io.h"
 
+#include "microgeom/atomic_file.h"
+
 #include <array>
 #include <bit>
 #include <charconv>
@@ -342,27 +344,12 @@ void read_text_lines(const std::filesystem::path& path, std::string_view text, s
 
 // ---- writing -------------------------------------------------------------------------------------------
 
-// Writes `bytes` to a temporary sibling of `path` and renames it over `path`.
+// Writes `bytes` to `path` atomically (microgeom/atomic_file.h).
 void write_atomically(const std::filesystem::path& path, const std::string& bytes) {
-  std::filesystem::path tmp = path;
-  tmp += ".partial";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) fail(path, "cannot open '" + tmp.string() + "' for writing");
-    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    out.close();
-    if (!out) {
-      std::error_code ec;
-      std::filesystem::remove(tmp, ec);
-      fail(path, "write error");
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::error_code ignored;
-    std::filesystem::remove(tmp, ignored);
-    fail(path, "cannot rename the temporary file into place: " + ec.message());
+  try {
+    microgeom::write_file_atomically(path, bytes);
+  } catch (const microgeom::FileWriteError& e) {
+    throw SampleFileError(e.what());
   }
 }
 
