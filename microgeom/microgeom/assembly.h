@@ -76,14 +76,14 @@ void validate(const AssemblyParams& params);
 // [0.005, 2] gives identical verdicts.
 // - GGX assemblies need N >= 256: at N <= 64 (<= 8192 triangles) the re-integrated slope radii miss the
 //   fixed 3% quantile / radius-bin bounds at every alpha and correlation length (3.4-56%, 3 seeds); at
-//   N = 128 they reach 2.5% isotropic and 3.4% at 1:4 (fails 2 of 12 builds). N = 256 is also where the
-//   tolerance's calibration starts. The Beckmann control, whose bounds widen with the sampling noise,
-//   meets its check from N = 16.
+//   N = 128 they reach 2.5% isotropic and 3.4% at 1:4 (1 of 24 builds fails; 3 of 12 with l = N/8).
+//   N = 256 is also where the tolerance's calibration starts. The Beckmann control, whose bounds widen
+//   with the sampling noise, meets its check from N = 16.
 // - Anisotropy max/min alpha <= 4: stretching the spectrum to 1:r leaves (N/l)^2 / r independent patches
 //   while the angular-bin tolerance counts (N/l)^2 (the angular law of one tile is exact only in
 //   expectation), so the angular error grows with r at every N: largest error / tolerance 0.57 at 1:4,
 //   0.96 at 1:6 and 1.18 at 1:8 (mixture, N = 1024, 2 seeds); 1:10 fails at N = 128 and 1:20 at
-//   N = 512 for most assemblies; 1:400 (alpha 0.005,2) fails at every N and assembly.
+//   N = 512 for most assemblies; 1:400 (alpha 0.005,2) fails at every N measured (128-1024) and assembly.
 // - Correlation length l >= min_checked_corr_cells(N) = min(8, max(N >= 256 ? 4 : 2, N/128)) cells: on
 //   the grid, short features bias the angular law (11-17% per bin at l = 2, 5-8% at l = 3, 4-5% at
 //   l = 4, N = 1024), beyond the angular tolerance max(5%, 5 sqrt(32) l/N) at large N (l = 2 fails at
