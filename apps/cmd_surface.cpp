@@ -222,6 +222,7 @@ struct BuildOptions {
   std::uint64_t seed = 1;
   double corr_cells = 0, tile_size = 1.0;
   bool quiet = false;
+  bool unsupported = false;  // build even outside microgeom::check_supported_range
 };
 
 int run_build(const BuildOptions& o) {
@@ -237,6 +238,7 @@ int run_build(const BuildOptions& o) {
   p.iterations = o.iterations;
   try {
     microgeom::validate(p);
+    if (!o.unsupported) microgeom::check_supported_range(p);
   } catch (const std::invalid_argument& e) {
     throw UsageError(e.what());
   }
@@ -476,7 +478,10 @@ microsim::app::CommandRegistration reg{"surface", [](CLI::App& app) {
       "Build a periodic heightfield with a prescribed NDF, check its measured NDF against the analytic one "
       "(an error if it misses the stated tolerance) and write it as an EXR heightmap.");
   build->footer("Assemblies (all reproducible from --seed, isotropic or anisotropic):" + assembly_help() +
-                "\nAnisotropy stretches the spectra: the surface is the affine image of an isotropic one.");
+                "\nAnisotropy stretches the spectra: the surface is the affine image of an isotropic one."
+                "\nSupported range (where a build meets its NDF check; docs/surfaces.md): N >= 256 for the GGX "
+                "assemblies (beckmann: N >= 16), max/min alpha <= 4, --corr-cells in [min(8, max(N >= 256 ? 4 : 2, "
+                "N/128)), N/16] (beckmann: up to N/8); outside it the build is refused (exit 2) unless --unsupported.");
   build->add_option("--assembly", b->assembly, "assembly name (see above)")->required();
   build->add_option("--alpha", b->alpha, "GGX/Beckmann roughness AX or AX,AY, each in [0.005, 2]")->required();
   build->add_option("--res", b->resolution, "vertices per side N (a power of two, 16..8192; 8192 needs ~6.7 GiB)")->required();
@@ -491,6 +496,8 @@ microsim::app::CommandRegistration reg{"surface", [](CLI::App& app) {
   build->add_option("--normals", b->normals, "also write the normal map EXR (R, G, B = unit cell normals)");
   build->add_option("--json", b->json, "also write the build report and statistics as JSON");
   build->add_flag("--quiet", b->quiet, "no progress on stderr");
+  build->add_flag("--unsupported", b->unsupported,
+                  "build even outside the supported range (the NDF check still decides; scripts/surface_range.sh)");
   microsim::app::on_selected(build, [b] { return run_build(*b); });
 
   // stats

@@ -122,6 +122,35 @@ void validate(const AssemblyParams& p) {
     throw invalid_argument(fmt::format("iterations {} must be in [0, 100]", p.iterations));
 }
 
+double min_checked_corr_cells(int resolution) {
+  return std::min(8.0, std::max(resolution >= 256 ? 4.0 : 2.0, resolution / 128.0));
+}
+
+void check_supported_range(const AssemblyParams& p) {
+  const AssemblyInfo* info = find_assembly(p.assembly);
+  const bool ggx = info && info->reference == ReferenceNdf::ggx;
+  if (ggx && p.resolution < kMinGgxCheckedResolution)
+    throw OutsideSupportedRange(fmt::format(
+        "{} at resolution {} cannot meet its NDF check: use resolution >= {} (the beckmann control works from 16)",
+        p.assembly, p.resolution, kMinGgxCheckedResolution));
+  const double hi = std::max(p.alpha_x, p.alpha_y), ratio = hi / std::min(p.alpha_x, p.alpha_y);
+  if (ratio > kMaxCheckedAnisotropy * (1 + 1e-12)) {
+    const double lo = hi / kMaxCheckedAnisotropy;  // the nearest supported pair keeping the rougher axis
+    throw OutsideSupportedRange(fmt::format(
+        "alpha ({:g}, {:g}): anisotropy 1:{:.4g} cannot meet the NDF check at any resolution: use max/min alpha "
+        "<= {:g}, e.g. alpha ({:g}, {:g})",
+        p.alpha_x, p.alpha_y, ratio, kMaxCheckedAnisotropy, p.alpha_x == hi ? hi : lo, p.alpha_y == hi ? hi : lo));
+  }
+  const double l = p.corr_cells == 0 ? default_corr_cells(p.resolution) : p.corr_cells;
+  const double l_min = min_checked_corr_cells(p.resolution);
+  const double l_max = ggx ? p.resolution / kMinGgxCorrelationLengthsPerTile : p.resolution / 8.0;
+  if (l < l_min || l > l_max)
+    throw OutsideSupportedRange(fmt::format(
+        "correlation length {:g} cells at resolution {} cannot meet the NDF check{}: use {:g}..{:g} cells (default {:g})",
+        l, p.resolution, l > l_max ? fmt::format(" for {}", p.assembly) : "", l_min, l_max,
+        default_corr_cells(p.resolution)));
+}
+
 namespace {
 
 // ---- FFTW on an N x N periodic grid (double precision) ---------------------------------------------------

@@ -1,9 +1,27 @@
 #include "microsim/quadric.h"
 
+#include <fmt/core.h>
+
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
 namespace microsim {
+
+void check_quadric_roughness(double ax, double ay) {
+  const auto in_range = [](double a) { return a >= kMinAlpha && a <= kQuadricMaxAlpha; };  // false for NaN
+  const bool ok = in_range(ax) && in_range(ay) &&
+                  std::max(ax, ay) <= kQuadricMaxAnisotropy * (1 + 1e-12) * std::min(ax, ay);
+  if (ok) return;
+  throw UnsupportedRoughness(fmt::format(
+      "ellipsoid roughness ({:g}, {:g}) is outside the range where the traced quadric is verified: alpha in "
+      "[{:g}, {:g}] per axis and anisotropy max/min <= {:g}",
+      ax, ay, kMinAlpha, kQuadricMaxAlpha, kQuadricMaxAnisotropy));
+}
+
+QuadricEllipsoid::QuadricEllipsoid(const microgeom::Ellipsoid& ellipsoid) : ellipsoid_(ellipsoid) {
+  check_quadric_roughness(ellipsoid.ax, ellipsoid.ay);
+}
 
 unsigned int QuadricEllipsoid::attach(embree::Scene& scene) {
   return scene.add_user_geometry(1, this, {&QuadricEllipsoid::bounds, &QuadricEllipsoid::intersect,

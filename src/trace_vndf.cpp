@@ -335,6 +335,7 @@ EllipsoidTarget::EllipsoidTarget(double alpha_x, double alpha_y, int mesh_level,
   if (!(alpha_x > 0.0) || !(alpha_y > 0.0) || !std::isfinite(alpha_x) || !std::isfinite(alpha_y)) {
     throw std::invalid_argument(fmt::format("ellipsoid roughness ({}, {}) must be positive and finite", alpha_x, alpha_y));
   }
+  if (!is_mesh()) check_quadric_roughness(alpha_x, alpha_y);  // before any Embree work (QuadricEllipsoid checks too)
   device_ = std::make_unique<embree::Device>();
   scene_ = std::make_unique<embree::Scene>(*device_, quality, /*robust=*/true);
   if (is_mesh()) {

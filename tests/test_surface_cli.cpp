@@ -28,7 +28,7 @@ fs::path scratch_dir(const std::string& name) { return microsim::test::scratch_d
 
 TEST(SurfaceCli, BuildWritesHeightmapNormalsMeshAndJsonThenStatsReadsIt) {
   const auto dir = scratch_dir("build");
-  const CliRun b = run(dir, "surface build --quiet --assembly smith --alpha 0.4,0.2 --res 128 --seed 5 --out s.exr "
+  const CliRun b = run(dir, "surface build --quiet --assembly smith --alpha 0.4,0.2 --res 256 --seed 5 --out s.exr "
                          "--normals n.exr --mesh m.obj --mesh-crop 8 --json s.json");
   ASSERT_EQ(b.exit_code, 0) << b.err;
   EXPECT_NE(b.out.find("NDF verdict: ok"), std::string::npos) << b.out;
@@ -37,7 +37,7 @@ TEST(SurfaceCli, BuildWritesHeightmapNormalsMeshAndJsonThenStatsReadsIt) {
   EXPECT_EQ(file_count(dir), 4u);  // no temporaries left
 
   const auto field = microgeom::load_heightmap_exr(dir / "s.exr");
-  EXPECT_EQ(field.resolution(), 128);
+  EXPECT_EQ(field.resolution(), 256);
   EXPECT_EQ(field.tile_size(), 1.0);
   EXPECT_EQ(field.metadata.at("assembly"), "smith");
   EXPECT_EQ(field.metadata.at("seed"), "5");
@@ -75,10 +75,10 @@ TEST(SurfaceCli, BadInputExitsTwoNamingTheValueAndWritesNothing) {
       {"surface build --assembly smith --alpha abc --res 64 --out x.exr", "'abc'"},
       {"surface build --assembly smoth --alpha 0.5 --res 64 --out x.exr", "'smoth'"},
       {"surface build --assembly smith --alpha 0.5 --res 64 --tile-size 0 --out x.exr", "tile size 0"},
-      {"surface build --assembly smith --alpha 0.5 --res 64 --out nodir/x.exr", "nodir"},
-      {"surface build --assembly smith --alpha 0.5 --res 64 --out x.exr --mesh x.xyz", "x.xyz"},
+      {"surface build --assembly smith --alpha 0.5 --res 256 --out nodir/x.exr", "nodir"},
+      {"surface build --assembly smith --alpha 0.5 --res 256 --out x.exr --mesh x.xyz", "x.xyz"},
       // A build that misses its NDF (one slope-matching iteration) is an error, not a warning.
-      {"surface build --quiet --assembly smith --alpha 0.5 --res 64 --iterations 1 --out x.exr --json x.json",
+      {"surface build --quiet --assembly smith --alpha 0.5 --res 256 --iterations 1 --out x.exr --json x.json",
        "misses its ggx NDF"},
       {"surface stats missing.exr", "missing.exr"},
       {"surface import missing.exr --tile-size 1 --out y.exr", "missing.exr"},

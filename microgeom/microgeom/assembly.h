@@ -68,6 +68,45 @@ double default_corr_cells(int resolution);
 // corr_cells < 2 or > N/8, tile size <= 0, iterations < 0 or > 100.
 void validate(const AssemblyParams& params);
 
+// ---- the supported range: where a build meets its own NDF check ------------------------------------------
+// validate() states what can be built at all; the supported range is the part of it where the built tile
+// meets its NDF check (surface_stats.h, tolerance_for) with a margin, measured over seeds by
+// scripts/surface_range.sh (docs/surfaces.md, "Supported range", has the tables). Outside it a build
+// fails its own check, or passes by luck of the seed, so `surface build` refuses it before any work.
+// Isotropic alpha does not enter: the construction works in normalised slope space, and alpha in
+// [0.005, 2] gives identical verdicts.
+// - GGX assemblies need N >= 256: at N <= 64 (<= 8192 triangles) the re-integrated slope radii miss the
+//   fixed 3% quantile / radius-bin bounds at every alpha and correlation length (3.4-56%, 3 seeds); at
+//   N = 128 they reach 2.5% isotropic and 3.4% at 1:4 (1 of 24 builds fails; 3 of 12 with l = N/8).
+//   N = 256 is also where the tolerance's calibration starts. The Beckmann control, whose bounds widen
+//   with the sampling noise, meets its check from N = 16.
+// - Anisotropy max/min alpha <= 4: stretching the spectrum to 1:r leaves (N/l)^2 / r independent patches
+//   while the angular-bin tolerance counts (N/l)^2 (the angular law of one tile is exact only in
+//   expectation), so the angular error grows with r at every N: largest error / tolerance 0.57 at 1:4,
+//   0.96 at 1:6 and 1.18 at 1:8 (mixture, N = 1024, 2 seeds); 1:10 fails at N = 128 and 1:20 at
+//   N = 512 for most assemblies; 1:400 (alpha 0.005,2) fails at every N measured (128-1024) and assembly.
+// - Correlation length l >= min_checked_corr_cells(N) = min(8, max(N >= 256 ? 4 : 2, N/128)) cells: on
+//   the grid, short features bias the angular law (11-17% per bin at l = 2, 5-8% at l = 3, 4-5% at
+//   l = 4, N = 1024), beyond the angular tolerance max(5%, 5 sqrt(32) l/N) at large N (l = 2 fails at
+//   N >= 512; at N = 256 it reaches 0.98 of it). And for the GGX assemblies l <= N/16 (at l = N/8 the
+//   radius bins reach 0.96 of their bound at 1:4). The default l = min(16, N/16) is always inside.
+inline constexpr int kMinGgxCheckedResolution = 256;
+inline constexpr double kMaxCheckedAnisotropy = 4;
+inline constexpr double kMinGgxCorrelationLengthsPerTile = 16;
+double min_checked_corr_cells(int resolution);
+
+// The build cannot meet its NDF check: a std::invalid_argument whose message names the value and what
+// would work.
+class OutsideSupportedRange : public std::invalid_argument {
+public:
+  using std::invalid_argument::invalid_argument;
+};
+
+// Throws OutsideSupportedRange unless `params` (valid: see validate()) lie in the supported range above.
+// The message names the bad value in library terms ("resolution 64", "alpha (0.005, 2)", "correlation
+// length 2 cells") and what would work.
+void check_supported_range(const AssemblyParams& params);
+
 struct BuildReport {
   double corr_cells = 0;
   int iterations = 0;
