@@ -481,7 +481,7 @@ microsim::app::CommandRegistration reg{"surface", [](CLI::App& app) {
   stats->add_option("heightmap", s->path, "heightmap EXR")->required();
   add_number_option(stats, "--tile-size", s->tile_size, ma::real(),
                     "physical tile size (required if the file has no microsim.tile_size)");
-  stats->add_option("--alpha", s->alpha, "normalising roughness AX[,AY] (default: the file's, else fitted)");
+  stats->add_option("--alpha", s->alpha, "normalising roughness AX[,AY], each in [1e-4, 10], anisotropy at most 1:1000 (default: the file's, else fitted)");
   stats->add_option("--reference", s->reference, "ggx or beckmann (default: the file's, else ggx)");
   add_number_option(stats, "--corr-cells", s->corr_cells, ma::real(),
                     "correlation length for the tolerance (default: the file's)");

@@ -57,11 +57,10 @@ double peak_rss_mib() {
   return double(usage.ru_maxrss) / 1024.0;  // Linux: kilobytes
 }
 
-std::vector<std::string> split_names(const std::string& text) {
+// "a,b,c": the list rules of the number parser (no empty item).
+std::vector<std::string> split_names(const std::string& option, const std::string& text) {
   std::vector<std::string> names;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) names.push_back(item);
+  for (const std::string_view item : split_list(option, text)) names.emplace_back(item);
   return names;
 }
 
@@ -384,7 +383,7 @@ std::vector<unsigned long long> parse_seeds(const MaskingArgs& a) {
 int run_table(const MaskingArgs& a) {
   const auto alphas = parse_double_list("--alphas", a.alphas);
   const auto thetas = parse_double_list("--thetas", a.thetas);
-  const auto names = split_names(a.assemblies);
+  const auto names = split_names("--assemblies", a.assemblies);
   const auto seeds = parse_seeds(a);
   for (double t : thetas) check_theta("--thetas", t);
   for (double al : alphas)

@@ -153,6 +153,8 @@ std::vector<BadInputCase> cases() {
       {"StatsAlpha1e30", kStats.with("--alpha", "1e30"), 2, "'1e30': outside the supported roughness range", surface},
       {"TableAlphasEmptyItem", kTable.with("--alphas", "0.1,,0.5"), 2,
        "--alphas '0.1,,0.5': empty item between '0.1' and '0.5'"},
+      {"TableAssembliesTrailingComma", kTable.with("--assemblies", "smith,"), 2,
+       "--assemblies 'smith,': empty item after 'smith'"},
       {"TableThetasTrailingComma", kTable.with("--thetas", "30,"), 2,
        "--thetas '30,': empty item after '30'"},
       // ---- reals: NaN, inf, hex floats, white space, empty, huge exponents ----
