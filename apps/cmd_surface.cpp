@@ -462,7 +462,8 @@ microsim::app::CommandRegistration reg{"surface", [](CLI::App& app) {
   add_number_option(build, "--corr-cells", b->corr_cells, ma::real(),
                     "correlation length l in cells, in [2, N/8] (default min(16, N/16)); the mixture's patches are 8 l");
   add_number_option(build, "--tile-size", b->tile_size, ma::real(), "physical side L of the tile (default 1)");
-  add_number_option(build, "--iterations", b->iterations, ma::integer(0, 100), "slope-matching iterations, 0..100 (default 8)");
+  add_number_option(build, "--iterations", b->iterations, ma::integer(0, 100),
+                    "slope-matching iterations, 0..100 (default 8)");
   build->add_option("--out", b->out, "heightmap EXR (channel 'height', attributes microsim.*)")->required();
   build->add_option("--mesh", b->mesh, "also write the mesh (.ply or .obj) through OpenMesh");
   add_number_option(build, "--mesh-crop", b->mesh_crop, any_int,
@@ -481,7 +482,9 @@ microsim::app::CommandRegistration reg{"surface", [](CLI::App& app) {
   stats->add_option("heightmap", s->path, "heightmap EXR")->required();
   add_number_option(stats, "--tile-size", s->tile_size, ma::real(),
                     "physical tile size (required if the file has no microsim.tile_size)");
-  stats->add_option("--alpha", s->alpha, "normalising roughness AX[,AY], each in [1e-4, 10], anisotropy at most 1:1000 (default: the file's, else fitted)");
+  stats->add_option("--alpha", s->alpha,
+                    "normalising roughness AX[,AY], each in [1e-4, 10], anisotropy at most 1:1000 (default: the "
+                    "file's, else fitted)");
   stats->add_option("--reference", s->reference, "ggx or beckmann (default: the file's, else ggx)");
   add_number_option(stats, "--corr-cells", s->corr_cells, ma::real(),
                     "correlation length for the tolerance (default: the file's)");
@@ -499,7 +502,8 @@ microsim::app::CommandRegistration reg{"surface", [](CLI::App& app) {
       "Import an external heightmap EXR (channel 'height' or 'Y' or a single channel; square; heights in the "
       "unit of --tile-size) as a microsim heightmap, so a measured surface can be studied like a built one.");
   import->add_option("heightmap", im->path, "external heightmap EXR")->required();
-  add_number_option(import, "--tile-size", im->tile_size, ma::real(), "physical side of the tile, same unit as the heights")
+  add_number_option(import, "--tile-size", im->tile_size, ma::real(),
+                    "physical side of the tile, same unit as the heights")
       ->required();
   import->add_option("--out", im->out, "microsim heightmap EXR")->required();
   microsim::app::on_selected(import, [im] { return run_import(*im); });

@@ -679,13 +679,17 @@ CommandRegistration reg{"trace masking", [](CLI::App& app) {
   add_number_option(sub, "--theta", args->theta, real(), "view polar angle in degrees, [0, 90)");
   add_number_option(sub, "--phi", args->phi, real(), "view azimuth in degrees (single surface; default 0)");
   add_number_option(sub, "--theta-l", args->theta_l, real(), "light polar angle in degrees, [0, 90): adds G2(v, l)");
-  add_number_option(sub, "--phi-l", args->phi_l, real(), "light azimuth in degrees")->default_str(fmt::format("{}", args->phi_l));
-  add_number_option(sub, "--cone", args->cone, real(), "half-angle (deg) of the mirror cone around the half vector for G2(v, l)")
+  add_number_option(sub, "--phi-l", args->phi_l, real(), "light azimuth in degrees")
+      ->default_str(fmt::format("{}", args->phi_l));
+  add_number_option(sub, "--cone", args->cone, real(),
+                    "half-angle (deg) of the mirror cone around the half vector for G2(v, l)")
       ->default_str(fmt::format("{}", args->cone));
-  add_number_option(sub, "--samples", args->samples, whole(1, kMaxSamples), at_most("surface points per view", kMaxSamples))
+  add_number_option(sub, "--samples", args->samples, whole(1, kMaxSamples),
+                    at_most("surface points per view", kMaxSamples))
       ->default_str(std::to_string(args->samples));
   add_number_option(sub, "--vndf-rays", args->vndf_rays, whole(0, kMaxRays),
-                    at_most("also trace the VNDF with this many rays (single surface; table: rays per view, default 2e6)",
+                    at_most("also trace the VNDF with this many rays (single surface; table: rays per view, "
+                            "default 2e6)",
                             kMaxRays));
   add_number_option(sub, "--seed", args->seed, whole(), "random seed (same seed, same result, whatever --threads)")
       ->default_str(std::to_string(args->seed));
@@ -710,7 +714,8 @@ CommandRegistration reg{"trace masking", [](CLI::App& app) {
                     integer(microgeom::kMinAssemblyResolution, microgeom::kMaxAssemblyResolution),
                     "table: surface resolution N (a power of two, 16..8192)")
       ->default_str(std::to_string(args->res));
-  add_number_option(sub, "--corr-cells", args->corr_cells, real(), "table: correlation length in cells (0: assembly default)")
+  add_number_option(sub, "--corr-cells", args->corr_cells, real(),
+                    "table: correlation length in cells (0: assembly default)")
       ->default_str(fmt::format("{}", args->corr_cells));
   sub->add_option("--seeds", args->seeds,
                   "table: several surface realisations per cell, e.g. 1,2,3 (each cell: mean over the realisations "

@@ -483,7 +483,8 @@ microsim::app::CommandRegistration reg{"validate", [](CLI::App& app) {
                   "compare with the traced oracle instead of the analytic pdf (two-sample chi-square): 'ellipsoid' "
                   "(traced now) or a histogram HIST.exr from `microsim trace vndf`");
   add_number_option(sub, "--rays", args->rays, microsim::app::whole(1, microsim::kMaxRays),
-                    microsim::app::at_most("rays traced for --against ellipsoid (default 4000000)", microsim::kMaxRays));
+                    microsim::app::at_most("rays traced for --against ellipsoid (default 4000000)",
+                                           microsim::kMaxRays));
   sub->add_option("--plot", args->plot,
                   "also draw FIG.svg: observed and expected counts and Pearson residuals in the sphere and lobe bins");
   microsim::app::on_selected(sub, [args] { return run(*args); });

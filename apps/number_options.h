@@ -35,7 +35,8 @@ struct OptionValue<std::optional<T>> {
 // Adds `name` to `sub`: its text goes through parse(name, text) and the result is stored in `target`
 // (a number, or an optional one). `target` must outlive the parse (a member of the command's shared args).
 template <class T, class Parse>
-CLI::Option* add_number_option(CLI::App* sub, const std::string& name, T& target, Parse parse, const std::string& help) {
+CLI::Option* add_number_option(CLI::App* sub, const std::string& name, T& target, Parse parse,
+                               const std::string& help) {
   using Value = typename detail::OptionValue<T>::type;
   CLI::Option* option = sub->add_option_function<std::string>(
       name,
@@ -70,8 +71,8 @@ inline auto binning_rows(int min_rows) {
   return [min_rows](std::string_view what, std::string_view text) {
     const std::int64_t rows = parse_int(what, text, min_rows, kMaxBinningRows);
     if (rows % 2 == 0)
-      throw ParseError(fmt::format("{} {}: must be odd (the equator lies inside the middle band)", what,
-                                   quote_excerpt(text)));
+      throw ParseError(
+          fmt::format("{} {}: must be odd (the equator lies inside the middle band)", what, quote_excerpt(text)));
     return rows;
   };
 }
@@ -82,7 +83,7 @@ inline std::string at_most(std::string help, std::uint64_t max) {
   std::uint64_t power = 1;
   while (power < max && power <= std::numeric_limits<std::uint64_t>::max() / 10) power *= 10, ++exponent;
   return help + (max >= 1'000'000 && power == max ? fmt::format(" (at most 1e{})", exponent)
-                                                   : fmt::format(" (at most {})", max));
+                                                  : fmt::format(" (at most {})", max));
 }
 
 }  // namespace microsim::app

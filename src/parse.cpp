@@ -56,7 +56,7 @@ struct Magnitude {
 // Digits of a mantissa "123.4500" without leading zeros of the integer part or trailing zeros overall,
 // and the power of ten that scales them to the value.
 struct Decimal {
-  std::string digits;     // significant digits, no leading or trailing zeros; "" for zero
+  std::string digits;         // significant digits, no leading or trailing zeros; "" for zero
   std::int64_t exponent = 0;  // value = digits * 10^exponent
 };
 
@@ -145,9 +145,12 @@ std::string quote_excerpt(std::string_view text) {
   const std::size_t shown = std::min(text.size(), kExcerptBytes);
   for (std::size_t i = 0; i < shown; ++i) {
     const auto c = static_cast<unsigned char>(text[i]);
-    if (c == '\'' || c == '\\') out += {'\\', char(c)};
-    else if (c >= 0x20 && c < 0x7f) out += char(c);
-    else out += fmt::format("\\x{:02X}", c);
+    if (c == '\'' || c == '\\')
+      out += {'\\', char(c)};
+    else if (c >= 0x20 && c < 0x7f)
+      out += char(c);
+    else
+      out += fmt::format("\\x{:02X}", c);
   }
   out += shown < text.size() ? fmt::format("...' ({} bytes)", text.size()) : "'";
   return out;
@@ -224,7 +227,8 @@ std::vector<std::string_view> split_list(std::string_view what, std::string_view
     if (items.size() == 1) fail(what, text, "empty");
     if (k == 0) fail(what, text, fmt::format("empty item before {}", quote_excerpt(items[1])));
     if (k + 1 == items.size()) fail(what, text, fmt::format("empty item after {}", quote_excerpt(items[k - 1])));
-    fail(what, text, fmt::format("empty item between {} and {}", quote_excerpt(items[k - 1]), quote_excerpt(items[k + 1])));
+    fail(what, text,
+         fmt::format("empty item between {} and {}", quote_excerpt(items[k - 1]), quote_excerpt(items[k + 1])));
   }
   if (items.size() < min_items || items.size() > max_items) {
     const std::string wanted = min_items == max_items ? fmt::format("{}", min_items)

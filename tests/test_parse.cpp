@@ -38,14 +38,28 @@ TEST(Parse, RealsRejectEverythingButAWholeFiniteNumber) {
     const char* text;
     const char* problem;
   };
-  for (const Case& c : {Case{"", "empty"}, Case{" 0.3", "white space"}, Case{"0.3 ", "white space"},
-                        Case{"\t1", "white space"}, Case{"nan", "not finite"}, Case{"NaN", "not finite"},
-                        Case{"inf", "not finite"}, Case{"-infinity", "not finite"}, Case{"0x1p3", "not a number"},
-                        Case{"0x10", "not a number"}, Case{"1e", "not a number"}, Case{"0.3,", "not a number"},
-                        Case{"0.3x", "not a number"}, Case{"abc", "not a number"}, Case{"+-1", "not a number"},
-                        Case{"++1", "not a number"}, Case{"+", "not a number"}, Case{"-", "not a number"},
-                        Case{"1e309", "out of the range"}, Case{"-1e99999", "out of the range"},
-                        Case{"1e-400", "out of the range"}, Case{"1e-310", "out of the range"},
+  for (const Case& c : {Case{"", "empty"},
+                        Case{" 0.3", "white space"},
+                        Case{"0.3 ", "white space"},
+                        Case{"\t1", "white space"},
+                        Case{"nan", "not finite"},
+                        Case{"NaN", "not finite"},
+                        Case{"inf", "not finite"},
+                        Case{"-infinity", "not finite"},
+                        Case{"0x1p3", "not a number"},
+                        Case{"0x10", "not a number"},
+                        Case{"1e", "not a number"},
+                        Case{"0.3,", "not a number"},
+                        Case{"0.3x", "not a number"},
+                        Case{"abc", "not a number"},
+                        Case{"+-1", "not a number"},
+                        Case{"++1", "not a number"},
+                        Case{"+", "not a number"},
+                        Case{"-", "not a number"},
+                        Case{"1e309", "out of the range"},
+                        Case{"-1e99999", "out of the range"},
+                        Case{"1e-400", "out of the range"},
+                        Case{"1e-310", "out of the range"},
                         Case{"1,5", "not a number"}}) {
     const std::string m = error_of([&] { parse_double("--theta", c.text); });
     EXPECT_NE(m.find("--theta " + quote_excerpt(c.text) + ": "), std::string::npos) << c.text << ": " << m;
@@ -86,14 +100,27 @@ TEST(Parse, IntegersAreExactOrAnError) {
     const char* text;
     const char* problem;
   };
-  for (const Case& c : {Case{"-1", "negative"}, Case{"-0", "negative"}, Case{"18446744073709551616", "too large"},
-                        Case{"99999999999999999999", "too large"}, Case{"1e20", "too large"},
-                        Case{"1e999999999999999999999", "too large"}, Case{"1.5", "not an integer"},
-                        Case{"1e-3", "not an integer"}, Case{"0x10", "not an integer"}, Case{"inf", "not an integer"},
-                        Case{"nan", "not an integer"}, Case{"", "empty"}, Case{" 1", "white space"},
-                        Case{"1 ", "white space"}, Case{"1e", "not an integer"}, Case{"1e+", "not an integer"},
-                        Case{".", "not an integer"}, Case{"1..2", "not an integer"}, Case{"--1", "not an integer"},
-                        Case{"1,000", "not an integer"}, Case{"1_000", "not an integer"}}) {
+  for (const Case& c : {Case{"-1", "negative"},
+                        Case{"-0", "negative"},
+                        Case{"18446744073709551616", "too large"},
+                        Case{"99999999999999999999", "too large"},
+                        Case{"1e20", "too large"},
+                        Case{"1e999999999999999999999", "too large"},
+                        Case{"1.5", "not an integer"},
+                        Case{"1e-3", "not an integer"},
+                        Case{"0x10", "not an integer"},
+                        Case{"inf", "not an integer"},
+                        Case{"nan", "not an integer"},
+                        Case{"", "empty"},
+                        Case{" 1", "white space"},
+                        Case{"1 ", "white space"},
+                        Case{"1e", "not an integer"},
+                        Case{"1e+", "not an integer"},
+                        Case{".", "not an integer"},
+                        Case{"1..2", "not an integer"},
+                        Case{"--1", "not an integer"},
+                        Case{"1,000", "not an integer"},
+                        Case{"1_000", "not an integer"}}) {
     const std::string m = error_of([&] { parse_uint("--seed", c.text); });
     EXPECT_NE(m.find("--seed '" + std::string(c.text) + "'"), std::string::npos) << c.text << ": " << m;
     EXPECT_NE(m.find(c.problem), std::string::npos) << c.text << ": " << m;
@@ -105,8 +132,9 @@ TEST(Parse, IntegersAreExactOrAnError) {
   EXPECT_NE(error_of([] { parse_int("--rows", "46341", 1, 501); }).find("too large: an integer in [1, 501]"),
             std::string::npos);
   EXPECT_NE(error_of([] { parse_int("--rows", "-3", 1, 501); }).find("too small"), std::string::npos);
-  EXPECT_NE(error_of([] { parse_int("--n", "-9223372036854775809", std::numeric_limits<std::int64_t>::min(), 0 ); })
-                .find("too small"),
+  EXPECT_NE(error_of([] {
+              parse_int("--n", "-9223372036854775809", std::numeric_limits<std::int64_t>::min(), 0);
+            }).find("too small"),
             std::string::npos);
 }
 
@@ -158,13 +186,13 @@ TEST(Parse, AlphaHasOneSupportedRange) {
     const char* text;
     const char* needle;
   };
-  for (const Case& c : {Case{"1e30", "'1e30': outside the supported roughness range [0.0001, 10]"},
-                        Case{"0", "'0': outside"}, Case{"-0", "'-0': outside"}, Case{"-0.3", "'-0.3': outside"},
-                        Case{"10.000001", "outside"}, Case{"9e-5", "outside"}, Case{"0.5,-1", "item 2: '-1': outside"},
-                        Case{"1e-4,1", "anisotropy 1:1e+04 beyond the supported 1:1000"},
-                        Case{"0.0001,0.1001", "anisotropy"}, Case{"0.3,", "empty item after '0.3'"},
-                        Case{"0.3,0.3,0.3", "3 items"}, Case{"nan", "not finite"}, Case{"0.3,inf", "not finite"},
-                        Case{"abc", "not a number"}}) {
+  for (const Case& c :
+       {Case{"1e30", "'1e30': outside the supported roughness range [0.0001, 10]"}, Case{"0", "'0': outside"},
+        Case{"-0", "'-0': outside"}, Case{"-0.3", "'-0.3': outside"}, Case{"10.000001", "outside"},
+        Case{"9e-5", "outside"}, Case{"0.5,-1", "item 2: '-1': outside"},
+        Case{"1e-4,1", "anisotropy 1:1e+04 beyond the supported 1:1000"}, Case{"0.0001,0.1001", "anisotropy"},
+        Case{"0.3,", "empty item after '0.3'"}, Case{"0.3,0.3,0.3", "3 items"}, Case{"nan", "not finite"},
+        Case{"0.3,inf", "not finite"}, Case{"abc", "not a number"}}) {
     const std::string m = error_of([&] { parse_alpha("--alpha", c.text); });
     EXPECT_NE(m.find(c.needle), std::string::npos) << c.text << ": " << m;
     EXPECT_EQ(m.rfind("--alpha", 0), 0u) << m;
