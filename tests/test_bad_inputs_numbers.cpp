@@ -226,6 +226,23 @@ TEST(BadNumbersCli, LongTokenIsQuotedAsAShortExcerpt) {
   fs::remove_all(dir);
 }
 
+// The maxima are documented where the options are (defect 3): each command's --help states them.
+TEST(BadNumbersCli, HelpStatesTheMaxima) {
+  const fs::path dir = microsim::test::scratch_dir("bad_numbers", "help");
+  struct Help {
+    std::string command;
+    std::vector<std::string> needles;
+  };
+  for (const Help& h : {Help{"validate --help", {"--samples INT", "(at most 1e12)", "odd, 3..501", "[1e-4, 10]"}},
+                        Help{"trace vndf --help", {"rays to trace (at most 1e12)", "odd, 1..501", "(at most 4096)"}},
+                        Help{"trace masking --help", {"surface points per view (at most 1e12)", "1..1000"}}}) {
+    const microsim::test::CliRun r = microsim::test::run_cli(dir, h.command);
+    EXPECT_EQ(r.exit_code, 0) << h.command;
+    for (const std::string& n : h.needles) EXPECT_NE(r.out.find(n), std::string::npos) << h.command << ": " << n;
+  }
+  fs::remove_all(dir);
+}
+
 // Defect 2 at its root: no binning has more rows than kMaxBinningRows, so its 2 rows^2 bin indices fit
 // an int (rows 46341 overflowed them).
 TEST(BadNumbersBinning, RowsBeyondTheMaximumAreRejected) {
