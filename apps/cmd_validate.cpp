@@ -182,14 +182,21 @@ microsim::ValidationOptions base_options(const Args& a) {
   return o;
 }
 
-// A --from file's directions; a malformed file is bad input (exit 2, the reader's message names the line
-// or index).
-std::vector<microsim::Vec3<double>> read_samples_or_usage_error(const std::string& path) {
+// Runs a validation; a malformed --from file (the reader's message names the line or index) and too few
+// samples for the tests (the message says how many are needed) are bad input: exit 2.
+template <class F> auto usage_errors_of(F&& validation) {
   try {
-    return microsim::read_direction_samples(path);
+    return validation();
   } catch (const microsim::SampleFileError& e) {
     throw UsageError(e.what());
+  } catch (const microsim::InsufficientData& e) {
+    throw UsageError(e.what());
   }
+}
+
+// A --from file, opened for streaming (bounded memory whatever its size).
+microsim::DirectionSampleReader open_samples_or_usage_error(const std::string& path) {
+  return usage_errors_of([&] { return microsim::DirectionSampleReader(path); });
 }
 
 // --against ellipsoid | HIST.exr: two-sample chi-square against the traced oracle (compare.h); same report,
@@ -197,6 +204,8 @@ std::vector<microsim::Vec3<double>> read_samples_or_usage_error(const std::strin
 int run_against(const Args& a, const microsim::GGX<double>& ggx, const microsim::Vec3<double>& wi,
                 microsim::ValidationOptions o) {
   using namespace microsim;
+  // Too few samples for any test: refused before the oracle is traced.
+  if (a.from.empty()) usage_errors_of([&] { require_samples_for_any_test(std::uint64_t(a.samples.value_or(1'000'000))); });
   TracedHistogram traced;
   std::string oracle;
   if (a.against == "ellipsoid") {
@@ -223,14 +232,14 @@ int run_against(const Args& a, const microsim::GGX<double>& ggx, const microsim:
   std::string source;
   try {
     if (!a.from.empty()) {
-      const std::vector<Vec3<double>> samples = read_samples_or_usage_error(a.from);
-      report = compare_samples_to_trace(samples, a.from, ggx, wi, o, traced);
+      DirectionSampleReader samples = open_samples_or_usage_error(a.from);
+      report = usage_errors_of([&] { return compare_sample_file_to_trace(samples, a.from, ggx, wi, o, traced); });
       source = fmt::format("samples from '{}'", a.from);
     } else {
       const SamplerInfo* s = find_sampler(a.sampler);
       if (!s) throw UsageError(fmt::format("--sampler: unknown sampler '{}' (valid: {})", a.sampler, names_list()));
       o.samples = std::uint64_t(a.samples.value_or(1'000'000));
-      report = compare_sampler_to_trace(*s, ggx, wi, o, traced);
+      report = usage_errors_of([&] { return compare_sampler_to_trace(*s, ggx, wi, o, traced); });
       source = fmt::format("sampler {}", s->name);
     }
   } catch (const std::invalid_argument& e) {
@@ -262,16 +271,16 @@ int run_single(const Args& a) {
   ValidationReport report;
   std::string source;
   if (!a.from.empty()) {
-    const std::vector<Vec3<double>> samples = read_samples_or_usage_error(a.from);
+    DirectionSampleReader samples = open_samples_or_usage_error(a.from);
     const SampleDomain domain = a.reflected ? SampleDomain::reflected_direction : SampleDomain::microfacet_normal;
-    report = validate_samples(samples, domain, ggx, wi, o);
+    report = usage_errors_of([&] { return validate_sample_file(samples, domain, ggx, wi, o); });
     report.sampler = a.from;
     source = fmt::format("samples from '{}'", a.from);
   } else {
     const SamplerInfo* s = find_sampler(a.sampler);
     if (!s) throw UsageError(fmt::format("--sampler: unknown sampler '{}' (valid: {})", a.sampler, names_list()));
     o.samples = std::uint64_t(a.samples.value_or(1'000'000));
-    report = validate_sampler(*s, ggx, wi, o);
+    report = usage_errors_of([&] { return validate_sampler(*s, ggx, wi, o); });
     source = fmt::format("sampler {}", s->name);
   }
   print_report(report, source);
@@ -290,6 +299,8 @@ int run_all(const Args& a) {
   const int n_validations = n_configs * int(samplers.size());
   ValidationOptions o = base_options(a);
   o.samples = std::uint64_t(a.samples.value_or(kAllDefaultSamples));
+  // Too few samples for any test: refused before any work (each validation checks its own bound too).
+  usage_errors_of([&] { require_samples_for_any_test(o.samples); });
   // Sidak over the batch: each validation (itself Sidak over its own tests) runs at the level that
   // keeps the family-wise level of the whole batch at --significance.
   o.significance = sidak_significance(a.significance, n_validations);
@@ -338,7 +349,7 @@ int run_all(const Args& a) {
         vo.seed = a.seed + std::uint64_t(index);  // independent streams per validation
         ++index;
         const auto t_start = std::chrono::steady_clock::now();
-        ValidationReport r = validate_sampler(s, ggx, wi, vo, ref);
+        ValidationReport r = usage_errors_of([&] { return validate_sampler(s, ggx, wi, vo, ref); });
         r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
         Summary& sm = summary[std::string(s.name)];
         sm.total += 1;
