@@ -332,6 +332,7 @@ int run_build(const BuildOptions& o) {
 // ---- surface stats ------------------------------------------------------------------------------------
 struct StatsCliOptions {
   std::string path, alpha, reference, json, mesh, normals;
+  bool alpha_given = false;  // --alpha '' is an empty number, not "no --alpha"
   double tile_size = 0, corr_cells = 0;
   int mesh_crop = 0;
   bool check = false;
@@ -376,7 +377,7 @@ int run_stats(const StatsCliOptions& o) {
   else if (ref == "beckmann") so.reference = microgeom::ReferenceNdf::beckmann;
   else throw UsageError(fmt::format("--reference '{}' must be ggx or beckmann", ref));
   // Alpha: option, else the file's, else fitted.
-  if (!o.alpha.empty()) {
+  if (o.alpha_given) {
     const auto [ax, ay] = parse_alpha(o.alpha);
     so.alpha_x = ax;
     so.alpha_y = ay;
@@ -455,13 +456,15 @@ microsim::app::CommandRegistration reg{"surface", [](CLI::App& app) {
   namespace ma = microsim::app;
   const auto any_int = ma::integer(0, std::numeric_limits<int>::max());
   add_number_option(build, "--res", b->resolution,
-                    ma::integer(microgeom::kMinAssemblyResolution, microgeom::kMaxAssemblyResolution),
+                    ma::power_of_two(microgeom::kMinAssemblyResolution, microgeom::kMaxAssemblyResolution),
                     "vertices per side N (a power of two, 16..8192; 8192 needs ~6.7 GiB)")
       ->required();
   add_number_option(build, "--seed", b->seed, ma::whole(), "random seed (default 1)");
-  add_number_option(build, "--corr-cells", b->corr_cells, ma::real(),
+  const double inf = std::numeric_limits<double>::infinity();
+  add_number_option(build, "--corr-cells", b->corr_cells, ma::real(microsim::Interval{0, inf}),
                     "correlation length l in cells, in [2, N/8] (default min(16, N/16)); the mixture's patches are 8 l");
-  add_number_option(build, "--tile-size", b->tile_size, ma::real(), "physical side L of the tile (default 1)");
+  add_number_option(build, "--tile-size", b->tile_size, ma::real(microsim::Interval{0, inf, true}),
+                    "physical side L of the tile (default 1)");
   add_number_option(build, "--iterations", b->iterations, ma::integer(0, 100),
                     "slope-matching iterations, 0..100 (default 8)");
   build->add_option("--out", b->out, "heightmap EXR (channel 'height', attributes microsim.*)")->required();
@@ -482,7 +485,7 @@ microsim::app::CommandRegistration reg{"surface", [](CLI::App& app) {
   stats->add_option("heightmap", s->path, "heightmap EXR")->required();
   add_number_option(stats, "--tile-size", s->tile_size, ma::real(),
                     "physical tile size (required if the file has no microsim.tile_size)");
-  stats->add_option("--alpha", s->alpha,
+  auto* stats_alpha = stats->add_option("--alpha", s->alpha,
                     "normalising roughness AX[,AY], each in [1e-4, 10], anisotropy at most 1:1000 (default: the "
                     "file's, else fitted)");
   stats->add_option("--reference", s->reference, "ggx or beckmann (default: the file's, else ggx)");
@@ -493,7 +496,10 @@ microsim::app::CommandRegistration reg{"surface", [](CLI::App& app) {
   stats->add_option("--mesh", s->mesh, "also write the mesh (.ply or .obj)");
   add_number_option(stats, "--mesh-crop", s->mesh_crop, any_int, "write only the first C x C cells to --mesh");
   stats->add_option("--normals", s->normals, "also write the normal map EXR");
-  microsim::app::on_selected(stats, [s] { return run_stats(*s); });
+  microsim::app::on_selected(stats, [s, stats_alpha] {
+    s->alpha_given = stats_alpha->count() > 0;
+    return run_stats(*s);
+  });
 
   // import
   auto im = std::make_shared<ImportOptions>();

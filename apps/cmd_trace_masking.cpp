@@ -711,7 +711,7 @@ CommandRegistration reg{"trace masking", [](CLI::App& app) {
   add_number_option(sub, "--table-phi", args->table_phi, real(), "table: view azimuth (deg), off the grid axes")
       ->default_str(fmt::format("{}", args->table_phi));
   add_number_option(sub, "--res", args->res,
-                    integer(microgeom::kMinAssemblyResolution, microgeom::kMaxAssemblyResolution),
+                    power_of_two(microgeom::kMinAssemblyResolution, microgeom::kMaxAssemblyResolution),
                     "table: surface resolution N (a power of two, 16..8192)")
       ->default_str(std::to_string(args->res));
   add_number_option(sub, "--corr-cells", args->corr_cells, real(),

@@ -77,6 +77,17 @@ inline auto binning_rows(int min_rows) {
   };
 }
 
+// A power of two in [min, max] (a heightfield resolution).
+inline auto power_of_two(std::int64_t min, std::int64_t max) {
+  return [min, max](std::string_view what, std::string_view text) {
+    const std::int64_t n = parse_int(what, text, min, max);
+    if ((n & (n - 1)) != 0)
+      throw ParseError(fmt::format("{} {}: not a power of two (one in [{}, {}] is needed)", what, quote_excerpt(text),
+                                   min, max));
+    return n;
+  };
+}
+
 // The help text of a count option: "... (at most 1e12)".
 inline std::string at_most(std::string help, std::uint64_t max) {
   int exponent = 0;
