@@ -6,6 +6,7 @@
 
 #include "microsim/figure.h"
 #include "microsim/histogram_io.h"
+#include "microsim/parse.h"
 
 #include <fmt/core.h>
 
@@ -13,6 +14,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 
 namespace {
@@ -38,9 +40,10 @@ std::string short_numbers(const microsim::TracedHistogram& h, const std::string&
   while (start <= value.size()) {
     const std::size_t end = std::min(value.find(',', start), value.size());
     const std::string item = value.substr(start, end - start);
-    char* stop = nullptr;
-    const double x = std::strtod(item.c_str(), &stop);
-    out += (out.empty() ? "" : ",") + (stop && *stop == '\0' && !item.empty() ? fmt::format("{:.6g}", x) : item);
+    const std::optional<double> x = microsim::try_parse_double(item);
+    const std::string shown = x ? fmt::format("{:.6g}", *x)
+                                : item.size() <= microsim::kExcerptBytes ? item : microsim::quote_excerpt(item);
+    out += (out.empty() ? "" : ",") + shown;
     start = end + 1;
   }
   return out;

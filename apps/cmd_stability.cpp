@@ -3,6 +3,7 @@
 // input). Prints a markdown table on stdout (docs/stability.md quotes it); exit 0 when every row is
 // within its bound, 1 when some row exceeds it, 2 on bad usage.
 #include "command.h"
+#include "number_options.h"
 
 #include "microsim/histogram_io.h"
 #include "microsim/progress.h"
@@ -33,9 +34,10 @@ microsim::app::CommandRegistration reg{"stability", [](CLI::App& app) {
       "u at the ends of [0,1) and non-finite input. Prints the worst-case table (markdown) on stdout; exit 0 "
       "when every row is within its stated bound (docs/stability.md), 1 otherwise.");
   sub->add_option("--json", opts->json_path, "also write the table (with worst configurations and bounds) as JSON");
-  sub->add_option("--random-u", opts->random_u, "random u per view in addition to the 16 corner pairs (default 48)")
-      ->check(CLI::Range(0, 1000000));
-  auto* seed = sub->add_option("--seed", opts->seed, "seed of the random u (default 20240611)");
+  microsim::app::add_number_option(sub, "--random-u", opts->random_u, microsim::app::integer(0, 1000000),
+                                   "random u per view in addition to the 16 corner pairs, 0..1000000 (default 48)");
+  auto* seed = microsim::app::add_number_option(sub, "--seed", opts->seed, microsim::app::whole(),
+                                                "seed of the random u (default 20240611)");
   sub->add_flag("--failures-only", opts->failures_only, "print only the rows that exceed their bound");
   microsim::app::on_selected(sub, [opts, seed] {
     microsim::app::check_distinct_outputs({}, {{"--json", opts->json_path}});  // one output, no input: future-proof

@@ -11,6 +11,7 @@
 // stated tolerance (microgeom/surface_stats.h) is an error: exit 2 and nothing written. Every output is
 // staged to a temporary file in its directory and renamed only once all outputs are complete.
 #include "command.h"
+#include "number_options.h"
 
 #include "microgeom/assembly.h"
 #include "microgeom/atomic_file.h"
@@ -80,27 +81,13 @@ int interrupted_nothing_written(const char* command) {
 }
 
 // ---- option parsing -----------------------------------------------------------------------------------
-double parse_number(const std::string& option, const std::string& text) {
-  std::size_t used = 0;
-  double v = 0;
-  try {
-    v = std::stod(text, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used == 0 || used != text.size() || !std::isfinite(v))
-    throw UsageError(fmt::format("{} '{}' is not a finite number", option, text));
-  return v;
-}
-
-// "AX" or "AX,AY".
+// "AX" or "AX,AY" in the supported range (microsim/parse.h); the assembly's own range is checked after.
 std::pair<double, double> parse_alpha(const std::string& text) {
-  const auto comma = text.find(',');
-  if (comma == std::string::npos) {
-    const double a = parse_number("--alpha", text);
-    return {a, a};
+  try {
+    return microsim::parse_alpha("--alpha", text);
+  } catch (const microsim::ParseError& e) {
+    throw UsageError(e.what());
   }
-  return {parse_number("--alpha", text.substr(0, comma)), parse_number("--alpha", text.substr(comma + 1))};
 }
 
 void check_mesh_extension(const std::string& path) {
@@ -348,6 +335,7 @@ int run_build(const BuildOptions& o) {
 // ---- surface stats ------------------------------------------------------------------------------------
 struct StatsCliOptions {
   std::string path, alpha, reference, json, mesh, normals;
+  bool alpha_given = false;  // --alpha '' is an empty number, not "no --alpha"
   double tile_size = 0, corr_cells = 0;
   int mesh_crop = 0;
   bool check = false;
@@ -356,13 +344,7 @@ struct StatsCliOptions {
 std::optional<double> metadata_number(const microgeom::Heightfield& f, const std::string& key) {
   auto it = f.metadata.find(key);
   if (it == f.metadata.end()) return {};
-  try {
-    std::size_t used = 0;
-    const double v = std::stod(it->second, &used);
-    if (used == it->second.size() && std::isfinite(v)) return v;
-  } catch (const std::exception&) {
-  }
-  return {};
+  return microsim::try_parse_double(it->second);
 }
 
 microgeom::Heightfield load_for_cli(const std::string& path, double tile_size_option) {
@@ -401,9 +383,8 @@ int run_stats(const StatsCliOptions& o) {
   else if (ref == "beckmann") so.reference = microgeom::ReferenceNdf::beckmann;
   else throw UsageError(fmt::format("--reference '{}' must be ggx or beckmann", ref));
   // Alpha: option, else the file's, else fitted.
-  if (!o.alpha.empty()) {
+  if (o.alpha_given) {
     const auto [ax, ay] = parse_alpha(o.alpha);
-    if (!(ax > 0 && ay > 0)) throw UsageError(fmt::format("--alpha '{}' must be > 0", o.alpha));
     so.alpha_x = ax;
     so.alpha_y = ay;
   } else if (auto ax = metadata_number(field, "alpha_x"), ay = metadata_number(field, "alpha_y");
@@ -484,15 +465,25 @@ microsim::app::CommandRegistration reg{"surface", [](CLI::App& app) {
                 "N/128)), N/16] (beckmann: up to N/8); outside it the build is refused (exit 2) unless --unsupported.");
   build->add_option("--assembly", b->assembly, "assembly name (see above)")->required();
   build->add_option("--alpha", b->alpha, "GGX/Beckmann roughness AX or AX,AY, each in [0.005, 2]")->required();
-  build->add_option("--res", b->resolution, "vertices per side N (a power of two, 16..8192; 8192 needs ~6.7 GiB)")->required();
-  build->add_option("--seed", b->seed, "random seed (default 1)");
-  build->add_option("--corr-cells", b->corr_cells,
+  using microsim::app::add_number_option;
+  namespace ma = microsim::app;
+  const auto any_int = ma::integer(0, std::numeric_limits<int>::max());
+  add_number_option(build, "--res", b->resolution,
+                    ma::power_of_two(microgeom::kMinAssemblyResolution, microgeom::kMaxAssemblyResolution),
+                    "vertices per side N (a power of two, 16..8192; 8192 needs ~6.7 GiB)")
+      ->required();
+  add_number_option(build, "--seed", b->seed, ma::whole(), "random seed (default 1)");
+  const double inf = std::numeric_limits<double>::infinity();
+  add_number_option(build, "--corr-cells", b->corr_cells, ma::real(microsim::Interval{0, inf}),
                     "correlation length l in cells, in [2, N/8] (default min(16, N/16)); the mixture's patches are 8 l");
-  build->add_option("--tile-size", b->tile_size, "physical side L of the tile (default 1)");
-  build->add_option("--iterations", b->iterations, "slope-matching iterations (default 8)");
+  add_number_option(build, "--tile-size", b->tile_size, ma::real(microsim::Interval{0, inf, true}),
+                    "physical side L of the tile (default 1)");
+  add_number_option(build, "--iterations", b->iterations, ma::integer(0, 100),
+                    "slope-matching iterations, 0..100 (default 8)");
   build->add_option("--out", b->out, "heightmap EXR (channel 'height', attributes microsim.*)")->required();
   build->add_option("--mesh", b->mesh, "also write the mesh (.ply or .obj) through OpenMesh");
-  build->add_option("--mesh-crop", b->mesh_crop, "write only the first C x C cells to --mesh (default: whole tile)");
+  add_number_option(build, "--mesh-crop", b->mesh_crop, any_int,
+                    "write only the first C x C cells to --mesh (default: whole tile)");
   build->add_option("--normals", b->normals, "also write the normal map EXR (R, G, B = unit cell normals)");
   build->add_option("--json", b->json, "also write the build report and statistics as JSON");
   build->add_flag("--quiet", b->quiet, "no progress on stderr");
@@ -507,16 +498,23 @@ microsim::app::CommandRegistration reg{"surface", [](CLI::App& app) {
       "Measure a heightmap EXR (built or imported): its NDF against GGX or Beckmann (slope-radius quantiles, "
       "equal-probability bins), slope and height statistics, and the height-slope correlation.");
   stats->add_option("heightmap", s->path, "heightmap EXR")->required();
-  stats->add_option("--tile-size", s->tile_size, "physical tile size (required if the file has no microsim.tile_size)");
-  stats->add_option("--alpha", s->alpha, "normalising roughness AX[,AY] (default: the file's, else fitted)");
+  add_number_option(stats, "--tile-size", s->tile_size, ma::real(),
+                    "physical tile size (required if the file has no microsim.tile_size)");
+  auto* stats_alpha = stats->add_option("--alpha", s->alpha,
+                    "normalising roughness AX[,AY], each in [1e-4, 10], anisotropy at most 1:1000 (default: the "
+                    "file's, else fitted)");
   stats->add_option("--reference", s->reference, "ggx or beckmann (default: the file's, else ggx)");
-  stats->add_option("--corr-cells", s->corr_cells, "correlation length for the tolerance (default: the file's)");
+  add_number_option(stats, "--corr-cells", s->corr_cells, ma::real(),
+                    "correlation length for the tolerance (default: the file's)");
   stats->add_flag("--check", s->check, "exit 1 when the NDF misses the tolerance");
   stats->add_option("--json", s->json, "also write the statistics as JSON");
   stats->add_option("--mesh", s->mesh, "also write the mesh (.ply or .obj)");
-  stats->add_option("--mesh-crop", s->mesh_crop, "write only the first C x C cells to --mesh");
+  add_number_option(stats, "--mesh-crop", s->mesh_crop, any_int, "write only the first C x C cells to --mesh");
   stats->add_option("--normals", s->normals, "also write the normal map EXR");
-  microsim::app::on_selected(stats, [s] { return run_stats(*s); });
+  microsim::app::on_selected(stats, [s, stats_alpha] {
+    s->alpha_given = stats_alpha->count() > 0;
+    return run_stats(*s);
+  });
 
   // import
   auto im = std::make_shared<ImportOptions>();
@@ -525,7 +523,9 @@ microsim::app::CommandRegistration reg{"surface", [](CLI::App& app) {
       "Import an external heightmap EXR (channel 'height' or 'Y' or a single channel; square; heights in the "
       "unit of --tile-size) as a microsim heightmap, so a measured surface can be studied like a built one.");
   import->add_option("heightmap", im->path, "external heightmap EXR")->required();
-  import->add_option("--tile-size", im->tile_size, "physical side of the tile, same unit as the heights")->required();
+  add_number_option(import, "--tile-size", im->tile_size, ma::real(),
+                    "physical side of the tile, same unit as the heights")
+      ->required();
   import->add_option("--out", im->out, "microsim heightmap EXR")->required();
   microsim::app::on_selected(import, [im] { return run_import(*im); });
 }};

@@ -7,6 +7,7 @@
 // 2 bad usage or input (nothing written), 130 interrupted by Ctrl-C (what was measured is written,
 // marked partial).
 #include "command.h"
+#include "number_options.h"
 
 #include "microsim/compare.h"
 #include "microsim/histogram_io.h"
@@ -50,28 +51,6 @@ struct TraceVndfArgs {
   bool alpha_given = false, tile_size_given = false, mesh_level_given = false;
 };
 
-// "AX" or "AX,AY", both positive and finite.
-std::pair<double, double> parse_alpha(const std::string& text) {
-  std::vector<double> values;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    try {
-      std::size_t used = 0;
-      const double v = std::stod(item, &used);
-      if (used != item.size()) throw std::invalid_argument(item);
-      values.push_back(v);
-    } catch (const std::exception&) {
-      throw UsageError(fmt::format("--alpha '{}': '{}' is not a number", text, item));
-    }
-  }
-  if (values.empty() || values.size() > 2) throw UsageError(fmt::format("--alpha '{}': expected AX or AX,AY", text));
-  for (double v : values) {
-    if (!(v > 0) || !std::isfinite(v)) throw UsageError(fmt::format("--alpha '{}': alpha must be positive and finite", text));
-  }
-  return {values[0], values.size() == 2 ? values[1] : values[0]};
-}
-
 int run_trace_vndf(const TraceVndfArgs& a) {
   namespace ms = microsim;
   // ---- validate everything before any work --------------------------------------------------------------
@@ -89,15 +68,10 @@ int run_trace_vndf(const TraceVndfArgs& a) {
   }
   if (a.tile_size_given) throw UsageError("--tile-size applies to heightfield surfaces only");
   if (!a.alpha_given) throw UsageError("--alpha is required for --surface ellipsoid");
-  const auto [ax, ay] = parse_alpha(a.alpha);
+  const auto [ax, ay] = ms::parse_alpha("--alpha", a.alpha);
   if (!std::isfinite(a.theta) || a.theta < 0 || a.theta >= 90)
     throw UsageError(fmt::format("--theta {}: the view must be in [0, 90) degrees", a.theta));
   if (!std::isfinite(a.phi)) throw UsageError(fmt::format("--phi {}: must be finite", a.phi));
-  if (a.rays <= 0) throw UsageError(fmt::format("--rays {}: must be positive", a.rays));
-  if (a.mesh_level < -1 || a.mesh_level > microgeom::kMaxEllipsoidMeshLevel)
-    throw UsageError(fmt::format("--mesh-level {}: must be in [0, {}]", a.mesh_level, microgeom::kMaxEllipsoidMeshLevel));
-  if (a.rows < 1 || a.rows % 2 == 0 || a.rows > 501) throw UsageError(fmt::format("--rows {}: must be odd, in [1, 501]", a.rows));
-  if (a.threads < 0) throw UsageError(fmt::format("--threads {}: must be >= 0", a.threads));
   if (!a.mesh_out.empty() && a.mesh_level < 0) throw UsageError("--mesh-out needs --mesh-level (the quadric has no mesh)");
   if (!a.mesh_out.empty()) {
     std::string ext = std::filesystem::path(a.mesh_out).extension().string();
@@ -213,16 +187,31 @@ microsim::app::CommandRegistration reg{"trace", [](CLI::App& app) {
   sub->add_option("--surface", args->surface,
                   "surface to trace: ellipsoid (the exact oracle), or a heightmap EXR (microsim surface build)")
       ->capture_default_str();
-  auto* mesh_level = sub->add_option(
-      "--mesh-level", args->mesh_level, "trace the ellipsoid meshed at this tessellation level (0..9) instead of the exact quadric");
-  auto* alpha = sub->add_option("--alpha", args->alpha, "GGX roughness AX[,AY] of the ellipsoid (required for it)");
-  auto* tile_size = sub->add_option("--tile-size", args->tile_size, "heightfield only: tile size (default: from the file)");
-  sub->add_option("--theta", args->theta, "view polar angle in degrees, [0, 90)")->required();
-  sub->add_option("--phi", args->phi, "view azimuth in degrees")->capture_default_str();
-  sub->add_option("--rays", args->rays, "rays to trace")->capture_default_str();
-  sub->add_option("--seed", args->seed, "random seed (same seed, same histogram, whatever --threads)")->capture_default_str();
-  sub->add_option("--threads", args->threads, "worker threads (0: all cores)")->capture_default_str();
-  sub->add_option("--rows", args->rows, "rows of the sphere and lobe binnings (odd; cols = 2 rows)")->capture_default_str();
+  namespace ma = microsim::app;
+  auto* mesh_level = ma::add_number_option(
+      sub, "--mesh-level", args->mesh_level, ma::integer(0, microgeom::kMaxEllipsoidMeshLevel),
+      fmt::format("trace the ellipsoid meshed at this tessellation level (0..{}) instead of the exact quadric",
+                  microgeom::kMaxEllipsoidMeshLevel));
+  auto* alpha = sub->add_option(
+      "--alpha", args->alpha,
+      "GGX roughness AX[,AY] of the ellipsoid (required for it), each in [1e-4, 10], anisotropy at most 1:1000");
+  auto* tile_size = ma::add_number_option(sub, "--tile-size", args->tile_size, ma::real(),
+                                           "heightfield only: tile size (default: from the file)");
+  ma::add_number_option(sub, "--theta", args->theta, ma::real(), "view polar angle in degrees, [0, 90)")->required();
+  ma::add_number_option(sub, "--phi", args->phi, ma::real(), "view azimuth in degrees")->default_str("0");
+  ma::add_number_option(sub, "--rays", args->rays, ma::whole(1, microsim::kMaxRays),
+                         ma::at_most("rays to trace", microsim::kMaxRays))
+      ->default_str(std::to_string(args->rays));
+  ma::add_number_option(sub, "--seed", args->seed, ma::whole(),
+                         "random seed (same seed, same histogram, whatever --threads)")
+      ->default_str(std::to_string(args->seed));
+  ma::add_number_option(sub, "--threads", args->threads, ma::integer(0, microsim::kMaxThreads),
+                         ma::at_most("worker threads (0: all cores)", microsim::kMaxThreads))
+      ->default_str(std::to_string(args->threads));
+  ma::add_number_option(sub, "--rows", args->rows, ma::binning_rows(1),
+                         fmt::format("rows of the sphere and lobe binnings (odd, 1..{}; cols = 2 rows)",
+                                     microsim::kMaxBinningRows))
+      ->default_str(std::to_string(args->rows));
   sub->add_option("--out", args->out, "histogram EXR to write")->required();
   sub->add_option("--json", args->json, "also write a JSON summary");
   sub->add_option("--mesh-out", args->mesh_out, "write the traced mesh (.ply or .obj; needs --mesh-level)");

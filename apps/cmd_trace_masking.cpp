@@ -17,6 +17,7 @@
 // kLeakSigmas standard errors from 1, or a ray leaked through the surface); 2 bad usage or input (nothing
 // written); 130 interrupted (what was measured is written, marked partial).
 #include "command.h"
+#include "number_options.h"
 
 #include "microgeom/assembly.h"
 #include "microgeom/heightfield.h"
@@ -56,31 +57,10 @@ double peak_rss_mib() {
   return double(usage.ru_maxrss) / 1024.0;  // Linux: kilobytes
 }
 
-std::vector<double> parse_list(const std::string& option, const std::string& text) {
-  std::vector<double> values;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    std::size_t used = 0;
-    double v = 0;
-    try {
-      v = std::stod(item, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used == 0 || used != item.size() || !std::isfinite(v))
-      throw UsageError(fmt::format("{} '{}': '{}' is not a finite number", option, text, item));
-    values.push_back(v);
-  }
-  if (values.empty()) throw UsageError(fmt::format("{} '{}': empty list", option, text));
-  return values;
-}
-
-std::vector<std::string> split_names(const std::string& text) {
+// "a,b,c": the list rules of the number parser (no empty item).
+std::vector<std::string> split_names(const std::string& option, const std::string& text) {
   std::vector<std::string> names;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) names.push_back(item);
+  for (const std::string_view item : split_list(option, text)) names.emplace_back(item);
   return names;
 }
 
@@ -227,12 +207,8 @@ int run_masking(const MaskingArgs& a) {
   if (!std::isfinite(a.phi)) throw UsageError(fmt::format("--phi {}: must be finite", a.phi));
   if (a.theta_l) check_theta("--theta-l", *a.theta_l);
   if (!std::isfinite(a.phi_l)) throw UsageError(fmt::format("--phi-l {}: must be finite", a.phi_l));
-  if (a.samples <= 0) throw UsageError(fmt::format("--samples {}: must be positive", a.samples));
-  if (a.vndf_rays < 0) throw UsageError(fmt::format("--vndf-rays {}: must be >= 0", a.vndf_rays));
-  if (a.bins < 1 || a.bins > 1000) throw UsageError(fmt::format("--bins {}: must be in [1, 1000]", a.bins));
   check_grazing_share(a.grazing_share);
   if (!(a.cone > 0 && a.cone <= 90)) throw UsageError(fmt::format("--cone {}: must be in (0, 90] degrees", a.cone));
-  if (a.threads < 0) throw UsageError(fmt::format("--threads {}: must be >= 0", a.threads));
   HeightfieldGeometry geometry;
   try {
     geometry = heightfield_geometry_from_string(a.geometry);
@@ -408,21 +384,11 @@ CellSummary summarise(const std::vector<Estimate>& xs) {
 std::vector<unsigned long long> parse_seeds(const MaskingArgs& a) {
   if (a.seeds.empty()) return {a.seed};
   std::vector<unsigned long long> seeds;
-  for (const auto& item : split_names(a.seeds)) {
-    std::size_t used = 0;
-    unsigned long long s = 0;
-    try {
-      if (!item.empty() && item[0] != '-') s = std::stoull(item, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used == 0 || used != item.size())
-      throw UsageError(fmt::format("--seeds '{}': '{}' is not a non-negative integer", a.seeds, item));
+  for (const std::uint64_t s : parse_uint_list("--seeds", a.seeds)) {
     if (std::find(seeds.begin(), seeds.end(), s) != seeds.end())
-      throw UsageError(fmt::format("--seeds '{}': seed {} appears twice", a.seeds, s));
+      throw UsageError(fmt::format("--seeds {}: seed {} appears twice", quote_excerpt(a.seeds), s));
     seeds.push_back(s);
   }
-  if (seeds.empty()) throw UsageError(fmt::format("--seeds '{}': empty list", a.seeds));
   return seeds;
 }
 
@@ -438,9 +404,9 @@ std::optional<microgeom::Heightfield> build_unless_interrupted(const microgeom::
 
 int run_table(const MaskingArgs& a) {
   check_distinct_outputs({}, {{"--json", a.json}, {"--markdown", a.markdown}});
-  const auto alphas = parse_list("--alphas", a.alphas);
-  const auto thetas = parse_list("--thetas", a.thetas);
-  const auto names = split_names(a.assemblies);
+  const auto alphas = parse_double_list("--alphas", a.alphas);
+  const auto thetas = parse_double_list("--thetas", a.thetas);
+  const auto names = split_names("--assemblies", a.assemblies);
   const auto seeds = parse_seeds(a);
   for (double t : thetas) check_theta("--thetas", t);
   for (double al : alphas)
@@ -448,7 +414,6 @@ int run_table(const MaskingArgs& a) {
       throw UsageError(fmt::format("--alphas: {} outside [{}, {}]", al, microgeom::kMinAssemblyAlpha, microgeom::kMaxAssemblyAlpha));
   for (const auto& n : names)
     if (!microgeom::find_assembly(n)) throw UsageError(fmt::format("--assemblies: unknown assembly '{}'", n));
-  if (a.samples <= 0) throw UsageError(fmt::format("--samples {}: must be positive", a.samples));
   if (a.table_vndf_rays <= 0) throw UsageError(fmt::format("--vndf-rays {}: must be positive", a.table_vndf_rays));
   if (!std::isfinite(a.table_phi)) throw UsageError(fmt::format("--phi {}: must be finite", a.table_phi));
   check_grazing_share(a.grazing_share);
@@ -643,9 +608,6 @@ int run_trace_vndf_heightfield(const std::string& surface, std::optional<double>
                                const std::string& json) {
   check_theta("--theta", theta);
   if (!std::isfinite(phi)) throw UsageError(fmt::format("--phi {}: must be finite", phi));
-  if (rays <= 0) throw UsageError(fmt::format("--rays {}: must be positive", rays));
-  if (threads < 0) throw UsageError(fmt::format("--threads {}: must be >= 0", threads));
-  if (rows < 1 || rows % 2 == 0 || rows > 501) throw UsageError(fmt::format("--rows {}: must be odd, in [1, 501]", rows));
   if (fs::path(out).extension() != ".exr") throw UsageError(fmt::format("--out '{}': must be an .exr file", out));
   check_output("--out", out);
   check_output("--json", json);
@@ -756,33 +718,49 @@ CommandRegistration reg{"trace masking", [](CLI::App& app) {
       "--table builds the assemblies and prints the masking table of docs/masking.md. Exit 0 done, 1 leak test "
       "failed, 2 bad input, 130 interrupted.");
   sub->add_option("--surface", args->surface, "heightmap EXR (microsim surface build/import)");
-  sub->add_option("--tile-size", args->tile_size, "physical tile size, for heightmaps without the microsim.tile_size attribute");
-  sub->add_option("--theta", args->theta, "view polar angle in degrees, [0, 90)");
-  sub->add_option("--phi", args->phi, "view azimuth in degrees (single surface; default 0)");
-  sub->add_option("--theta-l", args->theta_l, "light polar angle in degrees, [0, 90): adds G2(v, l)");
-  sub->add_option("--phi-l", args->phi_l, "light azimuth in degrees")->capture_default_str();
-  sub->add_option("--cone", args->cone, "half-angle (deg) of the mirror cone around the half vector for G2(v, l)")
-      ->capture_default_str();
-  sub->add_option("--samples", args->samples, "surface points per view")->capture_default_str();
-  sub->add_option("--vndf-rays", args->vndf_rays,
-                  "also trace the VNDF with this many rays (single surface; table: rays per view, default 2e6)");
-  sub->add_option("--seed", args->seed, "random seed (same seed, same result, whatever --threads)")->capture_default_str();
-  sub->add_option("--threads", args->threads, "worker threads (0: all cores)")->capture_default_str();
-  sub->add_option("--bins", args->bins, "bins of <v, m> and of height")->capture_default_str();
-  sub->add_option("--grazing-share", args->grazing_share,
-                  "share of the front-facing projected area in the fine near-grazing class of G1(v | m) "
-                  "(the facets with the smallest <v, m>), in (0, 0.5)")
-      ->capture_default_str();
+  add_number_option(sub, "--tile-size", args->tile_size, real(),
+                    "physical tile size, for heightmaps without the microsim.tile_size attribute");
+  add_number_option(sub, "--theta", args->theta, real(), "view polar angle in degrees, [0, 90)");
+  add_number_option(sub, "--phi", args->phi, real(), "view azimuth in degrees (single surface; default 0)");
+  add_number_option(sub, "--theta-l", args->theta_l, real(), "light polar angle in degrees, [0, 90): adds G2(v, l)");
+  add_number_option(sub, "--phi-l", args->phi_l, real(), "light azimuth in degrees")
+      ->default_str(fmt::format("{}", args->phi_l));
+  add_number_option(sub, "--cone", args->cone, real(),
+                    "half-angle (deg) of the mirror cone around the half vector for G2(v, l)")
+      ->default_str(fmt::format("{}", args->cone));
+  add_number_option(sub, "--samples", args->samples, whole(1, kMaxSamples),
+                    at_most("surface points per view", kMaxSamples))
+      ->default_str(std::to_string(args->samples));
+  add_number_option(sub, "--vndf-rays", args->vndf_rays, whole(0, kMaxRays),
+                    at_most("also trace the VNDF with this many rays (single surface; table: rays per view, "
+                            "default 2e6)",
+                            kMaxRays));
+  add_number_option(sub, "--seed", args->seed, whole(), "random seed (same seed, same result, whatever --threads)")
+      ->default_str(std::to_string(args->seed));
+  add_number_option(sub, "--threads", args->threads, integer(0, kMaxThreads),
+                    at_most("worker threads (0: all cores)", kMaxThreads))
+      ->default_str(std::to_string(args->threads));
+  add_number_option(sub, "--bins", args->bins, integer(1, 1000), "bins of <v, m> and of height, 1..1000")
+      ->default_str(std::to_string(args->bins));
+  add_number_option(sub, "--grazing-share", args->grazing_share, real(),
+                    "share of the front-facing projected area in the fine near-grazing class of G1(v | m) "
+                    "(the facets with the smallest <v, m>), in (0, 0.5)")
+      ->default_str(fmt::format("{}", args->grazing_share));
   sub->add_option("--geometry", args->geometry, "Embree geometry: triangles or grid")->capture_default_str();
   sub->add_option("--json", args->json, "write the results as JSON");
   sub->add_flag("--table", args->table, "build the assemblies and print the masking table (docs/masking.md)");
   sub->add_option("--assemblies", args->assemblies, "table: assemblies")->capture_default_str();
   sub->add_option("--alphas", args->alphas, "table: roughnesses")->capture_default_str();
   sub->add_option("--thetas", args->thetas, "table: view angles (deg)")->capture_default_str();
-  sub->add_option("--table-phi", args->table_phi, "table: view azimuth (deg), off the grid axes")->capture_default_str();
-  sub->add_option("--res", args->res, "table: surface resolution N")->capture_default_str();
-  sub->add_option("--corr-cells", args->corr_cells, "table: correlation length in cells (0: assembly default)")
-      ->capture_default_str();
+  add_number_option(sub, "--table-phi", args->table_phi, real(), "table: view azimuth (deg), off the grid axes")
+      ->default_str(fmt::format("{}", args->table_phi));
+  add_number_option(sub, "--res", args->res,
+                    power_of_two(microgeom::kMinAssemblyResolution, microgeom::kMaxAssemblyResolution),
+                    "table: surface resolution N (a power of two, 16..8192)")
+      ->default_str(std::to_string(args->res));
+  add_number_option(sub, "--corr-cells", args->corr_cells, real(),
+                    "table: correlation length in cells (0: assembly default)")
+      ->default_str(fmt::format("{}", args->corr_cells));
   sub->add_option("--seeds", args->seeds,
                   "table: several surface realisations per cell, e.g. 1,2,3 (each cell: mean over the realisations "
                   "± its standard error across them, and the Monte Carlo error of the mean); default: --seed only");

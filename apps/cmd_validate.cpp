@@ -2,6 +2,7 @@
 // whole zoo over a grid (--all). Tables on stdout, progress on stderr, --json for machines.
 // Exit codes: 0 pass, 1 rejected, 2 bad usage or bad input. See docs/validation.md.
 #include "command.h"
+#include "number_options.h"
 
 #include "microsim/compare.h"
 #include "microsim/histogram_io.h"
@@ -55,28 +56,6 @@ constexpr AlphaConfig kAllAlphas[] = {{1e-3, 1e-3, 0}, {0.05, 0.05, 0}, {0.3, 0.
                                       {2, 2, 0},       {0.05, 0.5, 30}, {0.5, 0.05, 30}, {1e-3, 0.3, 30}};
 constexpr long long kAllDefaultSamples = 200'000;
 constexpr double kNegativeControlP = 1e-6;  // a negative control must be rejected with p below this
-
-double parse_number(const std::string& text, const std::string& what) {
-  std::size_t pos = 0;
-  double v = 0;
-  try {
-    v = std::stod(text, &pos);
-  } catch (const std::exception&) {
-    throw UsageError(fmt::format("{}: '{}' is not a number", what, text));
-  }
-  if (pos != text.size()) throw UsageError(fmt::format("{}: '{}' is not a number", what, text));
-  return v;
-}
-
-std::pair<double, double> parse_alpha(const std::string& text) {
-  const auto comma = text.find(',');
-  const double ax = parse_number(text.substr(0, comma), "--alpha");
-  const double ay = comma == std::string::npos ? ax : parse_number(text.substr(comma + 1), "--alpha");
-  for (double a : {ax, ay})
-    if (!(a > 0) || !std::isfinite(a))
-      throw UsageError(fmt::format("--alpha: roughness must be positive and finite, got '{}'", text));
-  return {ax, ay};
-}
 
 std::string names_list() {
   std::string s;
@@ -265,7 +244,7 @@ int run_single(const Args& a) {
   using namespace microsim;
   if (a.alpha.empty()) throw UsageError("--alpha is required (e.g. --alpha 0.3 or --alpha 0.05,0.5)");
   if (!a.theta) throw UsageError("--theta is required (degrees in [0, 90))");
-  const auto [ax, ay] = parse_alpha(a.alpha);
+  const auto [ax, ay] = microsim::parse_alpha("--alpha", a.alpha);
   const GGX<double> ggx(ax, ay);
   const Vec3<double> wi = direction_from_degrees(*a.theta, a.phi);
   ValidationOptions o = base_options(a);
@@ -453,12 +432,9 @@ int run(const Args& a) {
   if (a.reflected && a.from.empty()) throw UsageError("--reflected applies to --from FILE only");
   if (a.use_float && !a.from.empty()) throw UsageError("--float applies to --sampler and --all, not to --from");
   if (a.samples && !a.from.empty()) throw UsageError("--samples does not apply to --from (the file gives the samples)");
-  if (a.samples && *a.samples <= 0)
-    throw UsageError(fmt::format("--samples must be a positive integer, got {}", *a.samples));
   if (a.theta && !(*a.theta >= 0 && *a.theta < 90))
     throw UsageError(fmt::format("--theta must be in [0, 90) degrees, got {}", *a.theta));
   if (!std::isfinite(a.phi)) throw UsageError(fmt::format("--phi must be finite, got {}", a.phi));
-  if (a.rows < 3 || a.rows % 2 == 0) throw UsageError(fmt::format("--rows must be odd and >= 3, got {}", a.rows));
   if (!(a.significance > 0 && a.significance < 1))
     throw UsageError(fmt::format("--significance must be in (0, 1), got {}", a.significance));
   if (!a.against.empty()) {
@@ -468,7 +444,6 @@ int run(const Args& a) {
       throw UsageError(fmt::format("--against '{}': use 'ellipsoid' or a histogram .exr from `microsim trace vndf`", a.against));
   }
   if (a.rays && a.against != "ellipsoid") throw UsageError("--rays applies to --against ellipsoid only");
-  if (a.rays && *a.rays <= 0) throw UsageError(fmt::format("--rays must be a positive integer, got {}", *a.rays));
   if (!a.json.empty()) {
     const fs::path parent = fs::path(a.json).parent_path();
     if (!parent.empty() && !fs::is_directory(parent))
@@ -497,19 +472,28 @@ microsim::app::CommandRegistration reg{"validate", [](CLI::App& app) {
   sub->add_flag("--reflected", args->reflected,
                 "with --from: rows are reflected directions (tested against the VNDF reflection pdf), not normals");
   sub->add_flag("--all", args->all, "validate the whole zoo over the standard grid (Sidak-corrected over the batch)");
-  sub->add_option("--alpha", args->alpha, "roughness AX or AX,AY (> 0)");
-  sub->add_option("--theta", args->theta, "view zenith angle in degrees, [0, 90)");
-  sub->add_option("--phi", args->phi, "view azimuth in degrees (default 0)");
-  sub->add_option("--samples", args->samples, "number of samples (default 1000000; 200000 per validation with --all)");
-  sub->add_option("--seed", args->seed, "random seed (default 1)");
+  sub->add_option("--alpha", args->alpha,
+                  "roughness AX or AX,AY, each in [1e-4, 10], anisotropy at most 1:1000 (docs/conventions.md)");
+  using microsim::app::add_number_option;
+  add_number_option(sub, "--theta", args->theta, microsim::app::real(), "view zenith angle in degrees, [0, 90)");
+  add_number_option(sub, "--phi", args->phi, microsim::app::real(), "view azimuth in degrees (default 0)");
+  add_number_option(sub, "--samples", args->samples, microsim::app::whole(1, microsim::kMaxSamples),
+                    microsim::app::at_most("number of samples (default 1000000; 200000 per validation with --all)",
+                                           microsim::kMaxSamples));
+  add_number_option(sub, "--seed", args->seed, microsim::app::whole(), "random seed (default 1)");
   sub->add_flag("--float", args->use_float, "run the sampler's float version (default: double)");
-  sub->add_option("--rows", args->rows, "rows of the sphere and lobe binnings (odd; cols = 2 rows; default 31)");
-  sub->add_option("--significance", args->significance, "family-wise significance level (default 0.01)");
+  add_number_option(sub, "--rows", args->rows, microsim::app::binning_rows(3),
+                    fmt::format("rows of the sphere and lobe binnings (odd, 3..{}; cols = 2 rows; default 31)",
+                                microsim::kMaxBinningRows));
+  add_number_option(sub, "--significance", args->significance, microsim::app::real(),
+                    "family-wise significance level (default 0.01)");
   sub->add_option("--json", args->json, "write the results as JSON to PATH (atomically)");
   sub->add_option("--against", args->against,
                   "compare with the traced oracle instead of the analytic pdf (two-sample chi-square): 'ellipsoid' "
                   "(traced now) or a histogram HIST.exr from `microsim trace vndf`");
-  sub->add_option("--rays", args->rays, "rays traced for --against ellipsoid (default 4000000)");
+  add_number_option(sub, "--rays", args->rays, microsim::app::whole(1, microsim::kMaxRays),
+                    microsim::app::at_most("rays traced for --against ellipsoid (default 4000000)",
+                                           microsim::kMaxRays));
   sub->add_option("--plot", args->plot,
                   "also draw FIG.svg: observed and expected counts and Pearson residuals in the sphere and lobe bins");
   microsim::app::on_selected(sub, [args] { return run(*args); });

@@ -93,8 +93,9 @@ SampleDomain sample_domain_from_string(const std::string& s) {
 }
 
 DirectionBinning DirectionBinning::sphere(int rows) {
-  if (rows < 1 || rows % 2 == 0)
-    throw std::invalid_argument(fmt::format("sphere binning needs an odd number of rows >= 1, got {}", rows));
+  if (rows < 1 || rows % 2 == 0 || rows > kMaxBinningRows)
+    throw std::invalid_argument(
+        fmt::format("sphere binning needs an odd number of rows in [1, {}], got {}", kMaxBinningRows, rows));
   DirectionBinning b;
   b.kind_ = BinningKind::sphere;
   b.rows_ = rows;
@@ -104,7 +105,8 @@ DirectionBinning DirectionBinning::sphere(int rows) {
 }
 
 DirectionBinning DirectionBinning::lobe(const GGX<double>& ggx, const Vec3<double>& wi, SampleDomain domain, int rows) {
-  if (rows < 1) throw std::invalid_argument(fmt::format("lobe binning needs rows >= 1, got {}", rows));
+  if (rows < 1 || rows > kMaxBinningRows)
+    throw std::invalid_argument(fmt::format("lobe binning needs rows in [1, {}], got {}", kMaxBinningRows, rows));
   const double n = wi.norm();
   if (!(n > 0) || !std::isfinite(n)) throw std::invalid_argument("lobe binning needs a finite non-zero view");
   DirectionBinning b;
@@ -541,8 +543,15 @@ nlohmann::json DirectionBinning::describe() const {
 DirectionBinning DirectionBinning::from_description(const nlohmann::json& d) {
   try {
     const std::string kind = d.at("kind").get<std::string>();
-    const int rows = d.at("rows").get<int>();
-    if (d.contains("cols") && d.at("cols").get<int>() != 2 * rows)
+    // Range-checked before narrowing: get<int>() of 1e10 rows would wrap.
+    const nlohmann::json& rows_json = d.at("rows");
+    if (!rows_json.is_number_integer() || rows_json.get<std::int64_t>() < 1 ||
+        rows_json.get<std::int64_t>() > kMaxBinningRows)
+      throw std::invalid_argument(
+          fmt::format("binning description: rows must be an integer in [1, {}], got {}", kMaxBinningRows,
+                      rows_json.dump().substr(0, 40)));
+    const int rows = rows_json.get<int>();
+    if (d.contains("cols") && (!d.at("cols").is_number_integer() || d.at("cols").get<std::int64_t>() != 2 * rows))
       throw std::invalid_argument("binning description: cols must be 2 * rows");
     if (kind == "sphere") return sphere(rows);
     if (kind == "lobe") {

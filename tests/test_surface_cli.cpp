@@ -69,12 +69,12 @@ TEST(SurfaceCli, BadInputExitsTwoNamingTheValueAndWritesNothing) {
     std::string args, needle;
   };
   const std::vector<Case> cases = {
-      {"surface build --assembly smith --alpha 0.5 --res 100 --out x.exr", "resolution 100"},
+      {"surface build --assembly smith --alpha 0.5 --res 100 --out x.exr", "--res '100': not a power of two"},
       {"surface build --assembly smith --alpha 2.5 --res 64 --out x.exr", "alpha 2.5"},
-      {"surface build --assembly smith --alpha 0.5,-1 --res 64 --out x.exr", "alpha -1"},
+      {"surface build --assembly smith --alpha 0.5,-1 --res 64 --out x.exr", "'-1': outside"},
       {"surface build --assembly smith --alpha abc --res 64 --out x.exr", "'abc'"},
       {"surface build --assembly smoth --alpha 0.5 --res 64 --out x.exr", "'smoth'"},
-      {"surface build --assembly smith --alpha 0.5 --res 64 --tile-size 0 --out x.exr", "tile size 0"},
+      {"surface build --assembly smith --alpha 0.5 --res 64 --tile-size 0 --out x.exr", "--tile-size '0': outside (0, inf]"},
       {"surface build --assembly smith --alpha 0.5 --res 256 --out nodir/x.exr", "nodir"},
       {"surface build --assembly smith --alpha 0.5 --res 256 --out x.exr --mesh x.xyz", "x.xyz"},
       // A build that misses its NDF (one slope-matching iteration) is an error, not a warning.

@@ -85,16 +85,16 @@ TEST(TraceCli, BadInputExits2AndWritesNothing) {
       {"trace vndf --alpha 0.5 --theta 90" + ok, "--theta 90"},
       {"trace vndf --alpha 0.5 --theta -1" + ok, "--theta"},
       {"trace vndf --alpha 0.5 --theta nan" + ok, "--theta"},
-      {"trace vndf --alpha 0.5 --theta 30 --rays 0 --out h.exr", "--rays 0"},
-      {"trace vndf --alpha 0.5 --theta 30 --rays -5 --out h.exr", "--rays -5"},
+      {"trace vndf --alpha 0.5 --theta 30 --rays 0 --out h.exr", "--rays '0'"},
+      {"trace vndf --alpha 0.5 --theta 30 --rays -5 --out h.exr", "--rays '-5'"},
       {"trace vndf --alpha 0.5 --theta 30 --rays 1000 --out no_such_dir/h.exr", "no_such_dir"},
       {"trace vndf --alpha 0.5 --theta 30 --rays 1000 --out h.exr --json no_such_dir/h.json", "no_such_dir"},
       {"trace vndf --alpha 0.5 --theta 30 --rays 1000 --out h.txt", "--out"},
       {"trace vndf --surface sphere --alpha 0.5 --theta 30" + ok, "sphere"},
       {"trace vndf --theta 30" + ok, "--alpha"},
       {"trace vndf --alpha 0.5 --theta 30 --mesh-out m.ply" + ok, "--mesh-out"},
-      {"trace vndf --alpha 0.5 --theta 30 --mesh-level 12" + ok, "--mesh-level 12"},
-      {"trace vndf --alpha 0.5 --theta 30 --rows 16" + ok, "--rows 16"},
+      {"trace vndf --alpha 0.5 --theta 30 --mesh-level 12" + ok, "--mesh-level '12'"},
+      {"trace vndf --alpha 0.5 --theta 30 --rows 16" + ok, "--rows '16'"},
   };
   for (const auto& [args, needle] : cases) {
     const CliRun r = run(dir, args);

@@ -44,6 +44,13 @@ namespace microsim {
 
 enum class BinningKind { sphere, lobe };
 
+// The most rows a binning may have (every command's --rows; validate and trace check it the same way).
+// 501 rows are 502002 bins: the probabilities, counts and figures of one binning stay in memory and the
+// cubature of the expected counts finishes in minutes. Bin indices are int: rows * cols = 2 rows^2 must
+// fit, and does by far.
+inline constexpr int kMaxBinningRows = 501;
+static_assert(2LL * kMaxBinningRows * kMaxBinningRows <= 2147483647LL, "bin indices are int");
+
 // Bounds of a bin in its own parameter space (degrees; theta from the parameter space's +z).
 struct BinBounds {
   double theta_min_deg, theta_max_deg;
@@ -81,10 +88,10 @@ struct BinIntegrals {
 
 class DirectionBinning {
 public:
-  // Full sphere, u = w. rows must be odd and >= 1 (throws std::invalid_argument otherwise).
+  // Full sphere, u = w. rows must be odd, in [1, kMaxBinningRows] (throws std::invalid_argument otherwise).
   static DirectionBinning sphere(int rows);
   // The lobe-following parameterization (see above) for samples in `domain` seen from wi (unit).
-  // rows >= 1 (throws std::invalid_argument otherwise).
+  // rows in [1, kMaxBinningRows] (throws std::invalid_argument otherwise).
   static DirectionBinning lobe(const GGX<double>& ggx, const Vec3<double>& wi, SampleDomain domain, int rows);
   // Rebuilds a binning from describe(); throws std::invalid_argument on a malformed description.
   static DirectionBinning from_description(const nlohmann::json& description);
