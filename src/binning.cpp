@@ -480,18 +480,23 @@ BinIntegrals DirectionBinning::integrate(const std::function<double(const Vec3<d
       err += c.error;
       queue.push(c);
     }
-    int cells = 0;  // refinements in this phase (the focus phase has its own budget, min_cell_size)
-    while (err > tolerance(value) && cells < options.max_cells_per_bin && !queue.empty()) {
+    // Replaces the worst cell by its two halves along theta (along_theta) or phi.
+    auto refine_worst = [&](bool along_theta) {
       const Cell worst = queue.top();
-      if (std::max(theta_side(worst), phi_side(worst)) <= options.min_cell_size) break;
       queue.pop();
-      auto [a, b] = split(worst);
+      auto [a, b] = split_along(worst, along_theta);
       evaluate(a, evals);
       evaluate(b, evals);
       value += a.value + b.value - worst.value;
       err += a.error + b.error - worst.error;
       queue.push(a);
       queue.push(b);
+    };
+    int cells = 0;  // refinements in this phase (the focus phase has its own budget, min_cell_size)
+    while (err > tolerance(value) && cells < options.max_cells_per_bin && !queue.empty()) {
+      const Cell& worst = queue.top();
+      if (std::max(theta_side(worst), phi_side(worst)) <= options.min_cell_size) break;
+      refine_worst(theta_side(worst) >= phi_side(worst));  // the longer side
       ++cells;
     }
     // Directed phase: halving the longer side resolves a lobe only as finely in its narrow direction
@@ -499,17 +504,10 @@ BinIntegrals DirectionBinning::integrate(const std::function<double(const Vec3<d
     // exhausts the budget above long before. Split the worst cell along the side whose rule error
     // dominates instead, until the bin meets its tolerance.
     for (int directed = 0; directed < directed_budget && !queue.empty() && err > tolerance(value); ++directed) {
-      const Cell worst = queue.top();
+      const Cell& worst = queue.top();
       const bool theta_ok = theta_side(worst) > options.min_cell_size, phi_ok = phi_side(worst) > options.min_cell_size;
       if (!theta_ok && !phi_ok) break;
-      queue.pop();
-      auto [a, b] = split_along(worst, !phi_ok || (theta_ok && worst.error_theta >= worst.error_phi));
-      evaluate(a, evals);
-      evaluate(b, evals);
-      value += a.value + b.value - worst.value;
-      err += a.error + b.error - worst.error;
-      queue.push(a);
-      queue.push(b);
+      refine_worst(!phi_ok || (theta_ok && worst.error_theta >= worst.error_phi));
     }
     // Re-sum the leaves (the running sums accumulate cancellation).
     value = 0;
