@@ -51,6 +51,8 @@ const Rule15& rule15() {
 struct Cell {
   double t0, t1, p0, p1;
   double value = 0, error = 0;
+  // The error's share along theta and along phi (see nested): error <= error_theta + error_phi.
+  double error_theta = 0, error_phi = 0;
 };
 
 // Angular extent of the longer side of a cell (phi side measured on the widest latitude).
@@ -60,9 +62,9 @@ double phi_side(const Cell& c) {
   const double max_sin = (c.t0 <= half_pi && c.t1 >= half_pi) ? 1.0 : std::max(std::sin(c.t0), std::sin(c.t1));
   return (c.p1 - c.p0) * max_sin;
 }
-std::pair<Cell, Cell> split(const Cell& c) {
+std::pair<Cell, Cell> split_along(const Cell& c, bool along_theta) {
   Cell a = c, b = c;
-  if (theta_side(c) >= phi_side(c)) {
+  if (along_theta) {
     const double m = 0.5 * (c.t0 + c.t1);
     a.t1 = m;
     b.t0 = m;
@@ -73,6 +75,7 @@ std::pair<Cell, Cell> split(const Cell& c) {
   }
   return {a, b};
 }
+std::pair<Cell, Cell> split(const Cell& c) { return split_along(c, theta_side(c) >= phi_side(c)); }
 
 double phi_of(const Vec3<double>& u) {
   double phi = std::atan2(u.y(), u.x());  // atan2(0, 0) = 0: the pole has phi = 0 (math.h convention)
@@ -219,13 +222,17 @@ BinIntegrals DirectionBinning::integrate(const std::function<double(const Vec3<d
   const double dphi = kTwoPi / cols();
 
   // Focus points in parameter-space (theta, phi), bucketed by bin.
-  std::vector<std::vector<std::pair<double, double>>> focus_by_bin(n_bins);
-  for (const Vec3<double>& f : options.focus) {
-    const auto u = to_param(f);
-    if (!u) continue;
-    const auto bin = bin_of(f);
-    focus_by_bin[*bin].emplace_back(std::acos(std::clamp(u->z(), -1.0, 1.0)), phi_of(*u));
-  }
+  using FocusBuckets = std::vector<std::vector<std::pair<double, double>>>;
+  auto bucket_focus = [&](const std::vector<Vec3<double>>& focus, FocusBuckets& by_bin) {
+    for (const Vec3<double>& f : focus) {
+      const auto u = to_param(f);
+      if (!u) continue;
+      const auto bin = bin_of(f);
+      by_bin[*bin].emplace_back(std::acos(std::clamp(u->z(), -1.0, 1.0)), phi_of(*u));
+    }
+  };
+  FocusBuckets focus_by_bin(n_bins);
+  bucket_focus(options.focus, focus_by_bin);
 
   // g(theta, phi) = pdf(w(u)) |dw/du| sin(theta): the integrand per unit d theta d phi.
   // The integrand at u(theta, phi) per unit d theta d phi: pdf(w(u)) |dw/du| sin(theta).
@@ -280,7 +287,7 @@ BinIntegrals DirectionBinning::integrate(const std::function<double(const Vec3<d
     xs[0] = i0;
     for (int i = 0; i < 15; ++i) xs[i + 1] = ic + ih * rule.x[i];
     xs[16] = i1;
-    double k = 0, g = 0;
+    double k = 0, g = 0, inner_err = 0, outer_err = 0;
     for (int j = 0; j < 15; ++j) {
       const double outer = oc + oh * rule.x[j];
       constexpr int kMaxCuts = 32;
@@ -343,9 +350,15 @@ BinIntegrals DirectionBinning::integrate(const std::function<double(const Vec3<d
       }
       k += rule.wk[j] * lk;
       g += rule.wg[j] * lg;
+      inner_err += rule.wk[j] * (lk - lg);
+      outer_err += (rule.wk[j] - rule.wg[j]) * lg;
     }
     c.value = k * oh;
     c.error = std::abs(k - g) * oh;
+    // k - g = inner_err + outer_err: the inner rule's error (Kronrod against Gauss on each line) and the
+    // outer rule's; where the error comes from says which side a split should halve.
+    (theta_inner ? c.error_theta : c.error_phi) = std::abs(inner_err) * oh;
+    (theta_inner ? c.error_phi : c.error_theta) = std::abs(outer_err) * oh;
   };
   // With break curves, the inner direction is the one whose lines the curves cross most often: lines
   // parallel to a curve can miss it (a sliver between two nodes), lines across it cannot.
@@ -368,7 +381,11 @@ BinIntegrals DirectionBinning::integrate(const std::function<double(const Vec3<d
 
   std::vector<double> probability(n_bins, 0.0), error(n_bins, 0.0);
   std::vector<long long> evaluations(n_bins, 0);
-  tbb::parallel_for(0, n_bins, [&](int bin) {
+  std::vector<char> converged(n_bins, 0);
+  auto tolerance = [&](double value) { return std::max(options.abs_tolerance, options.rel_tolerance * std::abs(value)); };
+  // One bin: focus phase, error-driven refinement, then (directed_budget > 0) up to directed_budget
+  // splits along the side that carries the error.
+  auto integrate_bin = [&](int bin, const FocusBuckets& focus_by_bin, int directed_budget) {
     const int row = bin / cols(), col = bin % cols();
     const double z_hi = z_max_ - row * dz;
     const double z_lo = row == rows_ - 1 ? z_min_ : z_max_ - (row + 1) * dz;
@@ -465,20 +482,34 @@ BinIntegrals DirectionBinning::integrate(const std::function<double(const Vec3<d
       err += c.error;
       queue.push(c);
     }
-    int cells = 0;  // refinements in this phase (the focus phase has its own budget, min_cell_size)
-    while (err > std::max(options.abs_tolerance, options.rel_tolerance * std::abs(value)) &&
-           cells < options.max_cells_per_bin && !queue.empty()) {
+    // Replaces the worst cell by its two halves along theta (along_theta) or phi.
+    auto refine_worst = [&](bool along_theta) {
       const Cell worst = queue.top();
-      if (std::max(theta_side(worst), phi_side(worst)) <= options.min_cell_size) break;
       queue.pop();
-      auto [a, b] = split(worst);
+      auto [a, b] = split_along(worst, along_theta);
       evaluate(a, evals);
       evaluate(b, evals);
       value += a.value + b.value - worst.value;
       err += a.error + b.error - worst.error;
       queue.push(a);
       queue.push(b);
+    };
+    int cells = 0;  // refinements in this phase (the focus phase has its own budget, min_cell_size)
+    while (err > tolerance(value) && cells < options.max_cells_per_bin && !queue.empty()) {
+      const Cell& worst = queue.top();
+      if (std::max(theta_side(worst), phi_side(worst)) <= options.min_cell_size) break;
+      refine_worst(theta_side(worst) >= phi_side(worst));  // the longer side
       ++cells;
+    }
+    // Directed phase: halving the longer side resolves a lobe only as finely in its narrow direction
+    // as in its long one; a lobe 1e-4 long and 1e-8 wide (alpha 1e-4 at a grazing view, reflected)
+    // exhausts the budget above long before. Split the worst cell along the side whose rule error
+    // dominates instead, until the bin meets its tolerance.
+    for (int directed = 0; directed < directed_budget && !queue.empty() && err > tolerance(value); ++directed) {
+      const Cell& worst = queue.top();
+      const bool theta_ok = theta_side(worst) > options.min_cell_size, phi_ok = phi_side(worst) > options.min_cell_size;
+      if (!theta_ok && !phi_ok) break;
+      refine_worst(!phi_ok || (theta_ok && worst.error_theta >= worst.error_phi));
     }
     // Re-sum the leaves (the running sums accumulate cancellation).
     value = 0;
@@ -490,11 +521,30 @@ BinIntegrals DirectionBinning::integrate(const std::function<double(const Vec3<d
     }
     probability[bin] = value;
     error[bin] = err;
-    evaluations[bin] = evals;
-  });
+    evaluations[bin] += evals;
+    converged[bin] = err <= tolerance(value);
+  };
+  tbb::parallel_for(0, n_bins, [&](int bin) { integrate_bin(bin, focus_by_bin, 0); });
+  // Second pass: when the bins' error estimates add up to more than second_pass_total_error, the bins
+  // that missed their tolerance are integrated again from scratch with the extra focus points and the
+  // directed phase. Bins that converged, and every bin when the total is small, keep their first values.
+  double total_error = 0;
+  for (int b = 0; b < n_bins; ++b) total_error += error[b];
+  std::vector<int> again;
+  if (total_error > options.second_pass_total_error)
+    for (int b = 0; b < n_bins; ++b)
+      if (!converged[b]) again.push_back(b);
+  if (!again.empty()) {
+    FocusBuckets rich_focus = focus_by_bin;
+    bucket_focus(options.second_pass_focus, rich_focus);
+    tbb::parallel_for(std::size_t(0), again.size(), [&](std::size_t i) {
+      integrate_bin(again[i], rich_focus, options.max_directed_cells_per_bin);
+    });
+  }
 
   BinIntegrals result;
   result.probability = std::move(probability);
+  result.second_pass_bins = int(again.size());
   for (int b = 0; b < n_bins; ++b) {
     result.total += result.probability[b];
     result.error_estimate += error[b];
@@ -513,6 +563,23 @@ std::vector<Vec3<double>> DirectionBinning::lattice_directions(int n) const {
     const double phi = kTwoPi * frac;
     const double s = safe_sqrt(1 - z * z);
     out.push_back(from_param(Vec3<double>(s * std::cos(phi), s * std::sin(phi), z)));
+  }
+  return out;
+}
+
+std::vector<Vec3<double>> DirectionBinning::visible_edge_directions(int rings, int per_ring) const {
+  std::vector<Vec3<double>> out;
+  if (kind_ != BinningKind::lobe) return out;
+  const Vec3<double> v = Vec3<double>(ax_ * wi_.x(), ay_ * wi_.y(), wi_.z()).normalized();
+  Vec3<double> t1, t2;
+  orthonormal_basis(v, t1, t2);
+  for (int k = 0; k < rings; ++k) {
+    const double eta = 0.5 * std::exp2(-k / 4.0);
+    for (int j = 0; j < per_ring; ++j) {
+      const double psi = kTwoPi * (j + 0.5) / per_ring;
+      const Vec3<double> u = (std::cos(eta) * (std::cos(psi) * t1 + std::sin(psi) * t2) + std::sin(eta) * v).normalized();
+      if (u.z() >= z_min_ && u.z() <= z_max_) out.push_back(from_param(u));
+    }
   }
   return out;
 }
