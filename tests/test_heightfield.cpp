@@ -191,7 +191,7 @@ TEST(Heightfield, ExternalHeightmapsAreValidatedWithClearMessages) {
                std::runtime_error);
   // Wrong channels: names what was found.
   const std::string rgb = message_of([&] { microgeom::load_heightmap_exr(write("rgb.exr", 8, 8, {"R", "G", "B"}), 1.0); });
-  EXPECT_NE(rgb.find("B, G, R"), std::string::npos) << rgb;
+  EXPECT_NE(rgb.find("'B', 'G', 'R'"), std::string::npos) << rgb;
   EXPECT_NE(rgb.find("rgb.exr"), std::string::npos) << rgb;
   // Non-square.
   const std::string rect = message_of([&] { microgeom::load_heightmap_exr(write("rect.exr", 8, 4, {"height"}), 1.0); });
