@@ -12,8 +12,10 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 build=${MICROSIM_FUZZ_BUILD:-$root/build-fuzz}
 jobs=${MICROSIM_FUZZ_JOBS:-2}
 
+launcher=()
+if command -v ccache >/dev/null; then launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache); fi
 CXX=clang++ cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMICROSIM_FUZZ=ON \
-  -DMICROSIM_BUILD_TESTS=OFF -DMICROSIM_BUILD_BENCHMARKS=OFF >/dev/null
+  -DMICROSIM_BUILD_TESTS=OFF -DMICROSIM_BUILD_BENCHMARKS=OFF "${launcher[@]}" >/dev/null
 cmake --build "$build" --target fuzz_all -j"$jobs" >/dev/null
 
 # Inputs up to these many bytes: enough for every seed and for what each format can say.
