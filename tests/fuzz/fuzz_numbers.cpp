@@ -34,8 +34,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
   if (const auto v = parse_finite_double(text)) {
     if (!std::isfinite(*v)) microsim::fuzz::finding("parse_finite_double accepted a non-finite value");
-    if (text.find_first_of(" \t\n+xXiInN") != std::string_view::npos)
-      microsim::fuzz::finding("parse_finite_double accepted blanks, '+', hex, inf or nan");
+    if (text.front() == '+' || text.find_first_of(" \t\n\r\v\fxXiInN") != std::string_view::npos)
+      microsim::fuzz::finding("parse_finite_double accepted blanks, a leading '+', hex, inf or nan");
   }
   std::size_t fields = 0, bytes = 0;
   for (const auto f : split_commas(text)) {
