@@ -48,6 +48,7 @@ std::string short_numbers(const microsim::TracedHistogram& h, const std::string&
 
 int run_plot(const PlotOptions& o) {
   using namespace microsim;
+  microsim::app::check_distinct_outputs({{"histogram", o.histogram}}, {{"--out", o.out}});
   if (fs::path(o.out).extension() != ".svg")
     throw UsageError(fmt::format("--out: '{}' must end in .svg (the figure is SVG)", o.out));
   const fs::path parent = fs::path(o.out).parent_path();

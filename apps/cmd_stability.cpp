@@ -4,6 +4,8 @@
 // within its bound, 1 when some row exceeds it, 2 on bad usage.
 #include "command.h"
 
+#include "microsim/histogram_io.h"
+#include "microsim/progress.h"
 #include "microsim/stability.h"
 
 #include <fmt/core.h>
@@ -11,33 +13,8 @@
 
 #include <chrono>
 #include <filesystem>
-#include <fstream>
 
 namespace {
-
-// Writes to PATH.partial and renames it into place, so that a failure leaves nothing half-written.
-void write_json_atomically(const std::filesystem::path& path, const nlohmann::json& j) {
-  std::filesystem::path tmp = path;
-  tmp += ".partial";
-  {
-    std::ofstream out(tmp, std::ios::trunc);
-    if (!out) throw microsim::app::UsageError(fmt::format("--json: cannot write '{}'", tmp.string()));
-    out << j.dump(2) << '\n';
-    out.close();
-    if (!out) {
-      std::error_code ec;
-      std::filesystem::remove(tmp, ec);
-      throw std::runtime_error(fmt::format("--json: write error on '{}'", tmp.string()));
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::error_code ignored;
-    std::filesystem::remove(tmp, ignored);
-    throw std::runtime_error(fmt::format("--json: cannot rename into '{}': {}", path.string(), ec.message()));
-  }
-}
 
 struct Options {
   std::string json_path;
@@ -61,6 +38,7 @@ microsim::app::CommandRegistration reg{"stability", [](CLI::App& app) {
   auto* seed = sub->add_option("--seed", opts->seed, "seed of the random u (default 20240611)");
   sub->add_flag("--failures-only", opts->failures_only, "print only the rows that exceed their bound");
   microsim::app::on_selected(sub, [opts, seed] {
+    microsim::app::check_distinct_outputs({}, {{"--json", opts->json_path}});  // one output, no input: future-proof
     if (!opts->json_path.empty()) {
       const std::filesystem::path parent = std::filesystem::absolute(opts->json_path).parent_path();
       if (!std::filesystem::is_directory(parent))
@@ -73,8 +51,13 @@ microsim::app::CommandRegistration reg{"stability", [](CLI::App& app) {
     fmt::print(stderr, "stability: sweeping {} alpha pairs x {} thetas x {} phis x ({} + {}) u ...\n",
                grid.alphas.size(), grid.thetas_deg.size(), grid.phis_deg.size(),
                grid.u_values.size() * grid.u_values.size(), grid.random_u_per_view);
+    microsim::install_interrupt_handler();  // the sweep (seconds) has no check: Ctrl-C takes effect after it
     const auto start = std::chrono::steady_clock::now();
     const microsim::StabilityTable table = microsim::run_stability_sweep(grid);
+    if (microsim::interrupted()) {
+      fmt::print(stderr, "stability: interrupted: no table, nothing written\n");
+      return microsim::app::kExitInterrupted;
+    }
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     fmt::print(stderr, "stability: {} evaluations in {:.1f} s\n", table.total_evaluations(), seconds);
 
@@ -85,7 +68,7 @@ microsim::app::CommandRegistration reg{"stability", [](CLI::App& app) {
     const std::size_t violations = table.violation_count();
     fmt::print("\n{} rows, {} evaluations; {} rows exceed their bound: {}\n", table.rows.size(),
                table.total_evaluations(), violations, violations == 0 ? "PASS" : "FAIL");
-    if (!opts->json_path.empty()) write_json_atomically(opts->json_path, microsim::stability_table_json(table));
+    if (!opts->json_path.empty()) microsim::write_text_atomically(opts->json_path, microsim::stability_table_json(table).dump(2) + "\n");
     return violations == 0 ? microsim::app::kExitOk : microsim::app::kExitRejected;
   });
 }};

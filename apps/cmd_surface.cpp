@@ -13,6 +13,7 @@
 #include "command.h"
 
 #include "microgeom/assembly.h"
+#include "microgeom/atomic_file.h"
 #include "microgeom/heightfield.h"
 #include "microgeom/mesh_io.h"
 #include "microgeom/surface_stats.h"
@@ -42,12 +43,6 @@ namespace {
 // ---- staged outputs: write everything to temporaries, rename all at the end ---------------------------
 class StagedOutputs {
 public:
-  ~StagedOutputs() {
-    for (auto& [tmp, final_path] : staged_) {
-      std::error_code ec;
-      fs::remove(tmp, ec);
-    }
-  }
   // Checks up front (before long work) that the destination's directory exists.
   static void check_destination(const std::string& option, const fs::path& path) {
     const fs::path parent = fs::absolute(path).parent_path();
@@ -55,26 +50,19 @@ public:
       throw UsageError(fmt::format("{} '{}': directory '{}' does not exist", option, path.string(), parent.string()));
     if (fs::is_directory(path)) throw UsageError(fmt::format("{} '{}' is a directory", option, path.string()));
   }
-  // A temporary path next to `path` with the same extension; writer(tmp) must create it.
+  // A new temporary next to `path` with the same extension (microgeom/atomic_file.h); writer(tmp) writes it.
   void stage(const fs::path& path, const std::function<void(const fs::path&)>& writer) {
-    static std::atomic<int> counter{0};
-    const fs::path tmp = fs::absolute(path).parent_path() /
-                         fmt::format(".{}.staged-{}-{}{}", path.stem().string(), ::getpid(), counter++,
-                                     path.extension().string());
-    staged_.emplace_back(tmp, path);
-    writer(tmp);
+    staged_.emplace_back(path);
+    writer(staged_.back().path());
   }
+  // Renames every staged file into place; the destructor removes the temporaries of an unfinished stage.
   void commit() {
-    for (auto& [tmp, final_path] : staged_) {
-      std::error_code ec;
-      fs::rename(tmp, final_path, ec);
-      if (ec) throw std::runtime_error(fmt::format("cannot move output into '{}': {}", final_path.string(), ec.message()));
-    }
+    for (auto& tmp : staged_) tmp.commit();
     staged_.clear();
   }
 
 private:
-  std::vector<std::pair<fs::path, fs::path>> staged_;
+  std::vector<microgeom::TemporaryFile> staged_;
 };
 
 void write_json_file(const fs::path& path, const nlohmann::json& j) {
@@ -83,6 +71,12 @@ void write_json_file(const fs::path& path, const nlohmann::json& j) {
   out << j.dump(2) << '\n';
   out.close();
   if (!out) throw std::runtime_error(fmt::format("write error on JSON '{}'", path.string()));
+}
+
+// Ctrl-C: a surface command stops at the next step and writes nothing (its outputs are all or nothing).
+int interrupted_nothing_written(const char* command) {
+  fmt::print(stderr, "{}: interrupted: nothing written\n", command);
+  return microsim::app::kExitInterrupted;
 }
 
 // ---- option parsing -----------------------------------------------------------------------------------
@@ -231,6 +225,8 @@ struct BuildOptions {
 };
 
 int run_build(const BuildOptions& o) {
+  microsim::app::check_distinct_outputs(
+      {}, {{"--out", o.out}, {"--normals", o.normals}, {"--mesh", o.mesh}, {"--json", o.json}});
   microgeom::AssemblyParams p;
   p.assembly = o.assembly;
   std::tie(p.alpha_x, p.alpha_y) = parse_alpha(o.alpha);
@@ -260,20 +256,24 @@ int run_build(const BuildOptions& o) {
     fmt::print(stderr, "surface build: note: the tile is only {:.3g} correlation lengths wide (64-128 advised for "
                        "masking statistics)\n", p.resolution / l);
 
+  microsim::install_interrupt_handler();
   const auto t0 = std::chrono::steady_clock::now();
   const double cpu0 = cpu_seconds();
   microgeom::BuildReport report;
   microgeom::Heightfield field;
-  {
+  try {
     microsim::ProgressBar bar(fmt::format("surface build {} {}^2", p.assembly, p.resolution), 1000, !o.quiet);
     std::uint64_t shown = 0;
-    field = microgeom::build_assembly(p, &report, [&](std::string_view, double fraction) {
+    const auto progress = [&](std::string_view, double fraction) {
       const auto target = std::uint64_t(std::clamp(fraction, 0.0, 1.0) * 1000);
       if (target > shown) {
         bar.add(target - shown);
         shown = target;
       }
-    });
+    };
+    field = microgeom::build_assembly(p, &report, progress, [] { return microsim::interrupted(); });
+  } catch (const microgeom::BuildCancelled&) {
+    return interrupted_nothing_written("surface build");
   }
   const double build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const double build_rss = peak_rss_bytes();  // peak so far: the build itself
@@ -286,6 +286,7 @@ int run_build(const BuildOptions& o) {
   so.tolerance = microgeom::tolerance_for(info->reference, p.resolution, l);
   const auto t1 = std::chrono::steady_clock::now();
   const microgeom::SurfaceStats st = microgeom::measure_surface(field, so);
+  if (microsim::interrupted()) return interrupted_nothing_written("surface build");
   const double stats_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
   const double stats_cpu = cpu_seconds() - cpu0 - build_cpu;
 
@@ -374,12 +375,15 @@ microgeom::Heightfield load_for_cli(const std::string& path, double tile_size_op
 }
 
 int run_stats(const StatsCliOptions& o) {
+  microsim::app::check_distinct_outputs({{"heightmap", o.path}},
+                                        {{"--json", o.json}, {"--mesh", o.mesh}, {"--normals", o.normals}});
   if (!o.json.empty()) StagedOutputs::check_destination("--json", o.json);
   if (!o.mesh.empty()) {
     StagedOutputs::check_destination("--mesh", o.mesh);
     check_mesh_extension(o.mesh);
   }
   if (!o.normals.empty()) StagedOutputs::check_destination("--normals", o.normals);
+  microsim::install_interrupt_handler();
   const microgeom::Heightfield field = load_for_cli(o.path, o.tile_size);
   if (o.mesh_crop < 0 || o.mesh_crop > field.resolution())
     throw UsageError(fmt::format("--mesh-crop {} must be in [1, {}] (0 = whole tile)", o.mesh_crop, field.resolution()));
@@ -412,6 +416,7 @@ int run_stats(const StatsCliOptions& o) {
   so.tolerance = l > 0 ? microgeom::tolerance_for(so.reference, field.resolution(), l) : microgeom::NdfTolerance{};
 
   const microgeom::SurfaceStats st = microgeom::measure_surface(field, so);
+  if (microsim::interrupted()) return interrupted_nothing_written("surface stats");
   fmt::print("surface stats: {}", o.path);
   if (auto it = field.metadata.find("assembly"); it != field.metadata.end()) fmt::print(" (assembly {})", it->second);
   fmt::print("{}\n", l > 0 ? fmt::format(", tolerance for {:.4g} correlation lengths per tile", field.resolution() / l)
@@ -444,9 +449,12 @@ struct ImportOptions {
 };
 
 int run_import(const ImportOptions& o) {
+  microsim::app::check_distinct_outputs({{"heightmap", o.path}}, {{"--out", o.out}});
   if (!(o.tile_size > 0)) throw UsageError(fmt::format("--tile-size {} must be > 0", o.tile_size));
   StagedOutputs::check_destination("--out", o.out);
+  microsim::install_interrupt_handler();
   microgeom::Heightfield field = load_for_cli(o.path, o.tile_size);
+  if (microsim::interrupted()) return interrupted_nothing_written("surface import");
   field.metadata["assembly"] = "imported";
   field.metadata["source"] = fs::absolute(o.path).string();
   StagedOutputs outputs;

@@ -75,6 +75,8 @@ std::pair<double, double> parse_alpha(const std::string& text) {
 int run_trace_vndf(const TraceVndfArgs& a) {
   namespace ms = microsim;
   // ---- validate everything before any work --------------------------------------------------------------
+  microsim::app::check_distinct_outputs({{"--surface", a.surface == "ellipsoid" ? "" : a.surface}},
+                                        {{"--out", a.out}, {"--json", a.json}, {"--mesh-out", a.mesh_out}});
   const bool heightfield = a.surface.size() > 4 && a.surface.substr(a.surface.size() - 4) == ".exr";
   if (a.surface != "ellipsoid" && !heightfield)
     throw UsageError(fmt::format("--surface '{}': unknown surface (known: ellipsoid, or a heightmap .exr)", a.surface));

@@ -114,6 +114,16 @@ microgeom::Heightfield load_surface(const std::string& path, std::optional<doubl
   }
 }
 
+// Ctrl-C: what was measured has been written, marked partial; says so on stderr. Returns exit code 130.
+int interrupted_partial_written(const char* command, const std::vector<std::string>& outputs) {
+  std::string written;
+  for (const auto& o : outputs)
+    if (!o.empty()) written += (written.empty() ? "" : ", ") + ("'" + o + "'");
+  fmt::print(stderr, "{}: interrupted: partial results{}\n", command,
+             written.empty() ? "" : ", written marked partial to " + written);
+  return kExitInterrupted;
+}
+
 std::string pm(const Estimate& e, int digits = 4) { return fmt::format("{:.{}f} ± {:.{}f}", e.value, digits, e.se, digits); }
 
 // ---- single surface -------------------------------------------------------------------------------------------
@@ -211,6 +221,7 @@ nlohmann::json surface_json(const microgeom::Heightfield& field, const std::stri
 
 int run_masking(const MaskingArgs& a) {
   // ---- validate everything before any work ----
+  check_distinct_outputs({{"--surface", a.surface}}, {{"--json", a.json}});
   if (a.surface.empty()) throw UsageError("--surface is required (or --table)");
   check_theta("--theta", a.theta);
   if (!std::isfinite(a.phi)) throw UsageError(fmt::format("--phi {}: must be finite", a.phi));
@@ -292,7 +303,8 @@ int run_masking(const MaskingArgs& a) {
     j["vndf"] = jv;
   }
   j["peak_rss_mib"] = peak_rss_mib();
-  const bool partial = r.partial || (vndf && vndf->partial);
+  // Ctrl-C before the VNDF trace skips it: the run is partial too.
+  const bool partial = r.partial || (vndf && vndf->partial) || (a.vndf_rays > 0 && !vndf);
   j["partial"] = partial;
   if (!a.json.empty()) write_text_atomically(a.json, j.dump(2) + "\n");
 
@@ -313,7 +325,7 @@ int run_masking(const MaskingArgs& a) {
   fmt::print("peak RSS {:.1f} MiB\n", peak_rss_mib());
   const bool failed = leak_failed(r);
   fmt::print("leak test ({} SE): {}\n", kLeakSigmas, failed ? "FAILED" : "passed");
-  if (partial) return microsim::app::kExitInterrupted;
+  if (partial) return interrupted_partial_written("trace masking", {a.json});
   return failed ? kExitRejected : kExitOk;
 }
 
@@ -414,7 +426,18 @@ std::vector<unsigned long long> parse_seeds(const MaskingArgs& a) {
   return seeds;
 }
 
+// A surface of the table, or nothing when Ctrl-C stopped its build.
+std::optional<microgeom::Heightfield> build_unless_interrupted(const microgeom::AssemblyParams& p,
+                                                               microgeom::BuildReport& report) {
+  try {
+    return microgeom::build_assembly(p, &report, {}, [] { return interrupted(); });
+  } catch (const microgeom::BuildCancelled&) {
+    return std::nullopt;
+  }
+}
+
 int run_table(const MaskingArgs& a) {
+  check_distinct_outputs({}, {{"--json", a.json}, {"--markdown", a.markdown}});
   const auto alphas = parse_list("--alphas", a.alphas);
   const auto thetas = parse_list("--thetas", a.thetas);
   const auto names = split_names(a.assemblies);
@@ -455,7 +478,10 @@ int run_table(const MaskingArgs& a) {
   for (const auto& name : names) {
     for (double alpha : alphas) {
       for (const unsigned long long seed : seeds) {
-        if (interrupted()) break;
+        if (interrupted()) {
+          partial = true;
+          break;
+        }
         microgeom::AssemblyParams p;
         p.assembly = name;
         p.alpha_x = p.alpha_y = alpha;
@@ -464,7 +490,12 @@ int run_table(const MaskingArgs& a) {
         p.corr_cells = a.corr_cells;
         const auto tb = std::chrono::steady_clock::now();
         microgeom::BuildReport report;
-        const microgeom::Heightfield field = microgeom::build_assembly(p, &report);
+        const std::optional<microgeom::Heightfield> built = build_unless_interrupted(p, report);
+        if (!built) {
+          partial = true;
+          break;
+        }
+        const microgeom::Heightfield& field = *built;
         const double build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - tb).count();
         const AnalyticSmith analytic = analytic_reference(field);
         const EmpiricalSmith empirical(field);
@@ -478,7 +509,10 @@ int run_table(const MaskingArgs& a) {
         js["scene_seconds"] = scene.build_seconds();
         js["analytic_reference"] = analytic.describe();
         for (double theta : thetas) {
-          if (interrupted()) break;
+          if (interrupted()) {
+            partial = true;
+            break;
+          }
           const auto tr = std::chrono::steady_clock::now();
           const Vec3<double> v = direction_from_degrees(theta, a.table_phi);
           const std::vector<DirectionBinning> binnings = {DirectionBinning::lobe(
@@ -502,7 +536,8 @@ int run_table(const MaskingArgs& a) {
           // The specular pair: l = v mirrored through the mean normal, facets within the cone around z.
           mo.light = Vec3<double>(-v.x(), -v.y(), v.z());
           row.masking = estimate_masking(scene, analytic, empirical, v, mo);
-          partial = partial || tres.partial || row.masking.partial;
+          const bool view_partial = tres.partial || row.masking.partial;
+          partial = partial || view_partial;
           const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - tr).count();
           const auto& nb = row.masking.by_normal;
           fmt::print(stderr,
@@ -518,8 +553,9 @@ int run_table(const MaskingArgs& a) {
           jr["vndf_rays"] = tres.rays;
           jr["vndf_rays_per_second"] = tres.rays_per_second();
           jr["masking"] = to_json(row.masking);
+          jr["partial"] = view_partial;
           js["views"].push_back(jr);
-          rows.push_back(std::move(row));
+          if (!view_partial) rows.push_back(std::move(row));  // the table holds the complete views only
         }
         j["surfaces"].push_back(js);
       }
@@ -529,12 +565,19 @@ int run_table(const MaskingArgs& a) {
   j["seconds"] = total_s;
   j["peak_rss_mib"] = peak_rss_mib();
   j["partial"] = partial;
+  const std::size_t views_requested = names.size() * alphas.size() * seeds.size() * thetas.size();
+  j["views_requested"] = views_requested;
+  j["views_complete"] = rows.size();
 
   // One table row per (assembly, alpha, theta), over the realisations that were traced.
   const bool several = seeds.size() > 1;
   std::string seed_text;
   for (std::size_t k = 0; k < seeds.size(); ++k) seed_text += (k ? "," : "") + std::to_string(seeds[k]);
   std::string md;
+  if (partial)
+    md += fmt::format("**PARTIAL: interrupted (Ctrl-C) after {} of {} views; the table holds the complete views "
+                      "only.**\n\n",
+                      rows.size(), views_requested);
   md += fmt::format("Surfaces {}^2, correlation length {} cells (0 = default), seed{} {}, view azimuth {} deg; per view "
                     "{} VNDF rays (lobe bins {} x {}) and {} surface points; near-grazing class: the bottom {:g}% of "
                     "the front-facing projected area. {:.0f} s in all.\n",
@@ -586,7 +629,7 @@ int run_table(const MaskingArgs& a) {
   fmt::print("peak RSS {:.1f} MiB\n", peak_rss_mib());
   bool failed = false;
   for (const auto& r : rows) failed = failed || leak_failed(r.masking);
-  if (partial) return microsim::app::kExitInterrupted;
+  if (partial) return interrupted_partial_written("trace masking --table", {a.json, a.markdown});
   return failed ? kExitRejected : kExitOk;
 }
 
@@ -627,6 +670,7 @@ int run_trace_vndf_heightfield(const std::string& surface, std::optional<double>
   options.threads = threads;
   HeightfieldVndfDiagnostics diag;
   const TraceResult r = trace_vndf_heightfield(scene, wi, h.binnings, options, &diag);
+  if (r.partial) fmt::print(stderr, "trace vndf: interrupted after {} of {} rays; writing a partial histogram\n", r.rays, rays);
   h.counts = r.counts;
   h.rays = r.rays;
   h.hits = r.hits;

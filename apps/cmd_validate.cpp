@@ -56,30 +56,6 @@ constexpr AlphaConfig kAllAlphas[] = {{1e-3, 1e-3, 0}, {0.05, 0.05, 0}, {0.3, 0.
 constexpr long long kAllDefaultSamples = 200'000;
 constexpr double kNegativeControlP = 1e-6;  // a negative control must be rejected with p below this
 
-// Writes to PATH.partial, then renames it into place: a failure leaves nothing half-written.
-void write_json_atomically(const fs::path& path, const nlohmann::json& j) {
-  fs::path tmp = path;
-  tmp += ".partial";
-  {
-    std::ofstream out(tmp, std::ios::trunc);
-    if (!out) throw UsageError(fmt::format("--json: cannot write '{}'", tmp.string()));
-    out << j.dump(2) << '\n';
-    out.close();
-    if (!out) {
-      std::error_code ec;
-      fs::remove(tmp, ec);
-      throw std::runtime_error(fmt::format("--json: write error on '{}'", tmp.string()));
-    }
-  }
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  if (ec) {
-    std::error_code ignored;
-    fs::remove(tmp, ignored);
-    throw std::runtime_error(fmt::format("--json: cannot rename into '{}': {}", path.string(), ec.message()));
-  }
-}
-
 double parse_number(const std::string& text, const std::string& what) {
   std::size_t pos = 0;
   double v = 0;
@@ -203,14 +179,27 @@ microsim::ValidationOptions base_options(const Args& a) {
   return o;
 }
 
-// A --from file's directions; a malformed file is bad input (exit 2, the reader's message names the line
-// or index).
-std::vector<microsim::Vec3<double>> read_samples_or_usage_error(const std::string& path) {
+// Runs a validation; a malformed --from file (the reader's message names the line or index) and too few
+// samples for the tests (the message says how many are needed) are bad input: exit 2.
+template <class F> auto usage_errors_of(F&& validation) {
   try {
-    return microsim::read_direction_samples(path);
+    return validation();
   } catch (const microsim::SampleFileError& e) {
     throw UsageError(e.what());
+  } catch (const microsim::InsufficientData& e) {
+    throw UsageError(e.what());
   }
+}
+
+// A --from file, opened for streaming (bounded memory whatever its size).
+microsim::DirectionSampleReader open_samples_or_usage_error(const std::string& path) {
+  return usage_errors_of([&] { return microsim::DirectionSampleReader(path); });
+}
+
+// Ctrl-C during a single validation: there is no verdict to report (exit 130, nothing written).
+int interrupted_nothing_written(const char* when) {
+  fmt::print(stderr, "validate: interrupted {}: no verdict, nothing written\n", when);
+  return microsim::app::kExitInterrupted;
 }
 
 // --against ellipsoid | HIST.exr: two-sample chi-square against the traced oracle (compare.h); same report,
@@ -218,6 +207,8 @@ std::vector<microsim::Vec3<double>> read_samples_or_usage_error(const std::strin
 int run_against(const Args& a, const microsim::GGX<double>& ggx, const microsim::Vec3<double>& wi,
                 microsim::ValidationOptions o) {
   using namespace microsim;
+  // Too few samples for any test: refused before the oracle is traced.
+  if (a.from.empty()) usage_errors_of([&] { require_samples_for_any_test(std::uint64_t(a.samples.value_or(1'000'000))); });
   TracedHistogram traced;
   std::string oracle;
   if (a.against == "ellipsoid") {
@@ -226,9 +217,8 @@ int run_against(const Args& a, const microsim::GGX<double>& ggx, const microsim:
     t.seed = oracle_seed(a.seed);
     t.rows = a.rows;
     t.progress = true;
-    install_interrupt_handler();
     traced = trace_vndf_histogram(ggx, wi, t);
-    if (traced.partial) throw UsageError("interrupted while tracing the oracle: nothing validated");
+    if (traced.partial) return interrupted_nothing_written("while tracing the oracle");
     oracle = fmt::format("the traced ellipsoid ({} rays, {} hits, seed {})", traced.rays, traced.hits, t.seed);
   } else {
     try {
@@ -244,19 +234,20 @@ int run_against(const Args& a, const microsim::GGX<double>& ggx, const microsim:
   std::string source;
   try {
     if (!a.from.empty()) {
-      const std::vector<Vec3<double>> samples = read_samples_or_usage_error(a.from);
-      report = compare_samples_to_trace(samples, a.from, ggx, wi, o, traced);
+      DirectionSampleReader samples = open_samples_or_usage_error(a.from);
+      report = usage_errors_of([&] { return compare_sample_file_to_trace(samples, a.from, ggx, wi, o, traced); });
       source = fmt::format("samples from '{}'", a.from);
     } else {
       const SamplerInfo* s = find_sampler(a.sampler);
       if (!s) throw UsageError(fmt::format("--sampler: unknown sampler '{}' (valid: {})", a.sampler, names_list()));
       o.samples = std::uint64_t(a.samples.value_or(1'000'000));
-      report = compare_sampler_to_trace(*s, ggx, wi, o, traced);
+      report = usage_errors_of([&] { return compare_sampler_to_trace(*s, ggx, wi, o, traced); });
       source = fmt::format("sampler {}", s->name);
     }
   } catch (const std::invalid_argument& e) {
     throw UsageError(fmt::format("--against: {}", e.what()));
   }
+  if (interrupted()) return interrupted_nothing_written("while comparing with the oracle");
   source += " against " + oracle + ", two-sample chi-square";
   print_report(report, source);
   if (!a.json.empty()) {
@@ -264,7 +255,7 @@ int run_against(const Args& a, const microsim::GGX<double>& ggx, const microsim:
     j["against"] = a.against;
     j["oracle_rays"] = traced.rays;
     j["oracle_hits"] = traced.hits;
-    write_json_atomically(a.json, j);
+    write_text_atomically(a.json, j.dump(2) + "\n");
   }
   if (!a.plot.empty()) write_plot(a.plot, report, source);
   return report.passed ? microsim::app::kExitOk : microsim::app::kExitRejected;
@@ -279,24 +270,26 @@ int run_single(const Args& a) {
   const Vec3<double> wi = direction_from_degrees(*a.theta, a.phi);
   ValidationOptions o = base_options(a);
   o.progress = true;
+  install_interrupt_handler();
   if (!a.against.empty()) return run_against(a, ggx, wi, o);
   ValidationReport report;
   std::string source;
   if (!a.from.empty()) {
-    const std::vector<Vec3<double>> samples = read_samples_or_usage_error(a.from);
+    DirectionSampleReader samples = open_samples_or_usage_error(a.from);
     const SampleDomain domain = a.reflected ? SampleDomain::reflected_direction : SampleDomain::microfacet_normal;
-    report = validate_samples(samples, domain, ggx, wi, o);
+    report = usage_errors_of([&] { return validate_sample_file(samples, domain, ggx, wi, o); });
     report.sampler = a.from;
     source = fmt::format("samples from '{}'", a.from);
   } else {
     const SamplerInfo* s = find_sampler(a.sampler);
     if (!s) throw UsageError(fmt::format("--sampler: unknown sampler '{}' (valid: {})", a.sampler, names_list()));
     o.samples = std::uint64_t(a.samples.value_or(1'000'000));
-    report = validate_sampler(*s, ggx, wi, o);
+    report = usage_errors_of([&] { return validate_sampler(*s, ggx, wi, o); });
     source = fmt::format("sampler {}", s->name);
   }
+  if (interrupted()) return interrupted_nothing_written("while validating");
   print_report(report, source);
-  if (!a.json.empty()) write_json_atomically(a.json, to_json(report));
+  if (!a.json.empty()) write_text_atomically(a.json, to_json(report).dump(2) + "\n");
   if (!a.plot.empty()) write_plot(a.plot, report, source);
   return report.passed ? microsim::app::kExitOk : microsim::app::kExitRejected;
 }
@@ -311,6 +304,8 @@ int run_all(const Args& a) {
   const int n_validations = n_configs * int(samplers.size());
   ValidationOptions o = base_options(a);
   o.samples = std::uint64_t(a.samples.value_or(kAllDefaultSamples));
+  // Too few samples for any test: refused before any work (each validation checks its own bound too).
+  usage_errors_of([&] { require_samples_for_any_test(o.samples); });
   // Sidak over the batch: each validation (itself Sidak over its own tests) runs at the level that
   // keeps the family-wise level of the whole batch at --significance.
   o.significance = sidak_significance(a.significance, n_validations);
@@ -359,7 +354,7 @@ int run_all(const Args& a) {
         vo.seed = a.seed + std::uint64_t(index);  // independent streams per validation
         ++index;
         const auto t_start = std::chrono::steady_clock::now();
-        ValidationReport r = validate_sampler(s, ggx, wi, vo, ref);
+        ValidationReport r = usage_errors_of([&] { return validate_sampler(s, ggx, wi, vo, ref); });
         r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
         Summary& sm = summary[std::string(s.name)];
         sm.total += 1;
@@ -416,13 +411,20 @@ int run_all(const Args& a) {
   }
   fmt::print("\nexpected counts (adaptive cubature of {} claimed pdfs x 2 binnings): {:.1f} s\n",
              reference_count, reference_seconds);
-  fmt::print("overall: {} ({} validations in {:.1f} s{})\n",
-             all_met ? "PASS: every correct sampler passes and every negative control is rejected" : "FAIL",
-             results.size(), seconds, partial ? ", INTERRUPTED: partial results" : "");
+  if (partial) {
+    fmt::print("overall: INTERRUPTED: partial results, {} of {} validations in {:.1f} s (no verdict)\n",
+               results.size(), n_validations, seconds);
+  } else {
+    fmt::print("overall: {} ({} validations in {:.1f} s)\n",
+               all_met ? "PASS: every correct sampler passes and every negative control is rejected" : "FAIL",
+               results.size(), seconds);
+  }
   if (!a.json.empty()) {
     nlohmann::json j;
-    j["verdict"] = all_met ? "pass" : "fail";
+    j["verdict"] = partial ? "interrupted" : all_met ? "pass" : "fail";
     j["partial"] = partial;
+    j["validations_requested"] = n_validations;
+    j["validations_done"] = results.size();
     j["samples"] = o.samples;
     j["seed"] = a.seed;
     j["precision"] = to_string(o.precision);
@@ -433,12 +435,19 @@ int run_all(const Args& a) {
     j["reference_seconds"] = reference_seconds;
     j["summary"] = summary_json;
     j["results"] = results;
-    write_json_atomically(a.json, j);
+    write_text_atomically(a.json, j.dump(2) + "\n");
+  }
+  if (partial) {
+    fmt::print(stderr, "validate --all: interrupted: partial results{}\n",
+               a.json.empty() ? "" : fmt::format(", written marked partial to '{}'", a.json));
+    return microsim::app::kExitInterrupted;
   }
   return all_met ? microsim::app::kExitOk : microsim::app::kExitRejected;
 }
 
 int run(const Args& a) {
+  microsim::app::check_distinct_outputs({{"--from", a.from}, {"--against", a.against == "ellipsoid" ? "" : a.against}},
+                                        {{"--json", a.json}, {"--plot", a.plot}});
   const int modes = int(!a.sampler.empty()) + int(!a.from.empty()) + int(a.all);
   if (modes != 1) throw UsageError("give exactly one of --sampler NAME, --from FILE, --all");
   if (a.reflected && a.from.empty()) throw UsageError("--reflected applies to --from FILE only");

@@ -23,6 +23,15 @@ std::vector<Command>& command_registry() {
   return commands;
 }
 
+void check_distinct_outputs(const std::vector<microsim::PathOption>& inputs,
+                            const std::vector<microsim::PathOption>& outputs) {
+  try {
+    microsim::check_output_paths(inputs, outputs);
+  } catch (const microsim::OutputPathError& e) {
+    throw UsageError(e.what());
+  }
+}
+
 void on_selected(CLI::App* sub, std::function<int()> action) { actions().push_back({sub, std::move(action)}); }
 
 int run_selected() {

@@ -5,6 +5,8 @@
 // project's convention.
 #pragma once
 
+#include "microsim/output_paths.h"
+
 #include <CLI/CLI.hpp>
 
 #include <functional>
@@ -53,5 +55,10 @@ struct CommandRegistration {
 struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
+
+// Called by every command before any work: refuses (UsageError, exit 2, nothing written) an output that is
+// the same file as an input or as another output (microsim/output_paths.h). Empty paths are not given.
+void check_distinct_outputs(const std::vector<microsim::PathOption>& inputs,
+                            const std::vector<microsim::PathOption>& outputs);
 
 }  // namespace microsim::app

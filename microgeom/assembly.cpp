@@ -375,9 +375,14 @@ double slope_residual(const std::vector<float>& ux, const std::vector<float>& uy
 // least squares); the residual typically falls below 1e-3 within 8 iterations (BuildReport::residuals).
 // Only the radius is matched: matching the angle as well was measured to stall the iteration at a ~5%
 // residual, and the angular law of the re-integrated field relaxes back to that of the start field anyway.
+// Throws BuildCancelled if the caller asked to stop.
+void stop_if_cancelled(const BuildCancel& cancelled) {
+  if (cancelled && cancelled()) throw BuildCancelled("surface build cancelled");
+}
+
 std::vector<double> match_ggx(Spectral& fft, std::vector<double> h, double ax, double ay, int iterations,
                               BuildReport& report, const BuildProgress& progress, double progress_from,
-                              double progress_to) {
+                              double progress_to, const BuildCancel& cancelled) {
   const int n = fft.n();
   const std::size_t tris = 2 * std::size_t(n) * n;
   std::vector<float> ux(tris), uy(tris), mx(tris), my(tris);
@@ -387,11 +392,14 @@ std::vector<double> match_ggx(Spectral& fft, std::vector<double> h, double ax, d
     if (progress)
       progress(fmt::format("slope matching {}/{}", it + 1, iterations),
                progress_from + (progress_to - progress_from) * it / iterations);
+    stop_if_cancelled(cancelled);
     triangle_slopes(h, n, ax, ay, ux, uy);
     match_ggx_marginal(ux, uy, mx, my, keys, scratch);
     if (it > 0) report.residuals.push_back(slope_residual(ux, uy, mx, my, n));
+    stop_if_cancelled(cancelled);
     h = reintegrate(fft, mx, my, ax, ay, gx_spec);
   }
+  stop_if_cancelled(cancelled);
   if (iterations > 0) {  // the residual of the final field
     triangle_slopes(h, n, ax, ay, ux, uy);
     match_ggx_marginal(ux, uy, mx, my, keys, scratch);
@@ -466,7 +474,8 @@ void sort_slopes_by_height(std::vector<double>& h, int n, double ax, double ay) 
 
 }  // namespace
 
-Heightfield build_assembly(const AssemblyParams& p, BuildReport* report_out, const BuildProgress& progress) {
+Heightfield build_assembly(const AssemblyParams& p, BuildReport* report_out, const BuildProgress& progress,
+                           const BuildCancel& cancelled) {
   validate(p);
   BuildReport report;
   const int n = p.resolution;
@@ -482,6 +491,7 @@ Heightfield build_assembly(const AssemblyParams& p, BuildReport* report_out, con
   if (p.assembly == "beckmann") {
     Spectral fft(n);
     h = gaussian_field(fft, p.seed, lx, ly);
+    stop_if_cancelled(cancelled);
     // Slopes of a Gaussian field are Gaussian; one scale factor sets E[(sx/ax)^2 + (sy/ay)^2] = 1, i.e.
     // alpha^2/2 per axis for the isotropic-equivalent field.
     const double m2 = normalised_second_moment(h, n, ax, ay);
@@ -491,6 +501,7 @@ Heightfield build_assembly(const AssemblyParams& p, BuildReport* report_out, con
   } else if (p.assembly == "smith" || p.assembly == "mixture") {
     Spectral fft(n);
     h = gaussian_field(fft, p.seed, lx, ly);
+    stop_if_cancelled(cancelled);
     if (p.assembly == "mixture") {
       // Patches of 8 l cells (K x K patches of equal size); patch p scales the field's slopes by
       // 1/sqrt(E_p), E_p ~ Exp(1) from CounterRng(seed, kStreamPatches | p); then re-integrate.
@@ -520,13 +531,15 @@ Heightfield build_assembly(const AssemblyParams& p, BuildReport* report_out, con
       std::vector<std::complex<double>> gx_spec;
       h = reintegrate(fft, ux, uy, ax, ay, gx_spec);
     }
-    h = match_ggx(fft, std::move(h), ax, ay, iterations, report, progress, 0.05, 1.0);
+    h = match_ggx(fft, std::move(h), ax, ay, iterations, report, progress, 0.05, 1.0, cancelled);
     report.iterations = iterations;
   } else if (p.assembly == "sorted" || p.assembly == "spikes") {
     Spectral fft(n);
     h = gaussian_field(fft, p.seed, lx, ly);
+    stop_if_cancelled(cancelled);
     sort_slopes_by_height(h, n, ax, ay);
-    h = match_ggx(fft, std::move(h), ax, ay, iterations, report, progress, 0.05, 1.0);
+    stop_if_cancelled(cancelled);
+    h = match_ggx(fft, std::move(h), ax, ay, iterations, report, progress, 0.05, 1.0, cancelled);
     if (p.assembly == "spikes")
       for (double& z : h) z = -z;
     report.iterations = iterations;

@@ -1,12 +1,12 @@
 #include "microgeom/ellipsoid_mesh.h"
 
+#include "microgeom/atomic_file.h"
+
 #include <fmt/core.h>
 
 #include <algorithm>
 #include <cmath>
 #include <numbers>
-#include <system_error>
-#include <unistd.h>
 
 namespace microgeom {
 
@@ -89,25 +89,19 @@ void write_ellipsoid_mesh(const EllipsoidTriMesh& mesh, const std::filesystem::p
   if (ext != ".ply" && ext != ".obj" && ext != ".off" && ext != ".stl") {
     throw EllipsoidMeshError(fmt::format("mesh output '{}': unknown format (use .ply or .obj)", path.string()));
   }
-  const std::filesystem::path tmp =
-      path.parent_path() / fmt::format(".{}.tmp-{}{}", path.stem().string(), ::getpid(), ext);
   OpenMesh::IO::Options options;
   if (ext == ".ply" || ext == ".stl") options += OpenMesh::IO::Options::Binary;
-  // OpenMesh logs "[OBJWriter] : write file" on its info stream; keep stdout/stderr for our own messages.
-  const bool log_was_enabled = omlog().is_enabled();
-  omlog().disable();
-  const bool written = OpenMesh::IO::write_mesh(mesh, tmp.string(), options);
-  if (log_was_enabled) omlog().enable();
-  if (!written) {
-    std::error_code ec;
-    std::filesystem::remove(tmp, ec);
-    throw EllipsoidMeshError(fmt::format("cannot write mesh '{}'", path.string()));
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    throw EllipsoidMeshError(fmt::format("cannot write mesh '{}': {}", path.string(), ec.message()));
+  try {
+    write_file_atomically(path, [&](const std::filesystem::path& tmp) {
+      // OpenMesh logs "[OBJWriter] : write file" on its info stream; keep stdout/stderr for our own messages.
+      const bool log_was_enabled = omlog().is_enabled();
+      omlog().disable();
+      const bool written = OpenMesh::IO::write_mesh(mesh, tmp.string(), options);
+      if (log_was_enabled) omlog().enable();
+      if (!written) throw EllipsoidMeshError(fmt::format("cannot write mesh '{}'", path.string()));
+    });
+  } catch (const FileWriteError& e) {
+    throw EllipsoidMeshError(e.what());
   }
 }
 

@@ -1,6 +1,7 @@
 #include "microgeom/exr_io.h"
 
 #include "microsim/strict_parse.h"
+#include "microgeom/atomic_file.h"
 
 #include <ImfChannelList.h>
 #include <ImfFrameBuffer.h>
@@ -15,7 +16,6 @@
 
 #include <fmt/core.h>
 
-#include <atomic>
 #include <climits>
 #include <cmath>
 #include <cstring>
@@ -24,8 +24,6 @@
 #include <set>
 #include <stdexcept>
 #include <system_error>
-
-#include <unistd.h>
 
 namespace microgeom {
 
@@ -57,12 +55,6 @@ bool is_standard_attribute(const std::string& name) {
   return names.count(name) != 0;
 }
 
-std::filesystem::path temp_path_for(const std::filesystem::path& path) {
-  static std::atomic<unsigned> counter{0};
-  auto name = fmt::format(".{}.tmp-{}-{}", path.filename().string(), ::getpid(), counter.fetch_add(1));
-  return path.parent_path() / name;
-}
-
 }  // namespace
 
 void write_exr(const std::filesystem::path& path, const ExrImage& image) {
@@ -85,7 +77,6 @@ void write_exr(const std::filesystem::path& path, const ExrImage& image) {
     if (key.empty() || is_standard_attribute(key))
       throw fail(fmt::format("attribute name '{}' is reserved", key));
 
-  const auto tmp = temp_path_for(path);
   try {
     Imf::Header header(image.width, image.height);
     header.compression() = Imf::ZIP_COMPRESSION;
@@ -96,15 +87,12 @@ void write_exr(const std::filesystem::path& path, const ExrImage& image) {
     for (const auto& c : image.channels)
       fb.insert(c.name, Imf::Slice::Make(Imf::FLOAT, c.data.data(), header.dataWindow(), sizeof(float),
                                          sizeof(float) * std::size_t(image.width)));
-    {
+    write_file_atomically(path, [&](const std::filesystem::path& tmp) {
       Imf::OutputFile file(tmp.c_str(), header);
       file.setFrameBuffer(fb);
       file.writePixels(image.height);
-    }  // the destructor flushes and closes
-    std::filesystem::rename(tmp, path);
+    });  // the destructor flushes and closes before the rename
   } catch (const std::exception& e) {
-    std::error_code ignored;
-    std::filesystem::remove(tmp, ignored);
     throw fail(e.what());
   }
 }

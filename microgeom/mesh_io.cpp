@@ -1,5 +1,7 @@
 #include "microgeom/mesh_io.h"
 
+#include "microgeom/atomic_file.h"
+
 // OpenMesh's IO header must come before the mesh kernel (it registers the readers/writers).
 #include <OpenMesh/Core/IO/MeshIO.hh>
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
@@ -9,9 +11,6 @@
 #include <algorithm>
 #include <cctype>
 #include <stdexcept>
-#include <system_error>
-
-#include <unistd.h>
 
 namespace microgeom {
 
@@ -51,29 +50,23 @@ void write_heightfield_mesh(const std::filesystem::path& path, const Heightfield
       mesh.add_face(at(i, j), at(i + 1, j + 1), at(i, j + 1));      // t = 1
     }
 
-  const std::filesystem::path tmp =
-      path.parent_path() / fmt::format(".{}.tmp-{}{}", path.stem().string(), ::getpid(), ext);
   OpenMesh::IO::Options options;
   if (ext == ".ply" || ext == ".stl") options += OpenMesh::IO::Options::Binary;
-  // OpenMesh logs on its info stream; keep stdout/stderr for our own messages.
-  const bool log_was_enabled = omlog().is_enabled(), err_was_enabled = omerr().is_enabled();
-  omlog().disable();
-  omerr().disable();  // failures are reported by our exception, naming the path
-  bool written = false;
-  try {
-    written = OpenMesh::IO::write_mesh(mesh, tmp.string(), options, 9);
-  } catch (...) {
-    written = false;
-  }
-  if (log_was_enabled) omlog().enable();
-  if (err_was_enabled) omerr().enable();
-  std::error_code ec;
-  if (written) std::filesystem::rename(tmp, path, ec);
-  if (!written || ec) {
-    std::error_code ignored;
-    std::filesystem::remove(tmp, ignored);
-    throw std::runtime_error(fmt::format("cannot write mesh '{}'{}", path.string(), ec ? ": " + ec.message() : ""));
-  }
+  write_file_atomically(path, [&](const std::filesystem::path& tmp) {
+    // OpenMesh logs on its info stream; keep stdout/stderr for our own messages.
+    const bool log_was_enabled = omlog().is_enabled(), err_was_enabled = omerr().is_enabled();
+    omlog().disable();
+    omerr().disable();  // failures are reported by our exception, naming the path
+    bool written = false;
+    try {
+      written = OpenMesh::IO::write_mesh(mesh, tmp.string(), options, 9);
+    } catch (...) {
+      written = false;
+    }
+    if (log_was_enabled) omlog().enable();
+    if (err_was_enabled) omerr().enable();
+    if (!written) throw std::runtime_error(fmt::format("cannot write mesh '{}'", path.string()));
+  });
 }
 
 }  // namespace microgeom

@@ -12,6 +12,8 @@ packages=(
   libtbb-dev libcli11-dev nlohmann-json3-dev libboost-math-dev libfmt-dev
   libfftw3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  clang libclang-rt-14-dev   # the fuzzing gate (scripts/fuzz.sh): libFuzzer
+  python3-numpy              # scripts/hostile_inputs.py (/usr/bin/python3)
 )
 
 missing=()

@@ -40,6 +40,18 @@ Pooling pool_sparse_cells(std::vector<int> cells, const std::vector<double>& wei
   return p;
 }
 
+// The cells goodness_of_fit would test with n samples: those of positive expected count, after pooling.
+int cells_after_pooling(std::span<const double> expected_probability, double n, double min_expected) {
+  std::vector<double> expected(expected_probability.size());
+  std::vector<int> cells;
+  for (std::size_t i = 0; i < expected.size(); ++i) {
+    expected[i] = std::max(expected_probability[i], 0.0) * n;
+    if (expected[i] > 0) cells.push_back(int(i));
+  }
+  const Pooling p = pool_sparse_cells(std::move(cells), expected, min_expected);
+  return int(p.single.size()) + (p.pooled.empty() ? 0 : 1);
+}
+
 std::string cell_name(const ChiSquareOptions& options, int bin) {
   return options.describe_cell ? options.describe_cell(bin) : fmt::format("bin {}", bin);
 }
@@ -197,6 +209,25 @@ ChiSquareResult two_sample_homogeneity(std::span<const double> a, std::span<cons
   }
   finish_test(r, std::move(reports), options);
   return r;
+}
+
+std::uint64_t goodness_of_fit_minimum_samples(std::span<const double> p, double min_expected) {
+  double p_max = 0, total = 0;
+  for (double x : p) {
+    if (!std::isfinite(x))
+      throw std::invalid_argument("goodness_of_fit_minimum_samples: non-finite expected probability");
+    p_max = std::max(p_max, std::max(x, 0.0));
+    total += std::max(x, 0.0);
+  }
+  const double smaller = std::min(p_max, total - p_max);
+  if (!(smaller > 0)) return kNoSampleCountSuffices;
+  const double estimate = std::ceil(min_expected / smaller);
+  if (!(estimate < 0x1p62)) return kNoSampleCountSuffices;
+  // The closed form can be off by one in rounding: settle it with the test's own pooling.
+  auto n = std::uint64_t(std::max(estimate, 1.0));
+  for (int k = 0; k < 8 && n > 1 && cells_after_pooling(p, double(n - 1), min_expected) >= 2; ++k) --n;
+  for (int k = 0; k < 8 && cells_after_pooling(p, double(n), min_expected) < 2; ++k) ++n;
+  return n;
 }
 
 double sidak_significance(double alpha, int n_tests) {

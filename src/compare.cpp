@@ -2,6 +2,7 @@
 
 #include "microsim/progress.h"
 #include "microsim/random.h"
+#include "microsim/sample_io.h"
 #include "microsim/strict_parse.h"
 
 #include <fmt/core.h>
@@ -164,55 +165,41 @@ void check_configuration(const TracedHistogram& traced, const GGX<double>& ggx, 
   if (traced.hits == 0) throw std::invalid_argument("the traced histogram has no hits");
 }
 
-ValidationReport compare_set(std::string name, const SampleSet& set, const GGX<double>& ggx, const Vec3<double>& wi,
-                             const ValidationOptions& options, Precision precision, const TracedHistogram& traced) {
-  check_configuration(traced, ggx, wi);
-  const auto start = std::chrono::steady_clock::now();
-  ValidationReport r;
-  r.sampler = std::move(name);
-  r.domain = SampleDomain::microfacet_normal;
-  r.alpha_x = ggx.alpha_x();
-  r.alpha_y = ggx.alpha_y();
-  r.wi = wi.normalized();
-  r.samples = set.directions.size();
-  r.seed = options.seed;
-  r.precision = precision;
-  r.significance = options.significance;
-  if (r.samples == 0) throw std::invalid_argument("comparison needs at least one sample");
+// The samples' histograms in the traced histogram's binnings, each with a remainder cell (failed samples or
+// directions outside the binning's parameter space).
+struct TraceBinCounts {
+  std::vector<std::vector<double>> sampled;
+  std::uint64_t samples = 0, failed = 0, outside = 0;
+};
 
-  // Histograms of the samples in the traced histogram's binnings, plus a remainder cell (failed samples
-  // or directions outside the binning's parameter space; for the trace: hits outside the bins).
+// Streams the samples (`drive(visit, chunk_done)`: a sampler's draw, a span or a file) through the traced
+// histogram's binnings, into per-thread integer histograms (exact sums: independent of the thread count).
+// FastDirectionBinner gives exactly DirectionBinning::bin_of, three times faster.
+template <class Drive>
+TraceBinCounts bin_for_trace(const TracedHistogram& traced, const ValidationOptions& options, Drive&& drive) {
   const std::size_t nk = traced.binnings.size();
-  std::vector<std::vector<double>> sampled(nk), oracle(nk);
-  for (std::size_t k = 0; k < nk; ++k) {
-    sampled[k].assign(std::size_t(traced.binnings[k].size()) + 1, 0.0);
-    oracle[k].assign(traced.counts[k].begin(), traced.counts[k].end());
-    const std::uint64_t binned = std::accumulate(traced.counts[k].begin(), traced.counts[k].end(), std::uint64_t(0));
-    oracle[k].push_back(double(traced.hits - binned));
-  }
-  // Bin in parallel into per-thread integer histograms (exact sums: independent of the thread count).
-  // FastDirectionBinner gives exactly DirectionBinning::bin_of, three times faster.
   std::vector<FastDirectionBinner> binners;
   for (const DirectionBinning& b : traced.binnings) binners.emplace_back(b);
   struct Local {
     std::vector<std::vector<std::uint64_t>> counts;
-    std::uint64_t failed = 0, outside = 0;
+    std::uint64_t samples = 0, failed = 0, outside = 0;
   };
   tbb::enumerable_thread_specific<Local> locals([&] {
     Local l;
     l.counts.resize(nk);
-    for (std::size_t k = 0; k < nk; ++k) l.counts[k].assign(sampled[k].size(), 0);
+    for (std::size_t k = 0; k < nk; ++k) l.counts[k].assign(std::size_t(traced.binnings[k].size()) + 1, 0);
     return l;
   });
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, set.directions.size(), 1 << 14), [&](const auto& range) {
+  drive([&](const SampleBlockView& block, std::size_t) {
     Local& l = locals.local();
-    for (std::size_t i = range.begin(); i != range.end(); ++i) {
-      if (!set.valid[i]) {
+    l.samples += block.directions.size();
+    for (std::size_t i = 0; i < block.directions.size(); ++i) {
+      if (!block.valid.empty() && !block.valid[i]) {
         ++l.failed;
         for (std::size_t k = 0; k < nk; ++k) ++l.counts[k].back();
         continue;
       }
-      const Vec3<double>& w = set.directions[i];
+      const Vec3<double>& w = block.directions[i];
       if (!w.allFinite() || !(std::abs(w.norm() - 1) <= options.unit_tolerance)) {
         ++l.outside;
         continue;
@@ -223,12 +210,83 @@ ValidationReport compare_set(std::string name, const SampleSet& set, const GGX<d
       }
     }
   });
+  TraceBinCounts c;
+  c.sampled.resize(nk);
+  for (std::size_t k = 0; k < nk; ++k) c.sampled[k].assign(std::size_t(traced.binnings[k].size()) + 1, 0.0);
   for (const Local& l : locals) {
-    r.failed_samples += l.failed;
-    r.outside_domain += l.outside;
+    c.samples += l.samples;
+    c.failed += l.failed;
+    c.outside += l.outside;
     for (std::size_t k = 0; k < nk; ++k)
-      for (std::size_t b = 0; b < l.counts[k].size(); ++b) sampled[k][b] += double(l.counts[k][b]);
+      for (std::size_t b = 0; b < l.counts[k].size(); ++b) c.sampled[k][b] += double(l.counts[k][b]);
   }
+  return c;
+}
+
+// The oracle's counts per binning, with its remainder cell (hits outside the bins).
+std::vector<std::vector<double>> oracle_counts(const TracedHistogram& traced) {
+  std::vector<std::vector<double>> oracle(traced.binnings.size());
+  for (std::size_t k = 0; k < oracle.size(); ++k) {
+    oracle[k].assign(traced.counts[k].begin(), traced.counts[k].end());
+    const std::uint64_t binned = std::accumulate(traced.counts[k].begin(), traced.counts[k].end(), std::uint64_t(0));
+    oracle[k].push_back(double(traced.hits - binned));
+  }
+  return oracle;
+}
+
+// How many samples the two-sample tests need, from the oracle's histogram: under homogeneity cell i
+// expects min(Na, Nb) q_i (q: the oracle's proportions) on the smaller side, and pooling (chi2.h) must
+// leave two cells, so both the samples and the oracle's hits need goodness_of_fit_minimum_samples(q).
+std::uint64_t trace_minimum_samples(const TracedHistogram& traced) {
+  std::uint64_t needed = minimum_samples_for_any_test();
+  for (std::vector<double> q : oracle_counts(traced)) {
+    for (double& x : q) x /= double(traced.hits);
+    needed = std::max(needed, goodness_of_fit_minimum_samples(q));
+  }
+  return needed;
+}
+
+constexpr const char* kTwoSampleRule =
+    "so that the cells of the two-sample test do not pool into one: its largest cell must expect at least 5 samples "
+    "of each side, and the other cells together at least 5";
+
+void require_oracle_hits(const TracedHistogram& traced) {
+  const std::uint64_t needed = trace_minimum_samples(traced);
+  if (traced.hits < needed)
+    throw InsufficientData(fmt::format("the traced histogram has {} hits, too few: the comparison needs at least {} ({})",
+                                       traced.hits, needed, kTwoSampleRule),
+                           traced.hits, needed);
+}
+
+void require_trace_samples(std::uint64_t samples, const TracedHistogram& traced) {
+  require_oracle_hits(traced);
+  const std::uint64_t needed = trace_minimum_samples(traced);
+  if (samples < needed)
+    throw InsufficientData(fmt::format("{} sample(s) are too few: the comparison with the traced histogram needs at "
+                                       "least {} samples ({})",
+                                       samples, needed, kTwoSampleRule),
+                           samples, needed);
+}
+
+ValidationReport compare_counts(std::string name, const TraceBinCounts& counts, const GGX<double>& ggx,
+                                const Vec3<double>& wi, const ValidationOptions& options, Precision precision,
+                                const TracedHistogram& traced) {
+  const auto start = std::chrono::steady_clock::now();
+  ValidationReport r;
+  r.sampler = std::move(name);
+  r.domain = SampleDomain::microfacet_normal;
+  r.alpha_x = ggx.alpha_x();
+  r.alpha_y = ggx.alpha_y();
+  r.wi = wi.normalized();
+  r.samples = counts.samples;
+  r.seed = options.seed;
+  r.precision = precision;
+  r.significance = options.significance;
+  r.failed_samples = counts.failed;
+  r.outside_domain = counts.outside;
+  const std::size_t nk = traced.binnings.size();
+  const std::vector<std::vector<double>>& sampled = counts.sampled;
+  const std::vector<std::vector<double>> oracle = oracle_counts(traced);
 
   const int n_tests = int(nk);
   r.statistical_tests = n_tests;
@@ -244,6 +302,13 @@ ValidationReport compare_set(std::string name, const SampleSet& set, const GGX<d
     ChiSquareResult c;
     if (std::accumulate(sampled[k].begin(), sampled[k].end(), 0.0) > 0) {
       c = two_sample_homogeneity(sampled[k], oracle[k], chi);
+      // The samples' own counts decide the pooling here: near the bound of require_trace_samples the
+      // cells can still pool into one by chance. A test that cannot reject is no pass.
+      if (!c.rejected && c.dof < 1)
+        throw InsufficientData(fmt::format("{} sample(s) pooled into a single cell of the {} bins: the two-sample test "
+                                           "cannot reject; use more samples (or more oracle rays)",
+                                           r.samples, b.name()),
+                               r.samples, r.samples + 1);
     } else {
       c.test = "two_sample_homogeneity";
       c.p_value = 0;
@@ -323,18 +388,41 @@ ValidationReport compare_sampler_to_trace(const SamplerInfo& sampler, const GGX<
         "sampler '{}' samples reflected directions; the traced oracle measures microfacet normals", sampler.name));
   }
   const auto start = std::chrono::steady_clock::now();
-  const SampleSet set = draw_samples(sampler, ggx, wi, options);
-  ValidationReport r = compare_set(std::string(sampler.name), set, ggx, wi, options, options.precision, traced);
+  check_configuration(traced, ggx, wi);
+  require_trace_samples(options.samples, traced);
+  const TraceBinCounts counts = bin_for_trace(traced, options, [&](const auto& visit) {
+    for_each_drawn_block(sampler, ggx, wi, options, visit);
+  });
+  ValidationReport r = compare_counts(std::string(sampler.name), counts, ggx, wi, options, options.precision, traced);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return r;
 }
 
+namespace {
+template <class Stream>
+ValidationReport compare_stream(Stream& stream, std::string source, const GGX<double>& ggx, const Vec3<double>& wi,
+                                const ValidationOptions& options, const TracedHistogram& traced) {
+  check_configuration(traced, ggx, wi);
+  require_oracle_hits(traced);  // before reading
+  const TraceBinCounts counts =
+      bin_for_trace(traced, options, [&](const auto& visit) { for_each_block(stream, visit); });
+  require_trace_samples(counts.samples, traced);
+  ValidationOptions o = options;
+  o.samples = counts.samples;
+  return compare_counts(std::move(source), counts, ggx, wi, o, Precision::float64, traced);
+}
+}  // namespace
+
 ValidationReport compare_samples_to_trace(std::span<const Vec3<double>> samples, std::string source,
                                           const GGX<double>& ggx, const Vec3<double>& wi,
                                           const ValidationOptions& options, const TracedHistogram& traced) {
-  ValidationOptions o = options;
-  o.samples = samples.size();
-  return compare_set(std::move(source), SampleSet::from_directions(samples), ggx, wi, o, Precision::float64, traced);
+  return compare_stream(samples, std::move(source), ggx, wi, options, traced);
+}
+
+ValidationReport compare_sample_file_to_trace(DirectionSampleReader& reader, std::string source, const GGX<double>& ggx,
+                                              const Vec3<double>& wi, const ValidationOptions& options,
+                                              const TracedHistogram& traced) {
+  return compare_stream(reader, std::move(source), ggx, wi, options, traced);
 }
 
 }  // namespace microsim

@@ -1,5 +1,6 @@
 #include "microsim/histogram_io.h"
 
+#include "microgeom/atomic_file.h"
 #include "microgeom/exr_io.h"
 #include "microsim/strict_parse.h"
 
@@ -9,8 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
-#include <fstream>
-#include <unistd.h>
+#include <sstream>
 
 namespace microsim {
 
@@ -279,12 +279,11 @@ void check_writable(const std::filesystem::path& path) {
   if (!fs::is_directory(dir, ec)) {
     throw HistogramIoError(fmt::format("cannot write '{}': directory '{}' does not exist", path.string(), dir.string()));
   }
-  const fs::path probe = dir / fmt::format(".{}.probe-{}", path.filename().string(), ::getpid());
-  {
-    std::ofstream f(probe);
-    if (!f) throw HistogramIoError(fmt::format("cannot write '{}': directory '{}' is not writable", path.string(), dir.string()));
+  try {
+    const microgeom::TemporaryFile probe(path);  // a new file beside `path`, removed again
+  } catch (const microgeom::FileWriteError&) {
+    throw HistogramIoError(fmt::format("cannot write '{}': directory '{}' is not writable", path.string(), dir.string()));
   }
-  fs::remove(probe, ec);
   // An existing file at `path` is replaced by rename(), which needs only the directory to be writable.
 }
 
@@ -292,25 +291,10 @@ void check_writable(const std::filesystem::path& path) {
 
 namespace microsim {
 void write_text_atomically(const std::filesystem::path& path, const std::string& text) {
-  namespace fs = std::filesystem;
-  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
-  const fs::path tmp = dir / fmt::format(".{}.tmp-{}", path.filename().string(), ::getpid());
-  std::error_code ec;
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw HistogramIoError(fmt::format("cannot write '{}'", path.string()));
-    out << text;
-    out.close();
-    if (!out) {
-      fs::remove(tmp, ec);
-      throw HistogramIoError(fmt::format("write error on '{}'", path.string()));
-    }
-  }
-  fs::rename(tmp, path, ec);
-  if (ec) {
-    std::error_code ignored;
-    fs::remove(tmp, ignored);
-    throw HistogramIoError(fmt::format("cannot write '{}': {}", path.string(), ec.message()));
+  try {
+    microgeom::write_file_atomically(path, text);
+  } catch (const microgeom::FileWriteError& e) {
+    throw HistogramIoError(e.what());
   }
 }
 }  // namespace microsim

@@ -9,7 +9,14 @@
 namespace microsim {
 namespace {
 std::atomic<bool> g_interrupted{false};
-extern "C" void on_sigint(int) { g_interrupted.store(true); }
+// The first Ctrl-C asks the command to stop at its next check; a second one, for work that has no check
+// (or is slow to reach it), kills the process as if no handler were installed.
+extern "C" void on_sigint(int) {
+  if (g_interrupted.exchange(true)) {
+    std::signal(SIGINT, SIG_DFL);
+    std::raise(SIGINT);
+  }
+}
 }  // namespace
 
 void install_interrupt_handler() { std::signal(SIGINT, on_sigint); }

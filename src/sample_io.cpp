@@ -7,6 +7,7 @@
 #include "microsim/sample_io.h"
 
 #include "microsim/strict_parse.h"
+#include "microgeom/atomic_file.h"
 
 #include <array>
 #include <bit>
@@ -21,6 +22,12 @@
 #include <string>
 #include <string_view>
 #include <system_error>
+
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <cerrno>
 
 namespace microsim {
 namespace {
@@ -47,16 +54,6 @@ std::string format_vector(const Vec3<double>& w) {
 std::string format_tolerance(double t) {
   const double e = std::round(std::log10(t));
   return t == std::pow(10.0, e) ? "1e" + std::to_string(static_cast<int>(e)) : format_double(t);
-}
-
-std::string read_whole_file(const std::filesystem::path& path) {
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) fail(path, "is a directory, not a sample file");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) fail(path, "cannot open for reading");
-  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) fail(path, "read error");
-  return bytes;
 }
 
 // Checks one row and returns it renormalised. `where` names the row ("line 12" or "row 5").
@@ -206,7 +203,14 @@ std::string shape_string(const std::vector<std::uint64_t>& shape) {
   return s + ")";
 }
 
-std::vector<Vec3<double>> read_npy(const std::filesystem::path& path, std::string_view bytes) {
+// Where the rows of a checked NPY file are: `bytes` is the whole file (a memory map).
+struct NpyLayout {
+  std::uint64_t rows = 0;
+  std::size_t data_offset = 0;
+  bool is_float32 = false;
+};
+
+NpyLayout read_npy_layout(const std::filesystem::path& path, std::string_view bytes) {
   const auto* data = reinterpret_cast<const unsigned char*>(bytes.data());
   const std::size_t size = bytes.size();
   if (size < kNpyMagic.size() + 2) fail(path, "truncated NPY file (no complete version field)");
@@ -261,12 +265,20 @@ std::vector<Vec3<double>> read_npy(const std::filesystem::path& path, std::strin
     fail(path, "NPY data has " + std::to_string(available - rows * row_bytes) +
                    " unexpected trailing bytes after the " + std::to_string(rows) + " declared rows");
 
-  const unsigned char* p = data + prefix + header_len;
+  return NpyLayout{rows, prefix + static_cast<std::size_t>(header_len), is_float32};
+}
+
+// Decodes and checks rows [first, first + out.size()) of a checked NPY file (`bytes` as above).
+void decode_npy_rows(const std::filesystem::path& path, std::string_view bytes, const NpyLayout& layout,
+                     std::uint64_t first, std::span<Vec3<double>> out) {
+  const bool is_float32 = layout.is_float32;
+  const std::size_t row_bytes = 3 * (is_float32 ? 4 : 8);
+  const unsigned char* p =
+      reinterpret_cast<const unsigned char*>(bytes.data()) + layout.data_offset + first * row_bytes;
   const double tolerance = is_float32 ? kUnitLengthToleranceFloat32 : kUnitLengthToleranceFloat64;
   const char* precision_name = is_float32 ? "float32 data" : "float64 data";
-  std::vector<Vec3<double>> out;
-  out.reserve(static_cast<std::size_t>(rows));
-  for (std::uint64_t r = 0; r < rows; ++r, p += row_bytes) {
+  for (std::uint64_t i = 0; i < out.size(); ++i, p += row_bytes) {
+    const std::uint64_t r = first + i;
     Vec3<double> w;
     for (int c = 0; c < 3; ++c) {
       if (is_float32)
@@ -274,20 +286,18 @@ std::vector<Vec3<double>> read_npy(const std::filesystem::path& path, std::strin
       else
         w[c] = std::bit_cast<double>(read_le(p + 8 * c, 8));
     }
-    out.push_back(checked_direction(path, "row " + std::to_string(r) + " (0-based)", w, tolerance,
-                                    precision_name));
+    out[i] = checked_direction(path, "row " + std::to_string(r) + " (0-based)", w, tolerance, precision_name);
   }
-  return out;
 }
 
 // ---- text ----------------------------------------------------------------------------------------------
 
 bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
 
-std::vector<Vec3<double>> read_text(const std::filesystem::path& path, std::string_view text) {
-  if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);  // UTF-8 byte order mark
-  std::vector<Vec3<double>> out;
-  std::size_t line_no = 0;
+// Parses the lines of `text` (whole lines; the last may lack its '\n'), appending their rows to `out`;
+// line_no counts the lines read so far (over all the chunks of a file).
+void read_text_lines(const std::filesystem::path& path, std::string_view text, std::size_t& line_no,
+                     std::vector<Vec3<double>>& out) {
   while (!text.empty()) {
     ++line_no;
     const std::size_t nl = text.find('\n');
@@ -339,33 +349,16 @@ std::vector<Vec3<double>> read_text(const std::filesystem::path& path, std::stri
     out.push_back(checked_direction(path, where, Vec3<double>(values[0], values[1], values[2]),
                                     kUnitLengthToleranceText, "text data"));
   }
-  if (out.empty()) fail(path, "empty: no samples (only blank or comment lines)");
-  return out;
 }
 
 // ---- writing -------------------------------------------------------------------------------------------
 
-// Writes `bytes` to a temporary sibling of `path` and renames it over `path`.
+// Writes `bytes` to `path` atomically (microgeom/atomic_file.h).
 void write_atomically(const std::filesystem::path& path, const std::string& bytes) {
-  std::filesystem::path tmp = path;
-  tmp += ".partial";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) fail(path, "cannot open '" + tmp.string() + "' for writing");
-    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    out.close();
-    if (!out) {
-      std::error_code ec;
-      std::filesystem::remove(tmp, ec);
-      fail(path, "write error");
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::error_code ignored;
-    std::filesystem::remove(tmp, ignored);
-    fail(path, "cannot rename the temporary file into place: " + ec.message());
+  try {
+    microgeom::write_file_atomically(path, bytes);
+  } catch (const microgeom::FileWriteError& e) {
+    throw SampleFileError(e.what());
   }
 }
 
@@ -375,16 +368,215 @@ void append_le(std::string& out, std::uint64_t v, int bytes) {
 
 }  // namespace
 
+// ---- the block reader ------------------------------------------------------------------------------
+
+// Text is read in chunks of this many bytes; a line may be at most this long (its comment excepted).
+constexpr std::size_t kTextChunk = std::size_t(1) << 20;
+
+struct DirectionSampleReader::Impl {
+  std::filesystem::path path;
+  int fd = -1;
+  std::uint64_t rows = 0;  // rows returned so far
+  bool npy = false;
+  // NPY: the file mapped read-only (or, for a non-regular file, read into `owned`).
+  void* map = nullptr;
+  std::size_t map_size = 0, released = 0;  // bytes of the map whose pages were given back
+  std::string owned;
+  std::string_view bytes;
+  NpyLayout layout;
+  // Text: the unparsed tail of the chunks read, and the rows parsed from whole lines.
+  std::string pending, chunk;
+  std::vector<Vec3<double>> parsed;
+  std::size_t parsed_pos = 0, line_no = 0;
+  bool eof = false, bom_checked = false, in_comment = false;
+
+  ~Impl() {
+    if (map) ::munmap(map, map_size);
+    if (fd >= 0) ::close(fd);
+  }
+
+  std::size_t read_some(char* out, std::size_t n) {
+    for (;;) {
+      const ssize_t k = ::read(fd, out, n);
+      if (k >= 0) return std::size_t(k);
+      if (errno != EINTR) fail(path, "read error");
+    }
+  }
+  void open_npy(bool regular, std::uint64_t size);
+  std::size_t read_npy_rows(std::span<Vec3<double>> out);
+  void parse_pending(std::size_t end);
+  void shorten_long_line();
+  bool refill_text();
+};
+
+void DirectionSampleReader::Impl::open_npy(bool regular, std::uint64_t size) {
+  npy = true;
+  if (regular) {
+    map_size = std::size_t(size);
+    map = ::mmap(nullptr, map_size, PROT_READ, MAP_PRIVATE, fd, 0);
+    if (map == MAP_FAILED) {
+      map = nullptr;
+      fail(path, "cannot map the file for reading");
+    }
+    ::madvise(map, map_size, MADV_SEQUENTIAL);
+    bytes = std::string_view(static_cast<const char*>(map), map_size);
+  } else {  // a pipe or device: no map; read it whole
+    char buf[1 << 16];
+    while (const std::size_t k = read_some(buf, sizeof buf)) owned.append(buf, k);
+    bytes = owned;
+  }
+  layout = read_npy_layout(path, bytes);
+}
+
+std::size_t DirectionSampleReader::Impl::read_npy_rows(std::span<Vec3<double>> out) {
+  const std::size_t n = std::size_t(std::min<std::uint64_t>(out.size(), layout.rows - rows));
+  decode_npy_rows(path, bytes, layout, rows, out.first(n));
+  rows += n;
+  if (map) {  // give back the pages decoded: resident memory stays bounded whatever the file's size
+    const std::size_t page = std::size_t(::sysconf(_SC_PAGESIZE));
+    const std::size_t done = (layout.data_offset + rows * (layout.is_float32 ? 12 : 24)) / page * page;
+    if (done > released + (std::size_t(16) << 20) || rows == layout.rows) {
+      ::madvise(static_cast<char*>(map) + released, done - released, MADV_DONTNEED);
+      released = done;
+    }
+  }
+  return n;
+}
+
+// Parses pending[0, end) (whole lines) into `parsed` and drops it from `pending`.
+void DirectionSampleReader::Impl::parse_pending(std::size_t end) {
+  std::string_view text(pending.data(), end);
+  if (!bom_checked) {
+    if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);  // UTF-8 byte order mark
+    bom_checked = true;
+  }
+  read_text_lines(path, text, line_no, parsed);
+  pending.erase(0, end);
+}
+
+// `pending` holds more than a chunk without a line end: keep memory bounded. A comment is cut (the rest
+// of it is skipped up to the line end), blanks are dropped; anything else is no line of three numbers.
+void DirectionSampleReader::Impl::shorten_long_line() {
+  if (const std::size_t hash = pending.find('#'); hash != std::string::npos) {
+    pending.resize(hash + 1);
+    in_comment = true;
+    return;
+  }
+  if (pending.find_first_not_of(" \t\r\v\f") == std::string::npos) {
+    pending.clear();
+    return;
+  }
+  std::size_t n = line_no;
+  std::vector<Vec3<double>> ignored;
+  read_text_lines(path, pending, n, ignored);  // names the malformed token, as for a shorter line
+  fail(path, "line " + std::to_string(line_no + 1) + ": longer than " + std::to_string(kTextChunk) +
+                 " bytes without a line end (expected three numbers)");
+}
+
+// Reads chunks until some rows are parsed; false at the end of the file.
+bool DirectionSampleReader::Impl::refill_text() {
+  parsed.clear();
+  parsed_pos = 0;
+  chunk.resize(kTextChunk);
+  while (parsed.empty()) {
+    if (eof) return false;
+    const std::size_t k = read_some(chunk.data(), chunk.size());
+    if (k == 0) {
+      eof = true;
+      parse_pending(pending.size());  // the last line, without its '\n'
+      continue;
+    }
+    std::string_view data(chunk.data(), k);
+    if (in_comment) {
+      const std::size_t nl = data.find('\n');
+      if (nl == std::string_view::npos) continue;
+      data.remove_prefix(nl);
+      in_comment = false;
+    }
+    pending.append(data);
+    const std::size_t last = pending.rfind('\n');
+    if (last != std::string::npos) parse_pending(last + 1);
+    else if (pending.size() > kTextChunk) shorten_long_line();
+  }
+  return true;
+}
+
+DirectionSampleReader::DirectionSampleReader(const std::filesystem::path& path) : impl_(std::make_unique<Impl>()) {
+  Impl& m = *impl_;
+  m.path = path;
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) fail(path, "is a directory, not a sample file");
+  m.fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (m.fd < 0) fail(path, "cannot open for reading");
+  struct stat st {};
+  if (::fstat(m.fd, &st) != 0) fail(path, "read error");
+  const bool regular = S_ISREG(st.st_mode);
+  // The first bytes tell NPY from text (pread: a regular file is then mapped from its start).
+  char head[6] = {};
+  std::size_t got = 0;
+  if (regular) {
+    const ssize_t k = ::pread(m.fd, head, sizeof head, 0);
+    if (k < 0) fail(path, "read error");
+    got = std::size_t(k);
+  } else {
+    got = m.read_some(head, sizeof head);
+    m.pending.assign(head, got);
+  }
+  if (got == 0) fail(path, "empty file: no samples");
+  if (std::string_view(head, got) == kNpyMagic) {
+    if (!regular) m.owned.assign(head, got);
+    m.open_npy(regular, std::uint64_t(st.st_size));
+  } else if (path.extension() == ".npy") {
+    fail(path, "not an NPY file (the magic string \\x93NUMPY is missing) although the name ends in .npy");
+  }
+}
+
+DirectionSampleReader::~DirectionSampleReader() = default;
+DirectionSampleReader::DirectionSampleReader(DirectionSampleReader&&) noexcept = default;
+DirectionSampleReader& DirectionSampleReader::operator=(DirectionSampleReader&&) noexcept = default;
+
+const std::filesystem::path& DirectionSampleReader::path() const { return impl_->path; }
+std::uint64_t DirectionSampleReader::rows_read() const { return impl_->rows; }
+
+std::size_t DirectionSampleReader::read(std::span<Vec3<double>> out) {
+  Impl& m = *impl_;
+  if (m.npy) return m.read_npy_rows(out);
+  std::size_t n = 0;
+  while (n < out.size()) {
+    if (m.parsed_pos == m.parsed.size() && !m.refill_text()) break;
+    const std::size_t k = std::min(out.size() - n, m.parsed.size() - m.parsed_pos);
+    std::copy_n(m.parsed.begin() + std::ptrdiff_t(m.parsed_pos), k, out.begin() + std::ptrdiff_t(n));
+    m.parsed_pos += k;
+    n += k;
+  }
+  m.rows += n;
+  if (n == 0 && m.rows == 0) fail(m.path, "empty: no samples (only blank or comment lines)");
+  return n;
+}
+
 std::vector<Vec3<double>> parse_direction_samples(std::string_view bytes, const std::filesystem::path& name) {
   if (bytes.empty()) fail(name, "empty file: no samples");
-  if (bytes.substr(0, kNpyMagic.size()) == kNpyMagic) return read_npy(name, bytes);
+  if (bytes.substr(0, kNpyMagic.size()) == kNpyMagic) {
+    const NpyLayout layout = read_npy_layout(name, bytes);  // rows checked against the bytes present
+    std::vector<Vec3<double>> out(static_cast<std::size_t>(layout.rows));
+    decode_npy_rows(name, bytes, layout, 0, out);
+    return out;
+  }
   if (name.extension() == ".npy")
     fail(name, "not an NPY file (the magic string \\x93NUMPY is missing) although the name ends in .npy");
-  return read_text(name, bytes);
+  if (bytes.substr(0, 3) == "\xEF\xBB\xBF") bytes.remove_prefix(3);  // UTF-8 byte order mark
+  std::vector<Vec3<double>> out;
+  std::size_t line_no = 0;
+  read_text_lines(name, bytes, line_no, out);
+  if (out.empty()) fail(name, "empty: no samples (only blank or comment lines)");
+  return out;
 }
 
 std::vector<Vec3<double>> read_direction_samples(const std::filesystem::path& path) {
-  return parse_direction_samples(read_whole_file(path), path);
+  DirectionSampleReader reader(path);
+  std::vector<Vec3<double>> out, block(kSampleFileBlock);
+  while (const std::size_t n = reader.read(block)) out.insert(out.end(), block.begin(), block.begin() + std::ptrdiff_t(n));
+  return out;
 }
 
 void write_npy(const std::filesystem::path& path, std::span<const Vec3<double>> samples, bool as_float32) {

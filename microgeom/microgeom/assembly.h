@@ -25,6 +25,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -79,10 +80,20 @@ struct BuildReport {
 // (stage, fraction of the whole build done in [0, 1]); called from the building thread.
 using BuildProgress = std::function<void(std::string_view stage, double fraction)>;
 
+// Polled between the steps of a build (noise, each half of each slope-matching iteration): returning
+// true abandons the build. Called from the building thread.
+using BuildCancel = std::function<bool()>;
+
+// Thrown by build_assembly when `cancelled` returned true: no surface was built.
+struct BuildCancelled : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
 // Builds the surface (heights in the unit of tile_size, mean 0). Metadata: assembly, alpha, seed,
 // corr_cells, iterations, reference. Validates first. Memory: about 80 bytes per texel at the peak.
+// Throws BuildCancelled when `cancelled` asks to stop.
 Heightfield build_assembly(const AssemblyParams& params, BuildReport* report = nullptr,
-                           const BuildProgress& progress = {});
+                           const BuildProgress& progress = {}, const BuildCancel& cancelled = {});
 
 namespace detail {
 // Sorts 64-bit keys by their upper 32 bits, stably (an LSD radix sort, 4 passes of 8 bits, parallel over

@@ -19,8 +19,10 @@
 
 #include <nlohmann/json_fwd.hpp>
 
+#include <cstdint>
 #include <functional>
 #include <span>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -68,6 +70,29 @@ ChiSquareResult goodness_of_fit(std::span<const double> observed, std::span<cons
 // histogram is empty.
 ChiSquareResult two_sample_homogeneity(std::span<const double> counts_a, std::span<const double> counts_b,
                                        const ChiSquareOptions& options = {});
+
+// Too few samples for a test to be able to reject: never a pass (issue 8, defect 7). `given` samples were
+// supplied, `needed` are required by the rule of the test (see goodness_of_fit_minimum_samples).
+struct InsufficientData : std::invalid_argument {
+  InsufficientData(const std::string& what, std::uint64_t given_samples, std::uint64_t needed_samples)
+      : std::invalid_argument(what), given(given_samples), needed(needed_samples) {}
+  std::uint64_t given = 0, needed = 0;
+};
+// "No number of samples suffices": every cell but one has probability 0.
+inline constexpr std::uint64_t kNoSampleCountSuffices = UINT64_MAX;
+
+// The smallest number of samples n for which goodness_of_fit with these expected probabilities can
+// reject at all, i.e. leaves at least two cells (one degree of freedom) after pooling. With the pooling
+// rule above (every cell below min_expected pooled, the pool grown from the smallest cells until it
+// reaches min_expected) that is exactly when the largest cell and the rest both expect at least
+// min_expected: n p_max >= min_expected and n (1 - p_max) >= min_expected, so
+//   n >= min_expected / min(p_max, 1 - p_max)   (at least 2 min_expected = 10 samples for any test).
+// Computed with the same arithmetic as the test (kNoSampleCountSuffices when one cell holds all the mass).
+std::uint64_t goodness_of_fit_minimum_samples(std::span<const double> expected_probability, double min_expected = 5);
+// The same bound for any binning: two cells of min_expected.
+constexpr std::uint64_t minimum_samples_for_any_test(double min_expected = 5) {
+  return std::uint64_t(2 * min_expected + 0.999999);
+}
 
 // Per-test level that keeps the family-wise level alpha over n independent tests: 1 - (1 - alpha)^(1/n).
 double sidak_significance(double alpha, int n_tests);

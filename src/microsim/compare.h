@@ -85,9 +85,16 @@ Vec3<double> histogram_wi(const TracedHistogram& histogram);
 // histogram. options.rows is ignored (the histogram's binnings are used).
 ValidationReport compare_sampler_to_trace(const SamplerInfo& sampler, const GGX<double>& ggx, const Vec3<double>& wi,
                                           const ValidationOptions& options, const TracedHistogram& traced);
-// Samples from elsewhere (microfacet normals, unit vectors) against the traced histogram.
+// Samples from elsewhere (microfacet normals, unit vectors) against the traced histogram; the file version
+// streams the file (SampleFileError on a bad row).
 ValidationReport compare_samples_to_trace(std::span<const Vec3<double>> samples, std::string source,
                                           const GGX<double>& ggx, const Vec3<double>& wi,
                                           const ValidationOptions& options, const TracedHistogram& traced);
+ValidationReport compare_sample_file_to_trace(DirectionSampleReader& reader, std::string source, const GGX<double>& ggx,
+                                              const Vec3<double>& wi, const ValidationOptions& options,
+                                              const TracedHistogram& traced);
+// Too few samples (or oracle hits) throw InsufficientData (chi2.h) before any sample is drawn (after the
+// file is read): the two-sample tests need, on each side, goodness_of_fit_minimum_samples of the
+// oracle's proportions (with its remainder cell).
 
 }  // namespace microsim

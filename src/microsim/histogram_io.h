@@ -71,7 +71,7 @@ void check_writable(const std::filesystem::path& path);
 }  // namespace microsim
 
 namespace microsim {
-// Writes `text` to a temporary file next to `path` and renames it into place (nothing half-written).
-// Throws HistogramIoError.
+// Writes `text` to `path` atomically (microgeom::write_file_atomically: a new temporary sibling, then
+// rename; nothing half-written, no existing file ever truncated). Throws HistogramIoError.
 void write_text_atomically(const std::filesystem::path& path, const std::string& text);
 }  // namespace microsim

@@ -39,7 +39,8 @@ private:
 };
 
 // Ctrl-C (SIGINT) handling: install once at the start of a long command; workers poll
-// interrupted() and stop early; the command then writes what it measured, marked as partial.
+// interrupted() and stop early; the command then writes what it measured, marked as partial (exit 130).
+// A second Ctrl-C kills the process (the default action).
 void install_interrupt_handler();
 bool interrupted();
 // For tests: set or clear the flag as if Ctrl-C had been pressed.

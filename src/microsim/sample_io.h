@@ -21,7 +21,9 @@
 #include "microsim/math.h"
 
 #include <cstddef>
+#include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <span>
 #include <stdexcept>
 #include <string_view>
@@ -41,6 +43,31 @@ struct SampleFileError : std::runtime_error {
 inline constexpr double kUnitLengthToleranceFloat64 = 1e-6;
 inline constexpr double kUnitLengthToleranceFloat32 = 1e-5;
 inline constexpr double kUnitLengthToleranceText = 1e-4;
+
+// Reads a sample file (NPY or text, as above) in blocks of rows, in memory bounded whatever its size: an
+// NPY file through a read-only memory map whose pages are given back once decoded, text in chunks of
+// 1 MiB, whole lines at a time (a line may be at most 1 MiB long, a comment excepted). The same checks
+// and messages as read_direction_samples, which reads through it; a bad row throws when it is reached.
+class DirectionSampleReader {
+public:
+  explicit DirectionSampleReader(const std::filesystem::path& path);  // opens; checks an NPY header
+  ~DirectionSampleReader();
+  DirectionSampleReader(DirectionSampleReader&&) noexcept;
+  DirectionSampleReader& operator=(DirectionSampleReader&&) noexcept;
+
+  // Fills `out` with the next rows, up to out.size(); returns how many (fewer only at the end, 0 after
+  // it). Throws SampleFileError on a bad row, and at the end of a file that held no sample at all.
+  std::size_t read(std::span<Vec3<double>> out);
+  std::uint64_t rows_read() const;
+  const std::filesystem::path& path() const;
+
+private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Rows per read of read_direction_samples (and a good block size for DirectionSampleReader::read).
+inline constexpr std::size_t kSampleFileBlock = std::size_t(1) << 16;
 
 // Reads sampled directions from an NPY or text file (see above). Throws SampleFileError on a file that
 // cannot be opened, a malformed line, a wrong column count, a non-finite value, a vector far from unit

@@ -55,10 +55,12 @@ struct ValidationOptions {
   int worst_cells = 8;
   double pdf_tolerance = 0;            // 0: kPdfToleranceDouble / kPdfToleranceFloat by precision
   // A sample fails the returned-pdf check when its relative error exceeds pdf_tolerance plus twice the
-  // relative change of the claimed pdf under a perturbation of the direction by its rounding (2^-23
-  // in float, 2^-52 in double): float rounding alone can carry a sample across a jump of the claimed
-  // pdf (the bounded sampler's cap edge) or move D by percents at alpha = 1e-3 when the half vector of
-  // two nearly opposite grazing directions is recomputed. Fraction of samples allowed to fail: 0.
+  // relative change of the claimed pdf under a perturbation of the stored vector by its rounding (2^-23
+  // in float, 2^-52 in double; a rotation along either tangent or a change of its length): float
+  // rounding alone can carry a sample across a jump of the claimed pdf (the bounded sampler's cap edge)
+  // or move D by percents at alpha = 1e-3 when the half vector of two nearly opposite grazing
+  // directions is recomputed; in double, the lengths of wi and wo off 1 by an ulp move D by 5e-6 at
+  // alpha = 1e-4, theta = 89.99 deg (validate.cpp, rounding_sensitivity). Fraction allowed to fail: 0.
   double pdf_outlier_fraction = 0;
   double integral_tolerance = 1e-5;    // the claimed pdf may integrate to at most 1 + this
   double unit_tolerance = 1e-5;        // samples with | |w| - 1 | above this are outside the domain
@@ -140,9 +142,38 @@ struct ValidationReport {
   std::vector<BinnedComparison> histograms;
 };
 
+// ---- samples in blocks ------------------------------------------------------------------------------
+// A validation streams its samples: each block is drawn (or read), binned and checked, then dropped, so
+// that memory does not grow with the number of samples. Block b holds samples [b kSampleBlock,
+// (b + 1) kSampleBlock); per-block partial sums are combined in block order, so every floating-point
+// result is independent of the thread count and of how the blocks were produced.
+inline constexpr std::uint64_t kSampleBlock = std::uint64_t(1) << 16;
+inline constexpr std::size_t kChunkBlocks = 16;  // blocks processed concurrently (then reduced in order)
+
+struct SampleBlockView {
+  std::uint64_t first = 0;                  // index of its first sample
+  std::span<const Vec3<double>> directions;
+  std::span<const double> pdfs;             // returned pdfs; empty when the samples came without one
+  std::span<const std::uint8_t> valid;      // 0 where the sampler returned nothing; empty: all valid
+};
+// visit(block, slot) runs concurrently for the blocks of a chunk (slot: the block's place in its chunk,
+// < kChunkBlocks); chunk_done(blocks) runs after each chunk, in order, on the calling thread.
+using SampleBlockVisitor = std::function<void(const SampleBlockView& block, std::size_t slot)>;
+using ChunkDone = std::function<void(std::size_t blocks)>;
+
 // Samples as every validation draws them (validate_sampler, and compare.h against the traced oracle):
 // sample i from CounterRng(options.seed, i), two uniforms, in the sampler's float or double version
-// (options.precision), in parallel blocks; identical whatever the thread count.
+// (options.precision), options.samples of them; identical whatever the thread count.
+void for_each_drawn_block(const SamplerInfo& sampler, const GGX<double>& ggx, const Vec3<double>& wi,
+                          const ValidationOptions& options, const SampleBlockVisitor& visit,
+                          const ChunkDone& chunk_done = {});
+// Samples from elsewhere: a span, or a file read block by block (sample_io.h); all valid, no pdfs.
+void for_each_block(std::span<const Vec3<double>> samples, const SampleBlockVisitor& visit,
+                    const ChunkDone& chunk_done = {});
+class DirectionSampleReader;
+void for_each_block(DirectionSampleReader& reader, const SampleBlockVisitor& visit, const ChunkDone& chunk_done = {});
+
+// The drawn samples held in memory (for a dump; validations stream them instead).
 struct SampleSet {
   std::vector<Vec3<double>> directions;
   std::vector<double> pdfs;         // returned pdfs; empty when the samples came without one
@@ -153,17 +184,34 @@ struct SampleSet {
 SampleSet draw_samples(const SamplerInfo& sampler, const GGX<double>& ggx, const Vec3<double>& wi,
                        const ValidationOptions& options);
 
+// ---- how many samples a validation needs ------------------------------------------------------------
+// Too few samples for a test is never a pass. Each chi-square test of a validation (sphere and lobe
+// bins, each with its remainder cell) must be able to reject: after pooling it needs two cells, which
+// takes goodness_of_fit_minimum_samples(probabilities) samples (chi2.h: the largest cell and the rest
+// must both expect >= 5). The validation needs the larger of the two; fewer throw InsufficientData,
+// saying how many were given and how many are needed (at least minimum_samples_for_any_test() = 10).
+std::uint64_t minimum_samples(const ReferenceDistribution& reference);
+// Throws InsufficientData when `given` < minimum_samples(reference).
+void require_samples(std::uint64_t given, const ReferenceDistribution& reference);
+// Throws InsufficientData when `given` is below the bound of any binning (10): checkable before any work.
+void require_samples_for_any_test(std::uint64_t given);
+
 // Draws options.samples samples from the sampler (float or double version) and validates them
-// against the pdf the sampler claims (reference: claimed_reference unless given).
+// against the pdf the sampler claims (reference: claimed_reference unless given). Throws
+// InsufficientData before drawing when options.samples is too few.
 ValidationReport validate_sampler(const SamplerInfo& sampler, const GGX<double>& ggx, const Vec3<double>& wi,
                                   const ValidationOptions& options,
                                   std::shared_ptr<const ReferenceDistribution> reference = nullptr);
 
 // Validates samples produced elsewhere against the analytic VNDF of `domain` (or the reference given).
-// No returned pdf: the pdf and weight tests are not applicable.
+// No returned pdf: the pdf and weight tests are not applicable. The file version streams the file
+// (SampleFileError on a bad row; InsufficientData at its end when it held too few rows).
 ValidationReport validate_samples(std::span<const Vec3<double>> samples, SampleDomain domain, const GGX<double>& ggx,
                                   const Vec3<double>& wi, const ValidationOptions& options,
                                   std::shared_ptr<const ReferenceDistribution> reference = nullptr);
+ValidationReport validate_sample_file(DirectionSampleReader& reader, SampleDomain domain, const GGX<double>& ggx,
+                                      const Vec3<double>& wi, const ValidationOptions& options,
+                                      std::shared_ptr<const ReferenceDistribution> reference = nullptr);
 
 std::string to_string(Precision precision);
 nlohmann::json to_json(const SubTest& test);

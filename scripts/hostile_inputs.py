@@ -1,0 +1,471 @@
+#!/usr/bin/python3
+"""microsim: the hostile-input battery of docs/reliability.md.
+
+Runs the `microsim` binary on several hundred bad inputs (every numeric flag of every command, broken
+.npy/text sample files, broken heightmap and histogram EXRs, output paths that collide with inputs or
+with each other) and on a few valid edge values, and tallies the outcomes:
+
+  clear error   exit 2, a short message on stderr that names the flag, the file or the value, nothing
+                created or changed in the working directory
+  unclear       exit 2 but a message that names nothing, or is longer than 1000 bytes
+  accepted      a bad input that ran as if it were good (exit 0 or 1)
+  crash         killed by a signal, exit 3 (internal error) or a sanitizer report
+  hang          still running after --timeout seconds
+  file lost     an input file changed or vanished
+  half-written  a failed run that left a file behind
+
+Each case runs in a fresh copy of the fixtures. Usage:
+  /usr/bin/python3 scripts/hostile_inputs.py [--binary build/microsim] [--json out/hostile.json]
+      [--timeout 60] [--only SUBSTRING] [--list]
+Exit status 0 when every bad input got a clear error and every valid edge value ran, 1 otherwise.
+"""
+import argparse
+import hashlib
+import json
+import os
+import shutil
+import struct
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+
+
+# ---- fixtures ------------------------------------------------------------------------------------------
+
+def npy_bytes(array, header_override=None, newline=True, magic=b"\x93NUMPY", version=(1, 0)):
+    """An .npy file written by hand, so that every part of it can be broken on purpose."""
+    arr = np.ascontiguousarray(array)
+    header = header_override if header_override is not None else "{'descr': '%s', 'fortran_order': False, 'shape': %s, }" % (
+        arr.dtype.str, repr(tuple(arr.shape)))
+    pre = len(magic) + 2 + (2 if version[0] == 1 else 4)
+    body = header + (" " * ((64 - (pre + len(header) + 1) % 64) % 64))
+    body += "\n" if newline else " "
+    hlen = struct.pack("<H", len(body)) if version[0] == 1 else struct.pack("<I", len(body))
+    return magic + bytes(version) + hlen + body.encode("latin1") + arr.tobytes()
+
+
+def unit_vectors(n, seed=1):
+    rng = np.random.default_rng(seed)
+    v = rng.normal(size=(n, 3))
+    v[:, 2] = np.abs(v[:, 2])
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def exr_attributes(data):
+    """Splits a single-part scanline EXR into (magic+version, [(name, type, value)], rest)."""
+    pos = 8
+    attrs = []
+    while data[pos] != 0:
+        name_end = data.index(b"\0", pos)
+        type_end = data.index(b"\0", name_end + 1)
+        (size,) = struct.unpack_from("<i", data, type_end + 1)
+        value = data[type_end + 5:type_end + 5 + size]
+        attrs.append((data[pos:name_end].decode(), data[name_end + 1:type_end].decode(), value))
+        pos = type_end + 5 + size
+    return data[:8], attrs, pos + 1
+
+
+def exr_rewrite(data, edit):
+    """Rewrites the header of an EXR written by microsim: `edit(attrs)` returns new attributes. The line
+    offset table (absolute file offsets) is shifted by the change in header length."""
+    head, attrs, end = exr_attributes(data)
+    dw = next(v for n, t, v in attrs if n == "dataWindow")
+    comp = next(v for n, t, v in attrs if n == "compression")[0]
+    lines_per_chunk = {0: 1, 1: 1, 2: 1, 3: 16, 4: 32, 5: 16, 6: 32, 7: 32, 8: 16, 9: 256}.get(comp, 1)
+    ymin, ymax = struct.unpack_from("<ii", dw, 4)
+    chunks = (ymax - ymin + lines_per_chunk) // lines_per_chunk
+    offsets = list(struct.unpack_from("<%dQ" % chunks, data, end))
+    rest = data[end + 8 * chunks:]
+    new = b"".join(n.encode() + b"\0" + t.encode() + b"\0" + struct.pack("<i", len(v)) + v for n, t, v in edit(attrs))
+    new = head + new + b"\0"
+    shift = len(new) - end
+    return new + struct.pack("<%dQ" % chunks, *[o + shift for o in offsets]) + rest
+
+
+def set_string_attr(name, value):
+    def edit(attrs):
+        out = [(n, t, v) for n, t, v in attrs if n != name]
+        out.append((name, "string", value.encode("latin1")))
+        return out
+    return edit
+
+
+def set_data_window(w, h):
+    def edit(attrs):
+        box = struct.pack("<iiii", 0, 0, w - 1, h - 1)
+        return [(n, t, box if n in ("dataWindow", "displayWindow") else v) for n, t, v in attrs]
+    return edit
+
+
+def make_fixtures(binary, fixtures):
+    """Valid inputs made by microsim itself, and broken variants of them."""
+    os.makedirs(fixtures, exist_ok=True)
+    run = lambda *a: subprocess.run([binary, *a], cwd=fixtures, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                                    check=True, timeout=600)
+    run("surface", "build", "--assembly", "smith", "--alpha", "0.5", "--res", "256", "--seed", "1", "--out", "hf.exr",
+        "--quiet")
+    run("trace", "vndf", "--surface", "ellipsoid", "--alpha", "0.3", "--theta", "30", "--rays", "200000",
+        "--out", "hist.exr")
+    w = lambda name, data: open(os.path.join(fixtures, name), "wb").write(data)
+    good = unit_vectors(20000)
+    w("good.npy", npy_bytes(good))
+    w("good.txt", "\n".join("%r %r %r" % tuple(r) for r in good).encode())
+    # .npy variants
+    w("npy_no_newline.npy", npy_bytes(good, newline=False))
+    w("npy_bad_magic.npy", npy_bytes(good, magic=b"\x93NUMPX"))
+    w("npy_v9.npy", npy_bytes(good, version=(9, 0)))
+    w("npy_truncated.npy", npy_bytes(good)[:-100])
+    w("npy_extra.npy", npy_bytes(good) + b"\0" * 24)
+    w("npy_shape4.npy", npy_bytes(np.hstack([good, good[:, :1]])))
+    w("npy_shape1d.npy", npy_bytes(good.reshape(-1)))
+    w("npy_shape3d.npy", npy_bytes(good.reshape(-1, 3, 1)))
+    w("npy_int.npy", npy_bytes((good * 100).astype("<i4")))
+    w("npy_f2.npy", npy_bytes(good.astype("<f2")))
+    w("npy_c16.npy", npy_bytes(good.astype("<c16")))
+    w("npy_huge_shape.npy", npy_bytes(good, header_override="{'descr': '<f8', 'fortran_order': False, "
+                                                            "'shape': (4611686018427387904, 3), }"))
+    w("npy_overflow_shape.npy", npy_bytes(good, header_override="{'descr': '<f8', 'fortran_order': False, "
+                                                                "'shape': (99999999999999999999999, 3), }"))
+    w("npy_neg_shape.npy", npy_bytes(good, header_override="{'descr': '<f8', 'fortran_order': False, 'shape': (-5, 3), }"))
+    w("npy_bad_dict.npy", npy_bytes(good, header_override="{'descr': '<f8', 'fortran_order': Maybe, 'shape': (20000, 3), }"))
+    w("npy_extra_key.npy", npy_bytes(good, header_override="{'descr': '<f8', 'fortran_order': False, 'shape': (20000, 3), 'x': 1}"))
+    w("npy_unterminated.npy", npy_bytes(good, header_override="{'descr': '<f8"))
+    w("npy_struct.npy", npy_bytes(good, header_override="{'descr': [('x', '<f8')], 'fortran_order': False, 'shape': (20000, 3), }"))
+    w("npy_empty.npy", npy_bytes(np.zeros((0, 3))))
+    w("npy_one_row.npy", npy_bytes(good[:1]))
+    w("npy_binary_header.npy", npy_bytes(good, header_override="{'descr': '\x01\x02\xff\xfe', 'fortran_order': False, 'shape': (20000, 3), }"))
+    w("npy_long_key.npy", npy_bytes(good, header_override="{'" + "k" * 60000 + "': 1}"))
+    w("npy_zero_len.npy", b"\x93NUMPY\x01\x00\x00\x00")
+    w("npy_4bytes.npy", b"\x93NUM")
+    w("empty.npy", b"")
+    w("npy_not_unit.npy", npy_bytes(good * 2))
+    # text variants
+    w("text_empty.txt", b"")
+    w("text_one_line.txt", b"0 0 1\n")
+    w("text_two_cols.txt", b"0 0\n0 1\n")
+    w("text_four_cols.txt", b"0 0 1 0\n")
+    w("text_words.txt", b"zero zero one\n")
+    w("text_binary.txt", bytes(range(256)) * 64)
+    w("text_huge_token.txt", b"0 0 " + b"1" * (10 * 1024 * 1024) + b"\n")
+    w("text_huge_garbage.txt", b"0 0 " + b"x\x01" * (5 * 1024 * 1024) + b"\n")
+    w("text_nan.txt", b"nan 0 1\n" * 10)
+    w("text_not_unit.txt", b"0 0 2\n" * 10)
+    w("text_trailing_comma.txt", b"0, 0, 1,\n" * 10)
+    w("text_hex.txt", b"0x0 0x0 0x1\n" * 10)
+    w("text_overflow.txt", b"0 0 1e999\n" * 10)
+    w("text_nul.txt", b"0 0 1\0\n" * 10)
+    # EXR variants
+    hf = open(os.path.join(fixtures, "hf.exr"), "rb").read()
+    hist = open(os.path.join(fixtures, "hist.exr"), "rb").read()
+    w("not_exr.exr", b"this is not an EXR file\n" * 10)
+    w("empty.exr", b"")
+    w("hf_truncated.exr", hf[: len(hf) // 2])
+    w("hf_header_only.exr", hf[:400])
+    w("hf_huge_header.exr", exr_rewrite(hf, set_data_window(46340, 46340)))
+    w("hf_wide_header.exr", exr_rewrite(hf, set_data_window(2 ** 30, 1)))
+    w("hf_bad_tile_size.exr", exr_rewrite(hf, set_string_attr("microsim.tile_size", "-1")))
+    w("hf_nan_tile_size.exr", exr_rewrite(hf, set_string_attr("microsim.tile_size", "nan")))
+    w("hf_junk_tile_size.exr", exr_rewrite(hf, set_string_attr("microsim.tile_size", "1x")))
+    w("hf_bad_alpha.exr", exr_rewrite(hf, set_string_attr("microsim.alpha", "0.5,")))
+    w("hist_hits_neg.exr", exr_rewrite(hist, set_string_attr("hits", "-1")))
+    w("hist_hits_gt_rays.exr", exr_rewrite(hist, set_string_attr("hits", "99999999")))
+    w("hist_rays_overflow.exr", exr_rewrite(hist, set_string_attr("rays", "99999999999999999999999")))
+    w("hist_rays_junk.exr", exr_rewrite(hist, set_string_attr("rays", "12abc")))
+    w("hist_binnings_dup.exr", exr_rewrite(hist, set_string_attr("binnings", "sphere,sphere")))
+    w("hist_binnings_unknown.exr", exr_rewrite(hist, set_string_attr("binnings", "sphere,cube")))
+    w("hist_binnings_empty.exr", exr_rewrite(hist, set_string_attr("binnings", "")))
+    w("hist_format.exr", exr_rewrite(hist, set_string_attr("format", "microsim-histogram-9")))
+    w("hist_binning_json.exr", exr_rewrite(hist, set_string_attr("binning.sphere", "{not json")))
+    w("hist_binning_rows.exr", exr_rewrite(hist, set_string_attr("binning.sphere", '{"kind":"sphere","rows":-3}')))
+    w("hist_huge_header.exr", exr_rewrite(hist, set_data_window(46340, 46340)))
+    w("hist_truncated.exr", hist[: len(hist) * 2 // 3])
+
+
+# ---- cases ---------------------------------------------------------------------------------------------
+
+# Bad values for each kind of numeric flag. Every one must be refused with exit 2.
+COMMON_BAD = ["", "abc", "nan", "inf", "-inf", "1e400", "0x10", "1,", " ", "1 2", "\x01\x7f", "Z" * 100000]
+KIND_BAD = {
+    "theta": ["-1", "90", "91", "1e30", "-0.0000001"],
+    "angle": ["1e400"],  # phi: any finite value is allowed
+    "count": ["0", "-1", "99999999999999999999", "18446744073709551616", "1.5", "1e30"],
+    "seed": ["-1", "18446744073709551616", "99999999999999999999", "1.5"],
+    "rows": ["0", "2", "-1", "46341", "1048577", "2147483647", "16383", "4095"],
+    "prob": ["0", "1", "-0.5", "2"],
+    "alpha": ["0", "-0.3", "1e30", "0.3,", ",0.3", "0.3,,0.5", "0.3,0.5,0.7", "1e-9", "0.0001,1"],
+    "positive": ["0", "-1", "1e400"],
+    "threads": ["-1", "99999999999999999999", "1.5"],
+    "level": ["-1", "10", "1.5"],
+    "small_count": ["0", "-1", "99999999999999999999", "1.5"],
+    "res": ["0", "-16", "17", "100", "99999999999999999999", "16384"],
+    "uint_range": ["-1", "1000001", "99999999999999999999"],
+    "cone": ["0", "-1", "91"],
+}
+VAL = "validate --sampler heitz2018 --alpha 0.3 --theta 30 --samples 20000 --rows 11"
+TRACE = "trace vndf --surface ellipsoid --alpha 0.3 --theta 30 --rays 20000 --out o.exr"
+MASK = "trace masking --surface hf.exr --theta 60 --samples 2000"
+BUILD = "surface build --assembly smith --alpha 0.5 --res 128 --out s.exr --quiet"
+FLAGS = [  # (command with a default for the flag, flag, kind)
+    (VAL, "--alpha", "alpha"), (VAL, "--theta", "theta"), (VAL, "--phi", "angle"), (VAL, "--samples", "count"),
+    (VAL, "--seed", "seed"), (VAL, "--rows", "rows"), (VAL, "--significance", "prob"),
+    ("validate --sampler heitz2018 --alpha 0.3 --theta 30 --samples 20000 --against ellipsoid --rays 20000", "--rays",
+     "count"),
+    (TRACE, "--alpha", "alpha"), (TRACE, "--theta", "theta"), (TRACE, "--phi", "angle"), (TRACE, "--rays", "count"),
+    (TRACE, "--seed", "seed"), (TRACE, "--threads", "threads"), (TRACE, "--rows", "rows"),
+    (TRACE, "--mesh-level", "level"),
+    (MASK, "--theta", "theta"), (MASK, "--phi", "angle"), (MASK, "--samples", "count"), (MASK, "--seed", "seed"),
+    (MASK, "--threads", "threads"), (MASK, "--bins", "small_count"), (MASK, "--vndf-rays", "count"),
+    (MASK, "--grazing-share", "prob"), (MASK + " --theta-l 30", "--cone", "cone"), (MASK, "--theta-l", "theta"),
+    (MASK, "--tile-size", "positive"),
+    (BUILD, "--alpha", "alpha"), (BUILD, "--res", "res"), (BUILD, "--seed", "seed"),
+    (BUILD, "--corr-cells", "positive"), (BUILD, "--tile-size", "positive"), (BUILD, "--iterations", "small_count"),
+    ("surface stats hf.exr", "--tile-size", "positive"), ("surface stats hf.exr", "--alpha", "alpha"),
+    ("surface stats hf.exr", "--corr-cells", "positive"),
+    ("stability --failures-only", "--random-u", "uint_range"), ("stability --failures-only", "--seed", "seed"),
+]
+# Valid edge values: they must run (exit 0 or 1), quickly.
+VALID = [
+    VAL.replace("--theta 30", "--theta 0"), VAL.replace("--theta 30", "--theta 89.999"),
+    VAL.replace("--alpha 0.3", "--alpha 1e-4"), VAL.replace("--alpha 0.3", "--alpha 10"),
+    VAL.replace("--alpha 0.3", "--alpha 0.001,1"), VAL + " --phi -720", VAL + " --seed 18446744073709551615",
+    VAL + " --seed 0", VAL.replace("--rows 11", "--rows 3"), TRACE + " --threads 1", TRACE + " --seed 0",
+    "validate --from good.npy --alpha 0.3 --theta 30", "validate --from good.txt --alpha 0.3 --theta 30",
+]
+# Bad files: (command, a word the message must contain)
+FILES = []
+for f in ["npy_no_newline", "npy_bad_magic", "npy_v9", "npy_truncated", "npy_extra", "npy_shape4", "npy_shape1d",
+          "npy_shape3d", "npy_int", "npy_f2", "npy_c16", "npy_huge_shape", "npy_overflow_shape", "npy_neg_shape",
+          "npy_bad_dict", "npy_extra_key", "npy_unterminated", "npy_struct", "npy_empty", "npy_one_row",
+          "npy_binary_header", "npy_long_key", "npy_zero_len", "npy_4bytes", "empty", "npy_not_unit"]:
+    FILES.append(("validate --from %s.npy --alpha 0.3 --theta 30" % f, f))
+for f in ["text_empty", "text_one_line", "text_two_cols", "text_four_cols", "text_words", "text_binary",
+          "text_huge_token", "text_huge_garbage", "text_nan", "text_not_unit", "text_trailing_comma", "text_hex",
+          "text_overflow", "text_nul"]:
+    FILES.append(("validate --from %s.txt --alpha 0.3 --theta 30" % f, f))
+FILES += [("validate --from missing.npy --alpha 0.3 --theta 30", "missing"),
+          ("validate --from . --alpha 0.3 --theta 30", "."),
+          ("validate --from /dev/null --alpha 0.3 --theta 30", "/dev/null")]
+for f in ["not_exr", "empty", "hf_truncated", "hf_header_only", "hf_huge_header", "hf_wide_header", "hf_bad_tile_size",
+          "hf_nan_tile_size", "hf_junk_tile_size", "hist", "missing"]:
+    FILES.append(("surface stats %s.exr" % f, f))
+    FILES.append(("trace vndf --surface %s.exr --theta 30 --rays 2000 --out o.exr" % f, f))
+    FILES.append(("trace masking --surface %s.exr --theta 60 --samples 2000" % f, f))
+for f in ["not_exr", "empty", "hf_truncated", "hf_huge_header", "hf_wide_header", "hist"]:
+    FILES.append(("surface import %s.exr --tile-size 1 --out imp.exr" % f, f))
+for f in ["hist_hits_neg", "hist_hits_gt_rays", "hist_rays_overflow", "hist_rays_junk", "hist_binnings_dup",
+          "hist_binnings_unknown", "hist_binnings_empty", "hist_format", "hist_binning_json", "hist_binning_rows",
+          "hist_huge_header", "hist_truncated", "hf", "not_exr", "empty", "missing"]:
+    FILES.append(("plot %s.exr --out fig.svg" % f, f))
+    FILES.append(("validate --sampler heitz2018 --alpha 0.3 --theta 30 --samples 20000 --against %s.exr" % f, f))
+# Output paths that collide with an input or with another output (nothing may be overwritten), and
+# outputs that cannot be written.
+PATHS = [
+    ("validate --from good.txt --alpha 0.3 --theta 30 --json good.txt", "good.txt"),
+    ("validate --from good.npy --alpha 0.3 --theta 30 --json ./sub/../good.npy", "good.npy"),
+    ("validate --from good.npy --alpha 0.3 --theta 30 --json link.npy", "link.npy"),
+    ("validate --from good.npy --alpha 0.3 --theta 30 --json hard.npy", "hard.npy"),
+    ("validate --from good.npy --alpha 0.3 --theta 30 --plot good.npy", "good.npy"),
+    ("validate --sampler heitz2018 --alpha 0.3 --theta 30 --samples 20000 --json f.svg --plot f.svg", "f.svg"),
+    ("validate --sampler heitz2018 --alpha 0.3 --theta 30 --samples 20000 --against hist.exr --json hist.exr", "hist.exr"),
+    ("trace vndf --surface hf.exr --theta 30 --rays 2000 --out hf.exr", "hf.exr"),
+    ("trace vndf --surface hf.exr --theta 30 --rays 2000 --out link.exr", "link.exr"),
+    ("trace vndf --surface ellipsoid --alpha 0.3 --theta 30 --rays 2000 --out o.exr --json o.exr", "o.exr"),
+    ("trace vndf --surface ellipsoid --alpha 0.3 --theta 30 --rays 2000 --mesh-level 2 --out o.exr --mesh-out o.exr",
+     "o.exr"),
+    ("trace masking --surface hf.exr --theta 60 --samples 2000 --json hf.exr", "hf.exr"),
+    ("trace masking --surface hf.exr --theta 60 --samples 2000 --json ./hf.exr", "hf.exr"),
+    ("surface stats hf.exr --json hf.exr", "hf.exr"),
+    ("surface stats hf.exr --normals hf.exr", "hf.exr"),
+    ("surface stats hf.exr --json n.exr --normals n.exr", "n.exr"),
+    ("surface import hf.exr --tile-size 1 --out hf.exr", "hf.exr"),
+    ("surface build --assembly smith --alpha 0.5 --res 128 --out s.exr --normals s.exr --quiet", "s.exr"),
+    ("surface build --assembly smith --alpha 0.5 --res 128 --out s.exr --json s.exr --quiet", "s.exr"),
+    ("surface build --assembly smith --alpha 0.5 --res 128 --out s.exr --mesh s.exr --quiet", "s.exr"),
+    ("surface build --assembly smith --alpha 0.5 --res 128 --out hf.exr --quiet", "hf.exr"),
+    ("plot hist.exr --out hist.exr", "hist.exr"),
+    ("stability --json good.txt", "good.txt"),
+    ("validate --sampler heitz2018 --alpha 0.3 --theta 30 --samples 20000 --json nodir/r.json", "nodir"),
+    ("trace vndf --surface ellipsoid --alpha 0.3 --theta 30 --rays 2000 --out nodir/o.exr", "nodir"),
+    ("trace vndf --surface ellipsoid --alpha 0.3 --theta 30 --rays 2000 --out adir", "adir"),
+    ("surface build --assembly smith --alpha 0.5 --res 128 --out adir --quiet", "adir"),
+    ("validate --sampler heitz2018 --alpha 0.3 --theta 30 --samples 20000 --plot fig.png", "fig.png"),
+]
+# Usage errors that are not numbers or files.
+USAGE = [
+    ("validate --sampler nosuch --alpha 0.3 --theta 30", "nosuch"),
+    ("validate --alpha 0.3 --theta 30", "--sampler"),
+    ("validate --sampler heitz2018 --from good.npy --alpha 0.3 --theta 30", "--from"),
+    ("validate --sampler heitz2018 --theta 30", "--alpha"),
+    ("validate --sampler heitz2018 --alpha 0.3", "--theta"),
+    ("validate --all --alpha 0.3", "--all"),
+    ("validate --all --samples 1", "samples"),
+    ("validate --sampler heitz2018 --alpha 0.3 --theta 30 --samples 1", "samples"),
+    ("validate --sampler heitz2018 --alpha 0.3 --theta 30 --samples 2", "samples"),
+    ("validate --sampler heitz2018 --alpha 0.3 --theta 30 --against moon", "moon"),
+    ("trace vndf --surface moon.exr --theta 30 --out o.exr", "moon"),
+    ("trace vndf --surface ellipsoid --theta 30 --out o.exr", "--alpha"),
+    ("trace vndf --surface ellipsoid --alpha 0.3 --theta 30 --mesh-out m.ply --out o.exr", "--mesh-out"),
+    ("trace masking --surface hf.exr --theta 60 --geometry cubes", "cubes"),
+    ("surface build --assembly nosuch --alpha 0.5 --res 128 --out s.exr", "nosuch"),
+    ("surface stats hf.exr --reference gaussian", "gaussian"),
+    ("trace nosuch", "nosuch"),
+    ("nosuch", "nosuch"),
+]
+
+
+def all_cases():
+    cases = []
+    for cmd, flag, kind in FLAGS:
+        for value in KIND_BAD[kind] + COMMON_BAD:
+            parts = cmd.split()
+            if flag in parts:
+                i = parts.index(flag)
+                args = parts[:i + 1] + [value] + parts[i + 2:]
+            else:
+                args = parts + [flag, value]
+            short = value if len(value) <= 20 else value[:8] + "...(%d)" % len(value)
+            cases.append({"name": "%s %s %r" % (parts[0] + (" " + parts[1] if not parts[1].startswith("-") else ""),
+                                                flag, short),
+                          "args": args, "expect": "reject", "names": [flag]})
+    for cmd, word in FILES + PATHS + USAGE:
+        cases.append({"name": cmd if len(cmd) < 100 else cmd[:97] + "...", "args": cmd.split(), "expect": "reject",
+                      "names": [word]})
+    for cmd in VALID:
+        cases.append({"name": "valid: " + cmd, "args": cmd.split(), "expect": "run", "names": []})
+    return cases
+
+
+# ---- running -------------------------------------------------------------------------------------------
+
+def snapshot(d):
+    out = {}
+    for root, _, files in os.walk(d):
+        for f in files:
+            p = os.path.join(root, f)
+            if os.path.islink(p):
+                continue
+            with open(p, "rb") as fh:
+                out[os.path.relpath(p, d)] = hashlib.sha1(fh.read()).hexdigest()
+    return out
+
+
+def prepare_workdir(fixtures, pristine, work):
+    """A fresh working directory whose inputs are hard links to the fixtures (fast, even for the 10 MB
+    files); a fixture that a run changed in place is restored from its pristine copy."""
+    shutil.rmtree(work, ignore_errors=True)
+    os.makedirs(work)
+    for f in os.listdir(fixtures):
+        os.link(os.path.join(fixtures, f), os.path.join(work, f))
+    os.symlink("good.npy", os.path.join(work, "link.npy"))
+    os.symlink("hf.exr", os.path.join(work, "link.exr"))
+    os.link(os.path.join(work, "good.npy"), os.path.join(work, "hard.npy"))
+    os.makedirs(os.path.join(work, "sub"))
+    os.makedirs(os.path.join(work, "adir"))
+
+
+def restore_fixtures(fixtures, pristine, changed):
+    for f in changed:
+        name = "good.npy" if f == "hard.npy" else f
+        if os.path.exists(os.path.join(pristine, name)):
+            dst = os.path.join(fixtures, name)
+            if os.path.exists(dst):
+                os.remove(dst)
+            shutil.copy(os.path.join(pristine, name), dst)
+
+
+def classify(case, proc, timed_out, before, after, elapsed):
+    err = proc.stderr.decode("utf-8", "replace") if proc is not None else ""
+    changed = [f for f in before if f not in after or after[f] != before[f]]
+    created = [f for f in after if f not in before]
+    if timed_out:
+        return "hang", err
+    if changed:
+        return "file lost", err
+    code = proc.returncode
+    if code < 0 or code == 3 or "Sanitizer" in err or "runtime error:" in err:
+        return "crash", err
+    if case["expect"] == "run":
+        return ("ran" if code in (0, 1) else "refused valid input"), err
+    if code in (0, 1):
+        return "accepted", err
+    if created:
+        return "half-written", err
+    if code != 2:
+        return "unexpected exit %d" % code, err
+    if len(err) > 1000 or not any(n in err for n in case["names"]):
+        return "unclear", err
+    return "clear error", err
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--binary", default=os.path.join(ROOT, "build", "microsim"))
+    ap.add_argument("--json", default=None, help="write every case and its outcome as JSON")
+    ap.add_argument("--timeout", type=float, default=60.0)
+    ap.add_argument("--only", default=None, help="run only the cases whose name contains this")
+    ap.add_argument("--list", action="store_true", help="list the cases and exit")
+    a = ap.parse_args()
+    cases = all_cases()
+    if a.only:
+        cases = [c for c in cases if a.only in c["name"]]
+    if a.list:
+        for c in cases:
+            print(c["name"])
+        print("%d cases" % len(cases))
+        return 0
+    binary = os.path.abspath(a.binary)
+    tmp = tempfile.mkdtemp(prefix="microsim_hostile_")
+    fixtures, pristine = os.path.join(tmp, "fixtures"), os.path.join(tmp, "pristine")
+    make_fixtures(binary, fixtures)
+    shutil.copytree(fixtures, pristine)
+    results, tally = [], {}
+    t0 = time.time()
+    for i, c in enumerate(cases):
+        work = os.path.join(tmp, "work")
+        prepare_workdir(fixtures, pristine, work)
+        before = snapshot(work)
+        start = time.time()
+        try:
+            proc = subprocess.run([binary] + c["args"], cwd=work, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                  timeout=a.timeout)
+            timed_out = False
+        except subprocess.TimeoutExpired:
+            proc, timed_out = None, True
+        elapsed = time.time() - start
+        after = snapshot(work)
+        outcome, err = classify(c, proc, timed_out, before, after, elapsed)
+        restore_fixtures(fixtures, pristine, [f for f in before if after.get(f) != before[f]])
+        tally[outcome] = tally.get(outcome, 0) + 1
+        last = err.strip().splitlines()[-1] if err.strip() else ""
+        results.append({"case": c["name"], "args": c["args"][:40] if len(" ".join(c["args"])) < 2000 else "(long)",
+                        "expect": c["expect"], "outcome": outcome, "exit": None if proc is None else proc.returncode,
+                        "seconds": round(elapsed, 3), "stderr_bytes": len(err), "message": last[:300]})
+        good = outcome in ("clear error", "ran")
+        if not good:
+            print("%-14s %s\n               %s" % (outcome, c["name"], last[:200]), file=sys.stderr)
+        if (i + 1) % 50 == 0:
+            print("hostile inputs: %d/%d (%.0f s)" % (i + 1, len(cases), time.time() - t0), file=sys.stderr)
+    shutil.rmtree(tmp, ignore_errors=True)
+    bad = [c for c in cases if c["expect"] == "reject"]
+    print("hostile-input battery: %d cases (%d bad inputs, %d valid edge values), %.0f s" % (
+        len(cases), len(bad), len(cases) - len(bad), time.time() - t0))
+    print("| outcome | cases |\n|---|---|")
+    for k in ["clear error", "ran", "unclear", "accepted", "crash", "hang", "file lost", "half-written",
+              "refused valid input"] + sorted(k for k in tally if k.startswith("unexpected")):
+        print("| %s | %d |" % (k, tally.get(k, 0)))
+    if a.json:
+        with open(a.json + ".partial", "w") as fh:
+            json.dump({"tally": tally, "cases": results}, fh, indent=1)
+        os.replace(a.json + ".partial", a.json)
+    ok = tally.get("clear error", 0) + tally.get("ran", 0) == len(cases)
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# microsim: the sanitizer gate. Builds the test suite and the CLI with AddressSanitizer and UBSan
+# (-fsanitize=address,undefined, every report fatal) in build-sanitize/ (RelWithDebInfo) and runs the
+# whole ctest suite there; any sanitizer report fails a test and so this script.
+#   scripts/sanitize.sh            configure, build, run every test
+#   scripts/sanitize.sh -R REGEX   only the tests matching REGEX (passed to ctest)
+set -euo pipefail
+here=$(cd "$(dirname "$0")/.." && pwd)
+bash "$here/scripts/setup.sh" --deps
+build="$here/build-sanitize"
+launcher=()
+command -v ccache > /dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+cmake -S "$here" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMICROSIM_SANITIZE=ON \
+  -DMICROSIM_BUILD_BENCHMARKS=OFF "${launcher[@]}" > /dev/null
+cmake --build "$build" -j"$(nproc)"
+# halt_on_error + abort: a report ends the process with a non-zero status, never a silent warning.
+# detect_leaks stays on (the default); UBSan prints a stack for each report.
+export ASAN_OPTIONS=halt_on_error=1:abort_on_error=1:detect_stack_use_after_return=1:strict_string_checks=1
+export UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
+ctest --test-dir "$build" --output-on-failure -j"$(nproc)" --timeout 1800 "$@"
