@@ -8,6 +8,8 @@
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
+#include "error_message.h"
+
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -33,14 +35,7 @@ fs::path scratch_dir(const std::string& name) {
   return dir;
 }
 
-std::string message_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  return "(no exception)";
-}
+using microsim::test::message_of;
 
 }  // namespace
 

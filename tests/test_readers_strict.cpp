@@ -9,6 +9,9 @@
 #include "microsim/smith_prediction.h"
 #include "microsim/strict_parse.h"
 
+#include "cli_helpers.h"
+#include "error_message.h"
+
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -29,21 +32,9 @@ namespace {
 
 constexpr std::size_t kShortMessage = 500;  // bytes: a message that quotes an excerpt, not the input
 
-fs::path scratch(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("microsim_strict_" + name + "_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+fs::path scratch(const std::string& name) { return microsim::test::scratch_dir("strict", name); }
 
-std::string message_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  return "(no exception)";
-}
+using microsim::test::message_of;
 
 std::string read_bytes(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
