@@ -29,11 +29,14 @@ const fs::path& histogram_fixture() {
   return path;
 }
 
-// Writes the fixture histogram into DIR/h.exr with one string attribute replaced.
-std::function<void(const fs::path&)> histogram_with(const std::string& key, const std::string& value) {
+// Writes the fixture histogram into DIR/h.exr with one string attribute replaced by `value`, or by
+// `repeat` copies of it (made only when the case runs: the table itself stays small in memory).
+std::function<void(const fs::path&)> histogram_with(const std::string& key, const std::string& value,
+                                                    std::size_t repeat = 1) {
   return [=](const fs::path& dir) {
     microgeom::ExrImage img = microgeom::read_exr(histogram_fixture());
-    img.attributes[key] = value;
+    std::string& v = img.attributes[key] = "";
+    for (std::size_t i = 0; i < repeat; ++i) v += value;
     microgeom::write_exr(dir / "h.exr", img);
   };
 }
@@ -61,8 +64,15 @@ std::function<void(const fs::path&)> heightmap_with(std::map<std::string, std::s
   };
 }
 
-std::function<void(const fs::path&)> file_with(const std::string& name, std::string bytes) {
-  return [=](const fs::path& dir) { std::ofstream(dir / name, std::ios::binary) << bytes; };
+// Writes DIR/NAME = head, `repeat` copies of `body`, tail (made only when the case runs).
+std::function<void(const fs::path&)> file_with(const std::string& name, std::string head, std::string body = "",
+                                               std::size_t repeat = 0, std::string tail = "") {
+  return [=](const fs::path& dir) {
+    std::ofstream out(dir / name, std::ios::binary);
+    out << head;
+    for (std::size_t i = 0; i < repeat; ++i) out << body;
+    out << tail;
+  };
 }
 
 std::string npy_without_newline() {
@@ -98,7 +108,7 @@ std::vector<BadInputCase> cases() {
       {"plot_binning_rows", "plot h.exr --out f.svg", 2, "attribute binning.sphere",
        histogram_with("binning.sphere", R"({"kind":"sphere","rows":-3})")},
       {"plot_huge_value", "plot h.exr --out f.svg", 2, "attribute partial = 'yyyy",
-       histogram_with("partial", std::string(10 << 20, 'y'))},
+       histogram_with("partial", "y", 10 << 20)},
       {"against_hits_negative", kValidate + "--against h.exr", 2, "attribute hits = '-1'",
        histogram_with("hits", "-1")},
       {"against_binnings_twice", kValidate + "--against h.exr", 2, "names binning 'sphere' twice",
@@ -119,7 +129,7 @@ std::vector<BadInputCase> cases() {
       {"from_npy_without_newline", kFrom + "n.npy", 2, "NPY header does not end with a newline",
        file_with("n.npy", npy_without_newline())},
       {"from_text_huge_token", kFrom + "t.txt", 2, "line 1: value '" + std::string(40, '1') + "'... (",
-       file_with("t.txt", "0 0 " + std::string(10 << 20, '1') + "\n")},
+       file_with("t.txt", "0 0 ", "1", 10 << 20, "\n")},
       {"from_text_binary", kFrom + "b.txt", 2, "line 2: malformed line: '\\x00\\x01\\x02", file_with("b.txt", binary_text())},
   };
 }
