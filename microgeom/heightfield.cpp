@@ -1,6 +1,7 @@
 #include "microgeom/heightfield.h"
 
 #include "microgeom/exr_io.h"
+#include "microsim/strict_parse.h"
 
 #include <fmt/core.h>
 
@@ -141,49 +142,71 @@ void save_normal_map_exr(const std::filesystem::path& path, const Heightfield& f
   write_exr(path, img);
 }
 
-Heightfield load_heightmap_exr(const std::filesystem::path& path, std::optional<double> tile_size) {
-  auto fail = [&](const std::string& why) {
-    return std::runtime_error(fmt::format("heightmap '{}': {}", path.string(), why));
-  };
-  ExrImage img = read_exr(path);  // throws naming the path
-  if (img.width != img.height)
-    throw fail(fmt::format("is {} x {}, but a heightmap must be square", img.width, img.height));
-  if (img.width < 2) throw fail(fmt::format("resolution {} is too small", img.width));
+namespace {
+
+constexpr int kMaxHeightmapResolution = 46340;  // 2 N^2 < 2^32
+
+// The channel holding the heights: 'height', else 'Y', else the only channel.
+ExrChannel& height_channel(ExrImage& img, const std::string& name) {
   ExrChannel* channel = img.find("height");
   if (!channel) channel = img.find("Y");
   if (!channel && img.channels.size() == 1) channel = &img.channels[0];
-  if (!channel) {
-    std::string names;
-    for (const auto& c : img.channels) names += (names.empty() ? "" : ", ") + c.name;
-    throw fail(fmt::format("no height channel: expected a channel 'height' or 'Y' or a single channel, found {}",
-                           names));
-  }
-  for (std::size_t k = 0; k < channel->data.size(); ++k)
-    if (!std::isfinite(channel->data[k]))
-      throw fail(fmt::format("channel '{}' has a non-finite height {} at texel (x={}, y={})", channel->name,
-                             channel->data[k], k % std::size_t(img.width), k / std::size_t(img.width)));
-  double size = 0;
-  if (tile_size) {
-    size = *tile_size;
-  } else if (auto it = img.attributes.find("microsim.tile_size"); it != img.attributes.end()) {
-    try {
-      std::size_t used = 0;
-      size = std::stod(it->second, &used);
-      if (used != it->second.size()) throw std::invalid_argument("trailing characters");
-    } catch (const std::exception&) {
-      throw fail(fmt::format("attribute microsim.tile_size = '{}' is not a number", it->second));
-    }
-  } else {
-    throw fail("has no microsim.tile_size attribute: give the physical tile size (--tile-size)");
-  }
-  if (!(std::isfinite(size) && size > 0))
-    throw fail(fmt::format("tile size {} must be a finite number > 0", size));
+  if (channel) return *channel;
+  std::string names;
+  for (const auto& c : img.channels) names += (names.empty() ? "" : ", ") + microsim::reader::quote_excerpt(c.name);
+  throw std::runtime_error(fmt::format(
+      "heightmap '{}': no height channel: expected a channel 'height' or 'Y' or a single channel, found {}", name,
+      names.size() > 200 ? names.substr(0, 200) + "..." : names));
+}
 
-  Heightfield field(img.width, size, std::move(channel->data));
+// The physical tile size: --tile-size, else the attribute microsim.tile_size (a finite number > 0).
+double tile_size_of(const ExrImage& img, const std::string& name, std::optional<double> tile_size) {
+  if (tile_size) return *tile_size;
+  const auto it = img.attributes.find("microsim.tile_size");
+  if (it == img.attributes.end())
+    throw std::runtime_error(fmt::format(
+        "heightmap '{}': has no microsim.tile_size attribute: give the physical tile size (--tile-size)", name));
+  const std::optional<double> size = microsim::reader::parse_finite_double(it->second);
+  if (!size || !(*size > 0))
+    throw std::runtime_error(fmt::format("heightmap '{}': attribute microsim.tile_size = {} is not a finite number > 0",
+                                         name, microsim::reader::quote_excerpt(it->second)));
+  return *size;
+}
+
+}  // namespace
+
+Heightfield heightfield_from_exr(ExrImage img, const std::string& name, std::optional<double> tile_size) {
+  auto fail = [&](const std::string& why) {
+    return std::runtime_error(fmt::format("heightmap '{}': {}", name, why));
+  };
+  if (img.width != img.height)
+    throw fail(fmt::format("is {} x {}, but a heightmap must be square", img.width, img.height));
+  if (img.width < 2) throw fail(fmt::format("resolution {} is too small", img.width));
+  if (img.width > kMaxHeightmapResolution)
+    throw fail(fmt::format("resolution {} is above the largest supported, {} (2 N^2 triangle ids in 32 bits)",
+                           img.width, kMaxHeightmapResolution));
+  ExrChannel& channel = height_channel(img, name);
+  for (std::size_t k = 0; k < channel.data.size(); ++k)
+    if (!std::isfinite(channel.data[k]))
+      throw fail(fmt::format("channel {} has a non-finite height {} at texel (x={}, y={})",
+                             microsim::reader::quote_excerpt(channel.name), channel.data[k],
+                             k % std::size_t(img.width), k / std::size_t(img.width)));
+  const double size = tile_size_of(img, name, tile_size);
+  if (!(std::isfinite(size) && size > 0)) throw fail(fmt::format("tile size {} must be a finite number > 0", size));
+  const auto [lo, hi] = std::minmax_element(channel.data.begin(), channel.data.end());
+  // Every slope is at most (max - min) / cell size: finite, or the surface's normals are not.
+  if (!std::isfinite((double(*hi) - double(*lo)) * img.width / size))
+    throw fail(fmt::format("tile size {} is too small for heights from {} to {}: the slopes overflow", size, *lo, *hi));
+
+  Heightfield field(img.width, size, std::move(channel.data));
   for (const auto& [k, v] : img.attributes)
     if (k.rfind("microsim.", 0) == 0 && k != "microsim.tile_size" && k != "microsim.resolution")
       field.metadata[k.substr(9)] = v;
   return field;
+}
+
+Heightfield load_heightmap_exr(const std::filesystem::path& path, std::optional<double> tile_size) {
+  return heightfield_from_exr(read_exr(path), path.string(), tile_size);  // read_exr throws naming the path
 }
 
 }  // namespace microgeom

@@ -3,6 +3,7 @@
 #include "microsim/progress.h"
 #include "microsim/random.h"
 #include "microsim/sample_io.h"
+#include "microsim/strict_parse.h"
 
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
@@ -14,6 +15,7 @@
 #include <chrono>
 #include <cmath>
 #include <numeric>
+#include <optional>
 #include <stdexcept>
 
 namespace microsim {
@@ -132,27 +134,19 @@ TracedHistogram trace_vndf_histogram(const GGX<double>& ggx, const Vec3<double>&
 
 namespace {
 
+// The n finite numbers of the ','-separated attribute `key` (each a whole decimal token).
 std::vector<double> parse_numbers(const TracedHistogram& h, const std::string& key, std::size_t n) {
   const auto it = h.attributes.find(key);
   if (it == h.attributes.end()) throw HistogramIoError(fmt::format("traced histogram: attribute '{}' is missing", key));
+  const std::vector<std::string_view> fields = reader::split_commas(it->second);
   std::vector<double> values;
-  std::size_t pos = 0;
-  const std::string& s = it->second;
-  while (pos <= s.size()) {
-    const std::size_t comma = s.find(',', pos);
-    const std::string item = s.substr(pos, comma == std::string::npos ? std::string::npos : comma - pos);
-    try {
-      std::size_t used = 0;
-      values.push_back(std::stod(item, &used));
-      if (used != item.size()) throw std::invalid_argument(item);
-    } catch (const std::exception&) {
-      throw HistogramIoError(fmt::format("traced histogram: attribute {} = '{}' is malformed", key, s));
+  for (const std::string_view field : fields) {
+    const std::optional<double> v = reader::parse_finite_double(field);
+    if (!v || fields.size() != n) {
+      throw HistogramIoError(fmt::format("traced histogram: attribute {} = {} is not {} finite numbers separated by ','",
+                                         key, reader::quote_excerpt(it->second), n));
     }
-    if (comma == std::string::npos) break;
-    pos = comma + 1;
-  }
-  if (values.size() != n || !std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v); })) {
-    throw HistogramIoError(fmt::format("traced histogram: attribute {} = '{}' needs {} finite numbers", key, s, n));
+    values.push_back(*v);
   }
   return values;
 }

@@ -6,6 +6,7 @@
 // 'fortran_order' and 'shape', padded with spaces and ended by '\n'; the raw array data follows.
 #include "microsim/sample_io.h"
 
+#include "microsim/strict_parse.h"
 #include "microgeom/atomic_file.h"
 
 #include <array>
@@ -107,14 +108,15 @@ public:
         h.shape = parse_tuple();
         have_shape = true;
       } else {
-        error("unexpected key '" + key + "' (an NPY header has exactly 'descr', 'fortran_order', 'shape')");
+        error("unexpected key " + reader::quote_excerpt(key) +
+              " (an NPY header has exactly 'descr', 'fortran_order', 'shape')");
       }
       skip_space();
       if (peek() == ',') {
         ++pos_;
         continue;
       }
-      if (peek() != '}') error("expected ',' or '}' after the value of '" + key + "'");
+      if (peek() != '}') error("expected ',' or '}' after the value of " + reader::quote_excerpt(key));
     }
     ++pos_;  // '}'
     skip_space();
@@ -194,7 +196,9 @@ std::uint64_t read_le(const unsigned char* p, int bytes) {
 
 std::string shape_string(const std::vector<std::uint64_t>& shape) {
   std::string s = "(";
-  for (std::size_t i = 0; i < shape.size(); ++i) s += (i ? ", " : "") + std::to_string(shape[i]);
+  const std::size_t shown = shape.size() <= 8 ? shape.size() : 4;  // a long tuple is cut: short messages
+  for (std::size_t i = 0; i < shown; ++i) s += (i ? ", " : "") + std::to_string(shape[i]);
+  if (shown < shape.size()) s += ", ... " + std::to_string(shape.size()) + " dimensions";
   if (shape.size() == 1) s += ",";
   return s + ")";
 }
@@ -223,6 +227,11 @@ NpyLayout read_npy_layout(const std::filesystem::path& path, std::string_view by
                    std::to_string(size - prefix) + ")");
   // Versions 1.0 and 2.0 have a latin-1 header, 3.0 UTF-8; every byte we accept is ASCII either way.
   const std::string_view header(bytes.data() + prefix, static_cast<std::size_t>(header_len));
+  // The format ends the header with '\n' (after its padding); a file without it was not written by NumPy.
+  if (header.empty()) fail(path, "NPY header is empty (header length 0)");
+  if (header.back() != '\n')
+    fail(path, "NPY header does not end with a newline '\\n' (its last byte is " +
+                   reader::quote_excerpt(header.substr(header.size() - 1)) + ")");
   const NpyHeader h = NpyHeaderParser(path, header).parse();
 
   std::size_t item = 0;
@@ -233,10 +242,10 @@ NpyLayout read_npy_layout(const std::filesystem::path& path, std::string_view by
   } else if (h.descr == "<f8") {
     item = 8;
   } else if (h.descr == ">f4" || h.descr == ">f8") {
-    fail(path, "unsupported NPY dtype '" + h.descr +
-                   "' (big-endian; convert with arr.astype('<f8') or arr.astype('<f4'))");
+    fail(path, "unsupported NPY dtype " + reader::quote_excerpt(h.descr) +
+                   " (big-endian; convert with arr.astype('<f8') or arr.astype('<f4'))");
   } else {
-    fail(path, "unsupported NPY dtype '" + h.descr + "' (expected '<f4' float32 or '<f8' float64)");
+    fail(path, "unsupported NPY dtype " + reader::quote_excerpt(h.descr) + " (expected '<f4' float32 or '<f8' float64)");
   }
   if (h.fortran_order)
     fail(path, "unsupported NPY array in Fortran order (save np.ascontiguousarray(arr) instead)");
@@ -251,7 +260,7 @@ NpyLayout read_npy_layout(const std::filesystem::path& path, std::string_view by
   if (complete_rows < rows)
     fail(path, "truncated NPY data: shape " + shape_string(h.shape) + " declares " + std::to_string(rows) +
                    " rows but the data ends in row " + std::to_string(complete_rows) + " (0-based; " +
-                   std::to_string(available) + " data bytes for " + std::to_string(rows * row_bytes) + ")");
+                   std::to_string(available) + " data bytes for rows of " + std::to_string(row_bytes) + " bytes)");
   if (available != rows * row_bytes)
     fail(path, "NPY data has " + std::to_string(available - rows * row_bytes) +
                    " unexpected trailing bytes after the " + std::to_string(rows) + " declared rows");
@@ -317,11 +326,11 @@ void read_text_lines(const std::filesystem::path& path, std::string_view text, s
       const std::size_t end = static_cast<std::size_t>(r.ptr - line.data());
       std::size_t token_end = start;
       while (token_end < line.size() && !is_blank(line[token_end]) && line[token_end] != ',') ++token_end;
-      const std::string token(line.substr(start, token_end - start));
+      const std::string_view token = line.substr(start, token_end - start);
       if (r.ec == std::errc::result_out_of_range)
-        fail(path, where + ": value '" + token + "' is out of the range of a double");
+        fail(path, where + ": value " + reader::quote_excerpt(token) + " is out of the range of a double");
       if (r.ec != std::errc() || end != token_end) {
-        malformed(token.empty() ? std::string("empty field") : "'" + token + "' is not a number");
+        malformed(token.empty() ? std::string("empty field") : reader::quote_excerpt(token) + " is not a number");
       }
       values.push_back(v);
       i = end;
@@ -543,6 +552,24 @@ std::size_t DirectionSampleReader::read(std::span<Vec3<double>> out) {
   m.rows += n;
   if (n == 0 && m.rows == 0) fail(m.path, "empty: no samples (only blank or comment lines)");
   return n;
+}
+
+std::vector<Vec3<double>> parse_direction_samples(std::string_view bytes, const std::filesystem::path& name) {
+  if (bytes.empty()) fail(name, "empty file: no samples");
+  if (bytes.substr(0, kNpyMagic.size()) == kNpyMagic) {
+    const NpyLayout layout = read_npy_layout(name, bytes);  // rows checked against the bytes present
+    std::vector<Vec3<double>> out(static_cast<std::size_t>(layout.rows));
+    decode_npy_rows(name, bytes, layout, 0, out);
+    return out;
+  }
+  if (name.extension() == ".npy")
+    fail(name, "not an NPY file (the magic string \\x93NUMPY is missing) although the name ends in .npy");
+  if (bytes.substr(0, 3) == "\xEF\xBB\xBF") bytes.remove_prefix(3);  // UTF-8 byte order mark
+  std::vector<Vec3<double>> out;
+  std::size_t line_no = 0;
+  read_text_lines(name, bytes, line_no, out);
+  if (out.empty()) fail(name, "empty: no samples (only blank or comment lines)");
+  return out;
 }
 
 std::vector<Vec3<double>> read_direction_samples(const std::filesystem::path& path) {

@@ -1,12 +1,15 @@
 // microsim: Smith predictions for heightfields, analytic and empirical (see smith_prediction.h).
 #include "microsim/smith_prediction.h"
 
+#include "microsim/strict_parse.h"
+
 #include <fmt/core.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 
 namespace microsim {
@@ -71,14 +74,21 @@ AnalyticSmith analytic_reference(const microgeom::Heightfield& field, std::strin
   const auto& md = field.metadata;
   const auto ax = md.find("alpha_x"), ay = md.find("alpha_y"), ref = md.find("reference_ndf");
   if (ax != md.end() && ay != md.end()) {
-    try {
-      const double alpha_x = std::stod(ax->second), alpha_y = std::stod(ay->second);
-      const AnalyticNdf ndf = (ref != md.end() && ref->second == "beckmann") ? AnalyticNdf::beckmann : AnalyticNdf::ggx;
-      if (source) *source = "metadata";
-      return AnalyticSmith(ndf, alpha_x, alpha_y);
-    } catch (const std::exception&) {
-      // malformed metadata: fall through to the fit
-    }
+    // Stated roughness that is not a number is an error, not a reason to fit silently.
+    const auto alpha = [](const std::string& key, const std::string& text) {
+      const std::optional<double> v = reader::parse_finite_double(text);
+      if (!v || !(*v > 0))
+        throw std::invalid_argument(fmt::format("heightmap attribute microsim.{} = {} is not a finite number > 0",
+                                                key, reader::quote_excerpt(text)));
+      return *v;
+    };
+    if (ref != md.end() && ref->second != "ggx" && ref->second != "beckmann")
+      throw std::invalid_argument(fmt::format("heightmap attribute microsim.reference_ndf = {} is neither 'ggx' nor "
+                                              "'beckmann'", reader::quote_excerpt(ref->second)));
+    const AnalyticNdf ndf = (ref != md.end() && ref->second == "beckmann") ? AnalyticNdf::beckmann : AnalyticNdf::ggx;
+    const double alpha_x = alpha("alpha_x", ax->second), alpha_y = alpha("alpha_y", ay->second);
+    if (source) *source = "metadata";
+    return AnalyticSmith(ndf, alpha_x, alpha_y);
   }
   // GGX fit from the median |slope| per axis.
   const int n = field.resolution();

@@ -8,6 +8,8 @@
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
+#include "error_message.h"
+
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -33,14 +35,7 @@ fs::path scratch_dir(const std::string& name) {
   return dir;
 }
 
-std::string message_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  return "(no exception)";
-}
+using microsim::test::message_of;
 
 }  // namespace
 
@@ -191,7 +186,7 @@ TEST(Heightfield, ExternalHeightmapsAreValidatedWithClearMessages) {
                std::runtime_error);
   // Wrong channels: names what was found.
   const std::string rgb = message_of([&] { microgeom::load_heightmap_exr(write("rgb.exr", 8, 8, {"R", "G", "B"}), 1.0); });
-  EXPECT_NE(rgb.find("B, G, R"), std::string::npos) << rgb;
+  EXPECT_NE(rgb.find("'B', 'G', 'R'"), std::string::npos) << rgb;
   EXPECT_NE(rgb.find("rgb.exr"), std::string::npos) << rgb;
   // Non-square.
   const std::string rect = message_of([&] { microgeom::load_heightmap_exr(write("rect.exr", 8, 4, {"height"}), 1.0); });

@@ -221,8 +221,9 @@ TEST_F(SampleIo, NpyVersions2And3AndHeaderSpellingsAreAccepted) {
     ASSERT_EQ(r.size(), 2u);
     EXPECT_EQ(r[1], Vec3<double>(0.6, 0, -0.8));
   }
-  // Key order, double quotes, no trailing comma, Python 2 'L' suffixes, no padding: all valid dicts.
-  const std::string odd = "{\"shape\": (2L, 3L), \"fortran_order\": False, \"descr\": \"<f8\"}";
+  // Key order, double quotes, no trailing comma, Python 2 'L' suffixes, no padding: all valid dicts
+  // (the terminating newline is required: see NpyHeaderWithoutNewlineIsRejected).
+  const std::string odd = "{\"shape\": (2L, 3L), \"fortran_order\": False, \"descr\": \"<f8\"}\n";
   EXPECT_EQ(read_direction_samples(write_bytes("odd.npy", npy_bytes(1, 0, odd, d, /*pad=*/false))).size(), 2u);
   // A file named .txt with NPY content is read as NPY (detection is by the magic string).
   EXPECT_EQ(read_direction_samples(write_bytes("npy.txt", npy_bytes(1, 0, dict("<f8", "(2,3)"), d))).size(), 2u);

@@ -106,7 +106,7 @@ TEST(SurfaceCli, BadInputExitsTwoNamingTheValueAndWritesNothing) {
   microgeom::write_exr(dir / "plain.exr", plain);
   const std::vector<Case> file_cases = {
       {"surface stats nan.exr --tile-size 1", "x=1, y=1"},
-      {"surface stats rg.exr --tile-size 1", "found G, R"},
+      {"surface stats rg.exr --tile-size 1", "found 'G', 'R'"},
       {"surface stats plain.exr", "--tile-size"},
       {"surface stats plain.exr --tile-size -2", "-2"},
       {"surface stats plain.exr --tile-size 1 --reference gauss", "'gauss'"},

@@ -184,6 +184,7 @@ TEST(HistogramIo, ExrRoundTripIsExactAndAtomic) {
   // Counts beyond float's 2^24 survive exactly through the high/low channels.
   h.counts[0][3] = (std::uint64_t(1) << 30) + 7;
   h.hits += (std::uint64_t(1) << 30) + 7;
+  h.rays += (std::uint64_t(1) << 30) + 7;  // hits <= rays, as the reader checks
   h.partial = true;
   const auto path = dir / "h.exr";
   write_histogram_exr(path, h);

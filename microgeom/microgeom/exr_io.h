@@ -8,9 +8,11 @@
 // over the destination only once complete; on failure nothing is left behind.
 #pragma once
 
+#include <cstdint>
 #include <deque>
 #include <filesystem>
 #include <map>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -44,9 +46,19 @@ struct ExrImage {
 // attribute, I/O errors); leaves nothing behind.
 void write_exr(const std::filesystem::path& path, const ExrImage& image);
 
+// The most float data read_exr decodes (width x height x channels x 4 bytes): 2 GiB, e.g. 16384 x 16384
+// pixels x 2 channels (the largest heightmap `surface build` writes, 8192 x 8192, is 256 MiB).
+inline constexpr std::uint64_t kMaxExrDecodedBytes = std::uint64_t(2) << 30;
+
 // Reads every channel as float (HALF and UINT channels are converted by OpenEXR) and every string
-// attribute. Throws std::runtime_error naming the path (missing file, not an EXR, subsampled channels,
-// truncated data).
-ExrImage read_exr(const std::filesystem::path& path);
+// attribute. Throws std::runtime_error naming the path (missing file, not an EXR, a multi-part or deep
+// file, subsampled channels, truncated data). The sizes the header claims are checked before anything
+// is allocated or decoded: the decoded data against `max_decoded_bytes` (the message states the claim
+// and the limit), and the chunk offset table and (for uncompressed, RLE, ZIP and PXR24 files) the pixel
+// data against the size of the file. std::bad_alloc passes through unchanged (out of memory).
+ExrImage read_exr(const std::filesystem::path& path, std::uint64_t max_decoded_bytes = kMaxExrDecodedBytes);
+// The same for the bytes of an EXR file in memory; `name` stands for the path in messages.
+ExrImage read_exr_memory(std::span<const char> bytes, const std::string& name,
+                         std::uint64_t max_decoded_bytes = kMaxExrDecodedBytes);
 
 }  // namespace microgeom

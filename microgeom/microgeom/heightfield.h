@@ -108,6 +108,8 @@ private:
   double mean_height_ = 0;
 };
 
+struct ExrImage;  // microgeom/exr_io.h
+
 // ---- EXR files ------------------------------------------------------------------------------------------
 // Heightmap: one FLOAT channel "height" (N x N, row-major, pixel (x, y) = vertex (i, j)) in the same
 // physical unit as the tile size; string attributes "microsim.tile_size" (%.17g) and
@@ -118,7 +120,12 @@ void save_heightmap_exr(const std::filesystem::path& path, const Heightfield& fi
 // other layout is an error naming the channels found. The tile size is `tile_size` if given, else the
 // file's "microsim.tile_size" attribute; neither -> error. Non-square images, NaN/inf heights (naming the
 // texel), tile size <= 0, files that are not EXR: std::runtime_error naming the path.
+// The attribute microsim.tile_size is a whole finite decimal number > 0 ("1x", "nan", "-1" are errors
+// quoting a short excerpt of it); heights so steep that a slope overflows a double are an error too.
+// The EXR reader's size limits apply (kMaxExrDecodedBytes).
 Heightfield load_heightmap_exr(const std::filesystem::path& path, std::optional<double> tile_size = {});
+// The same checks on an image already read (the fuzz target's entry point); `name` names it in messages.
+Heightfield heightfield_from_exr(ExrImage image, const std::string& name, std::optional<double> tile_size = {});
 
 // Normal map: channels "R", "G", "B" = the unit normal of each cell, the normalised sum of its two
 // triangles' normals (signed components, not remapped to [0, 1]); same attributes as the heightmap.

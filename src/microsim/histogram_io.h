@@ -27,6 +27,10 @@
 #include <string>
 #include <vector>
 
+namespace microgeom {
+struct ExrImage;
+}
+
 namespace microsim {
 
 struct HistogramIoError : std::runtime_error {
@@ -51,7 +55,14 @@ void write_histogram_exr(const std::filesystem::path& path, const TracedHistogra
 // Reads a file written by write_histogram_exr; throws HistogramIoError naming the file and the problem
 // (not an EXR, not a microsim histogram, a missing channel, a malformed binning description, counts
 // that are not non-negative integers, sizes that disagree).
+// Every attribute is checked strictly: rays and hits are plain decimal counts (no sign, no overflow) with
+// hits <= rays; partial is "true" or "false"; binnings lists known names (sphere, lobe), none twice;
+// each binning.NAME matches the image's rows and columns; every channel belongs to a listed binning and
+// NAME.count agrees with the exact count; NAME.expected is finite and >= 0. Messages quote at most a
+// short escaped excerpt of a bad value. The EXR reader's size limits apply (kMaxExrDecodedBytes).
 TracedHistogram read_histogram_exr(const std::filesystem::path& path);
+// The same checks on an image already read (the fuzz target's entry point); `name` names it in messages.
+TracedHistogram histogram_from_exr(const microgeom::ExrImage& image, const std::string& name);
 
 // Throws HistogramIoError unless a file can be created at `path` (its directory exists and is
 // writable); creates and removes a probe file. Used before long runs so that a bad --out fails first.

@@ -26,6 +26,7 @@
 #include <memory>
 #include <span>
 #include <stdexcept>
+#include <string_view>
 #include <vector>
 
 namespace microsim {
@@ -72,6 +73,9 @@ inline constexpr std::size_t kSampleFileBlock = std::size_t(1) << 16;
 // cannot be opened, a malformed line, a wrong column count, a non-finite value, a vector far from unit
 // length, an unsupported NPY version/dtype/order/shape, truncated or trailing data, or no samples at all.
 std::vector<Vec3<double>> read_direction_samples(const std::filesystem::path& path);
+// The same for the bytes of a file in memory (the fuzz target's entry point); `name` stands for the path
+// in messages, and its extension .npy demands the NPY magic as for a file.
+std::vector<Vec3<double>> parse_direction_samples(std::string_view bytes, const std::filesystem::path& name);
 
 // Writes an NPY version 1.0 file with dtype '<f4' (as_float32) or '<f8' and shape (N, 3), C order.
 // Written to a temporary file in the same directory and renamed, so nothing is ever half-written.

@@ -67,7 +67,9 @@ private:
 // The analytic reference of a surface: its metadata ("reference_ndf", "alpha_x", "alpha_y", as written by
 // microgeom::build_assembly) if present, else GGX with alpha fitted per axis from the median |slope|
 // (alpha = sqrt(3) median |s_x|: the GGX slope marginal has P(|s_x| < a) = a / sqrt(alpha^2 + a^2)).
-// `source` (if non-null) says which ("metadata" or "fitted").
+// `source` (if non-null) says which ("metadata" or "fitted"). Metadata that is present but malformed (an
+// alpha that is not a whole finite decimal number > 0, a reference_ndf other than ggx or beckmann) throws
+// std::invalid_argument naming the attribute and quoting a short excerpt of its value.
 AnalyticSmith analytic_reference(const microgeom::Heightfield& field, std::string* source = nullptr);
 
 class EmpiricalSmith {
