@@ -78,7 +78,7 @@ def exr_rewrite(data, edit):
     dw = next(v for n, t, v in attrs if n == "dataWindow")
     comp = next(v for n, t, v in attrs if n == "compression")[0]
     lines_per_chunk = {0: 1, 1: 1, 2: 1, 3: 16, 4: 32, 5: 16, 6: 32, 7: 32, 8: 16, 9: 256}.get(comp, 1)
-    ymin, ymax = struct.unpack_from("<ii", dw, 4)
+    ymin, ymax = struct.unpack_from("<i", dw, 4)[0], struct.unpack_from("<i", dw, 12)[0]
     chunks = (ymax - ymin + lines_per_chunk) // lines_per_chunk
     offsets = list(struct.unpack_from("<%dQ" % chunks, data, end))
     rest = data[end + 8 * chunks:]
@@ -200,9 +200,12 @@ KIND_BAD = {
     "prob": ["0", "1", "-0.5", "2"],
     "alpha": ["0", "-0.3", "1e30", "0.3,", ",0.3", "0.3,,0.5", "0.3,0.5,0.7", "1e-9", "0.0001,1"],
     "positive": ["0", "-1", "1e400"],
+    "nonneg": ["-1", "-0.5", "1e400"],               # 0 means "from the file" or "the default"
+    "count0": ["-1", "99999999999999999999", "18446744073709551616", "1.5", "1e30"],  # 0 means "off"
     "threads": ["-1", "99999999999999999999", "1.5"],
     "level": ["-1", "10", "1.5"],
     "small_count": ["0", "-1", "99999999999999999999", "1.5"],
+    "small_count0": ["-1", "99999999999999999999", "1.5"],
     "res": ["0", "-16", "17", "100", "99999999999999999999", "16384"],
     "uint_range": ["-1", "1000001", "99999999999999999999"],
     "cone": ["0", "-1", "91"],
@@ -210,7 +213,7 @@ KIND_BAD = {
 VAL = "validate --sampler heitz2018 --alpha 0.3 --theta 30 --samples 20000 --rows 11"
 TRACE = "trace vndf --surface ellipsoid --alpha 0.3 --theta 30 --rays 20000 --out o.exr"
 MASK = "trace masking --surface hf.exr --theta 60 --samples 2000"
-BUILD = "surface build --assembly smith --alpha 0.5 --res 128 --out s.exr --quiet"
+BUILD = "surface build --assembly smith --alpha 0.5 --res 256 --out s.exr --quiet"
 FLAGS = [  # (command with a default for the flag, flag, kind)
     (VAL, "--alpha", "alpha"), (VAL, "--theta", "theta"), (VAL, "--phi", "angle"), (VAL, "--samples", "count"),
     (VAL, "--seed", "seed"), (VAL, "--rows", "rows"), (VAL, "--significance", "prob"),
@@ -220,13 +223,13 @@ FLAGS = [  # (command with a default for the flag, flag, kind)
     (TRACE, "--seed", "seed"), (TRACE, "--threads", "threads"), (TRACE, "--rows", "rows"),
     (TRACE, "--mesh-level", "level"),
     (MASK, "--theta", "theta"), (MASK, "--phi", "angle"), (MASK, "--samples", "count"), (MASK, "--seed", "seed"),
-    (MASK, "--threads", "threads"), (MASK, "--bins", "small_count"), (MASK, "--vndf-rays", "count"),
+    (MASK, "--threads", "threads"), (MASK, "--bins", "small_count"), (MASK, "--vndf-rays", "count0"),
     (MASK, "--grazing-share", "prob"), (MASK + " --theta-l 30", "--cone", "cone"), (MASK, "--theta-l", "theta"),
     (MASK, "--tile-size", "positive"),
     (BUILD, "--alpha", "alpha"), (BUILD, "--res", "res"), (BUILD, "--seed", "seed"),
-    (BUILD, "--corr-cells", "positive"), (BUILD, "--tile-size", "positive"), (BUILD, "--iterations", "small_count"),
-    ("surface stats hf.exr", "--tile-size", "positive"), ("surface stats hf.exr", "--alpha", "alpha"),
-    ("surface stats hf.exr", "--corr-cells", "positive"),
+    (BUILD, "--corr-cells", "nonneg"), (BUILD, "--tile-size", "positive"), (BUILD, "--iterations", "small_count0"),
+    ("surface stats hf.exr", "--tile-size", "nonneg"), ("surface stats hf.exr", "--alpha", "alpha"),
+    ("surface stats hf.exr", "--corr-cells", "nonneg"),
     ("stability --failures-only", "--random-u", "uint_range"), ("stability --failures-only", "--seed", "seed"),
 ]
 # Valid edge values: they must run (exit 0 or 1), quickly.
@@ -284,16 +287,14 @@ PATHS = [
     ("surface stats hf.exr --normals hf.exr", "hf.exr"),
     ("surface stats hf.exr --json n.exr --normals n.exr", "n.exr"),
     ("surface import hf.exr --tile-size 1 --out hf.exr", "hf.exr"),
-    ("surface build --assembly smith --alpha 0.5 --res 128 --out s.exr --normals s.exr --quiet", "s.exr"),
-    ("surface build --assembly smith --alpha 0.5 --res 128 --out s.exr --json s.exr --quiet", "s.exr"),
-    ("surface build --assembly smith --alpha 0.5 --res 128 --out s.exr --mesh s.exr --quiet", "s.exr"),
-    ("surface build --assembly smith --alpha 0.5 --res 128 --out hf.exr --quiet", "hf.exr"),
+    ("surface build --assembly smith --alpha 0.5 --res 256 --out s.exr --normals s.exr --quiet", "s.exr"),
+    ("surface build --assembly smith --alpha 0.5 --res 256 --out s.exr --json s.exr --quiet", "s.exr"),
+    ("surface build --assembly smith --alpha 0.5 --res 256 --out s.exr --mesh s.exr --quiet", "s.exr"),
     ("plot hist.exr --out hist.exr", "hist.exr"),
-    ("stability --json good.txt", "good.txt"),
     ("validate --sampler heitz2018 --alpha 0.3 --theta 30 --samples 20000 --json nodir/r.json", "nodir"),
     ("trace vndf --surface ellipsoid --alpha 0.3 --theta 30 --rays 2000 --out nodir/o.exr", "nodir"),
     ("trace vndf --surface ellipsoid --alpha 0.3 --theta 30 --rays 2000 --out adir", "adir"),
-    ("surface build --assembly smith --alpha 0.5 --res 128 --out adir --quiet", "adir"),
+    ("surface build --assembly smith --alpha 0.5 --res 256 --out adir --quiet", "adir"),
     ("validate --sampler heitz2018 --alpha 0.3 --theta 30 --samples 20000 --plot fig.png", "fig.png"),
 ]
 # Usage errors that are not numbers or files.
@@ -312,7 +313,7 @@ USAGE = [
     ("trace vndf --surface ellipsoid --theta 30 --out o.exr", "--alpha"),
     ("trace vndf --surface ellipsoid --alpha 0.3 --theta 30 --mesh-out m.ply --out o.exr", "--mesh-out"),
     ("trace masking --surface hf.exr --theta 60 --geometry cubes", "cubes"),
-    ("surface build --assembly nosuch --alpha 0.5 --res 128 --out s.exr", "nosuch"),
+    ("surface build --assembly nosuch --alpha 0.5 --res 256 --out s.exr", "nosuch"),
     ("surface stats hf.exr --reference gaussian", "gaussian"),
     ("trace nosuch", "nosuch"),
     ("nosuch", "nosuch"),

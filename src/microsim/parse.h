@@ -77,8 +77,6 @@ std::vector<std::uint64_t> parse_uint_list(std::string_view what, std::string_vi
                                            std::uint64_t max = std::numeric_limits<std::uint64_t>::max());
 
 // ---- the supported roughness (docs/conventions.md) ----------------------------------------------------
-inline constexpr double kMaxSupportedAlpha = 10;         // the stability sweep covers alpha 1e-4..10
-inline constexpr double kMaxSupportedAnisotropy = 1000;  // ... and anisotropy 1:1000
 // Throws ParseError naming the values and the supported range unless both are in [kMinAlpha,
 // kMaxSupportedAlpha] and max/min <= kMaxSupportedAnisotropy.
 void check_supported_alpha(std::string_view what, double alpha_x, double alpha_y);

@@ -30,8 +30,8 @@ namespace microsim {
 //   counts misses 7e-5 of D_v's mass (the lobe is a strip 1e-4 wide through the pole; the claimed-pdf
 //   integral is 0.999931). At 1:1000 it misses < 4e-8 (4e6 rays: < 0.2 expected counts).
 // - Below kMinAlpha GGX clamps the roughness (ggx.h), so there is no D_v to compare with.
-inline constexpr double kQuadricMaxAlpha = 10;
-inline constexpr double kQuadricMaxAnisotropy = 1000;
+inline constexpr double kQuadricMaxAlpha = kMaxSupportedAlpha;
+inline constexpr double kQuadricMaxAnisotropy = kMaxSupportedAnisotropy;
 
 // A roughness outside the quadric's verified range (a std::invalid_argument, so callers that catch that
 // keep working).

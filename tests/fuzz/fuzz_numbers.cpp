@@ -1,10 +1,9 @@
-// libFuzzer target: the strict number parsing of file attributes (microsim/strict_parse.h) and its
-// message excerpts.
-//
-// TODO(lead): fuzz the command-line number parser src/microsim/parse.h (worktree `numbers`) here once it
-// is on main: parse_double, parse_int, parse_uint, split_list, parse_double_list, quote_excerpt, with the
-// same properties (accepted tokens round-trip, rejected ones give short messages).
+// libFuzzer target: the number parsers. The command-line parser (microsim/parse.h: reals, integers,
+// lists, the supported alpha) must either return a finite value inside the asked range or throw
+// ParseError with a short, printable message; the strict attribute parsing of file readers
+// (microsim/strict_parse.h) must round-trip what it accepts.
 #include "fuzz_common.h"
+#include "microsim/parse.h"
 #include "microsim/strict_parse.h"
 
 #include <cmath>
@@ -17,11 +16,51 @@ bool all_digits(std::string_view s) {
     if (c < '0' || c > '9') return false;
   return true;
 }
+
+// A rejection must be a ParseError whose message is short and printable (it quotes an excerpt only).
+template <class F> void expect_value_or_short_error(F&& parse) {
+  try {
+    parse();
+  } catch (const microsim::ParseError& e) {
+    const std::string_view m = e.what();
+    if (m.size() > 400) microsim::fuzz::finding("a ParseError message is longer than 400 bytes");
+    for (char c : m)
+      if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7f)
+        microsim::fuzz::finding("a ParseError message has a non-printable byte");
+  }
+}
+
+void fuzz_command_line_parser(std::string_view text) {
+  expect_value_or_short_error([&] {
+    const double v = microsim::parse_double("--x", text, microsim::Interval{0, 90, false, true});
+    if (!(v >= 0 && v < 90)) microsim::fuzz::finding("parse_double returned a value outside its interval");
+  });
+  expect_value_or_short_error([&] {
+    const auto v = microsim::parse_uint("--x", text, 1, 1000000);
+    if (v < 1 || v > 1000000) microsim::fuzz::finding("parse_uint returned a value outside its range");
+  });
+  expect_value_or_short_error([&] {
+    const auto v = microsim::parse_int("--x", text, -5, 5);
+    if (v < -5 || v > 5) microsim::fuzz::finding("parse_int returned a value outside its range");
+  });
+  expect_value_or_short_error([&] {
+    for (double v : microsim::parse_double_list("--x", text))
+      if (!std::isfinite(v)) microsim::fuzz::finding("parse_double_list returned a non-finite value");
+  });
+  expect_value_or_short_error([&] {
+    const auto [ax, ay] = microsim::parse_alpha("--alpha", text);
+    if (!(ax >= microsim::kMinAlpha && ay >= microsim::kMinAlpha && ax <= microsim::kMaxSupportedAlpha &&
+          ay <= microsim::kMaxSupportedAlpha))
+      microsim::fuzz::finding("parse_alpha returned an alpha outside the supported range");
+  });
+}
+
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using namespace microsim::reader;
   const std::string_view text(reinterpret_cast<const char*>(data), size);
+  fuzz_command_line_parser(text);
   if (const auto v = parse_uint64(text)) {
     if (!all_digits(text)) microsim::fuzz::finding("parse_uint64 accepted something other than digits");
     const std::string back = std::to_string(*v);
