@@ -31,6 +31,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <new>
 #include <optional>
 
 #include <sys/resource.h>
@@ -341,10 +342,15 @@ struct StatsCliOptions {
   bool check = false;
 };
 
+// A number the file's metadata states; absent is nullopt, present but malformed is bad input (exit 2).
 std::optional<double> metadata_number(const microgeom::Heightfield& f, const std::string& key) {
   auto it = f.metadata.find(key);
   if (it == f.metadata.end()) return {};
-  return microsim::try_parse_double(it->second);
+  const std::optional<double> v = microsim::try_parse_double(it->second);
+  if (!v)
+    throw UsageError(fmt::format("the heightmap's attribute microsim.{} = {} is not a finite number", key,
+                                 microsim::quote_excerpt(it->second)));
+  return v;
 }
 
 microgeom::Heightfield load_for_cli(const std::string& path, double tile_size_option) {
@@ -353,6 +359,8 @@ microgeom::Heightfield load_for_cli(const std::string& path, double tile_size_op
   try {
     return microgeom::load_heightmap_exr(path, tile_size_option > 0 ? std::optional<double>(tile_size_option)
                                                                     : std::nullopt);
+  } catch (const std::bad_alloc&) {
+    throw;  // out of memory is an internal error (exit 3), not bad input
   } catch (const std::exception& e) {
     throw UsageError(e.what());
   }

@@ -33,6 +33,7 @@
 #include <cmath>
 #include <filesystem>
 #include <memory>
+#include <new>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -89,6 +90,8 @@ microgeom::Heightfield load_surface(const std::string& path, std::optional<doubl
   if (!fs::exists(path)) throw UsageError(fmt::format("--surface '{}': no such file", path));
   try {
     return microgeom::load_heightmap_exr(path, tile_size);
+  } catch (const std::bad_alloc&) {
+    throw;  // out of memory is an internal error (exit 3), not bad input
   } catch (const std::exception& e) {
     throw UsageError(fmt::format("--surface '{}': {}", path, e.what()));
   }

@@ -160,13 +160,14 @@ microsim::ValidationOptions base_options(const Args& a) {
 
 // Runs a validation; a malformed --from file (the reader's message names the line or index) and too few
 // samples for the tests (the message says how many are needed) are bad input: exit 2.
-template <class F> auto usage_errors_of(F&& validation) {
+template <class F> auto usage_errors_of(F&& validation, const std::string& file = "") {
+  const std::string where = file.empty() ? "" : fmt::format("--from '{}': ", file);
   try {
     return validation();
   } catch (const microsim::SampleFileError& e) {
     throw UsageError(e.what());
   } catch (const microsim::InsufficientData& e) {
-    throw UsageError(e.what());
+    throw UsageError(where + e.what());
   }
 }
 
@@ -214,7 +215,7 @@ int run_against(const Args& a, const microsim::GGX<double>& ggx, const microsim:
   try {
     if (!a.from.empty()) {
       DirectionSampleReader samples = open_samples_or_usage_error(a.from);
-      report = usage_errors_of([&] { return compare_sample_file_to_trace(samples, a.from, ggx, wi, o, traced); });
+      report = usage_errors_of([&] { return compare_sample_file_to_trace(samples, a.from, ggx, wi, o, traced); }, a.from);
       source = fmt::format("samples from '{}'", a.from);
     } else {
       const SamplerInfo* s = find_sampler(a.sampler);
@@ -256,7 +257,7 @@ int run_single(const Args& a) {
   if (!a.from.empty()) {
     DirectionSampleReader samples = open_samples_or_usage_error(a.from);
     const SampleDomain domain = a.reflected ? SampleDomain::reflected_direction : SampleDomain::microfacet_normal;
-    report = usage_errors_of([&] { return validate_sample_file(samples, domain, ggx, wi, o); });
+    report = usage_errors_of([&] { return validate_sample_file(samples, domain, ggx, wi, o); }, a.from);
     report.sampler = a.from;
     source = fmt::format("samples from '{}'", a.from);
   } else {

@@ -124,6 +124,9 @@ std::vector<BadInputCase> cases() {
        heightmap_with({{"microsim.tile_size", "nan"}})},
       {"stats_tile_size_junk", "surface stats hf.exr", 2, "attribute microsim.tile_size = '1x'",
        heightmap_with({{"microsim.tile_size", "1x"}})},
+      // A malformed roughness in the metadata was silently replaced by a fitted one.
+      {"stats_alpha_junk", "surface stats hf.exr", 2, "attribute microsim.alpha_x = '0.5x'",
+       heightmap_with({{"microsim.alpha_x", "0.5x"}, {"microsim.alpha_y", "0.5"}})},
       {"masking_alpha_trailing_comma", "trace masking --surface hf.exr --theta 30 --samples 1000", 2,
        "attribute microsim.alpha_x = '0.5,'", heightmap_with({{"microsim.alpha_x", "0.5,"}, {"microsim.alpha_y", "0.5"}})},
       {"from_npy_without_newline", kFrom + "n.npy", 2, "NPY header does not end with a newline",

@@ -1,0 +1,33 @@
+// Bad-input table (issue 8): usage mistakes that are not numbers, files or output paths. Each must exit 2
+// with a message that names the word at fault, writing nothing.
+#include "cli_helpers.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <vector>
+
+namespace {
+
+using microsim::test::BadInputCase;
+namespace fs = std::filesystem;
+
+class BadUsage : public ::testing::TestWithParam<BadInputCase> {};
+
+std::vector<BadInputCase> cases() {
+  const auto one_line = [](const fs::path& dir) { std::ofstream(dir / "one.txt") << "0 0 1\n"; };
+  return {
+      {"unknown_command", "nosuch", 2, "unknown command 'nosuch'"},
+      {"unknown_subcommand", "trace nosuch", 2, "unknown command 'nosuch' (commands here: vndf, masking)"},
+      {"unknown_surface_subcommand", "surface nosuch", 2, "unknown command 'nosuch'"},
+      // Too few samples in a file: the message names the file as well as the number needed.
+      {"from_too_few_names_file", "validate --from one.txt --alpha 0.3 --theta 30", 2, "--from 'one.txt': 1 sample",
+       one_line},
+  };
+}
+
+TEST_P(BadUsage, ExitTwoNamingTheWordAndWritingNothing) { microsim::test::expect_bad_input(GetParam(), "bad_usage"); }
+
+INSTANTIATE_TEST_SUITE_P(Usage, BadUsage, ::testing::ValuesIn(cases()), [](const auto& info) { return info.param.name; });
+
+}  // namespace
