@@ -1,5 +1,6 @@
 // microsim: the one parser of numbers written as text (see parse.h for the rules).
 #include "microsim/parse.h"
+#include "microsim/strict_parse.h"
 
 #include <fmt/core.h>
 
@@ -140,21 +141,7 @@ std::string integer_text(std::int64_t v) { return v < 0 ? std::to_string(v) : in
 
 }  // namespace
 
-std::string quote_excerpt(std::string_view text) {
-  std::string out = "'";
-  const std::size_t shown = std::min(text.size(), kExcerptBytes);
-  for (std::size_t i = 0; i < shown; ++i) {
-    const auto c = static_cast<unsigned char>(text[i]);
-    if (c == '\'' || c == '\\')
-      out += {'\\', char(c)};
-    else if (c >= 0x20 && c < 0x7f)
-      out += char(c);
-    else
-      out += fmt::format("\\x{:02X}", c);
-  }
-  out += shown < text.size() ? fmt::format("...' ({} bytes)", text.size()) : "'";
-  return out;
-}
+std::string quote_excerpt(std::string_view text) { return reader::quote_excerpt(text); }
 
 bool Interval::contains(double x) const {
   const bool above = lo_open ? x > lo : x >= lo;

@@ -131,7 +131,7 @@ std::vector<BadInputCase> cases() {
        "attribute microsim.alpha_x = '0.5,'", heightmap_with({{"microsim.alpha_x", "0.5,"}, {"microsim.alpha_y", "0.5"}})},
       {"from_npy_without_newline", kFrom + "n.npy", 2, "NPY header does not end with a newline",
        file_with("n.npy", npy_without_newline())},
-      {"from_text_huge_token", kFrom + "t.txt", 2, "line 1: value '" + std::string(40, '1') + "'... (",
+      {"from_text_huge_token", kFrom + "t.txt", 2, "line 1: value '" + std::string(40, '1') + "...' (",
        file_with("t.txt", "0 0 ", "1", 10 << 20, "\n")},
       {"from_text_binary", kFrom + "b.txt", 2, "line 2: malformed line: '\\x00\\x01\\x02", file_with("b.txt", binary_text())},
   };

@@ -12,8 +12,8 @@
 // - Lists: items separated by ',', none of them empty ("0.3," ",0.3" "0.3,,0.5" are errors that say
 //   where the empty item is).
 // - Every error is a ParseError whose message names the option (`what`) and quotes the bad token as a
-//   short excerpt: at most kExcerptBytes bytes, bytes outside printable ASCII as \xNN, and when cut
-//   "..." and the token's total length. A 10 MB token is never echoed.
+//   short excerpt: at most kExcerptBytes characters as printed, bytes outside printable ASCII as \xNN,
+//   and when cut "..." and the token's total length. A 10 MB token is never echoed.
 //
 // The supported roughness of the Smith-GGX model (docs/conventions.md) is stated here too, as one rule
 // every command applies: alpha in [kMinAlpha, kMaxSupportedAlpha] per axis and anisotropy
@@ -38,10 +38,10 @@ struct ParseError : std::invalid_argument {
   using std::invalid_argument::invalid_argument;
 };
 
-inline constexpr std::size_t kExcerptBytes = 40;
+inline constexpr std::size_t kExcerptBytes = 40;  // the same as reader::kExcerptBytes (strict_parse.h)
 
 // `text` quoted for a message: 'text' with ', \ and bytes outside printable ASCII escaped (\', \\, \xNN);
-// longer than kExcerptBytes, its first kExcerptBytes bytes, "..." and "(N bytes)".
+// cut after at most kExcerptBytes printed characters (escapes included), with "..." and "(N bytes)".
 std::string quote_excerpt(std::string_view text);
 
 // A range of reals for checks and messages: [lo, hi], or open at either end.

@@ -6,9 +6,8 @@
 // integers are plain decimal digits (no sign, no exponent) and never wrap or clamp; reals are decimal or
 // scientific notation, finite ("nan", "inf", out-of-range and hexadecimal are errors).
 //
-// TODO(lead): src/microsim/parse.h (worktree `numbers`) is the command-line number parser with the same
-// rules; once it is on main, these helpers can forward to it (quote_excerpt, try_parse_double,
-// parse_uint) and this header can go.
+// Header-only because microgeom reads attributes too and may not depend on the oracle's library; the
+// command-line parser (parse.h) shares its excerpt rule (quote_excerpt below).
 #pragma once
 
 #include <charconv>
@@ -25,27 +24,23 @@ namespace microsim::reader {
 
 inline constexpr std::size_t kExcerptBytes = 40;
 
-// `text` quoted for a message: 'text' with ', \ and bytes outside printable ASCII escaped (\', \\, \xNN);
-// longer than kExcerptBytes, its first kExcerptBytes bytes, "..." and "(N bytes)".
+// `text` quoted for a message: 'text' with ', \ and bytes outside printable ASCII escaped (\', \\, \xNN),
+// cut after at most kExcerptBytes printed characters (escapes included), with "..." and "(N bytes)".
+// The one implementation: microsim::quote_excerpt (parse.h) forwards here.
 inline std::string quote_excerpt(std::string_view text) {
-  static constexpr char kHex[] = "0123456789abcdef";
+  static constexpr char kHex[] = "0123456789ABCDEF";
   std::string out = "'";
-  const std::size_t n = text.size() < kExcerptBytes ? text.size() : kExcerptBytes;
-  for (std::size_t i = 0; i < n; ++i) {
-    const auto c = static_cast<unsigned char>(text[i]);
-    if (c == '\'' || c == '\\') {
-      out += '\\';
-      out += char(c);
-    } else if (c >= 0x20 && c < 0x7f) {
-      out += char(c);
-    } else {
-      out += "\\x";
-      out += kHex[c >> 4];
-      out += kHex[c & 15];
-    }
+  std::size_t shown = 0;
+  for (; shown < text.size(); ++shown) {
+    const auto c = static_cast<unsigned char>(text[shown]);
+    std::string piece;
+    if (c == '\'' || c == '\\') piece = {'\\', char(c)};
+    else if (c >= 0x20 && c < 0x7f) piece = std::string(1, char(c));
+    else piece = {'\\', 'x', kHex[c >> 4], kHex[c & 15]};
+    if (out.size() - 1 + piece.size() > kExcerptBytes) break;  // the excerpt as printed stays short
+    out += piece;
   }
-  out += '\'';
-  if (n < text.size()) out += "... (" + std::to_string(text.size()) + " bytes)";
+  out += shown < text.size() ? "...' (" + std::to_string(text.size()) + " bytes)" : std::string("'");
   return out;
 }
 
