@@ -4,9 +4,9 @@
 // (src/microsim/figure.h).
 #include "command.h"
 
-#include "microsim/figure.h"
-#include "microsim/histogram_io.h"
-#include "microsim/parse.h"
+#include "stats/figure.h"
+#include "stats/histogram_io.h"
+#include "core/parse.h"
 
 #include <fmt/core.h>
 

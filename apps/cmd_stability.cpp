@@ -5,9 +5,9 @@
 #include "command.h"
 #include "number_options.h"
 
-#include "microsim/histogram_io.h"
-#include "microsim/progress.h"
-#include "microsim/stability.h"
+#include "stats/histogram_io.h"
+#include "core/progress.h"
+#include "validate/stability.h"
 
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>

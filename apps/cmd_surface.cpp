@@ -12,13 +12,14 @@
 // staged to a temporary file in its directory and renamed only once all outputs are complete.
 #include "command.h"
 #include "number_options.h"
+#include "microfacet/roughness.h"
 
 #include "microgeom/assembly.h"
-#include "microgeom/atomic_file.h"
+#include "core/atomic_file.h"
 #include "microgeom/heightfield.h"
 #include "microgeom/mesh_io.h"
 #include "microgeom/surface_stats.h"
-#include "microsim/progress.h"
+#include "core/progress.h"
 
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
@@ -64,7 +65,7 @@ public:
   }
 
 private:
-  std::vector<microgeom::TemporaryFile> staged_;
+  std::vector<microsim::TemporaryFile> staged_;
 };
 
 void write_json_file(const fs::path& path, const nlohmann::json& j) {

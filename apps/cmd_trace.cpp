@@ -8,11 +8,12 @@
 // marked partial).
 #include "command.h"
 #include "number_options.h"
+#include "microfacet/roughness.h"
 
-#include "microsim/compare.h"
-#include "microsim/histogram_io.h"
-#include "microsim/progress.h"
-#include "microsim/trace_vndf.h"
+#include "validate/compare.h"
+#include "stats/histogram_io.h"
+#include "core/progress.h"
+#include "trace/trace_vndf.h"
 
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>

@@ -21,9 +21,9 @@
 
 #include "microgeom/assembly.h"
 #include "microgeom/heightfield.h"
-#include "microsim/histogram_io.h"
-#include "microsim/masking.h"
-#include "microsim/progress.h"
+#include "stats/histogram_io.h"
+#include "trace/masking.h"
+#include "core/progress.h"
 
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>

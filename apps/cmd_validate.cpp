@@ -3,12 +3,13 @@
 // Exit codes: 0 pass, 1 rejected, 2 bad usage or bad input. See docs/validation.md.
 #include "command.h"
 #include "number_options.h"
+#include "microfacet/roughness.h"
 
-#include "microsim/compare.h"
-#include "microsim/histogram_io.h"
-#include "microsim/progress.h"
-#include "microsim/sample_io.h"
-#include "microsim/validate.h"
+#include "validate/compare.h"
+#include "stats/histogram_io.h"
+#include "core/progress.h"
+#include "validate/sample_io.h"
+#include "validate/validate.h"
 
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>

@@ -5,7 +5,7 @@
 // project's convention.
 #pragma once
 
-#include "microsim/output_paths.h"
+#include "core/output_paths.h"
 
 #include <CLI/CLI.hpp>
 

@@ -2,7 +2,7 @@
 // (see apps/command.h); this file only builds the CLI11 app and runs it.
 #include "command.h"
 
-#include "microsim/parse.h"
+#include "core/parse.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/core.h>

@@ -8,8 +8,8 @@
 
 #include "command.h"
 
-#include "microsim/binning.h"
-#include "microsim/parse.h"
+#include "stats/binning.h"
+#include "core/parse.h"
 
 #include <fmt/core.h>
 

@@ -7,8 +7,8 @@
 //
 // Run: build-*/bench_heightfield --benchmark_counters_tabular=true
 #include "microgeom/assembly.h"
-#include "microsim/heightfield_trace.h"
-#include "microsim/random.h"
+#include "trace/heightfield_trace.h"
+#include "core/random.h"
 
 #include <benchmark/benchmark.h>
 

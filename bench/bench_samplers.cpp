@@ -13,8 +13,8 @@
 // steadier than wall-clock time; the best of --benchmark_repetitions; ratios within one run).
 // docs/benchmarks.md quotes it.
 //   build-*/bench_samplers --benchmark_min_time=0.2 --benchmark_repetitions=3
-#include "microsim/random.h"
-#include "microsim/samplers.h"
+#include "core/random.h"
+#include "microfacet/samplers.h"
 
 #include <benchmark/benchmark.h>
 #include <fmt/core.h>

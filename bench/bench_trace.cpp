@@ -10,7 +10,7 @@
 // per second (best repetition of each), and process CPU time per ray (all threads; robust to load from
 // other processes on a shared machine, where wall-clock rates fluctuate). Run with
 // --benchmark_repetitions=5 or more on a shared machine.
-#include "microsim/trace_vndf.h"
+#include "trace/trace_vndf.h"
 
 #include <benchmark/benchmark.h>
 #include <fmt/core.h>

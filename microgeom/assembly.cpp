@@ -1,6 +1,6 @@
 #include "microgeom/assembly.h"
 
-#include "microsim/random.h"
+#include "core/random.h"
 
 #include <fftw3.h>
 #include <fmt/core.h>

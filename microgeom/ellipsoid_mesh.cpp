@@ -1,6 +1,6 @@
 #include "microgeom/ellipsoid_mesh.h"
 
-#include "microgeom/atomic_file.h"
+#include "core/atomic_file.h"
 
 #include <fmt/core.h>
 
@@ -92,7 +92,7 @@ void write_ellipsoid_mesh(const EllipsoidTriMesh& mesh, const std::filesystem::p
   OpenMesh::IO::Options options;
   if (ext == ".ply" || ext == ".stl") options += OpenMesh::IO::Options::Binary;
   try {
-    write_file_atomically(path, [&](const std::filesystem::path& tmp) {
+    microsim::write_file_atomically(path, [&](const std::filesystem::path& tmp) {
       // OpenMesh logs "[OBJWriter] : write file" on its info stream; keep stdout/stderr for our own messages.
       const bool log_was_enabled = omlog().is_enabled();
       omlog().disable();
@@ -100,7 +100,7 @@ void write_ellipsoid_mesh(const EllipsoidTriMesh& mesh, const std::filesystem::p
       if (log_was_enabled) omlog().enable();
       if (!written) throw EllipsoidMeshError(fmt::format("cannot write mesh '{}'", path.string()));
     });
-  } catch (const FileWriteError& e) {
+  } catch (const microsim::FileWriteError& e) {
     throw EllipsoidMeshError(e.what());
   }
 }

@@ -1,7 +1,7 @@
 #include "microgeom/exr_io.h"
 
-#include "microsim/strict_parse.h"
-#include "microgeom/atomic_file.h"
+#include "core/strict_parse.h"
+#include "core/atomic_file.h"
 
 #include <ImfChannelList.h>
 #include <ImfFrameBuffer.h>
@@ -87,7 +87,7 @@ void write_exr(const std::filesystem::path& path, const ExrImage& image) {
     for (const auto& c : image.channels)
       fb.insert(c.name, Imf::Slice::Make(Imf::FLOAT, c.data.data(), header.dataWindow(), sizeof(float),
                                          sizeof(float) * std::size_t(image.width)));
-    write_file_atomically(path, [&](const std::filesystem::path& tmp) {
+    microsim::write_file_atomically(path, [&](const std::filesystem::path& tmp) {
       Imf::OutputFile file(tmp.c_str(), header);
       file.setFrameBuffer(fb);
       file.writePixels(image.height);

@@ -1,7 +1,7 @@
 #include "microgeom/heightfield.h"
 
 #include "microgeom/exr_io.h"
-#include "microsim/strict_parse.h"
+#include "core/strict_parse.h"
 
 #include <fmt/core.h>
 

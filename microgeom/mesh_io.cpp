@@ -1,6 +1,6 @@
 #include "microgeom/mesh_io.h"
 
-#include "microgeom/atomic_file.h"
+#include "core/atomic_file.h"
 
 // OpenMesh's IO header must come before the mesh kernel (it registers the readers/writers).
 #include <OpenMesh/Core/IO/MeshIO.hh>
@@ -52,7 +52,7 @@ void write_heightfield_mesh(const std::filesystem::path& path, const Heightfield
 
   OpenMesh::IO::Options options;
   if (ext == ".ply" || ext == ".stl") options += OpenMesh::IO::Options::Binary;
-  write_file_atomically(path, [&](const std::filesystem::path& tmp) {
+  microsim::write_file_atomically(path, [&](const std::filesystem::path& tmp) {
     // OpenMesh logs on its info stream; keep stdout/stderr for our own messages.
     const bool log_was_enabled = omlog().is_enabled(), err_was_enabled = omerr().is_enabled();
     omlog().disable();

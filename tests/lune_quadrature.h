@@ -15,7 +15,7 @@
 // lune construction applies in h with u = A v.
 #pragma once
 
-#include "microsim/math.h"
+#include "core/math.h"
 
 #include <boost/math/quadrature/gauss_kronrod.hpp>
 

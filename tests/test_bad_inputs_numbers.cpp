@@ -5,8 +5,8 @@
 // takes no numbers on its command line.
 #include "cli_helpers.h"
 #include "microgeom/exr_io.h"
-#include "microsim/binning.h"
-#include "microsim/parse.h"
+#include "stats/binning.h"
+#include "core/parse.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>

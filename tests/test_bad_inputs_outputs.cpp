@@ -6,14 +6,14 @@
 #include "cli_helpers.h"
 
 #include "microgeom/assembly.h"
-#include "microgeom/atomic_file.h"
+#include "core/atomic_file.h"
 #include "microgeom/heightfield.h"
-#include "microsim/compare.h"
-#include "microsim/histogram_io.h"
-#include "microsim/output_paths.h"
-#include "microsim/random.h"
-#include "microsim/sample_io.h"
-#include "microsim/samplers.h"
+#include "validate/compare.h"
+#include "stats/histogram_io.h"
+#include "core/output_paths.h"
+#include "core/random.h"
+#include "validate/sample_io.h"
+#include "microfacet/samplers.h"
 
 #include <gtest/gtest.h>
 
@@ -240,7 +240,7 @@ TEST(AtomicFile, TemporariesAreNewSiblingsAndLeaveNothing) {
   const fs::path dir = microsim::test::scratch_dir("outputs", "atomic");
   write_file(dir / "out.exr", "old");
   {
-    const microgeom::TemporaryFile a(dir / "out.exr"), b(dir / "out.exr");
+    const microsim::TemporaryFile a(dir / "out.exr"), b(dir / "out.exr");
     EXPECT_NE(a.path(), b.path());
     EXPECT_EQ(a.path().parent_path(), dir);
     EXPECT_EQ(a.path().extension(), ".exr");
@@ -249,14 +249,14 @@ TEST(AtomicFile, TemporariesAreNewSiblingsAndLeaveNothing) {
   }
   EXPECT_EQ(microsim::test::file_count(dir), 1u);  // both removed, the destination untouched
   EXPECT_EQ(microsim::test::slurp(dir / "out.exr"), "old");
-  microgeom::write_file_atomically(dir / "out.exr", std::string_view("new"));
+  microsim::write_file_atomically(dir / "out.exr", std::string_view("new"));
   EXPECT_EQ(microsim::test::slurp(dir / "out.exr"), "new");
-  EXPECT_THROW(microgeom::write_file_atomically(dir / "out.exr",
+  EXPECT_THROW(microsim::write_file_atomically(dir / "out.exr",
                                                 [](const fs::path&) { throw std::runtime_error("writer failed"); }),
                std::runtime_error);
   EXPECT_EQ(microsim::test::slurp(dir / "out.exr"), "new");
   EXPECT_EQ(microsim::test::file_count(dir), 1u);
-  EXPECT_THROW(microgeom::TemporaryFile(dir / "no_such_dir" / "x.json"), microgeom::FileWriteError);
+  EXPECT_THROW(microsim::TemporaryFile(dir / "no_such_dir" / "x.json"), microsim::FileWriteError);
   fs::remove_all(dir);
 }
 

@@ -2,7 +2,7 @@
 // 7). Each case must exit 2, say on stderr how many samples were given and that more are needed, and
 // write nothing (no --json, no --plot).
 #include "cli_helpers.h"
-#include "microsim/sample_io.h"
+#include "validate/sample_io.h"
 
 #include <gtest/gtest.h>
 

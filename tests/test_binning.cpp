@@ -1,5 +1,5 @@
 // Tests of the equal-area direction bins and of the adaptive cubature of pdfs over them.
-#include "microsim/binning.h"
+#include "stats/binning.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>

@@ -2,9 +2,9 @@
 // Fresnel against independent textbook evaluations (gold from a standard table), reciprocity from both
 // sides, and energy: exact albedo identities by numerical integration, white-furnace bounds, and a
 // smooth-limit check of the rough dielectric.
-#include "microsim/bsdf.h"
-#include "microsim/random.h"
-#include "microsim/samplers.h"
+#include "microfacet/bsdf.h"
+#include "core/random.h"
+#include "microfacet/samplers.h"
 
 #include "lune_quadrature.h"
 #include "worst_error.h"

@@ -1,8 +1,8 @@
 // Tests of the chi-square harness: pooling and statistic by hand, impossible samples, uniformity of
 // p-values under the null (Kolmogorov-Smirnov over 200 p-values at a fixed seed, level 0.01), power
 // against a shifted distribution, the two-sample test, and the Sidak helpers.
-#include "microsim/chi2.h"
-#include "microsim/random.h"
+#include "stats/chi2.h"
+#include "core/random.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>

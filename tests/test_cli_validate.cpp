@@ -1,9 +1,9 @@
 // Tests of `microsim validate` as a user runs it: exit codes 0 (pass) / 1 (rejected) / 2 (bad usage or
 // input), the JSON keys, --from with sample files, and nothing written on bad input.
 #include "cli_helpers.h"
-#include "microsim/random.h"
-#include "microsim/sample_io.h"
-#include "microsim/samplers.h"
+#include "core/random.h"
+#include "validate/sample_io.h"
+#include "microfacet/samplers.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>

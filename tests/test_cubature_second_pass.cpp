@@ -4,9 +4,9 @@
 // so the remainder cell expected 20 of 1e6 samples where a correct sampler puts none, and the sphere
 // chi-square rejected seeds 1 and 4 (p 2.1e-4, 6.9e-4). The second pass (binning.h) resolves it and leaves
 // every bin that converged in the first pass bit-identical. Fixed seeds; level 0.01 (the default).
-#include "microsim/binning.h"
-#include "microsim/samplers_impl.h"
-#include "microsim/validate.h"
+#include "stats/binning.h"
+#include "microfacet/samplers_impl.h"
+#include "validate/validate.h"
 
 #include <gtest/gtest.h>
 

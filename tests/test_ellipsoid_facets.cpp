@@ -3,9 +3,9 @@
 // seed, level 0.01, Sidak over the two binnings), a negative control (the same normals against D_v at
 // 60 degrees are rejected), and the median slope magnitude equal to alpha (isotropic).
 #include "microgeom/ellipsoid.h"
-#include "microsim/chi2.h"
-#include "microsim/random.h"
-#include "microsim/validate.h"
+#include "stats/chi2.h"
+#include "core/random.h"
+#include "validate/validate.h"
 
 #include <gtest/gtest.h>
 

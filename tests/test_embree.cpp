@@ -1,7 +1,7 @@
 // The Embree RAII wrapper: hits and misses on known geometry, error reporting, FTZ/DAZ scope, and the
 // exact-quadric user geometry against the double-precision intersection it wraps.
-#include "microsim/embree.h"
-#include "microsim/quadric.h"
+#include "trace/embree.h"
+#include "trace/quadric.h"
 
 #include <gtest/gtest.h>
 

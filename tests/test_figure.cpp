@@ -1,7 +1,7 @@
 // Figures of binned histograms (figure.h): well-formed SVG, one row of three panels per binning, the
 // residual colours that carry the verdict (black where the pdf is 0 but samples fell, grey where the test
 // pools), and errors on inconsistent input.
-#include "microsim/figure.h"
+#include "stats/figure.h"
 
 #include <gtest/gtest.h>
 

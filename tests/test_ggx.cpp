@@ -3,7 +3,7 @@
 //   recorded as test properties),
 // - G1 / Lambda / G2 relations, slope-space P22, symmetries and the back-side convention,
 // - float against double: worst ULP error of every function over a dense grid.
-#include "microsim/ggx.h"
+#include "microfacet/ggx.h"
 
 #include "lune_quadrature.h"
 #include "worst_error.h"

@@ -3,7 +3,7 @@
 #include "microgeom/exr_io.h"
 #include "microgeom/heightfield.h"
 
-#include "microsim/random.h"
+#include "core/random.h"
 
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>

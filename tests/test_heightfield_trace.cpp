@@ -1,7 +1,7 @@
 // Tests of the periodic heightfield tracer: Embree (triangles and grid geometry) against the
 // double-precision reference tracer, wrapping, seams, grazing rays and self-hit skipping.
-#include "microsim/heightfield_trace.h"
-#include "microsim/random.h"
+#include "trace/heightfield_trace.h"
+#include "core/random.h"
 
 #include <gtest/gtest.h>
 

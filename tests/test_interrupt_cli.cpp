@@ -10,7 +10,7 @@
 
 #include "microgeom/assembly.h"
 #include "microgeom/heightfield.h"
-#include "microsim/histogram_io.h"
+#include "stats/histogram_io.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>

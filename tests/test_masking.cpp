@@ -3,9 +3,9 @@
 // across thread counts, calibration of the standard errors, exact identities, and the traced VNDF against
 // the empirical-NDF Smith VNDF at normal incidence (where a heightfield masks nothing).
 #include "microgeom/assembly.h"
-#include "microsim/chi2.h"
-#include "microsim/masking.h"
-#include "microsim/random.h"
+#include "stats/chi2.h"
+#include "trace/masking.h"
+#include "core/random.h"
 
 #include <fmt/core.h>
 #include <gtest/gtest.h>

@@ -3,7 +3,7 @@
 // a missing file, an unwritable --json) giving exit 2 and nothing written.
 #include "microgeom/exr_io.h"
 #include "microgeom/heightfield.h"
-#include "microsim/random.h"
+#include "core/random.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>

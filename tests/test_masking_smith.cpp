@@ -2,8 +2,8 @@
 // its slope-space definition) and the empirical-NDF Smith model (identities that hold exactly on a
 // periodic tile, tabulated Lambda against the exact pass, VNDF bin probabilities).
 #include "microgeom/assembly.h"
-#include "microsim/random.h"
-#include "microsim/smith_prediction.h"
+#include "core/random.h"
+#include "trace/smith_prediction.h"
 
 #include <gtest/gtest.h>
 

@@ -1,6 +1,6 @@
 // Tests of the z-up frame helpers (microsim/math.h): trig at the poles and the horizon, spherical
 // round trips, the orthonormal basis (including the n.z -> -1 branch), reflect, and the guards.
-#include "microsim/math.h"
+#include "core/math.h"
 
 #include <gtest/gtest.h>
 

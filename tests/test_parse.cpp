@@ -1,6 +1,7 @@
 // The one number parser (src/microsim/parse.h): reals, integers, lists, ranges, the supported alpha, and
 // the messages (option named, bad token quoted as a short escaped excerpt).
-#include "microsim/parse.h"
+#include "core/parse.h"
+#include "microfacet/roughness.h"
 
 #include <gtest/gtest.h>
 

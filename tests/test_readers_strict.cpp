@@ -3,11 +3,11 @@
 // and analytic-reference attributes, and short escaped excerpts of bad input in every message.
 #include "microgeom/exr_io.h"
 #include "microgeom/heightfield.h"
-#include "microsim/compare.h"
-#include "microsim/histogram_io.h"
-#include "microsim/sample_io.h"
-#include "microsim/smith_prediction.h"
-#include "microsim/strict_parse.h"
+#include "validate/compare.h"
+#include "stats/histogram_io.h"
+#include "validate/sample_io.h"
+#include "trace/smith_prediction.h"
+#include "core/strict_parse.h"
 
 #include "cli_helpers.h"
 #include "error_message.h"

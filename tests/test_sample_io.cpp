@@ -1,6 +1,6 @@
 // Tests of the sample file reader/writers (microsim/sample_io.h): round trips, every accepted text and
 // NPY variant, and every error path (each message must name the file and the line or row).
-#include "microsim/sample_io.h"
+#include "validate/sample_io.h"
 
 #include <gtest/gtest.h>
 

@@ -1,6 +1,6 @@
 // Smoke checks of every registered sampler: returned pdf equals the claimed analytic pdf at a few
 // views (the full statistical validation lives in the validator tests).
-#include "microsim/samplers.h"
+#include "microfacet/samplers.h"
 
 #include <gtest/gtest.h>
 

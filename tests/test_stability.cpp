@@ -3,10 +3,10 @@
 // are broken in the ways it claims to detect, the conventions of docs/conventions.md hold exactly, and
 // the reformulated samplers agree with their own long-double evaluation where the claimed pdf is too
 // ill-conditioned to check them.
-#include "microsim/stability.h"
+#include "validate/stability.h"
 
-#include "microsim/bsdf.h"
-#include "microsim/samplers.h"
+#include "microfacet/bsdf.h"
+#include "microfacet/samplers.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>

@@ -3,7 +3,7 @@
 #include "microgeom/assembly.h"
 #include "microgeom/surface_stats.h"
 
-#include "microsim/ggx.h"
+#include "microfacet/ggx.h"
 
 #include <gtest/gtest.h>
 

@@ -2,10 +2,10 @@
 // mesh), exit codes, bad input (exit 2, a message naming the bad value, nothing written), and Ctrl-C
 // (exit 130, a partial histogram written).
 #include "cli_helpers.h"
-#include "microsim/histogram_io.h"
-#include "microsim/random.h"
-#include "microsim/sample_io.h"
-#include "microsim/samplers.h"
+#include "stats/histogram_io.h"
+#include "core/random.h"
+#include "validate/sample_io.h"
+#include "microfacet/samplers.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>

@@ -4,8 +4,8 @@
 // ellipsoid` runs them. Correct VNDF samplers pass; the negative control heitz2018-talk is rejected at
 // every view; `ndf` (which samples D(m) m.z, equal to D_v only at normal incidence) is rejected at
 // theta >= 45 and passes at theta = 0.
-#include "microsim/compare.h"
-#include "microsim/random.h"
+#include "validate/compare.h"
+#include "core/random.h"
 
 #include <gtest/gtest.h>
 

@@ -1,10 +1,10 @@
 // The exact VNDF oracle: the traced ellipsoid against the analytic D_v (chi-square, fixed seeds), with
 // negative controls showing the test's power, determinism across thread counts, the hit fraction against
 // its exact value, interruption, tessellation bias of the mesh, and the histogram EXR round trip.
-#include "microsim/compare.h"
-#include "microsim/histogram_io.h"
-#include "microsim/progress.h"
-#include "microsim/trace_vndf.h"
+#include "validate/compare.h"
+#include "stats/histogram_io.h"
+#include "core/progress.h"
+#include "trace/trace_vndf.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>

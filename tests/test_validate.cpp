@@ -1,7 +1,7 @@
 // Tests of the statistical validator: negative controls are rejected, correct samplers pass, each
 // sub-test fails on the input it is meant to catch. All at fixed seeds; levels stated per test.
-#include "microsim/random.h"
-#include "microsim/validate.h"
+#include "core/random.h"
+#include "validate/validate.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>

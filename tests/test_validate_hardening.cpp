@@ -2,11 +2,11 @@
 // alpha 1e-4, theta 89.99 deg (defect 9), and validations that stream their samples in bounded memory
 // with results bit-identical to the former in-memory implementation (defect 11). Fixed seeds.
 #include "cli_helpers.h"
-#include "microsim/chi2.h"
-#include "microsim/compare.h"
-#include "microsim/sample_io.h"
-#include "microsim/samplers_impl.h"
-#include "microsim/validate.h"
+#include "stats/chi2.h"
+#include "validate/compare.h"
+#include "validate/sample_io.h"
+#include "microfacet/samplers_impl.h"
+#include "validate/validate.h"
 
 #include <gtest/gtest.h>
 

@@ -3,7 +3,7 @@
 // bin, probabilities finite); rejected input a std::runtime_error with a short message.
 #include "fuzz_common.h"
 #include "microgeom/exr_io.h"
-#include "microsim/histogram_io.h"
+#include "stats/histogram_io.h"
 
 #include <cmath>
 #include <new>

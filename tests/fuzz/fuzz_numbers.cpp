@@ -3,8 +3,9 @@
 // ParseError with a short, printable message; the strict attribute parsing of file readers
 // (microsim/strict_parse.h) must round-trip what it accepts.
 #include "fuzz_common.h"
-#include "microsim/parse.h"
-#include "microsim/strict_parse.h"
+#include "core/parse.h"
+#include "microfacet/roughness.h"
+#include "core/strict_parse.h"
 
 #include <cmath>
 #include <string>

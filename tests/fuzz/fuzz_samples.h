@@ -4,7 +4,7 @@
 #pragma once
 
 #include "fuzz_common.h"
-#include "microsim/sample_io.h"
+#include "validate/sample_io.h"
 
 #include <cmath>
 

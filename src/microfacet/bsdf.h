@@ -1,0 +1,112 @@
+// microsim: single-scattering Smith-GGX BRDFs and the rough dielectric BSDF.
+//
+// References:
+// - Walter, Marschner, Li, Torrance 2007, "Microfacet Models for Refraction through Rough Surfaces",
+//   EGSR: half vectors (eq. 13, 16), reflection and transmission terms (eq. 20, 21), Fresnel (eq. 22).
+// - Born & Wolf, "Principles of Optics", section 14.2: Fresnel equations for an absorbing medium
+//   (complex index of refraction eta + i k), used for conductors.
+//
+// Conventions: z-up frame, wi and wo point away from the surface, eta is the ratio
+// (index below the surface) / (index above), i.e. n_inside / n_outside. All functions return the BSDF
+// value f (without the cosine factor), 0 for impossible configurations, never NaN.
+#pragma once
+
+#include "microfacet/ggx.h"
+
+#include <complex>
+
+namespace microsim {
+
+// Unpolarised Fresnel reflectance of a dielectric interface (Walter 2007 eq. 22), for the cosine
+// cos_i of the angle between the incident direction and the (micro)normal, measured on the side the
+// light comes from. eta = n_transmitted / n_incident for cos_i > 0; a negative cos_i means the light
+// comes from the other side and eta is inverted. Returns 1 on total internal reflection.
+template <class T> T fresnel_dielectric(T cos_i, T eta) {
+  cos_i = std::clamp(cos_i, T(-1), T(1));
+  if (cos_i < T(0)) {
+    eta = T(1) / eta;
+    cos_i = -cos_i;
+  }
+  const T sin2_t = (T(1) - sqr(cos_i)) / sqr(eta);
+  if (sin2_t >= T(1)) return T(1);
+  const T cos_t = safe_sqrt(T(1) - sin2_t);
+  const T r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+  const T r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+  return (sqr(r_parl) + sqr(r_perp)) / T(2);
+}
+
+// Unpolarised Fresnel reflectance of a conductor with complex relative index eta + i k (Born & Wolf
+// 14.2), exact (no Schlick approximation). cos_i in [0, 1].
+template <class T> T fresnel_conductor(T cos_i, std::complex<T> eta) {
+  using C = std::complex<T>;
+  cos_i = std::clamp(cos_i, T(0), T(1));
+  const T sin2_i = T(1) - sqr(cos_i);
+  const C sin2_t = C(sin2_i) / (eta * eta);
+  const C cos_t = std::sqrt(C(1) - sin2_t);
+  const C r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+  const C r_perp = (C(cos_i) - eta * cos_t) / (C(cos_i) + eta * cos_t);
+  return (std::norm(r_parl) + std::norm(r_perp)) / T(2);
+}
+
+// Half vector of a reflection, oriented to the upper hemisphere; zero for wo == -wi.
+template <class T> Vec3<T> reflection_half_vector(const Vec3<T>& wi, const Vec3<T>& wo) {
+  Vec3<T> h = normalized_or_zero(Vec3<T>(wi + wo));
+  return h.z() < T(0) ? Vec3<T>(-h) : h;
+}
+
+// Single-scattering GGX BRDF of a perfect mirror microsurface (F = 1): D G2 / (4 |cos i| |cos o|),
+// with the height-correlated G2. Reflection only: both directions on the upper side.
+template <class T> T mirror_brdf(const GGX<T>& ggx, const Vec3<T>& wi, const Vec3<T>& wo) {
+  if (!(wi.z() > T(0) && wo.z() > T(0))) return T(0);
+  const Vec3<T> m = reflection_half_vector(wi, wo);
+  if (!(wi.dot(m) > T(0) && wo.dot(m) > T(0))) return T(0);
+  return ggx.D(m) * ggx.G2(wi, wo) / (T(4) * wi.z() * wo.z());
+}
+
+// Single-scattering GGX BRDF of a conductor: F(<wi, m>) D G2 / (4 cos i cos o).
+template <class T>
+T conductor_brdf(const GGX<T>& ggx, std::complex<T> eta, const Vec3<T>& wi, const Vec3<T>& wo) {
+  if (!(wi.z() > T(0) && wo.z() > T(0))) return T(0);
+  const Vec3<T> m = reflection_half_vector(wi, wo);
+  const T im = wi.dot(m);
+  if (!(im > T(0) && wo.dot(m) > T(0))) return T(0);
+  return fresnel_conductor(im, eta) * ggx.D(m) * ggx.G2(wi, wo) / (T(4) * wi.z() * wo.z());
+}
+
+// Rough dielectric BSDF (Walter 2007): reflection (eq. 20) and refraction (eq. 21) from both sides.
+// eta = n_inside / n_outside (the lower half-space is the inside). The refraction half vector is
+// m = -(eta_i wi + eta_o wo) (eq. 16), oriented to +z. The refraction term follows eq. 21 including the
+// eta_o^2 factor (radiance, not importance): f_t(i->o) / eta_o^2 = f_t(o->i) / eta_i^2.
+template <class T> T dielectric_bsdf(const GGX<T>& ggx, T eta, const Vec3<T>& wi, const Vec3<T>& wo) {
+  const T ci = wi.z(), co = wo.z();
+  if (ci == T(0) || co == T(0)) return T(0);
+  const bool reflection = (ci > T(0)) == (co > T(0));
+  if (reflection) {
+    const Vec3<T> m = reflection_half_vector(wi, wo);
+    const T im = wi.dot(m), om = wo.dot(m);
+    // Both directions must see the same side of the facet.
+    if (im * ci <= T(0) || om * co <= T(0) || m.z() <= T(0)) return T(0);
+    const T F = fresnel_dielectric(im, eta);
+    return F * ggx.D(m) * ggx.G2(wi, wo) / (T(4) * std::abs(ci) * std::abs(co));
+  }
+  const T eta_i = ci > T(0) ? T(1) : eta;  // index on wi's side (relative to outside = 1)
+  const T eta_o = ci > T(0) ? eta : T(1);
+  Vec3<T> m = normalized_or_zero(Vec3<T>(-(eta_i * wi + eta_o * wo)));
+  if (m.z() < T(0)) m = -m;
+  if (m.z() <= T(0)) return T(0);
+  const T im = wi.dot(m), om = wo.dot(m);
+  // wi and wo on opposite sides of the facet, each on the facet side matching its macro side.
+  if (im * ci <= T(0) || om * co <= T(0)) return T(0);
+  const T denom = sqr(eta_i * im + eta_o * om);
+  if (!(denom > T(0))) return T(0);
+  // F is the same for both directions of a refracted pair (Stokes), but evaluating it from the denser
+  // side computes the thinner side's cosine as sqrt(1 - sin^2 (n_dense/n_thin)^2), which cancels near
+  // grazing refraction (relative error of 1 - F ~ eps / cos^2). Evaluate it from the thinner side's
+  // cosine: accurate, and the same value for wi -> wo and wo -> wi (exact reciprocity).
+  const bool wi_on_thin_side = (eta_o >= eta_i);
+  const T F = wi_on_thin_side ? fresnel_dielectric(im, eta) : fresnel_dielectric(om, eta);
+  return std::abs(im) * std::abs(om) / (std::abs(ci) * std::abs(co)) * sqr(eta_o) * (T(1) - F) * ggx.D(m) *
+         ggx.G2(wi, wo) / denom;
+}
+
+}  // namespace microsim

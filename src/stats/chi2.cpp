@@ -1,0 +1,296 @@
+// microsim: chi-square goodness-of-fit and homogeneity tests with pooling of sparse cells (chi2.h).
+#include "stats/chi2.h"
+
+#include <boost/math/distributions/chi_squared.hpp>
+#include <fmt/core.h>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <numeric>
+#include <stdexcept>
+
+namespace microsim {
+namespace {
+
+// Cells sorted by weight (an expected count); the smallest, below min_weight, form the pool; if the
+// pool is still below min_weight the next smallest cells join it, so that every cell of the statistic
+// (the pool included) has an expected count of at least min_weight whenever that is possible.
+struct Pooling {
+  std::vector<int> single;
+  std::vector<int> pooled;
+};
+
+Pooling pool_sparse_cells(std::vector<int> cells, const std::vector<double>& weight, double min_weight) {
+  std::stable_sort(cells.begin(), cells.end(), [&](int a, int b) { return weight[a] < weight[b]; });
+  Pooling p;
+  double pool_weight = 0;
+  std::size_t k = 0;
+  for (; k < cells.size() && weight[cells[k]] < min_weight; ++k) {
+    p.pooled.push_back(cells[k]);
+    pool_weight += weight[cells[k]];
+  }
+  for (; !p.pooled.empty() && pool_weight < min_weight && k < cells.size(); ++k) {
+    p.pooled.push_back(cells[k]);
+    pool_weight += weight[cells[k]];
+  }
+  p.single.assign(cells.begin() + std::ptrdiff_t(k), cells.end());
+  return p;
+}
+
+// The cells goodness_of_fit would test with n samples: those of positive expected count, after pooling.
+int cells_after_pooling(std::span<const double> expected_probability, double n, double min_expected) {
+  std::vector<double> expected(expected_probability.size());
+  std::vector<int> cells;
+  for (std::size_t i = 0; i < expected.size(); ++i) {
+    expected[i] = std::max(expected_probability[i], 0.0) * n;
+    if (expected[i] > 0) cells.push_back(int(i));
+  }
+  const Pooling p = pool_sparse_cells(std::move(cells), expected, min_expected);
+  return int(p.single.size()) + (p.pooled.empty() ? 0 : 1);
+}
+
+std::string cell_name(const ChiSquareOptions& options, int bin) {
+  return options.describe_cell ? options.describe_cell(bin) : fmt::format("bin {}", bin);
+}
+
+double chi2_upper_tail(double statistic, int dof) {
+  if (dof < 1) return 1.0;
+  if (!std::isfinite(statistic)) return 0.0;
+  const boost::math::chi_squared_distribution<double> dist(dof);
+  return boost::math::cdf(boost::math::complement(dist, std::max(statistic, 0.0)));
+}
+
+void keep_worst(std::vector<CellReport>& cells, int n) {
+  std::stable_sort(cells.begin(), cells.end(),
+                   [](const CellReport& a, const CellReport& b) { return a.contribution > b.contribution; });
+  if (int(cells.size()) > n) cells.resize(std::max(n, 0));
+}
+
+// The common end of both tests: degrees of freedom (cells after pooling - 1), p-value, verdict, and the
+// worst cells by contribution, named.
+void finish_test(ChiSquareResult& r, std::vector<CellReport> reports, const ChiSquareOptions& options) {
+  r.dof = r.cells - 1;
+  if (r.dof < 1) r.reason = "fewer than two cells after pooling: no test possible";
+  r.p_value = chi2_upper_tail(r.statistic, r.dof);
+  r.rejected = r.p_value < options.significance;
+  keep_worst(reports, options.worst_cells);
+  for (CellReport& c : reports)
+    if (c.bin >= 0) c.location = cell_name(options, c.bin);
+  r.worst_cells = std::move(reports);
+}
+
+}  // namespace
+
+ChiSquareResult goodness_of_fit(std::span<const double> observed, std::span<const double> expected_probability,
+                                double n_samples, const ChiSquareOptions& options, double outside_domain) {
+  if (observed.size() != expected_probability.size())
+    throw std::invalid_argument(fmt::format("goodness_of_fit: {} observed cells but {} expected probabilities",
+                                            observed.size(), expected_probability.size()));
+  if (!(n_samples > 0) || !std::isfinite(n_samples))
+    throw std::invalid_argument(fmt::format("goodness_of_fit: the number of samples must be positive, got {}", n_samples));
+  ChiSquareResult r;
+  r.test = "goodness_of_fit";
+  r.samples = n_samples;
+  r.significance = options.significance;
+
+  if (outside_domain > 0) {
+    r.p_value = 0;
+    r.rejected = true;
+    r.statistic = std::numeric_limits<double>::infinity();
+    r.reason = fmt::format("{} sample(s) outside the domain", outside_domain);
+    return r;
+  }
+  const int n = int(observed.size());
+  std::vector<double> expected(n);
+  double impossible = 0;
+  int first_impossible = -1;
+  std::vector<int> cells;
+  for (int i = 0; i < n; ++i) {
+    const double p = expected_probability[i];
+    if (!std::isfinite(p) || !std::isfinite(observed[i]))
+      throw std::invalid_argument(fmt::format("goodness_of_fit: cell {} has a non-finite count or probability", i));
+    expected[i] = std::max(p, 0.0) * n_samples;
+    if (expected[i] > 0) {
+      cells.push_back(i);
+    } else if (observed[i] > 0) {
+      impossible += observed[i];
+      if (first_impossible < 0) first_impossible = i;
+    }
+  }
+  if (impossible > 0) {
+    r.p_value = 0;
+    r.rejected = true;
+    r.statistic = std::numeric_limits<double>::infinity();
+    r.reason = fmt::format("{} sample(s) where the expected probability is 0 (first: {})", impossible,
+                           cell_name(options, first_impossible));
+    r.worst_cells.push_back({first_impossible, observed[first_impossible], 0.0, r.statistic,
+                             cell_name(options, first_impossible)});
+    return r;
+  }
+
+  const Pooling pooling = pool_sparse_cells(std::move(cells), expected, options.min_expected);
+  std::vector<CellReport> reports;
+  for (int i : pooling.single) {
+    const double d = observed[i] - expected[i];
+    const double c = d * d / expected[i];
+    r.statistic += c;
+    reports.push_back({i, observed[i], expected[i], c, {}});
+  }
+  r.cells = int(pooling.single.size());
+  if (!pooling.pooled.empty()) {
+    double o = 0, e = 0;
+    for (int i : pooling.pooled) {
+      o += observed[i];
+      e += expected[i];
+    }
+    const double c = (o - e) * (o - e) / e;
+    r.statistic += c;
+    reports.push_back({-1, o, e, c, fmt::format("pooled ({} cells)", pooling.pooled.size())});
+    r.cells += 1;
+    r.pooled_cells = int(pooling.pooled.size());
+  }
+  finish_test(r, std::move(reports), options);
+  return r;
+}
+
+ChiSquareResult two_sample_homogeneity(std::span<const double> a, std::span<const double> b,
+                                       const ChiSquareOptions& options) {
+  if (a.size() != b.size())
+    throw std::invalid_argument(
+        fmt::format("two_sample_homogeneity: histograms of {} and {} cells", a.size(), b.size()));
+  const double na = std::accumulate(a.begin(), a.end(), 0.0), nb = std::accumulate(b.begin(), b.end(), 0.0);
+  if (!(na > 0) || !(nb > 0) || !std::isfinite(na) || !std::isfinite(nb))
+    throw std::invalid_argument(
+        fmt::format("two_sample_homogeneity: both histograms need positive finite totals, got {} and {}", na, nb));
+  ChiSquareResult r;
+  r.test = "two_sample_homogeneity";
+  r.samples = na + nb;
+  r.significance = options.significance;
+  const double k1 = std::sqrt(nb / na), k2 = std::sqrt(na / nb);
+  const int n = int(a.size());
+  // Under homogeneity cell i expects Na (a_i + b_i) / (Na + Nb) counts of a and Nb (...) of b; pool
+  // on the smaller of the two.
+  std::vector<double> weight(n, 0.0);
+  std::vector<int> cells;
+  for (int i = 0; i < n; ++i) {
+    if (a[i] < 0 || b[i] < 0) throw std::invalid_argument(fmt::format("two_sample_homogeneity: negative count in cell {}", i));
+    const double s = a[i] + b[i];
+    if (s > 0) {
+      weight[i] = s * std::min(na, nb) / (na + nb);
+      cells.push_back(i);
+    }
+  }
+  const Pooling pooling = pool_sparse_cells(std::move(cells), weight, options.min_expected);
+  auto term = [&](double ai, double bi) {
+    const double d = k1 * ai - k2 * bi;
+    return d * d / (ai + bi);
+  };
+  std::vector<CellReport> reports;
+  for (int i : pooling.single) {
+    const double c = term(a[i], b[i]);
+    r.statistic += c;
+    reports.push_back({i, a[i], na * (a[i] + b[i]) / (na + nb), c, {}});
+  }
+  r.cells = int(pooling.single.size());
+  if (!pooling.pooled.empty()) {
+    double pa = 0, pb = 0;
+    for (int i : pooling.pooled) {
+      pa += a[i];
+      pb += b[i];
+    }
+    const double c = term(pa, pb);
+    r.statistic += c;
+    reports.push_back({-1, pa, na * (pa + pb) / (na + nb), c, fmt::format("pooled ({} cells)", pooling.pooled.size())});
+    r.cells += 1;
+    r.pooled_cells = int(pooling.pooled.size());
+  }
+  finish_test(r, std::move(reports), options);
+  return r;
+}
+
+std::uint64_t goodness_of_fit_minimum_samples(std::span<const double> p, double min_expected) {
+  double p_max = 0, total = 0;
+  for (double x : p) {
+    if (!std::isfinite(x))
+      throw std::invalid_argument("goodness_of_fit_minimum_samples: non-finite expected probability");
+    p_max = std::max(p_max, std::max(x, 0.0));
+    total += std::max(x, 0.0);
+  }
+  const double smaller = std::min(p_max, total - p_max);
+  if (!(smaller > 0)) return kNoSampleCountSuffices;
+  const double estimate = std::ceil(min_expected / smaller);
+  if (!(estimate < 0x1p62)) return kNoSampleCountSuffices;
+  // The closed form can be off by one in rounding: settle it with the test's own pooling.
+  auto n = std::uint64_t(std::max(estimate, 1.0));
+  for (int k = 0; k < 8 && n > 1 && cells_after_pooling(p, double(n - 1), min_expected) >= 2; ++k) --n;
+  for (int k = 0; k < 8 && cells_after_pooling(p, double(n), min_expected) < 2; ++k) ++n;
+  return n;
+}
+
+double sidak_significance(double alpha, int n_tests) {
+  if (n_tests < 1) throw std::invalid_argument(fmt::format("sidak_significance: n_tests must be >= 1, got {}", n_tests));
+  // 1 - (1 - alpha)^(1/n), without cancellation for small alpha.
+  return -std::expm1(std::log1p(-alpha) / n_tests);
+}
+
+double sidak_adjusted_p(double p_min, int n_tests) {
+  if (n_tests < 1) throw std::invalid_argument(fmt::format("sidak_adjusted_p: n_tests must be >= 1, got {}", n_tests));
+  if (!(p_min < 1)) return 1.0;
+  return -std::expm1(n_tests * std::log1p(-std::max(p_min, 0.0)));
+}
+
+KolmogorovResult ks_test_uniform(std::span<const double> values) {
+  KolmogorovResult r;
+  if (values.empty()) return r;
+  std::vector<double> x(values.begin(), values.end());
+  std::sort(x.begin(), x.end());
+  const double n = double(x.size());
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    const double f = std::clamp(x[i], 0.0, 1.0);
+    r.statistic = std::max({r.statistic, (i + 1) / n - f, f - i / n});
+  }
+  const double sn = std::sqrt(n);
+  const double lambda = (sn + 0.12 + 0.11 / sn) * r.statistic;
+  // Kolmogorov's limiting distribution Q(lambda) = 2 sum_{k>=1} (-1)^(k-1) exp(-2 k^2 lambda^2); for small
+  // lambda the equivalent (Jacobi theta) form 1 - sqrt(2 pi)/lambda sum exp(-(2k-1)^2 pi^2 / (8 lambda^2))
+  // converges faster.
+  double q = 0;
+  if (lambda < 1e-3) {
+    q = 1;
+  } else if (lambda < 1.18) {
+    const double pi2 = std::numbers::pi * std::numbers::pi;
+    double s = 0;
+    for (int k = 1; k <= 20; ++k) s += std::exp(-(2 * k - 1) * (2 * k - 1) * pi2 / (8 * lambda * lambda));
+    q = 1 - std::sqrt(2 * std::numbers::pi) / lambda * s;
+  } else {
+    for (int k = 1; k <= 100; ++k) q += 2 * ((k % 2) ? 1 : -1) * std::exp(-2.0 * k * k * lambda * lambda);
+  }
+  r.p_value = std::clamp(q, 0.0, 1.0);
+  return r;
+}
+
+nlohmann::json to_json(const ChiSquareResult& r) {
+  auto num = [](double v) -> nlohmann::json { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
+  nlohmann::json j;
+  j["test"] = r.test;
+  j["statistic"] = num(r.statistic);
+  j["dof"] = r.dof;
+  j["p_value"] = r.p_value;
+  j["significance"] = r.significance;
+  j["rejected"] = r.rejected;
+  j["reason"] = r.reason;
+  j["samples"] = r.samples;
+  j["cells"] = r.cells;
+  j["pooled_cells"] = r.pooled_cells;
+  nlohmann::json worst = nlohmann::json::array();
+  for (const CellReport& c : r.worst_cells)
+    worst.push_back({{"bin", c.bin}, {"location", c.location}, {"observed", c.observed}, {"expected", c.expected},
+                     {"contribution", num(c.contribution)}});
+  j["worst_cells"] = worst;
+  return j;
+}
+
+}  // namespace microsim

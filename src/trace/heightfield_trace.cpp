@@ -1,0 +1,435 @@
+// microsim: periodic heightfield tracing with Embree, and the double-precision reference (see
+// heightfield_trace.h for the scheme).
+#include "trace/heightfield_trace.h"
+
+#include <fmt/core.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace microsim {
+
+std::string to_string(HeightfieldGeometry g) { return g == HeightfieldGeometry::triangles ? "triangles" : "grid"; }
+
+HeightfieldGeometry heightfield_geometry_from_string(const std::string& s) {
+  if (s == "triangles") return HeightfieldGeometry::triangles;
+  if (s == "grid") return HeightfieldGeometry::grid;
+  throw std::invalid_argument(fmt::format("unknown heightfield geometry '{}' (expected 'triangles' or 'grid')", s));
+}
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr unsigned int kNoSkip = RTC_INVALID_GEOMETRY_ID;
+
+// The intersect context handed to rtcIntersect1/rtcOccluded1, extended with the primitive to skip.
+// Embree passes the context pointer through to the filter, which casts it back (the Embree-documented way
+// of giving per-ray data to filter functions); `base` must stay the first member. The filter is a CONTEXT
+// filter (RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION), set only on the calls that skip a primitive: plain
+// calls on the same scene (benchmarks, tests) never run it, so it never reads past a plain context.
+struct SkipContext {
+  RTCIntersectContext base;
+  unsigned int skip_primitive = kNoSkip;  // the start primitive: extended primitive index (see below) or kNoSkip
+  unsigned int skip_grazed = kNoSkip;     // a primitive just passed over at a convex edge (trace_impl)
+};
+
+// Extended primitive index e = 2 (b M + a) + t of triangle t of the cell (a, b) of the overlapped grid,
+// a, b in [0, M), M = N + 2 (cell a covers x in [(a-1) h, a h]). For the triangle geometry this IS
+// Embree's primID; for the grid geometry it is computed from the grid (u, v).
+struct ExtendedGrid {
+  int n;  // heightfield resolution N
+  int cells() const { return n + 2; }
+  int vertices() const { return n + 3; }
+  unsigned int primitive(int a, int b, int t) const { return unsigned(2 * (std::size_t(b) * cells() + a) + t); }
+  // Grid (u, v) in [0, 1]^2 over the whole vertex grid -> extended primitive. The grid's u axis runs
+  // along -x (see the header): quad k lies between vertex columns k, k+1, i.e. cell a = M - 1 - k, and
+  // the local x fraction is 1 - (u M - k).
+  unsigned int grid_primitive(float u, float v) const {
+    const int m = cells();
+    const double gu = double(u) * m, gv = double(v) * m;
+    const int k = std::clamp(int(std::floor(gu)), 0, m - 1);
+    const int b = std::clamp(int(std::floor(gv)), 0, m - 1);
+    const double local_x = 1.0 - (gu - k), local_y = gv - b;
+    return primitive(m - 1 - k, b, local_x >= local_y ? 0 : 1);
+  }
+};
+
+// Embree context filter (intersect and occluded): rejects hits on the skipped primitive.
+void skip_filter(const RTCFilterFunctionNArguments* args) {
+  const auto* ctx = reinterpret_cast<const SkipContext*>(args->context);
+  if (ctx->skip_primitive == kNoSkip && ctx->skip_grazed == kNoSkip) return;
+  // The grid geometry's user data is the heightfield resolution (triangles: null, primID is exact).
+  const auto* grid_n = static_cast<const int*>(args->geometryUserPtr);
+  for (unsigned int i = 0; i < args->N; ++i) {
+    if (args->valid[i] != -1) continue;
+    const unsigned int prim = grid_n ? ExtendedGrid{*grid_n}.grid_primitive(RTCHitN_u(args->hit, args->N, i), RTCHitN_v(args->hit, args->N, i))
+                                   : RTCHitN_primID(args->hit, args->N, i);
+    if (prim == ctx->skip_primitive || prim == ctx->skip_grazed) args->valid[i] = 0;
+  }
+}
+
+// x mod L into [0, L).
+inline double wrap_coordinate(double x, double tile) {
+  double r = x - tile * std::floor(x / tile);
+  if (!(r < tile)) r = 0.0;  // x / tile rounding can give exactly tile
+  if (r < 0.0) r = 0.0;
+  return r;
+}
+}  // namespace
+
+// ---- the Embree scene ------------------------------------------------------------------------------------
+
+bool HeightfieldScene::on_memory(void* user, ssize_t bytes, bool /*post*/) {
+  auto* self = static_cast<HeightfieldScene*>(user);
+  const std::int64_t now = self->embree_bytes_.fetch_add(bytes) + bytes;
+  std::int64_t peak = self->embree_peak_bytes_.load();
+  while (now > peak && !self->embree_peak_bytes_.compare_exchange_weak(peak, now)) {
+  }
+  return true;  // never refuse an allocation
+}
+
+HeightfieldScene::HeightfieldScene(const microgeom::Heightfield& field, HeightfieldGeometry geometry,
+                                   embree::BuildQuality quality)
+    : field_(field), geometry_(geometry) {
+  const int n = field.resolution();
+  if (n < 2) throw std::invalid_argument("HeightfieldScene: empty heightfield");
+  if (geometry == HeightfieldGeometry::grid && n + 3 > 32767) {
+    throw std::invalid_argument(fmt::format("HeightfieldScene: resolution {} exceeds Embree's grid limit (32764)", n));
+  }
+  tile_ = field.tile_size();
+  cell_ = field.cell_size();
+  // Escape and floor planes: a relative 2^-20 of the height range plus a few float ulps of the largest
+  // coordinate beyond the extreme heights (nothing can be hit above the highest vertex).
+  const double zmax = field.max_height(), zmin = field.min_height();
+  const double range = std::max(zmax - zmin, 0.0);
+  const double coordinate_scale = std::max({tile_, std::abs(zmax), std::abs(zmin)});
+  const double margin = std::ldexp(range, -20) + 8.0 * std::numeric_limits<float>::epsilon() * coordinate_scale;
+  surface_offset_ = std::ldexp(coordinate_scale, -20);
+  escape_height_ = zmax + margin;
+  floor_height_ = zmin - margin;
+  start_height_ = zmax + 2.0 * margin + 1e-3 * range;
+
+  const auto t0 = std::chrono::steady_clock::now();
+  device_ = std::make_unique<embree::Device>();
+  rtcSetDeviceMemoryMonitorFunction(device_->handle(), &HeightfieldScene::on_memory, this);
+  device_->check("rtcSetDeviceMemoryMonitorFunction");
+  scene_ = std::make_unique<embree::Scene>(*device_, quality, /*robust=*/true);
+  rtcSetSceneFlags(scene_->handle(), RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
+  device_->check("rtcSetSceneFlags");
+
+  const ExtendedGrid grid{n};
+  const int w = grid.vertices(), m = grid.cells();
+  const double h = cell_;
+  const RTCDevice dev = device_->handle();
+  RTCGeometry geom = rtcNewGeometry(dev, geometry == HeightfieldGeometry::triangles ? RTC_GEOMETRY_TYPE_TRIANGLE
+                                                                                    : RTC_GEOMETRY_TYPE_GRID);
+  device_->check("rtcNewGeometry");
+  auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                         3 * sizeof(float), std::size_t(w) * w));
+  if (!vb) {
+    rtcReleaseGeometry(geom);
+    device_->check("rtcSetNewGeometryBuffer(vertex)");
+    throw embree::EmbreeError("rtcSetNewGeometryBuffer(vertex) returned no buffer");
+  }
+  // Vertex (c, r), c, r in [0, W): the heightfield vertex (c - 1, r - 1), wrapped, at x = (c - 1) h.
+  // Triangles: stored at c + r W. Grid: row r holds columns c = W - 1 - k at position k (u along -x).
+  const bool is_grid = geometry == HeightfieldGeometry::grid;
+  tbb::parallel_for(0, w, [&](int r) {
+    for (int k = 0; k < w; ++k) {
+      const int c = is_grid ? w - 1 - k : k;
+      float* p = vb + 3 * (std::size_t(r) * w + k);
+      p[0] = float((c - 1) * h);
+      p[1] = float((r - 1) * h);
+      p[2] = field.height(long(c) - 1, long(r) - 1);
+    }
+  });
+  if (!is_grid) {
+    auto* ib = static_cast<std::uint32_t*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                                   3 * sizeof(std::uint32_t), 2 * std::size_t(m) * m));
+    if (!ib) {
+      rtcReleaseGeometry(geom);
+      device_->check("rtcSetNewGeometryBuffer(index)");
+      throw embree::EmbreeError("rtcSetNewGeometryBuffer(index) returned no buffer");
+    }
+    tbb::parallel_for(0, m, [&](int b) {
+      for (int a = 0; a < m; ++a) {
+        const std::uint32_t v00 = std::uint32_t(std::size_t(b) * w + a), v10 = v00 + 1,
+                            v01 = v00 + std::uint32_t(w), v11 = v01 + 1;
+        std::uint32_t* t0p = ib + 3 * std::size_t(grid.primitive(a, b, 0));
+        std::uint32_t* t1p = ib + 3 * std::size_t(grid.primitive(a, b, 1));
+        t0p[0] = v00, t0p[1] = v10, t0p[2] = v11;  // (i, j), (i+1, j), (i+1, j+1)
+        t1p[0] = v00, t1p[1] = v11, t1p[2] = v01;  // (i, j), (i+1, j+1), (i, j+1)
+      }
+    });
+    rtcSetGeometryUserData(geom, nullptr);
+  } else {
+    auto* gb = static_cast<RTCGrid*>(
+        rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_GRID, 0, RTC_FORMAT_GRID, sizeof(RTCGrid), 1));
+    if (!gb) {
+      rtcReleaseGeometry(geom);
+      device_->check("rtcSetNewGeometryBuffer(grid)");
+      throw embree::EmbreeError("rtcSetNewGeometryBuffer(grid) returned no buffer");
+    }
+    gb->startVertexID = 0;
+    gb->stride = unsigned(w);
+    gb->width = static_cast<unsigned short>(w);
+    gb->height = static_cast<unsigned short>(w);
+    grid_resolution_ = n;
+    rtcSetGeometryUserData(geom, &grid_resolution_);
+  }
+  rtcCommitGeometry(geom);
+  rtcAttachGeometry(scene_->handle(), geom);
+  rtcReleaseGeometry(geom);
+  device_->check("rtcCommitGeometry/rtcAttachGeometry(heightfield)");
+  scene_->commit();
+  build_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+HeightfieldScene::~HeightfieldScene() = default;
+
+unsigned int HeightfieldScene::embree_primitive(std::uint32_t triangle) const {
+  const auto c = field_.triangle_index(triangle);
+  return ExtendedGrid{field_.resolution()}.primitive(c.i + 1, c.j + 1, c.t);
+}
+
+unsigned int HeightfieldScene::extended_primitive(unsigned int prim_id, float u, float v) const {
+  return geometry_ == HeightfieldGeometry::grid ? ExtendedGrid{field_.resolution()}.grid_primitive(u, v) : prim_id;
+}
+
+std::uint32_t HeightfieldScene::hit_triangle(unsigned int prim_id, float u, float v) const {
+  const ExtendedGrid grid{field_.resolution()};
+  const unsigned int e = extended_primitive(prim_id, u, v);
+  const int m = grid.cells();
+  const unsigned int cell = e >> 1;
+  const int a = int(cell % unsigned(m)), b = int(cell / unsigned(m));
+  return field_.triangle_id(field_.wrap(long(a) - 1), field_.wrap(long(b) - 1), int(e & 1u));
+}
+
+Vec3<double> HeightfieldScene::lifted(const Vec3<double>& p, std::uint32_t triangle) const {
+  return p + surface_offset_ * field_.triangle_normal(triangle);
+}
+
+template <bool kOcclusionOnly>
+HeightfieldHit HeightfieldScene::trace_impl(const Vec3<double>& origin_in, const Vec3<double>& dir,
+                                            std::optional<std::uint32_t> skip_triangle) const {
+  HeightfieldHit out;
+  const Vec3<double> origin = skip_triangle ? lifted(origin_in, *skip_triangle) : origin_in;
+  Vec3<double> o(wrap_coordinate(origin.x(), tile_), wrap_coordinate(origin.y(), tile_), origin.z());
+  const Vec3<float> df = dir.cast<float>();
+  const double dx = dir.x(), dy = dir.y(), dz = dir.z();
+  const double dxy = std::hypot(dx, dy);
+  // Half a cell of overlap past the tile edge, in ray distance: covered by the overlap strip.
+  const double overlap = dxy > 0 ? 0.5 * cell_ / dxy : kInf;
+  const unsigned int skip = skip_triangle ? embree_primitive(*skip_triangle) : kNoSkip;
+  // Whether the ray provably starts outside the solid (above the surface at its (x, y): a point lifted
+  // off its start facet, or a primary ray from above): only then is a leaving first hit a convex-edge graze
+  // to pass over. A ray started inside the solid (tests, negative controls) reports what it hits.
+  const bool starts_outside = o.z() > escape_height_ || o.z() > field_.height_at(o.x(), o.y());
+  const RTCScene scene = scene_->handle();
+  double travelled = 0;
+
+  SkipContext ctx;
+  rtcInitIntersectContext(&ctx.base);
+  for (int segment = 0; segment < kMaxSegments; ++segment) {
+    if (dz >= 0 && o.z() > escape_height_) {
+      out.outcome = RayOutcome::escaped;
+      return out;
+    }
+    if (dz <= 0 && o.z() < floor_height_) {
+      out.outcome = RayOutcome::leaked;
+      return out;
+    }
+    double tx = kInf, ty = kInf;
+    if (dx > 0) tx = (tile_ - o.x()) / dx;
+    else if (dx < 0) tx = -o.x() / dx;
+    if (dy > 0) ty = (tile_ - o.y()) / dy;
+    else if (dy < 0) ty = -o.y() / dy;
+    tx = std::max(tx, 0.0);
+    ty = std::max(ty, 0.0);
+    const double t_exit = std::min(tx, ty);
+    // Where the ray leaves the slab [floor, escape] of heights that can hold geometry.
+    double t_slab = kInf;
+    if (dz > 0) t_slab = (escape_height_ - o.z()) / dz;
+    else if (dz < 0) t_slab = (floor_height_ - o.z()) / dz;
+    const double tfar = std::min(t_exit + overlap, t_slab);
+
+    // One Embree call per segment, plus one per convex-edge graze passed over (below).
+    float tnear = 0.0f;
+    unsigned int grazed = kNoSkip;
+    for (;;) {
+      ctx.skip_primitive = segment == 0 ? skip : kNoSkip;
+      ctx.skip_grazed = grazed;
+      ctx.base.filter = ctx.skip_primitive == kNoSkip && grazed == kNoSkip ? nullptr : &skip_filter;
+      RTCRayHit rh;
+      rh.ray.org_x = float(o.x());
+      rh.ray.org_y = float(o.y());
+      rh.ray.org_z = float(o.z());
+      rh.ray.dir_x = df.x();
+      rh.ray.dir_y = df.y();
+      rh.ray.dir_z = df.z();
+      rh.ray.tnear = tnear;
+      rh.ray.tfar = std::isfinite(tfar) ? float(tfar) : std::numeric_limits<float>::infinity();
+      rh.ray.time = 0.0f;
+      rh.ray.mask = 0xffffffffu;
+      rh.ray.id = 0;
+      rh.ray.flags = 0;
+      ++out.segments;
+      if constexpr (kOcclusionOnly) {
+        rtcOccluded1(scene, &ctx.base, &rh.ray);
+        if (rh.ray.tfar == -std::numeric_limits<float>::infinity()) {
+          out.outcome = RayOutcome::hit;
+          return out;
+        }
+      } else {
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+        rtcIntersect1(scene, &ctx.base, &rh);
+        if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
+          // A ray that starts outside the solid (above the surface) must ENTER it first: a first hit on a
+          // facet it leaves through (dir . m >= 0, m the upward normal) means that in float it passed
+          // within about one ulp of a convex edge, over the entering facet, and Embree's float t of that
+          // nearly parallel facet ordered the two the wrong way round (docs/heightfield-trade.md, section
+          // 1). The ray is taken to pass over the edge: it continues from the hit, skipping that facet.
+          // Embree's geometric normal Ng is +-m (its sign depends on the winding); every facet of a
+          // heightfield has m_z > 0, so m ~ Ng sign(Ng_z) (no lookup of the facet's heights).
+          const float ng_dot_dir = rh.hit.Ng_x * df.x() + rh.hit.Ng_y * df.y() + rh.hit.Ng_z * df.z();
+          const bool leaving = rh.hit.Ng_z > 0.0f ? ng_dot_dir >= 0.0f : (rh.hit.Ng_z < 0.0f && ng_dot_dir <= 0.0f);
+          if (starts_outside && leaving && out.edge_grazes < kMaxEdgeGrazes) {
+            ++out.edge_grazes;
+            tnear = rh.ray.tfar;
+            grazed = extended_primitive(rh.hit.primID, rh.hit.u, rh.hit.v);
+            continue;
+          }
+          const double t = rh.ray.tfar;
+          out.outcome = RayOutcome::hit;
+          out.t = travelled + t;
+          out.triangle = hit_triangle(rh.hit.primID, rh.hit.u, rh.hit.v);
+          const Vec3<double> p = o + t * dir;
+          out.point = Vec3<double>(wrap_coordinate(p.x(), tile_), wrap_coordinate(p.y(), tile_), p.z());
+          return out;
+        }
+      }
+      break;
+    }
+    if (t_slab <= t_exit) {  // left the slab before the tile edge: nothing more to hit
+      out.outcome = dz > 0 ? RayOutcome::escaped : RayOutcome::leaked;
+      return out;
+    }
+    // Wrap: move to the exit point and re-enter from the opposite side (exact 0 or L on the exit axes).
+    o += t_exit * dir;
+    travelled += t_exit;
+    if (tx <= ty) o.x() = dx > 0 ? 0.0 : tile_;
+    if (ty <= tx) o.y() = dy > 0 ? 0.0 : tile_;
+  }
+  out.outcome = RayOutcome::unresolved;
+  return out;
+}
+
+HeightfieldHit HeightfieldScene::trace(const Vec3<double>& origin, const Vec3<double>& dir,
+                                       std::optional<std::uint32_t> skip_triangle) const {
+  return trace_impl<false>(origin, dir, skip_triangle);
+}
+
+bool HeightfieldScene::escapes(const Vec3<double>& origin, const Vec3<double>& dir,
+                               std::optional<std::uint32_t> skip_triangle, RayOutcome* outcome) const {
+  const HeightfieldHit h = trace_impl<true>(origin, dir, skip_triangle);
+  if (outcome) *outcome = h.outcome;
+  return h.outcome == RayOutcome::escaped;
+}
+
+// ---- reference tracer (double) ---------------------------------------------------------------------------
+
+HeightfieldHit reference_trace(const microgeom::Heightfield& field, const Vec3<double>& origin,
+                               const Vec3<double>& dir, std::optional<std::uint32_t> skip_triangle,
+                               long max_cells) {
+  HeightfieldHit out;
+  const double h = field.cell_size(), tile = field.tile_size();
+  const double zmax = field.max_height(), zmin = field.min_height();
+  const double ox = origin.x(), oy = origin.y(), oz = origin.z();
+  const double dx = dir.x(), dy = dir.y(), dz = dir.z();
+  long ci = long(std::floor(ox / h)), cj = long(std::floor(oy / h));
+  const long ci0 = ci, cj0 = cj;
+  const int stepx = dx > 0 ? 1 : (dx < 0 ? -1 : 0), stepy = dy > 0 ? 1 : (dy < 0 ? -1 : 0);
+  double tnx = dx > 0 ? ((ci + 1) * h - ox) / dx : (dx < 0 ? (ci * h - ox) / dx : kInf);
+  double tny = dy > 0 ? ((cj + 1) * h - oy) / dy : (dy < 0 ? (cj * h - oy) / dy : kInf);
+  const double dtx = dx != 0 ? h / std::abs(dx) : kInf, dty = dy != 0 ? h / std::abs(dy) : kInf;
+  std::optional<microgeom::Heightfield::TriangleIndex> skip;
+  if (skip_triangle) skip = field.triangle_index(*skip_triangle);
+  double t_in = 0;
+  for (long visited = 0; visited < max_cells; ++visited) {
+    const double z_in = oz + t_in * dz;
+    if (dz >= 0 && z_in > zmax) {
+      out.outcome = RayOutcome::escaped;
+      return out;
+    }
+    if (dz <= 0 && z_in < zmin) {
+      out.outcome = RayOutcome::leaked;
+      return out;
+    }
+    const double t_out = std::min(tnx, tny);
+    const double x0 = ci * h, y0 = cj * h;
+    const double h00 = field.height(ci, cj), h10 = field.height(ci + 1, cj), h01 = field.height(ci, cj + 1),
+                 h11 = field.height(ci + 1, cj + 1);
+    const int wi = field.wrap(ci), wj = field.wrap(cj);
+    double best_t = kInf;
+    int best_tri = -1;
+    for (int t = 0; t < 2; ++t) {
+      if (skip && skip->i == wi && skip->j == wj && skip->t == t && std::abs(ci - ci0) <= 1 &&
+          std::abs(cj - cj0) <= 1) {
+        continue;
+      }
+      // Plane through vertex (i, j): z = h00 + sx (x - x0) + sy (y - y0) (Heightfield's slopes).
+      const double sx = t == 0 ? (h10 - h00) / h : (h11 - h01) / h;
+      const double sy = t == 0 ? (h11 - h10) / h : (h01 - h00) / h;
+      const double a = oz - h00 - sx * (ox - x0) - sy * (oy - y0);
+      const double b = dz - sx * dx - sy * dy;
+      if (b == 0) continue;  // parallel to the plane (a coplanar ray grazes it: not a hit)
+      const double tt = -a / b;
+      if (!(tt >= t_in && tt <= t_out)) continue;
+      const double u = (ox + tt * dx - x0) / h, v = (oy + tt * dy - y0) / h;
+      // Membership with a 1e-12 slack so that a point on the diagonal is never rejected by both
+      // triangles through round-off; ties go to triangle 0 (below, by the strict < on best_t).
+      constexpr double kSlack = 1e-12;
+      const bool inside = t == 0 ? (u >= v - kSlack) : (v > u - kSlack);
+      if (inside && tt < best_t) {
+        best_t = tt;
+        best_tri = t;
+      }
+    }
+    if (best_tri >= 0) {
+      out.outcome = RayOutcome::hit;
+      out.t = best_t;
+      out.triangle = field.triangle_id(wi, wj, best_tri);
+      const Vec3<double> p = origin + best_t * dir;
+      out.point = Vec3<double>(wrap_coordinate(p.x(), tile), wrap_coordinate(p.y(), tile), p.z());
+      out.segments = int(std::min<long>(visited + 1, std::numeric_limits<int>::max()));
+      return out;
+    }
+    if (!std::isfinite(t_out)) {  // vertical ray: it only ever sees this cell
+      out.outcome = dz > 0 ? RayOutcome::escaped : RayOutcome::leaked;
+      return out;
+    }
+    t_in = t_out;
+    if (tnx < tny) {
+      ci += stepx;
+      tnx += dtx;
+    } else if (tny < tnx) {
+      cj += stepy;
+      tny += dty;
+    } else {
+      ci += stepx;
+      cj += stepy;
+      tnx += dtx;
+      tny += dty;
+    }
+  }
+  out.outcome = RayOutcome::unresolved;
+  return out;
+}
+
+}  // namespace microsim

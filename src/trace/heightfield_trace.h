@@ -1,0 +1,161 @@
+// microsim: ray tracing a periodic heightfield microsurface (microgeom::Heightfield) with Embree, and a
+// small double-precision reference tracer for tests (design note ../shared/design/oracle.md, section 5).
+//
+// Periodic tracing. Embree holds ONE copy of the tile plus a one-cell overlap strip on every side: cells
+// -1 .. N in x and y, i.e. vertices -1 .. N+1 (heights wrapped), so the geometry covers
+// [-h, L + h]^2 (h = cell size, L = tile size). A ray is traced in SEGMENTS: each segment starts inside the
+// tile [0, L]^2 (in x, y) and is clipped (tfar) where the ray leaves the tile, plus half a cell, which the
+// overlap strip covers, so a hit on a seam cannot slip between two segments. If the segment hits nothing,
+// the ray is moved to its exit point, shifted by -+L on the axis (or axes) it left through (the coordinate
+// is set exactly to 0 or L: no drift) and traced again. A ray stops when it hits, or when it is above the
+// maximum height going up (it can never come back), or after kMaxSegments (reported as unresolved).
+// Every segment origin is kept in double and only rounded to float for Embree, so wrapping accumulates no
+// error. A downward ray that drops below the minimum height without hitting is a LEAK (reported; the
+// estimators count leaks and the tests require zero).
+//
+// Self-hits. A ray that starts ON the surface (a shadow or masking ray, given its start triangle) starts
+// at its point of the start triangle lifted along the facet normal by surface_offset() (8 float ulps of
+// the coordinate scale: the rounding of the origin to float can then never put it below its own or a
+// neighbouring facet's plane), AND skips the start triangle by primitive id, through an Embree
+// intersection filter, in the first segment (before any wrap). A ray leaving a planar facet upwards can
+// never hit that facet's periodic copies from above, so skipping in the first segment is enough.
+// The lift is 2^-20 of the coordinate scale: 0.4% of a cell at N = 4096 (L = 1); it changes a shadow
+// ray's fate only for start points that close to an edge whose neighbour the ray grazes.
+//
+// Convex-edge grazes (trace() only). A ray that starts above the surface must enter the solid before it
+// can leave it, so its first hit faces it (dir . m < 0). In float, a ray passing within about one ulp of
+// the coordinates of a convex edge between a facet it nearly runs along (entering, at a grazing angle)
+// and a steeper facet beyond (leaving) can be reported on the leaving facet: Embree is watertight, but
+// its float distance to the nearly parallel facet is off by more than the two hits' separation. Measured
+// (docs/heightfield-trade.md): ~6e-7 per primary ray at alpha 1, 85 deg, N = 1024, every case within
+// 0.1-2.5 ulp(1) of an edge. For a ray that starts above the surface at its (x, y) (a primary ray, or a
+// point lifted off its start facet; not one started inside the solid, which legitimately leaves it first),
+// trace() then takes the ray to pass over the edge: it continues from that hit
+// with the leaving facet skipped (the same context filter), at most kMaxEdgeGrazes times, and counts it
+// in edge_grazes. escapes() (rtcOccluded1, any hit) cannot tell and counts such a graze as blocked: a
+// shadow ray within an ulp of a convex edge, of the same ~1e-6 frequency.
+//
+// Scale. Nothing depends on the absolute units: segment overlaps are in cells, the escape plane sits a
+// relative 2^-20 of the height range (plus float ulps of the coordinates) above the maximum height, the
+// surface offset is relative to max(L, |heights|).
+//
+// Geometry kinds (both with RTC_SCENE_FLAG_ROBUST, watertight across shared edges):
+// - triangles: RTC_GEOMETRY_TYPE_TRIANGLE, 2 (N+2)^2 triangles in the heightfield's fixed split, primitive
+//   id -> heightfield triangle id by arithmetic (exact).
+// - grid: RTC_GEOMETRY_TYPE_GRID, one (N+3)^2 vertex grid (Embree's compact grid BVH). Embree splits a grid
+//   quad along the diagonal v1-v3; the grid's u axis runs along -x so that this is the heightfield's
+//   diagonal (i, j)-(i+1, j+1). The hit triangle is recovered from the grid's (u, v) hit coordinates.
+// docs/heightfield-trade.md measures both (memory, build time, rays per second).
+//
+// Determinism: a ray's result depends on the ray only (single-ray rtcIntersect1 / rtcOccluded1 calls).
+#pragma once
+
+#include "microgeom/heightfield.h"
+#include "trace/embree.h"
+#include "core/math.h"
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+
+namespace microsim {
+
+enum class HeightfieldGeometry { triangles, grid };
+std::string to_string(HeightfieldGeometry g);
+// "triangles" or "grid"; throws std::invalid_argument otherwise.
+HeightfieldGeometry heightfield_geometry_from_string(const std::string& s);
+
+inline constexpr int kMaxSegments = 1 << 20;  // per ray; beyond, the ray is reported unresolved
+inline constexpr int kMaxEdgeGrazes = 8;       // per ray; beyond, the exiting hit is returned as it is
+
+enum class RayOutcome {
+  hit,         // hit a triangle
+  escaped,     // rose above the maximum height going up: sees the sky
+  leaked,      // went below the minimum height without a hit (a tracer bug if it ever happens)
+  unresolved,  // still wrapping after kMaxSegments segments (a nearly horizontal ray)
+};
+
+struct HeightfieldHit {
+  RayOutcome outcome = RayOutcome::escaped;
+  std::uint32_t triangle = 0;                     // heightfield triangle id (when hit)
+  double t = 0;                                   // distance along the unit direction, through all wraps
+  Vec3<double> point = Vec3<double>::Zero();      // hit point, x and y wrapped into [0, L)
+  int segments = 0;                               // Embree calls made
+  int edge_grazes = 0;                            // first hits on a facet the ray leaves the solid through,
+                                                  // passed over (convex-edge grazes, trace() only; see above)
+  bool is_hit() const { return outcome == RayOutcome::hit; }
+};
+
+// A heightfield in an Embree scene. Thread-safe for tracing after construction.
+class HeightfieldScene {
+public:
+  explicit HeightfieldScene(const microgeom::Heightfield& field,
+                            HeightfieldGeometry geometry = HeightfieldGeometry::triangles,
+                            embree::BuildQuality quality = embree::BuildQuality::high);
+  ~HeightfieldScene();
+  HeightfieldScene(const HeightfieldScene&) = delete;
+  HeightfieldScene& operator=(const HeightfieldScene&) = delete;
+
+  const microgeom::Heightfield& field() const { return field_; }
+  HeightfieldGeometry geometry() const { return geometry_; }
+  double build_seconds() const { return build_seconds_; }
+  // Peak bytes Embree allocated for this scene (its memory monitor; our own buffers are not included).
+  std::int64_t embree_peak_bytes() const { return embree_peak_bytes_.load(); }
+  // Height of the escape plane: above it, a ray going up can hit nothing.
+  double escape_height() const { return escape_height_; }
+  // A height from which downward rays start (above escape_height()).
+  double start_height() const { return start_height_; }
+
+  // Closest hit of the ray origin + t dir, t >= 0 (dir: unit; origin: any x, y, wrapped first).
+  // skip_triangle: the heightfield triangle the ray starts on; the origin is then lifted (lifted()) and
+  // the triangle skipped in the first segment.
+  HeightfieldHit trace(const Vec3<double>& origin, const Vec3<double>& dir,
+                       std::optional<std::uint32_t> skip_triangle = std::nullopt) const;
+  // Whether the ray escapes to the sky (no hit). Uses rtcOccluded1 (any hit); leaked and unresolved rays
+  // are returned through `outcome` if non-null (as escaped = visible they would bias; callers count them).
+  bool escapes(const Vec3<double>& origin, const Vec3<double>& dir, std::optional<std::uint32_t> skip_triangle,
+               RayOutcome* outcome = nullptr) const;
+
+  // Distance by which surface points are lifted along their facet normal before tracing from them.
+  double surface_offset() const { return surface_offset_; }
+  // p + surface_offset() * (unit normal of the triangle): the origin actually traced from p.
+  Vec3<double> lifted(const Vec3<double>& p, std::uint32_t triangle) const;
+
+  // The Embree scene (for benchmarks comparing against raw rtcIntersect1 calls).
+  const embree::Scene& embree_scene() const { return *scene_; }
+
+  // The Embree primitive that is the given heightfield triangle in the tile proper (not an overlap copy).
+  unsigned int embree_primitive(std::uint32_t triangle) const;
+
+private:
+  template <bool kOcclusionOnly>
+  HeightfieldHit trace_impl(const Vec3<double>& origin, const Vec3<double>& dir,
+                            std::optional<std::uint32_t> skip_triangle) const;
+  std::uint32_t hit_triangle(unsigned int prim_id, float u, float v) const;
+  unsigned int extended_primitive(unsigned int prim_id, float u, float v) const;
+  static bool on_memory(void* user, ssize_t bytes, bool post);
+
+  const microgeom::Heightfield& field_;
+  HeightfieldGeometry geometry_;
+  double tile_ = 0, cell_ = 0;
+  double surface_offset_ = 0;
+  double escape_height_ = 0, start_height_ = 0, floor_height_ = 0;
+  double build_seconds_ = 0;
+  int grid_resolution_ = 0;  // user data of the grid geometry (read by the skip filter)
+  std::atomic<std::int64_t> embree_bytes_{0}, embree_peak_bytes_{0};
+  std::unique_ptr<embree::Device> device_;
+  std::unique_ptr<embree::Scene> scene_;
+};
+
+// ---- double-precision reference (tests) -----------------------------------------------------------------
+// 2D grid traversal (DDA) over the cells in unwrapped coordinates; in each cell, the exact intersection
+// with both triangle planes in double, kept if it lies in the cell's part of the ray and in the triangle
+// (points on the diagonal belong to triangle 0, as in Heightfield::triangle_at). skip_triangle is skipped
+// in the start cell only. Slow (one cell at a time); meant for small surfaces in tests.
+HeightfieldHit reference_trace(const microgeom::Heightfield& field, const Vec3<double>& origin,
+                               const Vec3<double>& dir, std::optional<std::uint32_t> skip_triangle = std::nullopt,
+                               long max_cells = 1L << 24);
+
+}  // namespace microsim

@@ -1,0 +1,617 @@
+// microsim: NPY and text files of sampled directions (see microsim/sample_io.h).
+//
+// The NPY format is tiny and specified at numpy.org (numpy.lib.format): the magic "\x93NUMPY", a major
+// and minor version byte, a little-endian header length (uint16 for version 1.0, uint32 for 2.0 and
+// 3.0), then an ASCII (1.0, 2.0) or UTF-8 (3.0) Python dict literal with exactly the keys 'descr',
+// 'fortran_order' and 'shape', padded with spaces and ended by '\n'; the raw array data follows.
+#include "validate/sample_io.h"
+
+#include "core/strict_parse.h"
+#include "core/atomic_file.h"
+
+#include <array>
+#include <bit>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <string_view>
+#include <system_error>
+
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <cerrno>
+
+namespace microsim {
+namespace {
+
+constexpr std::string_view kNpyMagic = "\x93NUMPY";
+
+[[noreturn]] void fail(const std::filesystem::path& path, const std::string& what) {
+  throw SampleFileError(path.string() + ": " + what);
+}
+
+std::string format_double(double x) {
+  std::array<char, 64> buf{};
+  const auto r = std::to_chars(buf.data(), buf.data() + buf.size(), x);
+  return std::string(buf.data(), r.ptr);
+}
+
+std::string format_vector(const Vec3<double>& w) {
+  std::string s = "(";  // appended piecewise: GCC 12 warns falsely (-Wrestrict) on "lit" + string&&
+  s += format_double(w.x()) + ", " + format_double(w.y()) + ", " + format_double(w.z()) + ")";
+  return s;
+}
+
+// Tolerances are powers of ten: print them as "1e-4" (to_chars would give "1e-04").
+std::string format_tolerance(double t) {
+  const double e = std::round(std::log10(t));
+  return t == std::pow(10.0, e) ? "1e" + std::to_string(static_cast<int>(e)) : format_double(t);
+}
+
+// Checks one row and returns it renormalised. `where` names the row ("line 12" or "row 5").
+Vec3<double> checked_direction(const std::filesystem::path& path, const std::string& where,
+                               const Vec3<double>& w, double tolerance, const char* precision_name) {
+  if (!(std::isfinite(w.x()) && std::isfinite(w.y()) && std::isfinite(w.z())))
+    fail(path, where + ": non-finite value in " + format_vector(w));
+  const double len = w.norm();
+  if (!(std::abs(len - 1.0) <= tolerance)) {
+    fail(path, where + ": vector " + format_vector(w) + " has length " + format_double(len) +
+                   ", not unit length (| |w| - 1 | must be <= " + format_tolerance(tolerance) + " for " +
+                   precision_name + ")");
+  }
+  return w / len;
+}
+
+// ---- NPY -----------------------------------------------------------------------------------------------
+
+struct NpyHeader {
+  std::string descr;
+  bool fortran_order = false;
+  std::vector<std::uint64_t> shape;
+};
+
+// A recursive-descent reader for the one Python dict literal that NPY headers contain.
+class NpyHeaderParser {
+public:
+  NpyHeaderParser(const std::filesystem::path& path, std::string_view text) : path_(path), s_(text) {}
+
+  NpyHeader parse() {
+    NpyHeader h;
+    bool have_descr = false, have_order = false, have_shape = false;
+    skip_space();
+    expect('{');
+    for (;;) {
+      skip_space();
+      if (peek() == '}') break;
+      const std::string key = parse_string("a key");
+      skip_space();
+      expect(':');
+      skip_space();
+      if (key == "descr") {
+        if (peek() != '\'' && peek() != '"')
+          error("unsupported dtype: 'descr' is not a simple type string (structured arrays are not "
+                "supported; expected '<f4' or '<f8')");
+        h.descr = parse_string("the 'descr' value");
+        have_descr = true;
+      } else if (key == "fortran_order") {
+        h.fortran_order = parse_bool();
+        have_order = true;
+      } else if (key == "shape") {
+        h.shape = parse_tuple();
+        have_shape = true;
+      } else {
+        error("unexpected key " + reader::quote_excerpt(key) +
+              " (an NPY header has exactly 'descr', 'fortran_order', 'shape')");
+      }
+      skip_space();
+      if (peek() == ',') {
+        ++pos_;
+        continue;
+      }
+      if (peek() != '}') error("expected ',' or '}' after the value of " + reader::quote_excerpt(key));
+    }
+    ++pos_;  // '}'
+    skip_space();
+    if (pos_ != s_.size()) error("unexpected text after the header dict");
+    if (!have_descr || !have_order || !have_shape)
+      error("the header dict lacks one of 'descr', 'fortran_order', 'shape'");
+    return h;
+  }
+
+private:
+  [[noreturn]] void error(const std::string& what) const { fail(path_, "NPY header: " + what); }
+
+  char peek() const { return pos_ < s_.size() ? s_[pos_] : '\0'; }
+  void skip_space() {
+    while (pos_ < s_.size() && (s_[pos_] == ' ' || s_[pos_] == '\t' || s_[pos_] == '\n' || s_[pos_] == '\r'))
+      ++pos_;
+  }
+  void expect(char c) {
+    if (peek() != c) error(std::string("expected '") + c + "' at offset " + std::to_string(pos_));
+    ++pos_;
+  }
+  std::string parse_string(const char* what) {
+    const char quote = peek();
+    if (quote != '\'' && quote != '"') error(std::string("expected a quoted string as ") + what);
+    ++pos_;
+    const std::size_t end = s_.find(quote, pos_);
+    if (end == std::string_view::npos) error("unterminated string");
+    std::string out(s_.substr(pos_, end - pos_));
+    pos_ = end + 1;
+    return out;
+  }
+  bool parse_bool() {
+    if (s_.substr(pos_, 4) == "True") {
+      pos_ += 4;
+      return true;
+    }
+    if (s_.substr(pos_, 5) == "False") {
+      pos_ += 5;
+      return false;
+    }
+    error("'fortran_order' must be True or False");
+  }
+  std::vector<std::uint64_t> parse_tuple() {
+    std::vector<std::uint64_t> dims;
+    expect('(');
+    for (;;) {
+      skip_space();
+      if (peek() == ')') break;
+      const char* first = s_.data() + pos_;
+      std::uint64_t v = 0;
+      const auto r = std::from_chars(first, s_.data() + s_.size(), v);
+      if (r.ec != std::errc() || r.ptr == first) error("'shape' must be a tuple of non-negative integers");
+      pos_ += static_cast<std::size_t>(r.ptr - first);
+      if (peek() == 'L') ++pos_;  // Python 2 long suffix, written by old NumPy versions
+      dims.push_back(v);
+      skip_space();
+      if (peek() == ',') {
+        ++pos_;
+        continue;
+      }
+      if (peek() != ')') error("'shape' must be a tuple of non-negative integers");
+    }
+    ++pos_;  // ')'
+    return dims;
+  }
+
+  const std::filesystem::path& path_;
+  std::string_view s_;
+  std::size_t pos_ = 0;
+};
+
+std::uint64_t read_le(const unsigned char* p, int bytes) {
+  std::uint64_t v = 0;
+  for (int i = bytes - 1; i >= 0; --i) v = (v << 8) | p[i];
+  return v;
+}
+
+std::string shape_string(const std::vector<std::uint64_t>& shape) {
+  std::string s = "(";
+  const std::size_t shown = shape.size() <= 8 ? shape.size() : 4;  // a long tuple is cut: short messages
+  for (std::size_t i = 0; i < shown; ++i) s += (i ? ", " : "") + std::to_string(shape[i]);
+  if (shown < shape.size()) s += ", ... " + std::to_string(shape.size()) + " dimensions";
+  if (shape.size() == 1) s += ",";
+  return s + ")";
+}
+
+// Where the rows of a checked NPY file are: `bytes` is the whole file (a memory map).
+struct NpyLayout {
+  std::uint64_t rows = 0;
+  std::size_t data_offset = 0;
+  bool is_float32 = false;
+};
+
+NpyLayout read_npy_layout(const std::filesystem::path& path, std::string_view bytes) {
+  const auto* data = reinterpret_cast<const unsigned char*>(bytes.data());
+  const std::size_t size = bytes.size();
+  if (size < kNpyMagic.size() + 2) fail(path, "truncated NPY file (no complete version field)");
+  const int major = data[6], minor = data[7];
+  if (!((major == 1 || major == 2 || major == 3) && minor == 0))
+    fail(path, "unsupported NPY version " + std::to_string(major) + "." + std::to_string(minor) +
+                   " (supported: 1.0, 2.0, 3.0)");
+  const std::size_t len_bytes = major == 1 ? 2 : 4;
+  const std::size_t prefix = kNpyMagic.size() + 2 + len_bytes;
+  if (size < prefix) fail(path, "truncated NPY file (no complete header length)");
+  const std::uint64_t header_len = read_le(data + 8, static_cast<int>(len_bytes));
+  if (header_len > size - prefix)
+    fail(path, "truncated NPY header (declares " + std::to_string(header_len) + " bytes, file has " +
+                   std::to_string(size - prefix) + ")");
+  // Versions 1.0 and 2.0 have a latin-1 header, 3.0 UTF-8; every byte we accept is ASCII either way.
+  const std::string_view header(bytes.data() + prefix, static_cast<std::size_t>(header_len));
+  // The format ends the header with '\n' (after its padding); a file without it was not written by NumPy.
+  if (header.empty()) fail(path, "NPY header is empty (header length 0)");
+  if (header.back() != '\n')
+    fail(path, "NPY header does not end with a newline '\\n' (its last byte is " +
+                   reader::quote_excerpt(header.substr(header.size() - 1)) + ")");
+  const NpyHeader h = NpyHeaderParser(path, header).parse();
+
+  std::size_t item = 0;
+  bool is_float32 = false;
+  if (h.descr == "<f4") {
+    item = 4;
+    is_float32 = true;
+  } else if (h.descr == "<f8") {
+    item = 8;
+  } else if (h.descr == ">f4" || h.descr == ">f8") {
+    fail(path, "unsupported NPY dtype " + reader::quote_excerpt(h.descr) +
+                   " (big-endian; convert with arr.astype('<f8') or arr.astype('<f4'))");
+  } else {
+    fail(path, "unsupported NPY dtype " + reader::quote_excerpt(h.descr) + " (expected '<f4' float32 or '<f8' float64)");
+  }
+  if (h.fortran_order)
+    fail(path, "unsupported NPY array in Fortran order (save np.ascontiguousarray(arr) instead)");
+  if (h.shape.size() != 2 || h.shape[1] != 3)
+    fail(path, "unsupported NPY shape " + shape_string(h.shape) + " (expected (N, 3))");
+  const std::uint64_t rows = h.shape[0];
+  if (rows == 0) fail(path, "empty: the NPY array has 0 rows (shape (0, 3))");
+
+  const std::size_t row_bytes = 3 * item;
+  const std::size_t available = size - prefix - static_cast<std::size_t>(header_len);
+  const std::uint64_t complete_rows = available / row_bytes;
+  if (complete_rows < rows)
+    fail(path, "truncated NPY data: shape " + shape_string(h.shape) + " declares " + std::to_string(rows) +
+                   " rows but the data ends in row " + std::to_string(complete_rows) + " (0-based; " +
+                   std::to_string(available) + " data bytes for rows of " + std::to_string(row_bytes) + " bytes)");
+  if (available != rows * row_bytes)
+    fail(path, "NPY data has " + std::to_string(available - rows * row_bytes) +
+                   " unexpected trailing bytes after the " + std::to_string(rows) + " declared rows");
+
+  return NpyLayout{rows, prefix + static_cast<std::size_t>(header_len), is_float32};
+}
+
+// Decodes and checks rows [first, first + out.size()) of a checked NPY file (`bytes` as above).
+void decode_npy_rows(const std::filesystem::path& path, std::string_view bytes, const NpyLayout& layout,
+                     std::uint64_t first, std::span<Vec3<double>> out) {
+  const bool is_float32 = layout.is_float32;
+  const std::size_t row_bytes = 3 * (is_float32 ? 4 : 8);
+  const unsigned char* p =
+      reinterpret_cast<const unsigned char*>(bytes.data()) + layout.data_offset + first * row_bytes;
+  const double tolerance = is_float32 ? kUnitLengthToleranceFloat32 : kUnitLengthToleranceFloat64;
+  const char* precision_name = is_float32 ? "float32 data" : "float64 data";
+  for (std::uint64_t i = 0; i < out.size(); ++i, p += row_bytes) {
+    const std::uint64_t r = first + i;
+    Vec3<double> w;
+    for (int c = 0; c < 3; ++c) {
+      if (is_float32)
+        w[c] = std::bit_cast<float>(static_cast<std::uint32_t>(read_le(p + 4 * c, 4)));
+      else
+        w[c] = std::bit_cast<double>(read_le(p + 8 * c, 8));
+    }
+    out[i] = checked_direction(path, "row " + std::to_string(r) + " (0-based)", w, tolerance, precision_name);
+  }
+}
+
+// ---- text ----------------------------------------------------------------------------------------------
+
+bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
+
+// Parses the lines of `text` (whole lines; the last may lack its '\n'), appending their rows to `out`;
+// line_no counts the lines read so far (over all the chunks of a file).
+void read_text_lines(const std::filesystem::path& path, std::string_view text, std::size_t& line_no,
+                     std::vector<Vec3<double>>& out) {
+  while (!text.empty()) {
+    ++line_no;
+    const std::size_t nl = text.find('\n');
+    std::string_view line = text.substr(0, nl);
+    text.remove_prefix(nl == std::string_view::npos ? text.size() : nl + 1);
+    if (const std::size_t hash = line.find('#'); hash != std::string_view::npos) line = line.substr(0, hash);
+
+    const std::string where = "line " + std::to_string(line_no);
+    const auto malformed = [&](const std::string& why) {
+      fail(path, where + ": malformed line: " + why + " (expected three numbers separated by whitespace "
+                         "or commas)");
+    };
+    std::vector<double> values;
+    std::size_t i = 0;
+    const auto skip_blanks = [&] {
+      while (i < line.size() && is_blank(line[i])) ++i;
+    };
+    skip_blanks();
+    if (i == line.size()) continue;  // blank or comment-only line
+    for (;;) {
+      // One number.
+      const std::size_t start = i;
+      if (i < line.size() && line[i] == '+') ++i;  // from_chars rejects a leading '+'
+      double v = 0.0;
+      const auto r = std::from_chars(line.data() + i, line.data() + line.size(), v);
+      const std::size_t end = static_cast<std::size_t>(r.ptr - line.data());
+      std::size_t token_end = start;
+      while (token_end < line.size() && !is_blank(line[token_end]) && line[token_end] != ',') ++token_end;
+      const std::string_view token = line.substr(start, token_end - start);
+      if (r.ec == std::errc::result_out_of_range)
+        fail(path, where + ": value " + reader::quote_excerpt(token) + " is out of the range of a double");
+      if (r.ec != std::errc() || end != token_end) {
+        malformed(token.empty() ? std::string("empty field") : reader::quote_excerpt(token) + " is not a number");
+      }
+      values.push_back(v);
+      i = end;
+      // One separator: blanks, optionally one comma with blanks around it; or the end of the line.
+      skip_blanks();
+      if (i == line.size()) break;
+      if (line[i] == ',') {
+        ++i;
+        skip_blanks();
+        if (i == line.size()) malformed("trailing comma");
+      }
+    }
+    if (values.size() != 3)
+      fail(path, where + ": wrong column count: found " + std::to_string(values.size()) +
+                     " numbers, expected 3 (x y z)");
+    out.push_back(checked_direction(path, where, Vec3<double>(values[0], values[1], values[2]),
+                                    kUnitLengthToleranceText, "text data"));
+  }
+}
+
+// ---- writing -------------------------------------------------------------------------------------------
+
+// Writes `bytes` to `path` atomically (microgeom/atomic_file.h).
+void write_atomically(const std::filesystem::path& path, const std::string& bytes) {
+  try {
+    microsim::write_file_atomically(path, bytes);
+  } catch (const microsim::FileWriteError& e) {
+    throw SampleFileError(e.what());
+  }
+}
+
+void append_le(std::string& out, std::uint64_t v, int bytes) {
+  for (int i = 0; i < bytes; ++i) out.push_back(static_cast<char>((v >> (8 * i)) & 0xFF));
+}
+
+}  // namespace
+
+// ---- the block reader ------------------------------------------------------------------------------
+
+// Text is read in chunks of this many bytes; a line may be at most this long (its comment excepted).
+constexpr std::size_t kTextChunk = std::size_t(1) << 20;
+
+struct DirectionSampleReader::Impl {
+  std::filesystem::path path;
+  int fd = -1;
+  std::uint64_t rows = 0;  // rows returned so far
+  bool npy = false;
+  // NPY: the file mapped read-only (or, for a non-regular file, read into `owned`).
+  void* map = nullptr;
+  std::size_t map_size = 0, released = 0;  // bytes of the map whose pages were given back
+  std::string owned;
+  std::string_view bytes;
+  NpyLayout layout;
+  // Text: the unparsed tail of the chunks read, and the rows parsed from whole lines.
+  std::string pending, chunk;
+  std::vector<Vec3<double>> parsed;
+  std::size_t parsed_pos = 0, line_no = 0;
+  bool eof = false, bom_checked = false, in_comment = false;
+
+  ~Impl() {
+    if (map) ::munmap(map, map_size);
+    if (fd >= 0) ::close(fd);
+  }
+
+  std::size_t read_some(char* out, std::size_t n) {
+    for (;;) {
+      const ssize_t k = ::read(fd, out, n);
+      if (k >= 0) return std::size_t(k);
+      if (errno != EINTR) fail(path, "read error");
+    }
+  }
+  void open_npy(bool regular, std::uint64_t size);
+  std::size_t read_npy_rows(std::span<Vec3<double>> out);
+  void parse_pending(std::size_t end);
+  void shorten_long_line();
+  bool refill_text();
+};
+
+void DirectionSampleReader::Impl::open_npy(bool regular, std::uint64_t size) {
+  npy = true;
+  if (regular) {
+    map_size = std::size_t(size);
+    map = ::mmap(nullptr, map_size, PROT_READ, MAP_PRIVATE, fd, 0);
+    if (map == MAP_FAILED) {
+      map = nullptr;
+      fail(path, "cannot map the file for reading");
+    }
+    ::madvise(map, map_size, MADV_SEQUENTIAL);
+    bytes = std::string_view(static_cast<const char*>(map), map_size);
+  } else {  // a pipe or device: no map; read it whole
+    char buf[1 << 16];
+    while (const std::size_t k = read_some(buf, sizeof buf)) owned.append(buf, k);
+    bytes = owned;
+  }
+  layout = read_npy_layout(path, bytes);
+}
+
+std::size_t DirectionSampleReader::Impl::read_npy_rows(std::span<Vec3<double>> out) {
+  const std::size_t n = std::size_t(std::min<std::uint64_t>(out.size(), layout.rows - rows));
+  decode_npy_rows(path, bytes, layout, rows, out.first(n));
+  rows += n;
+  if (map) {  // give back the pages decoded: resident memory stays bounded whatever the file's size
+    const std::size_t page = std::size_t(::sysconf(_SC_PAGESIZE));
+    const std::size_t done = (layout.data_offset + rows * (layout.is_float32 ? 12 : 24)) / page * page;
+    if (done > released + (std::size_t(16) << 20) || rows == layout.rows) {
+      ::madvise(static_cast<char*>(map) + released, done - released, MADV_DONTNEED);
+      released = done;
+    }
+  }
+  return n;
+}
+
+// Parses pending[0, end) (whole lines) into `parsed` and drops it from `pending`.
+void DirectionSampleReader::Impl::parse_pending(std::size_t end) {
+  std::string_view text(pending.data(), end);
+  if (!bom_checked) {
+    if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);  // UTF-8 byte order mark
+    bom_checked = true;
+  }
+  read_text_lines(path, text, line_no, parsed);
+  pending.erase(0, end);
+}
+
+// `pending` holds more than a chunk without a line end: keep memory bounded. A comment is cut (the rest
+// of it is skipped up to the line end), blanks are dropped; anything else is no line of three numbers.
+void DirectionSampleReader::Impl::shorten_long_line() {
+  if (const std::size_t hash = pending.find('#'); hash != std::string::npos) {
+    pending.resize(hash + 1);
+    in_comment = true;
+    return;
+  }
+  if (pending.find_first_not_of(" \t\r\v\f") == std::string::npos) {
+    pending.clear();
+    return;
+  }
+  std::size_t n = line_no;
+  std::vector<Vec3<double>> ignored;
+  read_text_lines(path, pending, n, ignored);  // names the malformed token, as for a shorter line
+  fail(path, "line " + std::to_string(line_no + 1) + ": longer than " + std::to_string(kTextChunk) +
+                 " bytes without a line end (expected three numbers)");
+}
+
+// Reads chunks until some rows are parsed; false at the end of the file.
+bool DirectionSampleReader::Impl::refill_text() {
+  parsed.clear();
+  parsed_pos = 0;
+  chunk.resize(kTextChunk);
+  while (parsed.empty()) {
+    if (eof) return false;
+    const std::size_t k = read_some(chunk.data(), chunk.size());
+    if (k == 0) {
+      eof = true;
+      parse_pending(pending.size());  // the last line, without its '\n'
+      continue;
+    }
+    std::string_view data(chunk.data(), k);
+    if (in_comment) {
+      const std::size_t nl = data.find('\n');
+      if (nl == std::string_view::npos) continue;
+      data.remove_prefix(nl);
+      in_comment = false;
+    }
+    pending.append(data);
+    const std::size_t last = pending.rfind('\n');
+    if (last != std::string::npos) parse_pending(last + 1);
+    else if (pending.size() > kTextChunk) shorten_long_line();
+  }
+  return true;
+}
+
+DirectionSampleReader::DirectionSampleReader(const std::filesystem::path& path) : impl_(std::make_unique<Impl>()) {
+  Impl& m = *impl_;
+  m.path = path;
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) fail(path, "is a directory, not a sample file");
+  m.fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (m.fd < 0) fail(path, "cannot open for reading");
+  struct stat st {};
+  if (::fstat(m.fd, &st) != 0) fail(path, "read error");
+  const bool regular = S_ISREG(st.st_mode);
+  // The first bytes tell NPY from text (pread: a regular file is then mapped from its start).
+  char head[6] = {};
+  std::size_t got = 0;
+  if (regular) {
+    const ssize_t k = ::pread(m.fd, head, sizeof head, 0);
+    if (k < 0) fail(path, "read error");
+    got = std::size_t(k);
+  } else {
+    got = m.read_some(head, sizeof head);
+    m.pending.assign(head, got);
+  }
+  if (got == 0) fail(path, "empty file: no samples");
+  if (std::string_view(head, got) == kNpyMagic) {
+    if (!regular) m.owned.assign(head, got);
+    m.open_npy(regular, std::uint64_t(st.st_size));
+  } else if (path.extension() == ".npy") {
+    fail(path, "not an NPY file (the magic string \\x93NUMPY is missing) although the name ends in .npy");
+  }
+}
+
+DirectionSampleReader::~DirectionSampleReader() = default;
+DirectionSampleReader::DirectionSampleReader(DirectionSampleReader&&) noexcept = default;
+DirectionSampleReader& DirectionSampleReader::operator=(DirectionSampleReader&&) noexcept = default;
+
+const std::filesystem::path& DirectionSampleReader::path() const { return impl_->path; }
+std::uint64_t DirectionSampleReader::rows_read() const { return impl_->rows; }
+
+std::size_t DirectionSampleReader::read(std::span<Vec3<double>> out) {
+  Impl& m = *impl_;
+  if (m.npy) return m.read_npy_rows(out);
+  std::size_t n = 0;
+  while (n < out.size()) {
+    if (m.parsed_pos == m.parsed.size() && !m.refill_text()) break;
+    const std::size_t k = std::min(out.size() - n, m.parsed.size() - m.parsed_pos);
+    std::copy_n(m.parsed.begin() + std::ptrdiff_t(m.parsed_pos), k, out.begin() + std::ptrdiff_t(n));
+    m.parsed_pos += k;
+    n += k;
+  }
+  m.rows += n;
+  if (n == 0 && m.rows == 0) fail(m.path, "empty: no samples (only blank or comment lines)");
+  return n;
+}
+
+std::vector<Vec3<double>> parse_direction_samples(std::string_view bytes, const std::filesystem::path& name) {
+  if (bytes.empty()) fail(name, "empty file: no samples");
+  if (bytes.substr(0, kNpyMagic.size()) == kNpyMagic) {
+    const NpyLayout layout = read_npy_layout(name, bytes);  // rows checked against the bytes present
+    std::vector<Vec3<double>> out(static_cast<std::size_t>(layout.rows));
+    decode_npy_rows(name, bytes, layout, 0, out);
+    return out;
+  }
+  if (name.extension() == ".npy")
+    fail(name, "not an NPY file (the magic string \\x93NUMPY is missing) although the name ends in .npy");
+  if (bytes.substr(0, 3) == "\xEF\xBB\xBF") bytes.remove_prefix(3);  // UTF-8 byte order mark
+  std::vector<Vec3<double>> out;
+  std::size_t line_no = 0;
+  read_text_lines(name, bytes, line_no, out);
+  if (out.empty()) fail(name, "empty: no samples (only blank or comment lines)");
+  return out;
+}
+
+std::vector<Vec3<double>> read_direction_samples(const std::filesystem::path& path) {
+  DirectionSampleReader reader(path);
+  std::vector<Vec3<double>> out, block(kSampleFileBlock);
+  while (const std::size_t n = reader.read(block)) out.insert(out.end(), block.begin(), block.begin() + std::ptrdiff_t(n));
+  return out;
+}
+
+void write_npy(const std::filesystem::path& path, std::span<const Vec3<double>> samples, bool as_float32) {
+  std::string header = "{'descr': '";
+  header += as_float32 ? "<f4" : "<f8";
+  header += "', 'fortran_order': False, 'shape': (" + std::to_string(samples.size()) + ", 3), }";
+  // Pad with spaces so that magic + version + length + header (ending in '\n') is a multiple of 64.
+  const std::size_t prefix = kNpyMagic.size() + 2 + 2;
+  const std::size_t total = (prefix + header.size() + 1 + 63) / 64 * 64;
+  header.append(total - prefix - header.size() - 1, ' ');
+  header.push_back('\n');
+
+  std::string out(kNpyMagic);
+  out.push_back('\x01');
+  out.push_back('\x00');
+  append_le(out, header.size(), 2);
+  out += header;
+  out.reserve(out.size() + samples.size() * 3 * (as_float32 ? 4 : 8));
+  for (const Vec3<double>& w : samples) {
+    for (int c = 0; c < 3; ++c) {
+      if (as_float32)
+        append_le(out, std::bit_cast<std::uint32_t>(static_cast<float>(w[c])), 4);
+      else
+        append_le(out, std::bit_cast<std::uint64_t>(w[c]), 8);
+    }
+  }
+  write_atomically(path, out);
+}
+
+void write_text_samples(const std::filesystem::path& path, std::span<const Vec3<double>> samples) {
+  std::string out = "# microsim direction samples, local z-up frame: x y z (" + std::to_string(samples.size()) +
+                    " rows)\n";
+  for (const Vec3<double>& w : samples)
+    out += format_double(w.x()) + " " + format_double(w.y()) + " " + format_double(w.z()) + "\n";
+  write_atomically(path, out);
+}
+
+}  // namespace microsim

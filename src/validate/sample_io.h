@@ -1,0 +1,90 @@
+// microsim: reading and writing files of sampled directions, for `microsim validate --from FILE` (samples
+// produced by a GLSL/HLSL/CUDA sampler elsewhere) and for dumping microsim's own samples.
+//
+// Formats (docs/analytic.md, "Sample files"):
+// - NPY (NumPy format versions 1.0, 2.0 and 3.0; https://numpy.org/doc/stable/reference/generated/
+//   numpy.lib.format.html): dtype '<f4' or '<f8' (little-endian float32/float64), fortran_order False,
+//   shape (N, 3). Recognised by its magic string "\x93NUMPY", whatever the file name.
+// - Text: three numbers per line separated by whitespace and/or single commas; '#' starts a comment that
+//   runs to the end of the line; blank lines are ignored; CRLF line ends and a UTF-8 byte order mark
+//   are accepted.
+//
+// Each row is a unit direction in the local z-up frame. A row whose length differs from 1 by more than
+// the tolerance of its storage precision (below) is rejected: such a file almost certainly holds
+// something else (unnormalised half vectors, a pdf column, the wrong array). Accepted rows are
+// renormalised in double, so callers always receive unit vectors.
+//
+// Every problem throws SampleFileError with a message that names the file and the 1-based line (text)
+// or the 0-based row index (NPY) of the problem.
+#pragma once
+
+#include "core/math.h"
+
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <span>
+#include <stdexcept>
+#include <string_view>
+#include <vector>
+
+namespace microsim {
+
+struct SampleFileError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// Accepted | |w| - 1 | per storage precision. float64 NPY: 1e-6 admits float32 data widened to float64
+// (float32 rounding of a normalised vector moves its length by at most ~2e-7, a few-ULP GPU rsqrt by
+// a few 1e-7 more). float32 NPY: 1e-5 (= 84 ULP of 1.0f) also admits GPU approximate reciprocal square
+// roots. Text: 1e-4 admits numbers printed with 4 decimals (rounding 5e-5 per component moves the
+// length by at most ~8.7e-5). All are orders of magnitude below any genuine mistake.
+inline constexpr double kUnitLengthToleranceFloat64 = 1e-6;
+inline constexpr double kUnitLengthToleranceFloat32 = 1e-5;
+inline constexpr double kUnitLengthToleranceText = 1e-4;
+
+// Reads a sample file (NPY or text, as above) in blocks of rows, in memory bounded whatever its size: an
+// NPY file through a read-only memory map whose pages are given back once decoded, text in chunks of
+// 1 MiB, whole lines at a time (a line may be at most 1 MiB long, a comment excepted). The same checks
+// and messages as read_direction_samples, which reads through it; a bad row throws when it is reached.
+class DirectionSampleReader {
+public:
+  explicit DirectionSampleReader(const std::filesystem::path& path);  // opens; checks an NPY header
+  ~DirectionSampleReader();
+  DirectionSampleReader(DirectionSampleReader&&) noexcept;
+  DirectionSampleReader& operator=(DirectionSampleReader&&) noexcept;
+
+  // Fills `out` with the next rows, up to out.size(); returns how many (fewer only at the end, 0 after
+  // it). Throws SampleFileError on a bad row, and at the end of a file that held no sample at all.
+  std::size_t read(std::span<Vec3<double>> out);
+  std::uint64_t rows_read() const;
+  const std::filesystem::path& path() const;
+
+private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Rows per read of read_direction_samples (and a good block size for DirectionSampleReader::read).
+inline constexpr std::size_t kSampleFileBlock = std::size_t(1) << 16;
+
+// Reads sampled directions from an NPY or text file (see above). Throws SampleFileError on a file that
+// cannot be opened, a malformed line, a wrong column count, a non-finite value, a vector far from unit
+// length, an unsupported NPY version/dtype/order/shape, truncated or trailing data, or no samples at all.
+std::vector<Vec3<double>> read_direction_samples(const std::filesystem::path& path);
+// The same for the bytes of a file in memory (the fuzz target's entry point); `name` stands for the path
+// in messages, and its extension .npy demands the NPY magic as for a file.
+std::vector<Vec3<double>> parse_direction_samples(std::string_view bytes, const std::filesystem::path& name);
+
+// Writes an NPY version 1.0 file with dtype '<f4' (as_float32) or '<f8' and shape (N, 3), C order.
+// Written to a temporary file in the same directory and renamed, so nothing is ever half-written.
+// Throws SampleFileError on an I/O error.
+void write_npy(const std::filesystem::path& path, std::span<const Vec3<double>> samples, bool as_float32);
+
+// Writes a text file: a '#' comment header, then one "x y z" line per sample with the shortest decimal
+// representation that reads back to the same double (exact round trip). Same temp-file-and-rename
+// discipline and errors as write_npy.
+void write_text_samples(const std::filesystem::path& path, std::span<const Vec3<double>> samples);
+
+}  // namespace microsim

@@ -1,0 +1,220 @@
+// microsim: the statistical validator of direction samplers (issue 2, section 4; docs/validation.md).
+//
+// One validation draws N samples (or takes them from a file) for one configuration (alpha, view wi)
+// and runs, in one report:
+//  1. chi-square goodness of fit in equal-area SPHERE bins (DirectionBinning::sphere);
+//  2. chi-square goodness of fit in LOBE bins (DirectionBinning::lobe: the Heitz 2018 hemisphere
+//     configuration), which keeps its power at small alpha where the sphere bins see one cell;
+//  3. E[weight] against the projected area |wi.z| / G1(wi) (microfacet-normal samplers that return a
+//     pdf): weight = D(m) <wi, m>+ / pdf(m) has that mean for ANY correct sampler of normals whose pdf
+//     covers the visible normals; z-test with the sample standard error;
+// and the hard checks: no sample outside the domain (non-finite, or |w| off 1 by more than
+// unit_tolerance), the claimed pdf's integral over the sphere at most 1 + integral_tolerance, the pdf
+// returned with each sample equal to the claimed analytic pdf within pdf_tolerance (relative).
+// The verdict combines the statistical tests (1-3) with the Sidak correction at the family-wise level
+// `significance`; any failed hard check fails the validation.
+//
+// Expected counts come from adaptive cubature of the claimed pdf over each bin (binning.h); a sampler
+// that fails (returns nothing) is counted in a remainder cell whose expected probability is the mass
+// the claimed pdf leaves outside the bins (1 - the bins' total).
+//
+// Reproducible: sample i uses CounterRng(seed, i) (two uniforms), whatever the thread count.
+#pragma once
+
+#include "stats/binning.h"
+#include "stats/chi2.h"
+#include "stats/figure.h"
+#include "microfacet/ggx.h"
+#include "microfacet/samplers.h"
+
+#include <nlohmann/json_fwd.hpp>
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace microsim {
+
+enum class Precision { float32, float64 };
+
+// Default relative pdf tolerances (returned vs analytic pdf, per sample, |a - b| / max(a, b)): double
+// samplers agree to ~1e-12; float samplers lose up to ~1e-4 at alpha = 1e-3 where D varies by
+// 4 theta dtheta / alpha^2 across a float ULP of the direction (see docs/validation.md).
+inline constexpr double kPdfToleranceDouble = 1e-6;
+inline constexpr double kPdfToleranceFloat = 1e-2;
+
+struct ValidationOptions {
+  std::uint64_t samples = 1'000'000;
+  std::uint64_t seed = 1;
+  int rows = 31;               // rows of both binnings (odd); cols = 2 rows
+  double significance = 0.01;  // family-wise level of the verdict
+  Precision precision = Precision::float64;
+  int worst_cells = 8;
+  double pdf_tolerance = 0;            // 0: kPdfToleranceDouble / kPdfToleranceFloat by precision
+  // A sample fails the returned-pdf check when its relative error exceeds pdf_tolerance plus twice the
+  // relative change of the claimed pdf under a perturbation of the stored vector by its rounding (2^-23
+  // in float, 2^-52 in double; a rotation along either tangent or a change of its length): float
+  // rounding alone can carry a sample across a jump of the claimed pdf (the bounded sampler's cap edge)
+  // or move D by percents at alpha = 1e-3 when the half vector of two nearly opposite grazing
+  // directions is recomputed; in double, the lengths of wi and wo off 1 by an ulp move D by 5e-6 at
+  // alpha = 1e-4, theta = 89.99 deg (validate.cpp, rounding_sensitivity). Fraction allowed to fail: 0.
+  double pdf_outlier_fraction = 0;
+  double integral_tolerance = 1e-5;    // the claimed pdf may integrate to at most 1 + this
+  double unit_tolerance = 1e-5;        // samples with | |w| - 1 | above this are outside the domain
+  // Relative floor of the weight test's standard error (rounding of pdf and D, not statistics):
+  // 0 means 1e-9 in double, 1e-5 in float.
+  double weight_rounding = 0;
+  bool progress = false;  // a progress bar on stderr while sampling
+};
+
+// The claimed distribution of one configuration and its bin probabilities (expensive: adaptive
+// cubature over two binnings; share it between samplers that claim the same pdf).
+struct ReferenceDistribution {
+  SampleDomain domain;
+  GGX<double> ggx;
+  Vec3<double> wi;
+  std::function<double(const Vec3<double>&)> pdf;  // per unit solid angle of the sample direction
+  DirectionBinning sphere;
+  DirectionBinning lobe;
+  BinIntegrals sphere_probability;
+  BinIntegrals lobe_probability;
+};
+
+// `breaks`: functions of the direction whose zero sets are curves where the pdf jumps (see
+// IntegrationOptions::breaks); the curves where every pdf of the zoo jumps or kinks (the horizon of
+// the half vector, the visibility boundary wi . m = 0) are added automatically.
+using DirectionFunction = std::function<double(const Vec3<double>&)>;
+std::shared_ptr<const ReferenceDistribution> prepare_reference(DirectionFunction pdf, SampleDomain domain,
+                                                               const GGX<double>& ggx, const Vec3<double>& wi, int rows,
+                                                               std::vector<DirectionFunction> breaks = {});
+// The reference a sampler claims (its claimed_pdf), and the analytic VNDF reference of a domain:
+// D_v(wi, m) for normals, GGX::visible_reflection_pdf(wi, wo) for reflected directions.
+std::shared_ptr<const ReferenceDistribution> claimed_reference(const SamplerInfo& sampler, const GGX<double>& ggx,
+                                                               const Vec3<double>& wi, int rows);
+std::shared_ptr<const ReferenceDistribution> vndf_reference(SampleDomain domain, const GGX<double>& ggx,
+                                                            const Vec3<double>& wi, int rows);
+
+// A deterministic check or a statistical test of the report.
+struct SubTest {
+  std::string name;
+  bool applicable = true;
+  bool statistical = false;  // enters the Sidak combination
+  bool passed = true;
+  double p_value = 1;        // statistical tests only
+  double value = 0;          // the measured quantity (see detail)
+  double tolerance = 0;      // its bound (hard checks)
+  std::string detail;
+};
+
+struct ValidationReport {
+  std::string sampler;  // sampler name, or the source of the samples
+  SampleDomain domain = SampleDomain::microfacet_normal;
+  double alpha_x = 0, alpha_y = 0;
+  Vec3<double> wi = Vec3<double>(0, 0, 1);
+  std::uint64_t samples = 0, seed = 0;
+  Precision precision = Precision::float64;
+  std::uint64_t failed_samples = 0;   // sampler returned nothing
+  std::uint64_t outside_domain = 0;   // non-finite or non-unit samples
+
+  ChiSquareResult sphere;   // chi-square in sphere bins
+  ChiSquareResult lobe;     // chi-square in lobe bins
+  SubTest weight;           // E[weight] vs |wi.z| / G1
+  SubTest pdf;              // returned vs claimed pdf
+  SubTest integral;         // claimed pdf integral <= 1 + tol
+  SubTest domain_check;     // samples inside the domain
+
+  int statistical_tests = 0;
+  double per_test_significance = 0;  // Sidak level of each statistical test
+  double significance = 0.01;        // family-wise level
+  double p_value = 1;                // Sidak-adjusted smallest p of the statistical tests
+  double statistic = 0;              // of the chi-square test with the smallest p
+  int dof = 0;
+  bool passed = false;
+  std::vector<std::string> failures;  // why it failed (empty when passed)
+  double seconds = 0;
+  // The binned counts behind the two chi-square tests (sphere, then lobe; bins only, without the
+  // remainder cell), for figures (figure.h): expected = samples x the reference's bin probability, or,
+  // against a traced oracle, the oracle's counts rescaled to the samples' total (then the figure's
+  // residual ignores the oracle's own noise: trace many more rays than samples for a fair picture).
+  std::vector<BinnedComparison> histograms;
+};
+
+// ---- samples in blocks ------------------------------------------------------------------------------
+// A validation streams its samples: each block is drawn (or read), binned and checked, then dropped, so
+// that memory does not grow with the number of samples. Block b holds samples [b kSampleBlock,
+// (b + 1) kSampleBlock); per-block partial sums are combined in block order, so every floating-point
+// result is independent of the thread count and of how the blocks were produced.
+inline constexpr std::uint64_t kSampleBlock = std::uint64_t(1) << 16;
+inline constexpr std::size_t kChunkBlocks = 16;  // blocks processed concurrently (then reduced in order)
+
+struct SampleBlockView {
+  std::uint64_t first = 0;                  // index of its first sample
+  std::span<const Vec3<double>> directions;
+  std::span<const double> pdfs;             // returned pdfs; empty when the samples came without one
+  std::span<const std::uint8_t> valid;      // 0 where the sampler returned nothing; empty: all valid
+};
+// visit(block, slot) runs concurrently for the blocks of a chunk (slot: the block's place in its chunk,
+// < kChunkBlocks); chunk_done(blocks) runs after each chunk, in order, on the calling thread.
+using SampleBlockVisitor = std::function<void(const SampleBlockView& block, std::size_t slot)>;
+using ChunkDone = std::function<void(std::size_t blocks)>;
+
+// Samples as every validation draws them (validate_sampler, and compare.h against the traced oracle):
+// sample i from CounterRng(options.seed, i), two uniforms, in the sampler's float or double version
+// (options.precision), options.samples of them; identical whatever the thread count.
+void for_each_drawn_block(const SamplerInfo& sampler, const GGX<double>& ggx, const Vec3<double>& wi,
+                          const ValidationOptions& options, const SampleBlockVisitor& visit,
+                          const ChunkDone& chunk_done = {});
+// Samples from elsewhere: a span, or a file read block by block (sample_io.h); all valid, no pdfs.
+void for_each_block(std::span<const Vec3<double>> samples, const SampleBlockVisitor& visit,
+                    const ChunkDone& chunk_done = {});
+class DirectionSampleReader;
+void for_each_block(DirectionSampleReader& reader, const SampleBlockVisitor& visit, const ChunkDone& chunk_done = {});
+
+// The drawn samples held in memory (for a dump; validations stream them instead).
+struct SampleSet {
+  std::vector<Vec3<double>> directions;
+  std::vector<double> pdfs;         // returned pdfs; empty when the samples came without one
+  std::vector<std::uint8_t> valid;  // 0 where the sampler returned nothing
+  // Samples from elsewhere (a file): all valid, no pdfs.
+  static SampleSet from_directions(std::span<const Vec3<double>> directions);
+};
+SampleSet draw_samples(const SamplerInfo& sampler, const GGX<double>& ggx, const Vec3<double>& wi,
+                       const ValidationOptions& options);
+
+// ---- how many samples a validation needs ------------------------------------------------------------
+// Too few samples for a test is never a pass. Each chi-square test of a validation (sphere and lobe
+// bins, each with its remainder cell) must be able to reject: after pooling it needs two cells, which
+// takes goodness_of_fit_minimum_samples(probabilities) samples (chi2.h: the largest cell and the rest
+// must both expect >= 5). The validation needs the larger of the two; fewer throw InsufficientData,
+// saying how many were given and how many are needed (at least minimum_samples_for_any_test() = 10).
+std::uint64_t minimum_samples(const ReferenceDistribution& reference);
+// Throws InsufficientData when `given` < minimum_samples(reference).
+void require_samples(std::uint64_t given, const ReferenceDistribution& reference);
+// Throws InsufficientData when `given` is below the bound of any binning (10): checkable before any work.
+void require_samples_for_any_test(std::uint64_t given);
+
+// Draws options.samples samples from the sampler (float or double version) and validates them
+// against the pdf the sampler claims (reference: claimed_reference unless given). Throws
+// InsufficientData before drawing when options.samples is too few.
+ValidationReport validate_sampler(const SamplerInfo& sampler, const GGX<double>& ggx, const Vec3<double>& wi,
+                                  const ValidationOptions& options,
+                                  std::shared_ptr<const ReferenceDistribution> reference = nullptr);
+
+// Validates samples produced elsewhere against the analytic VNDF of `domain` (or the reference given).
+// No returned pdf: the pdf and weight tests are not applicable. The file version streams the file
+// (SampleFileError on a bad row; InsufficientData at its end when it held too few rows).
+ValidationReport validate_samples(std::span<const Vec3<double>> samples, SampleDomain domain, const GGX<double>& ggx,
+                                  const Vec3<double>& wi, const ValidationOptions& options,
+                                  std::shared_ptr<const ReferenceDistribution> reference = nullptr);
+ValidationReport validate_sample_file(DirectionSampleReader& reader, SampleDomain domain, const GGX<double>& ggx,
+                                      const Vec3<double>& wi, const ValidationOptions& options,
+                                      std::shared_ptr<const ReferenceDistribution> reference = nullptr);
+
+std::string to_string(Precision precision);
+nlohmann::json to_json(const SubTest& test);
+nlohmann::json to_json(const ValidationReport& report);
+
+}  // namespace microsim
