@@ -12,7 +12,7 @@
 
 #include "validate/compare.h"
 #include "stats/histogram_io.h"
-#include "core/progress.h"
+#include "progress_bar.h"
 #include "trace/trace_vndf.h"
 
 #include <fmt/core.h>
@@ -103,9 +103,10 @@ int run_trace_vndf(const TraceVndfArgs& a) {
   ms::TraceOptions options;
   options.rays = std::uint64_t(a.rays);
   options.seed = a.seed;
-  options.threads = a.threads;
-  options.progress = true;
+  const auto progress = std::make_shared<ms::CliProgress>(true);
+  options.run = ms::cli_run_control(a.threads, progress);
   const ms::TraceResult r = ms::trace_vndf(target, wi, h.binnings, options);
+  progress->finish();
   h.counts = r.counts;
   h.rays = r.rays;
   h.hits = r.hits;

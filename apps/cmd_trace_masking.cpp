@@ -23,7 +23,7 @@
 #include "microgeom/heightfield.h"
 #include "stats/histogram_io.h"
 #include "trace/masking.h"
-#include "core/progress.h"
+#include "progress_bar.h"
 
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
@@ -234,12 +234,14 @@ int run_masking(const MaskingArgs& a) {
   MaskingOptions opts;
   opts.samples = std::uint64_t(a.samples);
   opts.seed = a.seed;
-  opts.threads = a.threads;
+  const auto progress = std::make_shared<CliProgress>(true);
+  opts.run = cli_run_control(a.threads, progress);
   opts.normal_bins = opts.height_bins = a.bins;
   opts.cone_deg = a.cone;
   opts.grazing_share = a.grazing_share;
   if (a.theta_l) opts.light = direction_from_degrees(*a.theta_l, a.phi_l);
   const MaskingResult r = estimate_masking(scene, analytic, empirical, v, opts);
+  progress->finish();
 
   nlohmann::json j;
   j["surface"] = surface_json(field, a.surface, analytic, source);
@@ -264,9 +266,10 @@ int run_masking(const MaskingArgs& a) {
     TraceOptions to;
     to.rays = std::uint64_t(a.vndf_rays);
     to.seed = a.seed;
-    to.threads = a.threads;
+    to.run = opts.run;
     HeightfieldVndfDiagnostics diag;
     vndf = trace_vndf_heightfield(scene, v, binnings, to, &diag);
+    progress->finish();
     nlohmann::json jv;
     jv["rays"] = vndf->rays;
     jv["hits"] = vndf->hits;
@@ -488,7 +491,7 @@ int run_table(const MaskingArgs& a) {
           TraceOptions to;
           to.rays = std::uint64_t(a.table_vndf_rays);
           to.seed = seed;
-          to.progress = false;
+          to.run = cli_run_control(a.threads, nullptr);
           const TraceResult tres = trace_vndf_heightfield(scene, v, binnings, to);
           TableRow row;
           row.assembly = name;
@@ -499,7 +502,7 @@ int run_table(const MaskingArgs& a) {
           MaskingOptions mo;
           mo.samples = std::uint64_t(a.samples);
           mo.seed = seed;
-          mo.progress = false;
+          mo.run = cli_run_control(a.threads, nullptr);
           mo.grazing_share = a.grazing_share;
           // The specular pair: l = v mirrored through the mean normal, facets within the cone around z.
           mo.light = Vec3<double>(-v.x(), -v.y(), v.z());
@@ -632,9 +635,11 @@ int run_trace_vndf_heightfield(const std::string& surface, std::optional<double>
   TraceOptions options;
   options.rays = std::uint64_t(rays);
   options.seed = seed;
-  options.threads = threads;
+  const auto progress = std::make_shared<CliProgress>(true);
+  options.run = cli_run_control(threads, progress);
   HeightfieldVndfDiagnostics diag;
   const TraceResult r = trace_vndf_heightfield(scene, wi, h.binnings, options, &diag);
+  progress->finish();
   if (r.partial) fmt::print(stderr, "trace vndf: interrupted after {} of {} rays; writing a partial histogram\n", r.rays, rays);
   h.counts = r.counts;
   h.rays = r.rays;

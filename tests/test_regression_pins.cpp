@@ -31,6 +31,8 @@ struct PinCase {
   std::vector<std::string> exr_files;
 };
 
+void PrintTo(const PinCase& c, std::ostream* os) { *os << c.name; }
+
 // Keys that measure the machine (times, rates, memory), name paths, or count threads.
 bool is_volatile_key(const std::string& key) {
   static const std::set<std::string> named = {"threads", "output", "path", "command", "outputs", "markdown"};
