@@ -156,7 +156,8 @@ VndfComparison compare_vndf(const std::vector<std::uint64_t>& counts, std::uint6
 
 namespace {
 
-// Sums for a ratio estimator R = sum y / sum x.
+// Sums for a ratio estimator R = sum y / sum x, in double: over one block's samples (then added exactly to
+// RatioTotals), or the totals rounded once for the estimators.
 struct RatioSums {
   double x = 0, y = 0, xx = 0, yy = 0, xy = 0;
   std::uint64_t n = 0;  // samples with x > 0
@@ -167,10 +168,6 @@ struct RatioSums {
     yy += yi * yi;
     xy += xi * yi;
     ++n;
-  }
-  void merge(const RatioSums& o) {
-    x += o.x, y += o.y, xx += o.xx, yy += o.yy, xy += o.xy;
-    n += o.n;
   }
   double ratio() const { return x > 0 ? y / x : 0.0; }
   // sum over samples of (y - R x)^2
@@ -210,15 +207,6 @@ struct G2Sums {
   RatioSums measured;                   // (w, w V V)
   RatioSums vs_analytic, vs_empirical;  // (w G2_smith, w V V)
   double pred_analytic = 0, pred_empirical = 0, sep_analytic = 0, sep_empirical = 0;  // sum of w * prediction
-  void merge(const G2Sums& o) {
-    measured.merge(o.measured);
-    vs_analytic.merge(o.vs_analytic);
-    vs_empirical.merge(o.vs_empirical);
-    pred_analytic += o.pred_analytic;
-    pred_empirical += o.pred_empirical;
-    sep_analytic += o.sep_analytic;
-    sep_empirical += o.sep_empirical;
-  }
   // One sample of weight w whose pair is visible (y2 = w) or not (y2 = 0), with Smith's G2 predictions
   // g2_a, g2_e and the separable ones sep_a, sep_e for its configuration.
   void add(double w, double y2, double g2_a, double g2_e, double sep_a, double sep_e) {
@@ -653,40 +641,84 @@ BlockSums sample_masking_block(const SamplingContext& c, std::uint64_t block) {
 }
 
 // ---- adding block sums --------------------------------------------------------------------------------------
+// A block's double sums enter the totals exactly: the totals of any grouping of blocks are the same bits.
 
-void add_block_sums(BlockSums& total, const BlockSums& bs) {
+void add_exact(RatioTotals& t, const RatioSums& s) {
+  t.n += s.n;
+  t.x.add(s.x);
+  t.y.add(s.y);
+  t.xx.add(s.xx);
+  t.yy.add(s.yy);
+  t.xy.add(s.xy);
+}
+
+void add_exact(G2Totals& t, const G2Sums& s) {
+  add_exact(t.measured, s.measured);
+  add_exact(t.vs_analytic, s.vs_analytic);
+  add_exact(t.vs_empirical, s.vs_empirical);
+  t.pred_analytic.add(s.pred_analytic);
+  t.pred_empirical.add(s.pred_empirical);
+  t.sep_analytic.add(s.sep_analytic);
+  t.sep_empirical.add(s.sep_empirical);
+}
+
+void add_block_sums(MaskingSums& total, const BlockSums& bs) {
   total.samples += bs.samples;
   total.front += bs.front;
   total.rays += bs.rays;
   total.leaked += bs.leaked;
   total.unresolved += bs.unresolved;
-  total.leak_y += bs.leak_y;
-  total.leak_yy += bs.leak_yy;
-  total.g1.merge(bs.g1);
-  for (std::size_t b = 0; b < total.normal.size(); ++b) total.normal[b].merge(bs.normal[b]);
-  total.near_grazing.merge(bs.near_grazing);
+  total.leak_y.add(bs.leak_y);
+  total.leak_yy.add(bs.leak_yy);
+  add_exact(total.g1, bs.g1);
+  for (std::size_t b = 0; b < total.normal.size(); ++b) add_exact(total.normal[b], bs.normal[b]);
+  add_exact(total.near_grazing, bs.near_grazing);
   for (std::size_t b = 0; b < total.height.size(); ++b) {
-    total.height[b].merge(bs.height[b]);
-    total.height_pred_analytic[b] += bs.height_pred_analytic[b];
-    total.height_pred_empirical[b] += bs.height_pred_empirical[b];
+    add_exact(total.height[b], bs.height[b]);
+    total.height_pred_analytic[b].add(bs.height_pred_analytic[b]);
+    total.height_pred_empirical[b].add(bs.height_pred_empirical[b]);
   }
-  total.mirror.merge(bs.mirror);
-  total.pair.merge(bs.pair);
-  total.cone.merge(bs.cone);
+  add_exact(total.mirror, bs.mirror);
+  add_exact(total.pair, bs.pair);
+  add_exact(total.cone, bs.cone);
 }
 
 // ---- from total sums to the result --------------------------------------------------------------------------
 
+// The totals, each rounded once to double, for the estimators.
+RatioSums rounded(const RatioTotals& t) {
+  RatioSums s;
+  s.x = t.x.value();
+  s.y = t.y.value();
+  s.xx = t.xx.value();
+  s.yy = t.yy.value();
+  s.xy = t.xy.value();
+  s.n = t.n;
+  return s;
+}
+
+G2Result g2_result(const G2Totals& t) {
+  G2Sums s;
+  s.measured = rounded(t.measured);
+  s.vs_analytic = rounded(t.vs_analytic);
+  s.vs_empirical = rounded(t.vs_empirical);
+  s.pred_analytic = t.pred_analytic.value();
+  s.pred_empirical = t.pred_empirical.value();
+  s.sep_analytic = t.sep_analytic.value();
+  s.sep_empirical = t.sep_empirical.value();
+  return s.result();
+}
+
 // E[w V] / v_z: with projected sampling G1 A(v) / v_z; with uniform sampling the sample mean of w V / v_z.
-Estimate leak_ratio(const MaskingView& view, const BlockSums& total, const Estimate& g1) {
+Estimate leak_ratio(const MaskingView& view, const MaskingSums& total, const Estimate& g1) {
   if (view.projected) {
     const double scale = view.projected_area / view.v.z();
     return {g1.value * scale, g1.se * scale};
   }
   if (total.samples <= 1) return {};
   const double ns = double(total.samples);
-  const double mean = total.leak_y / ns;
-  const double var = std::max(total.leak_yy / ns - mean * mean, 0.0) / (ns - 1.0);
+  const double mean = total.leak_y.value() / ns;
+  const double var = std::max(total.leak_yy.value() / ns - mean * mean, 0.0) / (ns - 1.0);
   return {mean / view.v.z(), std::sqrt(var) / view.v.z()};
 }
 
@@ -703,36 +735,40 @@ ConditionalBin conditional_bin(const RatioSums& s, const RatioSums& all, double 
 }
 
 // G1(v | m) per bin of <v, m> and over the near-grazing class; Smith: G1(v) for every front-facing m.
-void add_normal_bins(MaskingResult& result, const MaskingView& view, const BlockSums& total) {
+void add_normal_bins(MaskingResult& result, const MaskingView& view, const MaskingSums& total) {
+  const RatioSums all = rounded(total.g1);
   for (int b = 0; b < view.kn; ++b) {
     const std::size_t k = std::size_t(b);
-    ConditionalBin cb = conditional_bin(total.normal[k], total.g1, view.nedges[k], view.nedges[k + 1], view.nshares[k]);
+    ConditionalBin cb = conditional_bin(rounded(total.normal[k]), all, view.nedges[k], view.nedges[k + 1], view.nshares[k]);
     cb.smith_analytic = view.g1a_v;
     cb.smith_empirical = view.g1e_v;
     result.by_normal.push_back(cb);
   }
-  result.near_grazing = conditional_bin(total.near_grazing, total.g1, 0.0, view.grazing_edge, view.grazing_share);
+  result.near_grazing = conditional_bin(rounded(total.near_grazing), all, 0.0, view.grazing_edge, view.grazing_share);
   result.near_grazing.smith_analytic = view.g1a_v;
   result.near_grazing.smith_empirical = view.g1e_v;
 }
 
 // G1(v | h) per height bin; Smith: the sampled mean of C1(h)^Lambda(v) over the bin.
-void add_height_bins(MaskingResult& result, const MaskingView& view, const BlockSums& total) {
+void add_height_bins(MaskingResult& result, const MaskingView& view, const MaskingSums& total) {
+  const RatioSums all = rounded(total.g1);
   for (int b = 0; b < view.kh; ++b) {
     const std::size_t k = std::size_t(b);
-    const RatioSums& s = total.height[k];
-    const double share = total.g1.x > 0 ? s.x / total.g1.x : 0.0;
-    ConditionalBin cb = conditional_bin(s, total.g1, view.hedges[k], view.hedges[k + 1], share);
+    const RatioSums s = rounded(total.height[k]);
+    const double share = all.x > 0 ? s.x / all.x : 0.0;
+    ConditionalBin cb = conditional_bin(s, all, view.hedges[k], view.hedges[k + 1], share);
     if (s.x > 0) {
-      cb.smith_analytic = total.height_pred_analytic[k] / s.x;
-      cb.smith_empirical = total.height_pred_empirical[k] / s.x;
+      cb.smith_analytic = total.height_pred_analytic[k].value() / s.x;
+      cb.smith_empirical = total.height_pred_empirical[k].value() / s.x;
     }
     result.by_height.push_back(cb);
   }
 }
 
 // The estimates of a view from its total sums.
-MaskingResult masking_result(const MaskingView& view, const MaskingOptions& options, const BlockSums& total) {
+MaskingResult masking_result(const MaskingView& view, const MaskingOptions& options, const MaskingSums& total) {
+  if (total.normal.size() != std::size_t(view.kn) || total.height.size() != std::size_t(view.kh))
+    throw std::invalid_argument("masking_result_from_sums: the sums' bins are not the options' bins");
   MaskingResult result;
   result.v = view.v;
   result.sampling = options.sampling;
@@ -748,19 +784,80 @@ MaskingResult masking_result(const MaskingView& view, const MaskingOptions& opti
   result.rays = total.rays;
   result.leaked = total.leaked;
   result.unresolved = total.unresolved;
-  result.g1 = total.g1.proportion();
+  result.g1 = rounded(total.g1).proportion();
   result.leak_ratio = leak_ratio(view, total, result.g1);
   add_normal_bins(result, view, total);
   add_height_bins(result, view, total);
-  if (view.mirror) result.mirror = total.mirror.result();
+  if (view.mirror) result.mirror = g2_result(total.mirror);
   if (view.light) {
-    result.pair = total.pair.result();
-    result.pair_cone = total.cone.result();
+    result.pair = g2_result(total.pair);
+    result.pair_cone = g2_result(total.cone);
   }
+  result.sums = total;
   return result;
 }
 
 }  // namespace
+
+// ---- exact sums ---------------------------------------------------------------------------------------------
+
+RatioTotals& RatioTotals::operator+=(const RatioTotals& o) {
+  n += o.n;
+  x += o.x;
+  y += o.y;
+  xx += o.xx;
+  yy += o.yy;
+  xy += o.xy;
+  return *this;
+}
+
+G2Totals& G2Totals::operator+=(const G2Totals& o) {
+  measured += o.measured;
+  vs_analytic += o.vs_analytic;
+  vs_empirical += o.vs_empirical;
+  pred_analytic += o.pred_analytic;
+  pred_empirical += o.pred_empirical;
+  sep_analytic += o.sep_analytic;
+  sep_empirical += o.sep_empirical;
+  return *this;
+}
+
+MaskingSums MaskingSums::empty(int normal_bins, int height_bins) {
+  MaskingSums s;
+  s.normal.assign(std::size_t(normal_bins), {});
+  s.height.assign(std::size_t(height_bins), {});
+  s.height_pred_analytic.assign(std::size_t(height_bins), {});
+  s.height_pred_empirical.assign(std::size_t(height_bins), {});
+  return s;
+}
+
+MaskingSums& MaskingSums::operator+=(const MaskingSums& o) {
+  if (o.normal.size() != normal.size() || o.height.size() != height.size() ||
+      o.height_pred_analytic.size() != height.size() || o.height_pred_empirical.size() != height.size() ||
+      height_pred_analytic.size() != height.size() || height_pred_empirical.size() != height.size())
+    throw std::invalid_argument("MaskingSums: sums of different bins");
+  samples += o.samples;
+  front += o.front;
+  rays += o.rays;
+  leaked += o.leaked;
+  unresolved += o.unresolved;
+  leak_y += o.leak_y;
+  leak_yy += o.leak_yy;
+  g1 += o.g1;
+  near_grazing += o.near_grazing;
+  for (std::size_t b = 0; b < normal.size(); ++b) normal[b] += o.normal[b];
+  for (std::size_t b = 0; b < height.size(); ++b) {
+    height[b] += o.height[b];
+    height_pred_analytic[b] += o.height_pred_analytic[b];
+    height_pred_empirical[b] += o.height_pred_empirical[b];
+  }
+  mirror += o.mirror;
+  pair += o.pair;
+  cone += o.cone;
+  return *this;
+}
+
+// ---- the estimate -------------------------------------------------------------------------------------------
 
 MaskingResult estimate_masking(const HeightfieldScene& scene, const AnalyticSmith& analytic,
                                const EmpiricalSmith& empirical, const Vec3<double>& v, const MaskingOptions& options) {
@@ -772,7 +869,7 @@ MaskingResult estimate_masking(const HeightfieldScene& scene, const AnalyticSmit
   if (view.mirror) empirical.Lambda_tabulated(view.v);  // build the tables before the parallel loop
   const BlockPlan plan{options.samples, kSamplesPerBlock};
   const SamplingContext context{scene, analytic, empirical, view, sampler.get(), plan, options.seed};
-  BlockSums total = empty_block_sums(view.kn, view.kh);
+  MaskingSums total = MaskingSums::empty(view.kn, view.kh);
   const auto start = std::chrono::steady_clock::now();
   const BlockRunStatus status = for_each_block(
       selected_blocks(plan, options.blocks), options.run, {"trace masking", plan},
@@ -784,6 +881,16 @@ MaskingResult estimate_masking(const HeightfieldScene& scene, const AnalyticSmit
   result.blocks = status.done;
   result.total_blocks = plan.blocks();
   result.partial = status.cancelled;
+  return result;
+}
+
+MaskingResult masking_result_from_sums(const microgeom::Heightfield& field, const AnalyticSmith& analytic,
+                                       const EmpiricalSmith& empirical, const Vec3<double>& v,
+                                       const MaskingOptions& options, const MaskingSums& sums, const BlockRange& blocks) {
+  const MaskingView view = masking_view(field, analytic, empirical, v, options, nullptr);
+  MaskingResult result = masking_result(view, options, sums);
+  result.blocks = blocks;
+  result.total_blocks = BlockPlan{options.samples, kSamplesPerBlock}.blocks();
   return result;
 }
 
