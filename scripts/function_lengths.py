@@ -23,6 +23,7 @@ import argparse
 import json
 import os
 import re
+import signal
 import sys
 
 DEFAULT_DIRS = ("src", "microgeom", "apps")
@@ -463,6 +464,7 @@ def print_report(functions, list_all):
 
 
 def main(argv):
+    signal.signal(signal.SIGPIPE, signal.SIG_DFL)  # `| head` ends the listing quietly
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("paths", nargs="*", help="files or folders (default: src microgeom apps)")
     parser.add_argument("--root", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."),
