@@ -76,7 +76,8 @@ struct IntegrationOptions {
   std::vector<double> z_breaks;
   // Functions of the direction whose zero set is a curve where the pdf jumps (or has a kink), e.g. the
   // boundary of a sampler's support: on every theta line of a cell where one changes sign, the line is
-  // integrated piecewise between the roots (bisection), so the jump no longer costs refinement.
+  // integrated piecewise between the roots (TOMS 748, Alefeld, Potra & Shi 1995), so the jump no longer
+  // costs refinement.
   std::vector<std::function<double(const Vec3<double>&)>> breaks;
   // Second pass, for lobes the first one cannot resolve (issue 8, defect 9: alpha 1e-4 seen at 89.99 deg,
   // reflected directions, where the lobe is a wedge 1e-4 long and alpha |wi + wo| wide ending at -wi).

@@ -8,6 +8,7 @@
 
 #include <boost/math/quadrature/gauss.hpp>
 #include <boost/math/quadrature/gauss_kronrod.hpp>
+#include <boost/math/tools/toms748_solve.hpp>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -322,28 +323,18 @@ int BinCubature::break_grid(const Cell& c, bool theta_inner, std::vector<double>
 }
 
 // The root of break function k on an inner line between two grid points where it changes sign (values
-// flo, fhi), by the Illinois variant of regula falsi (Dowell & Jarratt 1971), to a bracket of 1e-14.
+// flo, fhi), to a bracket of 1e-14 (relative above 1): Alefeld, Potra & Shi 1995 (ACM TOMS 748), Boost.Math's
+// toms748_solve.
 double BinCubature::break_root(bool theta_inner, std::size_t k, double outer, double lo, double hi, double flo,
                                double fhi, long long& evals) const {
-  int side = 0;
-  for (int it = 0; it < 60 && hi - lo > 1e-14 * std::max(1.0, std::abs(hi)); ++it) {
-    double x = (lo * fhi - hi * flo) / (fhi - flo);
-    if (!(x > lo && x < hi)) x = 0.5 * (lo + hi);
-    const double fx = break_on_line(theta_inner, k, x, outer);
+  auto f = [&](double x) {
     evals += 1;
-    if ((fx >= 0) == (flo >= 0)) {
-      lo = x;
-      flo = fx;
-      if (side == -1) fhi *= 0.5;  // Illinois: halve the stale end's value
-      side = -1;
-    } else {
-      hi = x;
-      fhi = fx;
-      if (side == 1) flo *= 0.5;
-      side = 1;
-    }
-  }
-  return 0.5 * (lo + hi);
+    return break_on_line(theta_inner, k, x, outer);
+  };
+  auto bracket_small = [](double a, double b) { return b - a <= 1e-14 * std::max(1.0, std::abs(b)); };
+  std::uintmax_t iterations = 60;
+  const auto [a, b] = boost::math::tools::toms748_solve(f, lo, hi, flo, fhi, bracket_small, iterations);
+  return 0.5 * (a + b);
 }
 
 // The cuts of inner line j (at `outer`): its start, then a root wherever a break function changes sign
