@@ -102,6 +102,7 @@ double sidak_adjusted_p(double p_min, int n_tests);
 // One-sample Kolmogorov-Smirnov test of values against the uniform distribution on [0, 1]
 // (e.g. p-values under a null): D = sup |F_n - F|, p from the asymptotic Kolmogorov distribution
 // with Stephens' small-sample correction (Stephens 1970): lambda = (sqrt(n) + 0.12 + 0.11 / sqrt(n)) D.
+// (Written here: Boost.Math 1.74, the version this project builds with, has no Kolmogorov distribution.)
 struct KolmogorovResult {
   double statistic = 0;
   double p_value = 1;
