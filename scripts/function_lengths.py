@@ -181,18 +181,26 @@ def tokenize(cleaned):
 
 
 # ---- step 3: scopes, headers and bodies ------------------------------------------------------------------
-def match_brace(tokens, i):
-    """Index of the `}` matching the `{` at i."""
+def matching(tokens, i, opening, closing):
+    """Index of the token closing the bracket opened at i, or None."""
     depth = 0
     for j in range(i, len(tokens)):
         t = tokens[j][0]
-        if t == "{":
+        if t == opening:
             depth += 1
-        elif t == "}":
+        elif t == closing:
             depth -= 1
             if depth == 0:
                 return j
-    raise ScanError(f"unbalanced '{{' on line {tokens[i][1]}")
+    return None
+
+
+def match_brace(tokens, i):
+    """Index of the `}` matching the `{` at i."""
+    j = matching(tokens, i, "{", "}")
+    if j is None:
+        raise ScanError(f"unbalanced '{{' on line {tokens[i][1]}")
+    return j
 
 
 def strip_prefixes(header):
@@ -257,16 +265,9 @@ def find_parameter_list(h):
 
 
 def close_paren(h, k):
-    depth = 0
-    for j in range(k, len(h)):
-        t = h[j][0]
-        if t == "(":
-            depth += 1
-        elif t == ")":
-            depth -= 1
-            if depth == 0:
-                return j
-    return len(h) - 1
+    """Index of the `)` matching the `(` at k in a header (its last token if unbalanced)."""
+    j = matching(h, k, "(", ")")
+    return len(h) - 1 if j is None else j
 
 
 def function_name(h, paren):
