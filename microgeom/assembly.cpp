@@ -471,7 +471,8 @@ double exp_quantile_of_normal(double t) {
 // scale mixture that is exactly the GGX (alpha = 1) slope law (Student-t, nu = 2). G' is large where
 // E is small, i.e. for low h0: the steepest facets sit lowest. G is tabulated (trapezoid rule, step
 // 1/1024 on [-9, 9], linear interpolation); the grid's secant slopes differ slightly from G' grad h0,
-// which the slope matching that follows absorbs.
+// which the slope matching that follows absorbs. (A running table, written here: Boost.Math's quadratures
+// give one integral each, and the table's values are pinned through the sorted surfaces.)
 void sort_slopes_by_height(std::vector<double>& h, int n, double ax, double ay) {
   const double m2 = normalised_second_moment(h, n, ax, ay);
   if (!(m2 > 0)) return;
