@@ -471,7 +471,8 @@ double exp_quantile_of_normal(double t) {
 // scale mixture that is exactly the GGX (alpha = 1) slope law (Student-t, nu = 2). G' is large where
 // E is small, i.e. for low h0: the steepest facets sit lowest. G is tabulated (trapezoid rule, step
 // 1/1024 on [-9, 9], linear interpolation); the grid's secant slopes differ slightly from G' grad h0,
-// which the slope matching that follows absorbs.
+// which the slope matching that follows absorbs. (A running table, written here: Boost.Math's quadratures
+// give one integral each, and the table's values are pinned through the sorted surfaces.)
 void sort_slopes_by_height(std::vector<double>& h, int n, double ax, double ay) {
   const double m2 = normalised_second_moment(h, n, ax, ay);
   if (!(m2 > 0)) return;
@@ -501,81 +502,71 @@ void sort_slopes_by_height(std::vector<double>& h, int n, double ax, double ay) 
   });
 }
 
-}  // namespace
+// The Beckmann control: a Gaussian field. Its slopes are Gaussian; one scale factor sets
+// E[(sx/ax)^2 + (sy/ay)^2] = 1, i.e. alpha^2/2 per axis for the isotropic-equivalent field.
+std::vector<double> beckmann_heights(const AssemblyParams& p, double lx, double ly, const BuildCancel& cancelled) {
+  Spectral fft(p.resolution);
+  std::vector<double> h = gaussian_field(fft, p.seed, lx, ly);
+  stop_if_cancelled(cancelled);
+  const double m2 = normalised_second_moment(h, p.resolution, p.alpha_x, p.alpha_y);
+  const double scale = m2 > 0 ? 1.0 / std::sqrt(m2) : 0.0;
+  for (double& z : h) z *= scale;
+  return h;
+}
 
-Heightfield build_assembly(const AssemblyParams& p, BuildReport* report_out, const BuildProgress& progress,
-                           const BuildCancel& cancelled) {
-  validate(p);
-  BuildReport report;
+// The mixture's start field: patches of 8 l cells (K x K patches of equal size); patch q scales the
+// field's slopes by 1/sqrt(E_q), E_q ~ Exp(1) from CounterRng(seed, kStreamPatches | q); then re-integrated.
+std::vector<double> patch_scaled_heights(Spectral& fft, const std::vector<double>& h, const AssemblyParams& p, double l,
+                                         BuildReport& report) {
   const int n = p.resolution;
   const double ax = p.alpha_x, ay = p.alpha_y;
-  const double l = p.corr_cells == 0 ? default_corr_cells(n) : p.corr_cells;
-  const int iterations = p.iterations == 0 ? kDefaultIterations : p.iterations;
-  report.corr_cells = l;
-  // Stretched spectra: correlation length l lambda / a per axis (the shorter one is l).
-  const double lambda = std::max(ax, ay), lx = l * lambda / ax, ly = l * lambda / ay;
-  if (progress) progress("noise", 0.0);
-
-  std::vector<double> h;  // cell units: slopes are height differences between neighbouring vertices
-  if (p.assembly == "beckmann") {
-    Spectral fft(n);
-    h = gaussian_field(fft, p.seed, lx, ly);
-    stop_if_cancelled(cancelled);
-    // Slopes of a Gaussian field are Gaussian; one scale factor sets E[(sx/ax)^2 + (sy/ay)^2] = 1, i.e.
-    // alpha^2/2 per axis for the isotropic-equivalent field.
-    const double m2 = normalised_second_moment(h, n, ax, ay);
-    const double scale = m2 > 0 ? 1.0 / std::sqrt(m2) : 0.0;
-    for (double& z : h) z *= scale;
-    report.iterations = 0;
-  } else if (p.assembly == "smith" || p.assembly == "mixture") {
-    Spectral fft(n);
-    h = gaussian_field(fft, p.seed, lx, ly);
-    stop_if_cancelled(cancelled);
-    if (p.assembly == "mixture") {
-      // Patches of 8 l cells (K x K patches of equal size); patch p scales the field's slopes by
-      // 1/sqrt(E_p), E_p ~ Exp(1) from CounterRng(seed, kStreamPatches | p); then re-integrate.
-      const int patches = std::max(1, int(std::lround(n / (8.0 * l))));
-      report.notes.push_back(fmt::format("{} x {} patches of {:.4g} cells", patches, patches, double(n) / patches));
-      std::vector<double> scale(std::size_t(patches) * patches);
-      for (std::size_t q = 0; q < scale.size(); ++q) {
-        microsim::CounterRng rng(p.seed, kStreamPatches | q);
-        // E = -log(1 - U); clamped at 1e-6 (scale <= 1000) to keep the first re-integration well scaled:
-        // only the ranks of the slopes matter after matching, and clamping preserves them up to ties.
-        const double e = std::max(1e-6, -std::log1p(-rng.uniform()));
-        scale[q] = 1.0 / std::sqrt(e);
-      }
-      const std::size_t tris = 2 * std::size_t(n) * n;
-      std::vector<float> ux(tris), uy(tris);
-      triangle_slopes(h, n, 1.0, 1.0, ux, uy);
-      parallel_rows(n, [&](int j) {
-        for (int i = 0; i < n; ++i) {
-          const double s = scale[std::size_t(j * patches / n) * patches + std::size_t(i * patches / n)];
-          for (int t = 0; t < 2; ++t) {
-            const std::size_t k = 2 * (std::size_t(j) * n + i) + t;
-            ux[k] = float(ux[k] * s / ax);
-            uy[k] = float(uy[k] * s / ay);
-          }
-        }
-      });
-      std::vector<std::complex<double>> gx_spec;
-      h = reintegrate(fft, ux, uy, ax, ay, gx_spec);
-    }
-    h = match_ggx(fft, std::move(h), ax, ay, iterations, report, progress, 0.05, 1.0, cancelled);
-    report.iterations = iterations;
-  } else if (p.assembly == "sorted" || p.assembly == "spikes") {
-    Spectral fft(n);
-    h = gaussian_field(fft, p.seed, lx, ly);
-    stop_if_cancelled(cancelled);
-    sort_slopes_by_height(h, n, ax, ay);
-    stop_if_cancelled(cancelled);
-    h = match_ggx(fft, std::move(h), ax, ay, iterations, report, progress, 0.05, 1.0, cancelled);
-    if (p.assembly == "spikes")
-      for (double& z : h) z = -z;
-    report.iterations = iterations;
+  const int patches = std::max(1, int(std::lround(n / (8.0 * l))));
+  report.notes.push_back(fmt::format("{} x {} patches of {:.4g} cells", patches, patches, double(n) / patches));
+  std::vector<double> scale(std::size_t(patches) * patches);
+  for (std::size_t q = 0; q < scale.size(); ++q) {
+    microsim::CounterRng rng(p.seed, kStreamPatches | q);
+    // E = -log(1 - U); clamped at 1e-6 (scale <= 1000) to keep the first re-integration well scaled:
+    // only the ranks of the slopes matter after matching, and clamping preserves them up to ties.
+    const double e = std::max(1e-6, -std::log1p(-rng.uniform()));
+    scale[q] = 1.0 / std::sqrt(e);
   }
+  const std::size_t tris = 2 * std::size_t(n) * n;
+  std::vector<float> ux(tris), uy(tris);
+  triangle_slopes(h, n, 1.0, 1.0, ux, uy);
+  parallel_rows(n, [&](int j) {
+    for (int i = 0; i < n; ++i) {
+      const double s = scale[std::size_t(j * patches / n) * patches + std::size_t(i * patches / n)];
+      for (int t = 0; t < 2; ++t) {
+        const std::size_t k = 2 * (std::size_t(j) * n + i) + t;
+        ux[k] = float(ux[k] * s / ax);
+        uy[k] = float(uy[k] * s / ay);
+      }
+    }
+  });
+  std::vector<std::complex<double>> gx_spec;
+  return reintegrate(fft, ux, uy, ax, ay, gx_spec);
+}
 
-  // Physical units: slopes are dimensionless, so heights scale with the cell size. Mean 0.
-  const double cell = p.tile_size / n;
+// The GGX assemblies: a Gaussian field (smith), patch-scaled first (mixture), or with its slopes sorted by
+// height (sorted; spikes is sorted upside down), then matched to the GGX slope law.
+std::vector<double> ggx_heights(const AssemblyParams& p, double lx, double ly, double l, int iterations,
+                                BuildReport& report, const BuildProgress& progress, const BuildCancel& cancelled) {
+  Spectral fft(p.resolution);
+  std::vector<double> h = gaussian_field(fft, p.seed, lx, ly);
+  stop_if_cancelled(cancelled);
+  if (p.assembly == "mixture") h = patch_scaled_heights(fft, h, p, l, report);
+  if (p.assembly == "sorted" || p.assembly == "spikes") {
+    sort_slopes_by_height(h, p.resolution, p.alpha_x, p.alpha_y);
+    stop_if_cancelled(cancelled);
+  }
+  h = match_ggx(fft, std::move(h), p.alpha_x, p.alpha_y, iterations, report, progress, 0.05, 1.0, cancelled);
+  if (p.assembly == "spikes")
+    for (double& z : h) z = -z;
+  return h;
+}
+
+// Physical units: slopes are dimensionless, so heights scale with the cell size. Mean 0. Frees h.
+std::vector<float> physical_heights(std::vector<double>& h, double cell) {
   double mean = 0;
   for (double z : h) mean += z;
   mean /= double(h.size());
@@ -583,16 +574,44 @@ Heightfield build_assembly(const AssemblyParams& p, BuildReport* report_out, con
   for (std::size_t k = 0; k < h.size(); ++k) heights[k] = float((h[k] - mean) * cell);
   h.clear();
   h.shrink_to_fit();
+  return heights;
+}
 
-  Heightfield field(n, p.tile_size, std::move(heights));
+void record_build(Heightfield& field, const AssemblyParams& p, double corr_cells, int iterations) {
   const AssemblyInfo* info = find_assembly(p.assembly);
   field.metadata["assembly"] = p.assembly;
-  field.metadata["alpha_x"] = fmt::format("{:.17g}", ax);
-  field.metadata["alpha_y"] = fmt::format("{:.17g}", ay);
+  field.metadata["alpha_x"] = fmt::format("{:.17g}", p.alpha_x);
+  field.metadata["alpha_y"] = fmt::format("{:.17g}", p.alpha_y);
   field.metadata["seed"] = std::to_string(p.seed);
-  field.metadata["corr_cells"] = fmt::format("{:.17g}", l);
-  field.metadata["iterations"] = std::to_string(report.iterations);
+  field.metadata["corr_cells"] = fmt::format("{:.17g}", corr_cells);
+  field.metadata["iterations"] = std::to_string(iterations);
   field.metadata["reference_ndf"] = std::string(to_string(info->reference));
+}
+
+}  // namespace
+
+Heightfield build_assembly(const AssemblyParams& p, BuildReport* report_out, const BuildProgress& progress,
+                           const BuildCancel& cancelled) {
+  validate(p);
+  BuildReport report;
+  const int n = p.resolution;
+  const double l = p.corr_cells == 0 ? default_corr_cells(n) : p.corr_cells;
+  const int iterations = p.iterations == 0 ? kDefaultIterations : p.iterations;
+  report.corr_cells = l;
+  // Stretched spectra: correlation length l lambda / a per axis (the shorter one is l).
+  const double lambda = std::max(p.alpha_x, p.alpha_y), lx = l * lambda / p.alpha_x, ly = l * lambda / p.alpha_y;
+  if (progress) progress("noise", 0.0);
+  // Cell units: slopes are height differences between neighbouring vertices.
+  std::vector<double> h;
+  if (p.assembly == "beckmann") {
+    h = beckmann_heights(p, lx, ly, cancelled);
+    report.iterations = 0;
+  } else {
+    h = ggx_heights(p, lx, ly, l, iterations, report, progress, cancelled);
+    report.iterations = iterations;
+  }
+  Heightfield field(n, p.tile_size, physical_heights(h, p.tile_size / n));
+  record_build(field, p, l, report.iterations);
   if (progress) progress("done", 1.0);
   if (report_out) *report_out = std::move(report);
   return field;
