@@ -16,6 +16,8 @@
 //
 // BM_BinFloats: FastDirectionBinner::bin_floats alone (the binning kernel of the quadric pipeline), on the
 // counted normals of the quadric's first rays, in batches of 256 like the tracer; ns per direction.
+// BM_BinFloatsOn/<target>: the same on each SIMD target this CPU runs (Highway's names) and on the scalar
+// reference loop ("reference"; Highway's own SCALAR target is its portable fallback).
 //
 // After the benchmarks, a table of pipeline / raw ratios is printed, from two measures: wall-clock rays
 // per second, and process CPU time per ray (all threads; robust to load from other processes on a shared
@@ -366,6 +368,33 @@ void BM_BinFloats(benchmark::State& state) {
   state.SetLabel(b.name());
 }
 
+// The same for one vector target (Highway's name), or "reference" for the scalar reference loop alone.
+void bin_floats_on(benchmark::State& state, int binning, const std::string& target) {
+  const DirectionBinning& b = fixture(-1).binnings[std::size_t(binning)];
+  const FastDirectionBinner binner(b);
+  if (target != "reference") use_direction_binner_target(target);
+  bin_all(state, quadric_normals(), [&](const float* x, const float* y, const float* z, int n, int* bins) {
+    if (target == "reference") binner.bin_floats_scalar(x, y, z, n, bins);
+    else binner.bin_floats(x, y, z, n, bins);
+  });
+  use_direction_binner_target("");
+  state.SetLabel(fmt::format("{}, {}", b.name(), target));
+}
+
+// BM_BinFloatsOn/<target>/binning:<0|1> for every target this CPU runs and the scalar reference.
+void register_kernel_targets() {
+  std::vector<std::string> targets = direction_binner_targets();
+  targets.push_back("reference");
+  for (const std::string& target : targets) {
+    for (int binning : {0, 1}) {
+      benchmark::RegisterBenchmark(fmt::format("BM_BinFloatsOn/{}/binning:{}", target, binning).c_str(),
+                                   [=](benchmark::State& state) { bin_floats_on(state, binning, target); })
+          ->Unit(benchmark::kMicrosecond)
+          ->MinTime(0.5);
+    }
+  }
+}
+
 void scenes_and_threads(benchmark::internal::Benchmark* b) {
   for (int level : {-1, 3, 5, 7})
     for (int threads : {1, 2}) b->Args({level, threads});
@@ -495,6 +524,7 @@ void take_surface_argument(int& argc, char** argv) {
 
 int main(int argc, char** argv) {
   take_surface_argument(argc, argv);
+  register_kernel_targets();
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   RatioReporter reporter;

@@ -10,10 +10,14 @@
 
 #include "core/math.h"
 
+#include <fmt/core.h>
+#include <hwy/targets.h>
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <cstdint>
 #include <stdexcept>
 
 // ---- pass 1's constants and its scalar reference (compiled once, used by every target) -----------------
@@ -137,6 +141,9 @@ int classify_vectors(const FloatBinParams& p, const float* HWY_RESTRICT x, const
   return i;
 }
 
+// This target's Highway bit (which target the dispatch chose).
+std::int64_t target_bit() { return HWY_TARGET; }
+
 }  // namespace microsim::binner_detail::HWY_NAMESPACE
 HWY_AFTER_NAMESPACE();
 
@@ -150,7 +157,39 @@ HWY_EXPORT(classify_vectors);  // the table of every target's classify_vectors
 int classify_vectors_best(const FloatBinParams& p, const float* x, const float* y, const float* z, int n, int* bins) {
   return HWY_DYNAMIC_DISPATCH(classify_vectors)(p, x, y, z, n, bins);
 }
+HWY_EXPORT(target_bit);
+std::int64_t current_target_bit() { return HWY_DYNAMIC_DISPATCH(target_bit)(); }
+
+std::atomic<std::int64_t> g_forced_target{0};  // use_direction_binner_target's choice (0: none)
+
+// The Highway bits of direction_binner_targets(), best first (the lowest bit is the best on each platform).
+std::vector<std::int64_t> supported_target_bits() {
+  hwy::SetSupportedTargetsForTest(0);  // the CPU's own list, not a forced one
+  const std::vector<std::int64_t> bits = hwy::SupportedAndGeneratedTargets();
+  hwy::SetSupportedTargetsForTest(g_forced_target.load());
+  return bits;
+}
 }  // namespace binner_detail
+
+std::vector<std::string> direction_binner_targets() {
+  std::vector<std::string> names;
+  for (const std::int64_t bit : binner_detail::supported_target_bits()) names.emplace_back(hwy::TargetName(bit));
+  return names;
+}
+
+std::string direction_binner_target() { return hwy::TargetName(binner_detail::current_target_bit()); }
+
+void use_direction_binner_target(const std::string& name) {
+  std::int64_t chosen = 0;
+  if (!name.empty()) {
+    for (const std::int64_t bit : binner_detail::supported_target_bits()) {
+      if (name == hwy::TargetName(bit)) chosen = bit;
+    }
+    if (chosen == 0) throw std::invalid_argument(fmt::format("SIMD target '{}' is not compiled in or not supported by this CPU", name));
+  }
+  binner_detail::g_forced_target.store(chosen);
+  hwy::SetSupportedTargetsForTest(chosen);  // 0: the CPU's best again
+}
 
 FastDirectionBinner::FastDirectionBinner(const DirectionBinning& b) : binning_(&b) {
   const nlohmann::json d = b.describe();

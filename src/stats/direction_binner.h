@@ -32,6 +32,7 @@
 #include "stats/binning.h"
 
 #include <limits>
+#include <string>
 #include <vector>
 
 namespace microsim {
@@ -69,5 +70,14 @@ private:
   float row_guard_ = 0.5f, col_guard_ = 0.5f;  // guard bands of bin_floats, in bin widths
   std::vector<double> edge_cos_, edge_sin_;  // cols + 1 sector edges (edge cols = edge 0)
 };
+
+// The vector code of pass 1: Highway's targets, named as Highway names them ("AVX2", "SSE4", "EMU128", ...).
+// The targets compiled in that this CPU runs, best first.
+std::vector<std::string> direction_binner_targets();
+// The target bin_floats runs now (the best, unless use_direction_binner_target chose another).
+std::string direction_binner_target();
+// Tests and benchmarks: from now on run `name`, one of direction_binner_targets(); "" goes back to the
+// best. Throws std::invalid_argument for another name. A global choice: call it while no binning runs.
+void use_direction_binner_target(const std::string& name);
 
 }  // namespace microsim
