@@ -25,6 +25,9 @@
 #define MICROSIM_DIRECTION_BINNER_SHARED
 namespace microsim::binner_detail {
 
+// Every bin index is below 2^23 (pass 1's vector code reads it from a float's mantissa).
+static_assert(2LL * kMaxBinningRows * kMaxBinningRows < (1LL << 23));
+
 // The constants of bin_floats' pass 1, in float.
 struct FloatBinParams {
   float sx, sy, z_max, inv_dz, cols_per_radian, rows, row_guard, col_guard, half_pi, pi, two_pi;
@@ -95,7 +98,6 @@ int classify_vectors(const FloatBinParams& p, const float* HWY_RESTRICT x, const
   using V = hn::Vec<decltype(df)>;
   const V sx = hn::Set(df, p.sx), sy = hn::Set(df, p.sy), z_max = hn::Set(df, p.z_max), inv_dz = hn::Set(df, p.inv_dz);
   const V cols_per_radian = hn::Set(df, p.cols_per_radian), zero = hn::Zero(df);
-  const V rows_hi = hn::Set(df, p.rows + 1.0f), minus_one = hn::Set(df, -1.0f), cols_hi = hn::Set(df, float(p.cols + 1));
   const V half_pi = hn::Set(df, p.half_pi), pi = hn::Set(df, p.pi), two_pi = hn::Set(df, p.two_pi);
   const V row_guard = hn::Set(df, p.row_guard), row_guard_hi = hn::Set(df, 1.0f - p.row_guard);
   const V col_guard = hn::Set(df, p.col_guard), col_guard_hi = hn::Set(df, 1.0f - p.col_guard);
@@ -103,17 +105,18 @@ int classify_vectors(const FloatBinParams& p, const float* HWY_RESTRICT x, const
   const V len_lo = hn::Set(df, 1e-30f), len_hi = hn::Set(df, 1e30f), hi_lo = hn::Set(df, 1e-15f);
   // Row and column as floats: `row <= last_row` is `row < last_row + 0.5`.
   const V last_row = hn::Set(df, float(p.last_row) + 0.5f), last_col = hn::Set(df, float(p.last_col) + 0.5f);
-  const V cols = hn::Set(df, float(p.cols));
+  const V cols = hn::Set(df, float(p.cols)), two_23 = hn::Set(df, 8388608.0f);
+  const auto two_23_bits = hn::Set(di, 0x4B000000);  // the bits of 2^23 as a float
   const auto needs_exact = hn::Set(di, FastDirectionBinner::kNeedsExact), outside_bin = hn::Set(di, -1);
   const int lanes = int(hn::Lanes(df));
   int i = 0;
   for (; i + lanes <= n; i += lanes) {
     const V vx = hn::Mul(hn::LoadU(df, x + i), sx), vy = hn::Mul(hn::LoadU(df, y + i), sy), vz = hn::LoadU(df, z + i);
     const V len2 = hn::MulAdd(vz, vz, hn::MulAdd(vy, vy, hn::Mul(vx, vx)));
-    const V r_raw = hn::Mul(hn::Sub(z_max, hn::Div(vz, hn::Sqrt(len2))), inv_dz);
-    // Clamped like the scalar loop's (Min/Max return the second operand for a NaN first one on x86; a
-    // NaN lane is never `regular` anyway, and the conversions below are defined for any value).
-    const V r = hn::Max(hn::Min(r_raw, rows_hi), minus_one);
+    const V r = hn::Mul(hn::Sub(z_max, hn::Div(vz, hn::Sqrt(len2))), inv_dz);
+    // Not clamped like the scalar loop's (which needs it for int(), undefined beyond int's range and for
+    // NaN; Trunc is defined for any value): a clamped value is `outside` or not `inside` exactly when the
+    // unclamped one is, and a NaN lane is never `regular`.
     const V ax = hn::Abs(vx), ay = hn::Abs(vy);
     const auto swap = ay > ax;
     const V hi = hn::IfThenElse(swap, ay, ax), lo = hn::IfThenElse(swap, ax, ay);
@@ -124,16 +127,20 @@ int classify_vectors(const FloatBinParams& p, const float* HWY_RESTRICT x, const
     const V q = hn::IfThenElse(swap, hn::Sub(half_pi, a), a);
     const V phi_upper = hn::IfThenElse(vx < zero, hn::Sub(pi, q), q);
     const V phi = hn::IfThenElse(vy < zero, hn::Sub(two_pi, phi_upper), phi_upper);
-    const V c = hn::Max(hn::Min(hn::Mul(phi, cols_per_radian), cols_hi), zero);
-    const V row = hn::ConvertTo(df, hn::ConvertTo(di, r)), col = hn::ConvertTo(df, hn::ConvertTo(di, c));
+    const V c = hn::Mul(phi, cols_per_radian);  // phi >= 0 (every term above is), also unclamped
+    // Truncation: the integer parts that int() gives the scalar loop's clamped values, where it matters
+    // (-0 for r in (-1, 0), which is not `inside`).
+    const V row = hn::Trunc(r), col = hn::Trunc(c);
     const V row_frac = hn::Sub(r, row), col_frac = hn::Sub(c, col);
     const auto regular = hn::And(hn::And(len2 > len_lo, len2 < len_hi), hi > hi_lo);
     const auto inside = hn::And(hn::And(hn::And(row_frac > row_guard, row_frac < row_guard_hi),
                                         hn::And(col_frac > col_guard, col_frac < col_guard_hi)),
                                 hn::And(row < last_row, col < last_col));
     const auto outside = hn::Or(r < outside_lo, r > outside_hi);
-    // row * cols + col is an integer below 2^24: exact in float.
-    const auto bin = hn::ConvertTo(di, hn::MulAdd(row, cols, col));
+    // row * cols + col is an integer in [0, 2^23) for the lanes `inside` (it is below 2^24: exact in
+    // float): adding 2^23 puts it in the low mantissa bits, read as an integer (cheaper than ConvertTo,
+    // whose overflow fix-up these lanes do not need; other lanes are not used).
+    const auto bin = hn::Sub(hn::BitCast(di, hn::Add(hn::MulAdd(row, cols, col), two_23)), two_23_bits);
     const auto certain = hn::IfThenElse(hn::RebindMask(di, inside), bin,
                                         hn::IfThenElse(hn::RebindMask(di, outside), outside_bin, needs_exact));
     hn::StoreU(hn::IfThenElse(hn::RebindMask(di, regular), certain, needs_exact), di, bins + i);
