@@ -381,6 +381,31 @@ void bin_floats_on(benchmark::State& state, int binning, const std::string& targ
   state.SetLabel(fmt::format("{}, {}", b.name(), target));
 }
 
+// One direction at a time in double, as the heightfield pipeline bins (trace_vndf_heightfield calls
+// DirectionBinning::bin_of): bin_of itself, and FastDirectionBinner::operator() (the same bins).
+void BM_BinOneOf(benchmark::State& state) {
+  const DirectionBinning& b = fixture(-1).binnings[std::size_t(state.range(0))];
+  const bool fast_path = state.range(1) == 1;
+  const FastDirectionBinner fast(b);
+  const Normals& n = quadric_normals();
+  std::vector<Vec3<double>> dirs;
+  for (std::size_t i = 0; i < n.x.size(); ++i) dirs.emplace_back(n.x[i], n.y[i], n.z[i]);
+  embree::FlushDenormalsScope ftz;
+  for (auto _ : state) {
+    long sum = 0;
+    if (fast_path) {
+      for (const Vec3<double>& d : dirs) sum += fast(d);
+    } else {
+      for (const Vec3<double>& d : dirs) sum += b.bin_of(d).value_or(-1);
+    }
+    benchmark::DoNotOptimize(sum);
+  }
+  state.counters["ns_per_direction"] = benchmark::Counter(double(state.iterations()) * double(dirs.size()),
+                                                          benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  state.SetLabel(fmt::format("{}, {}", b.name(), fast_path ? "FastDirectionBinner::operator()" : "bin_of"));
+}
+BENCHMARK(BM_BinOneOf)->ArgsProduct({{0, 1}, {0, 1}})->ArgNames({"binning", "fast"})->Unit(benchmark::kMicrosecond)->MinTime(0.5);
+
 // BM_BinFloatsOn/<target>/binning:<0|1> for every target this CPU runs and the scalar reference.
 void register_kernel_targets() {
   std::vector<std::string> targets = direction_binner_targets();
