@@ -1,6 +1,5 @@
 #include "validate/compare.h"
 
-#include "core/progress.h"
 #include "core/random.h"
 #include "validate/sample_io.h"
 #include "core/strict_parse.h"
@@ -111,8 +110,8 @@ TracedHistogram trace_vndf_histogram(const GGX<double>& ggx, const Vec3<double>&
   TraceOptions t;
   t.rays = options.rays;
   t.seed = options.seed;
-  t.threads = options.threads;
-  t.progress = options.progress;
+  t.blocks = options.blocks;
+  t.run = options.run;
   TraceResult r = trace_vndf(target, wi, h.binnings, t);
   h.counts = r.counts;
   h.rays = r.rays;

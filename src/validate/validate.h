@@ -21,6 +21,7 @@
 // Reproducible: sample i uses CounterRng(seed, i) (two uniforms), whatever the thread count.
 #pragma once
 
+#include "core/run_control.h"
 #include "stats/binning.h"
 #include "stats/chi2.h"
 #include "stats/figure.h"
@@ -67,7 +68,7 @@ struct ValidationOptions {
   // Relative floor of the weight test's standard error (rounding of pdf and D, not statistics):
   // 0 means 1e-9 in double, 1e-5 in float.
   double weight_rounding = 0;
-  bool progress = false;  // a progress bar on stderr while sampling
+  RunControl run;  // threads, cancel token, progress ("sampling")
 };
 
 // The claimed distribution of one configuration and its bin probabilities (expensive: adaptive
