@@ -171,9 +171,11 @@ std::atomic<std::int64_t> g_forced_target{0};  // use_direction_binner_target's 
 
 // The Highway bits of direction_binner_targets(), best first (the lowest bit is the best on each platform).
 std::vector<std::int64_t> supported_target_bits() {
-  hwy::SetSupportedTargetsForTest(0);  // the CPU's own list, not a forced one
+  const std::int64_t forced = g_forced_target.load();
+  if (forced == 0) return hwy::SupportedAndGeneratedTargets();
+  hwy::SetSupportedTargetsForTest(0);  // while a target is forced: the CPU's own list, not the forced one
   const std::vector<std::int64_t> bits = hwy::SupportedAndGeneratedTargets();
-  hwy::SetSupportedTargetsForTest(g_forced_target.load());
+  hwy::SetSupportedTargetsForTest(forced);
   return bits;
 }
 }  // namespace binner_detail
