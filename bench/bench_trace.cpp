@@ -125,35 +125,44 @@ void BM_PipelinePart(benchmark::State& state) {
   state.SetLabel(binnings == 0 ? "quadric, no binning" : "quadric, sphere binning only");
 }
 
+// Plain rtcIntersect1 calls in `arena`, in TBB tasks of one block each (FTZ/DAZ set, one context per
+// task): rays first(block) .. first(block + 1) - 1 of every block < blocks, each set up by ray(i) (the
+// same inline set-up as the pipelines', embree::make_ray_hit, so that only their own work differs).
+// Returns the hits.
+template <class First, class Ray>
+std::uint64_t intersect_blocks(RTCScene scene, tbb::task_arena& arena, std::size_t blocks, const First& first,
+                               const Ray& ray) {
+  std::atomic<std::uint64_t> total{0};
+  arena.execute([&] {
+    tbb::parallel_for(std::size_t(0), blocks, [&](std::size_t block) {
+      embree::FlushDenormalsScope ftz;
+      RTCIntersectContext context;
+      rtcInitIntersectContext(&context);
+      std::uint64_t local = 0;
+      for (std::size_t i = first(block), end = first(block + 1); i < end; ++i) {
+        RTCRayHit rh = ray(i);
+        rtcIntersect1(scene, &context, &rh);
+        local += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+      }
+      total += local;
+    });
+  });
+  return total.load();
+}
+
 void BM_RawIntersect1(benchmark::State& state) {
   const int level = int(state.range(0)), threads = int(state.range(1));
   Fixture& f = fixture(level);
-  const RTCScene scene = f.target->scene().handle();
-  const std::uint64_t blocks = (kRays + kRaysPerBlock - 1) / kRaysPerBlock;
+  const std::size_t blocks = (kRays + kRaysPerBlock - 1) / kRaysPerBlock;
+  const auto first = [](std::size_t block) { return std::min<std::size_t>(kRays, block * kRaysPerBlock); };
+  const auto ray = [&](std::size_t i) {
+    return embree::make_ray_hit(f.rays[i].origin, f.rays[i].dir, 0.0f, std::numeric_limits<float>::infinity());
+  };
   tbb::task_arena arena(threads);
   std::uint64_t hits = 0;
   const double cpu0 = process_cpu_seconds();
   for (auto _ : state) {
-    std::atomic<std::uint64_t> total{0};
-    arena.execute([&] {
-      tbb::parallel_for(std::uint64_t(0), blocks, [&](std::uint64_t block) {
-        embree::FlushDenormalsScope ftz;
-        RTCIntersectContext context;
-        rtcInitIntersectContext(&context);
-        std::uint64_t local = 0;
-        const std::uint64_t end = std::min(kRays, (block + 1) * kRaysPerBlock);
-        for (std::uint64_t i = block * kRaysPerBlock; i < end; ++i) {
-          const BeamRay& ray = f.rays[i];
-          // The same inline ray set-up as the pipeline's (embree.h), so that only the pipeline's own work differs.
-          RTCRayHit rh =
-              embree::make_ray_hit(ray.origin, ray.dir, 0.0f, std::numeric_limits<float>::infinity());
-          rtcIntersect1(scene, &context, &rh);
-          local += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
-        }
-        total += local;
-      });
-    });
-    hits = total.load();
+    hits = intersect_blocks(f.target->scene().handle(), arena, blocks, first, ray);
     benchmark::DoNotOptimize(hits);
   }
   state.counters["cpu_ns_per_ray"] = 1e9 * (process_cpu_seconds() - cpu0) / (double(state.iterations()) * double(kRays));
@@ -247,28 +256,15 @@ HeightfieldFixture& heightfield_fixture() {
 void BM_HeightfieldRaw(benchmark::State& state) {
   const int threads = int(state.range(1));
   HeightfieldFixture& f = heightfield_fixture();
-  const RTCScene scene = f.scene->embree_scene().handle();
+  const auto first = [&](std::size_t block) { return f.block_first[block]; };
+  const auto ray = [&](std::size_t i) {
+    return embree::make_ray_hit(f.segments[i].origin, f.segment_dir, 0.0f, f.segments[i].tfar);
+  };
   tbb::task_arena arena(threads);
   std::uint64_t hits = 0;
   const double cpu0 = process_cpu_seconds();
   for (auto _ : state) {
-    std::atomic<std::uint64_t> total{0};
-    arena.execute([&] {
-      tbb::parallel_for(std::size_t(0), f.block_first.size() - 1, [&](std::size_t block) {
-        embree::FlushDenormalsScope ftz;
-        RTCIntersectContext context;
-        rtcInitIntersectContext(&context);
-        std::uint64_t local = 0;
-        for (std::size_t i = f.block_first[block]; i < f.block_first[block + 1]; ++i) {
-          const Segment& s = f.segments[i];
-          RTCRayHit rh = embree::make_ray_hit(s.origin, f.segment_dir, 0.0f, s.tfar);
-          rtcIntersect1(scene, &context, &rh);
-          local += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
-        }
-        total += local;
-      });
-    });
-    hits = total.load();
+    hits = intersect_blocks(f.scene->embree_scene().handle(), arena, f.block_first.size() - 1, first, ray);
     benchmark::DoNotOptimize(hits);
   }
   state.counters["cpu_ns_per_ray"] =
@@ -418,38 +414,21 @@ void register_kernel_targets() {
   }
 }
 
+// Every pipeline-vs-raw benchmark: milliseconds of wall-clock time, at least 0.5 s per repetition.
+void timed(benchmark::internal::Benchmark* b) { b->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(0.5); }
+
 void scenes_and_threads(benchmark::internal::Benchmark* b) {
   for (int level : {-1, 3, 5, 7})
     for (int threads : {1, 2}) b->Args({level, threads});
-  b->ArgNames({"level", "threads"})->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(0.5);
+  b->ArgNames({"level", "threads"})->Apply(timed);
 }
 
 BENCHMARK(BM_RawIntersect1)->Apply(scenes_and_threads);
 BENCHMARK(BM_Pipeline)->Apply(scenes_and_threads);
-BENCHMARK(BM_PipelinePart)
-    ->ArgsProduct({{1, 2}, {0, 1}})
-    ->ArgNames({"threads", "binnings"})
-    ->Unit(benchmark::kMillisecond)
-    ->UseRealTime()
-    ->MinTime(0.5);
-BENCHMARK(BM_HeightfieldRaw)
-    ->ArgsProduct({{kHeightfieldLevel}, {1, 2}})
-    ->ArgNames({"level", "threads"})
-    ->Unit(benchmark::kMillisecond)
-    ->UseRealTime()
-    ->MinTime(0.5);
-BENCHMARK(BM_HeightfieldPipeline)
-    ->ArgsProduct({{kHeightfieldLevel}, {1, 2}})
-    ->ArgNames({"level", "threads"})
-    ->Unit(benchmark::kMillisecond)
-    ->UseRealTime()
-    ->MinTime(0.5);
-BENCHMARK(BM_HeightfieldPipelinePart)
-    ->ArgsProduct({{1, 2}, {0}})
-    ->ArgNames({"threads", "binnings"})
-    ->Unit(benchmark::kMillisecond)
-    ->UseRealTime()
-    ->MinTime(0.5);
+BENCHMARK(BM_PipelinePart)->ArgsProduct({{1, 2}, {0, 1}})->ArgNames({"threads", "binnings"})->Apply(timed);
+BENCHMARK(BM_HeightfieldRaw)->ArgsProduct({{kHeightfieldLevel}, {1, 2}})->ArgNames({"level", "threads"})->Apply(timed);
+BENCHMARK(BM_HeightfieldPipeline)->ArgsProduct({{kHeightfieldLevel}, {1, 2}})->ArgNames({"level", "threads"})->Apply(timed);
+BENCHMARK(BM_HeightfieldPipelinePart)->ArgsProduct({{1, 2}, {0}})->ArgNames({"threads", "binnings"})->Apply(timed);
 BENCHMARK(BM_BinFloats)->DenseRange(0, 1)->ArgName("binning")->Unit(benchmark::kMicrosecond)->MinTime(0.5);
 
 // Keeps every repetition's rate and CPU time per ray (and the kernel's ns per direction) for the tables
