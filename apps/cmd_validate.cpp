@@ -18,6 +18,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <algorithm>
 #include <map>
 #include <optional>
 #include <string>
@@ -72,7 +73,7 @@ std::string fmt_alpha(double ax, double ay) {
 
 const char* pass_fail(bool passed) { return passed ? "pass" : "FAIL"; }
 
-void print_worst(const char* title, const microsim::ChiSquareResult& c, int n) {
+void print_worst(const std::string& title, const microsim::ChiSquareResult& c, int n) {
   if (c.worst_cells.empty()) return;
   fmt::print("\nworst cells, {} (observed vs expected counts):\n", title);
   fmt::print("  {:<52} {:>12} {:>14} {:>12}\n", "cell", "observed", "expected", "(O-E)^2/E");
@@ -90,14 +91,57 @@ void write_plot(const std::string& path, const microsim::ValidationReport& r, co
   const double phi = std::atan2(r.wi.y(), r.wi.x()) * 180 / kPi<double>;
   const std::string title = fmt::format("alpha {}, theta {:g} deg, phi {:g} deg, {} samples ({})",
                                         fmt_alpha(r.alpha_x, r.alpha_y), theta, phi, r.samples, to_string(r.precision));
-  const std::string subtitle =
-      fmt::format("{}\nverdict {}: p = {:.3g} (Sidak-adjusted); sphere bins p = {:.3g}, lobe bins p = {:.3g}", source,
-                  r.passed ? "PASS" : "FAIL", r.p_value, r.sphere.p_value, r.lobe.p_value);
+  std::string per_binning;
+  for (const BinnedTest& b : r.binned)
+    per_binning += fmt::format("{}{} bins p = {:.3g}", per_binning.empty() ? "" : ", ", b.binning, b.chi2.p_value);
+  const std::string subtitle = fmt::format("{}\nverdict {}: p = {:.3g} (Sidak-adjusted); {}", source,
+                                           r.passed ? "PASS" : "FAIL", r.p_value, per_binning);
   try {
     write_text_atomically(path, histogram_figure_svg(title, subtitle, r.histograms));
   } catch (const HistogramIoError& e) {
     throw UsageError(fmt::format("--plot: {}", e.what()));
   }
+}
+
+// A row of the report's table: a hard check or a statistical test other than the binned ones, or "n/a".
+void print_check(const char* title, const microsim::SubTest& t, const std::string& value, const std::string& bound) {
+  if (!t.applicable) {
+    fmt::print("  {:<34} {:>14} {:>7} {:>11}  n/a\n", title, "", "", "");
+    return;
+  }
+  fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", title, value, "", bound, pass_fail(t.passed));
+}
+
+void print_tests(const microsim::ValidationReport& r) {
+  using namespace microsim;
+  fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", "test", "statistic", "dof", "p-value", "result");
+  for (const BinnedTest& b : r.binned) {
+    const ChiSquareResult& c = b.chi2;
+    fmt::print("  {:<34} {:>14.2f} {:>7} {:>11}  {}{}\n", fmt::format("chi2, {} bins ({} cells)", b.binning, c.cells),
+               c.statistic, c.dof, fmt_p(c.p_value), pass_fail(!c.rejected), c.reason.empty() ? "" : "  (" + c.reason + ")");
+  }
+  const SubTest& weight = r.check("weight_mean");
+  const SubTest& pdf = r.check("returned_pdf");
+  const SubTest& integral = r.check("pdf_integral");
+  print_check("E[weight] = |wi.z|/G1", weight, fmt::format("{:.6g}", weight.value), fmt_p(weight.p_value));
+  print_check("returned pdf (max rel. error)", pdf, fmt::format("{:.2e}", pdf.value), fmt::format("<= {:.0e}", pdf.tolerance));
+  print_check("claimed pdf integral", integral, fmt::format("{:.9f}", integral.value),
+              fmt::format("<= 1+{:.0e}", integral.tolerance));
+  fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", "samples outside the domain", r.outside_domain, "", "0",
+             pass_fail(r.check("domain").passed));
+  if (pdf.applicable && pdf.passed && pdf.value > pdf.tolerance)
+    fmt::print("  (returned pdf: errors above {:.0e} only where rounding the direction to {} changes the claimed pdf "
+               "as much)\n",
+               pdf.tolerance, to_string(r.precision));
+}
+
+// The worst cells of each binned test, the test with the smallest p first (and in more detail).
+void print_worst_cells(const microsim::ValidationReport& r) {
+  std::vector<const microsim::BinnedTest*> order;
+  for (const microsim::BinnedTest& b : r.binned) order.push_back(&b);
+  std::stable_sort(order.begin(), order.end(), [](const auto* a, const auto* b) { return a->chi2.p_value < b->chi2.p_value; });
+  for (std::size_t k = 0; k < order.size(); ++k)
+    print_worst(fmt::format("{} bins", order[k]->binning), order[k]->chi2, k == 0 ? 6 : 3);
 }
 
 void print_report(const microsim::ValidationReport& r, const std::string& source) {
@@ -108,41 +152,9 @@ void print_report(const microsim::ValidationReport& r, const std::string& source
              to_string(r.domain), fmt_alpha(r.alpha_x, r.alpha_y), theta, phi, r.samples, to_string(r.precision), r.seed);
   fmt::print("verdict: {}   p-value {} (Sidak-adjusted over {} statistical tests, level {})   statistic {:.2f}   dof {}\n\n",
              r.passed ? "PASS" : "FAIL", fmt_p(r.p_value), r.statistical_tests, r.significance, r.statistic, r.dof);
-  fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", "test", "statistic", "dof", "p-value", "result");
-  auto chi = [&](const char* name, const ChiSquareResult& c) {
-    fmt::print("  {:<34} {:>14.2f} {:>7} {:>11}  {}{}\n", name, c.statistic, c.dof, fmt_p(c.p_value),
-               pass_fail(!c.rejected), c.reason.empty() ? "" : "  (" + c.reason + ")");
-  };
-  chi(fmt::format("chi2, sphere bins ({} cells)", r.sphere.cells).c_str(), r.sphere);
-  chi(fmt::format("chi2, lobe bins ({} cells)", r.lobe.cells).c_str(), r.lobe);
-  if (r.weight.applicable) {
-    fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", "E[weight] = |wi.z|/G1", fmt::format("{:.6g}", r.weight.value), "",
-               fmt_p(r.weight.p_value), pass_fail(r.weight.passed));
-  } else {
-    fmt::print("  {:<34} {:>14} {:>7} {:>11}  n/a\n", "E[weight] = |wi.z|/G1", "", "", "");
-  }
-  if (r.pdf.applicable) {
-    fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", "returned pdf (max rel. error)", fmt::format("{:.2e}", r.pdf.value),
-               "", fmt::format("<= {:.0e}", r.pdf.tolerance), pass_fail(r.pdf.passed));
-  } else {
-    fmt::print("  {:<34} {:>14} {:>7} {:>11}  n/a\n", "returned pdf (max rel. error)", "", "", "");
-  }
-  if (r.integral.applicable) {
-    fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", "claimed pdf integral", fmt::format("{:.9f}", r.integral.value), "",
-               fmt::format("<= 1+{:.0e}", r.integral.tolerance), pass_fail(r.integral.passed));
-  } else {
-    fmt::print("  {:<34} {:>14} {:>7} {:>11}  n/a\n", "claimed pdf integral", "", "", "");
-  }
-  fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", "samples outside the domain", r.outside_domain, "", "0",
-             pass_fail(r.domain_check.passed));
-  if (r.pdf.applicable && r.pdf.passed && r.pdf.value > r.pdf.tolerance)
-    fmt::print("  (returned pdf: errors above {:.0e} only where rounding the direction to {} changes the claimed pdf "
-               "as much)\n",
-               r.pdf.tolerance, to_string(r.precision));
+  print_tests(r);
   if (r.failed_samples > 0) fmt::print("  ({} sample(s) failed: counted in the remainder cells)\n", r.failed_samples);
-  const bool sphere_first = r.sphere.p_value <= r.lobe.p_value;
-  print_worst(sphere_first ? "sphere bins" : "lobe bins", sphere_first ? r.sphere : r.lobe, 6);
-  print_worst(sphere_first ? "lobe bins" : "sphere bins", sphere_first ? r.lobe : r.sphere, 3);
+  print_worst_cells(r);
   if (!r.failures.empty()) {
     fmt::print("\nrejected because:\n");
     for (const auto& f : r.failures) fmt::print("  - {}\n", f);
@@ -316,15 +328,13 @@ int run_all(const Args& a) {
       const GGX<double> ggx(ac.ax, ac.ay);
       const Vec3<double> wi = direction_from_degrees(theta, ac.phi);
       // One reference per claimed pdf, shared by the samplers that claim it.
-      std::map<double (*)(const GGX<double>&, const Vec3<double>&, const Vec3<double>&),
-               std::shared_ptr<const ReferenceDistribution>>
-          references;
+      std::map<ClaimedPdf, std::shared_ptr<const ReferenceDistribution>> references;
       for (const SamplerInfo& s : samplers) {
         if (interrupted()) {
           partial = true;
           break;
         }
-        auto& ref = references[s.claimed_pdf];
+        auto& ref = references[s.claims];
         if (!ref) {
           const auto t_ref = std::chrono::steady_clock::now();
           ref = claimed_reference(s, ggx, wi, o.rows);
@@ -351,8 +361,10 @@ int run_all(const Args& a) {
         fmt::print("{:<15} {:>10} {:>6g} {:>6g}  {:>9} {:>10} {:>10} {:>10} {:>10} {:>9}  {:>7.2f}\n", s.name,
                    fmt_alpha(ac.ax, ac.ay), theta, ac.phi,
                    r.passed ? "pass" : (s.negative_control ? "rejected" : "FAIL"), fmt_p(r.p_value),
-                   fmt_p(r.sphere.p_value), fmt_p(r.lobe.p_value), r.weight.applicable ? fmt_p(r.weight.p_value) : "n/a",
-                   r.pdf.applicable ? fmt::format("{:.1e}", r.pdf.value) : "n/a", r.seconds);
+                   fmt_p(r.chi2("sphere").p_value), fmt_p(r.chi2("lobe").p_value),
+                   r.check("weight_mean").applicable ? fmt_p(r.check("weight_mean").p_value) : "n/a",
+                   r.check("returned_pdf").applicable ? fmt::format("{:.1e}", r.check("returned_pdf").value) : "n/a",
+                   r.seconds);
         std::fflush(stdout);
         nlohmann::json j = to_json(r);
         j["negative_control"] = s.negative_control;
