@@ -21,6 +21,7 @@
 #include <algorithm>
 #include <map>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -287,6 +288,123 @@ int run_single(const Args& a) {
   return report.passed ? microsim::app::kExitOk : microsim::app::kExitRejected;
 }
 
+// ---- validate --all: the rendering of the batch -----------------------------------------------------------
+
+// How one sampler fared over the grid.
+struct Summary {
+  int total = 0, passed = 0;
+  double min_p = 1, max_p = 0, seconds = 0;
+  bool expectation_met = true;  // correct: all pass; negative control: all rejected with p < 1e-6
+};
+
+void add_to_summary(Summary& sm, const microsim::SamplerInfo& s, const microsim::ValidationReport& r) {
+  sm.total += 1;
+  sm.passed += r.passed;
+  sm.min_p = std::min(sm.min_p, r.p_value);
+  sm.max_p = std::max(sm.max_p, r.p_value);
+  sm.seconds += r.seconds;
+  if (s.negative_control) {
+    if (r.passed || !(r.p_value < kNegativeControlP)) sm.expectation_met = false;
+  } else if (!r.passed) {
+    sm.expectation_met = false;
+  }
+}
+
+void print_all_header(const Args& a, const microsim::ValidationOptions& o, std::size_t samplers, int n_configs,
+                      int n_validations) {
+  fmt::print("microsim validate --all: {} samplers x {} configurations, {} samples each ({}), seed {}\n", samplers,
+             n_configs, o.samples, microsim::to_string(o.precision), a.seed);
+  fmt::print("family-wise level {} over {} validations (Sidak): each validation at {:.3e}; negative controls must "
+             "be rejected with p < {:g}\n\n",
+             a.significance, n_validations, o.significance, kNegativeControlP);
+  fmt::print("{:<15} {:>10} {:>6} {:>6}  {:>9} {:>10} {:>10} {:>10} {:>10} {:>9}  {:>7}\n", "sampler", "alpha", "theta",
+             "phi", "verdict", "p-value", "p sphere", "p lobe", "p weight", "pdf err", "time s");
+}
+
+// One row of the batch table (printed at once) and its JSON record.
+nlohmann::json render_all_row(const microsim::SamplerInfo& s, const AlphaConfig& ac, double theta,
+                              const microsim::ValidationReport& r) {
+  const microsim::SubTest& weight = r.check("weight_mean");
+  const microsim::SubTest& pdf = r.check("returned_pdf");
+  fmt::print("{:<15} {:>10} {:>6g} {:>6g}  {:>9} {:>10} {:>10} {:>10} {:>10} {:>9}  {:>7.2f}\n", s.name,
+             fmt_alpha(ac.ax, ac.ay), theta, ac.phi, r.passed ? "pass" : (s.negative_control ? "rejected" : "FAIL"),
+             fmt_p(r.p_value), fmt_p(r.chi2("sphere").p_value), fmt_p(r.chi2("lobe").p_value),
+             weight.applicable ? fmt_p(weight.p_value) : "n/a", pdf.applicable ? fmt::format("{:.1e}", pdf.value) : "n/a",
+             r.seconds);
+  std::fflush(stdout);
+  nlohmann::json j = to_json(r);
+  j["negative_control"] = s.negative_control;
+  j["theta_deg"] = theta;
+  j["phi_deg"] = ac.phi;
+  return j;
+}
+
+// The summary table per sampler (and its JSON); true when every sampler met its expectation.
+bool print_summary(std::span<const microsim::SamplerInfo> samplers, const std::map<std::string, Summary>& summary,
+                   nlohmann::json& summary_json) {
+  bool all_met = true;
+  fmt::print("\nsummary per sampler:\n");
+  fmt::print("{:<15} {:>8} {:>12} {:>12} {:>12} {:>9}  {}\n", "sampler", "passed", "min p", "max p", "expected", "time s",
+             "outcome");
+  for (const microsim::SamplerInfo& s : samplers) {
+    const auto it = summary.find(std::string(s.name));
+    if (it == summary.end()) continue;
+    const Summary& sm = it->second;
+    all_met = all_met && sm.expectation_met;
+    fmt::print("{:<15} {:>4}/{:<3} {:>12} {:>12} {:>12} {:>9.1f}  {}\n", s.name, sm.passed, sm.total, fmt_p(sm.min_p),
+               fmt_p(sm.max_p), s.negative_control ? "all rejected" : "all pass", sm.seconds,
+               sm.expectation_met ? "as expected" : "UNEXPECTED");
+    summary_json.push_back({{"sampler", s.name},
+                            {"negative_control", s.negative_control},
+                            {"passed", sm.passed},
+                            {"total", sm.total},
+                            {"min_p_value", sm.min_p},
+                            {"max_p_value", sm.max_p},
+                            {"expectation_met", sm.expectation_met},
+                            {"seconds", sm.seconds}});
+  }
+  return all_met;
+}
+
+struct BatchTotals {
+  int requested = 0;
+  std::size_t done = 0;
+  int references = 0;  // claimed pdfs integrated (once per configuration and pdf)
+  double seconds = 0, reference_seconds = 0;
+  bool partial = false, all_met = false;
+};
+
+void print_overall(const BatchTotals& t) {
+  fmt::print("\nexpected counts (adaptive cubature of {} claimed pdfs x 2 binnings): {:.1f} s\n", t.references,
+             t.reference_seconds);
+  if (t.partial) {
+    fmt::print("overall: INTERRUPTED: partial results, {} of {} validations in {:.1f} s (no verdict)\n", t.done,
+               t.requested, t.seconds);
+  } else {
+    fmt::print("overall: {} ({} validations in {:.1f} s)\n",
+               t.all_met ? "PASS: every correct sampler passes and every negative control is rejected" : "FAIL", t.done,
+               t.seconds);
+  }
+}
+
+// The batch's JSON but for its summary and results: the verdict, the run's parameters and totals.
+nlohmann::json batch_json(const Args& a, const microsim::ValidationOptions& o, const BatchTotals& t) {
+  nlohmann::json j;
+  j["verdict"] = t.partial ? "interrupted" : t.all_met ? "pass" : "fail";
+  j["partial"] = t.partial;
+  j["validations_requested"] = t.requested;
+  j["validations_done"] = t.done;
+  j["samples"] = o.samples;
+  j["seed"] = a.seed;
+  j["precision"] = microsim::to_string(o.precision);
+  j["significance"] = a.significance;
+  j["per_validation_significance"] = o.significance;
+  j["negative_control_p_threshold"] = kNegativeControlP;
+  j["seconds"] = t.seconds;
+  j["reference_seconds"] = t.reference_seconds;
+  return j;
+}
+
 int run_all(const Args& a) {
   using namespace microsim;
   if (!a.alpha.empty() || a.theta) throw UsageError("--all runs its own grid: drop --alpha/--theta/--phi");
@@ -303,21 +421,10 @@ int run_all(const Args& a) {
   // keeps the family-wise level of the whole batch at --significance.
   o.significance = sidak_significance(a.significance, n_validations);
 
-  fmt::print("microsim validate --all: {} samplers x {} configurations, {} samples each ({}), seed {}\n",
-             samplers.size(), n_configs, o.samples, to_string(o.precision), a.seed);
-  fmt::print("family-wise level {} over {} validations (Sidak): each validation at {:.3e}; negative controls must "
-             "be rejected with p < {:g}\n\n",
-             a.significance, n_validations, o.significance, kNegativeControlP);
-  fmt::print("{:<15} {:>10} {:>6} {:>6}  {:>9} {:>10} {:>10} {:>10} {:>10} {:>9}  {:>7}\n", "sampler", "alpha", "theta",
-             "phi", "verdict", "p-value", "p sphere", "p lobe", "p weight", "pdf err", "time s");
+  print_all_header(a, o, samplers.size(), n_configs, n_validations);
 
   ProgressBar bar("validate --all", std::uint64_t(n_validations));
   nlohmann::json results = nlohmann::json::array();
-  struct Summary {
-    int total = 0, passed = 0;
-    double min_p = 1, max_p = 0, seconds = 0;
-    bool expectation_met = true;  // correct: all pass; negative control: all rejected with p < 1e-6
-  };
   std::map<std::string, Summary> summary;
   bool partial = false;
   int index = 0;
@@ -347,30 +454,8 @@ int run_all(const Args& a) {
         const auto t_start = std::chrono::steady_clock::now();
         ValidationReport r = usage_errors_of([&] { return validate_sampler(s, ggx, wi, vo, ref); });
         r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
-        Summary& sm = summary[std::string(s.name)];
-        sm.total += 1;
-        sm.passed += r.passed;
-        sm.min_p = std::min(sm.min_p, r.p_value);
-        sm.max_p = std::max(sm.max_p, r.p_value);
-        sm.seconds += r.seconds;
-        if (s.negative_control) {
-          if (r.passed || !(r.p_value < kNegativeControlP)) sm.expectation_met = false;
-        } else if (!r.passed) {
-          sm.expectation_met = false;
-        }
-        fmt::print("{:<15} {:>10} {:>6g} {:>6g}  {:>9} {:>10} {:>10} {:>10} {:>10} {:>9}  {:>7.2f}\n", s.name,
-                   fmt_alpha(ac.ax, ac.ay), theta, ac.phi,
-                   r.passed ? "pass" : (s.negative_control ? "rejected" : "FAIL"), fmt_p(r.p_value),
-                   fmt_p(r.chi2("sphere").p_value), fmt_p(r.chi2("lobe").p_value),
-                   r.check("weight_mean").applicable ? fmt_p(r.check("weight_mean").p_value) : "n/a",
-                   r.check("returned_pdf").applicable ? fmt::format("{:.1e}", r.check("returned_pdf").value) : "n/a",
-                   r.seconds);
-        std::fflush(stdout);
-        nlohmann::json j = to_json(r);
-        j["negative_control"] = s.negative_control;
-        j["theta_deg"] = theta;
-        j["phi_deg"] = ac.phi;
-        results.push_back(std::move(j));
+        add_to_summary(summary[std::string(s.name)], s, r);
+        results.push_back(render_all_row(s, ac, theta, r));
         bar.add(1);
       }
       if (partial) break;
@@ -380,52 +465,12 @@ int run_all(const Args& a) {
   bar.finish();
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
-  bool all_met = !partial;
-  fmt::print("\nsummary per sampler:\n");
-  fmt::print("{:<15} {:>8} {:>12} {:>12} {:>12} {:>9}  {}\n", "sampler", "passed", "min p", "max p", "expected", "time s",
-             "outcome");
   nlohmann::json summary_json = nlohmann::json::array();
-  for (const SamplerInfo& s : samplers) {
-    const auto it = summary.find(std::string(s.name));
-    if (it == summary.end()) continue;
-    const Summary& sm = it->second;
-    all_met = all_met && sm.expectation_met;
-    fmt::print("{:<15} {:>4}/{:<3} {:>12} {:>12} {:>12} {:>9.1f}  {}\n", s.name, sm.passed, sm.total, fmt_p(sm.min_p),
-               fmt_p(sm.max_p), s.negative_control ? "all rejected" : "all pass", sm.seconds,
-               sm.expectation_met ? "as expected" : "UNEXPECTED");
-    summary_json.push_back({{"sampler", s.name},
-                            {"negative_control", s.negative_control},
-                            {"passed", sm.passed},
-                            {"total", sm.total},
-                            {"min_p_value", sm.min_p},
-                            {"max_p_value", sm.max_p},
-                            {"expectation_met", sm.expectation_met},
-                            {"seconds", sm.seconds}});
-  }
-  fmt::print("\nexpected counts (adaptive cubature of {} claimed pdfs x 2 binnings): {:.1f} s\n",
-             reference_count, reference_seconds);
-  if (partial) {
-    fmt::print("overall: INTERRUPTED: partial results, {} of {} validations in {:.1f} s (no verdict)\n",
-               results.size(), n_validations, seconds);
-  } else {
-    fmt::print("overall: {} ({} validations in {:.1f} s)\n",
-               all_met ? "PASS: every correct sampler passes and every negative control is rejected" : "FAIL",
-               results.size(), seconds);
-  }
+  const bool all_met = print_summary(samplers, summary, summary_json) && !partial;
+  const BatchTotals totals{n_validations, results.size(), reference_count, seconds, reference_seconds, partial, all_met};
+  print_overall(totals);
   if (!a.json.empty()) {
-    nlohmann::json j;
-    j["verdict"] = partial ? "interrupted" : all_met ? "pass" : "fail";
-    j["partial"] = partial;
-    j["validations_requested"] = n_validations;
-    j["validations_done"] = results.size();
-    j["samples"] = o.samples;
-    j["seed"] = a.seed;
-    j["precision"] = to_string(o.precision);
-    j["significance"] = a.significance;
-    j["per_validation_significance"] = o.significance;
-    j["negative_control_p_threshold"] = kNegativeControlP;
-    j["seconds"] = seconds;
-    j["reference_seconds"] = reference_seconds;
+    nlohmann::json j = batch_json(a, o, totals);
     j["summary"] = summary_json;
     j["results"] = results;
     write_text_atomically(a.json, j.dump(2) + "\n");

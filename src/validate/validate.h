@@ -62,7 +62,7 @@ struct ValidationOptions {
   // rounding alone can carry a sample across a jump of the claimed pdf (the bounded sampler's cap edge)
   // or move D by percents at alpha = 1e-3 when the half vector of two nearly opposite grazing
   // directions is recomputed; in double, the lengths of wi and wo off 1 by an ulp move D by 5e-6 at
-  // alpha = 1e-4, theta = 89.99 deg (validate.cpp, rounding_sensitivity). Fraction allowed to fail: 0.
+  // alpha = 1e-4, theta = 89.99 deg (battery.cpp, rounding_sensitivity). Fraction allowed to fail: 0.
   double pdf_outlier_fraction = 0;
   double integral_tolerance = 1e-5;    // the claimed pdf may integrate to at most 1 + this
   double unit_tolerance = 1e-5;        // samples with | |w| - 1 | above this are outside the domain
