@@ -6,7 +6,7 @@
 #include "number_options.h"
 
 #include "stats/histogram_io.h"
-#include "core/progress.h"
+#include "progress_bar.h"
 #include "validate/stability.h"
 
 #include <fmt/core.h>

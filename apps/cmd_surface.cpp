@@ -19,7 +19,7 @@
 #include "microgeom/heightfield.h"
 #include "microgeom/mesh_io.h"
 #include "microgeom/surface_stats.h"
-#include "core/progress.h"
+#include "progress_bar.h"
 
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>

@@ -12,8 +12,10 @@
 
 #include "validate/compare.h"
 #include "stats/histogram_io.h"
-#include "core/progress.h"
+#include "progress_bar.h"
+#include "surface_input.h"
 #include "trace/trace_vndf.h"
+#include "vndf_report.h"
 
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
@@ -26,12 +28,6 @@
 #include <string>
 #include <vector>
 
-namespace microsim::app {
-// Defined in cmd_trace_masking.cpp: `trace vndf --surface SURF.exr` (an explicit heightfield).
-int run_trace_vndf_heightfield(const std::string& surface, std::optional<double> tile_size, double theta, double phi,
-                               long long rays, unsigned long long seed, int threads, int rows, const std::string& out,
-                               const std::string& json);
-}  // namespace microsim::app
 
 namespace {
 
@@ -47,10 +43,62 @@ struct TraceVndfArgs {
   unsigned long long seed = 1;
   int threads = 0;
   int rows = 31;
-  std::string out, json, mesh_out;
+  std::string out, json, mesh_out, shard;
   double tile_size = 0;
   bool alpha_given = false, tile_size_given = false, mesh_level_given = false;
 };
+
+// The request of a trace vndf run: the view, the run's rays and seed, and its shard (--shard K/N: block
+// range K of N of the run's blocks of kRaysPerBlock rays).
+microsim::VndfRequest vndf_request(const TraceVndfArgs& a, const std::shared_ptr<microsim::CliProgress>& progress) {
+  namespace ms = microsim;
+  ms::VndfRequest r;
+  r.theta_deg = a.theta;
+  r.phi_deg = a.phi;
+  r.rays = std::uint64_t(a.rays);
+  r.seed = a.seed;
+  r.rows = a.rows;
+  r.run = ms::cli_run_control(a.threads, progress);
+  if (!a.shard.empty()) {
+    const ms::BlockPlan plan{r.rays, ms::kRaysPerBlock};
+    const ms::ShardSpec s = ms::parse_shard("--shard", a.shard, plan.blocks());  // ParseError: exit 2
+    r.blocks = ms::shard_range(plan.blocks(), s.index, s.count);
+  }
+  return r;
+}
+
+void warn_if_partial(const microsim::TraceResult& r, const microsim::VndfRequest& request) {
+  if (!r.partial) return;
+  const std::uint64_t wanted = microsim::BlockPlan{request.rays, microsim::kRaysPerBlock}.units_in(
+      microsim::selected_blocks({request.rays, microsim::kRaysPerBlock}, request.blocks));
+  fmt::print(stderr, "trace vndf: interrupted after {} of {} rays; writing a partial histogram (blocks {})\n", r.rays,
+             wanted, r.blocks.to_string());
+}
+
+// `trace vndf --surface SURF.exr`: the heightfield counterpart of the ellipsoid oracle, same histogram EXR
+// and JSON keys (total_variation, noise_floor_tv and p_value refer to the lobe bins and Smith's D_v with
+// the surface's analytic reference NDF; the comparison with the surface's own NDF is added).
+int run_trace_vndf_heightfield(const TraceVndfArgs& a) {
+  namespace ms = microsim;
+  namespace app = microsim::app;
+  app::check_theta("--theta", a.theta);
+  if (!std::isfinite(a.phi)) throw UsageError(fmt::format("--phi {}: must be finite", a.phi));
+  if (std::filesystem::path(a.out).extension() != ".exr") throw UsageError(fmt::format("--out '{}': must be an .exr file", a.out));
+  app::check_output("--out", a.out);
+  app::check_output("--json", a.json);
+  const microgeom::Heightfield field =
+      app::load_surface(a.surface, a.tile_size_given ? std::optional<double>(a.tile_size) : std::nullopt);
+  const auto progress = std::make_shared<ms::CliProgress>(true);
+  const ms::VndfRequest request = vndf_request(a, progress);
+  ms::install_interrupt_handler();
+  fmt::print(stderr, "trace vndf: heightfield {} ({} x {}, tile {}), theta {} phi {}, {} rays, seed {}{}\n", a.surface,
+             field.resolution(), field.resolution(), field.tile_size(), a.theta, a.phi, a.rays, a.seed,
+             a.shard.empty() ? "" : ", shard " + a.shard);
+  const ms::HeightfieldVndf m = ms::measure_heightfield_vndf(field, a.surface, request);
+  progress->finish();
+  warn_if_partial(m.trace, request);
+  return app::report_heightfield_vndf(m, field, {a.out, a.json});
+}
 
 int run_trace_vndf(const TraceVndfArgs& a) {
   namespace ms = microsim;
@@ -63,9 +111,7 @@ int run_trace_vndf(const TraceVndfArgs& a) {
   if (heightfield) {
     if (a.alpha_given) throw UsageError("--alpha applies to --surface ellipsoid only (a heightfield has its own roughness)");
     if (a.mesh_level_given || !a.mesh_out.empty()) throw UsageError("--mesh-level/--mesh-out apply to --surface ellipsoid only");
-    return microsim::app::run_trace_vndf_heightfield(
-        a.surface, a.tile_size_given ? std::optional<double>(a.tile_size) : std::nullopt, a.theta, a.phi, a.rays,
-        a.seed, a.threads, a.rows, a.out, a.json);
+    return run_trace_vndf_heightfield(a);
   }
   if (a.tile_size_given) throw UsageError("--tile-size applies to heightfield surfaces only");
   if (!a.alpha_given) throw UsageError("--alpha is required for --surface ellipsoid");
@@ -90,90 +136,17 @@ int run_trace_vndf(const TraceVndfArgs& a) {
   }
 
   // ---- trace ---------------------------------------------------------------------------------------------
-  const ms::GGX<double> ggx(ax, ay);
-  const ms::Vec3<double> wi = ms::direction_from_degrees(a.theta, a.phi);
+  const auto progress = std::make_shared<ms::CliProgress>(true);
+  const ms::VndfRequest request = vndf_request(a, progress);
   ms::install_interrupt_handler();
   const ms::EllipsoidTarget target(ax, ay, a.mesh_level);
   if (!a.mesh_out.empty()) microgeom::write_ellipsoid_mesh(*target.mesh(), a.mesh_out);
-  fmt::print(stderr, "trace vndf: ellipsoid alpha ({}, {}), {}, theta {} phi {}, {} rays, seed {}\n", ax, ay,
-             target.describe(), a.theta, a.phi, a.rays, a.seed);
-  ms::TracedHistogram h;
-  h.binnings = {ms::DirectionBinning::sphere(a.rows),
-                ms::DirectionBinning::lobe(ggx, wi, ms::SampleDomain::microfacet_normal, a.rows)};
-  ms::TraceOptions options;
-  options.rays = std::uint64_t(a.rays);
-  options.seed = a.seed;
-  options.threads = a.threads;
-  options.progress = true;
-  const ms::TraceResult r = ms::trace_vndf(target, wi, h.binnings, options);
-  h.counts = r.counts;
-  h.rays = r.rays;
-  h.hits = r.hits;
-  h.partial = r.partial;
-  if (r.partial) fmt::print(stderr, "trace vndf: interrupted after {} of {} rays; writing a partial histogram\n", r.rays, a.rays);
-
-  // ---- analyse and write ---------------------------------------------------------------------------------
-  const ms::TraceAnalysis analysis = ms::analyse_against_vndf(h, ggx, wi, r.unbinned);
-  const ms::ParallelBeam beam(target.ellipsoid(), wi);
-  const auto g17 = [](double x) { return fmt::format("{:.17g}", x); };
-  h.attributes["surface"] = a.surface;
-  h.attributes["target"] = target.describe();
-  h.attributes["mesh_level"] = std::to_string(target.mesh_level());
-  h.attributes["alpha"] = g17(ax) + "," + g17(ay);
-  h.attributes["theta"] = g17(a.theta);
-  h.attributes["phi"] = g17(a.phi);
-  h.attributes["wi"] = g17(wi.x()) + "," + g17(wi.y()) + "," + g17(wi.z());
-  h.attributes["seed"] = std::to_string(a.seed);
-  h.attributes["rays_requested"] = std::to_string(a.rays);
-  h.attributes["threads"] = std::to_string(a.threads);
-  h.attributes["rays_per_second"] = g17(r.rays_per_second());
-  ms::write_histogram_exr(a.out, h);
-
-  nlohmann::json j;
-  j["surface"] = a.surface;
-  j["target"] = target.describe();
-  j["mesh_level"] = target.mesh_level();
-  j["triangles"] = target.triangle_count();
-  j["alpha"] = {ax, ay};
-  j["theta"] = a.theta;
-  j["phi"] = a.phi;
-  j["wi"] = {wi.x(), wi.y(), wi.z()};
-  j["rays_requested"] = a.rays;
-  j["rays"] = r.rays;
-  j["hits"] = r.hits;
-  j["hit_fraction"] = r.rays ? double(r.hits) / double(r.rays) : 0.0;
-  j["expected_hit_fraction"] = beam.expected_hit_fraction();
-  j["seconds"] = r.seconds;
-  j["rays_per_second"] = r.rays_per_second();
-  j["cpu_seconds"] = r.cpu_seconds;
-  j["cpu_ns_per_ray"] = r.cpu_ns_per_ray();
-  j["seed"] = a.seed;
-  j["threads"] = a.threads;
-  j["rows"] = a.rows;
-  j["partial"] = r.partial;
-  j["output"] = a.out;
-  const auto& lobe_fit = analysis.fits.back().binning == "lobe" ? analysis.fits.back() : analysis.fits.front();
-  j["total_variation"] = lobe_fit.total_variation;  // lobe bins resolve the lobe at every alpha
-  j["noise_floor_tv"] = lobe_fit.noise_floor_tv;
-  j["p_value"] = analysis.p_value;
-  j["analysis"] = ms::to_json(analysis);
-  if (!a.json.empty()) ms::write_text_atomically(a.json, j.dump(2) + "\n");
-
-  // ---- report (stdout) -----------------------------------------------------------------------------------
-  fmt::print("trace vndf  ellipsoid alpha ({}, {})  theta {}  phi {}  {}\n", ax, ay, a.theta, a.phi, target.describe());
-  fmt::print("rays {}  hits {}  hit fraction {:.6f} (exact ellipsoid: {:.6f})  {:.2f} s  {:.3f} Mrays/s  "
-             "{:.1f} CPU ns/ray{}\n",
-             r.rays, r.hits, r.rays ? double(r.hits) / double(r.rays) : 0.0, beam.expected_hit_fraction(), r.seconds,
-             r.rays_per_second() * 1e-6, r.cpu_ns_per_ray(), r.partial ? "  PARTIAL (interrupted)" : "");
-  fmt::print("{:<8} {:>6} {:>12} {:>12} {:>12} {:>6} {:>10}\n", "bins", "cells", "TV", "TV floor", "chi2", "dof", "p");
-  for (const ms::TraceFit& f : analysis.fits) {
-    fmt::print("{:<8} {:>6} {:>12.6f} {:>12.6f} {:>12.1f} {:>6} {:>10.4g}\n", f.binning, f.chi2.cells, f.total_variation,
-               f.noise_floor_tv, f.chi2.statistic, f.chi2.dof, f.chi2.p_value);
-  }
-  fmt::print("distance to analytic D_v: Sidak-combined p = {:.4g} ({} at level {})\n", analysis.p_value,
-             analysis.rejected ? "distinguishable" : "indistinguishable", analysis.significance);
-  fmt::print("wrote {}{}\n", a.out, a.json.empty() ? "" : " and " + a.json);
-  return r.partial ? microsim::app::kExitInterrupted : microsim::app::kExitOk;
+  fmt::print(stderr, "trace vndf: ellipsoid alpha ({}, {}), {}, theta {} phi {}, {} rays, seed {}{}\n", ax, ay,
+             target.describe(), a.theta, a.phi, a.rays, a.seed, a.shard.empty() ? "" : ", shard " + a.shard);
+  const ms::EllipsoidVndf m = ms::measure_ellipsoid_vndf(target, request);
+  progress->finish();
+  warn_if_partial(m.trace, request);
+  return microsim::app::report_ellipsoid_vndf(m, target, {a.out, a.json});
 }
 
 microsim::app::CommandRegistration reg{"trace", [](CLI::App& app) {
@@ -216,6 +189,10 @@ microsim::app::CommandRegistration reg{"trace", [](CLI::App& app) {
   sub->add_option("--out", args->out, "histogram EXR to write")->required();
   sub->add_option("--json", args->json, "also write a JSON summary");
   sub->add_option("--mesh-out", args->mesh_out, "write the traced mesh (.ply or .obj; needs --mesh-level)");
+  sub->add_option("--shard", args->shard,
+                  "trace only shard K of N of the run (K/N, 1-based: a contiguous range of its blocks of 4096 rays); "
+                  "the histogram records its range, and `microsim merge` joins the N parts into the whole run, bit "
+                  "for bit");
   microsim::app::on_selected(sub, [args, alpha, tile_size, mesh_level] {
     args->alpha_given = alpha->count() > 0;
     args->tile_size_given = tile_size->count() > 0;

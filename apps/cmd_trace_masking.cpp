@@ -17,13 +17,14 @@
 // kLeakSigmas standard errors from 1, or a ray leaked through the surface); 2 bad usage or input (nothing
 // written); 130 interrupted (what was measured is written, marked partial).
 #include "command.h"
+#include "surface_input.h"
 #include "number_options.h"
 
 #include "microgeom/assembly.h"
 #include "microgeom/heightfield.h"
 #include "stats/histogram_io.h"
 #include "trace/masking.h"
-#include "core/progress.h"
+#include "progress_bar.h"
 
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
@@ -65,37 +66,13 @@ std::vector<std::string> split_names(const std::string& option, const std::strin
   return names;
 }
 
-void check_theta(const std::string& option, double theta) {
-  if (!std::isfinite(theta) || theta < 0 || theta >= 90)
-    throw UsageError(fmt::format("{} {}: the direction must be in [0, 90) degrees", option, theta));
-}
 
 void check_grazing_share(double share) {
   if (!(share > 0 && share < 0.5))
     throw UsageError(fmt::format("--grazing-share {}: must be in (0, 0.5)", share));
 }
 
-void check_output(const std::string& option, const std::string& path) {
-  if (path.empty()) return;
-  try {
-    check_writable(path);
-  } catch (const HistogramIoError& e) {
-    throw UsageError(fmt::format("{}: {}", option, e.what()));
-  }
-}
 
-microgeom::Heightfield load_surface(const std::string& path, std::optional<double> tile_size) {
-  if (tile_size && !(*tile_size > 0 && std::isfinite(*tile_size)))
-    throw UsageError(fmt::format("--tile-size {}: must be positive and finite", *tile_size));
-  if (!fs::exists(path)) throw UsageError(fmt::format("--surface '{}': no such file", path));
-  try {
-    return microgeom::load_heightmap_exr(path, tile_size);
-  } catch (const std::bad_alloc&) {
-    throw;  // out of memory is an internal error (exit 3), not bad input
-  } catch (const std::exception& e) {
-    throw UsageError(fmt::format("--surface '{}': {}", path, e.what()));
-  }
-}
 
 // Ctrl-C: what was measured has been written, marked partial; says so on stderr. Returns exit code 130.
 int interrupted_partial_written(const char* command, const std::vector<std::string>& outputs) {
@@ -187,20 +164,6 @@ bool leak_failed(const MaskingResult& r) {
   return std::abs(r.leak_ratio.value - 1.0) > kLeakSigmas * r.leak_ratio.se;
 }
 
-nlohmann::json surface_json(const microgeom::Heightfield& field, const std::string& path, const AnalyticSmith& analytic,
-                            const std::string& source) {
-  nlohmann::json j;
-  j["path"] = path;
-  j["resolution"] = field.resolution();
-  j["tile_size"] = field.tile_size();
-  j["min_height"] = field.min_height();
-  j["max_height"] = field.max_height();
-  j["metadata"] = field.metadata;
-  j["analytic_reference"] = {{"ndf", to_string(analytic.ndf())},
-                             {"alpha", {analytic.alpha_x(), analytic.alpha_y()}},
-                             {"source", source}};
-  return j;
-}
 
 int run_masking(const MaskingArgs& a) {
   // ---- validate everything before any work ----
@@ -234,12 +197,14 @@ int run_masking(const MaskingArgs& a) {
   MaskingOptions opts;
   opts.samples = std::uint64_t(a.samples);
   opts.seed = a.seed;
-  opts.threads = a.threads;
+  const auto progress = std::make_shared<CliProgress>(true);
+  opts.run = cli_run_control(a.threads, progress);
   opts.normal_bins = opts.height_bins = a.bins;
   opts.cone_deg = a.cone;
   opts.grazing_share = a.grazing_share;
   if (a.theta_l) opts.light = direction_from_degrees(*a.theta_l, a.phi_l);
   const MaskingResult r = estimate_masking(scene, analytic, empirical, v, opts);
+  progress->finish();
 
   nlohmann::json j;
   j["surface"] = surface_json(field, a.surface, analytic, source);
@@ -264,9 +229,10 @@ int run_masking(const MaskingArgs& a) {
     TraceOptions to;
     to.rays = std::uint64_t(a.vndf_rays);
     to.seed = a.seed;
-    to.threads = a.threads;
+    to.run = opts.run;
     HeightfieldVndfDiagnostics diag;
     vndf = trace_vndf_heightfield(scene, v, binnings, to, &diag);
+    progress->finish();
     nlohmann::json jv;
     jv["rays"] = vndf->rays;
     jv["hits"] = vndf->hits;
@@ -488,7 +454,7 @@ int run_table(const MaskingArgs& a) {
           TraceOptions to;
           to.rays = std::uint64_t(a.table_vndf_rays);
           to.seed = seed;
-          to.progress = false;
+          to.run = cli_run_control(a.threads, nullptr);
           const TraceResult tres = trace_vndf_heightfield(scene, v, binnings, to);
           TableRow row;
           row.assembly = name;
@@ -499,7 +465,7 @@ int run_table(const MaskingArgs& a) {
           MaskingOptions mo;
           mo.samples = std::uint64_t(a.samples);
           mo.seed = seed;
-          mo.progress = false;
+          mo.run = cli_run_control(a.threads, nullptr);
           mo.grazing_share = a.grazing_share;
           // The specular pair: l = v mirrored through the mean normal, facets within the cone around z.
           mo.light = Vec3<double>(-v.x(), -v.y(), v.z());
@@ -602,108 +568,6 @@ int run_table(const MaskingArgs& a) {
 }
 
 }  // namespace
-
-// `trace vndf --surface SURF.exr`: the heightfield counterpart of the ellipsoid oracle, same histogram EXR
-// and JSON keys (total_variation, noise_floor_tv and p_value refer to the lobe bins and Smith's D_v with
-// the surface's analytic reference NDF; the comparison with the surface's own NDF is added).
-int run_trace_vndf_heightfield(const std::string& surface, std::optional<double> tile_size, double theta, double phi,
-                               long long rays, unsigned long long seed, int threads, int rows, const std::string& out,
-                               const std::string& json) {
-  check_theta("--theta", theta);
-  if (!std::isfinite(phi)) throw UsageError(fmt::format("--phi {}: must be finite", phi));
-  if (fs::path(out).extension() != ".exr") throw UsageError(fmt::format("--out '{}': must be an .exr file", out));
-  check_output("--out", out);
-  check_output("--json", json);
-  const microgeom::Heightfield field = load_surface(surface, tile_size);
-
-  install_interrupt_handler();
-  std::string source;
-  const AnalyticSmith analytic = analytic_reference(field, &source);
-  const EmpiricalSmith empirical(field);
-  const HeightfieldScene scene(field);
-  const Vec3<double> wi = direction_from_degrees(theta, phi);
-  fmt::print(stderr, "trace vndf: heightfield {} ({} x {}, tile {}), scene built in {:.2f} s, theta {} phi {}, {} rays, seed {}\n",
-             surface, field.resolution(), field.resolution(), field.tile_size(), scene.build_seconds(), theta, phi,
-             rays, seed);
-  TracedHistogram h;
-  h.binnings = {DirectionBinning::sphere(rows),
-                DirectionBinning::lobe(GGX<double>(analytic.alpha_x(), analytic.alpha_y()), wi,
-                                       SampleDomain::microfacet_normal, rows)};
-  TraceOptions options;
-  options.rays = std::uint64_t(rays);
-  options.seed = seed;
-  options.threads = threads;
-  HeightfieldVndfDiagnostics diag;
-  const TraceResult r = trace_vndf_heightfield(scene, wi, h.binnings, options, &diag);
-  if (r.partial) fmt::print(stderr, "trace vndf: interrupted after {} of {} rays; writing a partial histogram\n", r.rays, rays);
-  h.counts = r.counts;
-  h.rays = r.rays;
-  h.hits = r.hits;
-  h.partial = r.partial;
-  std::vector<VndfComparison> comparisons;
-  for (std::size_t k = 0; k < h.binnings.size(); ++k) {
-    comparisons.push_back(compare_vndf(r.counts[k], r.unbinned[k], h.binnings[k], wi, analytic, empirical));
-    h.probability.push_back(comparisons.back().p_analytic);
-  }
-  const auto g17 = [](double x) { return fmt::format("{:.17g}", x); };
-  h.attributes["surface"] = surface;
-  h.attributes["target"] = fmt::format("heightfield {} x {} tile {}", field.resolution(), field.resolution(), g17(field.tile_size()));
-  h.attributes["mesh_level"] = "-1";
-  h.attributes["alpha"] = g17(analytic.alpha_x()) + "," + g17(analytic.alpha_y());
-  h.attributes["reference_ndf"] = to_string(analytic.ndf());
-  h.attributes["theta"] = g17(theta);
-  h.attributes["phi"] = g17(phi);
-  h.attributes["wi"] = g17(wi.x()) + "," + g17(wi.y()) + "," + g17(wi.z());
-  h.attributes["seed"] = std::to_string(seed);
-  h.attributes["rays_requested"] = std::to_string(rays);
-  h.attributes["threads"] = std::to_string(threads);
-  h.attributes["rays_per_second"] = g17(r.rays_per_second());
-  write_histogram_exr(out, h);
-
-  const VndfComparison& lobe = comparisons.back();
-  nlohmann::json j;
-  j["surface"] = surface_json(field, surface, analytic, source);
-  j["target"] = h.attributes["target"];
-  j["alpha"] = {analytic.alpha_x(), analytic.alpha_y()};
-  j["theta"] = theta;
-  j["phi"] = phi;
-  j["wi"] = {wi.x(), wi.y(), wi.z()};
-  j["rays_requested"] = rays;
-  j["rays"] = r.rays;
-  j["hits"] = r.hits;
-  j["hit_fraction"] = r.rays ? double(r.hits) / double(r.rays) : 0.0;
-  j["expected_hit_fraction"] = 1.0;  // every downward ray hits a heightfield
-  j["backfacing_hits"] = diag.backfacing;
-  j["edge_grazes"] = diag.edge_grazes;
-  j["leaked_rays"] = diag.leaked;
-  j["seconds"] = r.seconds;
-  j["rays_per_second"] = r.rays_per_second();
-  j["seed"] = seed;
-  j["threads"] = threads;
-  j["rows"] = rows;
-  j["partial"] = r.partial;
-  j["output"] = out;
-  j["total_variation"] = lobe.tv_analytic;
-  j["total_variation_own_ndf"] = lobe.tv_empirical;
-  j["noise_floor_tv"] = lobe.tv_noise;
-  j["p_value"] = lobe.p_value_analytic;
-  j["p_value_own_ndf"] = lobe.p_value_empirical;
-  for (const auto& c : comparisons) j["comparisons"].push_back(to_json(c));
-  if (!json.empty()) write_text_atomically(json, j.dump(2) + "\n");
-
-  fmt::print("trace vndf  heightfield {}  theta {}  phi {}  reference {} ({})\n", surface, theta, phi,
-             analytic.describe(), source);
-  fmt::print("rays {}  front-facing first hits {}  back-facing {}  convex-edge grazes passed over {}  leaked {}  {:.2f} s  "
-             "{:.3f} Mrays/s{}\n", r.rays, r.hits, diag.backfacing, diag.edge_grazes, diag.leaked, r.seconds, r.rays_per_second() * 1e-6,
-             r.partial ? "  PARTIAL (interrupted)" : "");
-  fmt::print("| bins | cells | TV to Smith (analytic) | TV to Smith (own NDF) | TV noise floor | p (analytic) | p (own NDF) |\n"
-             "|---|---|---|---|---|---|---|\n");
-  for (const auto& c : comparisons)
-    fmt::print("| {} | {} | {:.5f} | {:.5f} | {:.5f} | {:.3g} | {:.3g} |\n", c.binning, c.bins, c.tv_analytic,
-               c.tv_empirical, c.tv_noise, c.p_value_analytic, c.p_value_empirical);
-  fmt::print("wrote {}{}\n", out, json.empty() ? "" : " and " + json);
-  return r.partial ? microsim::app::kExitInterrupted : kExitOk;
-}
 
 namespace {
 

@@ -7,7 +7,7 @@
 
 #include "validate/compare.h"
 #include "stats/histogram_io.h"
-#include "core/progress.h"
+#include "progress_bar.h"
 #include "validate/sample_io.h"
 #include "validate/validate.h"
 
@@ -210,8 +210,10 @@ int run_against(const Args& a, const microsim::GGX<double>& ggx, const microsim:
     t.rays = std::uint64_t(a.rays.value_or(4'000'000));
     t.seed = oracle_seed(a.seed);
     t.rows = a.rows;
-    t.progress = true;
+    const auto progress = std::make_shared<CliProgress>(true);
+    t.run = cli_run_control(0, progress);
     traced = trace_vndf_histogram(ggx, wi, t);
+    progress->finish();
     if (traced.partial) return interrupted_nothing_written("while tracing the oracle");
     oracle = fmt::format("the traced ellipsoid ({} rays, {} hits, seed {})", traced.rays, traced.hits, t.seed);
   } else {
@@ -263,7 +265,8 @@ int run_single(const Args& a) {
   const GGX<double> ggx(ax, ay);
   const Vec3<double> wi = direction_from_degrees(*a.theta, a.phi);
   ValidationOptions o = base_options(a);
-  o.progress = true;
+  const auto progress = std::make_shared<CliProgress>(true);
+  o.run = cli_run_control(0, progress);
   install_interrupt_handler();
   if (!a.against.empty()) return run_against(a, ggx, wi, o);
   ValidationReport report;
@@ -281,6 +284,7 @@ int run_single(const Args& a) {
     report = usage_errors_of([&] { return validate_sampler(*s, ggx, wi, o); });
     source = fmt::format("sampler {}", s->name);
   }
+  progress->finish();
   if (interrupted()) return interrupted_nothing_written("while validating");
   print_report(report, source);
   if (!a.json.empty()) write_text_atomically(a.json, to_json(report).dump(2) + "\n");

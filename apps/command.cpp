@@ -1,5 +1,7 @@
 #include "command.h"
 
+#include "core/run_control.h"
+
 #include <fmt/core.h>
 
 #include <cstdio>
@@ -42,6 +44,9 @@ int run_selected() {
     } catch (const UsageError& e) {
       fmt::print(stderr, "microsim: error: {}\n", e.what());
       return kExitUsage;
+    } catch (const microsim::Cancelled& e) {  // a step with no partial result to keep
+      fmt::print(stderr, "microsim: interrupted ({}): nothing written\n", e.what());
+      return kExitInterrupted;
     } catch (const std::bad_alloc&) {
       fmt::print(stderr, "microsim: internal error: out of memory\n");
       return kExitInternal;

@@ -65,9 +65,7 @@ TraceOptions pipeline_options(int threads) {
   TraceOptions o;
   o.rays = kRays;
   o.seed = 1;
-  o.threads = threads;
-  o.progress = false;
-  o.stop_on_interrupt = false;
+  o.run.threads = threads;
   return o;
 }
 

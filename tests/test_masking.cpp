@@ -49,7 +49,6 @@ MaskingOptions quiet(std::uint64_t samples, std::uint64_t seed = 1) {
   MaskingOptions o;
   o.samples = samples;
   o.seed = seed;
-  o.progress = false;
   return o;
 }
 
@@ -133,9 +132,9 @@ TEST(Masking, DeterministicWhateverTheThreadCount) {
   MaskingOptions o = quiet(20'000, 9);
   o.light = direction_from_degrees(50.0, 200.0);
   const Vec3<double> v = direction_from_degrees(70.0, 30.0);
-  o.threads = 1;
+  o.run.threads = 1;
   const MaskingResult a = estimate_masking(*s.scene, *s.analytic, *s.empirical, v, o);
-  o.threads = 2;
+  o.run.threads = 2;
   const MaskingResult b = estimate_masking(*s.scene, *s.analytic, *s.empirical, v, o);
   EXPECT_EQ(a.rays, b.rays);
   EXPECT_EQ(a.leak_ratio.value, b.leak_ratio.value);
@@ -149,10 +148,9 @@ TEST(Masking, DeterministicWhateverTheThreadCount) {
   const std::vector<DirectionBinning> bins = {DirectionBinning::sphere(9)};
   TraceOptions t;
   t.rays = 30'000;
-  t.progress = false;
-  t.threads = 1;
+  t.run.threads = 1;
   const TraceResult va = trace_vndf_heightfield(*s.scene, v, bins, t);
-  t.threads = 2;
+  t.run.threads = 2;
   const TraceResult vb = trace_vndf_heightfield(*s.scene, v, bins, t);
   EXPECT_EQ(va.counts, vb.counts);
 }
@@ -240,7 +238,6 @@ TEST(MaskingVndf, NormalIncidenceIsTheEmpiricalNdf) {
       DirectionBinning::lobe(GGX<double>(0.5), v, SampleDomain::microfacet_normal, 8)};
   TraceOptions t;
   t.rays = 200'000;
-  t.progress = false;
   HeightfieldVndfDiagnostics d;
   const TraceResult r = trace_vndf_heightfield(*s.scene, v, bins, t, &d);
   EXPECT_EQ(r.hits, r.rays);

@@ -3,7 +3,6 @@
 // its exact value, interruption, tessellation bias of the mesh, and the histogram EXR round trip.
 #include "validate/compare.h"
 #include "stats/histogram_io.h"
-#include "core/progress.h"
 #include "trace/trace_vndf.h"
 
 #include <gtest/gtest.h>
@@ -32,7 +31,7 @@ TracedHistogram trace(double ax, double ay, double theta, double phi, std::uint6
   o.seed = seed;
   o.rows = kRows;
   o.mesh_level = mesh_level;
-  o.threads = threads;
+  o.run.threads = threads;
   return trace_vndf_histogram(GGX<double>(ax, ay), direction_from_degrees(theta, phi), o);
 }
 
@@ -118,7 +117,6 @@ TEST(TraceVndf, HitFractionMatchesProjectedArea) {
       TraceOptions o;
       o.rays = 200'000;
       o.seed = 3;
-      o.progress = false;
       const TraceResult r = trace_vndf(target, wi, {}, o);
       const double f = ParallelBeam(target.ellipsoid(), wi).expected_hit_fraction();
       const double z = (double(r.hits) - f * double(r.rays)) / std::sqrt(double(r.rays) * f * (1 - f));
@@ -129,22 +127,22 @@ TEST(TraceVndf, HitFractionMatchesProjectedArea) {
   }
 }
 
-TEST(TraceVndf, InterruptStopsWithPartialResult) {
+TEST(TraceVndf, CancelStopsWithPartialResult) {
   const EllipsoidTarget target(0.5, 0.5, -1);
   TraceOptions o;
   o.rays = 1'000'000;
-  o.progress = false;
-  set_interrupted(true);
+  CancelToken cancel;
+  cancel.cancel();
+  o.run.cancel = &cancel;
   const TraceResult r = trace_vndf(target, direction_from_degrees(30.0, 0.0), {}, o);
-  set_interrupted(false);
   EXPECT_TRUE(r.partial);
   EXPECT_LT(r.rays, o.rays);
-  o.stop_on_interrupt = false;
-  set_interrupted(true);
+  EXPECT_EQ(r.rays, r.blocks.size() * kRaysPerBlock);
+  o.run.cancel = nullptr;
   const TraceResult full = trace_vndf(target, direction_from_degrees(30.0, 0.0), {}, o);
-  set_interrupted(false);
   EXPECT_FALSE(full.partial);
   EXPECT_EQ(full.rays, o.rays);
+  EXPECT_EQ(full.blocks, (BlockRange{0, full.total_blocks}));
 }
 
 TEST(TraceVndf, BadInputThrows) {

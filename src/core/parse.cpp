@@ -250,4 +250,14 @@ std::vector<std::uint64_t> parse_uint_list(std::string_view what, std::string_vi
   return values;
 }
 
+ShardSpec parse_shard(std::string_view what, std::string_view text, std::uint64_t max_shards) {
+  const std::size_t slash = text.find('/');
+  if (slash == std::string_view::npos)
+    throw ParseError(fmt::format("{} {}: not a shard K/N (e.g. 2/8)", what, quote_excerpt(text)));
+  const std::string name(what);
+  const std::uint64_t n = parse_uint(name + " (N)", text.substr(slash + 1), 1, max_shards);
+  const std::uint64_t k = parse_uint(name + " (K)", text.substr(0, slash), 1, n);
+  return {k, n};
+}
+
 }  // namespace microsim

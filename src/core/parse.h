@@ -74,6 +74,12 @@ std::vector<double> parse_double_list(std::string_view what, std::string_view te
 std::vector<std::uint64_t> parse_uint_list(std::string_view what, std::string_view text,
                                            std::uint64_t max = std::numeric_limits<std::uint64_t>::max());
 
+// "K/N": shard K of N (1-based, 1 <= K <= N <= max_shards), e.g. "--shard 3/8"; throws ParseError.
+struct ShardSpec {
+  std::uint64_t index = 1, count = 1;
+};
+ShardSpec parse_shard(std::string_view what, std::string_view text, std::uint64_t max_shards);
+
 // ---- documented maxima of counts given on the command line (README, "Numbers on the command line") ----
 inline constexpr std::uint64_t kMaxRays = 1'000'000'000'000;     // --rays, --vndf-rays: 1e12
 inline constexpr std::uint64_t kMaxSamples = 1'000'000'000'000;  // --samples: 1e12

@@ -2,7 +2,7 @@
 #include "trace/masking.h"
 
 #include "stats/chi2.h"
-#include "core/progress.h"
+#include "core/block_runner.h"
 #include "core/random.h"
 
 #include <fmt/core.h>
@@ -23,16 +23,64 @@ namespace microsim {
 
 namespace {
 
-// Runs body over [0, blocks) in TBB, in an arena of `threads` threads if threads > 0.
-template <class Body> void parallel_blocks(std::uint64_t blocks, int threads, const Body& body) {
-  auto run = [&] { tbb::parallel_for(tbb::blocked_range<std::uint64_t>(0, blocks, 1), body); };
-  if (threads > 0) {
-    tbb::task_arena arena(threads);
-    arena.execute(run);
-  } else {
-    run();
+// One block of the heightfield VNDF: the tally and the diagnostics.
+struct HeightfieldBlockTally {
+  std::vector<std::vector<std::uint64_t>> counts;  // per binning, per bin
+  std::vector<std::uint64_t> unbinned;
+  std::uint64_t rays = 0, hits = 0;
+  HeightfieldVndfDiagnostics diagnostics;
+};
+
+// Traces block `block`: ray origins uniform over the tile from CounterRng(seed, block), along -wi.
+HeightfieldBlockTally trace_heightfield_block(const HeightfieldScene& scene, const Vec3<double>& wi,
+                                              std::span<const DirectionBinning> binnings, const BlockPlan& plan,
+                                              std::uint64_t seed, std::uint64_t block) {
+  embree::FlushDenormalsScope ftz;
+  const auto& field = scene.field();
+  const double tile = field.tile_size(), z0 = scene.start_height();
+  HeightfieldBlockTally t;
+  t.counts.resize(binnings.size());
+  for (std::size_t k = 0; k < binnings.size(); ++k) t.counts[k].assign(std::size_t(binnings[k].size()), 0);
+  t.unbinned.assign(binnings.size(), 0);
+  t.rays = plan.units_in(block);
+  CounterRng rng(seed, block);
+  for (std::uint64_t i = 0; i < t.rays; ++i) {
+    const double x = tile * rng.uniform(), y = tile * rng.uniform();
+    const HeightfieldHit hit = scene.trace(Vec3<double>(x, y, z0), -wi);
+    if (hit.edge_grazes > 0) ++t.diagnostics.edge_grazes;
+    if (!hit.is_hit()) {
+      if (hit.outcome == RayOutcome::unresolved) ++t.diagnostics.unresolved;
+      else ++t.diagnostics.leaked;  // a downward ray must hit: escaping or leaking is a leak
+      continue;
+    }
+    const Vec3<double> m = field.triangle_normal(hit.triangle);
+    if (!(m.dot(wi) > 0.0)) {
+      ++t.diagnostics.backfacing;
+      continue;
+    }
+    ++t.hits;
+    for (std::size_t k = 0; k < binnings.size(); ++k) {
+      const auto bin = binnings[k].bin_of(m);
+      if (bin) ++t.counts[k][std::size_t(*bin)];
+      else ++t.unbinned[k];
+    }
+  }
+  return t;
+}
+
+void add_tally(TraceResult& result, HeightfieldVndfDiagnostics& diag, const HeightfieldBlockTally& t) {
+  result.rays += t.rays;
+  result.hits += t.hits;
+  diag.backfacing += t.diagnostics.backfacing;
+  diag.edge_grazes += t.diagnostics.edge_grazes;
+  diag.leaked += t.diagnostics.leaked;
+  diag.unresolved += t.diagnostics.unresolved;
+  for (std::size_t k = 0; k < result.counts.size(); ++k) {
+    for (std::size_t b = 0; b < result.counts[k].size(); ++b) result.counts[k][b] += t.counts[k][b];
+    result.unbinned[k] += t.unbinned[k];
   }
 }
+
 
 }  // namespace
 
@@ -47,85 +95,17 @@ TraceResult trace_vndf_heightfield(const HeightfieldScene& scene, const Vec3<dou
         fmt::format("view direction ({}, {}, {}) must point above the horizon", wi_in.x(), wi_in.y(), wi_in.z()));
   }
   const Vec3<double> wi = wi_in.normalized();
-  const Vec3<double> dir = -wi;
-  const auto& field = scene.field();
-  const double tile = field.tile_size(), z0 = scene.start_height();
-  const std::uint64_t blocks = (options.rays + kRaysPerBlock - 1) / kRaysPerBlock;
-  const std::size_t nb = binnings.size();
-
-  struct Local {
-    std::vector<std::vector<std::uint64_t>> counts;
-    std::vector<std::uint64_t> unbinned;
-    std::uint64_t rays = 0, hits = 0, backfacing = 0, edge_grazes = 0, leaked = 0, unresolved = 0;
-  };
-  tbb::enumerable_thread_specific<Local> locals([&] {
-    Local l;
-    l.counts.resize(nb);
-    for (std::size_t k = 0; k < nb; ++k) l.counts[k].assign(std::size_t(binnings[k].size()), 0);
-    l.unbinned.assign(nb, 0);
-    return l;
-  });
-  std::atomic<bool> stopped{false};
-  ProgressBar progress("trace vndf (heightfield)", options.rays, options.progress);
-  const auto start = std::chrono::steady_clock::now();
-  parallel_blocks(blocks, options.threads, [&](const tbb::blocked_range<std::uint64_t>& range) {
-    embree::FlushDenormalsScope ftz;
-    Local& local = locals.local();
-    for (std::uint64_t block = range.begin(); block != range.end(); ++block) {
-      if (options.stop_on_interrupt && interrupted()) {
-        stopped.store(true, std::memory_order_relaxed);
-        return;
-      }
-      const std::uint64_t first = block * kRaysPerBlock;
-      const std::uint64_t count = std::min(kRaysPerBlock, options.rays - first);
-      CounterRng rng(options.seed, block);
-      for (std::uint64_t i = 0; i < count; ++i) {
-        const double x = tile * rng.uniform(), y = tile * rng.uniform();
-        const HeightfieldHit hit = scene.trace(Vec3<double>(x, y, z0), dir);
-        if (hit.edge_grazes > 0) ++local.edge_grazes;
-        if (!hit.is_hit()) {
-          if (hit.outcome == RayOutcome::unresolved) ++local.unresolved;
-          else ++local.leaked;  // a downward ray must hit: escaping or leaking is a leak
-          continue;
-        }
-        const Vec3<double> m = field.triangle_normal(hit.triangle);
-        if (!(m.dot(wi) > 0.0)) {
-          ++local.backfacing;
-          continue;
-        }
-        ++local.hits;
-        for (std::size_t k = 0; k < nb; ++k) {
-          const auto bin = binnings[k].bin_of(m);
-          if (bin) ++local.counts[k][std::size_t(*bin)];
-          else ++local.unbinned[k];
-        }
-      }
-      local.rays += count;
-      progress.add(count);
-    }
-  });
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  progress.finish();
-
-  TraceResult result;
-  result.counts.resize(nb);
-  for (std::size_t k = 0; k < nb; ++k) result.counts[k].assign(std::size_t(binnings[k].size()), 0);
-  result.unbinned.assign(nb, 0);
+  const BlockPlan plan{options.rays, kRaysPerBlock};
+  TraceResult result = empty_trace_result(binnings, plan.blocks());
   HeightfieldVndfDiagnostics diag;
-  for (const Local& l : locals) {  // integer sums: exact whatever the order
-    result.rays += l.rays;
-    result.hits += l.hits;
-    diag.backfacing += l.backfacing;
-    diag.edge_grazes += l.edge_grazes;
-    diag.leaked += l.leaked;
-    diag.unresolved += l.unresolved;
-    for (std::size_t k = 0; k < nb; ++k) {
-      for (std::size_t b = 0; b < l.counts[k].size(); ++b) result.counts[k][b] += l.counts[k][b];
-      result.unbinned[k] += l.unbinned[k];
-    }
-  }
-  result.seconds = seconds;
-  result.partial = stopped.load() || result.rays < options.rays;
+  const auto start = std::chrono::steady_clock::now();
+  const BlockRunStatus status = for_each_block(
+      selected_blocks(plan, options.blocks), options.run, {"trace vndf (heightfield)", plan},
+      [&](std::uint64_t block) { return trace_heightfield_block(scene, wi, binnings, plan, options.seed, block); },
+      [&](HeightfieldBlockTally&& t, std::uint64_t) { add_tally(result, diag, t); });
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  result.blocks = status.done;
+  result.partial = status.cancelled;
   if (diagnostics) *diagnostics = diag;
   return result;
 }
@@ -256,7 +236,6 @@ struct G2Sums {
 };
 
 struct BlockSums {
-  bool done = false;
   std::uint64_t samples = 0, front = 0, rays = 0, leaked = 0, unresolved = 0;
   double leak_y = 0, leak_yy = 0;  // sum of w V and (w V)^2 over all samples
   RatioSums g1;
@@ -471,117 +450,102 @@ MaskingResult estimate_masking(const HeightfieldScene& scene, const AnalyticSmit
   }
   if (options.mirror) empirical.Lambda_tabulated(v);  // build the tables before the parallel loop
 
-  const std::uint64_t blocks = (options.samples + kSamplesPerBlock - 1) / kSamplesPerBlock;
-  std::vector<BlockSums> block_sums(blocks);
-  std::atomic<bool> stopped{false};
-  ProgressBar progress("trace masking", options.samples, options.progress);
+  const BlockPlan plan{options.samples, kSamplesPerBlock};
   const auto start = std::chrono::steady_clock::now();
-
-  parallel_blocks(blocks, options.threads, [&](const tbb::blocked_range<std::uint64_t>& range) {
+  auto sample_block = [&](std::uint64_t block) {
     embree::FlushDenormalsScope ftz;
-    for (std::uint64_t block = range.begin(); block != range.end(); ++block) {
-      if (options.stop_on_interrupt && interrupted()) {
-        stopped.store(true, std::memory_order_relaxed);
-        return;
+    BlockSums bs;
+    bs.normal.assign(std::size_t(kn), {});
+    bs.height.assign(std::size_t(kh), {});
+    bs.height_pred_analytic.assign(std::size_t(kh), 0.0);
+    bs.height_pred_empirical.assign(std::size_t(kh), 0.0);
+    const std::uint64_t first = block * kSamplesPerBlock;
+    const std::uint64_t count = std::min(kSamplesPerBlock, options.samples - first);
+    CounterRng rng(options.seed, block);
+    auto shadow = [&](const Vec3<double>& p, const Vec3<double>& dir, std::uint32_t tri) {
+      RayOutcome outcome;
+      const bool visible = scene.escapes(p, dir, tri, &outcome);
+      ++bs.rays;
+      if (outcome == RayOutcome::leaked) ++bs.leaked;
+      if (outcome == RayOutcome::unresolved) ++bs.unresolved;
+      return visible;
+    };
+    const double h = field.cell_size();
+    for (std::uint64_t i = 0; i < count; ++i) {
+      ++bs.samples;
+      double x, y;
+      std::uint32_t tri;
+      if (projected) {
+        // A triangle with probability ~ w, then a uniform point on it (local u >= v for triangle 0).
+        tri = sampler->sample(rng.uniform(), rng.uniform());
+        const auto c = field.triangle_index(tri);
+        const double a = rng.uniform(), b = rng.uniform();
+        const double lu = c.t == 0 ? std::max(a, b) : std::min(a, b), lv = c.t == 0 ? std::min(a, b) : std::max(a, b);
+        x = (c.i + lu) * h;
+        y = (c.j + lv) * h;
+      } else {
+        x = tile * rng.uniform();
+        y = tile * rng.uniform();
+        tri = field.triangle_at(x, y);
       }
-      BlockSums& bs = block_sums[block];
-      bs.normal.assign(std::size_t(kn), {});
-      bs.height.assign(std::size_t(kh), {});
-      bs.height_pred_analytic.assign(std::size_t(kh), 0.0);
-      bs.height_pred_empirical.assign(std::size_t(kh), 0.0);
-      const std::uint64_t first = block * kSamplesPerBlock;
-      const std::uint64_t count = std::min(kSamplesPerBlock, options.samples - first);
-      CounterRng rng(options.seed, block);
-      auto shadow = [&](const Vec3<double>& p, const Vec3<double>& dir, std::uint32_t tri) {
-        RayOutcome outcome;
-        const bool visible = scene.escapes(p, dir, tri, &outcome);
-        ++bs.rays;
-        if (outcome == RayOutcome::leaked) ++bs.leaked;
-        if (outcome == RayOutcome::unresolved) ++bs.unresolved;
-        return visible;
-      };
-      const double h = field.cell_size();
-      for (std::uint64_t i = 0; i < count; ++i) {
-        ++bs.samples;
-        double x, y;
-        std::uint32_t tri;
-        if (projected) {
-          // A triangle with probability ~ w, then a uniform point on it (local u >= v for triangle 0).
-          tri = sampler->sample(rng.uniform(), rng.uniform());
-          const auto c = field.triangle_index(tri);
-          const double a = rng.uniform(), b = rng.uniform();
-          const double lu = c.t == 0 ? std::max(a, b) : std::min(a, b), lv = c.t == 0 ? std::min(a, b) : std::max(a, b);
-          x = (c.i + lu) * h;
-          y = (c.j + lv) * h;
-        } else {
-          x = tile * rng.uniform();
-          y = tile * rng.uniform();
-          tri = field.triangle_at(x, y);
-        }
-        const Vec3<double> m = field.triangle_normal(tri);
-        const double vm = v.dot(m);
-        if (!(vm > 0)) continue;
-        ++bs.front;
-        // Sample weight: w for uniform points, 1 for points already drawn proportionally to w.
-        const double w = projected ? 1.0 : vm / m.z();
-        const double z = field.height_at(x, y);
-        const Vec3<double> p(x, y, z);
-        const bool vis = shadow(p, v, tri);
-        const double y_v = vis ? w : 0.0;
-        bs.leak_y += y_v;
-        bs.leak_yy += y_v * y_v;
-        bs.g1.add(w, y_v);
-        bs.normal[std::size_t(bin_index(nedges, vm))].add(w, y_v);
-        if (vm < grazing_edge) bs.near_grazing.add(w, y_v);
-        const std::size_t hb = std::size_t(bin_index(hedges, z));
-        bs.height[hb].add(w, y_v);
-        const double c1 = empirical.height_cdf(z);
-        bs.height_pred_analytic[hb] += w * EmpiricalSmith::height_masking(c1, lambda_a_v);
-        bs.height_pred_empirical[hb] += w * EmpiricalSmith::height_masking(c1, lambda_e_v);
-        if (options.mirror) {
-          const Vec3<double> l = reflect(v, m);
-          const bool vis_l = vis && l.z() > 0 && shadow(p, l, tri);
-          const double y2 = vis_l ? w : 0.0;
-          const double ga = analytic.G2(v, l), ge = empirical.G2_tabulated(v, l);
-          bs.mirror.measured.add(w, y2);
-          bs.mirror.vs_analytic.add(w * ga, y2);
-          bs.mirror.vs_empirical.add(w * ge, y2);
-          bs.mirror.pred_analytic += w * ga;
-          bs.mirror.pred_empirical += w * ge;
-          bs.mirror.sep_analytic += w * g1a_v * analytic.G1(l);
-          bs.mirror.sep_empirical += l.z() > 0 ? w * g1e_v / (1.0 + empirical.Lambda_tabulated(l)) : 0.0;
-        }
-        if (light && light->dot(m) > 0) {
-          const bool vis_l = vis && shadow(p, *light, tri);
-          const double y2 = vis_l ? w : 0.0;
-          auto add_pair = [&](G2Sums& g) {
-            g.measured.add(w, y2);
-            g.vs_analytic.add(w * pair_a, y2);
-            g.vs_empirical.add(w * pair_e, y2);
-            g.pred_analytic += w * pair_a;
-            g.pred_empirical += w * pair_e;
-            g.sep_analytic += w * pair_sep_a;
-            g.sep_empirical += w * pair_sep_e;
-          };
-          add_pair(bs.pair);
-          if (m.dot(half) >= cos_cone) add_pair(bs.cone);
-        }
+      const Vec3<double> m = field.triangle_normal(tri);
+      const double vm = v.dot(m);
+      if (!(vm > 0)) continue;
+      ++bs.front;
+      // Sample weight: w for uniform points, 1 for points already drawn proportionally to w.
+      const double w = projected ? 1.0 : vm / m.z();
+      const double z = field.height_at(x, y);
+      const Vec3<double> p(x, y, z);
+      const bool vis = shadow(p, v, tri);
+      const double y_v = vis ? w : 0.0;
+      bs.leak_y += y_v;
+      bs.leak_yy += y_v * y_v;
+      bs.g1.add(w, y_v);
+      bs.normal[std::size_t(bin_index(nedges, vm))].add(w, y_v);
+      if (vm < grazing_edge) bs.near_grazing.add(w, y_v);
+      const std::size_t hb = std::size_t(bin_index(hedges, z));
+      bs.height[hb].add(w, y_v);
+      const double c1 = empirical.height_cdf(z);
+      bs.height_pred_analytic[hb] += w * EmpiricalSmith::height_masking(c1, lambda_a_v);
+      bs.height_pred_empirical[hb] += w * EmpiricalSmith::height_masking(c1, lambda_e_v);
+      if (options.mirror) {
+        const Vec3<double> l = reflect(v, m);
+        const bool vis_l = vis && l.z() > 0 && shadow(p, l, tri);
+        const double y2 = vis_l ? w : 0.0;
+        const double ga = analytic.G2(v, l), ge = empirical.G2_tabulated(v, l);
+        bs.mirror.measured.add(w, y2);
+        bs.mirror.vs_analytic.add(w * ga, y2);
+        bs.mirror.vs_empirical.add(w * ge, y2);
+        bs.mirror.pred_analytic += w * ga;
+        bs.mirror.pred_empirical += w * ge;
+        bs.mirror.sep_analytic += w * g1a_v * analytic.G1(l);
+        bs.mirror.sep_empirical += l.z() > 0 ? w * g1e_v / (1.0 + empirical.Lambda_tabulated(l)) : 0.0;
       }
-      bs.done = true;
-      progress.add(count);
+      if (light && light->dot(m) > 0) {
+        const bool vis_l = vis && shadow(p, *light, tri);
+        const double y2 = vis_l ? w : 0.0;
+        auto add_pair = [&](G2Sums& g) {
+          g.measured.add(w, y2);
+          g.vs_analytic.add(w * pair_a, y2);
+          g.vs_empirical.add(w * pair_e, y2);
+          g.pred_analytic += w * pair_a;
+          g.pred_empirical += w * pair_e;
+          g.sep_analytic += w * pair_sep_a;
+          g.sep_empirical += w * pair_sep_e;
+        };
+        add_pair(bs.pair);
+        if (m.dot(half) >= cos_cone) add_pair(bs.cone);
+      }
     }
-  });
-  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  progress.finish();
-
-  // Reduce in block order (deterministic).
+    return bs;
+  };
+  // Reduced in block order (deterministic).
   BlockSums total;
   total.normal.assign(std::size_t(kn), {});
   total.height.assign(std::size_t(kh), {});
   total.height_pred_analytic.assign(std::size_t(kh), 0.0);
   total.height_pred_empirical.assign(std::size_t(kh), 0.0);
-  for (const BlockSums& bs : block_sums) {
-    if (!bs.done) continue;
+  auto add_block = [&](BlockSums&& bs, std::uint64_t) {
     total.samples += bs.samples;
     total.front += bs.front;
     total.rays += bs.rays;
@@ -600,13 +564,18 @@ MaskingResult estimate_masking(const HeightfieldScene& scene, const AnalyticSmit
     total.mirror.merge(bs.mirror);
     total.pair.merge(bs.pair);
     total.cone.merge(bs.cone);
-  }
+  };
+  const BlockRunStatus status = for_each_block(selected_blocks(plan, options.blocks), options.run,
+                                               {"trace masking", plan}, sample_block, add_block);
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  result.blocks = status.done;
+  result.total_blocks = plan.blocks();
   result.samples = total.samples;
   result.front_facing = total.front;
   result.rays = total.rays;
   result.leaked = total.leaked;
   result.unresolved = total.unresolved;
-  result.partial = stopped.load() || total.samples < options.samples;
+  result.partial = status.cancelled;
   result.g1 = total.g1.proportion();
   if (projected) {
     const double scale = result.projected_area / v.z();

@@ -46,6 +46,7 @@
 // sums are stored per block and added in block order, so results are identical whatever the threads.
 #pragma once
 
+#include "core/run_control.h"
 #include "stats/binning.h"
 #include "trace/heightfield_trace.h"
 #include "trace/smith_prediction.h"
@@ -109,9 +110,8 @@ struct MaskingOptions {
   std::uint64_t samples = 1'000'000;  // surface points
   PointSampling sampling = PointSampling::projected;
   std::uint64_t seed = 1;
-  int threads = 0;  // 0: TBB's default
-  bool progress = true;
-  bool stop_on_interrupt = true;
+  std::optional<BlockRange> blocks;  // sample only these blocks of kSamplesPerBlock points; default all
+  RunControl run;                    // threads, cancel token, progress ("trace masking")
   int normal_bins = 10;
   int height_bins = 10;
   // The fine near-grazing class: the facets with the smallest <v, m> holding this share of the front-facing
@@ -165,6 +165,8 @@ struct MaskingResult {
   std::optional<G2Result> pair, pair_cone;
   double cone_deg = 0;
   double seconds = 0;
+  BlockRange blocks;                 // the blocks sampled (a prefix of the requested ones when cancelled)
+  std::uint64_t total_blocks = 0;    // blocks of the whole run
   bool partial = false;
   double rays_per_second() const { return seconds > 0 ? double(rays) / seconds : 0.0; }
 };

@@ -1,6 +1,6 @@
 #include "trace/trace_vndf.h"
 
-#include "core/progress.h"
+#include "core/block_runner.h"
 #include "core/random.h"
 
 #include <fmt/core.h>
@@ -436,168 +436,192 @@ constexpr std::size_t kMaxBinnings = 8;
 constexpr int kUnknownBin = std::numeric_limits<int>::min();
 constexpr int kNotCounted = -2;
 
-struct LocalHistograms {
-  std::vector<std::vector<std::uint64_t>> counts;  // per binning: its bins, then one for unbinned hits
+// One block's tally: per binning its bins, then one for unbinned hits.
+struct BlockTally {
+  std::vector<std::vector<std::uint64_t>> counts;
   std::uint64_t rays = 0, hits = 0;
-  std::unique_ptr<BatchBuffers> batch = std::make_unique<BatchBuffers>();
   void count(std::size_t binning, int bin) {
     std::vector<std::uint64_t>& c = counts[binning];
     ++c[bin >= 0 ? std::size_t(bin) : c.size() - 1];
   }
 };
 
+
+// Mesh targets: per-triangle cache of its bins (kUnknownBin until first hit, kNotCounted for faces whose
+// hits do not count), `stride` ints per triangle. A triangle has one normal, so its bins are computed on
+// its first hit; racing threads store the same values. Slot 0 is published last (release) and read first
+// (acquire): a thread that sees it set sees the whole entry. (Storing slot 0 first let another thread
+// read a lobe bin still unknown, about one run in eight at mesh level 4: a hit counted as unbinned.)
+class FaceBinCache {
+public:
+  FaceBinCache(const EllipsoidTarget& target, const Vec3<double>& wi, std::span<const FastDirectionBinner> binners)
+      : target_(target), wi_(wi), binners_(binners), stride_(std::max<std::size_t>(binners.size(), 1)),
+        slots_(new std::atomic<int>[target.triangle_count() * stride_]) {
+    const std::size_t n = target.triangle_count() * stride_;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, std::size_t(1) << 16), [&](const auto& r) {
+      for (std::size_t i = r.begin(); i != r.end(); ++i) slots_[i].store(kUnknownBin, std::memory_order_relaxed);
+    });
+  }
+  void prefetch(unsigned int face) const { __builtin_prefetch(&slots_[std::size_t(face) * stride_]); }
+  void count(BlockTally& tally, unsigned int face) const {
+    std::atomic<int>* slot = &slots_[std::size_t(face) * stride_];
+    int first_value = slot[0].load(std::memory_order_acquire);
+    if (first_value == kUnknownBin) first_value = fill(slot, face);
+    if (first_value == kNotCounted) return;
+    ++tally.hits;
+    for (std::size_t k = 0; k < binners_.size(); ++k) tally.count(k, slot[k].load(std::memory_order_relaxed));
+  }
+
+private:
+  int fill(std::atomic<int>* slot, unsigned int face) const {
+    Vec3<double> n;
+    const embree::Hit hit{0.0f, face, 0, Vec3<float>::Zero(), 0.0f, 0.0f};
+    const bool counted = target_.counted_normal(hit, wi_, n);
+    auto value = [&](std::size_t k) { return !counted ? kNotCounted : (k < binners_.size() ? binners_[k](n) : 0); };
+    for (std::size_t k = stride_; k-- > 1;) slot[k].store(value(k), std::memory_order_relaxed);
+    const int first_value = value(0);
+    slot[0].store(first_value, std::memory_order_release);
+    return first_value;
+  }
+  const EllipsoidTarget& target_;
+  Vec3<double> wi_;
+  std::span<const FastDirectionBinner> binners_;
+  std::size_t stride_;
+  std::unique_ptr<std::atomic<int>[]> slots_;
+};
+
+// Traces one block of the beam: disk points from CounterRng(seed, block), in batches of kBatch.
+class BeamBlockTracer {
+public:
+  BeamBlockTracer(const EllipsoidTarget& target, const ParallelBeam& beam, const Vec3<double>& wi,
+                  std::span<const DirectionBinning> binnings, std::span<const FastDirectionBinner> binners,
+                  const FaceBinCache* faces)
+      : target_(target), beam_(beam), wi_(wi), dir_(beam.direction().cast<float>()), binnings_(binnings),
+        binners_(binners), faces_(faces) {}
+
+  BlockTally trace(const BlockPlan& plan, std::uint64_t seed, std::uint64_t block, BatchBuffers& b) const {
+    embree::FlushDenormalsScope ftz;  // Embree wants FTZ/DAZ in every tracing thread
+    BlockTally tally;
+    tally.counts.resize(binnings_.size());
+    for (std::size_t k = 0; k < binnings_.size(); ++k) tally.counts[k].assign(std::size_t(binnings_[k].size()) + 1, 0);
+    const std::uint64_t count = plan.units_in(block);
+    CounterRng rng(seed, block);
+    for (std::uint64_t batch_first = 0; batch_first < count; batch_first += kBatch) {
+      const int n = int(std::min<std::uint64_t>(kBatch, count - batch_first));
+      disk_points(rng, n, b.disk_x, b.disk_y);
+      beam_origins(beam_, b, n);
+      if (faces_) trace_mesh_batch(b, n, tally);
+      else trace_quadric_batch(b, n, tally);
+    }
+    tally.rays = count;
+    return tally;
+  }
+
+private:
+  RTCRayHit intersect(const BatchBuffers& b, int i, RTCIntersectContext& context) const {
+    constexpr float kInf = std::numeric_limits<float>::infinity();
+    RTCRayHit rh = embree::make_ray_hit(b.org_x[i], b.org_y[i], b.org_z[i], dir_.x(), dir_.y(), dir_.z(), 0.0f, kInf);
+    rtcIntersect1(target_.scene().handle(), &context, &rh);
+    return rh;
+  }
+  // Mesh: software pipelining: fetch a hit triangle's cache line, bin the previous hit while it arrives
+  // (the order of integer increments does not matter).
+  void trace_mesh_batch(BatchBuffers& b, int n, BlockTally& tally) const {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    unsigned int pending = RTC_INVALID_GEOMETRY_ID;
+    for (int i = 0; i < n; ++i) {
+      const RTCRayHit rh = intersect(b, i, context);
+      if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
+      faces_->prefetch(rh.hit.primID);
+      if (pending != RTC_INVALID_GEOMETRY_ID) faces_->count(tally, pending);
+      pending = rh.hit.primID;
+    }
+    if (pending != RTC_INVALID_GEOMETRY_ID) faces_->count(tally, pending);
+  }
+  // Quadric: a lean loop of rtcIntersect1 calls, as the raw benchmark's; normals (zero for a miss, which
+  // does not count) go to b.nx/ny/nz, then the counted ones (EllipsoidTarget::counted_normal's rule, in
+  // double) are compacted in place without a data-dependent branch and binned.
+  void trace_quadric_batch(BatchBuffers& b, int n, BlockTally& tally) const {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    for (int i = 0; i < n; ++i) {
+      const RTCRayHit rh = intersect(b, i, context);
+      const bool hit = rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+      b.nx[i] = hit ? rh.hit.Ng_x : 0.0f;
+      b.ny[i] = hit ? rh.hit.Ng_y : 0.0f;
+      b.nz[i] = hit ? rh.hit.Ng_z : 0.0f;
+    }
+    int counted = 0;
+    for (int i = 0; i < n; ++i) {
+      const float x = b.nx[i], y = b.ny[i], z = b.nz[i];
+      b.nx[counted] = x;
+      b.ny[counted] = y;
+      b.nz[counted] = z;
+      counted += int(EllipsoidTarget::counts(Vec3<double>(x, y, z), wi_));
+    }
+    tally.hits += std::uint64_t(counted);
+    for (std::size_t k = 0; k < binners_.size(); ++k) {
+      binners_[k].bin_floats(b.nx, b.ny, b.nz, counted, b.bins);
+      for (int i = 0; i < counted; ++i) tally.count(k, b.bins[i]);
+    }
+  }
+
+  const EllipsoidTarget& target_;
+  const ParallelBeam& beam_;
+  Vec3<double> wi_;
+  Vec3<float> dir_;
+  std::span<const DirectionBinning> binnings_;
+  std::span<const FastDirectionBinner> binners_;
+  const FaceBinCache* faces_;
+};
+
+void add_tally(TraceResult& result, const BlockTally& tally) {
+  result.rays += tally.rays;
+  result.hits += tally.hits;
+  for (std::size_t k = 0; k < result.counts.size(); ++k) {
+    for (std::size_t b = 0; b < result.counts[k].size(); ++b) result.counts[k][b] += tally.counts[k][b];
+    result.unbinned[k] += tally.counts[k].back();
+  }
+}
+
 }  // namespace
+
+TraceResult empty_trace_result(std::span<const DirectionBinning> binnings, std::uint64_t total_blocks) {
+  TraceResult result;
+  result.counts.resize(binnings.size());
+  for (std::size_t k = 0; k < binnings.size(); ++k) result.counts[k].assign(std::size_t(binnings[k].size()), 0);
+  result.unbinned.assign(binnings.size(), 0);
+  result.total_blocks = total_blocks;
+  return result;
+}
 
 TraceResult trace_vndf(const EllipsoidTarget& target, const Vec3<double>& wi_in,
                        std::span<const DirectionBinning> binnings, const TraceOptions& options) {
   if (options.rays == 0) throw std::invalid_argument("trace_vndf: the number of rays must be positive");
+  if (binnings.size() > kMaxBinnings) throw std::invalid_argument(fmt::format("trace_vndf: at most {} binnings", kMaxBinnings));
   const ParallelBeam beam(target.ellipsoid(), wi_in);
   const Vec3<double> wi = wi_in.normalized();
-  const Vec3<float> dir = beam.direction().cast<float>();
-  const std::uint64_t blocks = (options.rays + kRaysPerBlock - 1) / kRaysPerBlock;
-  const std::size_t nb = binnings.size();
-  if (nb > kMaxBinnings) throw std::invalid_argument(fmt::format("trace_vndf: at most {} binnings", kMaxBinnings));
   std::vector<FastDirectionBinner> binners;
   for (const DirectionBinning& b : binnings) binners.emplace_back(b);
-  // Mesh targets: per-triangle cache of its bins (kUnknownBin until first hit, kNotCounted for faces
-  // whose hits do not count), `stride` ints per triangle.
-  const std::size_t stride = std::max<std::size_t>(nb, 1);
-  std::unique_ptr<std::atomic<int>[]> face_cache;
-  if (target.is_mesh()) {
-    const std::size_t n = target.triangle_count() * stride;
-    face_cache.reset(new std::atomic<int>[n]);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, std::size_t(1) << 16), [&](const auto& r) {
-      for (std::size_t i = r.begin(); i != r.end(); ++i) face_cache[i].store(kUnknownBin, std::memory_order_relaxed);
-    });
-  }
+  std::optional<FaceBinCache> faces;
+  if (target.is_mesh()) faces.emplace(target, wi, binners);
+  const BeamBlockTracer tracer(target, beam, wi, binnings, binners, faces ? &*faces : nullptr);
 
-  tbb::enumerable_thread_specific<LocalHistograms> locals([&] {
-    LocalHistograms h;
-    h.counts.resize(nb);
-    for (std::size_t k = 0; k < nb; ++k) h.counts[k].assign(std::size_t(binnings[k].size()) + 1, 0);
-    return h;
-  });
-  std::atomic<bool> stopped{false};
-  ProgressBar progress("trace vndf", options.rays, options.progress);
-  const embree::Scene& scene = target.scene();
-  const RTCScene rtc_scene = scene.handle();
-  constexpr float kInf = std::numeric_limits<float>::infinity();
-
-  // Mesh: a triangle has one normal, so its bins (or "not counted") are computed on its first hit and
-  // cached; racing threads store the same values. Slot 0 is published last (release) and read first
-  // (acquire): a thread that sees it set sees the whole entry. (Storing slot 0 first let another thread
-  // read a lobe bin still unknown, about one run in eight at mesh level 4: a hit counted as unbinned.)
-  constexpr unsigned int kNoFace = RTC_INVALID_GEOMETRY_ID;
-  auto count_face = [&](LocalHistograms& local, unsigned int face) {
-    std::atomic<int>* slot = &face_cache[std::size_t(face) * stride];
-    int first_value = slot[0].load(std::memory_order_acquire);
-    if (first_value == kUnknownBin) {
-      Vec3<double> n;
-      const embree::Hit hit{0.0f, face, 0, Vec3<float>::Zero(), 0.0f, 0.0f};
-      const bool counted = target.counted_normal(hit, wi, n);
-      auto value = [&](std::size_t k) { return !counted ? kNotCounted : (k < nb ? binners[k](n) : 0); };
-      for (std::size_t k = stride; k-- > 1;) slot[k].store(value(k), std::memory_order_relaxed);
-      first_value = value(0);
-      slot[0].store(first_value, std::memory_order_release);
-    }
-    if (first_value == kNotCounted) return;
-    ++local.hits;
-    for (std::size_t k = 0; k < nb; ++k) local.count(k, slot[k].load(std::memory_order_relaxed));
-  };
-
+  const BlockPlan plan{options.rays, kRaysPerBlock};
+  TraceResult result = empty_trace_result(binnings, plan.blocks());
+  tbb::enumerable_thread_specific<std::unique_ptr<BatchBuffers>> buffers([] { return std::make_unique<BatchBuffers>(); });
   const auto start = std::chrono::steady_clock::now();
   const double cpu_start = process_cpu_seconds();
-  auto body = [&](const tbb::blocked_range<std::uint64_t>& range) {
-    embree::FlushDenormalsScope ftz;  // Embree wants FTZ/DAZ in every tracing thread
-    LocalHistograms& local = locals.local();
-    RTCIntersectContext context;
-    rtcInitIntersectContext(&context);
-    for (std::uint64_t block = range.begin(); block != range.end(); ++block) {
-      if (options.stop_on_interrupt && interrupted()) {
-        stopped.store(true, std::memory_order_relaxed);
-        return;
-      }
-      const std::uint64_t first = block * kRaysPerBlock;
-      const std::uint64_t count = std::min(kRaysPerBlock, options.rays - first);
-      CounterRng rng(options.seed, block);
-      BatchBuffers& b = *local.batch;
-      unsigned int pending_face = kNoFace;
-      for (std::uint64_t batch_first = 0; batch_first < count; batch_first += kBatch) {
-        const int n = int(std::min<std::uint64_t>(kBatch, count - batch_first));
-        disk_points(rng, n, b.disk_x, b.disk_y);
-        beam_origins(beam, b, n);
-        // A lean loop of rtcIntersect1 calls, as the raw benchmark's; quadric normals (zero for a miss,
-        // which does not count) go to b.nx/ny/nz and are filtered in a separate loop below.
-        for (int i = 0; i < n; ++i) {
-          RTCRayHit rh =
-              embree::make_ray_hit(b.org_x[i], b.org_y[i], b.org_z[i], dir.x(), dir.y(), dir.z(), 0.0f, kInf);
-          rtcIntersect1(rtc_scene, &context, &rh);
-          const bool hit = rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
-          if (face_cache) {
-            if (!hit) continue;
-            // Software pipelining: fetch this triangle's cache line now, bin the previous hit while it
-            // arrives (the order of integer increments does not matter).
-            __builtin_prefetch(&face_cache[std::size_t(rh.hit.primID) * stride]);
-            if (pending_face != kNoFace) count_face(local, pending_face);
-            pending_face = rh.hit.primID;
-            continue;
-          }
-          b.nx[i] = hit ? rh.hit.Ng_x : 0.0f;
-          b.ny[i] = hit ? rh.hit.Ng_y : 0.0f;
-          b.nz[i] = hit ? rh.hit.Ng_z : 0.0f;
-        }
-        // Quadric: keep the counted normals (EllipsoidTarget::counted_normal's rule, in double), compacted
-        // in place without a data-dependent branch.
-        int counted = 0;
-        if (!face_cache) {
-          for (int i = 0; i < n; ++i) {
-            const float x = b.nx[i], y = b.ny[i], z = b.nz[i];
-            b.nx[counted] = x;
-            b.ny[counted] = y;
-            b.nz[counted] = z;
-            counted += int(EllipsoidTarget::counts(Vec3<double>(x, y, z), wi));
-          }
-        }
-        local.hits += std::uint64_t(counted);
-        for (std::size_t k = 0; k < nb; ++k) {
-          binners[k].bin_floats(b.nx, b.ny, b.nz, counted, b.bins);
-          for (int i = 0; i < counted; ++i) local.count(k, b.bins[i]);
-        }
-      }
-      if (pending_face != kNoFace) count_face(local, pending_face);
-      pending_face = kNoFace;
-      local.rays += count;
-      progress.add(count);
-    }
-  };
-
-  if (options.threads > 0) {
-    tbb::task_arena arena(options.threads);
-    arena.execute([&] { tbb::parallel_for(tbb::blocked_range<std::uint64_t>(0, blocks, 1), body); });
-  } else {
-    tbb::parallel_for(tbb::blocked_range<std::uint64_t>(0, blocks, 1), body);
-  }
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  const double cpu_seconds = process_cpu_seconds() - cpu_start;
-  progress.finish();
-  scene.device().check("rtcIntersect1");
-
-  TraceResult result;
-  result.counts.resize(nb);
-  for (std::size_t k = 0; k < nb; ++k) result.counts[k].assign(std::size_t(binnings[k].size()), 0);
-  result.unbinned.assign(nb, 0);
-  // Integer sums: the merge order does not matter, the result is exact.
-  for (const LocalHistograms& h : locals) {
-    result.rays += h.rays;
-    result.hits += h.hits;
-    for (std::size_t k = 0; k < nb; ++k) {
-      for (std::size_t b = 0; b < result.counts[k].size(); ++b) result.counts[k][b] += h.counts[k][b];
-      result.unbinned[k] += h.counts[k].back();
-    }
-  }
-  result.seconds = seconds;
-  result.cpu_seconds = cpu_seconds;
-  result.partial = stopped.load() || result.rays < options.rays;
+  const BlockRunStatus status = for_each_block(
+      selected_blocks(plan, options.blocks), options.run, {"trace vndf", plan},
+      [&](std::uint64_t block) { return tracer.trace(plan, options.seed, block, *buffers.local()); },
+      [&](BlockTally&& tally, std::uint64_t) { add_tally(result, tally); });
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  result.cpu_seconds = process_cpu_seconds() - cpu_start;
+  target.scene().device().check("rtcIntersect1");
+  result.blocks = status.done;
+  result.partial = status.cancelled;
   return result;
 }
 

@@ -17,10 +17,13 @@
 //
 // Determinism: rays are traced in blocks of kRaysPerBlock; block b draws its variates from
 // CounterRng(seed, b) (inside a block, batches of 256 rays are generated, traced, filtered and binned,
-// each stage a tight loop over the batch, which keeps the overhead over raw rtcIntersect1 small); hits are accumulated in per-thread integer histograms that are summed at the
-// end, so counts are identical for a given seed whatever the thread count or scheduling.
+// each stage a tight loop over the batch, which keeps the overhead over raw rtcIntersect1 small); the
+// block runner (core/block_runner.h) adds the block tallies in block order, so counts depend only on
+// (seed, block range): the same whatever the thread count, and shards add up to the whole run.
 #pragma once
 
+#include "core/block_runner.h"
+#include "core/run_control.h"
 #include "microgeom/ellipsoid.h"
 #include "microgeom/ellipsoid_mesh.h"
 #include "stats/binning.h"
@@ -143,9 +146,8 @@ private:
 struct TraceOptions {
   std::uint64_t rays = 1'000'000;
   std::uint64_t seed = 1;
-  int threads = 0;           // 0: TBB's default
-  bool progress = true;      // progress bar on stderr (shown after ~1 s)
-  bool stop_on_interrupt = true;  // poll interrupted() between blocks
+  std::optional<BlockRange> blocks;  // trace only these blocks of kRaysPerBlock rays (a shard); default all
+  RunControl run;                    // threads, cancel token, progress ("trace vndf")
 };
 
 struct TraceResult {
@@ -155,10 +157,15 @@ struct TraceResult {
   std::vector<std::uint64_t> unbinned;              // per binning: counted hits outside its parameter space
   double seconds = 0;      // wall-clock time of the tracing loop
   double cpu_seconds = 0;  // CPU time of the process (all threads) during the loop: robust to other load
-  bool partial = false;    // interrupted before all rays were traced
+  BlockRange blocks;              // the blocks traced (a prefix of the requested ones when cancelled)
+  std::uint64_t total_blocks = 0;  // blocks of the whole run (options.rays in blocks of kRaysPerBlock)
+  bool partial = false;    // cancelled before all requested blocks were traced
   double rays_per_second() const { return seconds > 0 ? double(rays) / seconds : 0.0; }
   double cpu_ns_per_ray() const { return rays > 0 ? 1e9 * cpu_seconds / double(rays) : 0.0; }
 };
+
+// A result with every count zero for `binnings`, to which block tallies are added.
+TraceResult empty_trace_result(std::span<const DirectionBinning> binnings, std::uint64_t total_blocks);
 
 // Traces `options.rays` rays of the beam seen from wi (unit, wi.z > 0) and histograms the counted
 // normals in every binning. Throws std::invalid_argument for wi.z <= 0 or rays == 0.

@@ -2,7 +2,6 @@
 
 #include "validate/battery.h"
 
-#include "core/progress.h"
 #include "core/random.h"
 #include "validate/sample_io.h"
 #include "core/strict_parse.h"
@@ -45,11 +44,36 @@ double noise_floor_tv(std::span<const double> probability, std::uint64_t hits) {
   return sum;
 }
 
+namespace {
+// Goodness of fit of one binning's traced counts against the bin probabilities of D_v (remainder cell:
+// the hits outside the bins), and its total-variation distance.
+TraceFit fit_binning(const DirectionBinning& b, std::span<const std::uint64_t> counts, std::uint64_t hits,
+                     std::optional<std::uint64_t> unbinned, const BinIntegrals& bins, double per_test) {
+  TraceFit fit;
+  fit.binning = b.name();
+  fit.total_variation = total_variation(counts, hits, bins.probability);
+  fit.noise_floor_tv = noise_floor_tv(bins.probability, hits);
+  fit.chi2.significance = per_test;
+  if (hits == 0) {
+    fit.chi2.reason = "no hits";
+    return fit;
+  }
+  std::vector<double> observed(counts.begin(), counts.end());
+  const std::uint64_t binned = std::accumulate(counts.begin(), counts.end(), std::uint64_t(0));
+  observed.push_back(double(unbinned ? *unbinned : hits - binned));
+  ChiSquareOptions chi;
+  chi.significance = per_test;
+  chi.describe_cell = [&b](int bin) { return bin < b.size() ? b.describe_bin(bin) : std::string("remainder (outside the bins)"); };
+  fit.chi2 = goodness_of_fit(observed, battery::with_remainder(bins), double(hits), chi);
+  return fit;
+}
+}  // namespace
+
 TraceAnalysis analyse_against_vndf(TracedHistogram& h, const GGX<double>& ggx, const Vec3<double>& wi,
                                    std::span<const std::uint64_t> unbinned, double significance) {
   if (h.binnings.empty()) throw std::invalid_argument("analyse_against_vndf: no binning");
-  const int rows = h.binnings.front().rows();
-  const auto ref = vndf_reference(SampleDomain::microfacet_normal, ggx, wi, rows);
+  const auto ref = vndf_reference(SampleDomain::microfacet_normal, ggx, wi, h.binnings.front().rows());
+  const std::vector<ReferenceBins> reference = ref->binned();
   TraceAnalysis a;
   a.significance = significance;
   h.probability.assign(h.binnings.size(), {});
@@ -58,28 +82,13 @@ TraceAnalysis analyse_against_vndf(TracedHistogram& h, const GGX<double>& ggx, c
   double p_min = 1;
   for (std::size_t k = 0; k < h.binnings.size(); ++k) {
     const DirectionBinning& b = h.binnings[k];
-    const BinIntegrals& bi = b.kind() == BinningKind::sphere ? ref->sphere_probability : ref->lobe_probability;
-    const DirectionBinning& rb = b.kind() == BinningKind::sphere ? ref->sphere : ref->lobe;
-    if (rb.size() != b.size()) throw std::invalid_argument("analyse_against_vndf: binning mismatch");
-    h.probability[k] = bi.probability;
-    TraceFit fit;
-    fit.binning = b.name();
-    fit.total_variation = total_variation(h.counts[k], h.hits, bi.probability);
-    fit.noise_floor_tv = noise_floor_tv(bi.probability, h.hits);
-    if (h.hits > 0) {
-      std::vector<double> observed(h.counts[k].begin(), h.counts[k].end());
-      std::vector<double> expected = bi.probability;
-      const std::uint64_t binned = std::accumulate(h.counts[k].begin(), h.counts[k].end(), std::uint64_t(0));
-      observed.push_back(double(k < unbinned.size() ? unbinned[k] : h.hits - binned));
-      expected.push_back(std::max(0.0, 1.0 - bi.total));
-      ChiSquareOptions chi;
-      chi.significance = per_test;
-      chi.describe_cell = [&b](int bin) { return bin < b.size() ? b.describe_bin(bin) : std::string("remainder (outside the bins)"); };
-      fit.chi2 = goodness_of_fit(observed, expected, double(h.hits), chi);
-    } else {
-      fit.chi2.reason = "no hits";
-      fit.chi2.significance = per_test;
-    }
+    const auto same_kind = [&b](const ReferenceBins& r) { return r.binning.kind() == b.kind(); };
+    const auto r = std::find_if(reference.begin(), reference.end(), same_kind);
+    if (r == reference.end() || r->binning.size() != b.size())
+      throw std::invalid_argument("analyse_against_vndf: binning mismatch");
+    h.probability[k] = r->probability.probability;
+    const auto outside = k < unbinned.size() ? std::optional<std::uint64_t>(unbinned[k]) : std::nullopt;
+    TraceFit fit = fit_binning(b, h.counts[k], h.hits, outside, r->probability, per_test);
     p_min = std::min(p_min, fit.chi2.p_value);
     a.rejected = a.rejected || fit.chi2.rejected;
     a.fits.push_back(std::move(fit));
@@ -113,8 +122,8 @@ TracedHistogram trace_vndf_histogram(const GGX<double>& ggx, const Vec3<double>&
   TraceOptions t;
   t.rays = options.rays;
   t.seed = options.seed;
-  t.threads = options.threads;
-  t.progress = options.progress;
+  t.blocks = options.blocks;
+  t.run = options.run;
   TraceResult r = trace_vndf(target, wi, h.binnings, t);
   h.counts = r.counts;
   h.rays = r.rays;

@@ -67,8 +67,8 @@ struct OracleTraceOptions {
   std::uint64_t seed = 1;
   int rows = 31;
   int mesh_level = -1;
-  int threads = 0;
-  bool progress = false;
+  std::optional<BlockRange> blocks;  // a shard of the run's blocks; default all
+  RunControl run;
 };
 TracedHistogram trace_vndf_histogram(const GGX<double>& ggx, const Vec3<double>& wi, const OracleTraceOptions& options,
                                      TraceResult* raw = nullptr);

@@ -3,7 +3,7 @@
 
 #include "validate/battery.h"
 
-#include "core/progress.h"
+#include "core/block_runner.h"
 #include "core/random.h"
 #include "validate/sample_io.h"
 
@@ -61,21 +61,23 @@ void for_each_drawn_block_as(SampleResult<T> (*sample)(const GGX<T>&, const Vec3
   const std::uint64_t n = options.samples;
   const GGX<T> g(T(ggx.alpha_x()), T(ggx.alpha_y()));
   const Vec3<T> w = wi.template cast<T>();
-  const std::uint64_t blocks = (n + kSampleBlock - 1) / kSampleBlock;
+  const BlockPlan plan{n, kSampleBlock};
   tbb::enumerable_thread_specific<BlockBuffer> buffers;
-  ProgressBar bar("sampling", n, options.progress);
-  for (std::uint64_t c = 0; c < blocks; c += kChunkBlocks) {
-    const std::uint64_t chunk_end = std::min(blocks, c + kChunkBlocks);
-    tbb::parallel_for(c, chunk_end, [&](std::uint64_t b) {
-      const std::uint64_t first = b * kSampleBlock, end = std::min(n, first + kSampleBlock);
-      BlockBuffer& buf = buffers.local();
-      draw_block(sample, g, w, options.seed, first, end, buf);
-      visit(SampleBlockView{first, buf.directions, buf.pdfs, buf.valid}, std::size_t(b - c));
-      bar.add(end - first);
-    });
-    if (chunk_done) chunk_done(std::size_t(chunk_end - c));
-  }
-  bar.finish();
+  // Chunks of kChunkBlocks: visit(block, slot) for each block of a chunk, then chunk_done, in order.
+  const BlockSchedule schedule{"sampling", plan, kChunkBlocks};
+  const BlockRunStatus status = for_each_block(
+      BlockRange{0, plan.blocks()}, options.run, schedule,
+      [&](std::uint64_t b) {
+        BlockBuffer& buf = buffers.local();
+        draw_block(sample, g, w, options.seed, plan.first_unit(b), plan.first_unit(b) + plan.units_in(b), buf);
+        visit(SampleBlockView{plan.first_unit(b), buf.directions, buf.pdfs, buf.valid}, std::size_t(b % kChunkBlocks));
+        return b;
+      },
+      [&](std::uint64_t, std::uint64_t b) {
+        const bool chunk_end = (b + 1) % kChunkBlocks == 0 || b + 1 == plan.blocks();
+        if (chunk_end && chunk_done) chunk_done(std::size_t(b % kChunkBlocks) + 1);
+      });
+  if (status.cancelled) throw Cancelled("while sampling");
 }
 
 // ---- the battery's stages for the analytic pdf (battery.h) ----------------------------------------------

@@ -22,6 +22,7 @@
 // Reproducible: sample i uses CounterRng(seed, i) (two uniforms), whatever the thread count.
 #pragma once
 
+#include "core/run_control.h"
 #include "stats/binning.h"
 #include "stats/chi2.h"
 #include "stats/figure.h"
@@ -69,7 +70,7 @@ struct ValidationOptions {
   // Relative floor of the weight test's standard error (rounding of pdf and D, not statistics):
   // 0 means 1e-9 in double, 1e-5 in float.
   double weight_rounding = 0;
-  bool progress = false;  // a progress bar on stderr while sampling
+  RunControl run;  // threads, cancel token, progress ("sampling")
 };
 
 // One binning of a reference and its bin probabilities under the claimed pdf.

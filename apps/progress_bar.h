@@ -1,13 +1,17 @@
-// microsim: a progress bar on stderr for long work, and cooperative cancellation on Ctrl-C.
+// microsim CLI: a progress bar on stderr for long work, and Ctrl-C as the library's cancel token.
 //
 // ProgressBar is thread-safe (workers call add() from TBB tasks). It stays silent for the first second,
 // then redraws at most five times a second: a bar with the fraction, rate and ETA on a terminal, or one
 // line per 10% when stderr is not a terminal (CI logs). Nothing is printed on stdout.
 #pragma once
 
+#include "core/run_control.h"
+
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <map>
+#include <memory>
 #include <mutex>
 #include <string>
 
@@ -21,6 +25,7 @@ public:
   ProgressBar& operator=(const ProgressBar&) = delete;
 
   void add(std::uint64_t n);
+  void update(std::uint64_t done);  // the total done so far (never moves the bar back)
   void finish();
   double elapsed_seconds() const;
 
@@ -38,12 +43,28 @@ private:
   int last_decile_ = -1;
 };
 
-// Ctrl-C (SIGINT) handling: install once at the start of a long command; workers poll
-// interrupted() and stop early; the command then writes what it measured, marked as partial (exit 130).
+// Ctrl-C (SIGINT) handling: install once at the start of a long command. The first Ctrl-C cancels the
+// process's CancelToken (passed to the library in every RunControl the CLI makes); the library stops at
+// its next block and returns what it measured, which the command writes marked as partial (exit 130).
 // A second Ctrl-C kills the process (the default action).
 void install_interrupt_handler();
 bool interrupted();
-// For tests: set or clear the flag as if Ctrl-C had been pressed.
-void set_interrupted(bool value);
+const CancelToken& interrupt_token();
+
+// The progress callback of a RunControl: one bar per stage, drawn on stderr (thread-safe).
+class CliProgress {
+public:
+  explicit CliProgress(bool enabled) : enabled_(enabled) {}
+  void report(std::string_view stage, std::uint64_t done, std::uint64_t total);
+  void finish();  // ends every bar's line; call before printing results
+
+private:
+  bool enabled_;
+  std::mutex mutex_;
+  std::map<std::string, std::unique_ptr<ProgressBar>, std::less<>> bars_;
+};
+
+// A RunControl for the library: `threads` (0: all cores), the Ctrl-C token, and `progress` (may be null).
+RunControl cli_run_control(int threads, const std::shared_ptr<CliProgress>& progress);
 
 }  // namespace microsim

@@ -1,4 +1,4 @@
-#include "core/progress.h"
+#include "progress_bar.h"
 
 #include <fmt/core.h>
 
@@ -8,20 +8,50 @@
 
 namespace microsim {
 namespace {
-std::atomic<bool> g_interrupted{false};
-// The first Ctrl-C asks the command to stop at its next check; a second one, for work that has no check
-// (or is slow to reach it), kills the process as if no handler were installed.
+// The process's cancel token: the one global of the command line (a signal handler has no other way in).
+CancelToken g_interrupt;
+std::atomic<bool> g_seen_sigint{false};
+// The first Ctrl-C cancels; a second one, for work that has no check (or is slow to reach it), kills the
+// process as if no handler were installed.
 extern "C" void on_sigint(int) {
-  if (g_interrupted.exchange(true)) {
+  if (g_seen_sigint.exchange(true)) {
     std::signal(SIGINT, SIG_DFL);
     std::raise(SIGINT);
   }
+  g_interrupt.cancel();
 }
 }  // namespace
 
 void install_interrupt_handler() { std::signal(SIGINT, on_sigint); }
-bool interrupted() { return g_interrupted.load(std::memory_order_relaxed); }
-void set_interrupted(bool value) { g_interrupted.store(value); }
+bool interrupted() { return g_interrupt.cancelled(); }
+const CancelToken& interrupt_token() { return g_interrupt; }
+
+void CliProgress::report(std::string_view stage, std::uint64_t done, std::uint64_t total) {
+  if (!enabled_) return;
+  ProgressBar* bar = nullptr;
+  {
+    std::lock_guard lock(mutex_);
+    auto it = bars_.find(stage);
+    if (it == bars_.end()) it = bars_.emplace(std::string(stage), std::make_unique<ProgressBar>(std::string(stage), total)).first;
+    bar = it->second.get();
+  }
+  bar->update(done);
+}
+
+void CliProgress::finish() {
+  std::lock_guard lock(mutex_);
+  for (auto& [stage, bar] : bars_) bar->finish();
+}
+
+RunControl cli_run_control(int threads, const std::shared_ptr<CliProgress>& progress) {
+  RunControl run;
+  run.threads = threads;
+  run.cancel = &g_interrupt;
+  if (progress) run.progress = [progress](std::string_view stage, std::uint64_t done, std::uint64_t total) {
+    progress->report(stage, done, total);
+  };
+  return run;
+}
 
 ProgressBar::ProgressBar(std::string label, std::uint64_t total, bool enabled)
     : label_(std::move(label)), total_(total), enabled_(enabled), tty_(isatty(fileno(stderr)) != 0),
@@ -42,6 +72,13 @@ void ProgressBar::add(std::uint64_t n) {
   if (!lock.owns_lock() || now - last_draw_ < std::chrono::milliseconds(200)) return;
   last_draw_ = now;
   draw(done, false);
+}
+
+void ProgressBar::update(std::uint64_t done) {
+  std::uint64_t seen = done_.load(std::memory_order_relaxed);
+  while (done > seen && !done_.compare_exchange_weak(seen, done, std::memory_order_relaxed)) {
+  }
+  if (done > seen) add(0);
 }
 
 void ProgressBar::finish() {

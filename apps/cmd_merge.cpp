@@ -1,0 +1,98 @@
+// microsim merge: joins the partial results of one run (`trace vndf --shard K/N`, or runs cancelled part
+// way) into the whole run. The parts must come from the same run (every run attribute equal, same
+// binnings, same seed) and together hold every block exactly once; the merged histogram, its analysis,
+// JSON and table are those of the single run, bit for bit (counts are exact integers).
+//
+// Exit codes: 0 merged, 2 bad usage or input (parts of different runs, blocks missing or repeated: the
+// ranges are named; nothing written).
+#include "command.h"
+#include "surface_input.h"
+#include "vndf_report.h"
+
+#include "core/output_paths.h"
+#include "core/strict_parse.h"
+
+#include <fmt/core.h>
+
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace microsim::app {
+namespace {
+
+struct MergeArgs {
+  std::vector<std::string> parts;
+  std::string out, json, surface;
+};
+
+std::vector<TracedHistogram> read_parts(const std::vector<std::string>& paths) {
+  std::vector<TracedHistogram> parts;
+  for (const std::string& path : paths) {
+    if (!std::filesystem::exists(path)) throw UsageError(fmt::format("part '{}': no such file", path));
+    try {
+      parts.push_back(read_histogram_exr(path));
+    } catch (const HistogramIoError& e) {
+      throw UsageError(e.what());
+    }
+  }
+  return parts;
+}
+
+TracedHistogram merge_or_usage_error(const std::vector<TracedHistogram>& parts, std::vector<std::uint64_t>& unbinned) {
+  try {
+    return merge_vndf_parts(parts, unbinned);
+  } catch (const HistogramMergeError& e) {
+    throw UsageError(fmt::format("cannot merge: {}", e.what()));
+  }
+}
+
+int report_merged_ellipsoid(TracedHistogram merged, const std::vector<std::uint64_t>& unbinned, const MergeArgs& a) {
+  const GGX<double> ggx = histogram_ggx(merged);
+  const auto level = reader::parse_finite_double(merged.attributes["mesh_level"]);
+  const EllipsoidTarget target(ggx.alpha_x(), ggx.alpha_y(), level ? int(*level) : -1);
+  const Vec3<double> wi = vndf_view(merged);
+  EllipsoidVndf m = analyse_ellipsoid_vndf(std::move(merged), unbinned);
+  m.expected_hit_fraction = ParallelBeam(target.ellipsoid(), wi).expected_hit_fraction();
+  return report_ellipsoid_vndf(m, target, {a.out, a.json});
+}
+
+int run_merge(const MergeArgs& a) {
+  std::vector<PathOption> inputs;
+  for (const std::string& p : a.parts) inputs.push_back({"part", p});
+  inputs.push_back({"--surface", a.surface});
+  check_distinct_outputs(inputs, {{"--out", a.out}, {"--json", a.json}});
+  if (std::filesystem::path(a.out).extension() != ".exr") throw UsageError(fmt::format("--out '{}': must be an .exr file", a.out));
+  check_output("--out", a.out);
+  check_output("--json", a.json);
+  const std::vector<TracedHistogram> parts = read_parts(a.parts);
+  std::vector<std::uint64_t> unbinned;
+  TracedHistogram merged = merge_or_usage_error(parts, unbinned);
+  fmt::print(stderr, "merge: {} parts, {} rays, blocks {}\n", parts.size(), merged.rays, merged.attributes["blocks"]);
+  const std::string surface = merged.attributes["surface"];
+  if (surface == "ellipsoid") return report_merged_ellipsoid(std::move(merged), unbinned, a);
+  const microgeom::Heightfield field = load_surface(a.surface.empty() ? surface : a.surface, std::nullopt);
+  const HeightfieldVndf m = analyse_heightfield_vndf(std::move(merged), unbinned, field);
+  return report_heightfield_vndf(m, field, {a.out, a.json});
+}
+
+CommandRegistration reg{"merge", [](CLI::App& app) {
+  auto args = std::make_shared<MergeArgs>();
+  auto* sub = app.add_subcommand(
+      "merge",
+      "Join the partial results of one run (`microsim trace vndf --shard K/N`, or a run interrupted part way) into "
+      "the whole run: the same histogram EXR, JSON and table as the single run, bit for bit. The parts must be of "
+      "one run and hold every block exactly once (missing or repeated block ranges are named). Exit 0 merged, 2 "
+      "bad input (nothing written).");
+  sub->add_option("parts", args->parts, "partial histograms (EXR) of one run, in any order")->required();
+  sub->add_option("--out", args->out, "merged histogram EXR to write")->required();
+  sub->add_option("--json", args->json, "also write the JSON summary");
+  sub->add_option("--surface", args->surface,
+                  "heightfield runs: the heightmap the parts were traced on (default: the path they record)");
+  on_selected(sub, [args] { return run_merge(*args); });
+}};
+
+}  // namespace
+}  // namespace microsim::app

@@ -1,0 +1,57 @@
+#include "surface_input.h"
+
+#include "stats/histogram_io.h"
+
+#include <fmt/core.h>
+
+#include <cmath>
+#include <filesystem>
+#include <new>
+
+namespace microsim::app {
+
+namespace fs = std::filesystem;
+
+void check_theta(const std::string& option, double theta) {
+  if (!std::isfinite(theta) || theta < 0 || theta >= 90)
+    throw UsageError(fmt::format("{} {}: the direction must be in [0, 90) degrees", option, theta));
+}
+
+void check_output(const std::string& option, const std::string& path) {
+  if (path.empty()) return;
+  try {
+    check_writable(path);
+  } catch (const HistogramIoError& e) {
+    throw UsageError(fmt::format("{}: {}", option, e.what()));
+  }
+}
+
+microgeom::Heightfield load_surface(const std::string& path, std::optional<double> tile_size) {
+  if (tile_size && !(*tile_size > 0 && std::isfinite(*tile_size)))
+    throw UsageError(fmt::format("--tile-size {}: must be positive and finite", *tile_size));
+  if (!fs::exists(path)) throw UsageError(fmt::format("--surface '{}': no such file", path));
+  try {
+    return microgeom::load_heightmap_exr(path, tile_size);
+  } catch (const std::bad_alloc&) {
+    throw;  // out of memory is an internal error (exit 3), not bad input
+  } catch (const std::exception& e) {
+    throw UsageError(fmt::format("--surface '{}': {}", path, e.what()));
+  }
+}
+
+nlohmann::json surface_json(const microgeom::Heightfield& field, const std::string& path, const AnalyticSmith& analytic,
+                            const std::string& source) {
+  nlohmann::json j;
+  j["path"] = path;
+  j["resolution"] = field.resolution();
+  j["tile_size"] = field.tile_size();
+  j["min_height"] = field.min_height();
+  j["max_height"] = field.max_height();
+  j["metadata"] = field.metadata;
+  j["analytic_reference"] = {{"ndf", to_string(analytic.ndf())},
+                             {"alpha", {analytic.alpha_x(), analytic.alpha_y()}},
+                             {"source", source}};
+  return j;
+}
+
+}  // namespace microsim::app

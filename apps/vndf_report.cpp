@@ -1,0 +1,140 @@
+#include "vndf_report.h"
+
+#include "surface_input.h"
+
+#include "core/strict_parse.h"
+
+#include <fmt/core.h>
+
+#include <stdexcept>
+
+namespace microsim::app {
+
+namespace {
+
+const std::string& attribute(const TracedHistogram& h, const char* key) {
+  static const std::string none;
+  const auto it = h.attributes.find(key);
+  return it == h.attributes.end() ? none : it->second;
+}
+double real_attribute(const TracedHistogram& h, const char* key) {
+  return reader::parse_finite_double(attribute(h, key)).value_or(0.0);
+}
+std::uint64_t count_attribute(const TracedHistogram& h, const char* key) {
+  return reader::parse_uint64(attribute(h, key)).value_or(0);
+}
+
+// The keys every VNDF report shares: the view, the run and its provenance.
+nlohmann::json run_json(const TracedHistogram& h, const TraceResult& r, const std::string& out) {
+  const Vec3<double> wi = vndf_view(h);
+  const GGX<double> ggx = histogram_ggx(h);
+  nlohmann::json j;
+  j["alpha"] = {ggx.alpha_x(), ggx.alpha_y()};
+  j["theta"] = real_attribute(h, "theta");
+  j["phi"] = real_attribute(h, "phi");
+  j["wi"] = {wi.x(), wi.y(), wi.z()};
+  j["rays_requested"] = count_attribute(h, "rays_requested");
+  j["rays"] = r.rays;
+  j["hits"] = r.hits;
+  j["hit_fraction"] = r.rays ? double(r.hits) / double(r.rays) : 0.0;
+  j["seconds"] = r.seconds;
+  j["rays_per_second"] = r.rays_per_second();
+  j["seed"] = count_attribute(h, "seed");
+  j["threads"] = std::stoi(attribute(h, "threads").empty() ? "0" : attribute(h, "threads"));
+  j["rows"] = h.binnings.front().rows();
+  j["partial"] = r.partial;
+  j["output"] = out;
+  j["blocks"] = attribute(h, "blocks");
+  j["total_blocks"] = count_attribute(h, "total_blocks");
+  return j;
+}
+
+void write_outputs(const TracedHistogram& h, const nlohmann::json& j, const VndfOutputs& outputs) {
+  write_histogram_exr(outputs.out, h);
+  if (!outputs.json.empty()) write_text_atomically(outputs.json, j.dump(2) + "\n");
+}
+
+void print_fits(const TraceAnalysis& analysis) {
+  fmt::print("{:<8} {:>6} {:>12} {:>12} {:>12} {:>6} {:>10}\n", "bins", "cells", "TV", "TV floor", "chi2", "dof", "p");
+  for (const TraceFit& f : analysis.fits) {
+    fmt::print("{:<8} {:>6} {:>12.6f} {:>12.6f} {:>12.1f} {:>6} {:>10.4g}\n", f.binning, f.chi2.cells, f.total_variation,
+               f.noise_floor_tv, f.chi2.statistic, f.chi2.dof, f.chi2.p_value);
+  }
+  fmt::print("distance to analytic D_v: Sidak-combined p = {:.4g} ({} at level {})\n", analysis.p_value,
+             analysis.rejected ? "distinguishable" : "indistinguishable", analysis.significance);
+}
+
+void print_comparisons(const std::vector<VndfComparison>& comparisons) {
+  fmt::print("| bins | cells | TV to Smith (analytic) | TV to Smith (own NDF) | TV noise floor | p (analytic) | p (own NDF) |\n"
+             "|---|---|---|---|---|---|---|\n");
+  for (const auto& c : comparisons)
+    fmt::print("| {} | {} | {:.5f} | {:.5f} | {:.5f} | {:.3g} | {:.3g} |\n", c.binning, c.bins, c.tv_analytic,
+               c.tv_empirical, c.tv_noise, c.p_value_analytic, c.p_value_empirical);
+}
+
+const char* partial_note(const TraceResult& r) { return r.partial ? "  PARTIAL (interrupted)" : ""; }
+
+}  // namespace
+
+int report_ellipsoid_vndf(const EllipsoidVndf& m, const EllipsoidTarget& target, const VndfOutputs& outputs) {
+  const TracedHistogram& h = m.histogram;
+  const TraceResult& r = m.trace;
+  nlohmann::json j = run_json(h, r, outputs.out);
+  j["surface"] = "ellipsoid";
+  j["target"] = target.describe();
+  j["mesh_level"] = target.mesh_level();
+  j["triangles"] = target.triangle_count();
+  j["expected_hit_fraction"] = m.expected_hit_fraction;
+  j["cpu_seconds"] = r.cpu_seconds;
+  j["cpu_ns_per_ray"] = r.cpu_ns_per_ray();
+  const auto& lobe_fit = m.analysis.fits.back().binning == "lobe" ? m.analysis.fits.back() : m.analysis.fits.front();
+  j["total_variation"] = lobe_fit.total_variation;  // lobe bins resolve the lobe at every alpha
+  j["noise_floor_tv"] = lobe_fit.noise_floor_tv;
+  j["p_value"] = m.analysis.p_value;
+  j["analysis"] = to_json(m.analysis);
+  write_outputs(h, j, outputs);
+
+  const GGX<double> ggx = histogram_ggx(h);
+  fmt::print("trace vndf  ellipsoid alpha ({}, {})  theta {}  phi {}  {}\n", ggx.alpha_x(), ggx.alpha_y(),
+             real_attribute(h, "theta"), real_attribute(h, "phi"), target.describe());
+  fmt::print("rays {}  hits {}  hit fraction {:.6f} (exact ellipsoid: {:.6f})  {:.2f} s  {:.3f} Mrays/s  "
+             "{:.1f} CPU ns/ray{}\n",
+             r.rays, r.hits, r.rays ? double(r.hits) / double(r.rays) : 0.0, m.expected_hit_fraction, r.seconds,
+             r.rays_per_second() * 1e-6, r.cpu_ns_per_ray(), partial_note(r));
+  print_fits(m.analysis);
+  fmt::print("wrote {}{}\n", outputs.out, outputs.json.empty() ? "" : " and " + outputs.json);
+  return r.partial ? kExitInterrupted : kExitOk;
+}
+
+int report_heightfield_vndf(const HeightfieldVndf& m, const microgeom::Heightfield& field, const VndfOutputs& outputs) {
+  const TracedHistogram& h = m.histogram;
+  const TraceResult& r = m.trace;
+  const AnalyticSmith analytic = analytic_reference(field);
+  const std::string& surface = attribute(h, "surface");
+  const VndfComparison& lobe = m.comparisons.back();
+  nlohmann::json j = run_json(h, r, outputs.out);
+  j["surface"] = surface_json(field, surface, analytic, m.reference_source);
+  j["target"] = attribute(h, "target");
+  j["expected_hit_fraction"] = 1.0;  // every downward ray hits a heightfield
+  j["backfacing_hits"] = m.diagnostics.backfacing;
+  j["edge_grazes"] = m.diagnostics.edge_grazes;
+  j["leaked_rays"] = m.diagnostics.leaked;
+  j["total_variation"] = lobe.tv_analytic;
+  j["total_variation_own_ndf"] = lobe.tv_empirical;
+  j["noise_floor_tv"] = lobe.tv_noise;
+  j["p_value"] = lobe.p_value_analytic;
+  j["p_value_own_ndf"] = lobe.p_value_empirical;
+  for (const auto& c : m.comparisons) j["comparisons"].push_back(to_json(c));
+  write_outputs(h, j, outputs);
+
+  fmt::print("trace vndf  heightfield {}  theta {}  phi {}  reference {} ({})\n", surface, real_attribute(h, "theta"),
+             real_attribute(h, "phi"), analytic.describe(), m.reference_source);
+  fmt::print("rays {}  front-facing first hits {}  back-facing {}  convex-edge grazes passed over {}  leaked {}  {:.2f} s  "
+             "{:.3f} Mrays/s{}\n", r.rays, r.hits, m.diagnostics.backfacing, m.diagnostics.edge_grazes, m.diagnostics.leaked,
+             r.seconds, r.rays_per_second() * 1e-6, partial_note(r));
+  print_comparisons(m.comparisons);
+  fmt::print("wrote {}{}\n", outputs.out, outputs.json.empty() ? "" : " and " + outputs.json);
+  return r.partial ? kExitInterrupted : kExitOk;
+}
+
+}  // namespace microsim::app

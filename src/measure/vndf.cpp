@@ -1,0 +1,248 @@
+#include "measure/vndf.h"
+
+#include "core/strict_parse.h"
+
+#include <fmt/core.h>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <set>
+#include <stdexcept>
+
+namespace microsim {
+
+namespace {
+
+std::string g17(double x) { return fmt::format("{:.17g}", x); }
+
+std::vector<DirectionBinning> vndf_binnings(const GGX<double>& ggx, const Vec3<double>& wi, int rows) {
+  return {DirectionBinning::sphere(rows), DirectionBinning::lobe(ggx, wi, SampleDomain::microfacet_normal, rows)};
+}
+
+TraceOptions trace_options(const VndfRequest& r) {
+  TraceOptions t;
+  t.rays = r.rays;
+  t.seed = r.seed;
+  t.blocks = r.blocks;
+  t.run = r.run;
+  return t;
+}
+
+std::string join_counts(const std::vector<std::uint64_t>& v) {
+  std::string s;
+  for (std::size_t k = 0; k < v.size(); ++k) s += (k ? "," : "") + std::to_string(v[k]);
+  return s;
+}
+
+// The histogram of a trace, with the attributes every trace vndf histogram carries.
+TracedHistogram traced_histogram(std::vector<DirectionBinning> binnings, const TraceResult& r, const VndfRequest& req,
+                                 const Vec3<double>& wi) {
+  TracedHistogram h;
+  h.binnings = std::move(binnings);
+  h.counts = r.counts;
+  h.rays = r.rays;
+  h.hits = r.hits;
+  h.partial = r.partial;
+  h.attributes["theta"] = g17(req.theta_deg);
+  h.attributes["phi"] = g17(req.phi_deg);
+  h.attributes["wi"] = g17(wi.x()) + "," + g17(wi.y()) + "," + g17(wi.z());
+  h.attributes["seed"] = std::to_string(req.seed);
+  h.attributes["rays_requested"] = std::to_string(req.rays);
+  h.attributes["threads"] = std::to_string(req.run.threads);
+  h.attributes["rays_per_second"] = g17(r.rays_per_second());
+  h.attributes["blocks"] = fmt::format("{},{}", r.blocks.begin, r.blocks.end);
+  h.attributes["total_blocks"] = std::to_string(r.total_blocks);
+  h.attributes["block_size"] = std::to_string(kRaysPerBlock);
+  h.attributes["unbinned"] = join_counts(r.unbinned);
+  return h;
+}
+
+const std::string& attribute(const TracedHistogram& h, const std::string& key) {
+  const auto it = h.attributes.find(key);
+  if (it == h.attributes.end())
+    throw HistogramMergeError(fmt::format("the histogram has no attribute '{}' (not from `trace vndf`?)", key));
+  return it->second;
+}
+
+std::uint64_t count_attribute(const TracedHistogram& h, const std::string& key) {
+  const std::optional<std::uint64_t> v = reader::parse_uint64(attribute(h, key));
+  if (!v) throw HistogramMergeError(fmt::format("attribute {} = {} is not a count", key, reader::quote_excerpt(attribute(h, key))));
+  return *v;
+}
+
+std::vector<std::uint64_t> count_list_attribute(const TracedHistogram& h, const std::string& key) {
+  std::vector<std::uint64_t> values;
+  for (const std::string_view item : reader::split_commas(attribute(h, key))) {
+    const std::optional<std::uint64_t> v = reader::parse_uint64(item);
+    if (!v) throw HistogramMergeError(fmt::format("attribute {} = {} is not a list of counts", key, reader::quote_excerpt(attribute(h, key))));
+    values.push_back(*v);
+  }
+  return values;
+}
+
+// Attributes that differ between the parts of one run.
+bool is_per_part(const std::string& key) {
+  static const std::set<std::string> keys = {"blocks",   "unbinned",    "threads", "rays_per_second", "shard",
+                                             "backfacing", "edge_grazes", "leaked",  "unresolved"};
+  return keys.count(key) > 0;
+}
+
+void check_same_run(const TracedHistogram& a, const TracedHistogram& b, const std::string& name) {
+  for (const auto& [key, value] : a.attributes) {
+    if (is_per_part(key)) continue;
+    const auto it = b.attributes.find(key);
+    if (it == b.attributes.end() || it->second != value)
+      throw HistogramMergeError(fmt::format("{} is not part of the same run: attribute {} is {} there, {} in the first part",
+                                            name, key, it == b.attributes.end() ? "missing" : reader::quote_excerpt(it->second),
+                                            reader::quote_excerpt(value)));
+  }
+  if (a.binnings.size() != b.binnings.size())
+    throw HistogramMergeError(fmt::format("{} is not part of the same run: different binnings", name));
+  for (std::size_t k = 0; k < a.binnings.size(); ++k)
+    if (a.binnings[k].describe() != b.binnings[k].describe())
+      throw HistogramMergeError(fmt::format("{} is not part of the same run: binning {} differs", name, a.binnings[k].name()));
+}
+
+double real_attribute(const TracedHistogram& h, const std::string& key) {
+  const std::optional<double> v = reader::parse_finite_double(attribute(h, key));
+  if (!v) throw HistogramMergeError(fmt::format("attribute {} = {} is not a number", key, reader::quote_excerpt(attribute(h, key))));
+  return *v;
+}
+
+}  // namespace
+
+Vec3<double> vndf_view(const TracedHistogram& h) {
+  return direction_from_degrees(real_attribute(h, "theta"), real_attribute(h, "phi"));
+}
+
+Provenance vndf_provenance(const TracedHistogram& h) {
+  Provenance p;
+  p.producer = "trace vndf";
+  p.seed = count_attribute(h, "seed");
+  p.total_blocks = count_attribute(h, "total_blocks");
+  const std::vector<std::uint64_t> blocks = count_list_attribute(h, "blocks");
+  if (blocks.size() != 2 || blocks[0] > blocks[1] || blocks[1] > p.total_blocks)
+    throw HistogramMergeError(fmt::format("attribute blocks = {} is not a range B,E within the run's {} blocks",
+                                          reader::quote_excerpt(attribute(h, "blocks")), p.total_blocks));
+  p.blocks = {blocks[0], blocks[1]};
+  return p;
+}
+
+EllipsoidVndf analyse_ellipsoid_vndf(TracedHistogram histogram, const std::vector<std::uint64_t>& unbinned) {
+  EllipsoidVndf m;
+  const GGX<double> ggx = histogram_ggx(histogram);
+  const Vec3<double> wi = vndf_view(histogram);
+  m.analysis = analyse_against_vndf(histogram, ggx, wi, unbinned);
+  m.trace.rays = histogram.rays;
+  m.trace.hits = histogram.hits;
+  m.trace.counts = histogram.counts;
+  m.trace.unbinned = unbinned;
+  m.trace.partial = histogram.partial;
+  m.histogram = std::move(histogram);
+  return m;
+}
+
+EllipsoidVndf measure_ellipsoid_vndf(const EllipsoidTarget& target, const VndfRequest& req) {
+  const GGX<double> ggx(target.ellipsoid().ax, target.ellipsoid().ay);
+  const Vec3<double> wi = direction_from_degrees(req.theta_deg, req.phi_deg);
+  std::vector<DirectionBinning> binnings = vndf_binnings(ggx, wi, req.rows);
+  const TraceResult r = trace_vndf(target, wi, binnings, trace_options(req));
+  TracedHistogram h = traced_histogram(std::move(binnings), r, req, wi);
+  h.attributes["surface"] = "ellipsoid";
+  h.attributes["target"] = target.describe();
+  h.attributes["mesh_level"] = std::to_string(target.mesh_level());
+  h.attributes["alpha"] = g17(ggx.alpha_x()) + "," + g17(ggx.alpha_y());
+  EllipsoidVndf m = analyse_ellipsoid_vndf(std::move(h), r.unbinned);
+  m.trace = r;
+  m.expected_hit_fraction = ParallelBeam(target.ellipsoid(), wi).expected_hit_fraction();
+  return m;
+}
+
+HeightfieldVndf analyse_heightfield_vndf(TracedHistogram histogram, const std::vector<std::uint64_t>& unbinned,
+                                         const microgeom::Heightfield& field) {
+  HeightfieldVndf m;
+  if (histogram.attributes.count("backfacing")) {
+    m.diagnostics.backfacing = count_attribute(histogram, "backfacing");
+    m.diagnostics.edge_grazes = count_attribute(histogram, "edge_grazes");
+    m.diagnostics.leaked = count_attribute(histogram, "leaked");
+    m.diagnostics.unresolved = count_attribute(histogram, "unresolved");
+  }
+  const AnalyticSmith analytic = analytic_reference(field, &m.reference_source);
+  const EmpiricalSmith empirical(field);
+  const Vec3<double> wi = vndf_view(histogram);
+  histogram.probability.clear();
+  for (std::size_t k = 0; k < histogram.binnings.size(); ++k) {
+    m.comparisons.push_back(compare_vndf(histogram.counts[k], k < unbinned.size() ? unbinned[k] : 0,
+                                         histogram.binnings[k], wi, analytic, empirical));
+    histogram.probability.push_back(m.comparisons.back().p_analytic);
+  }
+  m.trace.rays = histogram.rays;
+  m.trace.hits = histogram.hits;
+  m.trace.counts = histogram.counts;
+  m.trace.unbinned = unbinned;
+  m.trace.partial = histogram.partial;
+  m.histogram = std::move(histogram);
+  return m;
+}
+
+HeightfieldVndf measure_heightfield_vndf(const microgeom::Heightfield& field, const std::string& surface,
+                                         const VndfRequest& req) {
+  const AnalyticSmith analytic = analytic_reference(field);
+  const HeightfieldScene scene(field);
+  const Vec3<double> wi = direction_from_degrees(req.theta_deg, req.phi_deg);
+  std::vector<DirectionBinning> binnings =
+      vndf_binnings(GGX<double>(analytic.alpha_x(), analytic.alpha_y()), wi, req.rows);
+  HeightfieldVndfDiagnostics diagnostics;
+  const TraceResult r = trace_vndf_heightfield(scene, wi, binnings, trace_options(req), &diagnostics);
+  TracedHistogram h = traced_histogram(std::move(binnings), r, req, wi);
+  h.attributes["surface"] = surface;
+  h.attributes["target"] = fmt::format("heightfield {} x {} tile {}", field.resolution(), field.resolution(), g17(field.tile_size()));
+  h.attributes["mesh_level"] = "-1";
+  h.attributes["alpha"] = g17(analytic.alpha_x()) + "," + g17(analytic.alpha_y());
+  h.attributes["reference_ndf"] = to_string(analytic.ndf());
+  h.attributes["backfacing"] = std::to_string(diagnostics.backfacing);
+  h.attributes["edge_grazes"] = std::to_string(diagnostics.edge_grazes);
+  h.attributes["leaked"] = std::to_string(diagnostics.leaked);
+  h.attributes["unresolved"] = std::to_string(diagnostics.unresolved);
+  HeightfieldVndf m = analyse_heightfield_vndf(std::move(h), r.unbinned, field);
+  m.trace = r;
+  m.diagnostics = diagnostics;
+  return m;
+}
+
+TracedHistogram merge_vndf_parts(const std::vector<TracedHistogram>& parts, std::vector<std::uint64_t>& unbinned) {
+  if (parts.empty()) throw HistogramMergeError("nothing to merge");
+  const Provenance first = vndf_provenance(parts.front());
+  std::vector<BlockRange> ranges;
+  TracedHistogram merged = parts.front();
+  unbinned.assign(merged.binnings.size(), 0);
+  for (std::size_t i = 0; i < parts.size(); ++i) {
+    const TracedHistogram& p = parts[i];
+    const std::string name = fmt::format("part {}", i + 1);
+    check_same_run(parts.front(), p, name);
+    first.check_same_run(vndf_provenance(p));
+    ranges.push_back(vndf_provenance(p).blocks);
+    const std::vector<std::uint64_t> u = count_list_attribute(p, "unbinned");
+    if (u.size() != unbinned.size()) throw HistogramMergeError(fmt::format("{}: attribute unbinned has {} values", name, u.size()));
+    for (std::size_t k = 0; k < u.size(); ++k) unbinned[k] += u[k];
+    if (i == 0) continue;
+    merged.rays += p.rays;
+    merged.hits += p.hits;
+    for (std::size_t k = 0; k < merged.counts.size(); ++k)
+      for (std::size_t b = 0; b < merged.counts[k].size(); ++b) merged.counts[k][b] += p.counts[k][b];
+  }
+  const BlockRange all = merge_block_ranges(ranges, first.total_blocks, /*require_complete=*/true);
+  merged.partial = false;
+  merged.attributes["blocks"] = fmt::format("{},{}", all.begin, all.end);
+  merged.attributes["unbinned"] = join_counts(unbinned);
+  merged.attributes.erase("shard");
+  for (const char* key : {"backfacing", "edge_grazes", "leaked", "unresolved"}) {  // heightfield diagnostics
+    if (!merged.attributes.count(key)) continue;
+    std::uint64_t sum = 0;
+    for (const TracedHistogram& p : parts) sum += count_attribute(p, key);
+    merged.attributes[key] = std::to_string(sum);
+  }
+  return merged;
+}
+
+}  // namespace microsim

@@ -1,0 +1,75 @@
+// measure: the VNDF measurement of `microsim trace vndf`, end to end, as a library call: trace the
+// ellipsoid (exact quadric or mesh) or a heightfield in the validator's sphere and lobe bins, analyse the
+// histogram against the analytic reference, and record the run in the histogram's attributes, including
+// its provenance (seed, block range of the whole run), so that a partial result (a shard, or a run
+// cancelled part way) can be merged with the others into the whole run, bit for bit.
+#pragma once
+
+#include "core/block_runner.h"
+#include "core/run_control.h"
+#include "microgeom/heightfield.h"
+#include "stats/histogram.h"
+#include "stats/histogram_io.h"
+#include "trace/heightfield_trace.h"
+#include "trace/masking.h"
+#include "trace/smith_prediction.h"
+#include "trace/trace_vndf.h"
+#include "validate/compare.h"
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace microsim {
+
+struct VndfRequest {
+  double theta_deg = 0, phi_deg = 0;
+  std::uint64_t rays = 10'000'000;  // rays of the whole run
+  std::uint64_t seed = 1;
+  int rows = 31;                    // rows of the sphere and lobe binnings
+  std::optional<BlockRange> blocks; // trace only these blocks of kRaysPerBlock rays (a shard)
+  RunControl run;
+};
+
+// The ellipsoid oracle's measurement.
+struct EllipsoidVndf {
+  TracedHistogram histogram;  // counts, analytic probabilities, run attributes and provenance
+  TraceResult trace;          // rays, hits, unbinned, timing, blocks
+  TraceAnalysis analysis;     // against the analytic D_v
+  double expected_hit_fraction = 0;
+};
+EllipsoidVndf measure_ellipsoid_vndf(const EllipsoidTarget& target, const VndfRequest& request);
+
+// A heightfield's measurement: Smith's D_v with the analytic reference NDF and with the surface's own.
+struct HeightfieldVndf {
+  TracedHistogram histogram;
+  TraceResult trace;
+  HeightfieldVndfDiagnostics diagnostics;
+  std::vector<VndfComparison> comparisons;  // per binning
+  std::string reference_source;             // "metadata" or "fitted"
+};
+// `surface` names the heightmap in the attributes (its path).
+HeightfieldVndf measure_heightfield_vndf(const microgeom::Heightfield& field, const std::string& surface,
+                                         const VndfRequest& request);
+
+// The view of a trace vndf histogram, exactly as the run computed it (from its attributes theta, phi).
+Vec3<double> vndf_view(const TracedHistogram& histogram);
+
+// ---- partial results -------------------------------------------------------------------------------------
+
+// The provenance a trace vndf histogram records: seed, block range, blocks of the run (attributes
+// "seed", "blocks" = "B,E", "total_blocks", "block_size", "unbinned" = per binning).
+Provenance vndf_provenance(const TracedHistogram& histogram);
+
+// The parts of one run merged: counts, rays, hits and unbinned summed, the block ranges joined. Throws
+// HistogramMergeError naming the problem: parts of different runs (the first attribute that differs),
+// different binnings, or blocks repeated or missing (named as ranges). `unbinned` receives the sum.
+TracedHistogram merge_vndf_parts(const std::vector<TracedHistogram>& parts, std::vector<std::uint64_t>& unbinned);
+
+// The analyses of a merged histogram, exactly as measure_*_vndf computes them for the same counts.
+EllipsoidVndf analyse_ellipsoid_vndf(TracedHistogram histogram, const std::vector<std::uint64_t>& unbinned);
+HeightfieldVndf analyse_heightfield_vndf(TracedHistogram histogram, const std::vector<std::uint64_t>& unbinned,
+                                         const microgeom::Heightfield& field);
+
+}  // namespace microsim
