@@ -14,12 +14,6 @@ using namespace microsim;
 
 namespace {
 
-const SamplerInfo& sampler(const char* name) {
-  const SamplerInfo* s = find_sampler(name);
-  if (!s) throw std::runtime_error(name);
-  return *s;
-}
-
 battery::SampleSource no_samples() {
   return {"none", Precision::float64, false, [](const SampleBlockVisitor&, const ChunkDone&) {}};
 }
@@ -32,7 +26,8 @@ battery::SampleSource no_samples() {
 // registry entry, so a copy under another name (a test double, a float variant) gets the same reference.
 // Keyed on the name, the copy's reference lost the break and its bin probabilities changed.
 TEST(SamplerTraits, ACopyUnderAnotherNameKeepsTheJumpOfItsClaimedPdf) {
-  const SamplerInfo& bounded = sampler("bounded2023");
+  ASSERT_NE(find_sampler("bounded2023"), nullptr);
+  const SamplerInfo& bounded = *find_sampler("bounded2023");
   ASSERT_NE(bounded.claimed_pdf_jump, nullptr);
   SamplerInfo copy = bounded;
   copy.name = "bounded2023-copy";
@@ -118,7 +113,7 @@ TEST(AssemblyTraits, UpsideDownNegatesTheHeightsOfTheSameRecipe) {
 // validate and compare report the same tests under the same names: one chi-square test per binning, then
 // the checks; the report is looked up by name, and an unknown name is an error, not a default.
 TEST(Battery, ValidateAndCompareReportTheSameTests) {
-  const SamplerInfo& s = sampler("heitz2018");
+  const SamplerInfo& s = reference_sampler(ClaimedPdf::visible_normals);
   const GGX<double> ggx(0.5);
   const Vec3<double> wi = direction_from_degrees(30.0, 0.0);
   ValidationOptions o;

@@ -106,8 +106,6 @@ struct SamplerInfo {
   // A function of the direction that is zero on a curve where the claimed pdf jumps, beyond the curves
   // where every pdf of the zoo jumps or kinks (validate.h, prepare_reference); nullptr: none.
   double (*claimed_pdf_jump)(const GGX<double>&, const Vec3<double>& wi, const Vec3<double>& direction);
-
-  bool targets_vndf() const { return claims == ClaimedPdf::visible_normals; }
 };
 
 std::span<const SamplerInfo> sampler_registry();

@@ -15,9 +15,9 @@
 // `significance`; any failed hard check fails the validation.
 //
 // The tests are the stages of one battery shared with the comparison against the traced oracle
-// (battery.h, compare.h). Expected counts come from adaptive cubature of the claimed pdf over each bin (binning.h); a sampler
-// that fails (returns nothing) is counted in a remainder cell whose expected probability is the mass
-// the claimed pdf leaves outside the bins (1 - the bins' total).
+// (battery.h, compare.h). Expected counts come from adaptive cubature of the claimed pdf over each bin
+// (binning.h); a sampler that fails (returns nothing) is counted in a remainder cell whose expected
+// probability is the mass the claimed pdf leaves outside the bins (1 - the bins' total).
 //
 // Reproducible: sample i uses CounterRng(seed, i) (two uniforms), whatever the thread count.
 #pragma once
