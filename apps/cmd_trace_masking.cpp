@@ -1,29 +1,31 @@
 // microsim trace masking: masking and masking-shadowing of an explicit heightfield, measured by ray
 // tracing, beside Smith's predictions with the analytic NDF and with the surface's own NDF
-// (src/microsim/masking.h, src/microsim/smith_prediction.h).
+// (src/trace/masking.h, src/trace/smith_prediction.h; the measurement: src/measure/masking.h; the
+// report: masking_report.h, shared with `microsim merge`).
 //
 //   trace masking --surface SURF.exr --theta DEG [--phi DEG] [--samples N] [--seed S] [--theta-l DEG
 //                 [--phi-l DEG]] [--cone DEG] [--bins K] [--vndf-rays N] [--geometry triangles|grid]
-//                 [--tile-size L] [--threads T] [--grazing-share Q] [--json PATH]
+//                 [--tile-size L] [--threads T] [--grazing-share Q] [--json PATH] [--shard K/N]
+//   With --shard K/N only block range K of N of the run is sampled and --json holds the partial result
+//   (provenance and exact sums) that `microsim merge` joins with the other shards into the whole run.
 //   trace masking --table [--assemblies a,b,..] [--alphas 0.1,0.5,1] [--thetas 30,60,75,85] [--phi DEG]
 //                 [--res N] [--corr-cells C] [--seed S | --seeds S1,S2,..] [--samples N] [--vndf-rays N]
 //                 [--grazing-share Q] [--markdown PATH] [--json PATH]
 //   With --seeds each table cell is the mean over the surface realisations ± its standard error across
 //   them, beside the Monte Carlo error of that mean.
 //
-// Also defines run_trace_vndf_heightfield(), called by `trace vndf --surface SURF.exr` (cmd_trace.cpp).
-//
 // Exit codes: 0 done; 1 the leak test failed (the weighted visible fraction / cos(theta_v) is more than
 // kLeakSigmas standard errors from 1, or a ray leaked through the surface); 2 bad usage or input (nothing
 // written); 130 interrupted (what was measured is written, marked partial).
 #include "command.h"
+#include "masking_report.h"
 #include "surface_input.h"
 #include "number_options.h"
 
 #include "microgeom/assembly.h"
 #include "microgeom/heightfield.h"
 #include "stats/histogram_io.h"
-#include "trace/masking.h"
+#include "measure/masking.h"
 #include "progress_bar.h"
 
 #include <fmt/core.h>
@@ -40,24 +42,13 @@
 #include <string>
 #include <vector>
 
-#include <sys/resource.h>
-
 namespace microsim::app {
 
 namespace {
 
 namespace fs = std::filesystem;
 
-// The leak test's threshold in standard errors: at 4 SE a correct tracer fails with probability 6e-5
-// per view (normal tails).
-constexpr double kLeakSigmas = 4.0;
-constexpr int kVndfRows = 8;  // lobe and sphere bins of the VNDF comparison (lobe: 8 x 16 cells)
-
-double peak_rss_mib() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return double(usage.ru_maxrss) / 1024.0;  // Linux: kilobytes
-}
+constexpr int kVndfRows = kMaskingVndfRows;  // lobe and sphere bins of the VNDF comparison (lobe: 8 x 16 cells)
 
 // "a,b,c": the list rules of the number parser (no empty item).
 std::vector<std::string> split_names(const std::string& option, const std::string& text) {
@@ -74,17 +65,6 @@ void check_grazing_share(double share) {
 
 
 
-// Ctrl-C: what was measured has been written, marked partial; says so on stderr. Returns exit code 130.
-int interrupted_partial_written(const char* command, const std::vector<std::string>& outputs) {
-  std::string written;
-  for (const auto& o : outputs)
-    if (!o.empty()) written += (written.empty() ? "" : ", ") + ("'" + o + "'");
-  fmt::print(stderr, "{}: interrupted: partial results{}\n", command,
-             written.empty() ? "" : ", written marked partial to " + written);
-  return kExitInterrupted;
-}
-
-std::string pm(const Estimate& e, int digits = 4) { return fmt::format("{:.{}f} ± {:.{}f}", e.value, digits, e.se, digits); }
 
 // ---- single surface -------------------------------------------------------------------------------------------
 
@@ -103,6 +83,7 @@ struct MaskingArgs {
   double grazing_share = 0.02;
   std::string geometry = "triangles";
   std::string json;
+  std::string shard;  // "K/N": only block range K of N (single surface)
   // table mode
   bool table = false;
   std::string assemblies = microgeom::assembly_names(",");
@@ -116,57 +97,41 @@ struct MaskingArgs {
   std::string seeds;  // table: several realisations per cell ("1,2,3"); empty: --seed only
 };
 
-void print_masking(const MaskingResult& r, const AnalyticSmith& analytic) {
-  fmt::print("samples {}  front-facing {}  shadow rays {}  {:.2f} s  {:.3f} Mrays/s{}\n", r.samples, r.front_facing,
-             r.rays, r.seconds, r.rays_per_second() * 1e-6, r.partial ? "  PARTIAL (interrupted)" : "");
-  fmt::print("leak test  E[w V] / cos(theta_v) = {}  ({:+.2f} SE from 1; leaked rays {}, unresolved {})\n",
-             pm(r.leak_ratio), r.leak_ratio.se > 0 ? (r.leak_ratio.value - 1) / r.leak_ratio.se : 0.0, r.leaked,
-             r.unresolved);
-  fmt::print("\n| quantity | measured | Smith, {} | Smith, own NDF |\n|---|---|---|---|\n", analytic.describe());
-  fmt::print("| Lambda(v) | | {:.5f} | {:.5f} |\n", r.lambda_analytic, r.lambda_empirical);
-  fmt::print("| G1(v) | {} | {:.4f} | {:.4f} |\n", pm(r.g1), r.g1_smith_analytic, r.g1_smith_empirical);
-  auto g2_row = [](const char* name, const G2Result& g) {
-    fmt::print("| {} ({} samples) | {} | {:.4f} (sep. {:.4f}) | {:.4f} (sep. {:.4f}) |\n", name, g.samples,
-               pm(g.value), g.smith_analytic, g.separable_analytic, g.smith_empirical, g.separable_empirical);
-    fmt::print("| {} / Smith height-correlated | | {} | {} |\n", name, pm(g.ratio_analytic), pm(g.ratio_empirical));
-  };
-  if (r.mirror) g2_row("G2 mirror, l = reflect(v, m)", *r.mirror);
-  if (r.pair) {
-    g2_row("G2(v, l), facets facing both", *r.pair);
-    g2_row(fmt::format("G2(v, l), m within {} deg of h", r.cone_deg).c_str(), *r.pair_cone);
+// The request of a single-surface run; --shard K/N: block range K of N of the run's blocks of
+// kSamplesPerBlock points.
+MaskingRequest masking_request(const MaskingArgs& a, const std::shared_ptr<CliProgress>& progress) {
+  MaskingRequest r;
+  r.theta_deg = a.theta;
+  r.phi_deg = a.phi;
+  r.theta_l_deg = a.theta_l;
+  r.phi_l_deg = a.phi_l;
+  r.cone_deg = a.cone;
+  r.samples = std::uint64_t(a.samples);
+  r.seed = a.seed;
+  r.bins = a.bins;
+  r.grazing_share = a.grazing_share;
+  r.vndf_rays = std::uint64_t(a.vndf_rays);
+  r.run = cli_run_control(a.threads, progress);
+  if (!a.shard.empty()) {
+    const BlockPlan plan{r.samples, kSamplesPerBlock};
+    const ShardSpec s = parse_shard("--shard", a.shard, plan.blocks());  // ParseError: exit 2
+    r.blocks = shard_range(plan.blocks(), s.index, s.count);
   }
-  fmt::print("\nG1(v | m): bins of <v, m> holding equal shares of the front-facing projected area "
-             "(first = most grazing, last = facing v). Smith: ratio 1.\n");
-  fmt::print("| bin | angle(m, v) deg | share | samples | G1(v given m) | ratio to G1(v) |\n|---|---|---|---|---|---|\n");
-  for (std::size_t b = 0; b < r.by_normal.size(); ++b) {
-    const auto& c = r.by_normal[b];
-    fmt::print("| {} | {:.1f} .. {:.1f} | {:.3f} | {} | {} | {} |\n", b, std::acos(std::min(c.hi, 1.0)) * 180 / kPi<double>,
-               std::acos(std::min(c.lo, 1.0)) * 180 / kPi<double>, c.share, c.samples, pm(c.g1), pm(c.ratio));
-  }
-  {
-    const auto& c = r.near_grazing;
-    fmt::print("| near-grazing ({:.1f}% of the area) | {:.2f} .. 90.0 | {:.3f} | {} | {} | {} |\n",
-               100.0 * c.share, std::acos(std::min(c.hi, 1.0)) * 180 / kPi<double>, c.share, c.samples, pm(c.g1),
-               pm(c.ratio));
-  }
-  fmt::print("\nG1(v | h): equal-count bins of the vertex heights (first = lowest). "
-             "Smith: C1(h)^Lambda(v) averaged over the bin.\n");
-  fmt::print("| bin | height | share | G1(v given h) | Smith, analytic | Smith, own NDF |\n|---|---|---|---|---|---|\n");
-  for (std::size_t b = 0; b < r.by_height.size(); ++b) {
-    const auto& c = r.by_height[b];
-    fmt::print("| {} | {:.4g} .. {:.4g} | {:.3f} | {} | {:.4f} | {:.4f} |\n", b, c.lo, c.hi, c.share, pm(c.g1),
-               c.smith_analytic, c.smith_empirical);
-  }
+  return r;
 }
 
-bool leak_failed(const MaskingResult& r) {
-  if (r.leaked > 0) return true;
-  return std::abs(r.leak_ratio.value - 1.0) > kLeakSigmas * r.leak_ratio.se;
+// --shard: a partial result is written to --json; the VNDF is sharded by trace vndf.
+void check_shard(const MaskingArgs& a) {
+  if (a.shard.empty()) return;
+  if (a.vndf_rays > 0)
+    throw UsageError(fmt::format("--shard {} with --vndf-rays: the VNDF is not sharded here; shard it with "
+                                 "`trace vndf --surface {} --shard K/N` (and the masking without --vndf-rays)",
+                                 a.shard, a.surface.empty() ? "S" : a.surface));
+  if (a.json.empty())
+    throw UsageError(fmt::format("--shard {}: needs --json PART.json (the partial result for `microsim merge`)", a.shard));
 }
 
-
-int run_masking(const MaskingArgs& a) {
-  // ---- validate everything before any work ----
+HeightfieldGeometry check_masking_args(const MaskingArgs& a) {
   check_distinct_outputs({{"--surface", a.surface}}, {{"--json", a.json}});
   if (a.surface.empty()) throw UsageError("--surface is required (or --table)");
   check_theta("--theta", a.theta);
@@ -181,97 +146,31 @@ int run_masking(const MaskingArgs& a) {
   } catch (const std::invalid_argument& e) {
     throw UsageError(fmt::format("--geometry: {}", e.what()));
   }
+  check_shard(a);
   check_output("--json", a.json);
+  return geometry;
+}
+
+int run_masking(const MaskingArgs& a) {
+  // ---- validate everything before any work ----
+  const HeightfieldGeometry geometry = check_masking_args(a);
+  const auto progress = std::make_shared<CliProgress>(true);
+  const MaskingRequest request = masking_request(a, progress);
   const microgeom::Heightfield field = load_surface(a.surface, a.tile_size);
 
   // ---- trace ----
   install_interrupt_handler();
-  std::string source;
-  const AnalyticSmith analytic = analytic_reference(field, &source);
-  const EmpiricalSmith empirical(field);
-  const HeightfieldScene scene(field, geometry);
-  const Vec3<double> v = direction_from_degrees(a.theta, a.phi);
-  fmt::print(stderr, "trace masking: {} ({} x {}, tile {}), {} geometry built in {:.2f} s, theta {} phi {}, {} samples\n",
+  const MaskingSurface surface(field, a.surface, geometry, /*trace=*/true);
+  fmt::print(stderr, "trace masking: {} ({} x {}, tile {}), {} geometry built in {:.2f} s, theta {} phi {}, {} samples{}\n",
              a.surface, field.resolution(), field.resolution(), field.tile_size(), to_string(geometry),
-             scene.build_seconds(), a.theta, a.phi, a.samples);
-  MaskingOptions opts;
-  opts.samples = std::uint64_t(a.samples);
-  opts.seed = a.seed;
-  const auto progress = std::make_shared<CliProgress>(true);
-  opts.run = cli_run_control(a.threads, progress);
-  opts.normal_bins = opts.height_bins = a.bins;
-  opts.cone_deg = a.cone;
-  opts.grazing_share = a.grazing_share;
-  if (a.theta_l) opts.light = direction_from_degrees(*a.theta_l, a.phi_l);
-  const MaskingResult r = estimate_masking(scene, analytic, empirical, v, opts);
+             surface.scene->build_seconds(), a.theta, a.phi, a.samples, a.shard.empty() ? "" : ", shard " + a.shard);
+  SurfaceMasking m = measure_masking(surface, request);
   progress->finish();
-
-  nlohmann::json j;
-  j["surface"] = surface_json(field, a.surface, analytic, source);
-  j["geometry"] = to_string(geometry);
-  j["build_seconds"] = scene.build_seconds();
-  j["embree_peak_bytes"] = scene.embree_peak_bytes();
-  j["theta"] = a.theta;
-  j["phi"] = a.phi;
-  if (a.theta_l) j["theta_l"] = *a.theta_l, j["phi_l"] = a.phi_l;
-  j["seed"] = a.seed;
-  j["threads"] = a.threads;
-  j["masking"] = to_json(r);
-  j["leak_test"] = {{"sigmas", kLeakSigmas}, {"failed", leak_failed(r)}};
-
-  std::optional<TraceResult> vndf;
-  std::vector<VndfComparison> comparisons;
-  if (a.vndf_rays > 0 && !interrupted()) {
-    const std::vector<DirectionBinning> binnings = {
-        DirectionBinning::sphere(2 * kVndfRows + 1),
-        DirectionBinning::lobe(GGX<double>(analytic.alpha_x(), analytic.alpha_y()), v, SampleDomain::microfacet_normal,
-                               kVndfRows)};
-    TraceOptions to;
-    to.rays = std::uint64_t(a.vndf_rays);
-    to.seed = a.seed;
-    to.run = opts.run;
-    HeightfieldVndfDiagnostics diag;
-    vndf = trace_vndf_heightfield(scene, v, binnings, to, &diag);
+  if (request.vndf_rays > 0 && !interrupted()) {
+    m.vndf = measure_masking_vndf(surface, request);
     progress->finish();
-    nlohmann::json jv;
-    jv["rays"] = vndf->rays;
-    jv["hits"] = vndf->hits;
-    jv["backfacing"] = diag.backfacing;
-    jv["edge_grazes"] = diag.edge_grazes;
-    jv["leaked"] = diag.leaked;
-    jv["rays_per_second"] = vndf->rays_per_second();
-    jv["partial"] = vndf->partial;
-    for (std::size_t k = 0; k < binnings.size(); ++k) {
-      comparisons.push_back(compare_vndf(vndf->counts[k], vndf->unbinned[k], binnings[k], v, analytic, empirical));
-      jv["comparisons"].push_back(to_json(comparisons.back()));
-    }
-    j["vndf"] = jv;
   }
-  j["peak_rss_mib"] = peak_rss_mib();
-  // Ctrl-C before the VNDF trace skips it: the run is partial too.
-  const bool partial = r.partial || (vndf && vndf->partial) || (a.vndf_rays > 0 && !vndf);
-  j["partial"] = partial;
-  if (!a.json.empty()) write_text_atomically(a.json, j.dump(2) + "\n");
-
-  // ---- report ----
-  fmt::print("trace masking  {}  ({} x {}, tile {:.6g})  theta {}  phi {}  seed {}\n", a.surface, field.resolution(),
-             field.resolution(), field.tile_size(), a.theta, a.phi, a.seed);
-  fmt::print("analytic reference: {} ({})\n", analytic.describe(), source);
-  print_masking(r, analytic);
-  if (vndf) {
-    fmt::print("\nVNDF: {} rays along -v, {} front-facing first hits, {:.3f} Mrays/s\n", vndf->rays, vndf->hits,
-               vndf->rays_per_second() * 1e-6);
-    fmt::print("| bins | cells | TV to Smith (analytic) | TV to Smith (own NDF) | TV noise floor | p (analytic) | p (own NDF) |\n"
-               "|---|---|---|---|---|---|---|\n");
-    for (const auto& c : comparisons)
-      fmt::print("| {} | {} | {:.5f} | {:.5f} | {:.5f} | {:.3g} | {:.3g} |\n", c.binning, c.bins, c.tv_analytic,
-                 c.tv_empirical, c.tv_noise, c.p_value_analytic, c.p_value_empirical);
-  }
-  fmt::print("peak RSS {:.1f} MiB\n", peak_rss_mib());
-  const bool failed = leak_failed(r);
-  fmt::print("leak test ({} SE): {}\n", kLeakSigmas, failed ? "FAILED" : "passed");
-  if (partial) return interrupted_partial_written("trace masking", {a.json});
-  return failed ? kExitRejected : kExitOk;
+  return report_surface_masking(m, surface, {a.json});
 }
 
 // ---- the table ---------------------------------------------------------------------------------------------------
@@ -632,7 +531,14 @@ CommandRegistration reg{"trace masking", [](CLI::App& app) {
                   "table: several surface realisations per cell, e.g. 1,2,3 (each cell: mean over the realisations "
                   "± its standard error across them, and the Monte Carlo error of the mean); default: --seed only");
   sub->add_option("--markdown", args->markdown, "table: also write the markdown table to this file");
+  sub->add_option("--shard", args->shard,
+                  "single surface: sample only shard K of N of the run (K/N, 1-based: a contiguous range of its blocks "
+                  "of 4096 points) and write the partial result to --json, for `microsim merge`");
   on_selected(sub, [args] {
+    if (args->table && !args->shard.empty())
+      throw UsageError(fmt::format("--shard {} with --table: the table is not sharded; shard a single surface's run "
+                                   "(trace masking --surface S --shard K/N, or trace vndf --surface S --shard K/N)",
+                                   args->shard));
     if (args->table) {
       MaskingArgs a = *args;
       if (a.vndf_rays > 0) a.table_vndf_rays = a.vndf_rays;

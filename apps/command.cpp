@@ -1,5 +1,6 @@
 #include "command.h"
 
+#include "core/errors.h"
 #include "core/run_control.h"
 
 #include <fmt/core.h>
@@ -49,6 +50,9 @@ int run_selected() {
       return kExitInterrupted;
     } catch (const std::bad_alloc&) {
       fmt::print(stderr, "microsim: internal error: out of memory\n");
+      return kExitInternal;
+    } catch (const microsim::InternalError& e) {
+      fmt::print(stderr, "microsim: internal error: {}\n", e.what());
       return kExitInternal;
     } catch (const std::exception& e) {
       fmt::print(stderr, "microsim: error: {}\n", e.what());

@@ -16,11 +16,14 @@
 namespace microsim::app {
 
 // The exit codes of every command (README, "Exit codes"). One place: no command returns a bare number.
-inline constexpr int kExitOk = 0;            // ok / the statistical test passed
-inline constexpr int kExitRejected = 1;      // a statistical test rejected
-inline constexpr int kExitUsage = 2;         // bad usage or bad input
-inline constexpr int kExitInternal = 3;      // internal error: out of memory, an Embree failure, a bug
-inline constexpr int kExitInterrupted = 130; // interrupted (Ctrl-C): what was done is kept, marked partial
+// The exit codes, in one enum (README, "Exit codes"; core/errors.h says which error gives which).
+enum ExitCode : int {
+  kExitOk = 0,            // ok / the statistical test passed
+  kExitRejected = 1,      // a statistical test rejected
+  kExitUsage = 2,         // bad usage or bad input
+  kExitInternal = 3,      // internal error: out of memory, an Embree failure, a bug
+  kExitInterrupted = 130  // interrupted (Ctrl-C): what was done is kept, marked partial
+};
 
 struct Command {
   std::string name;

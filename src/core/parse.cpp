@@ -143,6 +143,45 @@ std::string integer_text(std::int64_t v) { return v < 0 ? std::to_string(v) : in
 
 std::string quote_excerpt(std::string_view text) { return reader::quote_excerpt(text); }
 
+// ---- the plain forms, for numbers inside files (strict_parse.h) ------------------------------------------
+
+namespace reader {
+
+std::string quote_excerpt(std::string_view text) {
+  static constexpr char kHex[] = "0123456789ABCDEF";
+  std::string out = "'";
+  std::size_t shown = 0;
+  for (; shown < text.size(); ++shown) {
+    const auto c = static_cast<unsigned char>(text[shown]);
+    std::string piece;
+    if (c == '\'' || c == '\\') piece = {'\\', char(c)};
+    else if (c >= 0x20 && c < 0x7f) piece = std::string(1, char(c));
+    else piece = {'\\', 'x', kHex[c >> 4], kHex[c & 15]};
+    if (out.size() - 1 + piece.size() > kExcerptBytes) break;  // the excerpt as printed stays short
+    out += piece;
+  }
+  out += shown < text.size() ? "...' (" + std::to_string(text.size()) + " bytes)" : std::string("'");
+  return out;
+}
+
+std::optional<std::uint64_t> parse_uint64(std::string_view text) {
+  if (text.empty() || text.front() < '0' || text.front() > '9') return std::nullopt;
+  std::uint64_t v = 0;
+  const auto r = std::from_chars(text.data(), text.data() + text.size(), v);
+  if (r.ec != std::errc() || r.ptr != text.data() + text.size()) return std::nullopt;
+  return v;
+}
+
+// The command line's reals without the leading '+': decimal or scientific, finite, within a double's range.
+std::optional<double> parse_finite_double(std::string_view text) {
+  if (!text.empty() && text.front() == '+') return std::nullopt;
+  double v = 0;
+  if (!to_double(text, v).empty()) return std::nullopt;
+  return v;
+}
+
+}  // namespace reader
+
 bool Interval::contains(double x) const {
   const bool above = lo_open ? x > lo : x >= lo;
   const bool below = hi_open ? x < hi : x <= hi;

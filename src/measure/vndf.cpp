@@ -109,6 +109,17 @@ double real_attribute(const TracedHistogram& h, const std::string& key) {
   return *v;
 }
 
+// The trace a histogram holds (no timing): what a merged run reports.
+TraceResult trace_of(const TracedHistogram& h, const std::vector<std::uint64_t>& unbinned) {
+  TraceResult t;
+  t.rays = h.rays;
+  t.hits = h.hits;
+  t.counts = h.counts;
+  t.unbinned = unbinned;
+  t.partial = h.partial;
+  return t;
+}
+
 }  // namespace
 
 Vec3<double> vndf_view(const TracedHistogram& h) {
@@ -133,11 +144,7 @@ EllipsoidVndf analyse_ellipsoid_vndf(TracedHistogram histogram, const std::vecto
   const GGX<double> ggx = histogram_ggx(histogram);
   const Vec3<double> wi = vndf_view(histogram);
   m.analysis = analyse_against_vndf(histogram, ggx, wi, unbinned);
-  m.trace.rays = histogram.rays;
-  m.trace.hits = histogram.hits;
-  m.trace.counts = histogram.counts;
-  m.trace.unbinned = unbinned;
-  m.trace.partial = histogram.partial;
+  m.trace = trace_of(histogram, unbinned);
   m.histogram = std::move(histogram);
   return m;
 }
@@ -176,11 +183,7 @@ HeightfieldVndf analyse_heightfield_vndf(TracedHistogram histogram, const std::v
                                          histogram.binnings[k], wi, analytic, empirical));
     histogram.probability.push_back(m.comparisons.back().p_analytic);
   }
-  m.trace.rays = histogram.rays;
-  m.trace.hits = histogram.hits;
-  m.trace.counts = histogram.counts;
-  m.trace.unbinned = unbinned;
-  m.trace.partial = histogram.partial;
+  m.trace = trace_of(histogram, unbinned);
   m.histogram = std::move(histogram);
   return m;
 }

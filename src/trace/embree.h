@@ -14,6 +14,8 @@
 // ray's result depends on that ray only.
 #pragma once
 
+#include "core/errors.h"
+
 #include "core/math.h"
 
 #include <embree3/rtcore.h>
@@ -28,8 +30,8 @@
 
 namespace microsim::embree {
 
-struct EmbreeError : std::runtime_error {
-  using std::runtime_error::runtime_error;
+struct EmbreeError : InternalError {
+  using InternalError::InternalError;
 };
 
 // Sets FTZ and DAZ in the calling thread for its lifetime, restoring the previous MXCSR afterwards.

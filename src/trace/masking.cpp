@@ -156,7 +156,8 @@ VndfComparison compare_vndf(const std::vector<std::uint64_t>& counts, std::uint6
 
 namespace {
 
-// Sums for a ratio estimator R = sum y / sum x.
+// Sums for a ratio estimator R = sum y / sum x, in double: over one block's samples (then added exactly to
+// RatioTotals), or the totals rounded once for the estimators.
 struct RatioSums {
   double x = 0, y = 0, xx = 0, yy = 0, xy = 0;
   std::uint64_t n = 0;  // samples with x > 0
@@ -167,10 +168,6 @@ struct RatioSums {
     yy += yi * yi;
     xy += xi * yi;
     ++n;
-  }
-  void merge(const RatioSums& o) {
-    x += o.x, y += o.y, xx += o.xx, yy += o.yy, xy += o.xy;
-    n += o.n;
   }
   double ratio() const { return x > 0 ? y / x : 0.0; }
   // sum over samples of (y - R x)^2
@@ -210,14 +207,16 @@ struct G2Sums {
   RatioSums measured;                   // (w, w V V)
   RatioSums vs_analytic, vs_empirical;  // (w G2_smith, w V V)
   double pred_analytic = 0, pred_empirical = 0, sep_analytic = 0, sep_empirical = 0;  // sum of w * prediction
-  void merge(const G2Sums& o) {
-    measured.merge(o.measured);
-    vs_analytic.merge(o.vs_analytic);
-    vs_empirical.merge(o.vs_empirical);
-    pred_analytic += o.pred_analytic;
-    pred_empirical += o.pred_empirical;
-    sep_analytic += o.sep_analytic;
-    sep_empirical += o.sep_empirical;
+  // One sample of weight w whose pair is visible (y2 = w) or not (y2 = 0), with Smith's G2 predictions
+  // g2_a, g2_e and the separable ones sep_a, sep_e for its configuration.
+  void add(double w, double y2, double g2_a, double g2_e, double sep_a, double sep_e) {
+    measured.add(w, y2);
+    vs_analytic.add(w * g2_a, y2);
+    vs_empirical.add(w * g2_e, y2);
+    pred_analytic += w * g2_a;
+    pred_empirical += w * g2_e;
+    sep_analytic += sep_a;
+    sep_empirical += sep_e;
   }
   G2Result result() const {
     G2Result r;
@@ -245,11 +244,19 @@ struct BlockSums {
   G2Sums mirror, pair, cone;
 };
 
-// Equal-area quantiles of <v, m> over the front-facing projected area (weight <v,m>+/mz per triangle):
-// edges[0] = 0 < ... < edges[k] = 1, and the exact share of each bin. Also the edge below which the facets
-// hold the share `fine` of the projected area (the near-grazing class [0, fine_edge)) and its exact share.
-void normal_bin_edges(const microgeom::Heightfield& field, const Vec3<double>& v, int k, std::vector<double>& edges,
-                      std::vector<double>& shares, double fine, double& fine_edge, double& fine_share) {
+BlockSums empty_block_sums(int normal_bins, int height_bins) {
+  BlockSums s;
+  s.normal.assign(std::size_t(normal_bins), {});
+  s.height.assign(std::size_t(height_bins), {});
+  s.height_pred_analytic.assign(std::size_t(height_bins), 0.0);
+  s.height_pred_empirical.assign(std::size_t(height_bins), 0.0);
+  return s;
+}
+
+// ---- the view's bins ----------------------------------------------------------------------------------------
+
+// (<v, m>, <v, m> / mz) of every front-facing facet, ascending in <v, m> (float: 8 bytes per facet).
+std::vector<std::pair<float, float>> front_facing_facets(const microgeom::Heightfield& field, const Vec3<double>& v) {
   const int n = field.resolution();
   std::vector<std::vector<std::pair<float, float>>> rows(static_cast<std::size_t>(n));
   tbb::parallel_for(0, n, [&](int j) {
@@ -274,20 +281,27 @@ void normal_bin_edges(const microgeom::Heightfield& field, const Vec3<double>& v
     std::vector<std::pair<float, float>>().swap(r);
   }
   std::sort(all.begin(), all.end());
-  double total = 0;
-  for (const auto& p : all) total += p.second;
+  return all;
+}
+
+// The edge between sorted facet idx and the next one (bins are [lo, hi)); `last` when idx is the last.
+double edge_after(const std::vector<std::pair<float, float>>& facets, std::size_t idx, double last) {
+  return idx + 1 < facets.size() ? 0.5 * (double(facets[idx].first) + double(facets[idx + 1].first)) : last;
+}
+
+// Equal-area quantiles of <v, m> over the front-facing projected area `total` of `facets`:
+// edges[0] = 0 < ... < edges[k] = 1, and the exact share of each bin.
+void equal_area_edges(const std::vector<std::pair<float, float>>& facets, double total, int k, std::vector<double>& edges,
+                      std::vector<double>& shares) {
   edges.assign(std::size_t(k) + 1, 0.0);
   edges[std::size_t(k)] = 1.0;
   shares.assign(std::size_t(k), 0.0);
   double cum = 0, last_cum = 0;
   int next = 1;
-  for (std::size_t idx = 0; idx < all.size() && next < k; ++idx) {
-    cum += all[idx].second;
+  for (std::size_t idx = 0; idx < facets.size() && next < k; ++idx) {
+    cum += facets[idx].second;
     if (cum >= total * next / k) {
-      // Edge between this facet and the next one (bins are [lo, hi)).
-      const double hi = idx + 1 < all.size() ? 0.5 * (double(all[idx].first) + double(all[idx + 1].first))
-                                              : double(all[idx].first);
-      edges[std::size_t(next)] = hi;
+      edges[std::size_t(next)] = edge_after(facets, idx, double(facets[idx].first));
       shares[std::size_t(next - 1)] = (cum - last_cum) / total;
       last_cum = cum;
       ++next;
@@ -298,19 +312,82 @@ void normal_bin_edges(const microgeom::Heightfield& field, const Vec3<double>& v
     ++next;
   }
   shares[std::size_t(k - 1)] = total > 0 ? (total - last_cum) / total : 0.0;
-  // The near-grazing edge: the first facet at which the cumulative share reaches `fine`; the edge lies
-  // between it and the next facet, as for the bins.
+}
+
+// The near-grazing edge: the first facet at which the cumulative share reaches `fine`; the edge lies between
+// it and the next facet, as for the bins. Also its exact share.
+void near_grazing_edge(const std::vector<std::pair<float, float>>& facets, double total, double fine, double& fine_edge,
+                       double& fine_share) {
   fine_edge = 1.0;
   fine_share = 1.0;
-  cum = 0;
-  for (std::size_t idx = 0; idx < all.size(); ++idx) {
-    cum += all[idx].second;
+  double cum = 0;
+  for (std::size_t idx = 0; idx < facets.size(); ++idx) {
+    cum += facets[idx].second;
     if (cum >= total * fine) {
-      fine_edge = idx + 1 < all.size() ? 0.5 * (double(all[idx].first) + double(all[idx + 1].first)) : 1.0;
+      fine_edge = edge_after(facets, idx, 1.0);
       fine_share = total > 0 ? cum / total : 0.0;
       break;
     }
   }
+}
+
+// Equal-area bins of <v, m> over the front-facing projected area (weight <v,m>+/mz per triangle), their
+// exact shares, and the near-grazing class [0, fine_edge) holding the share `fine` (and its exact share).
+void normal_bin_edges(const microgeom::Heightfield& field, const Vec3<double>& v, int k, std::vector<double>& edges,
+                      std::vector<double>& shares, double fine, double& fine_edge, double& fine_share) {
+  const std::vector<std::pair<float, float>> facets = front_facing_facets(field, v);
+  double total = 0;
+  for (const auto& p : facets) total += p.second;
+  equal_area_edges(facets, total, k, edges, shares);
+  near_grazing_edge(facets, total, fine, fine_edge, fine_share);
+}
+
+// Equal-count bins of the vertex heights, from the lowest to the highest.
+std::vector<double> height_bin_edges(const microgeom::Heightfield& field, const EmpiricalSmith& empirical, int k) {
+  std::vector<double> edges(std::size_t(k) + 1);
+  const auto& hs = empirical.sorted_heights();
+  for (int b = 0; b <= k; ++b) {
+    const std::size_t idx = std::min(hs.size() - 1, std::size_t(double(hs.size()) * b / k));
+    edges[std::size_t(b)] = double(hs[idx]);
+  }
+  edges.front() = field.min_height();
+  edges.back() = field.max_height();
+  return edges;
+}
+
+int bin_index(const std::vector<double>& edges, double x) {
+  // edges[0] .. edges[k]; bin b = [edges[b], edges[b+1]); values outside clamp to the end bins.
+  const auto it = std::upper_bound(edges.begin() + 1, edges.end() - 1, x);
+  return int(it - (edges.begin() + 1));
+}
+
+// ---- projected-area sampling --------------------------------------------------------------------------------
+
+// w = <v, m>+ / mz of the 2N triangles of row j (into w, in triangle order) and their sum, added in order.
+double row_projected_weights(const microgeom::Heightfield& field, const Vec3<double>& v, int j, double* w) {
+  double sum = 0;
+  for (int i = 0; i < field.resolution(); ++i) {
+    for (int t = 0; t < 2; ++t) {
+      const Eigen::Vector2d s = field.triangle_slope(i, j, t);
+      const double wk = std::max(v.z() - s.x() * v.x() - s.y() * v.y(), 0.0);
+      w[std::size_t(2 * i + t)] = wk;
+      sum += wk;
+    }
+  }
+  return sum;
+}
+
+// The sum of w over all triangles: row sums added in row order (the same bits as ProjectedAreaSampler::total).
+double projected_weight_total(const microgeom::Heightfield& field, const Vec3<double>& v) {
+  const int n = field.resolution();
+  std::vector<double> row_sum(std::size_t(n), 0.0);
+  tbb::parallel_for(0, n, [&](int j) {
+    std::vector<double> w(2 * std::size_t(n));
+    row_sum[std::size_t(j)] = row_projected_weights(field, v, j, w.data());
+  });
+  double total = 0;
+  for (int j = 0; j < n; ++j) total = total + row_sum[std::size_t(j)];
+  return total;
 }
 
 // Draws triangles with probability proportional to w = <v, m>+ / mz: a CDF over rows (double) and, per
@@ -326,15 +403,7 @@ public:
     tbb::parallel_for(0, n_, [&](int j) {
       float* cdf = triangle_cdf_.data() + per_row * std::size_t(j);
       std::vector<double> w(per_row);
-      double sum = 0;
-      for (int i = 0; i < n_; ++i) {
-        for (int t = 0; t < 2; ++t) {
-          const Eigen::Vector2d s = field.triangle_slope(i, j, t);
-          const double wk = std::max(v.z() - s.x() * v.x() - s.y() * v.y(), 0.0);
-          w[std::size_t(2 * i + t)] = wk;
-          sum += wk;
-        }
-      }
+      const double sum = row_projected_weights(field, v, j, w.data());
       double cum = 0;
       for (std::size_t k = 0; k < per_row; ++k) {
         cum += w[k];
@@ -369,18 +438,28 @@ private:
   double total_ = 0;
 };
 
-int bin_index(const std::vector<double>& edges, double x) {
-  // edges[0] .. edges[k]; bin b = [edges[b], edges[b+1]); values outside clamp to the end bins.
-  const auto it = std::upper_bound(edges.begin() + 1, edges.end() - 1, x);
-  return int(it - (edges.begin() + 1));
-}
+// ---- the setup: what every sample of one view shares --------------------------------------------------------
 
-}  // namespace
+// The view's constants and bins, computed once before sampling (and again, identically, by a merge).
+struct MaskingView {
+  Vec3<double> v = Vec3<double>::UnitZ();
+  std::optional<Vec3<double>> light;
+  bool projected = true;
+  bool mirror = true;
+  int kn = 0, kh = 0;  // normal and height bins
+  double projected_area = 0;
+  std::vector<double> nedges, nshares, hedges;
+  double grazing_edge = 1.0, grazing_share = 1.0;
+  // Smith: G1(v) and Lambda(v) (analytic, empirical); for the pair, G2(v, l) height-correlated and separable.
+  double g1a_v = 0, g1e_v = 0, lambda_a_v = 0, lambda_e_v = 0;
+  double pair_a = 0, pair_e = 0, pair_sep_a = 0, pair_sep_e = 0;
+  Vec3<double> half = Vec3<double>::UnitZ();
+  double cos_cone = 1.0;
+};
 
-MaskingResult estimate_masking(const HeightfieldScene& scene, const AnalyticSmith& analytic,
-                               const EmpiricalSmith& empirical, const Vec3<double>& v_in, const MaskingOptions& options) {
-  if (!(v_in.z() > 0.0) || !v_in.allFinite()) {
-    throw std::invalid_argument(fmt::format("view direction ({}, {}, {}) must point above the horizon", v_in.x(), v_in.y(), v_in.z()));
+void check_masking_options(const Vec3<double>& v, const MaskingOptions& options) {
+  if (!(v.z() > 0.0) || !v.allFinite()) {
+    throw std::invalid_argument(fmt::format("view direction ({}, {}, {}) must point above the horizon", v.x(), v.y(), v.z()));
   }
   if (options.samples == 0) throw std::invalid_argument("estimate_masking: the number of samples must be positive");
   if (options.normal_bins < 1 || options.height_bins < 1) {
@@ -395,241 +474,423 @@ MaskingResult estimate_masking(const HeightfieldScene& scene, const AnalyticSmit
   if (!(options.cone_deg > 0.0 && options.cone_deg <= 90.0)) {
     throw std::invalid_argument(fmt::format("estimate_masking: cone half-angle {} must be in (0, 90] degrees", options.cone_deg));
   }
-  const Vec3<double> v = v_in.normalized();
-  const bool projected = options.sampling == PointSampling::projected;
-  const std::optional<Vec3<double>> light =
-      options.light ? std::optional<Vec3<double>>(options.light->normalized()) : std::nullopt;
-  const auto& field = scene.field();
-  const double tile = field.tile_size();
-  const int kn = options.normal_bins, kh = options.height_bins;
+}
 
-  MaskingResult result;
-  result.v = v;
-  result.sampling = options.sampling;
-  std::unique_ptr<ProjectedAreaSampler> sampler;
-  if (projected) {
-    sampler = std::make_unique<ProjectedAreaSampler>(field, v);
-    result.projected_area = sampler->total() / double(field.triangle_count());
+void set_smith_constants(MaskingView& view, const AnalyticSmith& analytic, const EmpiricalSmith& empirical,
+                         double cone_deg) {
+  const Vec3<double>& v = view.v;
+  view.lambda_a_v = analytic.Lambda(v);
+  view.lambda_e_v = empirical.Lambda(v);
+  view.g1a_v = analytic.G1(v);
+  view.g1e_v = 1.0 / (1.0 + view.lambda_e_v);
+  view.cos_cone = std::cos(cone_deg * kPi<double> / 180.0);
+  if (view.light) {
+    const Vec3<double>& l = *view.light;
+    view.pair_a = analytic.G2(v, l);
+    view.pair_e = empirical.G2(v, l);
+    view.pair_sep_a = analytic.G2_separable(v, l);
+    view.pair_sep_e = view.g1e_v * empirical.G1(l);
+    view.half = (v + l).normalized();
+  }
+}
+
+// The setup of one view. `sampler` (projected sampling, when tracing) supplies the projected area it
+// already summed; without it the same sum is computed again. Throws std::invalid_argument (see masking.h).
+MaskingView masking_view(const microgeom::Heightfield& field, const AnalyticSmith& analytic,
+                         const EmpiricalSmith& empirical, const Vec3<double>& v_in, const MaskingOptions& options,
+                         const ProjectedAreaSampler* sampler) {
+  check_masking_options(v_in, options);
+  MaskingView view;
+  view.v = v_in.normalized();
+  view.projected = options.sampling == PointSampling::projected;
+  view.mirror = options.mirror;
+  if (options.light) view.light = options.light->normalized();
+  view.kn = options.normal_bins;
+  view.kh = options.height_bins;
+  if (view.projected) {
+    const double total = sampler ? sampler->total() : projected_weight_total(field, view.v);
+    view.projected_area = total / double(field.triangle_count());
   } else {
-    result.projected_area = empirical.projected_area(v);
+    view.projected_area = empirical.projected_area(view.v);
   }
-  if (!(result.projected_area > 0)) throw std::invalid_argument("estimate_masking: no facet faces the view");
-  result.light = light;
-  result.cone_deg = options.cone_deg;
-  result.lambda_analytic = analytic.Lambda(v);
-  result.lambda_empirical = empirical.Lambda(v);
-  result.g1_smith_analytic = analytic.G1(v);
-  result.g1_smith_empirical = 1.0 / (1.0 + result.lambda_empirical);
+  if (!(view.projected_area > 0)) throw std::invalid_argument("estimate_masking: no facet faces the view");
+  normal_bin_edges(field, view.v, view.kn, view.nedges, view.nshares, options.grazing_share, view.grazing_edge,
+                   view.grazing_share);
+  view.hedges = height_bin_edges(field, empirical, view.kh);
+  set_smith_constants(view, analytic, empirical, options.cone_deg);
+  return view;
+}
 
-  std::vector<double> nedges, nshares;
-  double grazing_edge = 1.0, grazing_share = 1.0;
-  normal_bin_edges(field, v, kn, nedges, nshares, options.grazing_share, grazing_edge, grazing_share);
-  std::vector<double> hedges(std::size_t(kh) + 1);
-  {
-    const auto& hs = empirical.sorted_heights();
-    for (int b = 0; b <= kh; ++b) {
-      const std::size_t idx = std::min(hs.size() - 1, std::size_t(double(hs.size()) * b / kh));
-      hedges[std::size_t(b)] = double(hs[idx]);
-    }
-    hedges.front() = field.min_height();
-    hedges.back() = field.max_height();
-  }
+// ---- one block's sampling -----------------------------------------------------------------------------------
 
-  // Smith constants.
-  const double g1a_v = analytic.G1(v), g1e_v = result.g1_smith_empirical;
-  const double lambda_a_v = result.lambda_analytic, lambda_e_v = result.lambda_empirical;
-  double pair_a = 0, pair_e = 0, pair_sep_a = 0, pair_sep_e = 0;
-  Vec3<double> half = Vec3<double>::UnitZ();
-  double cos_cone = std::cos(options.cone_deg * kPi<double> / 180.0);
-  if (light) {
-    pair_a = analytic.G2(v, *light);
-    pair_e = empirical.G2(v, *light);
-    pair_sep_a = analytic.G2_separable(v, *light);
-    pair_sep_e = g1e_v * empirical.G1(*light);
-    half = (v + *light).normalized();
-  }
-  if (options.mirror) empirical.Lambda_tabulated(v);  // build the tables before the parallel loop
+// What the samples of a run share.
+struct SamplingContext {
+  const HeightfieldScene& scene;
+  const AnalyticSmith& analytic;
+  const EmpiricalSmith& empirical;
+  const MaskingView& view;
+  const ProjectedAreaSampler* sampler;  // projected sampling
+  BlockPlan plan;
+  std::uint64_t seed;
+};
 
-  const BlockPlan plan{options.samples, kSamplesPerBlock};
-  const auto start = std::chrono::steady_clock::now();
-  auto sample_block = [&](std::uint64_t block) {
-    embree::FlushDenormalsScope ftz;
-    BlockSums bs;
-    bs.normal.assign(std::size_t(kn), {});
-    bs.height.assign(std::size_t(kh), {});
-    bs.height_pred_analytic.assign(std::size_t(kh), 0.0);
-    bs.height_pred_empirical.assign(std::size_t(kh), 0.0);
-    const std::uint64_t first = block * kSamplesPerBlock;
-    const std::uint64_t count = std::min(kSamplesPerBlock, options.samples - first);
-    CounterRng rng(options.seed, block);
-    auto shadow = [&](const Vec3<double>& p, const Vec3<double>& dir, std::uint32_t tri) {
-      RayOutcome outcome;
-      const bool visible = scene.escapes(p, dir, tri, &outcome);
-      ++bs.rays;
-      if (outcome == RayOutcome::leaked) ++bs.leaked;
-      if (outcome == RayOutcome::unresolved) ++bs.unresolved;
-      return visible;
-    };
+struct SurfacePoint {
+  double x = 0, y = 0;
+  std::uint32_t triangle = 0;
+};
+
+// A point: with projected sampling a triangle with probability ~ w, then a uniform point on it (local
+// u >= v for triangle 0); with uniform sampling (x, y) uniform over the tile.
+SurfacePoint draw_surface_point(const SamplingContext& c, CounterRng& rng) {
+  const auto& field = c.scene.field();
+  SurfacePoint s;
+  if (c.view.projected) {
+    s.triangle = c.sampler->sample(rng.uniform(), rng.uniform());
+    const auto t = field.triangle_index(s.triangle);
+    const double a = rng.uniform(), b = rng.uniform();
+    const double lu = t.t == 0 ? std::max(a, b) : std::min(a, b), lv = t.t == 0 ? std::min(a, b) : std::max(a, b);
     const double h = field.cell_size();
-    for (std::uint64_t i = 0; i < count; ++i) {
-      ++bs.samples;
-      double x, y;
-      std::uint32_t tri;
-      if (projected) {
-        // A triangle with probability ~ w, then a uniform point on it (local u >= v for triangle 0).
-        tri = sampler->sample(rng.uniform(), rng.uniform());
-        const auto c = field.triangle_index(tri);
-        const double a = rng.uniform(), b = rng.uniform();
-        const double lu = c.t == 0 ? std::max(a, b) : std::min(a, b), lv = c.t == 0 ? std::min(a, b) : std::max(a, b);
-        x = (c.i + lu) * h;
-        y = (c.j + lv) * h;
-      } else {
-        x = tile * rng.uniform();
-        y = tile * rng.uniform();
-        tri = field.triangle_at(x, y);
-      }
-      const Vec3<double> m = field.triangle_normal(tri);
-      const double vm = v.dot(m);
-      if (!(vm > 0)) continue;
-      ++bs.front;
-      // Sample weight: w for uniform points, 1 for points already drawn proportionally to w.
-      const double w = projected ? 1.0 : vm / m.z();
-      const double z = field.height_at(x, y);
-      const Vec3<double> p(x, y, z);
-      const bool vis = shadow(p, v, tri);
-      const double y_v = vis ? w : 0.0;
-      bs.leak_y += y_v;
-      bs.leak_yy += y_v * y_v;
-      bs.g1.add(w, y_v);
-      bs.normal[std::size_t(bin_index(nedges, vm))].add(w, y_v);
-      if (vm < grazing_edge) bs.near_grazing.add(w, y_v);
-      const std::size_t hb = std::size_t(bin_index(hedges, z));
-      bs.height[hb].add(w, y_v);
-      const double c1 = empirical.height_cdf(z);
-      bs.height_pred_analytic[hb] += w * EmpiricalSmith::height_masking(c1, lambda_a_v);
-      bs.height_pred_empirical[hb] += w * EmpiricalSmith::height_masking(c1, lambda_e_v);
-      if (options.mirror) {
-        const Vec3<double> l = reflect(v, m);
-        const bool vis_l = vis && l.z() > 0 && shadow(p, l, tri);
-        const double y2 = vis_l ? w : 0.0;
-        const double ga = analytic.G2(v, l), ge = empirical.G2_tabulated(v, l);
-        bs.mirror.measured.add(w, y2);
-        bs.mirror.vs_analytic.add(w * ga, y2);
-        bs.mirror.vs_empirical.add(w * ge, y2);
-        bs.mirror.pred_analytic += w * ga;
-        bs.mirror.pred_empirical += w * ge;
-        bs.mirror.sep_analytic += w * g1a_v * analytic.G1(l);
-        bs.mirror.sep_empirical += l.z() > 0 ? w * g1e_v / (1.0 + empirical.Lambda_tabulated(l)) : 0.0;
-      }
-      if (light && light->dot(m) > 0) {
-        const bool vis_l = vis && shadow(p, *light, tri);
-        const double y2 = vis_l ? w : 0.0;
-        auto add_pair = [&](G2Sums& g) {
-          g.measured.add(w, y2);
-          g.vs_analytic.add(w * pair_a, y2);
-          g.vs_empirical.add(w * pair_e, y2);
-          g.pred_analytic += w * pair_a;
-          g.pred_empirical += w * pair_e;
-          g.sep_analytic += w * pair_sep_a;
-          g.sep_empirical += w * pair_sep_e;
-        };
-        add_pair(bs.pair);
-        if (m.dot(half) >= cos_cone) add_pair(bs.cone);
-      }
+    s.x = (t.i + lu) * h;
+    s.y = (t.j + lv) * h;
+  } else {
+    const double tile = field.tile_size();
+    s.x = tile * rng.uniform();
+    s.y = tile * rng.uniform();
+    s.triangle = field.triangle_at(s.x, s.y);
+  }
+  return s;
+}
+
+// Whether p sees direction dir (the start triangle skipped), counting the ray and its outcome.
+bool shadow_ray(const SamplingContext& c, BlockSums& bs, const Vec3<double>& p, const Vec3<double>& dir,
+                std::uint32_t triangle) {
+  RayOutcome outcome;
+  const bool visible = c.scene.escapes(p, dir, triangle, &outcome);
+  ++bs.rays;
+  if (outcome == RayOutcome::leaked) ++bs.leaked;
+  if (outcome == RayOutcome::unresolved) ++bs.unresolved;
+  return visible;
+}
+
+// G1: the sample (weight w, visible y_v = w or 0) in the overall, normal, near-grazing and height sums.
+void add_g1_sample(const SamplingContext& c, BlockSums& bs, double w, double y_v, double vm, double z) {
+  const MaskingView& view = c.view;
+  bs.leak_y += y_v;
+  bs.leak_yy += y_v * y_v;
+  bs.g1.add(w, y_v);
+  bs.normal[std::size_t(bin_index(view.nedges, vm))].add(w, y_v);
+  if (vm < view.grazing_edge) bs.near_grazing.add(w, y_v);
+  const std::size_t hb = std::size_t(bin_index(view.hedges, z));
+  bs.height[hb].add(w, y_v);
+  const double c1 = c.empirical.height_cdf(z);
+  bs.height_pred_analytic[hb] += w * EmpiricalSmith::height_masking(c1, view.lambda_a_v);
+  bs.height_pred_empirical[hb] += w * EmpiricalSmith::height_masking(c1, view.lambda_e_v);
+}
+
+// G2 in the mirror configuration l = reflect(v, m) of the sample's facet.
+void add_mirror_sample(const SamplingContext& c, BlockSums& bs, const SurfacePoint& s, const Vec3<double>& p,
+                       const Vec3<double>& m, double w, bool vis) {
+  const Vec3<double> l = reflect(c.view.v, m);
+  const bool vis_l = vis && l.z() > 0 && shadow_ray(c, bs, p, l, s.triangle);
+  const double y2 = vis_l ? w : 0.0;
+  const double ga = c.analytic.G2(c.view.v, l), ge = c.empirical.G2_tabulated(c.view.v, l);
+  const double sep_a = w * c.view.g1a_v * c.analytic.G1(l);
+  const double sep_e = l.z() > 0 ? w * c.view.g1e_v / (1.0 + c.empirical.Lambda_tabulated(l)) : 0.0;
+  bs.mirror.add(w, y2, ga, ge, sep_a, sep_e);
+}
+
+// G2 for the fixed light, on facets facing it (and those within the cone around the half vector).
+void add_pair_sample(const SamplingContext& c, BlockSums& bs, const SurfacePoint& s, const Vec3<double>& p,
+                     const Vec3<double>& m, double w, bool vis) {
+  const MaskingView& view = c.view;
+  const bool vis_l = vis && shadow_ray(c, bs, p, *view.light, s.triangle);
+  const double y2 = vis_l ? w : 0.0;
+  const double sep_a = w * view.pair_sep_a, sep_e = w * view.pair_sep_e;
+  bs.pair.add(w, y2, view.pair_a, view.pair_e, sep_a, sep_e);
+  if (m.dot(view.half) >= view.cos_cone) bs.cone.add(w, y2, view.pair_a, view.pair_e, sep_a, sep_e);
+}
+
+// One surface point: its shadow ray toward v, and every sum it enters.
+void add_surface_point(const SamplingContext& c, BlockSums& bs, const SurfacePoint& s) {
+  const auto& field = c.scene.field();
+  const Vec3<double> m = field.triangle_normal(s.triangle);
+  const double vm = c.view.v.dot(m);
+  if (!(vm > 0)) return;
+  ++bs.front;
+  // Sample weight: w for uniform points, 1 for points already drawn proportionally to w.
+  const double w = c.view.projected ? 1.0 : vm / m.z();
+  const double z = field.height_at(s.x, s.y);
+  const Vec3<double> p(s.x, s.y, z);
+  const bool vis = shadow_ray(c, bs, p, c.view.v, s.triangle);
+  add_g1_sample(c, bs, w, vis ? w : 0.0, vm, z);
+  if (c.view.mirror) add_mirror_sample(c, bs, s, p, m, w, vis);
+  if (c.view.light && c.view.light->dot(m) > 0) add_pair_sample(c, bs, s, p, m, w, vis);
+}
+
+// Block `block` of the run: its points from CounterRng(seed, block).
+BlockSums sample_masking_block(const SamplingContext& c, std::uint64_t block) {
+  embree::FlushDenormalsScope ftz;
+  BlockSums bs = empty_block_sums(c.view.kn, c.view.kh);
+  const std::uint64_t count = c.plan.units_in(block);
+  CounterRng rng(c.seed, block);
+  for (std::uint64_t i = 0; i < count; ++i) {
+    ++bs.samples;
+    add_surface_point(c, bs, draw_surface_point(c, rng));
+  }
+  return bs;
+}
+
+// ---- adding block sums --------------------------------------------------------------------------------------
+// A block's double sums enter the totals exactly: the totals of any grouping of blocks are the same bits.
+
+void add_exact(RatioTotals& t, const RatioSums& s) {
+  t.n += s.n;
+  t.x.add(s.x);
+  t.y.add(s.y);
+  t.xx.add(s.xx);
+  t.yy.add(s.yy);
+  t.xy.add(s.xy);
+}
+
+void add_exact(G2Totals& t, const G2Sums& s) {
+  add_exact(t.measured, s.measured);
+  add_exact(t.vs_analytic, s.vs_analytic);
+  add_exact(t.vs_empirical, s.vs_empirical);
+  t.pred_analytic.add(s.pred_analytic);
+  t.pred_empirical.add(s.pred_empirical);
+  t.sep_analytic.add(s.sep_analytic);
+  t.sep_empirical.add(s.sep_empirical);
+}
+
+void add_block_sums(MaskingSums& total, const BlockSums& bs) {
+  total.samples += bs.samples;
+  total.front += bs.front;
+  total.rays += bs.rays;
+  total.leaked += bs.leaked;
+  total.unresolved += bs.unresolved;
+  total.leak_y.add(bs.leak_y);
+  total.leak_yy.add(bs.leak_yy);
+  add_exact(total.g1, bs.g1);
+  for (std::size_t b = 0; b < total.normal.size(); ++b) add_exact(total.normal[b], bs.normal[b]);
+  add_exact(total.near_grazing, bs.near_grazing);
+  for (std::size_t b = 0; b < total.height.size(); ++b) {
+    add_exact(total.height[b], bs.height[b]);
+    total.height_pred_analytic[b].add(bs.height_pred_analytic[b]);
+    total.height_pred_empirical[b].add(bs.height_pred_empirical[b]);
+  }
+  add_exact(total.mirror, bs.mirror);
+  add_exact(total.pair, bs.pair);
+  add_exact(total.cone, bs.cone);
+}
+
+// ---- from total sums to the result --------------------------------------------------------------------------
+
+// The totals, each rounded once to double, for the estimators.
+RatioSums rounded(const RatioTotals& t) {
+  RatioSums s;
+  s.x = t.x.value();
+  s.y = t.y.value();
+  s.xx = t.xx.value();
+  s.yy = t.yy.value();
+  s.xy = t.xy.value();
+  s.n = t.n;
+  return s;
+}
+
+G2Result g2_result(const G2Totals& t) {
+  G2Sums s;
+  s.measured = rounded(t.measured);
+  s.vs_analytic = rounded(t.vs_analytic);
+  s.vs_empirical = rounded(t.vs_empirical);
+  s.pred_analytic = t.pred_analytic.value();
+  s.pred_empirical = t.pred_empirical.value();
+  s.sep_analytic = t.sep_analytic.value();
+  s.sep_empirical = t.sep_empirical.value();
+  return s.result();
+}
+
+// E[w V] / v_z: with projected sampling G1 A(v) / v_z; with uniform sampling the sample mean of w V / v_z.
+Estimate leak_ratio(const MaskingView& view, const MaskingSums& total, const Estimate& g1) {
+  if (view.projected) {
+    const double scale = view.projected_area / view.v.z();
+    return {g1.value * scale, g1.se * scale};
+  }
+  if (total.samples <= 1) return {};
+  const double ns = double(total.samples);
+  const double mean = total.leak_y.value() / ns;
+  const double var = std::max(total.leak_yy.value() / ns - mean * mean, 0.0) / (ns - 1.0);
+  return {mean / view.v.z(), std::sqrt(var) / view.v.z()};
+}
+
+// A conditional class: G1 over its samples and the ratio to the overall G1.
+ConditionalBin conditional_bin(const RatioSums& s, const RatioSums& all, double lo, double hi, double share) {
+  ConditionalBin cb;
+  cb.lo = lo;
+  cb.hi = hi;
+  cb.share = share;
+  cb.samples = s.n;
+  cb.g1 = s.proportion();
+  cb.ratio = ratio_of_ratios(s, all);
+  return cb;
+}
+
+// G1(v | m) per bin of <v, m> and over the near-grazing class; Smith: G1(v) for every front-facing m.
+void add_normal_bins(MaskingResult& result, const MaskingView& view, const MaskingSums& total) {
+  const RatioSums all = rounded(total.g1);
+  for (int b = 0; b < view.kn; ++b) {
+    const std::size_t k = std::size_t(b);
+    ConditionalBin cb = conditional_bin(rounded(total.normal[k]), all, view.nedges[k], view.nedges[k + 1], view.nshares[k]);
+    cb.smith_analytic = view.g1a_v;
+    cb.smith_empirical = view.g1e_v;
+    result.by_normal.push_back(cb);
+  }
+  result.near_grazing = conditional_bin(rounded(total.near_grazing), all, 0.0, view.grazing_edge, view.grazing_share);
+  result.near_grazing.smith_analytic = view.g1a_v;
+  result.near_grazing.smith_empirical = view.g1e_v;
+}
+
+// G1(v | h) per height bin; Smith: the sampled mean of C1(h)^Lambda(v) over the bin.
+void add_height_bins(MaskingResult& result, const MaskingView& view, const MaskingSums& total) {
+  const RatioSums all = rounded(total.g1);
+  for (int b = 0; b < view.kh; ++b) {
+    const std::size_t k = std::size_t(b);
+    const RatioSums s = rounded(total.height[k]);
+    const double share = all.x > 0 ? s.x / all.x : 0.0;
+    ConditionalBin cb = conditional_bin(s, all, view.hedges[k], view.hedges[k + 1], share);
+    if (s.x > 0) {
+      cb.smith_analytic = total.height_pred_analytic[k].value() / s.x;
+      cb.smith_empirical = total.height_pred_empirical[k].value() / s.x;
     }
-    return bs;
-  };
-  // Reduced in block order (deterministic).
-  BlockSums total;
-  total.normal.assign(std::size_t(kn), {});
-  total.height.assign(std::size_t(kh), {});
-  total.height_pred_analytic.assign(std::size_t(kh), 0.0);
-  total.height_pred_empirical.assign(std::size_t(kh), 0.0);
-  auto add_block = [&](BlockSums&& bs, std::uint64_t) {
-    total.samples += bs.samples;
-    total.front += bs.front;
-    total.rays += bs.rays;
-    total.leaked += bs.leaked;
-    total.unresolved += bs.unresolved;
-    total.leak_y += bs.leak_y;
-    total.leak_yy += bs.leak_yy;
-    total.g1.merge(bs.g1);
-    for (int b = 0; b < kn; ++b) total.normal[std::size_t(b)].merge(bs.normal[std::size_t(b)]);
-    total.near_grazing.merge(bs.near_grazing);
-    for (int b = 0; b < kh; ++b) {
-      total.height[std::size_t(b)].merge(bs.height[std::size_t(b)]);
-      total.height_pred_analytic[std::size_t(b)] += bs.height_pred_analytic[std::size_t(b)];
-      total.height_pred_empirical[std::size_t(b)] += bs.height_pred_empirical[std::size_t(b)];
-    }
-    total.mirror.merge(bs.mirror);
-    total.pair.merge(bs.pair);
-    total.cone.merge(bs.cone);
-  };
-  const BlockRunStatus status = for_each_block(selected_blocks(plan, options.blocks), options.run,
-                                               {"trace masking", plan}, sample_block, add_block);
-  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  result.blocks = status.done;
-  result.total_blocks = plan.blocks();
+    result.by_height.push_back(cb);
+  }
+}
+
+// The estimates of a view from its total sums.
+MaskingResult masking_result(const MaskingView& view, const MaskingOptions& options, const MaskingSums& total) {
+  if (total.normal.size() != std::size_t(view.kn) || total.height.size() != std::size_t(view.kh))
+    throw std::invalid_argument("masking_result_from_sums: the sums' bins are not the options' bins");
+  MaskingResult result;
+  result.v = view.v;
+  result.sampling = options.sampling;
+  result.projected_area = view.projected_area;
+  result.light = view.light;
+  result.cone_deg = options.cone_deg;
+  result.lambda_analytic = view.lambda_a_v;
+  result.lambda_empirical = view.lambda_e_v;
+  result.g1_smith_analytic = view.g1a_v;
+  result.g1_smith_empirical = view.g1e_v;
   result.samples = total.samples;
   result.front_facing = total.front;
   result.rays = total.rays;
   result.leaked = total.leaked;
   result.unresolved = total.unresolved;
+  result.g1 = rounded(total.g1).proportion();
+  result.leak_ratio = leak_ratio(view, total, result.g1);
+  add_normal_bins(result, view, total);
+  add_height_bins(result, view, total);
+  if (view.mirror) result.mirror = g2_result(total.mirror);
+  if (view.light) {
+    result.pair = g2_result(total.pair);
+    result.pair_cone = g2_result(total.cone);
+  }
+  result.sums = total;
+  return result;
+}
+
+}  // namespace
+
+// ---- exact sums ---------------------------------------------------------------------------------------------
+
+RatioTotals& RatioTotals::operator+=(const RatioTotals& o) {
+  n += o.n;
+  x += o.x;
+  y += o.y;
+  xx += o.xx;
+  yy += o.yy;
+  xy += o.xy;
+  return *this;
+}
+
+G2Totals& G2Totals::operator+=(const G2Totals& o) {
+  measured += o.measured;
+  vs_analytic += o.vs_analytic;
+  vs_empirical += o.vs_empirical;
+  pred_analytic += o.pred_analytic;
+  pred_empirical += o.pred_empirical;
+  sep_analytic += o.sep_analytic;
+  sep_empirical += o.sep_empirical;
+  return *this;
+}
+
+MaskingSums MaskingSums::empty(int normal_bins, int height_bins) {
+  MaskingSums s;
+  s.normal.assign(std::size_t(normal_bins), {});
+  s.height.assign(std::size_t(height_bins), {});
+  s.height_pred_analytic.assign(std::size_t(height_bins), {});
+  s.height_pred_empirical.assign(std::size_t(height_bins), {});
+  return s;
+}
+
+MaskingSums& MaskingSums::operator+=(const MaskingSums& o) {
+  if (o.normal.size() != normal.size() || o.height.size() != height.size() ||
+      o.height_pred_analytic.size() != height.size() || o.height_pred_empirical.size() != height.size() ||
+      height_pred_analytic.size() != height.size() || height_pred_empirical.size() != height.size())
+    throw std::invalid_argument("MaskingSums: sums of different bins");
+  samples += o.samples;
+  front += o.front;
+  rays += o.rays;
+  leaked += o.leaked;
+  unresolved += o.unresolved;
+  leak_y += o.leak_y;
+  leak_yy += o.leak_yy;
+  g1 += o.g1;
+  near_grazing += o.near_grazing;
+  for (std::size_t b = 0; b < normal.size(); ++b) normal[b] += o.normal[b];
+  for (std::size_t b = 0; b < height.size(); ++b) {
+    height[b] += o.height[b];
+    height_pred_analytic[b] += o.height_pred_analytic[b];
+    height_pred_empirical[b] += o.height_pred_empirical[b];
+  }
+  mirror += o.mirror;
+  pair += o.pair;
+  cone += o.cone;
+  return *this;
+}
+
+// ---- the estimate -------------------------------------------------------------------------------------------
+
+MaskingResult estimate_masking(const HeightfieldScene& scene, const AnalyticSmith& analytic,
+                               const EmpiricalSmith& empirical, const Vec3<double>& v, const MaskingOptions& options) {
+  check_masking_options(v, options);
+  const auto& field = scene.field();
+  std::unique_ptr<ProjectedAreaSampler> sampler;
+  if (options.sampling == PointSampling::projected) sampler = std::make_unique<ProjectedAreaSampler>(field, v.normalized());
+  const MaskingView view = masking_view(field, analytic, empirical, v, options, sampler.get());
+  if (view.mirror) empirical.Lambda_tabulated(view.v);  // build the tables before the parallel loop
+  const BlockPlan plan{options.samples, kSamplesPerBlock};
+  const SamplingContext context{scene, analytic, empirical, view, sampler.get(), plan, options.seed};
+  MaskingSums total = MaskingSums::empty(view.kn, view.kh);
+  const auto start = std::chrono::steady_clock::now();
+  const BlockRunStatus status = for_each_block(
+      selected_blocks(plan, options.blocks), options.run, {"trace masking", plan},
+      [&](std::uint64_t block) { return sample_masking_block(context, block); },
+      [&](BlockSums&& bs, std::uint64_t) { add_block_sums(total, bs); });
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  MaskingResult result = masking_result(view, options, total);
+  result.seconds = seconds;
+  result.blocks = status.done;
+  result.total_blocks = plan.blocks();
   result.partial = status.cancelled;
-  result.g1 = total.g1.proportion();
-  if (projected) {
-    const double scale = result.projected_area / v.z();
-    result.leak_ratio = {result.g1.value * scale, result.g1.se * scale};
-  } else if (total.samples > 1) {
-    const double ns = double(total.samples);
-    const double mean = total.leak_y / ns;
-    const double var = std::max(total.leak_yy / ns - mean * mean, 0.0) / (ns - 1.0);
-    result.leak_ratio = {mean / v.z(), std::sqrt(var) / v.z()};
-  }
-  for (int b = 0; b < kn; ++b) {
-    ConditionalBin cb;
-    const RatioSums& s = total.normal[std::size_t(b)];
-    cb.lo = nedges[std::size_t(b)];
-    cb.hi = nedges[std::size_t(b) + 1];
-    cb.share = nshares[std::size_t(b)];
-    cb.samples = s.n;
-    cb.g1 = s.proportion();
-    cb.ratio = ratio_of_ratios(s, total.g1);
-    cb.smith_analytic = g1a_v;
-    cb.smith_empirical = g1e_v;
-    result.by_normal.push_back(cb);
-  }
-  {
-    ConditionalBin& cb = result.near_grazing;
-    cb.lo = 0.0;
-    cb.hi = grazing_edge;
-    cb.share = grazing_share;
-    cb.samples = total.near_grazing.n;
-    cb.g1 = total.near_grazing.proportion();
-    cb.ratio = ratio_of_ratios(total.near_grazing, total.g1);
-    cb.smith_analytic = g1a_v;
-    cb.smith_empirical = g1e_v;
-  }
-  for (int b = 0; b < kh; ++b) {
-    ConditionalBin cb;
-    const RatioSums& s = total.height[std::size_t(b)];
-    cb.lo = hedges[std::size_t(b)];
-    cb.hi = hedges[std::size_t(b) + 1];
-    cb.share = total.g1.x > 0 ? s.x / total.g1.x : 0.0;
-    cb.samples = s.n;
-    cb.g1 = s.proportion();
-    cb.ratio = ratio_of_ratios(s, total.g1);
-    if (s.x > 0) {
-      cb.smith_analytic = total.height_pred_analytic[std::size_t(b)] / s.x;
-      cb.smith_empirical = total.height_pred_empirical[std::size_t(b)] / s.x;
-    }
-    result.by_height.push_back(cb);
-  }
-  if (options.mirror) result.mirror = total.mirror.result();
-  if (light) {
-    result.pair = total.pair.result();
-    result.pair_cone = total.cone.result();
-  }
+  return result;
+}
+
+MaskingResult masking_result_from_sums(const microgeom::Heightfield& field, const AnalyticSmith& analytic,
+                                       const EmpiricalSmith& empirical, const Vec3<double>& v,
+                                       const MaskingOptions& options, const MaskingSums& sums, const BlockRange& blocks) {
+  const MaskingView view = masking_view(field, analytic, empirical, v, options, nullptr);
+  MaskingResult result = masking_result(view, options, sums);
+  result.blocks = blocks;
+  result.total_blocks = BlockPlan{options.samples, kSamplesPerBlock}.blocks();
   return result;
 }
 

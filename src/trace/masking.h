@@ -43,9 +43,11 @@
 // Standard errors: the delta method for ratio estimators (Cochran 1977, "Sampling Techniques", sec. 6.4),
 // Var(R) ~ sum (y - R x)^2 / (sum x)^2, and for ratios of ratios from the same samples the linearised
 // covariance. Determinism: samples in blocks of kSamplesPerBlock, block b from CounterRng(seed, b); block
-// sums are stored per block and added in block order, so results are identical whatever the threads.
+// sums are added exactly (MaskingSums), so results are identical whatever the threads, and the sums of a
+// run's shards add up to the single run's bit for bit (measure/masking.h merges them).
 #pragma once
 
+#include "core/exact_sum.h"
 #include "core/run_control.h"
 #include "stats/binning.h"
 #include "trace/heightfield_trace.h"
@@ -145,6 +147,45 @@ struct G2Result {
   Estimate ratio_empirical;         // measured / smith_empirical
 };
 
+// ---- exact sums: what a masking estimate is computed from ---------------------------------------------------
+// Within a block the sums are accumulated in double (per block, so they depend on the block only); the
+// totals over blocks are ExactSum (core/exact_sum.h), so that the totals of a run's blocks are the same
+// bits in any grouping: the merge of a run's shards is the single run. Every term is non-negative: the
+// weights w = <v, m>+ / mz (1 with projected sampling), the visible weights y in {0, w}, their squares and
+// products, and w times Smith predictions (G2, G1 G1, C1^Lambda, all in [0, 1]). A block's sum must stay
+// within ExactSum's [0, 2^40] (with uniform sampling, facets of slope below 2^14: else std::domain_error).
+
+// The sums of a ratio estimator R = sum y / sum x (n: the samples that entered it).
+struct RatioTotals {
+  std::uint64_t n = 0;
+  ExactSum x, y, xx, yy, xy;
+  RatioTotals& operator+=(const RatioTotals& other);
+  bool operator==(const RatioTotals&) const = default;
+};
+
+// G2: measured (w, w V V), against Smith (w G2_smith, w V V), and sum of w times each prediction.
+struct G2Totals {
+  RatioTotals measured, vs_analytic, vs_empirical;
+  ExactSum pred_analytic, pred_empirical, sep_analytic, sep_empirical;
+  G2Totals& operator+=(const G2Totals& other);
+  bool operator==(const G2Totals&) const = default;
+};
+
+struct MaskingSums {
+  std::uint64_t samples = 0, front = 0, rays = 0, leaked = 0, unresolved = 0;
+  ExactSum leak_y, leak_yy;  // sum of w V and (w V)^2 over all samples
+  RatioTotals g1, near_grazing;
+  std::vector<RatioTotals> normal, height;                            // per bin
+  std::vector<ExactSum> height_pred_analytic, height_pred_empirical;  // per height bin: sum of w C1^Lambda
+  G2Totals mirror, pair, cone;
+
+  // Zero sums for these bins.
+  static MaskingSums empty(int normal_bins, int height_bins);
+  // Adds `other`'s sums exactly; throws std::invalid_argument when its bins differ.
+  MaskingSums& operator+=(const MaskingSums& other);
+  bool operator==(const MaskingSums&) const = default;
+};
+
 struct MaskingResult {
   Vec3<double> v = Vec3<double>::UnitZ();
   PointSampling sampling = PointSampling::projected;
@@ -168,6 +209,7 @@ struct MaskingResult {
   BlockRange blocks;                 // the blocks sampled (a prefix of the requested ones when cancelled)
   std::uint64_t total_blocks = 0;    // blocks of the whole run
   bool partial = false;
+  MaskingSums sums;                  // the totals the estimates were computed from
   double rays_per_second() const { return seconds > 0 ? double(rays) / seconds : 0.0; }
 };
 
@@ -175,6 +217,14 @@ struct MaskingResult {
 // light below the horizon.
 MaskingResult estimate_masking(const HeightfieldScene& scene, const AnalyticSmith& analytic,
                                const EmpiricalSmith& empirical, const Vec3<double>& v, const MaskingOptions& options);
+
+// The result of `sums`, the totals of the blocks `blocks` of a run, exactly as estimate_masking computes it
+// from the same totals (so the merge of a run's parts is the single run): the same field (the scene's),
+// predictions, view and options as that run. Not timed (seconds 0), not partial. Throws as estimate_masking,
+// and std::invalid_argument when the sums' bins are not the options'.
+MaskingResult masking_result_from_sums(const microgeom::Heightfield& field, const AnalyticSmith& analytic,
+                                       const EmpiricalSmith& empirical, const Vec3<double>& v,
+                                       const MaskingOptions& options, const MaskingSums& sums, const BlockRange& blocks);
 
 nlohmann::json to_json(const Estimate& e);
 nlohmann::json to_json(const MaskingResult& r);

@@ -628,21 +628,24 @@ TraceResult trace_vndf(const EllipsoidTarget& target, const Vec3<double>& wi_in,
 std::vector<BeamRay> generate_beam_rays(const ParallelBeam& beam, std::uint64_t count, std::uint64_t seed) {
   std::vector<BeamRay> rays(count);
   const Vec3<float> dir = beam.direction().cast<float>();
-  const std::uint64_t blocks = (count + kRaysPerBlock - 1) / kRaysPerBlock;
-  tbb::parallel_for(std::uint64_t(0), blocks, [&](std::uint64_t block) {
-    // The same disk points, origins and order as trace_vndf's batches.
-    CounterRng rng(seed, block);
-    auto b = std::make_unique<BatchBuffers>();
-    const std::uint64_t first = block * kRaysPerBlock, n = std::min(kRaysPerBlock, count - first);
-    for (std::uint64_t batch_first = 0; batch_first < n; batch_first += kBatch) {
-      const int m = int(std::min<std::uint64_t>(kBatch, n - batch_first));
-      disk_points(rng, m, b->disk_x, b->disk_y);
-      beam_origins(beam, *b, m);
-      for (int i = 0; i < m; ++i) {
-        rays[first + batch_first + std::size_t(i)] = {Vec3<float>(b->org_x[i], b->org_y[i], b->org_z[i]), dir};
-      }
-    }
-  });
+  const BlockPlan plan{count, kRaysPerBlock};
+  // The same disk points, origins and order as trace_vndf's batches; each block writes its own rays.
+  for_each_block(
+      BlockRange{0, plan.blocks()}, RunControl{}, {"beam rays", plan},
+      [&](std::uint64_t block) {
+        CounterRng rng(seed, block);
+        auto b = std::make_unique<BatchBuffers>();
+        const std::uint64_t first = plan.first_unit(block), n = plan.units_in(block);
+        for (std::uint64_t batch_first = 0; batch_first < n; batch_first += kBatch) {
+          const int m = int(std::min<std::uint64_t>(kBatch, n - batch_first));
+          disk_points(rng, m, b->disk_x, b->disk_y);
+          beam_origins(beam, *b, m);
+          for (int i = 0; i < m; ++i)
+            rays[first + batch_first + std::size_t(i)] = {Vec3<float>(b->org_x[i], b->org_y[i], b->org_z[i]), dir};
+        }
+        return n;
+      },
+      [](std::uint64_t, std::uint64_t) {});
   return rays;
 }
 

@@ -1,0 +1,158 @@
+#include "masking_report.h"
+
+#include "command.h"
+#include "surface_input.h"
+
+#include "stats/histogram_io.h"
+
+#include <fmt/core.h>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+
+#include <sys/resource.h>
+
+namespace microsim::app {
+
+bool leak_failed(const MaskingResult& r) {
+  if (r.leaked > 0) return true;
+  return std::abs(r.leak_ratio.value - 1.0) > kLeakSigmas * r.leak_ratio.se;
+}
+
+std::string pm(const Estimate& e, int digits) { return fmt::format("{:.{}f} ± {:.{}f}", e.value, digits, e.se, digits); }
+
+double peak_rss_mib() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return double(usage.ru_maxrss) / 1024.0;  // Linux: kilobytes
+}
+
+int interrupted_partial_written(const char* command, const std::vector<std::string>& outputs) {
+  std::string written;
+  for (const auto& o : outputs)
+    if (!o.empty()) written += (written.empty() ? "" : ", ") + ("'" + o + "'");
+  fmt::print(stderr, "{}: interrupted: partial results{}\n", command,
+             written.empty() ? "" : ", written marked partial to " + written);
+  return kExitInterrupted;
+}
+
+namespace {
+
+double angle_deg(double cosine) { return std::acos(std::min(cosine, 1.0)) * 180 / kPi<double>; }
+
+void print_g2_rows(const std::string& name, const G2Result& g) {
+  fmt::print("| {} ({} samples) | {} | {:.4f} (sep. {:.4f}) | {:.4f} (sep. {:.4f}) |\n", name, g.samples, pm(g.value),
+             g.smith_analytic, g.separable_analytic, g.smith_empirical, g.separable_empirical);
+  fmt::print("| {} / Smith height-correlated | | {} | {} |\n", name, pm(g.ratio_analytic), pm(g.ratio_empirical));
+}
+
+void print_conditional_bins(const MaskingResult& r) {
+  fmt::print("\nG1(v | m): bins of <v, m> holding equal shares of the front-facing projected area "
+             "(first = most grazing, last = facing v). Smith: ratio 1.\n");
+  fmt::print("| bin | angle(m, v) deg | share | samples | G1(v given m) | ratio to G1(v) |\n|---|---|---|---|---|---|\n");
+  for (std::size_t b = 0; b < r.by_normal.size(); ++b) {
+    const auto& c = r.by_normal[b];
+    fmt::print("| {} | {:.1f} .. {:.1f} | {:.3f} | {} | {} | {} |\n", b, angle_deg(c.hi), angle_deg(c.lo), c.share,
+               c.samples, pm(c.g1), pm(c.ratio));
+  }
+  const auto& g = r.near_grazing;
+  fmt::print("| near-grazing ({:.1f}% of the area) | {:.2f} .. 90.0 | {:.3f} | {} | {} | {} |\n", 100.0 * g.share,
+             angle_deg(g.hi), g.share, g.samples, pm(g.g1), pm(g.ratio));
+  fmt::print("\nG1(v | h): equal-count bins of the vertex heights (first = lowest). "
+             "Smith: C1(h)^Lambda(v) averaged over the bin.\n");
+  fmt::print("| bin | height | share | G1(v given h) | Smith, analytic | Smith, own NDF |\n|---|---|---|---|---|---|\n");
+  for (std::size_t b = 0; b < r.by_height.size(); ++b) {
+    const auto& c = r.by_height[b];
+    fmt::print("| {} | {:.4g} .. {:.4g} | {:.3f} | {} | {:.4f} | {:.4f} |\n", b, c.lo, c.hi, c.share, pm(c.g1),
+               c.smith_analytic, c.smith_empirical);
+  }
+}
+
+void print_masking(const MaskingResult& r, const AnalyticSmith& analytic) {
+  fmt::print("samples {}  front-facing {}  shadow rays {}  {:.2f} s  {:.3f} Mrays/s{}\n", r.samples, r.front_facing,
+             r.rays, r.seconds, r.rays_per_second() * 1e-6, r.partial ? "  PARTIAL (interrupted)" : "");
+  fmt::print("leak test  E[w V] / cos(theta_v) = {}  ({:+.2f} SE from 1; leaked rays {}, unresolved {})\n",
+             pm(r.leak_ratio), r.leak_ratio.se > 0 ? (r.leak_ratio.value - 1) / r.leak_ratio.se : 0.0, r.leaked,
+             r.unresolved);
+  fmt::print("\n| quantity | measured | Smith, {} | Smith, own NDF |\n|---|---|---|---|\n", analytic.describe());
+  fmt::print("| Lambda(v) | | {:.5f} | {:.5f} |\n", r.lambda_analytic, r.lambda_empirical);
+  fmt::print("| G1(v) | {} | {:.4f} | {:.4f} |\n", pm(r.g1), r.g1_smith_analytic, r.g1_smith_empirical);
+  if (r.mirror) print_g2_rows("G2 mirror, l = reflect(v, m)", *r.mirror);
+  if (r.pair) {
+    print_g2_rows("G2(v, l), facets facing both", *r.pair);
+    print_g2_rows(fmt::format("G2(v, l), m within {} deg of h", r.cone_deg), *r.pair_cone);
+  }
+  print_conditional_bins(r);
+}
+
+nlohmann::json vndf_json(const MaskingVndf& v) {
+  nlohmann::json jv;
+  jv["rays"] = v.trace.rays;
+  jv["hits"] = v.trace.hits;
+  jv["backfacing"] = v.diagnostics.backfacing;
+  jv["edge_grazes"] = v.diagnostics.edge_grazes;
+  jv["leaked"] = v.diagnostics.leaked;
+  jv["rays_per_second"] = v.trace.rays_per_second();
+  jv["partial"] = v.trace.partial;
+  for (const auto& c : v.comparisons) jv["comparisons"].push_back(to_json(c));
+  return jv;
+}
+
+void print_vndf(const MaskingVndf& v) {
+  fmt::print("\nVNDF: {} rays along -v, {} front-facing first hits, {:.3f} Mrays/s\n", v.trace.rays, v.trace.hits,
+             v.trace.rays_per_second() * 1e-6);
+  fmt::print("| bins | cells | TV to Smith (analytic) | TV to Smith (own NDF) | TV noise floor | p (analytic) | p (own NDF) |\n"
+             "|---|---|---|---|---|---|---|\n");
+  for (const auto& c : v.comparisons)
+    fmt::print("| {} | {} | {:.5f} | {:.5f} | {:.5f} | {:.3g} | {:.3g} |\n", c.binning, c.bins, c.tv_analytic,
+               c.tv_empirical, c.tv_noise, c.p_value_analytic, c.p_value_empirical);
+}
+
+// Ctrl-C before the VNDF trace skips it: the run is partial too.
+bool is_partial(const SurfaceMasking& m) {
+  return m.result.partial || (m.vndf && m.vndf->trace.partial) || (m.request.vndf_rays > 0 && !m.vndf);
+}
+
+nlohmann::json report_json(const SurfaceMasking& m, const MaskingSurface& surface) {
+  const MaskingRequest& q = m.request;
+  nlohmann::json j = masking_part_json(m);  // provenance and sums
+  j["surface"] = surface_json(surface.field, surface.path, surface.analytic, surface.reference_source);
+  j["geometry"] = to_string(surface.geometry);
+  if (surface.scene) {
+    j["build_seconds"] = surface.scene->build_seconds();
+    j["embree_peak_bytes"] = surface.scene->embree_peak_bytes();
+  }
+  j["theta"] = q.theta_deg;
+  j["phi"] = q.phi_deg;
+  if (q.theta_l_deg) j["theta_l"] = *q.theta_l_deg, j["phi_l"] = q.phi_l_deg;
+  j["seed"] = q.seed;
+  j["threads"] = q.run.threads;
+  j["masking"] = to_json(m.result);
+  j["leak_test"] = {{"sigmas", kLeakSigmas}, {"failed", leak_failed(m.result)}};
+  if (m.vndf) j["vndf"] = vndf_json(*m.vndf);
+  j["peak_rss_mib"] = peak_rss_mib();
+  j["partial"] = is_partial(m);
+  return j;
+}
+
+}  // namespace
+
+int report_surface_masking(const SurfaceMasking& m, const MaskingSurface& surface, const MaskingOutputs& outputs) {
+  if (!outputs.json.empty()) write_text_atomically(outputs.json, report_json(m, surface).dump(2) + "\n");
+  const microgeom::Heightfield& field = surface.field;
+  const Provenance& p = m.provenance;
+  fmt::print("trace masking  {}  ({} x {}, tile {:.6g})  theta {}  phi {}  seed {}{}\n", surface.path, field.resolution(),
+             field.resolution(), field.tile_size(), m.request.theta_deg, m.request.phi_deg, m.request.seed,
+             p.complete() ? "" : fmt::format("  blocks {} of {}", p.blocks.to_string(), p.total_blocks));
+  fmt::print("analytic reference: {} ({})\n", surface.analytic.describe(), surface.reference_source);
+  print_masking(m.result, surface.analytic);
+  if (m.vndf) print_vndf(*m.vndf);
+  fmt::print("peak RSS {:.1f} MiB\n", peak_rss_mib());
+  const bool failed = leak_failed(m.result);
+  fmt::print("leak test ({} SE): {}\n", kLeakSigmas, failed ? "FAILED" : "passed");
+  if (is_partial(m)) return interrupted_partial_written("trace masking", {outputs.json});
+  return failed ? kExitRejected : kExitOk;
+}
+
+}  // namespace microsim::app

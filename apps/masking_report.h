@@ -1,0 +1,34 @@
+// microsim CLI: the report of a masking measurement (`trace masking --surface S`, and `merge` of its
+// parts): the JSON report (with the provenance and exact sums a merge needs) and the table on stdout. One
+// renderer, so a merged run reports exactly what the single run would.
+#pragma once
+
+#include "measure/masking.h"
+
+#include <string>
+#include <vector>
+
+namespace microsim::app {
+
+// The leak test's threshold in standard errors: at 4 SE a correct tracer fails with probability 6e-5
+// per view (normal tails).
+inline constexpr double kLeakSigmas = 4.0;
+
+// The leak test failed: a ray leaked through the surface, or E[w V] / cos(theta_v) is more than
+// kLeakSigmas standard errors from 1.
+bool leak_failed(const MaskingResult& r);
+// "value ± se" with `digits` decimals.
+std::string pm(const Estimate& e, int digits = 4);
+double peak_rss_mib();
+// Ctrl-C: what was measured has been written, marked partial; says so on stderr. Returns exit code 130.
+int interrupted_partial_written(const char* command, const std::vector<std::string>& outputs);
+
+struct MaskingOutputs {
+  std::string json;  // the JSON report ("" for none)
+};
+
+// Writes the JSON report and prints the table. Returns the exit code: 130 when partial (cancelled, or the
+// VNDF requested but not traced), 1 when the leak test failed, else 0.
+int report_surface_masking(const SurfaceMasking& m, const MaskingSurface& surface, const MaskingOutputs& outputs);
+
+}  // namespace microsim::app
