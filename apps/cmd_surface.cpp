@@ -388,8 +388,7 @@ int run_stats(const StatsCliOptions& o) {
     auto it = field.metadata.find("reference_ndf");
     ref = it != field.metadata.end() ? it->second : "ggx";
   }
-  if (ref == "ggx") so.reference = microgeom::ReferenceNdf::ggx;
-  else if (ref == "beckmann") so.reference = microgeom::ReferenceNdf::beckmann;
+  if (const auto ndf = microgeom::reference_ndf_from_string(ref)) so.reference = *ndf;
   else throw UsageError(fmt::format("--reference '{}' must be ggx or beckmann", ref));
   // Alpha: option, else the file's, else fitted.
   if (o.alpha_given) {

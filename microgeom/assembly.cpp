@@ -54,6 +54,12 @@ void radix_sort_by_high32(std::vector<std::uint64_t>& keys, std::vector<std::uin
 
 std::string_view to_string(ReferenceNdf r) { return r == ReferenceNdf::ggx ? "ggx" : "beckmann"; }
 
+std::optional<ReferenceNdf> reference_ndf_from_string(std::string_view name) {
+  for (const ReferenceNdf r : {ReferenceNdf::ggx, ReferenceNdf::beckmann})
+    if (to_string(r) == name) return r;
+  return std::nullopt;
+}
+
 const std::vector<AssemblyInfo>& assembly_registry() {
   static const std::vector<AssemblyInfo> registry = {
       {"smith",
@@ -69,16 +75,16 @@ const std::vector<AssemblyInfo>& assembly_registry() {
        "Gaussian scale mixture: Beckmann patches 8 correlation lengths wide, each with roughness "
        "alpha/sqrt(E), E ~ Exp(1), then slope-matched to exact GGX: same NDF, but rough and smooth regions "
        "are spatially separated so masking follows a blend of Beckmann-Smith laws.",
-       ReferenceNdf::ggx},
+       ReferenceNdf::ggx, AssemblyShaping::roughness_patches},
       {"sorted",
        "Facets sorted by height: a Gaussian field h0 mapped through a monotone G with slope factor "
        "G'(h0) = 1/sqrt(E), E = -log(1 - Phi(h0/sd)) ~ Exp(1), so slopes are exactly GGX pointwise and the "
        "steep facets sit low (in pits), then slope-matched.",
-       ReferenceNdf::ggx},
+       ReferenceNdf::ggx, AssemblyShaping::sorted_by_height},
       {"spikes",
        "The sorted surface upside down (same seed, heights negated): the same NDF with the steep facets "
        "sitting high, on spikes that mask their surroundings.",
-       ReferenceNdf::ggx},
+       ReferenceNdf::ggx, AssemblyShaping::sorted_by_height, true},
   };
   return registry;
 }
@@ -87,6 +93,12 @@ const AssemblyInfo* find_assembly(std::string_view name) {
   for (const auto& a : assembly_registry())
     if (a.name == name) return &a;
   return nullptr;
+}
+
+std::string assembly_names(std::string_view separator) {
+  std::string names;
+  for (const auto& a : assembly_registry()) names += (names.empty() ? "" : std::string(separator)) + a.name;
+  return names;
 }
 
 double default_corr_cells(int resolution) { return std::max(2.0, std::min(16.0, resolution / 16.0)); }
@@ -99,11 +111,8 @@ bool is_power_of_two(long n) { return n > 0 && (n & (n - 1)) == 0; }
 
 void validate(const AssemblyParams& p) {
   using std::invalid_argument;
-  if (!find_assembly(p.assembly)) {
-    std::string names;
-    for (const auto& a : assembly_registry()) names += (names.empty() ? "" : ", ") + a.name;
-    throw invalid_argument(fmt::format("unknown assembly '{}' (known: {})", p.assembly, names));
-  }
+  if (!find_assembly(p.assembly))
+    throw invalid_argument(fmt::format("unknown assembly '{}' (known: {})", p.assembly, assembly_names(", ")));
   for (double a : {p.alpha_x, p.alpha_y})
     if (!(std::isfinite(a) && a >= kMinAssemblyAlpha && a <= kMaxAssemblyAlpha))
       throw invalid_argument(
@@ -471,8 +480,7 @@ double exp_quantile_of_normal(double t) {
 // scale mixture that is exactly the GGX (alpha = 1) slope law (Student-t, nu = 2). G' is large where
 // E is small, i.e. for low h0: the steepest facets sit lowest. G is tabulated (trapezoid rule, step
 // 1/1024 on [-9, 9], linear interpolation); the grid's secant slopes differ slightly from G' grad h0,
-// which the slope matching that follows absorbs. (A running table, written here: Boost.Math's quadratures
-// give one integral each, and the table's values are pinned through the sorted surfaces.)
+// which the slope matching that follows absorbs.
 void sort_slopes_by_height(std::vector<double>& h, int n, double ax, double ay) {
   const double m2 = normalised_second_moment(h, n, ax, ay);
   if (!(m2 > 0)) return;
@@ -502,22 +510,10 @@ void sort_slopes_by_height(std::vector<double>& h, int n, double ax, double ay) 
   });
 }
 
-// The Beckmann control: a Gaussian field. Its slopes are Gaussian; one scale factor sets
-// E[(sx/ax)^2 + (sy/ay)^2] = 1, i.e. alpha^2/2 per axis for the isotropic-equivalent field.
-std::vector<double> beckmann_heights(const AssemblyParams& p, double lx, double ly, const BuildCancel& cancelled) {
-  Spectral fft(p.resolution);
-  std::vector<double> h = gaussian_field(fft, p.seed, lx, ly);
-  stop_if_cancelled(cancelled);
-  const double m2 = normalised_second_moment(h, p.resolution, p.alpha_x, p.alpha_y);
-  const double scale = m2 > 0 ? 1.0 / std::sqrt(m2) : 0.0;
-  for (double& z : h) z *= scale;
-  return h;
-}
-
-// The mixture's start field: patches of 8 l cells (K x K patches of equal size); patch q scales the
-// field's slopes by 1/sqrt(E_q), E_q ~ Exp(1) from CounterRng(seed, kStreamPatches | q); then re-integrated.
-std::vector<double> patch_scaled_heights(Spectral& fft, const std::vector<double>& h, const AssemblyParams& p, double l,
-                                         BuildReport& report) {
+// Gaussian scale mixture: patches of 8 l cells (K x K patches of equal size); patch q scales the field's
+// slopes by 1/sqrt(E_q), E_q ~ Exp(1) from CounterRng(seed, kStreamPatches | q); then re-integrate.
+std::vector<double> mix_roughness_patches(Spectral& fft, const std::vector<double>& h, const AssemblyParams& p, double l,
+                                          BuildReport& report) {
   const int n = p.resolution;
   const double ax = p.alpha_x, ay = p.alpha_y;
   const int patches = std::max(1, int(std::lround(n / (8.0 * l))));
@@ -547,45 +543,40 @@ std::vector<double> patch_scaled_heights(Spectral& fft, const std::vector<double
   return reintegrate(fft, ux, uy, ax, ay, gx_spec);
 }
 
-// The GGX assemblies: a Gaussian field (smith), patch-scaled first (mixture), or with its slopes sorted by
-// height (sorted; spikes is sorted upside down), then matched to the GGX slope law.
-std::vector<double> ggx_heights(const AssemblyParams& p, double lx, double ly, double l, int iterations,
-                                BuildReport& report, const BuildProgress& progress, const BuildCancel& cancelled) {
-  Spectral fft(p.resolution);
+// Slopes of a Gaussian field are Gaussian; one scale factor sets E[(sx/ax)^2 + (sy/ay)^2] = 1, i.e.
+// alpha^2/2 per axis for the isotropic-equivalent field.
+void rescale_to_beckmann(std::vector<double>& h, int n, double ax, double ay) {
+  const double m2 = normalised_second_moment(h, n, ax, ay);
+  const double scale = m2 > 0 ? 1.0 / std::sqrt(m2) : 0.0;
+  for (double& z : h) z *= scale;
+}
+
+// The heights in cell units (slopes are height differences between neighbouring vertices), as the
+// registry entry says: the Gaussian field with stretched spectra (correlation length l lambda / a per
+// axis, the shorter one l), shaped, then rescaled to its Beckmann NDF or slope-matched to GGX.
+std::vector<double> assembly_heights(const AssemblyInfo& info, const AssemblyParams& p, double l, int iterations,
+                                     BuildReport& report, const BuildProgress& progress, const BuildCancel& cancelled) {
+  const int n = p.resolution;
+  const double ax = p.alpha_x, ay = p.alpha_y;
+  const double lambda = std::max(ax, ay), lx = l * lambda / ax, ly = l * lambda / ay;
+  Spectral fft(n);
   std::vector<double> h = gaussian_field(fft, p.seed, lx, ly);
   stop_if_cancelled(cancelled);
-  if (p.assembly == "mixture") h = patch_scaled_heights(fft, h, p, l, report);
-  if (p.assembly == "sorted" || p.assembly == "spikes") {
-    sort_slopes_by_height(h, p.resolution, p.alpha_x, p.alpha_y);
+  if (info.shaping == AssemblyShaping::roughness_patches) h = mix_roughness_patches(fft, h, p, l, report);
+  if (info.shaping == AssemblyShaping::sorted_by_height) {
+    sort_slopes_by_height(h, n, ax, ay);
     stop_if_cancelled(cancelled);
   }
-  h = match_ggx(fft, std::move(h), p.alpha_x, p.alpha_y, iterations, report, progress, 0.05, 1.0, cancelled);
-  if (p.assembly == "spikes")
+  if (info.reference == ReferenceNdf::beckmann) {
+    rescale_to_beckmann(h, n, ax, ay);
+    report.iterations = 0;
+    return h;
+  }
+  h = match_ggx(fft, std::move(h), ax, ay, iterations, report, progress, 0.05, 1.0, cancelled);
+  if (info.upside_down)
     for (double& z : h) z = -z;
+  report.iterations = iterations;
   return h;
-}
-
-// Physical units: slopes are dimensionless, so heights scale with the cell size. Mean 0. Frees h.
-std::vector<float> physical_heights(std::vector<double>& h, double cell) {
-  double mean = 0;
-  for (double z : h) mean += z;
-  mean /= double(h.size());
-  std::vector<float> heights(h.size());
-  for (std::size_t k = 0; k < h.size(); ++k) heights[k] = float((h[k] - mean) * cell);
-  h.clear();
-  h.shrink_to_fit();
-  return heights;
-}
-
-void record_build(Heightfield& field, const AssemblyParams& p, double corr_cells, int iterations) {
-  const AssemblyInfo* info = find_assembly(p.assembly);
-  field.metadata["assembly"] = p.assembly;
-  field.metadata["alpha_x"] = fmt::format("{:.17g}", p.alpha_x);
-  field.metadata["alpha_y"] = fmt::format("{:.17g}", p.alpha_y);
-  field.metadata["seed"] = std::to_string(p.seed);
-  field.metadata["corr_cells"] = fmt::format("{:.17g}", corr_cells);
-  field.metadata["iterations"] = std::to_string(iterations);
-  field.metadata["reference_ndf"] = std::string(to_string(info->reference));
 }
 
 }  // namespace
@@ -595,23 +586,32 @@ Heightfield build_assembly(const AssemblyParams& p, BuildReport* report_out, con
   validate(p);
   BuildReport report;
   const int n = p.resolution;
+  const double ax = p.alpha_x, ay = p.alpha_y;
   const double l = p.corr_cells == 0 ? default_corr_cells(n) : p.corr_cells;
   const int iterations = p.iterations == 0 ? kDefaultIterations : p.iterations;
   report.corr_cells = l;
-  // Stretched spectra: correlation length l lambda / a per axis (the shorter one is l).
-  const double lambda = std::max(p.alpha_x, p.alpha_y), lx = l * lambda / p.alpha_x, ly = l * lambda / p.alpha_y;
+  const AssemblyInfo* info = find_assembly(p.assembly);
   if (progress) progress("noise", 0.0);
-  // Cell units: slopes are height differences between neighbouring vertices.
-  std::vector<double> h;
-  if (p.assembly == "beckmann") {
-    h = beckmann_heights(p, lx, ly, cancelled);
-    report.iterations = 0;
-  } else {
-    h = ggx_heights(p, lx, ly, l, iterations, report, progress, cancelled);
-    report.iterations = iterations;
-  }
-  Heightfield field(n, p.tile_size, physical_heights(h, p.tile_size / n));
-  record_build(field, p, l, report.iterations);
+  std::vector<double> h = assembly_heights(*info, p, l, iterations, report, progress, cancelled);
+
+  // Physical units: slopes are dimensionless, so heights scale with the cell size. Mean 0.
+  const double cell = p.tile_size / n;
+  double mean = 0;
+  for (double z : h) mean += z;
+  mean /= double(h.size());
+  std::vector<float> heights(h.size());
+  for (std::size_t k = 0; k < h.size(); ++k) heights[k] = float((h[k] - mean) * cell);
+  h.clear();
+  h.shrink_to_fit();
+
+  Heightfield field(n, p.tile_size, std::move(heights));
+  field.metadata["assembly"] = p.assembly;
+  field.metadata["alpha_x"] = fmt::format("{:.17g}", ax);
+  field.metadata["alpha_y"] = fmt::format("{:.17g}", ay);
+  field.metadata["seed"] = std::to_string(p.seed);
+  field.metadata["corr_cells"] = fmt::format("{:.17g}", l);
+  field.metadata["iterations"] = std::to_string(report.iterations);
+  field.metadata["reference_ndf"] = std::string(to_string(info->reference));
   if (progress) progress("done", 1.0);
   if (report_out) *report_out = std::move(report);
   return field;

@@ -206,8 +206,9 @@ public:
   Sweep(const StabilityGrid& grid, std::span<const SamplerInfo> samplers, bool include_functions)
       : samplers_(samplers), include_functions_(include_functions) {
     table_.grid = grid;
-    for (const SamplerInfo& s : samplers_) subjects_.push_back({std::string(s.name), true, s.negative_control});
-    for (const AnalyticFunction& f : kFunctions) subjects_.push_back({f.name, false, false});
+    for (const SamplerInfo& s : samplers_)
+      subjects_.push_back({std::string(s.name), true, s.negative_control, s.returned_pdf_check});
+    for (const AnalyticFunction& f : kFunctions) subjects_.push_back({f.name, false, false, ReturnedPdfCheck::everywhere});
     rows_.resize(subjects_.size() * kStabilityRegimeCount);
     for (std::size_t i = 0; i < subjects_.size(); ++i)
       for (int r = 0; r < kStabilityRegimeCount; ++r) {
@@ -215,6 +216,7 @@ public:
         row.subject = subjects_[i].name;
         row.is_sampler = subjects_[i].is_sampler;
         row.negative_control = subjects_[i].negative_control;
+        row.returned_pdf_check = subjects_[i].returned_pdf_check;
         row.regime = StabilityRegime(r);
       }
   }
@@ -237,6 +239,7 @@ private:
   struct Subject {
     std::string name;
     bool is_sampler, negative_control;
+    ReturnedPdfCheck returned_pdf_check;
   };
 
   StabilityMetrics& row(std::size_t subject, StabilityRegime r) {
@@ -271,16 +274,16 @@ private:
     }
 
     const auto samplers = samplers_;
-    const SamplerInfo* heitz2018 = find_sampler("heitz2018");
-    const SamplerInfo* ndf = find_sampler("ndf");
+    const SamplerInfo* vndf = &reference_sampler(ClaimedPdf::visible_normals);
+    const SamplerInfo* ndf = &reference_sampler(ClaimedPdf::ndf_cosine);
     for (const Vec2<double>& u : us) {
       const Config cfg{ax, ay, theta, phi, u};
       const StabilityRegime regime = classify(ax, ay, theta, is_u_end(u.x()) || is_u_end(u.y()));
       for (std::size_t k = 0; k < samplers.size(); ++k)
         evaluate_sampler(k, samplers[k], regime, cfg, ggx_d, wi_d, ggx_f, ggx_ref, wi_f, wi_ref);
-      // Functions of (wi, m): at the visible normals of heitz2018 and at the normals of ndf (which
-      // include normals that wi does not see).
-      for (const SamplerInfo* source : {heitz2018, ndf}) {
+      // Functions of (wi, m): at the visible normals of the reference VNDF sampler and at the normals of
+      // the reference NDF sampler (which include normals that wi does not see).
+      for (const SamplerInfo* source : {vndf, ndf}) {
         if (!include_functions_) break;
         const auto s = source->sample_double(ggx_d, wi_d, u);
         if (!s || !s->direction.allFinite()) continue;
@@ -581,7 +584,7 @@ void sampler_bound(const StabilityMetrics& row, StabilityBound& b) {
   // everywhere; plainly relative (1e-12) in the moderate regime, where nothing is ill-conditioned.
   b.cond_claimed = 16;
   b.rel_claimed = row.regime == R::moderate ? 1e-12 : kInf;
-  if (row.subject == "bounded2023" && row.regime != R::moderate) {
+  if (row.returned_pdf_check == ReturnedPdfCheck::except_near_back_reflection && row.regime != R::moderate) {
     b.claimed_unverifiable_at_u_ends = true;
     b.note = "reflected directions within 2^-20 of -wi cannot be checked against the claimed pdf";
   }
