@@ -28,7 +28,9 @@ BlockRange shard_range(std::uint64_t blocks, std::uint64_t k, std::uint64_t n) {
 namespace detail {
 std::uint64_t blocks_in_flight(int threads) {
   const int workers = threads > 0 ? threads : tbb::this_task_arena::max_concurrency();
-  return std::max<std::uint64_t>(64, 8 * std::uint64_t(std::max(workers, 1)));
+  // Enough blocks per chunk that the wait at the chunk's end (one block's time at most, per worker) and
+  // the in-order reduction on the calling thread stay small against the chunk's work.
+  return std::max<std::uint64_t>(256, 32 * std::uint64_t(std::max(workers, 1)));
 }
 }  // namespace detail
 
