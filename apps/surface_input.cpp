@@ -24,7 +24,7 @@ microgeom::Heightfield load_surface(const std::string& path, std::optional<doubl
   } catch (const std::bad_alloc&) {
     throw;  // out of memory is an internal error (exit 3), not bad input
   } catch (const std::exception& e) {
-    throw UsageError(fmt::format("{} '{}': {}", option, path, e.what()));
+    throw UsageError(fmt::format("{}: {}", option, e.what()));  // the reader's message names the file
   }
 }
 

@@ -5,6 +5,8 @@
 // through RunControl's callback.
 #include "measure/masking_table.h"
 
+#include "measure/masking.h"
+
 #include "microgeom/assembly.h"
 #include "stats/binning.h"
 #include "trace/heightfield_trace.h"
