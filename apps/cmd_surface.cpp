@@ -430,8 +430,7 @@ microgeom::ReferenceNdf reference_ndf(const StatsCliOptions& o, const microgeom:
     auto it = field.metadata.find("reference_ndf");
     ref = it != field.metadata.end() ? it->second : "ggx";
   }
-  if (ref == "ggx") return microgeom::ReferenceNdf::ggx;
-  if (ref == "beckmann") return microgeom::ReferenceNdf::beckmann;
+  if (const auto ndf = microgeom::reference_ndf_from_string(ref)) return *ndf;
   throw UsageError(fmt::format("--reference '{}' must be ggx or beckmann", ref));
 }
 

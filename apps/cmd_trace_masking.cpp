@@ -84,7 +84,7 @@ struct MaskingArgs {
   std::string shard;  // "K/N": only block range K of N (single surface)
   // table mode
   bool table = false;
-  std::string assemblies = "smith,beckmann,mixture,sorted,spikes";
+  std::string assemblies = microgeom::assembly_names(",");
   std::string alphas = "0.1,0.5,1";
   std::string thetas = "30,60,75,85";
   double table_phi = 30;

@@ -19,8 +19,10 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <algorithm>
 #include <map>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -73,7 +75,7 @@ std::string fmt_alpha(double ax, double ay) {
 
 const char* pass_fail(bool passed) { return passed ? "pass" : "FAIL"; }
 
-void print_worst(const char* title, const microsim::ChiSquareResult& c, int n) {
+void print_worst(const std::string& title, const microsim::ChiSquareResult& c, int n) {
   if (c.worst_cells.empty()) return;
   fmt::print("\nworst cells, {} (observed vs expected counts):\n", title);
   fmt::print("  {:<52} {:>12} {:>14} {:>12}\n", "cell", "observed", "expected", "(O-E)^2/E");
@@ -91,14 +93,57 @@ void write_plot(const std::string& path, const microsim::ValidationReport& r, co
   const double phi = std::atan2(r.wi.y(), r.wi.x()) * 180 / kPi<double>;
   const std::string title = fmt::format("alpha {}, theta {:g} deg, phi {:g} deg, {} samples ({})",
                                         fmt_alpha(r.alpha_x, r.alpha_y), theta, phi, r.samples, to_string(r.precision));
-  const std::string subtitle =
-      fmt::format("{}\nverdict {}: p = {:.3g} (Sidak-adjusted); sphere bins p = {:.3g}, lobe bins p = {:.3g}", source,
-                  r.passed ? "PASS" : "FAIL", r.p_value, r.sphere.p_value, r.lobe.p_value);
+  std::string per_binning;
+  for (const BinnedTest& b : r.binned)
+    per_binning += fmt::format("{}{} bins p = {:.3g}", per_binning.empty() ? "" : ", ", b.binning, b.chi2.p_value);
+  const std::string subtitle = fmt::format("{}\nverdict {}: p = {:.3g} (Sidak-adjusted); {}", source,
+                                           r.passed ? "PASS" : "FAIL", r.p_value, per_binning);
   try {
     write_file_atomically(path, histogram_figure_svg(title, subtitle, r.histograms));
   } catch (const FileWriteError& e) {
     throw UsageError(fmt::format("--plot: {}", e.what()));
   }
+}
+
+// A row of the report's table: a hard check or a statistical test other than the binned ones, or "n/a".
+void print_check(const char* title, const microsim::SubTest& t, const std::string& value, const std::string& bound) {
+  if (!t.applicable) {
+    fmt::print("  {:<34} {:>14} {:>7} {:>11}  n/a\n", title, "", "", "");
+    return;
+  }
+  fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", title, value, "", bound, pass_fail(t.passed));
+}
+
+void print_tests(const microsim::ValidationReport& r) {
+  using namespace microsim;
+  fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", "test", "statistic", "dof", "p-value", "result");
+  for (const BinnedTest& b : r.binned) {
+    const ChiSquareResult& c = b.chi2;
+    fmt::print("  {:<34} {:>14.2f} {:>7} {:>11}  {}{}\n", fmt::format("chi2, {} bins ({} cells)", b.binning, c.cells),
+               c.statistic, c.dof, fmt_p(c.p_value), pass_fail(!c.rejected), c.reason.empty() ? "" : "  (" + c.reason + ")");
+  }
+  const SubTest& weight = r.check("weight_mean");
+  const SubTest& pdf = r.check("returned_pdf");
+  const SubTest& integral = r.check("pdf_integral");
+  print_check("E[weight] = |wi.z|/G1", weight, fmt::format("{:.6g}", weight.value), fmt_p(weight.p_value));
+  print_check("returned pdf (max rel. error)", pdf, fmt::format("{:.2e}", pdf.value), fmt::format("<= {:.0e}", pdf.tolerance));
+  print_check("claimed pdf integral", integral, fmt::format("{:.9f}", integral.value),
+              fmt::format("<= 1+{:.0e}", integral.tolerance));
+  fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", "samples outside the domain", r.outside_domain, "", "0",
+             pass_fail(r.check("domain").passed));
+  if (pdf.applicable && pdf.passed && pdf.value > pdf.tolerance)
+    fmt::print("  (returned pdf: errors above {:.0e} only where rounding the direction to {} changes the claimed pdf "
+               "as much)\n",
+               pdf.tolerance, to_string(r.precision));
+}
+
+// The worst cells of each binned test, the test with the smallest p first (and in more detail).
+void print_worst_cells(const microsim::ValidationReport& r) {
+  std::vector<const microsim::BinnedTest*> order;
+  for (const microsim::BinnedTest& b : r.binned) order.push_back(&b);
+  std::stable_sort(order.begin(), order.end(), [](const auto* a, const auto* b) { return a->chi2.p_value < b->chi2.p_value; });
+  for (std::size_t k = 0; k < order.size(); ++k)
+    print_worst(fmt::format("{} bins", order[k]->binning), order[k]->chi2, k == 0 ? 6 : 3);
 }
 
 void print_report(const microsim::ValidationReport& r, const std::string& source) {
@@ -109,41 +154,9 @@ void print_report(const microsim::ValidationReport& r, const std::string& source
              to_string(r.domain), fmt_alpha(r.alpha_x, r.alpha_y), theta, phi, r.samples, to_string(r.precision), r.seed);
   fmt::print("verdict: {}   p-value {} (Sidak-adjusted over {} statistical tests, level {})   statistic {:.2f}   dof {}\n\n",
              r.passed ? "PASS" : "FAIL", fmt_p(r.p_value), r.statistical_tests, r.significance, r.statistic, r.dof);
-  fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", "test", "statistic", "dof", "p-value", "result");
-  auto chi = [&](const char* name, const ChiSquareResult& c) {
-    fmt::print("  {:<34} {:>14.2f} {:>7} {:>11}  {}{}\n", name, c.statistic, c.dof, fmt_p(c.p_value),
-               pass_fail(!c.rejected), c.reason.empty() ? "" : "  (" + c.reason + ")");
-  };
-  chi(fmt::format("chi2, sphere bins ({} cells)", r.sphere.cells).c_str(), r.sphere);
-  chi(fmt::format("chi2, lobe bins ({} cells)", r.lobe.cells).c_str(), r.lobe);
-  if (r.weight.applicable) {
-    fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", "E[weight] = |wi.z|/G1", fmt::format("{:.6g}", r.weight.value), "",
-               fmt_p(r.weight.p_value), pass_fail(r.weight.passed));
-  } else {
-    fmt::print("  {:<34} {:>14} {:>7} {:>11}  n/a\n", "E[weight] = |wi.z|/G1", "", "", "");
-  }
-  if (r.pdf.applicable) {
-    fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", "returned pdf (max rel. error)", fmt::format("{:.2e}", r.pdf.value),
-               "", fmt::format("<= {:.0e}", r.pdf.tolerance), pass_fail(r.pdf.passed));
-  } else {
-    fmt::print("  {:<34} {:>14} {:>7} {:>11}  n/a\n", "returned pdf (max rel. error)", "", "", "");
-  }
-  if (r.integral.applicable) {
-    fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", "claimed pdf integral", fmt::format("{:.9f}", r.integral.value), "",
-               fmt::format("<= 1+{:.0e}", r.integral.tolerance), pass_fail(r.integral.passed));
-  } else {
-    fmt::print("  {:<34} {:>14} {:>7} {:>11}  n/a\n", "claimed pdf integral", "", "", "");
-  }
-  fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", "samples outside the domain", r.outside_domain, "", "0",
-             pass_fail(r.domain_check.passed));
-  if (r.pdf.applicable && r.pdf.passed && r.pdf.value > r.pdf.tolerance)
-    fmt::print("  (returned pdf: errors above {:.0e} only where rounding the direction to {} changes the claimed pdf "
-               "as much)\n",
-               r.pdf.tolerance, to_string(r.precision));
+  print_tests(r);
   if (r.failed_samples > 0) fmt::print("  ({} sample(s) failed: counted in the remainder cells)\n", r.failed_samples);
-  const bool sphere_first = r.sphere.p_value <= r.lobe.p_value;
-  print_worst(sphere_first ? "sphere bins" : "lobe bins", sphere_first ? r.sphere : r.lobe, 6);
-  print_worst(sphere_first ? "lobe bins" : "sphere bins", sphere_first ? r.lobe : r.sphere, 3);
+  print_worst_cells(r);
   if (!r.failures.empty()) {
     fmt::print("\nrejected because:\n");
     for (const auto& f : r.failures) fmt::print("  - {}\n", f);
@@ -274,105 +287,65 @@ int run_single(const Args& a) {
   return report.passed ? microsim::app::kExitOk : microsim::app::kExitRejected;
 }
 
-int run_all(const Args& a) {
-  using namespace microsim;
-  if (!a.alpha.empty() || a.theta) throw UsageError("--all runs its own grid: drop --alpha/--theta/--phi");
-  install_interrupt_handler();
-  const auto t0 = std::chrono::steady_clock::now();
-  const auto samplers = sampler_registry();
-  const int n_configs = int(std::size(kAllAlphas) * std::size(kAllThetas));
-  const int n_validations = n_configs * int(samplers.size());
-  ValidationOptions o = base_options(a);
-  o.samples = std::uint64_t(a.samples.value_or(kAllDefaultSamples));
-  // Too few samples for any test: refused before any work (each validation checks its own bound too).
-  usage_errors_of([&] { require_samples_for_any_test(o.samples); });
-  // Sidak over the batch: each validation (itself Sidak over its own tests) runs at the level that
-  // keeps the family-wise level of the whole batch at --significance.
-  o.significance = sidak_significance(a.significance, n_validations);
+// ---- validate --all: the rendering of the batch -----------------------------------------------------------
 
-  fmt::print("microsim validate --all: {} samplers x {} configurations, {} samples each ({}), seed {}\n",
-             samplers.size(), n_configs, o.samples, to_string(o.precision), a.seed);
+// How one sampler fared over the grid.
+struct Summary {
+  int total = 0, passed = 0;
+  double min_p = 1, max_p = 0, seconds = 0;
+  bool expectation_met = true;  // correct: all pass; negative control: all rejected with p < 1e-6
+};
+
+void add_to_summary(Summary& sm, const microsim::SamplerInfo& s, const microsim::ValidationReport& r) {
+  sm.total += 1;
+  sm.passed += r.passed;
+  sm.min_p = std::min(sm.min_p, r.p_value);
+  sm.max_p = std::max(sm.max_p, r.p_value);
+  sm.seconds += r.seconds;
+  if (s.negative_control) {
+    if (r.passed || !(r.p_value < kNegativeControlP)) sm.expectation_met = false;
+  } else if (!r.passed) {
+    sm.expectation_met = false;
+  }
+}
+
+void print_all_header(const Args& a, const microsim::ValidationOptions& o, std::size_t samplers, int n_configs,
+                      int n_validations) {
+  fmt::print("microsim validate --all: {} samplers x {} configurations, {} samples each ({}), seed {}\n", samplers,
+             n_configs, o.samples, microsim::to_string(o.precision), a.seed);
   fmt::print("family-wise level {} over {} validations (Sidak): each validation at {:.3e}; negative controls must "
              "be rejected with p < {:g}\n\n",
              a.significance, n_validations, o.significance, kNegativeControlP);
   fmt::print("{:<15} {:>10} {:>6} {:>6}  {:>9} {:>10} {:>10} {:>10} {:>10} {:>9}  {:>7}\n", "sampler", "alpha", "theta",
              "phi", "verdict", "p-value", "p sphere", "p lobe", "p weight", "pdf err", "time s");
+}
 
-  ProgressBar bar("validate --all", std::uint64_t(n_validations));
-  nlohmann::json results = nlohmann::json::array();
-  struct Summary {
-    int total = 0, passed = 0;
-    double min_p = 1, max_p = 0, seconds = 0;
-    bool expectation_met = true;  // correct: all pass; negative control: all rejected with p < 1e-6
-  };
-  std::map<std::string, Summary> summary;
-  bool partial = false;
-  int index = 0;
-  int reference_count = 0;
-  double reference_seconds = 0;  // adaptive cubature of the claimed pdfs (once per configuration and pdf)
-  for (const AlphaConfig& ac : kAllAlphas) {
-    for (double theta : kAllThetas) {
-      const GGX<double> ggx(ac.ax, ac.ay);
-      const Vec3<double> wi = direction_from_degrees(theta, ac.phi);
-      // One reference per claimed pdf, shared by the samplers that claim it.
-      std::map<double (*)(const GGX<double>&, const Vec3<double>&, const Vec3<double>&),
-               std::shared_ptr<const ReferenceDistribution>>
-          references;
-      for (const SamplerInfo& s : samplers) {
-        if (interrupted()) {
-          partial = true;
-          break;
-        }
-        auto& ref = references[s.claimed_pdf];
-        if (!ref) {
-          const auto t_ref = std::chrono::steady_clock::now();
-          ref = claimed_reference(s, ggx, wi, o.rows);
-          ++reference_count;
-          reference_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t_ref).count();
-        }
-        ValidationOptions vo = o;
-        vo.seed = a.seed + std::uint64_t(index);  // independent streams per validation
-        ++index;
-        const auto t_start = std::chrono::steady_clock::now();
-        ValidationReport r = usage_errors_of([&] { return validate_sampler(s, ggx, wi, vo, ref); });
-        r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
-        Summary& sm = summary[std::string(s.name)];
-        sm.total += 1;
-        sm.passed += r.passed;
-        sm.min_p = std::min(sm.min_p, r.p_value);
-        sm.max_p = std::max(sm.max_p, r.p_value);
-        sm.seconds += r.seconds;
-        if (s.negative_control) {
-          if (r.passed || !(r.p_value < kNegativeControlP)) sm.expectation_met = false;
-        } else if (!r.passed) {
-          sm.expectation_met = false;
-        }
-        fmt::print("{:<15} {:>10} {:>6g} {:>6g}  {:>9} {:>10} {:>10} {:>10} {:>10} {:>9}  {:>7.2f}\n", s.name,
-                   fmt_alpha(ac.ax, ac.ay), theta, ac.phi,
-                   r.passed ? "pass" : (s.negative_control ? "rejected" : "FAIL"), fmt_p(r.p_value),
-                   fmt_p(r.sphere.p_value), fmt_p(r.lobe.p_value), r.weight.applicable ? fmt_p(r.weight.p_value) : "n/a",
-                   r.pdf.applicable ? fmt::format("{:.1e}", r.pdf.value) : "n/a", r.seconds);
-        std::fflush(stdout);
-        nlohmann::json j = to_json(r);
-        j["negative_control"] = s.negative_control;
-        j["theta_deg"] = theta;
-        j["phi_deg"] = ac.phi;
-        results.push_back(std::move(j));
-        bar.add(1);
-      }
-      if (partial) break;
-    }
-    if (partial) break;
-  }
-  bar.finish();
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+// One row of the batch table (printed at once) and its JSON record.
+nlohmann::json render_all_row(const microsim::SamplerInfo& s, const AlphaConfig& ac, double theta,
+                              const microsim::ValidationReport& r) {
+  const microsim::SubTest& weight = r.check("weight_mean");
+  const microsim::SubTest& pdf = r.check("returned_pdf");
+  fmt::print("{:<15} {:>10} {:>6g} {:>6g}  {:>9} {:>10} {:>10} {:>10} {:>10} {:>9}  {:>7.2f}\n", s.name,
+             fmt_alpha(ac.ax, ac.ay), theta, ac.phi, r.passed ? "pass" : (s.negative_control ? "rejected" : "FAIL"),
+             fmt_p(r.p_value), fmt_p(r.chi2("sphere").p_value), fmt_p(r.chi2("lobe").p_value),
+             weight.applicable ? fmt_p(weight.p_value) : "n/a", pdf.applicable ? fmt::format("{:.1e}", pdf.value) : "n/a",
+             r.seconds);
+  std::fflush(stdout);
+  nlohmann::json j = to_json(r);
+  j["negative_control"] = s.negative_control;
+  j["theta_deg"] = theta;
+  j["phi_deg"] = ac.phi;
+  return j;
+}
 
-  bool all_met = !partial;
+// The summary table per sampler (and its JSON); true when every sampler met its expectation.
+bool print_summary(std::span<const microsim::SamplerInfo> samplers, const std::map<std::string, Summary>& summary,
+                   nlohmann::json& summary_json) {
+  bool all_met = true;
   fmt::print("\nsummary per sampler:\n");
   fmt::print("{:<15} {:>8} {:>12} {:>12} {:>12} {:>9}  {}\n", "sampler", "passed", "min p", "max p", "expected", "time s",
              "outcome");
-  nlohmann::json summary_json = nlohmann::json::array();
-  for (const SamplerInfo& s : samplers) {
+  for (const microsim::SamplerInfo& s : samplers) {
     const auto it = summary.find(std::string(s.name));
     if (it == summary.end()) continue;
     const Summary& sm = it->second;
@@ -389,30 +362,114 @@ int run_all(const Args& a) {
                             {"expectation_met", sm.expectation_met},
                             {"seconds", sm.seconds}});
   }
-  fmt::print("\nexpected counts (adaptive cubature of {} claimed pdfs x 2 binnings): {:.1f} s\n",
-             reference_count, reference_seconds);
-  if (partial) {
-    fmt::print("overall: INTERRUPTED: partial results, {} of {} validations in {:.1f} s (no verdict)\n",
-               results.size(), n_validations, seconds);
+  return all_met;
+}
+
+struct BatchTotals {
+  int requested = 0;
+  std::size_t done = 0;
+  int references = 0;  // claimed pdfs integrated (once per configuration and pdf)
+  double seconds = 0, reference_seconds = 0;
+  bool partial = false, all_met = false;
+};
+
+void print_overall(const BatchTotals& t) {
+  fmt::print("\nexpected counts (adaptive cubature of {} claimed pdfs x 2 binnings): {:.1f} s\n", t.references,
+             t.reference_seconds);
+  if (t.partial) {
+    fmt::print("overall: INTERRUPTED: partial results, {} of {} validations in {:.1f} s (no verdict)\n", t.done,
+               t.requested, t.seconds);
   } else {
     fmt::print("overall: {} ({} validations in {:.1f} s)\n",
-               all_met ? "PASS: every correct sampler passes and every negative control is rejected" : "FAIL",
-               results.size(), seconds);
+               t.all_met ? "PASS: every correct sampler passes and every negative control is rejected" : "FAIL", t.done,
+               t.seconds);
   }
+}
+
+// The batch's JSON but for its summary and results: the verdict, the run's parameters and totals.
+nlohmann::json batch_json(const Args& a, const microsim::ValidationOptions& o, const BatchTotals& t) {
+  nlohmann::json j;
+  j["verdict"] = t.partial ? "interrupted" : t.all_met ? "pass" : "fail";
+  j["partial"] = t.partial;
+  j["validations_requested"] = t.requested;
+  j["validations_done"] = t.done;
+  j["samples"] = o.samples;
+  j["seed"] = a.seed;
+  j["precision"] = microsim::to_string(o.precision);
+  j["significance"] = a.significance;
+  j["per_validation_significance"] = o.significance;
+  j["negative_control_p_threshold"] = kNegativeControlP;
+  j["seconds"] = t.seconds;
+  j["reference_seconds"] = t.reference_seconds;
+  return j;
+}
+
+int run_all(const Args& a) {
+  using namespace microsim;
+  if (!a.alpha.empty() || a.theta) throw UsageError("--all runs its own grid: drop --alpha/--theta/--phi");
+  install_interrupt_handler();
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto samplers = sampler_registry();
+  const int n_configs = int(std::size(kAllAlphas) * std::size(kAllThetas));
+  const int n_validations = n_configs * int(samplers.size());
+  ValidationOptions o = base_options(a);
+  o.samples = std::uint64_t(a.samples.value_or(kAllDefaultSamples));
+  // Too few samples for any test: refused before any work (each validation checks its own bound too).
+  usage_errors_of([&] { require_samples_for_any_test(o.samples); });
+  // Sidak over the batch: each validation (itself Sidak over its own tests) runs at the level that
+  // keeps the family-wise level of the whole batch at --significance.
+  o.significance = sidak_significance(a.significance, n_validations);
+
+  print_all_header(a, o, samplers.size(), n_configs, n_validations);
+
+  ProgressBar bar("validate --all", std::uint64_t(n_validations));
+  nlohmann::json results = nlohmann::json::array();
+  std::map<std::string, Summary> summary;
+  bool partial = false;
+  int index = 0;
+  int reference_count = 0;
+  double reference_seconds = 0;  // adaptive cubature of the claimed pdfs (once per configuration and pdf)
+  for (const AlphaConfig& ac : kAllAlphas) {
+    for (double theta : kAllThetas) {
+      const GGX<double> ggx(ac.ax, ac.ay);
+      const Vec3<double> wi = direction_from_degrees(theta, ac.phi);
+      // One reference per claimed pdf, shared by the samplers that claim it.
+      std::map<ClaimedPdf, std::shared_ptr<const ReferenceDistribution>> references;
+      for (const SamplerInfo& s : samplers) {
+        if (interrupted()) {
+          partial = true;
+          break;
+        }
+        auto& ref = references[s.claims];
+        if (!ref) {
+          const auto t_ref = std::chrono::steady_clock::now();
+          ref = claimed_reference(s, ggx, wi, o.rows);
+          ++reference_count;
+          reference_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t_ref).count();
+        }
+        ValidationOptions vo = o;
+        vo.seed = a.seed + std::uint64_t(index);  // independent streams per validation
+        ++index;
+        const auto t_start = std::chrono::steady_clock::now();
+        ValidationReport r = usage_errors_of([&] { return validate_sampler(s, ggx, wi, vo, ref); });
+        r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+        add_to_summary(summary[std::string(s.name)], s, r);
+        results.push_back(render_all_row(s, ac, theta, r));
+        bar.add(1);
+      }
+      if (partial) break;
+    }
+    if (partial) break;
+  }
+  bar.finish();
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+  nlohmann::json summary_json = nlohmann::json::array();
+  const bool all_met = print_summary(samplers, summary, summary_json) && !partial;
+  const BatchTotals totals{n_validations, results.size(), reference_count, seconds, reference_seconds, partial, all_met};
+  print_overall(totals);
   if (!a.json.empty()) {
-    nlohmann::json j;
-    j["verdict"] = partial ? "interrupted" : all_met ? "pass" : "fail";
-    j["partial"] = partial;
-    j["validations_requested"] = n_validations;
-    j["validations_done"] = results.size();
-    j["samples"] = o.samples;
-    j["seed"] = a.seed;
-    j["precision"] = to_string(o.precision);
-    j["significance"] = a.significance;
-    j["per_validation_significance"] = o.significance;
-    j["negative_control_p_threshold"] = kNegativeControlP;
-    j["seconds"] = seconds;
-    j["reference_seconds"] = reference_seconds;
+    nlohmann::json j = batch_json(a, o, totals);
     j["summary"] = summary_json;
     j["results"] = results;
     write_file_atomically(a.json, j.dump(2) + "\n");

@@ -5,6 +5,9 @@
 // correlation length, built once per resolution (build time is measured separately by
 // `microsim surface build`, see docs/heightfield-trade.md). Single-threaded loops: the rates are per core.
 //
+// The whole `trace vndf` pipeline on a 1024^2 heightfield against raw rtcIntersect1 (the same segments)
+// is in bench_trace (BM_HeightfieldPipeline, BM_HeightfieldRaw), beside the quadric's.
+//
 // Run: build-*/bench_heightfield --benchmark_counters_tabular=true
 #include "microgeom/assembly.h"
 #include "trace/heightfield_trace.h"

@@ -6,10 +6,28 @@
 //
 // BM_PipelinePart breaks the quadric's overhead down (no binning, sphere binning only).
 //
+// The heightfield (BM_HeightfieldRaw, BM_HeightfieldPipeline): `trace vndf --surface` on a 1024^2 `smith`
+// surface of alpha 0.3 (seed 1, default correlation length and tile: `microsim surface build --assembly
+// smith --res 1024 --alpha 0.3`, built in the process, or read from --surface=FILE.exr), same view, sphere
+// and lobe binnings of 31 rows. Pipeline = trace_vndf_heightfield() (counter-based origins, the periodic
+// segment loop of HeightfieldScene::trace, the facet normal, the front-facing test, both binnings); raw =
+// the same Embree calls alone: every segment of the same rays (each clipped at the tile edge, the ray
+// wrapped; recorded once before timing) as one plain rtcIntersect1, in the same TBB block structure.
+//
+// BM_BinFloats: FastDirectionBinner::bin_floats alone (the binning kernel of the quadric pipeline), on the
+// counted normals of the quadric's first rays, in batches of 256 like the tracer; ns per direction.
+// BM_BinFloatsOn/<target>: the same on each SIMD target this CPU runs (Highway's names) and on the scalar
+// reference loop ("reference"; Highway's own SCALAR target is its portable fallback).
+//
 // After the benchmarks, a table of pipeline / raw ratios is printed, from two measures: wall-clock rays
-// per second (best repetition of each), and process CPU time per ray (all threads; robust to load from
-// other processes on a shared machine, where wall-clock rates fluctuate). Run with
+// per second, and process CPU time per ray (all threads; robust to load from other processes on a shared
+// machine, where wall-clock rates fluctuate), each the median over the repetitions. Run with
 // --benchmark_repetitions=5 or more on a shared machine.
+#include "microgeom/assembly.h"
+#include "microgeom/heightfield.h"
+#include "core/random.h"
+#include "trace/heightfield_trace.h"
+#include "trace/masking.h"
 #include "trace/trace_vndf.h"
 
 #include <benchmark/benchmark.h>
@@ -19,11 +37,15 @@
 
 #include <time.h>
 
+#include <algorithm>
 #include <atomic>
+#include <cstring>
 #include <map>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
+#include <vector>
 
 using namespace microsim;
 
@@ -103,35 +125,44 @@ void BM_PipelinePart(benchmark::State& state) {
   state.SetLabel(binnings == 0 ? "quadric, no binning" : "quadric, sphere binning only");
 }
 
+// Plain rtcIntersect1 calls in `arena`, in TBB tasks of one block each (FTZ/DAZ set, one context per
+// task): rays first(block) .. first(block + 1) - 1 of every block < blocks, each set up by ray(i) (the
+// same inline set-up as the pipelines', embree::make_ray_hit, so that only their own work differs).
+// Returns the hits.
+template <class First, class Ray>
+std::uint64_t intersect_blocks(RTCScene scene, tbb::task_arena& arena, std::size_t blocks, const First& first,
+                               const Ray& ray) {
+  std::atomic<std::uint64_t> total{0};
+  arena.execute([&] {
+    tbb::parallel_for(std::size_t(0), blocks, [&](std::size_t block) {
+      embree::FlushDenormalsScope ftz;
+      RTCIntersectContext context;
+      rtcInitIntersectContext(&context);
+      std::uint64_t local = 0;
+      for (std::size_t i = first(block), end = first(block + 1); i < end; ++i) {
+        RTCRayHit rh = ray(i);
+        rtcIntersect1(scene, &context, &rh);
+        local += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+      }
+      total += local;
+    });
+  });
+  return total.load();
+}
+
 void BM_RawIntersect1(benchmark::State& state) {
   const int level = int(state.range(0)), threads = int(state.range(1));
   Fixture& f = fixture(level);
-  const RTCScene scene = f.target->scene().handle();
-  const std::uint64_t blocks = (kRays + kRaysPerBlock - 1) / kRaysPerBlock;
+  const std::size_t blocks = (kRays + kRaysPerBlock - 1) / kRaysPerBlock;
+  const auto first = [](std::size_t block) { return std::min<std::size_t>(kRays, block * kRaysPerBlock); };
+  const auto ray = [&](std::size_t i) {
+    return embree::make_ray_hit(f.rays[i].origin, f.rays[i].dir, 0.0f, std::numeric_limits<float>::infinity());
+  };
   tbb::task_arena arena(threads);
   std::uint64_t hits = 0;
   const double cpu0 = process_cpu_seconds();
   for (auto _ : state) {
-    std::atomic<std::uint64_t> total{0};
-    arena.execute([&] {
-      tbb::parallel_for(std::uint64_t(0), blocks, [&](std::uint64_t block) {
-        embree::FlushDenormalsScope ftz;
-        RTCIntersectContext context;
-        rtcInitIntersectContext(&context);
-        std::uint64_t local = 0;
-        const std::uint64_t end = std::min(kRays, (block + 1) * kRaysPerBlock);
-        for (std::uint64_t i = block * kRaysPerBlock; i < end; ++i) {
-          const BeamRay& ray = f.rays[i];
-          // The same inline ray set-up as the pipeline's (embree.h), so that only the pipeline's own work differs.
-          RTCRayHit rh =
-              embree::make_ray_hit(ray.origin, ray.dir, 0.0f, std::numeric_limits<float>::infinity());
-          rtcIntersect1(scene, &context, &rh);
-          local += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
-        }
-        total += local;
-      });
-    });
-    hits = total.load();
+    hits = intersect_blocks(f.target->scene().handle(), arena, blocks, first, ray);
     benchmark::DoNotOptimize(hits);
   }
   state.counters["cpu_ns_per_ray"] = 1e9 * (process_cpu_seconds() - cpu0) / (double(state.iterations()) * double(kRays));
@@ -140,77 +171,362 @@ void BM_RawIntersect1(benchmark::State& state) {
   state.SetLabel(scene_name(level));
 }
 
+// ---- the 1024^2 heightfield ------------------------------------------------------------------------------
+
+constexpr std::uint64_t kHeightfieldRays = 1 << 18;  // per iteration (the tracer does ~1-2 M rays/s per core)
+constexpr int kHeightfieldLevel = 1024;              // the table's key for this scene
+std::string g_surface_path;                          // --surface=FILE.exr; empty: built in the process
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+
+struct Segment {
+  Vec3<float> origin;
+  float tfar;
+};
+
+struct HeightfieldFixture {
+  std::unique_ptr<microgeom::Heightfield> field;
+  std::unique_ptr<HeightfieldScene> scene;
+  std::vector<DirectionBinning> binnings;
+  // The Embree calls of the pipeline's rays: their segments, those of ray block b (kRaysPerBlock rays) in
+  // segments[block_first[b], block_first[b + 1]).
+  std::vector<Segment> segments;
+  std::vector<std::size_t> block_first;
+  Vec3<float> segment_dir;
+  double traced_segments = 0;  // sum of HeightfieldHit::segments of the same rays (HeightfieldScene::trace)
+};
+
+// The segments HeightfieldScene::trace traces for a primary ray from above (heightfield_trace.h): each
+// starts in the tile and ends where the ray leaves it plus half a cell; a miss moves the ray to its exit
+// point, shifted by a tile on the axes it left through. Found with plain rtcIntersect1 calls, up to the
+// first hit (the floor of the height slab, which only clips a ray that misses, is left out).
+void append_segments(const HeightfieldScene& sc, Vec3<double> o, const Vec3<double>& dir, std::vector<Segment>& out) {
+  const double tile = sc.field().tile_size(), overlap = 0.5 * sc.field().cell_size() / std::hypot(dir.x(), dir.y());
+  const Vec3<float> d = dir.cast<float>();
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  for (int segment = 0; segment < 1000; ++segment) {
+    const double tx = dir.x() > 0 ? (tile - o.x()) / dir.x() : (dir.x() < 0 ? -o.x() / dir.x() : kInfinity);
+    const double ty = dir.y() > 0 ? (tile - o.y()) / dir.y() : (dir.y() < 0 ? -o.y() / dir.y() : kInfinity);
+    const double t_exit = std::min(std::max(tx, 0.0), std::max(ty, 0.0));
+    out.push_back({o.cast<float>(), float(t_exit + overlap)});
+    RTCRayHit rh = embree::make_ray_hit(out.back().origin, d, 0.0f, out.back().tfar);
+    rtcIntersect1(sc.embree_scene().handle(), &context, &rh);
+    if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) return;
+    o += t_exit * dir;
+    if (tx <= ty) o.x() = dir.x() > 0 ? 0.0 : tile;
+    if (ty <= tx) o.y() = dir.y() > 0 ? 0.0 : tile;
+  }
+}
+
+HeightfieldFixture& heightfield_fixture() {
+  static HeightfieldFixture f;
+  if (f.scene) return f;
+  if (g_surface_path.empty()) {
+    microgeom::AssemblyParams p;  // `surface build --assembly smith --res 1024 --alpha 0.3` (seed 1)
+    p.assembly = "smith";
+    p.alpha_x = p.alpha_y = 0.3;
+    p.resolution = 1024;
+    p.seed = 1;
+    f.field = std::make_unique<microgeom::Heightfield>(microgeom::build_assembly(p));
+  } else {
+    f.field = std::make_unique<microgeom::Heightfield>(microgeom::load_heightmap_exr(g_surface_path));
+  }
+  f.scene = std::make_unique<HeightfieldScene>(*f.field);
+  const Vec3<double> wi = direction_from_degrees(kTheta, kPhi);
+  const double tile = f.field->tile_size(), z0 = f.scene->start_height();
+  embree::FlushDenormalsScope ftz;
+  for (std::uint64_t block = 0; block * kRaysPerBlock < kHeightfieldRays; ++block) {
+    f.block_first.push_back(f.segments.size());
+    CounterRng rng(1, block);  // trace_vndf_heightfield's origins for seed 1
+    for (std::uint64_t i = block * kRaysPerBlock; i < std::min(kHeightfieldRays, (block + 1) * kRaysPerBlock); ++i) {
+      const double x = tile * rng.uniform(), y = tile * rng.uniform();
+      append_segments(*f.scene, Vec3<double>(x, y, z0), -wi, f.segments);
+      f.traced_segments += f.scene->trace(Vec3<double>(x, y, z0), -wi).segments;
+    }
+  }
+  f.block_first.push_back(f.segments.size());
+  f.segment_dir = (-wi).cast<float>();
+  f.binnings = {DirectionBinning::sphere(kRows),
+                DirectionBinning::lobe(GGX<double>(0.3), wi, SampleDomain::microfacet_normal, kRows)};
+  return f;
+}
+
+// Raw: the pipeline's Embree calls alone, one plain rtcIntersect1 per segment of every ray, in the same
+// TBB blocks (rates are per ray: the rays' segments all traced).
+void BM_HeightfieldRaw(benchmark::State& state) {
+  const int threads = int(state.range(1));
+  HeightfieldFixture& f = heightfield_fixture();
+  const auto first = [&](std::size_t block) { return f.block_first[block]; };
+  const auto ray = [&](std::size_t i) {
+    return embree::make_ray_hit(f.segments[i].origin, f.segment_dir, 0.0f, f.segments[i].tfar);
+  };
+  tbb::task_arena arena(threads);
+  std::uint64_t hits = 0;
+  const double cpu0 = process_cpu_seconds();
+  for (auto _ : state) {
+    hits = intersect_blocks(f.scene->embree_scene().handle(), arena, f.block_first.size() - 1, first, ray);
+    benchmark::DoNotOptimize(hits);
+  }
+  state.counters["cpu_ns_per_ray"] =
+      1e9 * (process_cpu_seconds() - cpu0) / (double(state.iterations()) * double(kHeightfieldRays));
+  state.SetItemsProcessed(std::int64_t(state.iterations()) * std::int64_t(kHeightfieldRays));
+  state.counters["hit_fraction"] = double(hits) / double(kHeightfieldRays);
+  state.counters["segments_per_ray"] = double(f.segments.size()) / double(kHeightfieldRays);
+  state.counters["traced_segments_per_ray"] = f.traced_segments / double(kHeightfieldRays);
+  state.SetLabel("heightfield 1024");
+}
+
+// trace_vndf_heightfield with the fixture's first `binnings` binnings (2: the full pipeline).
+void heightfield_pipeline(benchmark::State& state, int threads, int binnings) {
+  HeightfieldFixture& f = heightfield_fixture();
+  TraceOptions o = pipeline_options(threads);
+  o.rays = kHeightfieldRays;
+  const std::span<const DirectionBinning> used(f.binnings.data(), std::size_t(binnings));
+  std::uint64_t hits = 0;
+  const double cpu0 = process_cpu_seconds();
+  for (auto _ : state) {
+    const TraceResult r = trace_vndf_heightfield(*f.scene, direction_from_degrees(kTheta, kPhi), used, o);
+    hits = r.hits;
+    benchmark::DoNotOptimize(hits);
+  }
+  state.counters["cpu_ns_per_ray"] =
+      1e9 * (process_cpu_seconds() - cpu0) / (double(state.iterations()) * double(kHeightfieldRays));
+  state.SetItemsProcessed(std::int64_t(state.iterations()) * std::int64_t(kHeightfieldRays));
+  state.counters["hit_fraction"] = double(hits) / double(kHeightfieldRays);
+}
+
+void BM_HeightfieldPipeline(benchmark::State& state) {
+  heightfield_pipeline(state, int(state.range(1)), 2);
+  state.SetLabel("heightfield 1024");
+}
+
+// The heightfield's overhead broken down: no binning (tracing, normals, front-facing test only).
+void BM_HeightfieldPipelinePart(benchmark::State& state) {
+  heightfield_pipeline(state, int(state.range(0)), int(state.range(1)));
+  state.SetLabel(state.range(1) == 0 ? "heightfield 1024, no binning" : "heightfield 1024, sphere binning only");
+}
+
+// ---- the binning kernel ------------------------------------------------------------------------------------
+
+constexpr int kBatch = 256;  // the tracer's batch (trace_vndf.cpp)
+
+// The counted normals (front-facing, upper half) of the quadric's first 2^16 fixture rays, as floats.
+struct Normals {
+  std::vector<float> x, y, z;
+};
+const Normals& quadric_normals() {
+  static Normals n;
+  if (!n.x.empty()) return n;
+  Fixture& f = fixture(-1);
+  const Vec3<double> wi = direction_from_degrees(kTheta, kPhi);
+  embree::FlushDenormalsScope ftz;
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  for (std::size_t i = 0; i < (std::size_t(1) << 16); ++i) {
+    RTCRayHit rh = embree::make_ray_hit(f.rays[i].origin, f.rays[i].dir, 0.0f, std::numeric_limits<float>::infinity());
+    rtcIntersect1(f.target->scene().handle(), &context, &rh);
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
+    if (!EllipsoidTarget::counts(Vec3<double>(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z), wi)) continue;
+    n.x.push_back(rh.hit.Ng_x);
+    n.y.push_back(rh.hit.Ng_y);
+    n.z.push_back(rh.hit.Ng_z);
+  }
+  return n;
+}
+
+// bin_floats over all the normals in batches of kBatch, with FTZ/DAZ as in the tracer.
+template <class Bin> void bin_all(benchmark::State& state, const Normals& n, const Bin& bin) {
+  std::vector<int> bins(kBatch);
+  embree::FlushDenormalsScope ftz;
+  const int total = int(n.x.size());
+  for (auto _ : state) {
+    for (int first = 0; first < total; first += kBatch) {
+      const int count = std::min(kBatch, total - first);
+      bin(n.x.data() + first, n.y.data() + first, n.z.data() + first, count, bins.data());
+      benchmark::DoNotOptimize(bins.data());
+      benchmark::ClobberMemory();
+    }
+  }
+  state.SetItemsProcessed(std::int64_t(state.iterations()) * total);
+  state.counters["ns_per_direction"] =
+      benchmark::Counter(double(state.iterations()) * total, benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+
+// binning 0: sphere bins, 1: lobe bins (the fixture's).
+void BM_BinFloats(benchmark::State& state) {
+  const DirectionBinning& b = fixture(-1).binnings[std::size_t(state.range(0))];
+  const FastDirectionBinner binner(b);
+  bin_all(state, quadric_normals(), [&](const float* x, const float* y, const float* z, int n, int* bins) {
+    binner.bin_floats(x, y, z, n, bins);
+  });
+  state.SetLabel(b.name());
+}
+
+// The same for one vector target (Highway's name), or "reference" for the scalar reference loop alone.
+void bin_floats_on(benchmark::State& state, int binning, const std::string& target) {
+  const DirectionBinning& b = fixture(-1).binnings[std::size_t(binning)];
+  const FastDirectionBinner binner(b);
+  if (target != "reference") use_direction_binner_target(target);
+  bin_all(state, quadric_normals(), [&](const float* x, const float* y, const float* z, int n, int* bins) {
+    if (target == "reference") binner.bin_floats_scalar(x, y, z, n, bins);
+    else binner.bin_floats(x, y, z, n, bins);
+  });
+  use_direction_binner_target("");
+  state.SetLabel(fmt::format("{}, {}", b.name(), target));
+}
+
+// One direction at a time in double, as the heightfield pipeline bins (trace_vndf_heightfield calls
+// DirectionBinning::bin_of): bin_of itself, and FastDirectionBinner::operator() (the same bins).
+void BM_BinOneOf(benchmark::State& state) {
+  const DirectionBinning& b = fixture(-1).binnings[std::size_t(state.range(0))];
+  const bool fast_path = state.range(1) == 1;
+  const FastDirectionBinner fast(b);
+  const Normals& n = quadric_normals();
+  std::vector<Vec3<double>> dirs;
+  for (std::size_t i = 0; i < n.x.size(); ++i) dirs.emplace_back(n.x[i], n.y[i], n.z[i]);
+  embree::FlushDenormalsScope ftz;
+  for (auto _ : state) {
+    long sum = 0;
+    if (fast_path) {
+      for (const Vec3<double>& d : dirs) sum += fast(d);
+    } else {
+      for (const Vec3<double>& d : dirs) sum += b.bin_of(d).value_or(-1);
+    }
+    benchmark::DoNotOptimize(sum);
+  }
+  state.counters["ns_per_direction"] = benchmark::Counter(double(state.iterations()) * double(dirs.size()),
+                                                          benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  state.SetLabel(fmt::format("{}, {}", b.name(), fast_path ? "FastDirectionBinner::operator()" : "bin_of"));
+}
+BENCHMARK(BM_BinOneOf)->ArgsProduct({{0, 1}, {0, 1}})->ArgNames({"binning", "fast"})->Unit(benchmark::kMicrosecond)->MinTime(0.5);
+
+// BM_BinFloatsOn/<target>/binning:<0|1> for every target this CPU runs and the scalar reference.
+void register_kernel_targets() {
+  std::vector<std::string> targets = direction_binner_targets();
+  targets.push_back("reference");
+  for (const std::string& target : targets) {
+    for (int binning : {0, 1}) {
+      benchmark::RegisterBenchmark(fmt::format("BM_BinFloatsOn/{}/binning:{}", target, binning).c_str(),
+                                   [=](benchmark::State& state) { bin_floats_on(state, binning, target); })
+          ->Unit(benchmark::kMicrosecond)
+          ->MinTime(0.5);
+    }
+  }
+}
+
+// Every pipeline-vs-raw benchmark: milliseconds of wall-clock time, at least 0.5 s per repetition.
+void timed(benchmark::internal::Benchmark* b) { b->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(0.5); }
+
 void scenes_and_threads(benchmark::internal::Benchmark* b) {
   for (int level : {-1, 3, 5, 7})
     for (int threads : {1, 2}) b->Args({level, threads});
-  b->ArgNames({"level", "threads"})->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(0.5);
+  b->ArgNames({"level", "threads"})->Apply(timed);
 }
 
 BENCHMARK(BM_RawIntersect1)->Apply(scenes_and_threads);
 BENCHMARK(BM_Pipeline)->Apply(scenes_and_threads);
-BENCHMARK(BM_PipelinePart)
-    ->ArgsProduct({{1, 2}, {0, 1}})
-    ->ArgNames({"threads", "binnings"})
-    ->Unit(benchmark::kMillisecond)
-    ->UseRealTime()
-    ->MinTime(0.5);
+BENCHMARK(BM_PipelinePart)->ArgsProduct({{1, 2}, {0, 1}})->ArgNames({"threads", "binnings"})->Apply(timed);
+BENCHMARK(BM_HeightfieldRaw)->ArgsProduct({{kHeightfieldLevel}, {1, 2}})->ArgNames({"level", "threads"})->Apply(timed);
+BENCHMARK(BM_HeightfieldPipeline)->ArgsProduct({{kHeightfieldLevel}, {1, 2}})->ArgNames({"level", "threads"})->Apply(timed);
+BENCHMARK(BM_HeightfieldPipelinePart)->ArgsProduct({{1, 2}, {0}})->ArgNames({"threads", "binnings"})->Apply(timed);
+BENCHMARK(BM_BinFloats)->DenseRange(0, 1)->ArgName("binning")->Unit(benchmark::kMicrosecond)->MinTime(0.5);
 
-// Keeps the best rate of every benchmark (over repetitions) for the ratio table.
+// Keeps every repetition's rate and CPU time per ray (and the kernel's ns per direction) for the tables
+// printed at the end, which take the median over the repetitions.
 class RatioReporter : public benchmark::ConsoleReporter {
 public:
   void ReportRuns(const std::vector<Run>& runs) override {
     ConsoleReporter::ReportRuns(runs);
     for (const Run& run : runs) {
       if (run.run_type != Run::RT_Iteration || run.error_occurred) continue;
-      const auto it = run.counters.find("items_per_second");
+      const std::string name = run.benchmark_name();
+      const auto rate = run.counters.find("items_per_second");
       const auto cpu = run.counters.find("cpu_ns_per_ray");
-      if (it == run.counters.end() || cpu == run.counters.end()) continue;
-      double& best = best_[run.benchmark_name()];
-      best = std::max(best, double(it->second));
-      double& best_cpu = best_cpu_[run.benchmark_name()];
-      best_cpu = best_cpu > 0 ? std::min(best_cpu, double(cpu->second)) : double(cpu->second);
+      const auto kernel = run.counters.find("ns_per_direction");
+      if (rate != run.counters.end() && cpu != run.counters.end()) {
+        rate_[name].push_back(double(rate->second));
+        cpu_[name].push_back(double(cpu->second));
+      }
+      if (kernel != run.counters.end()) kernel_[name].push_back(1e9 * double(kernel->second));
     }
   }
   void PrintRatios() const {
-    fmt::print("\npipeline vs raw rtcIntersect1 (best repetition), alpha {} theta {}:\n", kAlpha, kTheta);
+    fmt::print("\npipeline vs raw rtcIntersect1 (median of the repetitions), theta {} phi {}:\n", kTheta, kPhi);
     fmt::print("| scene | threads | raw Mrays/s | pipeline Mrays/s | pipeline / raw (wall) | raw CPU ns/ray | "
                "pipeline CPU ns/ray | pipeline / raw (CPU) |\n|---|---|---|---|---|---|---|---|\n");
-    for (int level : {-1, 3, 5, 7}) {
+    struct Row {
+      std::string scene, raw, pipeline;
+      int level;
+    };
+    std::vector<Row> rows;
+    for (int level : {-1, 3, 5, 7}) rows.push_back({scene_name(level), "BM_RawIntersect1", "BM_Pipeline", level});
+    rows.push_back({"heightfield 1024", "BM_HeightfieldRaw", "BM_HeightfieldPipeline", kHeightfieldLevel});
+    for (const Row& row : rows) {
       for (int threads : {1, 2}) {
-        const std::string args = fmt::format("/level:{}/threads:{}/min_time:0.500/real_time", level, threads);
-        const auto raw = best_.find("BM_RawIntersect1" + args), pipe = best_.find("BM_Pipeline" + args);
-        if (raw == best_.end() || pipe == best_.end()) continue;
-        const double raw_cpu = best_cpu_.at("BM_RawIntersect1" + args), pipe_cpu = best_cpu_.at("BM_Pipeline" + args);
-        fmt::print("| {} | {} | {:.2f} | {:.2f} | {:.1f}% | {:.1f} | {:.1f} | {:.1f}% |\n", scene_name(level), threads,
-                   raw->second * 1e-6, pipe->second * 1e-6, 100.0 * pipe->second / raw->second, raw_cpu, pipe_cpu,
-                   100.0 * raw_cpu / pipe_cpu);
+        const std::string args = fmt::format("/level:{}/threads:{}/min_time:0.500/real_time", row.level, threads);
+        const double raw = median(rate_, row.raw + args), pipe = median(rate_, row.pipeline + args);
+        const double raw_cpu = median(cpu_, row.raw + args), pipe_cpu = median(cpu_, row.pipeline + args);
+        if (raw < 0 || pipe < 0) continue;
+        fmt::print("| {} | {} | {:.2f} | {:.2f} | {:.1f}% | {:.1f} | {:.1f} | {:.1f}% |\n", row.scene, threads,
+                   raw * 1e-6, pipe * 1e-6, 100.0 * pipe / raw, raw_cpu, pipe_cpu, 100.0 * raw_cpu / pipe_cpu);
       }
     }
-    // The quadric's overhead over raw, stage by stage (CPU ns/ray, best repetition).
-    const auto cpu = [&](const std::string& name) {
-      const auto it = best_cpu_.find(name);
-      return it == best_cpu_.end() ? -1.0 : it->second;
-    };
+    // The quadric's overhead over raw, stage by stage (CPU ns/ray).
     fmt::print("\nquadric, CPU ns/ray: raw | + ray generation and hit filter | + sphere binning | + lobe binning "
                "(full pipeline)\n|---|---|---|---|---|\n");
     for (int threads : {1, 2}) {
       const std::string args = fmt::format("/threads:{}/min_time:0.500/real_time", threads);
-      const double raw = cpu(fmt::format("BM_RawIntersect1/level:-1{}", args));
-      const double none = cpu(fmt::format("BM_PipelinePart/threads:{}/binnings:0/min_time:0.500/real_time", threads));
-      const double sphere = cpu(fmt::format("BM_PipelinePart/threads:{}/binnings:1/min_time:0.500/real_time", threads));
-      const double full = cpu(fmt::format("BM_Pipeline/level:-1{}", args));
+      const double raw = median(cpu_, fmt::format("BM_RawIntersect1/level:-1{}", args));
+      const double none = median(cpu_, fmt::format("BM_PipelinePart/threads:{}/binnings:0/min_time:0.500/real_time", threads));
+      const double sphere = median(cpu_, fmt::format("BM_PipelinePart/threads:{}/binnings:1/min_time:0.500/real_time", threads));
+      const double full = median(cpu_, fmt::format("BM_Pipeline/level:-1{}", args));
       if (raw < 0 || none < 0 || sphere < 0 || full < 0) continue;
       fmt::print("| {} thread(s) | {:.1f} | {:.1f} | {:.1f} | {:.1f} |\n", threads, raw, none, sphere, full);
     }
+    fmt::print("\nheightfield 1024, CPU ns/ray: raw (its segments) | pipeline without binning | full pipeline\n"
+               "|---|---|---|---|\n");
+    for (int threads : {1, 2}) {
+      const std::string args = fmt::format("/threads:{}/min_time:0.500/real_time", threads);
+      const double raw = median(cpu_, fmt::format("BM_HeightfieldRaw/level:{}{}", kHeightfieldLevel, args));
+      const double none = median(cpu_, fmt::format("BM_HeightfieldPipelinePart/threads:{}/binnings:0/min_time:0.500/real_time", threads));
+      const double full = median(cpu_, fmt::format("BM_HeightfieldPipeline/level:{}{}", kHeightfieldLevel, args));
+      if (raw < 0 || none < 0 || full < 0) continue;
+      fmt::print("| {} thread(s) | {:.1f} | {:.1f} | {:.1f} |\n", threads, raw, none, full);
+    }
+    if (kernel_.empty()) return;
+    fmt::print("\nbinning kernel (bin_floats), ns per direction (median):\n| benchmark | ns/direction |\n|---|---|\n");
+    for (const auto& [name, values] : kernel_) fmt::print("| {} | {:.3f} |\n", name, median(kernel_, name));
   }
 
 private:
-  std::map<std::string, double> best_, best_cpu_;
+  using Samples = std::map<std::string, std::vector<double>>;
+  // The median of a benchmark's repetitions, or -1 if it did not run.
+  static double median(const Samples& samples, const std::string& name) {
+    const auto it = samples.find(name);
+    if (it == samples.end() || it->second.empty()) return -1.0;
+    std::vector<double> v = it->second;
+    std::sort(v.begin(), v.end());
+    const std::size_t n = v.size();
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+  }
+  Samples rate_, cpu_, kernel_;
 };
+
+// --surface=FILE.exr (the 1024^2 heightfield from a file), taken out of argv before Google Benchmark sees it.
+void take_surface_argument(int& argc, char** argv) {
+  int kept = 1;
+  for (int i = 1; i < argc; ++i) {
+    if (std::strncmp(argv[i], "--surface=", 10) == 0) g_surface_path = argv[i] + 10;
+    else argv[kept++] = argv[i];
+  }
+  argc = kept;
+}
 
 }  // namespace
 
 int main(int argc, char** argv) {
+  take_surface_argument(argc, argv);
+  register_kernel_targets();
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   RatioReporter reporter;

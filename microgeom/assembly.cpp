@@ -54,6 +54,12 @@ void radix_sort_by_high32(std::vector<std::uint64_t>& keys, std::vector<std::uin
 
 std::string_view to_string(ReferenceNdf r) { return r == ReferenceNdf::ggx ? "ggx" : "beckmann"; }
 
+std::optional<ReferenceNdf> reference_ndf_from_string(std::string_view name) {
+  for (const ReferenceNdf r : {ReferenceNdf::ggx, ReferenceNdf::beckmann})
+    if (to_string(r) == name) return r;
+  return std::nullopt;
+}
+
 const std::vector<AssemblyInfo>& assembly_registry() {
   static const std::vector<AssemblyInfo> registry = {
       {"smith",
@@ -69,16 +75,16 @@ const std::vector<AssemblyInfo>& assembly_registry() {
        "Gaussian scale mixture: Beckmann patches 8 correlation lengths wide, each with roughness "
        "alpha/sqrt(E), E ~ Exp(1), then slope-matched to exact GGX: same NDF, but rough and smooth regions "
        "are spatially separated so masking follows a blend of Beckmann-Smith laws.",
-       ReferenceNdf::ggx},
+       ReferenceNdf::ggx, AssemblyShaping::roughness_patches},
       {"sorted",
        "Facets sorted by height: a Gaussian field h0 mapped through a monotone G with slope factor "
        "G'(h0) = 1/sqrt(E), E = -log(1 - Phi(h0/sd)) ~ Exp(1), so slopes are exactly GGX pointwise and the "
        "steep facets sit low (in pits), then slope-matched.",
-       ReferenceNdf::ggx},
+       ReferenceNdf::ggx, AssemblyShaping::sorted_by_height},
       {"spikes",
        "The sorted surface upside down (same seed, heights negated): the same NDF with the steep facets "
        "sitting high, on spikes that mask their surroundings.",
-       ReferenceNdf::ggx},
+       ReferenceNdf::ggx, AssemblyShaping::sorted_by_height, true},
   };
   return registry;
 }
@@ -87,6 +93,12 @@ const AssemblyInfo* find_assembly(std::string_view name) {
   for (const auto& a : assembly_registry())
     if (a.name == name) return &a;
   return nullptr;
+}
+
+std::string assembly_names(std::string_view separator) {
+  std::string names;
+  for (const auto& a : assembly_registry()) names += (names.empty() ? "" : std::string(separator)) + a.name;
+  return names;
 }
 
 double default_corr_cells(int resolution) { return std::max(2.0, std::min(16.0, resolution / 16.0)); }
@@ -99,11 +111,8 @@ bool is_power_of_two(long n) { return n > 0 && (n & (n - 1)) == 0; }
 
 void validate(const AssemblyParams& p) {
   using std::invalid_argument;
-  if (!find_assembly(p.assembly)) {
-    std::string names;
-    for (const auto& a : assembly_registry()) names += (names.empty() ? "" : ", ") + a.name;
-    throw invalid_argument(fmt::format("unknown assembly '{}' (known: {})", p.assembly, names));
-  }
+  if (!find_assembly(p.assembly))
+    throw invalid_argument(fmt::format("unknown assembly '{}' (known: {})", p.assembly, assembly_names(", ")));
   for (double a : {p.alpha_x, p.alpha_y})
     if (!(std::isfinite(a) && a >= kMinAssemblyAlpha && a <= kMaxAssemblyAlpha))
       throw invalid_argument(
@@ -501,6 +510,75 @@ void sort_slopes_by_height(std::vector<double>& h, int n, double ax, double ay) 
   });
 }
 
+// Gaussian scale mixture: patches of 8 l cells (K x K patches of equal size); patch q scales the field's
+// slopes by 1/sqrt(E_q), E_q ~ Exp(1) from CounterRng(seed, kStreamPatches | q); then re-integrate.
+std::vector<double> mix_roughness_patches(Spectral& fft, const std::vector<double>& h, const AssemblyParams& p, double l,
+                                          BuildReport& report) {
+  const int n = p.resolution;
+  const double ax = p.alpha_x, ay = p.alpha_y;
+  const int patches = std::max(1, int(std::lround(n / (8.0 * l))));
+  report.notes.push_back(fmt::format("{} x {} patches of {:.4g} cells", patches, patches, double(n) / patches));
+  std::vector<double> scale(std::size_t(patches) * patches);
+  for (std::size_t q = 0; q < scale.size(); ++q) {
+    microsim::CounterRng rng(p.seed, kStreamPatches | q);
+    // E = -log(1 - U); clamped at 1e-6 (scale <= 1000) to keep the first re-integration well scaled:
+    // only the ranks of the slopes matter after matching, and clamping preserves them up to ties.
+    const double e = std::max(1e-6, -std::log1p(-rng.uniform()));
+    scale[q] = 1.0 / std::sqrt(e);
+  }
+  const std::size_t tris = 2 * std::size_t(n) * n;
+  std::vector<float> ux(tris), uy(tris);
+  triangle_slopes(h, n, 1.0, 1.0, ux, uy);
+  parallel_rows(n, [&](int j) {
+    for (int i = 0; i < n; ++i) {
+      const double s = scale[std::size_t(j * patches / n) * patches + std::size_t(i * patches / n)];
+      for (int t = 0; t < 2; ++t) {
+        const std::size_t k = 2 * (std::size_t(j) * n + i) + t;
+        ux[k] = float(ux[k] * s / ax);
+        uy[k] = float(uy[k] * s / ay);
+      }
+    }
+  });
+  std::vector<std::complex<double>> gx_spec;
+  return reintegrate(fft, ux, uy, ax, ay, gx_spec);
+}
+
+// Slopes of a Gaussian field are Gaussian; one scale factor sets E[(sx/ax)^2 + (sy/ay)^2] = 1, i.e.
+// alpha^2/2 per axis for the isotropic-equivalent field.
+void rescale_to_beckmann(std::vector<double>& h, int n, double ax, double ay) {
+  const double m2 = normalised_second_moment(h, n, ax, ay);
+  const double scale = m2 > 0 ? 1.0 / std::sqrt(m2) : 0.0;
+  for (double& z : h) z *= scale;
+}
+
+// The heights in cell units (slopes are height differences between neighbouring vertices), as the
+// registry entry says: the Gaussian field with stretched spectra (correlation length l lambda / a per
+// axis, the shorter one l), shaped, then rescaled to its Beckmann NDF or slope-matched to GGX.
+std::vector<double> assembly_heights(const AssemblyInfo& info, const AssemblyParams& p, double l, int iterations,
+                                     BuildReport& report, const BuildProgress& progress, const BuildCancel& cancelled) {
+  const int n = p.resolution;
+  const double ax = p.alpha_x, ay = p.alpha_y;
+  const double lambda = std::max(ax, ay), lx = l * lambda / ax, ly = l * lambda / ay;
+  Spectral fft(n);
+  std::vector<double> h = gaussian_field(fft, p.seed, lx, ly);
+  stop_if_cancelled(cancelled);
+  if (info.shaping == AssemblyShaping::roughness_patches) h = mix_roughness_patches(fft, h, p, l, report);
+  if (info.shaping == AssemblyShaping::sorted_by_height) {
+    sort_slopes_by_height(h, n, ax, ay);
+    stop_if_cancelled(cancelled);
+  }
+  if (info.reference == ReferenceNdf::beckmann) {
+    rescale_to_beckmann(h, n, ax, ay);
+    report.iterations = 0;
+    return h;
+  }
+  h = match_ggx(fft, std::move(h), ax, ay, iterations, report, progress, 0.05, 1.0, cancelled);
+  if (info.upside_down)
+    for (double& z : h) z = -z;
+  report.iterations = iterations;
+  return h;
+}
+
 }  // namespace
 
 Heightfield build_assembly(const AssemblyParams& p, BuildReport* report_out, const BuildProgress& progress,
@@ -512,67 +590,9 @@ Heightfield build_assembly(const AssemblyParams& p, BuildReport* report_out, con
   const double l = p.corr_cells == 0 ? default_corr_cells(n) : p.corr_cells;
   const int iterations = p.iterations == 0 ? kDefaultIterations : p.iterations;
   report.corr_cells = l;
-  // Stretched spectra: correlation length l lambda / a per axis (the shorter one is l).
-  const double lambda = std::max(ax, ay), lx = l * lambda / ax, ly = l * lambda / ay;
+  const AssemblyInfo* info = find_assembly(p.assembly);
   if (progress) progress("noise", 0.0);
-
-  std::vector<double> h;  // cell units: slopes are height differences between neighbouring vertices
-  if (p.assembly == "beckmann") {
-    Spectral fft(n);
-    h = gaussian_field(fft, p.seed, lx, ly);
-    stop_if_cancelled(cancelled);
-    // Slopes of a Gaussian field are Gaussian; one scale factor sets E[(sx/ax)^2 + (sy/ay)^2] = 1, i.e.
-    // alpha^2/2 per axis for the isotropic-equivalent field.
-    const double m2 = normalised_second_moment(h, n, ax, ay);
-    const double scale = m2 > 0 ? 1.0 / std::sqrt(m2) : 0.0;
-    for (double& z : h) z *= scale;
-    report.iterations = 0;
-  } else if (p.assembly == "smith" || p.assembly == "mixture") {
-    Spectral fft(n);
-    h = gaussian_field(fft, p.seed, lx, ly);
-    stop_if_cancelled(cancelled);
-    if (p.assembly == "mixture") {
-      // Patches of 8 l cells (K x K patches of equal size); patch p scales the field's slopes by
-      // 1/sqrt(E_p), E_p ~ Exp(1) from CounterRng(seed, kStreamPatches | p); then re-integrate.
-      const int patches = std::max(1, int(std::lround(n / (8.0 * l))));
-      report.notes.push_back(fmt::format("{} x {} patches of {:.4g} cells", patches, patches, double(n) / patches));
-      std::vector<double> scale(std::size_t(patches) * patches);
-      for (std::size_t q = 0; q < scale.size(); ++q) {
-        microsim::CounterRng rng(p.seed, kStreamPatches | q);
-        // E = -log(1 - U); clamped at 1e-6 (scale <= 1000) to keep the first re-integration well scaled:
-        // only the ranks of the slopes matter after matching, and clamping preserves them up to ties.
-        const double e = std::max(1e-6, -std::log1p(-rng.uniform()));
-        scale[q] = 1.0 / std::sqrt(e);
-      }
-      const std::size_t tris = 2 * std::size_t(n) * n;
-      std::vector<float> ux(tris), uy(tris);
-      triangle_slopes(h, n, 1.0, 1.0, ux, uy);
-      parallel_rows(n, [&](int j) {
-        for (int i = 0; i < n; ++i) {
-          const double s = scale[std::size_t(j * patches / n) * patches + std::size_t(i * patches / n)];
-          for (int t = 0; t < 2; ++t) {
-            const std::size_t k = 2 * (std::size_t(j) * n + i) + t;
-            ux[k] = float(ux[k] * s / ax);
-            uy[k] = float(uy[k] * s / ay);
-          }
-        }
-      });
-      std::vector<std::complex<double>> gx_spec;
-      h = reintegrate(fft, ux, uy, ax, ay, gx_spec);
-    }
-    h = match_ggx(fft, std::move(h), ax, ay, iterations, report, progress, 0.05, 1.0, cancelled);
-    report.iterations = iterations;
-  } else if (p.assembly == "sorted" || p.assembly == "spikes") {
-    Spectral fft(n);
-    h = gaussian_field(fft, p.seed, lx, ly);
-    stop_if_cancelled(cancelled);
-    sort_slopes_by_height(h, n, ax, ay);
-    stop_if_cancelled(cancelled);
-    h = match_ggx(fft, std::move(h), ax, ay, iterations, report, progress, 0.05, 1.0, cancelled);
-    if (p.assembly == "spikes")
-      for (double& z : h) z = -z;
-    report.iterations = iterations;
-  }
+  std::vector<double> h = assembly_heights(*info, p, l, iterations, report, progress, cancelled);
 
   // Physical units: slopes are dimensionless, so heights scale with the cell size. Mean 0.
   const double cell = p.tile_size / n;
@@ -585,7 +605,6 @@ Heightfield build_assembly(const AssemblyParams& p, BuildReport* report_out, con
   h.shrink_to_fit();
 
   Heightfield field(n, p.tile_size, std::move(heights));
-  const AssemblyInfo* info = find_assembly(p.assembly);
   field.metadata["assembly"] = p.assembly;
   field.metadata["alpha_x"] = fmt::format("{:.17g}", ax);
   field.metadata["alpha_y"] = fmt::format("{:.17g}", ay);

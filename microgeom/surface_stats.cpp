@@ -122,56 +122,66 @@ double median_abs(std::vector<float> v) {
   return m;
 }
 
-}  // namespace
+// Per-triangle physical slopes and centroid heights.
+struct TriangleSamples {
+  std::vector<float> sx, sy, hc;
+};
 
-SurfaceStats measure_surface(const Heightfield& field, const StatsOptions& opt) {
-  SurfaceStats st;
+TriangleSamples triangle_samples(const Heightfield& field) {
   const int n = field.resolution();
   const std::size_t tris = field.triangle_count();
-  st.triangles = tris;
-  st.reference = opt.reference;
-  st.tolerance = opt.tolerance;
-  st.tile_size = field.tile_size();
-  st.cell_size = field.cell_size();
-
-  // Per-triangle physical slopes and centroid heights.
-  std::vector<float> sx(tris), sy(tris), hc(tris);
+  TriangleSamples t{std::vector<float>(tris), std::vector<float>(tris), std::vector<float>(tris)};
   tbb::parallel_for(0, n, [&](int j) {
     for (int i = 0; i < n; ++i)
-      for (int t = 0; t < 2; ++t) {
-        const std::size_t k = field.triangle_id(i, j, t);
-        const Eigen::Vector2d s = field.triangle_slope(i, j, t);
-        sx[k] = float(s.x());
-        sy[k] = float(s.y());
-        hc[k] = float(field.triangle_centroid_height(i, j, t));
+      for (int k = 0; k < 2; ++k) {
+        const std::size_t id = field.triangle_id(i, j, k);
+        const Eigen::Vector2d s = field.triangle_slope(i, j, k);
+        t.sx[id] = float(s.x());
+        t.sy[id] = float(s.y());
+        t.hc[id] = float(field.triangle_centroid_height(i, j, k));
       }
   });
+  return t;
+}
 
-  // Roughness: given, or fitted from the median |slope| per axis. GGX: the x-slope marginal is a Student-t
-  // with nu = 2 and scale ax/sqrt(2), whose |.| has median ax/sqrt(3). Beckmann: N(0, ax^2/2), median of
-  // |.| = 0.67449 ax / sqrt(2).
-  const double med_x = median_abs(sx), med_y = median_abs(sy);
+// Roughness: given, or fitted from the median |slope| per axis. GGX: the x-slope marginal is a Student-t
+// with nu = 2 and scale ax/sqrt(2), whose |.| has median ax/sqrt(3). Beckmann: N(0, ax^2/2), whose |.| has
+// median Phi^-1(3/4) ax / sqrt(2), Phi^-1(3/4) = 0.6744897501960817 (correctly rounded; Boost.Math's
+// normal quantile gives 0.67448975019608182, one ulp above).
+void fit_roughness(SurfaceStats& st, const TriangleSamples& t, const StatsOptions& opt) {
+  const double med_x = median_abs(t.sx), med_y = median_abs(t.sy);
   const double fit = opt.reference == ReferenceNdf::ggx ? std::sqrt(3.0) : std::sqrt(2.0) / 0.6744897501960817;
   st.fitted_alpha_x = fit * med_x;
   st.fitted_alpha_y = fit * med_y;
   st.alpha_fitted = !(opt.alpha_x && opt.alpha_y);
   st.alpha_x = opt.alpha_x ? *opt.alpha_x : st.fitted_alpha_x;
   st.alpha_y = opt.alpha_y ? *opt.alpha_y : st.fitted_alpha_y;
-  const double ax = st.alpha_x > 0 ? st.alpha_x : 1.0, ay = st.alpha_y > 0 ? st.alpha_y : 1.0;  // flat: avoid 0/0
+}
 
-  // Slope moments.
+// Mean and rms slope per axis, and the second moments of the normalised slopes.
+void slope_moments(SurfaceStats& st, const TriangleSamples& t, double ax, double ay) {
+  const std::size_t tris = t.sx.size();
   const double dn = double(tris);
-  st.mean_slope_x = parallel_sum(tris, [&](std::size_t k) { return double(sx[k]); }) / dn;
-  st.mean_slope_y = parallel_sum(tris, [&](std::size_t k) { return double(sy[k]); }) / dn;
-  const double m2x = parallel_sum(tris, [&](std::size_t k) { return double(sx[k]) * sx[k]; }) / dn;
-  const double m2y = parallel_sum(tris, [&](std::size_t k) { return double(sy[k]) * sy[k]; }) / dn;
+  st.mean_slope_x = parallel_sum(tris, [&](std::size_t k) { return double(t.sx[k]); }) / dn;
+  st.mean_slope_y = parallel_sum(tris, [&](std::size_t k) { return double(t.sy[k]); }) / dn;
+  const double m2x = parallel_sum(tris, [&](std::size_t k) { return double(t.sx[k]) * t.sx[k]; }) / dn;
+  const double m2y = parallel_sum(tris, [&](std::size_t k) { return double(t.sy[k]) * t.sy[k]; }) / dn;
   st.rms_slope_x = std::sqrt(m2x);
   st.rms_slope_y = std::sqrt(m2y);
   st.normalised_second_moment_x = m2x / (ax * ax);
   st.normalised_second_moment_y = m2y / (ay * ay);
+}
 
-  // Normalised radius and angle; histograms in bins of equal reference probability.
-  std::vector<float> radius(tris);
+// Counts of the normalised slopes in the radius bins and the (ring, sector) bins, all of equal reference
+// probability; `radius` receives every triangle's normalised slope radius.
+struct NdfCounts {
+  std::array<double, kRadiusBins> radius{};
+  std::array<double, kAngularBins> angular{};
+};
+
+NdfCounts ndf_counts(const TriangleSamples& t, double ax, double ay, ReferenceNdf reference, std::vector<float>& radius) {
+  const std::size_t tris = t.sx.size();
+  radius.resize(tris);
   const std::size_t chunk = 1 << 16, chunks = (tris + chunk - 1) / chunk;
   std::vector<std::array<std::uint64_t, kRadiusBins>> rb(chunks);
   std::vector<std::array<std::uint64_t, kAngularBins>> ab(chunks);
@@ -179,10 +189,10 @@ SurfaceStats measure_surface(const Heightfield& field, const StatsOptions& opt) 
     rb[c].fill(0);
     ab[c].fill(0);
     for (std::size_t k = c * chunk; k < std::min(tris, (c + 1) * chunk); ++k) {
-      const double u = sx[k] / ax, v = sy[k] / ay;
+      const double u = t.sx[k] / ax, v = t.sy[k] / ay;
       const double r = std::sqrt(u * u + v * v);
       radius[k] = float(r);
-      const double F = reference_radius_cdf(opt.reference, r);
+      const double F = reference_radius_cdf(reference, r);
       const int bin = std::min(kRadiusBins - 1, int(F * kRadiusBins));
       ++rb[c][bin];
       const int ring = std::min(kRingBins - 1, int(F * kRingBins));
@@ -192,45 +202,53 @@ SurfaceStats measure_surface(const Heightfield& field, const StatsOptions& opt) 
       ++ab[c][ring * kAngleBins + sector];
     }
   });
-  std::array<double, kRadiusBins> rcount{};
-  std::array<double, kAngularBins> acount{};
+  NdfCounts counts;
   for (std::size_t c = 0; c < chunks; ++c) {
-    for (int b = 0; b < kRadiusBins; ++b) rcount[b] += double(rb[c][b]);
-    for (int b = 0; b < kAngularBins; ++b) acount[b] += double(ab[c][b]);
+    for (int b = 0; b < kRadiusBins; ++b) counts.radius[b] += double(rb[c][b]);
+    for (int b = 0; b < kAngularBins; ++b) counts.angular[b] += double(ab[c][b]);
   }
+  return counts;
+}
+
+// The radius bins and (radius, angle) bins against their expected fractions.
+void ndf_bins(SurfaceStats& st, const NdfCounts& counts, double dn) {
   for (int b = 0; b < kRadiusBins; ++b) {
     BinRow row;
-    row.lo = reference_radius_quantile(opt.reference, double(b) / kRadiusBins);
-    row.hi = reference_radius_quantile(opt.reference, double(b + 1) / kRadiusBins);
+    row.lo = reference_radius_quantile(st.reference, double(b) / kRadiusBins);
+    row.hi = reference_radius_quantile(st.reference, double(b + 1) / kRadiusBins);
     row.expected_fraction = 1.0 / kRadiusBins;
-    row.measured_fraction = rcount[b] / dn;
+    row.measured_fraction = counts.radius[b] / dn;
     row.rel_error = row.measured_fraction / row.expected_fraction - 1.0;
     st.max_radius_bin_error = std::max(st.max_radius_bin_error, std::fabs(row.rel_error));
     st.radius_bins.push_back(row);
   }
   for (int b = 0; b < kAngularBins; ++b) {
-    st.angular_bin_errors[b] = acount[b] / dn * kAngularBins - 1.0;
+    st.angular_bin_errors[b] = counts.angular[b] / dn * kAngularBins - 1.0;
     st.max_angular_bin_error = std::max(st.max_angular_bin_error, std::fabs(st.angular_bin_errors[b]));
   }
+}
 
-  // Quantiles of the normalised radius (linear interpolation between order statistics).
-  const std::vector<std::uint64_t> radius_order = sorted_keys(radius);
-  {
-    auto order_stat = [&](std::size_t r) { return double(radius[std::uint32_t(radius_order[r])]); };
-    st.max_normalised_radius = order_stat(tris - 1);
-    for (double q : {0.01, 0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95, 0.99, 0.995, 0.999, 0.9999}) {
-      const double pos = q * (dn - 1.0);
-      const std::size_t lo = std::size_t(pos);
-      const std::size_t hi = std::min(lo + 1, tris - 1);
-      const double measured = order_stat(lo) + (pos - double(lo)) * (order_stat(hi) - order_stat(lo));
-      const double expected = reference_radius_quantile(opt.reference, q);
-      const double rel = measured / expected - 1.0;
-      st.quantiles.push_back({q, measured, expected, rel});
-      if (q <= 0.999 + 1e-12) st.max_quantile_error = std::max(st.max_quantile_error, std::fabs(rel));
-    }
+// Quantiles of the normalised radius (linear interpolation between order statistics) against the
+// reference's.
+void radius_quantiles(SurfaceStats& st, const std::vector<float>& radius, const std::vector<std::uint64_t>& order) {
+  const std::size_t tris = radius.size();
+  const double dn = double(tris);
+  auto order_stat = [&](std::size_t r) { return double(radius[std::uint32_t(order[r])]); };
+  st.max_normalised_radius = order_stat(tris - 1);
+  for (double q : {0.01, 0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95, 0.99, 0.995, 0.999, 0.9999}) {
+    const double pos = q * (dn - 1.0);
+    const std::size_t lo = std::size_t(pos);
+    const std::size_t hi = std::min(lo + 1, tris - 1);
+    const double measured = order_stat(lo) + (pos - double(lo)) * (order_stat(hi) - order_stat(lo));
+    const double expected = reference_radius_quantile(st.reference, q);
+    const double rel = measured / expected - 1.0;
+    st.quantiles.push_back({q, measured, expected, rel});
+    if (q <= 0.999 + 1e-12) st.max_quantile_error = std::max(st.max_quantile_error, std::fabs(rel));
   }
+}
 
-  // Verdict against the tolerance.
+// Verdict of the NDF against the tolerance: "ok", or every bound exceeded and by how much.
+void ndf_verdict(SurfaceStats& st) {
   std::vector<std::string> misses;
   if (!(st.max_quantile_error <= st.tolerance.quantile))
     misses.push_back(fmt::format("slope-radius quantile error {:.3g}% > {:.3g}%", 100 * st.max_quantile_error,
@@ -247,8 +265,10 @@ SurfaceStats measure_surface(const Heightfield& field, const StatsOptions& opt) 
   } else {
     for (std::size_t k = 0; k < misses.size(); ++k) st.ndf_verdict += (k ? "; " : "") + misses[k];
   }
+}
 
-  // Vertex height moments.
+// Vertex height moments.
+void height_moments(SurfaceStats& st, const Heightfield& field) {
   const auto& hv = field.heights();
   const double nv = double(hv.size());
   st.height_mean = parallel_sum(hv.size(), [&](std::size_t k) { return double(hv[k]); }) / nv;
@@ -262,32 +282,59 @@ SurfaceStats measure_surface(const Heightfield& field, const StatsOptions& opt) 
   st.height_max = field.max_height();
   st.height_skewness = c2 > 0 ? c3 / std::pow(c2, 1.5) : 0.0;
   st.height_excess_kurtosis = c2 > 0 ? c4 / (c2 * c2) - 3.0 : 0.0;
+}
 
-  // Height-slope coupling (ranks: ties broken by index).
-  {
-    const auto radius_rank = ranks_from(radius_order);
-    st.spearman_height_slope = spearman(ranks_from(sorted_keys(hc)), radius_rank);
-    std::vector<float> tmp = hc;
-    const std::size_t mid = tmp.size() / 2;
-    std::nth_element(tmp.begin(), tmp.begin() + std::ptrdiff_t(mid), tmp.end());
-    const float median = tmp[mid];
-    for (std::size_t k = 0; k < hc.size(); ++k) tmp[k] = std::fabs(hc[k] - median);
-    st.spearman_extremity_slope = spearman(ranks_from(sorted_keys(tmp)), radius_rank);
-  }
-  {
-    // Mean centroid height (in sd of centroid heights) of the steepest fractions.
-    const double hmean = parallel_sum(tris, [&](std::size_t k) { return double(hc[k]); }) / dn;
-    const double hsd =
-        std::sqrt(parallel_sum(tris, [&](std::size_t k) { const double d = hc[k] - hmean; return d * d; }) / dn);
-    auto top_mean = [&](double fraction) {
-      const std::size_t count = std::max<std::size_t>(1, std::size_t(fraction * dn));
-      double s = 0;
-      for (std::size_t r = tris - count; r < tris; ++r) s += hc[std::uint32_t(radius_order[r])];
-      return hsd > 0 ? (s / double(count) - hmean) / hsd : 0.0;
-    };
-    st.steepest_1pct_height_z = top_mean(0.01);
-    st.steepest_01pct_height_z = top_mean(0.001);
-  }
+// Height-slope coupling: Spearman correlations (ranks: ties broken by index) of the slope radius with the
+// centroid height and with |height - median height|.
+void height_slope_ranks(SurfaceStats& st, const std::vector<float>& hc, const std::vector<std::uint64_t>& radius_order) {
+  const auto radius_rank = ranks_from(radius_order);
+  st.spearman_height_slope = spearman(ranks_from(sorted_keys(hc)), radius_rank);
+  std::vector<float> tmp = hc;
+  const std::size_t mid = tmp.size() / 2;
+  std::nth_element(tmp.begin(), tmp.begin() + std::ptrdiff_t(mid), tmp.end());
+  const float median = tmp[mid];
+  for (std::size_t k = 0; k < hc.size(); ++k) tmp[k] = std::fabs(hc[k] - median);
+  st.spearman_extremity_slope = spearman(ranks_from(sorted_keys(tmp)), radius_rank);
+}
+
+// Mean centroid height (in sd of centroid heights) of the steepest 1% and 0.1% of the triangles.
+void steepest_heights(SurfaceStats& st, const std::vector<float>& hc, const std::vector<std::uint64_t>& radius_order) {
+  const std::size_t tris = hc.size();
+  const double dn = double(tris);
+  const double hmean = parallel_sum(tris, [&](std::size_t k) { return double(hc[k]); }) / dn;
+  const double hsd =
+      std::sqrt(parallel_sum(tris, [&](std::size_t k) { const double d = hc[k] - hmean; return d * d; }) / dn);
+  auto top_mean = [&](double fraction) {
+    const std::size_t count = std::max<std::size_t>(1, std::size_t(fraction * dn));
+    double s = 0;
+    for (std::size_t r = tris - count; r < tris; ++r) s += hc[std::uint32_t(radius_order[r])];
+    return hsd > 0 ? (s / double(count) - hmean) / hsd : 0.0;
+  };
+  st.steepest_1pct_height_z = top_mean(0.01);
+  st.steepest_01pct_height_z = top_mean(0.001);
+}
+
+}  // namespace
+
+SurfaceStats measure_surface(const Heightfield& field, const StatsOptions& opt) {
+  SurfaceStats st;
+  st.triangles = field.triangle_count();
+  st.reference = opt.reference;
+  st.tolerance = opt.tolerance;
+  st.tile_size = field.tile_size();
+  st.cell_size = field.cell_size();
+  const TriangleSamples t = triangle_samples(field);
+  fit_roughness(st, t, opt);
+  const double ax = st.alpha_x > 0 ? st.alpha_x : 1.0, ay = st.alpha_y > 0 ? st.alpha_y : 1.0;  // flat: avoid 0/0
+  slope_moments(st, t, ax, ay);
+  std::vector<float> radius;
+  ndf_bins(st, ndf_counts(t, ax, ay, opt.reference, radius), double(st.triangles));
+  const std::vector<std::uint64_t> radius_order = sorted_keys(radius);
+  radius_quantiles(st, radius, radius_order);
+  ndf_verdict(st);
+  height_moments(st, field);
+  height_slope_ranks(st, t.hc, radius_order);
+  steepest_heights(st, t.hc, radius_order);
   return st;
 }
 

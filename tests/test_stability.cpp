@@ -130,13 +130,18 @@ double claimed_vndf(const GGX<double>& g, const Vec3<double>& wi, const Vec3<dou
   return g.visible_normal_pdf(wi, m);
 }
 
+// Broken copies of a VNDF sampler (registry traits: those of an ordinary VNDF sampler).
+constexpr SamplerInfo broken(std::string_view name, decltype(SamplerInfo::sample_float) f,
+                             decltype(SamplerInfo::sample_double) d) {
+  return {.name = name, .description = "", .domain = SampleDomain::microfacet_normal, .negative_control = false,
+          .claims = ClaimedPdf::visible_normals, .reference = false, .returned_pdf_check = ReturnedPdfCheck::everywhere,
+          .sample_float = f, .sample_double = d, .claimed_pdf = &claimed_vndf, .claimed_pdf_jump = nullptr};
+}
+
 constexpr SamplerInfo kBroken[] = {
-    {"naive-heitz2018", "", SampleDomain::microfacet_normal, false, true, &naive_heitz2018<float>,
-     &naive_heitz2018<double>, &claimed_vndf},
-    {"nan-at-u0", "", SampleDomain::microfacet_normal, false, true, &nan_at_u0<float>, &nan_at_u0<double>,
-     &claimed_vndf},
-    {"pdf-off-by-1e-6", "", SampleDomain::microfacet_normal, false, true, &pdf_off_by_1e6<float>,
-     &pdf_off_by_1e6<double>, &claimed_vndf},
+    broken("naive-heitz2018", &naive_heitz2018<float>, &naive_heitz2018<double>),
+    broken("nan-at-u0", &nan_at_u0<float>, &nan_at_u0<double>),
+    broken("pdf-off-by-1e-6", &pdf_off_by_1e6<float>, &pdf_off_by_1e6<double>),
 };
 
 }  // namespace

@@ -25,6 +25,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -34,14 +35,30 @@ namespace microgeom {
 
 enum class ReferenceNdf { ggx, beckmann };
 std::string_view to_string(ReferenceNdf r);
+// The NDF of that name ("ggx", "beckmann"); nullopt for any other text.
+std::optional<ReferenceNdf> reference_ndf_from_string(std::string_view name);
 
+// What build_assembly does to the Gaussian random field before its slopes are matched.
+enum class AssemblyShaping {
+  none,
+  roughness_patches,  // Beckmann patches of roughness alpha/sqrt(E), E ~ Exp(1): a Gaussian scale mixture
+  sorted_by_height,   // facets sorted by height, the steep ones low (in pits)
+};
+
+// An assembly and how it is built: a Gaussian random field, shaped, then, for a GGX reference, its
+// slopes matched to GGX (for the Beckmann reference, rescaled to its slope second moment), then
+// optionally turned upside down.
 struct AssemblyInfo {
   std::string name;
   std::string summary;    // one sentence, for --help and the docs
   ReferenceNdf reference;  // the NDF the surface is built to have (and is checked against)
+  AssemblyShaping shaping = AssemblyShaping::none;
+  bool upside_down = false;  // heights negated at the end
 };
 const std::vector<AssemblyInfo>& assembly_registry();
 const AssemblyInfo* find_assembly(std::string_view name);
+// The names of the registry, in its order, joined by `separator`.
+std::string assembly_names(std::string_view separator);
 
 inline constexpr double kMinAssemblyAlpha = 0.005;
 inline constexpr double kMaxAssemblyAlpha = 2.0;

@@ -1,7 +1,8 @@
-// microsim: the sampler registry (names, descriptions, claimed pdfs).
+// microsim: the sampler registry (names, descriptions, claimed pdfs and the traits tests ask for).
 #include "microfacet/samplers.h"
 
 #include <algorithm>
+#include <stdexcept>
 
 namespace microsim {
 namespace {
@@ -20,20 +21,54 @@ double claimed_bounded(const GGX<double>& ggx, const Vec3<double>& wi, const Vec
   return bounded2023_reflection_pdf(ggx, wi, wo);
 }
 
+// The boundary of the support of the bounded VNDF sampler (Eto & Tokuyoshi 2023, sec. 3): the cap
+// direction c = reflect(Vh, Nh) of the half vector must satisfy c.z >= -k Vh.z; zero on the boundary
+// (same back-side and half-vector conventions as bounded2023_reflection_pdf).
+double bounded_cap_edge(const GGX<double>& ggx, const Vec3<double>& wi_in, const Vec3<double>& wo_in) {
+  const bool flip = wi_in.z() < 0;
+  const Vec3<double> wi = flip ? Vec3<double>(-wi_in) : wi_in;
+  const Vec3<double> wo = flip ? Vec3<double>(-wo_in) : wo_in;
+  Vec3<double> m = normalized_or_zero(Vec3<double>(wi + wo));
+  if (m.isZero()) return 1.0;
+  if (m.z() < 0) m = -m;
+  const Vec3<double> vh = normalized_or_zero(Vec3<double>(ggx.alpha_x() * wi.x(), ggx.alpha_y() * wi.y(), wi.z()));
+  const Vec3<double> nh = normalized_or_zero(Vec3<double>(m.x() / ggx.alpha_x(), m.y() / ggx.alpha_y(), m.z()));
+  const Vec3<double> c = reflect(vh, nh);
+  const double k = wi.z() > 0 ? bounded2023_k(ggx, wi) : 1.0;
+  return c.z() + k * vh.z();
+}
+
 constexpr SamplerInfo kSamplers[] = {
-    {"ndf", "Walter et al. 2007: samples D(m) m.z (not the VNDF)", SampleDomain::microfacet_normal, false, false,
-     &sample_ndf<float>, &sample_ndf<double>, &claimed_ndf},
-    {"heitz2014", "Heitz & d'Eon 2014: visible slopes in the stretched configuration", SampleDomain::microfacet_normal,
-     false, true, &sample_heitz2014<float>, &sample_heitz2014<double>, &claimed_vndf},
-    {"heitz2018", "Heitz 2018 JCGT: stretched hemisphere, warped disk", SampleDomain::microfacet_normal, false, true,
-     &sample_heitz2018<float>, &sample_heitz2018<double>, &claimed_vndf},
-    {"dupuy2023", "Dupuy & Benyoub 2023: spherical caps", SampleDomain::microfacet_normal, false, true,
-     &sample_dupuy2023<float>, &sample_dupuy2023<double>, &claimed_vndf},
-    {"bounded2023", "Eto & Tokuyoshi 2023: bounded VNDF, samples reflected directions",
-     SampleDomain::reflected_direction, false, false, &sample_bounded2023<float>, &sample_bounded2023<double>,
-     &claimed_bounded},
-    {"heitz2018-talk", "NEGATIVE CONTROL: the 2018 talk's slide listing (wrong)", SampleDomain::microfacet_normal,
-     true, true, &sample_heitz2018_talk<float>, &sample_heitz2018_talk<double>, &claimed_vndf},
+    {.name = "ndf", .description = "Walter et al. 2007: samples D(m) m.z (not the VNDF)",
+     .domain = SampleDomain::microfacet_normal, .negative_control = false, .claims = ClaimedPdf::ndf_cosine,
+     .reference = true, .returned_pdf_check = ReturnedPdfCheck::everywhere, .sample_float = &sample_ndf<float>,
+     .sample_double = &sample_ndf<double>, .claimed_pdf = &claimed_ndf, .claimed_pdf_jump = nullptr},
+    {.name = "heitz2014", .description = "Heitz & d'Eon 2014: visible slopes in the stretched configuration",
+     .domain = SampleDomain::microfacet_normal, .negative_control = false, .claims = ClaimedPdf::visible_normals,
+     .reference = false, .returned_pdf_check = ReturnedPdfCheck::everywhere,
+     .sample_float = &sample_heitz2014<float>, .sample_double = &sample_heitz2014<double>,
+     .claimed_pdf = &claimed_vndf, .claimed_pdf_jump = nullptr},
+    {.name = "heitz2018", .description = "Heitz 2018 JCGT: stretched hemisphere, warped disk",
+     .domain = SampleDomain::microfacet_normal, .negative_control = false, .claims = ClaimedPdf::visible_normals,
+     .reference = true, .returned_pdf_check = ReturnedPdfCheck::everywhere,
+     .sample_float = &sample_heitz2018<float>, .sample_double = &sample_heitz2018<double>,
+     .claimed_pdf = &claimed_vndf, .claimed_pdf_jump = nullptr},
+    {.name = "dupuy2023", .description = "Dupuy & Benyoub 2023: spherical caps",
+     .domain = SampleDomain::microfacet_normal, .negative_control = false, .claims = ClaimedPdf::visible_normals,
+     .reference = false, .returned_pdf_check = ReturnedPdfCheck::everywhere,
+     .sample_float = &sample_dupuy2023<float>, .sample_double = &sample_dupuy2023<double>,
+     .claimed_pdf = &claimed_vndf, .claimed_pdf_jump = nullptr},
+    {.name = "bounded2023", .description = "Eto & Tokuyoshi 2023: bounded VNDF, samples reflected directions",
+     .domain = SampleDomain::reflected_direction, .negative_control = false,
+     .claims = ClaimedPdf::bounded_reflection, .reference = true,
+     .returned_pdf_check = ReturnedPdfCheck::except_near_back_reflection,
+     .sample_float = &sample_bounded2023<float>, .sample_double = &sample_bounded2023<double>,
+     .claimed_pdf = &claimed_bounded, .claimed_pdf_jump = &bounded_cap_edge},
+    {.name = "heitz2018-talk", .description = "NEGATIVE CONTROL: the 2018 talk's slide listing (wrong)",
+     .domain = SampleDomain::microfacet_normal, .negative_control = true, .claims = ClaimedPdf::visible_normals,
+     .reference = false, .returned_pdf_check = ReturnedPdfCheck::everywhere,
+     .sample_float = &sample_heitz2018_talk<float>, .sample_double = &sample_heitz2018_talk<double>,
+     .claimed_pdf = &claimed_vndf, .claimed_pdf_jump = nullptr},
 };
 
 }  // namespace
@@ -44,6 +79,12 @@ const SamplerInfo* find_sampler(std::string_view name) {
   for (const SamplerInfo& s : kSamplers)
     if (s.name == name) return &s;
   return nullptr;
+}
+
+const SamplerInfo& reference_sampler(ClaimedPdf claims) {
+  for (const SamplerInfo& s : kSamplers)
+    if (s.reference && s.claims == claims) return s;
+  throw std::logic_error("the sampler registry has no reference sampler for this density");
 }
 
 std::vector<std::string> sampler_names() {

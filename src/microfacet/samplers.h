@@ -74,21 +74,45 @@ enum class SampleDomain {
   reflected_direction,  // samples are reflected directions wo; reference: the pdf over wo
 };
 
+// Which density a sampler claims (its claimed_pdf): samplers that claim the same one share a reference.
+enum class ClaimedPdf {
+  visible_normals,     // D_v(wi, m) (GGX::visible_normal_pdf): the traced oracle can validate it
+  ndf_cosine,          // D(m) m.z (Walter et al. 2007)
+  bounded_reflection,  // bounded2023_reflection_pdf over the reflected direction
+};
+
+// Where the pdf a sampler returns can be checked against its claimed pdf (stability.h).
+enum class ReturnedPdfCheck {
+  everywhere,
+  // Not at reflected directions within 2^-20 of -wi outside the moderate regime: there the half vector
+  // of two nearly opposite directions cancels and the claimed pdf cannot be evaluated reliably.
+  except_near_back_reflection,
+};
+
 struct SamplerInfo {
   std::string_view name;
   std::string_view description;
   SampleDomain domain;
   bool negative_control;  // known to be wrong: validation must reject it
-  bool targets_vndf;      // claims to sample D_v (the traced oracle can validate it)
+  ClaimedPdf claims;      // the density it claims to sample
+  // The trusted sampler of the density it claims (one per ClaimedPdf, never a negative control): other
+  // tests take their normals from it (reference_sampler).
+  bool reference;
+  ReturnedPdfCheck returned_pdf_check;
   SampleResult<float> (*sample_float)(const GGX<float>&, const Vec3<float>&, Vec2<float>);
   SampleResult<double> (*sample_double)(const GGX<double>&, const Vec3<double>&, Vec2<double>);
   // The density this sampler claims, analytic, per unit solid angle of the sample's direction.
   double (*claimed_pdf)(const GGX<double>&, const Vec3<double>& wi, const Vec3<double>& direction);
+  // A function of the direction that is zero on a curve where the claimed pdf jumps, beyond the curves
+  // where every pdf of the zoo jumps or kinks (validate.h, prepare_reference); nullptr: none.
+  double (*claimed_pdf_jump)(const GGX<double>&, const Vec3<double>& wi, const Vec3<double>& direction);
 };
 
 std::span<const SamplerInfo> sampler_registry();
 // nullptr when no sampler has that name.
 const SamplerInfo* find_sampler(std::string_view name);
+// The sampler of the registry whose `reference` trait is set for that density (std::logic_error if none).
+const SamplerInfo& reference_sampler(ClaimedPdf claims);
 std::vector<std::string> sampler_names();
 
 }  // namespace microsim

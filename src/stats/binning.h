@@ -76,7 +76,8 @@ struct IntegrationOptions {
   std::vector<double> z_breaks;
   // Functions of the direction whose zero set is a curve where the pdf jumps (or has a kink), e.g. the
   // boundary of a sampler's support: on every theta line of a cell where one changes sign, the line is
-  // integrated piecewise between the roots (bisection), so the jump no longer costs refinement.
+  // integrated piecewise between the roots (TOMS 748, Alefeld, Potra & Shi 1995), so the jump no longer
+  // costs refinement.
   std::vector<std::function<double(const Vec3<double>&)>> breaks;
   // Second pass, for lobes the first one cannot resolve (issue 8, defect 9: alpha 1e-4 seen at 89.99 deg,
   // reflected directions, where the lobe is a wedge 1e-4 long and alpha |wi + wo| wide ending at -wi).
@@ -133,7 +134,7 @@ public:
   std::string describe_bin(int bin) const;
 
   // Probability of every bin under pdf (per unit solid angle of the sample direction; must be safe to
-  // call concurrently). Parallel over bins (TBB); deterministic.
+  // call concurrently). Parallel over bins (TBB); deterministic. Defined in cubature.cpp.
   std::vector<double> integrate(const std::function<double(const Vec3<double>&)>& pdf) const;
   BinIntegrals integrate(const std::function<double(const Vec3<double>&)>& pdf, const IntegrationOptions& options) const;
 
@@ -160,6 +161,34 @@ private:
   Vec3<double> wi_ = Vec3<double>(0, 0, 1);
   SampleDomain domain_ = SampleDomain::microfacet_normal;
 };
+
+// Inline: the cubature (cubature.cpp) calls them at every node.
+inline Vec3<double> DirectionBinning::from_param(const Vec3<double>& u) const {
+  if (kind_ == BinningKind::sphere) return u;
+  const Vec3<double> m = normalized_or_zero(Vec3<double>(ax_ * u.x(), ay_ * u.y(), u.z()));
+  if (domain_ == SampleDomain::microfacet_normal) return m;
+  return reflect(wi_, m);
+}
+
+inline double DirectionBinning::jacobian(const Vec3<double>& u) const {
+  if (kind_ == BinningKind::sphere) return 1.0;
+  const Vec3<double> au(ax_ * u.x(), ay_ * u.y(), u.z());
+  const double len = au.norm();
+  if (!(len > 0)) return 0.0;
+  // |dm/du| = det(A) / |A u|^3 (the direction map u -> normalize(A u)).
+  double j = ax_ * ay_ / (len * len * len);
+  if (domain_ == SampleDomain::reflected_direction) {
+    // |dwo/dm| = 4 |wi . m| for wo = reflect(wi, m). The half vector of wi and wo always faces wi, so a
+    // u whose m faces away from wi is the image of no direction: its cell measure is 0.
+    const double wm = wi_.dot(au / len);
+    if (!(wm > 0)) return 0.0;
+    j *= 4 * wm;
+  }
+  return j;
+}
+
+// phi = atan2(u.y, u.x) of a parameter-space point, in [0, 2 pi) (0 at the poles): the column coordinate.
+double param_phi(const Vec3<double>& u);
 
 std::string to_string(SampleDomain domain);
 // Parses "microfacet_normal" or "reflected_direction"; throws std::invalid_argument otherwise.

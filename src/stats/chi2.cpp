@@ -82,6 +82,71 @@ void finish_test(ChiSquareResult& r, std::vector<CellReport> reports, const ChiS
   r.worst_cells = std::move(reports);
 }
 
+// The statistic over the cells after pooling: one term per single cell, in order, then one for the pool.
+// cell(cells) reports a set of cells (its observed and expected count and its term) from their sums.
+template <class CellTerm>
+void add_terms(ChiSquareResult& r, const Pooling& pooling, CellTerm&& cell, std::vector<CellReport>& reports) {
+  for (int i : pooling.single) {
+    CellReport c = cell(std::span<const int>(&i, 1));
+    c.bin = i;
+    r.statistic += c.contribution;
+    reports.push_back(std::move(c));
+  }
+  r.cells = int(pooling.single.size());
+  if (!pooling.pooled.empty()) {
+    CellReport c = cell(std::span<const int>(pooling.pooled));
+    c.location = fmt::format("pooled ({} cells)", pooling.pooled.size());
+    r.statistic += c.contribution;
+    reports.push_back(std::move(c));
+    r.cells += 1;
+    r.pooled_cells = int(pooling.pooled.size());
+  }
+}
+
+ChiSquareResult new_result(const char* test, double samples, const ChiSquareOptions& options) {
+  ChiSquareResult r;
+  r.test = test;
+  r.samples = samples;
+  r.significance = options.significance;
+  return r;
+}
+
+void reject(ChiSquareResult& r, std::string reason) {
+  r.p_value = 0;
+  r.rejected = true;
+  r.statistic = std::numeric_limits<double>::infinity();
+  r.reason = std::move(reason);
+}
+
+// Expected counts of a goodness-of-fit test: the cells of positive expectation, and the samples that fell
+// where the expected probability is 0.
+struct Expectation {
+  std::vector<double> expected;
+  std::vector<int> cells;
+  double impossible = 0;
+  int first_impossible = -1;
+};
+
+Expectation expected_counts(std::span<const double> observed, std::span<const double> expected_probability,
+                            double n_samples) {
+  const int n = int(observed.size());
+  Expectation x;
+  x.expected.resize(n);
+  for (int i = 0; i < n; ++i) {
+    const double p = expected_probability[i];
+    if (!std::isfinite(p) || !std::isfinite(observed[i]))
+      throw std::invalid_argument(fmt::format("goodness_of_fit: cell {} has a non-finite count or probability", i));
+    x.expected[i] = std::max(p, 0.0) * n_samples;
+    if (x.expected[i] > 0) {
+      x.cells.push_back(i);
+    } else if (observed[i] > 0) {
+      x.impossible += observed[i];
+      if (x.first_impossible < 0) x.first_impossible = i;
+    }
+  }
+  return x;
+}
+
 }  // namespace
 
 ChiSquareResult goodness_of_fit(std::span<const double> observed, std::span<const double> expected_probability,
@@ -91,67 +156,30 @@ ChiSquareResult goodness_of_fit(std::span<const double> observed, std::span<cons
                                             observed.size(), expected_probability.size()));
   if (!(n_samples > 0) || !std::isfinite(n_samples))
     throw std::invalid_argument(fmt::format("goodness_of_fit: the number of samples must be positive, got {}", n_samples));
-  ChiSquareResult r;
-  r.test = "goodness_of_fit";
-  r.samples = n_samples;
-  r.significance = options.significance;
-
+  ChiSquareResult r = new_result("goodness_of_fit", n_samples, options);
   if (outside_domain > 0) {
-    r.p_value = 0;
-    r.rejected = true;
-    r.statistic = std::numeric_limits<double>::infinity();
-    r.reason = fmt::format("{} sample(s) outside the domain", outside_domain);
+    reject(r, fmt::format("{} sample(s) outside the domain", outside_domain));
     return r;
   }
-  const int n = int(observed.size());
-  std::vector<double> expected(n);
-  double impossible = 0;
-  int first_impossible = -1;
-  std::vector<int> cells;
-  for (int i = 0; i < n; ++i) {
-    const double p = expected_probability[i];
-    if (!std::isfinite(p) || !std::isfinite(observed[i]))
-      throw std::invalid_argument(fmt::format("goodness_of_fit: cell {} has a non-finite count or probability", i));
-    expected[i] = std::max(p, 0.0) * n_samples;
-    if (expected[i] > 0) {
-      cells.push_back(i);
-    } else if (observed[i] > 0) {
-      impossible += observed[i];
-      if (first_impossible < 0) first_impossible = i;
-    }
-  }
-  if (impossible > 0) {
-    r.p_value = 0;
-    r.rejected = true;
-    r.statistic = std::numeric_limits<double>::infinity();
-    r.reason = fmt::format("{} sample(s) where the expected probability is 0 (first: {})", impossible,
-                           cell_name(options, first_impossible));
-    r.worst_cells.push_back({first_impossible, observed[first_impossible], 0.0, r.statistic,
-                             cell_name(options, first_impossible)});
+  Expectation x = expected_counts(observed, expected_probability, n_samples);
+  if (x.impossible > 0) {
+    const int first = x.first_impossible;
+    reject(r, fmt::format("{} sample(s) where the expected probability is 0 (first: {})", x.impossible,
+                          cell_name(options, first)));
+    r.worst_cells.push_back({first, observed[first], 0.0, r.statistic, cell_name(options, first)});
     return r;
   }
-
-  const Pooling pooling = pool_sparse_cells(std::move(cells), expected, options.min_expected);
-  std::vector<CellReport> reports;
-  for (int i : pooling.single) {
-    const double d = observed[i] - expected[i];
-    const double c = d * d / expected[i];
-    r.statistic += c;
-    reports.push_back({i, observed[i], expected[i], c, {}});
-  }
-  r.cells = int(pooling.single.size());
-  if (!pooling.pooled.empty()) {
+  const Pooling pooling = pool_sparse_cells(std::move(x.cells), x.expected, options.min_expected);
+  auto cell = [&](std::span<const int> cells) {
     double o = 0, e = 0;
-    for (int i : pooling.pooled) {
+    for (int i : cells) {
       o += observed[i];
-      e += expected[i];
+      e += x.expected[i];
     }
-    const double c = (o - e) * (o - e) / e;
-    r.statistic += c;
-    reports.push_back({-1, o, e, c, fmt::format("pooled ({} cells)", pooling.pooled.size())});
-    r.cells += 1;
-    r.pooled_cells = int(pooling.pooled.size());
-  }
+    return CellReport{-1, o, e, (o - e) * (o - e) / e, {}};
+  };
+  std::vector<CellReport> reports;
+  add_terms(r, pooling, cell, reports);
   finish_test(r, std::move(reports), options);
   return r;
 }
@@ -165,10 +193,7 @@ ChiSquareResult two_sample_homogeneity(std::span<const double> a, std::span<cons
   if (!(na > 0) || !(nb > 0) || !std::isfinite(na) || !std::isfinite(nb))
     throw std::invalid_argument(
         fmt::format("two_sample_homogeneity: both histograms need positive finite totals, got {} and {}", na, nb));
-  ChiSquareResult r;
-  r.test = "two_sample_homogeneity";
-  r.samples = na + nb;
-  r.significance = options.significance;
+  ChiSquareResult r = new_result("two_sample_homogeneity", na + nb, options);
   const double k1 = std::sqrt(nb / na), k2 = std::sqrt(na / nb);
   const int n = int(a.size());
   // Under homogeneity cell i expects Na (a_i + b_i) / (Na + Nb) counts of a and Nb (...) of b; pool
@@ -184,29 +209,17 @@ ChiSquareResult two_sample_homogeneity(std::span<const double> a, std::span<cons
     }
   }
   const Pooling pooling = pool_sparse_cells(std::move(cells), weight, options.min_expected);
-  auto term = [&](double ai, double bi) {
-    const double d = k1 * ai - k2 * bi;
-    return d * d / (ai + bi);
-  };
-  std::vector<CellReport> reports;
-  for (int i : pooling.single) {
-    const double c = term(a[i], b[i]);
-    r.statistic += c;
-    reports.push_back({i, a[i], na * (a[i] + b[i]) / (na + nb), c, {}});
-  }
-  r.cells = int(pooling.single.size());
-  if (!pooling.pooled.empty()) {
+  auto cell = [&](std::span<const int> cells) {
     double pa = 0, pb = 0;
-    for (int i : pooling.pooled) {
+    for (int i : cells) {
       pa += a[i];
       pb += b[i];
     }
-    const double c = term(pa, pb);
-    r.statistic += c;
-    reports.push_back({-1, pa, na * (pa + pb) / (na + nb), c, fmt::format("pooled ({} cells)", pooling.pooled.size())});
-    r.cells += 1;
-    r.pooled_cells = int(pooling.pooled.size());
-  }
+    const double d = k1 * pa - k2 * pb;
+    return CellReport{-1, pa, na * (pa + pb) / (na + nb), d * d / (pa + pb), {}};
+  };
+  std::vector<CellReport> reports;
+  add_terms(r, pooling, cell, reports);
   finish_test(r, std::move(reports), options);
   return r;
 }

@@ -94,7 +94,8 @@ constexpr std::uint64_t minimum_samples_for_any_test(double min_expected = 5) {
   return std::uint64_t(2 * min_expected + 0.999999);
 }
 
-// Per-test level that keeps the family-wise level alpha over n independent tests: 1 - (1 - alpha)^(1/n).
+// Per-test level that keeps the family-wise level alpha over n independent tests: 1 - (1 - alpha)^(1/n)
+// (Sidak 1967).
 double sidak_significance(double alpha, int n_tests);
 // The family-wise p-value of the smallest of n p-values: 1 - (1 - p_min)^n.
 double sidak_adjusted_p(double p_min, int n_tests);
@@ -102,6 +103,7 @@ double sidak_adjusted_p(double p_min, int n_tests);
 // One-sample Kolmogorov-Smirnov test of values against the uniform distribution on [0, 1]
 // (e.g. p-values under a null): D = sup |F_n - F|, p from the asymptotic Kolmogorov distribution
 // with Stephens' small-sample correction (Stephens 1970): lambda = (sqrt(n) + 0.12 + 0.11 / sqrt(n)) D.
+// (Written here: Boost.Math 1.74, the version this project builds with, has no Kolmogorov distribution.)
 struct KolmogorovResult {
   double statistic = 0;
   double p_value = 1;

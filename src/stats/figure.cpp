@@ -141,12 +141,10 @@ template <class ColorOf> std::string cell_map(const Panel& p, ColorOf color_of) 
   return out + "</g>\n";
 }
 
-}  // namespace
+constexpr double kMargin = 50, kGap = 60, kHeader = 60, kRowGap = 95, kPanelWidth = 330;
 
-std::string histogram_figure_svg(const std::string& title, const std::string& subtitle,
-                                 const std::vector<BinnedComparison>& comparisons) {
-  constexpr double kMargin = 50, kGap = 60, kHeader = 60, kRowGap = 95, kPanelWidth = 330;
-  // The subtitle may hold several lines ('\n'), each 17 px.
+// The subtitle's lines ('\n' separates them; each takes 17 px).
+std::vector<std::string> subtitle_lines(const std::string& subtitle) {
   std::vector<std::string> lines;
   for (std::size_t start = 0;;) {
     const std::size_t end = subtitle.find('\n', start);
@@ -154,62 +152,86 @@ std::string histogram_figure_svg(const std::string& title, const std::string& su
     if (end == std::string::npos) break;
     start = end + 1;
   }
-  double width = 0, height = kHeader + 17.0 * (double(lines.size()) - 1);
+  return lines;
+}
+
+// One row of three panels per comparison, below the header: the first panel of each row, and the
+// figure's size.
+struct Layout {
   std::vector<Panel> rows;
+  double width = 0, height = 0;
+};
+
+Layout layout_rows(const std::vector<BinnedComparison>& comparisons, std::size_t subtitle_lines) {
+  Layout l;
+  l.height = kHeader + 17.0 * (double(subtitle_lines) - 1);
   for (const BinnedComparison& c : comparisons) {
     const int n = c.binning.size();
     if (int(c.observed.size()) != n || int(c.expected.size()) != n)
       throw std::invalid_argument(fmt::format("histogram_figure_svg: {} binning has {} bins, got {} observed and {} expected",
                                               c.binning.name(), n, c.observed.size(), c.expected.size()));
     const double cell = kPanelWidth / c.binning.cols();
-    const Panel p{kMargin, height + 25, c.binning.rows(), c.binning.cols(), cell};
-    rows.push_back(p);
-    height = p.y + p.height() + kRowGap;
-    width = std::max(width, kMargin + 3 * p.width() + 2 * kGap + 20);
+    const Panel p{kMargin, l.height + 25, c.binning.rows(), c.binning.cols(), cell};
+    l.rows.push_back(p);
+    l.height = p.y + p.height() + kRowGap;
+    l.width = std::max(l.width, kMargin + 3 * p.width() + 2 * kGap + 20);
   }
+  return l;
+}
+
+// The opening tag, the gradients, the background, the title and the subtitle's lines.
+std::string svg_header(const Layout& l, const std::string& title, const std::vector<std::string>& lines) {
   std::string svg = fmt::format(
       R"(<svg xmlns="http://www.w3.org/2000/svg" width="{0}" height="{1}" viewBox="0 0 {0} {1}" font-family="sans-serif">)"
       "\n",
-      std::ceil(width), std::ceil(height));
+      std::ceil(l.width), std::ceil(l.height));
   svg += "<defs>" + gradient("sequential", kSequential) + gradient("diverging", kDiverging) + "</defs>\n";
   svg += fmt::format(R"(<rect width="100%" height="100%" fill="white"/>)"
                      R"(<text x="{}" y="22" font-size="15" font-weight="bold">{}</text>)",
                      kMargin, escape(title));
   for (std::size_t i = 0; i < lines.size(); ++i)
     svg += fmt::format(R"(<text x="{}" y="{}" font-size="12">{}</text>)", kMargin, 42 + 17 * i, escape(lines[i]));
-  svg += "\n";
+  return svg + "\n";
+}
 
-  for (std::size_t k = 0; k < comparisons.size(); ++k) {
-    const BinnedComparison& c = comparisons[k];
-    const Panel& base = rows[k];
-    const Panel observed{base.x, base.y, base.rows, base.cols, base.cell};
-    const Panel expected{base.x + base.width() + kGap, base.y, base.rows, base.cols, base.cell};
-    const Panel residual{base.x + 2 * (base.width() + kGap), base.y, base.rows, base.cols, base.cell};
-    double scale = 0;
-    for (int i = 0; i < c.binning.size(); ++i) scale = std::max({scale, c.observed[i], c.expected[i]});
-    auto residual_color = [&](int i) -> std::string {
-      const double e = c.expected[i], o = c.observed[i];
-      if (e <= 0) return o > 0 ? "#000000" : "#ffffff";  // samples where the pdf is zero: black
-      if (e < kPooledBelow) return "#c8c8c8";            // pooled by the test: not shown bin by bin
-      return color_at(kDiverging, 0.5 + (o - e) / std::sqrt(e) / (2 * kResidualClip));
-    };
-    svg += cell_map(observed, [&](int i) { return color_at(kSequential, c.observed[i] / scale); });
-    svg += cell_map(expected, [&](int i) { return color_at(kSequential, c.expected[i] / scale); });
-    svg += cell_map(residual, residual_color);
-    const std::string space = c.binning.kind() == BinningKind::sphere ? "theta (deg)" : "theta in lobe space (deg)";
-    svg += axes(observed, c.binning, c.binning.name() + " bins: observed");
-    svg += axes(expected, c.binning, c.binning.name() + " bins: " + c.expected_label);
-    svg += axes(residual, c.binning, "(observed - expected) / sqrt(expected)");
-    svg += fmt::format(R"~(<text x="{}" y="{}" text-anchor="middle" font-size="10" transform="rotate(-90 {} {})">{}</text>)~",
-                       observed.x - 32, observed.y + observed.height() / 2, observed.x - 32,
-                       observed.y + observed.height() / 2, space);
-    const double bar_y = base.y + base.height() + 36;
-    svg += colorbar(observed.x, bar_y, 2 * base.width() + kGap, "sequential", "0", fmt::format("{:.4g}", scale),
-                    "counts per bin (both panels)");
-    svg += colorbar(residual.x, bar_y, base.width(), "diverging", "-4", "+4",
-                    "grey: pooled (expected < 5); black: pdf 0");
-    svg += "\n";
-  }
+// One comparison's row: observed, expected and residual panels with their axes and colour bars.
+std::string comparison_row(const BinnedComparison& c, const Panel& base) {
+  const Panel observed{base.x, base.y, base.rows, base.cols, base.cell};
+  const Panel expected{base.x + base.width() + kGap, base.y, base.rows, base.cols, base.cell};
+  const Panel residual{base.x + 2 * (base.width() + kGap), base.y, base.rows, base.cols, base.cell};
+  double scale = 0;
+  for (int i = 0; i < c.binning.size(); ++i) scale = std::max({scale, c.observed[i], c.expected[i]});
+  auto residual_color = [&](int i) -> std::string {
+    const double e = c.expected[i], o = c.observed[i];
+    if (e <= 0) return o > 0 ? "#000000" : "#ffffff";  // samples where the pdf is zero: black
+    if (e < kPooledBelow) return "#c8c8c8";            // pooled by the test: not shown bin by bin
+    return color_at(kDiverging, 0.5 + (o - e) / std::sqrt(e) / (2 * kResidualClip));
+  };
+  std::string svg = cell_map(observed, [&](int i) { return color_at(kSequential, c.observed[i] / scale); });
+  svg += cell_map(expected, [&](int i) { return color_at(kSequential, c.expected[i] / scale); });
+  svg += cell_map(residual, residual_color);
+  const std::string space = c.binning.kind() == BinningKind::sphere ? "theta (deg)" : "theta in lobe space (deg)";
+  svg += axes(observed, c.binning, c.binning.name() + " bins: observed");
+  svg += axes(expected, c.binning, c.binning.name() + " bins: " + c.expected_label);
+  svg += axes(residual, c.binning, "(observed - expected) / sqrt(expected)");
+  svg += fmt::format(R"~(<text x="{}" y="{}" text-anchor="middle" font-size="10" transform="rotate(-90 {} {})">{}</text>)~",
+                     observed.x - 32, observed.y + observed.height() / 2, observed.x - 32,
+                     observed.y + observed.height() / 2, space);
+  const double bar_y = base.y + base.height() + 36;
+  svg += colorbar(observed.x, bar_y, 2 * base.width() + kGap, "sequential", "0", fmt::format("{:.4g}", scale),
+                  "counts per bin (both panels)");
+  svg += colorbar(residual.x, bar_y, base.width(), "diverging", "-4", "+4", "grey: pooled (expected < 5); black: pdf 0");
+  return svg + "\n";
+}
+
+}  // namespace
+
+std::string histogram_figure_svg(const std::string& title, const std::string& subtitle,
+                                 const std::vector<BinnedComparison>& comparisons) {
+  const std::vector<std::string> lines = subtitle_lines(subtitle);
+  const Layout layout = layout_rows(comparisons, lines.size());
+  std::string svg = svg_header(layout, title, lines);
+  for (std::size_t k = 0; k < comparisons.size(); ++k) svg += comparison_row(comparisons[k], layout.rows[k]);
   return svg + "</svg>\n";
 }
 

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <optional>
 #include <stdexcept>
 
@@ -70,27 +71,30 @@ double AnalyticSmith::vndf(const Vec3<double>& w, const Vec3<double>& m) const {
   return G1(w) * wm * D(m) / w.z();
 }
 
-AnalyticSmith analytic_reference(const microgeom::Heightfield& field, std::string* source) {
-  const auto& md = field.metadata;
-  const auto ax = md.find("alpha_x"), ay = md.find("alpha_y"), ref = md.find("reference_ndf");
-  if (ax != md.end() && ay != md.end()) {
-    // Stated roughness that is not a number is an error, not a reason to fit silently.
-    const auto alpha = [](const std::string& key, const std::string& text) {
-      const std::optional<double> v = reader::parse_finite_double(text);
-      if (!v || !(*v > 0))
-        throw std::invalid_argument(fmt::format("heightmap attribute microsim.{} = {} is not a finite number > 0",
-                                                key, reader::quote_excerpt(text)));
-      return *v;
-    };
-    if (ref != md.end() && ref->second != "ggx" && ref->second != "beckmann")
-      throw std::invalid_argument(fmt::format("heightmap attribute microsim.reference_ndf = {} is neither 'ggx' nor "
-                                              "'beckmann'", reader::quote_excerpt(ref->second)));
-    const AnalyticNdf ndf = (ref != md.end() && ref->second == "beckmann") ? AnalyticNdf::beckmann : AnalyticNdf::ggx;
-    const double alpha_x = alpha("alpha_x", ax->second), alpha_y = alpha("alpha_y", ay->second);
-    if (source) *source = "metadata";
-    return AnalyticSmith(ndf, alpha_x, alpha_y);
-  }
-  // GGX fit from the median |slope| per axis.
+namespace {
+
+// The reference stated in a heightmap's metadata (alpha_x, alpha_y, reference_ndf). Stated roughness that
+// is not a number is an error, not a reason to fit silently.
+AnalyticSmith stated_reference(const std::map<std::string, std::string>& md) {
+  const auto alpha = [&](const std::string& key) {
+    const std::string& text = md.at(key);
+    const std::optional<double> v = reader::parse_finite_double(text);
+    if (!v || !(*v > 0))
+      throw std::invalid_argument(fmt::format("heightmap attribute microsim.{} = {} is not a finite number > 0", key,
+                                              reader::quote_excerpt(text)));
+    return *v;
+  };
+  const auto ref = md.find("reference_ndf");
+  if (ref != md.end() && ref->second != "ggx" && ref->second != "beckmann")
+    throw std::invalid_argument(fmt::format("heightmap attribute microsim.reference_ndf = {} is neither 'ggx' nor "
+                                            "'beckmann'", reader::quote_excerpt(ref->second)));
+  const AnalyticNdf ndf = (ref != md.end() && ref->second == "beckmann") ? AnalyticNdf::beckmann : AnalyticNdf::ggx;
+  const double alpha_x = alpha("alpha_x"), alpha_y = alpha("alpha_y");
+  return AnalyticSmith(ndf, alpha_x, alpha_y);
+}
+
+// A GGX fit from the median |slope| per axis (the |x-slope| of GGX has median alpha_x / sqrt(3)).
+AnalyticSmith fitted_reference(const microgeom::Heightfield& field) {
   const int n = field.resolution();
   std::vector<float> sx(field.triangle_count()), sy(field.triangle_count());
   tbb::parallel_for(0, n, [&](int j) {
@@ -109,8 +113,20 @@ AnalyticSmith analytic_reference(const microgeom::Heightfield& field, std::strin
     return double(*mid);
   };
   const double alpha_x = std::sqrt(3.0) * median(sx), alpha_y = std::sqrt(3.0) * median(sy);
-  if (source) *source = "fitted";
   return AnalyticSmith(AnalyticNdf::ggx, std::max(alpha_x, kMinAlpha), std::max(alpha_y, kMinAlpha));
+}
+
+}  // namespace
+
+AnalyticSmith analytic_reference(const microgeom::Heightfield& field, std::string* source) {
+  if (field.metadata.count("alpha_x") && field.metadata.count("alpha_y")) {
+    AnalyticSmith stated = stated_reference(field.metadata);
+    if (source) *source = "metadata";
+    return stated;
+  }
+  AnalyticSmith fitted = fitted_reference(field);
+  if (source) *source = "fitted";
+  return fitted;
 }
 
 // ---- empirical -------------------------------------------------------------------------------------------

@@ -27,6 +27,7 @@
 #include "microgeom/ellipsoid.h"
 #include "microgeom/ellipsoid_mesh.h"
 #include "stats/binning.h"
+#include "stats/direction_binner.h"  // FastDirectionBinner (the tracers' binning kernel; it was declared here)
 #include "trace/embree.h"
 #include "trace/quadric.h"
 
@@ -40,46 +41,6 @@ namespace microsim {
 
 inline constexpr std::uint64_t kRaysPerBlock = 4096;
 inline constexpr double kBeamMargin = 1.0 + 1e-3;  // beam radius / silhouette radius: covers round-off
-
-// DirectionBinning::bin_of, made cheap for the tracer's inner loop. bin_of normalises the direction,
-// maps it to its parameter space (u = w for sphere bins, u = normalize(wx/ax, wy/ay, wz) for lobe bins),
-// and takes row = floor((z_max - u.z) / dz), col = floor(atan2(u.y, u.x) / dphi). Here: the column comes
-// from (x, y) of the unnormalised point (only its direction matters) by a polynomial arctangent
-// (Abramowitz & Stegun 1964, eq. 4.4.49: |error| <= 2e-8 rad on [0, 1]) checked against the
-// precomputed sector edges by cross-product signs; the row from u.z computed with one square root and
-// one division. Whenever the point is within a relative 1e-9 of a row edge or 1e-12 of a column edge,
-// at the pole, or the binning is one it does not specialise (reflected-direction lobes, fewer than 8
-// columns), bin_of itself decides: the result always equals bin_of (tested on millions of directions,
-// edges included).
-//
-// bin_floats() bins a batch of single-precision directions (the tracer's Embree normals) in two passes:
-// a branch-free pass in float (8 at a time with AVX2 + FMA where the CPU has them, else 4 with SSE2
-// intrinsics, then scalar) computes the fractional row index
-// r = (z_max - u.z) / dz and column index c = phi / dphi with absolute errors (in bin widths) below
-// 6e-7 x rows and 4e-7 x cols (float round-off of the normalisation, the arctangent polynomial of
-// A&S 4.4.49 with |error| <= 2e-8 rad, and the octant map); a direction whose r lies within
-// 1e-5 x rows of an integer, or c within 1e-5 x cols (guard bands over 16 times those errors), or that is
-// degenerate or near under/overflow, is then binned by bin_of itself (about 2e-5 (rows + cols) of all
-// directions; beyond 2500 rows the bands would exceed a twentieth of a bin and bin_of does all). The
-// result equals bin_of(Vec3<double>(x, y, z)) exactly (tested like operator()).
-class FastDirectionBinner {
-public:
-  explicit FastDirectionBinner(const DirectionBinning& binning);
-  // The bin of a direction, or -1 where bin_of returns nullopt (a plain int: no std::optional in the
-  // inner loop).
-  int operator()(const Vec3<double>& direction) const;
-  // bins[i] = the bin of (x[i], y[i], z[i]) for i < n, or -1 where bin_of returns nullopt.
-  void bin_floats(const float* x, const float* y, const float* z, int n, int* bins) const;
-
-private:
-  int exact(const Vec3<double>& direction) const { return binning_->bin_of(direction).value_or(-1); }
-  const DirectionBinning* binning_;
-  bool lobe_ = false, exact_only_ = false, float_exact_only_ = false;
-  double inv_ax_ = 1, inv_ay_ = 1, z_min_ = -1, z_max_ = 1, inv_dz_ = 1, cols_per_radian_ = 1;
-  int rows_ = 1, cols_ = 2;
-  float row_guard_ = 0.5f, col_guard_ = 0.5f;  // guard bands of bin_floats, in bin widths
-  std::vector<double> edge_cos_, edge_sin_;  // cols + 1 sector edges (edge cols = edge 0)
-};
 
 // The ellipsoid in an Embree scene: exact quadric (mesh_level < 0) or mesh of that level.
 class EllipsoidTarget {

@@ -1,5 +1,7 @@
 #include "validate/compare.h"
 
+#include "validate/battery.h"
+
 #include "core/random.h"
 #include "validate/sample_io.h"
 #include "core/strict_parse.h"
@@ -42,11 +44,36 @@ double noise_floor_tv(std::span<const double> probability, std::uint64_t hits) {
   return sum;
 }
 
+namespace {
+// Goodness of fit of one binning's traced counts against the bin probabilities of D_v (remainder cell:
+// the hits outside the bins), and its total-variation distance.
+TraceFit fit_binning(const DirectionBinning& b, std::span<const std::uint64_t> counts, std::uint64_t hits,
+                     std::optional<std::uint64_t> unbinned, const BinIntegrals& bins, double per_test) {
+  TraceFit fit;
+  fit.binning = b.name();
+  fit.total_variation = total_variation(counts, hits, bins.probability);
+  fit.noise_floor_tv = noise_floor_tv(bins.probability, hits);
+  fit.chi2.significance = per_test;
+  if (hits == 0) {
+    fit.chi2.reason = "no hits";
+    return fit;
+  }
+  std::vector<double> observed(counts.begin(), counts.end());
+  const std::uint64_t binned = std::accumulate(counts.begin(), counts.end(), std::uint64_t(0));
+  observed.push_back(double(unbinned ? *unbinned : hits - binned));
+  ChiSquareOptions chi;
+  chi.significance = per_test;
+  chi.describe_cell = [&b](int bin) { return bin < b.size() ? b.describe_bin(bin) : std::string("remainder (outside the bins)"); };
+  fit.chi2 = goodness_of_fit(observed, battery::with_remainder(bins), double(hits), chi);
+  return fit;
+}
+}  // namespace
+
 TraceAnalysis analyse_against_vndf(TracedHistogram& h, const GGX<double>& ggx, const Vec3<double>& wi,
                                    std::span<const std::uint64_t> unbinned, double significance) {
   if (h.binnings.empty()) throw std::invalid_argument("analyse_against_vndf: no binning");
-  const int rows = h.binnings.front().rows();
-  const auto ref = vndf_reference(SampleDomain::microfacet_normal, ggx, wi, rows);
+  const auto ref = vndf_reference(SampleDomain::microfacet_normal, ggx, wi, h.binnings.front().rows());
+  const std::vector<ReferenceBins> reference = ref->binned();
   TraceAnalysis a;
   a.significance = significance;
   h.probability.assign(h.binnings.size(), {});
@@ -55,28 +82,13 @@ TraceAnalysis analyse_against_vndf(TracedHistogram& h, const GGX<double>& ggx, c
   double p_min = 1;
   for (std::size_t k = 0; k < h.binnings.size(); ++k) {
     const DirectionBinning& b = h.binnings[k];
-    const BinIntegrals& bi = b.kind() == BinningKind::sphere ? ref->sphere_probability : ref->lobe_probability;
-    const DirectionBinning& rb = b.kind() == BinningKind::sphere ? ref->sphere : ref->lobe;
-    if (rb.size() != b.size()) throw std::invalid_argument("analyse_against_vndf: binning mismatch");
-    h.probability[k] = bi.probability;
-    TraceFit fit;
-    fit.binning = b.name();
-    fit.total_variation = total_variation(h.counts[k], h.hits, bi.probability);
-    fit.noise_floor_tv = noise_floor_tv(bi.probability, h.hits);
-    if (h.hits > 0) {
-      std::vector<double> observed(h.counts[k].begin(), h.counts[k].end());
-      std::vector<double> expected = bi.probability;
-      const std::uint64_t binned = std::accumulate(h.counts[k].begin(), h.counts[k].end(), std::uint64_t(0));
-      observed.push_back(double(k < unbinned.size() ? unbinned[k] : h.hits - binned));
-      expected.push_back(std::max(0.0, 1.0 - bi.total));
-      ChiSquareOptions chi;
-      chi.significance = per_test;
-      chi.describe_cell = [&b](int bin) { return bin < b.size() ? b.describe_bin(bin) : std::string("remainder (outside the bins)"); };
-      fit.chi2 = goodness_of_fit(observed, expected, double(h.hits), chi);
-    } else {
-      fit.chi2.reason = "no hits";
-      fit.chi2.significance = per_test;
-    }
+    const auto same_kind = [&b](const ReferenceBins& r) { return r.binning.kind() == b.kind(); };
+    const auto r = std::find_if(reference.begin(), reference.end(), same_kind);
+    if (r == reference.end() || r->binning.size() != b.size())
+      throw std::invalid_argument("analyse_against_vndf: binning mismatch");
+    h.probability[k] = r->probability.probability;
+    const auto outside = k < unbinned.size() ? std::optional<std::uint64_t>(unbinned[k]) : std::nullopt;
+    TraceFit fit = fit_binning(b, h.counts[k], h.hits, outside, r->probability, per_test);
     p_min = std::min(p_min, fit.chi2.p_value);
     a.rejected = a.rejected || fit.chi2.rejected;
     a.fits.push_back(std::move(fit));
@@ -164,64 +176,6 @@ void check_configuration(const TracedHistogram& traced, const GGX<double>& ggx, 
   if (traced.hits == 0) throw std::invalid_argument("the traced histogram has no hits");
 }
 
-// The samples' histograms in the traced histogram's binnings, each with a remainder cell (failed samples or
-// directions outside the binning's parameter space).
-struct TraceBinCounts {
-  std::vector<std::vector<double>> sampled;
-  std::uint64_t samples = 0, failed = 0, outside = 0;
-};
-
-// Streams the samples (`drive(visit, chunk_done)`: a sampler's draw, a span or a file) through the traced
-// histogram's binnings, into per-thread integer histograms (exact sums: independent of the thread count).
-// FastDirectionBinner gives exactly DirectionBinning::bin_of, three times faster.
-template <class Drive>
-TraceBinCounts bin_for_trace(const TracedHistogram& traced, const ValidationOptions& options, Drive&& drive) {
-  const std::size_t nk = traced.binnings.size();
-  std::vector<FastDirectionBinner> binners;
-  for (const DirectionBinning& b : traced.binnings) binners.emplace_back(b);
-  struct Local {
-    std::vector<std::vector<std::uint64_t>> counts;
-    std::uint64_t samples = 0, failed = 0, outside = 0;
-  };
-  tbb::enumerable_thread_specific<Local> locals([&] {
-    Local l;
-    l.counts.resize(nk);
-    for (std::size_t k = 0; k < nk; ++k) l.counts[k].assign(std::size_t(traced.binnings[k].size()) + 1, 0);
-    return l;
-  });
-  drive([&](const SampleBlockView& block, std::size_t) {
-    Local& l = locals.local();
-    l.samples += block.directions.size();
-    for (std::size_t i = 0; i < block.directions.size(); ++i) {
-      if (!block.valid.empty() && !block.valid[i]) {
-        ++l.failed;
-        for (std::size_t k = 0; k < nk; ++k) ++l.counts[k].back();
-        continue;
-      }
-      const Vec3<double>& w = block.directions[i];
-      if (!w.allFinite() || !(std::abs(w.norm() - 1) <= options.unit_tolerance)) {
-        ++l.outside;
-        continue;
-      }
-      for (std::size_t k = 0; k < nk; ++k) {
-        const int bin = binners[k](w);
-        ++l.counts[k][bin >= 0 ? std::size_t(bin) : l.counts[k].size() - 1];
-      }
-    }
-  });
-  TraceBinCounts c;
-  c.sampled.resize(nk);
-  for (std::size_t k = 0; k < nk; ++k) c.sampled[k].assign(std::size_t(traced.binnings[k].size()) + 1, 0.0);
-  for (const Local& l : locals) {
-    c.samples += l.samples;
-    c.failed += l.failed;
-    c.outside += l.outside;
-    for (std::size_t k = 0; k < nk; ++k)
-      for (std::size_t b = 0; b < l.counts[k].size(); ++b) c.sampled[k][b] += double(l.counts[k][b]);
-  }
-  return c;
-}
-
 // The oracle's counts per binning, with its remainder cell (hits outside the bins).
 std::vector<std::vector<double>> oracle_counts(const TracedHistogram& traced) {
   std::vector<std::vector<double>> oracle(traced.binnings.size());
@@ -267,100 +221,40 @@ void require_trace_samples(std::uint64_t samples, const TracedHistogram& traced)
                            samples, needed);
 }
 
-ValidationReport compare_counts(std::string name, const TraceBinCounts& counts, const GGX<double>& ggx,
-                                const Vec3<double>& wi, const ValidationOptions& options, Precision precision,
-                                const TracedHistogram& traced) {
-  const auto start = std::chrono::steady_clock::now();
-  ValidationReport r;
-  r.sampler = std::move(name);
-  r.domain = SampleDomain::microfacet_normal;
-  r.alpha_x = ggx.alpha_x();
-  r.alpha_y = ggx.alpha_y();
-  r.wi = wi.normalized();
-  r.samples = counts.samples;
-  r.seed = options.seed;
-  r.precision = precision;
-  r.significance = options.significance;
-  r.failed_samples = counts.failed;
-  r.outside_domain = counts.outside;
-  const std::size_t nk = traced.binnings.size();
-  const std::vector<std::vector<double>>& sampled = counts.sampled;
-  const std::vector<std::vector<double>> oracle = oracle_counts(traced);
+// The two-sample test against the oracle in each binning of the traced histogram.
+battery::Expectations oracle_expectations(const TracedHistogram& traced) {
+  std::vector<std::vector<double>> oracle = oracle_counts(traced);
+  battery::Expectations e;
+  for (std::size_t k = 0; k < oracle.size(); ++k)
+    e.push_back(battery::oracle_expectation(traced.binnings[k], std::move(oracle[k])));
+  return e;
+}
 
-  const int n_tests = int(nk);
-  r.statistical_tests = n_tests;
-  r.per_test_significance = sidak_significance(options.significance, n_tests);
-  double p_min = 1;
-  std::vector<ChiSquareResult> results;
-  for (std::size_t k = 0; k < nk; ++k) {
-    const DirectionBinning& b = traced.binnings[k];
-    ChiSquareOptions chi;
-    chi.significance = r.per_test_significance;
-    chi.worst_cells = options.worst_cells;
-    chi.describe_cell = [&b](int bin) { return bin < b.size() ? b.describe_bin(bin) : std::string("remainder (failed or outside the bins)"); };
-    ChiSquareResult c;
-    if (std::accumulate(sampled[k].begin(), sampled[k].end(), 0.0) > 0) {
-      c = two_sample_homogeneity(sampled[k], oracle[k], chi);
-      // The samples' own counts decide the pooling here: near the bound of require_trace_samples the
-      // cells can still pool into one by chance. A test that cannot reject is no pass.
-      if (!c.rejected && c.dof < 1)
-        throw InsufficientData(fmt::format("{} sample(s) pooled into a single cell of the {} bins: the two-sample test "
-                                           "cannot reject; use more samples (or more oracle rays)",
-                                           r.samples, b.name()),
-                               r.samples, r.samples + 1);
-    } else {
-      c.test = "two_sample_homogeneity";
-      c.p_value = 0;
-      c.rejected = true;
-      c.reason = "no sample inside the domain";
-    }
-    c.significance = r.per_test_significance;
-    c.rejected = c.rejected || c.p_value < r.per_test_significance;
-    p_min = std::min(p_min, c.p_value);
-    if (b.kind() == BinningKind::sphere) r.sphere = c;
-    else r.lobe = c;
-    results.push_back(std::move(c));
-    // For figures: the oracle's counts rescaled to the samples' total (remainder cells included in both).
-    const double total_sampled = std::accumulate(sampled[k].begin(), sampled[k].end(), 0.0);
-    const double total_oracle = std::accumulate(oracle[k].begin(), oracle[k].end(), 0.0);
-    BinnedComparison figure{b, std::vector<double>(sampled[k].begin(), sampled[k].begin() + b.size()),
-                            std::vector<double>(oracle[k].begin(), oracle[k].begin() + b.size()),
-                            "traced oracle (rescaled)"};
-    for (double& e : figure.expected) e *= total_oracle > 0 ? total_sampled / total_oracle : 0.0;
-    r.histograms.push_back(std::move(figure));
-  }
-  r.p_value = sidak_adjusted_p(p_min, n_tests);
-  const ChiSquareResult& headline = *std::min_element(
-      results.begin(), results.end(), [](const auto& a, const auto& b) { return a.p_value < b.p_value; });
-  r.statistic = headline.statistic;
-  r.dof = headline.dof;
-
-  r.domain_check.name = "domain";
-  r.domain_check.value = double(r.outside_domain);
-  r.domain_check.passed = r.outside_domain == 0;
-  r.domain_check.detail = fmt::format("{} sample(s) non-finite or with | |w| - 1 | > {}", r.outside_domain,
-                                      options.unit_tolerance);
+// The report of the samples' counts against the oracle's: the two-sample tests and the domain check
+// (the checks against a claimed pdf do not apply).
+ValidationReport oracle_report(const battery::SampleSource& source, const battery::Tally& tally,
+                               const battery::Expectations& expectations, const GGX<double>& ggx,
+                               const Vec3<double>& wi, const ValidationOptions& options) {
+  using namespace battery;
+  ValidationReport r = report_header(source, SampleDomain::microfacet_normal, ggx, wi.normalized(), tally, options);
+  add_binned_tests(r, expectations, tally, options);
   const std::string not_here = "not applicable: comparison with the traced oracle (two-sample test only)";
-  for (SubTest* t : {&r.weight, &r.pdf, &r.integral}) {
-    t->applicable = false;
-    t->statistical = false;
-    t->passed = true;
-    t->detail = not_here;
-  }
-  r.weight.name = "weight_mean";
-  r.pdf.name = "returned_pdf";
-  r.integral.name = "pdf_integral";
+  r.checks = {domain_check(tally, options), not_applicable("pdf_integral", not_here),
+              not_applicable("returned_pdf", not_here), not_applicable("weight_mean", not_here)};
+  decide(r, HeadlineTies::first_binning);
+  return r;
+}
 
-  if (!r.domain_check.passed) r.failures.push_back(r.domain_check.detail);
-  for (std::size_t k = 0; k < nk; ++k) {
-    const ChiSquareResult& c = results[k];
-    if (c.rejected) {
-      r.failures.push_back(fmt::format("two-sample chi-square against the traced oracle in {} bins rejects: p = {:.3g} < {:.3g}{}",
-                                       traced.binnings[k].name(), c.p_value, r.per_test_significance,
-                                       c.reason.empty() ? "" : " (" + c.reason + ")"));
-    }
-  }
-  r.passed = r.failures.empty();
+// Tallies the samples of `source` in the traced histogram's binnings and compares them with the oracle.
+// `require` runs on the number of samples seen, before any test.
+template <class Require>
+ValidationReport compare_source(const battery::SampleSource& source, const GGX<double>& ggx, const Vec3<double>& wi,
+                                const ValidationOptions& options, const TracedHistogram& traced, Require&& require) {
+  const auto start = std::chrono::steady_clock::now();
+  const battery::Expectations expectations = oracle_expectations(traced);
+  const battery::Tally tally = battery::tally_samples(source, battery::binnings_of(expectations), options);
+  require(tally.samples);
+  ValidationReport r = oracle_report(source, tally, expectations, ggx, wi, options);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return r;
 }
@@ -386,15 +280,10 @@ ValidationReport compare_sampler_to_trace(const SamplerInfo& sampler, const GGX<
     throw std::invalid_argument(fmt::format(
         "sampler '{}' samples reflected directions; the traced oracle measures microfacet normals", sampler.name));
   }
-  const auto start = std::chrono::steady_clock::now();
   check_configuration(traced, ggx, wi);
   require_trace_samples(options.samples, traced);
-  const TraceBinCounts counts = bin_for_trace(traced, options, [&](const auto& visit) {
-    for_each_drawn_block(sampler, ggx, wi, options, visit);
-  });
-  ValidationReport r = compare_counts(std::string(sampler.name), counts, ggx, wi, options, options.precision, traced);
-  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return r;
+  return compare_source(battery::drawn_samples(sampler, ggx, wi, options), ggx, wi, options, traced,
+                        [](std::uint64_t) {});
 }
 
 namespace {
@@ -403,12 +292,8 @@ ValidationReport compare_stream(Stream& stream, std::string source, const GGX<do
                                 const ValidationOptions& options, const TracedHistogram& traced) {
   check_configuration(traced, ggx, wi);
   require_oracle_hits(traced);  // before reading
-  const TraceBinCounts counts =
-      bin_for_trace(traced, options, [&](const auto& visit) { for_each_block(stream, visit); });
-  require_trace_samples(counts.samples, traced);
-  ValidationOptions o = options;
-  o.samples = counts.samples;
-  return compare_counts(std::move(source), counts, ggx, wi, o, Precision::float64, traced);
+  return compare_source(battery::given_samples(stream, std::move(source)), ggx, wi, options, traced,
+                        [&traced](std::uint64_t seen) { require_trace_samples(seen, traced); });
 }
 }  // namespace
 

@@ -206,8 +206,9 @@ public:
   Sweep(const StabilityGrid& grid, std::span<const SamplerInfo> samplers, bool include_functions)
       : samplers_(samplers), include_functions_(include_functions) {
     table_.grid = grid;
-    for (const SamplerInfo& s : samplers_) subjects_.push_back({std::string(s.name), true, s.negative_control});
-    for (const AnalyticFunction& f : kFunctions) subjects_.push_back({f.name, false, false});
+    for (const SamplerInfo& s : samplers_)
+      subjects_.push_back({std::string(s.name), true, s.negative_control, s.returned_pdf_check});
+    for (const AnalyticFunction& f : kFunctions) subjects_.push_back({f.name, false, false, ReturnedPdfCheck::everywhere});
     rows_.resize(subjects_.size() * kStabilityRegimeCount);
     for (std::size_t i = 0; i < subjects_.size(); ++i)
       for (int r = 0; r < kStabilityRegimeCount; ++r) {
@@ -215,6 +216,7 @@ public:
         row.subject = subjects_[i].name;
         row.is_sampler = subjects_[i].is_sampler;
         row.negative_control = subjects_[i].negative_control;
+        row.returned_pdf_check = subjects_[i].returned_pdf_check;
         row.regime = StabilityRegime(r);
       }
   }
@@ -237,6 +239,7 @@ private:
   struct Subject {
     std::string name;
     bool is_sampler, negative_control;
+    ReturnedPdfCheck returned_pdf_check;
   };
 
   StabilityMetrics& row(std::size_t subject, StabilityRegime r) {
@@ -271,16 +274,16 @@ private:
     }
 
     const auto samplers = samplers_;
-    const SamplerInfo* heitz2018 = find_sampler("heitz2018");
-    const SamplerInfo* ndf = find_sampler("ndf");
+    const SamplerInfo* vndf = &reference_sampler(ClaimedPdf::visible_normals);
+    const SamplerInfo* ndf = &reference_sampler(ClaimedPdf::ndf_cosine);
     for (const Vec2<double>& u : us) {
       const Config cfg{ax, ay, theta, phi, u};
       const StabilityRegime regime = classify(ax, ay, theta, is_u_end(u.x()) || is_u_end(u.y()));
       for (std::size_t k = 0; k < samplers.size(); ++k)
         evaluate_sampler(k, samplers[k], regime, cfg, ggx_d, wi_d, ggx_f, ggx_ref, wi_f, wi_ref);
-      // Functions of (wi, m): at the visible normals of heitz2018 and at the normals of ndf (which
-      // include normals that wi does not see).
-      for (const SamplerInfo* source : {heitz2018, ndf}) {
+      // Functions of (wi, m): at the visible normals of the reference VNDF sampler and at the normals of
+      // the reference NDF sampler (which include normals that wi does not see).
+      for (const SamplerInfo* source : {vndf, ndf}) {
         if (!include_functions_) break;
         const auto s = source->sample_double(ggx_d, wi_d, u);
         if (!s || !s->direction.allFinite()) continue;
@@ -381,6 +384,21 @@ private:
     raise(r.rel_float_double, r.worst_rel_config, symmetric_relative(double(rf->pdf), rr->pdf), describe);
   }
 
+  // Sensitivity of fn (double, at the float inputs) to one-ulp errors of the view and of the second
+  // argument, added (first order): the largest change over the 8 nudge patterns of each.
+  static double nudge_spread(const AnalyticFunction& fn, const GGX<double>& ggx_ref, const Vec3<float>& wi_f,
+                             const Vec3<float>& x_f, const Vec3<double>& wi_ref, double vr) {
+    double spread_wi = 0, spread_x = 0;
+    for (int pattern = 0; pattern < 8; ++pattern) {
+      const double vw = fn.d(ggx_ref, nudged(wi_f, pattern).cast<double>(), x_f.cast<double>());
+      if (std::isfinite(vw)) spread_wi = std::max(spread_wi, std::abs(vw - vr));
+      if (fn.input == Input::view_only) continue;
+      const double vx = fn.d(ggx_ref, wi_ref, nudged(x_f, pattern).cast<double>());
+      if (std::isfinite(vx)) spread_x = std::max(spread_x, std::abs(vx - vr));
+    }
+    return spread_wi + spread_x;
+  }
+
   void evaluate_function(std::size_t k, StabilityRegime regime, const Config& cfg, const GGX<double>& ggx_d,
                          const Vec3<double>& wi_d, const Vec3<double>& x_d, const GGX<float>& ggx_f,
                          const GGX<double>& ggx_ref, const Vec3<float>& wi_f, const Vec3<double>& wi_ref) {
@@ -413,16 +431,7 @@ private:
       return;
     }
     raise(r.rel_float_double, r.worst_rel_config, symmetric_relative(double(vf), vr), describe);
-    // Sensitivity to one-ulp errors of the view and of the second argument, added (first order).
-    double spread_wi = 0, spread_x = 0;
-    for (int pattern = 0; pattern < 8; ++pattern) {
-      const double vw = fn.d(ggx_ref, nudged(wi_f, pattern).cast<double>(), x_f.cast<double>());
-      if (std::isfinite(vw)) spread_wi = std::max(spread_wi, std::abs(vw - vr));
-      if (fn.input == Input::view_only) continue;
-      const double vx = fn.d(ggx_ref, wi_ref, nudged(x_f, pattern).cast<double>());
-      if (std::isfinite(vx)) spread_x = std::max(spread_x, std::abs(vx - vr));
-    }
-    const double spread = spread_wi + spread_x;
+    const double spread = nudge_spread(fn, ggx_ref, wi_f, x_f, wi_ref, vr);
     // Differences below float's smallest subnormal cannot be represented: an absolute term of 2^-149.
     const double ratio = cond_ratio(double(vf), vr, double(std::numeric_limits<float>::epsilon()), spread,
                                     double(std::numeric_limits<float>::denorm_min()));
@@ -441,49 +450,51 @@ private:
 
   // Non-finite or degenerate inputs: samplers must return nullopt or a finite sample, functions a
   // finite value (0 by convention).
+  inline static const std::vector<Vec3<double>> kBadVectors = {
+      {kNaN, 0, 1}, {0, 0, kNaN}, {kInf, 0, 1}, {-kInf, 0.5, 0.5}, {0, 0, kInf}, {0, 0, -kInf},
+      {0, 0, 0},  // zero vector: not a direction
+  };
   void run_non_finite() {
-    const std::vector<Vec3<double>> bad_vectors = {
-        {kNaN, 0, 1}, {0, 0, kNaN}, {kInf, 0, 1}, {-kInf, 0.5, 0.5}, {0, 0, kInf}, {0, 0, -kInf},
-        {0, 0, 0},  // zero vector: not a direction
-    };
-    const std::vector<Vec2<double>> bad_us = {{kNaN, 0.5}, {0.5, kNaN}, {kInf, 0.5}, {-kInf, 0.5}, {0.5, kInf}};
-    const Vec3<double> good_w = view_direction(60, 30);
-    const Vec3<double> good_m = view_direction(20, 200);
-    const auto samplers = samplers_;
     for (double alpha : {1e-4, 0.3, 10.0}) {
       const GGX<double> gd(alpha, alpha);
       const GGX<float> gf{float(alpha), float(alpha)};
-      for (std::size_t k = 0; k < samplers.size(); ++k) {
-        StabilityMetrics& r = row(k, StabilityRegime::non_finite_input);
-        auto check = [&](const Vec3<double>& w, const Vec2<double>& u) {
-          ++r.evaluations;
-          const auto sd = samplers[k].sample_double(gd, w, u);
-          const auto sf = samplers[k].sample_float(gf, w.cast<float>(), u.cast<float>());
-          if (!sd) ++r.empty_double;
-          else if (!sd->direction.allFinite() || !std::isfinite(sd->pdf)) ++r.non_finite_double;
-          if (!sf) ++r.empty_float;
-          else if (!sf->direction.allFinite() || !std::isfinite(sf->pdf)) ++r.non_finite_float;
-        };
-        for (const Vec3<double>& w : bad_vectors) check(w, Vec2<double>(0.25, 0.75));
-        for (const Vec2<double>& u : bad_us) check(good_w, u);
-      }
-      for (std::size_t k = 0; k < std::size(kFunctions) && include_functions_; ++k) {
-        const AnalyticFunction& fn = kFunctions[k];
-        StabilityMetrics& r = row(samplers.size() + k, StabilityRegime::non_finite_input);
-        auto check = [&](const Vec3<double>& w, const Vec3<double>& x) {
-          ++r.evaluations;
-          const double vd = fn.d(gd, w, x);
-          const float vf = fn.f(gf, w.cast<float>(), x.cast<float>());
-          if (!std::isfinite(vd)) ++r.non_finite_double;
-          else if (vd < 0) ++r.negative;
-          if (!std::isfinite(vf)) ++r.non_finite_float;
-          else if (vf < 0) ++r.negative;
-        };
-        for (const Vec3<double>& bad : bad_vectors) {
-          check(bad, fn.input == Input::slopes ? Vec3<double>(0.1, 0.2, 0) : good_m);
-          if (fn.input != Input::view_only) check(good_w, bad);
-        }
-      }
+      for (std::size_t k = 0; k < samplers_.size(); ++k) sampler_on_non_finite(k, gd, gf);
+      for (std::size_t k = 0; k < std::size(kFunctions) && include_functions_; ++k) function_on_non_finite(k, gd, gf);
+    }
+  }
+
+  void sampler_on_non_finite(std::size_t k, const GGX<double>& gd, const GGX<float>& gf) {
+    const std::vector<Vec2<double>> bad_us = {{kNaN, 0.5}, {0.5, kNaN}, {kInf, 0.5}, {-kInf, 0.5}, {0.5, kInf}};
+    StabilityMetrics& r = row(k, StabilityRegime::non_finite_input);
+    const SamplerInfo& sampler = samplers_[k];
+    auto check = [&](const Vec3<double>& w, const Vec2<double>& u) {
+      ++r.evaluations;
+      const auto sd = sampler.sample_double(gd, w, u);
+      const auto sf = sampler.sample_float(gf, w.cast<float>(), u.cast<float>());
+      if (!sd) ++r.empty_double;
+      else if (!sd->direction.allFinite() || !std::isfinite(sd->pdf)) ++r.non_finite_double;
+      if (!sf) ++r.empty_float;
+      else if (!sf->direction.allFinite() || !std::isfinite(sf->pdf)) ++r.non_finite_float;
+    };
+    for (const Vec3<double>& w : kBadVectors) check(w, Vec2<double>(0.25, 0.75));
+    for (const Vec2<double>& u : bad_us) check(view_direction(60, 30), u);
+  }
+
+  void function_on_non_finite(std::size_t k, const GGX<double>& gd, const GGX<float>& gf) {
+    const AnalyticFunction& fn = kFunctions[k];
+    StabilityMetrics& r = row(samplers_.size() + k, StabilityRegime::non_finite_input);
+    auto check = [&](const Vec3<double>& w, const Vec3<double>& x) {
+      ++r.evaluations;
+      const double vd = fn.d(gd, w, x);
+      const float vf = fn.f(gf, w.cast<float>(), x.cast<float>());
+      if (!std::isfinite(vd)) ++r.non_finite_double;
+      else if (vd < 0) ++r.negative;
+      if (!std::isfinite(vf)) ++r.non_finite_float;
+      else if (vf < 0) ++r.negative;
+    };
+    for (const Vec3<double>& bad : kBadVectors) {
+      check(bad, fn.input == Input::slopes ? Vec3<double>(0.1, 0.2, 0) : view_direction(20, 200));
+      if (fn.input != Input::view_only) check(view_direction(60, 30), bad);
     }
   }
 
@@ -550,49 +561,37 @@ StabilityTable run_stability_sweep(const StabilityGrid& grid, std::span<const Sa
   return Sweep(grid, samplers, include_functions).run();
 }
 
-StabilityBound stability_bound(const StabilityMetrics& row) {
+namespace {
+
+// Bounds of a sampler's row (not the non-finite regime, not the negative control).
+void sampler_bound(const StabilityMetrics& row, StabilityBound& b) {
   using R = StabilityRegime;
-  StabilityBound b;
-  b.norm_double = 1e-15;  // a few ulps: every sampler normalises its result last
-  b.norm_float = 1e-6;    // issue 2 section 5
-  if (row.regime == R::non_finite_input) {
-    b.require_empty = row.is_sampler;  // non-finite or zero view, non-finite u: nullopt
-    return b;
+  const bool extreme_view = extreme_view_regime(row.regime);
+  // Float against double at the same inputs. A few float ulps where nothing is extreme; a 1:1000
+  // stretch or a grazing view amplifies absolute rounding errors of the hemisphere configuration
+  // (section "bounds" of docs/stability.md).
+  b.angle_float_double = 2e-6;
+  b.rel_float_double = 5e-6;
+  if (row.regime == R::anisotropic) {
+    b.angle_float_double = 2e-5;
+    b.rel_float_double = 2e-5;
   }
-  if (row.is_sampler && row.negative_control) {
-    // The negative control is wrong in distribution: only finiteness and unit length are asserted.
-    b.angle_float_double = b.rel_float_double = b.rel_claimed = b.cond_claimed = kInf;
+  if (extreme_view) {
+    b.angle_float_double = 2e-5;
+    b.rel_float_double = 5e-5;
+  }
+  // Returned against claimed pdf (double): within 16 units of the claimed pdf's own conditioning
+  // everywhere; plainly relative (1e-12) in the moderate regime, where nothing is ill-conditioned.
+  b.cond_claimed = 16;
+  b.rel_claimed = row.regime == R::moderate ? 1e-12 : kInf;
+  if (row.returned_pdf_check == ReturnedPdfCheck::except_near_back_reflection && row.regime != R::moderate) {
     b.claimed_unverifiable_at_u_ends = true;
-    b.allow_empty = true;
-    b.note = "negative control: only NaN-free, non-negative, unit length";
-    return b;
+    b.note = "reflected directions within 2^-20 of -wi cannot be checked against the claimed pdf";
   }
-  if (row.is_sampler) {
-    const bool extreme_view = extreme_view_regime(row.regime);
-    // Float against double at the same inputs. A few float ulps where nothing is extreme; a 1:1000
-    // stretch or a grazing view amplifies absolute rounding errors of the hemisphere configuration
-    // (section "bounds" of docs/stability.md).
-    b.angle_float_double = 2e-6;
-    b.rel_float_double = 5e-6;
-    if (row.regime == R::anisotropic) {
-      b.angle_float_double = 2e-5;
-      b.rel_float_double = 2e-5;
-    }
-    if (extreme_view) {
-      b.angle_float_double = 2e-5;
-      b.rel_float_double = 5e-5;
-    }
-    // Returned against claimed pdf (double): within 16 units of the claimed pdf's own conditioning
-    // everywhere; plainly relative (1e-12) in the moderate regime, where nothing is ill-conditioned.
-    b.cond_claimed = 16;
-    b.rel_claimed = row.regime == R::moderate ? 1e-12 : kInf;
-    if (row.subject == "bounded2023" && row.regime != R::moderate) {
-      b.claimed_unverifiable_at_u_ends = true;
-      b.note = "reflected directions within 2^-20 of -wi cannot be checked against the claimed pdf";
-    }
-    return b;
-  }
-  // Analytic functions: float within 8 units of the conditioning at the input.
+}
+
+// Bounds of an analytic function's row: float within 8 units of the conditioning at the input.
+void function_bound(const StabilityMetrics& row, StabilityBound& b) {
   b.cond_float_double = 8;
   if (row.subject == "dielectric_bsdf(T)" && extreme_view_regime(row.regime)) {
     b.cond_float_double = 64;
@@ -601,6 +600,27 @@ StabilityBound stability_bound(const StabilityMetrics& row) {
   if (row.subject == "bounded2023_reflection_pdf") {
     b.zero_flips_at_u_ends = true;
     b.note = "the cap test's rounding slack is proportional to the type's eps";
+  }
+}
+
+}  // namespace
+
+StabilityBound stability_bound(const StabilityMetrics& row) {
+  StabilityBound b;
+  b.norm_double = 1e-15;  // a few ulps: every sampler normalises its result last
+  b.norm_float = 1e-6;    // issue 2 section 5
+  if (row.regime == StabilityRegime::non_finite_input) {
+    b.require_empty = row.is_sampler;  // non-finite or zero view, non-finite u: nullopt
+  } else if (row.is_sampler && row.negative_control) {
+    // The negative control is wrong in distribution: only finiteness and unit length are asserted.
+    b.angle_float_double = b.rel_float_double = b.rel_claimed = b.cond_claimed = kInf;
+    b.claimed_unverifiable_at_u_ends = true;
+    b.allow_empty = true;
+    b.note = "negative control: only NaN-free, non-negative, unit length";
+  } else if (row.is_sampler) {
+    sampler_bound(row, b);
+  } else {
+    function_bound(row, b);
   }
   return b;
 }
@@ -673,56 +693,65 @@ std::string stability_table_markdown(const StabilityTable& table) {
   return out;
 }
 
-nlohmann::json stability_table_json(const StabilityTable& table) {
-  nlohmann::json rows = nlohmann::json::array();
-  for (const StabilityMetrics& r : table.rows) {
-    const StabilityBound b = stability_bound(r);
-    auto num = [](double v) -> nlohmann::json { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
-    const std::string violations = stability_violations(r);
-    rows.push_back({
-        {"subject", r.subject},
-        {"sampler", r.is_sampler},
-        {"negative_control", r.negative_control},
-        {"regime", stability_regime_name(r.regime)},
-        {"evaluations", r.evaluations},
-        {"empty_double", r.empty_double},
-        {"empty_float", r.empty_float},
-        {"empty_mismatch", r.empty_mismatch},
-        {"non_finite_double", r.non_finite_double},
-        {"non_finite_float", r.non_finite_float},
-        {"negative", r.negative},
-        {"norm_error_double", num(r.norm_error_double)},
-        {"norm_error_float", num(r.norm_error_float)},
-        {"angle_float_double_rad", num(r.angle_float_double)},
-        {"rel_float_double", num(r.rel_float_double)},
-        {"cond_float_double", num(r.cond_float_double)},
-        {"rel_claimed", num(r.rel_claimed)},
-        {"cond_claimed", num(r.cond_claimed)},
-        {"claimed_unverifiable", r.claimed_unverifiable},
-        {"zero_flips", r.zero_flips},
-        {"claimed_unverifiable_interior_u", r.claimed_unverifiable_interior},
-        {"zero_flips_interior_u", r.zero_flips_interior},
-        {"worst_angle_config", r.worst_angle_config},
-        {"worst_rel_config", r.worst_rel_config},
-        {"worst_cond_config", r.worst_cond_config},
-        {"worst_claimed_config", r.worst_claimed_config},
-        {"bound",
-         {{"norm_double", num(b.norm_double)},
-          {"norm_float", num(b.norm_float)},
-          {"angle_float_double_rad", num(b.angle_float_double)},
-          {"rel_float_double", num(b.rel_float_double)},
-          {"cond_float_double", num(b.cond_float_double)},
-          {"rel_claimed", num(b.rel_claimed)},
-          {"cond_claimed", num(b.cond_claimed)},
+namespace {
+
+nlohmann::json finite_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+nlohmann::json bound_json(const StabilityBound& b) {
+  return {{"norm_double", finite_or_null(b.norm_double)},
+          {"norm_float", finite_or_null(b.norm_float)},
+          {"angle_float_double_rad", finite_or_null(b.angle_float_double)},
+          {"rel_float_double", finite_or_null(b.rel_float_double)},
+          {"cond_float_double", finite_or_null(b.cond_float_double)},
+          {"rel_claimed", finite_or_null(b.rel_claimed)},
+          {"cond_claimed", finite_or_null(b.cond_claimed)},
           {"claimed_unverifiable_at_u_ends", b.claimed_unverifiable_at_u_ends},
           {"zero_flips_at_u_ends", b.zero_flips_at_u_ends},
           {"allow_empty", b.allow_empty},
           {"require_empty", b.require_empty},
-          {"note", b.note}}},
-        {"status", violations.empty() ? "ok" : "fail"},
-        {"violations", violations},
-    });
-  }
+          {"note", b.note}};
+}
+
+nlohmann::json row_json(const StabilityMetrics& r) {
+  const std::string violations = stability_violations(r);
+  return {
+      {"subject", r.subject},
+      {"sampler", r.is_sampler},
+      {"negative_control", r.negative_control},
+      {"regime", stability_regime_name(r.regime)},
+      {"evaluations", r.evaluations},
+      {"empty_double", r.empty_double},
+      {"empty_float", r.empty_float},
+      {"empty_mismatch", r.empty_mismatch},
+      {"non_finite_double", r.non_finite_double},
+      {"non_finite_float", r.non_finite_float},
+      {"negative", r.negative},
+      {"norm_error_double", finite_or_null(r.norm_error_double)},
+      {"norm_error_float", finite_or_null(r.norm_error_float)},
+      {"angle_float_double_rad", finite_or_null(r.angle_float_double)},
+      {"rel_float_double", finite_or_null(r.rel_float_double)},
+      {"cond_float_double", finite_or_null(r.cond_float_double)},
+      {"rel_claimed", finite_or_null(r.rel_claimed)},
+      {"cond_claimed", finite_or_null(r.cond_claimed)},
+      {"claimed_unverifiable", r.claimed_unverifiable},
+      {"zero_flips", r.zero_flips},
+      {"claimed_unverifiable_interior_u", r.claimed_unverifiable_interior},
+      {"zero_flips_interior_u", r.zero_flips_interior},
+      {"worst_angle_config", r.worst_angle_config},
+      {"worst_rel_config", r.worst_rel_config},
+      {"worst_cond_config", r.worst_cond_config},
+      {"worst_claimed_config", r.worst_claimed_config},
+      {"bound", bound_json(stability_bound(r))},
+      {"status", violations.empty() ? "ok" : "fail"},
+      {"violations", violations},
+  };
+}
+
+}  // namespace
+
+nlohmann::json stability_table_json(const StabilityTable& table) {
+  nlohmann::json rows = nlohmann::json::array();
+  for (const StabilityMetrics& r : table.rows) rows.push_back(row_json(r));
   return {{"total_evaluations", table.total_evaluations()},
           {"violations", table.violation_count()},
           {"grid",

@@ -73,6 +73,7 @@ struct StabilityMetrics {
   std::string subject;           // sampler name ("heitz2018") or function ("GGX::D", "dielectric_bsdf(T)")
   bool is_sampler = false;
   bool negative_control = false;
+  ReturnedPdfCheck returned_pdf_check = ReturnedPdfCheck::everywhere;  // samplers: SamplerInfo's trait
   StabilityRegime regime = StabilityRegime::moderate;
   std::uint64_t evaluations = 0;       // configurations evaluated (each in double and in float)
   std::uint64_t empty_double = 0;      // samplers: nullopt results in double

@@ -1,6 +1,8 @@
 // microsim: the statistical validator of direction samplers (validate.h, docs/validation.md).
 #include "validate/validate.h"
 
+#include "validate/battery.h"
+
 #include "core/block_runner.h"
 #include "core/random.h"
 #include "validate/sample_io.h"
@@ -78,354 +80,31 @@ void for_each_drawn_block_as(SampleResult<T> (*sample)(const GGX<T>&, const Vec3
   if (status.cancelled) throw Cancelled("while sampling");
 }
 
-// ---- per-sample checks and bin counts -------------------------------------------------------------------
+// ---- the battery's stages for the analytic pdf (battery.h) ----------------------------------------------
 
-// Mean and sum of squared deviations of a block (Welford), combined across blocks in order
-// (Chan, Golub, LeVeque 1983).
-struct Moments {
-  double n = 0, mean = 0, m2 = 0;
-  void add(double x) {
-    n += 1;
-    const double d = x - mean;
-    mean += d / n;
-    m2 += d * (x - mean);
-  }
-  void merge(const Moments& o) {
-    if (o.n == 0) return;
-    const double total = n + o.n, d = o.mean - mean;
-    mean += d * o.n / total;
-    m2 += o.m2 + d * d * n * o.n / total;
-    n = total;
-  }
-};
-
-double relative_difference(double a, double b) {
-  if (a == b) return 0.0;  // both 0 included
-  if (!std::isfinite(a) || !std::isfinite(b)) return std::numeric_limits<double>::infinity();
-  return std::abs(a - b) / std::max(std::abs(a), std::abs(b));
-}
-
-// Largest relative change of the claimed pdf when the stored vector w moves by its rounding `step`:
-// rotated by `step` radians along either tangent direction, or its length scaled by 1 +- step. How much
-// of a pdf mismatch the rounding of w alone can explain.
-// The length matters (issue 8, defect 9): the claimed pdf of a reflected direction recovers the half
-// vector from wi + wo, unnormalised, and for nearly opposite grazing directions (alpha 1e-4, theta
-// 89.99 deg: |wi + wo| ~ 1e-7) its tangential component is a difference of two numbers near 1 that is
-// ~1e-11: a length of wi or wo off 1 by one ulp (their rounding) moves m by ~1e-5 relative and D by
-// ~5e-6, although the returned pdf is exact (it matches the sampler run in long double to 1e-15, and the
-// claimed pdf evaluated in long double at the exactly normalised vectors to 1e-8). No formula in double
-// can remove this: the lengths' rounding is in the inputs. So the condition number of the claimed pdf
-// with respect to that rounding enters the tolerance, like the tangential one.
-double rounding_sensitivity(const ReferenceDistribution& ref, const Vec3<double>& w, double claimed, double step) {
-  Vec3<double> t1, t2;
-  orthonormal_basis(w, t1, t2);
-  double s = 0;
-  for (const Vec3<double>& t : {t1, Vec3<double>(-t1), t2, Vec3<double>(-t2)})
-    s = std::max(s, relative_difference(ref.pdf(Vec3<double>((w + step * t).normalized())), claimed));
-  for (const double scale : {1 + step, 1 - step}) s = std::max(s, relative_difference(ref.pdf(Vec3<double>(w * scale)), claimed));
-  return s;
-}
-
-// Expected probabilities with the remainder cell last: the mass the claimed pdf leaves outside the bins,
-// where failed samples (and samples outside the lobe parameter space) are counted.
-std::vector<double> with_remainder(const BinIntegrals& b) {
-  std::vector<double> p = b.probability;
-  p.push_back(std::max(0.0, 1.0 - b.total));
-  return p;
-}
-
-std::string format_direction(const Vec3<double>& w) { return fmt::format("({:.6f}, {:.6f}, {:.6f})", w.x(), w.y(), w.z()); }
-
-// The per-sample checks of one block (reduced in block order) ...
-struct BlockChecks {
-  std::uint64_t samples = 0;
-  Moments weight;
-  double pdf_worst = 0;
-  std::uint64_t pdf_worst_index = 0, pdf_outliers = 0;
-  Vec3<double> worst_direction = Vec3<double>::Zero();
-  double worst_returned = 0;
-  void merge(const BlockChecks& o) {
-    samples += o.samples;
-    weight.merge(o.weight);
-    pdf_outliers += o.pdf_outliers;
-    if (o.pdf_worst > pdf_worst) {
-      pdf_worst = o.pdf_worst;
-      pdf_worst_index = o.pdf_worst_index;
-      worst_direction = o.worst_direction;
-      worst_returned = o.worst_returned;
-    }
-  }
-};
-
-// ... and the bin counts (integers: summed per thread in any order). The last cell of each histogram is
-// the remainder: failed samples, and for lobe bins samples outside the lobe parameter space.
-struct BinCounts {
-  std::vector<std::uint64_t> sphere, lobe;
-  std::uint64_t failed = 0, outside = 0;
-};
-
-// Streams samples through the bins and the per-sample checks of one validation.
-class SampleChecker {
-public:
-  SampleChecker(const ReferenceDistribution& ref, const ValidationOptions& options, Precision precision)
-      : ref_(ref), options_(options),
-        // The stored direction carries the rounding of its precision (a float sample has |dw| ~ 1e-7):
-        // where the claimed pdf is ill-conditioned (a jump, or D at alpha = 1e-3 seen through a
-        // cancelling half vector) that alone can change the analytic pdf by more than the tolerance.
-        direction_rounding_(precision == Precision::float32 ? 2 * 0x1p-24 : 2 * 0x1p-53),
-        pdf_tol_(options.pdf_tolerance > 0             ? options.pdf_tolerance
-                 : precision == Precision::float32 ? kPdfToleranceFloat
-                                                   : kPdfToleranceDouble),
-        back_(ref.wi.z() < 0), wi_front_(back_ ? Vec3<double>(-ref.wi) : ref.wi),
-        counts_([&] {
-          BinCounts c;
-          c.sphere.assign(std::size_t(ref.sphere.size()) + 1, 0);
-          c.lobe.assign(std::size_t(ref.lobe.size()) + 1, 0);
-          return c;
-        }) {}
-
-  double pdf_tolerance() const { return pdf_tol_; }
-
-  void visit(const SampleBlockView& block, std::size_t slot) {
-    BlockChecks& c = chunk_[slot];
-    c = BlockChecks{};
-    c.samples = block.directions.size();
-    const bool has_pdf = !block.pdfs.empty();
-    has_pdf_ = has_pdf;  // the same for every block of a source
-    BinCounts& counts = counts_.local();
-    for (std::size_t k = 0; k < block.directions.size(); ++k)
-      check_sample(block.first + k, block.directions[k], has_pdf ? block.pdfs[k] : 0.0,
-                   block.valid.empty() || block.valid[k], has_pdf, c, counts);
-  }
-
-  void chunk_done(std::size_t blocks) {
-    for (std::size_t b = 0; b < blocks; ++b) total_.merge(chunk_[b]);
-  }
-
-  const BlockChecks& checks() const { return total_; }
-  bool has_pdf() const { return has_pdf_; }
-  BinCounts counts() const {
-    BinCounts all;
-    all.sphere.assign(std::size_t(ref_.sphere.size()) + 1, 0);
-    all.lobe.assign(std::size_t(ref_.lobe.size()) + 1, 0);
-    for (const BinCounts& c : counts_) {
-      for (std::size_t i = 0; i < all.sphere.size(); ++i) all.sphere[i] += c.sphere[i];
-      for (std::size_t i = 0; i < all.lobe.size(); ++i) all.lobe[i] += c.lobe[i];
-      all.failed += c.failed;
-      all.outside += c.outside;
-    }
-    return all;
-  }
-
-private:
-  void check_sample(std::uint64_t i, const Vec3<double>& w, double pdf, bool valid, bool has_pdf, BlockChecks& c,
-                    BinCounts& counts) const {
-    const bool weight_applicable = has_pdf && ref_.domain == SampleDomain::microfacet_normal;
-    if (!valid) {
-      if (weight_applicable) c.weight.add(0.0);  // a failed sample contributes weight 0
-      ++counts.failed;
-      ++counts.sphere.back();
-      ++counts.lobe.back();
-      return;
-    }
-    if (!w.allFinite() || !(std::abs(w.norm() - 1) <= options_.unit_tolerance)) {
-      ++counts.outside;
-      return;
-    }
-    // A finite unit vector always has a sphere bin.
-    const auto s = ref_.sphere.bin_of(w);
-    ++counts.sphere[s ? std::size_t(*s) : counts.sphere.size() - 1];
-    const auto l = ref_.lobe.bin_of(w);
-    ++counts.lobe[l ? std::size_t(*l) : counts.lobe.size() - 1];
-    if (has_pdf) check_pdf(i, w, pdf, c);
-    if (weight_applicable) {
-      const Vec3<double> m = back_ ? Vec3<double>(-w) : w;
-      const double numerator = ref_.ggx.D(m) * std::max(wi_front_.dot(m), 0.0);
-      double weight = 0;
-      if (numerator > 0) weight = pdf > 0 ? numerator / pdf : std::numeric_limits<double>::infinity();
-      c.weight.add(weight);
-    }
-  }
-
-  void check_pdf(std::uint64_t i, const Vec3<double>& w, double pdf, BlockChecks& c) const {
-    const double claimed = ref_.pdf(w);
-    const double e = relative_difference(pdf, claimed);
-    if (e > pdf_tol_ && e > pdf_tol_ + 2 * rounding_sensitivity(ref_, w, claimed, direction_rounding_)) ++c.pdf_outliers;
-    if (e > c.pdf_worst) {
-      c.pdf_worst = e;
-      c.pdf_worst_index = i;
-      c.worst_direction = w;
-      c.worst_returned = pdf;
-    }
-  }
-
-  const ReferenceDistribution& ref_;
-  const ValidationOptions& options_;
-  const double direction_rounding_, pdf_tol_;
-  const bool back_;
-  const Vec3<double> wi_front_;
-  bool has_pdf_ = false;
-  std::array<BlockChecks, kChunkBlocks> chunk_{};
-  BlockChecks total_;
-  tbb::enumerable_thread_specific<BinCounts> counts_;
-};
-
-ValidationReport report_header(std::string name, const ReferenceDistribution& ref, const ValidationOptions& options,
-                               Precision precision, std::uint64_t samples) {
-  ValidationReport r;
-  r.sampler = std::move(name);
-  r.domain = ref.domain;
-  r.alpha_x = ref.ggx.alpha_x();
-  r.alpha_y = ref.ggx.alpha_y();
-  r.wi = ref.wi;
-  r.samples = samples;
-  r.seed = options.seed;
-  r.precision = precision;
-  r.significance = options.significance;
+// The report of the samples of `source` against the claimed pdf of `ref`.
+ValidationReport analytic_report(const battery::SampleSource& source, const battery::Tally& tally,
+                                 const battery::Expectations& expectations, const ReferenceDistribution& ref,
+                                 const ValidationOptions& options) {
+  using namespace battery;
+  ValidationReport r = report_header(source, ref.domain, ref.ggx, ref.wi, tally, options);
+  add_binned_tests(r, expectations, tally, options);
+  r.checks = {domain_check(tally, options), integral_check(ref, options),
+              returned_pdf_check(tally, ref, options, source.precision),
+              weight_test(tally, ref, options, source.precision)};
+  decide(r, HeadlineTies::last_binning);
   return r;
 }
 
-// The two chi-square tests and the histograms for figures.
-void fill_chi_square(ValidationReport& r, const BinCounts& counts, const ReferenceDistribution& ref,
-                     const ValidationOptions& options) {
-  const double n = double(r.samples);
-  const int ns = ref.sphere.size(), nl = ref.lobe.size();
-  const std::vector<double> sphere_obs(counts.sphere.begin(), counts.sphere.end());
-  const std::vector<double> lobe_obs(counts.lobe.begin(), counts.lobe.end());
-  ChiSquareOptions chi;
-  chi.significance = options.significance;  // replaced by the Sidak level below for the verdict
-  chi.worst_cells = options.worst_cells;
-  chi.describe_cell = [&](int bin) {
-    return bin < ns ? ref.sphere.describe_bin(bin) : std::string("remainder (failed samples)");
-  };
-  r.sphere = goodness_of_fit(sphere_obs, with_remainder(ref.sphere_probability), n, chi, double(r.outside_domain));
-  chi.describe_cell = [&](int bin) {
-    return bin < nl ? ref.lobe.describe_bin(bin) : std::string("remainder (failed or outside the lobe space)");
-  };
-  r.lobe = goodness_of_fit(lobe_obs, with_remainder(ref.lobe_probability), n, chi, double(r.outside_domain));
-  auto comparison = [&](const DirectionBinning& b, const std::vector<double>& obs, const BinIntegrals& p) {
-    BinnedComparison c{b, std::vector<double>(obs.begin(), obs.begin() + b.size()), p.probability, "analytic pdf"};
-    for (double& e : c.expected) e *= n;
-    return c;
-  };
-  r.histograms = {comparison(ref.sphere, sphere_obs, ref.sphere_probability),
-                  comparison(ref.lobe, lobe_obs, ref.lobe_probability)};
-}
-
-void fill_hard_checks(ValidationReport& r, const ReferenceDistribution& ref, const ValidationOptions& options) {
-  r.domain_check.name = "domain";
-  r.domain_check.value = double(r.outside_domain);
-  r.domain_check.tolerance = 0;
-  r.domain_check.passed = r.outside_domain == 0;
-  r.domain_check.detail = fmt::format("{} sample(s) non-finite or with | |w| - 1 | > {}", r.outside_domain,
-                                      options.unit_tolerance);
-
-  r.integral.name = "pdf_integral";
-  r.integral.value = ref.sphere_probability.total;
-  r.integral.tolerance = options.integral_tolerance;
-  r.integral.passed = std::isfinite(ref.sphere_probability.total) &&
-                      ref.sphere_probability.total <= 1 + options.integral_tolerance;
-  r.integral.detail = fmt::format("integral of the claimed pdf over the sphere = {:.9f} (cubature error estimate {:.1e}), "
-                                  "must not exceed 1 + {}",
-                                  ref.sphere_probability.total, ref.sphere_probability.error_estimate,
-                                  options.integral_tolerance);
-}
-
-void fill_pdf_check(ValidationReport& r, const BlockChecks& c, bool has_pdf, double pdf_tol,
-                    const ReferenceDistribution& ref, const ValidationOptions& options) {
-  r.pdf.name = "returned_pdf";
-  r.pdf.applicable = has_pdf;
-  if (!has_pdf) {
-    r.pdf.detail = "no returned pdf (samples from a file)";
-    return;
-  }
-  const double fraction = std::max(options.pdf_outlier_fraction, 0.0);
-  const auto allowed = std::uint64_t(std::floor(fraction * double(r.samples)));
-  r.pdf.value = c.pdf_worst;
-  r.pdf.tolerance = pdf_tol;
-  r.pdf.passed = c.pdf_outliers <= allowed;
-  r.pdf.detail = c.pdf_worst > 0
-                     ? fmt::format("max |returned - claimed| / max(returned, claimed) = {:.3e} at sample {} "
-                                   "{}: returned {:.9g}, claimed {:.9g}; {} sample(s) above {:.0e} plus the "
-                                   "change a rounding of the direction can cause ({} allowed)",
-                                   c.pdf_worst, c.pdf_worst_index, format_direction(c.worst_direction),
-                                   c.worst_returned, ref.pdf(c.worst_direction), c.pdf_outliers, pdf_tol, allowed)
-                     : std::string("returned pdf equals the claimed pdf on every sample");
-}
-
-// E[weight] against the projected area |wi.z| / G1(wi).
-void fill_weight_test(ValidationReport& r, const Moments& all, bool has_pdf, const ReferenceDistribution& ref,
-                      const ValidationOptions& options) {
-  const bool weight_applicable = has_pdf && ref.domain == SampleDomain::microfacet_normal;
-  r.weight.name = "weight_mean";
-  r.weight.applicable = weight_applicable;
-  r.weight.statistical = weight_applicable;
-  if (!weight_applicable) {
-    r.weight.detail = has_pdf ? "not applicable: samples are reflected directions"
-                              : "not applicable: no returned pdf (samples from a file)";
-    return;
-  }
-  const double expected = ref.ggx.projected_area(ref.wi);
-  const double rounding = options.weight_rounding > 0 ? options.weight_rounding
-                          : r.precision == Precision::float32 ? 1e-5
-                                                              : 1e-9;
-  const double se_stat = all.n > 1 ? std::sqrt(all.m2 / (all.n - 1) / all.n) : 0.0;
-  const double se = std::sqrt(se_stat * se_stat + (rounding * expected) * (rounding * expected));
-  const double z = (all.mean - expected) / se;
-  r.weight.value = all.mean;
-  r.weight.tolerance = expected;
-  r.weight.p_value = std::isfinite(z) ? std::erfc(std::abs(z) / std::sqrt(2.0)) : 0.0;
-  r.weight.detail = fmt::format("mean weight {:.9g} vs |wi.z|/G1 = {:.9g}: z = {:.3f} (standard error {:.3e}, "
-                                "rounding floor {:.0e} relative)",
-                                all.mean, expected, z, se_stat, rounding);
-}
-
-// The Sidak combination of the statistical tests and the list of failures.
-void fill_verdict(ValidationReport& r, bool has_pdf, const ValidationOptions& options) {
-  std::vector<double> p_values = {r.sphere.p_value, r.lobe.p_value};
-  if (r.weight.statistical) p_values.push_back(r.weight.p_value);
-  r.statistical_tests = int(p_values.size());
-  r.per_test_significance = sidak_significance(options.significance, r.statistical_tests);
-  const double p_min = *std::min_element(p_values.begin(), p_values.end());
-  r.p_value = sidak_adjusted_p(p_min, r.statistical_tests);
-  for (ChiSquareResult* c : {&r.sphere, &r.lobe}) {
-    c->significance = r.per_test_significance;
-    c->rejected = c->p_value < r.per_test_significance;
-  }
-  r.weight.passed = !r.weight.statistical || r.weight.p_value >= r.per_test_significance;
-  const ChiSquareResult& headline = r.sphere.p_value < r.lobe.p_value ? r.sphere : r.lobe;
-  r.statistic = headline.statistic;
-  r.dof = headline.dof;
-
-  if (!r.domain_check.passed) r.failures.push_back(r.domain_check.detail);
-  if (!r.integral.passed) r.failures.push_back(r.integral.detail);
-  if (has_pdf && !r.pdf.passed) r.failures.push_back("returned pdf differs from the claimed pdf: " + r.pdf.detail);
-  if (r.sphere.rejected)
-    r.failures.push_back(fmt::format("chi-square in sphere bins rejects: p = {:.3g} < {:.3g}{}", r.sphere.p_value,
-                                     r.per_test_significance, r.sphere.reason.empty() ? "" : " (" + r.sphere.reason + ")"));
-  if (r.lobe.rejected)
-    r.failures.push_back(fmt::format("chi-square in lobe bins rejects: p = {:.3g} < {:.3g}{}", r.lobe.p_value,
-                                     r.per_test_significance, r.lobe.reason.empty() ? "" : " (" + r.lobe.reason + ")"));
-  if (!r.weight.passed)
-    r.failures.push_back(fmt::format("E[weight] test rejects: p = {:.3g} < {:.3g}: {}", r.weight.p_value,
-                                     r.per_test_significance, r.weight.detail));
-  r.passed = r.failures.empty();
-}
-
-// The report of the samples a checker has seen.
-ValidationReport finish_validation(std::string name, const SampleChecker& checker, const ReferenceDistribution& ref,
-                                   const ValidationOptions& options, Precision precision) {
-  const BlockChecks& c = checker.checks();
-  ValidationReport r = report_header(std::move(name), ref, options, precision, c.samples);
-  const BinCounts counts = checker.counts();
-  r.failed_samples = counts.failed;
-  r.outside_domain = counts.outside;
-  fill_chi_square(r, counts, ref, options);
-  fill_hard_checks(r, ref, options);
-  fill_pdf_check(r, c, checker.has_pdf(), checker.pdf_tolerance(), ref, options);
-  fill_weight_test(r, c.weight, checker.has_pdf(), ref, options);
-  fill_verdict(r, checker.has_pdf(), options);
-  return r;
+// Tallies the samples of `source` against `ref` (with the per-sample checks of its pdf) and reports.
+// `require` runs on the number of samples seen, before any test.
+template <class Require>
+ValidationReport validate_source(const battery::SampleSource& source, const ReferenceDistribution& ref,
+                                 const ValidationOptions& options, Require&& require) {
+  const battery::Expectations expectations = battery::analytic_expectations(ref);
+  const battery::Tally tally = battery::tally_samples(source, battery::binnings_of(expectations), options, &ref);
+  require(tally.samples);
+  return analytic_report(source, tally, expectations, ref, options);
 }
 
 double elapsed(std::chrono::steady_clock::time_point t0) {
@@ -470,33 +149,13 @@ std::shared_ptr<const ReferenceDistribution> prepare_reference(DirectionFunction
       domain, ggx, wi, std::move(pdf), std::move(sphere), std::move(lobe), std::move(sphere_p), std::move(lobe_p)});
 }
 
-namespace {
-// The boundary of the support of the bounded VNDF sampler (Eto & Tokuyoshi 2023, sec. 3): the cap
-// direction c = reflect(Vh, Nh) of the half vector must satisfy c.z >= -k Vh.z. Zero on the boundary
-// (same back-side and half-vector conventions as bounded2023_reflection_pdf).
-DirectionFunction bounded2023_cap_boundary(const GGX<double>& ggx, const Vec3<double>& wi_in) {
-  return [ggx, wi_in](const Vec3<double>& wo_in) {
-    const bool flip = wi_in.z() < 0;
-    const Vec3<double> wi = flip ? Vec3<double>(-wi_in) : wi_in;
-    const Vec3<double> wo = flip ? Vec3<double>(-wo_in) : wo_in;
-    Vec3<double> m = normalized_or_zero(Vec3<double>(wi + wo));
-    if (m.isZero()) return 1.0;
-    if (m.z() < 0) m = -m;
-    const Vec3<double> vh = normalized_or_zero(Vec3<double>(ggx.alpha_x() * wi.x(), ggx.alpha_y() * wi.y(), wi.z()));
-    const Vec3<double> nh = normalized_or_zero(Vec3<double>(m.x() / ggx.alpha_x(), m.y() / ggx.alpha_y(), m.z()));
-    const Vec3<double> c = reflect(vh, nh);
-    const double k = wi.z() > 0 ? bounded2023_k(ggx, wi) : 1.0;
-    return c.z() + k * vh.z();
-  };
-}
-}  // namespace
-
 std::shared_ptr<const ReferenceDistribution> claimed_reference(const SamplerInfo& sampler, const GGX<double>& ggx,
                                                                const Vec3<double>& wi_in, int rows) {
   const Vec3<double> wi = wi_in.normalized();
   std::vector<DirectionFunction> breaks;
-  // Known jumps of the zoo's claimed pdfs beyond the common ones: the bounded sampler's cap.
-  if (sampler.name == "bounded2023") breaks.push_back(bounded2023_cap_boundary(ggx, wi));
+  // A jump of the claimed pdf beyond the common ones (the bounded sampler's cap).
+  if (const auto jump = sampler.claimed_pdf_jump)
+    breaks.push_back([jump, ggx, wi](const Vec3<double>& d) { return jump(ggx, wi, d); });
   auto claimed = sampler.claimed_pdf;
   return prepare_reference([claimed, ggx, wi](const Vec3<double>& d) { return claimed(ggx, wi, d); }, sampler.domain,
                            ggx, wi, rows, std::move(breaks));
@@ -581,20 +240,28 @@ void require_samples_for_any_test(std::uint64_t given) {
                            given, needed);
 }
 
+namespace {
+// The samples a goodness-of-fit test in these bins needs (chi2.h), their remainder cell included.
+std::uint64_t samples_needed(const ReferenceBins& bins) {
+  return goodness_of_fit_minimum_samples(battery::with_remainder(bins.probability), ChiSquareOptions{}.min_expected);
+}
+}  // namespace
+
 std::uint64_t minimum_samples(const ReferenceDistribution& ref) {
-  const ChiSquareOptions chi;
-  return std::max(goodness_of_fit_minimum_samples(with_remainder(ref.sphere_probability), chi.min_expected),
-                  goodness_of_fit_minimum_samples(with_remainder(ref.lobe_probability), chi.min_expected));
+  std::uint64_t needed = 0;
+  for (const ReferenceBins& b : ref.binned()) needed = std::max(needed, samples_needed(b));
+  return needed;
 }
 
 void require_samples(std::uint64_t given, const ReferenceDistribution& ref) {
-  const ChiSquareOptions chi;
-  const std::uint64_t sphere = goodness_of_fit_minimum_samples(with_remainder(ref.sphere_probability), chi.min_expected);
-  const std::uint64_t lobe = goodness_of_fit_minimum_samples(with_remainder(ref.lobe_probability), chi.min_expected);
-  const std::uint64_t needed = std::max(sphere, lobe);
+  const std::vector<ReferenceBins> bins = ref.binned();
+  std::size_t hardest = 0;  // the first binning that needs the most
+  for (std::size_t k = 1; k < bins.size(); ++k)
+    if (samples_needed(bins[k]) > samples_needed(bins[hardest])) hardest = k;
+  const std::uint64_t needed = samples_needed(bins[hardest]);
   if (given >= needed) return;
-  const std::string binning = sphere >= lobe ? fmt::format("sphere bins, {} rows", ref.sphere.rows())
-                                             : fmt::format("lobe bins, {} rows", ref.lobe.rows());
+  const ChiSquareOptions chi;
+  const std::string binning = fmt::format("{} bins, {} rows", bins[hardest].binning.name(), bins[hardest].binning.rows());
   // The rule (chi2.h, goodness_of_fit_minimum_samples): with fewer, the cells pool into one and the test
   // has no degree of freedom: it cannot reject, and a test that cannot fail is no pass.
   if (needed == kNoSampleCountSuffices)
@@ -616,49 +283,36 @@ ValidationReport validate_sampler(const SamplerInfo& sampler, const GGX<double>&
   require_samples_for_any_test(options.samples);  // before the cubature of the reference
   if (!reference) reference = claimed_reference(sampler, ggx, wi, options.rows);
   require_samples(options.samples, *reference);
-  SampleChecker checker(*reference, options, options.precision);
-  for_each_drawn_block(
-      sampler, ggx, reference->wi, options,
-      [&](const SampleBlockView& b, std::size_t slot) { checker.visit(b, slot); },
-      [&](std::size_t blocks) { checker.chunk_done(blocks); });
-  ValidationReport r = finish_validation(std::string(sampler.name), checker, *reference, options, options.precision);
+  ValidationReport r = validate_source(battery::drawn_samples(sampler, ggx, reference->wi, options), *reference, options,
+                                       [](std::uint64_t) {});
   r.seconds = elapsed(t0);
   return r;
 }
 
 namespace {
-// Samples from elsewhere, streamed by `stream` (a span or a file), checked against `ref`.
+// Samples from elsewhere (a span or a file), checked against `ref`.
 template <class Stream>
 ValidationReport validate_stream(Stream& stream, const ReferenceDistribution& ref, const ValidationOptions& options) {
-  SampleChecker checker(ref, options, Precision::float64);
-  for_each_block(
-      stream, [&](const SampleBlockView& b, std::size_t slot) { checker.visit(b, slot); },
-      [&](std::size_t blocks) { checker.chunk_done(blocks); });
-  require_samples(checker.checks().samples, ref);
-  ValidationOptions o = options;
-  o.samples = checker.checks().samples;
-  return finish_validation("samples", checker, ref, o, Precision::float64);
+  const auto t0 = std::chrono::steady_clock::now();
+  ValidationReport r = validate_source(battery::given_samples(stream, "samples"), ref, options,
+                                       [&ref](std::uint64_t seen) { require_samples(seen, ref); });
+  r.seconds = elapsed(t0);
+  return r;
 }
 }  // namespace
 
 ValidationReport validate_samples(std::span<const Vec3<double>> samples, SampleDomain domain, const GGX<double>& ggx,
                                   const Vec3<double>& wi, const ValidationOptions& options,
                                   std::shared_ptr<const ReferenceDistribution> reference) {
-  const auto t0 = std::chrono::steady_clock::now();
   if (!reference) reference = vndf_reference(domain, ggx, wi, options.rows);
-  ValidationReport r = validate_stream(samples, *reference, options);
-  r.seconds = elapsed(t0);
-  return r;
+  return validate_stream(samples, *reference, options);
 }
 
 ValidationReport validate_sample_file(DirectionSampleReader& reader, SampleDomain domain, const GGX<double>& ggx,
                                       const Vec3<double>& wi, const ValidationOptions& options,
                                       std::shared_ptr<const ReferenceDistribution> reference) {
-  const auto t0 = std::chrono::steady_clock::now();
   if (!reference) reference = vndf_reference(domain, ggx, wi, options.rows);
-  ValidationReport r = validate_stream(reader, *reference, options);
-  r.seconds = elapsed(t0);
-  return r;
+  return validate_stream(reader, *reference, options);
 }
 
 std::string to_string(Precision precision) { return precision == Precision::float32 ? "float" : "double"; }
@@ -700,13 +354,9 @@ nlohmann::json to_json(const ValidationReport& r) {
   j["per_test_significance"] = r.per_test_significance;
   j["failures"] = r.failures;
   j["seconds"] = r.seconds;
-  nlohmann::json tests;
-  tests["chi2_sphere"] = to_json(r.sphere);
-  tests["chi2_lobe"] = to_json(r.lobe);
-  tests["weight_mean"] = to_json(r.weight);
-  tests["returned_pdf"] = to_json(r.pdf);
-  tests["pdf_integral"] = to_json(r.integral);
-  tests["domain"] = to_json(r.domain_check);
+  nlohmann::json tests = nlohmann::json::object();
+  for (const BinnedTest& b : r.binned) tests[b.name] = to_json(b.chi2);
+  for (const SubTest& c : r.checks) tests[c.name] = to_json(c);
   j["tests"] = tests;
   return j;
 }

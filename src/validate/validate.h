@@ -14,9 +14,10 @@
 // The verdict combines the statistical tests (1-3) with the Sidak correction at the family-wise level
 // `significance`; any failed hard check fails the validation.
 //
-// Expected counts come from adaptive cubature of the claimed pdf over each bin (binning.h); a sampler
-// that fails (returns nothing) is counted in a remainder cell whose expected probability is the mass
-// the claimed pdf leaves outside the bins (1 - the bins' total).
+// The tests are the stages of one battery shared with the comparison against the traced oracle
+// (battery.h, compare.h). Expected counts come from adaptive cubature of the claimed pdf over each bin
+// (binning.h); a sampler that fails (returns nothing) is counted in a remainder cell whose expected
+// probability is the mass the claimed pdf leaves outside the bins (1 - the bins' total).
 //
 // Reproducible: sample i uses CounterRng(seed, i) (two uniforms), whatever the thread count.
 #pragma once
@@ -35,6 +36,7 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace microsim {
@@ -61,7 +63,7 @@ struct ValidationOptions {
   // rounding alone can carry a sample across a jump of the claimed pdf (the bounded sampler's cap edge)
   // or move D by percents at alpha = 1e-3 when the half vector of two nearly opposite grazing
   // directions is recomputed; in double, the lengths of wi and wo off 1 by an ulp move D by 5e-6 at
-  // alpha = 1e-4, theta = 89.99 deg (validate.cpp, rounding_sensitivity). Fraction allowed to fail: 0.
+  // alpha = 1e-4, theta = 89.99 deg (battery.cpp, rounding_sensitivity). Fraction allowed to fail: 0.
   double pdf_outlier_fraction = 0;
   double integral_tolerance = 1e-5;    // the claimed pdf may integrate to at most 1 + this
   double unit_tolerance = 1e-5;        // samples with | |w| - 1 | above this are outside the domain
@@ -69,6 +71,12 @@ struct ValidationOptions {
   // 0 means 1e-9 in double, 1e-5 in float.
   double weight_rounding = 0;
   RunControl run;  // threads, cancel token, progress ("sampling")
+};
+
+// One binning of a reference and its bin probabilities under the claimed pdf.
+struct ReferenceBins {
+  const DirectionBinning& binning;
+  const BinIntegrals& probability;
 };
 
 // The claimed distribution of one configuration and its bin probabilities (expensive: adaptive
@@ -82,6 +90,8 @@ struct ReferenceDistribution {
   DirectionBinning lobe;
   BinIntegrals sphere_probability;
   BinIntegrals lobe_probability;
+  // The binnings the samples are tested in, in this order (sphere, lobe).
+  std::vector<ReferenceBins> binned() const { return {{sphere, sphere_probability}, {lobe, lobe_probability}}; }
 };
 
 // `breaks`: functions of the direction whose zero sets are curves where the pdf jumps (see
@@ -98,7 +108,7 @@ std::shared_ptr<const ReferenceDistribution> claimed_reference(const SamplerInfo
 std::shared_ptr<const ReferenceDistribution> vndf_reference(SampleDomain domain, const GGX<double>& ggx,
                                                             const Vec3<double>& wi, int rows);
 
-// A deterministic check or a statistical test of the report.
+// A deterministic check or a statistical test of the report (every test but the binned chi-square ones).
 struct SubTest {
   std::string name;
   bool applicable = true;
@@ -108,6 +118,18 @@ struct SubTest {
   double value = 0;          // the measured quantity (see detail)
   double tolerance = 0;      // its bound (hard checks)
   std::string detail;
+  // How a failure names the test: a hard check's failure reads "label: detail" (the detail alone when
+  // empty), a statistical test's "label test rejects: p = .. < ..: detail".
+  std::string label;
+};
+
+// A chi-square test of the counts in one binning: goodness of fit against the bin probabilities of a
+// claimed pdf, or the two-sample test against a traced oracle's counts (compare.h).
+struct BinnedTest {
+  std::string name;     // its key in the JSON report: "chi2_" + binning
+  std::string binning;  // the binning's name (DirectionBinning::name: "sphere", "lobe")
+  std::string label;    // how a rejection names the test: "chi-square", "two-sample chi-square against ..."
+  ChiSquareResult chi2;
 };
 
 struct ValidationReport {
@@ -120,12 +142,14 @@ struct ValidationReport {
   std::uint64_t failed_samples = 0;   // sampler returned nothing
   std::uint64_t outside_domain = 0;   // non-finite or non-unit samples
 
-  ChiSquareResult sphere;   // chi-square in sphere bins
-  ChiSquareResult lobe;     // chi-square in lobe bins
-  SubTest weight;           // E[weight] vs |wi.z| / G1
-  SubTest pdf;              // returned vs claimed pdf
-  SubTest integral;         // claimed pdf integral <= 1 + tol
-  SubTest domain_check;     // samples inside the domain
+  // The tests: one chi-square test per binning (in the binnings' order), then the other tests in the
+  // order their failures are listed: the hard checks "domain", "pdf_integral", "returned_pdf", then the
+  // statistical "weight_mean" (E[weight] vs |wi.z| / G1; not applicable where it cannot be run).
+  std::vector<BinnedTest> binned;
+  std::vector<SubTest> checks;
+  // The chi-square test in the binning of that name, the check of that name (std::out_of_range if none).
+  const ChiSquareResult& chi2(std::string_view binning) const;
+  const SubTest& check(std::string_view name) const;
 
   int statistical_tests = 0;
   double per_test_significance = 0;  // Sidak level of each statistical test
@@ -136,10 +160,11 @@ struct ValidationReport {
   bool passed = false;
   std::vector<std::string> failures;  // why it failed (empty when passed)
   double seconds = 0;
-  // The binned counts behind the two chi-square tests (sphere, then lobe; bins only, without the
-  // remainder cell), for figures (figure.h): expected = samples x the reference's bin probability, or,
-  // against a traced oracle, the oracle's counts rescaled to the samples' total (then the figure's
-  // residual ignores the oracle's own noise: trace many more rays than samples for a fair picture).
+  // The binned counts behind the chi-square tests (one per binning, in the same order; bins only,
+  // without the remainder cell), for figures (figure.h): expected = samples x the reference's bin
+  // probability, or, against a traced oracle, the oracle's counts rescaled to the samples' total (then
+  // the figure's residual ignores the oracle's own noise: trace many more rays than samples for a fair
+  // picture).
   std::vector<BinnedComparison> histograms;
 };
 
