@@ -5,6 +5,7 @@
 #include "command.h"
 
 #include "stats/figure.h"
+#include "core/atomic_file.h"
 #include "stats/histogram_io.h"
 #include "core/parse.h"
 
@@ -79,8 +80,8 @@ int run_plot(const PlotOptions& o) {
   const std::string subtitle = fmt::format("{}: {} rays, {} hits, seed {}{}", o.histogram, h.rays, h.hits,
                                            attribute(h, "seed"), h.partial ? " (PARTIAL: interrupted run)" : "");
   try {
-    write_text_atomically(o.out, histogram_figure_svg(title, subtitle, comparisons));
-  } catch (const HistogramIoError& e) {
+    write_file_atomically(o.out, histogram_figure_svg(title, subtitle, comparisons));
+  } catch (const FileWriteError& e) {
     throw UsageError(fmt::format("--out: {}", e.what()));
   }
   fmt::print("wrote {} ({} binnings)\n", o.out, comparisons.size());

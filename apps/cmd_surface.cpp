@@ -20,6 +20,7 @@
 #include "microgeom/mesh_io.h"
 #include "microgeom/surface_stats.h"
 #include "progress_bar.h"
+#include "surface_input.h"
 
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
@@ -46,14 +47,7 @@ namespace {
 // ---- staged outputs: write everything to temporaries, rename all at the end ---------------------------
 class StagedOutputs {
 public:
-  // Checks up front (before long work) that the destination's directory exists.
-  static void check_destination(const std::string& option, const fs::path& path) {
-    const fs::path parent = fs::absolute(path).parent_path();
-    if (!fs::is_directory(parent))
-      throw UsageError(fmt::format("{} '{}': directory '{}' does not exist", option, path.string(), parent.string()));
-    if (fs::is_directory(path)) throw UsageError(fmt::format("{} '{}' is a directory", option, path.string()));
-  }
-  // A new temporary next to `path` with the same extension (microgeom/atomic_file.h); writer(tmp) writes it.
+  // A new temporary next to `path` with the same extension (core/atomic_file.h); writer(tmp) writes it.
   void stage(const fs::path& path, const std::function<void(const fs::path&)>& writer) {
     staged_.emplace_back(path);
     writer(staged_.back().path());
@@ -76,11 +70,20 @@ void write_json_file(const fs::path& path, const nlohmann::json& j) {
   if (!out) throw std::runtime_error(fmt::format("write error on JSON '{}'", path.string()));
 }
 
-// Ctrl-C: a surface command stops at the next step and writes nothing (its outputs are all or nothing).
-int interrupted_nothing_written(const char* command) {
-  fmt::print(stderr, "{}: interrupted: nothing written\n", command);
-  return microsim::app::kExitInterrupted;
+// The optional outputs derived from a heightfield (--normals, --mesh with --mesh-crop), staged.
+void stage_derived_outputs(StagedOutputs& outputs, const microgeom::Heightfield& field, const std::string& normals,
+                           const std::string& mesh, int mesh_crop) {
+  if (!normals.empty())
+    outputs.stage(normals, [&](const fs::path& tmp) { microgeom::save_normal_map_exr(tmp, field); });
+  if (!mesh.empty())
+    outputs.stage(mesh, [&](const fs::path& tmp) { microgeom::write_heightfield_mesh(tmp, field, mesh_crop); });
 }
+
+void stage_json(StagedOutputs& outputs, const std::string& path, const nlohmann::json& j) {
+  if (!path.empty()) outputs.stage(path, [&](const fs::path& tmp) { write_json_file(tmp, j); });
+}
+
+using microsim::app::interrupted_nothing_written;
 
 // ---- option parsing -----------------------------------------------------------------------------------
 // "AX" or "AX,AY" in the supported range (microsim/parse.h); the assembly's own range is checked after.
@@ -92,11 +95,19 @@ std::pair<double, double> parse_alpha(const std::string& text) {
   }
 }
 
-void check_mesh_extension(const std::string& path) {
+// --mesh: a writable path with a mesh format's extension ("" is no mesh).
+void check_mesh_output(const std::string& path) {
+  if (path.empty()) return;
+  microsim::app::check_output("--mesh", path);
   std::string ext = fs::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
   if (ext != ".ply" && ext != ".obj" && ext != ".off" && ext != ".stl")
     throw UsageError(fmt::format("--mesh '{}': unknown mesh format '{}' (use .ply or .obj)", path, ext));
+}
+
+void check_mesh_crop(int mesh_crop, int resolution) {
+  if (mesh_crop < 0 || mesh_crop > resolution)
+    throw UsageError(fmt::format("--mesh-crop {} must be in [1, {}] (0 = whole tile)", mesh_crop, resolution));
 }
 
 // CPU seconds (user + system, all threads) used by the process so far: a load-independent cost measure.
@@ -107,20 +118,19 @@ double cpu_seconds() {
          1e-6 * double(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
 }
 
-double peak_rss_bytes() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return double(usage.ru_maxrss) * 1024.0;  // Linux: kilobytes
-}
+double peak_rss_bytes() { return microsim::app::peak_rss_mib() * 1024.0 * 1024.0; }
+
+// Wall and CPU time since its construction.
+struct Stopwatch {
+  std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
+  double cpu_start = cpu_seconds();
+  double wall() const { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); }
+  double cpu() const { return cpu_seconds() - cpu_start; }
+};
 
 // ---- reports ------------------------------------------------------------------------------------------
-void print_stats(const microgeom::SurfaceStats& st, const microgeom::Heightfield& field) {
-  using microgeom::to_string;
-  fmt::print("surface: {} x {} vertices, tile {:.6g}, cell {:.6g}, {} triangles\n", field.resolution(),
-             field.resolution(), st.tile_size, st.cell_size, st.triangles);
-  fmt::print("NDF reference: {} with alpha = ({:.6g}, {:.6g}){}; fitted from median |slope|: ({:.6g}, {:.6g})\n",
-             to_string(st.reference), st.alpha_x, st.alpha_y, st.alpha_fitted ? " (fitted)" : "",
-             st.fitted_alpha_x, st.fitted_alpha_y);
+// The measured NDF against the reference: slope-radius quantiles and bins.
+void print_ndf(const microgeom::SurfaceStats& st) {
   fmt::print("\nslope-radius quantiles (normalised slopes |(sx/ax, sy/ay)|) against the reference:\n");
   fmt::print("| {:>7} | {:>12} | {:>12} | {:>9} |\n", "q", "measured", "reference", "rel.err");
   fmt::print("|{:-<9}|{:-<14}|{:-<14}|{:-<11}|\n", "", "", "", "");
@@ -134,6 +144,10 @@ void print_stats(const microgeom::SurfaceStats& st, const microgeom::Heightfield
              microgeom::kAngleBins);
   for (int b = 0; b < microgeom::kAngularBins; ++b)
     fmt::print("{:+6.2f}{}", 100 * st.angular_bin_errors[b], (b + 1) % microgeom::kAngleBins == 0 ? "\n" : " ");
+}
+
+// The NDF check: the largest errors against their tolerances.
+void print_ndf_check(const microgeom::SurfaceStats& st) {
   fmt::print("\n| NDF check                | max error | tolerance |\n|{:-<26}|{:-<11}|{:-<11}|\n", "", "", "");
   fmt::print("| quantiles q<=0.999       | {:>8.3f}% | {:>8.3f}% |\n", 100 * st.max_quantile_error,
              100 * st.tolerance.quantile);
@@ -142,6 +156,10 @@ void print_stats(const microgeom::SurfaceStats& st, const microgeom::Heightfield
   fmt::print("| (radius, angle) bins     | {:>8.3f}% | {:>8.3f}% |\n", 100 * st.max_angular_bin_error,
              100 * st.tolerance.angular_bin);
   fmt::print("NDF verdict: {}\n", st.ndf_verdict);
+}
+
+// Slopes, heights and their coupling.
+void print_moments(const microgeom::SurfaceStats& st) {
   fmt::print("\nslopes: mean ({:.3g}, {:.3g}); rms ({:.6g}, {:.6g}); normalised second moment per axis ({:.4g}, {:.4g})"
              "; max normalised radius {:.6g}\n",
              st.mean_slope_x, st.mean_slope_y, st.rms_slope_x, st.rms_slope_y, st.normalised_second_moment_x,
@@ -154,6 +172,18 @@ void print_stats(const microgeom::SurfaceStats& st, const microgeom::Heightfield
              "radius) {:+.4f}; mean height of the steepest 1% / 0.1% of facets: {:+.3f} / {:+.3f} sd\n",
              st.spearman_height_slope, st.spearman_extremity_slope, st.steepest_1pct_height_z,
              st.steepest_01pct_height_z);
+}
+
+void print_stats(const microgeom::SurfaceStats& st, const microgeom::Heightfield& field) {
+  using microgeom::to_string;
+  fmt::print("surface: {} x {} vertices, tile {:.6g}, cell {:.6g}, {} triangles\n", field.resolution(),
+             field.resolution(), st.tile_size, st.cell_size, st.triangles);
+  fmt::print("NDF reference: {} with alpha = ({:.6g}, {:.6g}){}; fitted from median |slope|: ({:.6g}, {:.6g})\n",
+             to_string(st.reference), st.alpha_x, st.alpha_y, st.alpha_fitted ? " (fitted)" : "",
+             st.fitted_alpha_x, st.fitted_alpha_y);
+  print_ndf(st);
+  print_ndf_check(st);
+  print_moments(st);
 }
 
 nlohmann::json stats_json(const microgeom::SurfaceStats& st) {
@@ -203,7 +233,6 @@ std::string assembly_help() {
     s += fmt::format("\n  {:<9} {} (NDF: {})", a.name, a.summary, microgeom::to_string(a.reference));
   return s;
 }
-
 // ---- surface build ------------------------------------------------------------------------------------
 struct BuildOptions {
   std::string assembly, alpha, out, mesh, normals, json;
@@ -214,9 +243,13 @@ struct BuildOptions {
   bool unsupported = false;  // build even outside microgeom::check_supported_range
 };
 
-int run_build(const BuildOptions& o) {
-  microsim::app::check_distinct_outputs(
-      {}, {{"--out", o.out}, {"--normals", o.normals}, {"--mesh", o.mesh}, {"--json", o.json}});
+// What the build and its statistics cost.
+struct BuildCost {
+  double build_seconds = 0, build_cpu = 0, build_rss = 0;  // the build (peak RSS so far: the build itself)
+  double stats_seconds = 0, stats_cpu = 0, rss = 0;         // the statistics, and the peak RSS of both
+};
+
+microgeom::AssemblyParams assembly_params(const BuildOptions& o) {
   microgeom::AssemblyParams p;
   p.assembly = o.assembly;
   std::tie(p.alpha_x, p.alpha_y) = parse_alpha(o.alpha);
@@ -231,56 +264,62 @@ int run_build(const BuildOptions& o) {
   } catch (const std::invalid_argument& e) {
     throw UsageError(e.what());
   }
-  StagedOutputs::check_destination("--out", o.out);
-  if (!o.mesh.empty()) {
-    StagedOutputs::check_destination("--mesh", o.mesh);
-    check_mesh_extension(o.mesh);
-  }
-  if (o.mesh_crop < 0 || o.mesh_crop > o.resolution)
-    throw UsageError(fmt::format("--mesh-crop {} must be in [1, {}] (0 = whole tile)", o.mesh_crop, o.resolution));
-  if (!o.normals.empty()) StagedOutputs::check_destination("--normals", o.normals);
-  if (!o.json.empty()) StagedOutputs::check_destination("--json", o.json);
+  return p;
+}
 
-  const microgeom::AssemblyInfo* info = microgeom::find_assembly(p.assembly);
+// The build's parameters, every option checked before any work (UsageError).
+microgeom::AssemblyParams check_build(const BuildOptions& o) {
+  microsim::app::check_distinct_outputs(
+      {}, {{"--out", o.out}, {"--normals", o.normals}, {"--mesh", o.mesh}, {"--json", o.json}});
+  const microgeom::AssemblyParams p = assembly_params(o);
+  microsim::app::check_output("--out", o.out);
+  check_mesh_output(o.mesh);
+  check_mesh_crop(o.mesh_crop, o.resolution);
+  microsim::app::check_output("--normals", o.normals);
+  microsim::app::check_output("--json", o.json);
+  return p;
+}
+
+// The correlation length in cells (the assembly's default when not given); a note when the tile is narrow.
+double corr_length(const microgeom::AssemblyParams& p, bool quiet) {
   const double l = p.corr_cells == 0 ? microgeom::default_corr_cells(p.resolution) : p.corr_cells;
-  if (p.resolution / l < 64 && !o.quiet)
+  if (p.resolution / l < 64 && !quiet)
     fmt::print(stderr, "surface build: note: the tile is only {:.3g} correlation lengths wide (64-128 advised for "
                        "masking statistics)\n", p.resolution / l);
+  return l;
+}
 
-  microsim::install_interrupt_handler();
-  const auto t0 = std::chrono::steady_clock::now();
-  const double cpu0 = cpu_seconds();
-  microgeom::BuildReport report;
-  microgeom::Heightfield field;
+// The surface, with a progress bar on stderr unless quiet; nothing when Ctrl-C stopped the build.
+std::optional<microgeom::Heightfield> build_with_progress(const microgeom::AssemblyParams& p, bool quiet,
+                                                          microgeom::BuildReport& report) {
+  microsim::ProgressBar bar(fmt::format("surface build {} {}^2", p.assembly, p.resolution), 1000, !quiet);
+  std::uint64_t shown = 0;
+  const auto progress = [&](std::string_view, double fraction) {
+    const auto target = std::uint64_t(std::clamp(fraction, 0.0, 1.0) * 1000);
+    if (target > shown) {
+      bar.add(target - shown);
+      shown = target;
+    }
+  };
   try {
-    microsim::ProgressBar bar(fmt::format("surface build {} {}^2", p.assembly, p.resolution), 1000, !o.quiet);
-    std::uint64_t shown = 0;
-    const auto progress = [&](std::string_view, double fraction) {
-      const auto target = std::uint64_t(std::clamp(fraction, 0.0, 1.0) * 1000);
-      if (target > shown) {
-        bar.add(target - shown);
-        shown = target;
-      }
-    };
-    field = microgeom::build_assembly(p, &report, progress, [] { return microsim::interrupted(); });
+    return microgeom::build_assembly(p, &report, progress, [] { return microsim::interrupted(); });
   } catch (const microgeom::BuildCancelled&) {
-    return interrupted_nothing_written("surface build");
+    return std::nullopt;
   }
-  const double build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  const double build_rss = peak_rss_bytes();  // peak so far: the build itself
-  const double build_cpu = cpu_seconds() - cpu0;
+}
 
+// The NDF check of a built surface: its assembly's reference and roughness, the tolerance for its size.
+microgeom::StatsOptions build_stats_options(const microgeom::AssemblyParams& p, double l) {
+  const microgeom::AssemblyInfo* info = microgeom::find_assembly(p.assembly);
   microgeom::StatsOptions so;
   so.reference = info->reference;
   so.alpha_x = p.alpha_x;
   so.alpha_y = p.alpha_y;
   so.tolerance = microgeom::tolerance_for(info->reference, p.resolution, l);
-  const auto t1 = std::chrono::steady_clock::now();
-  const microgeom::SurfaceStats st = microgeom::measure_surface(field, so);
-  if (microsim::interrupted()) return interrupted_nothing_written("surface build");
-  const double stats_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
-  const double stats_cpu = cpu_seconds() - cpu0 - build_cpu;
+  return so;
+}
 
+void print_build(const microgeom::AssemblyParams& p, double l, const microgeom::BuildReport& report) {
   fmt::print("surface build: assembly {}, alpha ({:.6g}, {:.6g}), resolution {}, seed {}, correlation length {:.6g} "
              "cells ({:.4g} per tile), {} slope-matching iterations\n",
              p.assembly, p.alpha_x, p.alpha_y, p.resolution, p.seed, l, p.resolution / l, report.iterations);
@@ -290,46 +329,76 @@ int run_build(const BuildOptions& o) {
     for (double r : report.residuals) fmt::print(" {:.2e}", r);
     fmt::print("\n");
   }
-  print_stats(st, field);
-  const double rss = peak_rss_bytes();
+}
+
+void print_cost(const BuildCost& c, const microgeom::Heightfield& field) {
   fmt::print("\nbuild {:.3f} s wall, {:.3f} s CPU (peak RSS {:.1f} MiB, {:.1f} bytes per texel); statistics {:.3f} s "
              "wall, {:.3f} s CPU (peak RSS {:.1f} MiB)\n",
-             build_seconds, build_cpu, build_rss / (1024.0 * 1024.0), build_rss / double(field.texel_count()),
-             stats_seconds, stats_cpu, rss / (1024.0 * 1024.0));
+             c.build_seconds, c.build_cpu, c.build_rss / (1024.0 * 1024.0), c.build_rss / double(field.texel_count()),
+             c.stats_seconds, c.stats_cpu, c.rss / (1024.0 * 1024.0));
+}
 
-  if (!st.ndf_within_tolerance)
-    throw UsageError(fmt::format("the {} surface misses its {} NDF: {} (nothing written)", p.assembly,
-                                 microgeom::to_string(info->reference), st.ndf_verdict));
+nlohmann::json build_json(const BuildOptions& o, const microgeom::AssemblyParams& p, double l,
+                          const microgeom::BuildReport& report, const BuildCost& c, const microgeom::SurfaceStats& st) {
+  nlohmann::json j;
+  j["command"] = "surface build";
+  j["assembly"] = p.assembly;
+  j["alpha"] = {p.alpha_x, p.alpha_y};
+  j["resolution"] = p.resolution;
+  j["seed"] = p.seed;
+  j["corr_cells"] = l;
+  j["tile_size"] = p.tile_size;
+  j["iterations"] = report.iterations;
+  j["residuals"] = report.residuals;
+  j["notes"] = report.notes;
+  j["build_seconds"] = c.build_seconds;
+  j["stats_seconds"] = c.stats_seconds;
+  j["build_cpu_seconds"] = c.build_cpu;
+  j["stats_cpu_seconds"] = c.stats_cpu;
+  j["peak_rss_bytes_build"] = c.build_rss;
+  j["peak_rss_bytes"] = c.rss;
+  j["stats"] = stats_json(st);
+  j["outputs"] = {{"heightmap", o.out}, {"normals", o.normals}, {"mesh", o.mesh}};
+  return j;
+}
 
+// Every output of the build, all or nothing.
+void write_build_outputs(const BuildOptions& o, const microgeom::Heightfield& field, const nlohmann::json& j) {
   StagedOutputs outputs;
   outputs.stage(o.out, [&](const fs::path& tmp) { microgeom::save_heightmap_exr(tmp, field); });
-  if (!o.normals.empty())
-    outputs.stage(o.normals, [&](const fs::path& tmp) { microgeom::save_normal_map_exr(tmp, field); });
-  if (!o.mesh.empty())
-    outputs.stage(o.mesh, [&](const fs::path& tmp) { microgeom::write_heightfield_mesh(tmp, field, o.mesh_crop); });
-  if (!o.json.empty()) {
-    nlohmann::json j;
-    j["command"] = "surface build";
-    j["assembly"] = p.assembly;
-    j["alpha"] = {p.alpha_x, p.alpha_y};
-    j["resolution"] = p.resolution;
-    j["seed"] = p.seed;
-    j["corr_cells"] = l;
-    j["tile_size"] = p.tile_size;
-    j["iterations"] = report.iterations;
-    j["residuals"] = report.residuals;
-    j["notes"] = report.notes;
-    j["build_seconds"] = build_seconds;
-    j["stats_seconds"] = stats_seconds;
-    j["build_cpu_seconds"] = build_cpu;
-    j["stats_cpu_seconds"] = stats_cpu;
-    j["peak_rss_bytes_build"] = build_rss;
-    j["peak_rss_bytes"] = rss;
-    j["stats"] = stats_json(st);
-    j["outputs"] = {{"heightmap", o.out}, {"normals", o.normals}, {"mesh", o.mesh}};
-    outputs.stage(o.json, [&](const fs::path& tmp) { write_json_file(tmp, j); });
-  }
+  stage_derived_outputs(outputs, field, o.normals, o.mesh, o.mesh_crop);
+  stage_json(outputs, o.json, j);
   outputs.commit();
+}
+
+int run_build(const BuildOptions& o) {
+  const microgeom::AssemblyParams p = check_build(o);
+  const double l = corr_length(p, o.quiet);
+  microsim::install_interrupt_handler();
+  BuildCost cost;
+  const Stopwatch build_clock;
+  microgeom::BuildReport report;
+  const std::optional<microgeom::Heightfield> field = build_with_progress(p, o.quiet, report);
+  if (!field) return interrupted_nothing_written("surface build");
+  cost.build_seconds = build_clock.wall();
+  cost.build_rss = peak_rss_bytes();
+  cost.build_cpu = build_clock.cpu();
+
+  const Stopwatch stats_clock;
+  const microgeom::StatsOptions so = build_stats_options(p, l);
+  const microgeom::SurfaceStats st = microgeom::measure_surface(*field, so);
+  if (microsim::interrupted()) return interrupted_nothing_written("surface build");
+  cost.stats_seconds = stats_clock.wall();
+  cost.stats_cpu = stats_clock.cpu();
+
+  print_build(p, l, report);
+  print_stats(st, *field);
+  cost.rss = peak_rss_bytes();
+  print_cost(cost, *field);
+  if (!st.ndf_within_tolerance)
+    throw UsageError(fmt::format("the {} surface misses its {} NDF: {} (nothing written)", p.assembly,
+                                 microgeom::to_string(so.reference), st.ndf_verdict));
+  write_build_outputs(o, *field, build_json(o, p, l, report, cost, st));
   if (!o.quiet) fmt::print(stderr, "surface build: wrote {}\n", o.out);
   return microsim::app::kExitOk;
 }
@@ -354,80 +423,85 @@ std::optional<double> metadata_number(const microgeom::Heightfield& f, const std
   return v;
 }
 
-microgeom::Heightfield load_for_cli(const std::string& path, double tile_size_option) {
-  if (tile_size_option != 0 && !(tile_size_option > 0))
-    throw UsageError(fmt::format("--tile-size {} must be > 0", tile_size_option));
-  try {
-    return microgeom::load_heightmap_exr(path, tile_size_option > 0 ? std::optional<double>(tile_size_option)
-                                                                    : std::nullopt);
-  } catch (const std::bad_alloc&) {
-    throw;  // out of memory is an internal error (exit 3), not bad input
-  } catch (const std::exception& e) {
-    throw UsageError(e.what());
-  }
-}
-
-int run_stats(const StatsCliOptions& o) {
-  microsim::app::check_distinct_outputs({{"heightmap", o.path}},
-                                        {{"--json", o.json}, {"--mesh", o.mesh}, {"--normals", o.normals}});
-  if (!o.json.empty()) StagedOutputs::check_destination("--json", o.json);
-  if (!o.mesh.empty()) {
-    StagedOutputs::check_destination("--mesh", o.mesh);
-    check_mesh_extension(o.mesh);
-  }
-  if (!o.normals.empty()) StagedOutputs::check_destination("--normals", o.normals);
-  microsim::install_interrupt_handler();
-  const microgeom::Heightfield field = load_for_cli(o.path, o.tile_size);
-  if (o.mesh_crop < 0 || o.mesh_crop > field.resolution())
-    throw UsageError(fmt::format("--mesh-crop {} must be in [1, {}] (0 = whole tile)", o.mesh_crop, field.resolution()));
-
-  microgeom::StatsOptions so;
-  // Reference: option, else the file's, else GGX.
+// Reference: the option, else the file's, else GGX.
+microgeom::ReferenceNdf reference_ndf(const StatsCliOptions& o, const microgeom::Heightfield& field) {
   std::string ref = o.reference;
   if (ref.empty()) {
     auto it = field.metadata.find("reference_ndf");
     ref = it != field.metadata.end() ? it->second : "ggx";
   }
-  if (const auto ndf = microgeom::reference_ndf_from_string(ref)) so.reference = *ndf;
-  else throw UsageError(fmt::format("--reference '{}' must be ggx or beckmann", ref));
-  // Alpha: option, else the file's, else fitted.
+  if (const auto ndf = microgeom::reference_ndf_from_string(ref)) return *ndf;
+  throw UsageError(fmt::format("--reference '{}' must be ggx or beckmann", ref));
+}
+
+// Alpha: the option, else the file's, else fitted (left unset).
+void set_alpha(microgeom::StatsOptions& so, const StatsCliOptions& o, const microgeom::Heightfield& field) {
   if (o.alpha_given) {
-    const auto [ax, ay] = parse_alpha(o.alpha);
-    so.alpha_x = ax;
-    so.alpha_y = ay;
+    std::tie(so.alpha_x, so.alpha_y) = parse_alpha(o.alpha);
   } else if (auto ax = metadata_number(field, "alpha_x"), ay = metadata_number(field, "alpha_y");
              ax && ay && *ax > 0 && *ay > 0) {
     so.alpha_x = *ax;
     so.alpha_y = *ay;
   }
-  // Tolerance: scaled by the correlation length (option, else the file's, else the fixed bounds).
-  double l = o.corr_cells;
-  if (l < 0) throw UsageError(fmt::format("--corr-cells {} must be > 0", l));
-  if (l == 0) l = metadata_number(field, "corr_cells").value_or(0.0);
-  so.tolerance = l > 0 ? microgeom::tolerance_for(so.reference, field.resolution(), l) : microgeom::NdfTolerance{};
+}
 
-  const microgeom::SurfaceStats st = microgeom::measure_surface(field, so);
-  if (microsim::interrupted()) return interrupted_nothing_written("surface stats");
+// The correlation length for the tolerance: the option, else the file's, else 0 (none known).
+double stats_corr_length(const StatsCliOptions& o, const microgeom::Heightfield& field) {
+  if (o.corr_cells < 0) throw UsageError(fmt::format("--corr-cells {} must be > 0", o.corr_cells));
+  return o.corr_cells != 0 ? o.corr_cells : metadata_number(field, "corr_cells").value_or(0.0);
+}
+
+void check_stats_outputs(const StatsCliOptions& o) {
+  microsim::app::check_distinct_outputs({{"heightmap", o.path}},
+                                        {{"--json", o.json}, {"--mesh", o.mesh}, {"--normals", o.normals}});
+  microsim::app::check_output("--json", o.json);
+  check_mesh_output(o.mesh);
+  microsim::app::check_output("--normals", o.normals);
+}
+
+// --tile-size for a heightmap: 0 is "not given" (the file's own).
+std::optional<double> tile_size_option(double tile_size) {
+  return tile_size != 0 ? std::optional<double>(tile_size) : std::nullopt;
+}
+
+void print_stats_header(const StatsCliOptions& o, const microgeom::Heightfield& field, double l) {
   fmt::print("surface stats: {}", o.path);
   if (auto it = field.metadata.find("assembly"); it != field.metadata.end()) fmt::print(" (assembly {})", it->second);
   fmt::print("{}\n", l > 0 ? fmt::format(", tolerance for {:.4g} correlation lengths per tile", field.resolution() / l)
                            : ", fixed tolerance (no correlation length known)");
+}
+
+nlohmann::json stats_report_json(const StatsCliOptions& o, const microgeom::Heightfield& field,
+                                 const microgeom::SurfaceStats& st) {
+  nlohmann::json j;
+  j["command"] = "surface stats";
+  j["path"] = o.path;
+  j["resolution"] = field.resolution();
+  j["metadata"] = field.metadata;
+  j["stats"] = stats_json(st);
+  return j;
+}
+
+int run_stats(const StatsCliOptions& o) {
+  check_stats_outputs(o);
+  microsim::install_interrupt_handler();
+  const microgeom::Heightfield field = microsim::app::load_surface(o.path, tile_size_option(o.tile_size), "heightmap");
+  check_mesh_crop(o.mesh_crop, field.resolution());
+  microgeom::StatsOptions so;
+  so.reference = reference_ndf(o, field);
+  set_alpha(so, o, field);
+  // Tolerance: scaled by the correlation length when one is known, else the fixed bounds.
+  const double l = stats_corr_length(o, field);
+  so.tolerance = l > 0 ? microgeom::tolerance_for(so.reference, field.resolution(), l) : microgeom::NdfTolerance{};
+
+  const microgeom::SurfaceStats st = microgeom::measure_surface(field, so);
+  if (microsim::interrupted()) return interrupted_nothing_written("surface stats");
+  print_stats_header(o, field, l);
   print_stats(st, field);
 
   StagedOutputs outputs;
-  if (!o.normals.empty())
-    outputs.stage(o.normals, [&](const fs::path& tmp) { microgeom::save_normal_map_exr(tmp, field); });
-  if (!o.mesh.empty())
-    outputs.stage(o.mesh, [&](const fs::path& tmp) { microgeom::write_heightfield_mesh(tmp, field, o.mesh_crop); });
-  if (!o.json.empty()) {
-    nlohmann::json j;
-    j["command"] = "surface stats";
-    j["path"] = o.path;
-    j["resolution"] = field.resolution();
-    j["metadata"] = field.metadata;
-    j["stats"] = stats_json(st);
-    outputs.stage(o.json, [&](const fs::path& tmp) { write_json_file(tmp, j); });
-  }
+  stage_derived_outputs(outputs, field, o.normals, o.mesh, o.mesh_crop);
+  stage_json(outputs, o.json, stats_report_json(o, field, st));
   outputs.commit();
   if (o.check && !st.ndf_within_tolerance) return microsim::app::kExitRejected;
   return microsim::app::kExitOk;
@@ -442,9 +516,9 @@ struct ImportOptions {
 int run_import(const ImportOptions& o) {
   microsim::app::check_distinct_outputs({{"heightmap", o.path}}, {{"--out", o.out}});
   if (!(o.tile_size > 0)) throw UsageError(fmt::format("--tile-size {} must be > 0", o.tile_size));
-  StagedOutputs::check_destination("--out", o.out);
+  microsim::app::check_output("--out", o.out);
   microsim::install_interrupt_handler();
-  microgeom::Heightfield field = load_for_cli(o.path, o.tile_size);
+  microgeom::Heightfield field = microsim::app::load_surface(o.path, o.tile_size, "heightmap");
   if (microsim::interrupted()) return interrupted_nothing_written("surface import");
   field.metadata["assembly"] = "imported";
   field.metadata["source"] = fs::absolute(o.path).string();
@@ -456,11 +530,11 @@ int run_import(const ImportOptions& o) {
   return microsim::app::kExitOk;
 }
 
-microsim::app::CommandRegistration reg{"surface", [](CLI::App& app) {
-  CLI::App* group = microsim::app::get_or_add_subcommand(
-      app, "surface", "Periodic heightfield microsurfaces: build an assembly, measure a heightmap, import one.");
+// ---- the subcommands ----------------------------------------------------------------------------------
+namespace ma = microsim::app;
+using ma::add_number_option;
 
-  // build
+void add_build_command(CLI::App* group) {
   auto b = std::make_shared<BuildOptions>();
   auto* build = group->add_subcommand(
       "build",
@@ -473,9 +547,6 @@ microsim::app::CommandRegistration reg{"surface", [](CLI::App& app) {
                 "N/128)), N/16] (beckmann: up to N/8); outside it the build is refused (exit 2) unless --unsupported.");
   build->add_option("--assembly", b->assembly, "assembly name (see above)")->required();
   build->add_option("--alpha", b->alpha, "GGX/Beckmann roughness AX or AX,AY, each in [0.005, 2]")->required();
-  using microsim::app::add_number_option;
-  namespace ma = microsim::app;
-  const auto any_int = ma::integer(0, std::numeric_limits<int>::max());
   add_number_option(build, "--res", b->resolution,
                     ma::power_of_two(microgeom::kMinAssemblyResolution, microgeom::kMaxAssemblyResolution),
                     "vertices per side N (a power of two, 16..8192; 8192 needs ~6.7 GiB)")
@@ -490,16 +561,17 @@ microsim::app::CommandRegistration reg{"surface", [](CLI::App& app) {
                     "slope-matching iterations, 0..100 (default 8)");
   build->add_option("--out", b->out, "heightmap EXR (channel 'height', attributes microsim.*)")->required();
   build->add_option("--mesh", b->mesh, "also write the mesh (.ply or .obj) through OpenMesh");
-  add_number_option(build, "--mesh-crop", b->mesh_crop, any_int,
+  add_number_option(build, "--mesh-crop", b->mesh_crop, ma::integer(0, std::numeric_limits<int>::max()),
                     "write only the first C x C cells to --mesh (default: whole tile)");
   build->add_option("--normals", b->normals, "also write the normal map EXR (R, G, B = unit cell normals)");
   build->add_option("--json", b->json, "also write the build report and statistics as JSON");
   build->add_flag("--quiet", b->quiet, "no progress on stderr");
   build->add_flag("--unsupported", b->unsupported,
                   "build even outside the supported range (the NDF check still decides; scripts/surface_range.sh)");
-  microsim::app::on_selected(build, [b] { return run_build(*b); });
+  ma::on_selected(build, [b] { return run_build(*b); });
+}
 
-  // stats
+void add_stats_command(CLI::App* group) {
   auto s = std::make_shared<StatsCliOptions>();
   auto* stats = group->add_subcommand(
       "stats",
@@ -517,14 +589,16 @@ microsim::app::CommandRegistration reg{"surface", [](CLI::App& app) {
   stats->add_flag("--check", s->check, "exit 1 when the NDF misses the tolerance");
   stats->add_option("--json", s->json, "also write the statistics as JSON");
   stats->add_option("--mesh", s->mesh, "also write the mesh (.ply or .obj)");
-  add_number_option(stats, "--mesh-crop", s->mesh_crop, any_int, "write only the first C x C cells to --mesh");
+  add_number_option(stats, "--mesh-crop", s->mesh_crop, ma::integer(0, std::numeric_limits<int>::max()),
+                    "write only the first C x C cells to --mesh");
   stats->add_option("--normals", s->normals, "also write the normal map EXR");
-  microsim::app::on_selected(stats, [s, stats_alpha] {
+  ma::on_selected(stats, [s, stats_alpha] {
     s->alpha_given = stats_alpha->count() > 0;
     return run_stats(*s);
   });
+}
 
-  // import
+void add_import_command(CLI::App* group) {
   auto im = std::make_shared<ImportOptions>();
   auto* import = group->add_subcommand(
       "import",
@@ -535,7 +609,15 @@ microsim::app::CommandRegistration reg{"surface", [](CLI::App& app) {
                     "physical side of the tile, same unit as the heights")
       ->required();
   import->add_option("--out", im->out, "microsim heightmap EXR")->required();
-  microsim::app::on_selected(import, [im] { return run_import(*im); });
+  ma::on_selected(import, [im] { return run_import(*im); });
+}
+
+microsim::app::CommandRegistration reg{"surface", [](CLI::App& app) {
+  CLI::App* group = microsim::app::get_or_add_subcommand(
+      app, "surface", "Periodic heightfield microsurfaces: build an assembly, measure a heightmap, import one.");
+  add_build_command(group);
+  add_stats_command(group);
+  add_import_command(group);
 }};
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include "microfacet/roughness.h"
 
 #include "validate/compare.h"
+#include "core/atomic_file.h"
 #include "stats/histogram_io.h"
 #include "progress_bar.h"
 #include "validate/sample_io.h"
@@ -98,8 +99,8 @@ void write_plot(const std::string& path, const microsim::ValidationReport& r, co
   const std::string subtitle = fmt::format("{}\nverdict {}: p = {:.3g} (Sidak-adjusted); {}", source,
                                            r.passed ? "PASS" : "FAIL", r.p_value, per_binning);
   try {
-    write_text_atomically(path, histogram_figure_svg(title, subtitle, r.histograms));
-  } catch (const HistogramIoError& e) {
+    write_file_atomically(path, histogram_figure_svg(title, subtitle, r.histograms));
+  } catch (const FileWriteError& e) {
     throw UsageError(fmt::format("--plot: {}", e.what()));
   }
 }
@@ -190,12 +191,6 @@ microsim::DirectionSampleReader open_samples_or_usage_error(const std::string& p
   return usage_errors_of([&] { return microsim::DirectionSampleReader(path); });
 }
 
-// Ctrl-C during a single validation: there is no verdict to report (exit 130, nothing written).
-int interrupted_nothing_written(const char* when) {
-  fmt::print(stderr, "validate: interrupted {}: no verdict, nothing written\n", when);
-  return microsim::app::kExitInterrupted;
-}
-
 // --against ellipsoid | HIST.exr: two-sample chi-square against the traced oracle (compare.h); same report,
 // verdict, exit codes and JSON keys (plus "against").
 int run_against(const Args& a, const microsim::GGX<double>& ggx, const microsim::Vec3<double>& wi,
@@ -214,7 +209,7 @@ int run_against(const Args& a, const microsim::GGX<double>& ggx, const microsim:
     t.run = cli_run_control(0, progress);
     traced = trace_vndf_histogram(ggx, wi, t);
     progress->finish();
-    if (traced.partial) return interrupted_nothing_written("while tracing the oracle");
+    if (traced.partial) return microsim::app::interrupted_nothing_written("validate", "while tracing the oracle", "no verdict");
     oracle = fmt::format("the traced ellipsoid ({} rays, {} hits, seed {})", traced.rays, traced.hits, t.seed);
   } else {
     try {
@@ -243,7 +238,7 @@ int run_against(const Args& a, const microsim::GGX<double>& ggx, const microsim:
   } catch (const std::invalid_argument& e) {
     throw UsageError(fmt::format("--against: {}", e.what()));
   }
-  if (interrupted()) return interrupted_nothing_written("while comparing with the oracle");
+  if (interrupted()) return microsim::app::interrupted_nothing_written("validate", "while comparing with the oracle", "no verdict");
   source += " against " + oracle + ", two-sample chi-square";
   print_report(report, source);
   if (!a.json.empty()) {
@@ -251,7 +246,7 @@ int run_against(const Args& a, const microsim::GGX<double>& ggx, const microsim:
     j["against"] = a.against;
     j["oracle_rays"] = traced.rays;
     j["oracle_hits"] = traced.hits;
-    write_text_atomically(a.json, j.dump(2) + "\n");
+    write_file_atomically(a.json, j.dump(2) + "\n");
   }
   if (!a.plot.empty()) write_plot(a.plot, report, source);
   return report.passed ? microsim::app::kExitOk : microsim::app::kExitRejected;
@@ -285,9 +280,9 @@ int run_single(const Args& a) {
     source = fmt::format("sampler {}", s->name);
   }
   progress->finish();
-  if (interrupted()) return interrupted_nothing_written("while validating");
+  if (interrupted()) return microsim::app::interrupted_nothing_written("validate", "while validating", "no verdict");
   print_report(report, source);
-  if (!a.json.empty()) write_text_atomically(a.json, to_json(report).dump(2) + "\n");
+  if (!a.json.empty()) write_file_atomically(a.json, to_json(report).dump(2) + "\n");
   if (!a.plot.empty()) write_plot(a.plot, report, source);
   return report.passed ? microsim::app::kExitOk : microsim::app::kExitRejected;
 }
@@ -477,7 +472,7 @@ int run_all(const Args& a) {
     nlohmann::json j = batch_json(a, o, totals);
     j["summary"] = summary_json;
     j["results"] = results;
-    write_text_atomically(a.json, j.dump(2) + "\n");
+    write_file_atomically(a.json, j.dump(2) + "\n");
   }
   if (partial) {
     fmt::print(stderr, "validate --all: interrupted: partial results{}\n",

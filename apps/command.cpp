@@ -2,12 +2,15 @@
 
 #include "core/errors.h"
 #include "core/run_control.h"
+#include "stats/histogram_io.h"
 
 #include <fmt/core.h>
 
 #include <cstdio>
 #include <exception>
 #include <new>
+
+#include <sys/resource.h>
 
 namespace microsim::app {
 namespace {
@@ -35,6 +38,27 @@ void check_distinct_outputs(const std::vector<microsim::PathOption>& inputs,
   }
 }
 
+void check_output(const std::string& option, const std::string& path) {
+  if (path.empty()) return;
+  try {
+    check_writable(path);
+  } catch (const HistogramIoError& e) {
+    throw UsageError(fmt::format("{}: {}", option, e.what()));
+  }
+}
+
+int interrupted_nothing_written(std::string_view command, std::string_view when, std::string_view lost) {
+  fmt::print(stderr, "{}: interrupted{}{}: {}{}nothing written\n", command, when.empty() ? "" : " ", when, lost,
+             lost.empty() ? "" : ", ");
+  return kExitInterrupted;
+}
+
+double peak_rss_mib() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return double(usage.ru_maxrss) / 1024.0;  // Linux: kilobytes
+}
+
 void on_selected(CLI::App* sub, std::function<int()> action) { actions().push_back({sub, std::move(action)}); }
 
 int run_selected() {
@@ -46,8 +70,7 @@ int run_selected() {
       fmt::print(stderr, "microsim: error: {}\n", e.what());
       return kExitUsage;
     } catch (const microsim::Cancelled& e) {  // a step with no partial result to keep
-      fmt::print(stderr, "microsim: interrupted ({}): nothing written\n", e.what());
-      return kExitInterrupted;
+      return interrupted_nothing_written("microsim", fmt::format("({})", e.what()));
     } catch (const std::bad_alloc&) {
       fmt::print(stderr, "microsim: internal error: out of memory\n");
       return kExitInternal;

@@ -11,6 +11,7 @@
 
 #include <functional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace microsim::app {
@@ -63,5 +64,17 @@ struct UsageError : std::runtime_error {
 // the same file as an input or as another output (microsim/output_paths.h). Empty paths are not given.
 void check_distinct_outputs(const std::vector<microsim::PathOption>& inputs,
                             const std::vector<microsim::PathOption>& outputs);
+
+// An output that can be created (its directory exists and is writable, it is not a directory), else
+// UsageError naming the option; "" is no output.
+void check_output(const std::string& option, const std::string& path);
+
+// Ctrl-C in a command that has no partial result to keep: says so on stderr, "COMMAND: interrupted[ WHEN]:
+// [LOST, ]nothing written" (e.g. "validate: interrupted while validating: no verdict, nothing written").
+// Returns kExitInterrupted.
+int interrupted_nothing_written(std::string_view command, std::string_view when = {}, std::string_view lost = {});
+
+// The process's peak resident memory so far, in MiB.
+double peak_rss_mib();
 
 }  // namespace microsim::app

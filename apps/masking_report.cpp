@@ -3,15 +3,13 @@
 #include "command.h"
 #include "surface_input.h"
 
-#include "stats/histogram_io.h"
+#include "core/atomic_file.h"
 
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cmath>
-
-#include <sys/resource.h>
 
 namespace microsim::app {
 
@@ -21,12 +19,6 @@ bool leak_failed(const MaskingResult& r) {
 }
 
 std::string pm(const Estimate& e, int digits) { return fmt::format("{:.{}f} ± {:.{}f}", e.value, digits, e.se, digits); }
-
-double peak_rss_mib() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return double(usage.ru_maxrss) / 1024.0;  // Linux: kilobytes
-}
 
 int interrupted_partial_written(const char* command, const std::vector<std::string>& outputs) {
   std::string written;
@@ -139,7 +131,7 @@ nlohmann::json report_json(const SurfaceMasking& m, const MaskingSurface& surfac
 }  // namespace
 
 int report_surface_masking(const SurfaceMasking& m, const MaskingSurface& surface, const MaskingOutputs& outputs) {
-  if (!outputs.json.empty()) write_text_atomically(outputs.json, report_json(m, surface).dump(2) + "\n");
+  if (!outputs.json.empty()) write_file_atomically(outputs.json, report_json(m, surface).dump(2) + "\n");
   const microgeom::Heightfield& field = surface.field;
   const Provenance& p = m.provenance;
   fmt::print("trace masking  {}  ({} x {}, tile {:.6g})  theta {}  phi {}  seed {}{}\n", surface.path, field.resolution(),

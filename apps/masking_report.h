@@ -19,7 +19,6 @@ inline constexpr double kLeakSigmas = 4.0;
 bool leak_failed(const MaskingResult& r);
 // "value ± se" with `digits` decimals.
 std::string pm(const Estimate& e, int digits = 4);
-double peak_rss_mib();
 // Ctrl-C: what was measured has been written, marked partial; says so on stderr. Returns exit code 130.
 int interrupted_partial_written(const char* command, const std::vector<std::string>& outputs);
 

@@ -15,10 +15,11 @@ namespace microsim::app {
 
 // A direction's polar angle in [0, 90) degrees, else UsageError naming the option.
 void check_theta(const std::string& option, double theta);
-// An output that can be created (its directory exists and is writable), else UsageError; "" is no output.
-void check_output(const std::string& option, const std::string& path);
-// The heightmap at `path` (UsageError when missing or malformed; out of memory passes as std::bad_alloc).
-microgeom::Heightfield load_surface(const std::string& path, std::optional<double> tile_size);
+// The heightmap at `path`, given as `option` ("--surface", or "heightmap" for a positional argument):
+// UsageError naming the option and the file when it is missing or malformed; out of memory passes as
+// std::bad_alloc.
+microgeom::Heightfield load_surface(const std::string& path, std::optional<double> tile_size,
+                                    const std::string& option = "--surface");
 // The surface as reports record it: path, resolution, tile, heights, metadata, analytic reference.
 nlohmann::json surface_json(const microgeom::Heightfield& field, const std::string& path, const AnalyticSmith& analytic,
                             const std::string& source);

@@ -2,6 +2,7 @@
 
 #include "surface_input.h"
 
+#include "core/atomic_file.h"
 #include "core/strict_parse.h"
 
 #include <fmt/core.h>
@@ -40,7 +41,7 @@ nlohmann::json run_json(const TracedHistogram& h, const TraceResult& r, const st
   j["seconds"] = r.seconds;
   j["rays_per_second"] = r.rays_per_second();
   j["seed"] = count_attribute(h, "seed");
-  j["threads"] = std::stoi(attribute(h, "threads").empty() ? "0" : attribute(h, "threads"));
+  j["threads"] = count_attribute(h, "threads");
   j["rows"] = h.binnings.front().rows();
   j["partial"] = r.partial;
   j["output"] = out;
@@ -51,7 +52,7 @@ nlohmann::json run_json(const TracedHistogram& h, const TraceResult& r, const st
 
 void write_outputs(const TracedHistogram& h, const nlohmann::json& j, const VndfOutputs& outputs) {
   write_histogram_exr(outputs.out, h);
-  if (!outputs.json.empty()) write_text_atomically(outputs.json, j.dump(2) + "\n");
+  if (!outputs.json.empty()) write_file_atomically(outputs.json, j.dump(2) + "\n");
 }
 
 void print_fits(const TraceAnalysis& analysis) {

@@ -2,6 +2,7 @@
 // negative controls showing the test's power, determinism across thread counts, the hit fraction against
 // its exact value, interruption, tessellation bias of the mesh, and the histogram EXR round trip.
 #include "validate/compare.h"
+#include "core/atomic_file.h"
 #include "stats/histogram_io.h"
 #include "trace/trace_vndf.h"
 
@@ -200,7 +201,7 @@ TEST(HistogramIo, ExrRoundTripIsExactAndAtomic) {
   EXPECT_NEAR(back.probability[0][100], h.probability[0][100], 1e-6 * h.probability[0][100] + 1e-12);
   // Errors: a missing file, a non-histogram EXR-free file, an unwritable directory; nothing left behind.
   EXPECT_THROW(read_histogram_exr(dir / "missing.exr"), HistogramIoError);
-  write_text_atomically(dir / "not.exr", "hello");
+  write_file_atomically(dir / "not.exr", std::string_view("hello"));
   EXPECT_THROW(read_histogram_exr(dir / "not.exr"), HistogramIoError);
   EXPECT_THROW(write_histogram_exr(dir / "no_such_dir" / "h.exr", h), HistogramIoError);
   EXPECT_THROW(check_writable(dir / "no_such_dir" / "h.exr"), HistogramIoError);

@@ -288,13 +288,3 @@ void check_writable(const std::filesystem::path& path) {
 }
 
 }  // namespace microsim
-
-namespace microsim {
-void write_text_atomically(const std::filesystem::path& path, const std::string& text) {
-  try {
-    microsim::write_file_atomically(path, text);
-  } catch (const microsim::FileWriteError& e) {
-    throw HistogramIoError(e.what());
-  }
-}
-}  // namespace microsim

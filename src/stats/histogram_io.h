@@ -69,9 +69,3 @@ TracedHistogram histogram_from_exr(const microgeom::ExrImage& image, const std::
 void check_writable(const std::filesystem::path& path);
 
 }  // namespace microsim
-
-namespace microsim {
-// Writes `text` to `path` atomically (microsim::write_file_atomically: a new temporary sibling, then
-// rename; nothing half-written, no existing file ever truncated). Throws HistogramIoError.
-void write_text_atomically(const std::filesystem::path& path, const std::string& text);
-}  // namespace microsim
