@@ -5,7 +5,7 @@
 # touched) and prints executions per target. Exit 1 on any crash, leak, timeout, out-of-memory or failed
 # property (a single allocation over 256 MB from an input of a few KB counts as out-of-memory); the
 # input that triggered it is left in build-fuzz/findings/<target>/.
-#   scripts/fuzz.sh [SECONDS_PER_TARGET]   (default 300; CI: scripts/fuzz.sh 20)
+#   scripts/fuzz.sh [SECONDS_PER_TARGET]   (default 300; CI: scripts/fuzz.sh 10)
 set -euo pipefail
 seconds=${1:-300}
 root=$(cd "$(dirname "$0")/.." && pwd)
