@@ -155,10 +155,7 @@ EllipsoidVndf measure_ellipsoid_vndf(const EllipsoidTarget& target, const VndfRe
   std::vector<DirectionBinning> binnings = vndf_binnings(ggx, wi, req.rows);
   const TraceResult r = trace_vndf(target, wi, binnings, trace_options(req));
   TracedHistogram h = traced_histogram(std::move(binnings), r, req, wi);
-  h.attributes["surface"] = "ellipsoid";
-  h.attributes["target"] = target.describe();
-  h.attributes["mesh_level"] = std::to_string(target.mesh_level());
-  h.attributes["alpha"] = g17(ggx.alpha_x()) + "," + g17(ggx.alpha_y());
+  record_ellipsoid_target(h, target);
   EllipsoidVndf m = analyse_ellipsoid_vndf(std::move(h), r.unbinned);
   m.trace = r;
   m.expected_hit_fraction = ParallelBeam(target.ellipsoid(), wi).expected_hit_fraction();

@@ -112,6 +112,14 @@ nlohmann::json to_json(const TraceAnalysis& a) {
   return j;
 }
 
+void record_ellipsoid_target(TracedHistogram& h, const EllipsoidTarget& target) {
+  const auto g17 = [](double x) { return fmt::format("{:.17g}", x); };
+  h.attributes["surface"] = "ellipsoid";
+  h.attributes["target"] = target.describe();
+  h.attributes["mesh_level"] = std::to_string(target.mesh_level());
+  h.attributes["alpha"] = g17(target.ellipsoid().ax) + "," + g17(target.ellipsoid().ay);
+}
+
 TracedHistogram trace_vndf_histogram(const GGX<double>& ggx, const Vec3<double>& wi_in, const OracleTraceOptions& options,
                                      TraceResult* raw) {
   const Vec3<double> wi = wi_in.normalized();
@@ -122,18 +130,14 @@ TracedHistogram trace_vndf_histogram(const GGX<double>& ggx, const Vec3<double>&
   TraceOptions t;
   t.rays = options.rays;
   t.seed = options.seed;
-  t.blocks = options.blocks;
   t.run = options.run;
   TraceResult r = trace_vndf(target, wi, h.binnings, t);
   h.counts = r.counts;
   h.rays = r.rays;
   h.hits = r.hits;
   h.partial = r.partial;
+  record_ellipsoid_target(h, target);
   const auto g17 = [](double x) { return fmt::format("{:.17g}", x); };
-  h.attributes["surface"] = "ellipsoid";
-  h.attributes["target"] = target.describe();
-  h.attributes["mesh_level"] = std::to_string(target.mesh_level());
-  h.attributes["alpha"] = g17(ggx.alpha_x()) + "," + g17(ggx.alpha_y());
   h.attributes["wi"] = g17(wi.x()) + "," + g17(wi.y()) + "," + g17(wi.z());
   h.attributes["seed"] = std::to_string(options.seed);
   h.attributes["rays_per_second"] = g17(r.rays_per_second());

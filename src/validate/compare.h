@@ -67,9 +67,10 @@ struct OracleTraceOptions {
   std::uint64_t seed = 1;
   int rows = 31;
   int mesh_level = -1;
-  std::optional<BlockRange> blocks;  // a shard of the run's blocks; default all
   RunControl run;
 };
+// The attributes naming the traced ellipsoid: surface, target, mesh_level, alpha (enough to rebuild it).
+void record_ellipsoid_target(TracedHistogram& histogram, const EllipsoidTarget& target);
 TracedHistogram trace_vndf_histogram(const GGX<double>& ggx, const Vec3<double>& wi, const OracleTraceOptions& options,
                                      TraceResult* raw = nullptr);
 
