@@ -15,7 +15,8 @@ GRAPH = {
     "stats": ("src/stats", {"core", "microgeom", "microfacet"}),
     "trace": ("src/trace", {"core", "microgeom", "microfacet", "stats"}),
     "validate": ("src/validate", {"core", "microgeom", "microfacet", "stats", "trace"}),
-    "measure": ("src/measure", {"core", "microgeom", "microfacet", "stats", "trace", "validate"}),
+    "scatter": ("src/scatter", {"core", "microgeom", "microfacet", "stats", "trace"}),
+    "measure": ("src/measure", {"core", "microgeom", "microfacet", "stats", "trace", "validate", "scatter"}),
 }
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([a-z_]+)/[^"]+"', re.M)
 

@@ -75,6 +75,20 @@ template <class T> inline Vec3<T> direction_from_degrees(T theta_deg, T phi_deg)
 // Mirror reflection of w about the unit normal n (both pointing away from the surface).
 template <class T> inline Vec3<T> reflect(const Vec3<T>& w, const Vec3<T>& n) { return T(2) * w.dot(n) * n - w; }
 
+// Refraction of w (unit, pointing away from the interface, on the side n points to) through the interface
+// with unit normal n, for eta = n_transmitted / n_incident (Snell's law in vector form; e.g. Walter et al.
+// 2007, eq. 40 with the sign of n chosen on w's side). The refracted direction points away on the other
+// side, unit. Returns false (total internal reflection, or w not on n's side) and leaves `out` unchanged.
+template <class T> inline bool refract(const Vec3<T>& w, const Vec3<T>& n, T eta, Vec3<T>& out) {
+  const T cos_i = w.dot(n);
+  if (!(cos_i > T(0)) || !(eta > T(0))) return false;
+  const T sin2_t = (T(1) - cos_i * cos_i) / (eta * eta);
+  if (sin2_t >= T(1)) return false;
+  const T cos_t = std::sqrt(T(1) - sin2_t);
+  out = (-w / eta + (cos_i / eta - cos_t) * n).normalized();
+  return true;
+}
+
 // Normalises v; returns nullopt-like zero vector for a zero or non-finite input (callers check norm).
 template <class T> inline Vec3<T> normalized_or_zero(const Vec3<T>& v) {
   const T n = v.norm();

@@ -43,6 +43,18 @@ DirectionBinning DirectionBinning::sphere(int rows) {
   return b;
 }
 
+DirectionBinning DirectionBinning::hemispheres(int rows_per_hemisphere) {
+  if (rows_per_hemisphere < 1 || 2 * rows_per_hemisphere > kMaxBinningRows)
+    throw std::invalid_argument(fmt::format("hemispheres binning needs rows per hemisphere in [1, {}], got {}",
+                                            kMaxBinningRows / 2, rows_per_hemisphere));
+  DirectionBinning b;
+  b.kind_ = BinningKind::sphere;
+  b.rows_ = 2 * rows_per_hemisphere;
+  b.z_min_ = -1;
+  b.z_max_ = 1;
+  return b;
+}
+
 DirectionBinning DirectionBinning::lobe(const GGX<double>& ggx, const Vec3<double>& wi, SampleDomain domain, int rows) {
   if (rows < 1 || rows > kMaxBinningRows)
     throw std::invalid_argument(fmt::format("lobe binning needs rows in [1, {}], got {}", kMaxBinningRows, rows));
@@ -151,7 +163,7 @@ std::vector<Vec3<double>> DirectionBinning::visible_edge_directions(int rings, i
 
 nlohmann::json DirectionBinning::describe() const {
   nlohmann::json j;
-  j["kind"] = name();
+  j["kind"] = kind_ == BinningKind::sphere && rows_ % 2 == 0 ? "hemispheres" : name();
   j["rows"] = rows_;
   j["cols"] = cols();
   j["z_min"] = z_min_;
@@ -186,6 +198,10 @@ DirectionBinning DirectionBinning::from_description(const nlohmann::json& d) {
     if (d.contains("cols") && (!d.at("cols").is_number_integer() || d.at("cols").get<std::int64_t>() != 2 * rows))
       throw std::invalid_argument("binning description: cols must be 2 * rows");
     if (kind == "sphere") return sphere(rows);
+    if (kind == "hemispheres") {
+      if (rows % 2 != 0) throw std::invalid_argument("binning description: hemispheres need an even number of rows");
+      return hemispheres(rows / 2);
+    }
     if (kind == "lobe") {
       const auto a = d.at("alpha");
       const auto w = d.at("wi");

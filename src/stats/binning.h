@@ -102,6 +102,11 @@ class DirectionBinning {
 public:
   // Full sphere, u = w. rows must be odd, in [1, kMaxBinningRows] (throws std::invalid_argument otherwise).
   static DirectionBinning sphere(int rows);
+  // The full sphere, u = w, with the equator as a bin edge: 2 rows_per_hemisphere rows, the first half in
+  // the upper hemisphere (reflection), the second in the lower (transmission). For scattered directions
+  // (stats/scatter_histogram.h); its description's kind is "hemispheres". rows_per_hemisphere in
+  // [1, kMaxBinningRows / 2].
+  static DirectionBinning hemispheres(int rows_per_hemisphere);
   // The lobe-following parameterization (see above) for samples in `domain` seen from wi (unit).
   // rows in [1, kMaxBinningRows] (throws std::invalid_argument otherwise).
   static DirectionBinning lobe(const GGX<double>& ggx, const Vec3<double>& wi, SampleDomain domain, int rows);

@@ -31,6 +31,7 @@ struct Provenance {
   BlockRange blocks;               // the blocks this result holds
 
   bool complete() const { return blocks == BlockRange{0, total_blocks}; }
+  bool operator==(const Provenance&) const = default;
   // Throws HistogramMergeError naming the first difference unless `other` is part of the same run.
   void check_same_run(const Provenance& other) const;
 };
