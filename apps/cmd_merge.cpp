@@ -1,5 +1,6 @@
 // microsim merge: joins the partial results of one run (`trace vndf --shard K/N` histograms, EXR;
-// `trace masking --surface S --shard K/N` reports, JSON; or runs cancelled part way) into the whole run.
+// `trace masking --surface S --shard K/N` reports, JSON; `scatter --shard K/N` scatter files, EXR; or runs
+// cancelled part way) into the whole run.
 // The parts must come from the same run (every run attribute or parameter equal, same binnings, same seed)
 // and together hold every block exactly once; the merged result, its analysis, JSON and table are those
 // of the single run, bit for bit (counts are exact integers, masking sums exact fixed-point sums).
@@ -10,9 +11,12 @@
 #include "surface_input.h"
 #include "masking_report.h"
 #include "vndf_report.h"
+#include "scatter_report.h"
 
 #include "core/output_paths.h"
 #include "core/strict_parse.h"
+#include "microgeom/exr_io.h"
+#include "stats/scatter_merge.h"
 
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
@@ -116,6 +120,66 @@ int merge_masking(const MergeArgs& a) {
   }
 }
 
+// ---- scatter parts (EXR of format microsim-scatter-1) ---------------------------------------------------------
+
+bool is_scatter_part(const std::string& path) {
+  if (is_json_part(path) || !std::filesystem::exists(path)) return false;
+  try {
+    return is_scatter_image(microgeom::read_exr(path));
+  } catch (const std::bad_alloc&) {
+    throw;
+  } catch (const std::exception&) {
+    return false;  // read_parts names what is wrong with it
+  }
+}
+
+ScatterFile read_scatter_part(const std::string& path) {
+  if (!std::filesystem::exists(path)) throw UsageError(fmt::format("part '{}': no such file", path));
+  try {
+    const microgeom::ExrImage image = microgeom::read_exr(path);
+    if (!is_scatter_image(image))
+      throw UsageError(fmt::format("cannot merge: part '{}' is not a scatter file (microsim scatter --shard) but the "
+                                   "first part is: parts of one run are of one kind", path));
+    ScatterFile f = scatter_from_exr(image, path);
+    if (f.kind != ScatterFileKind::histogram)
+      throw UsageError(fmt::format("cannot merge: part '{}' is an expectation (microsim scatter --model analytic), "
+                                   "not part of a sampled run", path));
+    return f;
+  } catch (const ScatterIoError& e) {
+    throw UsageError(e.what());
+  } catch (const std::runtime_error& e) {  // not an EXR file (UsageError is no runtime_error of the reader's)
+    if (dynamic_cast<const UsageError*>(&e)) throw;
+    throw UsageError(fmt::format("part '{}': {}", path, e.what()));
+  }
+}
+
+int merge_scatter(const MergeArgs& a) {
+  if (!a.surface.empty()) throw UsageError("--surface applies to trace vndf and trace masking parts only");
+  if (a.out.empty()) throw UsageError("--out MERGED.exr is required to merge scatter parts");
+  if (std::filesystem::path(a.out).extension() != ".exr") throw UsageError(fmt::format("--out '{}': must be an .exr file", a.out));
+  check_output("--out", a.out);
+  check_output("--json", a.json);
+  std::vector<ScatterHistogram> parts;
+  std::map<std::string, std::string> notes;
+  for (const std::string& path : a.parts) {
+    ScatterFile f = read_scatter_part(path);
+    if (parts.empty()) notes = f.notes;
+    else if (f.notes != notes)
+      throw UsageError(fmt::format("cannot merge: part '{}' records other notes than part '{}' (another run)", path,
+                                   a.parts.front()));
+    parts.push_back(std::move(f.histogram));
+  }
+  ScatterHistogram merged;
+  try {
+    merged = merge_scatter_parts(parts);
+  } catch (const HistogramMergeError& e) {
+    throw UsageError(fmt::format("cannot merge: {}", e.what()));
+  }
+  fmt::print(stderr, "merge: {} scatter parts, {} paths, blocks {}\n", parts.size(), merged.paths(),
+             merged.provenance.blocks.to_string());
+  return report_scatter(merged, notes, {a.out, a.json});
+}
+
 // ---- the command -----------------------------------------------------------------------------------------
 
 int run_merge(const MergeArgs& a) {
@@ -125,6 +189,7 @@ int run_merge(const MergeArgs& a) {
   check_distinct_outputs(inputs, {{"--out", a.out}, {"--json", a.json}});
   check_one_kind(a.parts);
   if (is_json_part(a.parts.front())) return merge_masking(a);
+  if (is_scatter_part(a.parts.front())) return merge_scatter(a);
   if (a.out.empty()) throw UsageError("--out MERGED.exr is required to merge trace vndf histograms");
   if (std::filesystem::path(a.out).extension() != ".exr") throw UsageError(fmt::format("--out '{}': must be an .exr file", a.out));
   check_output("--out", a.out);
@@ -145,13 +210,14 @@ CommandRegistration reg{"merge", [](CLI::App& app) {
   auto* sub = app.add_subcommand(
       "merge",
       "Join the partial results of one run (`microsim trace vndf --shard K/N` histograms, `microsim trace masking "
-      "--surface S --shard K/N` JSON reports, or a run interrupted part way) into the whole run: the same histogram "
+      "--surface S --shard K/N` JSON reports, `microsim scatter --shard K/N` scatter files, or a run interrupted part "
+      "way) into the whole run: the same histogram "
       "EXR or JSON report, and the same table, as the single run, bit for bit. The parts must be of one run and "
       "hold every block exactly once (missing or repeated block ranges are named). Exit 0 merged (trace masking: "
       "1 if the merged leak test failed), 2 bad input (nothing written).");
   sub->add_option("parts", args->parts, "partial results of one run, in any order: histograms (EXR) or masking reports (JSON)")
       ->required();
-  sub->add_option("--out", args->out, "trace vndf: the merged histogram EXR to write (required)");
+  sub->add_option("--out", args->out, "trace vndf, scatter: the merged histogram EXR to write (required)");
   sub->add_option("--json", args->json, "write the JSON report (trace vndf: also; trace masking: the merged report)");
   sub->add_option("--surface", args->surface,
                   "heightfield runs: the heightmap the parts were traced on (default: the path they record)");

@@ -2,6 +2,7 @@
 #include "stats/chi2.h"
 
 #include <boost/math/distributions/chi_squared.hpp>
+#include <boost/math/tools/minima.hpp>
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
@@ -217,6 +218,107 @@ ChiSquareResult two_sample_homogeneity(std::span<const double> a, std::span<cons
     }
     const double d = k1 * pa - k2 * pb;
     return CellReport{-1, pa, na * (pa + pb) / (na + nb), d * d / (pa + pb), {}};
+  };
+  std::vector<CellReport> reports;
+  add_terms(r, pooling, cell, reports);
+  finish_test(r, std::move(reports), options);
+  return r;
+}
+
+namespace {
+
+// The four sums of a set of cells of two weighted histograms.
+struct WeightedCell {
+  double a = 0, u = 0;  // histogram 1: sum of weights, sum of squared weights
+  double b = 0, t = 0;  // histogram 2
+  // (b - lambda a)^2 / (t + lambda^2 u): the cell's term at the ratio lambda (0 / 0 = 0, x / 0 = inf).
+  double term(double lambda) const {
+    const double d = b - lambda * a, v = t + lambda * lambda * u;
+    if (v > 0) return d * d / v;
+    return d == 0 ? 0.0 : std::numeric_limits<double>::infinity();
+  }
+};
+
+// The effective count w^2 / s of a cell of one histogram: infinite for an exact non-empty one.
+double effective_count(double w, double s) {
+  if (!(w > 0)) return 0.0;
+  return s > 0 ? w * w / s : std::numeric_limits<double>::infinity();
+}
+
+void check_weighted_inputs(std::span<const double> w1, std::span<const double> s1, std::span<const double> w2,
+                           std::span<const double> s2) {
+  if (w1.size() != s1.size() || w2.size() != s2.size() || w1.size() != w2.size())
+    throw std::invalid_argument(fmt::format("weighted_homogeneity: cells {}, {}, {}, {} differ", w1.size(), s1.size(),
+                                            w2.size(), s2.size()));
+  for (std::size_t i = 0; i < w1.size(); ++i)
+    for (double v : {w1[i], s1[i], w2[i], s2[i]})
+      if (!(v >= 0) || !std::isfinite(v))
+        throw std::invalid_argument(fmt::format("weighted_homogeneity: cell {} has a sum {} (finite, >= 0 needed)", i, v));
+  const auto total = [](std::span<const double> x) { return std::accumulate(x.begin(), x.end(), 0.0); };
+  if (!(total(w1) > 0) || !(total(w2) > 0))
+    throw std::invalid_argument("weighted_homogeneity: a histogram is empty");
+  if (total(s1) == 0 && total(s2) == 0)
+    throw std::invalid_argument("weighted_homogeneity: both histograms are exact: there is nothing random to test");
+}
+
+// The ratio lambda minimising the sum of the cells' terms: the best of a grid over lambda0 * [1/100, 100]
+// (log-spaced), refined by Brent's method between its neighbours.
+double fitted_ratio(const std::vector<WeightedCell>& cells, double lambda0) {
+  const auto statistic = [&](double log_lambda) {
+    double x = 0;
+    for (const WeightedCell& c : cells) x += c.term(std::exp(log_lambda));
+    return x;
+  };
+  const int steps = 40;
+  const double lo = std::log(lambda0) - std::log(100.0), step = 2 * std::log(100.0) / steps;
+  int best = steps / 2;
+  for (int k = 0; k <= steps; ++k)
+    if (statistic(lo + k * step) < statistic(lo + best * step)) best = k;
+  const auto [x, fx] = boost::math::tools::brent_find_minima(statistic, lo + (best - 1) * step, lo + (best + 1) * step, 40);
+  return std::exp(x);
+}
+
+}  // namespace
+
+ChiSquareResult weighted_homogeneity(std::span<const double> w1, std::span<const double> s1, std::span<const double> w2,
+                                     std::span<const double> s2, const ChiSquareOptions& options) {
+  check_weighted_inputs(w1, s1, w2, s2);
+  const int n = int(w1.size());
+  std::vector<double> weight(n, 0.0);
+  std::vector<int> cells;
+  double a = 0, b = 0, effective = 0;
+  for (int i = 0; i < n; ++i) {
+    if (w1[i] == 0 && w2[i] == 0) continue;
+    weight[i] = std::min(effective_count(w1[i], s1[i]), effective_count(w2[i], s2[i]));
+    cells.push_back(i);
+    a += w1[i];
+    b += w2[i];
+  }
+  for (const auto& [w, s] : {std::pair{w1, s1}, std::pair{w2, s2}}) {
+    const double e = effective_count(std::accumulate(w.begin(), w.end(), 0.0), std::accumulate(s.begin(), s.end(), 0.0));
+    if (std::isfinite(e)) effective += e;
+  }
+  ChiSquareResult r = new_result("weighted_homogeneity", effective, options);
+  const Pooling pooling = pool_sparse_cells(std::move(cells), weight, options.min_expected);
+  std::vector<WeightedCell> sums;
+  auto sum_of = [&](std::span<const int> set) {
+    WeightedCell c;
+    for (int i : set) c.a += w1[i], c.u += s1[i], c.b += w2[i], c.t += s2[i];
+    return c;
+  };
+  for (int i : pooling.single) sums.push_back(sum_of(std::span<const int>(&i, 1)));
+  if (!pooling.pooled.empty()) sums.push_back(sum_of(pooling.pooled));
+  if (sums.size() < 2)
+    throw InsufficientData(fmt::format("{:.4g} effective entries pool into a single cell: the weighted homogeneity test "
+                                       "needs two cells of at least {} effective entries each",
+                                       effective, options.min_expected),
+                           std::uint64_t(std::min(effective, 1e18)), std::uint64_t(2 * options.min_expected));
+  const double lambda = fitted_ratio(sums, b / a);
+  auto cell = [&](std::span<const int> set) {
+    const WeightedCell c = sum_of(set);
+    const double v = c.t + lambda * lambda * c.u;
+    const double expected = v > 0 ? (c.a * c.t + lambda * c.b * c.u) / v : c.a;  // the fitted q of histogram 1
+    return CellReport{-1, c.a, expected, c.term(lambda), {}};
   };
   std::vector<CellReport> reports;
   add_terms(r, pooling, cell, reports);

@@ -38,7 +38,7 @@ struct CellReport {
 };
 
 struct ChiSquareResult {
-  std::string test;        // "goodness_of_fit" or "two_sample_homogeneity"
+  std::string test;        // "goodness_of_fit", "two_sample_homogeneity" or "weighted_homogeneity"
   double statistic = 0;
   int dof = 0;
   double p_value = 1;
@@ -70,6 +70,27 @@ ChiSquareResult goodness_of_fit(std::span<const double> observed, std::span<cons
 // histogram is empty.
 ChiSquareResult two_sample_homogeneity(std::span<const double> counts_a, std::span<const double> counts_b,
                                        const ChiSquareOptions& options = {});
+
+// Two WEIGHTED histograms over the same cells (Gagunashvili 2010, "Chi-square tests for comparing weighted
+// histograms", Nucl. Instrum. Meth. A 614, 287-296, arXiv:0905.4221; first in his 2006 "Comparison of
+// weighted and unweighted histograms", arXiv:physics/0605123): w1[i], w2[i] are the cells' sums of weights,
+// s1[i], s2[i] the sums of their squared weights (the variances of the w; any scale per histogram, e.g.
+// per launched path: w / n and s / n^2). An exact expectation (no noise) is a histogram with s = 0 (only one of
+// the two may be). H0: w2 = lambda w1 in expectation for some lambda (the same distribution, whatever the
+// totals). Per cell, minimising over the cell's expectation q of (w1 - q)^2 / s1 + (w2 - lambda q)^2 / s2
+// leaves (w2 - lambda w1)^2 / (s2 + lambda^2 s1), Gagunashvili's statistic when lambda = W2 / W1. Here lambda
+// is fitted too (the minimum of the sum over lambda, found on a grid in log lambda then by Brent's method):
+// the statistic is then the minimum of a weighted least-squares fit of r + 1 parameters to 2 r values,
+// chi-squared with r - 1 degrees of freedom whatever the weights (with lambda fixed at W2 / W1 the statistic
+// is inflated when the mean squared weight differs between cells), and for an exact w1 it is Gagunashvili's
+// test of a weighted histogram against given probabilities with the fitted total.
+// Pooling: the effective count of a cell in a histogram is w^2 / s (infinite for an exact one); cells whose
+// smaller effective count is below options.min_expected are pooled as in goodness_of_fit; cells empty in
+// both are left out. Throws InsufficientData when fewer than two cells remain (too little data is never a
+// pass), std::invalid_argument when sizes differ, a value is negative or not finite, a histogram is empty,
+// or both are exact.
+ChiSquareResult weighted_homogeneity(std::span<const double> w1, std::span<const double> s1, std::span<const double> w2,
+                                     std::span<const double> s2, const ChiSquareOptions& options = {});
 
 // Too few samples for a test to be able to reject: never a pass (issue 8, defect 7). `given` samples were
 // supplied, `needed` are required by the rule of the test (see goodness_of_fit_minimum_samples).

@@ -65,6 +65,18 @@ public:
   double unbinned_weight() const { return unbinned_w_.value(); }
   const ExactSum& exact_weight(std::size_t bin) const { return w_[bin]; }
   const ExactSum& exact_weight_squared(std::size_t bin) const { return w2_[bin]; }
+  const ExactSum& exact_unbinned_weight() const { return unbinned_w_; }
+  const ExactSum& exact_unbinned_weight_squared() const { return unbinned_w2_; }
+  // Adds exact sums to a bin, or to the entries outside the binning (a reader rebuilding a histogram
+  // from the sums its file stores, stats/scatter_io.h).
+  void add_sums(std::size_t bin, const ExactSum& w, const ExactSum& w2) {
+    w_[bin] += w;
+    w2_[bin] += w2;
+  }
+  void add_unbinned_sums(const ExactSum& w, const ExactSum& w2) {
+    unbinned_w_ += w;
+    unbinned_w2_ += w2;
+  }
   // Every bin's weight as an integer count; throws std::domain_error unless the weights are counts.
   std::vector<std::uint64_t> counts() const;
 

@@ -65,6 +65,29 @@ public:
   Estimate unfinished(int channel) const;
   Estimate lost(int channel) const;
 
+  // The exact sums outside the bins, and adding exact sums (a reader rebuilding a histogram from the sums
+  // its file stores, stats/scatter_io.h; order_bin as in histogram()).
+  const ExactSum& exact_unfinished(int channel, bool squared) const {
+    return (squared ? unfinished_w2_ : unfinished_w_)[std::size_t(channel)];
+  }
+  const ExactSum& exact_lost(int channel, bool squared) const {
+    return (squared ? lost_w2_ : lost_w_)[std::size_t(channel)];
+  }
+  void add_sums(int channel, int order_bin, std::size_t bin, const ExactSum& w, const ExactSum& w2) {
+    orders_[index(channel, order_bin)].add_sums(bin, w, w2);
+  }
+  void add_unbinned_sums(int channel, int order_bin, const ExactSum& w, const ExactSum& w2) {
+    orders_[index(channel, order_bin)].add_unbinned_sums(w, w2);
+  }
+  void add_unfinished_sums(int channel, const ExactSum& w, const ExactSum& w2) {
+    unfinished_w_[std::size_t(channel)] += w;
+    unfinished_w2_[std::size_t(channel)] += w2;
+  }
+  void add_lost_sums(int channel, const ExactSum& w, const ExactSum& w2) {
+    lost_w_[std::size_t(channel)] += w;
+    lost_w2_[std::size_t(channel)] += w2;
+  }
+
   // Adds `other`'s sums and paths; throws HistogramMergeError unless binning and channels agree.
   void merge(const ScatterHistogram& other);
   bool operator==(const ScatterHistogram&) const = default;

@@ -1,0 +1,56 @@
+#include "scatter_report.h"
+
+#include "command.h"
+
+#include "core/atomic_file.h"
+#include "stats/scatter_compare.h"
+
+#include <fmt/core.h>
+#include <nlohmann/json.hpp>
+
+namespace microsim::app {
+
+namespace {
+
+std::string estimate_text(const Estimate& e) { return fmt::format("{:.6f} +- {:.6f}", e.value, e.standard_error); }
+
+void print_histogram_table(const ScatterHistogram& h) {
+  fmt::print("{:<8} {:<11} {:>24} {:>24} {:>24}\n", "channel", "order", "reflected", "transmitted", "total");
+  for (int c = 0; c < h.channels(); ++c) {
+    for (int k : {0, 1, 2, 3, 4, kTotalOrder})
+      fmt::print("{:<8} {:<11} {:>24} {:>24} {:>24}\n", h.channel_name(c), scatter_order_name(k),
+                 estimate_text(h.albedo(c, k, ScatterSide::reflected)), estimate_text(h.albedo(c, k, ScatterSide::transmitted)),
+                 estimate_text(h.albedo(c, k)));
+    fmt::print("{:<8} {:<11} {:>24} {:>24}\n", h.channel_name(c), "", "unfinished " + estimate_text(h.unfinished(c)),
+               "lost " + estimate_text(h.lost(c)));
+  }
+}
+
+}  // namespace
+
+int report_scatter(const ScatterHistogram& h, const std::map<std::string, std::string>& notes, const ScatterOutputs& o) {
+  write_scatter_exr(o.out, h, notes);
+  if (!o.json.empty()) write_file_atomically(o.json, scatter_summary_json(h).dump(2) + "\n");
+  fmt::print("{}: {} paths, blocks {} of {}{}\n", h.provenance.producer, h.paths(), h.provenance.blocks.to_string(),
+             h.provenance.total_blocks, h.partial ? " (partial)" : "");
+  print_histogram_table(h);
+  return h.partial ? kExitInterrupted : kExitOk;
+}
+
+int report_scatter(const ScatterExpectation& e, const std::map<std::string, std::string>& notes, const ScatterOutputs& o) {
+  write_scatter_exr(o.out, e, notes);
+  const nlohmann::json j = scatter_summary_json(e);
+  if (!o.json.empty()) write_file_atomically(o.json, j.dump(2) + "\n");
+  fmt::print("{}: single scattering, {}\n", e.producer, e.measurement);
+  fmt::print("{:<8} {:<11} {:>12} {:>12} {:>12} {:>12}\n", "channel", "order", "reflected", "transmitted", "total",
+             "cubature err");
+  for (const nlohmann::json& c : j["channels"]) {
+    const nlohmann::json& a = c["albedo"]["order1"];
+    fmt::print("{:<8} {:<11} {:>12.6f} {:>12.6f} {:>12.6f} {:>12.2g}\n", c["name"].get<std::string>(), "order1",
+               a["reflected"]["value"].get<double>(), a["transmitted"]["value"].get<double>(),
+               a["both"]["value"].get<double>(), c["error_estimate"].get<double>());
+  }
+  return kExitOk;
+}
+
+}  // namespace microsim::app

@@ -1,0 +1,113 @@
+// Bad-input table (issue 10) for `scatter`, `compare-scattering` and `merge` of scatter parts: an unknown
+// material, eta <= 0 or not finite, k < 0, an order cap < 1, a file that is not a scatter histogram, and
+// the options' own rules. Each must exit 2 with stderr naming the bad value, and write nothing.
+#include "cli_helpers.h"
+#include "scatter_samples.h"
+
+#include "microgeom/exr_io.h"
+#include "stats/scatter_io.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+namespace {
+
+using microsim::test::BadInputCase;
+namespace fs = std::filesystem;
+
+const std::string kAnalytic = "scatter --model analytic --alpha 0.5 --theta 30 --out o.exr ";
+
+// A small analytic scatter file, written by `microsim scatter` once per test process.
+const fs::path& analytic_fixture() {
+  static const fs::path path = [] {
+    const fs::path dir = microsim::test::scratch_dir("bad_scatter", "fixtures");
+    const auto r = microsim::test::run_cli(dir, kAnalytic + "--rows 2");
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return dir / "o.exr";
+  }();
+  return path;
+}
+
+// DIR gets the analytic fixture as a.exr, a small measured run as p.exr, a heightmap as hf.exr, a text file
+// as text.exr and a copy of the fixture with one attribute replaced as bad.exr.
+void prepare_files(const fs::path& dir) {
+  fs::copy_file(analytic_fixture(), dir / "a.exr");
+  microsim::ScatterOptions o;
+  o.paths = 1000;
+  o.rows = 2;
+  microsim::write_scatter_exr(dir / "p.exr", microsim::test::synthetic_scatter(o, 0.5));
+  microgeom::ExrImage heightmap;
+  heightmap.width = heightmap.height = 4;
+  heightmap.add_channel("height");
+  heightmap.attributes["microsim.tile_size"] = "1";
+  microgeom::write_exr(dir / "hf.exr", heightmap);
+  std::ofstream(dir / "text.exr") << "not an EXR file";
+  microgeom::ExrImage bad = microgeom::read_exr(analytic_fixture());
+  bad.attributes["c0.error_estimate"] = "-1";
+  microgeom::write_exr(dir / "bad.exr", bad);
+}
+
+std::vector<BadInputCase> cases() {
+  return {
+      // materials
+      {"unknown_material", kAnalytic + "--material gold", 2, "'gold': unknown material"},
+      {"eta_zero", kAnalytic + "--material dielectric:0", 2, "'0'"},
+      {"eta_negative", kAnalytic + "--material dielectric:-1.5", 2, "'-1.5'"},
+      {"eta_infinite", kAnalytic + "--material dielectric:inf", 2, "'inf'"},
+      {"eta_nan", kAnalytic + "--material dielectric:nan", 2, "'nan'"},
+      {"eta_one", kAnalytic + "--material dielectric:1", 2, "eta 1"},
+      {"conductor_eta_zero", kAnalytic + "--material conductor:0,3", 2, "'0'"},
+      {"conductor_k_negative", kAnalytic + "--material 'conductor:0.2,3.9;0.5,-2.4'", 2, "'-2.4'"},
+      {"conductor_k_missing", kAnalytic + "--material conductor:0.2", 2, "conductor"},
+      {"lambertian_analytic", kAnalytic + "--material lambertian", 2, "lambertian"},
+      // the order cap and the other numbers
+      {"order_cap_zero", kAnalytic + "--max-order 0", 2, "--max-order"},
+      {"order_cap_negative", kAnalytic + "--max-order -3", 2, "'-3'"},
+      {"order_cap_real", kAnalytic + "--max-order 2.5", 2, "'2.5'"},
+      {"rows_zero", kAnalytic + "--rows 0", 2, "--rows"},
+      {"rows_too_many", kAnalytic + "--rows 251", 2, "'251'"},
+      {"theta_horizon", "scatter --model analytic --alpha 0.5 --theta 90 --out o.exr", 2, "--theta 90"},
+      {"theta_below_opaque", "scatter --model analytic --alpha 0.5 --theta 120 --out o.exr", 2, "--theta 120"},
+      {"theta_beyond", "scatter --model analytic --alpha 0.5 --theta 181 --out o.exr", 2, "--theta 181"},
+      {"alpha_zero", "scatter --model analytic --alpha 0 --theta 30 --out o.exr", 2, "--alpha"},
+      {"alpha_missing", "scatter --model analytic --theta 30 --out o.exr", 2, "--alpha is required"},
+      // options that do not apply, unknown models
+      {"rays_analytic", kAnalytic + "--rays 1000", 2, "--rays applies to the sampled models"},
+      {"shard_analytic", kAnalytic + "--shard 1/2", 2, "--shard applies"},
+      {"beckmann_analytic", kAnalytic + "--ndf beckmann", 2, "--ndf beckmann"},
+      {"ndf_unknown", kAnalytic + "--ndf phong", 2, "--ndf phong"},
+      {"model_unknown", "scatter --model walk --alpha 0.5 --theta 30 --out o.exr", 2, "--model 'walk'"},
+      {"out_not_exr", "scatter --model analytic --alpha 0.5 --theta 30 --out o.png", 2, "--out 'o.png'"},
+      {"out_no_directory", "scatter --model analytic --alpha 0.5 --theta 30 --out nodir/o.exr", 2, "nodir"},
+      // files that are not scatter histograms
+      {"compare_heightmap", "compare-scattering hf.exr a.exr", 2, "not a microsim scatter file", prepare_files},
+      {"compare_text", "compare-scattering a.exr text.exr --json c.json", 2, "text.exr", prepare_files},
+      {"compare_missing", "compare-scattering a.exr none.exr", 2, "'none.exr': no such file", prepare_files},
+      {"compare_bad_attribute", "compare-scattering a.exr bad.exr", 2, "attribute c0.error_estimate = '-1'", prepare_files},
+      {"compare_two_expectations", "compare-scattering a.exr a.exr --json c.json", 2, "nothing random", prepare_files},
+      {"compare_one_file", "compare-scattering a.exr", 2, "2 or 3 results", prepare_files},
+      {"compare_four_files", "compare-scattering a.exr a.exr a.exr a.exr", 2, "2 or 3 results", prepare_files},
+      {"compare_analytic_of_expectation", "compare-scattering a.exr --analytic", 2, "already an expectation", prepare_files},
+      {"compare_orders_unknown", "compare-scattering a.exr a.exr --orders 1,6", 2, "unknown order '6'", prepare_files},
+      {"compare_orders_twice", "compare-scattering a.exr a.exr --orders 1,1", 2, "given twice", prepare_files},
+      {"compare_level", "compare-scattering a.exr a.exr --level 1.5", 2, "--level 1.5", prepare_files},
+      {"compare_svg_extension", "compare-scattering a.exr a.exr --svg f.png", 2, "--svg 'f.png'", prepare_files},
+      {"compare_json_is_input", "compare-scattering a.exr hf.exr --json a.exr", 2, "a.exr", prepare_files},
+      // merge of scatter parts
+      {"merge_expectation", "merge a.exr --out m.exr", 2, "is an expectation", prepare_files},
+      {"merge_with_heightmap", "merge p.exr hf.exr --out m.exr", 2, "'hf.exr' is not a scatter file", prepare_files},
+      {"merge_no_out", "merge a.exr", 2, "--out MERGED.exr is required", prepare_files},
+  };
+}
+
+class BadInputsScatter : public ::testing::TestWithParam<BadInputCase> {};
+
+TEST_P(BadInputsScatter, ExitsTwoNamingTheValueAndWritesNothing) {
+  microsim::test::expect_bad_input(GetParam(), "bad_scatter");
+}
+
+INSTANTIATE_TEST_SUITE_P(Cases, BadInputsScatter, ::testing::ValuesIn(cases()),
+                         [](const auto& info) { return info.param.name; });
+
+}  // namespace
