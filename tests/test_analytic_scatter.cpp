@@ -25,13 +25,14 @@ Vec3<double> direction(double theta, double phi) {
 Vec3<double> view_of_mu(double mu) { return {std::sqrt(1 - mu * mu), 0, mu}; }
 
 // The integral of f |cos o| over theta in [t0, t1], phi in [p0, p1] (radians), by nested adaptive
-// Gauss-Kronrod (61 points, to 1e-10): independent of the binning and its cubature.
-double quadrature(const std::function<double(const Vec3<double>&)>& flux, double t0, double t1, double p0, double p1) {
+// Gauss-Kronrod (61 points, to a relative `tolerance`): independent of the binning and its cubature.
+double quadrature(const std::function<double(const Vec3<double>&)>& flux, double t0, double t1, double p0, double p1,
+                  double tolerance = 1e-11) {
   const auto inner = [&](double theta) {
     const auto g = [&](double phi) { return flux(direction(theta, phi)) * std::sin(theta); };
-    return gauss_kronrod<double, 61>::integrate(g, p0, p1, 12, 1e-11);
+    return gauss_kronrod<double, 61>::integrate(g, p0, p1, 10, tolerance);
   };
-  return gauss_kronrod<double, 61>::integrate(inner, t0, t1, 12, 1e-11);
+  return gauss_kronrod<double, 61>::integrate(inner, t0, t1, 10, tolerance);
 }
 
 double sum(const std::vector<double>& v) {
@@ -72,10 +73,11 @@ void expect_bins_match_quadrature(const GGX<double>& ggx, const Vec3<double>& wi
   const ScatterExpectation e = analytic_single_scattering(ggx, wi, m, rows);
   const DirectionBinning b = DirectionBinning::hemispheres(rows);
   const auto flux = [&](const Vec3<double>& wo) { return single_scattering_flux(ggx, m, channel, wi, wo); };
-  for (int bin : {0, 5, 17, 20, 26, 31, 40, 50, 63, 64 + 1, 64 + 9, 64 + 20, 64 + 40, 127}) {
+  for (int bin : {0, 17, 26, 40, 63, 64 + 1, 64 + 20, 64 + 40, 127}) {
     const BinBounds bb = b.bounds(bin);
     const double d = kPi<double> / 180;
-    const double q = quadrature(flux, bb.theta_min_deg * d, bb.theta_max_deg * d, bb.phi_min_deg * d, bb.phi_max_deg * d);
+    const double q =
+        quadrature(flux, bb.theta_min_deg * d, bb.theta_max_deg * d, bb.phi_min_deg * d, bb.phi_max_deg * d, 1e-8);
     EXPECT_NEAR(e.order1[std::size_t(channel)][std::size_t(bin)], q, 1e-7 + 1e-5 * q)
         << m.describe() << " channel " << channel << " bin " << b.describe_bin(bin);
   }
@@ -92,8 +94,8 @@ TEST(AnalyticScatter, DielectricsLoseEnergyToMultipleScatteringOnlyWhenRough) {
   for (const double theta : {0.0, 0.6, 1.2})
     for (const bool inside : {false, true}) {
       const Vec3<double> wi = inside ? Vec3<double>(-direction(theta, 0)) : direction(theta, 0);
-      const double smooth = sum(analytic_single_scattering(GGX<double>(0.05), wi, Material::dielectric(1.5), 8).order1[0]);
-      const double rough = sum(analytic_single_scattering(GGX<double>(1.0), wi, Material::dielectric(1.5), 8).order1[0]);
+      const double smooth = sum(analytic_single_scattering(GGX<double>(0.05), wi, Material::dielectric(1.5), 2).order1[0]);
+      const double rough = sum(analytic_single_scattering(GGX<double>(1.0), wi, Material::dielectric(1.5), 2).order1[0]);
       EXPECT_LT(smooth, 1.0 + 1e-6);
       EXPECT_GT(smooth, 0.97) << "theta " << theta << (inside ? " inside" : " outside");
       EXPECT_LT(rough, smooth - 0.02) << "theta " << theta << (inside ? " inside" : " outside");

@@ -59,7 +59,7 @@ std::vector<BadInputCase> cases() {
       {"eta_one", kAnalytic + "--material dielectric:1", 2, "eta 1"},
       {"conductor_eta_zero", kAnalytic + "--material conductor:0,3", 2, "'0'"},
       {"conductor_k_negative", kAnalytic + "--material 'conductor:0.2,3.9;0.5,-2.4'", 2, "'-2.4'"},
-      {"conductor_k_missing", kAnalytic + "--material conductor:0.2", 2, "conductor"},
+      {"conductor_k_missing", kAnalytic + "--material conductor:0.2", 2, "'0.2'"},
       {"lambertian_analytic", kAnalytic + "--material lambertian", 2, "lambertian"},
       // the order cap and the other numbers
       {"order_cap_zero", kAnalytic + "--max-order 0", 2, "--max-order"},

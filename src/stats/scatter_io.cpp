@@ -30,7 +30,7 @@ constexpr const char* kHistogramLayout =
     "cC.PART.w and .w2 (float: sums of weights and squared weights per bin; PART order1..order4, order5plus, "
     "total); cC.PART.w.hi0..2, .lo0..2 and cC.PART.w2.* (the exact 128-bit fixed-point sums, two 64-bit halves "
     "in 24-bit limbs, least significant first); pixel (x, y) = bin y * cols + x; channel names in attribute "
-    "channels";
+    "channel_names";
 constexpr const char* kExpectationLayout =
     "cC.order1.expected (float: expected weight per launched path per bin) and cC.order1.expected.bits0..2 (the "
     "double's 64 bits in 24-bit limbs, least significant first); pixel (x, y) = bin y * cols + x";
@@ -100,7 +100,7 @@ microgeom::ExrImage scatter_image(const std::filesystem::path& path, const std::
   }
   image.attributes["format"] = kScatterFormat;
   image.attributes["binning"] = binning_id;
-  image.attributes["channels"] = nlohmann::json(channels).dump();
+  image.attributes["channel_names"] = nlohmann::json(channels).dump();
   return image;
 }
 
@@ -275,12 +275,12 @@ private:
   }
 
   std::vector<std::string> read_channel_names() const {
-    const std::string& text = attr("channels");
+    const std::string& text = attr("channel_names");
     const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
     const bool ok = j.is_array() && !j.empty() && j.size() <= std::size_t(Material::kMaxChannels) &&
                     std::all_of(j.begin(), j.end(), [](const nlohmann::json& v) { return v.is_string(); });
     if (!ok)
-      fail(fmt::format("attribute channels = {} is not a JSON array of 1 to {} names", quote_excerpt(text),
+      fail(fmt::format("attribute channel_names = {} is not a JSON array of 1 to {} names", quote_excerpt(text),
                        Material::kMaxChannels));
     return j.get<std::vector<std::string>>();
   }
@@ -288,7 +288,7 @@ private:
   // The attribute keys and channel names of this kind of file, and a check that the file has exactly those
   // (plus notes).
   void check_names(ScatterFileKind kind) const {
-    std::set<std::string> attributes{"format", "kind", "binning", "channels", "producer", "measurement", "channel_layout"};
+    std::set<std::string> attributes{"format", "kind", "binning", "channel_names", "producer", "measurement", "channel_layout"};
     std::set<std::string> channels;
     for (int c = 0; c < int(channel_names_.size()); ++c) add_names(kind, c, attributes, channels);
     if (kind == ScatterFileKind::histogram)
@@ -299,8 +299,8 @@ private:
                          kind == ScatterFileKind::histogram ? "histogram" : "expectation", channel_names_.size()));
     for (const auto& ch : image_.channels)
       if (!channels.erase(ch.name))
-        fail(fmt::format("channel {} is not part of this scatter file (channels {})", quote_excerpt(ch.name),
-                         quote_excerpt(attr("channels"))));
+        fail(fmt::format("channel {} is not part of this scatter file (channel_names {})", quote_excerpt(ch.name),
+                         quote_excerpt(attr("channel_names"))));
     if (!channels.empty()) fail(fmt::format("channel {} is missing", *channels.begin()));
   }
 

@@ -4,7 +4,7 @@
 // Layout (format "microsim-scatter-1"). The binning is the hemispheres binning (stats/binning.h): an image
 // of rows = 2 R scanlines (R per hemisphere: the upper half of the image is reflection, the lower half
 // transmission) by cols = 2 rows pixels, pixel (x = col, y = row) = bin row * cols + col. Every channel is
-// FLOAT. Channels are named cC.PART.QUANTITY, C the channel's index (its name is in attribute channels),
+// FLOAT. Channels are named cC.PART.QUANTITY, C the channel's index (its name is in attribute channel_names),
 // PART order1, order2, order3, order4, order5plus or total.
 //
 // A measured histogram (kind "histogram", a ScatterHistogram) has, per channel C and order PART:
@@ -18,7 +18,7 @@
 //   cC.order1.expected             the expected weight per launched path, as a float
 //   cC.order1.expected.bits0..2    the double's 64 bits in three 24-bit limbs: read back bit for bit
 // String attributes: format, kind, binning (DirectionBinning::describe() of the hemispheres binning, as
-// JSON), channels (a JSON array of the channel names), producer, measurement, channel_layout; for a
+// JSON), channel_names (a JSON array of the channel names), producer, measurement, channel_layout; for a
 // histogram also paths, seed, total_blocks, blocks ("BEGIN,END"), partial ("true"/"false") and per channel
 // the sums outside the bins as "HIGH,LOW" (the two 64-bit halves, decimal): cC.PART.unbinned.w and .w2
 // (PART an order), cC.unfinished.w and .w2, cC.lost.w and .w2; for an expectation cC.error_estimate (the
