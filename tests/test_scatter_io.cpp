@@ -11,6 +11,7 @@
 #include "microgeom/heightfield.h"
 #include "stats/histogram_io.h"
 
+#include <fmt/core.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -89,7 +90,7 @@ TEST(ScatterIo, MergeOfShardsReadFromFilesIsTheSingleRun) {
   std::vector<ScatterHistogram> parts;
   for (int k = 3; k >= 1; --k) {  // any order
     o.blocks = shard_range(whole.provenance.total_blocks, std::uint64_t(k), 3);
-    const fs::path p = dir / ("part" + std::to_string(k) + ".exr");
+    const fs::path p = dir / fmt::format("part{}.exr", k);
     write_scatter_exr(p, test::synthetic_scatter(o, 0.3));
     parts.push_back(read_scatter_exr(p).histogram);
   }

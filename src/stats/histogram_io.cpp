@@ -2,6 +2,7 @@
 
 #include "core/atomic_file.h"
 #include "microgeom/exr_io.h"
+#include "stats/exr_reading.h"
 #include "core/strict_parse.h"
 
 #include <fmt/core.h>
@@ -259,15 +260,7 @@ TracedHistogram histogram_from_exr(const microgeom::ExrImage& image, const std::
 }
 
 TracedHistogram read_histogram_exr(const std::filesystem::path& path) {
-  microgeom::ExrImage image;
-  try {
-    image = microgeom::read_exr(path);
-  } catch (const std::bad_alloc&) {
-    throw;
-  } catch (const std::exception& e) {
-    throw HistogramIoError(e.what());
-  }
-  return histogram_from_exr(image, path.string());
+  return histogram_from_exr(read_exr_or<HistogramIoError>(path), path.string());
 }
 
 void check_writable(const std::filesystem::path& path) {

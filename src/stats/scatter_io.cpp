@@ -4,6 +4,7 @@
 #include "core/strict_parse.h"
 #include "microfacet/material.h"
 #include "microgeom/exr_io.h"
+#include "stats/exr_reading.h"
 #include "stats/binning.h"
 
 #include <fmt/core.h>
@@ -464,15 +465,7 @@ bool is_scatter_image(const microgeom::ExrImage& image) {
 }
 
 ScatterFile read_scatter_exr(const std::filesystem::path& path) {
-  microgeom::ExrImage image;
-  try {
-    image = microgeom::read_exr(path);
-  } catch (const std::bad_alloc&) {
-    throw;
-  } catch (const std::exception& e) {
-    throw ScatterIoError(e.what());
-  }
-  return scatter_from_exr(image, path.string());
+  return scatter_from_exr(read_exr_or<ScatterIoError>(path), path.string());
 }
 
 // ---- JSON summaries -----------------------------------------------------------------------------------------
