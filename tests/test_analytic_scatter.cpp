@@ -139,5 +139,41 @@ TEST(AnalyticScatter, ASampledMeasurementPassesAndAnotherRoughnessIsRejected) {
   }
 }
 
+// The level at the scale of whole scattering results: over 60 seeds, a measurement against the analytic
+// expectation (order 1) and against a second measurement (orders 1, 2 and the total) rejects at 0.01 as
+// often as the level says (60 x 4 tests expect 2.4 rejections; 9 or more have probability 2e-4), with
+// uniform p-values.
+TEST(AnalyticScatter, SampledMeasurementsPassAtTheStatedLevel) {
+  ScatterOptions o;
+  o.wi = direction(1.1, 0.3);
+  o.material = Material::conductor({{0.5, 2.4}});
+  o.paths = 40000;
+  o.rows = 4;
+  ScatterFile expected;
+  expected.kind = ScatterFileKind::expectation;
+  expected.expectation = analytic_single_scattering(GGX<double>(0.3), o.wi, o.material, o.rows);
+  std::vector<double> p_values;
+  int rejected = 0;
+  ScatterComparisonOptions options;
+  options.order_bins = {0, 1, kTotalOrder};
+  for (std::uint64_t seed = 100; seed < 160; ++seed) {
+    ScatterFile a, b;
+    o.seed = seed;
+    a.histogram = test::synthetic_scatter(o, 0.3);
+    o.seed = seed + 1000;
+    b.histogram = test::synthetic_scatter(o, 0.3);
+    std::vector<LobeComparison> all = compare_scatter_files(a, "a", b, "b", options);
+    for (const LobeComparison& c : compare_scatter_files(a, "a", expected, "analytic", options)) all.push_back(c);
+    for (const LobeComparison& c : all) {
+      ASSERT_TRUE(c.chi2) << c.insufficient;
+      p_values.push_back(c.chi2->p_value);
+      rejected += c.chi2->p_value < 0.01;
+    }
+  }
+  EXPECT_EQ(p_values.size(), 240u);
+  EXPECT_LE(rejected, 8);
+  EXPECT_GT(ks_test_uniform(p_values).p_value, 1e-3);
+}
+
 }  // namespace
 }  // namespace microsim
