@@ -19,9 +19,9 @@ CXX=clang++ cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMIC
 cmake --build "$build" --target fuzz_all -j"$jobs" >/dev/null
 
 # Inputs up to these many bytes: enough for every seed and for what each format can say.
-declare -A max_len=([npy]=4096 [text]=4096 [histogram_exr]=16384 [heightmap_exr]=16384 [numbers]=256)
+declare -A max_len=([npy]=4096 [text]=4096 [histogram_exr]=16384 [heightmap_exr]=16384 [scatter_exr]=16384 [numbers]=256)
 status=0
-for target in npy text histogram_exr heightmap_exr numbers; do
+for target in npy text histogram_exr heightmap_exr scatter_exr numbers; do
   work="$build/fuzz-corpus/$target" findings="$build/findings/$target"
   mkdir -p "$work" "$findings"
   log="$build/findings/$target.log"

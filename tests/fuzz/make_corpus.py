@@ -1,8 +1,11 @@
 #!/usr/bin/python3
 """Writes the seed corpora of the fuzz targets (tests/fuzz/corpus/<target>/): a few valid and a few broken
 inputs each, all small. Histogram seeds are edits of HIST.exr files made by `microsim trace vndf --rows 1`
-and `--rows 3` (given on the command line); heightmap seeds are written here, uncompressed.
+and `--rows 3` (given on the command line); heightmap seeds are written here, uncompressed. Scatter seeds
+(with --scatter) are edits of a measured scatter histogram of 1 row per hemisphere (the tests' synthetic
+run, tests/scatter_samples.h) and of `microsim scatter --model analytic --rows 1 --material conductor:...`.
 Usage: /usr/bin/python3 tests/fuzz/make_corpus.py HIST_ROWS1.exr HIST_ROWS3.exr HEIGHTMAP_ZIP.exr
+       /usr/bin/python3 tests/fuzz/make_corpus.py --scatter SCATTER_HISTOGRAM.exr SCATTER_EXPECTATION.exr
 """
 import os
 import struct
@@ -112,7 +115,16 @@ def heightmap(n, tile_size="1", channel=b"height", ptype=2):
     return header + struct.pack("<%dQ" % n, *offsets) + b"".join(lines)
 
 
-if len(sys.argv) == 4:
+if len(sys.argv) == 4 and sys.argv[1] == "--scatter":
+    sh, se = (open(p, "rb").read() for p in sys.argv[2:])
+    put("scatter_exr", "good_histogram_rows1", sh)
+    put("scatter_exr", "good_expectation_rows1", se)
+    put("scatter_exr", "bad_blocks", exr_edit(sh, set_string("blocks", "1,0")))
+    put("scatter_exr", "bad_sum", exr_edit(sh, set_string("c0.unfinished.w", "9223372036854775808,0")))
+    put("scatter_exr", "bad_channel_names", exr_edit(se, set_string("channel_names", '["a"]')))
+    put("scatter_exr", "bad_binning", exr_edit(se, set_string("binning", '{"kind":"hemispheres","rows":1e300}')))
+    put("scatter_exr", "bad_huge_header", exr_edit(sh, set_window(46340, 46340)))
+elif len(sys.argv) == 4:
     r1, r3, hz = (open(p, "rb").read() for p in sys.argv[1:])
     put("histogram_exr", "good_rows1", r1)
     put("histogram_exr", "good_rows3", r3)
