@@ -90,6 +90,7 @@ ScatterExpectation analytic_single_scattering(const GGX<double>& ggx, const Vec3
     e.order1.push_back(std::move(r.probability));
     e.error_estimate.push_back(r.error_estimate);
   }
+  if (run.cancelled()) throw Cancelled("analytic single scattering");
   run.report("scatter analytic", std::uint64_t(material.channels()), std::uint64_t(material.channels()));
   return e;
 }

@@ -41,7 +41,7 @@ std::string analytic_measurement(const GGX<double>& ggx, const Vec3<double>& wi,
 // (unit; wi.z < 0: from inside a dielectric). producer "scatter analytic". Throws std::invalid_argument
 // naming the bad value (a Lambertian material, wi not a unit direction off the horizon, wi from below on
 // an opaque material, rows outside [1, kMaxBinningRows / 2]); Cancelled when run.cancel is set (checked
-// between channels). run.threads bounds the cubature's threads.
+// before and after each channel's cubature). run.threads bounds the cubature's threads.
 ScatterExpectation analytic_single_scattering(const GGX<double>& ggx, const Vec3<double>& wi, const Material& material,
                                               int rows_per_hemisphere, const RunControl& run = {});
 

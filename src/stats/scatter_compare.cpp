@@ -1,10 +1,14 @@
 // Order-by-order comparison of two scattering results (scatter_compare.h).
 #include "stats/scatter_compare.h"
 
+#include "stats/binning.h"
+
 #include <fmt/core.h>
+#include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <numbers>
 #include <stdexcept>
 
@@ -121,6 +125,18 @@ std::vector<std::string> channel_names(const ScatterFile& f) {
   return names;
 }
 
+// The options with cells named by the binning ("theta 12.3..15.6 phi ..."), unless they name them already.
+ChiSquareOptions with_bin_names(ChiSquareOptions options, const std::string& binning_id) {
+  const nlohmann::json d = nlohmann::json::parse(binning_id, nullptr, false);
+  if (options.describe_cell || !d.is_object()) return options;
+  try {
+    const auto b = std::make_shared<const DirectionBinning>(DirectionBinning::from_description(d));
+    options.describe_cell = [b](int bin) { return b->describe_bin(bin); };
+  } catch (const std::invalid_argument&) {
+  }
+  return options;
+}
+
 const std::string& binning_of(const ScatterFile& f) {
   return f.kind == ScatterFileKind::expectation ? f.expectation.binning_id : f.histogram.binning_id();
 }
@@ -135,12 +151,13 @@ std::vector<LobeComparison> compare_scatter_files(const ScatterFile& a, const st
   const std::vector<std::string> ca = channel_names(a), cb = channel_names(b);
   if (ca.size() != cb.size())
     throw std::invalid_argument(fmt::format("'{}' has {} channels but '{}' has {}", a_name, ca.size(), b_name, cb.size()));
+  const ChiSquareOptions chi2 = with_bin_names(options.chi2, binning_of(a));
   std::vector<LobeComparison> out;
   for (int c = 0; c < int(ca.size()); ++c)
     for (int k : options.order_bins) {
       const auto la = scatter_lobe(a, c, k), lb = scatter_lobe(b, c, k);
       if (!la || !lb) continue;
-      LobeComparison r = compare_lobes(*la, *lb, options.chi2);
+      LobeComparison r = compare_lobes(*la, *lb, chi2);
       r.channel = c;
       r.order_bin = k;
       out.push_back(std::move(r));
