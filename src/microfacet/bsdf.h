@@ -54,18 +54,21 @@ template <class T> Vec3<T> reflection_half_vector(const Vec3<T>& wi, const Vec3<
   return h.z() < T(0) ? Vec3<T>(-h) : h;
 }
 
-// Single-scattering GGX BRDF of a perfect mirror microsurface (F = 1): D G2 / (4 |cos i| |cos o|),
+// The BSDFs below take any Smith microfacet distribution with D and G2: GGX (ggx.h) or Beckmann
+// (beckmann.h); the formulas of Walter et al. 2007 hold for both.
+//
+// Single-scattering BRDF of a perfect mirror microsurface (F = 1): D G2 / (4 |cos i| |cos o|),
 // with the height-correlated G2. Reflection only: both directions on the upper side.
-template <class T> T mirror_brdf(const GGX<T>& ggx, const Vec3<T>& wi, const Vec3<T>& wo) {
+template <class T, template <class> class Ndf> T mirror_brdf(const Ndf<T>& ggx, const Vec3<T>& wi, const Vec3<T>& wo) {
   if (!(wi.z() > T(0) && wo.z() > T(0))) return T(0);
   const Vec3<T> m = reflection_half_vector(wi, wo);
   if (!(wi.dot(m) > T(0) && wo.dot(m) > T(0))) return T(0);
   return ggx.D(m) * ggx.G2(wi, wo) / (T(4) * wi.z() * wo.z());
 }
 
-// Single-scattering GGX BRDF of a conductor: F(<wi, m>) D G2 / (4 cos i cos o).
-template <class T>
-T conductor_brdf(const GGX<T>& ggx, std::complex<T> eta, const Vec3<T>& wi, const Vec3<T>& wo) {
+// Single-scattering BRDF of a conductor: F(<wi, m>) D G2 / (4 cos i cos o).
+template <class T, template <class> class Ndf>
+T conductor_brdf(const Ndf<T>& ggx, std::complex<T> eta, const Vec3<T>& wi, const Vec3<T>& wo) {
   if (!(wi.z() > T(0) && wo.z() > T(0))) return T(0);
   const Vec3<T> m = reflection_half_vector(wi, wo);
   const T im = wi.dot(m);
@@ -77,7 +80,8 @@ T conductor_brdf(const GGX<T>& ggx, std::complex<T> eta, const Vec3<T>& wi, cons
 // eta = n_inside / n_outside (the lower half-space is the inside). The refraction half vector is
 // m = -(eta_i wi + eta_o wo) (eq. 16), oriented to +z. The refraction term follows eq. 21 including the
 // eta_o^2 factor (radiance, not importance): f_t(i->o) / eta_o^2 = f_t(o->i) / eta_i^2.
-template <class T> T dielectric_bsdf(const GGX<T>& ggx, T eta, const Vec3<T>& wi, const Vec3<T>& wo) {
+template <class T, template <class> class Ndf>
+T dielectric_bsdf(const Ndf<T>& ggx, T eta, const Vec3<T>& wi, const Vec3<T>& wo) {
   const T ci = wi.z(), co = wo.z();
   if (ci == T(0) || co == T(0)) return T(0);
   const bool reflection = (ci > T(0)) == (co > T(0));
