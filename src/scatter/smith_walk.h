@@ -24,8 +24,8 @@
 // kept as a check of that).
 //
 // Output: smith_walk_scatter fills the per-order ScatterHistogram of scatter_setup.h (outgoing directions
-// in the global frame: upper hemisphere reflected, lower transmitted), with the unfinished weight at the
-// order cap; smith_walk_eval estimates the BSDF value f(wi, wo) per order by next-event estimation (sec. 6).
+// in the global frame; the histogram's "reflected" bins are the upper hemisphere, so for light from inside
+// they hold what the dielectric transmits), with the unfinished weight at the order cap; smith_walk_eval estimates the BSDF value f(wi, wo) per order by next-event estimation (sec. 6).
 // Both run on the block runner: block b draws from CounterRng(seed, b), so a result depends only on
 // (seed, blocks), shards merge into the whole run bit for bit (ScatterHistogram::merge), and a cancelled run
 // returns the completed prefix of its blocks, marked partial. Neither prints.
