@@ -139,18 +139,6 @@ public:
     return area > T(0) ? D(m) * wm / area : T(0);
   }
 
-  // Pdf of wo = reflect(wi, m) for m drawn from D_v(wi): D_v / (4 <wi, m>) (Walter 2007 eq. 14).
-  T visible_reflection_pdf(const Vec3<T>& wi, const Vec3<T>& wo) const {
-    const Vec3<T> h = wi + wo;
-    const T len = h.norm();
-    if (!(len > T(0))) return T(0);
-    Vec3<T> m = h / len;
-    if (m.z() < T(0)) m = -m;
-    const T im = wi.dot(m);
-    if (!(std::abs(im) > T(0))) return T(0);
-    return visible_normal_pdf(wi, m) / (T(4) * std::abs(im));
-  }
-
   bool effectively_smooth() const { return std::max(ax_, ay_) < T(1e-3); }
 
 private:
