@@ -6,7 +6,8 @@
 // run through smith_walk_scatter: walks, binning, the in-order reduction into the histogram).
 //
 // BM_WalkPaths/material:<0 mirror|1 dielectric>/threads:<1|2>: wall-clock time of 64 blocks (262144 paths);
-// counter paths_per_second.
+// counter paths_per_second (wall clock); the CPU column is the process's CPU time (all threads), so that on a
+// shared machine paths / CPU time gives the rate per busy core.
 // BM_WalkOrder2/material:<0|1>: one run of 2^20 paths on 2 threads; counters: the order-2 albedo, its
 // relative standard error, the paths needed for 1% (paths * (rel SE / 0.01)^2, from the measured SE), and
 // the time they take at the measured rate.
@@ -71,6 +72,7 @@ BENCHMARK(BM_WalkPaths)
     ->ArgNames({"material", "threads"})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
+    ->MeasureProcessCPUTime()
     ->MinTime(0.5);
 BENCHMARK(BM_WalkOrder2)->DenseRange(0, 1)->ArgName("material")->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(1);
 

@@ -57,7 +57,8 @@ using Weights = std::array<double, Material::kMaxChannels>;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // The height distribution through its CDF C1 and the inverse (Heitz et al. 2016 sec. 3): uniform on [-1, 1]
-// or the standard Gaussian. C1 is kept in [DBL_MIN, 1] (a ray at C1 = 0 could never rise again: a set of
+// or the standard Gaussian, both symmetric (C1(-h) = 1 - C1(h)), as the side change needs: the microsurface
+// seen from below then has the same height distribution. C1 is kept in [DBL_MIN, 1] (a ray at C1 = 0 could never rise again: a set of
 // measure zero that rounding could otherwise reach) and the inverse never returns +-inf.
 struct Heights {
   HeightDistribution kind;
@@ -123,8 +124,8 @@ public:
   // The height a refraction leaves on the other side: -h in that side's frame.
   double other_side_height(double h) const { return fault_ == WalkFault::keep_height_on_refraction ? h : -h; }
 
-  // The facet event at normal m: weights, direction, side (sec. 5). Returns the event.
-  FacetEvent scatter(Path& p, const Vec3<double>& m, Vec2<double> u) const {
+  // The facet event at normal m: weights, direction, side (sec. 5).
+  void scatter(Path& p, const Vec3<double>& m, Vec2<double> u) const {
     Weights factors;
     const FacetEvent e = scatter_on_facet(material_, Vec3<double>(-p.w), m, p.inside, u,
                                           std::span<double>(factors.data(), std::size_t(material_.channels())));
@@ -137,7 +138,6 @@ public:
     } else {
       p.w = e.wo;
     }
-    return e;
   }
 
   // The phase function of the facet event at a meeting of a ray travelling in w, toward wo (both in the
