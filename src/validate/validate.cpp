@@ -64,7 +64,7 @@ void for_each_drawn_block_as(SampleResult<T> (*sample)(const GGX<T>&, const Vec3
   const BlockPlan plan{n, kSampleBlock};
   tbb::enumerable_thread_specific<BlockBuffer> buffers;
   // Chunks of kChunkBlocks: visit(block, slot) for each block of a chunk, then chunk_done, in order.
-  const BlockSchedule schedule{"sampling", plan, kChunkBlocks};
+  const BlockSchedule schedule{"sampling", plan, kChunkBlocks, /*chunk_barrier=*/true};
   const BlockRunStatus status = for_each_block(
       BlockRange{0, plan.blocks()}, options.run, schedule,
       [&](std::uint64_t b) {
