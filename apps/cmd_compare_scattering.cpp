@@ -89,7 +89,9 @@ double note_number(const Input& in, const char* key) {
 
 // The analytic single scattering of the configuration the first input's notes record, binned alike.
 Input analytic_input(const Input& first, int threads) {
-  if (note(first, "ndf") != "ggx") throw UsageError(fmt::format("--analytic: '{}' is not GGX (note.ndf)", first.name));
+  const std::string& ndf = note(first, "ndf");
+  if (ndf != "ggx" && ndf != "beckmann")
+    throw UsageError(fmt::format("--analytic: '{}' note.ndf = {} (ggx or beckmann)", first.name, quote_excerpt(ndf)));
   const auto [ax, ay] = parse_alpha("--analytic note.alpha", note(first, "alpha"));
   const double theta = note_number(first, "theta") * kPi<double> / 180, phi = note_number(first, "phi") * kPi<double> / 180;
   const Material material = parse_material("--analytic note.material", note(first, "material"));
@@ -98,8 +100,9 @@ Input analytic_input(const Input& first, int threads) {
   Input in{"analytic", "", {}};
   in.file.kind = ScatterFileKind::expectation;
   install_interrupt_handler();
-  in.file.expectation = analytic_single_scattering(GGX<double>(ax, ay), wi, material, b.rows() / 2,
-                                                   cli_run_control(threads, nullptr));
+  const RunControl run = cli_run_control(threads, nullptr);
+  in.file.expectation = ndf == "beckmann" ? analytic_single_scattering(Beckmann<double>(ax, ay), wi, material, b.rows() / 2, run)
+                                          : analytic_single_scattering(GGX<double>(ax, ay), wi, material, b.rows() / 2, run);
   return in;
 }
 

@@ -1,7 +1,7 @@
 // microsim scatter: what light does on a microsurface, bounce by bounce, histogrammed per order
 // (1, 2, 3, 4, 5+) over the hemispheres binning (reflection above, transmission below) and written as a
 // scatter EXR (stats/scatter_io.h) with a JSON summary. Models:
-//   --model analytic     the single-scattering GGX BSDF binned by cubature (scatter/analytic_scatter.h): the
+//   --model analytic     the single-scattering BSDF (GGX or Beckmann) binned by cubature (analytic_scatter.h): the
 //                        exact expectation of order 1, for compare-scattering
 //   --model smith-walk   the Smith random walk (Heitz et al. 2016)          } options parsed here, to be
 //   --surface SURF.exr   an explicit heightfield, traced                    } wired to their measurements
@@ -94,10 +94,10 @@ ScatterOptions scatter_options(const ScatterArgs& a, const Material& material, c
 }
 
 // What the file records of the run for people and for compare-scattering --analytic.
-std::map<std::string, std::string> scatter_notes(const ScatterArgs& a, const GGX<double>& ggx, const Material& m) {
+std::map<std::string, std::string> scatter_notes(const ScatterArgs& a, double ax, double ay, const Material& m) {
   return {{"model", a.model.empty() ? "surface" : a.model},
           {"ndf", a.ndf},
-          {"alpha", fmt::format("{},{}", ggx.alpha_x(), ggx.alpha_y())},
+          {"alpha", fmt::format("{},{}", ax, ay)},
           {"theta", fmt::format("{}", a.theta)},
           {"phi", fmt::format("{}", a.phi)},
           {"material", m.describe()}};
@@ -115,24 +115,23 @@ int run_analytic(const ScatterArgs& a) {
     if (a.given.count(option))
       throw UsageError(fmt::format("{} applies to the sampled models (--model smith-walk, --surface) only: --model "
                                    "analytic is the exact single-scattering expectation", option));
-  if (a.ndf != "ggx") throw UsageError(fmt::format("--ndf {}: --model analytic is GGX only", a.ndf));
   if (!a.given.count("--alpha")) throw UsageError("--alpha is required for --model analytic");
   const auto [ax, ay] = parse_alpha("--alpha", a.alpha);
-  const GGX<double> ggx(ax, ay);
   const Material material = scatter_material(a.material);
   const ScatterOptions o = scatter_options(a, material, {});
   check_scatter_outputs(a);
   install_interrupt_handler();
   const RunControl run = cli_run_control(a.threads, nullptr);
-  fmt::print(stderr, "scatter: analytic single scattering, alpha ({}, {}), {}, theta {} phi {}, {} rows per hemisphere\n",
-             ax, ay, material.describe(), a.theta, a.phi, a.rows);
+  fmt::print(stderr, "scatter: analytic single scattering, {} alpha ({}, {}), {}, theta {} phi {}, {} rows per hemisphere\n",
+             a.ndf, ax, ay, material.describe(), a.theta, a.phi, a.rows);
   ScatterExpectation e;
   try {
-    e = analytic_single_scattering(ggx, o.wi, material, o.rows, run);
+    e = a.ndf == "beckmann" ? analytic_single_scattering(Beckmann<double>(ax, ay), o.wi, material, o.rows, run)
+                            : analytic_single_scattering(GGX<double>(ax, ay), o.wi, material, o.rows, run);
   } catch (const Cancelled&) {
     return interrupted_nothing_written("scatter", "during the cubature");
   }
-  return report_scatter(e, scatter_notes(a, ggx, material), {a.out, a.json});
+  return report_scatter(e, scatter_notes(a, ax, ay, material), {a.out, a.json});
 }
 
 int run_scatter(const ScatterArgs& a) {
@@ -157,7 +156,7 @@ CommandRegistration reg{"scatter", [](CLI::App& app) {
       "Scatter light arriving along -wi off a microsurface and histogram where it leaves, per bounce order (1, 2, 3, "
       "4, 5+) and in total, over equal-area bins of the upper (reflection) and lower (transmission) hemispheres, with "
       "standard errors. Writes a scatter EXR and a JSON summary. --model analytic: the exact single-scattering "
-      "expectation (GGX BSDF binned by cubature). Exit 0 done, 2 bad input (nothing written), 130 interrupted.");
+      "expectation (GGX or Beckmann BSDF binned by cubature). Exit 0 done, 2 bad input (nothing written), 130 interrupted.");
   sub->add_option("--surface", args->surface, "an explicit heightfield (heightmap EXR) to trace");
   sub->add_option("--model", args->model, "analytic (single-scattering expectation) or smith-walk");
   sub->add_option("--ndf", args->ndf, "ggx or beckmann")->capture_default_str();

@@ -5,6 +5,7 @@
 // whose expectation it is passes the weighted chi-square, and one of another roughness is rejected.
 #include "scatter/analytic_scatter.h"
 
+#include "scatter/smith_walk.h"
 #include "scatter_samples.h"
 #include "stats/scatter_compare.h"
 
@@ -83,6 +84,20 @@ void expect_bins_match_quadrature(const GGX<double>& ggx, const Vec3<double>& wi
   }
 }
 
+TEST(AnalyticScatter, BeckmannMirrorOrderOneIsTheDirectionalAlbedoByIndependentQuadrature) {
+  for (double alpha : {0.3, 1.0})
+    for (double mu : {1.0, 0.4}) {
+      const Beckmann<double> b(alpha);
+      const Vec3<double> wi = view_of_mu(mu);
+      const auto flux = [&](const Vec3<double>& wo) { return single_scattering_flux(b, Material::mirror(), 0, wi, wo); };
+      const double peak = std::acos(mu);
+      const double e = quadrature(flux, 0, peak, 0, 2 * kPi<double>) + quadrature(flux, peak, kPi<double> / 2, 0, 2 * kPi<double>);
+      const double binned = sum(analytic_single_scattering(b, wi, Material::mirror(), 8).order1[0]);
+      EXPECT_NEAR(binned, e, 2e-6 * e) << "alpha " << alpha << " mu " << mu;
+      EXPECT_NE(binned, binned_albedo(alpha, mu)) << "Beckmann is not GGX";
+    }
+}
+
 TEST(AnalyticScatter, BinsAreIndependentQuadraturesOverTheirBounds) {
   const Vec3<double> wi = direction(0.7, 0.4);
   expect_bins_match_quadrature(GGX<double>(0.6, 0.3), wi, Material::conductor({{0.2, 3.9}, {1.1, 0.3}}), 1);
@@ -136,6 +151,39 @@ TEST(AnalyticScatter, ASampledMeasurementPassesAndAnotherRoughnessIsRejected) {
         EXPECT_LT(c.chi2->p_value, 1e-6) << "channel " << c.channel;  // the negative control
       }
     }
+  }
+}
+
+// Order 1 of the Smith random walk (scatter/smith_walk.h) is the analytic expectation, through the whole
+// comparison (weighted chi-square and albedo), for a GGX mirror, a Beckmann conductor and a GGX dielectric
+// from outside and from inside (its refraction lobe with the Smith microsurface's own transmission_G2).
+TEST(AnalyticScatter, TheSmithWalksOrderOneIsTheAnalyticExpectation) {
+  struct Case {
+    WalkNdf ndf;
+    double alpha, theta;
+    Material material;
+  };
+  const std::vector<Case> cases{{WalkNdf::ggx, 0.6, 0.8, Material::mirror()},
+                                {WalkNdf::beckmann, 0.4, 1.0, Material::conductor({{0.2, 3.9}})},
+                                {WalkNdf::ggx, 0.5, 1.2, Material::dielectric(1.5)},
+                                {WalkNdf::ggx, 0.5, kPi<double> - 0.7, Material::dielectric(1.5)}};
+  for (const Case& c : cases) {
+    ScatterOptions o;
+    o.wi = direction(c.theta, 0.4);
+    o.material = c.material;
+    o.paths = 200000;
+    o.rows = 5;
+    o.seed = 21;
+    ScatterFile walk, expected;
+    walk.histogram = smith_walk_scatter({c.ndf, c.alpha, c.alpha, HeightDistribution::uniform}, o);
+    expected.kind = ScatterFileKind::expectation;
+    expected.expectation = c.ndf == WalkNdf::ggx ? analytic_single_scattering(GGX<double>(c.alpha), o.wi, o.material, o.rows)
+                                                 : analytic_single_scattering(Beckmann<double>(c.alpha), o.wi, o.material, o.rows);
+    const std::vector<LobeComparison> r = compare_scatter_files(walk, "walk", expected, "analytic", {});
+    ASSERT_EQ(r.size(), 1u);
+    ASSERT_TRUE(r[0].chi2) << r[0].insufficient;
+    EXPECT_GT(r[0].chi2->p_value, 1e-3) << c.material.describe() << " theta " << c.theta;
+    EXPECT_GT(r[0].difference_p, 1e-3) << c.material.describe() << " theta " << c.theta << ": " << r[0].difference.value;
   }
 }
 

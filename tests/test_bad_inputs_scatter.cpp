@@ -75,7 +75,6 @@ std::vector<BadInputCase> cases() {
       // options that do not apply, unknown models
       {"rays_analytic", kAnalytic + "--rays 1000", 2, "--rays applies to the sampled models"},
       {"shard_analytic", kAnalytic + "--shard 1/2", 2, "--shard applies"},
-      {"beckmann_analytic", kAnalytic + "--ndf beckmann", 2, "--ndf beckmann"},
       {"ndf_unknown", kAnalytic + "--ndf phong", 2, "--ndf phong"},
       {"model_unknown", "scatter --model walk --alpha 0.5 --theta 30 --out o.exr", 2, "--model 'walk'"},
       {"out_not_exr", "scatter --model analytic --alpha 0.5 --theta 30 --out o.png", 2, "--out 'o.png'"},

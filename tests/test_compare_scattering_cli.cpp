@@ -65,6 +65,12 @@ TEST_F(CompareScatteringCli, AnalyticModelWritesTheExpectation) {
   EXPECT_EQ(e, bins);
   EXPECT_NEAR(e, 0.682, 0.001);  // GGX alpha 0.5, mu = cos 40 deg: between E(0.5) = 0.698 and a dip below E(1) = 0.688
   EXPECT_NE(r.out.find("order1"), std::string::npos) << r.out;
+  // Beckmann: another lobe of the same roughness.
+  ASSERT_EQ(run_cli(dir, "scatter --model analytic --ndf beckmann --alpha 0.5 --theta 40 --rows 5 --out b.exr").exit_code, 0);
+  const ScatterFile b = read_scatter_exr(dir / "b.exr");
+  EXPECT_EQ(b.notes.at("ndf"), "beckmann");
+  EXPECT_NE(b.expectation.order1, f.expectation.order1);
+  EXPECT_NE(b.expectation.measurement.find("beckmann"), std::string::npos);
 }
 
 TEST_F(CompareScatteringCli, TwoRunsOfOneConfigurationPass) {
