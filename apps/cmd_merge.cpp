@@ -8,6 +8,7 @@
 // Exit codes: 0 merged (1: the merged run rejects, as the single run would), 2 bad usage or input (parts
 // of different runs, blocks missing or repeated: the ranges are named; nothing written).
 #include "command.h"
+#include "merge_parts.h"
 #include "surface_input.h"
 #include "masking_report.h"
 #include "stability_report.h"
@@ -48,14 +49,6 @@ std::vector<TracedHistogram> read_parts(const std::vector<std::string>& paths) {
   return parts;
 }
 
-TracedHistogram merge_or_usage_error(const std::vector<TracedHistogram>& parts, std::vector<std::uint64_t>& unbinned) {
-  try {
-    return merge_vndf_parts(parts, unbinned);
-  } catch (const HistogramMergeError& e) {
-    throw UsageError(fmt::format("cannot merge: {}", e.what()));
-  }
-}
-
 int report_merged_ellipsoid(TracedHistogram merged, const std::vector<std::uint64_t>& unbinned, const MergeArgs& a) {
   const GGX<double> ggx = histogram_ggx(merged);
   const EllipsoidTarget target(ggx.alpha_x(), ggx.alpha_y(), vndf_run_record(merged).mesh_level);
@@ -87,36 +80,19 @@ nlohmann::json read_json_part(const std::string& path) {
   return report;
 }
 
-MaskingPart read_masking_part_file(const std::string& path, const nlohmann::json& report) {
-  try {
-    return read_masking_part(report);
-  } catch (const HistogramMergeError& e) {
-    throw UsageError(fmt::format("part '{}': {}", path, e.what()));
-  }
-}
-
 int merge_masking(const MergeArgs& a, const std::vector<nlohmann::json>& reports) {
   if (!a.out.empty())
     throw UsageError(fmt::format("--out '{}': trace masking parts merge into a JSON report (--json MERGED.json)", a.out));
   check_output("--json", a.json);
-  std::vector<MaskingPart> parts;
-  for (std::size_t i = 0; i < a.parts.size(); ++i) parts.push_back(read_masking_part_file(a.parts[i], reports[i]));
-  MaskingPart merged;
-  try {
-    merged = merge_masking_parts(parts);
-  } catch (const HistogramMergeError& e) {
-    throw UsageError(fmt::format("cannot merge: {}", e.what()));
-  }
+  const std::vector<MaskingPart> parts = read_json_parts(reports, a.parts, read_masking_part);
+  const MaskingPart merged = merged_or_usage_error([&] { return merge_masking_parts(parts); });
   fmt::print(stderr, "merge: {} trace masking parts, {} samples, blocks {}\n", parts.size(), merged.sums.samples,
              merged.provenance.blocks.to_string());
   const std::string path = a.surface.empty() ? merged.surface : a.surface;
   const microgeom::Heightfield field = load_surface(path, merged.tile_size);
   const MaskingSurface surface(field, path, merged.geometry, /*trace=*/false);
-  try {
-    return report_surface_masking(analyse_masking_part(merged, surface), surface, {a.json});
-  } catch (const HistogramMergeError& e) {
-    throw UsageError(fmt::format("cannot merge: {}", e.what()));
-  }
+  return report_surface_masking(merged_or_usage_error([&] { return analyse_masking_part(merged, surface); }), surface,
+                                {a.json});
 }
 
 // ---- JSON parts: of trace masking, validate or stability, by their provenance's producer ------------------
@@ -160,7 +136,7 @@ int run_merge(const MergeArgs& a) {
   check_output("--json", a.json);
   const std::vector<TracedHistogram> parts = read_parts(a.parts);
   std::vector<std::uint64_t> unbinned;
-  TracedHistogram merged = merge_or_usage_error(parts, unbinned);
+  TracedHistogram merged = merged_or_usage_error([&] { return merge_vndf_parts(parts, unbinned); });
   fmt::print(stderr, "merge: {} parts, {} rays, blocks {}\n", parts.size(), merged.rays, merged.attributes["blocks"]);
   const std::string surface = merged.attributes["surface"];
   if (surface == "ellipsoid") return report_merged_ellipsoid(std::move(merged), unbinned, a);

@@ -1,6 +1,7 @@
 #include "stability_report.h"
 
 #include "command.h"
+#include "merge_parts.h"
 
 #include "core/atomic_file.h"
 #include "validate/stability_part.h"
@@ -22,20 +23,8 @@ int report_stability(const StabilityTable& table, bool failures_only, const std:
 
 int merge_stability(const std::vector<nlohmann::json>& parts, const std::vector<std::string>& paths,
                     const std::string& json) {
-  std::vector<StabilityTable> read;
-  for (std::size_t i = 0; i < parts.size(); ++i) {
-    try {
-      read.push_back(read_stability_part(parts[i]));
-    } catch (const HistogramMergeError& e) {
-      throw UsageError(fmt::format("part '{}': {}", paths[i], e.what()));
-    }
-  }
-  StabilityTable merged;
-  try {
-    merged = merge_stability_parts(read);
-  } catch (const HistogramMergeError& e) {
-    throw UsageError(fmt::format("cannot merge: {}", e.what()));
-  }
+  const std::vector<StabilityTable> read = read_json_parts(parts, paths, read_stability_part);
+  const StabilityTable merged = merged_or_usage_error([&] { return merge_stability_parts(read); });
   fmt::print(stderr, "merge: {} stability parts, {} evaluations, blocks {}\n", parts.size(), merged.total_evaluations(),
              merged.blocks.to_string());
   return report_stability(merged, /*failures_only=*/false, json);

@@ -1,6 +1,7 @@
 #include "validate_report.h"
 
 #include "command.h"
+#include "merge_parts.h"
 
 #include "core/atomic_file.h"
 #include "stats/figure.h"
@@ -334,22 +335,9 @@ int report_merged_single(const ValidationRun& run, const ValidationPart& merged,
 
 int merge_validation(const std::vector<nlohmann::json>& parts, const std::vector<std::string>& paths,
                      const std::string& json) {
-  std::vector<ValidationPart> read;
-  for (std::size_t i = 0; i < parts.size(); ++i) {
-    try {
-      read.push_back(read_validation_part(parts[i]));
-    } catch (const HistogramMergeError& e) {
-      throw UsageError(fmt::format("part '{}': {}", paths[i], e.what()));
-    }
-  }
-  ValidationPart merged;
-  ValidationRun run;
-  try {
-    merged = merge_validation_parts(read);
-    run = validation_run_of(merged);
-  } catch (const HistogramMergeError& e) {
-    throw UsageError(fmt::format("cannot merge: {}", e.what()));
-  }
+  const std::vector<ValidationPart> read = read_json_parts(parts, paths, read_validation_part);
+  const ValidationPart merged = merged_or_usage_error([&] { return merge_validation_parts(read); });
+  const ValidationRun run = merged_or_usage_error([&] { return validation_run_of(merged); });
   fmt::print(stderr, "merge: {} validate parts, {} validation(s) of {} samples, blocks {}\n", parts.size(),
              run.cases.size(), run.options.samples, merged.provenance.blocks.to_string());
   return run.batch ? report_merged_batch(run, merged, json) : report_merged_single(run, merged, json);

@@ -121,6 +121,7 @@ std::string traced_histogram_digest(const TracedHistogram& t) {
 
 ValidationPart sample_validation_part(const ValidationRun& run, BlockRange blocks, const TracedHistogram* traced) {
   if (run.cases.empty()) throw std::invalid_argument("sample_validation_part: no validation");
+  if (!run.batch && run.cases.size() != 1) throw std::invalid_argument("sample_validation_part: a run of one validation");
   if (!run.against.empty() && (!traced || run.batch))
     throw std::invalid_argument("sample_validation_part: a comparison with a traced histogram is one validation");
   const BlockPlan plan{run.options.samples, kSampleBlock};

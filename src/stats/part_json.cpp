@@ -27,37 +27,43 @@ std::string producer_of(const nlohmann::json& report) {
 
 std::string exact_real_json(double x) { return fmt::format("{:016x}", std::bit_cast<std::uint64_t>(x)); }
 
+namespace {
+// The path of member `key` of the member at `where` ("" for the report itself).
+std::string path_of(const std::string& where, const char* key) { return where.empty() ? key : where + "/" + key; }
+}  // namespace
+
 void PartReader::malformed(const std::string& where, const std::string& what) const {
   throw HistogramMergeError(fmt::format("not a {} part: {} {}", producer_, where, what));
 }
 
 const nlohmann::json& PartReader::member(const nlohmann::json& j, const char* key, const std::string& where) const {
-  if (!j.is_object() || !j.contains(key)) malformed(where + "/" + key, "is missing");
+  if (!j.is_object() || !j.contains(key)) malformed(path_of(where, key), "is missing");
   return j[key];
 }
 
-std::uint64_t PartReader::count(const nlohmann::json& j, const char* key, const std::string& where) const {
+// Member `key` of `j` as a T, when `is_t` says it is one; else "WHERE/KEY is not WHAT".
+template <class T>
+T PartReader::typed(const nlohmann::json& j, const char* key, const std::string& where, bool (nlohmann::json::*is_t)() const noexcept,
+                    const char* what) const {
   const nlohmann::json& v = member(j, key, where);
-  if (!v.is_number_unsigned()) malformed(where + "/" + key, "is not a count");
-  return v.get<std::uint64_t>();
+  if (!(v.*is_t)()) malformed(path_of(where, key), what);
+  return v.get<T>();
+}
+
+std::uint64_t PartReader::count(const nlohmann::json& j, const char* key, const std::string& where) const {
+  return typed<std::uint64_t>(j, key, where, &nlohmann::json::is_number_unsigned, "is not a count");
 }
 
 double PartReader::real(const nlohmann::json& j, const char* key, const std::string& where) const {
-  const nlohmann::json& v = member(j, key, where);
-  if (!v.is_number()) malformed(where + "/" + key, "is not a number");
-  return v.get<double>();
+  return typed<double>(j, key, where, &nlohmann::json::is_number, "is not a number");
 }
 
 std::string PartReader::text(const nlohmann::json& j, const char* key, const std::string& where) const {
-  const nlohmann::json& v = member(j, key, where);
-  if (!v.is_string()) malformed(where + "/" + key, "is not a string");
-  return v.get<std::string>();
+  return typed<std::string>(j, key, where, &nlohmann::json::is_string, "is not a string");
 }
 
 bool PartReader::flag(const nlohmann::json& j, const char* key, const std::string& where) const {
-  const nlohmann::json& v = member(j, key, where);
-  if (!v.is_boolean()) malformed(where + "/" + key, "is not true or false");
-  return v.get<bool>();
+  return typed<bool>(j, key, where, &nlohmann::json::is_boolean, "is not true or false");
 }
 
 double PartReader::exact_real(const nlohmann::json& v, const std::string& where) const {
@@ -69,13 +75,13 @@ double PartReader::exact_real(const nlohmann::json& v, const std::string& where)
 }
 
 double PartReader::exact_real(const nlohmann::json& j, const char* key, const std::string& where) const {
-  return exact_real(member(j, key, where), where + "/" + key);
+  return exact_real(member(j, key, where), path_of(where, key));
 }
 
 const nlohmann::json& PartReader::array(const nlohmann::json& j, const char* key, std::size_t size,
                                         const std::string& where) const {
   const nlohmann::json& a = member(j, key, where);
-  if (!a.is_array() || a.size() != size) malformed(where + "/" + key, fmt::format("is not an array of {}", size));
+  if (!a.is_array() || a.size() != size) malformed(path_of(where, key), fmt::format("is not an array of {}", size));
   return a;
 }
 

@@ -52,6 +52,9 @@ public:
   Provenance provenance(const nlohmann::json& report, nlohmann::json& parameters) const;
 
 private:
+  template <class T>
+  T typed(const nlohmann::json& j, const char* key, const std::string& where,
+          bool (nlohmann::json::*is_t)() const noexcept, const char* what) const;
   std::string producer_;
 };
 
