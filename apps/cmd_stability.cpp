@@ -70,7 +70,7 @@ int run_stability(const Options& o) {
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   fmt::print(stderr, "stability: {} evaluations in {:.1f} s\n", table.total_evaluations(), seconds);
   if (o.shard.empty()) return ma::report_stability(table, o.failures_only, o.json_path);
-  microsim::write_file_atomically(o.json_path, microsim::stability_part_json(table).dump(1) + "\n");
+  microsim::write_file_atomically(o.json_path, microsim::stability_part_json(table).dump() + "\n");
   fmt::print(stderr, "stability: shard {}: blocks {} of {}, written to '{}'; join the parts with `microsim merge "
              "PART.json... --json RESULT.json`\n", o.shard, table.blocks.to_string(), table.total_blocks, o.json_path);
   return ma::kExitOk;

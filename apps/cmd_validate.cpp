@@ -177,7 +177,7 @@ int run_shard(const Args& a, const microsim::SamplerInfo* sampler) {
     throw UsageError(fmt::format("--against: {}", e.what()));
   }
   progress->finish();
-  write_file_atomically(a.json, validation_part_json(part).dump(1) + "\n");
+  write_file_atomically(a.json, validation_part_json(part).dump() + "\n");
   fmt::print(stderr, "validate: shard {}: blocks {} of {} of {} validation(s), written to '{}'; join the parts with "
              "`microsim merge PART.json... --json RESULT.json`\n",
              a.shard, part.provenance.blocks.to_string(), blocks, run.cases.size(), a.json);
