@@ -97,7 +97,7 @@ int merge_masking(const MergeArgs& a, const std::vector<nlohmann::json>& reports
 
 // ---- JSON parts: of trace masking, validate or stability, by their provenance's producer ------------------
 
-// The producers whose parts merge here, and what each calls its parts.
+// The producers whose JSON parts merge here.
 std::string json_kinds() { return "trace masking, validate, stability"; }
 
 int merge_json_parts(const MergeArgs& a) {
