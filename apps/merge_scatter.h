@@ -1,6 +1,5 @@
 // microsim merge of `scatter --shard K/N` parts (scatter EXR files), dispatched to by apps/cmd_merge.cpp: the
-// merged histogram, JSON and table are the single run's, bit for bit (stats/scatter_merge.h). In a file of its
-// own: trace/masking.h (the masking merge) and stats/scatter_histogram.h both define microsim::Estimate.
+// merged histogram, JSON and table are the single run's, bit for bit (stats/scatter_merge.h).
 #pragma once
 
 #include <string>

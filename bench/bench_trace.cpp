@@ -25,6 +25,7 @@
 // --benchmark_repetitions=5 or more on a shared machine.
 #include "microgeom/assembly.h"
 #include "microgeom/heightfield.h"
+#include "core/cpu_time.h"
 #include "core/random.h"
 #include "trace/heightfield_trace.h"
 #include "trace/masking.h"
@@ -34,8 +35,6 @@
 #include <fmt/core.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
-
-#include <time.h>
 
 #include <algorithm>
 #include <atomic>
@@ -72,12 +71,6 @@ Fixture& fixture(int level) {
     f.binnings = {DirectionBinning::sphere(kRows), DirectionBinning::lobe(ggx, wi, SampleDomain::microfacet_normal, kRows)};
   }
   return f;
-}
-
-double process_cpu_seconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
 }
 
 std::string scene_name(int level) { return level < 0 ? "quadric" : fmt::format("mesh{}", level); }
