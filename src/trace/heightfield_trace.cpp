@@ -233,6 +233,17 @@ Vec3<double> HeightfieldScene::lifted(const Vec3<double>& p, std::uint32_t trian
   return p + surface_offset_ * field_.triangle_normal(triangle);
 }
 
+Vec3<double> HeightfieldScene::surface_origin(const Vec3<double>& p, std::uint32_t triangle, RaySide side) const {
+  Vec3<double> o = lifted(p, triangle, side);
+  const double h = field_.height_at(o.x(), o.y());
+  if (side == RaySide::outside) {
+    if (o.z() < h + 0.5 * surface_offset_) o.z() = h + surface_offset_;
+  } else if (o.z() > h - 0.5 * surface_offset_) {
+    o.z() = h - surface_offset_;
+  }
+  return o;
+}
+
 // ---- the segment loop ------------------------------------------------------------------------------------
 
 // One ray along its segments: the current segment's origin (x, y in the tile), the direction, the start
@@ -258,8 +269,10 @@ struct HeightfieldScene::SegmentBounds {
 
 template <bool kOcclusionOnly>
 void HeightfieldScene::start_walk(Walk& w, const Vec3<double>& origin_in, const Vec3<double>& dir,
-                                  std::optional<std::uint32_t> skip_triangle, RaySide side) const {
-  const Vec3<double> origin = skip_triangle ? lifted(origin_in, *skip_triangle, side) : origin_in;
+                                  std::optional<std::uint32_t> skip_triangle, RaySide side, bool from_surface) const {
+  const Vec3<double> origin = !skip_triangle ? origin_in
+                              : from_surface ? surface_origin(origin_in, *skip_triangle, side)
+                                             : lifted(origin_in, *skip_triangle, side);
   w.o = Vec3<double>(wrap_coordinate(origin.x(), tile_), wrap_coordinate(origin.y(), tile_), origin.z());
   w.dir = dir;
   w.df = dir.cast<float>();
@@ -389,10 +402,10 @@ void HeightfieldScene::wrap_to_next_tile(Walk& w, const SegmentBounds& s) const 
 template <bool kOcclusionOnly, bool kRecord>
 HeightfieldHit HeightfieldScene::trace_impl(const Vec3<double>& origin, const Vec3<double>& dir,
                                             std::optional<std::uint32_t> skip_triangle, RaySide side,
-                                            std::vector<EmbreeCall>* calls) const {
+                                            bool from_surface, std::vector<EmbreeCall>* calls) const {
   HeightfieldHit out;
   Walk w;
-  start_walk<kOcclusionOnly>(w, origin, dir, skip_triangle, side);
+  start_walk<kOcclusionOnly>(w, origin, dir, skip_triangle, side, from_surface);
   for (int segment = 0; segment < kMaxSegments; ++segment) {
     if (w.dz >= 0 && w.o.z() > escape_height_) {
       out.outcome = RayOutcome::escaped;
@@ -416,18 +429,23 @@ HeightfieldHit HeightfieldScene::trace_impl(const Vec3<double>& origin, const Ve
 
 HeightfieldHit HeightfieldScene::trace(const Vec3<double>& origin, const Vec3<double>& dir,
                                        std::optional<std::uint32_t> skip_triangle, RaySide side) const {
-  return trace_impl<false>(origin, dir, skip_triangle, side);
+  return trace_impl<false>(origin, dir, skip_triangle, side, false);
+}
+
+HeightfieldHit HeightfieldScene::trace_from_surface(const Vec3<double>& p, const Vec3<double>& dir,
+                                                    std::uint32_t triangle, RaySide side) const {
+  return trace_impl<false>(p, dir, triangle, side, true);
 }
 
 HeightfieldHit HeightfieldScene::trace_recording(const Vec3<double>& origin, const Vec3<double>& dir,
                                                  std::optional<std::uint32_t> skip_triangle, RaySide side,
                                                  std::vector<EmbreeCall>& calls) const {
-  return trace_impl<false, true>(origin, dir, skip_triangle, side, &calls);
+  return trace_impl<false, true>(origin, dir, skip_triangle, side, skip_triangle.has_value(), &calls);
 }
 
 bool HeightfieldScene::escapes(const Vec3<double>& origin, const Vec3<double>& dir,
                                std::optional<std::uint32_t> skip_triangle, RayOutcome* outcome) const {
-  const HeightfieldHit h = trace_impl<true>(origin, dir, skip_triangle, RaySide::outside);
+  const HeightfieldHit h = trace_impl<true>(origin, dir, skip_triangle, RaySide::outside, false);
   if (outcome) *outcome = h.outcome;
   return h.outcome == RayOutcome::escaped;
 }

@@ -141,7 +141,12 @@ public:
   HeightfieldHit trace(const Vec3<double>& origin, const Vec3<double>& dir,
                        std::optional<std::uint32_t> skip_triangle = std::nullopt,
                        RaySide side = RaySide::outside) const;
-  // The same, appending every Embree call it makes to `calls` (benchmarks: the raw rate of the same calls).
+  // A ray leaving the point p of `triangle` on `side` (a bounce of a scattering path): trace() from
+  // surface_origin() instead of lifted(), the triangle skipped in the first segment.
+  HeightfieldHit trace_from_surface(const Vec3<double>& p, const Vec3<double>& dir, std::uint32_t triangle,
+                                    RaySide side) const;
+  // trace_from_surface() (given a skip_triangle) or trace() (without), appending every Embree call it makes
+  // to `calls` (benchmarks: the raw rate of the same calls).
   HeightfieldHit trace_recording(const Vec3<double>& origin, const Vec3<double>& dir,
                                  std::optional<std::uint32_t> skip_triangle, RaySide side,
                                  std::vector<EmbreeCall>& calls) const;
@@ -155,6 +160,14 @@ public:
   // The origin actually traced from p on `triangle` for a ray on `side`: p + surface_offset() * m outside,
   // p - surface_offset() * m inside (m: the triangle's unit upward normal).
   Vec3<double> lifted(const Vec3<double>& p, std::uint32_t triangle, RaySide side = RaySide::outside) const;
+  // lifted(), then, if that origin is not at least surface_offset() / 2 on `side` of the surface at its
+  // own (x, y), moved vertically to surface_offset() there. Near an edge that is concave seen from `side`
+  // (a valley seen from above, a ridge from below), the lift along the start facet's normal can cross the
+  // neighbouring facet's plane into the solid (outside) or out of it (inside): a ray from there misses the
+  // facet it may immediately meet, and meets the surface from the wrong side later (about 5e-7 of the
+  // paths of a rough dielectric, tests/test_surface_scatter.cpp). The vertical move keeps the origin on
+  // its side; inside a facet (the lift's vertical extent is surface_offset() / m_z there) it never acts.
+  Vec3<double> surface_origin(const Vec3<double>& p, std::uint32_t triangle, RaySide side) const;
 
   // The Embree scene (for benchmarks comparing against raw rtcIntersect1 calls).
   const embree::Scene& embree_scene() const { return *scene_; }
@@ -172,11 +185,11 @@ private:
   // trace() and escapes(): the segment loop, and its steps. kRecord: append the Embree calls to `calls`.
   template <bool kOcclusionOnly, bool kRecord = false>
   HeightfieldHit trace_impl(const Vec3<double>& origin, const Vec3<double>& dir,
-                            std::optional<std::uint32_t> skip_triangle, RaySide side,
+                            std::optional<std::uint32_t> skip_triangle, RaySide side, bool from_surface,
                             std::vector<EmbreeCall>* calls = nullptr) const;
   template <bool kOcclusionOnly>
   void start_walk(Walk& w, const Vec3<double>& origin, const Vec3<double>& dir,
-                  std::optional<std::uint32_t> skip_triangle, RaySide side) const;
+                  std::optional<std::uint32_t> skip_triangle, RaySide side, bool from_surface) const;
   SegmentBounds segment_bounds(const Walk& w) const;
   template <bool kOcclusionOnly, bool kRecord>
   bool intersect_segment(Walk& w, int segment, double tfar, HeightfieldHit& out, std::vector<EmbreeCall>* calls) const;
