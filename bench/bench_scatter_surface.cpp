@@ -8,8 +8,8 @@
 // BM_ScatterPipeline: scatter_on_surface itself (counter-based origins, the periodic segment loop of
 //   HeightfieldScene::trace / trace_from_surface with the start triangle skipped by an Embree filter, the
 //   facet normal, the facet event, the binning and the exact per-order histogram).
-// BM_ScatterPaths: the same paths through SurfacePathTracer alone, in the same blocks (no histogram):
-//   what the accumulation costs is the difference.
+// BM_ScatterPaths: the same paths through SurfacePathTracer::trace_block alone, in the same blocks (no
+//   histogram): what the accumulation costs is the difference.
 // BM_ScatterRaw: every Embree call the pipeline makes for these paths (recorded once before timing with
 //   SurfacePathTracer's recording hook: every segment of every primary and bounce ray, and the re-calls
 //   after a convex-edge graze), replayed as plain rtcIntersect1 calls (no filter) in the same TBB blocks
@@ -93,20 +93,14 @@ struct Recording {
   std::uint64_t traced = 0, events = 0;
 };
 
-// The paths of scatter_on_surface's blocks (its variates: origins from the first draws of CounterRng(seed,
-// b), events after 2 kPathsPerBlock), through the tracer; `calls` receives their Embree calls if given.
+// The paths of scatter_on_surface's block `block` (its variates and its interleaving: trace_block);
+// `calls` receives their Embree calls, in the order made, if given.
 template <class PerPath>
 void run_paths(const SurfacePathTracer& tracer, const ScatterOptions& o, std::uint64_t block, const PerPath& per_path,
                std::vector<EmbreeCall>* calls) {
   const BlockPlan plan{o.paths, kPathsPerBlock};
-  CounterRng origins(o.seed, block), events(o.seed, block);
-  events.seek(2 * kPathsPerBlock);
-  SurfacePath path;
-  for (std::uint64_t i = 0; i < plan.units_in(block); ++i) {
-    const double u0 = origins.uniform(), u1 = origins.uniform();
-    tracer.trace(tracer.origin(u0, u1), events, path, nullptr, calls);
-    per_path(path);
-  }
+  tracer.trace_block(o.seed, block, plan.units_in(block), kPathsPerBlock,
+                     [&](std::uint64_t, const SurfacePath& path) { per_path(path); }, calls);
 }
 
 const Recording& recording(int k) {

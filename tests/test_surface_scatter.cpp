@@ -309,8 +309,9 @@ TEST(SurfaceScatter, DielectricBtdfObeysGeneralisedReciprocity) {
 
 // ---- the engine ------------------------------------------------------------------------------------------
 
-// scatter_on_surface is the documented loop over SurfacePathTracer: block b's origins from draws 2i,
-// 2i + 1 of CounterRng(seed, b), its events from the draws after 2 kPathsPerBlock, in path order.
+// scatter_on_surface is the documented loop over SurfacePathTracer, path by path: path i of block b has
+// its origin from draws 2i, 2i + 1 of CounterRng(seed, b) and its events from path_event_stream (the
+// interleaved trace_block changes nothing).
 TEST(SurfaceScatter, IsTheDocumentedPathLoop) {
   const auto field = assembled("smith", 0.5, 32, 17);
   const HeightfieldScene scene(field);
@@ -321,12 +322,11 @@ TEST(SurfaceScatter, IsTheDocumentedPathLoop) {
   const DirectionBinning bins = DirectionBinning::hemispheres(o.rows);
   SurfacePath path;
   for (std::uint64_t block = 0; block < 3; ++block) {
-    CounterRng origins(o.seed, block), events(o.seed, block);
-    events.seek(2 * kPathsPerBlock);
+    CounterRng origins(o.seed, block);
     const std::uint64_t n = BlockPlan{o.paths, kPathsPerBlock}.units_in(block);
     for (std::uint64_t i = 0; i < n; ++i) {
       const double u0 = origins.uniform(), u1 = origins.uniform();
-      tracer.trace(tracer.origin(u0, u1), events, path);
+      tracer.trace(tracer.origin(u0, u1), path_event_stream(o.seed, block, i, kPathsPerBlock), path);
       const std::span<const double> w(path.weight.data(), 1);
       if (path.end == PathEnd::reflected || path.end == PathEnd::transmitted) {
         expected.add_escaped(path.order, std::size_t(*bins.bin_of(path.direction)), w);

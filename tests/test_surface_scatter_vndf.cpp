@@ -30,12 +30,11 @@ std::vector<std::uint64_t> first_bounce_normals(const HeightfieldScene& scene, c
   hits = 0;
   mismatches = 0;
   for (std::uint64_t block = 0; block < plan.blocks(); ++block) {
-    CounterRng origins(seed, block), variates(seed, block);
-    variates.seek(2 * kRaysPerBlock);
+    CounterRng origins(seed, block);
     for (std::uint64_t i = 0; i < plan.units_in(block); ++i) {
       const double u0 = origins.uniform(), u1 = origins.uniform();
       events.clear();
-      tracer.trace(tracer.origin(u0, u1), variates, path, &events);
+      tracer.trace(tracer.origin(u0, u1), path_event_stream(seed, block, i, kRaysPerBlock), path, &events);
       if (events.empty()) continue;  // no facet met from above (a loss)
       ++hits;
       const Vec3<double> m = scene.field().triangle_normal(events[0].triangle);

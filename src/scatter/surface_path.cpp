@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <optional>
+#include <span>
 #include <stdexcept>
 
 namespace microsim {
@@ -28,63 +29,127 @@ SurfacePathTracer::SurfacePathTracer(const HeightfieldScene& scene, const Materi
                                             "not {}",
                                             wi.z(), material.describe()));
   }
-  if (max_order < 1) throw std::invalid_argument(fmt::format("surface scatter: order cap {} (at least 1)", max_order));
+  if (max_order < 1 || std::uint64_t(max_order) > kMaxPathEvents) {
+    throw std::invalid_argument(fmt::format("surface scatter: order cap {} (1 to {})", max_order, kMaxPathEvents));
+  }
 }
 
-// The primary ray (start: none) or a bounce from the facet `start`.
-HeightfieldHit SurfacePathTracer::trace_ray(const Vec3<double>& p, const Vec3<double>& d,
-                                            std::optional<std::uint32_t> start, RaySide side,
-                                            std::vector<EmbreeCall>* calls) const {
-  if (calls) return scene_.trace_recording(p, d, start, side, *calls);
-  return start ? scene_.trace_from_surface(p, d, *start, side) : scene_.trace(p, d, std::nullopt, side);
-}
-
-void SurfacePathTracer::trace(const Vec3<double>& origin, CounterRng& rng, SurfacePath& path,
-                              std::vector<SurfacePathEvent>* events, std::vector<EmbreeCall>* calls) const {
-  const int channels = material_.channels();
+void SurfacePathTracer::begin(const Vec3<double>& origin, CounterRng rng, PathState& state, SurfacePath& path) const {
   path.end = PathEnd::lost;
   path.loss = PathLoss::none;
   path.order = path.traced = path.segments = path.edge_grazes = 0;
-  for (int c = 0; c < channels; ++c) path.weight[std::size_t(c)] = 1.0;
+  for (int c = 0; c < material_.channels(); ++c) path.weight[std::size_t(c)] = 1.0;
+  state.point = origin;
+  state.dir = -wi_;
+  state.start.reset();
+  state.side = start_side_;
+  state.rng = rng;
+}
+
+// The primary ray (no start facet) or a bounce from the start facet.
+HeightfieldHit SurfacePathTracer::trace_ray(const PathState& s, std::vector<EmbreeCall>* calls) const {
+  if (calls) return scene_.trace_recording(s.point, s.dir, s.start, s.side, *calls);
+  return s.start ? scene_.trace_from_surface(s.point, s.dir, *s.start, s.side) : scene_.trace(s.point, s.dir, std::nullopt, s.side);
+}
+
+bool SurfacePathTracer::advance(PathState& s, SurfacePath& path, const HeightfieldHit& hit,
+                                std::vector<SurfacePathEvent>* events) const {
+  ++path.traced;
+  path.segments += hit.segments;
+  path.edge_grazes += hit.edge_grazes;
+  if (!hit.is_hit()) {
+    end_without_hit(hit.outcome, s, path);
+    return false;
+  }
+  // The upward facet normal; the path must meet the facet from its own side.
+  const Vec3<double> up = scene_.field().triangle_normal(hit.triangle);
+  const double cos_up = s.dir.dot(up);
+  if (s.side == RaySide::outside ? !(cos_up < 0.0) : !(cos_up > 0.0)) {
+    path.loss = PathLoss::wrong_side;
+    return false;
+  }
+  if (path.order == max_order_) {
+    path.end = PathEnd::unfinished;
+    return false;
+  }
+  const int channels = material_.channels();
   std::array<double, Material::kMaxChannels> factors;
-  const std::span<double> factor_span(factors.data(), std::size_t(channels));
-  Vec3<double> p = origin, d = -wi_;
-  std::optional<std::uint32_t> start;
-  RaySide side = start_side_;
-  for (;;) {
-    const HeightfieldHit hit = trace_ray(p, d, start, side, calls);
-    ++path.traced;
-    path.segments += hit.segments;
-    path.edge_grazes += hit.edge_grazes;
-    if (!hit.is_hit()) return end_without_hit(hit.outcome, side, d, path);
-    // The upward facet normal; the path must meet the facet from its own side.
-    const Vec3<double> up = scene_.field().triangle_normal(hit.triangle);
-    const double cos_up = d.dot(up);
-    if (side == RaySide::outside ? !(cos_up < 0.0) : !(cos_up > 0.0)) {
-      path.loss = PathLoss::wrong_side;
-      return;
+  const Vec3<double> m = s.side == RaySide::outside ? up : Vec3<double>(-up);
+  const Vec2<double> u(s.rng.uniform(), s.rng.uniform());
+  const FacetEvent event = scatter_on_facet(material_, -s.dir, m, s.side == RaySide::inside, u,
+                                            std::span<double>(factors.data(), std::size_t(channels)));
+  for (int c = 0; c < channels; ++c) path.weight[std::size_t(c)] *= factors[std::size_t(c)];
+  ++path.order;
+  if (event.refracted) s.side = other_side(s.side);
+  if (events) events->push_back({hit.triangle, hit.point, event.wo, event.refracted});
+  s.point = hit.point;
+  s.dir = event.wo;
+  s.start = hit.triangle;
+  return true;
+}
+
+void SurfacePathTracer::trace(const Vec3<double>& origin, CounterRng rng, SurfacePath& path,
+                              std::vector<SurfacePathEvent>* events, std::vector<EmbreeCall>* calls) const {
+  PathState s;
+  begin(origin, rng, s, path);
+  while (advance(s, path, trace_ray(s, calls), events)) {
+  }
+}
+
+// The heights of the hit facet's cell (rows j and j + 1), fetched ahead of advance()'s normal.
+void SurfacePathTracer::prefetch_facet(const HeightfieldHit& hit) const {
+  if (!hit.is_hit()) return;
+  const microgeom::Heightfield& f = scene_.field();
+  const auto c = f.triangle_index(hit.triangle);
+  const int n = f.resolution(), j1 = c.j + 1 == n ? 0 : c.j + 1, i1 = c.i + 1 == n ? 0 : c.i + 1;
+  const float* h = f.heights().data();
+  __builtin_prefetch(h + std::size_t(c.j) * n + c.i);
+  __builtin_prefetch(h + std::size_t(c.j) * n + i1);
+  __builtin_prefetch(h + std::size_t(j1) * n + c.i);
+  __builtin_prefetch(h + std::size_t(j1) * n + i1);
+}
+
+void SurfacePathTracer::trace_block(std::uint64_t seed, std::uint64_t block, std::uint64_t n, std::uint64_t block_size,
+                                    const std::function<void(std::uint64_t, const SurfacePath&)>& done,
+                                    std::vector<EmbreeCall>* calls) const {
+  struct Lane {
+    PathState state;
+    SurfacePath path;
+    HeightfieldHit hit;
+    std::uint64_t index = 0;
+    bool active = false;
+  };
+  std::array<Lane, kLanes> lanes;
+  CounterRng origins(seed, block);
+  std::uint64_t next = 0;
+  const auto start = [&](Lane& l) {
+    l.active = next < n;
+    if (!l.active) return;
+    const double u0 = origins.uniform(), u1 = origins.uniform();
+    l.index = next++;
+    begin(origin(u0, u1), path_event_stream(seed, block, l.index, block_size), l.state, l.path);
+  };
+  for (Lane& l : lanes) start(l);
+  for (bool any = true; any;) {
+    any = false;
+    for (Lane& l : lanes) {
+      if (!l.active) continue;
+      l.hit = trace_ray(l.state, calls);
+      prefetch_facet(l.hit);
+      any = true;
     }
-    if (path.order == max_order_) {
-      path.end = PathEnd::unfinished;
-      return;
+    for (Lane& l : lanes) {
+      if (!l.active || advance(l.state, l.path, l.hit)) continue;
+      done(l.index, l.path);
+      start(l);
     }
-    const Vec3<double> m = side == RaySide::outside ? up : Vec3<double>(-up);
-    const Vec2<double> u(rng.uniform(), rng.uniform());
-    const FacetEvent event = scatter_on_facet(material_, -d, m, side == RaySide::inside, u, factor_span);
-    for (int c = 0; c < channels; ++c) path.weight[std::size_t(c)] *= factors[std::size_t(c)];
-    ++path.order;
-    if (event.refracted) side = other_side(side);
-    if (events) events->push_back({hit.triangle, hit.point, event.wo, event.refracted});
-    p = hit.point;
-    d = event.wo;
-    start = hit.triangle;
   }
 }
 
 // The ray left the slab of heights without a hit: escaped upward or downward on its side, or lost.
-void SurfacePathTracer::end_without_hit(RayOutcome outcome, RaySide side, const Vec3<double>& dir,
-                                        SurfacePath& path) const {
-  path.direction = dir;
+void SurfacePathTracer::end_without_hit(RayOutcome outcome, const PathState& state, SurfacePath& path) const {
+  const RaySide side = state.side;
+  path.direction = state.dir;
   if (path.order > 0 && side == RaySide::outside && outcome == RayOutcome::escaped) {
     path.end = PathEnd::reflected;
   } else if (path.order > 0 && side == RaySide::inside && outcome == RayOutcome::leaked) {

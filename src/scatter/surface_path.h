@@ -20,8 +20,15 @@
 // "Microfacet Models for Refraction through Rough Surfaces", EGSR, section 5.3; Heitz, Hanika, d'Eon,
 // Dachsbacher 2016, "Multiple-Scattering Microfacet BSDFs with the Smith Model", SIGGRAPH, section 5).
 //
-// Variates: the origin takes two uniforms; every facet event takes two more (whether the material uses
-// them or not), from the caller's stream, so a path is a pure function of its origin and its stream.
+// Variates (path_event_stream): path i of a block b of `block_size` paths takes its origin from draws
+// 2i and 2i + 1 of CounterRng(seed, b) (exactly the origin of trace_vndf_heightfield's ray i of block b
+// for the same seed), and its facet events, two uniforms each whether the material uses them or not, from
+// the draws 2 block_size + 2 i kMaxPathEvents on, so that a path is a pure function of (seed, b, i) and
+// the paths of a block can be traced interleaved (trace_block).
+//
+// trace_block traces a block's paths kLanes at a time, ray by ray across the lanes: after each lane's ray
+// the heights of the facet it hit are prefetched, and used after the other lanes' rays, which hides the
+// memory latency of the facet normal's look-up (a 1024^2 heightfield is 4 MB of heights, read at random).
 #pragma once
 
 #include "core/random.h"
@@ -30,6 +37,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <vector>
 
@@ -50,6 +58,15 @@ enum class PathLoss {
   wrong_side,      // hit a facet from the side opposite to the path's (an inconsistency of the tracer)
 };
 
+inline constexpr std::uint64_t kMaxPathEvents = 100000;  // the largest order cap (scatter_setup.h kMaxOrderCap)
+
+// The facet-event stream of path i of a block of block_size paths (see above).
+inline CounterRng path_event_stream(std::uint64_t seed, std::uint64_t block, std::uint64_t i, std::uint64_t block_size) {
+  CounterRng rng(seed, block);
+  rng.seek(2 * block_size + 2 * i * kMaxPathEvents);
+  return rng;
+}
+
 // One facet event.
 struct SurfacePathEvent {
   std::uint32_t triangle = 0;                 // the facet hit
@@ -69,10 +86,21 @@ struct SurfacePath {
   int edge_grazes = 0;  // convex-edge grazes passed over
 };
 
+// A path between two traces: where its next ray starts, where it goes, its event stream.
+struct PathState {
+  Vec3<double> point = Vec3<double>::Zero(), dir = Vec3<double>::Zero();
+  std::optional<std::uint32_t> start;  // the facet the ray leaves (none: the primary ray)
+  RaySide side = RaySide::outside;
+  CounterRng rng{0, 0};
+};
+
 class SurfacePathTracer {
 public:
+  static constexpr int kLanes = 16;  // paths in flight in trace_block
+
   // Throws std::invalid_argument for a wi that is not a finite unit direction off the horizon, for light
-  // from inside (wi.z < 0) on a material that does not transmit, or for max_order < 1.
+  // from inside (wi.z < 0) on a material that does not transmit, or for max_order outside
+  // [1, kMaxPathEvents].
   SurfacePathTracer(const HeightfieldScene& scene, const Material& material, const Vec3<double>& wi, int max_order);
 
   const HeightfieldScene& scene() const { return scene_; }
@@ -84,15 +112,27 @@ public:
   Vec3<double> origin(double u0, double u1) const {
     return {tile_ * u0, tile_ * u1, start_side_ == RaySide::outside ? scene_.start_height() : scene_.floor_start_height()};
   }
-  // Follows the path from `origin` along -wi, event variates from `rng`, into `path`; every facet event is
-  // appended to `events` if given, and every Embree call of its rays to `calls` (benchmarks).
-  void trace(const Vec3<double>& origin, CounterRng& rng, SurfacePath& path,
+  // Follows one path from `origin` along -wi, facet events from `rng` (its event stream), into `path`;
+  // every facet event is appended to `events` if given, and every Embree call of its rays to `calls`.
+  void trace(const Vec3<double>& origin, CounterRng rng, SurfacePath& path,
              std::vector<SurfacePathEvent>* events = nullptr, std::vector<EmbreeCall>* calls = nullptr) const;
+  // The paths [0, n) of block `block` of block_size paths, with their variates (path_event_stream),
+  // interleaved (see above); done(i, path) is called once per path as it ends, in no particular order;
+  // every Embree call is appended to `calls` if given (in the order made).
+  void trace_block(std::uint64_t seed, std::uint64_t block, std::uint64_t n, std::uint64_t block_size,
+                   const std::function<void(std::uint64_t, const SurfacePath&)>& done,
+                   std::vector<EmbreeCall>* calls = nullptr) const;
+
+  // The steps of a path: begin it, trace its current ray, apply the result (returns whether the path
+  // goes on: a facet event happened and a new ray leaves the facet).
+  void begin(const Vec3<double>& origin, CounterRng rng, PathState& state, SurfacePath& path) const;
+  HeightfieldHit trace_ray(const PathState& state, std::vector<EmbreeCall>* calls = nullptr) const;
+  bool advance(PathState& state, SurfacePath& path, const HeightfieldHit& hit,
+               std::vector<SurfacePathEvent>* events = nullptr) const;
 
 private:
-  HeightfieldHit trace_ray(const Vec3<double>& p, const Vec3<double>& d, std::optional<std::uint32_t> start, RaySide side,
-                           std::vector<EmbreeCall>* calls) const;
-  void end_without_hit(RayOutcome outcome, RaySide side, const Vec3<double>& dir, SurfacePath& path) const;
+  void end_without_hit(RayOutcome outcome, const PathState& state, SurfacePath& path) const;
+  void prefetch_facet(const HeightfieldHit& hit) const;
 
   const HeightfieldScene& scene_;
   Material material_;

@@ -31,6 +31,8 @@ void SurfaceScatterDiagnostics::add(const SurfaceScatterDiagnostics& o) {
   wrong_side += o.wrong_side;
 }
 
+static_assert(std::uint64_t(kMaxOrderCap) <= kMaxPathEvents, "a path's event draws must not reach the next path's");
+
 namespace {
 
 // FNV-1a (Fowler, Noll, Vo) over the bits of the heights: tells two surfaces of one size apart.
@@ -45,9 +47,9 @@ std::uint64_t heights_hash(const microgeom::Heightfield& field) {
 
 // What one path added to the histogram (its weights are BlockResult::weights[i channels ...]).
 struct PathRecord {
-  PathEnd end;
-  int order;
-  int bin;  // reflected, transmitted: the bin, or -1 (unbinned)
+  PathEnd end = PathEnd::lost;
+  int order = 0;
+  int bin = -1;  // reflected, transmitted: the bin, or -1 (unbinned)
 };
 
 // One block's paths, in order, and its diagnostics: the calling thread adds them to the result
@@ -92,17 +94,12 @@ BlockResult SurfaceScatterRun::run_block(std::uint64_t block) const {
   embree::FlushDenormalsScope ftz;
   BlockResult r;
   const std::uint64_t n = plan_.units_in(block);
-  r.paths.reserve(n);
-  r.weights.reserve(n * std::uint64_t(channels_));
-  CounterRng origins(seed_, block), events(seed_, block);
-  events.seek(2 * kPathsPerBlock);  // the facet events draw after every origin of the block
-  SurfacePath path;
-  for (std::uint64_t i = 0; i < n; ++i) {
-    const double u0 = origins.uniform(), u1 = origins.uniform();
-    tracer_.trace(tracer_.origin(u0, u1), events, path);
-    r.paths.push_back(tally(path, r.diagnostics));
-    r.weights.insert(r.weights.end(), path.weight.begin(), path.weight.begin() + channels_);
-  }
+  r.paths.resize(n);
+  r.weights.resize(n * std::uint64_t(channels_));
+  tracer_.trace_block(seed_, block, n, kPathsPerBlock, [&](std::uint64_t i, const SurfacePath& path) {
+    r.paths[i] = tally(path, r.diagnostics);
+    std::copy(path.weight.begin(), path.weight.begin() + channels_, r.weights.begin() + std::ptrdiff_t(i * std::uint64_t(channels_)));
+  });
   r.diagnostics.paths = n;
   return r;
 }

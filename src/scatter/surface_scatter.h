@@ -17,9 +17,9 @@
 // the BTDF in radiance units (Walter et al. 2007, eq. 21, with its eta_o^2: flux weights, section 5.3).
 //
 // Engine: blocks of kPathsPerBlock paths (core/block_runner.h); block b draws from CounterRng(seed, b):
-// the origins of its paths from draws 0 .. 2 kPathsPerBlock - 1 (path i: draws 2i and 2i + 1, exactly
-// the origins of trace_vndf_heightfield for the same seed and block), the facet events from the draws
-// after them, in path order. Sums are exact (ExactSum), so the result depends only on (options, block
+// path i its origin from draws 2i and 2i + 1 (exactly the origins of trace_vndf_heightfield for the same
+// seed and block), its facet events from its own range of draws after them (path_event_stream,
+// surface_path.h); the paths of a block are traced interleaved (SurfacePathTracer::trace_block). Sums are exact (ExactSum), so the result depends only on (options, block
 // range): shards (options.blocks) merge into the unsharded run bit for bit, and a cancelled run
 // (options.run) returns the completed prefix of blocks, marked partial. Never prints.
 #pragma once

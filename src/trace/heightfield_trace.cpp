@@ -235,6 +235,11 @@ Vec3<double> HeightfieldScene::lifted(const Vec3<double>& p, std::uint32_t trian
 
 Vec3<double> HeightfieldScene::surface_origin(const Vec3<double>& p, std::uint32_t triangle, RaySide side) const {
   Vec3<double> o = lifted(p, triangle, side);
+  // Over its own triangle (the usual case: p not within the lift of an edge) the origin is surface_offset()
+  // / m_z >= surface_offset() off the triangle's plane, on its side: nothing to check.
+  const auto c = field_.triangle_index(triangle);
+  const double u = o.x() / cell_ - c.i, v = o.y() / cell_ - c.j;
+  if (c.t == 0 ? (u <= 1.0 && v >= 0.0 && u >= v) : (v <= 1.0 && u >= 0.0 && v >= u)) return o;
   const double h = field_.height_at(o.x(), o.y());
   if (side == RaySide::outside) {
     if (o.z() < h + 0.5 * surface_offset_) o.z() = h + surface_offset_;
@@ -277,7 +282,8 @@ void HeightfieldScene::start_walk(Walk& w, const Vec3<double>& origin_in, const 
   w.dir = dir;
   w.df = dir.cast<float>();
   w.dx = dir.x(), w.dy = dir.y(), w.dz = dir.z();
-  const double dxy = std::hypot(w.dx, w.dy);
+  // (trace_from_surface: a plain square root; trace() keeps hypot, whose last bits its outputs depend on)
+  const double dxy = from_surface ? std::sqrt(w.dx * w.dx + w.dy * w.dy) : std::hypot(w.dx, w.dy);
   w.overlap = dxy > 0 ? 0.5 * cell_ / dxy : kInf;
   w.skip = skip_triangle ? embree_primitive(*skip_triangle) : kNoSkip;
   w.side = side;
@@ -285,10 +291,12 @@ void HeightfieldScene::start_walk(Walk& w, const Vec3<double>& origin_in, const 
   // off its start facet or a primary ray from above; inside: below it): only then is a wrong-way first hit
   // a convex-edge graze to pass over. A ray started on the other side (tests, negative controls) reports
   // what it hits.
+  // A surface_origin() is on its side by construction (by surface_offset() / 2 at least).
   if constexpr (!kOcclusionOnly) {
     const Vec3<double>& o = w.o;
-    w.pass_grazes = side == RaySide::outside ? o.z() > escape_height_ || o.z() > field_.height_at(o.x(), o.y())
-                                             : o.z() < floor_height_ || o.z() < field_.height_at(o.x(), o.y());
+    if (from_surface && skip_triangle) w.pass_grazes = true;
+    else if (side == RaySide::outside) w.pass_grazes = o.z() > escape_height_ || o.z() > field_.height_at(o.x(), o.y());
+    else w.pass_grazes = o.z() < floor_height_ || o.z() < field_.height_at(o.x(), o.y());
   }
   rtcInitIntersectContext(&w.ctx.base);
 }
@@ -346,10 +354,15 @@ bool HeightfieldScene::intersect_segment(Walk& w, int segment, double tfar, Heig
                                          std::vector<EmbreeCall>* calls) const {
   float tnear = 0.0f;
   unsigned int grazed = kNoSkip;
+  // Closest-hit calls skip the start primitive lazily: first without the filter (an Embree callback on
+  // every candidate hit); only a closest hit ON the start primitive is traced again with it, which finds
+  // what the filtered call alone finds (the closest of the other candidates). Occlusion calls filter.
+  bool lazy_skip = !kOcclusionOnly;
   for (;;) {
     w.ctx.skip_primitive = segment == 0 ? w.skip : kNoSkip;
     w.ctx.skip_grazed = grazed;
-    w.ctx.base.filter = w.ctx.skip_primitive == kNoSkip && grazed == kNoSkip ? nullptr : &skip_filter;
+    const bool filter = (w.ctx.skip_primitive != kNoSkip && !lazy_skip) || grazed != kNoSkip;
+    w.ctx.base.filter = filter ? &skip_filter : nullptr;
     RTCRayHit rh = segment_ray(w.o, w.df, tnear, tfar);
     ++out.segments;
     if constexpr (kRecord) {
@@ -366,6 +379,11 @@ bool HeightfieldScene::intersect_segment(Walk& w, int segment, double tfar, Heig
       rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
       rtcIntersect1(scene_->handle(), &w.ctx.base, &rh);
       if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+      if (lazy_skip && !filter && w.ctx.skip_primitive != kNoSkip &&
+          extended_primitive(rh.hit.primID, rh.hit.u, rh.hit.v) == w.ctx.skip_primitive) {
+        lazy_skip = false;  // the start primitive itself: again, filtered
+        continue;
+      }
       // A first hit the wrong way means that in float the ray passed within about one ulp of a convex
       // edge, over the facet it nearly runs along, and Embree's float t of that nearly parallel facet
       // ordered the two the wrong way round (docs/heightfield-trade.md, section 1). The ray is taken to
