@@ -22,6 +22,8 @@
 #include "microgeom/exr_io.h"
 #include "scatter/surface_scatter.h"
 
+#include "bench_util.h"
+
 #include <benchmark/benchmark.h>
 #include <fmt/core.h>
 #include <tbb/parallel_for.h>
@@ -38,6 +40,9 @@
 #include <vector>
 
 using namespace microsim;
+using microsim::bench::median;
+using microsim::bench::process_cpu_seconds;
+using microsim::bench::Samples;
 
 namespace {
 
@@ -45,11 +50,6 @@ constexpr std::uint64_t kPaths = 1 << 16;  // per iteration
 constexpr double kTheta = 45.0, kPhi = 30.0;
 std::string g_surface_path;  // --surface=FILE.exr; empty: built in the process
 
-double process_cpu_seconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
-}
 
 struct Surface {
   std::unique_ptr<microgeom::Heightfield> field;
@@ -59,16 +59,7 @@ struct Surface {
 const Surface& surface() {
   static Surface s;
   if (s.scene) return s;
-  if (g_surface_path.empty()) {
-    microgeom::AssemblyParams p;
-    p.assembly = "smith";
-    p.alpha_x = p.alpha_y = 0.5;
-    p.resolution = 1024;
-    p.seed = 1;
-    s.field = std::make_unique<microgeom::Heightfield>(microgeom::build_assembly(p));
-  } else {
-    s.field = std::make_unique<microgeom::Heightfield>(microgeom::load_heightmap_exr(g_surface_path));
-  }
+  s.field = bench::smith_surface_or_file(g_surface_path, 0.5);
   s.scene = std::make_unique<HeightfieldScene>(*s.field);
   return s;
 }
@@ -202,18 +193,8 @@ BENCHMARK(BM_ScatterPaths)->Apply(timed);
 BENCHMARK(BM_ScatterPipeline)->Apply(timed);
 
 // Keeps every repetition's rate and CPU time per ray; prints the medians, pipeline against raw.
-class RatioReporter : public benchmark::ConsoleReporter {
+class RatioReporter : public bench::RepetitionReporter {
 public:
-  void ReportRuns(const std::vector<Run>& runs) override {
-    ConsoleReporter::ReportRuns(runs);
-    for (const Run& run : runs) {
-      if (run.run_type != Run::RT_Iteration || run.error_occurred) continue;
-      const auto rate = run.counters.find("items_per_second"), cpu = run.counters.find("cpu_ns_per_ray");
-      if (rate == run.counters.end() || cpu == run.counters.end()) continue;
-      rate_[run.benchmark_name()].push_back(double(rate->second));
-      cpu_[run.benchmark_name()].push_back(double(cpu->second));
-    }
-  }
   void PrintRatios() const {
     fmt::print("\nexplicit multiple scattering vs raw rtcIntersect1, same rays (median of the repetitions), theta {} "
                "phi {}:\n| material | threads | raw Mrays/s | paths only Mrays/s | pipeline Mrays/s | pipeline / raw "
@@ -234,38 +215,13 @@ public:
       }
     }
   }
-
-private:
-  using Samples = std::map<std::string, std::vector<double>>;
-  static double median(const Samples& samples, const std::string& name) {
-    const auto it = samples.find(name);
-    if (it == samples.end() || it->second.empty()) return -1.0;
-    std::vector<double> v = it->second;
-    std::sort(v.begin(), v.end());
-    const std::size_t n = v.size();
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-  }
-  Samples rate_, cpu_;
 };
 
-void take_surface_argument(int& argc, char** argv) {
-  int kept = 1;
-  for (int i = 1; i < argc; ++i) {
-    if (std::strncmp(argv[i], "--surface=", 10) == 0) g_surface_path = argv[i] + 10;
-    else argv[kept++] = argv[i];
-  }
-  argc = kept;
-}
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  take_surface_argument(argc, argv);
-  benchmark::Initialize(&argc, argv);
-  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  bench::take_surface_argument(argc, argv, g_surface_path);
   RatioReporter reporter;
-  benchmark::RunSpecifiedBenchmarks(&reporter);
-  reporter.PrintRatios();
-  benchmark::Shutdown();
-  return 0;
+  return bench::run_benchmarks(argc, argv, reporter);
 }

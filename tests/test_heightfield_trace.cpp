@@ -280,31 +280,48 @@ TEST(HeightfieldTrace, SkipsOnlyTheStartTriangleInTheFirstCopy) {
 // control: the defect is real), trace() never does, for both geometries, and counts the grazes it passed
 // over. Rays 1e-6 .. 1e-4 away from the edge are never affected and agree with the double reference. A ray
 // that starts INSIDE the solid still reports the facet it leaves through (nothing is passed over).
-TEST(HeightfieldTrace, ConvexEdgeGrazeIsPassedOver) {
+// The surface and rays of the convex-edge graze tests (ConvexEdgeGrazeIsPassedOver); `mirrored`: heights
+// negated and rays mirrored in z (InsideEdgeGrazeIsPassedOver).
+struct GrazeRay {
+  Vec3<double> o, d;
+  double delta;
+};
+struct GrazeCase {
+  microgeom::Heightfield field;
+  std::vector<GrazeRay> rays;
+};
+GrazeCase convex_edge_case(bool mirrored) {
   const int n = 16;
-  const double h = 1.0 / n;
+  const double h = 1.0 / n, sign = mirrored ? -1.0 : 1.0;
   std::vector<float> z(std::size_t(n) * n);
   for (int j = 0; j < n; ++j)
-    for (int i = 0; i < n; ++i) z[std::size_t(j) * n + i] = float(j <= 8 ? 0.5 - 0.08 * j * h : 0.5 - 0.64 * h - 0.3);
-  const microgeom::Heightfield field(n, 1.0, z);
+    for (int i = 0; i < n; ++i)
+      z[std::size_t(j) * n + i] = float(sign * (j <= 8 ? 0.5 - 0.08 * j * h : 0.5 - 0.64 * h - 0.3));
   const double edge_z = double(z[std::size_t(8) * n]);
-  struct Ray {
-    Vec3<double> o, d;
-    double delta;
-  };
-  std::vector<Ray> rays;
+  std::vector<GrazeRay> rays;
   for (double theta : {84.0, 85.0})
     for (double phi : {260.0, 270.0, 280.0}) {
-      const Vec3<double> d = -direction_from_degrees(theta, phi);  // travelling towards +y, down
+      Vec3<double> d = -direction_from_degrees(theta, phi);  // travelling towards +y, down (mirrored: up)
+      d.z() *= sign;
       for (int xi = 0; xi < 5; ++xi) {
         auto aim = [&](double delta) {
-          const Vec3<double> target((xi + 0.37) * 3 * h, 8 * h, edge_z + delta);
-          rays.push_back({target - (2.5 * h / d.y()) * d, d, delta});  // 2.5 cells before, above the slope
+          const Vec3<double> target((xi + 0.37) * 3 * h, 8 * h, edge_z + sign * delta);
+          rays.push_back({target - (2.5 * h / d.y()) * d, d, delta});  // 2.5 cells before, above (below) the slope
         };
         for (int k = -50; k <= 50; ++k) aim(k * 1e-9);
         for (double far : {1e-6, 1e-5, 1e-4}) aim(far), aim(-far);
       }
     }
+  return {microgeom::Heightfield(n, 1.0, std::move(z)), std::move(rays)};
+}
+
+TEST(HeightfieldTrace, ConvexEdgeGrazeIsPassedOver) {
+  const GrazeCase c = convex_edge_case(false);
+  const microgeom::Heightfield& field = c.field;
+  const int n = field.resolution();
+  const double h = field.cell_size();
+  using Ray = GrazeRay;
+  const std::vector<Ray>& rays = c.rays;
   for (auto g : {HeightfieldGeometry::triangles, HeightfieldGeometry::grid}) {
     const HeightfieldScene scene(field, g);
     int raw_leaving = 0, traced_leaving = 0, grazes = 0, far_rays = 0;
@@ -357,11 +374,16 @@ TEST(HeightfieldTrace, ConvexEdgeGrazeIsPassedOver) {
   }
 }
 
-}  // namespace
-}  // namespace microsim
-
-namespace microsim {
-namespace {
+// Heights sign s h |i - 8| on a 16 x 16 tile: a valley (sign +1) or a tent (sign -1) along y, the walls
+// of columns 7 and 8 (slopes -+s) meeting at x = 8 h.
+microgeom::Heightfield v_shape(double s, double sign) {
+  const int n = 16;
+  const double h = 1.0 / n;
+  std::vector<float> z(std::size_t(n) * n);
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) z[std::size_t(j) * n + i] = float(sign * s * h * std::abs(i - 8));
+  return microgeom::Heightfield(n, 1.0, std::move(z));
+}
 
 // A valley along y: heights s h |i - 8| (s = 0.5), so the facets of columns 7 and 8 meet at the valley line
 // x = 8 h. A path inside the solid (a dielectric's refracted or internally reflected path) leaving the left
@@ -371,12 +393,8 @@ namespace {
 // beyond the right flank's plane, and it hits the right flank from above, a hit on the wrong side for a
 // path inside the solid. The double reference agrees on both origins.
 TEST(HeightfieldTrace, InsideRaysAreLiftedBelowTheirFacet) {
-  const int n = 16;
-  const double h = 1.0 / n, s = 0.5;
-  std::vector<float> z(std::size_t(n) * n);
-  for (int j = 0; j < n; ++j)
-    for (int i = 0; i < n; ++i) z[std::size_t(j) * n + i] = float(s * h * std::abs(i - 8));
-  const microgeom::Heightfield valley(n, 1.0, z);
+  const double h = 1.0 / 16;
+  const microgeom::Heightfield valley = v_shape(0.5, 1.0);
   const Vec3<double> d = Vec3<double>(1.0, 0.0, -1.0).normalized();  // descends faster than the flank
   for (auto g : {HeightfieldGeometry::triangles, HeightfieldGeometry::grid}) {
     const HeightfieldScene scene(valley, g);
@@ -411,35 +429,12 @@ TEST(HeightfieldTrace, InsideRaysAreLiftedBelowTheirFacet) {
 // outside rays (the negative control: no rule applies to a ray that starts below the surface) report such
 // hits. Rays 1e-6 .. 1e-4 from the edge agree with the double reference.
 TEST(HeightfieldTrace, InsideEdgeGrazeIsPassedOver) {
-  const int n = 16;
-  const double h = 1.0 / n;
-  std::vector<float> z(std::size_t(n) * n);
-  for (int j = 0; j < n; ++j)
-    for (int i = 0; i < n; ++i) z[std::size_t(j) * n + i] = -float(j <= 8 ? 0.5 - 0.08 * j * h : 0.5 - 0.64 * h - 0.3);
-  const microgeom::Heightfield field(n, 1.0, z);
-  const double edge_z = double(z[std::size_t(8) * n]);
-  struct Ray {
-    Vec3<double> o, d;
-    double delta;
-  };
-  std::vector<Ray> rays;
-  for (double theta : {84.0, 85.0})
-    for (double phi : {260.0, 270.0, 280.0}) {
-      Vec3<double> d = -direction_from_degrees(theta, phi);
-      d.z() = -d.z();  // travelling towards +y, up
-      for (int xi = 0; xi < 5; ++xi) {
-        auto aim = [&](double delta) {
-          const Vec3<double> target((xi + 0.37) * 3 * h, 8 * h, edge_z - delta);
-          rays.push_back({target - (2.5 * h / d.y()) * d, d, delta});  // 2.5 cells before, below the slope
-        };
-        for (int k = -50; k <= 50; ++k) aim(k * 1e-9);
-        for (double far : {1e-6, 1e-5, 1e-4}) aim(far), aim(-far);
-      }
-    }
+  const GrazeCase c = convex_edge_case(true);
+  const microgeom::Heightfield& field = c.field;
   for (auto g : {HeightfieldGeometry::triangles, HeightfieldGeometry::grid}) {
-    const HeightfieldScene scene(field, g);
     int entering_inside = 0, entering_outside = 0, grazes = 0, far_rays = 0;
-    for (const Ray& r : rays) {
+    const HeightfieldScene scene(field, g);
+    for (const GrazeRay& r : c.rays) {
       const HeightfieldHit e = scene.trace(r.o, r.d, std::nullopt, RaySide::inside);
       ASSERT_TRUE(e.is_hit());
       if (r.d.dot(field.triangle_normal(e.triangle)) <= 0) ++entering_inside;
@@ -459,12 +454,6 @@ TEST(HeightfieldTrace, InsideEdgeGrazeIsPassedOver) {
   }
 }
 
-}  // namespace
-}  // namespace microsim
-
-namespace microsim {
-namespace {
-
 // trace_from_surface keeps a bounce's origin on its side near an edge that is concave seen from there.
 // Steep walls (slope 3) meeting at x = 8 h: a ridge (tent) for a path inside the solid, a valley for one
 // outside. A point 1e-9 from the edge on the left wall, lifted along the wall's normal to its side, lands
@@ -473,19 +462,15 @@ namespace {
 // the lift alone (trace, the negative control) it misses that wall and meets the surface from the wrong
 // side; trace_from_surface meets the right wall, from the path's own side. The double reference agrees.
 TEST(HeightfieldTrace, SurfaceOriginStaysOnItsSideAtConcaveEdges) {
-  const int n = 16;
-  const double h = 1.0 / n, s = 3.0;
+  const double h = 1.0 / 16;
   struct Case {
-    double sign;  // heights sign * s h |i - 8|: +1 valley, -1 tent
+    double sign;  // +1 valley, -1 tent
     RaySide side;
     Vec3<double> d;
   };
   for (const Case& c : {Case{-1.0, RaySide::inside, Vec3<double>(1.0, 0.0, -0.5).normalized()},
                         Case{+1.0, RaySide::outside, Vec3<double>(1.0, 0.0, 0.2).normalized()}}) {
-    std::vector<float> z(std::size_t(n) * n);
-    for (int j = 0; j < n; ++j)
-      for (int i = 0; i < n; ++i) z[std::size_t(j) * n + i] = float(c.sign * s * h * std::abs(i - 8));
-    const microgeom::Heightfield field(n, 1.0, z);
+    const microgeom::Heightfield field = v_shape(3.0, c.sign);
     const double x = 8 * h - 1e-9, y = 0.5 + 0.3 * h;
     const std::uint32_t tri = field.triangle_at(x, y);
     ASSERT_EQ(field.triangle_index(tri).i, 7);
