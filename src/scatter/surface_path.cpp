@@ -49,7 +49,8 @@ void SurfacePathTracer::begin(const Vec3<double>& origin, CounterRng rng, PathSt
 // The primary ray (no start facet) or a bounce from the start facet.
 HeightfieldHit SurfacePathTracer::trace_ray(const PathState& s, std::vector<EmbreeCall>* calls) const {
   if (calls) return scene_.trace_recording(s.point, s.dir, s.start, s.side, *calls);
-  return s.start ? scene_.trace_from_surface(s.point, s.dir, *s.start, s.side) : scene_.trace(s.point, s.dir, std::nullopt, s.side);
+  if (s.start) return scene_.trace_from_surface(s.point, s.dir, *s.start, s.start_up, s.side);
+  return scene_.trace(s.point, s.dir, std::nullopt, s.side);
 }
 
 bool SurfacePathTracer::advance(PathState& s, SurfacePath& path, const HeightfieldHit& hit,
@@ -85,6 +86,7 @@ bool SurfacePathTracer::advance(PathState& s, SurfacePath& path, const Heightfie
   s.point = hit.point;
   s.dir = event.wo;
   s.start = hit.triangle;
+  s.start_up = up;
   return true;
 }
 

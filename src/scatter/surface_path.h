@@ -90,6 +90,7 @@ struct SurfacePath {
 struct PathState {
   Vec3<double> point = Vec3<double>::Zero(), dir = Vec3<double>::Zero();
   std::optional<std::uint32_t> start;  // the facet the ray leaves (none: the primary ray)
+  Vec3<double> start_up = Vec3<double>::Zero();  // its unit upward normal
   RaySide side = RaySide::outside;
   CounterRng rng{0, 0};
 };

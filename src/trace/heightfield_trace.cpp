@@ -153,6 +153,7 @@ HeightfieldScene::HeightfieldScene(const microgeom::Heightfield& field, Heightfi
 void HeightfieldScene::place_planes() {
   tile_ = field_.tile_size();
   cell_ = field_.cell_size();
+  inv_cell_ = 1.0 / cell_;
   // Escape and floor planes: a relative 2^-20 of the height range plus a few float ulps of the largest
   // coordinate beyond the extreme heights (nothing can be hit above the highest vertex).
   const double zmax = field_.max_height(), zmin = field_.min_height();
@@ -225,7 +226,10 @@ std::uint32_t HeightfieldScene::hit_triangle(unsigned int prim_id, float u, floa
   const int m = grid.cells();
   const unsigned int cell = e >> 1;
   const int a = int(cell % unsigned(m)), b = int(cell / unsigned(m));
-  return field_.triangle_id(field_.wrap(long(a) - 1), field_.wrap(long(b) - 1), int(e & 1u));
+  // a, b in [0, N + 2): the heightfield cell a - 1, b - 1 wrapped (without a division).
+  const int n = field_.resolution();
+  const auto wrap = [n](int k) { return k < 0 ? k + n : (k >= n ? k - n : k); };
+  return field_.triangle_id(wrap(a - 1), wrap(b - 1), int(e & 1u));
 }
 
 Vec3<double> HeightfieldScene::lifted(const Vec3<double>& p, std::uint32_t triangle, RaySide side) const {
@@ -233,12 +237,13 @@ Vec3<double> HeightfieldScene::lifted(const Vec3<double>& p, std::uint32_t trian
   return p + surface_offset_ * field_.triangle_normal(triangle);
 }
 
-Vec3<double> HeightfieldScene::surface_origin(const Vec3<double>& p, std::uint32_t triangle, RaySide side) const {
-  Vec3<double> o = lifted(p, triangle, side);
+Vec3<double> HeightfieldScene::surface_origin(const Vec3<double>& p, std::uint32_t triangle, const Vec3<double>& up,
+                                              RaySide side) const {
+  Vec3<double> o = side == RaySide::inside ? Vec3<double>(p - surface_offset_ * up) : Vec3<double>(p + surface_offset_ * up);
   // Over its own triangle (the usual case: p not within the lift of an edge) the origin is surface_offset()
   // / m_z >= surface_offset() off the triangle's plane, on its side: nothing to check.
   const auto c = field_.triangle_index(triangle);
-  const double u = o.x() / cell_ - c.i, v = o.y() / cell_ - c.j;
+  const double u = o.x() * inv_cell_ - c.i, v = o.y() * inv_cell_ - c.j;
   if (c.t == 0 ? (u <= 1.0 && v >= 0.0 && u >= v) : (v <= 1.0 && u >= 0.0 && v >= u)) return o;
   const double h = field_.height_at(o.x(), o.y());
   if (side == RaySide::outside) {
@@ -250,6 +255,8 @@ Vec3<double> HeightfieldScene::surface_origin(const Vec3<double>& p, std::uint32
 }
 
 // ---- the segment loop ------------------------------------------------------------------------------------
+// Its steps are always inlined into trace_impl (one function per kind of call, as before the split: the
+// per-ray state stays in registers; bench/bench_trace.cpp, BM_HeightfieldPipeline).
 
 // One ray along its segments: the current segment's origin (x, y in the tile), the direction, the start
 // primitive to skip in the first segment, whether a wrong-way first hit is a convex-edge graze.
@@ -273,12 +280,18 @@ struct HeightfieldScene::SegmentBounds {
 };
 
 template <bool kOcclusionOnly>
-void HeightfieldScene::start_walk(Walk& w, const Vec3<double>& origin_in, const Vec3<double>& dir,
+[[gnu::always_inline]] inline void HeightfieldScene::start_walk(Walk& w, const Vec3<double>& origin_in, const Vec3<double>& dir,
                                   std::optional<std::uint32_t> skip_triangle, RaySide side, bool from_surface) const {
-  const Vec3<double> origin = !skip_triangle ? origin_in
-                              : from_surface ? surface_origin(origin_in, *skip_triangle, side)
-                                             : lifted(origin_in, *skip_triangle, side);
-  w.o = Vec3<double>(wrap_coordinate(origin.x(), tile_), wrap_coordinate(origin.y(), tile_), origin.z());
+  const Vec3<double> origin = skip_triangle && !from_surface ? lifted(origin_in, *skip_triangle, side) : origin_in;
+  if (from_surface) {  // within a lift of the tile: wrapped by a comparison (no division)
+    w.o = origin;
+    for (int k = 0; k < 2; ++k) {
+      if (w.o[k] < 0.0) w.o[k] += tile_;
+      else if (w.o[k] >= tile_) w.o[k] -= tile_;
+    }
+  } else {
+    w.o = Vec3<double>(wrap_coordinate(origin.x(), tile_), wrap_coordinate(origin.y(), tile_), origin.z());
+  }
   w.dir = dir;
   w.df = dir.cast<float>();
   w.dx = dir.x(), w.dy = dir.y(), w.dz = dir.z();
@@ -301,7 +314,7 @@ void HeightfieldScene::start_walk(Walk& w, const Vec3<double>& origin_in, const 
   rtcInitIntersectContext(&w.ctx.base);
 }
 
-HeightfieldScene::SegmentBounds HeightfieldScene::segment_bounds(const Walk& w) const {
+[[gnu::always_inline]] inline HeightfieldScene::SegmentBounds HeightfieldScene::segment_bounds(const Walk& w) const {
   SegmentBounds s;
   if (w.dx > 0) s.tx = (tile_ - w.o.x()) / w.dx;
   else if (w.dx < 0) s.tx = -w.o.x() / w.dx;
@@ -350,7 +363,7 @@ inline RTCRayHit segment_ray(const Vec3<double>& o, const Vec3<float>& df, float
 // One Embree call for the segment, plus one per convex-edge graze passed over. Returns whether the ray
 // stops here (a hit; `out` filled).
 template <bool kOcclusionOnly, bool kRecord>
-bool HeightfieldScene::intersect_segment(Walk& w, int segment, double tfar, HeightfieldHit& out,
+[[gnu::always_inline]] inline bool HeightfieldScene::intersect_segment(Walk& w, int segment, double tfar, HeightfieldHit& out,
                                          std::vector<EmbreeCall>* calls) const {
   float tnear = 0.0f;
   unsigned int grazed = kNoSkip;
@@ -400,7 +413,8 @@ bool HeightfieldScene::intersect_segment(Walk& w, int segment, double tfar, Heig
   }
 }
 
-void HeightfieldScene::record_hit(const Walk& w, const RTCRayHit& rh, HeightfieldHit& out) const {
+[[gnu::always_inline]] inline void HeightfieldScene::record_hit(const Walk& w, const RTCRayHit& rh,
+                                                                HeightfieldHit& out) const {
   const double t = rh.ray.tfar;
   out.outcome = RayOutcome::hit;
   out.t = w.travelled + t;
@@ -410,7 +424,7 @@ void HeightfieldScene::record_hit(const Walk& w, const RTCRayHit& rh, Heightfiel
 }
 
 // Wrap: move to the exit point and re-enter from the opposite side (exact 0 or L on the exit axes).
-void HeightfieldScene::wrap_to_next_tile(Walk& w, const SegmentBounds& s) const {
+[[gnu::always_inline]] inline void HeightfieldScene::wrap_to_next_tile(Walk& w, const SegmentBounds& s) const {
   w.o += s.t_exit * w.dir;
   w.travelled += s.t_exit;
   if (s.tx <= s.ty) w.o.x() = w.dx > 0 ? 0.0 : tile_;
@@ -418,7 +432,7 @@ void HeightfieldScene::wrap_to_next_tile(Walk& w, const SegmentBounds& s) const 
 }
 
 template <bool kOcclusionOnly, bool kRecord>
-HeightfieldHit HeightfieldScene::trace_impl(const Vec3<double>& origin, const Vec3<double>& dir,
+[[gnu::always_inline]] inline HeightfieldHit HeightfieldScene::trace_impl(const Vec3<double>& origin, const Vec3<double>& dir,
                                             std::optional<std::uint32_t> skip_triangle, RaySide side,
                                             bool from_surface, std::vector<EmbreeCall>* calls) const {
   HeightfieldHit out;
@@ -451,14 +465,16 @@ HeightfieldHit HeightfieldScene::trace(const Vec3<double>& origin, const Vec3<do
 }
 
 HeightfieldHit HeightfieldScene::trace_from_surface(const Vec3<double>& p, const Vec3<double>& dir,
-                                                    std::uint32_t triangle, RaySide side) const {
-  return trace_impl<false>(p, dir, triangle, side, true);
+                                                    std::uint32_t triangle, const Vec3<double>& up, RaySide side) const {
+  return trace_impl<false>(surface_origin(p, triangle, up, side), dir, triangle, side, true);
 }
 
 HeightfieldHit HeightfieldScene::trace_recording(const Vec3<double>& origin, const Vec3<double>& dir,
                                                  std::optional<std::uint32_t> skip_triangle, RaySide side,
                                                  std::vector<EmbreeCall>& calls) const {
-  return trace_impl<false, true>(origin, dir, skip_triangle, side, skip_triangle.has_value(), &calls);
+  if (!skip_triangle) return trace_impl<false, true>(origin, dir, std::nullopt, side, false, &calls);
+  const Vec3<double> o = surface_origin(origin, *skip_triangle, field_.triangle_normal(*skip_triangle), side);
+  return trace_impl<false, true>(o, dir, skip_triangle, side, true, &calls);
 }
 
 bool HeightfieldScene::escapes(const Vec3<double>& origin, const Vec3<double>& dir,

@@ -17,7 +17,9 @@
 // at its point of the start triangle lifted along the facet normal by surface_offset() (8 float ulps of
 // the coordinate scale: the rounding of the origin to float can then never put it below its own or a
 // neighbouring facet's plane), AND skips the start triangle by primitive id, through an Embree
-// intersection filter, in the first segment (before any wrap). A ray leaving a planar facet upwards can
+// intersection filter, in the first segment (before any wrap; closest-hit calls try without the filter
+// first and repeat the call with it only when the closest hit is the start triangle, which gives the
+// filtered call's hit). A ray leaving a planar facet upwards can
 // never hit that facet's periodic copies from above, so skipping in the first segment is enough.
 // The lift is 2^-20 of the coordinate scale: 0.4% of a cell at N = 4096 (L = 1); it changes a shadow
 // ray's fate only for start points that close to an edge whose neighbour the ray grazes.
@@ -27,7 +29,10 @@
 // dielectric, scatter/surface_scatter.h). A ray that starts on a facet is lifted to ITS side: along the
 // upward facet normal outside, against it inside (lifted()); lifted to the wrong side, the rounded origin
 // can lie beyond a neighbouring facet's plane, and the ray then hits that facet from the wrong side (an
-// inside ray starting within the lift of a valley line hits the other flank from above). The outcomes
+// inside ray starting within the lift of a valley line hits the other flank from above). Even on its own
+// side, the lift can cross a neighbour's plane at an edge that is concave seen from the ray's side:
+// trace_from_surface (the bounces of scattering paths) then moves the origin back to its side
+// (surface_origin()). The outcomes
 // keep their geometric meaning on both sides: `escaped` = above the maximum height going up (outside: it
 // sees the sky; inside: it crossed the surface unseen, a loss), `leaked` = below the minimum height going
 // down (outside: a loss; inside: it left the solid downward, into the lower medium).
@@ -141,10 +146,11 @@ public:
   HeightfieldHit trace(const Vec3<double>& origin, const Vec3<double>& dir,
                        std::optional<std::uint32_t> skip_triangle = std::nullopt,
                        RaySide side = RaySide::outside) const;
-  // A ray leaving the point p of `triangle` on `side` (a bounce of a scattering path): trace() from
-  // surface_origin() instead of lifted(), the triangle skipped in the first segment.
+  // A ray leaving the point p of `triangle` (unit upward normal `up`, field().triangle_normal) on `side`
+  // (a bounce of a scattering path): trace() from surface_origin() instead of lifted(), the triangle
+  // skipped in the first segment.
   HeightfieldHit trace_from_surface(const Vec3<double>& p, const Vec3<double>& dir, std::uint32_t triangle,
-                                    RaySide side) const;
+                                    const Vec3<double>& up, RaySide side) const;
   // trace_from_surface() (given a skip_triangle) or trace() (without), appending every Embree call it makes
   // to `calls` (benchmarks: the raw rate of the same calls).
   HeightfieldHit trace_recording(const Vec3<double>& origin, const Vec3<double>& dir,
@@ -167,7 +173,9 @@ public:
   // facet it may immediately meet, and meets the surface from the wrong side later (about 5e-7 of the
   // paths of a rough dielectric, tests/test_surface_scatter.cpp). The vertical move keeps the origin on
   // its side; inside a facet (the lift's vertical extent is surface_offset() / m_z there) it never acts.
-  Vec3<double> surface_origin(const Vec3<double>& p, std::uint32_t triangle, RaySide side) const;
+  // `up`: the triangle's unit upward normal (field().triangle_normal).
+  Vec3<double> surface_origin(const Vec3<double>& p, std::uint32_t triangle, const Vec3<double>& up,
+                              RaySide side) const;
 
   // The Embree scene (for benchmarks comparing against raw rtcIntersect1 calls).
   const embree::Scene& embree_scene() const { return *scene_; }
@@ -182,7 +190,8 @@ private:
   void place_planes();
   void create_scene(embree::BuildQuality quality);
   void attach_heightfield_geometry();
-  // trace() and escapes(): the segment loop, and its steps. kRecord: append the Embree calls to `calls`.
+  // trace() and escapes(): the segment loop, and its steps. from_surface: `origin` is a surface_origin()
+  // already (else a start on skip_triangle is lifted()). kRecord: append the Embree calls to `calls`.
   template <bool kOcclusionOnly, bool kRecord = false>
   HeightfieldHit trace_impl(const Vec3<double>& origin, const Vec3<double>& dir,
                             std::optional<std::uint32_t> skip_triangle, RaySide side, bool from_surface,
@@ -201,7 +210,7 @@ private:
 
   const microgeom::Heightfield& field_;
   HeightfieldGeometry geometry_;
-  double tile_ = 0, cell_ = 0;
+  double tile_ = 0, cell_ = 0, inv_cell_ = 0;
   double surface_offset_ = 0;
   double escape_height_ = 0, start_height_ = 0, floor_height_ = 0, floor_start_height_ = 0;
   double build_seconds_ = 0;
