@@ -84,7 +84,7 @@ struct Recording {
   std::uint64_t traced = 0, events = 0;
 };
 
-// The paths of scatter_on_surface's block `block` (its variates and its interleaving: trace_block);
+// The paths of scatter_on_surface's block `block` (its variates: trace_block);
 // `calls` receives their Embree calls, in the order made, if given.
 template <class PerPath>
 void run_paths(const SurfacePathTracer& tracer, const ScatterOptions& o, std::uint64_t block, const PerPath& per_path,

@@ -310,8 +310,7 @@ TEST(SurfaceScatter, DielectricBtdfObeysGeneralisedReciprocity) {
 // ---- the engine ------------------------------------------------------------------------------------------
 
 // scatter_on_surface is the documented loop over SurfacePathTracer, path by path: path i of block b has
-// its origin from draws 2i, 2i + 1 of CounterRng(seed, b) and its events from path_event_stream (the
-// interleaved trace_block changes nothing).
+// its origin from draws 2i, 2i + 1 of CounterRng(seed, b) and its events from path_event_stream.
 TEST(SurfaceScatter, IsTheDocumentedPathLoop) {
   const auto field = assembled("smith", 0.5, 32, 17);
   const HeightfieldScene scene(field);

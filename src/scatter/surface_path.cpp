@@ -98,53 +98,15 @@ void SurfacePathTracer::trace(const Vec3<double>& origin, CounterRng rng, Surfac
   }
 }
 
-// The heights of the hit facet's cell (rows j and j + 1), fetched ahead of advance()'s normal.
-void SurfacePathTracer::prefetch_facet(const HeightfieldHit& hit) const {
-  if (!hit.is_hit()) return;
-  const microgeom::Heightfield& f = scene_.field();
-  const auto c = f.triangle_index(hit.triangle);
-  const int n = f.resolution(), j1 = c.j + 1 == n ? 0 : c.j + 1, i1 = c.i + 1 == n ? 0 : c.i + 1;
-  const float* h = f.heights().data();
-  __builtin_prefetch(h + std::size_t(c.j) * n + c.i);
-  __builtin_prefetch(h + std::size_t(c.j) * n + i1);
-  __builtin_prefetch(h + std::size_t(j1) * n + c.i);
-  __builtin_prefetch(h + std::size_t(j1) * n + i1);
-}
-
 void SurfacePathTracer::trace_block(std::uint64_t seed, std::uint64_t block, std::uint64_t n, std::uint64_t block_size,
                                     const std::function<void(std::uint64_t, const SurfacePath&)>& done,
                                     std::vector<EmbreeCall>* calls) const {
-  struct Lane {
-    PathState state;
-    SurfacePath path;
-    HeightfieldHit hit;
-    std::uint64_t index = 0;
-    bool active = false;
-  };
-  std::array<Lane, kLanes> lanes;
   CounterRng origins(seed, block);
-  std::uint64_t next = 0;
-  const auto start = [&](Lane& l) {
-    l.active = next < n;
-    if (!l.active) return;
+  SurfacePath path;
+  for (std::uint64_t i = 0; i < n; ++i) {
     const double u0 = origins.uniform(), u1 = origins.uniform();
-    l.index = next++;
-    begin(origin(u0, u1), path_event_stream(seed, block, l.index, block_size), l.state, l.path);
-  };
-  for (Lane& l : lanes) start(l);
-  for (bool any = true; any;) {
-    any = false;
-    for (Lane& l : lanes) {
-      if (!l.active) continue;
-      l.hit = trace_ray(l.state, calls);
-      prefetch_facet(l.hit);
-      any = true;
-    }
-    for (Lane& l : lanes) {
-      if (!l.active || advance(l.state, l.path, l.hit)) continue;
-      done(l.index, l.path);
-      start(l);
-    }
+    trace(origin(u0, u1), path_event_stream(seed, block, i, block_size), path, nullptr, calls);
+    done(i, path);
   }
 }
 

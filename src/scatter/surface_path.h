@@ -23,12 +23,8 @@
 // Variates (path_event_stream): path i of a block b of `block_size` paths takes its origin from draws
 // 2i and 2i + 1 of CounterRng(seed, b) (exactly the origin of trace_vndf_heightfield's ray i of block b
 // for the same seed), and its facet events, two uniforms each whether the material uses them or not, from
-// the draws 2 block_size + 2 i kMaxPathEvents on, so that a path is a pure function of (seed, b, i) and
-// the paths of a block can be traced interleaved (trace_block).
-//
-// trace_block traces a block's paths kLanes at a time, ray by ray across the lanes: after each lane's ray
-// the heights of the facet it hit are prefetched, and used after the other lanes' rays, which hides the
-// memory latency of the facet normal's look-up (a 1024^2 heightfield is 4 MB of heights, read at random).
+// the draws 2 block_size + 2 i kMaxPathEvents on, so that a path is a pure function of (seed, b, i),
+// whatever order the paths of a block are traced in.
 #pragma once
 
 #include "core/random.h"
@@ -97,8 +93,6 @@ struct PathState {
 
 class SurfacePathTracer {
 public:
-  static constexpr int kLanes = 16;  // paths in flight in trace_block
-
   // Throws std::invalid_argument for a wi that is not a finite unit direction off the horizon, for light
   // from inside (wi.z < 0) on a material that does not transmit, or for max_order outside
   // [1, kMaxPathEvents].
@@ -117,9 +111,8 @@ public:
   // every facet event is appended to `events` if given, and every Embree call of its rays to `calls`.
   void trace(const Vec3<double>& origin, CounterRng rng, SurfacePath& path,
              std::vector<SurfacePathEvent>* events = nullptr, std::vector<EmbreeCall>* calls = nullptr) const;
-  // The paths [0, n) of block `block` of block_size paths, with their variates (path_event_stream),
-  // interleaved (see above); done(i, path) is called once per path as it ends, in no particular order;
-  // every Embree call is appended to `calls` if given (in the order made).
+  // The paths [0, n) of block `block` of block_size paths, with their variates (path_event_stream), in
+  // order; done(i, path) is called as path i ends; every Embree call is appended to `calls` if given.
   void trace_block(std::uint64_t seed, std::uint64_t block, std::uint64_t n, std::uint64_t block_size,
                    const std::function<void(std::uint64_t, const SurfacePath&)>& done,
                    std::vector<EmbreeCall>* calls = nullptr) const;
@@ -133,7 +126,6 @@ public:
 
 private:
   void end_without_hit(RayOutcome outcome, const PathState& state, SurfacePath& path) const;
-  void prefetch_facet(const HeightfieldHit& hit) const;
 
   const HeightfieldScene& scene_;
   Material material_;

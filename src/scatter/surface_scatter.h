@@ -19,7 +19,7 @@
 // Engine: blocks of kPathsPerBlock paths (core/block_runner.h); block b draws from CounterRng(seed, b):
 // path i its origin from draws 2i and 2i + 1 (exactly the origins of trace_vndf_heightfield for the same
 // seed and block), its facet events from its own range of draws after them (path_event_stream,
-// surface_path.h); the paths of a block are traced interleaved (SurfacePathTracer::trace_block). Sums are exact (ExactSum), so the result depends only on (options, block
+// surface_path.h; SurfacePathTracer::trace_block). Sums are exact (ExactSum), so the result depends only on (options, block
 // range): shards (options.blocks) merge into the unsharded run bit for bit, and a cancelled run
 // (options.run) returns the completed prefix of blocks, marked partial. Never prints.
 #pragma once
