@@ -9,10 +9,11 @@
 // next facet (HeightfieldScene::trace for the primary ray, trace_from_surface for every bounce: periodic
 // wrapping, the start triangle skipped, the origin kept on the path's own side, convex-edge grazes passed
 // over); the facet event is scatter_on_facet (microfacet/material.h) with the facet normal oriented to
-// the path's side, and a refraction moves the path to the other side. The path ends when it leaves the slab of heights: upward outside (it left
-// after `order` events into the upper hemisphere) or downward inside (into the lower medium, the lower
-// hemisphere); or when it meets a facet after max_order events (unfinished: the weight it still carries is
-// reported, never dropped); or when the tracer loses it (lost, with the cause).
+// the path's side, and a refraction moves the path to the other side. The path ends when it leaves the
+// slab of heights: upward outside (it left after `order` events into the upper hemisphere) or downward
+// inside (into the lower medium, the lower hemisphere); or when it meets a facet after max_order events
+// (unfinished: the weight it still carries is reported, never dropped); or when the tracer loses it
+// (lost, with the cause).
 //
 // Weights: one per material channel, the product of the facet events' factors (a conductor's per-channel
 // Fresnel reflectance, a Lambertian albedo; 1 for a mirror and a dielectric, whose choice between
