@@ -55,9 +55,7 @@ int run_plot(const PlotOptions& o) {
   microsim::app::check_distinct_outputs({{"histogram", o.histogram}}, {{"--out", o.out}});
   if (fs::path(o.out).extension() != ".svg")
     throw UsageError(fmt::format("--out: '{}' must end in .svg (the figure is SVG)", o.out));
-  const fs::path parent = fs::path(o.out).parent_path();
-  if (!parent.empty() && !fs::is_directory(parent))
-    throw UsageError(fmt::format("--out: directory '{}' does not exist", parent.string()));
+  microsim::app::check_output("--out", o.out);
   TracedHistogram h;
   try {
     h = read_histogram_exr(o.histogram);

@@ -16,6 +16,7 @@
 
 #include "microgeom/assembly.h"
 #include "core/atomic_file.h"
+#include "core/cpu_time.h"
 #include "microgeom/heightfield.h"
 #include "microgeom/mesh_io.h"
 #include "microgeom/surface_stats.h"
@@ -36,7 +37,6 @@
 #include <new>
 #include <optional>
 
-#include <sys/resource.h>
 #include <unistd.h>
 
 namespace fs = std::filesystem;
@@ -110,22 +110,14 @@ void check_mesh_crop(int mesh_crop, int resolution) {
     throw UsageError(fmt::format("--mesh-crop {} must be in [1, {}] (0 = whole tile)", mesh_crop, resolution));
 }
 
-// CPU seconds (user + system, all threads) used by the process so far: a load-independent cost measure.
-double cpu_seconds() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return double(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
-         1e-6 * double(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
-}
-
 double peak_rss_bytes() { return microsim::app::peak_rss_mib() * 1024.0 * 1024.0; }
 
 // Wall and CPU time since its construction.
 struct Stopwatch {
   std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
-  double cpu_start = cpu_seconds();
+  double cpu_start = microsim::process_cpu_seconds();
   double wall() const { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); }
-  double cpu() const { return cpu_seconds() - cpu_start; }
+  double cpu() const { return microsim::process_cpu_seconds() - cpu_start; }
 };
 
 // ---- reports ------------------------------------------------------------------------------------------

@@ -126,14 +126,9 @@ int run_trace_vndf(const TraceVndfArgs& a) {
     if (ext != ".ply" && ext != ".obj") throw UsageError(fmt::format("--mesh-out '{}': use a .ply or .obj file", a.mesh_out));
   }
   if (std::filesystem::path(a.out).extension() != ".exr") throw UsageError(fmt::format("--out '{}': must be an .exr file", a.out));
-  for (const std::string& path : {a.out, a.json, a.mesh_out}) {
-    if (path.empty()) continue;
-    try {
-      ms::check_writable(path);
-    } catch (const ms::HistogramIoError& e) {
-      throw UsageError(e.what());
-    }
-  }
+  microsim::app::check_output("--out", a.out);
+  microsim::app::check_output("--json", a.json);
+  microsim::app::check_output("--mesh-out", a.mesh_out);
 
   // ---- trace ---------------------------------------------------------------------------------------------
   const auto progress = std::make_shared<ms::CliProgress>(true);

@@ -41,8 +41,8 @@ void check_distinct_outputs(const std::vector<microsim::PathOption>& inputs,
 void check_output(const std::string& option, const std::string& path) {
   if (path.empty()) return;
   try {
-    check_writable(path);
-  } catch (const HistogramIoError& e) {
+    microsim::check_writable(path);
+  } catch (const microsim::OutputPathError& e) {
     throw UsageError(fmt::format("{}: {}", option, e.what()));
   }
 }

@@ -15,10 +15,10 @@ namespace microsim::app {
 
 bool leak_failed(const MaskingResult& r) {
   if (r.leaked > 0) return true;
-  return std::abs(r.leak_ratio.value - 1.0) > kLeakSigmas * r.leak_ratio.se;
+  return std::abs(r.leak_ratio.value - 1.0) > kLeakSigmas * r.leak_ratio.standard_error;
 }
 
-std::string pm(const Estimate& e, int digits) { return fmt::format("{:.{}f} ± {:.{}f}", e.value, digits, e.se, digits); }
+std::string pm(const Estimate& e, int digits) { return fmt::format("{:.{}f} ± {:.{}f}", e.value, digits, e.standard_error, digits); }
 
 int interrupted_partial_written(const char* command, const std::vector<std::string>& outputs) {
   std::string written;
@@ -65,7 +65,7 @@ void print_masking(const MaskingResult& r, const AnalyticSmith& analytic) {
   fmt::print("samples {}  front-facing {}  shadow rays {}  {:.2f} s  {:.3f} Mrays/s{}\n", r.samples, r.front_facing,
              r.rays, r.seconds, r.rays_per_second() * 1e-6, r.partial ? "  PARTIAL (interrupted)" : "");
   fmt::print("leak test  E[w V] / cos(theta_v) = {}  ({:+.2f} SE from 1; leaked rays {}, unresolved {})\n",
-             pm(r.leak_ratio), r.leak_ratio.se > 0 ? (r.leak_ratio.value - 1) / r.leak_ratio.se : 0.0, r.leaked,
+             pm(r.leak_ratio), r.leak_ratio.standard_error > 0 ? (r.leak_ratio.value - 1) / r.leak_ratio.standard_error : 0.0, r.leaked,
              r.unresolved);
   fmt::print("\n| quantity | measured | Smith, {} | Smith, own NDF |\n|---|---|---|---|\n", analytic.describe());
   fmt::print("| Lambda(v) | | {:.5f} | {:.5f} |\n", r.lambda_analytic, r.lambda_empirical);

@@ -36,7 +36,7 @@ std::vector<TableColumn> table_columns(double grazing_share) {
       {"G1 / Smith G1", "g1_ratio_to_smith_analytic", 3, true,
        [](const View& r) {
          const auto& m = r.masking;
-         return Estimate{m.g1.value / m.g1_smith_analytic, m.g1.se / m.g1_smith_analytic};
+         return Estimate{m.g1.value / m.g1_smith_analytic, m.g1.standard_error / m.g1_smith_analytic};
        }},
       {"facing: G1(v\\|m) / G1", "facing_ratio", 3, true, [](const View& r) { return r.masking.by_normal.back().ratio; }},
       {"grazing decile: G1(v\\|m) / G1", "grazing_decile_ratio", 3, true,

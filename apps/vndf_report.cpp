@@ -3,7 +3,6 @@
 #include "surface_input.h"
 
 #include "core/atomic_file.h"
-#include "core/strict_parse.h"
 
 #include <fmt/core.h>
 
@@ -13,40 +12,29 @@ namespace microsim::app {
 
 namespace {
 
-const std::string& attribute(const TracedHistogram& h, const char* key) {
-  static const std::string none;
-  const auto it = h.attributes.find(key);
-  return it == h.attributes.end() ? none : it->second;
-}
-double real_attribute(const TracedHistogram& h, const char* key) {
-  return reader::parse_finite_double(attribute(h, key)).value_or(0.0);
-}
-std::uint64_t count_attribute(const TracedHistogram& h, const char* key) {
-  return reader::parse_uint64(attribute(h, key)).value_or(0);
-}
-
 // The keys every VNDF report shares: the view, the run and its provenance.
 nlohmann::json run_json(const TracedHistogram& h, const TraceResult& r, const std::string& out) {
   const Vec3<double> wi = vndf_view(h);
   const GGX<double> ggx = histogram_ggx(h);
+  const VndfRunRecord run = vndf_run_record(h);
   nlohmann::json j;
   j["alpha"] = {ggx.alpha_x(), ggx.alpha_y()};
-  j["theta"] = real_attribute(h, "theta");
-  j["phi"] = real_attribute(h, "phi");
+  j["theta"] = run.theta_deg;
+  j["phi"] = run.phi_deg;
   j["wi"] = {wi.x(), wi.y(), wi.z()};
-  j["rays_requested"] = count_attribute(h, "rays_requested");
+  j["rays_requested"] = run.rays_requested;
   j["rays"] = r.rays;
   j["hits"] = r.hits;
   j["hit_fraction"] = r.rays ? double(r.hits) / double(r.rays) : 0.0;
   j["seconds"] = r.seconds;
   j["rays_per_second"] = r.rays_per_second();
-  j["seed"] = count_attribute(h, "seed");
-  j["threads"] = count_attribute(h, "threads");
+  j["seed"] = run.seed;
+  j["threads"] = run.threads;
   j["rows"] = h.binnings.front().rows();
   j["partial"] = r.partial;
   j["output"] = out;
-  j["blocks"] = attribute(h, "blocks");
-  j["total_blocks"] = count_attribute(h, "total_blocks");
+  j["blocks"] = fmt::format("{},{}", run.blocks.begin, run.blocks.end);
+  j["total_blocks"] = run.total_blocks;
   return j;
 }
 
@@ -96,8 +84,9 @@ int report_ellipsoid_vndf(const EllipsoidVndf& m, const EllipsoidTarget& target,
   write_outputs(h, j, outputs);
 
   const GGX<double> ggx = histogram_ggx(h);
+  const VndfRunRecord run = vndf_run_record(h);
   fmt::print("trace vndf  ellipsoid alpha ({}, {})  theta {}  phi {}  {}\n", ggx.alpha_x(), ggx.alpha_y(),
-             real_attribute(h, "theta"), real_attribute(h, "phi"), target.describe());
+             run.theta_deg, run.phi_deg, target.describe());
   fmt::print("rays {}  hits {}  hit fraction {:.6f} (exact ellipsoid: {:.6f})  {:.2f} s  {:.3f} Mrays/s  "
              "{:.1f} CPU ns/ray{}\n",
              r.rays, r.hits, r.rays ? double(r.hits) / double(r.rays) : 0.0, m.expected_hit_fraction, r.seconds,
@@ -111,11 +100,12 @@ int report_heightfield_vndf(const HeightfieldVndf& m, const microgeom::Heightfie
   const TracedHistogram& h = m.histogram;
   const TraceResult& r = m.trace;
   const AnalyticSmith analytic = analytic_reference(field);
-  const std::string& surface = attribute(h, "surface");
+  const VndfRunRecord run = vndf_run_record(h);
+  const std::string& surface = run.surface;
   const VndfComparison& lobe = m.comparisons.back();
   nlohmann::json j = run_json(h, r, outputs.out);
   j["surface"] = surface_json(field, surface, analytic, m.reference_source);
-  j["target"] = attribute(h, "target");
+  j["target"] = run.target;
   j["expected_hit_fraction"] = 1.0;  // every downward ray hits a heightfield
   j["backfacing_hits"] = m.diagnostics.backfacing;
   j["edge_grazes"] = m.diagnostics.edge_grazes;
@@ -128,8 +118,8 @@ int report_heightfield_vndf(const HeightfieldVndf& m, const microgeom::Heightfie
   for (const auto& c : m.comparisons) j["comparisons"].push_back(to_json(c));
   write_outputs(h, j, outputs);
 
-  fmt::print("trace vndf  heightfield {}  theta {}  phi {}  reference {} ({})\n", surface, real_attribute(h, "theta"),
-             real_attribute(h, "phi"), analytic.describe(), m.reference_source);
+  fmt::print("trace vndf  heightfield {}  theta {}  phi {}  reference {} ({})\n", surface, run.theta_deg, run.phi_deg,
+             analytic.describe(), m.reference_source);
   fmt::print("rays {}  front-facing first hits {}  back-facing {}  convex-edge grazes passed over {}  leaked {}  {:.2f} s  "
              "{:.3f} Mrays/s{}\n", r.rays, r.hits, m.diagnostics.backfacing, m.diagnostics.edge_grazes, m.diagnostics.leaked,
              r.seconds, r.rays_per_second() * 1e-6, partial_note(r));

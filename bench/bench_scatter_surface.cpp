@@ -18,8 +18,7 @@
 // second"), wall-clock and process CPU time per ray (all threads; robust to the load of other processes
 // on a shared machine). After the benchmarks, a table of the medians over the repetitions, pipeline /
 // raw. Run with --benchmark_repetitions=3 or more.
-#include "microgeom/assembly.h"
-#include "microgeom/exr_io.h"
+#include "core/cpu_time.h"
 #include "scatter/surface_scatter.h"
 
 #include "bench_util.h"
@@ -28,8 +27,6 @@
 #include <fmt/core.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
-
-#include <time.h>
 
 #include <algorithm>
 #include <atomic>
@@ -41,7 +38,6 @@
 
 using namespace microsim;
 using microsim::bench::median;
-using microsim::bench::process_cpu_seconds;
 using microsim::bench::Samples;
 
 namespace {

@@ -25,6 +25,7 @@
 // --benchmark_repetitions=5 or more on a shared machine.
 #include "microgeom/assembly.h"
 #include "microgeom/heightfield.h"
+#include "core/cpu_time.h"
 #include "core/random.h"
 #include "trace/heightfield_trace.h"
 #include "trace/masking.h"
@@ -36,8 +37,6 @@
 #include <fmt/core.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
-
-#include <time.h>
 
 #include <algorithm>
 #include <atomic>
@@ -51,7 +50,6 @@
 
 using namespace microsim;
 using microsim::bench::median;
-using microsim::bench::process_cpu_seconds;
 using microsim::bench::Samples;
 
 namespace {
@@ -78,7 +76,6 @@ Fixture& fixture(int level) {
   }
   return f;
 }
-
 
 std::string scene_name(int level) { return level < 0 ? "quadric" : fmt::format("mesh{}", level); }
 

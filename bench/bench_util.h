@@ -1,5 +1,5 @@
-// microsim benchmarks: what the pipeline-vs-raw benchmarks share (process CPU time, medians over the
-// repetitions, the --surface=FILE.exr argument, the 1024^2 surface).
+// microsim benchmarks: what the pipeline-vs-raw benchmarks share (medians over the repetitions, the
+// --surface=FILE.exr argument, the 1024^2 surface, the reporter; CPU time: core/cpu_time.h).
 #pragma once
 
 #include "microgeom/assembly.h"
@@ -7,8 +7,6 @@
 #include "microgeom/heightfield.h"
 
 #include <benchmark/benchmark.h>
-
-#include <time.h>
 
 #include <algorithm>
 #include <cstring>
@@ -18,13 +16,6 @@
 #include <vector>
 
 namespace microsim::bench {
-
-// CPU time of the process (all threads), in seconds: robust to the load of other processes.
-inline double process_cpu_seconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
-}
 
 // Per benchmark name, one value per repetition.
 using Samples = std::map<std::string, std::vector<double>>;

@@ -66,16 +66,16 @@ TEST(MaskingLeak, EveryAssemblyUpTo85Degrees) {
         const Vec3<double> v = direction_from_degrees(theta, 30.0);
         const MaskingResult r = estimate_masking(*s.scene, *s.analytic, *s.empirical, v, o);
         const std::string line = fmt::format("{} alpha {} theta {}: leak ratio {:.5f} +- {:.5f} ({:+.2f} SE)", info.name,
-                                             alpha, theta, r.leak_ratio.value, r.leak_ratio.se,
-                                             (r.leak_ratio.value - 1.0) / r.leak_ratio.se);
+                                             alpha, theta, r.leak_ratio.value, r.leak_ratio.standard_error,
+                                             (r.leak_ratio.value - 1.0) / r.leak_ratio.standard_error);
         std::printf("  %s\n", line.c_str());
         SCOPED_TRACE(line);
         EXPECT_EQ(r.leaked, 0u);
         EXPECT_EQ(r.unresolved, 0u);
-        EXPECT_LE(r.leak_ratio.se, 0.015);
-        EXPECT_LE(std::abs(r.leak_ratio.value - 1.0), kLeakSigmas * r.leak_ratio.se + 1e-12);
+        EXPECT_LE(r.leak_ratio.standard_error, 0.015);
+        EXPECT_LE(std::abs(r.leak_ratio.value - 1.0), kLeakSigmas * r.leak_ratio.standard_error + 1e-12);
         // Scalar G1 equals the empirical-NDF Smith G1 (the same statement, through the ratio estimator).
-        EXPECT_LE(std::abs(r.g1.value - r.g1_smith_empirical), kLeakSigmas * r.g1.se + 1e-12);
+        EXPECT_LE(std::abs(r.g1.value - r.g1_smith_empirical), kLeakSigmas * r.g1.standard_error + 1e-12);
       }
     }
   }
@@ -139,7 +139,7 @@ TEST(Masking, DeterministicWhateverTheThreadCount) {
   EXPECT_EQ(a.rays, b.rays);
   EXPECT_EQ(a.leak_ratio.value, b.leak_ratio.value);
   EXPECT_EQ(a.g1.value, b.g1.value);
-  EXPECT_EQ(a.g1.se, b.g1.se);
+  EXPECT_EQ(a.g1.standard_error, b.g1.standard_error);
   for (std::size_t k = 0; k < a.by_normal.size(); ++k) EXPECT_EQ(a.by_normal[k].ratio.value, b.by_normal[k].ratio.value);
   for (std::size_t k = 0; k < a.by_height.size(); ++k) EXPECT_EQ(a.by_height[k].g1.value, b.by_height[k].g1.value);
   EXPECT_EQ(a.mirror->value.value, b.mirror->value.value);
@@ -193,10 +193,10 @@ TEST(Masking, Identities) {
   u.sampling = PointSampling::uniform;
   const MaskingResult ru = estimate_masking(*s.scene, *s.analytic, *s.empirical, v, u);
   const MaskingResult rp = estimate_masking(*s.scene, *s.analytic, *s.empirical, v, quiet(60'000, 8));
-  EXPECT_LE(std::abs(ru.g1.value - rp.g1.value), 4 * std::hypot(ru.g1.se, rp.g1.se));
-  EXPECT_LE(std::abs(ru.leak_ratio.value - 1.0), kLeakSigmas * ru.leak_ratio.se);
-  EXPECT_LE(std::abs(ru.mirror->value.value - rp.mirror->value.value), 4 * std::hypot(ru.mirror->value.se, rp.mirror->value.se));
-  EXPECT_LT(rp.g1.se, ru.g1.se);  // the point of sampling by projected area
+  EXPECT_LE(std::abs(ru.g1.value - rp.g1.value), 4 * std::hypot(ru.g1.standard_error, rp.g1.standard_error));
+  EXPECT_LE(std::abs(ru.leak_ratio.value - 1.0), kLeakSigmas * ru.leak_ratio.standard_error);
+  EXPECT_LE(std::abs(ru.mirror->value.value - rp.mirror->value.value), 4 * std::hypot(ru.mirror->value.standard_error, rp.mirror->value.standard_error));
+  EXPECT_LT(rp.g1.standard_error, ru.g1.standard_error);  // the point of sampling by projected area
 }
 
 // The standard errors are calibrated: over 24 independent seeds the z-scores of G1, of the facing-bin
@@ -212,7 +212,7 @@ TEST(Masking, StandardErrorsAreCalibrated) {
     double mean = 0;
     for (const auto& r : runs) mean += get(r).value / seeds;
     double c = 0;
-    for (const auto& r : runs) c += sqr((get(r).value - mean) / get(r).se);
+    for (const auto& r : runs) c += sqr((get(r).value - mean) / get(r).standard_error);
     return c * seeds / (seeds - 1);  // the pooled mean uses one degree of freedom
   };
   const double c_g1 = chi2([](const MaskingResult& r) { return r.g1; });
@@ -224,7 +224,7 @@ TEST(Masking, StandardErrorsAreCalibrated) {
     EXPECT_LT(c, 51.2);
   }
   // Negative control: the near-grazing ratio's standard error halved would not pass (the test has power).
-  const double c_near_halved = chi2([](const MaskingResult& r) { return Estimate{r.near_grazing.ratio.value, 0.5 * r.near_grazing.ratio.se}; });
+  const double c_near_halved = chi2([](const MaskingResult& r) { return Estimate{r.near_grazing.ratio.value, 0.5 * r.near_grazing.ratio.standard_error}; });
   EXPECT_GT(c_near_halved, 51.2);
 }
 

@@ -5,6 +5,7 @@
 // surface, or of another kind (a VNDF histogram) are refused (exit 2) with the ranges or the difference
 // named, and nothing is written.
 #include "cli_helpers.h"
+#include "merge_errors_suite.h"
 #include "output_digest.h"
 
 #include "measure/masking.h"
@@ -149,42 +150,29 @@ INSTANTIATE_TEST_SUITE_P(
 
 // The parts of a run of 25 blocks (100000 samples) in three shards: [0, 8), [8, 16), [16, 25); and parts of
 // other runs: another seed, another view, another surface, a VNDF histogram of the same surface.
-class MaskingMergeErrors : public ::testing::Test {
+class MaskingMergeErrors : public MergeErrorsSuite<MaskingMergeErrors> {
 protected:
   static void SetUpTestSuite() {
-    dir_ = new fs::path(scratch_dir("masking_merge", "errors"));
-    ASSERT_EQ(run_cli(*dir_, "surface build --assembly sorted --res 256 --alpha 0.5 --seed 2 --out s.exr --quiet").exit_code, 0);
-    ASSERT_EQ(run_cli(*dir_, "surface build --assembly sorted --res 256 --alpha 0.5 --seed 3 --out t.exr --quiet").exit_code, 0);
+    dir() = scratch_dir("masking_merge", "errors");
+    ASSERT_EQ(run_cli(dir(), "surface build --assembly sorted --res 256 --alpha 0.5 --seed 2 --out s.exr --quiet").exit_code, 0);
+    ASSERT_EQ(run_cli(dir(), "surface build --assembly sorted --res 256 --alpha 0.5 --seed 3 --out t.exr --quiet").exit_code, 0);
     const std::string run = "trace masking --surface s.exr --theta 60 --theta-l 40 --samples 100000";
     for (int k = 1; k <= 3; ++k)
-      ASSERT_EQ(run_cli(*dir_, run + " --seed 7 --shard " + std::to_string(k) + "/3 --json p" + std::to_string(k) + ".json").exit_code, 0);
-    ASSERT_EQ(run_cli(*dir_, run + " --seed 8 --shard 2/3 --json seed8.json").exit_code, 0);
-    ASSERT_EQ(run_cli(*dir_, "trace masking --surface s.exr --theta 50 --theta-l 40 --samples 100000 --seed 7 --shard 2/3 "
+      ASSERT_EQ(run_cli(dir(), run + " --seed 7 --shard " + std::to_string(k) + "/3 --json p" + std::to_string(k) + ".json").exit_code, 0);
+    ASSERT_EQ(run_cli(dir(), run + " --seed 8 --shard 2/3 --json seed8.json").exit_code, 0);
+    ASSERT_EQ(run_cli(dir(), "trace masking --surface s.exr --theta 50 --theta-l 40 --samples 100000 --seed 7 --shard 2/3 "
                              "--json theta50.json").exit_code, 0);
-    ASSERT_EQ(run_cli(*dir_, "trace masking --surface t.exr --theta 60 --theta-l 40 --samples 100000 --seed 7 --shard 2/3 "
+    ASSERT_EQ(run_cli(dir(), "trace masking --surface t.exr --theta 60 --theta-l 40 --samples 100000 --seed 7 --shard 2/3 "
                              "--json other_surface.json").exit_code, 0);
-    ASSERT_EQ(run_cli(*dir_, "trace vndf --surface s.exr --theta 60 --rays 30000 --seed 7 --shard 2/3 --out v.exr --json v.json").exit_code, 0);
+    ASSERT_EQ(run_cli(dir(), "trace vndf --surface s.exr --theta 60 --rays 30000 --seed 7 --shard 2/3 --out v.exr --json v.json").exit_code, 0);
   }
-  static void TearDownTestSuite() {
-    fs::remove_all(*dir_);
-    delete dir_;
-  }
-  static void expect_refused(const std::string& args, const std::string& message) {
-    const auto before = snapshot_files(*dir_);
-    const CliRun r = run_cli(*dir_, "merge " + args);
-    EXPECT_EQ(r.exit_code, 2) << r.err;
-    EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
-    EXPECT_TRUE(snapshot_files(*dir_) == before) << "merge " << args << " wrote a file";
-  }
-  static fs::path* dir_;
 };
-fs::path* MaskingMergeErrors::dir_ = nullptr;
 
 TEST_F(MaskingMergeErrors, TheShardsMerge) {
-  const CliRun r = run_cli(*dir_, "merge p3.json p1.json p2.json --json merged.json");
+  const CliRun r = run_cli(dir(), "merge p3.json p1.json p2.json --json merged.json");
   EXPECT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_TRUE(fs::exists(*dir_ / "merged.json"));
-  fs::remove(*dir_ / "merged.json");
+  EXPECT_TRUE(fs::exists(dir() / "merged.json"));
+  fs::remove(dir() / "merged.json");
 }
 TEST_F(MaskingMergeErrors, AGapIsNamed) { expect_refused("p1.json p3.json --json m.json", "blocks [8, 16) of [0, 25) are missing"); }
 TEST_F(MaskingMergeErrors, AMissingEndIsNamed) { expect_refused("p1.json p2.json --json m.json", "blocks [16, 25) of [0, 25) are missing"); }

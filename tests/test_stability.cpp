@@ -88,6 +88,34 @@ TEST(StabilitySweep, IsReproducible) {
   }
 }
 
+// A function's bound follows its trait (FloatAccuracyCaveat, set where the function is listed), not its
+// name: a row named like the dielectric transmission but without the trait has the default bound, and the
+// traits loosen the bound whatever the row is called.
+TEST(StabilityBound, FollowsTheFunctionsTraitNotItsName) {
+  StabilityMetrics row;
+  row.is_sampler = false;
+  row.regime = StabilityRegime::grazing;
+  row.subject = "dielectric_bsdf(T)";
+  EXPECT_EQ(stability_bound(row).cond_float_double, 8);
+  row.subject = "some_function";
+  row.float_caveat = FloatAccuracyCaveat::cancelling_half_vector_at_grazing;
+  EXPECT_EQ(stability_bound(row).cond_float_double, 64);
+  row.regime = StabilityRegime::moderate;
+  EXPECT_EQ(stability_bound(row).cond_float_double, 8);
+  row.subject = "bounded2023_reflection_pdf";
+  row.float_caveat = FloatAccuracyCaveat::none;
+  EXPECT_FALSE(stability_bound(row).zero_flips_at_u_ends);
+  row.float_caveat = FloatAccuracyCaveat::threshold_slack_of_eps;
+  EXPECT_TRUE(stability_bound(row).zero_flips_at_u_ends);
+  // The sweep gives the listed functions their traits.
+  const StabilityMetrics* t = find_row(standard_table(), "dielectric_bsdf(T)", StabilityRegime::grazing);
+  ASSERT_NE(t, nullptr);
+  EXPECT_EQ(t->float_caveat, FloatAccuracyCaveat::cancelling_half_vector_at_grazing);
+  const StabilityMetrics* b = find_row(standard_table(), "bounded2023_reflection_pdf", StabilityRegime::moderate);
+  ASSERT_NE(b, nullptr);
+  EXPECT_EQ(b->float_caveat, FloatAccuracyCaveat::threshold_slack_of_eps);
+}
+
 // ---- the sweep catches what it claims to catch --------------------------------------------------------
 
 namespace {

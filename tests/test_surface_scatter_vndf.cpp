@@ -1,7 +1,6 @@
 // On a mirror heightfield, the directions leaving the first bounce of the multiple-scattering paths
 // (scatter/surface_path.h), whether or not they escape, are exactly the mirror reflections of the
 // first-hit normals that `trace vndf --surface` (trace_vndf_heightfield) histograms, for the same rays.
-// (A file of its own: trace/masking.h and stats/scatter_histogram.h both declare a microsim::Estimate.)
 #include "scatter/surface_path.h"
 
 #include "core/block_runner.h"

@@ -28,9 +28,9 @@ BlockRange shard_range(std::uint64_t blocks, std::uint64_t k, std::uint64_t n) {
 namespace detail {
 std::uint64_t blocks_in_flight(int threads) {
   const int workers = threads > 0 ? threads : tbb::this_task_arena::max_concurrency();
-  // Enough blocks per chunk that the wait at the chunk's end (one block's time at most, per worker) and
-  // the in-order reduction on the calling thread stay small against the chunk's work.
-  return std::max<std::uint64_t>(256, 32 * std::uint64_t(std::max(workers, 1)));
+  // Enough tokens that no worker waits for the in-order reduction (a few blocks ahead per worker), few
+  // enough that the results in flight stay in cache.
+  return 4 * std::uint64_t(std::max(workers, 1));
 }
 }  // namespace detail
 

@@ -1,5 +1,7 @@
 #include "core/output_paths.h"
 
+#include "core/atomic_file.h"
+
 #include <fmt/core.h>
 
 #include <system_error>
@@ -57,6 +59,20 @@ void check_output_paths(const std::vector<PathOption>& inputs, const std::vector
       throw OutputPathError(fmt::format("{} and {} are the same file: each output needs its own path (nothing written)",
                                         spelled(earlier), spelled(out)));
     }
+  }
+}
+
+void check_writable(const fs::path& path) {
+  std::error_code ec;
+  if (path.empty()) throw OutputPathError("output path is empty");
+  if (fs::is_directory(path, ec)) throw OutputPathError(fmt::format("output '{}' is a directory", path.string()));
+  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  if (!fs::is_directory(dir, ec))
+    throw OutputPathError(fmt::format("cannot write '{}': directory '{}' does not exist", path.string(), dir.string()));
+  try {
+    const TemporaryFile probe(path);  // a new file beside `path`, removed again
+  } catch (const FileWriteError&) {
+    throw OutputPathError(fmt::format("cannot write '{}': directory '{}' is not writable", path.string(), dir.string()));
   }
 }
 

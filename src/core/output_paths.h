@@ -1,6 +1,8 @@
-// microsim: the one check that a command's outputs lose no file (issue 8, defect 4). Every command calls
-// it with its input and output paths before any work: an output must not be one of the inputs (writing it
-// would destroy the input) and no two outputs may be the same file (one would silently replace the other).
+// microsim: the checks of a command's outputs, made before any work. check_output_paths: the outputs lose
+// no file (issue 8, defect 4): an output must not be one of the inputs (writing it would destroy the
+// input) and no two outputs may be the same file (one would silently replace the other). check_writable:
+// each output can be created (its directory exists and is writable, it is not a directory), so that a bad
+// output fails before a long run, not after it.
 //
 // "The same file" is decided by the filesystem, not by spelling: two existing paths are the same file when
 // std::filesystem::equivalent says so (same device and inode: hard links, symbolic links, and spellings
@@ -21,7 +23,8 @@ struct PathOption {
   std::filesystem::path path;
 };
 
-// Two paths of a command would name the same file. The message names both options and both paths.
+// An output path that cannot be used: two paths of a command would name the same file (the message names
+// both options and both paths), or an output cannot be created (the message names the path).
 struct OutputPathError : std::invalid_argument {
   using std::invalid_argument::invalid_argument;
 };
@@ -32,5 +35,10 @@ bool same_file(const std::filesystem::path& a, const std::filesystem::path& b);
 
 // Throws OutputPathError when an output is the same file as an input or as another output.
 void check_output_paths(const std::vector<PathOption>& inputs, const std::vector<PathOption>& outputs);
+
+// Throws OutputPathError unless a file can be created at `path`: not empty, not a directory, its directory
+// exists and is writable (a probe file is created beside it and removed). An existing file at `path` is
+// fine: the atomic writer replaces it by rename(), which needs only the directory to be writable.
+void check_writable(const std::filesystem::path& path);
 
 }  // namespace microsim

@@ -1,6 +1,7 @@
 #include "measure/masking.h"
 
 #include "core/strict_parse.h"
+#include "stats/part_json.h"
 
 #include <fmt/core.h>
 
@@ -76,32 +77,9 @@ Provenance masking_provenance(const nlohmann::json& parameters, std::uint64_t se
 
 // ---- reading a part's JSON ----------------------------------------------------------------------------------
 
-[[noreturn]] void malformed(const std::string& where, const std::string& what) {
-  throw HistogramMergeError(fmt::format("not a trace masking part: {} {}", where, what));
-}
+const PartReader kReader(kProducer);
 
-const nlohmann::json& member(const nlohmann::json& j, const char* key, const std::string& where) {
-  if (!j.is_object() || !j.contains(key)) malformed(where + "/" + key, "is missing");
-  return j[key];
-}
-
-std::uint64_t count_member(const nlohmann::json& j, const char* key, const std::string& where) {
-  const nlohmann::json& v = member(j, key, where);
-  if (!v.is_number_unsigned()) malformed(where + "/" + key, "is not a count");
-  return v.get<std::uint64_t>();
-}
-
-double real_member(const nlohmann::json& j, const char* key, const std::string& where) {
-  const nlohmann::json& v = member(j, key, where);
-  if (!v.is_number()) malformed(where + "/" + key, "is not a number");
-  return v.get<double>();
-}
-
-std::string string_member(const nlohmann::json& j, const char* key, const std::string& where) {
-  const nlohmann::json& v = member(j, key, where);
-  if (!v.is_string()) malformed(where + "/" + key, "is not a string");
-  return v.get<std::string>();
-}
+[[noreturn]] void malformed(const std::string& where, const std::string& what) { kReader.malformed(where, what); }
 
 // ---- exact sums as JSON -------------------------------------------------------------------------------------
 
@@ -116,7 +94,7 @@ ExactSum sum_from_json(const nlohmann::json& v, const std::string& where) {
 }
 
 ExactSum sum_member(const nlohmann::json& j, const char* key, const std::string& where) {
-  return sum_from_json(member(j, key, where), where + "/" + key);
+  return sum_from_json(kReader.member(j, key, where), where + "/" + key);
 }
 
 nlohmann::json sums_json(const std::vector<ExactSum>& sums) {
@@ -132,7 +110,7 @@ nlohmann::json ratio_json(const RatioTotals& t) {
 
 RatioTotals ratio_from_json(const nlohmann::json& j, const std::string& where) {
   RatioTotals t;
-  t.n = count_member(j, "n", where);
+  t.n = kReader.count(j, "n", where);
   t.x = sum_member(j, "x", where);
   t.y = sum_member(j, "y", where);
   t.xx = sum_member(j, "xx", where);
@@ -156,9 +134,9 @@ nlohmann::json g2_json(const G2Totals& g) {
 
 G2Totals g2_from_json(const nlohmann::json& j, const std::string& where) {
   G2Totals g;
-  g.measured = ratio_from_json(member(j, "measured", where), where + "/measured");
-  g.vs_analytic = ratio_from_json(member(j, "vs_analytic", where), where + "/vs_analytic");
-  g.vs_empirical = ratio_from_json(member(j, "vs_empirical", where), where + "/vs_empirical");
+  g.measured = ratio_from_json(kReader.member(j, "measured", where), where + "/measured");
+  g.vs_analytic = ratio_from_json(kReader.member(j, "vs_analytic", where), where + "/vs_analytic");
+  g.vs_empirical = ratio_from_json(kReader.member(j, "vs_empirical", where), where + "/vs_empirical");
   g.pred_analytic = sum_member(j, "pred_analytic", where);
   g.pred_empirical = sum_member(j, "pred_empirical", where);
   g.sep_analytic = sum_member(j, "sep_analytic", where);
@@ -189,7 +167,7 @@ nlohmann::json masking_sums_json(const MaskingSums& s) {
 template <class T, class Read>
 std::vector<T> array_member(const nlohmann::json& j, const char* key, std::size_t bins, const std::string& where,
                             Read read) {
-  const nlohmann::json& a = member(j, key, where);
+  const nlohmann::json& a = kReader.member(j, key, where);
   if (!a.is_array() || a.size() != bins) malformed(where + "/" + key, fmt::format("is not an array of {} bins", bins));
   std::vector<T> out;
   for (std::size_t k = 0; k < a.size(); ++k) out.push_back(read(a[k], fmt::format("{}/{}/{}", where, key, k)));
@@ -199,22 +177,22 @@ std::vector<T> array_member(const nlohmann::json& j, const char* key, std::size_
 MaskingSums masking_sums_from_json(const nlohmann::json& j, std::size_t bins) {
   const std::string w = "sums";
   MaskingSums s;
-  s.samples = count_member(j, "samples", w);
-  s.front = count_member(j, "front", w);
-  s.rays = count_member(j, "rays", w);
-  s.leaked = count_member(j, "leaked", w);
-  s.unresolved = count_member(j, "unresolved", w);
+  s.samples = kReader.count(j, "samples", w);
+  s.front = kReader.count(j, "front", w);
+  s.rays = kReader.count(j, "rays", w);
+  s.leaked = kReader.count(j, "leaked", w);
+  s.unresolved = kReader.count(j, "unresolved", w);
   s.leak_y = sum_member(j, "leak_y", w);
   s.leak_yy = sum_member(j, "leak_yy", w);
-  s.g1 = ratio_from_json(member(j, "g1", w), w + "/g1");
-  s.near_grazing = ratio_from_json(member(j, "near_grazing", w), w + "/near_grazing");
+  s.g1 = ratio_from_json(kReader.member(j, "g1", w), w + "/g1");
+  s.near_grazing = ratio_from_json(kReader.member(j, "near_grazing", w), w + "/near_grazing");
   s.normal = array_member<RatioTotals>(j, "normal", bins, w, ratio_from_json);
   s.height = array_member<RatioTotals>(j, "height", bins, w, ratio_from_json);
   s.height_pred_analytic = array_member<ExactSum>(j, "height_pred_analytic", bins, w, sum_from_json);
   s.height_pred_empirical = array_member<ExactSum>(j, "height_pred_empirical", bins, w, sum_from_json);
-  s.mirror = g2_from_json(member(j, "mirror", w), w + "/mirror");
-  s.pair = g2_from_json(member(j, "pair", w), w + "/pair");
-  s.cone = g2_from_json(member(j, "cone", w), w + "/cone");
+  s.mirror = g2_from_json(kReader.member(j, "mirror", w), w + "/mirror");
+  s.pair = g2_from_json(kReader.member(j, "pair", w), w + "/pair");
+  s.cone = g2_from_json(kReader.member(j, "cone", w), w + "/cone");
   return s;
 }
 
@@ -224,36 +202,16 @@ MaskingSums masking_sums_from_json(const nlohmann::json& j, std::size_t bins) {
 MaskingRequest request_from_parameters(const nlohmann::json& p, std::uint64_t seed) {
   const std::string w = "provenance/parameters";
   MaskingRequest r;
-  r.theta_deg = real_member(p, "theta", w);
-  r.phi_deg = real_member(p, "phi", w);
-  if (!member(p, "theta_l", w).is_null()) r.theta_l_deg = real_member(p, "theta_l", w);
-  r.phi_l_deg = real_member(p, "phi_l", w);
-  r.cone_deg = real_member(p, "cone_deg", w);
-  r.samples = count_member(p, "samples", w);
-  r.bins = int(count_member(p, "bins", w));
-  r.grazing_share = real_member(p, "grazing_share", w);
+  r.theta_deg = kReader.real(p, "theta", w);
+  r.phi_deg = kReader.real(p, "phi", w);
+  if (!kReader.member(p, "theta_l", w).is_null()) r.theta_l_deg = kReader.real(p, "theta_l", w);
+  r.phi_l_deg = kReader.real(p, "phi_l", w);
+  r.cone_deg = kReader.real(p, "cone_deg", w);
+  r.samples = kReader.count(p, "samples", w);
+  r.bins = int(kReader.count(p, "bins", w));
+  r.grazing_share = kReader.real(p, "grazing_share", w);
   r.seed = seed;
   return r;
-}
-
-// A parameter as a message quotes it (strings without their JSON quotes).
-std::string parameter_text(const nlohmann::json& v) {
-  return reader::quote_excerpt(v.is_string() ? v.get<std::string>() : v.dump());
-}
-
-// Throws unless part `name` has the first part's parameters, naming the first that differs.
-void check_same_parameters(const nlohmann::json& first, const nlohmann::json& other, const std::string& name) {
-  for (auto it = first.begin(); it != first.end(); ++it) {
-    const bool missing = !other.contains(it.key());
-    if (missing || other[it.key()] != it.value())
-      throw HistogramMergeError(fmt::format("{} is not part of the same run: {} is {} there, {} in the first part", name,
-                                            it.key(), missing ? "missing" : parameter_text(other[it.key()]),
-                                            parameter_text(it.value())));
-  }
-  for (auto it = other.begin(); it != other.end(); ++it)
-    if (!first.contains(it.key()))
-      throw HistogramMergeError(fmt::format("{} is not part of the same run: it has parameter {}, the first part not", name,
-                                            it.key()));
 }
 
 }  // namespace
@@ -295,46 +253,24 @@ MaskingVndf measure_masking_vndf(const MaskingSurface& surface, const MaskingReq
 }
 
 nlohmann::json masking_part_json(const SurfaceMasking& m) {
-  const Provenance& p = m.provenance;
   nlohmann::json j;
-  j["provenance"] = {{"producer", p.producer},
-                     {"parameters", m.parameters},
-                     {"seed", p.seed},
-                     {"blocks", {p.blocks.begin, p.blocks.end}},
-                     {"total_blocks", p.total_blocks}};
+  j["provenance"] = provenance_json(m.provenance, m.parameters);
   j["sums"] = masking_sums_json(m.result.sums);
   return j;
 }
 
-bool is_masking_part(const nlohmann::json& report) {
-  if (!report.is_object() || !report.contains("provenance")) return false;
-  const nlohmann::json& p = report["provenance"];
-  return p.is_object() && p.contains("producer") && p["producer"] == kProducer;
-}
+bool is_masking_part(const nlohmann::json& report) { return producer_of(report) == kProducer; }
 
 MaskingPart read_masking_part(const nlohmann::json& report) {
-  if (!is_masking_part(report)) malformed("provenance/producer", fmt::format("is not \"{}\"", kProducer));
-  const nlohmann::json& prov = report["provenance"];
   MaskingPart part;
-  part.parameters = member(prov, "parameters", "provenance");
-  part.provenance.producer = kProducer;
-  part.provenance.measurement = part.parameters.dump();
-  part.provenance.seed = count_member(prov, "seed", "provenance");
-  part.provenance.total_blocks = count_member(prov, "total_blocks", "provenance");
-  const nlohmann::json& blocks = member(prov, "blocks", "provenance");
-  if (!blocks.is_array() || blocks.size() != 2 || !blocks[0].is_number_unsigned() || !blocks[1].is_number_unsigned() ||
-      blocks[0].get<std::uint64_t>() > blocks[1].get<std::uint64_t>() ||
-      blocks[1].get<std::uint64_t>() > part.provenance.total_blocks)
-    malformed("provenance/blocks", fmt::format("= {} is not a range [B, E] within the run's {} blocks",
-                                               reader::quote_excerpt(blocks.dump()), part.provenance.total_blocks));
-  part.provenance.blocks = {blocks[0].get<std::uint64_t>(), blocks[1].get<std::uint64_t>()};
-  const std::uint64_t bins = count_member(part.parameters, "bins", "provenance/parameters");
+  part.provenance = kReader.provenance(report, part.parameters);
+  const std::uint64_t bins = kReader.count(part.parameters, "bins", "provenance/parameters");
   if (bins < 1 || bins > 1000000) malformed("provenance/parameters/bins", "is not a number of bins");
-  part.sums = masking_sums_from_json(member(report, "sums", ""), std::size_t(bins));
-  part.surface = string_member(part.parameters, "surface", "provenance/parameters");
-  part.tile_size = real_member(part.parameters, "tile_size", "provenance/parameters");
+  part.sums = masking_sums_from_json(kReader.member(report, "sums", ""), std::size_t(bins));
+  part.surface = kReader.text(part.parameters, "surface", "provenance/parameters");
+  part.tile_size = kReader.real(part.parameters, "tile_size", "provenance/parameters");
   try {
-    part.geometry = heightfield_geometry_from_string(string_member(part.parameters, "geometry", "provenance/parameters"));
+    part.geometry = heightfield_geometry_from_string(kReader.text(part.parameters, "geometry", "provenance/parameters"));
   } catch (const std::invalid_argument& e) {
     malformed("provenance/parameters/geometry", e.what());
   }
@@ -366,7 +302,7 @@ MaskingPart merge_masking_parts(const std::vector<MaskingPart>& parts) {
 
 SurfaceMasking analyse_masking_part(const MaskingPart& part, const MaskingSurface& surface) {
   const std::string digest = surface_digest(surface.field);
-  const std::string want = string_member(part.parameters, "surface_digest", "provenance/parameters");
+  const std::string want = kReader.text(part.parameters, "surface_digest", "provenance/parameters");
   if (digest != want || surface.field.tile_size() != part.tile_size)
     throw HistogramMergeError(fmt::format("the surface '{}' (digest {}, tile {}) is not the one the parts were traced on "
                                           "(digest {}, tile {})", surface.path, digest, surface.field.tile_size(),

@@ -208,7 +208,7 @@ RealisationSummary summarise_realisations(const std::vector<Estimate>& xs) {
   for (const auto& x : xs) {
     c.values.push_back(x.value);
     c.mean += x.value / k;
-    mc += x.se * x.se;
+    mc += x.standard_error * x.standard_error;
     c.min = std::min(c.min, x.value);
     c.max = std::max(c.max, x.value);
   }

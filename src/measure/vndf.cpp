@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <set>
 #include <stdexcept>
 
@@ -109,6 +110,15 @@ double real_attribute(const TracedHistogram& h, const std::string& key) {
   return *v;
 }
 
+// The attribute "blocks" = "B,E": a range within the run's blocks.
+BlockRange blocks_attribute(const TracedHistogram& h, std::uint64_t total_blocks) {
+  const std::vector<std::uint64_t> blocks = count_list_attribute(h, "blocks");
+  if (blocks.size() != 2 || blocks[0] > blocks[1] || blocks[1] > total_blocks)
+    throw HistogramMergeError(fmt::format("attribute blocks = {} is not a range B,E within the run's {} blocks",
+                                          reader::quote_excerpt(attribute(h, "blocks")), total_blocks));
+  return {blocks[0], blocks[1]};
+}
+
 // The trace a histogram holds (no timing): what a merged run reports.
 TraceResult trace_of(const TracedHistogram& h, const std::vector<std::uint64_t>& unbinned) {
   TraceResult t;
@@ -126,16 +136,31 @@ Vec3<double> vndf_view(const TracedHistogram& h) {
   return direction_from_degrees(real_attribute(h, "theta"), real_attribute(h, "phi"));
 }
 
+VndfRunRecord vndf_run_record(const TracedHistogram& h) {
+  VndfRunRecord r;
+  r.theta_deg = real_attribute(h, "theta");
+  r.phi_deg = real_attribute(h, "phi");
+  r.rays_requested = count_attribute(h, "rays_requested");
+  r.seed = count_attribute(h, "seed");
+  r.threads = count_attribute(h, "threads");
+  r.total_blocks = count_attribute(h, "total_blocks");
+  r.blocks = blocks_attribute(h, r.total_blocks);
+  r.surface = attribute(h, "surface");
+  r.target = attribute(h, "target");
+  const std::optional<double> level = reader::parse_finite_double(attribute(h, "mesh_level"));
+  if (!level || *level != std::floor(*level) || *level < -1 || *level > 64)
+    throw HistogramMergeError(fmt::format("attribute mesh_level = {} is not a tessellation level",
+                                          reader::quote_excerpt(attribute(h, "mesh_level"))));
+  r.mesh_level = int(*level);
+  return r;
+}
+
 Provenance vndf_provenance(const TracedHistogram& h) {
   Provenance p;
   p.producer = "trace vndf";
   p.seed = count_attribute(h, "seed");
   p.total_blocks = count_attribute(h, "total_blocks");
-  const std::vector<std::uint64_t> blocks = count_list_attribute(h, "blocks");
-  if (blocks.size() != 2 || blocks[0] > blocks[1] || blocks[1] > p.total_blocks)
-    throw HistogramMergeError(fmt::format("attribute blocks = {} is not a range B,E within the run's {} blocks",
-                                          reader::quote_excerpt(attribute(h, "blocks")), p.total_blocks));
-  p.blocks = {blocks[0], blocks[1]};
+  p.blocks = blocks_attribute(h, p.total_blocks);
   return p;
 }
 

@@ -56,6 +56,18 @@ HeightfieldVndf measure_heightfield_vndf(const microgeom::Heightfield& field, co
 // The view of a trace vndf histogram, exactly as the run computed it (from its attributes theta, phi).
 Vec3<double> vndf_view(const TracedHistogram& histogram);
 
+// The run a trace vndf histogram records in its attributes, read strictly (the one reader of them, for
+// the reports and the merge): throws HistogramMergeError naming a missing or malformed attribute.
+struct VndfRunRecord {
+  double theta_deg = 0, phi_deg = 0;
+  std::uint64_t rays_requested = 0, seed = 0, threads = 0;
+  BlockRange blocks;              // attribute "blocks" = "B,E"
+  std::uint64_t total_blocks = 0;
+  std::string surface, target;    // "ellipsoid" or the heightmap's path; what was traced
+  int mesh_level = -1;            // the ellipsoid's tessellation level (-1: the exact quadric, or a heightfield)
+};
+VndfRunRecord vndf_run_record(const TracedHistogram& histogram);
+
 // ---- partial results -------------------------------------------------------------------------------------
 
 // The provenance a trace vndf histogram records: seed, block range, blocks of the run (attributes

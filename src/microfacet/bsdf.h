@@ -13,6 +13,7 @@
 
 #include "microfacet/ggx.h"
 
+#include <cmath>
 #include <complex>
 
 namespace microsim {
@@ -54,18 +55,21 @@ template <class T> Vec3<T> reflection_half_vector(const Vec3<T>& wi, const Vec3<
   return h.z() < T(0) ? Vec3<T>(-h) : h;
 }
 
-// Single-scattering GGX BRDF of a perfect mirror microsurface (F = 1): D G2 / (4 |cos i| |cos o|),
+// The BSDFs below take any Smith microfacet distribution with D and G2: GGX (ggx.h) or Beckmann
+// (beckmann.h); the formulas of Walter et al. 2007 hold for both.
+//
+// Single-scattering BRDF of a perfect mirror microsurface (F = 1): D G2 / (4 |cos i| |cos o|),
 // with the height-correlated G2. Reflection only: both directions on the upper side.
-template <class T> T mirror_brdf(const GGX<T>& ggx, const Vec3<T>& wi, const Vec3<T>& wo) {
+template <class T, template <class> class Ndf> T mirror_brdf(const Ndf<T>& ggx, const Vec3<T>& wi, const Vec3<T>& wo) {
   if (!(wi.z() > T(0) && wo.z() > T(0))) return T(0);
   const Vec3<T> m = reflection_half_vector(wi, wo);
   if (!(wi.dot(m) > T(0) && wo.dot(m) > T(0))) return T(0);
   return ggx.D(m) * ggx.G2(wi, wo) / (T(4) * wi.z() * wo.z());
 }
 
-// Single-scattering GGX BRDF of a conductor: F(<wi, m>) D G2 / (4 cos i cos o).
-template <class T>
-T conductor_brdf(const GGX<T>& ggx, std::complex<T> eta, const Vec3<T>& wi, const Vec3<T>& wo) {
+// Single-scattering BRDF of a conductor: F(<wi, m>) D G2 / (4 cos i cos o).
+template <class T, template <class> class Ndf>
+T conductor_brdf(const Ndf<T>& ggx, std::complex<T> eta, const Vec3<T>& wi, const Vec3<T>& wo) {
   if (!(wi.z() > T(0) && wo.z() > T(0))) return T(0);
   const Vec3<T> m = reflection_half_vector(wi, wo);
   const T im = wi.dot(m);
@@ -73,11 +77,25 @@ T conductor_brdf(const GGX<T>& ggx, std::complex<T> eta, const Vec3<T>& wi, cons
   return fresnel_conductor(im, eta) * ggx.D(m) * ggx.G2(wi, wo) / (T(4) * wi.z() * wo.z());
 }
 
-// Rough dielectric BSDF (Walter 2007): reflection (eq. 20) and refraction (eq. 21) from both sides.
-// eta = n_inside / n_outside (the lower half-space is the inside). The refraction half vector is
-// m = -(eta_i wi + eta_o wo) (eq. 16), oriented to +z. The refraction term follows eq. 21 including the
-// eta_o^2 factor (radiance, not importance): f_t(i->o) / eta_o^2 = f_t(o->i) / eta_i^2.
-template <class T> T dielectric_bsdf(const GGX<T>& ggx, T eta, const Vec3<T>& wi, const Vec3<T>& wo) {
+// The height-correlated masking-shadowing of a REFRACTED pair on the Smith microsurface: the two ends of
+// the path are on opposite sides, so seen from the transmitted side the first point, at height h with
+// C1(h) = c, sits at C1 = 1 - c. With c distributed as (1 + Lambda_i) c^Lambda_i (the visible point seen
+// from wi), the probability that wo escapes on the other side is E[(1 - c)^Lambda_o], and with the G1 of
+// the visible normals G2_t = B(1 + Lambda_i, 1 + Lambda_o) (Euler's beta function; derived here, and what
+// order 1 of the Smith random walk produces, tests/test_smith_walk.cpp). Symmetric in (i, o). It is not the
+// reflection form 1 / (1 + Lambda_i + Lambda_o) (Heitz 2014 eq. 99, ggx.G2, where both ends are on one side,
+// E[c^Lambda_o]), which dielectric_bsdf below uses for both lobes: the two agree when either Lambda is 0 and
+// differ at grazing angles (B(2, 2) = 1/6 against 1/3 for Lambda_i = Lambda_o = 1).
+template <class T, template <class> class Ndf>
+T transmission_G2(const Ndf<T>& ndf, const Vec3<T>& wi, const Vec3<T>& wo) {
+  const T gi = ndf.G1(wi), go = ndf.G1(wo);  // 1 / (1 + Lambda)
+  if (!(gi > T(0) && go > T(0))) return T(0);
+  return T(std::beta(double(T(1) / gi), double(T(1) / go)));
+}
+
+namespace detail {
+template <class T, template <class> class Ndf>
+T dielectric_bsdf_with(const Ndf<T>& ggx, T eta, const Vec3<T>& wi, const Vec3<T>& wo, bool smith_transmission) {
   const T ci = wi.z(), co = wo.z();
   if (ci == T(0) || co == T(0)) return T(0);
   const bool reflection = (ci > T(0)) == (co > T(0));
@@ -105,8 +123,26 @@ template <class T> T dielectric_bsdf(const GGX<T>& ggx, T eta, const Vec3<T>& wi
   // cosine: accurate, and the same value for wi -> wo and wo -> wi (exact reciprocity).
   const bool wi_on_thin_side = (eta_o >= eta_i);
   const T F = wi_on_thin_side ? fresnel_dielectric(im, eta) : fresnel_dielectric(om, eta);
-  return std::abs(im) * std::abs(om) / (std::abs(ci) * std::abs(co)) * sqr(eta_o) * (T(1) - F) * ggx.D(m) *
-         ggx.G2(wi, wo) / denom;
+  const T G2 = smith_transmission ? transmission_G2(ggx, wi, wo) : ggx.G2(wi, wo);
+  return std::abs(im) * std::abs(om) / (std::abs(ci) * std::abs(co)) * sqr(eta_o) * (T(1) - F) * ggx.D(m) * G2 / denom;
+}
+}  // namespace detail
+
+// Rough dielectric BSDF (Walter 2007): reflection (eq. 20) and refraction (eq. 21) from both sides.
+// eta = n_inside / n_outside (the lower half-space is the inside). The refraction half vector is
+// m = -(eta_i wi + eta_o wo) (eq. 16), oriented to +z. The refraction term follows eq. 21 including the
+// eta_o^2 factor (radiance, not importance): f_t(i->o) / eta_o^2 = f_t(o->i) / eta_i^2. Both lobes use the
+// height-correlated G2 of reflection, 1 / (1 + Lambda_i + Lambda_o).
+template <class T, template <class> class Ndf>
+T dielectric_bsdf(const Ndf<T>& ggx, T eta, const Vec3<T>& wi, const Vec3<T>& wo) {
+  return detail::dielectric_bsdf_with(ggx, eta, wi, wo, false);
+}
+
+// The same BSDF with the refraction lobe's masking of the Smith microsurface itself, transmission_G2: the
+// single scattering of the Smith random walk (Heitz, Hanika, d'Eon, Dachsbacher 2016), i.e. its order 1.
+template <class T, template <class> class Ndf>
+T dielectric_bsdf_smith(const Ndf<T>& ggx, T eta, const Vec3<T>& wi, const Vec3<T>& wo) {
+  return detail::dielectric_bsdf_with(ggx, eta, wi, wo, true);
 }
 
 }  // namespace microsim

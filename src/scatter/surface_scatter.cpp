@@ -52,8 +52,8 @@ struct PathRecord {
   int bin = -1;  // reflected, transmitted: the bin, or -1 (unbinned)
 };
 
-// One block's paths, in order, and its diagnostics: the calling thread adds them to the result
-// (add_block), so a block in flight holds a few bytes per path, not a histogram.
+// One block's paths, in order, and its diagnostics: the reduction adds them to the result (add_block),
+// so a block in flight holds a few bytes per path, not a histogram.
 struct BlockResult {
   std::vector<PathRecord> paths;
   std::vector<double> weights;
@@ -71,11 +71,6 @@ public:
   SurfaceScatterRun& operator=(const SurfaceScatterRun&) = delete;
 
   const BlockPlan& plan() const { return plan_; }
-  // Blocks computed before they are added: a bound on their memory (about 128 MB), never on the result.
-  std::uint64_t in_flight(int threads) const {
-    const std::uint64_t bytes = kPathsPerBlock * (sizeof(PathRecord) + sizeof(double) * std::uint64_t(channels_));
-    return std::clamp<std::uint64_t>((std::uint64_t(128) << 20) / bytes, 8, detail::blocks_in_flight(threads));
-  }
   BlockResult run_block(std::uint64_t block) const;
   void add_block(const BlockResult& r, ScatterHistogram& h) const;
 
@@ -168,7 +163,7 @@ ScatterHistogram scatter_on_surface(const HeightfieldScene& scene, const Scatter
   SurfaceScatterDiagnostics total;
   const BlockRunStatus status = for_each_block(
       selected_blocks(run.plan(), options.blocks), options.run,
-      {"scatter surface", run.plan(), run.in_flight(options.run.threads)},
+      {"scatter surface", run.plan()},
       [&](std::uint64_t block) { return run.run_block(block); },
       [&](BlockResult&& r, std::uint64_t) {
         run.add_block(r, result);

@@ -270,21 +270,4 @@ TracedHistogram read_histogram_exr(const std::filesystem::path& path) {
   return histogram_from_exr(image, path.string());
 }
 
-void check_writable(const std::filesystem::path& path) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  if (path.empty()) throw HistogramIoError("output path is empty");
-  if (fs::is_directory(path, ec)) throw HistogramIoError(fmt::format("output '{}' is a directory", path.string()));
-  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
-  if (!fs::is_directory(dir, ec)) {
-    throw HistogramIoError(fmt::format("cannot write '{}': directory '{}' does not exist", path.string(), dir.string()));
-  }
-  try {
-    const microsim::TemporaryFile probe(path);  // a new file beside `path`, removed again
-  } catch (const microsim::FileWriteError&) {
-    throw HistogramIoError(fmt::format("cannot write '{}': directory '{}' is not writable", path.string(), dir.string()));
-  }
-  // An existing file at `path` is replaced by rename(), which needs only the directory to be writable.
-}
-
 }  // namespace microsim

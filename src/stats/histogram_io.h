@@ -64,8 +64,4 @@ TracedHistogram read_histogram_exr(const std::filesystem::path& path);
 // The same checks on an image already read (the fuzz target's entry point); `name` names it in messages.
 TracedHistogram histogram_from_exr(const microgeom::ExrImage& image, const std::string& name);
 
-// Throws HistogramIoError unless a file can be created at `path` (its directory exists and is
-// writable); creates and removes a probe file. Used before long runs so that a bad --out fails first.
-void check_writable(const std::filesystem::path& path);
-
 }  // namespace microsim

@@ -10,6 +10,7 @@
 // run is the single run bit for bit; merge refuses other binnings, channels or runs (HistogramMergeError).
 #pragma once
 
+#include "core/estimate.h"
 #include "stats/histogram.h"
 
 #include <cstdint>
@@ -23,10 +24,6 @@ inline constexpr int kScatterOrderBins = 5;  // orders 1, 2, 3, 4 and 5+
 // The order bin (0-based) of a bounce order >= 1.
 inline int scatter_order_bin(int order) { return (order < kScatterOrderBins ? order : kScatterOrderBins) - 1; }
 
-// A mean per launched path with its standard error (of the mean).
-struct Estimate {
-  double value = 0, standard_error = 0;
-};
 // The mean of per-path values whose sum is `w` and sum of squares `w2`, over `paths` paths (the ones
 // that contributed nothing count as zeros); standard error sqrt((w2/n - mean^2) / (n - 1)), 0 for n < 2.
 Estimate mean_per_path(double w, double w2, std::uint64_t paths);

@@ -191,7 +191,7 @@ struct RatioSums {
     if (!(x > 0) || !(xx > 0)) return e;
     const double n_eff = x * x / xx;
     const double pt = (e.value * n_eff + 0.5) / (n_eff + 1.0);
-    e.se = std::max(e.se, std::sqrt(pt * (1.0 - pt) / n_eff));
+    e.standard_error = std::max(e.standard_error, std::sqrt(pt * (1.0 - pt) / n_eff));
     return e;
   }
 };
@@ -718,7 +718,7 @@ G2Result g2_result(const G2Totals& t) {
 Estimate leak_ratio(const MaskingView& view, const MaskingSums& total, const Estimate& g1) {
   if (view.projected) {
     const double scale = view.projected_area / view.v.z();
-    return {g1.value * scale, g1.se * scale};
+    return {g1.value * scale, g1.standard_error * scale};
   }
   if (total.samples <= 1) return {};
   const double ns = double(total.samples);
@@ -901,7 +901,7 @@ MaskingResult masking_result_from_sums(const microgeom::Heightfield& field, cons
 
 // ---- JSON -------------------------------------------------------------------------------------------------------
 
-nlohmann::json to_json(const Estimate& e) { return {{"value", e.value}, {"stderr", e.se}}; }
+nlohmann::json to_json(const Estimate& e) { return {{"value", e.value}, {"stderr", e.standard_error}}; }
 
 namespace {
 nlohmann::json bins_json(const std::vector<ConditionalBin>& bins, bool normal) {

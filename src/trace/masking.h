@@ -47,6 +47,8 @@
 // run's shards add up to the single run's bit for bit (measure/masking.h merges them).
 #pragma once
 
+#include "core/estimate.h"
+
 #include "core/exact_sum.h"
 #include "core/run_control.h"
 #include "stats/binning.h"
@@ -100,11 +102,6 @@ VndfComparison compare_vndf(const std::vector<std::uint64_t>& counts, std::uint6
                             const EmpiricalSmith& empirical);
 
 // ---- masking by surface points -----------------------------------------------------------------------------
-
-struct Estimate {
-  double value = 0;
-  double se = 0;  // standard error
-};
 
 enum class PointSampling { projected, uniform };
 

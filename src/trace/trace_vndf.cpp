@@ -1,6 +1,7 @@
 #include "trace/trace_vndf.h"
 
 #include "core/block_runner.h"
+#include "core/cpu_time.h"
 #include "core/random.h"
 
 #include <fmt/core.h>
@@ -14,7 +15,6 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
-#include <time.h>
 
 namespace microsim {
 
@@ -114,12 +114,6 @@ inline void beam_origins(const ParallelBeam& beam, BatchBuffers& b, int n) {
     b.org_y[i] = float(o.y());
     b.org_z[i] = float(o.z());
   }
-}
-
-double process_cpu_seconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
 }
 
 constexpr std::size_t kMaxBinnings = 8;

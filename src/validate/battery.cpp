@@ -82,6 +82,12 @@ void PdfChecks::merge(const PdfChecks& o) {
   }
 }
 
+PdfChecks reduce_block_checks(const std::vector<PdfChecks>& blocks) {
+  PdfChecks total;
+  for (const PdfChecks& b : blocks) total.merge(b);
+  return total;
+}
+
 std::vector<double> with_remainder(const BinIntegrals& b) {
   std::vector<double> p = b.probability;
   p.push_back(std::max(0.0, 1.0 - b.total));
@@ -209,13 +215,15 @@ public:
   }
 
   void chunk_done(std::size_t blocks) {
-    for (std::size_t b = 0; b < blocks; ++b) total_.merge(chunk_[b]);
+    if (!checks_) return;
+    for (std::size_t b = 0; b < blocks; ++b) block_checks_.push_back(chunk_[b]);
   }
 
   Tally result(bool has_pdf) const {
     Tally t;
     t.has_pdf = has_pdf;
-    t.checks = total_;
+    t.checks = reduce_block_checks(block_checks_);
+    t.block_checks = block_checks_;
     for (const std::size_t n : cells_) t.counts.emplace_back(n, 0.0);
     for (const ThreadCounts& c : counts_) {
       t.samples += c.samples;
@@ -253,7 +261,7 @@ private:
   std::vector<FastDirectionBinner> binners_;
   std::vector<std::size_t> cells_;  // per binning: its bins and the remainder cell
   std::array<PdfChecks, kChunkBlocks> chunk_{};
-  PdfChecks total_;
+  std::vector<PdfChecks> block_checks_;
   tbb::enumerable_thread_specific<ThreadCounts> counts_;
 };
 
@@ -357,6 +365,9 @@ private:
 }  // namespace
 
 Expectations analytic_expectations(const ReferenceDistribution& reference) {
+  for (const ReferenceBins& b : reference.binned())
+    if (b.probability.probability.size() != std::size_t(b.binning.size()))
+      throw std::logic_error("analytic_expectations: the reference has no bin probabilities (claimed_reference_bins)");
   Expectations e;
   for (const ReferenceBins& b : reference.binned()) e.push_back(std::make_unique<AnalyticBins>(b.binning, b.probability));
   return e;
@@ -512,13 +523,11 @@ void combine_statistical_tests(ValidationReport& r) {
     if (c.statistical) c.passed = c.p_value >= r.per_test_significance;
 }
 
-void set_headline(ValidationReport& r, HeadlineTies ties) {
+// The binned test with the smallest p; among equal p, the last.
+void set_headline(ValidationReport& r) {
   const ChiSquareResult* headline = nullptr;
-  for (const BinnedTest& b : r.binned) {
-    const bool better = !headline || b.chi2.p_value < headline->p_value ||
-                        (ties == HeadlineTies::last_binning && b.chi2.p_value == headline->p_value);
-    if (better) headline = &b.chi2;
-  }
+  for (const BinnedTest& b : r.binned)
+    if (!headline || b.chi2.p_value <= headline->p_value) headline = &b.chi2;
   if (!headline) return;
   r.statistic = headline->statistic;
   r.dof = headline->dof;
@@ -546,12 +555,23 @@ void list_failures(ValidationReport& r) {
 
 }  // namespace
 
-void decide(ValidationReport& r, HeadlineTies ties) {
+void decide(ValidationReport& r) {
   if (r.binned.empty()) throw std::invalid_argument("a validation needs at least one binned test");
   combine_statistical_tests(r);
-  set_headline(r, ties);
+  set_headline(r);
   list_failures(r);
   r.passed = r.failures.empty();
+}
+
+ValidationReport analytic_report(const SampleSource& source, const Tally& tally, const Expectations& expectations,
+                                 const ReferenceDistribution& ref, const ValidationOptions& options) {
+  ValidationReport r = report_header(source, ref.domain, ref.ggx, ref.wi, tally, options);
+  add_binned_tests(r, expectations, tally, options);
+  r.checks = {domain_check(tally, options), integral_check(ref, options),
+              returned_pdf_check(tally, ref, options, source.precision),
+              weight_test(tally, ref, options, source.precision)};
+  decide(r);
+  return r;
 }
 
 }  // namespace battery

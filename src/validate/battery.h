@@ -63,10 +63,16 @@ struct Tally {
   std::uint64_t samples = 0;  // all of them, failed and outside the domain included
   std::uint64_t failed = 0;   // the sampler returned nothing: counted in every remainder cell
   std::uint64_t outside = 0;  // non-finite or not unit: in no cell
-  std::vector<std::vector<double>> counts;  // per binning: its bins, then the remainder cell
+  std::vector<std::vector<double>> counts;  // per binning: its bins, then the remainder cell (integers)
   bool has_pdf = false;       // the samples came with returned pdfs
-  PdfChecks checks;           // against the claimed pdf, when one was given
+  PdfChecks checks;           // against the claimed pdf, when one was given: block_checks reduced in order
+  // Each block's checks, in block order (empty when no claimed pdf was checked). The reduction of Moments
+  // is not associative in floating point, so a merge of tallies reduces these again, from the first block.
+  std::vector<PdfChecks> block_checks;
 };
+
+// The checks of blocks reduced in their order from an empty PdfChecks: Tally::checks of those blocks.
+PdfChecks reduce_block_checks(const std::vector<PdfChecks>& blocks);
 
 // Expected probabilities with the remainder cell last: the mass the claimed pdf leaves outside the bins,
 // where failed samples (and samples outside a lobe's parameter space) are counted.
@@ -124,11 +130,15 @@ SubTest weight_test(const Tally& tally, const ReferenceDistribution& reference, 
 SubTest not_applicable(std::string name, std::string detail);
 
 // The verdict: the Sidak combination of the statistical tests (every binned test, and the checks marked
-// statistical), the headline (the binned test with the smallest p), the failures, in the order of
-// report.checks: hard checks, then the binned tests, then the statistical checks. Among binned tests of
-// equal p the headline is the first or the last binning's (`ties`): the analytic validator has always
-// taken the last, the comparison with the oracle the first, and seeded reports stay as they were.
-enum class HeadlineTies { first_binning, last_binning };
-void decide(ValidationReport& report, HeadlineTies ties);
+// statistical), the headline (the binned test with the smallest p; among tests of equal p, in practice
+// two p-values that underflow to 0, the last binning's: the lobe bins, which resolve the lobe at every
+// alpha), the failures, in the order of report.checks: hard checks, then the binned tests, then the
+// statistical checks. One rule for the analytic validator and the comparison with the oracle.
+void decide(ValidationReport& report);
+
+// The analytic validator's report of a tally of the samples of `source` against the claimed pdf of `ref`
+// (its expectations: analytic_expectations(ref)): header, binned tests, the four checks, the verdict.
+ValidationReport analytic_report(const SampleSource& source, const Tally& tally, const Expectations& expectations,
+                                 const ReferenceDistribution& ref, const ValidationOptions& options);
 
 }  // namespace microsim::battery

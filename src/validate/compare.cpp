@@ -1,6 +1,7 @@
 #include "validate/compare.h"
 
 #include "validate/battery.h"
+#include "validate/validation_part.h"
 
 #include "core/random.h"
 #include "validate/sample_io.h"
@@ -245,7 +246,7 @@ ValidationReport oracle_report(const battery::SampleSource& source, const batter
   const std::string not_here = "not applicable: comparison with the traced oracle (two-sample test only)";
   r.checks = {domain_check(tally, options), not_applicable("pdf_integral", not_here),
               not_applicable("returned_pdf", not_here), not_applicable("weight_mean", not_here)};
-  decide(r, HeadlineTies::first_binning);
+  decide(r);
   return r;
 }
 
@@ -278,16 +279,40 @@ Vec3<double> histogram_wi(const TracedHistogram& h) {
   return wi.normalized();
 }
 
-ValidationReport compare_sampler_to_trace(const SamplerInfo& sampler, const GGX<double>& ggx, const Vec3<double>& wi,
-                                          const ValidationOptions& options, const TracedHistogram& traced) {
+namespace {
+void check_sampler_for_trace(const SamplerInfo& sampler, const GGX<double>& ggx, const Vec3<double>& wi,
+                             const TracedHistogram& traced) {
   if (sampler.domain != SampleDomain::microfacet_normal) {
     throw std::invalid_argument(fmt::format(
         "sampler '{}' samples reflected directions; the traced oracle measures microfacet normals", sampler.name));
   }
   check_configuration(traced, ggx, wi);
+}
+}  // namespace
+
+ValidationReport compare_sampler_to_trace(const SamplerInfo& sampler, const GGX<double>& ggx, const Vec3<double>& wi,
+                                          const ValidationOptions& options, const TracedHistogram& traced) {
+  const auto start = std::chrono::steady_clock::now();
+  const battery::Tally tally = tally_drawn_samples_for_trace(sampler, ggx, wi, options, traced);
+  ValidationReport r = report_drawn_samples_against_trace(sampler, ggx, wi, tally, options, traced);
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return r;
+}
+
+battery::Tally tally_drawn_samples_for_trace(const SamplerInfo& sampler, const GGX<double>& ggx, const Vec3<double>& wi,
+                                             const ValidationOptions& options, const TracedHistogram& traced) {
+  check_sampler_for_trace(sampler, ggx, wi, traced);
   require_trace_samples(options.samples, traced);
-  return compare_source(battery::drawn_samples(sampler, ggx, wi, options), ggx, wi, options, traced,
-                        [](std::uint64_t) {});
+  std::vector<const DirectionBinning*> binnings;
+  for (const DirectionBinning& b : traced.binnings) binnings.push_back(&b);
+  return battery::tally_samples(battery::drawn_samples(sampler, ggx, wi, options), binnings, options);
+}
+
+ValidationReport report_drawn_samples_against_trace(const SamplerInfo& sampler, const GGX<double>& ggx,
+                                                    const Vec3<double>& wi, const battery::Tally& tally,
+                                                    const ValidationOptions& options, const TracedHistogram& traced) {
+  return oracle_report(battery::drawn_samples(sampler, ggx, wi, options), tally, oracle_expectations(traced), ggx, wi,
+                       options);
 }
 
 namespace {

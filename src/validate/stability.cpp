@@ -3,6 +3,7 @@
 #include "validate/stability.h"
 
 #include "microfacet/bsdf.h"
+#include "core/block_runner.h"
 #include "core/random.h"
 #include "microfacet/samplers.h"
 
@@ -117,6 +118,7 @@ struct AnalyticFunction {
   Input input;
   AnalyticFn<float> f;
   AnalyticFn<double> d;
+  FloatAccuracyCaveat caveat = FloatAccuracyCaveat::none;
 };
 
 template <class T> T fn_D(const GGX<T>& g, const Vec3<T>&, const Vec3<T>& m) { return g.D(m); }
@@ -139,7 +141,7 @@ template <class T> T fn_dielectric(const GGX<T>& g, const Vec3<T>& wi, const Vec
   return dielectric_bsdf(g, T(kDielectricEta), wi, wo);
 }
 
-#define MICROSIM_FN(name, input, fn) AnalyticFunction{name, input, &fn<float>, &fn<double>}
+#define MICROSIM_FN(name, input, fn, ...) AnalyticFunction{name, input, &fn<float>, &fn<double>, ##__VA_ARGS__}
 const AnalyticFunction kFunctions[] = {
     MICROSIM_FN("GGX::D", Input::normal_upper, fn_D),
     MICROSIM_FN("GGX::slope_pdf", Input::slopes, fn_slope_pdf),
@@ -148,11 +150,11 @@ const AnalyticFunction kFunctions[] = {
     MICROSIM_FN("GGX::G2", Input::reflected, fn_G2),
     MICROSIM_FN("GGX::visible_normal_pdf", Input::normal_as_sampled, fn_Dv),
     MICROSIM_FN("GGX::visible_reflection_pdf", Input::reflected, fn_refl_pdf),
-    MICROSIM_FN("bounded2023_reflection_pdf", Input::reflected, fn_bounded_pdf),
+    MICROSIM_FN("bounded2023_reflection_pdf", Input::reflected, fn_bounded_pdf, FloatAccuracyCaveat::threshold_slack_of_eps),
     MICROSIM_FN("mirror_brdf", Input::reflected, fn_mirror),
     MICROSIM_FN("conductor_brdf", Input::reflected, fn_conductor),
     MICROSIM_FN("dielectric_bsdf(R)", Input::reflected, fn_dielectric),
-    MICROSIM_FN("dielectric_bsdf(T)", Input::refracted, fn_dielectric),
+    MICROSIM_FN("dielectric_bsdf(T)", Input::refracted, fn_dielectric, FloatAccuracyCaveat::cancelling_half_vector_at_grazing),
 };
 #undef MICROSIM_FN
 
@@ -207,8 +209,9 @@ public:
       : samplers_(samplers), include_functions_(include_functions) {
     table_.grid = grid;
     for (const SamplerInfo& s : samplers_)
-      subjects_.push_back({std::string(s.name), true, s.negative_control, s.returned_pdf_check});
-    for (const AnalyticFunction& f : kFunctions) subjects_.push_back({f.name, false, false, ReturnedPdfCheck::everywhere});
+      subjects_.push_back({std::string(s.name), true, s.negative_control, s.returned_pdf_check, FloatAccuracyCaveat::none});
+    for (const AnalyticFunction& f : kFunctions)
+      subjects_.push_back({f.name, false, false, ReturnedPdfCheck::everywhere, f.caveat});
     rows_.resize(subjects_.size() * kStabilityRegimeCount);
     for (std::size_t i = 0; i < subjects_.size(); ++i)
       for (int r = 0; r < kStabilityRegimeCount; ++r) {
@@ -217,22 +220,23 @@ public:
         row.is_sampler = subjects_[i].is_sampler;
         row.negative_control = subjects_[i].negative_control;
         row.returned_pdf_check = subjects_[i].returned_pdf_check;
+        row.float_caveat = subjects_[i].float_caveat;
         row.regime = StabilityRegime(r);
       }
   }
 
-  StabilityTable run() {
+  // Every (subject, regime) row, as evaluated so far (in the table's order).
+  const std::vector<StabilityMetrics>& rows() const { return rows_; }
+
+  // Evaluates block b of the sweep (stability_blocks): view b of the grid (alpha pairs, then thetas, then
+  // phis), or, past the last view, the non-finite inputs. On a fresh copy of the sweep: its rows are the
+  // block's alone.
+  void run_block(std::uint64_t b) {
     const StabilityGrid& g = table_.grid;
-    std::uint64_t view_index = 0;
-    for (const auto& [ax, ay] : g.alphas)
-      for (double theta : g.thetas_deg)
-        for (double phi : g.phis_deg) {
-          run_view(ax, ay, theta, phi, view_index++);
-        }
-    run_non_finite();
-    for (StabilityMetrics& row : rows_)
-      if (row.evaluations > 0) table_.rows.push_back(std::move(row));
-    return std::move(table_);
+    const std::uint64_t per_alpha = g.thetas_deg.size() * g.phis_deg.size();
+    if (b >= g.alphas.size() * per_alpha) return run_non_finite();
+    const auto& [ax, ay] = g.alphas[b / per_alpha];
+    run_view(ax, ay, g.thetas_deg[(b % per_alpha) / g.phis_deg.size()], g.phis_deg[b % g.phis_deg.size()], b);
   }
 
 private:
@@ -240,6 +244,7 @@ private:
     std::string name;
     bool is_sampler, negative_control;
     ReturnedPdfCheck returned_pdf_check;
+    FloatAccuracyCaveat float_caveat;
   };
 
   StabilityMetrics& row(std::size_t subject, StabilityRegime r) {
@@ -556,9 +561,62 @@ std::size_t StabilityTable::violation_count() const {
   return n;
 }
 
+std::uint64_t stability_blocks(const StabilityGrid& grid) {
+  return grid.alphas.size() * grid.thetas_deg.size() * grid.phis_deg.size() + 1;
+}
+
+std::vector<StabilityMetrics> stability_rows(std::span<const SamplerInfo> samplers, bool include_functions) {
+  return Sweep(StabilityGrid{}, samplers, include_functions).rows();
+}
+
+void merge_metrics(StabilityMetrics& into, const StabilityMetrics& later) {
+  for (auto count : {&StabilityMetrics::evaluations, &StabilityMetrics::empty_double, &StabilityMetrics::empty_float,
+                     &StabilityMetrics::empty_mismatch, &StabilityMetrics::non_finite_double,
+                     &StabilityMetrics::non_finite_float, &StabilityMetrics::negative,
+                     &StabilityMetrics::claimed_unverifiable, &StabilityMetrics::claimed_unverifiable_interior,
+                     &StabilityMetrics::zero_flips, &StabilityMetrics::zero_flips_interior})
+    into.*count += later.*count;
+  // Maxima without a configuration (never NaN: std::max keeps the first of a NaN pair, nan_as_inf the rest).
+  for (auto worst : {&StabilityMetrics::norm_error_double, &StabilityMetrics::norm_error_float, &StabilityMetrics::rel_claimed})
+    into.*worst = std::max(into.*worst, later.*worst);
+  // Maxima with the configuration that first reached them: a later block's only when strictly larger.
+  const auto raise_to = [&](double StabilityMetrics::*worst, std::string StabilityMetrics::*where) {
+    if (later.*worst > into.*worst) {
+      into.*worst = later.*worst;
+      into.*where = later.*where;
+    }
+  };
+  raise_to(&StabilityMetrics::angle_float_double, &StabilityMetrics::worst_angle_config);
+  raise_to(&StabilityMetrics::rel_float_double, &StabilityMetrics::worst_rel_config);
+  raise_to(&StabilityMetrics::cond_float_double, &StabilityMetrics::worst_cond_config);
+  raise_to(&StabilityMetrics::cond_claimed, &StabilityMetrics::worst_claimed_config);
+}
+
 StabilityTable run_stability_sweep(const StabilityGrid& grid, std::span<const SamplerInfo> samplers,
-                                   bool include_functions) {
-  return Sweep(grid, samplers, include_functions).run();
+                                   bool include_functions, const StabilityRun& run) {
+  const Sweep sweep(grid, samplers, include_functions);
+  const BlockPlan plan{stability_blocks(grid), 1};
+  std::vector<StabilityMetrics> rows = sweep.rows();
+  // Each block on its own copy of the sweep, its rows reduced in block order: the table of the whole
+  // sweep, or of a shard that merges with the others into it (merge_metrics).
+  const BlockRunStatus status = for_each_block(
+      selected_blocks(plan, run.blocks), run.run, BlockSchedule{"stability sweep", plan, 0},
+      [&](std::uint64_t b) {
+        Sweep block = sweep;
+        block.run_block(b);
+        return block.rows();
+      },
+      [&](std::vector<StabilityMetrics> block_rows, std::uint64_t) {
+        for (std::size_t k = 0; k < rows.size(); ++k) merge_metrics(rows[k], block_rows[k]);
+      });
+  StabilityTable table;
+  table.grid = grid;
+  table.total_blocks = plan.blocks();
+  table.blocks = status.done;
+  table.partial = status.cancelled;
+  for (StabilityMetrics& row : rows)
+    if (row.evaluations > 0) table.rows.push_back(std::move(row));
+  return table;
 }
 
 namespace {
@@ -593,11 +651,11 @@ void sampler_bound(const StabilityMetrics& row, StabilityBound& b) {
 // Bounds of an analytic function's row: float within 8 units of the conditioning at the input.
 void function_bound(const StabilityMetrics& row, StabilityBound& b) {
   b.cond_float_double = 8;
-  if (row.subject == "dielectric_bsdf(T)" && extreme_view_regime(row.regime)) {
+  if (row.float_caveat == FloatAccuracyCaveat::cancelling_half_vector_at_grazing && extreme_view_regime(row.regime)) {
     b.cond_float_double = 64;
     b.note = "the generalised half vector -(wi + eta wo) cancels at grazing incidence";
   }
-  if (row.subject == "bounded2023_reflection_pdf") {
+  if (row.float_caveat == FloatAccuracyCaveat::threshold_slack_of_eps) {
     b.zero_flips_at_u_ends = true;
     b.note = "the cap test's rounding slack is proportional to the type's eps";
   }

@@ -28,11 +28,14 @@
 //   u at an end of [0, 1) (a component 0 or >= 1 - 2^-24), moderate (the rest).
 #pragma once
 
+#include "core/block_runner.h"
+#include "core/run_control.h"
 #include "microfacet/samplers.h"
 
 #include <nlohmann/json_fwd.hpp>
 
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
 #include <utility>
@@ -68,12 +71,25 @@ enum class StabilityRegime : int {
 inline constexpr int kStabilityRegimeCount = 9;
 const char* stability_regime_name(StabilityRegime r);
 
+// What limits an analytic function's float accuracy beyond its conditioning at the input: the trait that
+// loosens its row's bound (stability_bound; docs/stability.md), set where the function is listed.
+enum class FloatAccuracyCaveat {
+  none,
+  // A generalised half vector -(wi + eta wo) that cancels at grazing incidence (dielectric transmission):
+  // 64 units of the conditioning instead of 8 in the grazing, exactly grazing and below-horizon regimes.
+  cancelling_half_vector_at_grazing,
+  // A threshold test whose rounding slack is proportional to the type's eps (the bounded sampler's cap
+  // test): the two precisions may take different sides of it (zero flips) where u is at an end of [0, 1).
+  threshold_slack_of_eps,
+};
+
 // The worst cases of one (subject, regime).
 struct StabilityMetrics {
   std::string subject;           // sampler name ("heitz2018") or function ("GGX::D", "dielectric_bsdf(T)")
   bool is_sampler = false;
   bool negative_control = false;
   ReturnedPdfCheck returned_pdf_check = ReturnedPdfCheck::everywhere;  // samplers: SamplerInfo's trait
+  FloatAccuracyCaveat float_caveat = FloatAccuracyCaveat::none;        // functions: the function's trait
   StabilityRegime regime = StabilityRegime::moderate;
   std::uint64_t evaluations = 0;       // configurations evaluated (each in double and in float)
   std::uint64_t empty_double = 0;      // samplers: nullopt results in double
@@ -124,15 +140,38 @@ std::string stability_violations(const StabilityMetrics& row);
 struct StabilityTable {
   StabilityGrid grid;
   std::vector<StabilityMetrics> rows;  // subjects in registry order, then functions; regimes in enum order
+  BlockRange blocks;                   // the sweep's blocks these rows hold (stability_blocks)
+  std::uint64_t total_blocks = 0;
+  bool partial = false;                // cancelled: the rows of the completed prefix of the blocks
   std::uint64_t total_evaluations() const;
   std::size_t violation_count() const;
 };
 
+// The sweep runs in blocks (core/block_runner.h): block b < V is view b of the grid (alpha pairs, then
+// thetas, then phis: V views), with its corner u and its random u from CounterRng(grid.seed, b); block V
+// is the non-finite inputs. A block's rows are reduced into the table in block order (merge_metrics), so
+// the table depends only on the grid and the blocks, never on threads, and the tables of shards merge
+// into the whole sweep's bit for bit (stability_part.h).
+std::uint64_t stability_blocks(const StabilityGrid& grid);
+
+struct StabilityRun {
+  std::optional<BlockRange> blocks;  // a shard; all blocks when unset
+  RunControl run;                    // threads, cancel token, progress ("stability sweep": blocks)
+};
+
 // Sweeps `samplers` (the registry by default; tests pass deliberately broken ones to show that the
-// sweep catches them) and, when include_functions, the analytic functions.
+// sweep catches them) and, when include_functions, the analytic functions. Throws std::invalid_argument
+// for blocks outside the sweep.
 StabilityTable run_stability_sweep(const StabilityGrid& grid = StabilityGrid::standard(),
                                    std::span<const SamplerInfo> samplers = sampler_registry(),
-                                   bool include_functions = true);
+                                   bool include_functions = true, const StabilityRun& run = {});
+
+// Every (subject, regime) row of a sweep of these subjects, not yet evaluated, in the table's order, with
+// the subjects' traits.
+std::vector<StabilityMetrics> stability_rows(std::span<const SamplerInfo> samplers, bool include_functions);
+// Adds the metrics of a later block range of the same (subject, regime) to `into`: counts summed, maxima
+// taken, a worst configuration replaced only by a strictly larger worst (as the sweep does value by value).
+void merge_metrics(StabilityMetrics& into, const StabilityMetrics& later);
 
 // A markdown table (one row per subject and regime) with a status column.
 std::string stability_table_markdown(const StabilityTable& table);

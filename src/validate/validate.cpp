@@ -2,6 +2,7 @@
 #include "validate/validate.h"
 
 #include "validate/battery.h"
+#include "validate/validation_part.h"
 
 #include "core/block_runner.h"
 #include "core/random.h"
@@ -64,37 +65,25 @@ void for_each_drawn_block_as(SampleResult<T> (*sample)(const GGX<T>&, const Vec3
   const BlockPlan plan{n, kSampleBlock};
   tbb::enumerable_thread_specific<BlockBuffer> buffers;
   // Chunks of kChunkBlocks: visit(block, slot) for each block of a chunk, then chunk_done, in order.
-  const BlockSchedule schedule{"sampling", plan, kChunkBlocks};
+  const BlockSchedule schedule{"sampling", plan, kChunkBlocks, /*chunk_barrier=*/true};
+  const BlockRange range = selected_blocks(plan, options.blocks);  // the runner's chunks start at its begin
   const BlockRunStatus status = for_each_block(
-      BlockRange{0, plan.blocks()}, options.run, schedule,
+      range, options.run, schedule,
       [&](std::uint64_t b) {
         BlockBuffer& buf = buffers.local();
         draw_block(sample, g, w, options.seed, plan.first_unit(b), plan.first_unit(b) + plan.units_in(b), buf);
-        visit(SampleBlockView{plan.first_unit(b), buf.directions, buf.pdfs, buf.valid}, std::size_t(b % kChunkBlocks));
+        visit(SampleBlockView{plan.first_unit(b), buf.directions, buf.pdfs, buf.valid},
+              std::size_t((b - range.begin) % kChunkBlocks));
         return b;
       },
       [&](std::uint64_t, std::uint64_t b) {
-        const bool chunk_end = (b + 1) % kChunkBlocks == 0 || b + 1 == plan.blocks();
-        if (chunk_end && chunk_done) chunk_done(std::size_t(b % kChunkBlocks) + 1);
+        const bool chunk_end = (b - range.begin + 1) % kChunkBlocks == 0 || b + 1 == range.end;
+        if (chunk_end && chunk_done) chunk_done(std::size_t((b - range.begin) % kChunkBlocks) + 1);
       });
   if (status.cancelled) throw Cancelled("while sampling");
 }
 
 // ---- the battery's stages for the analytic pdf (battery.h) ----------------------------------------------
-
-// The report of the samples of `source` against the claimed pdf of `ref`.
-ValidationReport analytic_report(const battery::SampleSource& source, const battery::Tally& tally,
-                                 const battery::Expectations& expectations, const ReferenceDistribution& ref,
-                                 const ValidationOptions& options) {
-  using namespace battery;
-  ValidationReport r = report_header(source, ref.domain, ref.ggx, ref.wi, tally, options);
-  add_binned_tests(r, expectations, tally, options);
-  r.checks = {domain_check(tally, options), integral_check(ref, options),
-              returned_pdf_check(tally, ref, options, source.precision),
-              weight_test(tally, ref, options, source.precision)};
-  decide(r, HeadlineTies::last_binning);
-  return r;
-}
 
 // Tallies the samples of `source` against `ref` (with the per-sample checks of its pdf) and reports.
 // `require` runs on the number of samples seen, before any test.
@@ -104,7 +93,7 @@ ValidationReport validate_source(const battery::SampleSource& source, const Refe
   const battery::Expectations expectations = battery::analytic_expectations(ref);
   const battery::Tally tally = battery::tally_samples(source, battery::binnings_of(expectations), options, &ref);
   require(tally.samples);
-  return analytic_report(source, tally, expectations, ref, options);
+  return battery::analytic_report(source, tally, expectations, ref, options);
 }
 
 double elapsed(std::chrono::steady_clock::time_point t0) {
@@ -117,12 +106,36 @@ double elapsed(std::chrono::steady_clock::time_point t0) {
 // default pdf-integral tolerance (ValidationOptions::integral_tolerance), 10 samples in 1e6.
 constexpr double kSecondPassTotalError = 1e-5;
 
+namespace {
+
+// The binnings and the pdf of a reference, without its bin probabilities.
+ReferenceDistribution unintegrated_reference(DirectionFunction pdf, SampleDomain domain, const GGX<double>& ggx,
+                                             const Vec3<double>& wi, int rows) {
+  return ReferenceDistribution{domain,        ggx, wi, std::move(pdf), DirectionBinning::sphere(rows),
+                               DirectionBinning::lobe(ggx, wi, domain, rows), {}, {}};
+}
+
+// The pdf a sampler claims, for view wi (normalised), and the jumps of it beyond the common ones.
+DirectionFunction claimed_pdf_of(const SamplerInfo& sampler, const GGX<double>& ggx, const Vec3<double>& wi) {
+  auto claimed = sampler.claimed_pdf;
+  return [claimed, ggx, wi](const Vec3<double>& d) { return claimed(ggx, wi, d); };
+}
+
+std::vector<DirectionFunction> claimed_pdf_breaks(const SamplerInfo& sampler, const GGX<double>& ggx,
+                                                  const Vec3<double>& wi) {
+  std::vector<DirectionFunction> breaks;
+  // A jump of the claimed pdf beyond the common ones (the bounded sampler's cap).
+  if (const auto jump = sampler.claimed_pdf_jump)
+    breaks.push_back([jump, ggx, wi](const Vec3<double>& d) { return jump(ggx, wi, d); });
+  return breaks;
+}
+
+}  // namespace
+
 std::shared_ptr<const ReferenceDistribution> prepare_reference(DirectionFunction pdf, SampleDomain domain,
                                                                const GGX<double>& ggx, const Vec3<double>& wi_in, int rows,
                                                                std::vector<DirectionFunction> breaks) {
-  const Vec3<double> wi = wi_in.normalized();
-  auto sphere = DirectionBinning::sphere(rows);
-  auto lobe = DirectionBinning::lobe(ggx, wi, domain, rows);
+  ReferenceDistribution ref = unintegrated_reference(std::move(pdf), domain, ggx, wi_in.normalized(), rows);
   // In lobe space the pdfs of the zoo are smooth and spread over the whole parameter space (the VNDF
   // is a clamped cosine there): plain adaptive cubature suffices.
   IntegrationOptions options;
@@ -131,34 +144,35 @@ std::shared_ptr<const ReferenceDistribution> prepare_reference(DirectionFunction
   // In sphere space the lobe can be far narrower than a bin: focus on it with a lattice uniform in the
   // lobe parameter space, which covers every region with mass however narrow (alpha = 1e-3) or thin
   // (anisotropy, grazing reflections).
-  sphere_options.focus = lobe.lattice_directions(4096);
+  sphere_options.focus = ref.lobe.lattice_directions(4096);
   // Where the pdfs of the zoo jump, in sphere coordinates: normals at m.z = 0; reflected directions
   // where the half vector reaches the horizon, wo.z = -wi.z.
   sphere_options.z_breaks = {0.0};
-  if (domain == SampleDomain::reflected_direction) sphere_options.z_breaks.push_back(-wi.z());
+  if (domain == SampleDomain::reflected_direction) sphere_options.z_breaks.push_back(-ref.wi.z());
   // A lobe too narrow for the first pass (issue 8, defect 9: bounded2023 at alpha 1e-4, theta 89.99 deg
   // left 2e-5 of its mass, 20 of 1e6 samples, in the remainder cell, with an error estimate of 1.5e-3):
   // when the bins' error estimates add up to more than the pdf-integral check can tolerate, the bins
   // that missed their tolerance are integrated again with focus graded toward -wi and directed splits.
   // Below that the first pass stands, bit for bit.
   sphere_options.second_pass_total_error = kSecondPassTotalError;
-  sphere_options.second_pass_focus = lobe.visible_edge_directions(192, 64);
-  auto sphere_p = sphere.integrate(pdf, sphere_options);
-  auto lobe_p = lobe.integrate(pdf, options);
-  return std::make_shared<const ReferenceDistribution>(ReferenceDistribution{
-      domain, ggx, wi, std::move(pdf), std::move(sphere), std::move(lobe), std::move(sphere_p), std::move(lobe_p)});
+  sphere_options.second_pass_focus = ref.lobe.visible_edge_directions(192, 64);
+  ref.sphere_probability = ref.sphere.integrate(ref.pdf, sphere_options);
+  ref.lobe_probability = ref.lobe.integrate(ref.pdf, options);
+  return std::make_shared<const ReferenceDistribution>(std::move(ref));
 }
 
 std::shared_ptr<const ReferenceDistribution> claimed_reference(const SamplerInfo& sampler, const GGX<double>& ggx,
                                                                const Vec3<double>& wi_in, int rows) {
   const Vec3<double> wi = wi_in.normalized();
-  std::vector<DirectionFunction> breaks;
-  // A jump of the claimed pdf beyond the common ones (the bounded sampler's cap).
-  if (const auto jump = sampler.claimed_pdf_jump)
-    breaks.push_back([jump, ggx, wi](const Vec3<double>& d) { return jump(ggx, wi, d); });
-  auto claimed = sampler.claimed_pdf;
-  return prepare_reference([claimed, ggx, wi](const Vec3<double>& d) { return claimed(ggx, wi, d); }, sampler.domain,
-                           ggx, wi, rows, std::move(breaks));
+  return prepare_reference(claimed_pdf_of(sampler, ggx, wi), sampler.domain, ggx, wi, rows,
+                           claimed_pdf_breaks(sampler, ggx, wi));
+}
+
+std::shared_ptr<const ReferenceDistribution> claimed_reference_bins(const SamplerInfo& sampler, const GGX<double>& ggx,
+                                                                    const Vec3<double>& wi_in, int rows) {
+  const Vec3<double> wi = wi_in.normalized();
+  return std::make_shared<const ReferenceDistribution>(
+      unintegrated_reference(claimed_pdf_of(sampler, ggx, wi), sampler.domain, ggx, wi, rows));
 }
 
 std::shared_ptr<const ReferenceDistribution> vndf_reference(SampleDomain domain, const GGX<double>& ggx,
@@ -283,8 +297,7 @@ ValidationReport validate_sampler(const SamplerInfo& sampler, const GGX<double>&
   require_samples_for_any_test(options.samples);  // before the cubature of the reference
   if (!reference) reference = claimed_reference(sampler, ggx, wi, options.rows);
   require_samples(options.samples, *reference);
-  ValidationReport r = validate_source(battery::drawn_samples(sampler, ggx, reference->wi, options), *reference, options,
-                                       [](std::uint64_t) {});
+  ValidationReport r = report_drawn_samples(sampler, *reference, tally_drawn_samples(sampler, *reference, options), options);
   r.seconds = elapsed(t0);
   return r;
 }

@@ -22,6 +22,7 @@
 // Reproducible: sample i uses CounterRng(seed, i) (two uniforms), whatever the thread count.
 #pragma once
 
+#include "core/block_runner.h"
 #include "core/run_control.h"
 #include "stats/binning.h"
 #include "stats/chi2.h"
@@ -34,6 +35,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -71,6 +73,8 @@ struct ValidationOptions {
   // 0 means 1e-9 in double, 1e-5 in float.
   double weight_rounding = 0;
   RunControl run;  // threads, cancel token, progress ("sampling")
+  // Draw only these blocks of kSampleBlock samples (a shard: validation_part.h); all when unset.
+  std::optional<BlockRange> blocks;
 };
 
 // One binning of a reference and its bin probabilities under the claimed pdf.
@@ -107,6 +111,10 @@ std::shared_ptr<const ReferenceDistribution> claimed_reference(const SamplerInfo
                                                                const Vec3<double>& wi, int rows);
 std::shared_ptr<const ReferenceDistribution> vndf_reference(SampleDomain domain, const GGX<double>& ggx,
                                                             const Vec3<double>& wi, int rows);
+// The binnings and the claimed pdf of claimed_reference, without the bin probabilities (no cubature):
+// enough to tally samples (validation_part.h), not to test them (its probabilities are empty).
+std::shared_ptr<const ReferenceDistribution> claimed_reference_bins(const SamplerInfo& sampler, const GGX<double>& ggx,
+                                                                    const Vec3<double>& wi, int rows);
 
 // A deterministic check or a statistical test of the report (every test but the binned chi-square ones).
 struct SubTest {
@@ -189,7 +197,8 @@ using ChunkDone = std::function<void(std::size_t blocks)>;
 
 // Samples as every validation draws them (validate_sampler, and compare.h against the traced oracle):
 // sample i from CounterRng(options.seed, i), two uniforms, in the sampler's float or double version
-// (options.precision), options.samples of them; identical whatever the thread count.
+// (options.precision), options.samples of them (or those of the blocks options.blocks); identical
+// whatever the thread count. Chunks of kChunkBlocks blocks start at the first block drawn.
 void for_each_drawn_block(const SamplerInfo& sampler, const GGX<double>& ggx, const Vec3<double>& wi,
                           const ValidationOptions& options, const SampleBlockVisitor& visit,
                           const ChunkDone& chunk_done = {});

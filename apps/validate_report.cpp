@@ -1,0 +1,346 @@
+#include "validate_report.h"
+
+#include "command.h"
+#include "merge_parts.h"
+
+#include "core/atomic_file.h"
+#include "stats/figure.h"
+#include "stats/histogram_io.h"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+namespace microsim::app {
+
+namespace {
+
+constexpr double kNegativeControlP = 1e-6;  // a negative control must be rejected with p below this
+
+std::string fmt_p(double p) { return p >= 1e-3 ? fmt::format("{:.4f}", p) : fmt::format("{:.2e}", p); }
+
+std::string fmt_alpha(double ax, double ay) {
+  return ax == ay ? fmt::format("{:g}", ax) : fmt::format("{:g},{:g}", ax, ay);
+}
+
+const char* pass_fail(bool passed) { return passed ? "pass" : "FAIL"; }
+
+double elapsed(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void print_worst(const std::string& title, const ChiSquareResult& c, int n) {
+  if (c.worst_cells.empty()) return;
+  fmt::print("\nworst cells, {} (observed vs expected counts):\n", title);
+  fmt::print("  {:<52} {:>12} {:>14} {:>12}\n", "cell", "observed", "expected", "(O-E)^2/E");
+  int shown = 0;
+  for (const auto& cell : c.worst_cells) {
+    if (shown++ >= n) break;
+    fmt::print("  {:<52} {:>12.0f} {:>14.2f} {:>12.3g}\n", cell.location, cell.observed, cell.expected, cell.contribution);
+  }
+}
+
+// --plot: observed, expected and residual maps of both binnings (figure.h), written atomically.
+void write_plot(const std::string& path, const ValidationReport& r, const std::string& source) {
+  const double theta = std::acos(std::clamp(r.wi.z(), -1.0, 1.0)) * 180 / kPi<double>;
+  const double phi = std::atan2(r.wi.y(), r.wi.x()) * 180 / kPi<double>;
+  const std::string title = fmt::format("alpha {}, theta {:g} deg, phi {:g} deg, {} samples ({})",
+                                        fmt_alpha(r.alpha_x, r.alpha_y), theta, phi, r.samples, to_string(r.precision));
+  std::string per_binning;
+  for (const BinnedTest& b : r.binned)
+    per_binning += fmt::format("{}{} bins p = {:.3g}", per_binning.empty() ? "" : ", ", b.binning, b.chi2.p_value);
+  const std::string subtitle = fmt::format("{}\nverdict {}: p = {:.3g} (Sidak-adjusted); {}", source,
+                                           r.passed ? "PASS" : "FAIL", r.p_value, per_binning);
+  try {
+    write_file_atomically(path, histogram_figure_svg(title, subtitle, r.histograms));
+  } catch (const FileWriteError& e) {
+    throw UsageError(fmt::format("--plot: {}", e.what()));
+  }
+}
+
+// A row of the report's table: a hard check or a statistical test other than the binned ones, or "n/a".
+void print_check(const char* title, const SubTest& t, const std::string& value, const std::string& bound) {
+  if (!t.applicable) {
+    fmt::print("  {:<34} {:>14} {:>7} {:>11}  n/a\n", title, "", "", "");
+    return;
+  }
+  fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", title, value, "", bound, pass_fail(t.passed));
+}
+
+void print_tests(const ValidationReport& r) {
+  fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", "test", "statistic", "dof", "p-value", "result");
+  for (const BinnedTest& b : r.binned) {
+    const ChiSquareResult& c = b.chi2;
+    fmt::print("  {:<34} {:>14.2f} {:>7} {:>11}  {}{}\n", fmt::format("chi2, {} bins ({} cells)", b.binning, c.cells),
+               c.statistic, c.dof, fmt_p(c.p_value), pass_fail(!c.rejected), c.reason.empty() ? "" : "  (" + c.reason + ")");
+  }
+  const SubTest& weight = r.check("weight_mean");
+  const SubTest& pdf = r.check("returned_pdf");
+  const SubTest& integral = r.check("pdf_integral");
+  print_check("E[weight] = |wi.z|/G1", weight, fmt::format("{:.6g}", weight.value), fmt_p(weight.p_value));
+  print_check("returned pdf (max rel. error)", pdf, fmt::format("{:.2e}", pdf.value), fmt::format("<= {:.0e}", pdf.tolerance));
+  print_check("claimed pdf integral", integral, fmt::format("{:.9f}", integral.value),
+              fmt::format("<= 1+{:.0e}", integral.tolerance));
+  fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", "samples outside the domain", r.outside_domain, "", "0",
+             pass_fail(r.check("domain").passed));
+  if (pdf.applicable && pdf.passed && pdf.value > pdf.tolerance)
+    fmt::print("  (returned pdf: errors above {:.0e} only where rounding the direction to {} changes the claimed pdf "
+               "as much)\n",
+               pdf.tolerance, to_string(r.precision));
+}
+
+// The worst cells of each binned test, the test with the smallest p first (and in more detail).
+void print_worst_cells(const ValidationReport& r) {
+  std::vector<const BinnedTest*> order;
+  for (const BinnedTest& b : r.binned) order.push_back(&b);
+  std::stable_sort(order.begin(), order.end(), [](const auto* a, const auto* b) { return a->chi2.p_value < b->chi2.p_value; });
+  for (std::size_t k = 0; k < order.size(); ++k)
+    print_worst(fmt::format("{} bins", order[k]->binning), order[k]->chi2, k == 0 ? 6 : 3);
+}
+
+void print_report(const ValidationReport& r, const std::string& source) {
+  const double theta = std::acos(std::clamp(r.wi.z(), -1.0, 1.0)) * 180 / kPi<double>;
+  const double phi = std::atan2(r.wi.y(), r.wi.x()) * 180 / kPi<double>;
+  fmt::print("microsim validate: {} ({}), alpha {}, theta {:g} deg, phi {:g} deg, {} samples ({}), seed {}\n", source,
+             to_string(r.domain), fmt_alpha(r.alpha_x, r.alpha_y), theta, phi, r.samples, to_string(r.precision), r.seed);
+  fmt::print("verdict: {}   p-value {} (Sidak-adjusted over {} statistical tests, level {})   statistic {:.2f}   dof {}\n\n",
+             r.passed ? "PASS" : "FAIL", fmt_p(r.p_value), r.statistical_tests, r.significance, r.statistic, r.dof);
+  print_tests(r);
+  if (r.failed_samples > 0) fmt::print("  ({} sample(s) failed: counted in the remainder cells)\n", r.failed_samples);
+  print_worst_cells(r);
+  if (!r.failures.empty()) {
+    fmt::print("\nrejected because:\n");
+    for (const auto& f : r.failures) fmt::print("  - {}\n", f);
+  }
+  fmt::print("\ntime {:.2f} s\n", r.seconds);
+}
+
+}  // namespace
+
+std::string sampler_source(const SamplerInfo& sampler) { return fmt::format("sampler {}", sampler.name); }
+
+std::string oracle_source(const std::string& source, const std::string& oracle) {
+  return source + " against " + oracle + ", two-sample chi-square";
+}
+
+std::string histogram_oracle(const std::string& path, const TracedHistogram& traced) {
+  return fmt::format("'{}' ({} rays, {} hits, {})", path, traced.rays, traced.hits,
+                     traced.attributes.count("target") ? traced.attributes.at("target") : "traced");
+}
+
+int report_validation(const ValidationReport& report, const std::string& source, const ValidationOutputs& outputs,
+                      const nlohmann::json& extra) {
+  print_report(report, source);
+  if (!outputs.json.empty()) {
+    nlohmann::json j = to_json(report);
+    for (auto it = extra.begin(); it != extra.end(); ++it) j[it.key()] = it.value();
+    write_file_atomically(outputs.json, j.dump(2) + "\n");
+  }
+  if (!outputs.plot.empty()) write_plot(outputs.plot, report, source);
+  return report.passed ? kExitOk : kExitRejected;
+}
+
+TracedHistogram read_oracle_histogram(const std::string& option, const std::string& path) {
+  TracedHistogram traced;
+  try {
+    traced = read_histogram_exr(path);
+  } catch (const HistogramIoError& e) {
+    throw UsageError(fmt::format("{}: {}", option, e.what()));
+  }
+  if (traced.partial) fmt::print(stderr, "validate: note: '{}' is a partial (interrupted) trace\n", path);
+  return traced;
+}
+
+// ---- validate --all ----------------------------------------------------------------------------------------
+
+std::shared_ptr<const ReferenceDistribution> ZooReferences::get(const ValidationCase& c, int rows) {
+  const std::vector<double> configuration = {c.alpha_x, c.alpha_y, c.theta_deg, c.phi_deg};
+  if (configuration != configuration_) {
+    configuration_ = configuration;
+    references_.clear();
+  }
+  auto& ref = references_[c.sampler->claims];
+  if (!ref) {
+    const auto t0 = std::chrono::steady_clock::now();
+    ref = claimed_reference(*c.sampler, c.ggx(), c.wi(), rows);
+    ++count_;
+    seconds_ += elapsed(t0);
+  }
+  return ref;
+}
+
+ZooReport::ZooReport(const ValidationRun& run) : run_(run) {
+  const ValidationOptions& o = run.options;
+  fmt::print("microsim validate --all: {} samplers x {} configurations, {} samples each ({}), seed {}\n",
+             sampler_registry().size(), kZooConfigurations, o.samples, to_string(o.precision), run.seed);
+  fmt::print("family-wise level {} over {} validations (Sidak): each validation at {:.3e}; negative controls must "
+             "be rejected with p < {:g}\n\n",
+             run.family_significance, run.cases.size(), o.significance, kNegativeControlP);
+  fmt::print("{:<15} {:>10} {:>6} {:>6}  {:>9} {:>10} {:>10} {:>10} {:>10} {:>9}  {:>7}\n", "sampler", "alpha", "theta",
+             "phi", "verdict", "p-value", "p sphere", "p lobe", "p weight", "pdf err", "time s");
+}
+
+void ZooReport::add(const ValidationCase& c, const ValidationReport& r) {
+  const SamplerInfo& s = *c.sampler;
+  Summary& sm = summary_[std::string(s.name)];
+  sm.total += 1;
+  sm.passed += r.passed;
+  sm.min_p = std::min(sm.min_p, r.p_value);
+  sm.max_p = std::max(sm.max_p, r.p_value);
+  sm.seconds += r.seconds;
+  if (s.negative_control ? (r.passed || !(r.p_value < kNegativeControlP)) : !r.passed) sm.expectation_met = false;
+  const SubTest& weight = r.check("weight_mean");
+  const SubTest& pdf = r.check("returned_pdf");
+  fmt::print("{:<15} {:>10} {:>6g} {:>6g}  {:>9} {:>10} {:>10} {:>10} {:>10} {:>9}  {:>7.2f}\n", s.name,
+             fmt_alpha(c.alpha_x, c.alpha_y), c.theta_deg, c.phi_deg,
+             r.passed ? "pass" : (s.negative_control ? "rejected" : "FAIL"), fmt_p(r.p_value),
+             fmt_p(r.chi2("sphere").p_value), fmt_p(r.chi2("lobe").p_value),
+             weight.applicable ? fmt_p(weight.p_value) : "n/a", pdf.applicable ? fmt::format("{:.1e}", pdf.value) : "n/a",
+             r.seconds);
+  std::fflush(stdout);
+  nlohmann::json j = to_json(r);
+  j["negative_control"] = s.negative_control;
+  j["theta_deg"] = c.theta_deg;
+  j["phi_deg"] = c.phi_deg;
+  results_.push_back(j);
+}
+
+// The summary table per sampler (and its JSON); true when every sampler met its expectation.
+bool ZooReport::print_summary(nlohmann::json& summary_json) const {
+  bool all_met = true;
+  fmt::print("\nsummary per sampler:\n");
+  fmt::print("{:<15} {:>8} {:>12} {:>12} {:>12} {:>9}  {}\n", "sampler", "passed", "min p", "max p", "expected", "time s",
+             "outcome");
+  for (const SamplerInfo& s : sampler_registry()) {
+    const auto it = summary_.find(std::string(s.name));
+    if (it == summary_.end()) continue;
+    const Summary& sm = it->second;
+    all_met = all_met && sm.expectation_met;
+    fmt::print("{:<15} {:>4}/{:<3} {:>12} {:>12} {:>12} {:>9.1f}  {}\n", s.name, sm.passed, sm.total, fmt_p(sm.min_p),
+               fmt_p(sm.max_p), s.negative_control ? "all rejected" : "all pass", sm.seconds,
+               sm.expectation_met ? "as expected" : "UNEXPECTED");
+    summary_json.push_back({{"sampler", s.name},
+                            {"negative_control", s.negative_control},
+                            {"passed", sm.passed},
+                            {"total", sm.total},
+                            {"min_p_value", sm.min_p},
+                            {"max_p_value", sm.max_p},
+                            {"expectation_met", sm.expectation_met},
+                            {"seconds", sm.seconds}});
+  }
+  return all_met;
+}
+
+int ZooReport::finish(bool partial, const ZooReferences& references, const std::string& json) {
+  const double seconds = elapsed(start_);
+  nlohmann::json summary_json = nlohmann::json::array();
+  const bool all_met = print_summary(summary_json) && !partial;
+  const std::size_t done = results_.size();
+  fmt::print("\nexpected counts (adaptive cubature of {} claimed pdfs x 2 binnings): {:.1f} s\n", references.count(),
+             references.seconds());
+  if (partial) {
+    fmt::print("overall: INTERRUPTED: partial results, {} of {} validations in {:.1f} s (no verdict)\n", done,
+               run_.cases.size(), seconds);
+  } else {
+    fmt::print("overall: {} ({} validations in {:.1f} s)\n",
+               all_met ? "PASS: every correct sampler passes and every negative control is rejected" : "FAIL", done,
+               seconds);
+  }
+  if (!json.empty()) {
+    const ValidationOptions& o = run_.options;
+    nlohmann::json j;
+    j["verdict"] = partial ? "interrupted" : all_met ? "pass" : "fail";
+    j["partial"] = partial;
+    j["validations_requested"] = run_.cases.size();
+    j["validations_done"] = done;
+    j["samples"] = o.samples;
+    j["seed"] = run_.seed;
+    j["precision"] = to_string(o.precision);
+    j["significance"] = run_.family_significance;
+    j["per_validation_significance"] = o.significance;
+    j["negative_control_p_threshold"] = kNegativeControlP;
+    j["seconds"] = seconds;
+    j["reference_seconds"] = references.seconds();
+    j["summary"] = summary_json;
+    j["results"] = results_;
+    write_file_atomically(json, j.dump(2) + "\n");
+  }
+  if (partial) {
+    fmt::print(stderr, "validate --all: interrupted: partial results{}\n",
+               json.empty() ? "" : fmt::format(", written marked partial to '{}'", json));
+    return kExitInterrupted;
+  }
+  return all_met ? kExitOk : kExitRejected;
+}
+
+// ---- merge -------------------------------------------------------------------------------------------------
+
+namespace {
+
+// Too few samples for the tests is bad input, as in the single run.
+template <class F> ValidationReport usage_errors_of(F&& validation) {
+  try {
+    return validation();
+  } catch (const InsufficientData& e) {
+    throw UsageError(e.what());
+  }
+}
+
+int report_merged_batch(const ValidationRun& run, const ValidationPart& merged, const std::string& json) {
+  ZooReport report(run);
+  ZooReferences references;
+  for (std::size_t i = 0; i < run.cases.size(); ++i) {
+    const ValidationCase& c = run.cases[i];
+    ValidationOptions o = run.options;
+    o.seed = c.seed;
+    const auto ref = references.get(c, o.rows);
+    ValidationReport r = usage_errors_of([&] {
+      require_samples(o.samples, *ref);
+      return report_drawn_samples(*c.sampler, *ref, merged.tallies[i], o);
+    });
+    r.seconds = merged.seconds[i];
+    report.add(c, r);
+  }
+  return report.finish(/*partial=*/false, references, json);
+}
+
+int report_merged_single(const ValidationRun& run, const ValidationPart& merged, const std::string& json) {
+  const ValidationCase& c = run.cases.front();
+  ValidationOptions o = run.options;
+  o.seed = c.seed;
+  const std::string source = sampler_source(*c.sampler);
+  if (run.against.empty()) {
+    const auto ref = claimed_reference(*c.sampler, c.ggx(), c.wi(), o.rows);
+    ValidationReport r = usage_errors_of([&] {
+      require_samples(o.samples, *ref);
+      return report_drawn_samples(*c.sampler, *ref, merged.tallies.front(), o);
+    });
+    r.seconds = merged.seconds.front();
+    return report_validation(r, source, {json, ""});
+  }
+  const TracedHistogram traced = read_oracle_histogram("the parts' --against", run.against);
+  if (traced_histogram_digest(traced) != merged.parameters.value("against_digest", ""))
+    throw UsageError(fmt::format("cannot merge: '{}' is not the traced histogram the parts were compared with (its counts "
+                                 "differ)", run.against));
+  ValidationReport r = usage_errors_of(
+      [&] { return report_drawn_samples_against_trace(*c.sampler, c.ggx(), c.wi(), merged.tallies.front(), o, traced); });
+  r.seconds = merged.seconds.front();
+  return report_validation(r, oracle_source(source, histogram_oracle(run.against, traced)), {json, ""},
+                           {{"against", run.against}, {"oracle_rays", traced.rays}, {"oracle_hits", traced.hits}});
+}
+
+}  // namespace
+
+int merge_validation(const std::vector<nlohmann::json>& parts, const std::vector<std::string>& paths,
+                     const std::string& json) {
+  const std::vector<ValidationPart> read = read_json_parts(parts, paths, read_validation_part);
+  const ValidationPart merged = merged_or_usage_error([&] { return merge_validation_parts(read); });
+  const ValidationRun run = merged_or_usage_error([&] { return validation_run_of(merged); });
+  fmt::print(stderr, "merge: {} validate parts, {} validation(s) of {} samples, blocks {}\n", parts.size(),
+             run.cases.size(), run.options.samples, merged.provenance.blocks.to_string());
+  return run.batch ? report_merged_batch(run, merged, json) : report_merged_single(run, merged, json);
+}
+
+}  // namespace microsim::app

@@ -1,0 +1,79 @@
+// The Smith random walk (scatter/smith_walk.h): paths per second on 1 and 2 threads, and what a per-order
+// table with a 1% relative standard error on the order-2 albedo costs.
+//
+// Configuration: GGX alpha 0.5, light at theta 60 deg (phi 0), a mirror (F = 1) and a dielectric of eta 1.5
+// seen from outside, uniform heights, the default order cap (100) and 16 rows per hemisphere (the whole
+// run through smith_walk_scatter: walks, binning, the in-order reduction into the histogram).
+//
+// BM_WalkPaths/material:<0 mirror|1 dielectric>/threads:<1|2>: wall-clock time of 64 blocks (262144 paths);
+// counter paths_per_second (wall clock); the CPU column is the process's CPU time (all threads), so that on a
+// shared machine paths / CPU time gives the rate per busy core.
+// BM_WalkOrder2/material:<0|1>: one run of 2^20 paths on 2 threads; counters: the order-2 albedo, its
+// relative standard error, the paths needed for 1% (paths * (rel SE / 0.01)^2, from the measured SE), and
+// the time they take at the measured rate.
+//   build-*/bench_walk --benchmark_repetitions=3
+#include "scatter/smith_walk.h"
+
+#include <benchmark/benchmark.h>
+
+#include <chrono>
+
+using namespace microsim;
+
+namespace {
+
+ScatterOptions bench_options(int material, int threads, std::uint64_t paths) {
+  ScatterOptions o;
+  o.wi = direction_from_degrees(60.0, 0.0);
+  o.material = material == 0 ? Material::mirror() : Material::dielectric(1.5);
+  o.paths = paths;
+  o.seed = 2016;
+  o.rows = 16;
+  o.run.threads = threads;
+  return o;
+}
+
+const SmithMicrosurface kSurface{WalkNdf::ggx, 0.5, 0.5, HeightDistribution::uniform};
+
+void BM_WalkPaths(benchmark::State& state) {
+  const ScatterOptions o = bench_options(int(state.range(0)), int(state.range(1)), 64 * kPathsPerBlock);
+  for (auto _ : state) {
+    const ScatterHistogram h = smith_walk_scatter(kSurface, o);
+    benchmark::DoNotOptimize(h.paths());
+  }
+  state.counters["paths_per_second"] =
+      benchmark::Counter(double(state.iterations()) * double(o.paths), benchmark::Counter::kIsRate);
+  state.SetLabel(state.range(0) == 0 ? "GGX 0.5 mirror" : "GGX 0.5 dielectric 1.5");
+}
+
+void BM_WalkOrder2(benchmark::State& state) {
+  const ScatterOptions o = bench_options(int(state.range(0)), 2, std::uint64_t(1) << 20);
+  double seconds = 0;
+  Estimate e2{};
+  for (auto _ : state) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const ScatterHistogram h = smith_walk_scatter(kSurface, o);
+    seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    e2 = h.albedo(0, 1);
+  }
+  const double rel = e2.standard_error / e2.value;
+  const double paths_1pct = double(o.paths) * (rel / 0.01) * (rel / 0.01);
+  state.counters["order2_albedo"] = e2.value;
+  state.counters["order2_rel_se"] = rel;
+  state.counters["paths_for_1pct"] = paths_1pct;
+  state.counters["seconds_for_1pct"] = seconds * paths_1pct / double(o.paths);
+  state.SetLabel(state.range(0) == 0 ? "GGX 0.5 mirror, 2 threads" : "GGX 0.5 dielectric 1.5, 2 threads");
+}
+
+}  // namespace
+
+BENCHMARK(BM_WalkPaths)
+    ->ArgsProduct({{0, 1}, {1, 2}})
+    ->ArgNames({"material", "threads"})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->MeasureProcessCPUTime()
+    ->MinTime(0.5);
+BENCHMARK(BM_WalkOrder2)->DenseRange(0, 1)->ArgName("material")->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(1);
+
+BENCHMARK_MAIN();

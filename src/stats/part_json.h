@@ -1,0 +1,71 @@
+// stats: a partial result as JSON, the form in which `microsim merge` receives the parts of a run that
+// writes JSON (trace masking, validate, stability): its provenance, the run's parameters, and numbers
+// that round-trip exactly.
+//
+//   {"provenance": {"producer": "...", "parameters": {...}, "seed": S, "blocks": [B, E], "total_blocks": T},
+//    ... the producer's own members ...}
+//
+// The parameters are everything that defines the run but the seed and the blocks; parts of one run have
+// equal parameters (compared member by member, so a message names the first that differs). A real that
+// must round-trip bit for bit (a sum, a mean, a worst case that may be infinite) is written as the 16 hex
+// digits of its IEEE-754 bits (exact_real_json); JSON numbers are for what a reader may want to read.
+#pragma once
+
+#include "stats/histogram.h"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace microsim {
+
+// The provenance member of a part; `provenance.measurement` is not written (it is parameters.dump()).
+nlohmann::json provenance_json(const Provenance& provenance, const nlohmann::json& parameters);
+
+// The producer a JSON report names in its provenance, or "" when it has none (not a part).
+std::string producer_of(const nlohmann::json& report);
+
+// The 16 hex digits of the bits of x: exact for every double (infinities, NaN, -0 included).
+std::string exact_real_json(double x);
+
+// Reads the members of a part of one producer. Every error is a HistogramMergeError that reads
+// "not a PRODUCER part: WHERE/KEY is missing" (or "... is not a count", ...), WHERE the member's path.
+class PartReader {
+public:
+  explicit PartReader(std::string producer) : producer_(std::move(producer)) {}
+
+  [[noreturn]] void malformed(const std::string& where, const std::string& what) const;
+  const nlohmann::json& member(const nlohmann::json& j, const char* key, const std::string& where) const;
+  std::uint64_t count(const nlohmann::json& j, const char* key, const std::string& where) const;
+  double real(const nlohmann::json& j, const char* key, const std::string& where) const;  // a JSON number
+  std::string text(const nlohmann::json& j, const char* key, const std::string& where) const;
+  bool flag(const nlohmann::json& j, const char* key, const std::string& where) const;
+  double exact_real(const nlohmann::json& v, const std::string& where) const;  // exact_real_json's form
+  double exact_real(const nlohmann::json& j, const char* key, const std::string& where) const;
+  // An array member of exactly `size` elements.
+  const nlohmann::json& array(const nlohmann::json& j, const char* key, std::size_t size, const std::string& where) const;
+
+  // The provenance of a part: producer (must be this reader's), parameters (an object), seed, blocks
+  // (a range within total_blocks). provenance.measurement = parameters.dump().
+  Provenance provenance(const nlohmann::json& report, nlohmann::json& parameters) const;
+
+private:
+  template <class T>
+  T typed(const nlohmann::json& j, const char* key, const std::string& where,
+          bool (nlohmann::json::*is_t)() const noexcept, const char* what) const;
+  std::string producer_;
+};
+
+// Throws HistogramMergeError unless part `name` has the first part's parameters: "NAME is not part of the
+// same run: KEY is 'VALUE' there, 'VALUE' in the first part" for the first parameter that differs.
+void check_same_parameters(const nlohmann::json& first, const nlohmann::json& other, const std::string& name);
+
+// The parts' provenances (of one producer) as one run: every parameter and the seed equal, the block
+// ranges joining into [0, total_blocks) without a gap or a repeat (HistogramMergeError naming them).
+// Returns the order of the parts by their first block, the order in which their results are reduced.
+std::vector<std::size_t> check_parts_of_one_run(const std::vector<Provenance>& provenances,
+                                                const std::vector<nlohmann::json>& parameters);
+
+}  // namespace microsim
