@@ -31,6 +31,8 @@
 #include "trace/masking.h"
 #include "trace/trace_vndf.h"
 
+#include "bench_util.h"
+
 #include <benchmark/benchmark.h>
 #include <fmt/core.h>
 #include <tbb/parallel_for.h>
@@ -47,6 +49,8 @@
 #include <vector>
 
 using namespace microsim;
+using microsim::bench::median;
+using microsim::bench::Samples;
 
 namespace {
 
@@ -214,16 +218,7 @@ void append_segments(const HeightfieldScene& sc, Vec3<double> o, const Vec3<doub
 HeightfieldFixture& heightfield_fixture() {
   static HeightfieldFixture f;
   if (f.scene) return f;
-  if (g_surface_path.empty()) {
-    microgeom::AssemblyParams p;  // `surface build --assembly smith --res 1024 --alpha 0.3` (seed 1)
-    p.assembly = "smith";
-    p.alpha_x = p.alpha_y = 0.3;
-    p.resolution = 1024;
-    p.seed = 1;
-    f.field = std::make_unique<microgeom::Heightfield>(microgeom::build_assembly(p));
-  } else {
-    f.field = std::make_unique<microgeom::Heightfield>(microgeom::load_heightmap_exr(g_surface_path));
-  }
+  f.field = bench::smith_surface_or_file(g_surface_path, 0.3);  // `surface build --assembly smith --res 1024 --alpha 0.3`
   f.scene = std::make_unique<HeightfieldScene>(*f.field);
   const Vec3<double> wi = direction_from_degrees(kTheta, kPhi);
   const double tile = f.field->tile_size(), z0 = f.scene->start_height();
@@ -426,22 +421,12 @@ BENCHMARK(BM_BinFloats)->DenseRange(0, 1)->ArgName("binning")->Unit(benchmark::k
 
 // Keeps every repetition's rate and CPU time per ray (and the kernel's ns per direction) for the tables
 // printed at the end, which take the median over the repetitions.
-class RatioReporter : public benchmark::ConsoleReporter {
+class RatioReporter : public bench::RepetitionReporter {
 public:
-  void ReportRuns(const std::vector<Run>& runs) override {
-    ConsoleReporter::ReportRuns(runs);
-    for (const Run& run : runs) {
-      if (run.run_type != Run::RT_Iteration || run.error_occurred) continue;
-      const std::string name = run.benchmark_name();
-      const auto rate = run.counters.find("items_per_second");
-      const auto cpu = run.counters.find("cpu_ns_per_ray");
-      const auto kernel = run.counters.find("ns_per_direction");
-      if (rate != run.counters.end() && cpu != run.counters.end()) {
-        rate_[name].push_back(double(rate->second));
-        cpu_[name].push_back(double(cpu->second));
-      }
-      if (kernel != run.counters.end()) kernel_[name].push_back(1e9 * double(kernel->second));
-    }
+  void keep(const Run& run) override {
+    RepetitionReporter::keep(run);
+    const auto kernel = run.counters.find("ns_per_direction");
+    if (kernel != run.counters.end()) kernel_[run.benchmark_name()].push_back(1e9 * double(kernel->second));
   }
   void PrintRatios() const {
     fmt::print("\npipeline vs raw rtcIntersect1 (median of the repetitions), theta {} phi {}:\n", kTheta, kPhi);
@@ -492,39 +477,14 @@ public:
   }
 
 private:
-  using Samples = std::map<std::string, std::vector<double>>;
-  // The median of a benchmark's repetitions, or -1 if it did not run.
-  static double median(const Samples& samples, const std::string& name) {
-    const auto it = samples.find(name);
-    if (it == samples.end() || it->second.empty()) return -1.0;
-    std::vector<double> v = it->second;
-    std::sort(v.begin(), v.end());
-    const std::size_t n = v.size();
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-  }
-  Samples rate_, cpu_, kernel_;
+  Samples kernel_;
 };
-
-// --surface=FILE.exr (the 1024^2 heightfield from a file), taken out of argv before Google Benchmark sees it.
-void take_surface_argument(int& argc, char** argv) {
-  int kept = 1;
-  for (int i = 1; i < argc; ++i) {
-    if (std::strncmp(argv[i], "--surface=", 10) == 0) g_surface_path = argv[i] + 10;
-    else argv[kept++] = argv[i];
-  }
-  argc = kept;
-}
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  take_surface_argument(argc, argv);
+  bench::take_surface_argument(argc, argv, g_surface_path);
   register_kernel_targets();
-  benchmark::Initialize(&argc, argv);
-  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   RatioReporter reporter;
-  benchmark::RunSpecifiedBenchmarks(&reporter);
-  reporter.PrintRatios();
-  benchmark::Shutdown();
-  return 0;
+  return bench::run_benchmarks(argc, argv, reporter);
 }

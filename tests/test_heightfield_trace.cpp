@@ -280,31 +280,48 @@ TEST(HeightfieldTrace, SkipsOnlyTheStartTriangleInTheFirstCopy) {
 // control: the defect is real), trace() never does, for both geometries, and counts the grazes it passed
 // over. Rays 1e-6 .. 1e-4 away from the edge are never affected and agree with the double reference. A ray
 // that starts INSIDE the solid still reports the facet it leaves through (nothing is passed over).
-TEST(HeightfieldTrace, ConvexEdgeGrazeIsPassedOver) {
+// The surface and rays of the convex-edge graze tests (ConvexEdgeGrazeIsPassedOver); `mirrored`: heights
+// negated and rays mirrored in z (InsideEdgeGrazeIsPassedOver).
+struct GrazeRay {
+  Vec3<double> o, d;
+  double delta;
+};
+struct GrazeCase {
+  microgeom::Heightfield field;
+  std::vector<GrazeRay> rays;
+};
+GrazeCase convex_edge_case(bool mirrored) {
   const int n = 16;
-  const double h = 1.0 / n;
+  const double h = 1.0 / n, sign = mirrored ? -1.0 : 1.0;
   std::vector<float> z(std::size_t(n) * n);
   for (int j = 0; j < n; ++j)
-    for (int i = 0; i < n; ++i) z[std::size_t(j) * n + i] = float(j <= 8 ? 0.5 - 0.08 * j * h : 0.5 - 0.64 * h - 0.3);
-  const microgeom::Heightfield field(n, 1.0, z);
+    for (int i = 0; i < n; ++i)
+      z[std::size_t(j) * n + i] = float(sign * (j <= 8 ? 0.5 - 0.08 * j * h : 0.5 - 0.64 * h - 0.3));
   const double edge_z = double(z[std::size_t(8) * n]);
-  struct Ray {
-    Vec3<double> o, d;
-    double delta;
-  };
-  std::vector<Ray> rays;
+  std::vector<GrazeRay> rays;
   for (double theta : {84.0, 85.0})
     for (double phi : {260.0, 270.0, 280.0}) {
-      const Vec3<double> d = -direction_from_degrees(theta, phi);  // travelling towards +y, down
+      Vec3<double> d = -direction_from_degrees(theta, phi);  // travelling towards +y, down (mirrored: up)
+      d.z() *= sign;
       for (int xi = 0; xi < 5; ++xi) {
         auto aim = [&](double delta) {
-          const Vec3<double> target((xi + 0.37) * 3 * h, 8 * h, edge_z + delta);
-          rays.push_back({target - (2.5 * h / d.y()) * d, d, delta});  // 2.5 cells before, above the slope
+          const Vec3<double> target((xi + 0.37) * 3 * h, 8 * h, edge_z + sign * delta);
+          rays.push_back({target - (2.5 * h / d.y()) * d, d, delta});  // 2.5 cells before, above (below) the slope
         };
         for (int k = -50; k <= 50; ++k) aim(k * 1e-9);
         for (double far : {1e-6, 1e-5, 1e-4}) aim(far), aim(-far);
       }
     }
+  return {microgeom::Heightfield(n, 1.0, std::move(z)), std::move(rays)};
+}
+
+TEST(HeightfieldTrace, ConvexEdgeGrazeIsPassedOver) {
+  const GrazeCase c = convex_edge_case(false);
+  const microgeom::Heightfield& field = c.field;
+  const int n = field.resolution();
+  const double h = field.cell_size();
+  using Ray = GrazeRay;
+  const std::vector<Ray>& rays = c.rays;
   for (auto g : {HeightfieldGeometry::triangles, HeightfieldGeometry::grid}) {
     const HeightfieldScene scene(field, g);
     int raw_leaving = 0, traced_leaving = 0, grazes = 0, far_rays = 0;
@@ -354,6 +371,138 @@ TEST(HeightfieldTrace, ConvexEdgeGrazeIsPassedOver) {
     ASSERT_TRUE(up.is_hit());
     EXPECT_EQ(field.triangle_index(up.triangle).j, 3);
     EXPECT_EQ(up.edge_grazes, 0);
+  }
+}
+
+// Heights sign s h |i - 8| on a 16 x 16 tile: a valley (sign +1) or a tent (sign -1) along y, the walls
+// of columns 7 and 8 (slopes -+s) meeting at x = 8 h.
+microgeom::Heightfield v_shape(double s, double sign) {
+  const int n = 16;
+  const double h = 1.0 / n;
+  std::vector<float> z(std::size_t(n) * n);
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) z[std::size_t(j) * n + i] = float(sign * s * h * std::abs(i - 8));
+  return microgeom::Heightfield(n, 1.0, std::move(z));
+}
+
+// A valley along y: heights s h |i - 8| (s = 0.5), so the facets of columns 7 and 8 meet at the valley line
+// x = 8 h. A path inside the solid (a dielectric's refracted or internally reflected path) leaving the left
+// flank downward, from a point 1e-9 before the valley line, towards +x: lifted to its own side (below the
+// facet, RaySide::inside) it passes under the valley and leaves below the floor; lifted along the upward
+// normal (the outside lift, the defect this guards against: the only lift there was) its origin lies
+// beyond the right flank's plane, and it hits the right flank from above, a hit on the wrong side for a
+// path inside the solid. The double reference agrees on both origins.
+TEST(HeightfieldTrace, InsideRaysAreLiftedBelowTheirFacet) {
+  const double h = 1.0 / 16;
+  const microgeom::Heightfield valley = v_shape(0.5, 1.0);
+  const Vec3<double> d = Vec3<double>(1.0, 0.0, -1.0).normalized();  // descends faster than the flank
+  for (auto g : {HeightfieldGeometry::triangles, HeightfieldGeometry::grid}) {
+    const HeightfieldScene scene(valley, g);
+    for (double y : {0.5 + 0.3 * h, 0.5 + 0.7 * h}) {
+      const double x = 8 * h - 1e-9;
+      const std::uint32_t tri = valley.triangle_at(x, y);
+      ASSERT_EQ(valley.triangle_index(tri).i, 7);
+      const Vec3<double> up = valley.triangle_normal(tri);
+      ASSERT_LT(d.dot(up), 0.0);  // a direction that leaves the flank into the solid
+      const Vec3<double> p(x, y, valley.height_at(x, y));
+      EXPECT_LT((scene.lifted(p, tri, RaySide::inside) - (p - scene.surface_offset() * up)).norm(), 1e-18);
+
+      const HeightfieldHit inside = scene.trace(p, d, tri, RaySide::inside);
+      EXPECT_EQ(inside.outcome, RayOutcome::leaked) << to_string(g);  // below the floor: into the lower medium
+      EXPECT_EQ(reference_trace(valley, scene.lifted(p, tri, RaySide::inside), d, tri).outcome, RayOutcome::leaked);
+
+      const HeightfieldHit lifted_up = scene.trace(p, d, tri);  // the outside lift
+      ASSERT_TRUE(lifted_up.is_hit()) << to_string(g);
+      EXPECT_EQ(valley.triangle_index(lifted_up.triangle).i, 8);
+      EXPECT_LT(d.dot(valley.triangle_normal(lifted_up.triangle)), 0.0);  // entering: the wrong side
+      const HeightfieldHit ref_up = reference_trace(valley, scene.lifted(p, tri), d, tri);
+      ASSERT_TRUE(ref_up.is_hit());
+      EXPECT_EQ(valley.triangle_index(ref_up.triangle).i, 8);
+    }
+  }
+}
+
+// The convex-edge graze rule mirrored for rays inside the solid: the surface of
+// ConvexEdgeGrazeIsPassedOver turned upside down (heights negated) and its rays mirrored in z travel
+// inside the solid, below an edge that is convex seen from below. Traced as RaySide::inside, no first hit
+// ever ENTERS the solid (dir . m <= 0) and the grazes passed over are counted; the same rays traced as
+// outside rays (the negative control: no rule applies to a ray that starts below the surface) report such
+// hits. Rays 1e-6 .. 1e-4 from the edge agree with the double reference.
+TEST(HeightfieldTrace, InsideEdgeGrazeIsPassedOver) {
+  const GrazeCase c = convex_edge_case(true);
+  const microgeom::Heightfield& field = c.field;
+  for (auto g : {HeightfieldGeometry::triangles, HeightfieldGeometry::grid}) {
+    int entering_inside = 0, entering_outside = 0, grazes = 0, far_rays = 0;
+    const HeightfieldScene scene(field, g);
+    for (const GrazeRay& r : c.rays) {
+      const HeightfieldHit e = scene.trace(r.o, r.d, std::nullopt, RaySide::inside);
+      ASSERT_TRUE(e.is_hit());
+      if (r.d.dot(field.triangle_normal(e.triangle)) <= 0) ++entering_inside;
+      grazes += e.edge_grazes;
+      const HeightfieldHit plain = scene.trace(r.o, r.d);
+      if (plain.is_hit() && r.d.dot(field.triangle_normal(plain.triangle)) <= 0) ++entering_outside;
+      if (std::abs(r.delta) >= 1e-7) {
+        ++far_rays;
+        EXPECT_EQ(e.edge_grazes, 0) << r.delta;
+        EXPECT_EQ(e.triangle, reference_trace(field, r.o, r.d).triangle) << r.delta;
+      }
+    }
+    EXPECT_EQ(entering_inside, 0) << to_string(g);
+    EXPECT_GT(grazes, 0) << to_string(g);
+    EXPECT_GT(entering_outside, 0) << to_string(g);
+    EXPECT_EQ(far_rays, 2 * 3 * 5 * 6);
+  }
+}
+
+// trace_from_surface keeps a bounce's origin on its side near an edge that is concave seen from there.
+// Steep walls (slope 3) meeting at x = 8 h: a ridge (tent) for a path inside the solid, a valley for one
+// outside. A point 1e-9 from the edge on the left wall, lifted along the wall's normal to its side, lands
+// beyond the right wall's plane (outside the solid for the inside path, inside it for the outside one).
+// The true ray leaves the edge through (inside) or into (outside) the right wall within about 1e-9: with
+// the lift alone (trace, the negative control) it misses that wall and meets the surface from the wrong
+// side; trace_from_surface meets the right wall, from the path's own side. The double reference agrees.
+TEST(HeightfieldTrace, SurfaceOriginStaysOnItsSideAtConcaveEdges) {
+  const double h = 1.0 / 16;
+  struct Case {
+    double sign;  // +1 valley, -1 tent
+    RaySide side;
+    Vec3<double> d;
+  };
+  for (const Case& c : {Case{-1.0, RaySide::inside, Vec3<double>(1.0, 0.0, -0.5).normalized()},
+                        Case{+1.0, RaySide::outside, Vec3<double>(1.0, 0.0, 0.2).normalized()}}) {
+    const microgeom::Heightfield field = v_shape(3.0, c.sign);
+    const double x = 8 * h - 1e-9, y = 0.5 + 0.3 * h;
+    const std::uint32_t tri = field.triangle_at(x, y);
+    ASSERT_EQ(field.triangle_index(tri).i, 7);
+    const Vec3<double> p(x, y, field.height_at(x, y));
+    const bool outside = c.side == RaySide::outside;
+    // The direction leaves the start wall on the path's side.
+    ASSERT_EQ(c.d.dot(field.triangle_normal(tri)) > 0, outside);
+    // A hit is on the path's side when outside rays enter (d . m < 0) and inside rays leave (d . m > 0).
+    auto own_side = [&](const HeightfieldHit& hit) { return (c.d.dot(field.triangle_normal(hit.triangle)) < 0) == outside; };
+    for (auto g : {HeightfieldGeometry::triangles, HeightfieldGeometry::grid}) {
+      const HeightfieldScene scene(field, g);
+      const HeightfieldHit lifted_only = scene.trace(p, c.d, tri, c.side);
+      ASSERT_TRUE(lifted_only.is_hit()) << to_string(g);
+      EXPECT_FALSE(own_side(lifted_only)) << to_string(g);  // the defect
+      const HeightfieldHit fixed = scene.trace_from_surface(p, c.d, tri, field.triangle_normal(tri), c.side);
+      ASSERT_TRUE(fixed.is_hit()) << to_string(g);
+      EXPECT_TRUE(own_side(fixed)) << to_string(g);
+      EXPECT_EQ(field.triangle_index(fixed.triangle).i, 8) << to_string(g);
+      EXPECT_LT(fixed.t, 1e-5);
+      const Vec3<double> o = scene.surface_origin(p, tri, field.triangle_normal(tri), c.side);
+      EXPECT_EQ(o.z() > field.height_at(o.x(), o.y()), outside);
+      const HeightfieldHit ref = reference_trace(field, o, c.d, tri);
+      ASSERT_TRUE(ref.is_hit());
+      EXPECT_EQ(ref.triangle, fixed.triangle);
+      EXPECT_FALSE(own_side(reference_trace(field, scene.lifted(p, tri, c.side), c.d, tri)));
+    }
+    // Inside a facet surface_origin is lifted() itself.
+    const HeightfieldScene scene(field);
+    const double xm = 5.5 * h;
+    const Vec3<double> q(xm, y, field.height_at(xm, y));
+    const std::uint32_t t2 = field.triangle_at(xm, y);
+    EXPECT_EQ(scene.surface_origin(q, t2, field.triangle_normal(t2), c.side), scene.lifted(q, t2, c.side));
   }
 }
 

@@ -17,19 +17,36 @@
 // at its point of the start triangle lifted along the facet normal by surface_offset() (8 float ulps of
 // the coordinate scale: the rounding of the origin to float can then never put it below its own or a
 // neighbouring facet's plane), AND skips the start triangle by primitive id, through an Embree
-// intersection filter, in the first segment (before any wrap). A ray leaving a planar facet upwards can
+// intersection filter, in the first segment (before any wrap; closest-hit calls try without the filter
+// first and repeat the call with it only when the closest hit is the start triangle, which gives the
+// filtered call's hit). A ray leaving a planar facet upwards can
 // never hit that facet's periodic copies from above, so skipping in the first segment is enough.
 // The lift is 2^-20 of the coordinate scale: 0.4% of a cell at N = 4096 (L = 1); it changes a shadow
 // ray's fate only for start points that close to an edge whose neighbour the ray grazes.
 //
+// Sides. A ray travels on one side of the surface (RaySide): outside, in the medium above it (every
+// shadow, masking and primary ray from above), or inside, in the solid below it (a path refracted into a
+// dielectric, scatter/surface_scatter.h). A ray that starts on a facet is lifted to ITS side: along the
+// upward facet normal outside, against it inside (lifted()); lifted to the wrong side, the rounded origin
+// can lie beyond a neighbouring facet's plane, and the ray then hits that facet from the wrong side (an
+// inside ray starting within the lift of a valley line hits the other flank from above). Even on its own
+// side, the lift can cross a neighbour's plane at an edge that is concave seen from the ray's side:
+// trace_from_surface (the bounces of scattering paths) then moves the origin back to its side
+// (surface_origin()). The outcomes
+// keep their geometric meaning on both sides: `escaped` = above the maximum height going up (outside: it
+// sees the sky; inside: it crossed the surface unseen, a loss), `leaked` = below the minimum height going
+// down (outside: a loss; inside: it left the solid downward, into the lower medium).
+//
 // Convex-edge grazes (trace() only). A ray that starts above the surface must enter the solid before it
-// can leave it, so its first hit faces it (dir . m < 0). In float, a ray passing within about one ulp of
+// can leave it, so its first hit faces it (dir . m < 0); a ray that starts below it (inside, z mirrored:
+// the same rule for the edges that are convex seen from below) must leave the solid first (dir . m > 0). In float, a ray passing within about one ulp of
 // the coordinates of a convex edge between a facet it nearly runs along (entering, at a grazing angle)
 // and a steeper facet beyond (leaving) can be reported on the leaving facet: Embree is watertight, but
 // its float distance to the nearly parallel facet is off by more than the two hits' separation. Measured
 // (docs/heightfield-trade.md): ~6e-7 per primary ray at alpha 1, 85 deg, N = 1024, every case within
 // 0.1-2.5 ulp(1) of an edge. For a ray that starts above the surface at its (x, y) (a primary ray, or a
-// point lifted off its start facet; not one started inside the solid, which legitimately leaves it first),
+// point lifted off its start facet; not one traced as outside but started inside the solid, which
+// legitimately leaves it first; for RaySide::inside, a ray that starts below the surface at its (x, y)),
 // trace() then takes the ray to pass over the edge: it continues from that hit
 // with the leaving facet skipped (the same context filter), at most kMaxEdgeGrazes times, and counts it
 // in edge_grazes. escapes() (rtcOccluded1, any hit) cannot tell and counts such a graze as blocked: a
@@ -59,6 +76,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace microsim {
 
@@ -75,6 +93,15 @@ enum class RayOutcome {
   escaped,     // rose above the maximum height going up: sees the sky
   leaked,      // went below the minimum height without a hit (a tracer bug if it ever happens)
   unresolved,  // still wrapping after kMaxSegments segments (a nearly horizontal ray)
+};
+
+// The side of the surface a ray travels on (see "Sides" above).
+enum class RaySide { outside, inside };
+
+// One Embree call made by trace() (trace_recording(), for benchmarks that replay the same calls raw).
+struct EmbreeCall {
+  Vec3<float> origin, dir;
+  float tnear = 0, tfar = 0;
 };
 
 struct HeightfieldHit {
@@ -107,12 +134,28 @@ public:
   double escape_height() const { return escape_height_; }
   // A height from which downward rays start (above escape_height()).
   double start_height() const { return start_height_; }
+  // Height of the floor plane: below it, a ray going down can hit nothing.
+  double floor_height() const { return floor_height_; }
+  // A height from which upward rays inside the solid start (below floor_height(), as far below the
+  // minimum height as start_height() is above the maximum).
+  double floor_start_height() const { return floor_start_height_; }
 
-  // Closest hit of the ray origin + t dir, t >= 0 (dir: unit; origin: any x, y, wrapped first).
-  // skip_triangle: the heightfield triangle the ray starts on; the origin is then lifted (lifted()) and
-  // the triangle skipped in the first segment.
+  // Closest hit of the ray origin + t dir, t >= 0 (dir: unit; origin: any x, y, wrapped first), for a ray
+  // on `side` of the surface. skip_triangle: the heightfield triangle the ray starts on; the origin is
+  // then lifted to that side (lifted()) and the triangle skipped in the first segment.
   HeightfieldHit trace(const Vec3<double>& origin, const Vec3<double>& dir,
-                       std::optional<std::uint32_t> skip_triangle = std::nullopt) const;
+                       std::optional<std::uint32_t> skip_triangle = std::nullopt,
+                       RaySide side = RaySide::outside) const;
+  // A ray leaving the point p of `triangle` (unit upward normal `up`, field().triangle_normal) on `side`
+  // (a bounce of a scattering path): trace() from surface_origin() instead of lifted(), the triangle
+  // skipped in the first segment.
+  HeightfieldHit trace_from_surface(const Vec3<double>& p, const Vec3<double>& dir, std::uint32_t triangle,
+                                    const Vec3<double>& up, RaySide side) const;
+  // trace_from_surface() (given a skip_triangle) or trace() (without), appending every Embree call it makes
+  // to `calls` (benchmarks: the raw rate of the same calls).
+  HeightfieldHit trace_recording(const Vec3<double>& origin, const Vec3<double>& dir,
+                                 std::optional<std::uint32_t> skip_triangle, RaySide side,
+                                 std::vector<EmbreeCall>& calls) const;
   // Whether the ray escapes to the sky (no hit). Uses rtcOccluded1 (any hit); leaked and unresolved rays
   // are returned through `outcome` if non-null (as escaped = visible they would bias; callers count them).
   bool escapes(const Vec3<double>& origin, const Vec3<double>& dir, std::optional<std::uint32_t> skip_triangle,
@@ -120,8 +163,19 @@ public:
 
   // Distance by which surface points are lifted along their facet normal before tracing from them.
   double surface_offset() const { return surface_offset_; }
-  // p + surface_offset() * (unit normal of the triangle): the origin actually traced from p.
-  Vec3<double> lifted(const Vec3<double>& p, std::uint32_t triangle) const;
+  // The origin actually traced from p on `triangle` for a ray on `side`: p + surface_offset() * m outside,
+  // p - surface_offset() * m inside (m: the triangle's unit upward normal).
+  Vec3<double> lifted(const Vec3<double>& p, std::uint32_t triangle, RaySide side = RaySide::outside) const;
+  // lifted(), then, if that origin is not at least surface_offset() / 2 on `side` of the surface at its
+  // own (x, y), moved vertically to surface_offset() there. Near an edge that is concave seen from `side`
+  // (a valley seen from above, a ridge from below), the lift along the start facet's normal can cross the
+  // neighbouring facet's plane into the solid (outside) or out of it (inside): a ray from there misses the
+  // facet it may immediately meet, and meets the surface from the wrong side later (about 5e-7 of the
+  // paths of a rough dielectric, tests/test_surface_scatter.cpp). The vertical move keeps the origin on
+  // its side; inside a facet (the lift's vertical extent is surface_offset() / m_z there) it never acts.
+  // `up`: the triangle's unit upward normal (field().triangle_normal).
+  Vec3<double> surface_origin(const Vec3<double>& p, std::uint32_t triangle, const Vec3<double>& up,
+                              RaySide side) const;
 
   // The Embree scene (for benchmarks comparing against raw rtcIntersect1 calls).
   const embree::Scene& embree_scene() const { return *scene_; }
@@ -130,18 +184,35 @@ public:
   unsigned int embree_primitive(std::uint32_t triangle) const;
 
 private:
-  template <bool kOcclusionOnly>
+  struct Walk;           // one ray's state along its segments (heightfield_trace.cpp)
+  struct SegmentBounds;  // where the current segment ends
+  // The scene's construction, step by step.
+  void place_planes();
+  void create_scene(embree::BuildQuality quality);
+  void attach_heightfield_geometry();
+  // trace() and escapes(): the segment loop, and its steps. from_surface: `origin` is a surface_origin()
+  // already (else a start on skip_triangle is lifted()). kRecord: append the Embree calls to `calls`.
+  template <bool kOcclusionOnly, bool kRecord = false>
   HeightfieldHit trace_impl(const Vec3<double>& origin, const Vec3<double>& dir,
-                            std::optional<std::uint32_t> skip_triangle) const;
+                            std::optional<std::uint32_t> skip_triangle, RaySide side, bool from_surface,
+                            std::vector<EmbreeCall>* calls = nullptr) const;
+  template <bool kOcclusionOnly>
+  void start_walk(Walk& w, const Vec3<double>& origin, const Vec3<double>& dir,
+                  std::optional<std::uint32_t> skip_triangle, RaySide side, bool from_surface) const;
+  SegmentBounds segment_bounds(const Walk& w) const;
+  template <bool kOcclusionOnly, bool kRecord>
+  bool intersect_segment(Walk& w, int segment, double tfar, HeightfieldHit& out, std::vector<EmbreeCall>* calls) const;
+  void record_hit(const Walk& w, const RTCRayHit& rh, HeightfieldHit& out) const;
+  void wrap_to_next_tile(Walk& w, const SegmentBounds& s) const;
   std::uint32_t hit_triangle(unsigned int prim_id, float u, float v) const;
   unsigned int extended_primitive(unsigned int prim_id, float u, float v) const;
   static bool on_memory(void* user, ssize_t bytes, bool post);
 
   const microgeom::Heightfield& field_;
   HeightfieldGeometry geometry_;
-  double tile_ = 0, cell_ = 0;
+  double tile_ = 0, cell_ = 0, inv_cell_ = 0;
   double surface_offset_ = 0;
-  double escape_height_ = 0, start_height_ = 0, floor_height_ = 0;
+  double escape_height_ = 0, start_height_ = 0, floor_height_ = 0, floor_start_height_ = 0;
   double build_seconds_ = 0;
   int grid_resolution_ = 0;  // user data of the grid geometry (read by the skip filter)
   std::atomic<std::int64_t> embree_bytes_{0}, embree_peak_bytes_{0};
