@@ -3,8 +3,8 @@
 // scatter EXR (stats/scatter_io.h) with a JSON summary. Models:
 //   --model analytic     the single-scattering BSDF (GGX or Beckmann) binned by cubature (analytic_scatter.h): the
 //                        exact expectation of order 1, for compare-scattering
-//   --model smith-walk   the Smith random walk (Heitz et al. 2016)          } options parsed here, to be
-//   --surface SURF.exr   an explicit heightfield, traced                    } wired to their measurements
+//   --model smith-walk   the Smith random walk (Heitz et al. 2016; scatter/smith_walk.h), GGX or Beckmann
+//   --surface SURF.exr   an explicit heightfield, every bounce traced with Embree (scatter/surface_scatter.h)
 // The view: --theta in [0, 90) from above, (90, 180] from below (light inside a dielectric), --phi.
 //
 // Exit codes: 0 done, 2 bad usage or input (nothing written), 130 interrupted (a sampled run writes what it
@@ -18,6 +18,9 @@
 #include "microfacet/roughness.h"
 #include "scatter/analytic_scatter.h"
 #include "scatter/scatter_setup.h"
+#include "scatter/smith_walk.h"
+#include "scatter/surface_scatter.h"
+#include "surface_input.h"
 
 #include <fmt/core.h>
 
@@ -25,6 +28,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <optional>
 #include <set>
 #include <string>
 
@@ -35,7 +39,9 @@ namespace {
 struct ScatterArgs {
   std::string surface;        // --surface SURF.exr: an explicit heightfield
   std::string model;          // --model analytic | smith-walk
+  std::optional<double> tile_size;  // --tile-size L: an imported heightmap's tile
   std::string ndf = "ggx";    // --ndf ggx | beckmann (the Smith walk's and the analytic model's NDF)
+  std::string heights = "uniform";  // --heights uniform | gaussian (the Smith walk's height distribution)
   std::string alpha;          // --alpha AX[,AY]
   std::string material = "mirror";
   double theta = std::nan("");
@@ -94,13 +100,20 @@ ScatterOptions scatter_options(const ScatterArgs& a, const Material& material, c
 }
 
 // What the file records of the run for people and for compare-scattering --analytic.
-std::map<std::string, std::string> scatter_notes(const ScatterArgs& a, double ax, double ay, const Material& m) {
+std::map<std::string, std::string> scatter_notes(const ScatterArgs& a, const std::string& ndf, double ax, double ay,
+                                                 const Material& m) {
   return {{"model", a.model.empty() ? "surface" : a.model},
-          {"ndf", a.ndf},
+          {"ndf", ndf},
           {"alpha", fmt::format("{},{}", ax, ay)},
           {"theta", fmt::format("{}", a.theta)},
           {"phi", fmt::format("{}", a.phi)},
           {"material", m.describe()}};
+}
+
+// Options that the sampled models do not take from the command line because they are not theirs.
+void refuse_options(const ScatterArgs& a, std::initializer_list<const char*> options, const std::string& why) {
+  for (const char* option : options)
+    if (a.given.count(option)) throw UsageError(fmt::format("{} {}", option, why));
 }
 
 void check_scatter_outputs(const ScatterArgs& a) {
@@ -111,10 +124,9 @@ void check_scatter_outputs(const ScatterArgs& a) {
 }
 
 int run_analytic(const ScatterArgs& a) {
-  for (const char* option : {"--rays", "--seed", "--max-order", "--shard", "--surface"})
-    if (a.given.count(option))
-      throw UsageError(fmt::format("{} applies to the sampled models (--model smith-walk, --surface) only: --model "
-                                   "analytic is the exact single-scattering expectation", option));
+  refuse_options(a, {"--rays", "--seed", "--max-order", "--shard", "--heights", "--tile-size"},
+                 "applies to the sampled models (--model smith-walk, --surface) only: --model analytic is the exact "
+                 "single-scattering expectation");
   if (!a.given.count("--alpha")) throw UsageError("--alpha is required for --model analytic");
   const auto [ax, ay] = parse_alpha("--alpha", a.alpha);
   const Material material = scatter_material(a.material);
@@ -131,7 +143,74 @@ int run_analytic(const ScatterArgs& a) {
   } catch (const Cancelled&) {
     return interrupted_nothing_written("scatter", "during the cubature");
   }
-  return report_scatter(e, scatter_notes(a, ax, ay, material), {a.out, a.json});
+  return report_scatter(e, scatter_notes(a, a.ndf, ax, ay, material), {a.out, a.json});
+}
+
+int run_walk(const ScatterArgs& a) {
+  refuse_options(a, {"--tile-size"}, "applies to --surface only");
+  if (!a.given.count("--alpha")) throw UsageError("--alpha is required for --model smith-walk");
+  SmithMicrosurface surface;
+  const auto [ax, ay] = parse_alpha("--alpha", a.alpha);
+  surface.alpha_x = ax;
+  surface.alpha_y = ay;
+  surface.ndf = a.ndf == "beckmann" ? WalkNdf::beckmann : WalkNdf::ggx;
+  const Material material = scatter_material(a.material);
+  ScatterOptions o = scatter_options(a, material, {});
+  try {
+    surface.heights = parse_height_distribution("--heights", a.heights);
+    check_smith_microsurface(surface);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
+  check_scatter_outputs(a);
+  install_interrupt_handler();
+  const auto progress = std::make_shared<CliProgress>(true);
+  o.run = cli_run_control(a.threads, progress);
+  fmt::print(stderr, "scatter: Smith random walk, {}, {}, theta {} phi {}, {} paths, order cap {}{}\n", describe(surface),
+             material.describe(), a.theta, a.phi, a.rays, a.max_order, a.shard.empty() ? "" : ", shard " + a.shard);
+  const ScatterHistogram h = smith_walk_scatter(surface, o);
+  progress->finish();
+  return report_scatter(h, scatter_notes(a, a.ndf, ax, ay, material), {a.out, a.json});
+}
+
+// The NDF and roughness a surface file records (assembly metadata), for the notes; "" when it records none.
+std::pair<std::string, std::string> surface_ndf_and_alpha(const microgeom::Heightfield& field) {
+  const auto get = [&](const char* key) {
+    const auto it = field.metadata.find(key);
+    return it == field.metadata.end() ? std::string() : it->second;
+  };
+  const std::string ax = get("alpha_x"), ay = get("alpha_y");
+  return {get("reference_ndf"), ax.empty() || ay.empty() ? std::string() : ax + "," + ay};
+}
+
+int run_surface(const ScatterArgs& a) {
+  refuse_options(a, {"--alpha", "--ndf", "--heights"},
+                 "applies to --model only: a traced surface has its own facets (its file records its assembly)");
+  const Material material = scatter_material(a.material);
+  ScatterOptions o = scatter_options(a, material, {});
+  check_scatter_outputs(a);
+  const microgeom::Heightfield field = load_surface(a.surface, a.tile_size);
+  install_interrupt_handler();
+  const auto progress = std::make_shared<CliProgress>(true);
+  o.run = cli_run_control(a.threads, progress);
+  const HeightfieldScene scene(field);
+  fmt::print(stderr, "scatter: surface {} ({} x {}, tile {}), {}, theta {} phi {}, {} paths, order cap {}{}\n", a.surface,
+             field.resolution(), field.resolution(), field.tile_size(), material.describe(), a.theta, a.phi, a.rays,
+             a.max_order, a.shard.empty() ? "" : ", shard " + a.shard);
+  SurfaceScatterDiagnostics d;
+  const ScatterHistogram h = scatter_on_surface(scene, o, &d);
+  progress->finish();
+  fmt::print(stderr, "scatter: {} bounces traced, {} convex-edge grazes passed, {} paths lost\n", d.facet_events,
+             d.edge_grazes, d.lost());
+  auto [ndf, alpha] = surface_ndf_and_alpha(field);
+  std::map<std::string, std::string> notes = scatter_notes(a, ndf, 0, 0, material);
+  notes["surface"] = a.surface;
+  if (alpha.empty()) notes.erase("alpha");
+  else notes["alpha"] = alpha;
+  if (ndf.empty()) notes.erase("ndf");
+  for (const char* key : {"assembly", "seed"})
+    if (field.metadata.count(key)) notes[std::string("surface_") + key] = field.metadata.at(key);
+  return report_scatter(h, notes, {a.out, a.json});
 }
 
 int run_scatter(const ScatterArgs& a) {
@@ -140,12 +219,10 @@ int run_scatter(const ScatterArgs& a) {
   if (!a.surface.empty() && !a.model.empty())
     throw UsageError(fmt::format("--surface and --model {} exclude each other (a surface is traced, a model is not)", a.model));
   if (a.model == "analytic") return run_analytic(a);
-  if (a.model == "smith-walk")
-    throw UsageError("--model smith-walk is not wired into this command yet (scatter/smith_walk.h)");
+  if (a.model == "smith-walk") return run_walk(a);
   if (!a.model.empty())
     throw UsageError(fmt::format("--model {}: unknown model (analytic or smith-walk)", quote_excerpt(a.model)));
-  if (!a.surface.empty())
-    throw UsageError("--surface is not wired into this command yet (scatter/surface_scatter.h)");
+  if (!a.surface.empty()) return run_surface(a);
   throw UsageError("scatter needs --model analytic|smith-walk or --surface SURF.exr");
 }
 
@@ -156,10 +233,15 @@ CommandRegistration reg{"scatter", [](CLI::App& app) {
       "Scatter light arriving along -wi off a microsurface and histogram where it leaves, per bounce order (1, 2, 3, "
       "4, 5+) and in total, over equal-area bins of the upper (reflection) and lower (transmission) hemispheres, with "
       "standard errors. Writes a scatter EXR and a JSON summary. --model analytic: the exact single-scattering "
-      "expectation (GGX or Beckmann BSDF binned by cubature). Exit 0 done, 2 bad input (nothing written), 130 interrupted.");
+      "expectation (GGX or Beckmann BSDF binned by cubature); --model smith-walk: the Smith random walk (Heitz et al. 2016); "
+      "--surface SURF.exr: every bounce traced on an explicit heightfield. Exit 0 done, 2 bad input (nothing written), 130 "
+      "interrupted (what was traced is written, marked partial).");
   sub->add_option("--surface", args->surface, "an explicit heightfield (heightmap EXR) to trace");
   sub->add_option("--model", args->model, "analytic (single-scattering expectation) or smith-walk");
-  sub->add_option("--ndf", args->ndf, "ggx or beckmann")->capture_default_str();
+  add_number_option(sub, "--tile-size", args->tile_size, real(), "an imported heightmap's tile size (as trace masking)");
+  sub->add_option("--ndf", args->ndf, "ggx or beckmann (--model)")->capture_default_str();
+  sub->add_option("--heights", args->heights, "the Smith walk's height distribution: uniform or gaussian (the result "
+                  "does not depend on it)")->capture_default_str();
   sub->add_option("--alpha", args->alpha, "roughness AX[,AY], each in [1e-4, 10], anisotropy at most 1:1000");
   sub->add_option("--material", args->material,
                   "mirror, conductor:ETA,K[;ETA,K...] (one channel each), dielectric:ETA or lambertian[:ALBEDO]")

@@ -6,16 +6,36 @@
 #include "stats/scatter_compare.h"
 
 #include <fmt/core.h>
+#include <cstdlib>
 #include <nlohmann/json.hpp>
 
 namespace microsim::app {
 
 namespace {
 
+// What the geometric hemispheres hold: light from above (note theta < 90) is reflected into the upper one and
+// transmitted into the lower one, light from inside a dielectric (theta > 90) the reverse.
+struct HemisphereLabels {
+  std::string upper = "upper", lower = "lower";
+};
+HemisphereLabels hemisphere_labels(const std::map<std::string, std::string>& notes) {
+  const auto it = notes.find("theta");
+  if (it == notes.end()) return {};
+  const bool from_inside = std::strtod(it->second.c_str(), nullptr) > 90;
+  return from_inside ? HemisphereLabels{"upper (T)", "lower (R)"} : HemisphereLabels{"upper (R)", "lower (T)"};
+}
+
+nlohmann::json hemispheres_json(const HemisphereLabels& l) {
+  auto meaning = [](const std::string& label) {
+    return label.find("(R)") != std::string::npos ? "reflected" : label.find("(T)") != std::string::npos ? "transmitted" : "";
+  };
+  return {{"upper", meaning(l.upper)}, {"lower", meaning(l.lower)}};
+}
+
 std::string estimate_text(const Estimate& e) { return fmt::format("{:.6f} +- {:.6f}", e.value, e.standard_error); }
 
-void print_histogram_table(const ScatterHistogram& h) {
-  fmt::print("{:<8} {:<11} {:>24} {:>24} {:>24}\n", "channel", "order", "reflected", "transmitted", "total");
+void print_histogram_table(const ScatterHistogram& h, const HemisphereLabels& l) {
+  fmt::print("{:<8} {:<11} {:>24} {:>24} {:>24}\n", "channel", "order", l.upper, l.lower, "total");
   for (int c = 0; c < h.channels(); ++c) {
     for (int k : {0, 1, 2, 3, 4, kTotalOrder})
       fmt::print("{:<8} {:<11} {:>24} {:>24} {:>24}\n", h.channel_name(c), scatter_order_name(k),
@@ -30,24 +50,34 @@ void print_histogram_table(const ScatterHistogram& h) {
 
 int report_scatter(const ScatterHistogram& h, const std::map<std::string, std::string>& notes, const ScatterOutputs& o) {
   write_scatter_exr(o.out, h, notes);
-  if (!o.json.empty()) write_file_atomically(o.json, scatter_summary_json(h).dump(2) + "\n");
+  const HemisphereLabels labels = hemisphere_labels(notes);
+  nlohmann::json j = scatter_summary_json(h);
+  j["hemispheres"] = hemispheres_json(labels);
+  j["notes"] = notes;
+  if (!o.json.empty()) write_file_atomically(o.json, j.dump(2) + "\n");
   fmt::print("{}: {} paths, blocks {} of {}{}\n", h.provenance.producer, h.paths(), h.provenance.blocks.to_string(),
              h.provenance.total_blocks, h.partial ? " (partial)" : "");
-  print_histogram_table(h);
+  print_histogram_table(h, labels);
+  if (h.partial)
+    fmt::print(stderr, "{}: interrupted: the {} paths of blocks {} are written to {}, marked partial\n",
+               h.provenance.producer, h.paths(), h.provenance.blocks.to_string(), o.out);
   return h.partial ? kExitInterrupted : kExitOk;
 }
 
 int report_scatter(const ScatterExpectation& e, const std::map<std::string, std::string>& notes, const ScatterOutputs& o) {
   write_scatter_exr(o.out, e, notes);
-  const nlohmann::json j = scatter_summary_json(e);
+  const HemisphereLabels labels = hemisphere_labels(notes);
+  nlohmann::json j = scatter_summary_json(e);
+  j["hemispheres"] = hemispheres_json(labels);
+  j["notes"] = notes;
   if (!o.json.empty()) write_file_atomically(o.json, j.dump(2) + "\n");
   fmt::print("{}: single scattering, {}\n", e.producer, e.measurement);
-  fmt::print("{:<8} {:<11} {:>12} {:>12} {:>12} {:>12}\n", "channel", "order", "reflected", "transmitted", "total",
+  fmt::print("{:<8} {:<11} {:>12} {:>12} {:>12} {:>12}\n", "channel", "order", labels.upper, labels.lower, "total",
              "cubature err");
   for (const nlohmann::json& c : j["channels"]) {
     const nlohmann::json& a = c["albedo"]["order1"];
     fmt::print("{:<8} {:<11} {:>12.6f} {:>12.6f} {:>12.6f} {:>12.2g}\n", c["name"].get<std::string>(), "order1",
-               a["reflected"]["value"].get<double>(), a["transmitted"]["value"].get<double>(),
+               a["upper"]["value"].get<double>(), a["lower"]["value"].get<double>(),
                a["both"]["value"].get<double>(), c["error_estimate"].get<double>());
   }
   return kExitOk;

@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # microsim: the sanitizer gate. Builds the test suite and the CLI with AddressSanitizer and UBSan
-# (-fsanitize=address,undefined, every report fatal) in build-sanitize/ (RelWithDebInfo at -O1 -g1: the
-# reports keep file and line, and a cold build took 8.8 min on 2 cores) and runs the ctest suite there;
-# any sanitizer report fails a test and so this script.
+# (-fsanitize=address,undefined, every report fatal) in build-sanitize/ with clang (the fuzzing gate's
+# compiler; it builds this configuration about 30% faster than g++), the library at -O1 -g1 (the reports
+# keep file and line) and the front ends (apps/, tests/) at -O0 (they only parse, check and report; -O0
+# compiles them 2-3 times faster), and runs the ctest suite there; any sanitizer report fails a test and
+# so this script.
 #   scripts/sanitize.sh            configure, build, run every test
 #   scripts/sanitize.sh -R REGEX   only the tests matching REGEX (passed to ctest)
 set -euo pipefail
@@ -11,8 +13,8 @@ bash "$here/scripts/setup.sh" --deps
 build="$here/build-sanitize"
 launcher=()
 command -v ccache > /dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
-cmake -S "$here" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
-  -DMICROSIM_SANITIZE=ON \
+cmake -S "$here" -B "$build" -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" -DMICROSIM_FRONT_END_OPT=-O0 -DMICROSIM_SANITIZE=ON \
   -DMICROSIM_BUILD_BENCHMARKS=OFF "${launcher[@]}" > /dev/null
 cmake --build "$build" -j"$(nproc)"
 # halt_on_error + abort: a report ends the process with a non-zero status, never a silent warning.

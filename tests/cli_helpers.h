@@ -54,6 +54,39 @@ inline CliRun run_cli(const fs::path& dir, const std::string& args) {
   return r;
 }
 
+// A directory of inputs that many tests share, built once per build of the tests. ctest runs every test in
+// a process of its own, so a function-local static would be rebuilt by each; this one lives under the
+// temporary directory, keyed by the size and modification time of the test binary and of `microsim` (a new
+// build gets a new directory). `build` fills a private directory that is then renamed into place; when
+// two processes race, the first rename wins and the other uses its files (both built the same content). A
+// fixture whose making failed a test assertion is used by this process only, never published.
+inline fs::path shared_fixture_dir(const std::string& name, const std::function<void(const fs::path&)>& build) {
+  std::size_t key = 0;
+  for (const fs::path& f : {fs::read_symlink("/proc/self/exe"), fs::path(MICROSIM_BINARY)}) {
+    const auto stamp = fs::last_write_time(f).time_since_epoch().count();
+    key = key * 1000003u ^ std::hash<std::string>{}(f.string() + ":" + std::to_string(fs::file_size(f)) + ":" +
+                                                     std::to_string(stamp));
+  }
+  const fs::path dir = fs::temp_directory_path() / ("microsim_fixture_" + name + "_" + std::to_string(key));
+  if (fs::exists(dir / ".complete")) return dir;
+  const fs::path tmp = fs::temp_directory_path() / ("microsim_fixture_" + name + "_tmp_" + std::to_string(::getpid()));
+  fs::remove_all(tmp);
+  fs::create_directories(tmp);
+  build(tmp);
+  if (::testing::Test::HasFailure()) return tmp;  // never publish a fixture whose making failed
+  std::ofstream(tmp / ".complete") << "complete\n";
+  std::error_code ec;
+  fs::rename(tmp, dir, ec);  // fails when another process got there first
+  if (ec) fs::remove_all(tmp);
+  return dir;
+}
+
+// Copies the regular files of `from` (a shared fixture) into `to`, leaving out the fixture's marker.
+inline void copy_fixture_files(const fs::path& from, const fs::path& to) {
+  for (const auto& e : fs::directory_iterator(from))
+    if (e.is_regular_file() && e.path().filename() != ".complete") fs::copy_file(e.path(), to / e.path().filename());
+}
+
 inline std::size_t file_count(const fs::path& dir) {
   std::size_t n = 0;
   for ([[maybe_unused]] auto& e : fs::directory_iterator(dir)) ++n;

@@ -18,14 +18,12 @@ namespace fs = std::filesystem;
 
 constexpr std::size_t kShortMessage = 500;  // bytes of stderr
 
-// A small valid histogram written by `trace vndf` once per test process (3 rows: 2 binnings of 18 bins).
+// A small valid histogram written by `trace vndf` once per build of the tests (3 rows: 2 binnings of 18 bins).
 const fs::path& histogram_fixture() {
-  static const fs::path path = [] {
-    const fs::path dir = microsim::test::scratch_dir("bad_files", "fixtures");
+  static const fs::path path = microsim::test::shared_fixture_dir("bad_files", [](const fs::path& dir) {
     const auto r = microsim::test::run_cli(dir, "trace vndf --alpha 0.3 --theta 30 --rays 5000 --rows 3 --out h.exr");
     EXPECT_EQ(r.exit_code, 0) << r.err;
-    return dir / "h.exr";
-  }();
+  }) / "h.exr";
   return path;
 }
 

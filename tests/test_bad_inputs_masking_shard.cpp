@@ -13,10 +13,9 @@ namespace {
 using microsim::test::BadInputCase;
 namespace fs = std::filesystem;
 
-// A surface and the three shards of a masking run on it (25 blocks), made once per test process.
+// A surface and the three shards of a masking run on it (25 blocks), made once per build of the tests.
 const fs::path& fixture_dir() {
-  static const fs::path dir = [] {
-    const fs::path d = microsim::test::scratch_dir("bad_masking_shard", "fixtures");
+  static const fs::path dir = microsim::test::shared_fixture_dir("bad_masking_shard", [](const fs::path& d) {
     EXPECT_EQ(microsim::test::run_cli(d, "surface build --assembly sorted --res 256 --alpha 0.5 --seed 2 --out s.exr --quiet")
                   .exit_code,
               0);
@@ -25,8 +24,7 @@ const fs::path& fixture_dir() {
                                                std::to_string(k) + "/3 --json p" + std::to_string(k) + ".json")
                     .exit_code,
                 0);
-    return d;
-  }();
+  });
   return dir;
 }
 

@@ -29,11 +29,10 @@ using microsim::test::BadInputCase;
 
 void write_file(const fs::path& path, const std::string& text) { std::ofstream(path) << text; }
 
-// ---- inputs, made once per test process with the library and copied into each case's directory ----------
+// ---- inputs, made once per build of the tests with the library and copied into each case's directory -----
 
 fs::path input_cache() {
-  static const fs::path dir = [] {
-    const fs::path d = microsim::test::scratch_dir("outputs", "inputs");
+  static const fs::path dir = microsim::test::shared_fixture_dir("outputs", [](const fs::path& d) {
     // Directions of a correct sampler: `validate --from` passes on them (so it would write its JSON).
     const microsim::SamplerInfo* s = microsim::find_sampler("heitz2018");
     const microsim::GGX<double> ggx(0.3);
@@ -60,8 +59,7 @@ fs::path input_cache() {
     microsim::TracedHistogram h = microsim::trace_vndf_histogram(g5, w30, t, &raw);
     microsim::analyse_against_vndf(h, g5, w30, raw.unbinned);
     microsim::write_histogram_exr(d / "hist.exr", h);
-    return d;
-  }();
+  });
   return dir;
 }
 

@@ -17,15 +17,15 @@ using microsim::test::BadInputCase;
 namespace fs = std::filesystem;
 
 const std::string kAnalytic = "scatter --model analytic --alpha 0.5 --theta 30 --out o.exr ";
+const std::string kWalk = "scatter --model smith-walk --alpha 0.5 --theta 30 --rays 4096 --out o.exr ";
+const std::string kSurface = "scatter --surface hf.exr --theta 30 --rays 4096 --out o.exr ";
 
-// A small analytic scatter file, written by `microsim scatter` once per test process.
+// A small analytic scatter file, written by `microsim scatter` once per build of the tests.
 const fs::path& analytic_fixture() {
-  static const fs::path path = [] {
-    const fs::path dir = microsim::test::scratch_dir("bad_scatter", "fixtures");
+  static const fs::path path = microsim::test::shared_fixture_dir("bad_scatter", [](const fs::path& dir) {
     const auto r = microsim::test::run_cli(dir, kAnalytic + "--rows 2");
     EXPECT_EQ(r.exit_code, 0) << r.err;
-    return dir / "o.exr";
-  }();
+  }) / "o.exr";
   return path;
 }
 
@@ -79,6 +79,27 @@ std::vector<BadInputCase> cases() {
       {"model_unknown", "scatter --model walk --alpha 0.5 --theta 30 --out o.exr", 2, "--model 'walk'"},
       {"out_not_exr", "scatter --model analytic --alpha 0.5 --theta 30 --out o.png", 2, "--out 'o.png'"},
       {"out_no_directory", "scatter --model analytic --alpha 0.5 --theta 30 --out nodir/o.exr", 2, "nodir"},
+      // the Smith walk
+      {"walk_alpha_missing", "scatter --model smith-walk --theta 30 --out o.exr", 2, "--alpha is required"},
+      {"walk_alpha_too_large", "scatter --model smith-walk --alpha 20 --theta 30 --out o.exr", 2, "--alpha"},
+      {"walk_heights_unknown", kWalk + "--heights normal", 2, "'normal'"},
+      {"walk_tile_size", kWalk + "--tile-size 1", 2, "--tile-size applies to --surface"},
+      {"walk_order_cap_zero", kWalk + "--max-order 0", 2, "--max-order"},
+      {"walk_from_inside_a_mirror", "scatter --model smith-walk --alpha 0.5 --theta 120 --out o.exr", 2, "--theta 120"},
+      {"walk_shard_beyond", kWalk + "--shard 2/1", 2, "--shard"},
+      {"walk_eta_negative", kWalk + "--material dielectric:-2", 2, "'-2'"},
+      {"walk_k_negative", kWalk + "--material conductor:1,-1", 2, "'-1'"},
+      // an explicit surface
+      {"surface_missing", "scatter --surface none.exr --theta 30 --out o.exr", 2, "'none.exr'"},
+      {"surface_is_a_scatter_file", "scatter --surface a.exr --theta 30 --out o.exr", 2, "a.exr", prepare_files},
+      {"surface_is_text", "scatter --surface text.exr --theta 30 --out o.exr", 2, "text.exr", prepare_files},
+      {"surface_with_alpha", kSurface + "--alpha 0.5", 2, "--alpha applies to --model only", prepare_files},
+      {"surface_with_ndf", kSurface + "--ndf beckmann", 2, "--ndf applies to --model only", prepare_files},
+      {"surface_and_model", kSurface + "--model smith-walk", 2, "exclude each other", prepare_files},
+      {"surface_out_is_input", "scatter --surface hf.exr --theta 30 --out hf.exr", 2, "hf.exr", prepare_files},
+      {"surface_order_cap_zero", kSurface + "--max-order 0", 2, "--max-order", prepare_files},
+      {"surface_from_inside_a_mirror", "scatter --surface hf.exr --theta 120 --out o.exr", 2, "--theta 120", prepare_files},
+      {"surface_unknown_material", kSurface + "--material silver", 2, "'silver'", prepare_files},
       // files that are not scatter histograms
       {"compare_heightmap", "compare-scattering hf.exr a.exr", 2, "not a microsim scatter file", prepare_files},
       {"compare_text", "compare-scattering a.exr text.exr --json c.json", 2, "text.exr", prepare_files},

@@ -14,10 +14,10 @@ namespace {
 using microsim::test::BadInputCase;
 namespace fs = std::filesystem;
 
-// Three shards of a validation (4 blocks), two of a stability sweep and a file of samples, made once.
+// Three shards of a validation (4 blocks), two of a stability sweep and a file of samples, made once per
+// build of the tests.
 const fs::path& fixture_dir() {
-  static const fs::path dir = [] {
-    const fs::path d = microsim::test::scratch_dir("bad_validate_shard", "fixtures");
+  static const fs::path dir = microsim::test::shared_fixture_dir("bad_validate_shard", [](const fs::path& d) {
     for (int k = 1; k <= 3; ++k)
       EXPECT_EQ(microsim::test::run_cli(d, "validate --sampler heitz2018 --alpha 0.3 --theta 30 --samples 200000 --shard " +
                                                std::to_string(k) + "/3 --json p" + std::to_string(k) + ".json")
@@ -29,8 +29,7 @@ const fs::path& fixture_dir() {
                     .exit_code,
                 0);
     std::ofstream(d / "in.txt") << "0 0 1\n0.1 0 0.99498743710662\n";
-    return d;
-  }();
+  });
   return dir;
 }
 

@@ -11,6 +11,7 @@
 #include "microgeom/assembly.h"
 #include "microgeom/heightfield.h"
 #include "stats/histogram_io.h"
+#include "stats/scatter_io.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -259,6 +260,9 @@ TEST_P(InterruptWritesPartial, ExitsInterruptedWithResultsMarkedPartial) {
   if (!c.histogram.empty()) {
     EXPECT_TRUE(microsim::read_histogram_exr(dir / c.histogram).partial);
   }
+  if (c.args.rfind("scatter", 0) == 0) {
+    EXPECT_TRUE(microsim::read_scatter_exr(dir / "h.exr").histogram.partial);
+  }
   fs::remove_all(dir);
 }
 
@@ -271,7 +275,12 @@ INSTANTIATE_TEST_SUITE_P(
                     "trace vndf --surface s.exr --theta 30 --rays 400000000 --out h.exr --json r.json",
                     "trace vndf: heightfield", "h.exr"},
         PartialCase{"TraceMasking", "trace masking --surface s.exr --theta 30 --samples 400000000 --json r.json",
-                    "trace masking:", ""}),
+                    "trace masking:", ""},
+        PartialCase{"ScatterSmithWalk",
+                    "scatter --model smith-walk --alpha 0.5 --theta 30 --rays 400000000 --out h.exr --json r.json",
+                    "scatter: Smith random walk", ""},
+        PartialCase{"ScatterSurface", "scatter --surface s.exr --theta 30 --rays 400000000 --out h.exr --json r.json",
+                    "scatter: surface", ""}),
     [](const auto& info) { return info.param.name; });
 
 }  // namespace

@@ -27,7 +27,9 @@ class ShardMerge : public ::testing::TestWithParam<ShardCase> {};
 TEST_P(ShardMerge, MergedShardsAreTheSingleRunBitForBit) {
   const ShardCase& c = GetParam();
   const fs::path dir = scratch_dir("shard", c.name);
-  if (!c.prepare.empty()) ASSERT_EQ(run_cli(dir, c.prepare).exit_code, 0) << c.prepare;
+  if (!c.prepare.empty()) {
+    ASSERT_EQ(run_cli(dir, c.prepare).exit_code, 0) << c.prepare;
+  }
   const CliRun whole = run_cli(dir, c.trace + " --out whole.exr --json whole.json");
   ASSERT_EQ(whole.exit_code, 0) << whole.err;
   std::string parts;
@@ -61,11 +63,14 @@ class MergeErrors : public ::testing::Test {
 protected:
   static void SetUpTestSuite() {
     dir_ = new fs::path(scratch_dir("merge", "errors"));
-    const std::string run = "trace vndf --alpha 0.3 --theta 40 --rays 200000 --seed 7";
-    for (int k = 1; k <= 3; ++k)
-      ASSERT_EQ(run_cli(*dir_, run + " --shard " + std::to_string(k) + "/3 --out p" + std::to_string(k) + ".exr").exit_code, 0);
-    ASSERT_EQ(run_cli(*dir_, "trace vndf --alpha 0.3 --theta 40 --rays 200000 --seed 8 --shard 2/3 --out seed8.exr").exit_code, 0);
-    ASSERT_EQ(run_cli(*dir_, run + " --rows 15 --shard 2/3 --out rows15.exr").exit_code, 0);
+    // The parts, made once per build of the tests (shared_fixture_dir) and copied here.
+    copy_fixture_files(shared_fixture_dir("merge_errors", [](const fs::path& d) {
+      const std::string run = "trace vndf --alpha 0.3 --theta 40 --rays 200000 --seed 7";
+      for (int k = 1; k <= 3; ++k)
+        ASSERT_EQ(run_cli(d, run + " --shard " + std::to_string(k) + "/3 --out p" + std::to_string(k) + ".exr").exit_code, 0);
+      ASSERT_EQ(run_cli(d, "trace vndf --alpha 0.3 --theta 40 --rays 200000 --seed 8 --shard 2/3 --out seed8.exr").exit_code, 0);
+      ASSERT_EQ(run_cli(d, run + " --rows 15 --shard 2/3 --out rows15.exr").exit_code, 0);
+    }), *dir_);
   }
   static void TearDownTestSuite() {
     fs::remove_all(*dir_);

@@ -154,17 +154,20 @@ class MaskingMergeErrors : public MergeErrorsSuite<MaskingMergeErrors> {
 protected:
   static void SetUpTestSuite() {
     dir() = scratch_dir("masking_merge", "errors");
-    ASSERT_EQ(run_cli(dir(), "surface build --assembly sorted --res 256 --alpha 0.5 --seed 2 --out s.exr --quiet").exit_code, 0);
-    ASSERT_EQ(run_cli(dir(), "surface build --assembly sorted --res 256 --alpha 0.5 --seed 3 --out t.exr --quiet").exit_code, 0);
-    const std::string run = "trace masking --surface s.exr --theta 60 --theta-l 40 --samples 100000";
-    for (int k = 1; k <= 3; ++k)
-      ASSERT_EQ(run_cli(dir(), run + " --seed 7 --shard " + std::to_string(k) + "/3 --json p" + std::to_string(k) + ".json").exit_code, 0);
-    ASSERT_EQ(run_cli(dir(), run + " --seed 8 --shard 2/3 --json seed8.json").exit_code, 0);
-    ASSERT_EQ(run_cli(dir(), "trace masking --surface s.exr --theta 50 --theta-l 40 --samples 100000 --seed 7 --shard 2/3 "
-                             "--json theta50.json").exit_code, 0);
-    ASSERT_EQ(run_cli(dir(), "trace masking --surface t.exr --theta 60 --theta-l 40 --samples 100000 --seed 7 --shard 2/3 "
-                             "--json other_surface.json").exit_code, 0);
-    ASSERT_EQ(run_cli(dir(), "trace vndf --surface s.exr --theta 60 --rays 30000 --seed 7 --shard 2/3 --out v.exr --json v.json").exit_code, 0);
+    // The surfaces and parts, made once per build of the tests (shared_fixture_dir) and copied here.
+    copy_fixture_files(shared_fixture_dir("masking_merge_errors", [](const fs::path& d) {
+      ASSERT_EQ(run_cli(d, "surface build --assembly sorted --res 256 --alpha 0.5 --seed 2 --out s.exr --quiet").exit_code, 0);
+      ASSERT_EQ(run_cli(d, "surface build --assembly sorted --res 256 --alpha 0.5 --seed 3 --out t.exr --quiet").exit_code, 0);
+      const std::string run = "trace masking --surface s.exr --theta 60 --theta-l 40 --samples 100000";
+      for (int k = 1; k <= 3; ++k)
+        ASSERT_EQ(run_cli(d, run + " --seed 7 --shard " + std::to_string(k) + "/3 --json p" + std::to_string(k) + ".json").exit_code, 0);
+      ASSERT_EQ(run_cli(d, run + " --seed 8 --shard 2/3 --json seed8.json").exit_code, 0);
+      ASSERT_EQ(run_cli(d, "trace masking --surface s.exr --theta 50 --theta-l 40 --samples 100000 --seed 7 --shard 2/3 "
+                               "--json theta50.json").exit_code, 0);
+      ASSERT_EQ(run_cli(d, "trace masking --surface t.exr --theta 60 --theta-l 40 --samples 100000 --seed 7 --shard 2/3 "
+                               "--json other_surface.json").exit_code, 0);
+      ASSERT_EQ(run_cli(d, "trace vndf --surface s.exr --theta 60 --rays 30000 --seed 7 --shard 2/3 --out v.exr --json v.json").exit_code, 0);
+    }), dir());
   }
 };
 

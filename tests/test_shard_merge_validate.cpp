@@ -49,7 +49,9 @@ class ValidateShardMerge : public ::testing::TestWithParam<ValidateShardCase> {}
 TEST_P(ValidateShardMerge, MergedShardsAreTheSingleRunBitForBit) {
   const ValidateShardCase& c = GetParam();
   const fs::path dir = scratch_dir("validate_shard", c.name);
-  if (!c.prepare.empty()) ASSERT_EQ(run_cli(dir, c.prepare).exit_code, 0) << c.prepare;
+  if (!c.prepare.empty()) {
+    ASSERT_EQ(run_cli(dir, c.prepare).exit_code, 0) << c.prepare;
+  }
   const CliRun whole = run_cli(dir, c.validate + " --json whole.json");
   ASSERT_EQ(whole.exit_code, c.exit_code) << whole.err;
   std::string parts;
@@ -151,8 +153,9 @@ TEST(ValidationTallies, AnyGroupingOfBlocksIsTheSingleRun) {
     // The weights are real numbers reduced block by block: a merge that added the parts' reductions
     // instead of reducing the blocks again would differ in the last bits (the test would not see it
     // otherwise).
-    if (std::string(name) == "heitz2018")
+    if (std::string(name) == "heitz2018") {
       EXPECT_NE(whole.tallies[0].checks.weight.mean, std::floor(whole.tallies[0].checks.weight.mean));
+    }
   }
 }
 
@@ -164,18 +167,21 @@ class ValidateMergeErrors : public MergeErrorsSuite<ValidateMergeErrors> {
 protected:
   static void SetUpTestSuite() {
     dir() = scratch_dir("validate_merge", "errors");
-    const std::string run = "validate --sampler heitz2018 --theta 30 --samples 500000";
-    for (int k = 1; k <= 3; ++k)
-      ASSERT_EQ(run_cli(dir(), run + " --alpha 0.3 --seed 7 --shard " + std::to_string(k) + "/3 --json p" +
-                                   std::to_string(k) + ".json").exit_code, 0);
-    ASSERT_EQ(run_cli(dir(), run + " --alpha 0.3 --seed 8 --shard 2/3 --json seed8.json").exit_code, 0);
-    ASSERT_EQ(run_cli(dir(), run + " --alpha 0.4 --seed 7 --shard 2/3 --json alpha04.json").exit_code, 0);
-    ASSERT_EQ(run_cli(dir(), "stability --random-u 2 --shard 1/2 --json s1.json").exit_code, 0);
-    ASSERT_EQ(run_cli(dir(), "trace vndf --alpha 0.3 --theta 30 --rays 20000 --out v.exr --json v.json").exit_code, 0);
-    // A part whose tally was edited: a count that is not a count.
-    json bad = json::parse(slurp(dir() / "p2.json"));
-    bad["tallies"][0]["counts"][1][3] = -1;
-    std::ofstream(dir() / "bad.json") << bad.dump();
+    // The parts, made once per build of the tests (shared_fixture_dir) and copied here.
+    copy_fixture_files(shared_fixture_dir("validate_merge_errors", [](const fs::path& d) {
+      const std::string run = "validate --sampler heitz2018 --theta 30 --samples 500000";
+      for (int k = 1; k <= 3; ++k)
+        ASSERT_EQ(run_cli(d, run + " --alpha 0.3 --seed 7 --shard " + std::to_string(k) + "/3 --json p" +
+                                     std::to_string(k) + ".json").exit_code, 0);
+      ASSERT_EQ(run_cli(d, run + " --alpha 0.3 --seed 8 --shard 2/3 --json seed8.json").exit_code, 0);
+      ASSERT_EQ(run_cli(d, run + " --alpha 0.4 --seed 7 --shard 2/3 --json alpha04.json").exit_code, 0);
+      ASSERT_EQ(run_cli(d, "stability --random-u 2 --shard 1/2 --json s1.json").exit_code, 0);
+      ASSERT_EQ(run_cli(d, "trace vndf --alpha 0.3 --theta 30 --rays 20000 --out v.exr --json v.json").exit_code, 0);
+      // A part whose tally was edited: a count that is not a count.
+      json bad = json::parse(slurp(d / "p2.json"));
+      bad["tallies"][0]["counts"][1][3] = -1;
+      std::ofstream(d / "bad.json") << bad.dump();
+    }), dir());
   }
 };
 

@@ -481,8 +481,8 @@ nlohmann::json binning_json(const std::string& id) {
 nlohmann::json estimate_json(const Estimate& e) { return {{"value", e.value}, {"standard_error", e.standard_error}}; }
 
 nlohmann::json sides_json(const ScatterHistogram& h, int c, int order_bin) {
-  return {{"reflected", estimate_json(h.albedo(c, order_bin, ScatterSide::reflected))},
-          {"transmitted", estimate_json(h.albedo(c, order_bin, ScatterSide::transmitted))},
+  return {{"upper", estimate_json(h.albedo(c, order_bin, ScatterSide::reflected))},
+          {"lower", estimate_json(h.albedo(c, order_bin, ScatterSide::transmitted))},
           {"both", estimate_json(h.albedo(c, order_bin, ScatterSide::both))}};
 }
 
@@ -544,7 +544,7 @@ nlohmann::json scatter_summary_json(const ScatterExpectation& e) {
     for (std::size_t i = 0; i < e.bins(); ++i) (e.reflection_bins[i] ? r : t) += e.order1[std::size_t(c)][i];
     auto exact = [](double v) { return estimate_json({v, 0.0}); };
     channels.push_back({{"name", e.channel_names[std::size_t(c)]},
-                        {"albedo", {{"order1", {{"reflected", exact(r)}, {"transmitted", exact(t)}, {"both", exact(r + t)}}}}},
+                        {"albedo", {{"order1", {{"upper", exact(r)}, {"lower", exact(t)}, {"both", exact(r + t)}}}}},
                         {"error_estimate", e.error_estimate[std::size_t(c)]}});
   }
   j["channels"] = channels;

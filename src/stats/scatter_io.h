@@ -78,7 +78,9 @@ ScatterFile scatter_from_exr(const microgeom::ExrImage& image, const std::string
 bool is_scatter_image(const microgeom::ExrImage& image);
 
 // The JSON summary of a histogram: paths, provenance, partial, and per channel the albedo of every order
-// and in total, reflected, transmitted and both, each {"value", "standard_error"} (per launched path),
+// and in total, left into the "upper" and the "lower" hemisphere and "both", each {"value", "standard_error"}
+// (per launched path; the hemispheres are geometric: for light from above, upper is reflected and lower is
+// transmitted, for light from inside a dielectric the reverse),
 // the unbinned, unfinished and lost energy, and the energy balance (escaped + unfinished + lost).
 nlohmann::json scatter_summary_json(const ScatterHistogram& histogram);
 // The same keys for an expectation (order 1 only; standard errors 0, the cubature's error estimate given).
