@@ -209,11 +209,16 @@ KIND_BAD = {
     "res": ["0", "-16", "17", "100", "99999999999999999999", "16384"],
     "uint_range": ["-1", "1000001", "99999999999999999999"],
     "cone": ["0", "-1", "91"],
+    "hemisphere_rows": ["0", "-1", "251", "2147483647", "1.5"],  # scatter --rows: rows per hemisphere
+    "order_cap": ["0", "-1", "100001", "1.5", "99999999999999999999"],
 }
 VAL = "validate --sampler heitz2018 --alpha 0.3 --theta 30 --samples 20000 --rows 11"
 TRACE = "trace vndf --surface ellipsoid --alpha 0.3 --theta 30 --rays 20000 --out o.exr"
 MASK = "trace masking --surface hf.exr --theta 60 --samples 2000"
 BUILD = "surface build --assembly smith --alpha 0.5 --res 256 --out s.exr --quiet"
+WALK = "scatter --model smith-walk --alpha 0.3 --theta 30 --rays 20000 --rows 4 --out o.exr"
+SURF = "scatter --surface hf.exr --theta 30 --rays 5000 --rows 4 --out o.exr"
+ANALYTIC = "scatter --model analytic --alpha 0.3 --theta 30 --rows 4 --out o.exr"
 FLAGS = [  # (command with a default for the flag, flag, kind)
     (VAL, "--alpha", "alpha"), (VAL, "--theta", "theta"), (VAL, "--phi", "angle"), (VAL, "--samples", "count"),
     (VAL, "--seed", "seed"), (VAL, "--rows", "rows"), (VAL, "--significance", "prob"),
@@ -231,6 +236,12 @@ FLAGS = [  # (command with a default for the flag, flag, kind)
     ("surface stats hf.exr", "--tile-size", "nonneg"), ("surface stats hf.exr", "--alpha", "alpha"),
     ("surface stats hf.exr", "--corr-cells", "nonneg"),
     ("stability --failures-only", "--random-u", "uint_range"), ("stability --failures-only", "--seed", "seed"),
+    (WALK, "--alpha", "alpha"), (WALK, "--theta", "theta"), (WALK, "--phi", "angle"), (WALK, "--rays", "count"),
+    (WALK, "--seed", "seed"), (WALK, "--threads", "threads"), (WALK, "--rows", "hemisphere_rows"),
+    (WALK, "--max-order", "order_cap"),
+    (SURF, "--theta", "theta"), (SURF, "--rays", "count"), (SURF, "--tile-size", "positive"),
+    (SURF, "--max-order", "order_cap"),
+    (ANALYTIC, "--alpha", "alpha"), (ANALYTIC, "--theta", "theta"), (ANALYTIC, "--rows", "hemisphere_rows"),
 ]
 # Valid edge values: they must run (exit 0 or 1), quickly.
 VALID = [
@@ -261,6 +272,13 @@ for f in ["not_exr", "empty", "hf_truncated", "hf_header_only", "hf_huge_header"
     FILES.append(("trace masking --surface %s.exr --theta 60 --samples 2000" % f, f))
 for f in ["not_exr", "empty", "hf_truncated", "hf_huge_header", "hf_wide_header", "hist"]:
     FILES.append(("surface import %s.exr --tile-size 1 --out imp.exr" % f, f))
+for f in ["not_exr", "empty", "hf_truncated", "hf_header_only", "hf_huge_header", "hf_wide_header", "hf_bad_tile_size",
+          "hf_nan_tile_size", "hf_junk_tile_size", "hist", "missing"]:
+    FILES.append(("scatter --surface %s.exr --theta 30 --rays 2000 --out o.exr" % f, f))
+for f in ["not_exr", "empty", "hf", "hist", "missing"]:
+    FILES.append(("compare-scattering %s.exr %s.exr" % (f, f), f))
+for f in ["not_exr", "empty", "hf", "missing"]:  # (a complete trace histogram is a valid single part)
+    FILES.append(("merge %s.exr --out m.exr" % f, f))
 for f in ["hist_hits_neg", "hist_hits_gt_rays", "hist_rays_overflow", "hist_rays_junk", "hist_binnings_dup",
           "hist_binnings_unknown", "hist_binnings_empty", "hist_format", "hist_binning_json", "hist_binning_rows",
           "hist_huge_header", "hist_truncated", "hf", "not_exr", "empty", "missing"]:
@@ -296,6 +314,13 @@ PATHS = [
     ("trace vndf --surface ellipsoid --alpha 0.3 --theta 30 --rays 2000 --out adir", "adir"),
     ("surface build --assembly smith --alpha 0.5 --res 256 --out adir --quiet", "adir"),
     ("validate --sampler heitz2018 --alpha 0.3 --theta 30 --samples 20000 --plot fig.png", "fig.png"),
+    ("scatter --surface hf.exr --theta 30 --rays 2000 --out hf.exr", "hf.exr"),
+    ("scatter --surface hf.exr --theta 30 --rays 2000 --out link.exr", "link.exr"),
+    ("scatter --surface hf.exr --theta 30 --rays 2000 --out o.exr --json hf.exr", "hf.exr"),
+    ("scatter --surface hf.exr --theta 30 --rays 2000 --out o.exr --json o.exr", "o.exr"),
+    (WALK + " --json nodir/w.json", "nodir"),
+    (WALK.replace("--out o.exr", "--out adir"), "adir"),
+    (WALK.replace("--out o.exr", "--out o.png"), "o.png"),
 ]
 # Usage errors that are not numbers or files.
 USAGE = [
@@ -316,6 +341,32 @@ USAGE = [
     ("surface build --assembly nosuch --alpha 0.5 --res 256 --out s.exr", "nosuch"),
     ("surface stats hf.exr --reference gaussian", "gaussian"),
     ("trace nosuch", "nosuch"),
+    (WALK + " --material gold", "gold"),
+    (WALK + " --material dielectric:0", "'0'"),
+    (WALK + " --material dielectric:-1.5", "'-1.5'"),
+    (WALK + " --material dielectric:nan", "'nan'"),
+    (WALK + " --material dielectric:inf", "'inf'"),
+    (WALK + " --material conductor:0.2,-1", "'-1'"),
+    (WALK + " --material conductor:0.2", "'0.2'"),
+    (WALK + " --material conductor:0,3", "'0'"),
+    (WALK + " --material conductor:0.2,3;", "channel 2"),
+    (WALK + " --material lambertian:2", "'2'"),
+    (WALK + " --ndf phong", "phong"),
+    (WALK + " --heights normal", "normal"),
+    (WALK + " --surface hf.exr", "exclude"),
+    (WALK + " --tile-size 1", "--tile-size"),
+    (WALK.replace("--theta 30", "--theta 120"), "--theta 120"),
+    (WALK.replace("--alpha 0.3", "--alpha 0.3,1000"), "--alpha"),
+    (WALK + " --shard 3/2", "--shard"),
+    (WALK + " --shard 0/2", "--shard"),
+    (SURF + " --alpha 0.5", "--alpha"),
+    (SURF + " --ndf beckmann", "--ndf"),
+    (SURF.replace("--theta 30", "--theta 150"), "--theta 150"),
+    (ANALYTIC + " --rays 1000", "--rays"),
+    (ANALYTIC + " --material lambertian", "lambertian"),
+    ("scatter --model walk --alpha 0.3 --theta 30 --out o.exr", "walk"),
+    ("scatter --alpha 0.3 --theta 30 --out o.exr", "--model"),
+    ("compare-scattering hist.exr", "hist.exr"),
     ("nosuch", "nosuch"),
 ]
 

@@ -74,9 +74,17 @@ class Table:
             return out, json.load(f)
 
     def compare(self, name, a, b):
+        """compare-scattering of orders 1, 2 and the total; an order with too little data for its test (exit 2,
+        e.g. order 2 at normal incidence on a smooth surface) is left out and shown as a dash."""
         js = self.path(name + "-compare.json")
+        for orders in ("1,2,total", "1,total", "total"):
+            if os.path.exists(js):
+                break
+            cmd = [self.exe, "compare-scattering", a, b, "--orders", orders, "--json", js]
+            if subprocess.run(cmd, capture_output=True, text=True).returncode not in (0, 1):
+                continue
         if not os.path.exists(js):
-            run([self.exe, "compare-scattering", a, b, "--orders", "1,2,3,4,5+,total", "--json", js], ok=(0, 1))
+            return {"comparisons": [{"lobes": []}]}
         with open(js) as f:
             return json.load(f)
 
@@ -117,6 +125,10 @@ def summarise(assembly, alpha, theta, label, s, w, a, c):
             v, e = albedo(summary, order)
             r[f"{who}_{order}"], r[f"{who}_{order}_se"] = v, e
         r[f"{who}_order3plus"] = r[f"{who}_total"] - r[f"{who}_order1"] - r[f"{who}_order2"]
+        # The light that crossed the interface (a dielectric): the hemisphere the JSON says holds it.
+        sides = summary.get("hemispheres", {})
+        crossed = "lower" if sides.get("lower") == "transmitted" else "upper"
+        r[f"{who}_transmitted"] = summary["channels"][0]["albedo"]["total"][crossed]["value"]
         r[f"{who}_unfinished"] = summary["channels"][0]["unfinished"]["value"]
         r[f"{who}_lost"] = summary["channels"][0]["lost"]["value"]
     r["analytic_order1"] = albedo(a, "order1")[0]
@@ -134,22 +146,36 @@ def fmt(v, digits=4):
     return "–" if v is None else f"{v:.{digits}f}"
 
 
-def markdown(rows, args, seconds):
-    head = ("| assembly | alpha | theta | material | E1 analytic | E1 explicit | E1 walk | E2 explicit | E2 walk | "
-            "E3+ explicit | E3+ walk | E explicit | E walk | TV1 | TV2 | TV all | recovered explicit | recovered walk |")
-    lines = [head, "|" + "---|" * 18]
+def table(head, rows, cells):
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
-        lines.append("| " + " | ".join([
-            r["assembly"], f"{r['alpha']:g}", f"{r['theta']:g}", r["material"], fmt(r["analytic_order1"]),
-            fmt(r["explicit_order1"]), fmt(r["walk_order1"]), fmt(r["explicit_order2"]), fmt(r["walk_order2"]),
-            fmt(r["explicit_order3plus"]), fmt(r["walk_order3plus"]), fmt(r["explicit_total"]), fmt(r["walk_total"]),
-            fmt(r["tv_order1"], 3), fmt(r["tv_order2"], 3), fmt(r["tv_total"], 3), fmt(r["explicit_recovered"]),
-            fmt(r["walk_recovered"])]) + " |")
-    se = max(max(r["explicit_total_se"], r["walk_total_se"]) for r in rows)
+        lines.append("| " + " | ".join([r["assembly"], f"{r['alpha']:g}", f"{r['theta']:g}", r["material"]] + cells(r)) + " |")
+    return lines
+
+
+def markdown(rows, args, seconds):
+    key = ["assembly", "alpha", "theta", "material"]
+    lines = ["Albedo per bounce order (E1, E2, orders 3 and up) and in total, explicit surface against the Smith walk, "
+             "beside the analytic single scattering:", ""]
+    lines += table(key + ["E1 analytic", "E1 explicit", "E1 walk", "E2 explicit", "E2 walk", "E3+ explicit", "E3+ walk",
+                          "E explicit", "E walk"], rows,
+                   lambda r: [fmt(r["analytic_order1"]), fmt(r["explicit_order1"]), fmt(r["walk_order1"]),
+                              fmt(r["explicit_order2"]), fmt(r["walk_order2"]), fmt(r["explicit_order3plus"]),
+                              fmt(r["walk_order3plus"]), fmt(r["explicit_total"]), fmt(r["walk_total"])])
+    lines += ["", "Shapes and energy: TV distance of the explicit and walk lobes per order (its noise floor in "
+              "parentheses), the transmitted albedo T of a dielectric, and the energy single scattering loses "
+              "(1 - E1 analytic, for the lossless materials) that each model recovers (E - E1 analytic):", ""]
+    tv = lambda r, k: "–" if r[f"tv_{k}"] is None else f"{r[f'tv_{k}']:.3f} ({r[f'tv_{k}_floor']:.3f})"
+    lines += table(key + ["TV1", "TV2", "TV all", "T explicit", "T walk", "SS loss", "recovered explicit",
+                          "recovered walk"], rows,
+                   lambda r: [tv(r, "order1"), tv(r, "order2"), tv(r, "total"), fmt(r["explicit_transmitted"]),
+                              fmt(r["walk_transmitted"]), "–" if r["material"] == "gold" else fmt(1 - r["analytic_order1"]), fmt(r["explicit_recovered"]),
+                              fmt(r["walk_recovered"])])
+    se = max(max(r["explicit_total_se"], r["walk_total_se"], r["explicit_order1_se"]) for r in rows)
     lines.append("")
     lines.append(f"{len(rows)} configurations, {args.rays} paths per run, surfaces {args.res}^2 (seed 1), "
-                 f"{args.rows} rows per hemisphere; largest standard error of a total albedo {se:.1e}; "
-                 f"{seconds:.0f} s on this machine.")
+                 f"{args.rows} rows per hemisphere; largest standard error of an albedo {se:.1e}; "
+                 f"{seconds:.0f} s on this machine. Gold: channel R of {GOLD}.")
     return "\n".join(lines) + "\n"
 
 

@@ -288,7 +288,7 @@ int FastDirectionBinner::operator()(const Vec3<double>& direction) const {
   while (col > 0 && side(col) < 0) --col;
   while (col < cols_ - 1 && side(col + 1) >= 0) ++col;
   const double margin = 1e-12 * hi;
-  if (!((side(col) >= margin) & (side(col + 1) <= -margin))) return exact(direction);  // near an edge, or wrapped
+  if (!(side(col) >= margin && side(col + 1) <= -margin)) return exact(direction);  // near an edge, or wrapped
   return row * cols_ + col;
 }
 

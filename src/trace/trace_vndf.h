@@ -68,7 +68,7 @@ public:
   }
   // The rule itself: front-facing seen from wi and on the upper half.
   static bool counts(const Vec3<double>& normal, const Vec3<double>& wi) {
-    return (normal.dot(wi) > 0.0) & (normal.z() >= 0.0);
+    return normal.dot(wi) > 0.0 && normal.z() >= 0.0;
   }
 
 private:
