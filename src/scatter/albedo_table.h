@@ -21,10 +21,16 @@
 // D_wi(m) is dm/du's inverse,
 //   E1_R = integral over [0,1]^2 of f |cos o| 4 |wi.m| / D_wi(m) du,   E1_T likewise with the refraction's
 // Jacobian: a bounded integrand (F G2 / G1 once the factors cancel) whatever alpha, with no narrow lobe to
-// find. u1 = 3t^2 - 2t^3 smooths the map's square-root ends; the integral over (t, u2) is nested adaptive
-// Gauss-Kronrod (15 points, Gauss 7 embedded, bisection to an absolute error target halved per split).
-// Error estimate: the outer rule's sum of |Kronrod - Gauss| over its final intervals plus the outer
-// integral of the inner estimates (conservative for smooth integrands: it bounds the Gauss rule's error).
+// find. Its kinks (a reflection or refraction crossing the horizon, G2 -> 0) and square-root points (the
+// facet's critical angle from inside) lie on curves in u: each line u1 = const is cut at their crossings
+// (roots on a 32-point scan, pairs between scan points found from |g|'s minima, TOMS 748), and u1 where a
+// curve touches a line (a kink of the inner integral); every piece goes through the smoothstep
+// u = a + (b - a)(3t^2 - 2t^3) and is integrated by global adaptive Gauss-Kronrod (15 points, Gauss 7
+// embedded; QUADPACK's QAG strategy with a budget of intervals). Error estimate: the sum of |Kronrod -
+// Gauss| over the outer rule's final intervals plus the outer integral of the inner estimates. It is an
+// estimate, not a bound: against a tolerance-1e-12 run (GGX, alpha 0.02..1.5, mu 0.03..0.97, mirror and
+// dielectric 1.5 from both sides, 177 values per tolerance) it was exceeded once per tolerance, by at
+// most 2.4 times (1e-4, 1e-6, 1e-8; docs/scattering.md).
 //
 // The mu grid: the Gauss-Legendre nodes of [0, 1] (mus of them, increasing), so that
 //   E_avg = 2 sum_j w_j mu_j E(mu_j)

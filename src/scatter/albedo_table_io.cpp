@@ -104,7 +104,7 @@ std::string csv_comments(const AlbedoTable& t) {
 }  // namespace
 
 std::string albedo_table_csv(const AlbedoTable& t) {
-  std::string s = csv_comments(t) + csv_header(t);
+  std::string s = csv_header(t) + csv_comments(t);
   for (std::size_t a = 0; a < t.alphas.size(); ++a)
     for (std::size_t m = 0; m < t.mus.size(); ++m) {
       s += fmt::format("{},{},{}", number(t.alphas[a]), number(t.mus[m]), number(t.mu_weights[m]));

@@ -9,11 +9,12 @@
 // paths, seed, max_order, resolution, tolerance (those of the model), partial ("true" / "false"),
 // alphas_requested.
 //
-// CSV (one header line of column names after '#' comment lines): one line per cell, alpha-major:
+// CSV: a first line of column names, then '#' comment lines (the model, its parameters, the mu rule;
+// "# PARTIAL" for a partial table), then one line per cell, alpha-major:
 //   alpha,mu,mu_weight,Q,Q_error,...,Q_avg,Q_avg_error,...
 // with E_avg(alpha) repeated on each line of its alpha, so that a renderer reads E(mu, alpha) and
-// E_avg(alpha) from one numeric file (numpy.loadtxt(path, delimiter=",", comments="#", skiprows=...)).
-// Numbers are %.17g (doubles round-trip). A partial table has a comment line "# PARTIAL".
+// E_avg(alpha) from one numeric file (numpy.genfromtxt(path, delimiter=",", names=True), pandas.read_csv(
+// path, comment="#")). Numbers are %.17g (doubles round-trip).
 //
 // JSON: the request, the axes, per quantity the value and error matrices [alpha][mu] and the averages,
 // the timings, partial.
