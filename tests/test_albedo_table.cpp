@@ -185,16 +185,20 @@ AlbedoTableRequest analytic_like(AlbedoTableRequest r) {
 }
 
 // Pearson's statistic of the cells of `name` in the sampled table against the analytic one: sum of z^2
-// with z = (sampled - analytic) / sqrt(SE^2 + err^2); its p-value under chi-square(cells).
+// with z = (sampled - analytic) / sqrt(var), var = p (1 - p) / paths under the hypothesis (p the analytic
+// value: a mirror's or a dielectric's paths carry weight 1, so an order-1 albedo is a binomial fraction)
+// plus the quadrature's error squared; its p-value under chi-square(cells).
 double chi2_p_value(const AlbedoTable& sampled, const AlbedoTable& analytic, const std::string& name) {
   const AlbedoQuantity* s = sampled.find(name);
   const AlbedoQuantity* a = analytic.find(name);
   EXPECT_TRUE(s && a) << name;
   if (!s || !a) return 0;
   double statistic = 0;
+  const double n = double(sampled.request.paths);
   for (std::size_t i = 0; i < s->cells.size(); ++i) {
-    const double var = sqr(s->cells[i].standard_error) + sqr(a->cells[i].standard_error);
-    statistic += sqr(s->cells[i].value - a->cells[i].value) / var;
+    const double p = a->cells[i].value;
+    const double var = p * (1 - p) / n + sqr(a->cells[i].standard_error);
+    statistic += sqr(s->cells[i].value - p) / var;
   }
   const boost::math::chi_squared_distribution<double> chi2(double(s->cells.size()));
   return boost::math::cdf(boost::math::complement(chi2, statistic));
