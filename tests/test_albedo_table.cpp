@@ -97,7 +97,7 @@ void expect_matches_binned(double alpha, const Material& m, double mu, bool insi
 
 TEST(AlbedoAnalytic, MatchesTheBinnedCubatureOverOutgoingDirections) {
   for (const double alpha : {0.2, 1.0})
-    for (const double mu : {0.95, 0.4, 0.08}) {
+    for (const double mu : {0.9, 0.08}) {
       expect_matches_binned(alpha, Material::mirror(), mu, false);
       expect_matches_binned(alpha, Material::dielectric(1.5), mu, false);
       expect_matches_binned(alpha, Material::dielectric(1.5), mu, true);
@@ -179,8 +179,10 @@ AlbedoTableRequest walk_request(const Material& m, bool inside, std::vector<doub
   return r;
 }
 
+// The analytic table of a sampled request's cells (its error, 1e-6, is far below the sampling's).
 AlbedoTableRequest analytic_like(AlbedoTableRequest r) {
   r.model = AlbedoModel::analytic;
+  r.tolerance = 1e-6;
   return r;
 }
 
@@ -234,7 +236,7 @@ TEST(AlbedoWalk, OrderOneIsTheAnalyticTableAndAnotherAlphaIsRejected) {
 // analytic table of each side, from outside and from inside; the table of another eta is rejected.
 TEST(AlbedoWalk, DielectricReflectsPlusTransmitsOneAndOrderOneIsAnalytic) {
   for (const bool inside : {false, true}) {
-    const AlbedoTableRequest r = walk_request(Material::dielectric(1.5), inside, {0.2, 0.8}, 40000);
+    const AlbedoTableRequest r = walk_request(Material::dielectric(1.5), inside, {0.2, 0.8}, 20000);
     const AlbedoTable walk = albedo_table(r);
     for (std::size_t a = 0; a < 2; ++a)
       for (std::size_t m = 0; m < 4; ++m) {

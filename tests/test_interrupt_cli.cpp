@@ -214,7 +214,7 @@ TEST(CliInterrupt, ValidateAllMarksItsResultsPartial) {
 TEST(CliInterrupt, AlbedoTableKeepsTheCompleteAlphas) {
   const fs::path dir = microsim::test::scratch_dir("interrupt", "albedo");
   const auto r = run_and_interrupt(dir,
-                                   "albedo --model smith-walk --alphas 0.5,1 --mus 2 --rays 4000000 --out t.exr "
+                                   "albedo --model smith-walk --alphas 0.5,1 --mus 2 --rays 1500000 --out t.exr "
                                    "--csv t.csv --json t.json",
                                    stderr_has("albedo: alpha 0.5 done"), std::chrono::milliseconds(0));
   expect_interrupted(r, "albedo");
