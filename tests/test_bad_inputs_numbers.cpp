@@ -1,5 +1,6 @@
 // Issue 8, the numbers given on the command line (defects 2, 3, 5, 6): every numeric option of every
-// command that takes numbers (validate, trace vndf, trace masking, surface build/stats/import, stability)
+// command that takes numbers (validate, trace vndf, trace masking, surface build/stats/import, stability,
+// albedo)
 // goes through the one parser (src/microsim/parse.h). Each row: exit 2, stderr names the bad value (a
 // short, escaped excerpt of it), and no file in the scratch directory is created or changed. `plot`
 // takes no numbers on its command line.
@@ -68,6 +69,9 @@ const CommandLine kBuild{"surface build --quiet",
 const CommandLine kStats{"surface stats s.exr", {{"--tile-size", "1"}, {"--json", "st.json"}}};
 const CommandLine kImport{"surface import s.exr", {{"--tile-size", "1"}, {"--out", "y.exr"}}};
 const CommandLine kStability{"stability", {{"--random-u", "0"}, {"--failures-only", ""}, {"--json", "sb.json"}}};
+const CommandLine kAlbedo{"albedo --model smith-walk", {{"--alphas", "0.5"}, {"--mus", "2"}, {"--rays", "1000"}, {"--out", "a.exr"}}};
+const CommandLine kAlbedoSurface{"albedo --model surface", {{"--alphas", "0.5"}, {"--mus", "2"}, {"--rays", "10"}, {"--out", "a.exr"}}};
+const CommandLine kAlbedoAnalytic{"albedo --model analytic", {{"--alphas", "0.5"}, {"--mus", "2"}, {"--out", "a.exr"}}};
 
 std::vector<BadInputCase> cases() {
   const auto surface = [](const fs::path& dir) { flat_surface(dir); };
@@ -206,6 +210,17 @@ std::vector<BadInputCase> cases() {
        "--random-u '1e7': too large: an integer in [0, 1000000 (1e6)]"},
       {"StabilityRandomUNegative", kStability.with("--random-u", "-1"), 2, "--random-u '-1': too small"},
       {"StabilityRandomUFraction", kStability.with("--random-u", "2.5"), 2, "--random-u '2.5': not an integer"},
+      // ---- albedo: the same rules ----
+      {"AlbedoRaysHuge", kAlbedo.with("--rays", "1e13"), 2, "--rays '1e13': too large: " + max_rays},
+      {"AlbedoSeed2To64", kAlbedo.with("--seed", "18446744073709551616"), 2, "'18446744073709551616': too large"},
+      {"AlbedoThreadsHuge", kAlbedo.with("--threads", "99999999999"), 2, "--threads '99999999999': too large"},
+      {"AlbedoMusHex", kAlbedo.with("--mus", "0x10"), 2, "--mus '0x10': not an integer"},
+      {"AlbedoMaxOrderHuge", kAlbedo.with("--max-order", "1e9"), 2, "--max-order '1e9': too large"},
+      {"AlbedoAlphasTrailingComma", kAlbedo.with("--alphas", "0.5,"), 2, "--alphas '0.5,': empty item after '0.5'"},
+      {"AlbedoAlphasHexFloat", kAlbedo.with("--alphas", "0x1p-1"), 2, "'0x1p-1': not a number"},
+      {"AlbedoResHex", kAlbedoSurface.with("--res", "0x400"), 2, "--res '0x400': not an integer"},
+      {"AlbedoToleranceNan", kAlbedoAnalytic.with("--tolerance", "nan"), 2, "--tolerance 'nan': not finite"},
+      {"AlbedoToleranceTooLarge", kAlbedoAnalytic.with("--tolerance", "0.1"), 2, "--tolerance '0.1': outside"},
   };
 }
 

@@ -210,6 +210,23 @@ TEST(CliInterrupt, ValidateAllMarksItsResultsPartial) {
   fs::remove_all(dir);
 }
 
+// An albedo table keeps its complete alphas: interrupted during the second one (its line on stderr says the
+// first is done), the files hold the first, marked partial.
+TEST(CliInterrupt, AlbedoTableKeepsTheCompleteAlphas) {
+  const fs::path dir = microsim::test::scratch_dir("interrupt", "albedo");
+  const auto r = run_and_interrupt(dir,
+                                   "albedo --model smith-walk --alphas 0.5,1 --mus 2 --rays 1500000 --out t.exr "
+                                   "--csv t.csv --json t.json",
+                                   stderr_has("albedo: alpha 0.5 done"), std::chrono::milliseconds(0));
+  expect_interrupted(r, "albedo");
+  const auto j = read_json(dir / "t.json");
+  EXPECT_EQ(j.value("partial", false), true);
+  EXPECT_EQ(j["alphas"].size(), 1u);
+  EXPECT_NE(slurp(dir / "t.csv").find("# PARTIAL"), std::string::npos);
+  EXPECT_NE(r.out.find("PARTIAL"), std::string::npos) << r.out;
+  fs::remove_all(dir);
+}
+
 // Commands with no partial result to keep: Ctrl-C stops them with nothing written, said on stderr.
 struct NothingWrittenCase {
   std::string name, args;
@@ -237,7 +254,10 @@ INSTANTIATE_TEST_SUITE_P(
         NothingWrittenCase{"ValidateSampler", "validate --sampler heitz2018 --alpha 0.5 --theta 30 --samples 4000000 "
                                               "--json v.json"},
         NothingWrittenCase{"SurfaceBuild", "surface build --assembly smith --alpha 0.5 --res 2048 --out s.exr --json s.json"},
-        NothingWrittenCase{"Stability", "stability --json st.json"}),
+        NothingWrittenCase{"Stability", "stability --json st.json"},
+        // Interrupted during its first alpha: no complete row.
+        NothingWrittenCase{"AlbedoFirstAlpha", "albedo --model smith-walk --alphas 1 --mus 2 --rays 100000000 "
+                                               "--out t.exr --csv t.csv --json t.json"}),
     [](const auto& info) { return info.param.name; });
 
 // Commands that keep what they measured: Ctrl-C mid-trace writes it, JSON (and histogram) marked partial.

@@ -1,0 +1,179 @@
+// microsim albedo: energy-compensation reference tables (Kulla & Conty 2017): the directional albedo
+// E(mu, alpha) and its hemispherical average E_avg(alpha) of a rough mirror or dielectric, from the analytic
+// single scattering, the Smith random walk or the explicit `smith` heightfield (scatter/albedo_table.h),
+// written as an EXR (rows alpha, columns mu), a CSV and JSON (scatter/albedo_table_io.h).
+//
+// Exit codes: 0 done, 2 bad usage or input (nothing written), 130 interrupted (the complete alphas written,
+// marked partial; none complete: nothing written).
+#include "albedo_report.h"
+#include "command.h"
+#include "number_options.h"
+#include "progress_bar.h"
+
+#include "microfacet/material.h"
+#include "microgeom/assembly.h"
+#include "scatter/albedo_table.h"
+#include "scatter/albedo_table_io.h"
+
+#include <fmt/core.h>
+
+#include <filesystem>
+#include <memory>
+#include <set>
+#include <string>
+
+namespace microsim::app {
+namespace {
+
+struct AlbedoArgs {
+  std::string model, material = "mirror", ndf = "ggx", alphas = "0.1,0.25,0.5,0.75,1";
+  bool inside = false;
+  int mus = 16;
+  std::uint64_t rays = 1'000'000;
+  int res = 512;
+  int max_order = kDefaultMaxOrder;
+  double tolerance = 1e-8;
+  std::uint64_t seed = 1;
+  int threads = 0;
+  std::string out, csv, json;
+  std::set<std::string> given;  // the options given on the command line
+};
+
+// Options that only some models use: given to another model, they are an error, not silently ignored.
+void check_model_options(const AlbedoArgs& a, AlbedoModel model) {
+  const auto refuse = [&](const char* option, const char* applies) {
+    if (a.given.count(option))
+      throw UsageError(fmt::format("{} applies to {} only (not --model {})", option, applies, to_string(model)));
+  };
+  if (model == AlbedoModel::analytic)
+    for (const char* o : {"--rays", "--seed", "--max-order"}) refuse(o, "the sampled models (smith-walk, surface)");
+  if (model != AlbedoModel::surface) refuse("--res", "--model surface");
+  if (model != AlbedoModel::analytic) refuse("--tolerance", "--model analytic");
+}
+
+Material albedo_material(const AlbedoArgs& a) {
+  Material m;
+  try {
+    m = parse_material("--material", a.material);
+  } catch (const std::invalid_argument& e) {  // ParseError, or a constructor's check
+    throw UsageError(e.what());
+  }
+  if (m.kind() != MaterialKind::mirror && m.kind() != MaterialKind::dielectric)
+    throw UsageError(fmt::format("--material {}: an albedo table is for mirror or dielectric:ETA", quote_excerpt(a.material)));
+  if (a.inside && !m.transmits())
+    throw UsageError(fmt::format("--inside: light from inside needs a dielectric (--material {} is opaque)", m.describe()));
+  return m;
+}
+
+std::vector<double> albedo_alphas(const AlbedoArgs& a) {
+  const std::vector<double> alphas = parse_double_list("--alphas", a.alphas, Interval{kMinAlbedoAlpha, kMaxAlbedoAlpha});
+  for (std::size_t i = 1; i < alphas.size(); ++i)
+    if (!(alphas[i] > alphas[i - 1]))
+      throw UsageError(fmt::format("--alphas {}: must increase ({} after {})", quote_excerpt(a.alphas), alphas[i],
+                                   alphas[i - 1]));
+  return alphas;
+}
+
+void check_albedo_outputs(const AlbedoArgs& a) {
+  check_distinct_outputs({}, {{"--out", a.out}, {"--csv", a.csv}, {"--json", a.json}});
+  if (std::filesystem::path(a.out).extension() != ".exr")
+    throw UsageError(fmt::format("--out {}: must be an .exr file", quote_excerpt(a.out)));
+  if (!a.csv.empty() && std::filesystem::path(a.csv).extension() != ".csv")
+    throw UsageError(fmt::format("--csv {}: must be a .csv file", quote_excerpt(a.csv)));
+  check_output("--out", a.out);
+  check_output("--csv", a.csv);
+  check_output("--json", a.json);
+}
+
+// The request from the options, checked before any work (UsageError naming the bad value).
+AlbedoTableRequest albedo_request(const AlbedoArgs& a) {
+  AlbedoTableRequest r;
+  try {
+    r.model = parse_albedo_model("--model", a.model);
+    r.ndf = parse_walk_ndf("--ndf", a.ndf);
+    r.alphas = albedo_alphas(a);
+  } catch (const ParseError& e) {
+    throw UsageError(e.what());
+  }
+  check_model_options(a, r.model);
+  r.material = albedo_material(a);
+  r.inside = a.inside;
+  r.mus = a.mus;
+  r.tolerance = a.tolerance;
+  r.paths = a.rays;
+  r.seed = a.seed;
+  r.max_order = a.max_order;
+  r.resolution = a.res;
+  try {
+    check_albedo_request(r);
+  } catch (const std::invalid_argument& e) {  // what is left: a surface resolution outside the supported range
+    throw UsageError(r.model == AlbedoModel::surface ? fmt::format("--res {}: {}", a.res, e.what()) : e.what());
+  }
+  check_albedo_outputs(a);
+  return r;
+}
+
+int run_albedo(const AlbedoArgs& a) {
+  AlbedoTableRequest request = albedo_request(a);
+  const auto progress = std::make_shared<CliProgress>(true);
+  request.run = cli_run_control(a.threads, progress);
+  install_interrupt_handler();
+  fmt::print(stderr, "albedo: {}, {} alphas x {} mus{}\n", describe_albedo_request(request), request.alphas.size(),
+             request.mus,
+             request.model == AlbedoModel::analytic ? "" : fmt::format(", {} paths per cell", request.paths));
+  const AlbedoTable table = albedo_table(request, print_albedo_row);
+  progress->finish();
+  return report_albedo_table(table, {a.out, a.csv, a.json});
+}
+
+void add_albedo_options(CLI::App* sub, AlbedoArgs& a) {
+  sub->add_option("--model", a.model, "analytic (single scattering, by quadrature), smith-walk or surface")->required();
+  sub->add_option("--material", a.material, "mirror or dielectric:ETA")->capture_default_str();
+  sub->add_flag("--inside", a.inside, "light from inside the dielectric (the table of 1/eta)");
+  sub->add_option("--ndf", a.ndf, "ggx or beckmann (surface: the smith or beckmann assembly)")->capture_default_str();
+  sub->add_option("--alphas", a.alphas,
+                  fmt::format("roughnesses (rows), increasing, each in [{}, {}]", kMinAlbedoAlpha, kMaxAlbedoAlpha))
+      ->capture_default_str();
+  add_number_option(sub, "--mus", a.mus, integer(kMinAlbedoMus, kMaxAlbedoMus),
+                    fmt::format("Gauss-Legendre nodes in mu = cos(theta) (columns), {}..{}", kMinAlbedoMus, kMaxAlbedoMus))
+      ->default_str(std::to_string(a.mus));
+  add_number_option(sub, "--rays", a.rays, whole(1, kMaxRays), at_most("sampled models: paths per cell", kMaxRays))
+      ->default_str(std::to_string(a.rays));
+  add_number_option(sub, "--res", a.res,
+                    power_of_two(microgeom::kMinAssemblyResolution, microgeom::kMaxAssemblyResolution),
+                    "surface: resolution N of each alpha's surface (a power of two; GGX needs >= 256)")
+      ->default_str(std::to_string(a.res));
+  add_number_option(sub, "--max-order", a.max_order, integer(1, kMaxOrderCap),
+                    "sampled models: order cap (the weight left is the `unfinished` quantity)")
+      ->default_str(std::to_string(a.max_order));
+  add_number_option(sub, "--tolerance", a.tolerance, real(Interval{1e-13, 1e-2}),
+                    "analytic: absolute error target of each cell's quadrature, in [1e-13, 1e-2]")
+      ->default_str("1e-08");
+  add_number_option(sub, "--seed", a.seed, whole(), "random seed (same seed, same table, whatever --threads)")
+      ->default_str(std::to_string(a.seed));
+  add_number_option(sub, "--threads", a.threads, integer(0, kMaxThreads), at_most("worker threads (0: all cores)", kMaxThreads))
+      ->default_str(std::to_string(a.threads));
+  sub->add_option("--out", a.out, "the table as an EXR (rows alpha, columns mu)")->required();
+  sub->add_option("--csv", a.csv, "also write the table as CSV");
+  sub->add_option("--json", a.json, "also write the table as JSON");
+}
+
+CommandRegistration reg{"albedo", [](CLI::App& app) {
+  auto args = std::make_shared<AlbedoArgs>();
+  auto* sub = app.add_subcommand(
+      "albedo",
+      "Energy-compensation tables (Kulla & Conty 2017): the directional albedo E(mu, alpha) and its hemispherical "
+      "average E_avg(alpha) = 2 int_0^1 E mu dmu of a rough mirror or dielectric (from outside, or --inside), with "
+      "errors: --model analytic (single scattering by quadrature), smith-walk (the Smith random walk, Heitz et al. "
+      "2016: all orders and order 1) or surface (the explicit smith heightfield, traced). mu on Gauss-Legendre "
+      "nodes. Writes an EXR, optionally CSV and JSON. Exit 0 done, 2 bad input (nothing written), 130 interrupted.");
+  add_albedo_options(sub, *args);
+  on_selected(sub, [args, sub] {
+    for (const CLI::Option* o : sub->get_options())
+      if (o->count() > 0) args->given.insert(o->get_name());
+    return run_albedo(*args);
+  });
+}};
+
+}  // namespace
+}  // namespace microsim::app
