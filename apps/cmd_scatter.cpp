@@ -74,7 +74,7 @@ Material scatter_material(const std::string& text) {
 
 // The options every model shares (the sampled models' ScatterOptions; the analytic model uses wi,
 // material and rows).
-ScatterOptions scatter_options(const ScatterArgs& a, const Material& material, const RunControl& run) {
+ScatterOptions scatter_options(const ScatterArgs& a, const Material& material) {
   ScatterOptions o;
   o.wi = scatter_view(a.theta, a.phi);
   o.material = material;
@@ -85,7 +85,6 @@ ScatterOptions scatter_options(const ScatterArgs& a, const Material& material, c
   o.seed = a.seed;
   o.max_order = a.max_order;
   o.rows = a.rows;
-  o.run = run;
   if (!a.shard.empty()) {
     const BlockPlan plan{o.paths, kPathsPerBlock};
     const ShardSpec s = parse_shard("--shard", a.shard, plan.blocks());  // ParseError: exit 2
@@ -99,16 +98,20 @@ ScatterOptions scatter_options(const ScatterArgs& a, const Material& material, c
   return o;
 }
 
-// What the file records of the run for people and for compare-scattering --analytic.
-std::map<std::string, std::string> scatter_notes(const ScatterArgs& a, const std::string& ndf, double ax, double ay,
+// What the file records of the run for people and for compare-scattering --analytic; an empty ndf or alpha
+// (a surface file that records none) is left out.
+std::map<std::string, std::string> scatter_notes(const ScatterArgs& a, const std::string& ndf, const std::string& alpha,
                                                  const Material& m) {
-  return {{"model", a.model.empty() ? "surface" : a.model},
-          {"ndf", ndf},
-          {"alpha", fmt::format("{},{}", ax, ay)},
-          {"theta", fmt::format("{}", a.theta)},
-          {"phi", fmt::format("{}", a.phi)},
-          {"material", m.describe()}};
+  std::map<std::string, std::string> notes{{"model", a.model.empty() ? "surface" : a.model},
+                                           {"theta", fmt::format("{}", a.theta)},
+                                           {"phi", fmt::format("{}", a.phi)},
+                                           {"material", m.describe()}};
+  if (!ndf.empty()) notes["ndf"] = ndf;
+  if (!alpha.empty()) notes["alpha"] = alpha;
+  return notes;
 }
+
+std::string alpha_note(double ax, double ay) { return fmt::format("{},{}", ax, ay); }
 
 // Options that the sampled models do not take from the command line because they are not theirs.
 void refuse_options(const ScatterArgs& a, std::initializer_list<const char*> options, const std::string& why) {
@@ -130,7 +133,7 @@ int run_analytic(const ScatterArgs& a) {
   if (!a.given.count("--alpha")) throw UsageError("--alpha is required for --model analytic");
   const auto [ax, ay] = parse_alpha("--alpha", a.alpha);
   const Material material = scatter_material(a.material);
-  const ScatterOptions o = scatter_options(a, material, {});
+  const ScatterOptions o = scatter_options(a, material);
   check_scatter_outputs(a);
   install_interrupt_handler();
   const RunControl run = cli_run_control(a.threads, nullptr);
@@ -143,7 +146,7 @@ int run_analytic(const ScatterArgs& a) {
   } catch (const Cancelled&) {
     return interrupted_nothing_written("scatter", "during the cubature");
   }
-  return report_scatter(e, scatter_notes(a, a.ndf, ax, ay, material), {a.out, a.json});
+  return report_scatter(e, scatter_notes(a, a.ndf, alpha_note(ax, ay), material), {a.out, a.json});
 }
 
 int run_walk(const ScatterArgs& a) {
@@ -155,7 +158,7 @@ int run_walk(const ScatterArgs& a) {
   surface.alpha_y = ay;
   surface.ndf = a.ndf == "beckmann" ? WalkNdf::beckmann : WalkNdf::ggx;
   const Material material = scatter_material(a.material);
-  ScatterOptions o = scatter_options(a, material, {});
+  ScatterOptions o = scatter_options(a, material);
   try {
     surface.heights = parse_height_distribution("--heights", a.heights);
     check_smith_microsurface(surface);
@@ -170,7 +173,7 @@ int run_walk(const ScatterArgs& a) {
              material.describe(), a.theta, a.phi, a.rays, a.max_order, a.shard.empty() ? "" : ", shard " + a.shard);
   const ScatterHistogram h = smith_walk_scatter(surface, o);
   progress->finish();
-  return report_scatter(h, scatter_notes(a, a.ndf, ax, ay, material), {a.out, a.json});
+  return report_scatter(h, scatter_notes(a, a.ndf, alpha_note(ax, ay), material), {a.out, a.json});
 }
 
 // The NDF and roughness a surface file records (assembly metadata), for the notes; "" when it records none.
@@ -187,7 +190,7 @@ int run_surface(const ScatterArgs& a) {
   refuse_options(a, {"--alpha", "--ndf", "--heights"},
                  "applies to --model only: a traced surface has its own facets (its file records its assembly)");
   const Material material = scatter_material(a.material);
-  ScatterOptions o = scatter_options(a, material, {});
+  ScatterOptions o = scatter_options(a, material);
   check_scatter_outputs(a);
   const microgeom::Heightfield field = load_surface(a.surface, a.tile_size);
   install_interrupt_handler();
@@ -202,12 +205,9 @@ int run_surface(const ScatterArgs& a) {
   progress->finish();
   fmt::print(stderr, "scatter: {} bounces traced, {} convex-edge grazes passed, {} paths lost\n", d.facet_events,
              d.edge_grazes, d.lost());
-  auto [ndf, alpha] = surface_ndf_and_alpha(field);
-  std::map<std::string, std::string> notes = scatter_notes(a, ndf, 0, 0, material);
+  const auto [ndf, alpha] = surface_ndf_and_alpha(field);
+  std::map<std::string, std::string> notes = scatter_notes(a, ndf, alpha, material);
   notes["surface"] = a.surface;
-  if (alpha.empty()) notes.erase("alpha");
-  else notes["alpha"] = alpha;
-  if (ndf.empty()) notes.erase("ndf");
   for (const char* key : {"assembly", "seed"})
     if (field.metadata.count(key)) notes[std::string("surface_") + key] = field.metadata.at(key);
   return report_scatter(h, notes, {a.out, a.json});

@@ -13,23 +13,33 @@ namespace microsim::app {
 
 namespace {
 
-// What the geometric hemispheres hold: light from above (note theta < 90) is reflected into the upper one and
-// transmitted into the lower one, light from inside a dielectric (theta > 90) the reverse.
-struct HemisphereLabels {
-  std::string upper = "upper", lower = "lower";
-};
-HemisphereLabels hemisphere_labels(const std::map<std::string, std::string>& notes) {
+// What the geometric upper hemisphere holds: light from above (note theta < 90) is reflected into it (and
+// transmitted into the lower one), light from inside a dielectric (theta > 90) is transmitted into it.
+enum class UpperHemisphere { unknown, reflected, transmitted };
+
+UpperHemisphere upper_hemisphere(const std::map<std::string, std::string>& notes) {
   const auto it = notes.find("theta");
-  if (it == notes.end()) return {};
-  const bool from_inside = std::strtod(it->second.c_str(), nullptr) > 90;
-  return from_inside ? HemisphereLabels{"upper (T)", "lower (R)"} : HemisphereLabels{"upper (R)", "lower (T)"};
+  if (it == notes.end()) return UpperHemisphere::unknown;
+  return std::strtod(it->second.c_str(), nullptr) > 90 ? UpperHemisphere::transmitted : UpperHemisphere::reflected;
 }
 
-nlohmann::json hemispheres_json(const HemisphereLabels& l) {
-  auto meaning = [](const std::string& label) {
-    return label.find("(R)") != std::string::npos ? "reflected" : label.find("(T)") != std::string::npos ? "transmitted" : "";
-  };
-  return {{"upper", meaning(l.upper)}, {"lower", meaning(l.lower)}};
+struct HemisphereLabels {
+  std::string upper, lower;
+};
+HemisphereLabels hemisphere_labels(UpperHemisphere u) {
+  switch (u) {
+    case UpperHemisphere::reflected: return {"upper (R)", "lower (T)"};
+    case UpperHemisphere::transmitted: return {"upper (T)", "lower (R)"};
+    default: return {"upper", "lower"};
+  }
+}
+
+nlohmann::json hemispheres_json(UpperHemisphere u) {
+  switch (u) {
+    case UpperHemisphere::reflected: return {{"upper", "reflected"}, {"lower", "transmitted"}};
+    case UpperHemisphere::transmitted: return {{"upper", "transmitted"}, {"lower", "reflected"}};
+    default: return {{"upper", ""}, {"lower", ""}};
+  }
 }
 
 std::string estimate_text(const Estimate& e) { return fmt::format("{:.6f} +- {:.6f}", e.value, e.standard_error); }
@@ -50,14 +60,14 @@ void print_histogram_table(const ScatterHistogram& h, const HemisphereLabels& l)
 
 int report_scatter(const ScatterHistogram& h, const std::map<std::string, std::string>& notes, const ScatterOutputs& o) {
   write_scatter_exr(o.out, h, notes);
-  const HemisphereLabels labels = hemisphere_labels(notes);
+  const UpperHemisphere upper = upper_hemisphere(notes);
   nlohmann::json j = scatter_summary_json(h);
-  j["hemispheres"] = hemispheres_json(labels);
+  j["hemispheres"] = hemispheres_json(upper);
   j["notes"] = notes;
   if (!o.json.empty()) write_file_atomically(o.json, j.dump(2) + "\n");
   fmt::print("{}: {} paths, blocks {} of {}{}\n", h.provenance.producer, h.paths(), h.provenance.blocks.to_string(),
              h.provenance.total_blocks, h.partial ? " (partial)" : "");
-  print_histogram_table(h, labels);
+  print_histogram_table(h, hemisphere_labels(upper));
   if (h.partial)
     fmt::print(stderr, "{}: interrupted: the {} paths of blocks {} are written to {}, marked partial\n",
                h.provenance.producer, h.paths(), h.provenance.blocks.to_string(), o.out);
@@ -66,9 +76,10 @@ int report_scatter(const ScatterHistogram& h, const std::map<std::string, std::s
 
 int report_scatter(const ScatterExpectation& e, const std::map<std::string, std::string>& notes, const ScatterOutputs& o) {
   write_scatter_exr(o.out, e, notes);
-  const HemisphereLabels labels = hemisphere_labels(notes);
+  const UpperHemisphere upper = upper_hemisphere(notes);
+  const HemisphereLabels labels = hemisphere_labels(upper);
   nlohmann::json j = scatter_summary_json(e);
-  j["hemispheres"] = hemispheres_json(labels);
+  j["hemispheres"] = hemispheres_json(upper);
   j["notes"] = notes;
   if (!o.json.empty()) write_file_atomically(o.json, j.dump(2) + "\n");
   fmt::print("{}: single scattering, {}\n", e.producer, e.measurement);

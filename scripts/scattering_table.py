@@ -108,12 +108,11 @@ def albedo(summary, order, channel=0):
 
 
 def tv_of(compare, order, channel=0):
-    names = {"order1": "1", "order2": "2", "total": "total"}
     channel_name = None
     for lobe in compare["comparisons"][0]["lobes"]:
         if channel_name is None:
             channel_name = lobe["channel"]
-        if lobe["channel"] == channel_name and lobe["order"] in (order, names.get(order)):
+        if lobe["channel"] == channel_name and lobe["order"] == order:
             return lobe["tv"], lobe["tv_noise_floor"], lobe["chi2"]["p_value"]
     return None, None, None
 
