@@ -36,6 +36,9 @@ struct Args {
   std::string sampler;
   std::string from;
   bool reflected = false;
+  std::string pdf;                          // with --from: the density it claims (FilePdf), "" = by --reflected
+  bool above_horizon = false;               // with --reflected: the dump holds the reflections above it only
+  std::optional<long long> dropped;         // with --above-horizon: how many the renderer dropped below it
   bool all = false;
   std::string alpha;
   std::optional<double> theta;
@@ -66,6 +69,7 @@ microsim::ValidationOptions base_options(const Args& a) {
   o.rows = a.rows;
   o.significance = a.significance;
   o.precision = a.use_float ? microsim::Precision::float32 : microsim::Precision::float64;
+  if (a.dropped) o.dropped_below_horizon = std::uint64_t(*a.dropped);
   return o;
 }
 
@@ -82,6 +86,16 @@ template <class F> auto usage_errors_of(F&& validation, const std::string& file 
   }
 }
 
+// The density a --from file claims: --pdf NAME, or --reflected for the reflection pdf, else the VNDF.
+microsim::FilePdf file_pdf(const Args& a) {
+  if (a.pdf.empty()) return a.reflected ? microsim::FilePdf::reflection : microsim::FilePdf::vndf;
+  try {
+    return microsim::parse_file_pdf(a.pdf);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(fmt::format("--pdf: {}", e.what()));
+  }
+}
+
 // A --from file, opened for streaming (bounded memory whatever its size).
 microsim::DirectionSampleReader open_samples_or_usage_error(const std::string& path) {
   return usage_errors_of([&] { return microsim::DirectionSampleReader(path); });
@@ -94,6 +108,7 @@ int run_against(const Args& a, const microsim::GGX<double>& ggx, const microsim:
   using namespace microsim;
   // Too few samples for any test: refused before the oracle is traced.
   if (a.from.empty()) usage_errors_of([&] { require_samples_for_any_test(std::uint64_t(a.samples.value_or(1'000'000))); });
+  const auto start = std::chrono::steady_clock::now();  // the reported time includes the oracle's tracing
   TracedHistogram traced;
   std::string oracle;
   if (a.against == "ellipsoid") {
@@ -129,6 +144,7 @@ int run_against(const Args& a, const microsim::GGX<double>& ggx, const microsim:
     throw UsageError(fmt::format("--against: {}", e.what()));
   }
   if (interrupted()) return microsim::app::interrupted_nothing_written("validate", "while comparing with the oracle", "no verdict");
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return microsim::app::report_validation(report, microsim::app::oracle_source(source, oracle), {a.json, a.plot},
                                           {{"against", a.against}, {"oracle_rays", traced.rays}, {"oracle_hits", traced.hits}});
 }
@@ -220,8 +236,15 @@ int run_single(const Args& a) {
   std::string source;
   if (!a.from.empty()) {
     DirectionSampleReader samples = open_samples_or_usage_error(a.from);
-    const SampleDomain domain = a.reflected ? SampleDomain::reflected_direction : SampleDomain::microfacet_normal;
-    report = usage_errors_of([&] { return validate_sample_file(samples, domain, ggx, wi, o); }, a.from);
+    const ClaimedDensity density = claimed_density(file_pdf(a), ggx, wi);
+    std::shared_ptr<const ReferenceDistribution> reference;
+    try {
+      reference = a.above_horizon ? above_horizon_reference(density, ggx, wi, o.rows)
+                                  : density_reference(density, ggx, wi, o.rows);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(fmt::format("--above-horizon: {}", e.what()));
+    }
+    report = usage_errors_of([&] { return validate_sample_file(samples, density.domain, ggx, wi, o, reference); }, a.from);
     report.sampler = a.from;
     source = fmt::format("samples from '{}'", a.from);
   } else {
@@ -272,6 +295,17 @@ int run(const Args& a) {
   const int modes = int(!a.sampler.empty()) + int(!a.from.empty()) + int(a.all);
   if (modes != 1) throw UsageError("give exactly one of --sampler NAME, --from FILE, --all");
   if (a.reflected && a.from.empty()) throw UsageError("--reflected applies to --from FILE only");
+  if (!a.pdf.empty()) {
+    if (a.from.empty()) throw UsageError("--pdf applies to --from FILE only (a sampler of the zoo claims its own pdf)");
+    if (!a.against.empty()) throw UsageError("--pdf: --against compares with the traced VNDF oracle, not with a pdf");
+    if (a.reflected && file_pdf(a) != microsim::FilePdf::reflection)
+      throw UsageError(fmt::format("--reflected means --pdf reflection; it conflicts with --pdf {}", a.pdf));
+    file_pdf(a);  // an unknown name is exit 2 here, before any work
+  }
+  if (a.above_horizon && (a.from.empty() || !microsim::claims_reflected_directions(file_pdf(a))))
+    throw UsageError("--above-horizon applies to reflected directions: give --from FILE --reflected (or --pdf bounded)");
+  if (a.above_horizon && !a.against.empty()) throw UsageError("--above-horizon tests against the analytic pdf, not --against");
+  if (a.dropped && !a.above_horizon) throw UsageError("--dropped applies with --above-horizon only");
   if (a.use_float && !a.from.empty()) throw UsageError("--float applies to --sampler and --all, not to --from");
   if (a.samples && !a.from.empty()) throw UsageError("--samples does not apply to --from (the file gives the samples)");
   if (a.theta && !(*a.theta >= 0 && *a.theta < 90))
@@ -308,6 +342,16 @@ microsim::app::CommandRegistration reg{"validate", [](CLI::App& app) {
                   "validate samples from FILE instead: .npy (float32/float64, shape (N,3)) or text, one x y z per line");
   sub->add_flag("--reflected", args->reflected,
                 "with --from: rows are reflected directions (tested against the VNDF reflection pdf), not normals");
+  sub->add_option("--pdf", args->pdf,
+                  "with --from: the density the samples claim: vndf (normals, default), ndf (normals, D(m) m.z), "
+                  "bounded (reflections of the bounded VNDF, Eto & Tokuyoshi 2023), reflection (reflections of VNDF "
+                  "sampling, = --reflected)");
+  sub->add_flag("--above-horizon", args->above_horizon,
+                "with --from --reflected: the file holds only the reflections above the horizon (as renderers emit "
+                "them, dropping wo.z <= 0); test against the reflection pdf conditioned on wo.z > 0");
+  add_number_option(sub, "--dropped", args->dropped, microsim::app::whole(0, microsim::kMaxSamples),
+                    "with --above-horizon: how many reflections the renderer dropped below the horizon (tested "
+                    "against the fraction the pdf puts there)");
   sub->add_flag("--all", args->all, "validate the whole zoo over the standard grid (Sidak-corrected over the batch)");
   sub->add_option("--alpha", args->alpha,
                   "roughness AX or AX,AY, each in [1e-4, 10], anisotropy at most 1:1000 (docs/conventions.md)");

@@ -8,6 +8,7 @@
 #include "stats/histogram_io.h"
 
 #include <fmt/core.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <cmath>
@@ -42,12 +43,15 @@ void print_worst(const std::string& title, const ChiSquareResult& c, int n) {
   }
 }
 
+// How the samples were held: a file's storage (a float32 dump is not "double"), else the sampler's precision.
+std::string stored_as(const ValidationReport& r) { return r.storage.empty() ? to_string(r.precision) : r.storage; }
+
 // --plot: observed, expected and residual maps of both binnings (figure.h), written atomically.
 void write_plot(const std::string& path, const ValidationReport& r, const std::string& source) {
   const double theta = std::acos(std::clamp(r.wi.z(), -1.0, 1.0)) * 180 / kPi<double>;
   const double phi = std::atan2(r.wi.y(), r.wi.x()) * 180 / kPi<double>;
   const std::string title = fmt::format("alpha {}, theta {:g} deg, phi {:g} deg, {} samples ({})",
-                                        fmt_alpha(r.alpha_x, r.alpha_y), theta, phi, r.samples, to_string(r.precision));
+                                        fmt_alpha(r.alpha_x, r.alpha_y), theta, phi, r.samples, stored_as(r));
   std::string per_binning;
   for (const BinnedTest& b : r.binned)
     per_binning += fmt::format("{}{} bins p = {:.3g}", per_binning.empty() ? "" : ", ", b.binning, b.chi2.p_value);
@@ -83,8 +87,14 @@ void print_tests(const ValidationReport& r) {
   print_check("returned pdf (max rel. error)", pdf, fmt::format("{:.2e}", pdf.value), fmt::format("<= {:.0e}", pdf.tolerance));
   print_check("claimed pdf integral", integral, fmt::format("{:.9f}", integral.value),
               fmt::format("<= 1+{:.0e}", integral.tolerance));
+  for (const SubTest& c : r.checks)
+    if (c.name == "dropped_fraction")
+      print_check("dropped below the horizon", c, fmt::format("{:.4f}%", 100 * c.value), fmt_p(c.p_value));
   fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", "samples outside the domain", r.outside_domain, "", "0",
              pass_fail(r.check("domain").passed));
+  if (r.invalid_rows > 0)
+    fmt::print("  ({} row(s) hold non-finite values or the zero vector: the sampler's failures; first at {})\n",
+               r.invalid_rows, fmt::join(r.first_invalid_rows, ", "));
   if (pdf.applicable && pdf.passed && pdf.value > pdf.tolerance)
     fmt::print("  (returned pdf: errors above {:.0e} only where rounding the direction to {} changes the claimed pdf "
                "as much)\n",
@@ -103,8 +113,10 @@ void print_worst_cells(const ValidationReport& r) {
 void print_report(const ValidationReport& r, const std::string& source) {
   const double theta = std::acos(std::clamp(r.wi.z(), -1.0, 1.0)) * 180 / kPi<double>;
   const double phi = std::atan2(r.wi.y(), r.wi.x()) * 180 / kPi<double>;
-  fmt::print("microsim validate: {} ({}), alpha {}, theta {:g} deg, phi {:g} deg, {} samples ({}), seed {}\n", source,
-             to_string(r.domain), fmt_alpha(r.alpha_x, r.alpha_y), theta, phi, r.samples, to_string(r.precision), r.seed);
+  const std::string stored = stored_as(r);
+  const std::string seed = r.seeded ? fmt::format(", seed {}", r.seed) : "";
+  fmt::print("microsim validate: {} ({}), alpha {}, theta {:g} deg, phi {:g} deg, {} samples ({}){}\n", source,
+             to_string(r.domain), fmt_alpha(r.alpha_x, r.alpha_y), theta, phi, r.samples, stored, seed);
   fmt::print("verdict: {}   p-value {} (Sidak-adjusted over {} statistical tests, level {})   statistic {:.2f}   dof {}\n\n",
              r.passed ? "PASS" : "FAIL", fmt_p(r.p_value), r.statistical_tests, r.significance, r.statistic, r.dof);
   print_tests(r);

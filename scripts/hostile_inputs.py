@@ -7,6 +7,7 @@ with each other) and on a few valid edge values, and tallies the outcomes:
 
   clear error   exit 2, a short message on stderr that names the flag, the file or the value, nothing
                 created or changed in the working directory
+  rejected      (a sample file whose rows hold a sampler's NaNs) exit 1, the rows named on stdout
   unclear       exit 2 but a message that names nothing, or is longer than 1000 bytes
   accepted      a bad input that ran as if it were good (exit 0 or 1)
   crash         killed by a signal, exit 3 (internal error) or a sanitizer report
@@ -154,7 +155,14 @@ def make_fixtures(binary, fixtures):
     w("text_binary.txt", bytes(range(256)) * 64)
     w("text_huge_token.txt", b"0 0 " + b"1" * (10 * 1024 * 1024) + b"\n")
     w("text_huge_garbage.txt", b"0 0 " + b"x\x01" * (5 * 1024 * 1024) + b"\n")
-    w("text_nan.txt", b"nan 0 1\n" * 10)
+    # A sampler's failures (NaN rows, the zero vector) among good rows: a rejection (exit 1), not bad input.
+    garbage = good.copy()
+    garbage[3] = np.nan
+    garbage[77] = 0.0
+    w("nan_rows.npy", npy_bytes(garbage.astype("<f4")))
+    lines = ["%r %r %r" % tuple(r) for r in good]
+    lines[5], lines[9] = "-nan 0 1", "0 inf 0"
+    w("nan_rows.txt", "\n".join(lines).encode())
     w("text_not_unit.txt", b"0 0 2\n" * 10)
     w("text_trailing_comma.txt", b"0, 0, 1,\n" * 10)
     w("text_hex.txt", b"0x0 0x0 0x1\n" * 10)
@@ -243,6 +251,11 @@ FLAGS = [  # (command with a default for the flag, flag, kind)
     (SURF, "--max-order", "order_cap"),
     (ANALYTIC, "--alpha", "alpha"), (ANALYTIC, "--theta", "theta"), (ANALYTIC, "--rows", "hemisphere_rows"),
 ]
+# Well-formed files whose rows hold a sampler's failures: rejected (exit 1), the first rows named on stdout.
+SAMPLER_FAILURES = [
+    ("validate --from nan_rows.npy --alpha 0.3 --theta 30", "row 3 (0-based), row 77 (0-based)"),
+    ("validate --from nan_rows.txt --alpha 0.3 --theta 30", "line 6, line 10"),
+]
 # Valid edge values: they must run (exit 0 or 1), quickly.
 VALID = [
     VAL.replace("--theta 30", "--theta 0"), VAL.replace("--theta 30", "--theta 89.999"),
@@ -259,7 +272,7 @@ for f in ["npy_no_newline", "npy_bad_magic", "npy_v9", "npy_truncated", "npy_ext
           "npy_binary_header", "npy_long_key", "npy_zero_len", "npy_4bytes", "empty", "npy_not_unit"]:
     FILES.append(("validate --from %s.npy --alpha 0.3 --theta 30" % f, f))
 for f in ["text_empty", "text_one_line", "text_two_cols", "text_four_cols", "text_words", "text_binary",
-          "text_huge_token", "text_huge_garbage", "text_nan", "text_not_unit", "text_trailing_comma", "text_hex",
+          "text_huge_token", "text_huge_garbage", "text_not_unit", "text_trailing_comma", "text_hex",
           "text_overflow", "text_nul"]:
     FILES.append(("validate --from %s.txt --alpha 0.3 --theta 30" % f, f))
 FILES += [("validate --from missing.npy --alpha 0.3 --theta 30", "missing"),
@@ -371,10 +384,16 @@ USAGE = [
 ]
 
 
-def all_cases():
-    cases = []
+def all_cases(common_once=False):
+    """Every case; with common_once, the values bad for any number (COMMON_BAD) are tried on the first flag
+    of each command only (the sanitizer gate: they all reach the one number parser, which fuzz_numbers
+    fuzzes, and the kind-specific values still reach every command's own checks)."""
+    cases, commands_seen = [], set()
     for cmd, flag, kind in FLAGS:
-        for value in KIND_BAD[kind] + COMMON_BAD:
+        command = " ".join(cmd.split()[:2])
+        common = COMMON_BAD if not common_once or command not in commands_seen else []
+        commands_seen.add(command)
+        for value in KIND_BAD[kind] + common:
             parts = cmd.split()
             if flag in parts:
                 i = parts.index(flag)
@@ -388,6 +407,8 @@ def all_cases():
     for cmd, word in FILES + PATHS + USAGE:
         cases.append({"name": cmd if len(cmd) < 100 else cmd[:97] + "...", "args": cmd.split(), "expect": "reject",
                       "names": [word]})
+    for cmd, word in SAMPLER_FAILURES:
+        cases.append({"name": "sampler failures: " + cmd, "args": cmd.split(), "expect": "fail", "names": [word]})
     for cmd in VALID:
         cases.append({"name": "valid: " + cmd, "args": cmd.split(), "expect": "run", "names": []})
     return cases
@@ -444,6 +465,11 @@ def classify(case, proc, timed_out, before, after, elapsed):
         return "crash", err
     if case["expect"] == "run":
         return ("ran" if code in (0, 1) else "refused valid input"), err
+    if case["expect"] == "fail":
+        out = proc.stdout.decode("utf-8", "replace")
+        if code == 1 and all(n in out for n in case["names"]) and not created:
+            return "rejected", err
+        return ("accepted" if code == 0 else "unclear" if code == 1 else "unexpected exit %d" % code), err
     if code in (0, 1):
         return "accepted", err
     if created:
@@ -462,8 +488,10 @@ def main():
     ap.add_argument("--timeout", type=float, default=60.0)
     ap.add_argument("--only", default=None, help="run only the cases whose name contains this")
     ap.add_argument("--list", action="store_true", help="list the cases and exit")
+    ap.add_argument("--common-values-once", action="store_true",
+                    help="try the values bad for any number on one flag per command only (the sanitizer gate)")
     a = ap.parse_args()
-    cases = all_cases()
+    cases = all_cases(a.common_values_once)
     if a.only:
         cases = [c for c in cases if a.only in c["name"]]
     if a.list:
@@ -498,24 +526,25 @@ def main():
         results.append({"case": c["name"], "args": c["args"][:40] if len(" ".join(c["args"])) < 2000 else "(long)",
                         "expect": c["expect"], "outcome": outcome, "exit": None if proc is None else proc.returncode,
                         "seconds": round(elapsed, 3), "stderr_bytes": len(err), "message": last[:300]})
-        good = outcome in ("clear error", "ran")
+        good = outcome in ("clear error", "rejected", "ran")
         if not good:
             print("%-14s %s\n               %s" % (outcome, c["name"], last[:200]), file=sys.stderr)
         if (i + 1) % 50 == 0:
             print("hostile inputs: %d/%d (%.0f s)" % (i + 1, len(cases), time.time() - t0), file=sys.stderr)
     shutil.rmtree(tmp, ignore_errors=True)
     bad = [c for c in cases if c["expect"] == "reject"]
-    print("hostile-input battery: %d cases (%d bad inputs, %d valid edge values), %.0f s" % (
-        len(cases), len(bad), len(cases) - len(bad), time.time() - t0))
+    failing = [c for c in cases if c["expect"] == "fail"]
+    print("hostile-input battery: %d cases (%d bad inputs, %d sampler failures, %d valid edge values), %.0f s" % (
+        len(cases), len(bad), len(failing), len(cases) - len(bad) - len(failing), time.time() - t0))
     print("| outcome | cases |\n|---|---|")
-    for k in ["clear error", "ran", "unclear", "accepted", "crash", "hang", "file lost", "half-written",
+    for k in ["clear error", "rejected", "ran", "unclear", "accepted", "crash", "hang", "file lost", "half-written",
               "refused valid input"] + sorted(k for k in tally if k.startswith("unexpected")):
         print("| %s | %d |" % (k, tally.get(k, 0)))
     if a.json:
         with open(a.json + ".partial", "w") as fh:
             json.dump({"tally": tally, "cases": results}, fh, indent=1)
         os.replace(a.json + ".partial", a.json)
-    ok = tally.get("clear error", 0) + tally.get("ran", 0) == len(cases)
+    ok = tally.get("clear error", 0) + tally.get("rejected", 0) + tally.get("ran", 0) == len(cases)
     return 0 if ok else 1
 
 

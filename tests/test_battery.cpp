@@ -15,7 +15,10 @@ using namespace microsim;
 namespace {
 
 battery::SampleSource no_samples() {
-  return {"none", Precision::float64, false, [](const SampleBlockVisitor&, const ChunkDone&) {}};
+  battery::SampleSource s;
+  s.name = "none";
+  s.stream = [](const SampleBlockVisitor&, const ChunkDone&) {};
+  return s;
 }
 
 }  // namespace

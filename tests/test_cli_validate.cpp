@@ -13,6 +13,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <string>
 
@@ -129,6 +130,65 @@ TEST(CliValidate, FromFile) {
   EXPECT_NE(n.err.find("3"), std::string::npos) << n.err;
   const CliRun missing = run("--from '" + (dir / "missing.txt").string() + "' --alpha 0.3 --theta 40");
   EXPECT_EQ(missing.exit_code, 2);
+}
+
+// A renderer's float32 dump: the report says so and names no seed (nothing was drawn); rows with NaN or the
+// zero vector are the sampler's failures: exit 1 (rejected), not 2 (bad input), naming the first rows.
+TEST(CliValidate, FromDumpReportsItsStorageAndRejectsNanRowsNamingThem) {
+  const fs::path dir = scratch_dir();
+  const fs::path good = dir / "good.npy", garbage = dir / "garbage.npy", json = dir / "v.json";
+  std::vector<Vec3<double>> samples = samples_of("heitz2018", 0.3, 40, 100000);
+  write_npy(good, samples, /*as_float32=*/true);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (std::size_t row : {7, 4000, 4001}) samples[row] = Vec3<double>(nan, nan, nan);
+  samples[90000] = Vec3<double>::Zero();
+  write_npy(garbage, samples, /*as_float32=*/true);
+
+  const CliRun ok = run("--from '" + good.string() + "' --alpha 0.3 --theta 40 --json '" + json.string() + "'");
+  EXPECT_EQ(ok.exit_code, 0) << ok.out << ok.err;
+  EXPECT_NE(ok.out.find("samples (float32 .npy)"), std::string::npos) << ok.out;
+  EXPECT_EQ(ok.out.find("seed"), std::string::npos) << ok.out;
+  const nlohmann::json j = nlohmann::json::parse(slurp(json));
+  EXPECT_TRUE(j["seed"].is_null());
+  EXPECT_EQ(j["storage"], "float32 .npy");
+  EXPECT_EQ(j["invalid_rows"]["count"], 0);
+
+  const CliRun bad = run("--from '" + garbage.string() + "' --alpha 0.3 --theta 40 --json '" + json.string() + "'");
+  EXPECT_EQ(bad.exit_code, 1) << bad.out << bad.err;
+  for (const char* row : {"4 row(s)", "row 7 (0-based)", "row 4000 (0-based)", "row 4001 (0-based)", "row 90000 (0-based)"})
+    EXPECT_NE(bad.out.find(row), std::string::npos) << row << "\n" << bad.out;
+  const nlohmann::json jb = nlohmann::json::parse(slurp(json));
+  EXPECT_EQ(jb["verdict"], "fail");
+  EXPECT_EQ(jb["invalid_rows"]["count"], 4);
+  EXPECT_EQ(jb["outside_domain"], 4);
+}
+
+// A renderer's reflected dump without the reflections below the horizon: the plain test rejects it and
+// says why; --above-horizon passes it, --dropped N tests the count; misuse is exit 2.
+TEST(CliValidate, AboveHorizonTestsARendererStyleReflectedDump) {
+  const fs::path dir = scratch_dir();
+  const fs::path dump = dir / "upper.npy";
+  std::vector<Vec3<double>> upper;
+  for (const Vec3<double>& wo : samples_of("heitz2018", 0.3, 60, 300000, true))
+    if (wo.z() > 0) upper.push_back(wo.normalized());
+  const std::size_t dropped = 300000 - upper.size();
+  write_npy(dump, upper, /*as_float32=*/true);
+  const std::string base = "--from '" + dump.string() + "' --reflected --alpha 0.3 --theta 60";
+  const CliRun full = run(base);
+  EXPECT_EQ(full.exit_code, 1) << full.out << full.err;
+  EXPECT_NE(full.out.find("no sample below the horizon"), std::string::npos) << full.out;
+  const CliRun conditioned = run(base + " --above-horizon");
+  EXPECT_EQ(conditioned.exit_code, 0) << conditioned.out << conditioned.err;
+  const CliRun counted = run(base + " --above-horizon --dropped " + std::to_string(dropped));
+  EXPECT_EQ(counted.exit_code, 0) << counted.out << counted.err;
+  const CliRun miscounted = run(base + " --above-horizon --dropped " + std::to_string(dropped / 2));
+  EXPECT_EQ(miscounted.exit_code, 1) << miscounted.out << miscounted.err;
+  EXPECT_NE(miscounted.out.find("dropped fraction"), std::string::npos) << miscounted.out;
+  for (const std::string& bad : {"--from '" + dump.string() + "' --alpha 0.3 --theta 60 --above-horizon",
+                                 base + " --dropped 10", base + " --above-horizon --against ellipsoid"}) {
+    const CliRun r = run(bad);
+    EXPECT_EQ(r.exit_code, 2) << bad << "\n" << r.err;
+  }
 }
 
 TEST(CliValidate, PlotWritesAFigureAndRejectsBadPaths) {

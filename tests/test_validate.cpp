@@ -284,3 +284,102 @@ TEST(Validate, JsonCarriesTheVerdictAndSubTests) {
   for (const char* key : {"chi2_sphere", "chi2_lobe", "weight_mean", "returned_pdf", "pdf_integral", "domain"})
     EXPECT_TRUE(j["tests"].contains(key)) << key;
 }
+
+// ---- reflected directions as renderers emit them (issue 11, point 1) -------------------------------------
+
+namespace {
+
+// A renderer's dump of reflected directions: normals from `sampler`, reflected about them, those below
+// the horizon dropped (counted in `dropped`).
+template <class F>
+std::vector<Vec3<double>> renderer_reflections(F&& sampler, const Vec3<double>& wi, std::uint64_t n, std::uint64_t seed,
+                                               std::uint64_t& dropped) {
+  std::vector<Vec3<double>> out;
+  dropped = 0;
+  for (const Vec3<double>& m : draw(sampler, n, seed)) {
+    const Vec3<double> wo = reflect(wi, m);
+    if (wo.z() > 0) out.push_back(wo.normalized());
+    else ++dropped;
+  }
+  return out;
+}
+
+}  // namespace
+
+// At alpha 0.3, 60 deg about 1.7% of the reflections fall below the horizon: a correct renderer-style dump
+// fails the full-sphere test (with a note saying why) and passes the test conditioned on wo.z > 0; the
+// dropped count is tested against its expected fraction; a wrong sampler still fails (level 0.01).
+TEST(ValidateAboveHorizon, ARendererStyleDumpPassesConditionedAndFailsUnconditioned) {
+  const GGX<double> ggx(0.3);
+  const Vec3<double> wi = direction_from_degrees(60.0, 0.0);
+  std::uint64_t dropped = 0;
+  const auto dump = renderer_reflections([&](Vec2<double> u) { return sample_heitz2018<double>(ggx, wi, u); }, wi,
+                                         400'000, 5, dropped);
+  ASSERT_GT(dropped, 4000u);  // 1.7% of 4e5
+  ValidationOptions o;
+  const ValidationReport full = validate_samples(dump, SampleDomain::reflected_direction, ggx, wi, o);
+  EXPECT_FALSE(full.passed);
+  ASSERT_FALSE(full.failures.empty());
+  EXPECT_NE(full.failures.back().find("no sample below the horizon"), std::string::npos) << full.failures.back();
+  EXPECT_NE(full.failures.back().find("--above-horizon"), std::string::npos) << full.failures.back();
+
+  const auto conditioned = above_horizon_reference(claimed_density(FilePdf::reflection, ggx, wi), ggx, wi, o.rows);
+  EXPECT_NEAR(1.0 - conditioned->kept_mass, double(dropped) / 400'000.0, 0.002);
+  EXPECT_NEAR(conditioned->sphere_probability.total, 1.0, 1e-6);
+  const ValidationReport ok = validate_samples(dump, SampleDomain::reflected_direction, ggx, wi, o, conditioned);
+  EXPECT_TRUE(ok.passed) << (ok.failures.empty() ? "" : ok.failures.front());
+  EXPECT_FALSE(ok.check("dropped_fraction").applicable);
+
+  o.dropped_below_horizon = dropped;
+  const ValidationReport counted = validate_samples(dump, SampleDomain::reflected_direction, ggx, wi, o, conditioned);
+  EXPECT_TRUE(counted.passed) << (counted.failures.empty() ? "" : counted.failures.front());
+  EXPECT_TRUE(counted.check("dropped_fraction").applicable);
+  EXPECT_GT(counted.check("dropped_fraction").p_value, 0.01);
+  // Negative control: a dump that claims 20% fewer dropped reflections than it had.
+  o.dropped_below_horizon = dropped * 4 / 5;
+  const ValidationReport miscounted = validate_samples(dump, SampleDomain::reflected_direction, ggx, wi, o, conditioned);
+  EXPECT_FALSE(miscounted.passed);
+  EXPECT_LT(miscounted.check("dropped_fraction").p_value, 1e-6);
+
+  // Negative control: the talk listing's reflections, dropped the same way, fail the conditioned test.
+  std::uint64_t talk_dropped = 0;
+  const auto talk = renderer_reflections([&](Vec2<double> u) { return sample_heitz2018_talk<double>(ggx, wi, u); }, wi,
+                                         400'000, 5, talk_dropped);
+  ValidationOptions plain;
+  EXPECT_FALSE(validate_samples(talk, SampleDomain::reflected_direction, ggx, wi, plain, conditioned).passed);
+}
+
+// `--from --pdf`: a file of an NDF sampler's normals or of the bounded VNDF's reflections passes against
+// the density it claims and is rejected against the VNDF's (level 0.01): the pdf, not the sampler, is the
+// subject of a file's test.
+TEST(ValidateFilePdf, EachDensityPassesItsOwnSamplesAndRejectsAnother) {
+  const GGX<double> ggx(0.4);
+  const Vec3<double> wi = direction_from_degrees(70.0, 20.0);
+  ValidationOptions o;
+  const auto samples_of = [&](ClaimedPdf claims) {
+    const SamplerInfo& s = reference_sampler(claims);
+    return draw([&](Vec2<double> u) { return s.sample_double(ggx, wi, u); }, 200'000, 23);
+  };
+  const auto test = [&](const std::vector<Vec3<double>>& samples, FilePdf pdf) {
+    const ClaimedDensity d = claimed_density(pdf, ggx, wi);
+    return validate_samples(samples, d.domain, ggx, wi, o, density_reference(d, ggx, wi, o.rows));
+  };
+  const auto ndf = samples_of(ClaimedPdf::ndf_cosine);
+  EXPECT_TRUE(test(ndf, FilePdf::ndf).passed);
+  EXPECT_FALSE(test(ndf, FilePdf::vndf).passed);
+  const auto vndf = samples_of(ClaimedPdf::visible_normals);
+  EXPECT_TRUE(test(vndf, FilePdf::vndf).passed);
+  EXPECT_FALSE(test(vndf, FilePdf::ndf).passed);
+  const auto bounded = samples_of(ClaimedPdf::bounded_reflection);
+  EXPECT_TRUE(test(bounded, FilePdf::bounded).passed);
+  EXPECT_FALSE(test(bounded, FilePdf::reflection).passed);
+  // The bounded sampler's reflections as a renderer keeps them (above the horizon), conditioned.
+  std::vector<Vec3<double>> upper;
+  for (const Vec3<double>& wo : bounded)
+    if (wo.z() > 0) upper.push_back(wo);
+  EXPECT_LT(upper.size(), bounded.size());  // some fall below the horizon at 70 deg
+  const ClaimedDensity d = claimed_density(FilePdf::bounded, ggx, wi);
+  EXPECT_TRUE(validate_samples(upper, d.domain, ggx, wi, o, above_horizon_reference(d, ggx, wi, o.rows)).passed);
+  EXPECT_THROW(above_horizon_reference(claimed_density(FilePdf::ndf, ggx, wi), ggx, wi, o.rows), std::invalid_argument);
+  EXPECT_THROW(parse_file_pdf("ggx"), std::invalid_argument);
+}

@@ -3,7 +3,9 @@
 
 #include "trace/trace_vndf.h"
 
+#include <boost/math/distributions/binomial.hpp>
 #include <fmt/core.h>
+#include <fmt/ranges.h>
 #include <tbb/enumerable_thread_specific.h>
 
 #include <algorithm>
@@ -34,24 +36,36 @@ namespace battery {
 
 SampleSource drawn_samples(const SamplerInfo& sampler, const GGX<double>& ggx, const Vec3<double>& wi,
                            const ValidationOptions& options) {
-  return {std::string(sampler.name), options.precision, true,
-          [&sampler, ggx, wi, &options](const SampleBlockVisitor& visit, const ChunkDone& chunk_done) {
-            for_each_drawn_block(sampler, ggx, wi, options, visit, chunk_done);
-          }};
+  SampleSource s;
+  s.name = std::string(sampler.name);
+  s.precision = options.precision;
+  s.returns_pdf = true;
+  s.stream = [&sampler, ggx, wi, &options](const SampleBlockVisitor& visit, const ChunkDone& chunk_done) {
+    for_each_drawn_block(sampler, ggx, wi, options, visit, chunk_done);
+  };
+  return s;
 }
 
 SampleSource given_samples(std::span<const Vec3<double>> samples, std::string name) {
-  return {std::move(name), Precision::float64, false,
-          [samples](const SampleBlockVisitor& visit, const ChunkDone& chunk_done) {
-            for_each_block(samples, visit, chunk_done);
-          }};
+  SampleSource s;
+  s.name = std::move(name);
+  s.stream = [samples](const SampleBlockVisitor& visit, const ChunkDone& chunk_done) {
+    for_each_block(samples, visit, chunk_done);
+  };
+  s.seeded = false;
+  return s;
 }
 
 SampleSource given_samples(DirectionSampleReader& reader, std::string name) {
-  return {std::move(name), Precision::float64, false,
-          [&reader](const SampleBlockVisitor& visit, const ChunkDone& chunk_done) {
-            for_each_block(reader, visit, chunk_done);
-          }};
+  SampleSource s;
+  s.name = std::move(name);
+  s.stream = [&reader](const SampleBlockVisitor& visit, const ChunkDone& chunk_done) {
+    for_each_block(reader, visit, chunk_done);
+  };
+  s.seeded = false;
+  s.storage = reader.storage();
+  s.invalid_rows = [&reader] { return reader.invalid_rows(); };
+  return s;
 }
 
 // ---- the tally ----------------------------------------------------------------------------------------
@@ -178,7 +192,7 @@ private:
 // A thread's integer counts (summed in any order: exact).
 struct ThreadCounts {
   std::vector<std::vector<std::uint64_t>> counts;  // per binning, the remainder cell last
-  std::uint64_t samples = 0, failed = 0, outside = 0;
+  std::uint64_t samples = 0, failed = 0, outside = 0, below_horizon = 0;
 };
 
 // Streams the samples through the binnings and, with a claimed pdf, its per-sample checks.
@@ -229,6 +243,7 @@ public:
       t.samples += c.samples;
       t.failed += c.failed;
       t.outside += c.outside;
+      t.below_horizon += c.below_horizon;
       for (std::size_t k = 0; k < t.counts.size(); ++k)
         for (std::size_t i = 0; i < c.counts[k].size(); ++i) t.counts[k][i] += double(c.counts[k][i]);
     }
@@ -248,6 +263,7 @@ private:
       ++counts.outside;
       return false;
     }
+    counts.below_horizon += std::uint64_t(w.z() < 0);
     for (std::size_t k = 0; k < binners_.size(); ++k) {
       const int b = binners_[k](w);
       std::vector<std::uint64_t>& h = counts.counts[k];
@@ -400,6 +416,13 @@ ValidationReport report_header(const SampleSource& source, SampleDomain domain, 
   r.significance = options.significance;
   r.failed_samples = tally.failed;
   r.outside_domain = tally.outside;
+  r.seeded = source.seeded;
+  r.storage = source.storage;
+  if (source.invalid_rows) {
+    const InvalidRows invalid = source.invalid_rows();
+    r.invalid_rows = invalid.count;
+    r.first_invalid_rows = invalid.first;
+  }
   return r;
 }
 
@@ -416,13 +439,17 @@ void add_binned_tests(ValidationReport& r, const Expectations& expectations, con
   }
 }
 
-SubTest domain_check(const Tally& tally, const ValidationOptions& options) {
+SubTest domain_check(const ValidationReport& report, const Tally& tally, const ValidationOptions& options) {
   SubTest t;
   t.name = "domain";
   t.value = double(tally.outside);
   t.tolerance = 0;
   t.passed = tally.outside == 0;
   t.detail = fmt::format("{} sample(s) non-finite or with | |w| - 1 | > {}", tally.outside, options.unit_tolerance);
+  if (report.invalid_rows > 0)
+    t.detail = fmt::format("{} row(s) of the file hold the sampler's failures (non-finite values or the zero "
+                           "vector), the first at {}",
+                           report.invalid_rows, fmt::join(report.first_invalid_rows, ", "));
   return t;
 }
 
@@ -496,6 +523,43 @@ SubTest weight_test(const Tally& tally, const ReferenceDistribution& ref, const 
   return t;
 }
 
+SubTest dropped_fraction_test(const Tally& tally, const ReferenceDistribution& ref, const ValidationOptions& options) {
+  if (!options.dropped_below_horizon)
+    return not_applicable("dropped_fraction", "not applicable: the dump does not say how many it dropped (--dropped N)");
+  const std::uint64_t dropped = *options.dropped_below_horizon, n = tally.samples + dropped;
+  const double expected_fraction = std::clamp(1.0 - ref.kept_mass, 0.0, 1.0);
+  SubTest t;
+  t.name = "dropped_fraction";
+  t.label = "dropped fraction";
+  t.statistical = true;
+  t.value = double(dropped) / double(n);
+  t.tolerance = expected_fraction;
+  const boost::math::binomial_distribution<double> binomial(double(n), expected_fraction);
+  const double at_most = boost::math::cdf(binomial, double(dropped));
+  const double at_least = dropped == 0 ? 1.0 : boost::math::cdf(boost::math::complement(binomial, double(dropped - 1)));
+  t.p_value = std::min(1.0, 2.0 * std::min(at_most, at_least));
+  t.detail = fmt::format("{} of {} reflections dropped below the horizon ({:.4f}%), the claimed pdf puts {:.4f}% there",
+                         dropped, n, 100 * t.value, 100 * expected_fraction);
+  return t;
+}
+
+std::string no_samples_below_horizon_note(const Tally& tally, const ReferenceDistribution& ref) {
+  if (ref.domain != SampleDomain::reflected_direction || ref.above_horizon || tally.below_horizon > 0) return "";
+  // The mass of the sphere bins that lie wholly below the horizon (rows from z_max = 1 down, equal in z).
+  const DirectionBinning& sphere = ref.sphere;
+  const double dz = 2.0 / sphere.rows();
+  double below = 0;
+  for (int row = 0; row < sphere.rows(); ++row)
+    if (1.0 - row * dz <= 0.0)
+      for (int col = 0; col < sphere.cols(); ++col) below += ref.sphere_probability.probability[std::size_t(row * sphere.cols() + col)];
+  const double expected = below * double(tally.samples - tally.outside);
+  if (expected < 5) return "";
+  return fmt::format("the file has no sample below the horizon, where the claimed pdf puts at least {:.3g}% of its mass "
+                     "({:.0f} samples expected): a renderer's dump that drops the reflections below the horizon? Test "
+                     "it with --above-horizon (and --dropped N, the count it dropped)",
+                     100 * below, expected);
+}
+
 SubTest not_applicable(std::string name, std::string detail) {
   SubTest t;
   t.name = std::move(name);
@@ -567,10 +631,13 @@ ValidationReport analytic_report(const SampleSource& source, const Tally& tally,
                                  const ReferenceDistribution& ref, const ValidationOptions& options) {
   ValidationReport r = report_header(source, ref.domain, ref.ggx, ref.wi, tally, options);
   add_binned_tests(r, expectations, tally, options);
-  r.checks = {domain_check(tally, options), integral_check(ref, options),
+  r.checks = {domain_check(r, tally, options), integral_check(ref, options),
               returned_pdf_check(tally, ref, options, source.precision),
               weight_test(tally, ref, options, source.precision)};
+  if (ref.above_horizon) r.checks.push_back(dropped_fraction_test(tally, ref, options));
   decide(r);
+  if (!r.passed && !source.seeded)
+    if (std::string note = no_samples_below_horizon_note(tally, ref); !note.empty()) r.failures.push_back(std::move(note));
   return r;
 }
 

@@ -12,6 +12,7 @@
 // validate.cpp and compare.cpp choose the expectations and the checks; the stages are shared.
 #pragma once
 
+#include "validate/sample_io.h"
 #include "validate/validate.h"
 
 #include <cstdint>
@@ -31,6 +32,10 @@ struct SampleSource {
   bool returns_pdf = false;  // each sample comes with the pdf its sampler claims for it
   // Streams the samples block by block (validate.h, SampleBlockVisitor and ChunkDone).
   std::function<void(const SampleBlockVisitor&, const ChunkDone&)> stream;
+  bool seeded = true;    // drawn from the options' seed (false: given samples, nothing random drawn)
+  std::string storage;   // how given samples were stored ("float32 .npy", "text"; "" when drawn or in memory)
+  // After the stream: the rows a file marked as the sampler's failures (none for other sources).
+  std::function<InvalidRows()> invalid_rows;
 };
 
 // The samples every validation draws from a sampler (for_each_drawn_block), for view `wi`.
@@ -63,6 +68,7 @@ struct Tally {
   std::uint64_t samples = 0;  // all of them, failed and outside the domain included
   std::uint64_t failed = 0;   // the sampler returned nothing: counted in every remainder cell
   std::uint64_t outside = 0;  // non-finite or not unit: in no cell
+  std::uint64_t below_horizon = 0;  // inside the domain with w.z < 0
   std::vector<std::vector<double>> counts;  // per binning: its bins, then the remainder cell (integers)
   bool has_pdf = false;       // the samples came with returned pdfs
   PdfChecks checks;           // against the claimed pdf, when one was given: block_checks reduced in order
@@ -121,13 +127,22 @@ ValidationReport report_header(const SampleSource& source, SampleDomain domain, 
 void add_binned_tests(ValidationReport& report, const Expectations& expectations, const Tally& tally,
                       const ValidationOptions& options);
 
-SubTest domain_check(const Tally& tally, const ValidationOptions& options);
+// The report's rows outside the domain; given samples name the first invalid rows of their file.
+SubTest domain_check(const ValidationReport& report, const Tally& tally, const ValidationOptions& options);
 SubTest integral_check(const ReferenceDistribution& reference, const ValidationOptions& options);
 SubTest returned_pdf_check(const Tally& tally, const ReferenceDistribution& reference, const ValidationOptions& options,
                            Precision precision);
 SubTest weight_test(const Tally& tally, const ReferenceDistribution& reference, const ValidationOptions& options,
                     Precision precision);
 SubTest not_applicable(std::string name, std::string detail);
+// For a reference conditioned on the upper hemisphere (above_horizon) and a dump that says how many
+// reflections it dropped below the horizon (options.dropped_below_horizon): that count against
+// Binomial(samples + dropped, 1 - kept_mass), exact two-sided p-value. Not applicable without the count.
+SubTest dropped_fraction_test(const Tally& tally, const ReferenceDistribution& reference,
+                              const ValidationOptions& options);
+// The note a rejection of reflected directions from a file gets when the file has no sample below the
+// horizon although the claimed pdf puts mass there (a renderer's dump that drops them); "" otherwise.
+std::string no_samples_below_horizon_note(const Tally& tally, const ReferenceDistribution& reference);
 
 // The verdict: the Sidak combination of the statistical tests (every binned test, and the checks marked
 // statistical), the headline (the binned test with the smallest p; among tests of equal p, in practice

@@ -244,7 +244,7 @@ ValidationReport oracle_report(const battery::SampleSource& source, const batter
   ValidationReport r = report_header(source, SampleDomain::microfacet_normal, ggx, wi.normalized(), tally, options);
   add_binned_tests(r, expectations, tally, options);
   const std::string not_here = "not applicable: comparison with the traced oracle (two-sample test only)";
-  r.checks = {domain_check(tally, options), not_applicable("pdf_integral", not_here),
+  r.checks = {domain_check(r, tally, options), not_applicable("pdf_integral", not_here),
               not_applicable("returned_pdf", not_here), not_applicable("weight_mean", not_here)};
   decide(r);
   return r;

@@ -17,6 +17,7 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -56,14 +57,21 @@ std::string format_tolerance(double t) {
   return t == std::pow(10.0, e) ? "1e" + std::to_string(static_cast<int>(e)) : format_double(t);
 }
 
-// Checks one row and returns it renormalised. `where` names the row ("line 12" or "row 5").
-Vec3<double> checked_direction(const std::filesystem::path& path, const std::string& where,
-                               const Vec3<double>& w, double tolerance, const char* precision_name) {
-  if (!(std::isfinite(w.x()) && std::isfinite(w.y()) && std::isfinite(w.z())))
-    fail(path, where + ": non-finite value in " + format_vector(w));
+// A row that is the sampler's failure, not a malformed file: a non-finite value or the zero vector.
+bool is_sampler_failure(const Vec3<double>& w) { return !w.allFinite() || w == Vec3<double>::Zero(); }
+
+// Checks one row and returns it renormalised, or a NaN vector for a sampler failure (recorded in
+// `invalid`). `where()` names the row ("line 12" or "row 5 (0-based)"); it is called only when needed.
+template <class Where>
+Vec3<double> checked_direction(const std::filesystem::path& path, const Where& where, const Vec3<double>& w,
+                               double tolerance, const char* precision_name, InvalidRows& invalid) {
+  if (is_sampler_failure(w)) {
+    invalid.add(where());
+    return Vec3<double>::Constant(std::numeric_limits<double>::quiet_NaN());
+  }
   const double len = w.norm();
   if (!(std::abs(len - 1.0) <= tolerance)) {
-    fail(path, where + ": vector " + format_vector(w) + " has length " + format_double(len) +
+    fail(path, where() + ": vector " + format_vector(w) + " has length " + format_double(len) +
                    ", not unit length (| |w| - 1 | must be <= " + format_tolerance(tolerance) + " for " +
                    precision_name + ")");
   }
@@ -270,7 +278,7 @@ NpyLayout read_npy_layout(const std::filesystem::path& path, std::string_view by
 
 // Decodes and checks rows [first, first + out.size()) of a checked NPY file (`bytes` as above).
 void decode_npy_rows(const std::filesystem::path& path, std::string_view bytes, const NpyLayout& layout,
-                     std::uint64_t first, std::span<Vec3<double>> out) {
+                     std::uint64_t first, std::span<Vec3<double>> out, InvalidRows& invalid) {
   const bool is_float32 = layout.is_float32;
   const std::size_t row_bytes = 3 * (is_float32 ? 4 : 8);
   const unsigned char* p =
@@ -286,7 +294,8 @@ void decode_npy_rows(const std::filesystem::path& path, std::string_view bytes, 
       else
         w[c] = std::bit_cast<double>(read_le(p + 8 * c, 8));
     }
-    out[i] = checked_direction(path, "row " + std::to_string(r) + " (0-based)", w, tolerance, precision_name);
+    const auto where = [r] { return "row " + std::to_string(r) + " (0-based)"; };
+    out[i] = checked_direction(path, where, w, tolerance, precision_name, invalid);
   }
 }
 
@@ -297,7 +306,7 @@ bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' |
 // Parses the lines of `text` (whole lines; the last may lack its '\n'), appending their rows to `out`;
 // line_no counts the lines read so far (over all the chunks of a file).
 void read_text_lines(const std::filesystem::path& path, std::string_view text, std::size_t& line_no,
-                     std::vector<Vec3<double>>& out) {
+                     std::vector<Vec3<double>>& out, InvalidRows& invalid) {
   while (!text.empty()) {
     ++line_no;
     const std::size_t nl = text.find('\n');
@@ -346,8 +355,8 @@ void read_text_lines(const std::filesystem::path& path, std::string_view text, s
     if (values.size() != 3)
       fail(path, where + ": wrong column count: found " + std::to_string(values.size()) +
                      " numbers, expected 3 (x y z)");
-    out.push_back(checked_direction(path, where, Vec3<double>(values[0], values[1], values[2]),
-                                    kUnitLengthToleranceText, "text data"));
+    out.push_back(checked_direction(path, [&where] { return where; }, Vec3<double>(values[0], values[1], values[2]),
+                                    kUnitLengthToleranceText, "text data", invalid));
   }
 }
 
@@ -389,6 +398,7 @@ struct DirectionSampleReader::Impl {
   std::vector<Vec3<double>> parsed;
   std::size_t parsed_pos = 0, line_no = 0;
   bool eof = false, bom_checked = false, in_comment = false;
+  InvalidRows invalid;
 
   ~Impl() {
     if (map) ::munmap(map, map_size);
@@ -430,7 +440,7 @@ void DirectionSampleReader::Impl::open_npy(bool regular, std::uint64_t size) {
 
 std::size_t DirectionSampleReader::Impl::read_npy_rows(std::span<Vec3<double>> out) {
   const std::size_t n = std::size_t(std::min<std::uint64_t>(out.size(), layout.rows - rows));
-  decode_npy_rows(path, bytes, layout, rows, out.first(n));
+  decode_npy_rows(path, bytes, layout, rows, out.first(n), invalid);
   rows += n;
   if (map) {  // give back the pages decoded: resident memory stays bounded whatever the file's size
     const std::size_t page = std::size_t(::sysconf(_SC_PAGESIZE));
@@ -450,7 +460,7 @@ void DirectionSampleReader::Impl::parse_pending(std::size_t end) {
     if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);  // UTF-8 byte order mark
     bom_checked = true;
   }
-  read_text_lines(path, text, line_no, parsed);
+  read_text_lines(path, text, line_no, parsed, invalid);
   pending.erase(0, end);
 }
 
@@ -468,7 +478,8 @@ void DirectionSampleReader::Impl::shorten_long_line() {
   }
   std::size_t n = line_no;
   std::vector<Vec3<double>> ignored;
-  read_text_lines(path, pending, n, ignored);  // names the malformed token, as for a shorter line
+  InvalidRows ignored_invalid;
+  read_text_lines(path, pending, n, ignored, ignored_invalid);  // names the malformed token, as for a shorter line
   fail(path, "line " + std::to_string(line_no + 1) + ": longer than " + std::to_string(kTextChunk) +
                  " bytes without a line end (expected three numbers)");
 }
@@ -537,6 +548,11 @@ DirectionSampleReader& DirectionSampleReader::operator=(DirectionSampleReader&&)
 
 const std::filesystem::path& DirectionSampleReader::path() const { return impl_->path; }
 std::uint64_t DirectionSampleReader::rows_read() const { return impl_->rows; }
+const InvalidRows& DirectionSampleReader::invalid_rows() const { return impl_->invalid; }
+std::string DirectionSampleReader::storage() const {
+  if (!impl_->npy) return "text";
+  return impl_->layout.is_float32 ? "float32 .npy" : "float64 .npy";
+}
 
 std::size_t DirectionSampleReader::read(std::span<Vec3<double>> out) {
   Impl& m = *impl_;
@@ -559,7 +575,8 @@ std::vector<Vec3<double>> parse_direction_samples(std::string_view bytes, const 
   if (bytes.substr(0, kNpyMagic.size()) == kNpyMagic) {
     const NpyLayout layout = read_npy_layout(name, bytes);  // rows checked against the bytes present
     std::vector<Vec3<double>> out(static_cast<std::size_t>(layout.rows));
-    decode_npy_rows(name, bytes, layout, 0, out);
+    InvalidRows invalid;
+    decode_npy_rows(name, bytes, layout, 0, out, invalid);
     return out;
   }
   if (name.extension() == ".npy")
@@ -567,7 +584,8 @@ std::vector<Vec3<double>> parse_direction_samples(std::string_view bytes, const 
   if (bytes.substr(0, 3) == "\xEF\xBB\xBF") bytes.remove_prefix(3);  // UTF-8 byte order mark
   std::vector<Vec3<double>> out;
   std::size_t line_no = 0;
-  read_text_lines(name, bytes, line_no, out);
+  InvalidRows invalid;
+  read_text_lines(name, bytes, line_no, out, invalid);
   if (out.empty()) fail(name, "empty: no samples (only blank or comment lines)");
   return out;
 }

@@ -14,8 +14,12 @@
 // something else (unnormalised half vectors, a pdf column, the wrong array). Accepted rows are
 // renormalised in double, so callers always receive unit vectors.
 //
-// Every problem throws SampleFileError with a message that names the file and the 1-based line (text)
-// or the 0-based row index (NPY) of the problem.
+// A row with a non-finite value (nan, inf: text spells them as C's printf does, "nan", "-nan", "inf") or
+// the zero vector is not a malformed file but the sampler's failure: it is passed on as a NaN vector
+// (which the validator counts outside the domain: a rejection, exit 1) and recorded in InvalidRows.
+//
+// Every other problem throws SampleFileError with a message that names the file and the 1-based line
+// (text) or the 0-based row index (NPY) of the problem.
 #pragma once
 
 #include "core/math.h"
@@ -26,6 +30,7 @@
 #include <memory>
 #include <span>
 #include <stdexcept>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -33,6 +38,18 @@ namespace microsim {
 
 struct SampleFileError : std::runtime_error {
   using std::runtime_error::runtime_error;
+};
+
+// The rows of a sample file that hold the sampler's failures (non-finite values or the zero vector):
+// how many, and where the first kListed are ("row 5 (0-based)" for NPY, "line 12" for text).
+struct InvalidRows {
+  static constexpr std::size_t kListed = 5;
+  std::uint64_t count = 0;
+  std::vector<std::string> first;
+  void add(std::string where) {
+    ++count;
+    if (first.size() < kListed) first.push_back(std::move(where));
+  }
 };
 
 // Accepted | |w| - 1 | per storage precision. float64 NPY: 1e-6 admits float32 data widened to float64
@@ -60,6 +77,10 @@ public:
   std::size_t read(std::span<Vec3<double>> out);
   std::uint64_t rows_read() const;
   const std::filesystem::path& path() const;
+  // How the rows are stored: "float32 .npy", "float64 .npy" or "text".
+  std::string storage() const;
+  // The rows read so far that hold the sampler's failures (see above).
+  const InvalidRows& invalid_rows() const;
 
 private:
   struct Impl;
@@ -69,9 +90,9 @@ private:
 // Rows per read of read_direction_samples (and a good block size for DirectionSampleReader::read).
 inline constexpr std::size_t kSampleFileBlock = std::size_t(1) << 16;
 
-// Reads sampled directions from an NPY or text file (see above). Throws SampleFileError on a file that
-// cannot be opened, a malformed line, a wrong column count, a non-finite value, a vector far from unit
-// length, an unsupported NPY version/dtype/order/shape, truncated or trailing data, or no samples at all.
+// Reads sampled directions from an NPY or text file (see above; the sampler's failures are NaN vectors).
+// Throws SampleFileError on a file that cannot be opened, a malformed line, a wrong column count, a
+// nonzero vector far from unit length, an unsupported NPY version/dtype/order/shape, truncated or trailing data, or no samples at all.
 std::vector<Vec3<double>> read_direction_samples(const std::filesystem::path& path);
 // The same for the bytes of a file in memory (the fuzz target's entry point); `name` stands for the path
 // in messages, and its extension .npy demands the NPY magic as for a file.

@@ -184,6 +184,59 @@ std::shared_ptr<const ReferenceDistribution> vndf_reference(SampleDomain domain,
                            rows);
 }
 
+ClaimedDensity claimed_density(FilePdf pdf, const GGX<double>& ggx, const Vec3<double>& wi_in) {
+  const Vec3<double> wi = wi_in.normalized();
+  if (pdf == FilePdf::reflection)
+    return {SampleDomain::reflected_direction,
+            [ggx, wi](const Vec3<double>& o) { return ggx.visible_reflection_pdf(wi, o); }, {}};
+  const ClaimedPdf claims = pdf == FilePdf::vndf  ? ClaimedPdf::visible_normals
+                            : pdf == FilePdf::ndf ? ClaimedPdf::ndf_cosine
+                                                  : ClaimedPdf::bounded_reflection;
+  const SamplerInfo& sampler = reference_sampler(claims);
+  return {sampler.domain, claimed_pdf_of(sampler, ggx, wi), claimed_pdf_breaks(sampler, ggx, wi)};
+}
+
+FilePdf parse_file_pdf(std::string_view name) {
+  if (name == "vndf") return FilePdf::vndf;
+  if (name == "ndf") return FilePdf::ndf;
+  if (name == "bounded") return FilePdf::bounded;
+  if (name == "reflection") return FilePdf::reflection;
+  throw std::invalid_argument(fmt::format("unknown pdf '{}' (valid: vndf, ndf, bounded, reflection)", name));
+}
+
+std::shared_ptr<const ReferenceDistribution> density_reference(const ClaimedDensity& density, const GGX<double>& ggx,
+                                                               const Vec3<double>& wi, int rows) {
+  return prepare_reference(density.pdf, density.domain, ggx, wi, rows, density.breaks);
+}
+
+namespace {
+void scale_probabilities(BinIntegrals& b, double factor) {
+  for (double& p : b.probability) p *= factor;
+  b.total *= factor;
+  b.error_estimate *= factor;
+}
+}  // namespace
+
+std::shared_ptr<const ReferenceDistribution> above_horizon_reference(const ClaimedDensity& density, const GGX<double>& ggx,
+                                                                     const Vec3<double>& wi, int rows) {
+  if (density.domain != SampleDomain::reflected_direction)
+    throw std::invalid_argument("a density of microfacet normals has no horizon to condition on (reflected directions only)");
+  const DirectionFunction full = density.pdf;
+  const DirectionFunction above = [full](const Vec3<double>& o) { return o.z() > 0 ? full(o) : 0.0; };
+  std::vector<DirectionFunction> breaks = density.breaks;
+  breaks.push_back([](const Vec3<double>& o) { return o.z(); });  // where `above` jumps
+  const auto unconditioned = prepare_reference(above, density.domain, ggx, wi, rows, std::move(breaks));
+  const double kept = unconditioned->sphere_probability.total;
+  if (!(kept > 0)) throw std::invalid_argument("the claimed pdf puts no mass above the horizon for this view");
+  ReferenceDistribution conditioned = *unconditioned;
+  conditioned.kept_mass = std::min(kept, 1.0);
+  conditioned.above_horizon = true;
+  conditioned.pdf = [above, kept](const Vec3<double>& o) { return above(o) / kept; };
+  scale_probabilities(conditioned.sphere_probability, 1.0 / kept);
+  scale_probabilities(conditioned.lobe_probability, 1.0 / kept);
+  return std::make_shared<const ReferenceDistribution>(std::move(conditioned));
+}
+
 SampleSet SampleSet::from_directions(std::span<const Vec3<double>> directions) {
   SampleSet set;
   set.directions.assign(directions.begin(), directions.end());
@@ -352,7 +405,7 @@ nlohmann::json to_json(const ValidationReport& r) {
   j["statistic"] = num(r.statistic);
   j["dof"] = r.dof;
   j["samples"] = r.samples;
-  j["seed"] = r.seed;
+  j["seed"] = r.seeded ? nlohmann::json(r.seed) : nlohmann::json(nullptr);  // null: nothing random was drawn
   j["sampler"] = r.sampler;
   j["domain"] = to_string(r.domain);
   j["alpha"] = {r.alpha_x, r.alpha_y};
@@ -360,8 +413,10 @@ nlohmann::json to_json(const ValidationReport& r) {
   j["theta_deg"] = std::acos(std::clamp(r.wi.z(), -1.0, 1.0)) * 180 / kPi<double>;
   j["phi_deg"] = std::atan2(r.wi.y(), r.wi.x()) * 180 / kPi<double>;
   j["precision"] = to_string(r.precision);
+  if (!r.storage.empty()) j["storage"] = r.storage;
   j["failed_samples"] = r.failed_samples;
   j["outside_domain"] = r.outside_domain;
+  if (!r.storage.empty()) j["invalid_rows"] = {{"count", r.invalid_rows}, {"first", r.first_invalid_rows}};
   j["significance"] = r.significance;
   j["statistical_tests"] = r.statistical_tests;
   j["per_test_significance"] = r.per_test_significance;

@@ -72,6 +72,9 @@ struct ValidationOptions {
   // Relative floor of the weight test's standard error (rounding of pdf and D, not statistics):
   // 0 means 1e-9 in double, 1e-5 in float.
   double weight_rounding = 0;
+  // With a reference conditioned on the upper hemisphere: how many reflections the renderer dropped below
+  // the horizon besides the samples given (dropped_fraction_test); unset: not known.
+  std::optional<std::uint64_t> dropped_below_horizon;
   RunControl run;  // threads, cancel token, progress ("sampling")
   // Draw only these blocks of kSampleBlock samples (a shard: validation_part.h); all when unset.
   std::optional<BlockRange> blocks;
@@ -94,6 +97,10 @@ struct ReferenceDistribution {
   DirectionBinning lobe;
   BinIntegrals sphere_probability;
   BinIntegrals lobe_probability;
+  // The mass of the claimed pdf this reference keeps: 1, or P(wo.z > 0) for reflected directions
+  // conditioned on the upper hemisphere (above_horizon_reference: pdf and probabilities divided by it).
+  double kept_mass = 1;
+  bool above_horizon = false;  // conditioned on wo.z > 0 (above_horizon_reference)
   // The binnings the samples are tested in, in this order (sphere, lobe).
   std::vector<ReferenceBins> binned() const { return {{sphere, sphere_probability}, {lobe, lobe_probability}}; }
 };
@@ -111,6 +118,33 @@ std::shared_ptr<const ReferenceDistribution> claimed_reference(const SamplerInfo
                                                                const Vec3<double>& wi, int rows);
 std::shared_ptr<const ReferenceDistribution> vndf_reference(SampleDomain domain, const GGX<double>& ggx,
                                                             const Vec3<double>& wi, int rows);
+
+// The densities a file of samples can claim (`validate --from --pdf`): the zoo's, as the claimed pdf of
+// its reference sampler of that density (samplers.h, reference_sampler), and the pdf of reflection by
+// VNDF sampling (GGX::visible_reflection_pdf).
+enum class FilePdf {
+  vndf,        // normals, D_v(wi, m): VNDF samplers (Heitz 2018, Dupuy & Benyoub 2023, ...)
+  ndf,         // normals, D(m) m.z: samplers of the NDF (Walter et al. 2007)
+  bounded,     // reflected directions, the bounded VNDF (Eto & Tokuyoshi 2023)
+  reflection,  // reflected directions of VNDF sampling, D_v(wi, m) / (4 <wi, m>)
+};
+struct ClaimedDensity {
+  SampleDomain domain;
+  DirectionFunction pdf;                  // per unit solid angle
+  std::vector<DirectionFunction> breaks;  // where it jumps beyond the common curves (prepare_reference)
+};
+ClaimedDensity claimed_density(FilePdf pdf, const GGX<double>& ggx, const Vec3<double>& wi);
+inline bool claims_reflected_directions(FilePdf pdf) { return pdf == FilePdf::bounded || pdf == FilePdf::reflection; }
+// Parses "vndf", "ndf", "bounded", "reflection" (std::invalid_argument naming the valid ones otherwise).
+FilePdf parse_file_pdf(std::string_view name);
+std::shared_ptr<const ReferenceDistribution> density_reference(const ClaimedDensity& density, const GGX<double>& ggx,
+                                                               const Vec3<double>& wi, int rows);
+// Reflected directions as renderers emit them: only those above the horizon (a reflection with wo.z <= 0
+// is dropped). The density conditioned on wo.z > 0: pdf(wo) [wo.z > 0] / P_up, with P_up its mass above
+// the horizon (by the same cubature, kept_mass). Throws std::invalid_argument for a density of normals or
+// when the view leaves no mass above the horizon.
+std::shared_ptr<const ReferenceDistribution> above_horizon_reference(const ClaimedDensity& density, const GGX<double>& ggx,
+                                                                     const Vec3<double>& wi, int rows);
 // The binnings and the claimed pdf of claimed_reference, without the bin probabilities (no cubature):
 // enough to tally samples (validation_part.h), not to test them (its probabilities are empty).
 std::shared_ptr<const ReferenceDistribution> claimed_reference_bins(const SamplerInfo& sampler, const GGX<double>& ggx,
@@ -149,6 +183,12 @@ struct ValidationReport {
   Precision precision = Precision::float64;
   std::uint64_t failed_samples = 0;   // sampler returned nothing
   std::uint64_t outside_domain = 0;   // non-finite or non-unit samples
+  bool seeded = true;                 // drawn from `seed` (false: samples from elsewhere, nothing drawn)
+  std::string storage;                // how samples from a file were stored ("float32 .npy", "text"), else ""
+  // Rows of a sample file that hold the sampler's failures (non-finite values, the zero vector; they
+  // are counted in outside_domain), and where the first few are ("row 5 (0-based)", "line 12").
+  std::uint64_t invalid_rows = 0;
+  std::vector<std::string> first_invalid_rows;
 
   // The tests: one chi-square test per binning (in the binnings' order), then the other tests in the
   // order their failures are listed: the hard checks "domain", "pdf_integral", "returned_pdf", then the
