@@ -3,6 +3,7 @@
 
 #include <fmt/core.h>
 
+#include <array>
 #include <cmath>
 #include <optional>
 #include <span>
@@ -102,11 +103,30 @@ void SurfacePathTracer::trace_block(std::uint64_t seed, std::uint64_t block, std
                                     const std::function<void(std::uint64_t, const SurfacePath&)>& done,
                                     std::vector<EmbreeCall>* calls) const {
   CounterRng origins(seed, block);
-  SurfacePath path;
-  for (std::uint64_t i = 0; i < n; ++i) {
+  const auto start = [&](std::uint64_t i, PathState& state, SurfacePath& path) {
     const double u0 = origins.uniform(), u1 = origins.uniform();
-    trace(origin(u0, u1), path_event_stream(seed, block, i, block_size), path, nullptr, calls);
-    done(i, path);
+    begin(origin(u0, u1), path_event_stream(seed, block, i, block_size), state, path);
+  };
+  // Paths in pairs, their rays traced alternately: the hit facet's heights (far from Embree's data, read
+  // for its normal) are prefetched while the other path's ray is traced. Each path has its own variates
+  // and done() is called in path order, so the result is that of tracing them one by one.
+  std::array<PathState, 2> state;
+  std::array<SurfacePath, 2> path;
+  std::array<HeightfieldHit, 2> hit;
+  for (std::uint64_t first = 0; first < n; first += 2) {
+    const int lanes = n - first >= 2 ? 2 : 1;
+    std::array<bool, 2> live{true, lanes == 2};
+    for (int k = 0; k < lanes; ++k) start(first + std::uint64_t(k), state[std::size_t(k)], path[std::size_t(k)]);
+    while (live[0] || live[1]) {
+      for (std::size_t k = 0; k < 2; ++k) {
+        if (!live[k]) continue;
+        hit[k] = trace_ray(state[k], calls);
+        if (hit[k].is_hit()) scene_.field().prefetch_triangle(hit[k].triangle);
+      }
+      for (std::size_t k = 0; k < 2; ++k)
+        if (live[k]) live[k] = advance(state[k], path[k], hit[k]);
+    }
+    for (int k = 0; k < lanes; ++k) done(first + std::uint64_t(k), path[std::size_t(k)]);
   }
 }
 

@@ -113,7 +113,8 @@ public:
   void trace(const Vec3<double>& origin, CounterRng rng, SurfacePath& path,
              std::vector<SurfacePathEvent>* events = nullptr, std::vector<EmbreeCall>* calls = nullptr) const;
   // The paths [0, n) of block `block` of block_size paths, with their variates (path_event_stream), in
-  // order; done(i, path) is called as path i ends; every Embree call is appended to `calls` if given.
+  // order; done(i, path) is called for i = 0, 1, ... in order once path i has ended (paths are traced in
+  // pairs, their rays alternately); every Embree call is appended to `calls` if given.
   void trace_block(std::uint64_t seed, std::uint64_t block, std::uint64_t n, std::uint64_t block_size,
                    const std::function<void(std::uint64_t, const SurfacePath&)>& done,
                    std::vector<EmbreeCall>* calls = nullptr) const;
