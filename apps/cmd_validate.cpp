@@ -37,6 +37,7 @@ struct Args {
   std::string from;
   bool reflected = false;
   std::string pdf;                          // with --from: the density it claims (FilePdf), "" = by --reflected
+  std::string frame;                        // with --from: "z-up" (default) or "y-up"
   bool above_horizon = false;               // with --reflected: the dump holds the reflections above it only
   std::optional<long long> dropped;         // with --above-horizon: how many the renderer dropped below it
   bool all = false;
@@ -96,9 +97,44 @@ microsim::FilePdf file_pdf(const Args& a) {
   }
 }
 
-// A --from file, opened for streaming (bounded memory whatever its size).
-microsim::DirectionSampleReader open_samples_or_usage_error(const std::string& path) {
-  return usage_errors_of([&] { return microsim::DirectionSampleReader(path); });
+// The frame of a --from file's rows: --frame z-up (default) or y-up.
+microsim::SampleFrame sample_frame(const Args& a) {
+  if (a.frame.empty() || a.frame == "z-up") return microsim::SampleFrame::z_up;
+  if (a.frame == "y-up") return microsim::SampleFrame::y_up;
+  throw UsageError(fmt::format("--frame: unknown frame '{}' (valid: z-up, y-up)", a.frame));
+}
+
+// A --from file, opened for streaming (bounded memory whatever its size), its rows in the frame of --frame.
+microsim::DirectionSampleReader open_samples_or_usage_error(const Args& a) {
+  auto reader = usage_errors_of([&] { return microsim::DirectionSampleReader(a.from); });
+  reader.set_frame(sample_frame(a));
+  return reader;
+}
+
+std::string frame_mistake(microsim::SampleFrame f) {
+  switch (f) {
+    case microsim::SampleFrame::y_up: return "in a y-up frame, (x, y, z) -> (x, -z, y)";
+    case microsim::SampleFrame::z_down: return "with z flipped (the normal or the view pointing into the surface)";
+    default: return "negated (the directions flipped)";
+  }
+}
+
+// A rejected file with most samples where the claimed pdf is zero: which frame mistake would explain it.
+void add_frame_hint(microsim::ValidationReport& r, const Args& a,
+                    std::shared_ptr<const microsim::ReferenceDistribution> reference, const microsim::ValidationOptions& o) {
+  const double share = 100.0 * double(r.samples_where_pdf_is_zero) / double(r.samples);
+  const auto hint = usage_errors_of([&] { return microsim::diagnose_sample_frame(a.from, reference, o); }, a.from);
+  if (!hint) {
+    r.failures.push_back(fmt::format("{:.0f}% of the samples fall where the claimed pdf is zero; none of the common frame "
+                                     "mistakes (y-up, z flipped, negated) explains it",
+                                     share));
+    return;
+  }
+  const std::string fix = hint->frame == microsim::SampleFrame::y_up ? "give --frame y-up" : "fix the dump's frame";
+  r.failures.push_back(fmt::format("hint: {:.0f}% of the samples fall where the claimed pdf is zero; read {} they {} "
+                                   "(p = {:.3g}): {}",
+                                   share, frame_mistake(hint->frame), hint->report.passed ? "pass" : "are still rejected",
+                                   hint->report.p_value, fix));
 }
 
 // --against ellipsoid | HIST.exr: two-sample chi-square against the traced oracle (compare.h); same report,
@@ -130,7 +166,7 @@ int run_against(const Args& a, const microsim::GGX<double>& ggx, const microsim:
   std::string source;
   try {
     if (!a.from.empty()) {
-      DirectionSampleReader samples = open_samples_or_usage_error(a.from);
+      DirectionSampleReader samples = open_samples_or_usage_error(a);
       report = usage_errors_of([&] { return compare_sample_file_to_trace(samples, a.from, ggx, wi, o, traced); }, a.from);
       source = fmt::format("samples from '{}'", a.from);
     } else {
@@ -235,7 +271,7 @@ int run_single(const Args& a) {
   ValidationReport report;
   std::string source;
   if (!a.from.empty()) {
-    DirectionSampleReader samples = open_samples_or_usage_error(a.from);
+    DirectionSampleReader samples = open_samples_or_usage_error(a);
     const ClaimedDensity density = claimed_density(file_pdf(a), ggx, wi);
     std::shared_ptr<const ReferenceDistribution> reference;
     try {
@@ -245,6 +281,7 @@ int run_single(const Args& a) {
       throw UsageError(fmt::format("--above-horizon: {}", e.what()));
     }
     report = usage_errors_of([&] { return validate_sample_file(samples, density.domain, ggx, wi, o, reference); }, a.from);
+    if (a.frame.empty() && looks_like_a_frame_mistake(report)) add_frame_hint(report, a, reference, o);
     report.sampler = a.from;
     source = fmt::format("samples from '{}'", a.from);
   } else {
@@ -306,6 +343,8 @@ int run(const Args& a) {
     throw UsageError("--above-horizon applies to reflected directions: give --from FILE --reflected (or --pdf bounded)");
   if (a.above_horizon && !a.against.empty()) throw UsageError("--above-horizon tests against the analytic pdf, not --against");
   if (a.dropped && !a.above_horizon) throw UsageError("--dropped applies with --above-horizon only");
+  if (!a.frame.empty() && a.from.empty()) throw UsageError("--frame applies to --from FILE only");
+  sample_frame(a);  // an unknown frame is exit 2 here, before any work
   if (a.use_float && !a.from.empty()) throw UsageError("--float applies to --sampler and --all, not to --from");
   if (a.samples && !a.from.empty()) throw UsageError("--samples does not apply to --from (the file gives the samples)");
   if (a.theta && !(*a.theta >= 0 && *a.theta < 90))
@@ -346,6 +385,9 @@ microsim::app::CommandRegistration reg{"validate", [](CLI::App& app) {
                   "with --from: the density the samples claim: vndf (normals, default), ndf (normals, D(m) m.z), "
                   "bounded (reflections of the bounded VNDF, Eto & Tokuyoshi 2023), reflection (reflections of VNDF "
                   "sampling, = --reflected)");
+  sub->add_option("--frame", args->frame,
+                  "with --from: the frame of the rows: z-up (default, microsim's) or y-up (normal along +y, rotated to "
+                  "z-up by (x, y, z) -> (x, -z, y); --theta/--phi stay z-up)");
   sub->add_flag("--above-horizon", args->above_horizon,
                 "with --from --reflected: the file holds only the reflections above the horizon (as renderers emit "
                 "them, dropping wo.z <= 0); test against the reflection pdf conditioned on wo.z > 0");

@@ -232,6 +232,7 @@ FLAGS = [  # (command with a default for the flag, flag, kind)
     (VAL, "--seed", "seed"), (VAL, "--rows", "rows"), (VAL, "--significance", "prob"),
     ("validate --sampler heitz2018 --alpha 0.3 --theta 30 --samples 20000 --against ellipsoid --rays 20000", "--rays",
      "count"),
+    ("validate --from good.npy --reflected --above-horizon --alpha 0.3 --theta 30 --dropped 10", "--dropped", "count0"),
     (TRACE, "--alpha", "alpha"), (TRACE, "--theta", "theta"), (TRACE, "--phi", "angle"), (TRACE, "--rays", "count"),
     (TRACE, "--seed", "seed"), (TRACE, "--threads", "threads"), (TRACE, "--rows", "rows"),
     (TRACE, "--mesh-level", "level"),
@@ -337,6 +338,14 @@ PATHS = [
 ]
 # Usage errors that are not numbers or files.
 USAGE = [
+    ("validate --from good.npy --alpha 0.3 --theta 30 --pdf ggx", "ggx"),
+    ("validate --from good.npy --alpha 0.3 --theta 30 --frame x-up", "x-up"),
+    ("validate --sampler heitz2018 --alpha 0.3 --theta 30 --frame y-up", "--frame"),
+    ("validate --sampler heitz2018 --alpha 0.3 --theta 30 --pdf ndf", "--pdf"),
+    ("validate --from good.npy --alpha 0.3 --theta 30 --above-horizon", "--above-horizon"),
+    ("validate --from good.npy --alpha 0.3 --theta 30 --pdf ndf --above-horizon", "--above-horizon"),
+    ("validate --from good.npy --reflected --alpha 0.3 --theta 30 --dropped 5", "--dropped"),
+    ("validate --from good.npy --reflected --pdf bounded --alpha 0.3 --theta 30", "--reflected"),
     ("validate --sampler nosuch --alpha 0.3 --theta 30", "nosuch"),
     ("validate --alpha 0.3 --theta 30", "--sampler"),
     ("validate --sampler heitz2018 --from good.npy --alpha 0.3 --theta 30", "--from"),

@@ -191,6 +191,42 @@ TEST(CliValidate, AboveHorizonTestsARendererStyleReflectedDump) {
   }
 }
 
+// Frames: a dump from a y-up renderer (normal along +y) is rejected with the hint to give --frame y-up, and
+// passes with it; a negated dump gets the negated hint; a wrong sampler's dump (in the right frame) gets no
+// frame hint; an unknown frame is exit 2.
+TEST(CliValidate, FrameMistakesGetAHintAndYUpDumpsPassWithFrameYUp) {
+  const fs::path dir = scratch_dir();
+  const fs::path yup = dir / "yup.npy", negated = dir / "negated.npy", talk = dir / "talk.npy";
+  std::vector<Vec3<double>> y_up_rows, negated_rows;
+  for (const Vec3<double>& m : samples_of("heitz2018", 0.3, 40, 100000)) {
+    y_up_rows.emplace_back(m.x(), m.z(), -m.y());  // to_z_up(y_up, .) gives m back
+    negated_rows.push_back(-m);
+  }
+  write_npy(yup, y_up_rows, /*as_float32=*/false);
+  write_npy(negated, negated_rows, /*as_float32=*/false);
+  write_npy(talk, samples_of("heitz2018-talk", 0.3, 40, 100000), false);
+  EXPECT_EQ(to_z_up(SampleFrame::y_up, Vec3<double>(0.6, 0.8, 0.0)), Vec3<double>(0.6, 0.0, 0.8));  // +y -> +z
+
+  const CliRun y = run("--from '" + yup.string() + "' --alpha 0.3 --theta 40");
+  EXPECT_EQ(y.exit_code, 1) << y.out << y.err;
+  EXPECT_NE(y.out.find("give --frame y-up"), std::string::npos) << y.out;
+  EXPECT_NE(y.out.find("they pass"), std::string::npos) << y.out;
+  const CliRun fixed = run("--from '" + yup.string() + "' --alpha 0.3 --theta 40 --frame y-up");
+  EXPECT_EQ(fixed.exit_code, 0) << fixed.out << fixed.err;
+  const CliRun n = run("--from '" + negated.string() + "' --alpha 0.3 --theta 40");
+  EXPECT_EQ(n.exit_code, 1) << n.out;
+  EXPECT_NE(n.out.find("read negated (the directions flipped) they pass"), std::string::npos) << n.out;
+  const CliRun t = run("--from '" + talk.string() + "' --alpha 0.3 --theta 40");
+  EXPECT_EQ(t.exit_code, 1) << t.out;
+  EXPECT_EQ(t.out.find("frame"), std::string::npos) << t.out;
+  for (const std::string& bad : {"--from '" + yup.string() + "' --alpha 0.3 --theta 40 --frame x-up",
+                                 std::string("--sampler heitz2018 --alpha 0.3 --theta 40 --frame y-up")}) {
+    const CliRun r = run(bad);
+    EXPECT_EQ(r.exit_code, 2) << bad << "\n" << r.err;
+    EXPECT_NE(r.err.find("--frame"), std::string::npos) << r.err;
+  }
+}
+
 TEST(CliValidate, PlotWritesAFigureAndRejectsBadPaths) {
   const fs::path dir = scratch_dir();
   const fs::path svg = dir / "fig.svg";

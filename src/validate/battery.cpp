@@ -627,6 +627,16 @@ void decide(ValidationReport& r) {
   r.passed = r.failures.empty();
 }
 
+namespace {
+// The samples of `counts` (bins, then the remainder cell) in the bins of zero probability.
+std::uint64_t samples_in_massless_bins(const std::vector<double>& counts, const BinIntegrals& probability) {
+  double n = 0;
+  for (std::size_t b = 0; b < probability.probability.size() && b < counts.size(); ++b)
+    if (probability.probability[b] == 0.0) n += counts[b];
+  return std::uint64_t(n);
+}
+}  // namespace
+
 ValidationReport analytic_report(const SampleSource& source, const Tally& tally, const Expectations& expectations,
                                  const ReferenceDistribution& ref, const ValidationOptions& options) {
   ValidationReport r = report_header(source, ref.domain, ref.ggx, ref.wi, tally, options);
@@ -635,6 +645,7 @@ ValidationReport analytic_report(const SampleSource& source, const Tally& tally,
               returned_pdf_check(tally, ref, options, source.precision),
               weight_test(tally, ref, options, source.precision)};
   if (ref.above_horizon) r.checks.push_back(dropped_fraction_test(tally, ref, options));
+  r.samples_where_pdf_is_zero = samples_in_massless_bins(tally.counts.front(), ref.sphere_probability);
   decide(r);
   if (!r.passed && !source.seeded)
     if (std::string note = no_samples_below_horizon_note(tally, ref); !note.empty()) r.failures.push_back(std::move(note));

@@ -399,6 +399,7 @@ struct DirectionSampleReader::Impl {
   std::size_t parsed_pos = 0, line_no = 0;
   bool eof = false, bom_checked = false, in_comment = false;
   InvalidRows invalid;
+  SampleFrame frame = SampleFrame::z_up;
 
   ~Impl() {
     if (map) ::munmap(map, map_size);
@@ -555,6 +556,24 @@ std::string DirectionSampleReader::storage() const {
 }
 
 std::size_t DirectionSampleReader::read(std::span<Vec3<double>> out) {
+  const std::size_t n = read_as_stored(out);
+  if (impl_->frame != SampleFrame::z_up)
+    for (std::size_t i = 0; i < n; ++i) out[i] = to_z_up(impl_->frame, out[i]);
+  return n;
+}
+
+void DirectionSampleReader::set_frame(SampleFrame frame) { impl_->frame = frame; }
+
+std::string to_string(SampleFrame frame) {
+  switch (frame) {
+    case SampleFrame::y_up: return "y-up";
+    case SampleFrame::z_down: return "z-down";
+    case SampleFrame::negated: return "negated";
+    default: return "z-up";
+  }
+}
+
+std::size_t DirectionSampleReader::read_as_stored(std::span<Vec3<double>> out) {
   Impl& m = *impl_;
   if (m.npy) return m.read_npy_rows(out);
   std::size_t n = 0;

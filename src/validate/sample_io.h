@@ -61,6 +61,25 @@ inline constexpr double kUnitLengthToleranceFloat64 = 1e-6;
 inline constexpr double kUnitLengthToleranceFloat32 = 1e-5;
 inline constexpr double kUnitLengthToleranceText = 1e-4;
 
+// The frame a file's rows are in, and the common frame mistakes of renderers' dumps, each as the map that
+// brings its rows to microsim's z-up frame (the view's frame: --theta/--phi).
+enum class SampleFrame {
+  z_up,     // as stored
+  y_up,     // normal along +y: rotated +90 deg about x, (x, y, z) -> (x, -z, y)
+  z_down,   // the normal (or the view) pointing into the surface: (x, y, z) -> (x, y, -z)
+  negated,  // directions flipped: w -> -w
+};
+inline Vec3<double> to_z_up(SampleFrame frame, const Vec3<double>& w) {
+  switch (frame) {
+    case SampleFrame::y_up: return {w.x(), -w.z(), w.y()};
+    case SampleFrame::z_down: return {w.x(), w.y(), -w.z()};
+    case SampleFrame::negated: return -w;
+    default: return w;
+  }
+}
+// "z-up", "y-up", "z-down", "negated".
+std::string to_string(SampleFrame frame);
+
 // Reads a sample file (NPY or text, as above) in blocks of rows, in memory bounded whatever its size: an
 // NPY file through a read-only memory map whose pages are given back once decoded, text in chunks of
 // 1 MiB, whole lines at a time (a line may be at most 1 MiB long, a comment excepted). The same checks
@@ -77,12 +96,15 @@ public:
   std::size_t read(std::span<Vec3<double>> out);
   std::uint64_t rows_read() const;
   const std::filesystem::path& path() const;
+  // The frame the rows are in (default z-up): read() returns them mapped to z-up (to_z_up).
+  void set_frame(SampleFrame frame);
   // How the rows are stored: "float32 .npy", "float64 .npy" or "text".
   std::string storage() const;
   // The rows read so far that hold the sampler's failures (see above).
   const InvalidRows& invalid_rows() const;
 
 private:
+  std::size_t read_as_stored(std::span<Vec3<double>> out);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

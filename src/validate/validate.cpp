@@ -381,6 +381,22 @@ ValidationReport validate_sample_file(DirectionSampleReader& reader, SampleDomai
   return validate_stream(reader, *reference, options);
 }
 
+std::optional<FrameHint> diagnose_sample_frame(const std::filesystem::path& file,
+                                               std::shared_ptr<const ReferenceDistribution> reference,
+                                               const ValidationOptions& options) {
+  std::optional<FrameHint> best;
+  for (const SampleFrame frame : {SampleFrame::y_up, SampleFrame::z_down, SampleFrame::negated}) {
+    DirectionSampleReader reader(file);
+    reader.set_frame(frame);
+    ValidationReport r = validate_sample_file(reader, reference->domain, reference->ggx, reference->wi, options, reference);
+    if (r.passed) return FrameHint{frame, std::move(r)};
+    const bool fits = double(r.samples_where_pdf_is_zero) < 0.01 * double(r.samples);
+    if (fits && (!best || r.samples_where_pdf_is_zero < best->report.samples_where_pdf_is_zero))
+      best = FrameHint{frame, std::move(r)};
+  }
+  return best;
+}
+
 std::string to_string(Precision precision) { return precision == Precision::float32 ? "float" : "double"; }
 
 nlohmann::json to_json(const SubTest& t) {

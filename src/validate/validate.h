@@ -29,10 +29,12 @@
 #include "stats/figure.h"
 #include "microfacet/ggx.h"
 #include "microfacet/samplers.h"
+#include "validate/sample_io.h"
 
 #include <nlohmann/json_fwd.hpp>
 
 #include <cstdint>
+#include <filesystem>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -189,6 +191,9 @@ struct ValidationReport {
   // are counted in outside_domain), and where the first few are ("row 5 (0-based)", "line 12").
   std::uint64_t invalid_rows = 0;
   std::vector<std::string> first_invalid_rows;
+  // Samples in sphere bins where the claimed pdf has no mass at all (a lower bound of those where it is
+  // zero; 0 against a traced oracle): most of them means a frame mistake (diagnose_sample_frame).
+  std::uint64_t samples_where_pdf_is_zero = 0;
 
   // The tests: one chi-square test per binning (in the binnings' order), then the other tests in the
   // order their failures are listed: the hard checks "domain", "pdf_integral", "returned_pdf", then the
@@ -245,7 +250,6 @@ void for_each_drawn_block(const SamplerInfo& sampler, const GGX<double>& ggx, co
 // Samples from elsewhere: a span, or a file read block by block (sample_io.h); all valid, no pdfs.
 void for_each_block(std::span<const Vec3<double>> samples, const SampleBlockVisitor& visit,
                     const ChunkDone& chunk_done = {});
-class DirectionSampleReader;
 void for_each_block(DirectionSampleReader& reader, const SampleBlockVisitor& visit, const ChunkDone& chunk_done = {});
 
 // The drawn samples held in memory (for a dump; validations stream them instead).
@@ -287,6 +291,23 @@ ValidationReport validate_samples(std::span<const Vec3<double>> samples, SampleD
 ValidationReport validate_sample_file(DirectionSampleReader& reader, SampleDomain domain, const GGX<double>& ggx,
                                       const Vec3<double>& wi, const ValidationOptions& options,
                                       std::shared_ptr<const ReferenceDistribution> reference = nullptr);
+
+// A file rejected with many of its samples where the claimed pdf is zero: the common frame mistakes of
+// renderers' dumps (SampleFrame y_up, z_down, negated) undone one at a time, each a full validation of
+// the file read in that frame against `reference`. The first that passes; else the one that leaves the
+// fewest samples where the pdf is zero, if under 1%; else nothing (no frame mistake explains it).
+struct FrameHint {
+  SampleFrame frame;
+  ValidationReport report;  // of the file read in that frame
+};
+std::optional<FrameHint> diagnose_sample_frame(const std::filesystem::path& file,
+                                               std::shared_ptr<const ReferenceDistribution> reference,
+                                               const ValidationOptions& options);
+// Whether a rejection's report calls for diagnose_sample_frame: more than 5% of its samples fall where the
+// claimed pdf is zero (a correct dump has none there; a y-up dump of normals seen from phi = 0 about half).
+inline bool looks_like_a_frame_mistake(const ValidationReport& r) {
+  return !r.passed && 20 * r.samples_where_pdf_is_zero > r.samples;
+}
 
 std::string to_string(Precision precision);
 nlohmann::json to_json(const SubTest& test);
