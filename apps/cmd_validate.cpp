@@ -38,6 +38,7 @@ struct Args {
   bool reflected = false;
   std::string pdf;                          // with --from: the density it claims (FilePdf), "" = by --reflected
   std::string frame;                        // with --from: "z-up" (default) or "y-up"
+  std::string columns;                      // with --from: what the columns hold (SampleColumns::parse)
   bool above_horizon = false;               // with --reflected: the dump holds the reflections above it only
   std::optional<long long> dropped;         // with --above-horizon: how many the renderer dropped below it
   bool all = false;
@@ -105,8 +106,17 @@ microsim::SampleFrame sample_frame(const Args& a) {
 }
 
 // A --from file, opened for streaming (bounded memory whatever its size), its rows in the frame of --frame.
+microsim::SampleColumns sample_columns(const Args& a) {
+  if (a.columns.empty()) return {};
+  try {
+    return microsim::SampleColumns::parse(a.columns);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(fmt::format("--columns {}", e.what()));
+  }
+}
+
 microsim::DirectionSampleReader open_samples_or_usage_error(const Args& a) {
-  auto reader = usage_errors_of([&] { return microsim::DirectionSampleReader(a.from); });
+  auto reader = usage_errors_of([&] { return microsim::DirectionSampleReader(a.from, sample_columns(a)); });
   reader.set_frame(sample_frame(a));
   return reader;
 }
@@ -344,6 +354,8 @@ int run(const Args& a) {
   if (a.above_horizon && !a.against.empty()) throw UsageError("--above-horizon tests against the analytic pdf, not --against");
   if (a.dropped && !a.above_horizon) throw UsageError("--dropped applies with --above-horizon only");
   if (!a.frame.empty() && a.from.empty()) throw UsageError("--frame applies to --from FILE only");
+  if (!a.columns.empty() && a.from.empty()) throw UsageError("--columns applies to --from FILE only");
+  sample_columns(a);  // a bad spec is exit 2 here, before any work
   sample_frame(a);  // an unknown frame is exit 2 here, before any work
   if (a.use_float && !a.from.empty()) throw UsageError("--float applies to --sampler and --all, not to --from");
   if (a.samples && !a.from.empty()) throw UsageError("--samples does not apply to --from (the file gives the samples)");
@@ -385,6 +397,9 @@ microsim::app::CommandRegistration reg{"validate", [](CLI::App& app) {
                   "with --from: the density the samples claim: vndf (normals, default), ndf (normals, D(m) m.z), "
                   "bounded (reflections of the bounded VNDF, Eto & Tokuyoshi 2023), reflection (reflections of VNDF "
                   "sampling, = --reflected)");
+  sub->add_option("--columns", args->columns,
+                  "with --from: what the columns of a row hold, e.g. x,y,z,pdf (the pdf the sampler returned: checked "
+                  "against the claimed pdf at each sample) or x,y,z,pdf,weight; '-' skips a column (default x,y,z)");
   sub->add_option("--frame", args->frame,
                   "with --from: the frame of the rows: z-up (default, microsim's) or y-up (normal along +y, rotated to "
                   "z-up by (x, y, z) -> (x, -z, y); --theta/--phi stay z-up)");

@@ -338,6 +338,11 @@ PATHS = [
 ]
 # Usage errors that are not numbers or files.
 USAGE = [
+    ("validate --from good.npy --alpha 0.3 --theta 30 --columns x,y", "--columns"),
+    ("validate --from good.npy --alpha 0.3 --theta 30 --columns x,y,z,x", "--columns"),
+    ("validate --sampler heitz2018 --alpha 0.3 --theta 30 --columns x,y,z,pdf", "--columns"),
+    ("validate --from good.npy --alpha 0.3 --theta 30 --columns x,y,z,pdf", "good.npy"),
+    ("validate --from good.txt --alpha 0.3 --theta 30 --columns x,y,z,pdf,weight", "good.txt"),
     ("validate --from good.npy --alpha 0.3 --theta 30 --pdf ggx", "ggx"),
     ("validate --from good.npy --alpha 0.3 --theta 30 --frame x-up", "x-up"),
     ("validate --sampler heitz2018 --alpha 0.3 --theta 30 --frame y-up", "--frame"),

@@ -5,6 +5,7 @@
 #include "validate/sample_io.h"
 #include "microfacet/samplers.h"
 
+#include <fmt/core.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -225,6 +226,39 @@ TEST(CliValidate, FrameMistakesGetAHintAndYUpDumpsPassWithFrameYUp) {
     EXPECT_EQ(r.exit_code, 2) << bad << "\n" << r.err;
     EXPECT_NE(r.err.find("--frame"), std::string::npos) << r.err;
   }
+}
+
+// A renderer-style dump with the pdf its sampler returned: --columns x,y,z,pdf turns on the returned-pdf
+// check and the E[weight] test; a pdf 5% too high is rejected by them, though the directions are right.
+TEST(CliValidate, DumpsWithAPdfColumnGetTheReturnedPdfCheck) {
+  const fs::path dir = scratch_dir();
+  const SamplerInfo* s = find_sampler("heitz2018");
+  const GGX<double> ggx(0.3);
+  const Vec3<double> wi = direction_from_degrees(40.0, 0.0);
+  std::ofstream good(dir / "good.txt"), high(dir / "high.txt");
+  for (int i = 0; i < 200000; ++i) {
+    CounterRng rng(42, std::uint64_t(i));
+    const auto r = s->sample_double(ggx, wi, Vec2<double>(rng.uniform(), rng.uniform()));
+    if (!r) continue;
+    const Vec3<double>& m = r->direction;
+    good << fmt::format("{:.17g} {:.17g} {:.17g} {:.17g}\n", m.x(), m.y(), m.z(), r->pdf);
+    high << fmt::format("{:.17g} {:.17g} {:.17g} {:.17g}\n", m.x(), m.y(), m.z(), 1.05 * r->pdf);
+  }
+  good.close();
+  high.close();
+  const std::string args = " --alpha 0.3 --theta 40 --columns x,y,z,pdf";
+  const CliRun ok = run("--from '" + (dir / "good.txt").string() + "'" + args);
+  EXPECT_EQ(ok.exit_code, 0) << ok.out << ok.err;
+  EXPECT_EQ(ok.out.find("n/a"), std::string::npos) << "every check applies with a pdf column\n" << ok.out;
+  const CliRun bad = run("--from '" + (dir / "high.txt").string() + "'" + args);
+  EXPECT_EQ(bad.exit_code, 1) << bad.out;
+  EXPECT_NE(bad.out.find("returned pdf"), std::string::npos) << bad.out;
+  const CliRun plain = run("--from '" + (dir / "good.txt").string() + "' --alpha 0.3 --theta 40");
+  EXPECT_EQ(plain.exit_code, 2) << "four columns without --columns are bad input\n" << plain.err;
+  EXPECT_NE(plain.err.find("found 4 numbers, expected 3"), std::string::npos) << plain.err;
+  const CliRun spec = run("--from '" + (dir / "good.txt").string() + "' --alpha 0.3 --theta 40 --columns x,y,pdf");
+  EXPECT_EQ(spec.exit_code, 2) << spec.err;
+  EXPECT_NE(spec.err.find("--columns"), std::string::npos) << spec.err;
 }
 
 TEST(CliValidate, PlotWritesAFigureAndRejectsBadPaths) {

@@ -344,3 +344,50 @@ TEST_F(SampleIo, WriterOutputIsByteIdenticalToNumpySave) {
   EXPECT_EQ(slurp(file("f8.npy")), slurp(kData / "npy_samples_f8.npy"));
   EXPECT_EQ(slurp(file("f4.npy")), slurp(kData / "npy_samples_f4.npy"));
 }
+
+// ---- extra columns (validate --columns) -------------------------------------------------------------------
+
+TEST(SampleColumns, ParsesNamesAndRefusesBadSpecs) {
+  const SampleColumns c = SampleColumns::parse("pdf,x,y,z,-,weight,weight");
+  EXPECT_EQ(c.count, 7);
+  EXPECT_EQ(c.direction, (std::array<int, 3>{1, 2, 3}));
+  EXPECT_EQ(c.pdf, 0);
+  EXPECT_EQ(c.weights, (std::vector<int>{5, 6}));
+  EXPECT_EQ(c.describe(), "pdf x y z - weight weight");
+  EXPECT_EQ(SampleColumns{}.describe(), "x y z");
+  for (const char* bad : {"x,y", "x,x,y,z", "x,y,z,pdf,pdf", "x,y,z,w", "x,,y,z", ""}) {
+    EXPECT_THROW(SampleColumns::parse(bad), std::invalid_argument) << bad;
+  }
+}
+
+TEST_F(SampleIo, ExtraColumnsGoToPdfsAndWeights) {
+  const SampleColumns c = SampleColumns::parse("x,y,z,pdf,weight");
+  DirectionSampleReader text(write_bytes("five.txt", "0 0 1 0.5 0.9\n0.6 0 0.8 2.5 1.1\n"), c);
+  std::vector<Vec3<double>> d(4);
+  std::vector<double> pdfs(4), weights(4);
+  ASSERT_EQ(text.read(d, pdfs, weights), 2u);
+  EXPECT_EQ(d[1], Vec3<double>(0.6, 0, 0.8).normalized());
+  EXPECT_EQ(pdfs[0], 0.5);
+  EXPECT_EQ(pdfs[1], 2.5);
+  EXPECT_EQ(weights[1], 1.1);
+  DirectionSampleReader npy(write_bytes("five.npy", npy_bytes(1, 0, dict("<f4", "(1, 5)"), f4_data({0, 0, 1, 0.25f, 0.75f}))), c);
+  ASSERT_EQ(npy.read(d, pdfs, weights), 1u);
+  EXPECT_EQ(pdfs[0], 0.25);
+  EXPECT_EQ(weights[0], 0.75);
+  EXPECT_TRUE(npy.is_float32());
+  // The shape and the column count must match the spec; the message says what was expected.
+  try {
+    DirectionSampleReader wrong(write_bytes("three.npy", npy_bytes(1, 0, dict("<f8", "(1, 3)"), f8_data({0, 0, 1}))), c);
+    ADD_FAILURE() << "no error";
+  } catch (const SampleFileError& e) {
+    EXPECT_NE(std::string(e.what()).find("(expected (N, 5): x y z pdf weight)"), std::string::npos) << e.what();
+  }
+  try {
+    DirectionSampleReader four(write_bytes("four.npy", npy_bytes(1, 0, dict("<f8", "(1, 4)"), f8_data({0, 0, 1, 1}))));
+    ADD_FAILURE() << "no error";
+  } catch (const SampleFileError& e) {
+    EXPECT_NE(std::string(e.what()).find("--columns names extra columns"), std::string::npos) << e.what();
+  }
+  DirectionSampleReader short_text(write_bytes("short.txt", "0 0 1 0.5\n"), c);
+  EXPECT_THROW(short_text.read(d, pdfs, weights), SampleFileError);
+}

@@ -64,6 +64,8 @@ SampleSource given_samples(DirectionSampleReader& reader, std::string name) {
   };
   s.seeded = false;
   s.storage = reader.storage();
+  s.returns_pdf = reader.columns().has_pdf();  // the returned-pdf check, with the file's precision
+  s.precision = reader.is_float32() ? Precision::float32 : Precision::float64;
   s.invalid_rows = [&reader] { return reader.invalid_rows(); };
   return s;
 }
@@ -503,7 +505,7 @@ SubTest weight_test(const Tally& tally, const ReferenceDistribution& ref, const 
   t.applicable = t.statistical = applicable;
   if (!applicable) {
     t.detail = tally.has_pdf ? "not applicable: samples are reflected directions"
-                             : "not applicable: no returned pdf (samples from a file)";
+                             : "not applicable: no returned pdf (a file without a pdf column: --columns x,y,z,pdf)";
     return t;
   }
   const Moments& all = tally.checks.weight;

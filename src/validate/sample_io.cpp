@@ -78,6 +78,20 @@ Vec3<double> checked_direction(const std::filesystem::path& path, const Where& w
   return w / len;
 }
 
+// The extra values of a row (its pdf, then its weights), in the order SampleColumns lists them.
+std::size_t extras_per_row(const SampleColumns& c) { return std::size_t(c.has_pdf()) + c.weights.size(); }
+
+// The row's values -> its direction (checked) and extras appended to `extras`.
+template <class Value, class Where>
+Vec3<double> split_row(const std::filesystem::path& path, const Where& where, const Value& value, const SampleColumns& c,
+                       double tolerance, const char* precision_name, InvalidRows& invalid, double* extras) {
+  const Vec3<double> w(value(c.direction[0]), value(c.direction[1]), value(c.direction[2]));
+  std::size_t k = 0;
+  if (c.has_pdf()) extras[k++] = value(c.pdf);
+  for (const int col : c.weights) extras[k++] = value(col);
+  return checked_direction(path, where, w, tolerance, precision_name, invalid);
+}
+
 // ---- NPY -----------------------------------------------------------------------------------------------
 
 struct NpyHeader {
@@ -216,9 +230,10 @@ struct NpyLayout {
   std::uint64_t rows = 0;
   std::size_t data_offset = 0;
   bool is_float32 = false;
+  int columns = 3;
 };
 
-NpyLayout read_npy_layout(const std::filesystem::path& path, std::string_view bytes) {
+NpyLayout read_npy_layout(const std::filesystem::path& path, std::string_view bytes, const SampleColumns& columns) {
   const auto* data = reinterpret_cast<const unsigned char*>(bytes.data());
   const std::size_t size = bytes.size();
   if (size < kNpyMagic.size() + 2) fail(path, "truncated NPY file (no complete version field)");
@@ -257,12 +272,13 @@ NpyLayout read_npy_layout(const std::filesystem::path& path, std::string_view by
   }
   if (h.fortran_order)
     fail(path, "unsupported NPY array in Fortran order (save np.ascontiguousarray(arr) instead)");
-  if (h.shape.size() != 2 || h.shape[1] != 3)
-    fail(path, "unsupported NPY shape " + shape_string(h.shape) + " (expected (N, 3))");
+  if (h.shape.size() != 2 || h.shape[1] != std::uint64_t(columns.count))
+    fail(path, "unsupported NPY shape " + shape_string(h.shape) + " (expected (N, " + std::to_string(columns.count) +
+                   "): " + columns.describe() + (columns.count == 3 ? "; --columns names extra columns)" : ")"));
   const std::uint64_t rows = h.shape[0];
   if (rows == 0) fail(path, "empty: the NPY array has 0 rows (shape (0, 3))");
 
-  const std::size_t row_bytes = 3 * item;
+  const std::size_t row_bytes = std::size_t(columns.count) * item;
   const std::size_t available = size - prefix - static_cast<std::size_t>(header_len);
   const std::uint64_t complete_rows = available / row_bytes;
   if (complete_rows < rows)
@@ -273,29 +289,29 @@ NpyLayout read_npy_layout(const std::filesystem::path& path, std::string_view by
     fail(path, "NPY data has " + std::to_string(available - rows * row_bytes) +
                    " unexpected trailing bytes after the " + std::to_string(rows) + " declared rows");
 
-  return NpyLayout{rows, prefix + static_cast<std::size_t>(header_len), is_float32};
+  return NpyLayout{rows, prefix + static_cast<std::size_t>(header_len), is_float32, columns.count};
 }
 
-// Decodes and checks rows [first, first + out.size()) of a checked NPY file (`bytes` as above).
+// Decodes and checks rows [first, first + out.size()) of a checked NPY file (`bytes` as above); the extra
+// values of row i go to extras[i * extras_per_row(columns) ...].
 void decode_npy_rows(const std::filesystem::path& path, std::string_view bytes, const NpyLayout& layout,
-                     std::uint64_t first, std::span<Vec3<double>> out, InvalidRows& invalid) {
+                     const SampleColumns& columns, std::uint64_t first, std::span<Vec3<double>> out, double* extras,
+                     InvalidRows& invalid) {
   const bool is_float32 = layout.is_float32;
-  const std::size_t row_bytes = 3 * (is_float32 ? 4 : 8);
+  const std::size_t item = is_float32 ? 4 : 8, row_bytes = std::size_t(layout.columns) * item;
   const unsigned char* p =
       reinterpret_cast<const unsigned char*>(bytes.data()) + layout.data_offset + first * row_bytes;
   const double tolerance = is_float32 ? kUnitLengthToleranceFloat32 : kUnitLengthToleranceFloat64;
   const char* precision_name = is_float32 ? "float32 data" : "float64 data";
+  const std::size_t stride = extras_per_row(columns);
   for (std::uint64_t i = 0; i < out.size(); ++i, p += row_bytes) {
     const std::uint64_t r = first + i;
-    Vec3<double> w;
-    for (int c = 0; c < 3; ++c) {
-      if (is_float32)
-        w[c] = std::bit_cast<float>(static_cast<std::uint32_t>(read_le(p + 4 * c, 4)));
-      else
-        w[c] = std::bit_cast<double>(read_le(p + 8 * c, 8));
-    }
+    const auto value = [&](int c) -> double {
+      if (is_float32) return std::bit_cast<float>(static_cast<std::uint32_t>(read_le(p + 4 * c, 4)));
+      return std::bit_cast<double>(read_le(p + 8 * c, 8));
+    };
     const auto where = [r] { return "row " + std::to_string(r) + " (0-based)"; };
-    out[i] = checked_direction(path, where, w, tolerance, precision_name, invalid);
+    out[i] = split_row(path, where, value, columns, tolerance, precision_name, invalid, extras + i * stride);
   }
 }
 
@@ -306,7 +322,8 @@ bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' |
 // Parses the lines of `text` (whole lines; the last may lack its '\n'), appending their rows to `out`;
 // line_no counts the lines read so far (over all the chunks of a file).
 void read_text_lines(const std::filesystem::path& path, std::string_view text, std::size_t& line_no,
-                     std::vector<Vec3<double>>& out, InvalidRows& invalid) {
+                     const SampleColumns& columns, std::vector<Vec3<double>>& out, std::vector<double>& extras,
+                     InvalidRows& invalid) {
   while (!text.empty()) {
     ++line_no;
     const std::size_t nl = text.find('\n');
@@ -352,11 +369,13 @@ void read_text_lines(const std::filesystem::path& path, std::string_view text, s
         if (i == line.size()) malformed("trailing comma");
       }
     }
-    if (values.size() != 3)
-      fail(path, where + ": wrong column count: found " + std::to_string(values.size()) +
-                     " numbers, expected 3 (x y z)");
-    out.push_back(checked_direction(path, [&where] { return where; }, Vec3<double>(values[0], values[1], values[2]),
-                                    kUnitLengthToleranceText, "text data", invalid));
+    if (values.size() != std::size_t(columns.count))
+      fail(path, where + ": wrong column count: found " + std::to_string(values.size()) + " numbers, expected " +
+                     std::to_string(columns.count) + " (" + columns.describe() + ")");
+    extras.resize(extras.size() + extras_per_row(columns));
+    out.push_back(split_row(path, [&where] { return where; }, [&values](int c) { return values[std::size_t(c)]; },
+                            columns, kUnitLengthToleranceText, "text data", invalid,
+                            extras.data() + extras.size() - extras_per_row(columns)));
   }
 }
 
@@ -377,6 +396,51 @@ void append_le(std::string& out, std::uint64_t v, int bytes) {
 
 }  // namespace
 
+// ---- columns ---------------------------------------------------------------------------------------------
+
+SampleColumns SampleColumns::parse(std::string_view spec) {
+  SampleColumns c;
+  c.count = 0;
+  c.direction = {-1, -1, -1};
+  const auto bad = [&](const std::string& why) {
+    throw std::invalid_argument("'" + std::string(spec) + "': " + why + " (names: x, y, z, pdf, weight, - to skip)");
+  };
+  std::size_t start = 0;
+  for (;;) {
+    const std::size_t comma = spec.find(',', start);
+    const std::string_view name = spec.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start);
+    const int column = c.count++;
+    if (name == "x" || name == "y" || name == "z") {
+      int& d = c.direction[std::size_t(name[0] - 'x')];
+      if (d >= 0) bad("column '" + std::string(name) + "' given twice");
+      d = column;
+    } else if (name == "pdf") {
+      if (c.has_pdf()) bad("column 'pdf' given twice");
+      c.pdf = column;
+    } else if (name == "weight") {
+      c.weights.push_back(column);
+    } else if (name != "-") {
+      bad(name.empty() ? "an empty item" : "unknown column '" + std::string(name.substr(0, 20)) + "'");
+    }
+    if (comma == std::string_view::npos) break;
+    start = comma + 1;
+  }
+  for (const int d : c.direction)
+    if (d < 0) bad("x, y and z are all needed");
+  if (c.weights.size() > 16) bad("at most 16 weight columns");
+  return c;
+}
+
+std::string SampleColumns::describe() const {
+  std::vector<std::string> names(std::size_t(count), "-");
+  for (int k = 0; k < 3; ++k) names[std::size_t(direction[std::size_t(k)])] = std::string(1, char('x' + k));
+  if (has_pdf()) names[std::size_t(pdf)] = "pdf";
+  for (const int w : weights) names[std::size_t(w)] = "weight";
+  std::string out;
+  for (const std::string& n : names) out += (out.empty() ? "" : " ") + n;
+  return out;
+}
+
 // ---- the block reader ------------------------------------------------------------------------------
 
 // Text is read in chunks of this many bytes; a line may be at most this long (its comment excepted).
@@ -396,6 +460,8 @@ struct DirectionSampleReader::Impl {
   // Text: the unparsed tail of the chunks read, and the rows parsed from whole lines.
   std::string pending, chunk;
   std::vector<Vec3<double>> parsed;
+  std::vector<double> parsed_extras;  // extras_per_row(columns) per parsed row
+  SampleColumns columns;
   std::size_t parsed_pos = 0, line_no = 0;
   bool eof = false, bom_checked = false, in_comment = false;
   InvalidRows invalid;
@@ -414,7 +480,7 @@ struct DirectionSampleReader::Impl {
     }
   }
   void open_npy(bool regular, std::uint64_t size);
-  std::size_t read_npy_rows(std::span<Vec3<double>> out);
+  std::size_t read_npy_rows(std::span<Vec3<double>> out, double* extras);
   void parse_pending(std::size_t end);
   void shorten_long_line();
   bool refill_text();
@@ -436,16 +502,17 @@ void DirectionSampleReader::Impl::open_npy(bool regular, std::uint64_t size) {
     while (const std::size_t k = read_some(buf, sizeof buf)) owned.append(buf, k);
     bytes = owned;
   }
-  layout = read_npy_layout(path, bytes);
+  layout = read_npy_layout(path, bytes, columns);
 }
 
-std::size_t DirectionSampleReader::Impl::read_npy_rows(std::span<Vec3<double>> out) {
+std::size_t DirectionSampleReader::Impl::read_npy_rows(std::span<Vec3<double>> out, double* extras) {
   const std::size_t n = std::size_t(std::min<std::uint64_t>(out.size(), layout.rows - rows));
-  decode_npy_rows(path, bytes, layout, rows, out.first(n), invalid);
+  decode_npy_rows(path, bytes, layout, columns, rows, out.first(n), extras, invalid);
   rows += n;
   if (map) {  // give back the pages decoded: resident memory stays bounded whatever the file's size
     const std::size_t page = std::size_t(::sysconf(_SC_PAGESIZE));
-    const std::size_t done = (layout.data_offset + rows * (layout.is_float32 ? 12 : 24)) / page * page;
+    const std::size_t done =
+        (layout.data_offset + rows * std::size_t(layout.columns) * (layout.is_float32 ? 4 : 8)) / page * page;
     if (done > released + (std::size_t(16) << 20) || rows == layout.rows) {
       ::madvise(static_cast<char*>(map) + released, done - released, MADV_DONTNEED);
       released = done;
@@ -461,7 +528,7 @@ void DirectionSampleReader::Impl::parse_pending(std::size_t end) {
     if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);  // UTF-8 byte order mark
     bom_checked = true;
   }
-  read_text_lines(path, text, line_no, parsed, invalid);
+  read_text_lines(path, text, line_no, columns, parsed, parsed_extras, invalid);
   pending.erase(0, end);
 }
 
@@ -479,8 +546,9 @@ void DirectionSampleReader::Impl::shorten_long_line() {
   }
   std::size_t n = line_no;
   std::vector<Vec3<double>> ignored;
+  std::vector<double> ignored_extras;
   InvalidRows ignored_invalid;
-  read_text_lines(path, pending, n, ignored, ignored_invalid);  // names the malformed token, as for a shorter line
+  read_text_lines(path, pending, n, columns, ignored, ignored_extras, ignored_invalid);  // names the malformed token, as for a shorter line
   fail(path, "line " + std::to_string(line_no + 1) + ": longer than " + std::to_string(kTextChunk) +
                  " bytes without a line end (expected three numbers)");
 }
@@ -488,6 +556,7 @@ void DirectionSampleReader::Impl::shorten_long_line() {
 // Reads chunks until some rows are parsed; false at the end of the file.
 bool DirectionSampleReader::Impl::refill_text() {
   parsed.clear();
+  parsed_extras.clear();
   parsed_pos = 0;
   chunk.resize(kTextChunk);
   while (parsed.empty()) {
@@ -513,9 +582,11 @@ bool DirectionSampleReader::Impl::refill_text() {
   return true;
 }
 
-DirectionSampleReader::DirectionSampleReader(const std::filesystem::path& path) : impl_(std::make_unique<Impl>()) {
+DirectionSampleReader::DirectionSampleReader(const std::filesystem::path& path, SampleColumns columns)
+    : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
   m.path = path;
+  m.columns = std::move(columns);
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec)) fail(path, "is a directory, not a sample file");
   m.fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
@@ -555,14 +626,16 @@ std::string DirectionSampleReader::storage() const {
   return impl_->layout.is_float32 ? "float32 .npy" : "float64 .npy";
 }
 
-std::size_t DirectionSampleReader::read(std::span<Vec3<double>> out) {
-  const std::size_t n = read_as_stored(out);
+std::size_t DirectionSampleReader::read(std::span<Vec3<double>> out, std::span<double> pdfs, std::span<double> weights) {
+  const std::size_t n = read_as_stored(out, pdfs, weights);
   if (impl_->frame != SampleFrame::z_up)
     for (std::size_t i = 0; i < n; ++i) out[i] = to_z_up(impl_->frame, out[i]);
   return n;
 }
 
 void DirectionSampleReader::set_frame(SampleFrame frame) { impl_->frame = frame; }
+const SampleColumns& DirectionSampleReader::columns() const { return impl_->columns; }
+bool DirectionSampleReader::is_float32() const { return impl_->npy && impl_->layout.is_float32; }
 
 std::string to_string(SampleFrame frame) {
   switch (frame) {
@@ -573,38 +646,57 @@ std::string to_string(SampleFrame frame) {
   }
 }
 
-std::size_t DirectionSampleReader::read_as_stored(std::span<Vec3<double>> out) {
+// The rows as stored; their extras (pdf, weights) scattered into pdfs and weights.
+std::size_t DirectionSampleReader::read_as_stored(std::span<Vec3<double>> out, std::span<double> pdfs,
+                                                  std::span<double> weights) {
   Impl& m = *impl_;
-  if (m.npy) return m.read_npy_rows(out);
+  const std::size_t stride = extras_per_row(m.columns), channels = m.columns.weights.size();
+  if (m.columns.has_pdf() && pdfs.size() < out.size()) throw std::invalid_argument("DirectionSampleReader: pdfs too short");
+  if (weights.size() < out.size() * channels) throw std::invalid_argument("DirectionSampleReader: weights too short");
+  std::vector<double> extras;
   std::size_t n = 0;
-  while (n < out.size()) {
-    if (m.parsed_pos == m.parsed.size() && !m.refill_text()) break;
-    const std::size_t k = std::min(out.size() - n, m.parsed.size() - m.parsed_pos);
-    std::copy_n(m.parsed.begin() + std::ptrdiff_t(m.parsed_pos), k, out.begin() + std::ptrdiff_t(n));
-    m.parsed_pos += k;
-    n += k;
+  if (m.npy) {
+    extras.resize(out.size() * stride);
+    n = m.read_npy_rows(out, extras.data());
+  } else {
+    while (n < out.size()) {
+      if (m.parsed_pos == m.parsed.size() && !m.refill_text()) break;
+      const std::size_t k = std::min(out.size() - n, m.parsed.size() - m.parsed_pos);
+      std::copy_n(m.parsed.begin() + std::ptrdiff_t(m.parsed_pos), k, out.begin() + std::ptrdiff_t(n));
+      extras.insert(extras.end(), m.parsed_extras.begin() + std::ptrdiff_t(m.parsed_pos * stride),
+                    m.parsed_extras.begin() + std::ptrdiff_t((m.parsed_pos + k) * stride));
+      m.parsed_pos += k;
+      n += k;
+    }
+    m.rows += n;
+    if (n == 0 && m.rows == 0) fail(m.path, "empty: no samples (only blank or comment lines)");
   }
-  m.rows += n;
-  if (n == 0 && m.rows == 0) fail(m.path, "empty: no samples (only blank or comment lines)");
+  for (std::size_t i = 0; i < n && stride > 0; ++i) {
+    std::size_t k = i * stride;
+    if (m.columns.has_pdf()) pdfs[i] = extras[k++];
+    for (std::size_t c = 0; c < channels; ++c) weights[i * channels + c] = extras[k++];
+  }
   return n;
 }
 
 std::vector<Vec3<double>> parse_direction_samples(std::string_view bytes, const std::filesystem::path& name) {
   if (bytes.empty()) fail(name, "empty file: no samples");
   if (bytes.substr(0, kNpyMagic.size()) == kNpyMagic) {
-    const NpyLayout layout = read_npy_layout(name, bytes);  // rows checked against the bytes present
+    const SampleColumns columns;
+    const NpyLayout layout = read_npy_layout(name, bytes, columns);  // rows checked against the bytes present
     std::vector<Vec3<double>> out(static_cast<std::size_t>(layout.rows));
     InvalidRows invalid;
-    decode_npy_rows(name, bytes, layout, 0, out, invalid);
+    decode_npy_rows(name, bytes, layout, columns, 0, out, nullptr, invalid);
     return out;
   }
   if (name.extension() == ".npy")
     fail(name, "not an NPY file (the magic string \\x93NUMPY is missing) although the name ends in .npy");
   if (bytes.substr(0, 3) == "\xEF\xBB\xBF") bytes.remove_prefix(3);  // UTF-8 byte order mark
   std::vector<Vec3<double>> out;
+  std::vector<double> extras;
   std::size_t line_no = 0;
   InvalidRows invalid;
-  read_text_lines(name, bytes, line_no, out, invalid);
+  read_text_lines(name, bytes, line_no, SampleColumns{}, out, extras, invalid);
   if (out.empty()) fail(name, "empty: no samples (only blank or comment lines)");
   return out;
 }

@@ -24,6 +24,7 @@
 
 #include "core/math.h"
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
@@ -80,20 +81,42 @@ inline Vec3<double> to_z_up(SampleFrame frame, const Vec3<double>& w) {
 // "z-up", "y-up", "z-down", "negated".
 std::string to_string(SampleFrame frame);
 
+// Which columns of a row hold what: the direction (x, y, z), and optionally the pdf its sampler returned
+// (per unit solid angle of the direction) and its weights (f cos / pdf, one column per channel), as a
+// renderer's sample() returns them. Spelled as `validate --columns`: "x,y,z" (the default),
+// "x,y,z,pdf", "x,y,z,pdf,weight", "x,y,z,weight,weight,weight", any order, "-" for a column to skip.
+struct SampleColumns {
+  int count = 3;                       // columns per row
+  std::array<int, 3> direction{0, 1, 2};
+  int pdf = -1;                        // -1: no pdf column
+  std::vector<int> weights;            // the weight columns, a channel each
+  bool has_pdf() const { return pdf >= 0; }
+  int channels() const { return int(weights.size()); }
+  // Throws std::invalid_argument naming the bad item (a missing or repeated x/y/z, a second pdf, an
+  // unknown name, more than Material::kMaxChannels weights).
+  static SampleColumns parse(std::string_view spec);
+  std::string describe() const;  // "x y z", "x y z pdf weight"
+};
+
 // Reads a sample file (NPY or text, as above) in blocks of rows, in memory bounded whatever its size: an
 // NPY file through a read-only memory map whose pages are given back once decoded, text in chunks of
 // 1 MiB, whole lines at a time (a line may be at most 1 MiB long, a comment excepted). The same checks
 // and messages as read_direction_samples, which reads through it; a bad row throws when it is reached.
 class DirectionSampleReader {
 public:
-  explicit DirectionSampleReader(const std::filesystem::path& path);  // opens; checks an NPY header
+  // Opens; checks an NPY header against the columns (shape (N, columns.count)).
+  explicit DirectionSampleReader(const std::filesystem::path& path, SampleColumns columns = {});
   ~DirectionSampleReader();
   DirectionSampleReader(DirectionSampleReader&&) noexcept;
   DirectionSampleReader& operator=(DirectionSampleReader&&) noexcept;
 
   // Fills `out` with the next rows, up to out.size(); returns how many (fewer only at the end, 0 after
-  // it). Throws SampleFileError on a bad row, and at the end of a file that held no sample at all.
-  std::size_t read(std::span<Vec3<double>> out);
+  // it). Throws SampleFileError on a bad row, and at the end of a file that held no sample at all. With a
+  // pdf column its values go to `pdfs` (at least out.size() of them), with weight columns to `weights`
+  // (channels() per row, row-major); spans that are not needed may be empty.
+  std::size_t read(std::span<Vec3<double>> out, std::span<double> pdfs = {}, std::span<double> weights = {});
+  const SampleColumns& columns() const;
+  bool is_float32() const;  // an NPY file of float32 values
   std::uint64_t rows_read() const;
   const std::filesystem::path& path() const;
   // The frame the rows are in (default z-up): read() returns them mapped to z-up (to_z_up).
@@ -104,7 +127,7 @@ public:
   const InvalidRows& invalid_rows() const;
 
 private:
-  std::size_t read_as_stored(std::span<Vec3<double>> out);
+  std::size_t read_as_stored(std::span<Vec3<double>> out, std::span<double> pdfs, std::span<double> weights);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

@@ -267,15 +267,21 @@ void for_each_block(std::span<const Vec3<double>> samples, const SampleBlockVisi
 void for_each_block(DirectionSampleReader& reader, const SampleBlockVisitor& visit, const ChunkDone& chunk_done) {
   // One chunk of rows in memory at a time (kChunkBlocks x kSampleBlock x 24 bytes = 25 MB), its blocks
   // processed concurrently; the file is read on this thread.
+  // With a pdf column, the returned pdfs come along (the returned-pdf and E[weight] checks).
   std::vector<Vec3<double>> rows(kChunkBlocks * kSampleBlock);
+  std::vector<double> pdfs(reader.columns().has_pdf() ? rows.size() : 0);
+  std::vector<double> weights(rows.size() * std::size_t(reader.columns().channels()));
   std::uint64_t first = reader.rows_read();
   for (;;) {
-    const std::size_t n = reader.read(rows);
+    const std::size_t n = reader.read(rows, pdfs, weights);
     if (n == 0) break;
     const std::size_t blocks = std::size_t((n + kSampleBlock - 1) / kSampleBlock);
     tbb::parallel_for(std::size_t(0), blocks, [&](std::size_t b) {
       const std::size_t begin = b * kSampleBlock, end = std::min<std::size_t>(n, begin + kSampleBlock);
-      visit(SampleBlockView{first + begin, std::span<const Vec3<double>>(rows).subspan(begin, end - begin), {}, {}}, b);
+      const std::span<const double> block_pdfs =
+          pdfs.empty() ? std::span<const double>() : std::span<const double>(pdfs).subspan(begin, end - begin);
+      visit(SampleBlockView{first + begin, std::span<const Vec3<double>>(rows).subspan(begin, end - begin), block_pdfs, {}},
+            b);
     });
     if (chunk_done) chunk_done(blocks);
     first += n;
