@@ -39,6 +39,8 @@ struct Args {
   std::string pdf;                          // with --from: the density it claims (FilePdf), "" = by --reflected
   std::string frame;                        // with --from: "z-up" (default) or "y-up"
   std::string columns;                      // with --from: what the columns hold (SampleColumns::parse)
+  std::string bsdf;                         // with --from and weight columns: mirror, conductor or a material spec
+  std::string eta, k;                       // with --bsdf conductor: per channel
   bool above_horizon = false;               // with --reflected: the dump holds the reflections above it only
   std::optional<long long> dropped;         // with --above-horizon: how many the renderer dropped below it
   bool all = false;
@@ -65,6 +67,8 @@ std::string names_list() {
   return s;
 }
 
+std::optional<microsim::Material> bsdf_of(const Args& a);
+
 microsim::ValidationOptions base_options(const Args& a) {
   microsim::ValidationOptions o;
   o.seed = a.seed;
@@ -72,6 +76,7 @@ microsim::ValidationOptions base_options(const Args& a) {
   o.significance = a.significance;
   o.precision = a.use_float ? microsim::Precision::float32 : microsim::Precision::float64;
   if (a.dropped) o.dropped_below_horizon = std::uint64_t(*a.dropped);
+  o.bsdf = bsdf_of(a);
   return o;
 }
 
@@ -112,6 +117,36 @@ microsim::SampleColumns sample_columns(const Args& a) {
     return microsim::SampleColumns::parse(a.columns);
   } catch (const std::invalid_argument& e) {
     throw UsageError(fmt::format("--columns {}", e.what()));
+  }
+}
+
+// The BSDF of --bsdf: "mirror", "conductor" with --eta and --k (one value per channel), or a material spec
+// as `scatter --material` takes ("conductor:0.2,3.9;0.9,2.4").
+std::optional<microsim::Material> bsdf_of(const Args& a) {
+  using microsim::Material;
+  if (a.bsdf.empty()) {
+    if (!a.eta.empty() || !a.k.empty()) throw UsageError("--eta and --k apply with --bsdf conductor only");
+    return std::nullopt;
+  }
+  try {
+    if (a.bsdf.find(':') != std::string::npos || a.bsdf == "mirror") {
+      if (!a.eta.empty() || !a.k.empty()) throw UsageError(fmt::format("--eta and --k apply to --bsdf conductor, not '{}'", a.bsdf));
+      return microsim::parse_material("--bsdf", a.bsdf);
+    }
+    if (a.bsdf != "conductor")
+      throw UsageError(fmt::format("--bsdf: unknown BSDF '{}' (valid: mirror, conductor with --eta and --k, or a "
+                                   "spec like conductor:0.2,3.9)",
+                                   a.bsdf));
+    if (a.eta.empty() || a.k.empty()) throw UsageError("--bsdf conductor needs --eta and --k (one value per weight column)");
+    const auto eta = microsim::parse_double_list("--eta", a.eta, {0.0, INFINITY, true, false}, Material::kMaxChannels);
+    const auto k = microsim::parse_double_list("--k", a.k, {0.0, INFINITY, false, false}, Material::kMaxChannels);
+    if (eta.size() != k.size())
+      throw UsageError(fmt::format("--eta has {} value(s) and --k {}: one pair per channel", eta.size(), k.size()));
+    std::vector<std::complex<double>> ior;
+    for (std::size_t c = 0; c < eta.size(); ++c) ior.emplace_back(eta[c], k[c]);
+    return Material::conductor(ior);
+  } catch (const std::invalid_argument& e) {  // ParseError, a constructor's check
+    throw UsageError(e.what());
   }
 }
 
@@ -356,6 +391,13 @@ int run(const Args& a) {
   if (!a.frame.empty() && a.from.empty()) throw UsageError("--frame applies to --from FILE only");
   if (!a.columns.empty() && a.from.empty()) throw UsageError("--columns applies to --from FILE only");
   sample_columns(a);  // a bad spec is exit 2 here, before any work
+  if (const auto bsdf = bsdf_of(a)) {
+    if (a.from.empty() || !a.against.empty()) throw UsageError("--bsdf applies to --from FILE (its weight columns)");
+    if (sample_columns(a).channels() != bsdf->channels())
+      throw UsageError(fmt::format("--bsdf {} has {} channel(s): give as many weight columns (--columns x,y,z,weight...), "
+                                   "got {}",
+                                   bsdf->describe(), bsdf->channels(), sample_columns(a).channels()));
+  }
   sample_frame(a);  // an unknown frame is exit 2 here, before any work
   if (a.use_float && !a.from.empty()) throw UsageError("--float applies to --sampler and --all, not to --from");
   if (a.samples && !a.from.empty()) throw UsageError("--samples does not apply to --from (the file gives the samples)");
@@ -400,6 +442,11 @@ microsim::app::CommandRegistration reg{"validate", [](CLI::App& app) {
   sub->add_option("--columns", args->columns,
                   "with --from: what the columns of a row hold, e.g. x,y,z,pdf (the pdf the sampler returned: checked "
                   "against the claimed pdf at each sample) or x,y,z,pdf,weight; '-' skips a column (default x,y,z)");
+  sub->add_option("--bsdf", args->bsdf,
+                  "with --from and weight columns: test the weights (f cos / pdf) against this BSDF: mirror, conductor "
+                  "(with --eta and --k) or a spec as scatter --material takes (conductor:0.2,3.9;0.9,2.4)");
+  sub->add_option("--eta", args->eta, "with --bsdf conductor: the real parts of the indices, one per weight column");
+  sub->add_option("--k", args->k, "with --bsdf conductor: the imaginary parts, one per weight column");
   sub->add_option("--frame", args->frame,
                   "with --from: the frame of the rows: z-up (default, microsim's) or y-up (normal along +y, rotated to "
                   "z-up by (x, y, z) -> (x, -z, y); --theta/--phi stay z-up)");

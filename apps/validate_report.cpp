@@ -87,9 +87,13 @@ void print_tests(const ValidationReport& r) {
   print_check("returned pdf (max rel. error)", pdf, fmt::format("{:.2e}", pdf.value), fmt::format("<= {:.0e}", pdf.tolerance));
   print_check("claimed pdf integral", integral, fmt::format("{:.9f}", integral.value),
               fmt::format("<= 1+{:.0e}", integral.tolerance));
-  for (const SubTest& c : r.checks)
+  for (const SubTest& c : r.checks) {
     if (c.name == "dropped_fraction")
       print_check("dropped below the horizon", c, fmt::format("{:.4f}%", 100 * c.value), fmt_p(c.p_value));
+    if (c.name == "bsdf_albedo") print_check("weights: BSDF albedo", c, fmt::format("{:.6g}", c.value), fmt_p(c.p_value));
+    if (c.name == "bsdf_bins")
+      print_check("weights: BSDF flux per bin", c, fmt::format("z {:.2f}", c.value), fmt_p(c.p_value));
+  }
   fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", "samples outside the domain", r.outside_domain, "", "0",
              pass_fail(r.check("domain").passed));
   if (r.invalid_rows > 0)

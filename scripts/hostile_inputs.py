@@ -338,6 +338,10 @@ PATHS = [
 ]
 # Usage errors that are not numbers or files.
 USAGE = [
+    ("validate --from good.npy --reflected --alpha 0.3 --theta 30 --columns x,y,z --bsdf mirror", "--bsdf"),
+    ("validate --from good.npy --reflected --alpha 0.3 --theta 30 --bsdf conductor --eta 0.2 --k nan", "--k"),
+    ("validate --from good.npy --reflected --alpha 0.3 --theta 30 --bsdf conductor --eta -1 --k 3", "--eta"),
+    ("validate --from good.npy --reflected --alpha 0.3 --theta 30 --bsdf lambertian:0.5", "--bsdf"),
     ("validate --from good.npy --alpha 0.3 --theta 30 --columns x,y", "--columns"),
     ("validate --from good.npy --alpha 0.3 --theta 30 --columns x,y,z,x", "--columns"),
     ("validate --sampler heitz2018 --alpha 0.3 --theta 30 --columns x,y,z,pdf", "--columns"),

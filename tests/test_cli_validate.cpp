@@ -261,6 +261,30 @@ TEST(CliValidate, DumpsWithAPdfColumnGetTheReturnedPdfCheck) {
   EXPECT_NE(spec.err.find("--columns"), std::string::npos) << spec.err;
 }
 
+// --bsdf: what it needs is checked before any work (exit 2, the option named).
+TEST(CliValidate, BsdfMisuseIsBadUsage) {
+  const fs::path dir = scratch_dir();
+  const fs::path f = dir / "w.txt";
+  std::ofstream(f) << "0 0 1 0.5\n";
+  const std::string from = "--from '" + f.string() + "' --reflected --alpha 0.3 --theta 30 ";
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {from + "--columns x,y,z,weight --bsdf gold", "--bsdf: unknown BSDF 'gold'"},
+      {from + "--columns x,y,z,weight --bsdf conductor", "--bsdf conductor needs --eta and --k"},
+      {from + "--columns x,y,z,weight --bsdf conductor --eta 0.2,0.4 --k 3.9", "--eta has 2 value(s) and --k 1"},
+      {from + "--columns x,y,z,weight --bsdf conductor --eta 0 --k 3.9", "--eta"},
+      {from + "--columns x,y,z,weight --bsdf conductor --eta 0.2 --k -1", "--k"},
+      {from + "--columns x,y,z,weight --bsdf 'conductor:0.2,3.9;0.4,2.4'", "2 channel(s)"},
+      {from + "--columns x,y,z,weight --bsdf mirror --eta 0.2", "--eta and --k apply to --bsdf conductor"},
+      {from + "--columns x,y,z,weight --eta 0.2 --k 3", "--eta and --k apply with --bsdf conductor only"},
+      {"--sampler heitz2018 --alpha 0.3 --theta 30 --bsdf mirror", "--bsdf applies to --from FILE"},
+  };
+  for (const auto& [args, message] : cases) {
+    const CliRun r = run(args);
+    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.err;
+    EXPECT_NE(r.err.find(message), std::string::npos) << args << "\n" << r.err;
+  }
+}
+
 TEST(CliValidate, PlotWritesAFigureAndRejectsBadPaths) {
   const fs::path dir = scratch_dir();
   const fs::path svg = dir / "fig.svg";

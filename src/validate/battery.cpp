@@ -640,13 +640,15 @@ std::uint64_t samples_in_massless_bins(const std::vector<double>& counts, const 
 }  // namespace
 
 ValidationReport analytic_report(const SampleSource& source, const Tally& tally, const Expectations& expectations,
-                                 const ReferenceDistribution& ref, const ValidationOptions& options) {
+                                 const ReferenceDistribution& ref, const ValidationOptions& options,
+                                 std::vector<SubTest> extra_checks) {
   ValidationReport r = report_header(source, ref.domain, ref.ggx, ref.wi, tally, options);
   add_binned_tests(r, expectations, tally, options);
   r.checks = {domain_check(r, tally, options), integral_check(ref, options),
               returned_pdf_check(tally, ref, options, source.precision),
               weight_test(tally, ref, options, source.precision)};
   if (ref.above_horizon) r.checks.push_back(dropped_fraction_test(tally, ref, options));
+  for (SubTest& t : extra_checks) r.checks.push_back(std::move(t));
   r.samples_where_pdf_is_zero = samples_in_massless_bins(tally.counts.front(), ref.sphere_probability);
   decide(r);
   if (!r.passed && !source.seeded)

@@ -153,7 +153,9 @@ void decide(ValidationReport& report);
 
 // The analytic validator's report of a tally of the samples of `source` against the claimed pdf of `ref`
 // (its expectations: analytic_expectations(ref)): header, binned tests, the four checks, the verdict.
+// `extra_checks` (the weight tests of a file) join the checks before the verdict.
 ValidationReport analytic_report(const SampleSource& source, const Tally& tally, const Expectations& expectations,
-                                 const ReferenceDistribution& ref, const ValidationOptions& options);
+                                 const ReferenceDistribution& ref, const ValidationOptions& options,
+                                 std::vector<SubTest> extra_checks = {});
 
 }  // namespace microsim::battery

@@ -634,6 +634,7 @@ std::size_t DirectionSampleReader::read(std::span<Vec3<double>> out, std::span<d
 }
 
 void DirectionSampleReader::set_frame(SampleFrame frame) { impl_->frame = frame; }
+SampleFrame DirectionSampleReader::frame() const { return impl_->frame; }
 const SampleColumns& DirectionSampleReader::columns() const { return impl_->columns; }
 bool DirectionSampleReader::is_float32() const { return impl_->npy && impl_->layout.is_float32; }
 

@@ -121,6 +121,7 @@ public:
   const std::filesystem::path& path() const;
   // The frame the rows are in (default z-up): read() returns them mapped to z-up (to_z_up).
   void set_frame(SampleFrame frame);
+  SampleFrame frame() const;
   // How the rows are stored: "float32 .npy", "float64 .npy" or "text".
   std::string storage() const;
   // The rows read so far that hold the sampler's failures (see above).

@@ -1,6 +1,8 @@
 // microsim: the statistical validator of direction samplers (validate.h, docs/validation.md).
 #include "validate/validate.h"
 
+#include "validate/weight_test.h"
+
 #include "validate/battery.h"
 #include "validate/validation_part.h"
 
@@ -89,11 +91,12 @@ void for_each_drawn_block_as(SampleResult<T> (*sample)(const GGX<T>&, const Vec3
 // `require` runs on the number of samples seen, before any test.
 template <class Require>
 ValidationReport validate_source(const battery::SampleSource& source, const ReferenceDistribution& ref,
-                                 const ValidationOptions& options, Require&& require) {
+                                 const ValidationOptions& options, Require&& require,
+                                 std::vector<SubTest> extra_checks = {}) {
   const battery::Expectations expectations = battery::analytic_expectations(ref);
   const battery::Tally tally = battery::tally_samples(source, battery::binnings_of(expectations), options, &ref);
   require(tally.samples);
-  return battery::analytic_report(source, tally, expectations, ref, options);
+  return battery::analytic_report(source, tally, expectations, ref, options, std::move(extra_checks));
 }
 
 double elapsed(std::chrono::steady_clock::time_point t0) {
@@ -364,10 +367,11 @@ ValidationReport validate_sampler(const SamplerInfo& sampler, const GGX<double>&
 namespace {
 // Samples from elsewhere (a span or a file), checked against `ref`.
 template <class Stream>
-ValidationReport validate_stream(Stream& stream, const ReferenceDistribution& ref, const ValidationOptions& options) {
+ValidationReport validate_stream(Stream& stream, const ReferenceDistribution& ref, const ValidationOptions& options,
+                                 std::vector<SubTest> extra_checks = {}) {
   const auto t0 = std::chrono::steady_clock::now();
   ValidationReport r = validate_source(battery::given_samples(stream, "samples"), ref, options,
-                                       [&ref](std::uint64_t seen) { require_samples(seen, ref); });
+                                       [&ref](std::uint64_t seen) { require_samples(seen, ref); }, std::move(extra_checks));
   r.seconds = elapsed(t0);
   return r;
 }
@@ -384,7 +388,10 @@ ValidationReport validate_sample_file(DirectionSampleReader& reader, SampleDomai
                                       const Vec3<double>& wi, const ValidationOptions& options,
                                       std::shared_ptr<const ReferenceDistribution> reference) {
   if (!reference) reference = vndf_reference(domain, ggx, wi, options.rows);
-  return validate_stream(reader, *reference, options);
+  std::vector<SubTest> weights;  // a pass of its own over the file, before the main one
+  if (options.bsdf)
+    weights = bsdf_weight_tests(reader.path(), reader.columns(), reader.frame(), *reference, *options.bsdf, options);
+  return validate_stream(reader, *reference, options, std::move(weights));
 }
 
 std::optional<FrameHint> diagnose_sample_frame(const std::filesystem::path& file,

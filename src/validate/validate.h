@@ -28,6 +28,7 @@
 #include "stats/chi2.h"
 #include "stats/figure.h"
 #include "microfacet/ggx.h"
+#include "microfacet/material.h"
 #include "microfacet/samplers.h"
 #include "validate/sample_io.h"
 
@@ -77,6 +78,9 @@ struct ValidationOptions {
   // With a reference conditioned on the upper hemisphere: how many reflections the renderer dropped below
   // the horizon besides the samples given (dropped_fraction_test); unset: not known.
   std::optional<std::uint64_t> dropped_below_horizon;
+  // The BSDF a file's weight columns are tested against (weight_test.h; reflected directions, mirror or
+  // conductor); unset: the weights are not tested.
+  std::optional<Material> bsdf;
   RunControl run;  // threads, cancel token, progress ("sampling")
   // Draw only these blocks of kSampleBlock samples (a shard: validation_part.h); all when unset.
   std::optional<BlockRange> blocks;

@@ -1,0 +1,144 @@
+#include "validate/weight_test.h"
+
+#include "microfacet/bsdf.h"
+#include "stats/chi2.h"
+#include "stats/direction_binner.h"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace microsim {
+
+namespace {
+
+// f(wi, wo) cos(wo) of channel c: the single-scattering flux per unit solid angle of wo.
+double reflected_flux(const GGX<double>& ggx, const Material& bsdf, int c, const Vec3<double>& wi, const Vec3<double>& wo) {
+  const double f = bsdf.kind() == MaterialKind::mirror ? mirror_brdf(ggx, wi, wo) : conductor_brdf(ggx, bsdf.ior(c), wi, wo);
+  return f * std::max(wo.z(), 0.0);
+}
+
+// The expected weight per sample in every sphere bin, per channel.
+std::vector<std::vector<double>> expected_bin_weights(const ReferenceDistribution& ref, const Material& bsdf) {
+  IntegrationOptions o;
+  o.focus = ref.lobe.lattice_directions(4096);
+  o.z_breaks = {0.0, -ref.wi.z()};
+  std::vector<std::vector<double>> e;
+  for (int c = 0; c < bsdf.channels(); ++c)
+    e.push_back(ref.sphere.integrate([&](const Vec3<double>& wo) { return reflected_flux(ref.ggx, bsdf, c, ref.wi, wo); }, o)
+                    .probability);
+  return e;
+}
+
+// Per bin and channel: the sums of the weights and of their squares, and the samples per bin.
+struct WeightSums {
+  std::vector<std::vector<double>> sum, sum_sq;  // [channel][bin]
+  std::vector<std::uint64_t> samples;            // per bin
+  std::uint64_t rows = 0;
+};
+
+WeightSums sum_weights(const std::filesystem::path& file, const SampleColumns& columns, SampleFrame frame,
+                       const DirectionBinning& sphere, int channels) {
+  DirectionSampleReader reader(file, columns);
+  reader.set_frame(frame);
+  const FastDirectionBinner binner(sphere);
+  WeightSums s{std::vector<std::vector<double>>(std::size_t(channels), std::vector<double>(std::size_t(sphere.size()), 0.0)),
+               std::vector<std::vector<double>>(std::size_t(channels), std::vector<double>(std::size_t(sphere.size()), 0.0)),
+               std::vector<std::uint64_t>(std::size_t(sphere.size()), 0), 0};
+  std::vector<Vec3<double>> rows(kSampleFileBlock);
+  std::vector<double> pdfs(columns.has_pdf() ? rows.size() : 0), weights(rows.size() * std::size_t(channels));
+  while (const std::size_t n = reader.read(rows, pdfs, weights)) {
+    s.rows += n;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!rows[i].allFinite()) continue;  // the sampler's failure: weighs nothing, counted in rows
+      const int b = binner(rows[i]);
+      if (b < 0) continue;
+      ++s.samples[std::size_t(b)];
+      for (int c = 0; c < channels; ++c) {
+        const double w = weights[i * std::size_t(channels) + std::size_t(c)];
+        s.sum[std::size_t(c)][std::size_t(b)] += w;
+        s.sum_sq[std::size_t(c)][std::size_t(b)] += w * w;
+      }
+    }
+  }
+  return s;
+}
+
+// Two-sided p of z (0 for a non-finite z: NaN weights reject).
+double two_sided_p(double z) { return std::isfinite(z) ? std::erfc(std::abs(z) / std::sqrt(2.0)) : 0.0; }
+
+// z of a mean weight: (sum / n - expected) / its standard error from the sums (with a floor of 1e-12
+// relative for rounding).
+double mean_z(double sum, double sum_sq, double n, double expected) {
+  const double mean = sum / n, var = std::max(sum_sq / n - mean * mean, 0.0);
+  const double se = std::sqrt(var / n + 1e-24 * expected * expected);
+  return se > 0 ? (mean - expected) / se : (mean == expected ? 0.0 : INFINITY);
+}
+
+}  // namespace
+
+std::vector<SubTest> bsdf_weight_tests(const std::filesystem::path& file, const SampleColumns& columns, SampleFrame frame,
+                                       const ReferenceDistribution& ref, const Material& bsdf,
+                                       const ValidationOptions& options) {
+  if (ref.domain != SampleDomain::reflected_direction)
+    throw std::invalid_argument("--bsdf: the weight test needs reflected directions (--reflected or --pdf reflection|bounded)");
+  if (bsdf.kind() != MaterialKind::mirror && bsdf.kind() != MaterialKind::conductor)
+    throw std::invalid_argument(fmt::format("--bsdf {}: the weight test has mirror and conductor BSDFs only", bsdf.describe()));
+  if (columns.channels() != bsdf.channels())
+    throw std::invalid_argument(fmt::format("--bsdf {} has {} channel(s) but the file {} weight column(s) (--columns)",
+                                            bsdf.describe(), bsdf.channels(), columns.channels()));
+  const std::vector<std::vector<double>> expected = expected_bin_weights(ref, bsdf);
+  const WeightSums s = sum_weights(file, columns, frame, ref.sphere, bsdf.channels());
+  const double n = double(s.rows + options.dropped_below_horizon.value_or(0));
+  const double scale = ref.above_horizon && !options.dropped_below_horizon ? 1.0 / ref.kept_mass : 1.0;
+  double albedo_p = 1, bins_p = 1, worst_z = 0;
+  int bins_tested = 0;
+  std::string worst;
+  std::vector<double> albedo(std::size_t(bsdf.channels())), measured(std::size_t(bsdf.channels()));
+  for (int c = 0; c < bsdf.channels(); ++c) {
+    const auto& e = expected[std::size_t(c)];
+    double sum = 0, sum_sq = 0, total = 0;
+    for (std::size_t b = 0; b < e.size(); ++b) {
+      sum += s.sum[std::size_t(c)][b];
+      sum_sq += s.sum_sq[std::size_t(c)][b];
+      total += scale * e[b];
+      if (s.samples[b] < kMinWeightBinSamples) continue;
+      ++bins_tested;
+      const double z = mean_z(s.sum[std::size_t(c)][b], s.sum_sq[std::size_t(c)][b], n, scale * e[b]);
+      if (!(std::abs(z) <= std::abs(worst_z))) {
+        worst_z = z;
+        worst = fmt::format("{} ({}): mean weight {:.4g} vs flux {:.4g}", ref.sphere.describe_bin(int(b)),
+                            bsdf.channel_name(c), s.sum[std::size_t(c)][b] / n, scale * e[b]);
+      }
+    }
+    albedo[std::size_t(c)] = total;
+    measured[std::size_t(c)] = sum / n;
+    albedo_p = std::min(albedo_p, two_sided_p(mean_z(sum, sum_sq, n, total)));
+  }
+  bins_p = two_sided_p(worst_z);
+  SubTest a;
+  a.name = "bsdf_albedo";
+  a.label = "BSDF albedo (mean weight)";
+  a.statistical = true;
+  a.p_value = sidak_adjusted_p(albedo_p, bsdf.channels());
+  a.value = measured.front();
+  a.tolerance = albedo.front();
+  a.detail = fmt::format("mean weight {:.6g} vs the BSDF's directional albedo {:.6g} ({}, {} samples{})", measured.front(),
+                         albedo.front(), bsdf.describe(), s.rows,
+                         options.dropped_below_horizon ? fmt::format(" + {} dropped", *options.dropped_below_horizon) : "");
+  SubTest b;
+  b.name = "bsdf_bins";
+  b.label = "BSDF flux per bin (mean weight)";
+  b.statistical = bins_tested > 0;
+  b.applicable = bins_tested > 0;
+  b.p_value = bins_tested > 0 ? sidak_adjusted_p(bins_p, bins_tested) : 1.0;
+  b.value = worst_z;
+  b.detail = bins_tested > 0 ? fmt::format("{} bin-channels with >= {} samples; worst z = {:.2f} at {}", bins_tested,
+                                           kMinWeightBinSamples, worst_z, worst)
+                             : "not applicable: no bin holds enough samples";
+  return {a, b};
+}
+
+}  // namespace microsim
