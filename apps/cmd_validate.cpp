@@ -371,12 +371,9 @@ int run_all(const Args& a) {
   return report.finish(partial, references, a.json);
 }
 
-int run(const Args& a) {
-  microsim::app::check_distinct_outputs({{"--from", a.from}, {"--against", a.against == "ellipsoid" ? "" : a.against}},
-                                        {{"--json", a.json}, {"--plot", a.plot}});
-  const int modes = int(!a.sampler.empty()) + int(!a.from.empty()) + int(a.all);
-  if (modes != 1) throw UsageError("give exactly one of --sampler NAME, --from FILE, --all");
-  if (a.reflected && a.from.empty()) throw UsageError("--reflected applies to --from FILE only");
+// The options that describe a --from file (what it claims, its columns, frame, BSDF): checked before any
+// work, each refused where it does not apply.
+void check_file_options(const Args& a) {
   if (!a.pdf.empty()) {
     if (a.from.empty()) throw UsageError("--pdf applies to --from FILE only (a sampler of the zoo claims its own pdf)");
     if (!a.against.empty()) throw UsageError("--pdf: --against compares with the traced VNDF oracle, not with a pdf");
@@ -399,6 +396,15 @@ int run(const Args& a) {
                                    bsdf->describe(), bsdf->channels(), sample_columns(a).channels()));
   }
   sample_frame(a);  // an unknown frame is exit 2 here, before any work
+}
+
+int run(const Args& a) {
+  microsim::app::check_distinct_outputs({{"--from", a.from}, {"--against", a.against == "ellipsoid" ? "" : a.against}},
+                                        {{"--json", a.json}, {"--plot", a.plot}});
+  const int modes = int(!a.sampler.empty()) + int(!a.from.empty()) + int(a.all);
+  if (modes != 1) throw UsageError("give exactly one of --sampler NAME, --from FILE, --all");
+  if (a.reflected && a.from.empty()) throw UsageError("--reflected applies to --from FILE only");
+  check_file_options(a);
   if (a.use_float && !a.from.empty()) throw UsageError("--float applies to --sampler and --all, not to --from");
   if (a.samples && !a.from.empty()) throw UsageError("--samples does not apply to --from (the file gives the samples)");
   if (a.theta && !(*a.theta >= 0 && *a.theta < 90))

@@ -77,11 +77,65 @@ double mean_z(double sum, double sum_sq, double n, double expected) {
   return se > 0 ? (mean - expected) / se : (mean == expected ? 0.0 : INFINITY);
 }
 
-}  // namespace
+// The mean weight per channel against the albedo (the sum of the expected bin weights `e`, already scaled).
+SubTest albedo_test(const WeightSums& s, const std::vector<std::vector<double>>& e, double n, const Material& bsdf,
+                    const ValidationOptions& options) {
+  double p_min = 1;
+  std::vector<double> albedo, measured;
+  for (std::size_t c = 0; c < e.size(); ++c) {
+    double sum = 0, sum_sq = 0, total = 0;
+    for (std::size_t b = 0; b < e[c].size(); ++b) {
+      sum += s.sum[c][b];
+      sum_sq += s.sum_sq[c][b];
+      total += e[c][b];
+    }
+    albedo.push_back(total);
+    measured.push_back(sum / n);
+    p_min = std::min(p_min, two_sided_p(mean_z(sum, sum_sq, n, total)));
+  }
+  SubTest t;
+  t.name = "bsdf_albedo";
+  t.label = "BSDF albedo (mean weight)";
+  t.statistical = true;
+  t.p_value = sidak_adjusted_p(p_min, int(e.size()));
+  t.value = measured.front();
+  t.tolerance = albedo.front();
+  const std::string dropped =
+      options.dropped_below_horizon ? fmt::format(" + {} dropped", *options.dropped_below_horizon) : "";
+  t.detail = fmt::format("mean weight {:.6g} vs the BSDF's directional albedo {:.6g} ({}, {} samples{})", measured.front(),
+                         albedo.front(), bsdf.describe(), s.rows, dropped);
+  return t;
+}
 
-std::vector<SubTest> bsdf_weight_tests(const std::filesystem::path& file, const SampleColumns& columns, SampleFrame frame,
-                                       const ReferenceDistribution& ref, const Material& bsdf,
-                                       const ValidationOptions& options) {
+// The mean weight per bin (with at least kMinWeightBinSamples samples) and channel against the flux.
+SubTest bins_test(const WeightSums& s, const std::vector<std::vector<double>>& e, double n, const DirectionBinning& sphere,
+                  const Material& bsdf) {
+  double worst_z = 0;
+  int tested = 0;
+  std::string worst;
+  for (std::size_t c = 0; c < e.size(); ++c)
+    for (std::size_t b = 0; b < e[c].size(); ++b) {
+      if (s.samples[b] < kMinWeightBinSamples) continue;
+      ++tested;
+      const double z = mean_z(s.sum[c][b], s.sum_sq[c][b], n, e[c][b]);
+      if (std::isnan(worst_z) || std::abs(z) <= std::abs(worst_z)) continue;  // a NaN weight stays the worst
+      worst_z = z;
+      worst = fmt::format("{} ({}): mean weight {:.4g} vs flux {:.4g}", sphere.describe_bin(int(b)),
+                          bsdf.channel_name(int(c)), s.sum[c][b] / n, e[c][b]);
+    }
+  SubTest t;
+  t.name = "bsdf_bins";
+  t.label = "BSDF flux per bin (mean weight)";
+  t.applicable = t.statistical = tested > 0;
+  t.p_value = tested > 0 ? sidak_adjusted_p(two_sided_p(worst_z), tested) : 1.0;
+  t.value = worst_z;
+  t.detail = tested > 0 ? fmt::format("{} bin-channels with >= {} samples; worst z = {:.2f} at {}", tested,
+                                      kMinWeightBinSamples, worst_z, worst)
+                        : "not applicable: no bin holds enough samples";
+  return t;
+}
+
+void check_weight_inputs(const SampleColumns& columns, const ReferenceDistribution& ref, const Material& bsdf) {
   if (ref.domain != SampleDomain::reflected_direction)
     throw std::invalid_argument("--bsdf: the weight test needs reflected directions (--reflected or --pdf reflection|bounded)");
   if (bsdf.kind() != MaterialKind::mirror && bsdf.kind() != MaterialKind::conductor)
@@ -89,56 +143,22 @@ std::vector<SubTest> bsdf_weight_tests(const std::filesystem::path& file, const 
   if (columns.channels() != bsdf.channels())
     throw std::invalid_argument(fmt::format("--bsdf {} has {} channel(s) but the file {} weight column(s) (--columns)",
                                             bsdf.describe(), bsdf.channels(), columns.channels()));
-  const std::vector<std::vector<double>> expected = expected_bin_weights(ref, bsdf);
+}
+
+}  // namespace
+
+std::vector<SubTest> bsdf_weight_tests(const std::filesystem::path& file, const SampleColumns& columns, SampleFrame frame,
+                                       const ReferenceDistribution& ref, const Material& bsdf,
+                                       const ValidationOptions& options) {
+  check_weight_inputs(columns, ref, bsdf);
+  std::vector<std::vector<double>> expected = expected_bin_weights(ref, bsdf);
+  // Conditioned on the upper hemisphere without the dropped count: the kept samples' mean weight.
+  if (ref.above_horizon && !options.dropped_below_horizon)
+    for (auto& channel : expected)
+      for (double& e : channel) e /= ref.kept_mass;
   const WeightSums s = sum_weights(file, columns, frame, ref.sphere, bsdf.channels());
   const double n = double(s.rows + options.dropped_below_horizon.value_or(0));
-  const double scale = ref.above_horizon && !options.dropped_below_horizon ? 1.0 / ref.kept_mass : 1.0;
-  double albedo_p = 1, bins_p = 1, worst_z = 0;
-  int bins_tested = 0;
-  std::string worst;
-  std::vector<double> albedo(std::size_t(bsdf.channels())), measured(std::size_t(bsdf.channels()));
-  for (int c = 0; c < bsdf.channels(); ++c) {
-    const auto& e = expected[std::size_t(c)];
-    double sum = 0, sum_sq = 0, total = 0;
-    for (std::size_t b = 0; b < e.size(); ++b) {
-      sum += s.sum[std::size_t(c)][b];
-      sum_sq += s.sum_sq[std::size_t(c)][b];
-      total += scale * e[b];
-      if (s.samples[b] < kMinWeightBinSamples) continue;
-      ++bins_tested;
-      const double z = mean_z(s.sum[std::size_t(c)][b], s.sum_sq[std::size_t(c)][b], n, scale * e[b]);
-      if (!(std::abs(z) <= std::abs(worst_z))) {
-        worst_z = z;
-        worst = fmt::format("{} ({}): mean weight {:.4g} vs flux {:.4g}", ref.sphere.describe_bin(int(b)),
-                            bsdf.channel_name(c), s.sum[std::size_t(c)][b] / n, scale * e[b]);
-      }
-    }
-    albedo[std::size_t(c)] = total;
-    measured[std::size_t(c)] = sum / n;
-    albedo_p = std::min(albedo_p, two_sided_p(mean_z(sum, sum_sq, n, total)));
-  }
-  bins_p = two_sided_p(worst_z);
-  SubTest a;
-  a.name = "bsdf_albedo";
-  a.label = "BSDF albedo (mean weight)";
-  a.statistical = true;
-  a.p_value = sidak_adjusted_p(albedo_p, bsdf.channels());
-  a.value = measured.front();
-  a.tolerance = albedo.front();
-  a.detail = fmt::format("mean weight {:.6g} vs the BSDF's directional albedo {:.6g} ({}, {} samples{})", measured.front(),
-                         albedo.front(), bsdf.describe(), s.rows,
-                         options.dropped_below_horizon ? fmt::format(" + {} dropped", *options.dropped_below_horizon) : "");
-  SubTest b;
-  b.name = "bsdf_bins";
-  b.label = "BSDF flux per bin (mean weight)";
-  b.statistical = bins_tested > 0;
-  b.applicable = bins_tested > 0;
-  b.p_value = bins_tested > 0 ? sidak_adjusted_p(bins_p, bins_tested) : 1.0;
-  b.value = worst_z;
-  b.detail = bins_tested > 0 ? fmt::format("{} bin-channels with >= {} samples; worst z = {:.2f} at {}", bins_tested,
-                                           kMinWeightBinSamples, worst_z, worst)
-                             : "not applicable: no bin holds enough samples";
-  return {a, b};
+  return {albedo_test(s, expected, n, bsdf, options), bins_test(s, expected, n, ref.sphere, bsdf)};
 }
 
 }  // namespace microsim
