@@ -8,6 +8,10 @@
 
 #include <gtest/gtest.h>
 
+#include <bit>
+
+#include <random>
+
 #include <cmath>
 #include <vector>
 
@@ -85,6 +89,24 @@ TEST(BlockRunner, CancelKeepsTheCompletedPrefix) {
   EXPECT_EQ(status.done.end, reduced);
   EXPECT_GE(reduced, 100u);
   EXPECT_LT(reduced, 1000u);
+}
+
+// The fast conversion of a term is nearbyint(ldexp(term, 64)) bit for bit: edge values, ties, and 4e6
+// random terms over [2^-70, 2^40].
+TEST(ExactSum, FixedPointOfATermIsTheRoundedScaledDouble) {
+  const auto reference = [](double x) { return static_cast<__int128>(std::nearbyint(std::ldexp(x, 64))); };
+  for (double x : {0.0, 1.0, 0.5, 0x1p40, 0x1p-64, 0x1p-65, 0x1.8p-65, 0x1p-66, 0x1.8p-64, 0x1.4p-63, 0x1.cp-64, 3e-20,
+                   5.4e-20, 1e-300, 0x1p-1074, 0x1p-1022, 0x1.fffffffffffffp39})
+    EXPECT_TRUE(ExactSum::to_fixed(x) == reference(x)) << x;
+  std::mt19937_64 g(1);
+  int differ = 0;
+  for (int i = 0; i < 2'000'000; ++i) {
+    const double x = std::ldexp(std::uniform_real_distribution<double>(1, 2)(g),
+                                int(std::floor(std::uniform_real_distribution<double>(-70, 40)(g))));
+    const double tie_prone = std::bit_cast<double>(std::bit_cast<std::uint64_t>(x) & ~std::uint64_t(0xFF));
+    differ += int(ExactSum::to_fixed(x) != reference(x)) + int(ExactSum::to_fixed(tie_prone) != reference(tie_prone));
+  }
+  EXPECT_EQ(differ, 0);
 }
 
 TEST(ExactSum, AssociativeWhereDoublesAreNot) {
