@@ -547,13 +547,10 @@ SubTest dropped_fraction_test(const Tally& tally, const ReferenceDistribution& r
 
 std::string no_samples_below_horizon_note(const Tally& tally, const ReferenceDistribution& ref) {
   if (ref.domain != SampleDomain::reflected_direction || ref.above_horizon || tally.below_horizon > 0) return "";
-  // The mass of the sphere bins that lie wholly below the horizon (rows from z_max = 1 down, equal in z).
-  const DirectionBinning& sphere = ref.sphere;
-  const double dz = 2.0 / sphere.rows();
+  // The mass of the sphere bins that lie wholly below the horizon.
   double below = 0;
-  for (int row = 0; row < sphere.rows(); ++row)
-    if (1.0 - row * dz <= 0.0)
-      for (int col = 0; col < sphere.cols(); ++col) below += ref.sphere_probability.probability[std::size_t(row * sphere.cols() + col)];
+  for (int b = 0; b < ref.sphere.size(); ++b)
+    if (ref.sphere.bounds(b).theta_min_deg >= 90.0) below += ref.sphere_probability.probability[std::size_t(b)];
   const double expected = below * double(tally.samples - tally.outside);
   if (expected < 5) return "";
   return fmt::format("the file has no sample below the horizon, where the claimed pdf puts at least {:.3g}% of its mass "

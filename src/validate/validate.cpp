@@ -183,8 +183,7 @@ std::shared_ptr<const ReferenceDistribution> vndf_reference(SampleDomain domain,
   const Vec3<double> w = wi.normalized();
   if (domain == SampleDomain::microfacet_normal)
     return prepare_reference([ggx, w](const Vec3<double>& m) { return ggx.visible_normal_pdf(w, m); }, domain, ggx, w, rows);
-  return prepare_reference([ggx, w](const Vec3<double>& o) { return ggx.visible_reflection_pdf(w, o); }, domain, ggx, w,
-                           rows);
+  return density_reference(claimed_density(FilePdf::reflection, ggx, w), ggx, w, rows);
 }
 
 ClaimedDensity claimed_density(FilePdf pdf, const GGX<double>& ggx, const Vec3<double>& wi_in) {
