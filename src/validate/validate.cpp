@@ -137,17 +137,20 @@ std::vector<DirectionFunction> claimed_pdf_breaks(const SamplerInfo& sampler, co
 
 std::shared_ptr<const ReferenceDistribution> prepare_reference(DirectionFunction pdf, SampleDomain domain,
                                                                const GGX<double>& ggx, const Vec3<double>& wi_in, int rows,
-                                                               std::vector<DirectionFunction> breaks) {
+                                                               std::vector<DirectionFunction> breaks,
+                                                               const std::vector<Vec3<double>>& focus) {
   ReferenceDistribution ref = unintegrated_reference(std::move(pdf), domain, ggx, wi_in.normalized(), rows);
   // In lobe space the pdfs of the zoo are smooth and spread over the whole parameter space (the VNDF
   // is a clamped cosine there): plain adaptive cubature suffices.
   IntegrationOptions options;
   options.breaks = std::move(breaks);
+  options.focus = focus;  // a second lobe (refraction) is narrow in lobe space too: resolve it there
   IntegrationOptions sphere_options = options;
   // In sphere space the lobe can be far narrower than a bin: focus on it with a lattice uniform in the
   // lobe parameter space, which covers every region with mass however narrow (alpha = 1e-3) or thin
   // (anisotropy, grazing reflections).
   sphere_options.focus = ref.lobe.lattice_directions(4096);
+  sphere_options.focus.insert(sphere_options.focus.end(), focus.begin(), focus.end());
   // Where the pdfs of the zoo jump, in sphere coordinates: normals at m.z = 0; reflected directions
   // where the half vector reaches the horizon, wo.z = -wi.z.
   sphere_options.z_breaks = {0.0};
@@ -190,12 +193,12 @@ ClaimedDensity claimed_density(FilePdf pdf, const GGX<double>& ggx, const Vec3<d
   const Vec3<double> wi = wi_in.normalized();
   if (pdf == FilePdf::reflection)
     return {SampleDomain::reflected_direction,
-            [ggx, wi](const Vec3<double>& o) { return ggx.visible_reflection_pdf(wi, o); }, {}};
+            [ggx, wi](const Vec3<double>& o) { return ggx.visible_reflection_pdf(wi, o); }, {}, {}};
   const ClaimedPdf claims = pdf == FilePdf::vndf  ? ClaimedPdf::visible_normals
                             : pdf == FilePdf::ndf ? ClaimedPdf::ndf_cosine
                                                   : ClaimedPdf::bounded_reflection;
   const SamplerInfo& sampler = reference_sampler(claims);
-  return {sampler.domain, claimed_pdf_of(sampler, ggx, wi), claimed_pdf_breaks(sampler, ggx, wi)};
+  return {sampler.domain, claimed_pdf_of(sampler, ggx, wi), claimed_pdf_breaks(sampler, ggx, wi), {}};
 }
 
 FilePdf parse_file_pdf(std::string_view name) {
@@ -208,7 +211,7 @@ FilePdf parse_file_pdf(std::string_view name) {
 
 std::shared_ptr<const ReferenceDistribution> density_reference(const ClaimedDensity& density, const GGX<double>& ggx,
                                                                const Vec3<double>& wi, int rows) {
-  return prepare_reference(density.pdf, density.domain, ggx, wi, rows, density.breaks);
+  return prepare_reference(density.pdf, density.domain, ggx, wi, rows, density.breaks, density.focus);
 }
 
 namespace {
@@ -227,7 +230,7 @@ std::shared_ptr<const ReferenceDistribution> above_horizon_reference(const Claim
   const DirectionFunction above = [full](const Vec3<double>& o) { return o.z() > 0 ? full(o) : 0.0; };
   std::vector<DirectionFunction> breaks = density.breaks;
   breaks.push_back([](const Vec3<double>& o) { return o.z(); });  // where `above` jumps
-  const auto unconditioned = prepare_reference(above, density.domain, ggx, wi, rows, std::move(breaks));
+  const auto unconditioned = prepare_reference(above, density.domain, ggx, wi, rows, std::move(breaks), density.focus);
   const double kept = unconditioned->sphere_probability.total;
   if (!(kept > 0)) throw std::invalid_argument("the claimed pdf puts no mass above the horizon for this view");
   ReferenceDistribution conditioned = *unconditioned;

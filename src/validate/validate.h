@@ -113,11 +113,13 @@ struct ReferenceDistribution {
 
 // `breaks`: functions of the direction whose zero sets are curves where the pdf jumps (see
 // IntegrationOptions::breaks); the curves where every pdf of the zoo jumps or kinks (the horizon of
-// the half vector, the visibility boundary wi . m = 0) are added automatically.
+// the half vector, the visibility boundary wi . m = 0) are added automatically. `focus`: directions where
+// the pdf has mass beside the lobe binning's lattice (a dielectric's refracted lobe).
 using DirectionFunction = std::function<double(const Vec3<double>&)>;
 std::shared_ptr<const ReferenceDistribution> prepare_reference(DirectionFunction pdf, SampleDomain domain,
                                                                const GGX<double>& ggx, const Vec3<double>& wi, int rows,
-                                                               std::vector<DirectionFunction> breaks = {});
+                                                               std::vector<DirectionFunction> breaks = {},
+                                                               const std::vector<Vec3<double>>& focus = {});
 // The reference a sampler claims (its claimed_pdf), and the analytic VNDF reference of a domain:
 // D_v(wi, m) for normals, GGX::visible_reflection_pdf(wi, wo) for reflected directions.
 std::shared_ptr<const ReferenceDistribution> claimed_reference(const SamplerInfo& sampler, const GGX<double>& ggx,
@@ -138,6 +140,7 @@ struct ClaimedDensity {
   SampleDomain domain;
   DirectionFunction pdf;                  // per unit solid angle
   std::vector<DirectionFunction> breaks;  // where it jumps beyond the common curves (prepare_reference)
+  std::vector<Vec3<double>> focus;        // where it has mass beside the lobe's lattice (prepare_reference)
 };
 ClaimedDensity claimed_density(FilePdf pdf, const GGX<double>& ggx, const Vec3<double>& wi);
 inline bool claims_reflected_directions(FilePdf pdf) { return pdf == FilePdf::bounded || pdf == FilePdf::reflection; }

@@ -14,56 +14,15 @@ namespace microsim {
 
 namespace {
 
-// f(wi, wo) cos(wo) of channel c: the single-scattering flux per unit solid angle of wo.
-double reflected_flux(const GGX<double>& ggx, const Material& bsdf, int c, const Vec3<double>& wi, const Vec3<double>& wo) {
-  const double f = bsdf.kind() == MaterialKind::mirror ? mirror_brdf(ggx, wi, wo) : conductor_brdf(ggx, bsdf.ior(c), wi, wo);
-  return f * std::max(wo.z(), 0.0);
-}
-
-// The expected weight per sample in every sphere bin, per channel.
-std::vector<std::vector<double>> expected_bin_weights(const ReferenceDistribution& ref, const Material& bsdf) {
-  IntegrationOptions o;
-  o.focus = ref.lobe.lattice_directions(4096);
-  o.z_breaks = {0.0, -ref.wi.z()};
-  std::vector<std::vector<double>> e;
-  for (int c = 0; c < bsdf.channels(); ++c)
-    e.push_back(ref.sphere.integrate([&](const Vec3<double>& wo) { return reflected_flux(ref.ggx, bsdf, c, ref.wi, wo); }, o)
-                    .probability);
-  return e;
-}
-
-// Per bin and channel: the sums of the weights and of their squares, and the samples per bin.
-struct WeightSums {
-  std::vector<std::vector<double>> sum, sum_sq;  // [channel][bin]
-  std::vector<std::uint64_t> samples;            // per bin
-  std::uint64_t rows = 0;
-};
-
-WeightSums sum_weights(const std::filesystem::path& file, const SampleColumns& columns, SampleFrame frame,
-                       const DirectionBinning& sphere, int channels) {
-  DirectionSampleReader reader(file, columns);
-  reader.set_frame(frame);
-  const FastDirectionBinner binner(sphere);
-  WeightSums s{std::vector<std::vector<double>>(std::size_t(channels), std::vector<double>(std::size_t(sphere.size()), 0.0)),
-               std::vector<std::vector<double>>(std::size_t(channels), std::vector<double>(std::size_t(sphere.size()), 0.0)),
-               std::vector<std::uint64_t>(std::size_t(sphere.size()), 0), 0};
-  std::vector<Vec3<double>> rows(kSampleFileBlock);
-  std::vector<double> pdfs(columns.has_pdf() ? rows.size() : 0), weights(rows.size() * std::size_t(channels));
-  while (const std::size_t n = reader.read(rows, pdfs, weights)) {
-    s.rows += n;
-    for (std::size_t i = 0; i < n; ++i) {
-      if (!rows[i].allFinite()) continue;  // the sampler's failure: weighs nothing, counted in rows
-      const int b = binner(rows[i]);
-      if (b < 0) continue;
-      ++s.samples[std::size_t(b)];
-      for (int c = 0; c < channels; ++c) {
-        const double w = weights[i * std::size_t(channels) + std::size_t(c)];
-        s.sum[std::size_t(c)][std::size_t(b)] += w;
-        s.sum_sq[std::size_t(c)][std::size_t(b)] += w * w;
-      }
-    }
+// f(wi, wo) |cos(wo)| of channel c: the single-scattering flux per unit solid angle of wo.
+double bsdf_flux(const GGX<double>& ggx, const Material& bsdf, int c, const Vec3<double>& wi, const Vec3<double>& wo) {
+  switch (bsdf.kind()) {
+    case MaterialKind::mirror: return mirror_brdf(ggx, wi, wo) * std::max(wo.z(), 0.0);
+    case MaterialKind::conductor: return conductor_brdf(ggx, bsdf.ior(c), wi, wo) * std::max(wo.z(), 0.0);
+    case MaterialKind::dielectric: return dielectric_bsdf(ggx, bsdf.eta(), wi, wo) * std::abs(wo.z());
+    case MaterialKind::lambertian: break;
   }
-  return s;
+  return 0.0;
 }
 
 // Two-sided p of z (0 for a non-finite z: NaN weights reject).
@@ -137,28 +96,96 @@ SubTest bins_test(const WeightSums& s, const std::vector<std::vector<double>>& e
 
 void check_weight_inputs(const SampleColumns& columns, const ReferenceDistribution& ref, const Material& bsdf) {
   if (ref.domain != SampleDomain::reflected_direction)
-    throw std::invalid_argument("--bsdf: the weight test needs reflected directions (--reflected or --pdf reflection|bounded)");
-  if (bsdf.kind() != MaterialKind::mirror && bsdf.kind() != MaterialKind::conductor)
-    throw std::invalid_argument(fmt::format("--bsdf {}: the weight test has mirror and conductor BSDFs only", bsdf.describe()));
+    throw std::invalid_argument("--bsdf: the weight test needs outgoing directions (--reflected or --pdf "
+                                "reflection|bounded|dielectric)");
+  if (bsdf.kind() == MaterialKind::lambertian)
+    throw std::invalid_argument(fmt::format("--bsdf {}: the weight test has mirror, conductor and dielectric BSDFs",
+                                            bsdf.describe()));
+  if (bsdf.transmits() && ref.above_horizon)
+    throw std::invalid_argument(fmt::format("--bsdf {}: a dielectric's directions cover both sides of the horizon "
+                                            "(drop --above-horizon)", bsdf.describe()));
   if (columns.channels() != bsdf.channels())
     throw std::invalid_argument(fmt::format("--bsdf {} has {} channel(s) but the file {} weight column(s) (--columns)",
                                             bsdf.describe(), bsdf.channels(), columns.channels()));
 }
 
+// The sums of a file's weights, read block by block.
+WeightSums sum_weights(const std::filesystem::path& file, const SampleColumns& columns, SampleFrame frame,
+                       const DirectionBinning& sphere, int channels) {
+  DirectionSampleReader reader(file, columns);
+  reader.set_frame(frame);
+  const FastDirectionBinner binner(sphere);
+  WeightSums s(channels, sphere.size());
+  std::vector<Vec3<double>> rows(kSampleFileBlock);
+  std::vector<double> pdfs(columns.has_pdf() ? rows.size() : 0), weights(rows.size() * std::size_t(channels));
+  while (const std::size_t n = reader.read(rows, pdfs, weights)) s.add(binner, rows, weights, n);
+  return s;
+}
+
 }  // namespace
+
+WeightSums::WeightSums(int channels, int bins)
+    : sum(std::size_t(channels), std::vector<double>(std::size_t(bins), 0.0)),
+      sum_sq(std::size_t(channels), std::vector<double>(std::size_t(bins), 0.0)),
+      samples(std::size_t(bins), 0) {}
+
+void WeightSums::add(const FastDirectionBinner& binner, std::span<const Vec3<double>> directions,
+                     std::span<const double> weights, std::size_t n) {
+  const std::size_t channels = sum.size();
+  rows += n;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!directions[i].allFinite()) continue;  // the sampler's failure: weighs nothing, counted in rows
+    const int b = binner(directions[i]);
+    if (b < 0) continue;
+    ++samples[std::size_t(b)];
+    for (std::size_t c = 0; c < channels; ++c) {
+      const double w = weights[i * channels + c];
+      sum[c][std::size_t(b)] += w;
+      sum_sq[c][std::size_t(b)] += w * w;
+    }
+  }
+}
+
+void WeightSums::merge(const WeightSums& other) {
+  rows += other.rows;
+  for (std::size_t b = 0; b < samples.size(); ++b) samples[b] += other.samples[b];
+  for (std::size_t c = 0; c < sum.size(); ++c)
+    for (std::size_t b = 0; b < samples.size(); ++b) {
+      sum[c][b] += other.sum[c][b];
+      sum_sq[c][b] += other.sum_sq[c][b];
+    }
+}
+
+std::vector<std::vector<double>> expected_bin_weights(const ReferenceDistribution& ref, const Material& bsdf,
+                                                      const std::vector<Vec3<double>>& focus) {
+  IntegrationOptions o;
+  o.focus = ref.lobe.lattice_directions(4096);
+  o.focus.insert(o.focus.end(), focus.begin(), focus.end());
+  o.z_breaks = {0.0, -ref.wi.z()};
+  std::vector<std::vector<double>> e;
+  for (int c = 0; c < bsdf.channels(); ++c)
+    e.push_back(ref.sphere.integrate([&](const Vec3<double>& wo) { return bsdf_flux(ref.ggx, bsdf, c, ref.wi, wo); }, o)
+                    .probability);
+  return e;
+}
+
+std::vector<SubTest> weight_checks(const WeightSums& sums, const std::vector<std::vector<double>>& expected, double n,
+                                   const DirectionBinning& sphere, const Material& bsdf, const ValidationOptions& options) {
+  return {albedo_test(sums, expected, n, bsdf, options), bins_test(sums, expected, n, sphere, bsdf)};
+}
 
 std::vector<SubTest> bsdf_weight_tests(const std::filesystem::path& file, const SampleColumns& columns, SampleFrame frame,
                                        const ReferenceDistribution& ref, const Material& bsdf,
-                                       const ValidationOptions& options) {
+                                       const ValidationOptions& options, const std::vector<Vec3<double>>& focus) {
   check_weight_inputs(columns, ref, bsdf);
-  std::vector<std::vector<double>> expected = expected_bin_weights(ref, bsdf);
+  std::vector<std::vector<double>> expected = expected_bin_weights(ref, bsdf, focus);
   // Conditioned on the upper hemisphere without the dropped count: the kept samples' mean weight.
   if (ref.above_horizon && !options.dropped_below_horizon)
     for (auto& channel : expected)
       for (double& e : channel) e /= ref.kept_mass;
   const WeightSums s = sum_weights(file, columns, frame, ref.sphere, bsdf.channels());
   const double n = double(s.rows + options.dropped_below_horizon.value_or(0));
-  return {albedo_test(s, expected, n, bsdf, options), bins_test(s, expected, n, ref.sphere, bsdf)};
+  return weight_checks(s, expected, n, ref.sphere, bsdf, options);
 }
 
 }  // namespace microsim

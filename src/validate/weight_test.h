@@ -10,28 +10,56 @@
 // a weight without G1(wo), a wrong Fresnel, a wrong Jacobian, a roughness squared twice, even when the
 // directions are right. Reflected directions of a mirror or conductor BSDF (microfacet/bsdf.h:
 // mirror_brdf, conductor_brdf, Walter et al. 2007 eq. 20 with the height-correlated G2 of Heitz 2014
-// eq. 99); the flux integrals by the binning's adaptive cubature.
+// eq. 99), and both lobes of the rough dielectric (dielectric_bsdf); the flux integrals by the binning's
+// adaptive cubature.
 #pragma once
 
 #include "microfacet/material.h"
 #include "validate/sample_io.h"
 #include "validate/validate.h"
+#include "stats/direction_binner.h"
 
 #include <filesystem>
+#include <span>
 #include <vector>
 
 namespace microsim {
 
 inline constexpr std::uint64_t kMinWeightBinSamples = 30;
 
+// Per sphere bin and channel: the sums of the weights and of their squares, and the samples per bin.
+// Blocks of samples are summed into their own WeightSums and merged in block order (thread-count
+// independent).
+struct WeightSums {
+  std::vector<std::vector<double>> sum, sum_sq;  // [channel][bin]
+  std::vector<std::uint64_t> samples;            // per bin
+  std::uint64_t rows = 0;                        // every sample given, lost ones included
+  WeightSums(int channels, int bins);
+  // n directions with their weights (channels per row, row-major); a non-finite direction or one outside
+  // the binning weighs nothing but counts in rows.
+  void add(const FastDirectionBinner& binner, std::span<const Vec3<double>> directions, std::span<const double> weights,
+           std::size_t n);
+  void merge(const WeightSums& other);
+};
+
+// The expected weight per sample in every sphere bin of `ref`, per channel of `bsdf`: the integral of
+// f(wi, wo) |wo.z| over the bin (mirror, conductor: reflected directions; dielectric: reflection and
+// refraction over the whole sphere; `focus`: directions where it has mass, beside the lobe's lattice).
+std::vector<std::vector<double>> expected_bin_weights(const ReferenceDistribution& ref, const Material& bsdf,
+                                                      const std::vector<Vec3<double>>& focus = {});
+
+// The checks "bsdf_albedo" and "bsdf_bins" of sums over n samples (lost ones weigh 0) against `expected`.
+std::vector<SubTest> weight_checks(const WeightSums& sums, const std::vector<std::vector<double>>& expected, double n,
+                                   const DirectionBinning& sphere, const Material& bsdf, const ValidationOptions& options);
+
 // The samples of a file, read again with its columns and frame, and their weights (one column per channel
 // of `bsdf`) against the BSDF: the statistical checks "bsdf_albedo" and "bsdf_bins". The mean is over the
 // file's rows plus options.dropped_below_horizon (dropped samples weigh 0); a reference conditioned on the
 // upper hemisphere without that count divides the expectations by its kept mass. Throws
-// std::invalid_argument for normals, a Lambertian or dielectric BSDF (not yet), or weight columns that do
-// not match the BSDF's channels.
+// std::invalid_argument for normals, a Lambertian BSDF, or weight columns that do not match the BSDF's
+// channels. `focus`: as for expected_bin_weights (a dielectric's refracted lobe).
 std::vector<SubTest> bsdf_weight_tests(const std::filesystem::path& file, const SampleColumns& columns, SampleFrame frame,
                                        const ReferenceDistribution& reference, const Material& bsdf,
-                                       const ValidationOptions& options);
+                                       const ValidationOptions& options, const std::vector<Vec3<double>>& focus = {});
 
 }  // namespace microsim

@@ -1,0 +1,178 @@
+#include "microfacet/bsdf_samplers.h"
+
+#include "microfacet/bsdf.h"
+#include "microfacet/samplers.h"
+
+#include <algorithm>
+
+namespace microsim {
+
+namespace {
+
+// ---- the two half-vector Jacobians (Walter et al. 2007 eq. 14 and 17) ---------------------------------
+
+// d omega_m / d omega_o of a reflection: 1 / (4 |<wo, m>|).
+double reflection_jacobian(const Vec3<double>& wo, const Vec3<double>& m) { return 1.0 / (4.0 * std::abs(wo.dot(m))); }
+
+// d omega_m / d omega_o of a refraction from index 1 into eta: eta^2 |<wo, m>| / (<wi, m> + eta <wo, m>)^2.
+double refraction_jacobian(const Vec3<double>& wi, const Vec3<double>& wo, const Vec3<double>& m, double eta) {
+  const double denom = sqr(wi.dot(m) + eta * wo.dot(m));
+  return denom > 0 ? sqr(eta) * std::abs(wo.dot(m)) / denom : 0.0;
+}
+
+// The same Jacobian written for the wrong side (d omega_m / d omega_i): |<wi, m>| / (<wi, m> + eta <wo, m>)^2.
+double refraction_jacobian_of_wi(const Vec3<double>& wi, const Vec3<double>& wo, const Vec3<double>& m, double eta) {
+  const double denom = sqr(wi.dot(m) + eta * wo.dot(m));
+  return denom > 0 ? std::abs(wi.dot(m)) / denom : 0.0;
+}
+
+// The refraction half vector of wi (above) and wo (below) into index eta (Walter eq. 16), oriented to +z;
+// zero where there is none.
+Vec3<double> refraction_half_vector(const Vec3<double>& wi, const Vec3<double>& wo, double eta) {
+  Vec3<double> m = normalized_or_zero(Vec3<double>(-(wi + eta * wo)));
+  return m.z() < 0 ? Vec3<double>(-m) : m;
+}
+
+// ---- one event: a visible normal, then reflection or refraction ------------------------------------------
+
+struct VisibleNormal {
+  Vec3<double> m;
+  double pdf;  // D_v(wi, m)
+};
+std::optional<VisibleNormal> visible_normal(const GGX<double>& ggx, const Vec3<double>& wi, const Vec3<double>& u) {
+  const SampleResult<double> s = sample_heitz2018(ggx, wi, Vec2<double>(u.x(), u.y()));
+  if (!s || !(wi.dot(s->direction) > 0)) return std::nullopt;
+  return VisibleNormal{s->direction, s->pdf};
+}
+
+// A conductor: the mirror reflection about m, lost below the horizon; weight F G2 / G1(wi).
+BsdfSampleResult conductor_event(const GGX<double>& ggx, std::complex<double> eta, const Vec3<double>& wi,
+                                 const Vec3<double>& u, bool without_g1_wo) {
+  const auto v = visible_normal(ggx, wi, u);
+  if (!v) return std::nullopt;
+  const Vec3<double> wo = reflect(wi, v->m);
+  if (!(wo.z() > 0)) return std::nullopt;
+  const double F = fresnel_conductor(wi.dot(v->m), eta);
+  // The bug: G2 / G1(wi) ~ G1(wo) left out of the weight.
+  const double weight = without_g1_wo ? F : F * ggx.G2(wi, wo) / ggx.G1(wi);
+  return BsdfSample{wo, v->pdf * reflection_jacobian(wo, v->m), weight};
+}
+
+enum class DielectricBug { none, jacobian_of_wrong_side, transmission_without_eta2 };
+
+// A dielectric: reflection with probability F, else refraction; lost on the wrong side of the horizon.
+BsdfSampleResult dielectric_event(const GGX<double>& ggx, double eta, const Vec3<double>& wi, const Vec3<double>& u,
+                                  DielectricBug bug) {
+  const auto v = visible_normal(ggx, wi, u);
+  if (!v) return std::nullopt;
+  const double F = fresnel_dielectric(wi.dot(v->m), eta);
+  if (u.z() < F) {
+    const Vec3<double> wo = reflect(wi, v->m);
+    if (!(wo.z() > 0)) return std::nullopt;
+    return BsdfSample{wo, F * v->pdf * reflection_jacobian(wo, v->m), ggx.G2(wi, wo) / ggx.G1(wi)};
+  }
+  Vec3<double> wo;
+  if (!refract(wi, v->m, eta, wo) || !(wo.z() < 0)) return std::nullopt;
+  const double jacobian = refraction_jacobian(wi, wo, v->m, eta);
+  double weight = ggx.G2(wi, wo) / ggx.G1(wi), pdf = (1 - F) * v->pdf * jacobian;
+  if (bug == DielectricBug::transmission_without_eta2) weight /= sqr(eta);
+  if (bug == DielectricBug::jacobian_of_wrong_side) {
+    const double wrong = refraction_jacobian_of_wi(wi, wo, v->m, eta);
+    weight *= jacobian / wrong;  // f |wo.z| / pdf with the wrong pdf
+    pdf = (1 - F) * v->pdf * wrong;
+  }
+  return BsdfSample{wo, pdf, weight};
+}
+
+// ---- the zoo --------------------------------------------------------------------------------------------
+
+BsdfSampleResult sample_conductor_vndf(const GGX<double>& g, std::complex<double> eta, const Vec3<double>& wi,
+                                       const Vec3<double>& u) {
+  return conductor_event(g, eta, wi, u, false);
+}
+BsdfSampleResult sample_conductor_no_g1_wo(const GGX<double>& g, std::complex<double> eta, const Vec3<double>& wi,
+                                           const Vec3<double>& u) {
+  return conductor_event(g, eta, wi, u, true);
+}
+// The renderer squared a roughness that was already alpha: it samples and weighs the BSDF of alpha^2.
+BsdfSampleResult sample_conductor_alpha_squared(const GGX<double>& g, std::complex<double> eta, const Vec3<double>& wi,
+                                                const Vec3<double>& u) {
+  return conductor_event(GGX<double>(sqr(g.alpha_x()), sqr(g.alpha_y())), eta, wi, u, false);
+}
+BsdfSampleResult sample_dielectric_vndf(const GGX<double>& g, std::complex<double> eta, const Vec3<double>& wi,
+                                        const Vec3<double>& u) {
+  return dielectric_event(g, eta.real(), wi, u, DielectricBug::none);
+}
+BsdfSampleResult sample_dielectric_wrong_jacobian(const GGX<double>& g, std::complex<double> eta, const Vec3<double>& wi,
+                                                  const Vec3<double>& u) {
+  return dielectric_event(g, eta.real(), wi, u, DielectricBug::jacobian_of_wrong_side);
+}
+BsdfSampleResult sample_dielectric_no_eta2(const GGX<double>& g, std::complex<double> eta, const Vec3<double>& wi,
+                                           const Vec3<double>& u) {
+  return dielectric_event(g, eta.real(), wi, u, DielectricBug::transmission_without_eta2);
+}
+
+// alpha^2 == alpha only at alpha = 1, and both clamp to kMinAlpha at or below it (GGX's constructor).
+bool squaring_changes(double a) { return a > kMinAlpha && a != 1.0; }
+bool squaring_has_effect(const GGX<double>& g, std::complex<double>, const Vec3<double>&) {
+  return squaring_changes(g.alpha_x()) || squaring_changes(g.alpha_y());
+}
+// A bug of the refraction weight or pdf shows where at least 1e-4 of the samples refract.
+bool refraction_happens(const GGX<double>& g, std::complex<double> eta, const Vec3<double>& wi) {
+  return refraction_probability(g, eta.real(), wi) > 1e-4;
+}
+
+constexpr BsdfSamplerInfo kRegistry[] = {
+    {"conductor_vndf", "conductor: Heitz 2018 VNDF, mirror reflection, weight F G2 / G1(wi)", MaterialKind::conductor,
+     false, sample_conductor_vndf, conductor_vndf_pdf, nullptr},
+    {"dielectric_vndf", "rough dielectric: Heitz 2018 VNDF, reflect with probability F else refract, weight G2 / G1(wi)",
+     MaterialKind::dielectric, false, sample_dielectric_vndf, dielectric_vndf_pdf, nullptr},
+    {"cond_no_g1_wo", "NEGATIVE CONTROL: conductor weight F, without G1(wo)", MaterialKind::conductor, true,
+     sample_conductor_no_g1_wo, conductor_vndf_pdf, nullptr},
+    {"cond_alpha_sq", "NEGATIVE CONTROL: conductor with the roughness squared twice (samples and weighs alpha^2)",
+     MaterialKind::conductor, true, sample_conductor_alpha_squared, conductor_vndf_pdf, squaring_has_effect},
+    {"diel_wrong_jac", "NEGATIVE CONTROL: dielectric refraction pdf with the half-vector Jacobian of wi's side",
+     MaterialKind::dielectric, true, sample_dielectric_wrong_jacobian, dielectric_vndf_pdf, refraction_happens},
+    {"diel_no_eta2", "NEGATIVE CONTROL: dielectric refraction weight without the eta^2 factor", MaterialKind::dielectric,
+     true, sample_dielectric_no_eta2, dielectric_vndf_pdf, refraction_happens},
+};
+
+}  // namespace
+
+double conductor_vndf_pdf(const GGX<double>& ggx, std::complex<double>, const Vec3<double>& wi, const Vec3<double>& wo) {
+  return wo.z() > 0 ? ggx.visible_reflection_pdf(wi, wo) : 0.0;
+}
+
+double dielectric_vndf_pdf(const GGX<double>& ggx, std::complex<double> ior, const Vec3<double>& wi, const Vec3<double>& wo) {
+  const double eta = ior.real();
+  if (wo.z() > 0) {
+    const Vec3<double> m = reflection_half_vector(wi, wo);
+    if (!(wi.dot(m) > 0 && wo.dot(m) > 0)) return 0.0;
+    return fresnel_dielectric(wi.dot(m), eta) * ggx.visible_normal_pdf(wi, m) * reflection_jacobian(wo, m);
+  }
+  if (!(wo.z() < 0)) return 0.0;
+  const Vec3<double> m = refraction_half_vector(wi, wo, eta);
+  if (!(m.z() > 0 && wi.dot(m) > 0 && wo.dot(m) < 0)) return 0.0;
+  return (1 - fresnel_dielectric(wi.dot(m), eta)) * ggx.visible_normal_pdf(wi, m) * refraction_jacobian(wi, wo, m, eta);
+}
+
+double refraction_probability(const GGX<double>& ggx, double eta, const Vec3<double>& wi) {
+  constexpr int n = 64;
+  double sum = 0;
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) {
+      const auto v = visible_normal(ggx, wi, Vec3<double>((i + 0.5) / n, (j + 0.5) / n, 0.0));
+      if (v) sum += 1 - fresnel_dielectric(wi.dot(v->m), eta);
+    }
+  return sum / (n * n);
+}
+
+std::span<const BsdfSamplerInfo> bsdf_sampler_registry() { return kRegistry; }
+
+const BsdfSamplerInfo* find_bsdf_sampler(std::string_view name) {
+  for (const BsdfSamplerInfo& s : kRegistry)
+    if (s.name == name) return &s;
+  return nullptr;
+}
+
+}  // namespace microsim

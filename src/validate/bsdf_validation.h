@@ -1,0 +1,43 @@
+// validate: a BSDF sampler of the zoo (microfacet/bsdf_samplers.h) validated as a renderer's sample()
+// would be (issue 11, point 4): its outgoing directions against the pdf it claims (chi-square in sphere and
+// lobe bins, the returned pdf at each sample, the pdf's integral), and its weights against the analytic
+// single-scattering BSDF (weight_test.h: the albedo and the flux per sphere bin), in one report.
+// Sample i draws three uniforms from CounterRng(seed, i): the same samples whatever the thread count.
+#pragma once
+
+#include "microfacet/bsdf_samplers.h"
+#include "validate/validate.h"
+
+#include <memory>
+#include <vector>
+
+namespace microsim {
+
+// The material a sampler of the zoo is validated with (bsdf_samplers.h): the zoo's conductor, or its
+// glass seen from outside (eta 1.5) or, mirrored, from inside (eta 1 / 1.5).
+Material zoo_bsdf_material(const BsdfSamplerInfo& sampler, bool from_inside);
+
+// The claimed density of sampling `bsdf` as the zoo's correct sampler of its kind does (conductor and mirror:
+// conductor_vndf_pdf; dielectric: dielectric_vndf_pdf with its eta), with the refracted lobe as focus.
+ClaimedDensity bsdf_sampling_density(const Material& bsdf, const GGX<double>& ggx, const Vec3<double>& wi);
+
+// Where a dielectric's refracted lobe has mass: the lobe binning's lattice of visible normals refracted
+// (the refraction of wi about each normal into eta). Empty for eta == 1.
+std::vector<Vec3<double>> refracted_lobe_focus(const DirectionBinning& lobe, const Vec3<double>& wi, double eta);
+
+// What the validations of one configuration and material share (expensive: cubature of the claimed pdf
+// over two binnings and of the BSDF's flux over the sphere bins).
+struct BsdfReference {
+  std::shared_ptr<const ReferenceDistribution> directions;
+  std::vector<std::vector<double>> flux;  // expected weight per sample, [channel][sphere bin]
+};
+BsdfReference bsdf_reference(const Material& bsdf, const GGX<double>& ggx, const Vec3<double>& wi, int rows);
+
+// Draws options.samples samples of `sampler` for `bsdf` (float64; options.precision is ignored) and
+// validates them; the report's checks hold "bsdf_albedo" and "bsdf_bins". Throws InsufficientData before
+// drawing when options.samples is too few, std::invalid_argument for a material of another kind.
+ValidationReport validate_bsdf_sampler(const BsdfSamplerInfo& sampler, const Material& bsdf, const GGX<double>& ggx,
+                                       const Vec3<double>& wi, const ValidationOptions& options,
+                                       const BsdfReference* reference = nullptr);
+
+}  // namespace microsim
