@@ -368,7 +368,9 @@ int run_all(const Args& a) {
     bar.add(1);
   }
   bar.finish();
-  return report.finish(partial, references, a.json);
+  microsim::app::BsdfZooReferences bsdf_references;
+  if (!partial) partial = !microsim::app::run_bsdf_section(run, report, bsdf_references);
+  return report.finish(partial, references, a.json, &bsdf_references);
 }
 
 // The options that describe a --from file (what it claims, its columns, frame, BSDF): checked before any

@@ -2,6 +2,7 @@
 
 #include "command.h"
 #include "merge_parts.h"
+#include "progress_bar.h"
 
 #include "core/atomic_file.h"
 #include "stats/figure.h"
@@ -9,6 +10,7 @@
 
 #include <fmt/core.h>
 #include <fmt/ranges.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
@@ -187,7 +189,7 @@ std::shared_ptr<const ReferenceDistribution> ZooReferences::get(const Validation
   return ref;
 }
 
-ZooReport::ZooReport(const ValidationRun& run) : run_(run) {
+ZooReport::ZooReport(const ValidationRun& run) : run_(run), requested_(run.cases.size()) {
   const ValidationOptions& o = run.options;
   fmt::print("microsim validate --all: {} samplers x {} configurations, {} samples each ({}), seed {}\n",
              sampler_registry().size(), kZooConfigurations, o.samples, to_string(o.precision), run.seed);
@@ -223,42 +225,116 @@ void ZooReport::add(const ValidationCase& c, const ValidationReport& r) {
   results_.push_back(j);
 }
 
+std::string BsdfZooReferences::key(const BsdfValidationCase& c) {
+  return fmt::format("{} {} {}", c.alpha, c.theta_deg, c.material().describe());
+}
+
+void BsdfZooReferences::prepare(const std::vector<BsdfValidationCase>& cases, int rows) {
+  const auto t0 = std::chrono::steady_clock::now();
+  std::vector<const BsdfValidationCase*> firsts;
+  for (const BsdfValidationCase& c : cases)
+    if (references_.try_emplace(key(c)).second) firsts.push_back(&c);
+  std::vector<BsdfReference> computed(firsts.size());
+  tbb::parallel_for(std::size_t(0), firsts.size(), [&](std::size_t i) {
+    const BsdfValidationCase& c = *firsts[i];
+    computed[i] = bsdf_reference(c.material(), c.ggx(), c.wi(), rows);
+  });
+  for (std::size_t i = 0; i < firsts.size(); ++i) references_[key(*firsts[i])] = std::move(computed[i]);
+  count_ += int(firsts.size());
+  seconds_ += elapsed(t0);
+}
+
+const BsdfReference& BsdfZooReferences::get(const BsdfValidationCase& c) const { return references_.at(key(c)); }
+
+void ZooReport::begin_bsdf_section(std::size_t validations) {
+  requested_ += validations;
+  fmt::print("\nBSDF samplers: {} validations (directions against the claimed pdf, weights f cos / pdf against the "
+             "analytic BSDF; conductor {}+{}i, dielectric {} from outside and, mirrored, from inside)\n",
+             validations, kZooConductorIor.real(), kZooConductorIor.imag(), kZooDielectricEta);
+  fmt::print("{:<15} {:>6} {:>6} {:>7}  {:>9} {:>10} {:>10} {:>10} {:>10} {:>10} {:>9}  {:>7}\n", "sampler", "alpha",
+             "theta", "side", "verdict", "p-value", "p sphere", "p lobe", "p albedo", "p bins", "pdf err", "time s");
+}
+
+void ZooReport::add_bsdf(const BsdfValidationCase& c, const ValidationReport& r) {
+  const BsdfSamplerInfo& s = *c.sampler;
+  Summary& sm = summary_[std::string(s.name)];
+  const bool expects_rejection = c.expects_rejection(r.samples);
+  const bool without_effect = s.negative_control && !expects_rejection;
+  sm.total += 1;
+  sm.passed += r.passed;
+  sm.without_effect += without_effect;
+  sm.min_p = std::min(sm.min_p, r.p_value);
+  sm.max_p = std::max(sm.max_p, r.p_value);
+  sm.seconds += r.seconds;
+  const double weight_p = std::min(r.check("bsdf_albedo").p_value, r.check("bsdf_bins").p_value);
+  if (expects_rejection ? (r.passed || !(weight_p < kNegativeControlP)) : (!s.negative_control && !r.passed))
+    sm.expectation_met = false;
+  const std::string verdict = r.passed ? (without_effect ? "no effect" : "pass") : (s.negative_control ? "rejected" : "FAIL");
+  const SubTest& pdf = r.check("returned_pdf");
+  fmt::print("{:<15} {:>6g} {:>6g} {:>7}  {:>9} {:>10} {:>10} {:>10} {:>10} {:>10} {:>9}  {:>7.2f}\n", s.name, c.alpha,
+             c.theta_deg, c.inside ? "inside" : "outside", verdict, fmt_p(r.p_value), fmt_p(r.chi2("sphere").p_value),
+             fmt_p(r.chi2("lobe").p_value), fmt_p(r.check("bsdf_albedo").p_value), fmt_p(r.check("bsdf_bins").p_value),
+             pdf.applicable ? fmt::format("{:.1e}", pdf.value) : "n/a", r.seconds);
+  std::fflush(stdout);
+  nlohmann::json j = to_json(r);
+  j["bsdf_sampler"] = true;
+  j["negative_control"] = s.negative_control;
+  j["bug_has_effect"] = expects_rejection;
+  j["material"] = c.material().describe();
+  j["theta_deg"] = c.theta_deg;
+  j["phi_deg"] = 0.0;
+  j["side"] = c.inside ? "inside" : "outside";
+  results_.push_back(j);
+}
+
+void ZooReport::print_summary_row(std::string_view name, bool negative_control, nlohmann::json& summary_json,
+                                  bool& all_met) const {
+  const auto it = summary_.find(std::string(name));
+  if (it == summary_.end()) return;
+  const Summary& sm = it->second;
+  all_met = all_met && sm.expectation_met;
+  const std::string expected = !negative_control  ? "all pass"
+                               : sm.without_effect ? fmt::format("rejected ({} no effect)", sm.without_effect)
+                                                   : "all rejected";
+  fmt::print("{:<15} {:>4}/{:<3} {:>12} {:>12} {:>12} {:>9.1f}  {}\n", name, sm.passed, sm.total, fmt_p(sm.min_p),
+             fmt_p(sm.max_p), expected, sm.seconds, sm.expectation_met ? "as expected" : "UNEXPECTED");
+  summary_json.push_back({{"sampler", name},
+                          {"negative_control", negative_control},
+                          {"passed", sm.passed},
+                          {"total", sm.total},
+                          {"without_effect", sm.without_effect},
+                          {"min_p_value", sm.min_p},
+                          {"max_p_value", sm.max_p},
+                          {"expectation_met", sm.expectation_met},
+                          {"seconds", sm.seconds}});
+}
+
 // The summary table per sampler (and its JSON); true when every sampler met its expectation.
 bool ZooReport::print_summary(nlohmann::json& summary_json) const {
   bool all_met = true;
   fmt::print("\nsummary per sampler:\n");
   fmt::print("{:<15} {:>8} {:>12} {:>12} {:>12} {:>9}  {}\n", "sampler", "passed", "min p", "max p", "expected", "time s",
              "outcome");
-  for (const SamplerInfo& s : sampler_registry()) {
-    const auto it = summary_.find(std::string(s.name));
-    if (it == summary_.end()) continue;
-    const Summary& sm = it->second;
-    all_met = all_met && sm.expectation_met;
-    fmt::print("{:<15} {:>4}/{:<3} {:>12} {:>12} {:>12} {:>9.1f}  {}\n", s.name, sm.passed, sm.total, fmt_p(sm.min_p),
-               fmt_p(sm.max_p), s.negative_control ? "all rejected" : "all pass", sm.seconds,
-               sm.expectation_met ? "as expected" : "UNEXPECTED");
-    summary_json.push_back({{"sampler", s.name},
-                            {"negative_control", s.negative_control},
-                            {"passed", sm.passed},
-                            {"total", sm.total},
-                            {"min_p_value", sm.min_p},
-                            {"max_p_value", sm.max_p},
-                            {"expectation_met", sm.expectation_met},
-                            {"seconds", sm.seconds}});
-  }
+  for (const SamplerInfo& s : sampler_registry()) print_summary_row(s.name, s.negative_control, summary_json, all_met);
+  for (const BsdfSamplerInfo& s : bsdf_sampler_registry())
+    print_summary_row(s.name, s.negative_control, summary_json, all_met);
   return all_met;
 }
 
-int ZooReport::finish(bool partial, const ZooReferences& references, const std::string& json) {
+int ZooReport::finish(bool partial, const ZooReferences& references, const std::string& json,
+                      const BsdfZooReferences* bsdf_references) {
   const double seconds = elapsed(start_);
   nlohmann::json summary_json = nlohmann::json::array();
   const bool all_met = print_summary(summary_json) && !partial;
   const std::size_t done = results_.size();
   fmt::print("\nexpected counts (adaptive cubature of {} claimed pdfs x 2 binnings): {:.1f} s\n", references.count(),
              references.seconds());
+  if (bsdf_references)
+    fmt::print("BSDF references (cubature of {} claimed pdfs x 2 binnings and BSDF fluxes, in parallel): {:.1f} s\n",
+               bsdf_references->count(), bsdf_references->seconds());
   if (partial) {
     fmt::print("overall: INTERRUPTED: partial results, {} of {} validations in {:.1f} s (no verdict)\n", done,
-               run_.cases.size(), seconds);
+               requested_, seconds);
   } else {
     fmt::print("overall: {} ({} validations in {:.1f} s)\n",
                all_met ? "PASS: every correct sampler passes and every negative control is rejected" : "FAIL", done,
@@ -269,7 +345,7 @@ int ZooReport::finish(bool partial, const ZooReferences& references, const std::
     nlohmann::json j;
     j["verdict"] = partial ? "interrupted" : all_met ? "pass" : "fail";
     j["partial"] = partial;
-    j["validations_requested"] = run_.cases.size();
+    j["validations_requested"] = requested_;
     j["validations_done"] = done;
     j["samples"] = o.samples;
     j["seed"] = run_.seed;
@@ -304,6 +380,29 @@ template <class F> ValidationReport usage_errors_of(F&& validation) {
   }
 }
 
+}  // namespace
+
+bool run_bsdf_section(const ValidationRun& run, ZooReport& report, BsdfZooReferences& references) {
+  const std::vector<BsdfValidationCase> cases = bsdf_zoo_cases(run.seed);
+  report.begin_bsdf_section(cases.size());
+  ValidationOptions vo = run.options;
+  vo.significance = sidak_significance(run.family_significance, int(cases.size()));
+  references.prepare(cases, vo.rows);
+  ProgressBar bar("validate --all: BSDF samplers", std::uint64_t(cases.size()));
+  for (const BsdfValidationCase& c : cases) {
+    if (interrupted()) return false;
+    vo.seed = c.seed;
+    report.add_bsdf(c, usage_errors_of([&] {
+      return validate_bsdf_sampler(*c.sampler, c.material(), c.ggx(), c.wi(), vo, &references.get(c));
+    }));
+    bar.add(1);
+  }
+  bar.finish();
+  return true;
+}
+
+namespace {
+
 int report_merged_batch(const ValidationRun& run, const ValidationPart& merged, const std::string& json) {
   ZooReport report(run);
   ZooReferences references;
@@ -319,7 +418,9 @@ int report_merged_batch(const ValidationRun& run, const ValidationPart& merged, 
     r.seconds = merged.seconds[i];
     report.add(c, r);
   }
-  return report.finish(/*partial=*/false, references, json);
+  BsdfZooReferences bsdf_references;
+  const bool partial = !run_bsdf_section(run, report, bsdf_references);
+  return report.finish(partial, references, json, &bsdf_references);
 }
 
 int report_merged_single(const ValidationRun& run, const ValidationPart& merged, const std::string& json) {

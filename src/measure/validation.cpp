@@ -105,6 +105,24 @@ std::vector<ValidationCase> zoo_cases(std::uint64_t seed) {
   return cases;
 }
 
+bool BsdfValidationCase::expects_rejection(std::uint64_t samples) const {
+  if (!sampler->negative_control) return false;
+  if (!sampler->bug_has_effect) return true;
+  const Material m = material();
+  return sampler->bug_has_effect(ggx(), m.transmits() ? std::complex<double>(m.eta()) : m.ior(0), wi(), samples);
+}
+
+std::vector<BsdfValidationCase> bsdf_zoo_cases(std::uint64_t seed) {
+  std::vector<BsdfValidationCase> cases;
+  for (const double alpha : kBsdfZooAlphas)
+    for (const double theta : kBsdfZooThetas)
+      for (const bool inside : {false, true})
+        for (const BsdfSamplerInfo& s : bsdf_sampler_registry())
+          if (!inside || s.material == MaterialKind::dielectric)
+            cases.push_back({&s, alpha, theta, inside, seed + 1000000 + std::uint64_t(cases.size())});
+  return cases;
+}
+
 std::uint64_t validation_blocks(const ValidationRun& run) { return BlockPlan{run.options.samples, kSampleBlock}.blocks(); }
 
 std::string traced_histogram_digest(const TracedHistogram& t) {

@@ -10,6 +10,7 @@
 #pragma once
 
 #include "stats/part_json.h"
+#include "validate/bsdf_validation.h"
 #include "validate/validation_part.h"
 
 #include <nlohmann/json.hpp>
@@ -42,6 +43,25 @@ inline constexpr int kZooConfigurations = int(std::size(kZooRoughness) * std::si
 // Every sampler of the registry at every configuration of the grid, in the batch's order (roughness, then
 // zenith angle, then the registry's order), validation i with seed `seed` + i (independent streams).
 std::vector<ValidationCase> zoo_cases(std::uint64_t seed);
+
+// The BSDF samplers of the zoo (bsdf_samplers.h) in --all: each at these roughnesses and zenith angles
+// (phi = 0), the dielectric ones from outside and from inside, with the zoo's materials
+// (zoo_bsdf_material). Validation i has seed `seed` + i + 1000000 (streams apart from the direction zoo's).
+inline constexpr double kBsdfZooAlphas[] = {0.05, 0.3, 1};
+inline constexpr double kBsdfZooThetas[] = {0, 60, 89};
+struct BsdfValidationCase {
+  const BsdfSamplerInfo* sampler = nullptr;
+  double alpha = 0, theta_deg = 0;
+  bool inside = false;  // a dielectric seen from inside (mirrored, eta 1 / 1.5)
+  std::uint64_t seed = 1;
+  GGX<double> ggx() const { return GGX<double>(alpha, alpha); }
+  Vec3<double> wi() const { return direction_from_degrees(theta_deg, 0.0); }
+  Material material() const { return zoo_bsdf_material(*sampler, inside); }
+  // A negative control whose bug has an effect `samples` samples can see here (BsdfSamplerInfo::
+  // bug_has_effect): it must be rejected. False for correct samplers (they must pass) and for bugs without effect here (no expectation).
+  bool expects_rejection(std::uint64_t samples) const;
+};
+std::vector<BsdfValidationCase> bsdf_zoo_cases(std::uint64_t seed);
 
 // A validation run: its validations and what they share.
 struct ValidationRun {

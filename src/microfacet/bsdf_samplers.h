@@ -23,6 +23,7 @@
 #include "microfacet/material.h"
 
 #include <complex>
+#include <cstdint>
 #include <optional>
 #include <span>
 #include <string_view>
@@ -56,16 +57,19 @@ struct BsdfSamplerInfo {
   bool negative_control;  // known to be wrong: validation must reject it
   BsdfSampleFunction sample;
   BsdfPdfFunction claimed_pdf;  // the density it claims to sample (the correct sampler's)
-  // Whether the bug changes anything at this configuration (a roughness squared twice does nothing at
-  // alpha = 1, a refraction weight nothing where every visible normal reflects totally); nullptr:
-  // everywhere. Correct samplers: nullptr.
-  bool (*bug_has_effect)(const GGX<double>&, std::complex<double> eta, const Vec3<double>& wi);
+  // Whether the bug has an effect a validation of `samples` samples can see at this configuration; nullptr:
+  // everywhere. Correct samplers: nullptr. A roughness squared twice: everywhere but alpha = 1. The weight
+  // bugs: where the mean weight moves by at least 6 standard errors of the mean at `samples` samples
+  // (bug_shifts_mean_weight).
+  bool (*bug_has_effect)(const GGX<double>&, std::complex<double> eta, const Vec3<double>& wi, std::uint64_t samples);
 };
 
-// The probability that VNDF sampling of a dielectric refracts, E[1 - F(<wi, m>)] over D_v(wi, m), by a
-// 64 x 64 midpoint rule in the sampler's uniforms (Heitz 2018): accurate to ~1e-4, 0 where every visible
-// normal reflects totally.
-double refraction_probability(const GGX<double>& ggx, double eta, const Vec3<double>& wi);
+// The z a sample count gives the change of the mean weight that sampler `bug` makes against `correct`:
+// |E[w_bug] - E[w_correct]| / (sd(w_correct) / sqrt(samples)), both means over the same 2^16 points of
+// the R3 Kronecker sequence (Roberts 2018, "The Unreasonable Effectiveness of Quasirandom Sequences"),
+// lost samples weighing 0.
+double mean_weight_shift_z(BsdfSampleFunction bug, BsdfSampleFunction correct, const GGX<double>& ggx,
+                           std::complex<double> eta, const Vec3<double>& wi, std::uint64_t samples);
 
 std::span<const BsdfSamplerInfo> bsdf_sampler_registry();
 const BsdfSamplerInfo* find_bsdf_sampler(std::string_view name);  // nullptr when none has that name

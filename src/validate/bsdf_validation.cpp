@@ -116,7 +116,8 @@ ClaimedDensity bsdf_sampling_density(const Material& bsdf, const GGX<double>& gg
     return {SampleDomain::reflected_direction,
             [ggx, wi](const Vec3<double>& o) { return conductor_vndf_pdf(ggx, {}, wi, o); },
             {[](const Vec3<double>& o) { return o.z(); }},  // the lost reflections below the horizon
-            {}};
+            {},
+            1e-7};
   const double eta = bsdf.eta();
   const DirectionBinning lobe = DirectionBinning::lobe(ggx, wi, SampleDomain::reflected_direction, 31);
   // The refraction lobe ends where its half vector -(wi + eta wo) leaves the horizon or wi's or wo's side.
@@ -126,9 +127,20 @@ ClaimedDensity bsdf_sampling_density(const Material& bsdf, const GGX<double>& gg
       [raw_half](const Vec3<double>& o) { return o.z() < 0 ? raw_half(o).z() : 1.0; },
       [raw_half, wi](const Vec3<double>& o) { return o.z() < 0 ? wi.dot(raw_half(o)) : 1.0; },
       [raw_half](const Vec3<double>& o) { return o.z() < 0 ? o.dot(raw_half(o)) : -1.0; }};
+  if (eta < 1) {  // total internal reflection beyond <wi, m> = cos_c: F has a kink there, 1 - F ends
+    const double cos_c = std::sqrt(1 - sqr(eta));
+    breaks.push_back([wi, cos_c](const Vec3<double>& o) {
+      return o.z() > 0 ? wi.dot(normalized_or_zero(Vec3<double>(wi + o))) - cos_c : 1.0;
+    });
+    breaks.push_back([wi, cos_c, raw_half](const Vec3<double>& o) {
+      return o.z() < 0 ? std::abs(wi.dot(normalized_or_zero(raw_half(o)))) - cos_c : 1.0;
+    });
+  }
+  // 1e-5 per bin: far below the noise of any sample count the chi-square tests see (and cheaper by the
+  // kinks of F and the ends of the refraction lobe).
   return {SampleDomain::reflected_direction,
           [ggx, wi, eta](const Vec3<double>& o) { return dielectric_vndf_pdf(ggx, eta, wi, o); }, std::move(breaks),
-          refracted_lobe_focus(lobe, wi, eta)};
+          refracted_lobe_focus(lobe, wi, eta), 1e-5};
 }
 
 BsdfReference bsdf_reference(const Material& bsdf, const GGX<double>& ggx, const Vec3<double>& wi, int rows) {

@@ -138,13 +138,14 @@ std::vector<DirectionFunction> claimed_pdf_breaks(const SamplerInfo& sampler, co
 std::shared_ptr<const ReferenceDistribution> prepare_reference(DirectionFunction pdf, SampleDomain domain,
                                                                const GGX<double>& ggx, const Vec3<double>& wi_in, int rows,
                                                                std::vector<DirectionFunction> breaks,
-                                                               const std::vector<Vec3<double>>& focus) {
+                                                               const std::vector<Vec3<double>>& focus, double rel_tolerance) {
   ReferenceDistribution ref = unintegrated_reference(std::move(pdf), domain, ggx, wi_in.normalized(), rows);
   // In lobe space the pdfs of the zoo are smooth and spread over the whole parameter space (the VNDF
   // is a clamped cosine there): plain adaptive cubature suffices.
   IntegrationOptions options;
   options.breaks = std::move(breaks);
   options.focus = focus;  // a second lobe (refraction) is narrow in lobe space too: resolve it there
+  options.rel_tolerance = rel_tolerance;
   IntegrationOptions sphere_options = options;
   // In sphere space the lobe can be far narrower than a bin: focus on it with a lattice uniform in the
   // lobe parameter space, which covers every region with mass however narrow (alpha = 1e-3) or thin
@@ -211,7 +212,8 @@ FilePdf parse_file_pdf(std::string_view name) {
 
 std::shared_ptr<const ReferenceDistribution> density_reference(const ClaimedDensity& density, const GGX<double>& ggx,
                                                                const Vec3<double>& wi, int rows) {
-  return prepare_reference(density.pdf, density.domain, ggx, wi, rows, density.breaks, density.focus);
+  return prepare_reference(density.pdf, density.domain, ggx, wi, rows, density.breaks, density.focus,
+                           density.rel_tolerance);
 }
 
 namespace {
@@ -230,7 +232,8 @@ std::shared_ptr<const ReferenceDistribution> above_horizon_reference(const Claim
   const DirectionFunction above = [full](const Vec3<double>& o) { return o.z() > 0 ? full(o) : 0.0; };
   std::vector<DirectionFunction> breaks = density.breaks;
   breaks.push_back([](const Vec3<double>& o) { return o.z(); });  // where `above` jumps
-  const auto unconditioned = prepare_reference(above, density.domain, ggx, wi, rows, std::move(breaks), density.focus);
+  const auto unconditioned = prepare_reference(above, density.domain, ggx, wi, rows, std::move(breaks), density.focus,
+                                               density.rel_tolerance);
   const double kept = unconditioned->sphere_probability.total;
   if (!(kept > 0)) throw std::invalid_argument("the claimed pdf puts no mass above the horizon for this view");
   ReferenceDistribution conditioned = *unconditioned;

@@ -119,7 +119,8 @@ using DirectionFunction = std::function<double(const Vec3<double>&)>;
 std::shared_ptr<const ReferenceDistribution> prepare_reference(DirectionFunction pdf, SampleDomain domain,
                                                                const GGX<double>& ggx, const Vec3<double>& wi, int rows,
                                                                std::vector<DirectionFunction> breaks = {},
-                                                               const std::vector<Vec3<double>>& focus = {});
+                                                               const std::vector<Vec3<double>>& focus = {},
+                                                               double rel_tolerance = 1e-7);
 // The reference a sampler claims (its claimed_pdf), and the analytic VNDF reference of a domain:
 // D_v(wi, m) for normals, GGX::visible_reflection_pdf(wi, wo) for reflected directions.
 std::shared_ptr<const ReferenceDistribution> claimed_reference(const SamplerInfo& sampler, const GGX<double>& ggx,
@@ -141,6 +142,7 @@ struct ClaimedDensity {
   DirectionFunction pdf;                  // per unit solid angle
   std::vector<DirectionFunction> breaks;  // where it jumps beyond the common curves (prepare_reference)
   std::vector<Vec3<double>> focus;        // where it has mass beside the lobe's lattice (prepare_reference)
+  double rel_tolerance = 1e-7;            // of each bin's cubature (IntegrationOptions::rel_tolerance)
 };
 ClaimedDensity claimed_density(FilePdf pdf, const GGX<double>& ggx, const Vec3<double>& wi);
 inline bool claims_reflected_directions(FilePdf pdf) { return pdf == FilePdf::bounded || pdf == FilePdf::reflection; }
