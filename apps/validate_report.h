@@ -50,7 +50,7 @@ private:
 };
 
 // The references of the BSDF section of the batch: one per configuration and material, shared by its
-// samplers (kept while the configuration lasts).
+// samplers, all computed up front (prepare).
 class BsdfZooReferences {
 public:
   // Computes the references of all the cases, in parallel (each is one cubature, single-threaded).

@@ -38,6 +38,11 @@ struct BsdfSample {
 using BsdfSampleResult = std::optional<BsdfSample>;
 
 // The index of the zoo's samplers: a conductor's eta + i k, a dielectric's eta (imaginary part 0).
+// The index a sampler takes for a material: a conductor's first channel, a dielectric's eta.
+inline std::complex<double> sampler_index(const Material& m) {
+  return m.transmits() ? std::complex<double>(m.eta()) : m.ior(0);
+}
+
 using BsdfSampleFunction = BsdfSampleResult (*)(const GGX<double>&, std::complex<double> eta, const Vec3<double>& wi,
                                                 const Vec3<double>& u);
 using BsdfPdfFunction = double (*)(const GGX<double>&, std::complex<double> eta, const Vec3<double>& wi,
@@ -60,7 +65,7 @@ struct BsdfSamplerInfo {
   // Whether the bug has an effect a validation of `samples` samples can see at this configuration; nullptr:
   // everywhere. Correct samplers: nullptr. A roughness squared twice: everywhere but alpha = 1. The weight
   // bugs: where the mean weight moves by at least 6 standard errors of the mean at `samples` samples
-  // (bug_shifts_mean_weight).
+  // (mean_weight_shift_z >= 6).
   bool (*bug_has_effect)(const GGX<double>&, std::complex<double> eta, const Vec3<double>& wi, std::uint64_t samples);
 };
 

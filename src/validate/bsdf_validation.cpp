@@ -35,7 +35,7 @@ void BsdfBlock::draw(const BsdfSamplerInfo& s, const Material& bsdf, const GGX<d
   pdfs.assign(n, 0.0);
   weights.assign(n, 0.0);
   valid.assign(n, 0);
-  const std::complex<double> eta = bsdf.kind() == MaterialKind::dielectric ? std::complex<double>(bsdf.eta()) : bsdf.ior(0);
+  const std::complex<double> eta = sampler_index(bsdf);
   for (std::uint64_t i = first; i < end; ++i) {
     CounterRng rng(seed, i);
     const Vec3<double> u(rng.uniform(), rng.uniform(), rng.uniform());
@@ -99,17 +99,6 @@ Material zoo_bsdf_material(const BsdfSamplerInfo& sampler, bool from_inside) {
   return Material::conductor({kZooConductorIor});
 }
 
-std::vector<Vec3<double>> refracted_lobe_focus(const DirectionBinning& lobe, const Vec3<double>& wi, double eta) {
-  std::vector<Vec3<double>> focus;
-  if (eta == 1.0) return focus;
-  for (const Vec3<double>& wo : lobe.lattice_directions(4096)) {
-    const Vec3<double> m = normalized_or_zero(Vec3<double>(wi + wo));  // the lattice's visible normal
-    Vec3<double> t;
-    if (refract(wi, m, eta, t)) focus.push_back(t);
-  }
-  return focus;
-}
-
 ClaimedDensity bsdf_sampling_density(const Material& bsdf, const GGX<double>& ggx, const Vec3<double>& wi_in) {
   const Vec3<double> wi = wi_in.normalized();
   if (!bsdf.transmits())
@@ -147,7 +136,7 @@ BsdfReference bsdf_reference(const Material& bsdf, const GGX<double>& ggx, const
   const ClaimedDensity density = bsdf_sampling_density(bsdf, ggx, wi);
   BsdfReference r;
   r.directions = density_reference(density, ggx, wi, rows);
-  r.flux = expected_bin_weights(*r.directions, bsdf, density.focus);
+  r.flux = expected_bin_weights(*r.directions, bsdf);
   return r;
 }
 

@@ -21,10 +21,6 @@ Material zoo_bsdf_material(const BsdfSamplerInfo& sampler, bool from_inside);
 // conductor_vndf_pdf; dielectric: dielectric_vndf_pdf with its eta), with the refracted lobe as focus.
 ClaimedDensity bsdf_sampling_density(const Material& bsdf, const GGX<double>& ggx, const Vec3<double>& wi);
 
-// Where a dielectric's refracted lobe has mass: the lobe binning's lattice of visible normals refracted
-// (the refraction of wi about each normal into eta). Empty for eta == 1.
-std::vector<Vec3<double>> refracted_lobe_focus(const DirectionBinning& lobe, const Vec3<double>& wi, double eta);
-
 // What the validations of one configuration and material share (expensive: cubature of the claimed pdf
 // over two binnings and of the BSDF's flux over the sphere bins).
 struct BsdfReference {

@@ -156,11 +156,24 @@ void WeightSums::merge(const WeightSums& other) {
     }
 }
 
-std::vector<std::vector<double>> expected_bin_weights(const ReferenceDistribution& ref, const Material& bsdf,
-                                                      const std::vector<Vec3<double>>& focus) {
+std::vector<Vec3<double>> refracted_lobe_focus(const DirectionBinning& lobe, const Vec3<double>& wi, double eta) {
+  std::vector<Vec3<double>> focus;
+  if (eta == 1.0) return focus;
+  for (const Vec3<double>& wo : lobe.lattice_directions(4096)) {
+    const Vec3<double> m = normalized_or_zero(Vec3<double>(wi + wo));  // the lattice's visible normal
+    Vec3<double> t;
+    if (refract(wi, m, eta, t)) focus.push_back(t);
+  }
+  return focus;
+}
+
+std::vector<std::vector<double>> expected_bin_weights(const ReferenceDistribution& ref, const Material& bsdf) {
   IntegrationOptions o;
   o.focus = ref.lobe.lattice_directions(4096);
-  o.focus.insert(o.focus.end(), focus.begin(), focus.end());
+  if (bsdf.transmits()) {
+    const std::vector<Vec3<double>> refracted = refracted_lobe_focus(ref.lobe, ref.wi, bsdf.eta());
+    o.focus.insert(o.focus.end(), refracted.begin(), refracted.end());
+  }
   o.z_breaks = {0.0, -ref.wi.z()};
   std::vector<std::vector<double>> e;
   for (int c = 0; c < bsdf.channels(); ++c)
@@ -176,9 +189,9 @@ std::vector<SubTest> weight_checks(const WeightSums& sums, const std::vector<std
 
 std::vector<SubTest> bsdf_weight_tests(const std::filesystem::path& file, const SampleColumns& columns, SampleFrame frame,
                                        const ReferenceDistribution& ref, const Material& bsdf,
-                                       const ValidationOptions& options, const std::vector<Vec3<double>>& focus) {
+                                       const ValidationOptions& options) {
   check_weight_inputs(columns, ref, bsdf);
-  std::vector<std::vector<double>> expected = expected_bin_weights(ref, bsdf, focus);
+  std::vector<std::vector<double>> expected = expected_bin_weights(ref, bsdf);
   // Conditioned on the upper hemisphere without the dropped count: the kept samples' mean weight.
   if (ref.above_horizon && !options.dropped_below_horizon)
     for (auto& channel : expected)

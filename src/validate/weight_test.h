@@ -42,11 +42,14 @@ struct WeightSums {
   void merge(const WeightSums& other);
 };
 
+// Where a dielectric's refracted lobe has mass: the lobe binning's lattice of visible normals refracted
+// (the refraction of wi about each normal into eta). Empty for eta == 1.
+std::vector<Vec3<double>> refracted_lobe_focus(const DirectionBinning& lobe, const Vec3<double>& wi, double eta);
+
 // The expected weight per sample in every sphere bin of `ref`, per channel of `bsdf`: the integral of
 // f(wi, wo) |wo.z| over the bin (mirror, conductor: reflected directions; dielectric: reflection and
-// refraction over the whole sphere; `focus`: directions where it has mass, beside the lobe's lattice).
-std::vector<std::vector<double>> expected_bin_weights(const ReferenceDistribution& ref, const Material& bsdf,
-                                                      const std::vector<Vec3<double>>& focus = {});
+// refraction over the whole sphere, the cubature focused on the refracted lobe too).
+std::vector<std::vector<double>> expected_bin_weights(const ReferenceDistribution& ref, const Material& bsdf);
 
 // The checks "bsdf_albedo" and "bsdf_bins" of sums over n samples (lost ones weigh 0) against `expected`.
 std::vector<SubTest> weight_checks(const WeightSums& sums, const std::vector<std::vector<double>>& expected, double n,
@@ -57,9 +60,9 @@ std::vector<SubTest> weight_checks(const WeightSums& sums, const std::vector<std
 // file's rows plus options.dropped_below_horizon (dropped samples weigh 0); a reference conditioned on the
 // upper hemisphere without that count divides the expectations by its kept mass. Throws
 // std::invalid_argument for normals, a Lambertian BSDF, or weight columns that do not match the BSDF's
-// channels. `focus`: as for expected_bin_weights (a dielectric's refracted lobe).
+// channels.
 std::vector<SubTest> bsdf_weight_tests(const std::filesystem::path& file, const SampleColumns& columns, SampleFrame frame,
                                        const ReferenceDistribution& reference, const Material& bsdf,
-                                       const ValidationOptions& options, const std::vector<Vec3<double>>& focus = {});
+                                       const ValidationOptions& options);
 
 }  // namespace microsim
