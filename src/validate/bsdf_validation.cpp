@@ -132,6 +132,13 @@ ClaimedDensity bsdf_sampling_density(const Material& bsdf, const GGX<double>& gg
           refracted_lobe_focus(lobe, wi, eta), 1e-5};
 }
 
+ClaimedDensity file_claimed_density(FilePdf pdf, const std::optional<Material>& bsdf, const GGX<double>& ggx,
+                                    const Vec3<double>& wi) {
+  if (pdf != FilePdf::bsdf) return claimed_density(pdf, ggx, wi);
+  if (!bsdf) throw std::invalid_argument("the pdf 'bsdf' is the sampling density of a BSDF: give the BSDF");
+  return bsdf_sampling_density(*bsdf, ggx, wi);
+}
+
 BsdfReference bsdf_reference(const Material& bsdf, const GGX<double>& ggx, const Vec3<double>& wi, int rows) {
   const ClaimedDensity density = bsdf_sampling_density(bsdf, ggx, wi);
   BsdfReference r;

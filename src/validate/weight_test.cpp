@@ -97,13 +97,10 @@ SubTest bins_test(const WeightSums& s, const std::vector<std::vector<double>>& e
 void check_weight_inputs(const SampleColumns& columns, const ReferenceDistribution& ref, const Material& bsdf) {
   if (ref.domain != SampleDomain::reflected_direction)
     throw std::invalid_argument("--bsdf: the weight test needs outgoing directions (--reflected or --pdf "
-                                "reflection|bounded|dielectric)");
+                                "reflection|bounded|bsdf)");
   if (bsdf.kind() == MaterialKind::lambertian)
     throw std::invalid_argument(fmt::format("--bsdf {}: the weight test has mirror, conductor and dielectric BSDFs",
                                             bsdf.describe()));
-  if (bsdf.transmits() && ref.above_horizon)
-    throw std::invalid_argument(fmt::format("--bsdf {}: a dielectric's directions cover both sides of the horizon "
-                                            "(drop --above-horizon)", bsdf.describe()));
   if (columns.channels() != bsdf.channels())
     throw std::invalid_argument(fmt::format("--bsdf {} has {} channel(s) but the file {} weight column(s) (--columns)",
                                             bsdf.describe(), bsdf.channels(), columns.channels()));
@@ -192,8 +189,8 @@ std::vector<SubTest> bsdf_weight_tests(const std::filesystem::path& file, const 
                                        const ValidationOptions& options) {
   check_weight_inputs(columns, ref, bsdf);
   std::vector<std::vector<double>> expected = expected_bin_weights(ref, bsdf);
-  // Conditioned on the upper hemisphere without the dropped count: the kept samples' mean weight.
-  if (ref.above_horizon && !options.dropped_below_horizon)
+  // Conditioned on the kept samples without the dropped count: the kept samples' mean weight.
+  if (ref.kept_only && !options.dropped_below_horizon)
     for (auto& channel : expected)
       for (double& e : channel) e /= ref.kept_mass;
   const WeightSums s = sum_weights(file, columns, frame, ref.sphere, bsdf.channels());
