@@ -164,6 +164,26 @@ std::vector<Vec3<double>> refracted_lobe_focus(const DirectionBinning& lobe, con
   return focus;
 }
 
+std::vector<DirectionFunction> dielectric_breaks(const Vec3<double>& wi, double eta) {
+  // The refraction lobe ends where its half vector -(wi + eta wo) leaves the horizon or wi's or wo's side.
+  const auto raw_half = [wi, eta](const Vec3<double>& o) { return Vec3<double>(-(wi + eta * o)); };
+  std::vector<DirectionFunction> breaks = {
+      [](const Vec3<double>& o) { return o.z(); },  // reflection above, refraction below
+      [raw_half](const Vec3<double>& o) { return o.z() < 0 ? raw_half(o).z() : 1.0; },
+      [raw_half, wi](const Vec3<double>& o) { return o.z() < 0 ? wi.dot(raw_half(o)) : 1.0; },
+      [raw_half](const Vec3<double>& o) { return o.z() < 0 ? o.dot(raw_half(o)) : -1.0; }};
+  if (eta < 1) {  // total internal reflection beyond <wi, m> = cos_c: F has a kink there, 1 - F ends
+    const double cos_c = std::sqrt(1 - sqr(eta));
+    breaks.push_back([wi, cos_c](const Vec3<double>& o) {
+      return o.z() > 0 ? wi.dot(normalized_or_zero(Vec3<double>(wi + o))) - cos_c : 1.0;
+    });
+    breaks.push_back([wi, cos_c, raw_half](const Vec3<double>& o) {
+      return o.z() < 0 ? std::abs(wi.dot(normalized_or_zero(raw_half(o)))) - cos_c : 1.0;
+    });
+  }
+  return breaks;
+}
+
 std::vector<std::vector<double>> expected_bin_weights(const ReferenceDistribution& ref, const Material& bsdf) {
   IntegrationOptions o;
   o.focus = ref.lobe.lattice_directions(4096);
