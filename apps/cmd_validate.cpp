@@ -406,15 +406,15 @@ void check_file_options(const Args& a) {
   sample_columns(a);  // a bad spec is exit 2 here, before any work
   if (const auto bsdf = bsdf_of(a)) {
     if (a.from.empty() || !a.against.empty()) throw UsageError("--bsdf applies to --from FILE (its weight columns)");
+    if (bsdf->transmits() && file_pdf(a) != microsim::FilePdf::bsdf)
+      throw UsageError(fmt::format("--bsdf {}: a dielectric's dump holds reflections and refractions; test them against "
+                                   "its sampling density with --pdf bsdf", bsdf->describe()));
     const bool directions_only = sample_columns(a).channels() == 0 && file_pdf(a) == microsim::FilePdf::bsdf;
     if (!directions_only && sample_columns(a).channels() != bsdf->channels())
       throw UsageError(fmt::format("--bsdf {} has {} channel(s): give as many weight columns (--columns x,y,z,weight...), "
                                    "got {}",
                                    bsdf->describe(), bsdf->channels(), sample_columns(a).channels()));
   }
-  if (const auto bsdf = bsdf_of(a); bsdf && bsdf->transmits() && file_pdf(a) != microsim::FilePdf::bsdf)
-    throw UsageError(fmt::format("--bsdf {}: a dielectric's dump holds reflections and refractions; test them against "
-                                 "its sampling density with --pdf bsdf", bsdf->describe()));
   if (file_pdf(a) == microsim::FilePdf::bsdf && !bsdf_of(a))
     throw UsageError("--pdf bsdf is the sampling density of a BSDF: give it with --bsdf (e.g. --bsdf dielectric --eta 1.5)");
   sample_frame(a);  // an unknown frame is exit 2 here, before any work

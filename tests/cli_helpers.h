@@ -1,6 +1,8 @@
-// Shared helpers of the end-to-end command-line tests: run the built `microsim` (MICROSIM_BINARY) in a
+// Shared helpers of the end-to-end command-line tests: run the built `microsim` (microsim_binary()) in a
 // scratch directory, capture its exit code, stdout and stderr, and count what it left behind.
 #pragma once
+
+#include "binary_path.h"
 
 #include <gtest/gtest.h>
 
@@ -45,7 +47,7 @@ inline fs::path scratch_dir(const std::string& prefix, const std::string& name) 
 inline CliRun run_cli(const fs::path& dir, const std::string& args) {
   const fs::path out = dir.parent_path() / (dir.filename().string() + ".stdout");
   const fs::path err = dir.parent_path() / (dir.filename().string() + ".stderr");
-  const std::string cmd = "cd '" + dir.string() + "' && '" + MICROSIM_BINARY + "' " + args + " > '" +
+  const std::string cmd = "cd '" + dir.string() + "' && '" + microsim_binary() + "' " + args + " > '" +
                           out.string() + "' 2> '" + err.string() + "'";
   const int status = std::system(cmd.c_str());
   CliRun r{WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(out), slurp(err)};
@@ -62,7 +64,7 @@ inline CliRun run_cli(const fs::path& dir, const std::string& args) {
 // fixture whose making failed a test assertion is used by this process only, never published.
 inline fs::path shared_fixture_dir(const std::string& name, const std::function<void(const fs::path&)>& build) {
   std::size_t key = 0;
-  for (const fs::path& f : {fs::read_symlink("/proc/self/exe"), fs::path(MICROSIM_BINARY)}) {
+  for (const fs::path& f : {fs::read_symlink("/proc/self/exe"), fs::path(microsim_binary())}) {
     const auto stamp = fs::last_write_time(f).time_since_epoch().count();
     key = key * 1000003u ^ std::hash<std::string>{}(f.string() + ":" + std::to_string(fs::file_size(f)) + ":" +
                                                      std::to_string(stamp));

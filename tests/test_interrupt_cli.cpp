@@ -71,7 +71,7 @@ InterruptedRun run_and_interrupt(const fs::path& dir, const std::string& args,
                                  std::chrono::milliseconds delay) {
   const fs::path out = dir.parent_path() / (dir.filename().string() + ".stdout");
   const fs::path err = dir.parent_path() / (dir.filename().string() + ".stderr");
-  const std::string command = "exec '" + std::string(MICROSIM_BINARY) + "' " + args;
+  const std::string command = "exec '" + microsim::test::microsim_binary() + "' " + args;
   const pid_t pid = ::fork();
   if (pid == 0) {
     if (::chdir(dir.c_str()) != 0) ::_exit(127);

@@ -1,6 +1,7 @@
 // Tests of `microsim trace masking` (apps/cmd_trace_masking.cpp): a small run end to end, and bad input
 // (view outside [0, 90), samples <= 0, a heightmap with NaN or with the wrong channels, tile size <= 0,
 // a missing file, an unwritable --json) giving exit 2 and nothing written.
+#include "binary_path.h"
 #include "microgeom/exr_io.h"
 #include "microgeom/heightfield.h"
 #include "core/random.h"
@@ -21,7 +22,7 @@ namespace {
 namespace fs = std::filesystem;
 
 int run(const std::string& args) {
-  const std::string cmd = std::string(MICROSIM_BINARY) + " " + args + " > /dev/null 2>&1";
+  const std::string cmd = microsim::test::microsim_binary() + " " + args + " > /dev/null 2>&1";
   const int status = std::system(cmd.c_str());
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }

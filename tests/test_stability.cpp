@@ -4,6 +4,7 @@
 // the reformulated samplers agree with their own long-double evaluation where the claimed pdf is too
 // ill-conditioned to check them.
 #include "validate/stability.h"
+#include "binary_path.h"
 
 #include "microfacet/bsdf.h"
 #include "microfacet/samplers.h"
@@ -422,7 +423,7 @@ TEST(StabilityCli, PrintsTheTableWritesJsonAndRejectsBadPaths) {
   const std::string json = ::testing::TempDir() + "microsim_stability_test.json";
   std::remove(json.c_str());
   const std::string out = ::testing::TempDir() + "microsim_stability_test.md";
-  const std::string cmd = std::string(MICROSIM_BINARY) + " stability --random-u 4 --json " + json + " > " + out + " 2>/dev/null";
+  const std::string cmd = microsim::test::microsim_binary() + " stability --random-u 4 --json " + json + " > " + out + " 2>/dev/null";
   const int rc = std::system(cmd.c_str());
   ASSERT_TRUE(WIFEXITED(rc));
   EXPECT_EQ(WEXITSTATUS(rc), 0);
@@ -438,7 +439,7 @@ TEST(StabilityCli, PrintsTheTableWritesJsonAndRejectsBadPaths) {
   EXPECT_NE(text.find("PASS"), std::string::npos);
   // A --json path in a missing directory: exit 2 before any work, nothing written.
   const std::string bad = "/nonexistent-microsim-dir/x.json";
-  const int rc2 = std::system((std::string(MICROSIM_BINARY) + " stability --json " + bad + " > /dev/null 2>&1").c_str());
+  const int rc2 = std::system((microsim::test::microsim_binary() + " stability --json " + bad + " > /dev/null 2>&1").c_str());
   ASSERT_TRUE(WIFEXITED(rc2));
   EXPECT_EQ(WEXITSTATUS(rc2), 2);
   std::remove(json.c_str());

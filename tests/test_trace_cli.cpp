@@ -109,13 +109,14 @@ TEST(TraceCli, BadInputExits2AndWritesNothing) {
 // partial (in the EXR attributes and the JSON).
 TEST(TraceCli, InterruptWritesPartialHistogram) {
   const auto dir = scratch_dir("sigint");
+  const std::string binary = microsim::test::microsim_binary();
   const pid_t pid = ::fork();
   ASSERT_GE(pid, 0);
   if (pid == 0) {
     if (::chdir(dir.c_str()) != 0) ::_exit(99);
     std::freopen("stdout.txt", "w", stdout);
     std::freopen("stderr.txt", "w", stderr);
-    ::execl(MICROSIM_BINARY, MICROSIM_BINARY, "trace", "vndf", "--alpha", "0.5", "--theta", "40", "--rays",
+    ::execl(binary.c_str(), binary.c_str(), "trace", "vndf", "--alpha", "0.5", "--theta", "40", "--rays",
             "100000000000", "--rows", "7", "--out", "h.exr", "--json", "h.json", static_cast<char*>(nullptr));
     ::_exit(98);
   }

@@ -209,19 +209,9 @@ TEST(Streaming, TextReaderKeepsLineNumbersAcrossChunksAndSkipsLongComments) {
 
 // 4e6 samples held 42 bytes each before (175 MB resident); streamed, the process stays near its base.
 // AddressSanitizer keeps freed memory in quarantine and maps shadow memory, so a peak resident size says
-// nothing about the program's own memory under it: the bound is checked in the plain build only.
-#if defined(__SANITIZE_ADDRESS__)
-#define MICROSIM_UNDER_ASAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define MICROSIM_UNDER_ASAN 1
-#endif
-#endif
-
+// nothing about the program's own memory under it: the bound is checked on the plain build only.
 TEST(Streaming, MemoryDoesNotGrowWithTheSampleCount) {
-#ifdef MICROSIM_UNDER_ASAN
-  GTEST_SKIP() << "peak memory is not the program's own under AddressSanitizer";
-#endif
+  if (test::microsim_binary_is_instrumented()) GTEST_SKIP() << "peak memory is not the program's own under AddressSanitizer";
   const fs::path dir = scratch();
   const test::CliRun r =
       test::run_cli(dir, "validate --sampler ndf --alpha 0.3 --theta 60 --samples 4000000");
