@@ -1,0 +1,234 @@
+// python: the `microsim` module: exception translation, the analytic GGX functions on arrays, the traced
+// VNDF oracle with its bin geometry, and heightfield surfaces (see binding.h, docs/python.md).
+#include "python/binding.h"
+
+#include "core/errors.h"
+#include "measure/vndf.h"
+#include "microfacet/bsdf.h"
+#include "microfacet/ggx.h"
+#include "microgeom/heightfield.h"
+#include "stats/binning.h"
+
+#include <pybind11/stl.h>
+
+#include <cmath>
+#include <complex>
+#include <optional>
+#include <string>
+
+namespace microsim::python {
+namespace {
+
+using namespace pybind11::literals;
+
+// ---- errors -------------------------------------------------------------------------------------------------
+// As the command line maps them to exit codes (core/errors.h): bad input (exit 2) -> ValueError, an internal
+// failure (exit 3) -> RuntimeError, a cancelled step without partial result (130) -> KeyboardInterrupt.
+void translate_errors(std::exception_ptr error) {
+  try {
+    std::rethrow_exception(error);
+  } catch (const InternalError& e) {
+    PyErr_SetString(PyExc_RuntimeError, e.what());
+  } catch (const Cancelled& e) {
+    PyErr_SetString(PyExc_KeyboardInterrupt, e.what());
+  } catch (const py::builtin_exception&) {
+    throw;  // pybind11's own (value_error, ...): its translator
+  } catch (const std::invalid_argument& e) {
+    PyErr_SetString(PyExc_ValueError, e.what());
+  } catch (const std::runtime_error& e) {  // a file that cannot be read, a malformed one
+    PyErr_SetString(PyExc_ValueError, e.what());
+  }
+}
+
+// ---- the analytic functions on arrays ---------------------------------------------------------------------------
+
+using Directions = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+Vec3<double> row(const Directions& a, py::ssize_t i) {
+  const py::ssize_t k = a.shape(0) == 1 ? 0 : i;
+  const double* p = a.data(k, 0);
+  return {p[0], p[1], p[2]};
+}
+
+// f(ggx, w) for each row of w.
+template <class F> py::array_t<double> per_direction(const py::handle& w_in, const py::handle& alpha, F f) {
+  const GGX<double> ggx = ggx_of(alpha);
+  const Directions w = directions_of(w_in, "w");
+  py::array_t<double> out(w.shape(0));
+  double* o = out.mutable_data();
+  for (py::ssize_t i = 0; i < w.shape(0); ++i) o[i] = f(ggx, row(w, i));
+  return out;
+}
+
+// f(ggx, a, b) for each pair of rows of a and b; a single row of either is paired with every row of the other.
+template <class F>
+py::array_t<double> per_pair(const py::handle& a_in, const py::handle& b_in, const py::handle& alpha, F f) {
+  const GGX<double> ggx = ggx_of(alpha);
+  const Directions a = directions_of(a_in, "first direction"), b = directions_of(b_in, "second direction");
+  const py::ssize_t n = std::max(a.shape(0), b.shape(0));
+  if ((a.shape(0) != 1 && a.shape(0) != n) || (b.shape(0) != 1 && b.shape(0) != n))
+    throw py::value_error("directions: " + std::to_string(a.shape(0)) + " and " + std::to_string(b.shape(0)) +
+                          " rows (give the same number, or one row for all)");
+  py::array_t<double> out(n);
+  double* o = out.mutable_data();
+  for (py::ssize_t i = 0; i < n; ++i) o[i] = f(ggx, row(a, i), row(b, i));
+  return out;
+}
+
+void bind_analytic(py::module_& m) {
+  using namespace pybind11::literals;
+  using G = GGX<double>;
+  using V = Vec3<double>;
+  // Walter et al. 2007 eq. 33; Heitz 2014 (JCGT 3(2)) eq. 86, 99, 16: the formulas are in microfacet/ggx.h.
+  m.def("D", [](py::handle m_, py::handle a) { return per_direction(m_, a, [](const G& g, const V& v) { return g.D(v); }); },
+        "GGX normal distribution D(m) (Walter et al. 2007, eq. 33) of normals m (N, 3).", "m"_a, "alpha"_a);
+  m.def("Lambda", [](py::handle w, py::handle a) { return per_direction(w, a, [](const G& g, const V& v) { return g.Lambda(v); }); },
+        "Smith Lambda(w) (Heitz 2014, eq. 86) of directions w (N, 3).", "w"_a, "alpha"_a);
+  m.def("G1", [](py::handle w, py::handle a) { return per_direction(w, a, [](const G& g, const V& v) { return g.G1(v); }); },
+        "Smith masking G1(w) = 1 / (1 + Lambda(w)) of directions w (N, 3).", "w"_a, "alpha"_a);
+  m.def("G2", [](py::handle wi, py::handle wo, py::handle a) {
+          return per_pair(wi, wo, a, [](const G& g, const V& x, const V& y) { return g.G2(x, y); });
+        }, "Height-correlated masking-shadowing G2(wi, wo) (Heitz 2014, eq. 99).", "wi"_a, "wo"_a, "alpha"_a);
+  m.def("D_v", [](py::handle wi, py::handle m_, py::handle a) {
+          return per_pair(wi, m_, a, [](const G& g, const V& x, const V& y) { return g.visible_normal_pdf(x, y); });
+        }, "Visible normal distribution D_v(wi, m) = G1(wi) <wi, m>+ D(m) / wi.z (Heitz 2014, eq. 16), per unit solid angle of m.",
+        "wi"_a, "m"_a, "alpha"_a);
+  m.def("reflection_pdf", [](py::handle wi, py::handle wo, py::handle a) {
+          return per_pair(wi, wo, a, [](const G& g, const V& x, const V& y) { return g.visible_reflection_pdf(x, y); });
+        }, "pdf of the reflected direction wo under VNDF sampling, D_v(wi, m) / (4 <wi, m>).", "wi"_a, "wo"_a, "alpha"_a);
+  m.def("mirror_brdf", [](py::handle wi, py::handle wo, py::handle a) {
+          return per_pair(wi, wo, a, [](const G& g, const V& x, const V& y) { return mirror_brdf(g, x, y); });
+        }, "Microfacet BRDF of perfect-mirror facets, D G2 / (4 |wi.z| |wo.z|) (microfacet/bsdf.h).", "wi"_a, "wo"_a, "alpha"_a);
+  m.def("conductor_brdf", [](py::handle wi, py::handle wo, py::handle a, std::complex<double> eta) {
+          return per_pair(wi, wo, a, [eta](const G& g, const V& x, const V& y) { return conductor_brdf(g, eta, x, y); });
+        }, "Microfacet BRDF of conductor facets with complex index eta (Fresnel of a conductor).", "wi"_a, "wo"_a, "alpha"_a, "eta"_a);
+  m.def("dielectric_bsdf", [](py::handle wi, py::handle wo, py::handle a, double eta) {
+          return per_pair(wi, wo, a, [eta](const G& g, const V& x, const V& y) { return dielectric_bsdf(g, eta, x, y); });
+        }, "Rough dielectric BSDF (Walter et al. 2007, eq. 20-21) with relative index eta; wo on either side.",
+        "wi"_a, "wo"_a, "alpha"_a, "eta"_a);
+}
+
+// ---- the traced VNDF oracle -----------------------------------------------------------------------------------
+
+// One binning's histogram and geometry as numpy arrays (bin = row * cols + col, reshaped (rows, cols)).
+py::dict binning_dict(const DirectionBinning& b, const std::vector<std::uint64_t>& counts,
+                      const std::vector<double>& probability) {
+  const py::ssize_t rows = b.rows(), cols = b.cols();
+  py::array_t<double> centres({rows, cols, py::ssize_t(3)}), theta({rows, cols}), phi({rows, cols});
+  py::array_t<std::uint64_t> count({rows, cols});
+  for (int k = 0; k < b.size(); ++k) {
+    const double t = b.center_theta_deg(k) * kPi<double> / 180, p = b.center_phi_deg(k) * kPi<double> / 180;
+    const Vec3<double> w = b.from_param(spherical_direction(t, p));
+    for (int c = 0; c < 3; ++c) centres.mutable_data()[3 * k + c] = w[c];
+    theta.mutable_data()[k] = b.center_theta_deg(k);
+    phi.mutable_data()[k] = b.center_phi_deg(k);
+    count.mutable_data()[k] = counts[std::size_t(k)];
+  }
+  const std::vector<double> solid = b.integrate([](const Vec3<double>&) { return 1.0; });
+  py::array_t<double> solid_angle({rows, cols}, solid.data());
+  py::dict d("name"_a = b.name(), "counts"_a = count, "centres"_a = centres, "param_theta_deg"_a = theta,
+             "param_phi_deg"_a = phi, "solid_angle"_a = solid_angle);
+  if (!probability.empty()) d["expected_probability"] = py::array_t<double>({rows, cols}, probability.data());
+  return d;
+}
+
+py::dict histogram_dict(const TracedHistogram& h) {
+  py::dict bins;
+  for (std::size_t i = 0; i < h.binnings.size(); ++i)
+    bins[py::str(h.binnings[i].name())] =
+        binning_dict(h.binnings[i], h.counts[i], i < h.probability.size() ? h.probability[i] : std::vector<double>{});
+  return py::dict("rays"_a = h.rays, "hits"_a = h.hits, "partial"_a = h.partial, "attributes"_a = h.attributes,
+                  "binnings"_a = bins);
+}
+
+py::dict trace_vndf(const py::handle& alpha, double theta, double phi, std::uint64_t rays, std::uint64_t seed, int rows,
+                    int mesh_level, int threads, const py::object& progress) {
+  const GGX<double> ggx = ggx_of(alpha);
+  view_of(theta, phi);  // the checks of `trace vndf --theta/--phi`
+  if (rays < 1) throw py::value_error("rays must be at least 1");
+  if (mesh_level < -1 || mesh_level > 9) throw py::value_error("mesh_level must be -1 (the exact quadric) or 0..9");
+  VndfRequest request;
+  request.theta_deg = theta;
+  request.phi_deg = phi;
+  request.rays = rays;
+  request.seed = seed;
+  request.rows = rows;
+  std::optional<EllipsoidVndf> result;
+  run_interruptible(
+      [&](const RunControl& run) {
+        request.run = run;
+        request.run.threads = threads;
+        const EllipsoidTarget target(ggx.alpha_x(), ggx.alpha_y(), mesh_level);
+        result = measure_ellipsoid_vndf(target, request);
+      },
+      progress, [&]() -> py::object { return result ? py::object(histogram_dict(result->histogram)) : py::none(); });
+  return histogram_dict(result->histogram);
+}
+
+// ---- heightfields ------------------------------------------------------------------------------------------------
+
+microgeom::Heightfield heightfield_of(const py::array_t<float, py::array::c_style | py::array::forcecast>& heights,
+                                      double tile_size) {
+  if (heights.ndim() != 2 || heights.shape(0) != heights.shape(1) || heights.shape(0) < 1)
+    throw py::value_error("heights: expected a square (N, N) array");
+  if (!(tile_size > 0) || !std::isfinite(tile_size)) throw py::value_error("tile_size must be positive and finite");
+  const float* p = heights.data();
+  return microgeom::Heightfield(int(heights.shape(0)), tile_size, std::vector<float>(p, p + heights.size()));
+}
+
+void bind_heightfield(py::module_& m) {
+  using namespace pybind11::literals;
+  using microgeom::Heightfield;
+  py::class_<Heightfield>(m, "Heightfield", "A periodic heightfield microsurface: heights on an N x N grid over a tile of side L.")
+      .def(py::init(&heightfield_of), "heights"_a, "tile_size"_a,
+           "From an (N, N) array of heights (row j, column i: height(i, j)) and the tile's side L.")
+      .def_property_readonly("resolution", &Heightfield::resolution, "N, vertices per side")
+      .def_property_readonly("tile_size", &Heightfield::tile_size, "L, the tile's side")
+      .def_property_readonly("heights", [](py::object self) {
+          const Heightfield& f = self.cast<const Heightfield&>();
+          const py::ssize_t n = f.resolution();
+          // A read-only view of the surface's own heights (no copy), alive as long as the Heightfield.
+          py::array_t<float> a({n, n}, f.heights().data(), self);
+          py::detail::array_proxy(a.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
+          return a;
+        }, "The heights as a read-only float32 (N, N) array, row j holding height(i, j) for i = 0..N-1")
+      .def_readwrite("metadata", &Heightfield::metadata, "The surface's metadata (assembly, alpha, seed, ...)")
+      .def("save", [](const Heightfield& f, const std::string& path) { microgeom::save_heightmap_exr(path, f); },
+           "path"_a, "Writes the heightmap EXR (as `microsim surface build --out`).")
+      .def("__repr__", [](const Heightfield& f) {
+          return "<Heightfield " + std::to_string(f.resolution()) + "x" + std::to_string(f.resolution()) +
+                 " tile " + py::repr(py::float_(f.tile_size())).cast<std::string>() + ">";
+        });
+  m.def("load_heightfield", [](const std::string& path, std::optional<double> tile_size) {
+          return microgeom::load_heightmap_exr(path, tile_size);
+        }, "path"_a, "tile_size"_a = py::none(),
+        "Reads a heightmap EXR (written by `microsim surface build` or Heightfield.save; tile_size for a bare one).");
+}
+
+}  // namespace
+
+}  // namespace microsim::python
+
+PYBIND11_MODULE(microsim, m) {
+  using namespace microsim::python;
+  using namespace pybind11::literals;
+  m.doc() = "microsim: a microsurface ray-tracing oracle for Smith-GGX microfacet models, from numpy (docs/python.md).";
+  py::register_exception_translator(&translate_errors);
+  bind_analytic(m);
+  bind_validation(m);
+  bind_heightfield(m);
+  m.def("trace_vndf", &trace_vndf, R"(Traces the GGX ellipsoid (the exact VNDF oracle, `microsim trace vndf`).
+
+alpha: a number or (alpha_x, alpha_y); theta, phi: the view in degrees; rays, seed: as the command line
+(the same counts for the same seed); rows: rows of the sphere and lobe binnings; mesh_level: -1 for the
+exact quadric, else the tessellation level; threads: 0 for all cores; progress: progress(stage, done, total).
+Returns a dict: rays, hits, partial, attributes, and binnings {'sphere', 'lobe'}, each with counts,
+expected_probability (the analytic D_v per bin), solid_angle, centres (bin centre directions, (rows, cols, 3))
+and the parameter-space angles of the centres. On Ctrl-C raises KeyboardInterrupt whose
+`partial_result` holds the blocks traced so far.)",
+        "alpha"_a, "theta"_a, "phi"_a = 0.0, py::kw_only(), "rays"_a = 1'000'000, "seed"_a = 1, "rows"_a = 31,
+        "mesh_level"_a = -1, "threads"_a = 0, "progress"_a = py::none());
+  m.def("read_histogram", [](const std::string& path) { return histogram_dict(read_histogram_exr(path)); }, "path"_a,
+        "Reads a histogram EXR written by `microsim trace vndf --out` (or merge): the dict trace_vndf returns.");
+  m.attr("__version__") = "0.1";
+}

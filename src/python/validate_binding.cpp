@@ -1,0 +1,405 @@
+// python: validate() on numpy arrays and on the zoo's samplers, the result object, the samplers as
+// vectorised functions, and the run of long calls (GIL released, progress, Ctrl-C). See binding.h.
+#include "python/binding.h"
+
+#include "microfacet/roughness.h"
+#include "stats/binning.h"
+#include "validate/sample_io.h"
+#include "validate/validate.h"
+
+#include <pybind11/functional.h>
+#include <pybind11/stl.h>
+
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <exception>
+#include <mutex>
+#include <optional>
+#include <thread>
+
+namespace microsim::python {
+
+// ---- long calls --------------------------------------------------------------------------------------------
+
+namespace {
+
+// The latest progress report of a run's workers, handed to the Python thread.
+class ProgressRelay {
+public:
+  void update(std::string_view stage, std::uint64_t done, std::uint64_t total) {
+    const std::lock_guard lock(mutex_);
+    if (stage_ == stage && done < done_) return;  // reports from several threads arrive out of order
+    stage_ = stage;
+    done_ = done;
+    total_ = total;
+    fresh_ = true;
+  }
+  // Calls progress(stage, done, total) with the latest report, if a new one came (GIL held).
+  void forward(const py::object& progress) {
+    std::string stage;
+    std::uint64_t done = 0, total = 0;
+    {
+      const std::lock_guard lock(mutex_);
+      if (!fresh_) return;
+      fresh_ = false;
+      stage = stage_;
+      done = done_;
+      total = total_;
+    }
+    progress(stage, done, total);
+  }
+
+private:
+  std::mutex mutex_;
+  std::string stage_;
+  std::uint64_t done_ = 0, total_ = 0;
+  bool fresh_ = false;
+};
+
+// The worker thread's end, waited for by the Python thread.
+struct Completion {
+  std::mutex mutex;
+  std::condition_variable done_signal;
+  bool done = false;
+  std::exception_ptr failure;
+  bool wait_for(std::chrono::milliseconds period) {
+    std::unique_lock lock(mutex);
+    return done_signal.wait_for(lock, period, [this] { return done; });
+  }
+  void finish(std::exception_ptr e) {
+    const std::lock_guard lock(mutex);
+    failure = std::move(e);
+    done = true;
+    done_signal.notify_all();
+  }
+};
+
+// With the GIL held: forwards the progress and runs the signal handlers; the Python error they raised, if any.
+std::optional<py::error_already_set> poll(ProgressRelay& relay, const py::object& progress) {
+  try {
+    if (!progress.is_none()) relay.forward(progress);
+    if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+  } catch (py::error_already_set& e) {
+    return std::move(e);
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+void run_interruptible(const std::function<void(const RunControl&)>& work, const py::object& progress,
+                       const std::function<py::object()>& partial_result) {
+  CancelToken token;
+  ProgressRelay relay;
+  RunControl run;
+  run.cancel = &token;
+  run.progress = [&relay](std::string_view stage, std::uint64_t done, std::uint64_t total) {
+    relay.update(stage, done, total);
+  };
+  Completion completion;
+  std::optional<py::error_already_set> interruption;
+  {
+    py::gil_scoped_release release;
+    std::thread worker([&] {
+      try {
+        work(run);
+        completion.finish(nullptr);
+      } catch (...) {
+        completion.finish(std::current_exception());
+      }
+    });
+    while (!completion.wait_for(std::chrono::milliseconds(50))) {
+      py::gil_scoped_acquire gil;
+      if (interruption) continue;
+      interruption = poll(relay, progress);
+      if (interruption) token.cancel();
+    }
+    worker.join();
+  }
+  if (!interruption) interruption = poll(relay, progress);  // the last report, and a late Ctrl-C
+  if (interruption) {
+    const py::object partial = partial_result && !completion.failure ? partial_result() : py::none();
+    if (!partial.is_none() && interruption->matches(PyExc_KeyboardInterrupt))
+      py::setattr(interruption->value(), "partial_result", partial);
+    throw *interruption;
+  }
+  if (completion.failure) std::rethrow_exception(completion.failure);
+}
+
+// ---- arguments ---------------------------------------------------------------------------------------------
+
+GGX<double> ggx_of(const py::handle& alpha, const char* what) {
+  double ax = 0, ay = 0;
+  if (py::isinstance<py::sequence>(alpha) && !py::isinstance<py::str>(alpha)) {
+    const auto pair = alpha.cast<std::vector<double>>();
+    if (pair.size() != 2) throw py::value_error(std::string(what) + ": give one number or a pair (alpha_x, alpha_y)");
+    ax = pair[0];
+    ay = pair[1];
+  } else {
+    ax = ay = alpha.cast<double>();
+  }
+  check_supported_alpha(what, ax, ay);  // ParseError (std::invalid_argument): ValueError
+  return GGX<double>(ax, ay);
+}
+
+Vec3<double> view_of(double theta_deg, double phi_deg) {
+  if (!(theta_deg >= 0 && theta_deg < 90))
+    throw py::value_error("theta must be in [0, 90) degrees, got " + py::repr(py::float_(theta_deg)).cast<std::string>());
+  if (!std::isfinite(phi_deg)) throw py::value_error("phi must be finite, got " + py::repr(py::float_(phi_deg)).cast<std::string>());
+  return direction_from_degrees(theta_deg, phi_deg);
+}
+
+namespace {
+
+std::string shape_text(const py::array& a) {
+  std::string s = "(";
+  for (py::ssize_t d = 0; d < a.ndim(); ++d) s += (d ? ", " : "") + std::to_string(a.shape(d));
+  return s + (a.ndim() == 1 ? ",)" : ")");
+}
+
+// The array of argument `what`, with a real dtype (float32/float64 when `exact`), `columns` columns (0: 1-D).
+py::array checked_array(const py::handle& object, const char* what, int columns, bool exact_float) {
+  if (!py::isinstance<py::array>(object) && !exact_float) return py::array::ensure(object);
+  if (!py::isinstance<py::array>(object))
+    throw py::value_error(std::string(what) + ": expected a numpy array, got " + py::repr(py::type::of(object)).cast<std::string>());
+  py::array a = py::reinterpret_borrow<py::array>(object);
+  const char kind = a.dtype().kind();
+  const bool float_ok = kind == 'f' && (a.itemsize() == 4 || a.itemsize() == 8);
+  if ((exact_float && !float_ok) || (!exact_float && kind != 'f' && kind != 'i' && kind != 'u'))
+    throw py::value_error(std::string(what) + ": dtype " + py::str(a.dtype()).cast<std::string>() +
+                          " is not supported (expected float32 or float64)");
+  const bool shape_ok = columns == 0 ? a.ndim() == 1 : a.ndim() == 2 && a.shape(1) == columns;
+  if (!shape_ok)
+    throw py::value_error(std::string(what) + ": shape " + shape_text(a) + " is not supported (expected " +
+                          (columns == 0 ? std::string("(N,)") : "(N, " + std::to_string(columns) + ")") + ")");
+  return a;
+}
+
+SampleArrayColumn column_of(const py::array& a, int column) {
+  const auto* base = static_cast<const char*>(a.data());
+  return {base + (a.ndim() == 2 ? column * a.strides(1) : 0), a.strides(0), a.itemsize() == 4};
+}
+
+// The samples (N, 3) and the pdfs (N,) their sampler returned, as the reader's columns x,y,z[,pdf]: read in
+// place, whatever their order and strides.
+SampleArray sample_array_of(const py::array& samples, const std::optional<py::array>& pdfs, SampleColumns& columns) {
+  SampleArray array;
+  array.rows = std::uint64_t(samples.shape(0));
+  for (int c = 0; c < 3; ++c) array.columns.push_back(column_of(samples, c));
+  if (pdfs) {
+    if (pdfs->shape(0) != samples.shape(0))
+      throw py::value_error("pdfs: " + std::to_string(pdfs->shape(0)) + " values for " + std::to_string(samples.shape(0)) +
+                            " samples (one pdf per sample)");
+    array.columns.push_back(column_of(*pdfs, 0));
+    columns = SampleColumns::parse("x,y,z,pdf");
+  }
+  return array;
+}
+
+SampleFrame frame_of(const std::string& frame) {
+  if (frame == "z-up") return SampleFrame::z_up;
+  if (frame == "y-up") return SampleFrame::y_up;
+  throw py::value_error("frame: unknown frame '" + frame + "' (valid: z-up, y-up)");
+}
+
+ValidationOptions validation_options(int rows, double significance, std::uint64_t seed) {
+  if (!(significance > 0 && significance < 1))
+    throw py::value_error("significance must be in (0, 1), got " + py::repr(py::float_(significance)).cast<std::string>());
+  if (rows < 3 || rows > kMaxBinningRows || rows % 2 == 0)
+    throw py::value_error("rows must be odd, in [3, " + std::to_string(kMaxBinningRows) + "], got " + std::to_string(rows));
+  ValidationOptions o;
+  o.rows = rows;
+  o.significance = significance;
+  o.seed = seed;
+  return o;
+}
+
+// ---- validate ------------------------------------------------------------------------------------------------
+
+// The claimed density's reference, as `validate --from` builds it (--above-horizon: conditioned on wo.z > 0).
+std::shared_ptr<const ReferenceDistribution> file_reference(FilePdf pdf, const GGX<double>& ggx, const Vec3<double>& wi,
+                                                            int rows, bool above_horizon) {
+  const ClaimedDensity density = claimed_density(pdf, ggx, wi);
+  if (!above_horizon) return density_reference(density, ggx, wi, rows);
+  if (!claims_reflected_directions(pdf))
+    throw py::value_error("above_horizon applies to reflected directions: give pdf='reflection' or pdf='bounded'");
+  try {
+    return above_horizon_reference(density, ggx, wi, rows);
+  } catch (const std::invalid_argument& e) {
+    throw py::value_error(std::string("above_horizon: ") + e.what());
+  }
+}
+
+ValidationReport validate_array(const py::handle& samples_in, const py::handle& alpha, double theta, double phi,
+                                const std::string& pdf, const py::handle& pdfs_in, const std::string& frame, int rows,
+                                double significance, bool above_horizon, std::optional<std::uint64_t> dropped,
+                                const py::object& progress) {
+  const GGX<double> ggx = ggx_of(alpha);
+  const Vec3<double> wi = view_of(theta, phi);
+  ValidationOptions o = validation_options(rows, significance, 1);
+  if (dropped && !above_horizon) throw py::value_error("dropped applies with above_horizon=True only");
+  o.dropped_below_horizon = dropped;
+  const py::array samples = checked_array(samples_in, "samples", 3, true);
+  std::optional<py::array> pdfs;
+  if (!pdfs_in.is_none()) pdfs = checked_array(pdfs_in, "pdfs", 0, true);
+  SampleColumns columns;
+  DirectionSampleReader reader(sample_array_of(samples, pdfs, columns), columns);
+  reader.set_frame(frame_of(frame));
+  const FilePdf claimed = parse_file_pdf(pdf);  // std::invalid_argument naming the valid ones: ValueError
+  ValidationReport report;
+  run_interruptible(
+      [&](const RunControl& run) {
+        o.run = run;
+        const auto reference = file_reference(claimed, ggx, wi, o.rows, above_horizon);
+        report = validate_sample_file(reader, reference->domain, ggx, wi, o, reference);
+      },
+      progress);
+  report.sampler = "samples";
+  return report;
+}
+
+ValidationReport validate_zoo_sampler(const std::string& name, const py::handle& alpha, double theta, double phi,
+                                      std::uint64_t samples, std::uint64_t seed, const std::string& precision, int rows,
+                                      double significance, const py::object& progress) {
+  const SamplerInfo* sampler = find_sampler(name);
+  if (!sampler) throw py::value_error("sampler: unknown sampler '" + name + "' (valid: " + py::str(py::cast(sampler_names())).cast<std::string>() + ")");
+  const GGX<double> ggx = ggx_of(alpha);
+  const Vec3<double> wi = view_of(theta, phi);
+  ValidationOptions o = validation_options(rows, significance, seed);
+  if (precision != "double" && precision != "float") throw py::value_error("precision: 'double' or 'float', got '" + precision + "'");
+  o.precision = precision == "float" ? Precision::float32 : Precision::float64;
+  o.samples = samples;
+  require_samples_for_any_test(samples);
+  ValidationReport report;
+  run_interruptible([&](const RunControl& run) {
+    o.run = run;
+    report = validate_sampler(*sampler, ggx, wi, o);
+  }, progress);
+  return report;
+}
+
+// ---- the result ---------------------------------------------------------------------------------------------
+
+py::object json_to_python(const nlohmann::json& j) { return py::module_::import("json").attr("loads")(j.dump()); }
+
+// p-values by test: the chi-square tests ("chi2_sphere", "chi2_lobe") and the applicable statistical checks.
+py::dict p_values_of(const ValidationReport& r) {
+  py::dict out;
+  for (const BinnedTest& b : r.binned) out[py::str(b.name)] = b.chi2.p_value;
+  for (const SubTest& c : r.checks)
+    if (c.applicable && c.statistical) out[py::str(c.name)] = c.p_value;
+  return out;
+}
+
+py::list worst_cells_of(const ValidationReport& r) {
+  py::list out;
+  for (const BinnedTest& b : r.binned)
+    for (const CellReport& c : b.chi2.worst_cells)
+      out.append(py::dict(py::arg("binning") = b.binning, py::arg("bin") = c.bin, py::arg("observed") = c.observed,
+                          py::arg("expected") = c.expected, py::arg("contribution") = c.contribution,
+                          py::arg("location") = c.location));
+  return out;
+}
+
+std::string repr_of(const ValidationReport& r) {
+  return std::string("<ValidationResult ") + (r.passed ? "PASS" : "REJECTED") + " p=" +
+         py::repr(py::float_(r.p_value)).cast<std::string>() + " samples=" + std::to_string(r.samples) +
+         (r.failures.empty() ? "" : " failure: " + r.failures.front()) + ">";
+}
+
+void bind_result(py::module_& m) {
+  py::class_<ValidationReport>(m, "ValidationResult", "The report of one validation (what `microsim validate --json` writes).")
+      .def_property_readonly("passed", [](const ValidationReport& r) { return r.passed; }, "True when every test passed")
+      .def_property_readonly("verdict", [](const ValidationReport& r) { return r.passed ? "pass" : "fail"; }, "'pass' or 'fail'")
+      .def_readonly("p_value", &ValidationReport::p_value, "Sidak-adjusted smallest p-value of the statistical tests")
+      .def_readonly("statistic", &ValidationReport::statistic, "chi-square statistic of the test with the smallest p")
+      .def_readonly("dof", &ValidationReport::dof, "its degrees of freedom")
+      .def_readonly("samples", &ValidationReport::samples, "number of samples tested")
+      .def_readonly("failures", &ValidationReport::failures, "why it failed (empty when passed)")
+      .def_readonly("seconds", &ValidationReport::seconds, "wall-clock time of the validation")
+      .def_property_readonly("p_values", &p_values_of, "p-value of each statistical test, by name")
+      .def_property_readonly("worst_cells", &worst_cells_of, "the cells contributing most to each chi-square statistic")
+      .def("to_dict", [](const ValidationReport& r) { return json_to_python(to_json(r)); },
+           "The report as a dict: the JSON of `microsim validate --json`")
+      .def("__bool__", [](const ValidationReport& r) { return r.passed; })
+      .def("__repr__", &repr_of);
+}
+
+// ---- samplers --------------------------------------------------------------------------------------------------
+
+// Samples of `name` for each row of u (N, 2): (directions (N, 3), pdfs (N,)); NaN rows where it returns nothing.
+py::tuple sample_vectorised(const std::string& name, const py::handle& wi_in, const py::handle& alpha, const py::handle& u_in) {
+  const SamplerInfo* sampler = find_sampler(name);
+  if (!sampler) throw py::value_error("unknown sampler '" + name + "' (valid: " + py::str(py::cast(sampler_names())).cast<std::string>() + ")");
+  const GGX<double> ggx = ggx_of(alpha);
+  const auto wi = directions_of(wi_in, "wi");
+  const auto u = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(checked_array(u_in, "u", 2, false));
+  const py::ssize_t n = u.shape(0);
+  if (wi.shape(0) != 1 && wi.shape(0) != n) throw py::value_error("wi: one direction, or one per row of u");
+  py::array_t<double> directions({n, py::ssize_t(3)});
+  py::array_t<double> pdfs(n);
+  auto out = directions.mutable_unchecked<2>();
+  auto p = pdfs.mutable_unchecked<1>();
+  const auto w = wi.unchecked<2>();
+  const auto uu = u.unchecked<2>();
+  {
+    py::gil_scoped_release release;
+    for (py::ssize_t i = 0; i < n; ++i) {
+      const py::ssize_t k = wi.shape(0) == 1 ? 0 : i;
+      const auto s = sampler->sample_double(ggx, Vec3<double>(w(k, 0), w(k, 1), w(k, 2)), Vec2<double>(uu(i, 0), uu(i, 1)));
+      const Vec3<double> d = s ? s->direction : Vec3<double>::Constant(std::nan(""));
+      for (int c = 0; c < 3; ++c) out(i, c) = d[c];
+      p(i) = s ? s->pdf : std::nan("");
+    }
+  }
+  return py::make_tuple(directions, pdfs);
+}
+
+}  // namespace
+
+py::array_t<double, py::array::c_style | py::array::forcecast> directions_of(const py::handle& array, const char* what) {
+  py::array a = py::array::ensure(array);
+  if (!a) throw py::value_error(std::string(what) + ": expected an array of directions (N, 3) or (3,)");
+  if (a.ndim() == 1 && a.shape(0) == 3) a = a.attr("reshape")(1, 3);
+  return py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(checked_array(a, what, 3, false));
+}
+
+void bind_validation(py::module_& m) {
+  using namespace pybind11::literals;
+  bind_result(m);
+  m.def("validate", &validate_array, R"(Validates samples against the density they claim (what `microsim validate --from` does).
+
+samples: (N, 3) float32 or float64 array of unit directions in the z-up frame (any order or strides: read in
+  place); NaN rows are the sampler's failures (the validation rejects and names them).
+alpha: roughness, a number or (alpha_x, alpha_y); theta, phi: the view in degrees (theta in [0, 90)).
+pdf: the claimed density: 'vndf' (normals, D_v), 'ndf' (normals, D(m) m.z), 'bounded' or 'reflection'
+  (reflected directions).
+pdfs: optional (N,) array of the pdfs the sampler returned, checked against the claimed pdf.
+frame: 'z-up' or 'y-up'; rows, significance: as the command line's --rows, --significance;
+above_horizon, dropped: reflections above the horizon only (--above-horizon, --dropped).
+progress: optional callable progress(stage, done, total).
+Returns a ValidationResult; raises ValueError for bad input (the command line's messages) and
+KeyboardInterrupt on Ctrl-C.)",
+        "samples"_a, "alpha"_a, "theta"_a, "phi"_a = 0.0, "pdf"_a = "vndf", "pdfs"_a = py::none(), py::kw_only(),
+        "frame"_a = "z-up", "rows"_a = 31, "significance"_a = 0.01, "above_horizon"_a = false, "dropped"_a = py::none(),
+        "progress"_a = py::none());
+  m.def("validate_sampler", &validate_zoo_sampler, R"(Validates a sampler of the zoo (what `microsim validate --sampler` does).
+
+name: a name of sampler_names(); alpha, theta, phi as for validate(); samples: how many to draw;
+seed: sample i uses CounterRng(seed, i), as the command line; precision: 'double' or 'float' (--float).
+Returns a ValidationResult identical to the command line's for the same arguments.)",
+        "name"_a, "alpha"_a, "theta"_a, "phi"_a = 0.0, py::kw_only(), "samples"_a = 1'000'000, "seed"_a = 1,
+        "precision"_a = "double", "rows"_a = 31, "significance"_a = 0.01, "progress"_a = py::none());
+  m.def("sample", &sample_vectorised, R"(Draws with a sampler of the zoo, vectorised.
+
+name: a name of sampler_names(); wi: the view, (3,) or (N, 3); alpha: a number or (alpha_x, alpha_y);
+u: (N, 2) uniforms in [0, 1). Returns (directions (N, 3), pdfs (N,)), float64; rows where the sampler
+returns nothing are NaN.)",
+        "name"_a, "wi"_a, "alpha"_a, "u"_a);
+  m.def("sampler_names", &sampler_names, "The names of the samplers of the zoo.");
+}
+
+}  // namespace microsim::python

@@ -1,0 +1,127 @@
+"""microsim.validate on numpy arrays: a numpy sampler passes, a broken one is rejected, results are the
+command line's for the same data, and bad input raises ValueError with the command line's message."""
+import numpy as np
+import pytest
+
+import microsim
+from conftest import cli_json, heitz2018_numpy, run_cli, view
+
+ALPHA, THETA = (0.3, 0.3), 60.0
+
+
+def numpy_samples(n, seed, remap=True, alpha=ALPHA, theta=THETA):
+    u = np.random.default_rng(seed).random((n, 2))
+    return heitz2018_numpy(view(theta), alpha, u, remap=remap)
+
+
+def test_numpy_heitz2018_passes():
+    r = microsim.validate(numpy_samples(200_000, seed=11), ALPHA, THETA)
+    assert r.passed, r.failures
+    assert r.verdict == "pass" and bool(r)
+    assert r.samples == 200_000
+    assert set(r.p_values) >= {"chi2_sphere", "chi2_lobe"}
+    assert "PASS" in repr(r)
+
+
+def test_broken_numpy_sampler_is_rejected():
+    """The negative control: the same sampler without its disk warp must be rejected."""
+    r = microsim.validate(numpy_samples(200_000, seed=11, remap=False), ALPHA, THETA)
+    assert not r.passed
+    assert r.p_value < 1e-6
+    assert r.failures and "REJECTED" in repr(r)
+    assert r.worst_cells and r.worst_cells[0]["observed"] != r.worst_cells[0]["expected"]
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_identical_to_cli_on_the_same_npy(tmp_path, dtype):
+    samples = numpy_samples(100_000, seed=5).astype(dtype)
+    path = tmp_path / "samples.npy"
+    np.save(path, samples)
+    cli = cli_json(tmp_path, "validate", "--from", path, "--alpha", "0.3", "--theta", "60")
+    py = microsim.validate(samples, 0.3, 60.0).to_dict()
+    for name, test in cli["tests"].items():
+        assert py["tests"][name] == test, name
+    for key in ("p_value", "statistic", "dof", "verdict", "samples", "failures"):
+        assert py[key] == cli[key], key
+
+
+def test_layouts_read_in_place_give_the_same_result():
+    c = numpy_samples(70_000, seed=3)
+    reference = microsim.validate(c, ALPHA, THETA).p_values
+    wide = np.zeros((c.shape[0], 5))
+    wide[:, 1:4] = c
+    for layout in (np.asfortranarray(c), wide[:, 1:4], c.astype(np.float32).astype(np.float64)):
+        assert microsim.validate(layout, ALPHA, THETA).p_values == reference
+    reversed_rows = microsim.validate(c[::-1], ALPHA, THETA)  # a negative stride: the same multiset
+    assert reversed_rows.p_values["chi2_sphere"] == reference["chi2_sphere"]
+
+
+def test_returned_pdfs_are_checked():
+    wi = view(THETA)
+    m = numpy_samples(100_000, seed=4)
+    pdfs = microsim.D_v(wi, m, ALPHA)
+    assert microsim.validate(m, ALPHA, THETA, pdfs=pdfs).passed
+    wrong = microsim.validate(m, ALPHA, THETA, pdfs=pdfs * 1.01)
+    assert not wrong.passed and any("pdf" in f for f in wrong.failures)
+
+
+def test_identical_to_cli_for_a_zoo_sampler(tmp_path):
+    cli = cli_json(tmp_path, "validate", "--sampler", "heitz2018", "--alpha", "0.05,0.5", "--theta", "75",
+                   "--samples", "100000", "--seed", "9")
+    py = microsim.validate_sampler("heitz2018", (0.05, 0.5), 75.0, samples=100_000, seed=9).to_dict()
+    for key in ("p_value", "statistic", "dof", "verdict", "tests"):
+        assert py[key] == cli[key], key
+    talk = microsim.validate_sampler("heitz2018-talk", 0.3, 60.0, samples=100_000, seed=9)
+    assert not talk.passed  # the zoo's negative control
+
+
+def test_nan_rows_are_the_samplers_failures():
+    s = numpy_samples(50_000, seed=2)
+    s[[7, 100]] = np.nan
+    r = microsim.validate(s, ALPHA, THETA)
+    assert not r.passed
+    assert any("row 7 (0-based)" in f for f in r.failures), r.failures
+
+
+@pytest.mark.parametrize("bad, expected", [
+    (np.zeros((10, 2)), "shape (10, 2) is not supported"),
+    (np.zeros(30), "shape (30,) is not supported"),
+    (np.zeros((10, 3), dtype=np.int64), "dtype int64 is not supported"),
+    (np.zeros((0, 3)), "empty"),
+    ([[0, 0, 1]], "expected a numpy array"),
+])
+def test_bad_arrays(bad, expected):
+    with pytest.raises(ValueError, match=expected.replace("(", r"\(").replace(")", r"\)")):
+        microsim.validate(bad, ALPHA, THETA)
+
+
+@pytest.mark.parametrize("kwargs, expected", [
+    (dict(alpha=0.0), "alpha"), (dict(alpha=-0.3), "alpha"), (dict(alpha=(0.3, 0.3, 0.3)), "pair"),
+    (dict(theta=95.0), "theta must be in"), (dict(theta=float("nan")), "theta must be in"),
+    (dict(phi=float("inf")), "phi must be finite"), (dict(pdf="foo"), "vndf"),
+    (dict(rows=4), "rows must be odd"), (dict(significance=1.5), "significance"),
+    (dict(above_horizon=True), "above_horizon"),
+])
+def test_bad_arguments(kwargs, expected):
+    args = dict(samples=numpy_samples(1000, seed=1), alpha=ALPHA, theta=THETA) | kwargs
+    with pytest.raises(ValueError, match=expected):
+        microsim.validate(**args)
+
+
+def test_non_unit_row_message_is_the_clis(tmp_path):
+    s = numpy_samples(1000, seed=1)
+    s[3] *= 2
+    path = tmp_path / "bad.npy"
+    np.save(path, s)
+    cli = run_cli("validate", "--from", path, "--alpha", "0.3", "--theta", "60", check=False)
+    assert cli.returncode == 2
+    with pytest.raises(ValueError) as error:
+        microsim.validate(s, ALPHA, THETA)
+    message = str(error.value)
+    assert message.startswith("samples: row 3 (0-based): vector")
+    assert message.split(": ", 1)[1] in cli.stderr  # the same words after the name of the source
+
+
+def test_too_few_samples():
+    with pytest.raises(ValueError, match="samples"):
+        microsim.validate(numpy_samples(5, seed=1), ALPHA, THETA)
