@@ -165,6 +165,8 @@ py::dict trace_vndf(const py::handle& alpha, double theta, double phi, std::uint
   return histogram_dict(result->histogram);
 }
 
+py::dict read_histogram_file(const std::string& path) { return histogram_dict(read_histogram_exr(path)); }
+
 // ---- heightfields ------------------------------------------------------------------------------------------------
 
 microgeom::Heightfield heightfield_of(const py::array_t<float, py::array::c_style | py::array::forcecast>& heights,
@@ -228,7 +230,7 @@ and the parameter-space angles of the centres. On Ctrl-C raises KeyboardInterrup
 `partial_result` holds the blocks traced so far.)",
         "alpha"_a, "theta"_a, "phi"_a = 0.0, py::kw_only(), "rays"_a = 1'000'000, "seed"_a = 1, "rows"_a = 31,
         "mesh_level"_a = -1, "threads"_a = 0, "progress"_a = py::none());
-  m.def("read_histogram", [](const std::string& path) { return histogram_dict(read_histogram_exr(path)); }, "path"_a,
+  m.def("read_histogram", &read_histogram_file, "path"_a,
         "Reads a histogram EXR written by `microsim trace vndf --out` (or merge): the dict trace_vndf returns.");
   m.attr("__version__") = "0.1";
 }

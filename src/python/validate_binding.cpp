@@ -246,7 +246,8 @@ ValidationReport validate_array(const py::handle& samples_in, const py::handle& 
   std::optional<py::array> pdfs;
   if (!pdfs_in.is_none()) pdfs = checked_array(pdfs_in, "pdfs", 0, true);
   SampleColumns columns;
-  DirectionSampleReader reader(sample_array_of(samples, pdfs, columns), columns);
+  SampleArray array = sample_array_of(samples, pdfs, columns);  // sets the columns
+  DirectionSampleReader reader(std::move(array), columns);
   reader.set_frame(frame_of(frame));
   const FilePdf claimed = parse_file_pdf(pdf);  // std::invalid_argument naming the valid ones: ValueError
   ValidationReport report;

@@ -40,7 +40,7 @@ def test_brdfs_on_arrays():
     assert mirror.shape == (3,) and np.all(mirror > 0)
     gold = microsim.conductor_brdf(wi, wo, 0.3, complex(0.2, 3.9))
     assert np.all(gold < mirror) and np.all(gold > 0.5 * mirror)
-    below = -wo
+    below = np.array([view(t, 180.0) for t in (10.0, 20.0, 25.0)]) * [1, 1, -1]  # around the refracted 25 deg
     assert np.all(microsim.dielectric_bsdf(wi, below, 0.3, 1.5) > 0)
 
 
