@@ -38,9 +38,11 @@ class ValidationResult:
     def __bool__(self) -> bool: ...
 
 def validate(samples: np.ndarray, alpha: Alpha, theta: float, phi: float = 0.0, pdf: str = "vndf",
-             pdfs: Optional[np.ndarray] = None, *, frame: str = "z-up", rows: int = 31, significance: float = 0.01,
-             above_horizon: bool = False, dropped: Optional[int] = None, progress: Progress = None) -> ValidationResult:
-    """Validates samples (N, 3) float32/float64 against the density they claim (`microsim validate --from`)."""
+             weights: Optional[np.ndarray] = None, pdfs: Optional[np.ndarray] = None, *, bsdf: Optional[str] = None,
+             frame: str = "z-up", rows: int = 31, significance: float = 0.01, above_horizon: bool = False,
+             dropped: Optional[int] = None, progress: Progress = None) -> ValidationResult:
+    """Validates samples (N, 3) float32/float64 against the density they claim (`microsim validate --from`);
+    pdfs (N,): the returned pdfs; weights (N,) or (N, C) with bsdf ('mirror', 'conductor:ETA,K'): the weights."""
 
 def validate_sampler(name: str, alpha: Alpha, theta: float, phi: float = 0.0, *, samples: int = 1000000,
                      seed: int = 1, precision: str = "double", rows: int = 31, significance: float = 0.01,
@@ -74,6 +76,16 @@ def trace_vndf(alpha: Alpha, theta: float, phi: float = 0.0, *, rays: int = 1000
     {'sphere'|'lobe': {'counts', 'expected_probability', 'solid_angle', 'centres', 'param_theta_deg',
     'param_phi_deg'}}}. Ctrl-C raises KeyboardInterrupt with .partial_result."""
 
+def trace_surface_vndf(surface: "Heightfield", theta: float, phi: float = 0.0, *, rays: int = 1000000, seed: int = 1,
+                       rows: int = 31, threads: int = 0, progress: Progress = None) -> dict[str, Any]:
+    """Traces a heightfield's visible normals (`microsim trace vndf --surface`): the dict trace_vndf returns."""
+
+def masking(surface: "Heightfield", theta: float, phi: float = 0.0, *, samples: int = 1000000, seed: int = 1,
+            bins: int = 10, theta_l: Optional[float] = None, phi_l: float = 0.0, cone: float = 5.0,
+            grazing_share: float = 0.02, geometry: str = "triangles", threads: int = 0,
+            progress: Progress = None) -> dict[str, Any]:
+    """Masking measured on a heightfield (`microsim trace masking --surface`): the JSON "masking" object."""
+
 def read_histogram(path: str) -> dict[str, Any]:
     """Reads a histogram EXR of `microsim trace vndf --out`: the dict trace_vndf returns."""
 
@@ -90,3 +102,8 @@ class Heightfield:
     def save(self, path: str) -> None: ...
 
 def load_heightfield(path: str, tile_size: Optional[float] = None) -> Heightfield: ...
+
+def build_surface(assembly: str = "smith", alpha: Alpha = 0.5, *, resolution: int = 1024, seed: int = 1,
+                  corr_cells: float = 0.0, tile_size: float = 1.0, iterations: int = 0, check_range: bool = True,
+                  progress: Progress = None) -> Heightfield:
+    """Builds a periodic heightfield microsurface (`microsim surface build`): same heights for the same seed."""

@@ -3,13 +3,17 @@
 #include "python/binding.h"
 
 #include "core/errors.h"
+#include "measure/masking.h"
 #include "measure/vndf.h"
 #include "microfacet/bsdf.h"
 #include "microfacet/ggx.h"
+#include "microgeom/assembly.h"
 #include "microgeom/heightfield.h"
 #include "stats/binning.h"
 
 #include <pybind11/stl.h>
+
+#include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <complex>
@@ -165,6 +169,70 @@ py::dict trace_vndf(const py::handle& alpha, double theta, double phi, std::uint
   return histogram_dict(result->histogram);
 }
 
+// `trace vndf --surface`: a heightfield's VNDF, in the same bins, against Smith's prediction.
+py::dict trace_surface_vndf(const microgeom::Heightfield& surface, double theta, double phi, std::uint64_t rays,
+                            std::uint64_t seed, int rows, int threads, const py::object& progress) {
+  view_of(theta, phi);
+  if (rays < 1) throw py::value_error("rays must be at least 1");
+  VndfRequest request;
+  request.theta_deg = theta;
+  request.phi_deg = phi;
+  request.rays = rays;
+  request.seed = seed;
+  request.rows = rows;
+  std::optional<HeightfieldVndf> result;
+  run_interruptible(
+      [&](const RunControl& run) {
+        request.run = run;
+        request.run.threads = threads;
+        result = measure_heightfield_vndf(surface, "numpy heightfield", request);
+      },
+      progress, [&]() -> py::object { return result ? py::object(histogram_dict(result->histogram)) : py::none(); });
+  return histogram_dict(result->histogram);
+}
+
+// ---- masking ---------------------------------------------------------------------------------------------------
+
+py::object json_object(const nlohmann::json& j) { return py::module_::import("json").attr("loads")(j.dump()); }
+
+MaskingRequest masking_request(double theta, double phi, std::optional<double> theta_l, double phi_l, double cone,
+                               std::uint64_t samples, std::uint64_t seed, int bins, double grazing_share) {
+  view_of(theta, phi);  // `trace masking --theta/--phi`
+  if (theta_l) view_of(*theta_l, phi_l);
+  if (!(cone > 0 && cone <= 90)) throw py::value_error("cone must be in (0, 90] degrees");
+  if (samples < 1) throw py::value_error("samples must be at least 1");
+  MaskingRequest r;
+  r.theta_deg = theta;
+  r.phi_deg = phi;
+  r.theta_l_deg = theta_l;
+  r.phi_l_deg = phi_l;
+  r.cone_deg = cone;
+  r.samples = samples;
+  r.seed = seed;
+  r.bins = bins;
+  r.grazing_share = grazing_share;
+  return r;
+}
+
+// `trace masking --surface`: G1 (and G2 with a light) measured on the heightfield, beside Smith's; the dict of
+// the command line's JSON "masking" object.
+py::object masking(const microgeom::Heightfield& surface, double theta, double phi, std::uint64_t samples,
+                   std::uint64_t seed, int bins, std::optional<double> theta_l, double phi_l, double cone,
+                   double grazing_share, const std::string& geometry, int threads, const py::object& progress) {
+  MaskingRequest request = masking_request(theta, phi, theta_l, phi_l, cone, samples, seed, bins, grazing_share);
+  const HeightfieldGeometry g = heightfield_geometry_from_string(geometry);
+  std::optional<SurfaceMasking> result;
+  run_interruptible(
+      [&](const RunControl& run) {
+        request.run = run;
+        request.run.threads = threads;
+        const MaskingSurface scene(surface, "numpy heightfield", g, /*trace=*/true);
+        result = measure_masking(scene, request);
+      },
+      progress, [&]() -> py::object { return result ? json_object(to_json(result->result)) : py::none(); });
+  return json_object(to_json(result->result));
+}
+
 py::dict read_histogram_file(const std::string& path) { return histogram_dict(read_histogram_exr(path)); }
 
 // ---- heightfields ------------------------------------------------------------------------------------------------
@@ -176,6 +244,33 @@ microgeom::Heightfield heightfield_of(const py::array_t<float, py::array::c_styl
   if (!(tile_size > 0) || !std::isfinite(tile_size)) throw py::value_error("tile_size must be positive and finite");
   const float* p = heights.data();
   return microgeom::Heightfield(int(heights.shape(0)), tile_size, std::vector<float>(p, p + heights.size()));
+}
+
+// `surface build`: a periodic microsurface of an assembly (microgeom/assembly.h); progress as a fraction in
+// thousandths, Ctrl-C between the build's steps.
+microgeom::Heightfield build_surface(const std::string& assembly, const py::handle& alpha, int resolution,
+                                     std::uint64_t seed, double corr_cells, double tile_size, int iterations,
+                                     bool check_range, const py::object& progress) {
+  microgeom::AssemblyParams p;
+  p.assembly = assembly;
+  const GGX<double> ggx = ggx_of(alpha);
+  p.alpha_x = ggx.alpha_x();
+  p.alpha_y = ggx.alpha_y();
+  p.resolution = resolution;
+  p.seed = seed;
+  p.corr_cells = corr_cells;
+  p.tile_size = tile_size;
+  p.iterations = iterations;
+  microgeom::validate(p);
+  if (check_range) microgeom::check_supported_range(p);
+  std::optional<microgeom::Heightfield> field;
+  run_interruptible([&](const RunControl& run) {
+    const auto report = [&run](std::string_view stage, double fraction) {
+      run.report(stage, std::uint64_t(std::clamp(fraction, 0.0, 1.0) * 1000), 1000);
+    };
+    field = microgeom::build_assembly(p, nullptr, report, [&run] { return run.cancelled(); });
+  }, progress);
+  return std::move(*field);
 }
 
 void bind_heightfield(py::module_& m) {
@@ -201,6 +296,15 @@ void bind_heightfield(py::module_& m) {
           return "<Heightfield " + std::to_string(f.resolution()) + "x" + std::to_string(f.resolution()) +
                  " tile " + py::repr(py::float_(f.tile_size())).cast<std::string>() + ">";
         });
+  m.def("build_surface", &build_surface, "assembly"_a = "smith", "alpha"_a = 0.5, py::kw_only(), "resolution"_a = 1024,
+        "seed"_a = 1, "corr_cells"_a = 0.0, "tile_size"_a = 1.0, "iterations"_a = 0, "check_range"_a = true,
+        "progress"_a = py::none(),
+        R"(Builds a periodic heightfield microsurface (`microsim surface build`): the same heights for the same seed.
+
+assembly: a name of microgeom's registry (smith, ...); alpha: a number or (alpha_x, alpha_y) in [0.005, 2];
+resolution: a power of two in [16, 8192]; corr_cells: feature size in cells (0: the default); iterations:
+slope-matching iterations (0: the default); check_range: refuse parameters outside the range where a build
+meets its own NDF check (--unsupported turns it off on the command line).)");
   m.def("load_heightfield", [](const std::string& path, std::optional<double> tile_size) {
           return microgeom::load_heightmap_exr(path, tile_size);
         }, "path"_a, "tile_size"_a = py::none(),
@@ -230,6 +334,18 @@ and the parameter-space angles of the centres. On Ctrl-C raises KeyboardInterrup
 `partial_result` holds the blocks traced so far.)",
         "alpha"_a, "theta"_a, "phi"_a = 0.0, py::kw_only(), "rays"_a = 1'000'000, "seed"_a = 1, "rows"_a = 31,
         "mesh_level"_a = -1, "threads"_a = 0, "progress"_a = py::none());
+  m.def("trace_surface_vndf", &trace_surface_vndf, "surface"_a, "theta"_a, "phi"_a = 0.0, py::kw_only(),
+        "rays"_a = 1'000'000, "seed"_a = 1, "rows"_a = 31, "threads"_a = 0, "progress"_a = py::none(),
+        R"(Traces a heightfield's visible normals (`microsim trace vndf --surface`): the dict trace_vndf returns,
+with expected_probability Smith's D_v for the surface's reference NDF. Same counts as the command line for the
+same surface and seed.)");
+  m.def("masking", &masking, "surface"_a, "theta"_a, "phi"_a = 0.0, py::kw_only(), "samples"_a = 1'000'000, "seed"_a = 1,
+        "bins"_a = 10, "theta_l"_a = py::none(), "phi_l"_a = 0.0, "cone"_a = 5.0, "grazing_share"_a = 0.02,
+        "geometry"_a = "triangles", "threads"_a = 0, "progress"_a = py::none(),
+        R"(Measures masking on a heightfield (`microsim trace masking --surface`): G1(v) with its standard error
+beside Smith's (analytic and empirical NDF), by <v, m> and by height; with theta_l, G2(v, l). Returns the
+command line's JSON "masking" object as a dict (same values for the same surface and seed). Ctrl-C raises
+KeyboardInterrupt whose `partial_result` holds the measurement of the blocks done.)");
   m.def("read_histogram", &read_histogram_file, "path"_a,
         "Reads a histogram EXR written by `microsim trace vndf --out` (or merge): the dict trace_vndf returns.");
   m.attr("__version__") = "0.1";

@@ -2,6 +2,7 @@
 // vectorised functions, and the run of long calls (GIL released, progress, Ctrl-C). See binding.h.
 #include "python/binding.h"
 
+#include "microfacet/material.h"
 #include "microfacet/roughness.h"
 #include "stats/binning.h"
 #include "validate/sample_io.h"
@@ -171,10 +172,13 @@ py::array checked_array(const py::handle& object, const char* what, int columns,
   if ((exact_float && !float_ok) || (!exact_float && kind != 'f' && kind != 'i' && kind != 'u'))
     throw py::value_error(std::string(what) + ": dtype " + py::str(a.dtype()).cast<std::string>() +
                           " is not supported (expected float32 or float64)");
-  const bool shape_ok = columns == 0 ? a.ndim() == 1 : a.ndim() == 2 && a.shape(1) == columns;
+  const bool shape_ok = columns == 0    ? a.ndim() == 1
+                        : columns < 0   ? a.ndim() == 1 || (a.ndim() == 2 && a.shape(1) >= 1)
+                                        : a.ndim() == 2 && a.shape(1) == columns;
   if (!shape_ok)
     throw py::value_error(std::string(what) + ": shape " + shape_text(a) + " is not supported (expected " +
-                          (columns == 0 ? std::string("(N,)") : "(N, " + std::to_string(columns) + ")") + ")");
+                          (columns == 0 ? std::string("(N,)") : columns < 0 ? std::string("(N,) or (N, C)")
+                                                                            : "(N, " + std::to_string(columns) + ")") + ")");
   return a;
 }
 
@@ -183,27 +187,44 @@ SampleArrayColumn column_of(const py::array& a, int column) {
   return {base + (a.ndim() == 2 ? column * a.strides(1) : 0), a.strides(0), a.itemsize() == 4};
 }
 
-// The samples (N, 3) and the pdfs (N,) their sampler returned, as the reader's columns x,y,z[,pdf]: read in
-// place, whatever their order and strides.
-SampleArray sample_array_of(const py::array& samples, const std::optional<py::array>& pdfs, SampleColumns& columns) {
-  SampleArray array;
-  array.rows = std::uint64_t(samples.shape(0));
-  for (int c = 0; c < 3; ++c) array.columns.push_back(column_of(samples, c));
-  if (pdfs) {
-    if (pdfs->shape(0) != samples.shape(0))
-      throw py::value_error("pdfs: " + std::to_string(pdfs->shape(0)) + " values for " + std::to_string(samples.shape(0)) +
-                            " samples (one pdf per sample)");
-    array.columns.push_back(column_of(*pdfs, 0));
-    columns = SampleColumns::parse("x,y,z,pdf");
-  }
-  return array;
-}
-
 SampleFrame frame_of(const std::string& frame) {
   if (frame == "z-up") return SampleFrame::z_up;
   if (frame == "y-up") return SampleFrame::y_up;
   throw py::value_error("frame: unknown frame '" + frame + "' (valid: z-up, y-up)");
 }
+
+// The values (N,) or (N, C) of argument `what`, one row per sample, appended to the reader's columns.
+int append_columns(SampleArray& array, const py::handle& values_in, const char* what) {
+  const py::array values = checked_array(values_in, what, -1, true);
+  if (std::uint64_t(values.shape(0)) != array.rows)
+    throw py::value_error(std::string(what) + ": " + std::to_string(values.shape(0)) + " rows for " +
+                          std::to_string(array.rows) + " samples (one per sample)");
+  const int count = values.ndim() == 1 ? 1 : int(values.shape(1));
+  for (int c = 0; c < count; ++c) array.columns.push_back(column_of(values, c));
+  return count;
+}
+
+// The samples (N, 3), the pdfs (N,) their sampler returned and their weights (N,) or (N, C), read in place
+// (whatever their order and strides) as a file's columns x,y,z[,pdf][,weight...] would be.
+DirectionSampleReader sample_reader(const py::handle& samples_in, const py::handle& pdfs, const py::handle& weights,
+                                    const std::string& frame) {
+  const py::array samples = checked_array(samples_in, "samples", 3, true);
+  SampleArray array;
+  array.rows = std::uint64_t(samples.shape(0));
+  for (int c = 0; c < 3; ++c) array.columns.push_back(column_of(samples, c));
+  std::string spec = "x,y,z";
+  if (!pdfs.is_none()) {
+    checked_array(pdfs, "pdfs", 0, true);  // one pdf per sample: (N,)
+    append_columns(array, pdfs, "pdfs");
+    spec += ",pdf";
+  }
+  const int channels = weights.is_none() ? 0 : append_columns(array, weights, "weights");
+  for (int c = 0; c < channels; ++c) spec += ",weight";
+  DirectionSampleReader reader(std::move(array), SampleColumns::parse(spec));
+  reader.set_frame(frame_of(frame));
+  return reader;
+}
+
 
 ValidationOptions validation_options(int rows, double significance, std::uint64_t seed) {
   if (!(significance > 0 && significance < 1))
@@ -233,8 +254,17 @@ std::shared_ptr<const ReferenceDistribution> file_reference(FilePdf pdf, const G
   }
 }
 
-ValidationReport validate_array(const py::handle& samples_in, const py::handle& alpha, double theta, double phi,
-                                const std::string& pdf, const py::handle& pdfs_in, const std::string& frame, int rows,
+// The BSDF of the weights (`validate --bsdf`): a material spec as parse_material reads it.
+std::optional<Material> bsdf_of(const std::optional<std::string>& bsdf, const py::handle& weights) {
+  if (bsdf.has_value() != !weights.is_none())
+    throw py::value_error("weights and bsdf go together: the weights (f cos / pdf) are tested against the BSDF");
+  if (!bsdf) return std::nullopt;
+  return parse_material("bsdf", *bsdf);
+}
+
+ValidationReport validate_array(const py::handle& samples, const py::handle& alpha, double theta, double phi,
+                                const std::string& pdf, const py::handle& weights, const py::handle& pdfs,
+                                const std::optional<std::string>& bsdf, const std::string& frame, int rows,
                                 double significance, bool above_horizon, std::optional<std::uint64_t> dropped,
                                 const py::object& progress) {
   const GGX<double> ggx = ggx_of(alpha);
@@ -242,13 +272,8 @@ ValidationReport validate_array(const py::handle& samples_in, const py::handle& 
   ValidationOptions o = validation_options(rows, significance, 1);
   if (dropped && !above_horizon) throw py::value_error("dropped applies with above_horizon=True only");
   o.dropped_below_horizon = dropped;
-  const py::array samples = checked_array(samples_in, "samples", 3, true);
-  std::optional<py::array> pdfs;
-  if (!pdfs_in.is_none()) pdfs = checked_array(pdfs_in, "pdfs", 0, true);
-  SampleColumns columns;
-  SampleArray array = sample_array_of(samples, pdfs, columns);  // sets the columns
-  DirectionSampleReader reader(std::move(array), columns);
-  reader.set_frame(frame_of(frame));
+  o.bsdf = bsdf_of(bsdf, weights);
+  DirectionSampleReader reader = sample_reader(samples, pdfs, weights, frame);
   const FilePdf claimed = parse_file_pdf(pdf);  // std::invalid_argument naming the valid ones: ValueError
   ValidationReport report;
   run_interruptible(
@@ -378,13 +403,16 @@ samples: (N, 3) float32 or float64 array of unit directions in the z-up frame (a
 alpha: roughness, a number or (alpha_x, alpha_y); theta, phi: the view in degrees (theta in [0, 90)).
 pdf: the claimed density: 'vndf' (normals, D_v), 'ndf' (normals, D(m) m.z), 'bounded' or 'reflection'
   (reflected directions).
+weights: optional (N,) or (N, C) array of the weights f cos / pdf the sampler returned (one column per
+  channel), tested against `bsdf` ('mirror', 'conductor:ETA,K[;ETA,K...]' as `validate --bsdf` takes it).
 pdfs: optional (N,) array of the pdfs the sampler returned, checked against the claimed pdf.
 frame: 'z-up' or 'y-up'; rows, significance: as the command line's --rows, --significance;
 above_horizon, dropped: reflections above the horizon only (--above-horizon, --dropped).
 progress: optional callable progress(stage, done, total).
 Returns a ValidationResult; raises ValueError for bad input (the command line's messages) and
 KeyboardInterrupt on Ctrl-C.)",
-        "samples"_a, "alpha"_a, "theta"_a, "phi"_a = 0.0, "pdf"_a = "vndf", "pdfs"_a = py::none(), py::kw_only(),
+        "samples"_a, "alpha"_a, "theta"_a, "phi"_a = 0.0, "pdf"_a = "vndf", "weights"_a = py::none(), "pdfs"_a = py::none(),
+        py::kw_only(), "bsdf"_a = py::none(),
         "frame"_a = "z-up", "rows"_a = 31, "significance"_a = 0.01, "above_horizon"_a = false, "dropped"_a = py::none(),
         "progress"_a = py::none());
   m.def("validate_sampler", &validate_zoo_sampler, R"(Validates a sampler of the zoo (what `microsim validate --sampler` does).

@@ -671,6 +671,13 @@ DirectionSampleReader::DirectionSampleReader(SampleArray array, SampleColumns co
   m.array = std::move(array);
 }
 
+DirectionSampleReader DirectionSampleReader::reopened() const {
+  DirectionSampleReader r = impl_->array ? DirectionSampleReader(*impl_->array, impl_->columns)
+                                         : DirectionSampleReader(impl_->path, impl_->columns);
+  r.set_frame(impl_->frame);
+  return r;
+}
+
 DirectionSampleReader::~DirectionSampleReader() = default;
 DirectionSampleReader::DirectionSampleReader(DirectionSampleReader&&) noexcept = default;
 DirectionSampleReader& DirectionSampleReader::operator=(DirectionSampleReader&&) noexcept = default;

@@ -129,6 +129,10 @@ public:
   DirectionSampleReader(DirectionSampleReader&&) noexcept;
   DirectionSampleReader& operator=(DirectionSampleReader&&) noexcept;
 
+  // A new reader of the same file or array from its first row, with the same columns and frame (a second
+  // pass over the samples, as the weight test makes).
+  DirectionSampleReader reopened() const;
+
   // Fills `out` with the next rows, up to out.size(); returns how many (fewer only at the end, 0 after
   // it). Throws SampleFileError on a bad row, and at the end of a file that held no sample at all. With a
   // pdf column its values go to `pdfs` (at least out.size() of them), with weight columns to `weights`

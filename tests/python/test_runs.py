@@ -90,3 +90,46 @@ def test_heightfield_from_numpy_and_back(tmp_path):
     assert np.array_equal(g.heights, heights) and g.tile_size == 2.0
     with pytest.raises(ValueError, match="square"):
         microsim.Heightfield(np.zeros((4, 8), dtype=np.float32), 1.0)
+
+
+def test_build_surface_and_trace_it_identical_to_cli(tmp_path):
+    surface = tmp_path / "s.exr"
+    run_cli("surface", "build", "--assembly", "smith", "--alpha", "0.3", "--res", "256", "--seed", "3", "--out", surface)
+    built = microsim.build_surface("smith", 0.3, resolution=256, seed=3)
+    loaded = microsim.load_heightfield(str(surface))
+    assert np.array_equal(built.heights, loaded.heights)
+    assert built.metadata["assembly"] == "smith"
+    assert not np.array_equal(microsim.build_surface("smith", 0.3, resolution=256, seed=4).heights, built.heights)
+    out = tmp_path / "h.exr"
+    run_cli("trace", "vndf", "--surface", surface, "--theta", "40", "--rays", "100000", "--seed", "2", "--out", out)
+    cli = microsim.read_histogram(str(out))
+    py = microsim.trace_surface_vndf(built, 40.0, rays=100_000, seed=2)
+    assert py["hits"] == cli["hits"] > 0
+    for name in ("sphere", "lobe"):
+        assert np.array_equal(py["binnings"][name]["counts"], cli["binnings"][name]["counts"]), name
+
+
+def test_build_surface_refuses_what_it_cannot_build():
+    with pytest.raises(ValueError, match="resolution"):
+        microsim.build_surface("smith", 0.3, resolution=100)
+    with pytest.raises(ValueError, match="resolution 64"):
+        microsim.build_surface("smith", 0.3, resolution=64)  # outside the supported range
+    assert microsim.build_surface("smith", 0.3, resolution=64, check_range=False).resolution == 64
+    with pytest.raises(ValueError, match="nope"):
+        microsim.build_surface("nope", 0.3, resolution=256)
+
+
+def test_masking_identical_to_cli(tmp_path):
+    surface = tmp_path / "s.exr"
+    run_cli("surface", "build", "--assembly", "smith", "--alpha", "0.5", "--res", "256", "--seed", "1", "--out", surface)
+    out = tmp_path / "m.json"
+    run_cli("trace", "masking", "--surface", surface, "--theta", "70", "--samples", "50000", "--seed", "6",
+            "--theta-l", "40", "--json", out)
+    import json
+    cli = json.loads(out.read_text())["masking"]
+    py = microsim.masking(microsim.load_heightfield(str(surface)), 70.0, samples=50_000, seed=6, theta_l=40.0)
+    for key in ("g1", "lambda_smith_analytic", "g1_smith_analytic", "g1_given_normal", "g1_given_height", "g2_pair"):
+        assert py[key] == cli[key], key
+    assert abs(py["g1"]["value"] - py["g1_smith_analytic"]) < 5 * py["g1"]["standard_error"] + 0.02
+    with pytest.raises(ValueError, match="theta"):
+        microsim.masking(microsim.load_heightfield(str(surface)), 90.0)

@@ -125,3 +125,35 @@ def test_non_unit_row_message_is_the_clis(tmp_path):
 def test_too_few_samples():
     with pytest.raises(ValueError, match="samples"):
         microsim.validate(numpy_samples(5, seed=1), ALPHA, THETA)
+
+
+def mirror_reflections(n, seed):
+    """Reflections of VNDF-sampled normals off mirror facets: directions, returned pdfs, weights f cos / pdf."""
+    wi = view(THETA)
+    m = numpy_samples(n, seed)
+    wo = 2 * (m @ wi)[:, None] * m - wi
+    pdfs = microsim.reflection_pdf(wi, wo, ALPHA)
+    weights = np.where(wo[:, 2] > 0, microsim.mirror_brdf(wi, wo, ALPHA) * np.abs(wo[:, 2]) / pdfs, 0.0)
+    return wo, pdfs, weights
+
+
+def test_weights_against_the_bsdf_identical_to_cli(tmp_path):
+    wo, pdfs, weights = mirror_reflections(100_000, seed=8)
+    path = tmp_path / "rows.npy"
+    np.save(path, np.column_stack([wo, pdfs, weights]))
+    cli = cli_json(tmp_path, "validate", "--from", path, "--alpha", "0.3", "--theta", "60", "--reflected",
+                   "--columns", "x,y,z,pdf,weight", "--bsdf", "mirror")
+    py = microsim.validate(wo, ALPHA, THETA, pdf="reflection", weights=weights, pdfs=pdfs, bsdf="mirror")
+    assert py.passed and cli["verdict"] == "pass"
+    assert py.to_dict()["tests"] == cli["tests"]
+    assert "bsdf_albedo" in py.p_values
+
+
+def test_wrong_weights_are_rejected():
+    wo, pdfs, weights = mirror_reflections(100_000, seed=8)
+    r = microsim.validate(wo, ALPHA, THETA, pdf="reflection", weights=1.05 * weights, bsdf="mirror")
+    assert not r.passed and r.p_values["bsdf_albedo"] < 1e-6
+    with pytest.raises(ValueError, match="weights and bsdf go together"):
+        microsim.validate(wo, ALPHA, THETA, pdf="reflection", weights=weights)
+    with pytest.raises(ValueError, match="channel"):
+        microsim.validate(wo, ALPHA, THETA, pdf="reflection", weights=np.column_stack([weights, weights]), bsdf="mirror")
