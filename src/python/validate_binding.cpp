@@ -5,6 +5,8 @@
 #include "microfacet/material.h"
 #include "microfacet/roughness.h"
 #include "stats/binning.h"
+#include "stats/histogram_io.h"
+#include "validate/compare.h"
 #include "validate/sample_io.h"
 #include "validate/validate.h"
 
@@ -17,6 +19,7 @@
 #include <cmath>
 #include <condition_variable>
 #include <exception>
+#include <filesystem>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -161,12 +164,16 @@ std::string shape_text(const py::array& a) {
   return s + (a.ndim() == 1 ? ",)" : ")");
 }
 
-// The array of argument `what`, with a real dtype (float32/float64 when `exact`), `columns` columns (0: 1-D).
+// The array of argument `what`, with a real dtype (float32/float64 when `exact_float`, which also demands a
+// numpy array: read in place, never converted), and `columns` columns (0: 1-D; -1: 1-D or any columns).
 py::array checked_array(const py::handle& object, const char* what, int columns, bool exact_float) {
-  if (!py::isinstance<py::array>(object) && !exact_float) return py::array::ensure(object);
-  if (!py::isinstance<py::array>(object))
+  if (!py::isinstance<py::array>(object) && exact_float)
     throw py::value_error(std::string(what) + ": expected a numpy array, got " + py::repr(py::type::of(object)).cast<std::string>());
-  py::array a = py::reinterpret_borrow<py::array>(object);
+  py::array a = py::array::ensure(object);  // the array itself, or a list converted
+  if (!a) {
+    PyErr_Clear();
+    throw py::value_error(std::string(what) + ": expected an array of numbers");
+  }
   const char kind = a.dtype().kind();
   const bool float_ok = kind == 'f' && (a.itemsize() == 4 || a.itemsize() == 8);
   if ((exact_float && !float_ok) || (!exact_float && kind != 'f' && kind != 'i' && kind != 'u'))
@@ -262,25 +269,69 @@ std::optional<Material> bsdf_of(const std::optional<std::string>& bsdf, const py
   return parse_material("bsdf", *bsdf);
 }
 
+// The traced oracle of `validate --against`: "ellipsoid" (traced now, seed mixed as the command line mixes it)
+// or a histogram EXR of `trace vndf`.
+TracedHistogram oracle_of(const std::string& against, const GGX<double>& ggx, const Vec3<double>& wi, int rows,
+                          std::uint64_t rays, std::uint64_t seed, const RunControl& run) {
+  if (against != "ellipsoid") return read_histogram_exr(against);
+  OracleTraceOptions t;
+  t.rays = rays;
+  t.seed = oracle_seed(seed);
+  t.rows = rows;
+  t.run = run;
+  TracedHistogram traced = trace_vndf_histogram(ggx, wi, t);
+  if (traced.partial) throw Cancelled("while tracing the oracle");
+  return traced;
+}
+
+// The comparison `against` asks for: the claimed pdf (none), or the traced oracle's two-sample tests.
+struct Reference {
+  FilePdf claimed = FilePdf::vndf;
+  bool above_horizon = false;
+  std::optional<std::string> against;
+  std::uint64_t oracle_rays = 0, seed = 1;
+};
+
+ValidationReport validate_reader(DirectionSampleReader& reader, const GGX<double>& ggx, const Vec3<double>& wi,
+                                 const ValidationOptions& o, const Reference& r) {
+  if (r.against) {
+    const TracedHistogram traced = oracle_of(*r.against, ggx, wi, o.rows, r.oracle_rays, r.seed, o.run);
+    return compare_sample_file_to_trace(reader, "samples", ggx, wi, o, traced);
+  }
+  const auto reference = file_reference(r.claimed, ggx, wi, o.rows, r.above_horizon);
+  return validate_sample_file(reader, reference->domain, ggx, wi, o, reference);
+}
+
+// What `against` excludes, as `validate --against` refuses it.
+void check_against(const Reference& r, const std::string& pdf, const py::handle& weights) {
+  if (!r.against) return;
+  if (pdf != "vndf") throw py::value_error("against: the traced oracle measures visible normals (pdf='vndf'), not '" + pdf + "'");
+  if (r.above_horizon) throw py::value_error("above_horizon tests against the analytic pdf, not against the traced oracle");
+  if (!weights.is_none()) throw py::value_error("weights are tested against the analytic BSDF, not against the traced oracle");
+  if (*r.against != "ellipsoid" && std::filesystem::path(*r.against).extension() != ".exr")
+    throw py::value_error("against '" + *r.against + "': use 'ellipsoid' or a histogram .exr from `microsim trace vndf`");
+}
+
 ValidationReport validate_array(const py::handle& samples, const py::handle& alpha, double theta, double phi,
                                 const std::string& pdf, const py::handle& weights, const py::handle& pdfs,
                                 const std::optional<std::string>& bsdf, const std::string& frame, int rows,
                                 double significance, bool above_horizon, std::optional<std::uint64_t> dropped,
+                                const std::optional<std::string>& against, std::uint64_t oracle_rays, std::uint64_t seed,
                                 const py::object& progress) {
   const GGX<double> ggx = ggx_of(alpha);
   const Vec3<double> wi = view_of(theta, phi);
-  ValidationOptions o = validation_options(rows, significance, 1);
+  ValidationOptions o = validation_options(rows, significance, seed);
   if (dropped && !above_horizon) throw py::value_error("dropped applies with above_horizon=True only");
   o.dropped_below_horizon = dropped;
   o.bsdf = bsdf_of(bsdf, weights);
+  const Reference reference{parse_file_pdf(pdf), above_horizon, against, oracle_rays, seed};  // a bad pdf: ValueError
+  check_against(reference, pdf, weights);
   DirectionSampleReader reader = sample_reader(samples, pdfs, weights, frame);
-  const FilePdf claimed = parse_file_pdf(pdf);  // std::invalid_argument naming the valid ones: ValueError
   ValidationReport report;
   run_interruptible(
       [&](const RunControl& run) {
         o.run = run;
-        const auto reference = file_reference(claimed, ggx, wi, o.rows, above_horizon);
-        report = validate_sample_file(reader, reference->domain, ggx, wi, o, reference);
+        report = validate_reader(reader, ggx, wi, o, reference);
       },
       progress);
   report.sampler = "samples";
@@ -408,13 +459,16 @@ weights: optional (N,) or (N, C) array of the weights f cos / pdf the sampler re
 pdfs: optional (N,) array of the pdfs the sampler returned, checked against the claimed pdf.
 frame: 'z-up' or 'y-up'; rows, significance: as the command line's --rows, --significance;
 above_horizon, dropped: reflections above the horizon only (--above-horizon, --dropped).
+against: None (the claimed pdf), 'ellipsoid' (the oracle traced now with oracle_rays rays, its seed mixed from
+  `seed` as the command line does) or the path of a histogram EXR of `microsim trace vndf`: the two-sample
+  chi-square test against the traced oracle (`validate --against`).
 progress: optional callable progress(stage, done, total).
 Returns a ValidationResult; raises ValueError for bad input (the command line's messages) and
 KeyboardInterrupt on Ctrl-C.)",
         "samples"_a, "alpha"_a, "theta"_a, "phi"_a = 0.0, "pdf"_a = "vndf", "weights"_a = py::none(), "pdfs"_a = py::none(),
         py::kw_only(), "bsdf"_a = py::none(),
         "frame"_a = "z-up", "rows"_a = 31, "significance"_a = 0.01, "above_horizon"_a = false, "dropped"_a = py::none(),
-        "progress"_a = py::none());
+        "against"_a = py::none(), "oracle_rays"_a = 4'000'000, "seed"_a = 1, "progress"_a = py::none());
   m.def("validate_sampler", &validate_zoo_sampler, R"(Validates a sampler of the zoo (what `microsim validate --sampler` does).
 
 name: a name of sampler_names(); alpha, theta, phi as for validate(); samples: how many to draw;

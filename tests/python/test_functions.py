@@ -71,3 +71,11 @@ def test_sample_errors():
     with pytest.raises(ValueError, match="shape"):
         microsim.sample("heitz2018", view(0.0), 0.3, np.zeros((5, 3)))
     assert "heitz2018" in microsim.sampler_names()
+
+
+def test_lists_are_converted_and_checked():
+    assert microsim.D([0, 0, 1], 0.5)[0] == pytest.approx(1 / (np.pi * 0.25))  # D(n) = 1 / (pi alpha^2)
+    with pytest.raises(ValueError, match="shape"):
+        microsim.sample("heitz2018", [0, 0, 1], 0.3, [0.5, 0.5])  # u must be (N, 2)
+    with pytest.raises(ValueError, match="not supported"):  # a string: a numpy array of text
+        microsim.G1("up", 0.3)

@@ -157,3 +157,21 @@ def test_wrong_weights_are_rejected():
         microsim.validate(wo, ALPHA, THETA, pdf="reflection", weights=weights)
     with pytest.raises(ValueError, match="channel"):
         microsim.validate(wo, ALPHA, THETA, pdf="reflection", weights=np.column_stack([weights, weights]), bsdf="mirror")
+
+
+def test_against_the_traced_oracle_identical_to_cli(tmp_path):
+    samples = numpy_samples(100_000, seed=12)
+    path = tmp_path / "samples.npy"
+    np.save(path, samples)
+    cli = cli_json(tmp_path, "validate", "--from", path, "--alpha", "0.3", "--theta", "60", "--against", "ellipsoid",
+                   "--rays", "400000")
+    py = microsim.validate(samples, ALPHA, THETA, against="ellipsoid", oracle_rays=400_000)
+    assert py.to_dict()["tests"] == cli["tests"] and py.passed
+    hist = tmp_path / "h.exr"
+    run_cli("trace", "vndf", "--alpha", "0.3", "--theta", "60", "--rays", "400000", "--out", hist)
+    from_file = microsim.validate(samples, ALPHA, THETA, against=str(hist))
+    assert from_file.passed
+    broken = microsim.validate(numpy_samples(100_000, seed=12, remap=False), ALPHA, THETA, against=str(hist))
+    assert not broken.passed
+    with pytest.raises(ValueError, match="pdf='vndf'"):
+        microsim.validate(samples, ALPHA, THETA, pdf="ndf", against="ellipsoid")
