@@ -49,7 +49,8 @@ def validate_sampler(name: str, alpha: Alpha, theta: float, phi: float = 0.0, *,
                      progress: Progress = None) -> ValidationResult:
     """Validates a sampler of the zoo (`microsim validate --sampler`): identical results for the same seed."""
 
-def sample(name: str, wi: Directions, alpha: Alpha, u: npt.ArrayLike) -> Tuple[np.ndarray, np.ndarray]:
+def sample(name: str, wi: Directions, alpha: Alpha, u: npt.ArrayLike,
+           precision: str = "double") -> Tuple[np.ndarray, np.ndarray]:
     """Draws with a sampler of the zoo for each row of u (N, 2): (directions (N, 3), pdfs (N,)); NaN rows: no sample."""
 
 def sampler_names() -> list[str]: ...

@@ -407,30 +407,41 @@ void bind_result(py::module_& m) {
 
 // ---- samplers --------------------------------------------------------------------------------------------------
 
-// Samples of `name` for each row of u (N, 2): (directions (N, 3), pdfs (N,)); NaN rows where it returns nothing.
-py::tuple sample_vectorised(const std::string& name, const py::handle& wi_in, const py::handle& alpha, const py::handle& u_in) {
+using Rows = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+// Row i of the samples: the sampler (its float or double version) at wi (row i, or the single row) and u row i;
+// NaN where it returns nothing.
+template <class T>
+void draw_rows(SampleResult<T> (*sample)(const GGX<T>&, const Vec3<T>&, Vec2<T>), const GGX<double>& ggx,
+               const Rows& wi, const Rows& u, double* directions, double* pdfs) {
+  const GGX<T> g(T(ggx.alpha_x()), T(ggx.alpha_y()));
+  for (py::ssize_t i = 0; i < u.shape(0); ++i) {
+    const double* w = wi.data(wi.shape(0) == 1 ? 0 : i, 0);
+    const double* ui = u.data(i, 0);
+    const auto s = sample(g, Vec3<T>(T(w[0]), T(w[1]), T(w[2])), Vec2<T>(T(ui[0]), T(ui[1])));
+    for (int c = 0; c < 3; ++c) directions[3 * i + c] = s ? double(s->direction[c]) : std::nan("");
+    pdfs[i] = s ? double(s->pdf) : std::nan("");
+  }
+}
+
+// Samples of `name` for each row of u (N, 2): (directions (N, 3), pdfs (N,)).
+py::tuple sample_vectorised(const std::string& name, const py::handle& wi_in, const py::handle& alpha, const py::handle& u_in,
+                            const std::string& precision) {
   const SamplerInfo* sampler = find_sampler(name);
   if (!sampler) throw py::value_error("unknown sampler '" + name + "' (valid: " + py::str(py::cast(sampler_names())).cast<std::string>() + ")");
+  if (precision != "double" && precision != "float") throw py::value_error("precision: 'double' or 'float', got '" + precision + "'");
   const GGX<double> ggx = ggx_of(alpha);
-  const auto wi = directions_of(wi_in, "wi");
-  const auto u = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(checked_array(u_in, "u", 2, false));
+  const Rows wi = directions_of(wi_in, "wi");
+  const Rows u = Rows::ensure(checked_array(u_in, "u", 2, false));
   const py::ssize_t n = u.shape(0);
   if (wi.shape(0) != 1 && wi.shape(0) != n) throw py::value_error("wi: one direction, or one per row of u");
   py::array_t<double> directions({n, py::ssize_t(3)});
   py::array_t<double> pdfs(n);
-  auto out = directions.mutable_unchecked<2>();
-  auto p = pdfs.mutable_unchecked<1>();
-  const auto w = wi.unchecked<2>();
-  const auto uu = u.unchecked<2>();
+  double *d = directions.mutable_data(), *p = pdfs.mutable_data();
   {
     py::gil_scoped_release release;
-    for (py::ssize_t i = 0; i < n; ++i) {
-      const py::ssize_t k = wi.shape(0) == 1 ? 0 : i;
-      const auto s = sampler->sample_double(ggx, Vec3<double>(w(k, 0), w(k, 1), w(k, 2)), Vec2<double>(uu(i, 0), uu(i, 1)));
-      const Vec3<double> d = s ? s->direction : Vec3<double>::Constant(std::nan(""));
-      for (int c = 0; c < 3; ++c) out(i, c) = d[c];
-      p(i) = s ? s->pdf : std::nan("");
-    }
+    if (precision == "float") draw_rows(sampler->sample_float, ggx, wi, u, d, p);
+    else draw_rows(sampler->sample_double, ggx, wi, u, d, p);
   }
   return py::make_tuple(directions, pdfs);
 }
@@ -479,9 +490,9 @@ Returns a ValidationResult identical to the command line's for the same argument
   m.def("sample", &sample_vectorised, R"(Draws with a sampler of the zoo, vectorised.
 
 name: a name of sampler_names(); wi: the view, (3,) or (N, 3); alpha: a number or (alpha_x, alpha_y);
-u: (N, 2) uniforms in [0, 1). Returns (directions (N, 3), pdfs (N,)), float64; rows where the sampler
-returns nothing are NaN.)",
-        "name"_a, "wi"_a, "alpha"_a, "u"_a);
+u: (N, 2) uniforms in [0, 1); precision: 'double' or 'float' (the sampler's float version, as --float).
+Returns (directions (N, 3), pdfs (N,)), float64; rows where the sampler returns nothing are NaN.)",
+        "name"_a, "wi"_a, "alpha"_a, "u"_a, "precision"_a = "double");
   m.def("sampler_names", &sampler_names, "The names of the samplers of the zoo.");
 }
 

@@ -79,3 +79,11 @@ def test_lists_are_converted_and_checked():
         microsim.sample("heitz2018", [0, 0, 1], 0.3, [0.5, 0.5])  # u must be (N, 2)
     with pytest.raises(ValueError, match="not supported"):  # a string: a numpy array of text
         microsim.G1("up", 0.3)
+
+
+def test_float_samplers():
+    wi, u = view(30.0), np.random.default_rng(3).random((1000, 2))
+    m64, _ = microsim.sample("dupuy2023", wi, 0.4, u)
+    m32, pdf32 = microsim.sample("dupuy2023", wi, 0.4, u, precision="float")
+    assert np.allclose(m32, m64, atol=1e-5) and not np.array_equal(m32, m64)
+    assert np.allclose(pdf32, microsim.D_v(wi, m64, 0.4), rtol=1e-3)
