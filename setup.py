@@ -32,4 +32,5 @@ class CMakeBuild(build_ext):
         shutil.copy2(ROOT / "src" / "python" / "microsim.pyi", target.parent / "microsim.pyi")
 
 
-setup(ext_modules=[Extension("microsim", sources=[])], cmdclass={"build_ext": CMakeBuild})
+# No Python packages (the module is the extension alone): no discovery of src/ as a package folder.
+setup(ext_modules=[Extension("microsim", sources=[])], cmdclass={"build_ext": CMakeBuild}, packages=[], py_modules=[])
