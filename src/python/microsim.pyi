@@ -87,6 +87,17 @@ def masking(surface: "Heightfield", theta: float, phi: float = 0.0, *, samples: 
             progress: Progress = None) -> dict[str, Any]:
     """Masking measured on a heightfield (`microsim trace masking --surface`): the JSON "masking" object."""
 
+def smith_walk(alpha: Alpha, theta: float, phi: float = 0.0, *, material: str = "mirror", ndf: str = "ggx",
+               heights: str = "uniform", rays: int = 1000000, seed: int = 1, max_order: int = 100, rows: int = 16,
+               threads: int = 0, progress: Progress = None) -> dict[str, Any]:
+    """The Smith random walk (Heitz et al. 2016; `microsim scatter --model smith-walk`): {'summary' (albedos per
+    order), 'paths', 'partial', 'mean_weight' and 'stderr' (channels, 5, rows, cols), 'binning' (geometry)}."""
+
+def scatter_surface(surface: "Heightfield", theta: float, phi: float = 0.0, *, material: str = "mirror",
+                    rays: int = 1000000, seed: int = 1, max_order: int = 100, rows: int = 16, threads: int = 0,
+                    progress: Progress = None) -> dict[str, Any]:
+    """Multiple scattering traced on a heightfield (`microsim scatter --surface`): the dict smith_walk returns."""
+
 def read_histogram(path: str) -> dict[str, Any]:
     """Reads a histogram EXR of `microsim trace vndf --out`: the dict trace_vndf returns."""
 

@@ -9,6 +9,11 @@
 #include "microfacet/ggx.h"
 #include "microgeom/assembly.h"
 #include "microgeom/heightfield.h"
+#include "microfacet/material.h"
+#include "scatter/scatter_setup.h"
+#include "scatter/smith_walk.h"
+#include "scatter/surface_scatter.h"
+#include "stats/scatter_io.h"
 #include "stats/binning.h"
 
 #include <pybind11/stl.h>
@@ -114,24 +119,29 @@ void bind_analytic(py::module_& m) {
 
 // ---- the traced VNDF oracle -----------------------------------------------------------------------------------
 
-// One binning's histogram and geometry as numpy arrays (bin = row * cols + col, reshaped (rows, cols)).
-py::dict binning_dict(const DirectionBinning& b, const std::vector<std::uint64_t>& counts,
-                      const std::vector<double>& probability) {
+// The geometry of a binning's bins as numpy arrays (bin = row * cols + col, reshaped (rows, cols)): the bin
+// centres as directions, their parameter-space angles, and each bin's solid angle (the cubature of 1).
+py::dict bin_geometry(const DirectionBinning& b) {
   const py::ssize_t rows = b.rows(), cols = b.cols();
   py::array_t<double> centres({rows, cols, py::ssize_t(3)}), theta({rows, cols}), phi({rows, cols});
-  py::array_t<std::uint64_t> count({rows, cols});
   for (int k = 0; k < b.size(); ++k) {
     const double t = b.center_theta_deg(k) * kPi<double> / 180, p = b.center_phi_deg(k) * kPi<double> / 180;
     const Vec3<double> w = b.from_param(spherical_direction(t, p));
     for (int c = 0; c < 3; ++c) centres.mutable_data()[3 * k + c] = w[c];
     theta.mutable_data()[k] = b.center_theta_deg(k);
     phi.mutable_data()[k] = b.center_phi_deg(k);
-    count.mutable_data()[k] = counts[std::size_t(k)];
   }
   const std::vector<double> solid = b.integrate([](const Vec3<double>&) { return 1.0; });
-  py::array_t<double> solid_angle({rows, cols}, solid.data());
-  py::dict d("name"_a = b.name(), "counts"_a = count, "centres"_a = centres, "param_theta_deg"_a = theta,
-             "param_phi_deg"_a = phi, "solid_angle"_a = solid_angle);
+  return py::dict("name"_a = b.name(), "centres"_a = centres, "param_theta_deg"_a = theta, "param_phi_deg"_a = phi,
+                  "solid_angle"_a = py::array_t<double>({rows, cols}, solid.data()));
+}
+
+// One binning's histogram: its geometry, counts and analytic bin probabilities (when known).
+py::dict binning_dict(const DirectionBinning& b, const std::vector<std::uint64_t>& counts,
+                      const std::vector<double>& probability) {
+  const py::ssize_t rows = b.rows(), cols = b.cols();
+  py::dict d = bin_geometry(b);
+  d["counts"] = py::array_t<std::uint64_t>({rows, cols}, counts.data());
   if (!probability.empty()) d["expected_probability"] = py::array_t<double>({rows, cols}, probability.data());
   return d;
 }
@@ -234,6 +244,86 @@ py::object masking(const microgeom::Heightfield& surface, double theta, double p
 }
 
 py::dict read_histogram_file(const std::string& path) { return histogram_dict(read_histogram_exr(path)); }
+
+// ---- scattering ------------------------------------------------------------------------------------------------
+
+// A scattering result: the summary of `scatter --json` (albedos per order with their errors, unfinished, lost),
+// and per channel and order bin (1, 2, 3, 4, 5+) the mean weight per launched path leaving into each bin and its
+// standard error, (channels, 5, rows, cols), over the hemispheres binning's geometry.
+py::dict scatter_dict(const ScatterHistogram& h, int rows_per_hemisphere) {
+  const DirectionBinning b = DirectionBinning::hemispheres(rows_per_hemisphere);
+  const std::vector<py::ssize_t> shape{h.channels(), kScatterOrderBins, b.rows(), b.cols()};
+  py::array_t<double> mean(shape), error(shape);
+  double *m = mean.mutable_data(), *e = error.mutable_data();
+  for (int c = 0; c < h.channels(); ++c)
+    for (int o = 0; o < kScatterOrderBins; ++o)
+      for (std::size_t k = 0; k < h.bins(); ++k, ++m, ++e) {
+        const Estimate x = mean_per_path(h.histogram(c, o).weight(k), h.histogram(c, o).weight_squared(k), h.paths());
+        *m = x.value;
+        *e = x.standard_error;
+      }
+  return py::dict("summary"_a = json_object(scatter_summary_json(h)), "paths"_a = h.paths(), "partial"_a = h.partial,
+                  "mean_weight"_a = mean, "stderr"_a = error, "binning"_a = bin_geometry(b));
+}
+
+ScatterOptions scatter_options(double theta, double phi, const std::string& material, std::uint64_t rays,
+                               std::uint64_t seed, int max_order, int rows) {
+  if (!std::isfinite(theta) || theta < 0 || theta > 180 || theta == 90)
+    throw py::value_error("theta must be in [0, 90) (from above) or (90, 180] (from below), got " + std::to_string(theta));
+  if (!std::isfinite(phi)) throw py::value_error("phi must be finite");
+  ScatterOptions o;
+  o.wi = spherical_direction(theta * kPi<double> / 180, phi * kPi<double> / 180);
+  o.material = parse_material("material", material);
+  if (o.wi.z() < 0 && !o.material.transmits())
+    throw py::value_error("theta " + std::to_string(theta) + ": light from below needs a dielectric (material " +
+                          o.material.describe() + " is opaque)");
+  o.paths = rays;
+  o.seed = seed;
+  o.max_order = max_order;
+  o.rows = rows;
+  check_scatter_options(o);
+  return o;
+}
+
+// Runs a sampled scattering model, its partial histogram kept on Ctrl-C.
+py::dict run_scatter(const std::function<ScatterHistogram(const ScatterOptions&)>& model, ScatterOptions o, int threads,
+                     const py::object& progress) {
+  std::optional<ScatterHistogram> result;
+  run_interruptible(
+      [&](const RunControl& run) {
+        o.run = run;
+        o.run.threads = threads;
+        result = model(o);
+      },
+      progress, [&]() -> py::object { return result ? py::object(scatter_dict(*result, o.rows)) : py::none(); });
+  return scatter_dict(*result, o.rows);
+}
+
+// `scatter --model smith-walk`: the Smith random walk (Heitz et al. 2016, "Multiple-Scattering Microfacet BSDFs
+// with the Smith Model", SIGGRAPH).
+py::dict smith_walk(const py::handle& alpha, double theta, double phi, const std::string& material, const std::string& ndf,
+                    const std::string& heights, std::uint64_t rays, std::uint64_t seed, int max_order, int rows,
+                    int threads, const py::object& progress) {
+  SmithMicrosurface surface;
+  const GGX<double> ggx = ggx_of(alpha);
+  surface.alpha_x = ggx.alpha_x();
+  surface.alpha_y = ggx.alpha_y();
+  surface.ndf = parse_walk_ndf("ndf", ndf);
+  surface.heights = parse_height_distribution("heights", heights);
+  check_smith_microsurface(surface);
+  const ScatterOptions o = scatter_options(theta, phi, material, rays, seed, max_order, rows);
+  return run_scatter([&](const ScatterOptions& options) { return smith_walk_scatter(surface, options); }, o, threads,
+                     progress);
+}
+
+// `scatter --surface`: every bounce traced on the heightfield.
+py::dict scatter_surface(const microgeom::Heightfield& surface, double theta, double phi, const std::string& material,
+                         std::uint64_t rays, std::uint64_t seed, int max_order, int rows, int threads,
+                         const py::object& progress) {
+  const ScatterOptions o = scatter_options(theta, phi, material, rays, seed, max_order, rows);
+  return run_scatter([&](const ScatterOptions& options) { return scatter_on_surface(surface, options); }, o, threads,
+                     progress);
+}
 
 // ---- heightfields ------------------------------------------------------------------------------------------------
 
@@ -346,6 +436,18 @@ same surface and seed.)");
 beside Smith's (analytic and empirical NDF), by <v, m> and by height; with theta_l, G2(v, l). Returns the
 command line's JSON "masking" object as a dict (same values for the same surface and seed). Ctrl-C raises
 KeyboardInterrupt whose `partial_result` holds the measurement of the blocks done.)");
+  m.def("smith_walk", &smith_walk, "alpha"_a, "theta"_a, "phi"_a = 0.0, py::kw_only(), "material"_a = "mirror",
+        "ndf"_a = "ggx", "heights"_a = "uniform", "rays"_a = 1'000'000, "seed"_a = 1, "max_order"_a = 100, "rows"_a = 16,
+        "threads"_a = 0, "progress"_a = py::none(),
+        R"(Multiple scattering in the Smith model by the random walk of Heitz et al. 2016 (`microsim scatter --model
+smith-walk`). theta in [0, 90) (from above) or (90, 180] (light from inside a dielectric); material:
+'mirror', 'conductor:ETA,K[;ETA,K...]', 'dielectric:ETA' or 'lambertian[:ALBEDO]'; ndf: 'ggx' or 'beckmann'.
+Returns a dict: summary (the command line's JSON: albedos per order with standard errors, unfinished, lost),
+paths, partial, mean_weight and stderr per (channel, order 1..4 and 5+, row, col) of the hemispheres binning,
+and binning (its geometry). Same sums as the command line for the same seed.)");
+  m.def("scatter_surface", &scatter_surface, "surface"_a, "theta"_a, "phi"_a = 0.0, py::kw_only(), "material"_a = "mirror",
+        "rays"_a = 1'000'000, "seed"_a = 1, "max_order"_a = 100, "rows"_a = 16, "threads"_a = 0, "progress"_a = py::none(),
+        "Multiple scattering traced bounce by bounce on a heightfield (`microsim scatter --surface`): the dict smith_walk returns.");
   m.def("read_histogram", &read_histogram_file, "path"_a,
         "Reads a histogram EXR written by `microsim trace vndf --out` (or merge): the dict trace_vndf returns.");
   m.attr("__version__") = "0.1";
