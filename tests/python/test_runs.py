@@ -165,3 +165,17 @@ def test_scatter_on_a_surface_identical_to_cli(tmp_path):
     assert py["summary"]["channels"] == cli["channels"]
     total = py["summary"]["channels"][0]["albedo"]["total"]["both"]["value"]
     assert total == pytest.approx(1, abs=1e-3)  # a mirror surface loses nothing
+
+
+def test_interrupted_walk_keeps_its_blocks():
+    calls = []
+
+    def stop_after_some(stage, done, total):
+        calls.append(done)
+        if done > 0:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt) as interrupt:
+        microsim.smith_walk(0.5, 40.0, rays=10 ** 11, seed=1, progress=stop_after_some)
+    partial = interrupt.value.partial_result
+    assert partial["partial"] and 0 < partial["paths"] < 10 ** 11 and partial["paths"] % 4096 == 0
