@@ -93,6 +93,11 @@ def smith_walk(alpha: Alpha, theta: float, phi: float = 0.0, *, material: str = 
     """The Smith random walk (Heitz et al. 2016; `microsim scatter --model smith-walk`): {'summary' (albedos per
     order), 'paths', 'partial', 'mean_weight' and 'stderr' (channels, 5, rows, cols), 'binning' (geometry)}."""
 
+def analytic_scatter(alpha: Alpha, theta: float, phi: float = 0.0, *, material: str = "mirror", ndf: str = "ggx",
+                     rows: int = 16, threads: int = 0, progress: Progress = None) -> dict[str, Any]:
+    """The exact single scattering (`microsim scatter --model analytic`): {'summary', 'order1' (channels, rows,
+    cols): order-1 weight per launched path in each bin, 'binning'}."""
+
 def scatter_surface(surface: "Heightfield", theta: float, phi: float = 0.0, *, material: str = "mirror",
                     rays: int = 1000000, seed: int = 1, max_order: int = 100, rows: int = 16, threads: int = 0,
                     progress: Progress = None) -> dict[str, Any]:

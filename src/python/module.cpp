@@ -5,11 +5,13 @@
 #include "core/errors.h"
 #include "measure/masking.h"
 #include "measure/vndf.h"
+#include "microfacet/beckmann.h"
 #include "microfacet/bsdf.h"
 #include "microfacet/ggx.h"
 #include "microgeom/assembly.h"
 #include "microgeom/heightfield.h"
 #include "microfacet/material.h"
+#include "scatter/analytic_scatter.h"
 #include "scatter/scatter_setup.h"
 #include "scatter/smith_walk.h"
 #include "scatter/surface_scatter.h"
@@ -316,6 +318,27 @@ py::dict smith_walk(const py::handle& alpha, double theta, double phi, const std
                      progress);
 }
 
+// `scatter --model analytic`: the single-scattering BSDF binned by cubature (the exact expectation of order 1),
+// per channel and bin (channels, rows, cols), with the summary of its JSON.
+py::dict analytic_scatter(const py::handle& alpha, double theta, double phi, const std::string& material,
+                          const std::string& ndf, int rows, int threads, const py::object& progress) {
+  const GGX<double> ggx = ggx_of(alpha);
+  const ScatterOptions o = scatter_options(theta, phi, material, 1, 1, 1, rows);
+  const WalkNdf kind = parse_walk_ndf("ndf", ndf);
+  ScatterExpectation e;
+  run_interruptible([&](RunControl run) {
+    run.threads = threads;
+    e = kind == WalkNdf::beckmann
+            ? analytic_single_scattering(Beckmann<double>(ggx.alpha_x(), ggx.alpha_y()), o.wi, o.material, rows, run)
+            : analytic_single_scattering(ggx, o.wi, o.material, rows, run);
+  }, progress);
+  const DirectionBinning b = DirectionBinning::hemispheres(rows);
+  py::array_t<double> order1({py::ssize_t(e.channels()), py::ssize_t(b.rows()), py::ssize_t(b.cols())});
+  for (int c = 0; c < e.channels(); ++c)
+    std::copy(e.order1[std::size_t(c)].begin(), e.order1[std::size_t(c)].end(), order1.mutable_data(c, 0, 0));
+  return py::dict("summary"_a = json_object(scatter_summary_json(e)), "order1"_a = order1, "binning"_a = bin_geometry(b));
+}
+
 // `scatter --surface`: every bounce traced on the heightfield.
 py::dict scatter_surface(const microgeom::Heightfield& surface, double theta, double phi, const std::string& material,
                          std::uint64_t rays, std::uint64_t seed, int max_order, int rows, int threads,
@@ -445,6 +468,11 @@ smith-walk`). theta in [0, 90) (from above) or (90, 180] (light from inside a di
 Returns a dict: summary (the command line's JSON: albedos per order with standard errors, unfinished, lost),
 paths, partial, mean_weight and stderr per (channel, order 1..4 and 5+, row, col) of the hemispheres binning,
 and binning (its geometry). Same sums as the command line for the same seed.)");
+  m.def("analytic_scatter", &analytic_scatter, "alpha"_a, "theta"_a, "phi"_a = 0.0, py::kw_only(), "material"_a = "mirror",
+        "ndf"_a = "ggx", "rows"_a = 16, "threads"_a = 0, "progress"_a = py::none(),
+        R"(The exact single scattering (`microsim scatter --model analytic`): the microfacet BSDF's order-1 weight per
+launched path in each bin of the hemispheres binning, by cubature. Returns {'summary', 'order1' (channels,
+rows, cols), 'binning'}: the expectation smith_walk's and scatter_surface's order 1 estimate.)");
   m.def("scatter_surface", &scatter_surface, "surface"_a, "theta"_a, "phi"_a = 0.0, py::kw_only(), "material"_a = "mirror",
         "rays"_a = 1'000'000, "seed"_a = 1, "max_order"_a = 100, "rows"_a = 16, "threads"_a = 0, "progress"_a = py::none(),
         "Multiple scattering traced bounce by bounce on a heightfield (`microsim scatter --surface`): the dict smith_walk returns.");

@@ -179,3 +179,21 @@ def test_interrupted_walk_keeps_its_blocks():
         microsim.smith_walk(0.5, 40.0, rays=10 ** 11, seed=1, progress=stop_after_some)
     partial = interrupt.value.partial_result
     assert partial["partial"] and 0 < partial["paths"] < 10 ** 11 and partial["paths"] % 4096 == 0
+
+
+def test_analytic_scatter_identical_to_cli_and_estimated_by_the_walk(tmp_path):
+    import json
+    out = tmp_path / "a.json"
+    run_cli("scatter", "--model", "analytic", "--alpha", "0.5", "--theta", "40", "--material", "dielectric:1.5",
+            "--out", tmp_path / "a.exr", "--json", out)
+    cli = json.loads(out.read_text())
+    exact = microsim.analytic_scatter(0.5, 40.0, material="dielectric:1.5")
+    assert exact["summary"]["channels"] == cli["channels"]
+    walk = microsim.smith_walk(0.5, 40.0, material="dielectric:1.5", rays=200_000, seed=1)
+    estimate, error = walk["mean_weight"][0, 0], walk["stderr"][0, 0]
+    expected = exact["order1"][0]
+    busy = expected > 1e-3  # bins with enough weight for a normal approximation
+    z = (estimate[busy] - expected[busy]) / np.maximum(error[busy], 1e-12)
+    assert np.mean(z ** 2) < 1.5  # Monte Carlo noise only (about 1)
+    wrong = microsim.analytic_scatter(0.5, 40.0, material="dielectric:1.6")["order1"][0]
+    assert np.mean(((estimate[busy] - wrong[busy]) / np.maximum(error[busy], 1e-12)) ** 2) > 1.5  # a control
