@@ -179,6 +179,9 @@ py::array checked_array(const py::handle& object, const char* what, int columns,
   if ((exact_float && !float_ok) || (!exact_float && kind != 'f' && kind != 'i' && kind != 'u'))
     throw py::value_error(std::string(what) + ": dtype " + py::str(a.dtype()).cast<std::string>() +
                           " is not supported (expected float32 or float64)");
+  if (exact_float && a.dtype().byteorder() == '>')  // read in place: the machine's byte order only
+    throw py::value_error(std::string(what) + ": big-endian dtype " + py::str(a.dtype()).cast<std::string>() +
+                          " is not supported (convert with arr.astype('<f8') or arr.astype('<f4'))");
   const bool shape_ok = columns == 0    ? a.ndim() == 1
                         : columns < 0   ? a.ndim() == 1 || (a.ndim() == 2 && a.shape(1) >= 1)
                                         : a.ndim() == 2 && a.shape(1) == columns;

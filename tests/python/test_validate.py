@@ -89,6 +89,7 @@ def test_nan_rows_are_the_samplers_failures():
     (np.zeros((10, 3), dtype=np.int64), "dtype int64 is not supported"),
     (np.zeros((0, 3)), "empty"),
     ([[0, 0, 1]], "expected a numpy array"),
+    (np.zeros((10, 3), dtype=">f8"), "big-endian dtype >f8 is not supported"),
 ])
 def test_bad_arrays(bad, expected):
     with pytest.raises(ValueError, match=expected.replace("(", r"\(").replace(")", r"\)")):
