@@ -2,7 +2,7 @@
 // checks its Python arguments, calls the library function the command line calls, and converts the result
 // to numpy arrays and Python objects (docs/python.md). Two translation units: validate_binding.cpp (the
 // validation, the samplers, the run of long calls) and module.cpp (the module, the analytic functions,
-// tracing, surfaces).
+// tracing, surfaces, masking, scattering).
 #pragma once
 
 #include "core/run_control.h"

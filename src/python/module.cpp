@@ -1,5 +1,6 @@
 // python: the `microsim` module: exception translation, the analytic GGX functions on arrays, the traced
-// VNDF oracle with its bin geometry, and heightfield surfaces (see binding.h, docs/python.md).
+// VNDF oracle with its bin geometry, heightfield surfaces (building, loading, tracing, masking) and the
+// scattering models (see binding.h, docs/python.md).
 #include "python/binding.h"
 
 #include "core/errors.h"
@@ -8,15 +9,15 @@
 #include "microfacet/beckmann.h"
 #include "microfacet/bsdf.h"
 #include "microfacet/ggx.h"
+#include "microfacet/material.h"
 #include "microgeom/assembly.h"
 #include "microgeom/heightfield.h"
-#include "microfacet/material.h"
 #include "scatter/analytic_scatter.h"
 #include "scatter/scatter_setup.h"
 #include "scatter/smith_walk.h"
 #include "scatter/surface_scatter.h"
-#include "stats/scatter_io.h"
 #include "stats/binning.h"
+#include "stats/scatter_io.h"
 
 #include <pybind11/stl.h>
 
