@@ -12,6 +12,7 @@
 #include "core/parse.h"
 #include "measure/validation.h"
 #include "progress_bar.h"
+#include "validate/bsdf_validation.h"
 #include "validate/compare.h"
 #include "validate/sample_io.h"
 #include "validate/validate.h"
@@ -68,6 +69,15 @@ std::string names_list() {
 }
 
 std::optional<microsim::Material> bsdf_of(const Args& a);
+microsim::SampleColumns sample_columns(const Args& a);
+
+// --bsdf dielectric --eta ETA: one real index (no --k: a dielectric does not absorb).
+microsim::Material dielectric_of(const Args& a) {
+  if (!a.k.empty()) throw UsageError("--k applies to --bsdf conductor; a dielectric takes --eta only");
+  if (a.eta.empty()) throw UsageError("--bsdf dielectric needs --eta (the index inside over outside, e.g. 1.5)");
+  const auto eta = microsim::parse_double_list("--eta", a.eta, {0.0, INFINITY, true, false}, 1);
+  return microsim::Material::dielectric(eta.front());
+}
 
 microsim::ValidationOptions base_options(const Args& a) {
   microsim::ValidationOptions o;
@@ -76,7 +86,7 @@ microsim::ValidationOptions base_options(const Args& a) {
   o.significance = a.significance;
   o.precision = a.use_float ? microsim::Precision::float32 : microsim::Precision::float64;
   if (a.dropped) o.dropped_below_horizon = std::uint64_t(*a.dropped);
-  o.bsdf = bsdf_of(a);
+  if (sample_columns(a).channels() > 0) o.bsdf = bsdf_of(a);  // the weight test (--pdf bsdf may come without it)
   return o;
 }
 
@@ -120,22 +130,24 @@ microsim::SampleColumns sample_columns(const Args& a) {
   }
 }
 
-// The BSDF of --bsdf: "mirror", "conductor" with --eta and --k (one value per channel), or a material spec
-// as `scatter --material` takes ("conductor:0.2,3.9;0.9,2.4").
+// The BSDF of --bsdf: "mirror", "conductor" with --eta and --k (one value per channel), "dielectric" with
+// --eta (the inside's index over the outside's), or a material spec as `scatter --material` takes
+// ("conductor:0.2,3.9;0.9,2.4", "dielectric:1.5").
 std::optional<microsim::Material> bsdf_of(const Args& a) {
   using microsim::Material;
   if (a.bsdf.empty()) {
-    if (!a.eta.empty() || !a.k.empty()) throw UsageError("--eta and --k apply with --bsdf conductor only");
+    if (!a.eta.empty() || !a.k.empty()) throw UsageError("--eta and --k apply with --bsdf conductor or dielectric only");
     return std::nullopt;
   }
   try {
     if (a.bsdf.find(':') != std::string::npos || a.bsdf == "mirror") {
-      if (!a.eta.empty() || !a.k.empty()) throw UsageError(fmt::format("--eta and --k apply to --bsdf conductor, not '{}'", a.bsdf));
+      if (!a.eta.empty() || !a.k.empty()) throw UsageError(fmt::format("--eta and --k apply to --bsdf conductor or dielectric, not '{}'", a.bsdf));
       return microsim::parse_material("--bsdf", a.bsdf);
     }
+    if (a.bsdf == "dielectric") return dielectric_of(a);
     if (a.bsdf != "conductor")
-      throw UsageError(fmt::format("--bsdf: unknown BSDF '{}' (valid: mirror, conductor with --eta and --k, or a "
-                                   "spec like conductor:0.2,3.9)",
+      throw UsageError(fmt::format("--bsdf: unknown BSDF '{}' (valid: mirror, conductor with --eta and --k, dielectric "
+                                   "with --eta, or a spec like conductor:0.2,3.9)",
                                    a.bsdf));
     if (a.eta.empty() || a.k.empty()) throw UsageError("--bsdf conductor needs --eta and --k (one value per weight column)");
     const auto eta = microsim::parse_double_list("--eta", a.eta, {0.0, INFINITY, true, false}, Material::kMaxChannels);
@@ -168,7 +180,7 @@ std::string frame_mistake(microsim::SampleFrame f) {
 void add_frame_hint(microsim::ValidationReport& r, const Args& a,
                     std::shared_ptr<const microsim::ReferenceDistribution> reference, const microsim::ValidationOptions& o) {
   const double share = 100.0 * double(r.samples_where_pdf_is_zero) / double(r.samples);
-  const auto hint = usage_errors_of([&] { return microsim::diagnose_sample_frame(a.from, reference, o); }, a.from);
+  const auto hint = usage_errors_of([&] { return microsim::diagnose_sample_frame(a.from, sample_columns(a), reference, o); }, a.from);
   if (!hint) {
     r.failures.push_back(fmt::format("{:.0f}% of the samples fall where the claimed pdf is zero; none of the common frame "
                                      "mistakes (y-up, z flipped, negated) explains it",
@@ -317,11 +329,13 @@ int run_single(const Args& a) {
   std::string source;
   if (!a.from.empty()) {
     DirectionSampleReader samples = open_samples_or_usage_error(a);
-    const ClaimedDensity density = claimed_density(file_pdf(a), ggx, wi);
+    const ClaimedDensity density = file_claimed_density(file_pdf(a), bsdf_of(a), ggx, wi);
     std::shared_ptr<const ReferenceDistribution> reference;
     try {
-      reference = a.above_horizon ? above_horizon_reference(density, ggx, wi, o.rows)
-                                  : density_reference(density, ggx, wi, o.rows);
+      // A BSDF's sampling density is 0 where its samples are lost: the kept ones are its own support.
+      reference = !a.above_horizon                          ? density_reference(density, ggx, wi, o.rows)
+                  : file_pdf(a) == microsim::FilePdf::bsdf ? kept_samples_reference(density, ggx, wi, o.rows)
+                                                           : above_horizon_reference(density, ggx, wi, o.rows);
     } catch (const std::invalid_argument& e) {
       throw UsageError(fmt::format("--above-horizon: {}", e.what()));
     }
@@ -392,11 +406,17 @@ void check_file_options(const Args& a) {
   sample_columns(a);  // a bad spec is exit 2 here, before any work
   if (const auto bsdf = bsdf_of(a)) {
     if (a.from.empty() || !a.against.empty()) throw UsageError("--bsdf applies to --from FILE (its weight columns)");
-    if (sample_columns(a).channels() != bsdf->channels())
+    const bool directions_only = sample_columns(a).channels() == 0 && file_pdf(a) == microsim::FilePdf::bsdf;
+    if (!directions_only && sample_columns(a).channels() != bsdf->channels())
       throw UsageError(fmt::format("--bsdf {} has {} channel(s): give as many weight columns (--columns x,y,z,weight...), "
                                    "got {}",
                                    bsdf->describe(), bsdf->channels(), sample_columns(a).channels()));
   }
+  if (const auto bsdf = bsdf_of(a); bsdf && bsdf->transmits() && file_pdf(a) != microsim::FilePdf::bsdf)
+    throw UsageError(fmt::format("--bsdf {}: a dielectric's dump holds reflections and refractions; test them against "
+                                 "its sampling density with --pdf bsdf", bsdf->describe()));
+  if (file_pdf(a) == microsim::FilePdf::bsdf && !bsdf_of(a))
+    throw UsageError("--pdf bsdf is the sampling density of a BSDF: give it with --bsdf (e.g. --bsdf dielectric --eta 1.5)");
   sample_frame(a);  // an unknown frame is exit 2 here, before any work
 }
 
@@ -446,24 +466,30 @@ microsim::app::CommandRegistration reg{"validate", [](CLI::App& app) {
   sub->add_option("--pdf", args->pdf,
                   "with --from: the density the samples claim: vndf (normals, default), ndf (normals, D(m) m.z), "
                   "bounded (reflections of the bounded VNDF, Eto & Tokuyoshi 2023), reflection (reflections of VNDF "
-                  "sampling, = --reflected)");
+                  "sampling, = --reflected), bsdf (the outgoing directions of the --bsdf's VNDF sampling: a conductor's "
+                  "reflections; a dielectric's reflections with probability F and refractions, over the whole sphere)");
   sub->add_option("--columns", args->columns,
                   "with --from: what the columns of a row hold, e.g. x,y,z,pdf (the pdf the sampler returned: checked "
                   "against the claimed pdf at each sample) or x,y,z,pdf,weight; '-' skips a column (default x,y,z)");
   sub->add_option("--bsdf", args->bsdf,
                   "with --from and weight columns: test the weights (f cos / pdf) against this BSDF: mirror, conductor "
-                  "(with --eta and --k) or a spec as scatter --material takes (conductor:0.2,3.9;0.9,2.4)");
-  sub->add_option("--eta", args->eta, "with --bsdf conductor: the real parts of the indices, one per weight column");
+                  "(with --eta and --k), dielectric (with --eta) or a spec as scatter --material takes "
+                  "(conductor:0.2,3.9;0.9,2.4, dielectric:1.5); with --pdf bsdf also the density of the directions");
+  sub->add_option("--eta", args->eta,
+                  "with --bsdf conductor: the real parts of the indices, one per weight column; with --bsdf dielectric: "
+                  "the index inside over outside (a view from inside: mirror the rows and give 1 / eta)");
   sub->add_option("--k", args->k, "with --bsdf conductor: the imaginary parts, one per weight column");
   sub->add_option("--frame", args->frame,
                   "with --from: the frame of the rows: z-up (default, microsim's) or y-up (normal along +y, rotated to "
                   "z-up by (x, y, z) -> (x, -z, y); --theta/--phi stay z-up)");
   sub->add_flag("--above-horizon", args->above_horizon,
                 "with --from --reflected: the file holds only the reflections above the horizon (as renderers emit "
-                "them, dropping wo.z <= 0); test against the reflection pdf conditioned on wo.z > 0");
+                "them, dropping wo.z <= 0); test against the reflection pdf conditioned on wo.z > 0. With --pdf bsdf: "
+                "the file holds the samples the sampler kept (a dielectric also loses its refractions above the "
+                "horizon), tested against its density conditioned on them");
   add_number_option(sub, "--dropped", args->dropped, microsim::app::whole(0, microsim::kMaxSamples),
-                    "with --above-horizon: how many reflections the renderer dropped below the horizon (tested "
-                    "against the fraction the pdf puts there)");
+                    "with --above-horizon: how many samples the renderer dropped (reflections below the horizon, a "
+                    "dielectric's refractions above it; tested against the fraction the pdf loses)");
   sub->add_flag("--all", args->all, "validate the whole zoo over the standard grid (Sidak-corrected over the batch)");
   sub->add_option("--alpha", args->alpha,
                   "roughness AX or AX,AY, each in [1e-4, 10], anisotropy at most 1:1000 (docs/conventions.md)");

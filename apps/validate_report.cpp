@@ -91,7 +91,7 @@ void print_tests(const ValidationReport& r) {
               fmt::format("<= 1+{:.0e}", integral.tolerance));
   for (const SubTest& c : r.checks) {
     if (c.name == "dropped_fraction")
-      print_check("dropped below the horizon", c, fmt::format("{:.4f}%", 100 * c.value), fmt_p(c.p_value));
+      print_check("dropped samples", c, fmt::format("{:.4f}%", 100 * c.value), fmt_p(c.p_value));
     if (c.name == "bsdf_albedo") print_check("weights: BSDF albedo", c, fmt::format("{:.6g}", c.value), fmt_p(c.p_value));
     if (c.name == "bsdf_bins")
       print_check("weights: BSDF flux per bin", c, fmt::format("z {:.2f}", c.value), fmt_p(c.p_value));

@@ -6,6 +6,7 @@
 #include "microfacet/roughness.h"
 #include "stats/binning.h"
 #include "stats/histogram_io.h"
+#include "validate/bsdf_validation.h"
 #include "validate/compare.h"
 #include "validate/sample_io.h"
 #include "validate/validate.h"
@@ -250,26 +251,37 @@ ValidationOptions validation_options(int rows, double significance, std::uint64_
 
 // ---- validate ------------------------------------------------------------------------------------------------
 
-// The claimed density's reference, as `validate --from` builds it (--above-horizon: conditioned on wo.z > 0).
-std::shared_ptr<const ReferenceDistribution> file_reference(FilePdf pdf, const GGX<double>& ggx, const Vec3<double>& wi,
-                                                            int rows, bool above_horizon) {
-  const ClaimedDensity density = claimed_density(pdf, ggx, wi);
+// The claimed density's reference, as `validate --from` builds it (--pdf bsdf: the BSDF's sampling density;
+// --above-horizon: conditioned on the kept samples).
+std::shared_ptr<const ReferenceDistribution> file_reference(FilePdf pdf, const std::optional<Material>& bsdf,
+                                                            const GGX<double>& ggx, const Vec3<double>& wi, int rows,
+                                                            bool above_horizon) {
+  const ClaimedDensity density = file_claimed_density(pdf, bsdf, ggx, wi);
   if (!above_horizon) return density_reference(density, ggx, wi, rows);
-  if (!claims_reflected_directions(pdf))
-    throw py::value_error("above_horizon applies to reflected directions: give pdf='reflection' or pdf='bounded'");
   try {
-    return above_horizon_reference(density, ggx, wi, rows);
+    // A BSDF's sampling density is 0 where its samples are lost: the kept ones are its own support.
+    return pdf == FilePdf::bsdf ? kept_samples_reference(density, ggx, wi, rows)
+                                : above_horizon_reference(density, ggx, wi, rows);
   } catch (const std::invalid_argument& e) {
     throw py::value_error(std::string("above_horizon: ") + e.what());
   }
 }
 
-// The BSDF of the weights (`validate --bsdf`): a material spec as parse_material reads it.
-std::optional<Material> bsdf_of(const std::optional<std::string>& bsdf, const py::handle& weights) {
-  if (bsdf.has_value() != !weights.is_none())
-    throw py::value_error("weights and bsdf go together: the weights (f cos / pdf) are tested against the BSDF");
-  if (!bsdf) return std::nullopt;
-  return parse_material("bsdf", *bsdf);
+// The BSDF of `validate --bsdf`: a material spec as parse_material reads it, checked as the command line
+// checks it against the weights and the claimed density.
+std::optional<Material> bsdf_of(const std::optional<std::string>& spec, FilePdf pdf, const py::handle& weights) {
+  if (!weights.is_none() && !spec)
+    throw py::value_error("weights need bsdf: the weights (f cos / pdf) are tested against the BSDF");
+  if (pdf == FilePdf::bsdf && !spec)
+    throw py::value_error("pdf='bsdf' is the sampling density of a BSDF: give it with bsdf (e.g. bsdf='dielectric:1.5')");
+  if (!spec) return std::nullopt;
+  const Material bsdf = parse_material("bsdf", *spec);
+  if (weights.is_none() && pdf != FilePdf::bsdf)
+    throw py::value_error("bsdf applies to weights (f cos / pdf) or to pdf='bsdf'");
+  if (bsdf.transmits() && pdf != FilePdf::bsdf)
+    throw py::value_error("bsdf " + bsdf.describe() + ": a dielectric's samples hold reflections and refractions; test "
+                          "them against its sampling density with pdf='bsdf'");
+  return bsdf;
 }
 
 // The traced oracle of `validate --against`: "ellipsoid" (traced now, seed mixed as the command line mixes it)
@@ -290,6 +302,7 @@ TracedHistogram oracle_of(const std::string& against, const GGX<double>& ggx, co
 // The comparison `against` asks for: the claimed pdf (none), or the traced oracle's two-sample tests.
 struct Reference {
   FilePdf claimed = FilePdf::vndf;
+  std::optional<Material> bsdf;  // of pdf='bsdf'
   bool above_horizon = false;
   std::optional<std::string> against;
   std::uint64_t oracle_rays = 0, seed = 1;
@@ -301,7 +314,7 @@ ValidationReport validate_reader(DirectionSampleReader& reader, const GGX<double
     const TracedHistogram traced = oracle_of(*r.against, ggx, wi, o.rows, r.oracle_rays, r.seed, o.run);
     return compare_sample_file_to_trace(reader, "samples", ggx, wi, o, traced);
   }
-  const auto reference = file_reference(r.claimed, ggx, wi, o.rows, r.above_horizon);
+  const auto reference = file_reference(r.claimed, r.bsdf, ggx, wi, o.rows, r.above_horizon);
   return validate_sample_file(reader, reference->domain, ggx, wi, o, reference);
 }
 
@@ -326,8 +339,12 @@ ValidationReport validate_array(const py::handle& samples, const py::handle& alp
   ValidationOptions o = validation_options(rows, significance, seed);
   if (dropped && !above_horizon) throw py::value_error("dropped applies with above_horizon=True only");
   o.dropped_below_horizon = dropped;
-  o.bsdf = bsdf_of(bsdf, weights);
-  const Reference reference{parse_file_pdf(pdf), above_horizon, against, oracle_rays, seed};  // a bad pdf: ValueError
+  const FilePdf claimed = parse_file_pdf(pdf);  // std::invalid_argument naming the valid ones: ValueError
+  const std::optional<Material> material = bsdf_of(bsdf, claimed, weights);
+  if (!weights.is_none()) o.bsdf = material;  // the weight test
+  if (above_horizon && !claims_reflected_directions(claimed))
+    throw py::value_error("above_horizon applies to reflected directions: give pdf='reflection', 'bounded' or 'bsdf'");
+  const Reference reference{claimed, material, above_horizon, against, oracle_rays, seed};
   check_against(reference, pdf, weights);
   DirectionSampleReader reader = sample_reader(samples, pdfs, weights, frame);
   ValidationReport report;
@@ -467,9 +484,11 @@ samples: (N, 3) float32 or float64 array of unit directions in the z-up frame (a
   place); NaN rows are the sampler's failures (the validation rejects and names them).
 alpha: roughness, a number or (alpha_x, alpha_y); theta, phi: the view in degrees (theta in [0, 90)).
 pdf: the claimed density: 'vndf' (normals, D_v), 'ndf' (normals, D(m) m.z), 'bounded' or 'reflection'
-  (reflected directions).
+  (reflected directions), 'bsdf' (the outgoing directions of `bsdf`'s VNDF sampling, a dielectric's
+  reflections and refractions).
 weights: optional (N,) or (N, C) array of the weights f cos / pdf the sampler returned (one column per
-  channel), tested against `bsdf` ('mirror', 'conductor:ETA,K[;ETA,K...]' as `validate --bsdf` takes it).
+  channel), tested against `bsdf` ('mirror', 'conductor:ETA,K[;ETA,K...]', 'dielectric:ETA' as a
+  material spec of `validate --bsdf`).
 pdfs: optional (N,) array of the pdfs the sampler returned, checked against the claimed pdf.
 frame: 'z-up' or 'y-up'; rows, significance: as the command line's --rows, --significance;
 above_horizon, dropped: reflections above the horizon only (--above-horizon, --dropped).

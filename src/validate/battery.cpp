@@ -139,8 +139,9 @@ double rounding_sensitivity(const ReferenceDistribution& ref, const Vec3<double>
   orthonormal_basis(w, t1, t2);
   double s = 0;
   for (const Vec3<double>& t : {t1, Vec3<double>(-t1), t2, Vec3<double>(-t2)})
-    s = std::max(s, relative_difference(ref.pdf(Vec3<double>((w + step * t).normalized())), claimed));
-  for (const double scale : {1 + step, 1 - step}) s = std::max(s, relative_difference(ref.pdf(Vec3<double>(w * scale)), claimed));
+    s = std::max(s, relative_difference(ref.returned_pdf(Vec3<double>((w + step * t).normalized())), claimed));
+  for (const double scale : {1 + step, 1 - step})
+    s = std::max(s, relative_difference(ref.returned_pdf(Vec3<double>(w * scale)), claimed));
   return s;
 }
 
@@ -173,7 +174,7 @@ public:
 
 private:
   void check_pdf(std::uint64_t i, const Vec3<double>& w, double pdf, PdfChecks& c) const {
-    const double claimed = ref_.pdf(w);
+    const double claimed = ref_.returned_pdf(w);
     const double e = relative_difference(pdf, claimed);
     if (e > pdf_tol_ && e > pdf_tol_ + 2 * rounding_sensitivity(ref_, w, claimed, direction_rounding_)) ++c.pdf_outliers;
     if (e > c.pdf_worst) {
@@ -489,7 +490,7 @@ SubTest returned_pdf_check(const Tally& tally, const ReferenceDistribution& ref,
                                "({:.6f}, {:.6f}, {:.6f}): returned {:.9g}, claimed {:.9g}; {} sample(s) above {:.0e} "
                                "plus the change a rounding of the direction can cause ({} allowed)",
                                c.pdf_worst, c.pdf_worst_index, c.worst_direction.x(), c.worst_direction.y(),
-                               c.worst_direction.z(), c.worst_returned, ref.pdf(c.worst_direction), c.pdf_outliers,
+                               c.worst_direction.z(), c.worst_returned, ref.returned_pdf(c.worst_direction), c.pdf_outliers,
                                pdf_tol, allowed)
                  : std::string("returned pdf equals the claimed pdf on every sample");
   return t;
@@ -540,13 +541,14 @@ SubTest dropped_fraction_test(const Tally& tally, const ReferenceDistribution& r
   const double at_most = boost::math::cdf(binomial, double(dropped));
   const double at_least = dropped == 0 ? 1.0 : boost::math::cdf(boost::math::complement(binomial, double(dropped - 1)));
   t.p_value = std::min(1.0, 2.0 * std::min(at_most, at_least));
-  t.detail = fmt::format("{} of {} reflections dropped below the horizon ({:.4f}%), the claimed pdf puts {:.4f}% there",
+  t.detail = fmt::format("{} of {} samples dropped ({:.4f}%), the claimed pdf loses {:.4f}% (reflections below the "
+                         "horizon, a dielectric's refractions above it)",
                          dropped, n, 100 * t.value, 100 * expected_fraction);
   return t;
 }
 
 std::string no_samples_below_horizon_note(const Tally& tally, const ReferenceDistribution& ref) {
-  if (ref.domain != SampleDomain::reflected_direction || ref.above_horizon || tally.below_horizon > 0) return "";
+  if (ref.domain != SampleDomain::reflected_direction || ref.kept_only || tally.below_horizon > 0) return "";
   // The mass of the sphere bins that lie wholly below the horizon.
   double below = 0;
   for (int b = 0; b < ref.sphere.size(); ++b)
@@ -644,7 +646,7 @@ ValidationReport analytic_report(const SampleSource& source, const Tally& tally,
   r.checks = {domain_check(r, tally, options), integral_check(ref, options),
               returned_pdf_check(tally, ref, options, source.precision),
               weight_test(tally, ref, options, source.precision)};
-  if (ref.above_horizon) r.checks.push_back(dropped_fraction_test(tally, ref, options));
+  if (ref.kept_only) r.checks.push_back(dropped_fraction_test(tally, ref, options));
   for (SubTest& t : extra_checks) r.checks.push_back(std::move(t));
   r.samples_where_pdf_is_zero = samples_in_massless_bins(tally.counts.front(), ref.sphere_probability);
   decide(r);

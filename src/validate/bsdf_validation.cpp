@@ -109,27 +109,16 @@ ClaimedDensity bsdf_sampling_density(const Material& bsdf, const GGX<double>& gg
             1e-7};
   const double eta = bsdf.eta();
   const DirectionBinning lobe = DirectionBinning::lobe(ggx, wi, SampleDomain::reflected_direction, 31);
-  // The refraction lobe ends where its half vector -(wi + eta wo) leaves the horizon or wi's or wo's side.
-  const auto raw_half = [wi, eta](const Vec3<double>& o) { return Vec3<double>(-(wi + eta * o)); };
-  std::vector<DirectionFunction> breaks = {
-      [](const Vec3<double>& o) { return o.z(); },  // reflection above, refraction below
-      [raw_half](const Vec3<double>& o) { return o.z() < 0 ? raw_half(o).z() : 1.0; },
-      [raw_half, wi](const Vec3<double>& o) { return o.z() < 0 ? wi.dot(raw_half(o)) : 1.0; },
-      [raw_half](const Vec3<double>& o) { return o.z() < 0 ? o.dot(raw_half(o)) : -1.0; }};
-  if (eta < 1) {  // total internal reflection beyond <wi, m> = cos_c: F has a kink there, 1 - F ends
-    const double cos_c = std::sqrt(1 - sqr(eta));
-    breaks.push_back([wi, cos_c](const Vec3<double>& o) {
-      return o.z() > 0 ? wi.dot(normalized_or_zero(Vec3<double>(wi + o))) - cos_c : 1.0;
-    });
-    breaks.push_back([wi, cos_c, raw_half](const Vec3<double>& o) {
-      return o.z() < 0 ? std::abs(wi.dot(normalized_or_zero(raw_half(o)))) - cos_c : 1.0;
-    });
-  }
-  // 1e-5 per bin: far below the noise of any sample count the chi-square tests see (and cheaper by the
-  // kinks of F and the ends of the refraction lobe).
   return {SampleDomain::reflected_direction,
-          [ggx, wi, eta](const Vec3<double>& o) { return dielectric_vndf_pdf(ggx, eta, wi, o); }, std::move(breaks),
-          refracted_lobe_focus(lobe, wi, eta), 1e-5};
+          [ggx, wi, eta](const Vec3<double>& o) { return dielectric_vndf_pdf(ggx, eta, wi, o); },
+          dielectric_breaks(wi, eta), refracted_lobe_focus(lobe, wi, eta), kDielectricDensityRelTolerance};
+}
+
+ClaimedDensity file_claimed_density(FilePdf pdf, const std::optional<Material>& bsdf, const GGX<double>& ggx,
+                                    const Vec3<double>& wi) {
+  if (pdf != FilePdf::bsdf) return claimed_density(pdf, ggx, wi);
+  if (!bsdf) throw std::invalid_argument("the pdf 'bsdf' is the sampling density of a BSDF: give the BSDF");
+  return bsdf_sampling_density(*bsdf, ggx, wi);
 }
 
 BsdfReference bsdf_reference(const Material& bsdf, const GGX<double>& ggx, const Vec3<double>& wi, int rows) {

@@ -195,6 +195,7 @@ ClaimedDensity claimed_density(FilePdf pdf, const GGX<double>& ggx, const Vec3<d
   if (pdf == FilePdf::reflection)
     return {SampleDomain::reflected_direction,
             [ggx, wi](const Vec3<double>& o) { return ggx.visible_reflection_pdf(wi, o); }, {}, {}};
+  if (pdf == FilePdf::bsdf) throw std::invalid_argument("the pdf 'bsdf' is the sampling density of a BSDF: give the BSDF");
   const ClaimedPdf claims = pdf == FilePdf::vndf  ? ClaimedPdf::visible_normals
                             : pdf == FilePdf::ndf ? ClaimedPdf::ndf_cosine
                                                   : ClaimedPdf::bounded_reflection;
@@ -207,7 +208,8 @@ FilePdf parse_file_pdf(std::string_view name) {
   if (name == "ndf") return FilePdf::ndf;
   if (name == "bounded") return FilePdf::bounded;
   if (name == "reflection") return FilePdf::reflection;
-  throw std::invalid_argument(fmt::format("unknown pdf '{}' (valid: vndf, ndf, bounded, reflection)", name));
+  if (name == "bsdf") return FilePdf::bsdf;
+  throw std::invalid_argument(fmt::format("unknown pdf '{}' (valid: vndf, ndf, bounded, reflection, bsdf)", name));
 }
 
 std::shared_ptr<const ReferenceDistribution> density_reference(const ClaimedDensity& density, const GGX<double>& ggx,
@@ -224,25 +226,32 @@ void scale_probabilities(BinIntegrals& b, double factor) {
 }
 }  // namespace
 
+std::shared_ptr<const ReferenceDistribution> kept_samples_reference(const ClaimedDensity& density, const GGX<double>& ggx,
+                                                                    const Vec3<double>& wi, int rows) {
+  const auto unconditioned = density_reference(density, ggx, wi, rows);
+  const double kept = unconditioned->sphere_probability.total;
+  if (!(kept > 0)) throw std::invalid_argument("the claimed pdf keeps no sample for this view (it has no mass)");
+  ReferenceDistribution conditioned = *unconditioned;
+  conditioned.kept_mass = std::min(kept, 1.0);
+  conditioned.kept_only = true;
+  conditioned.pdf = [full = density.pdf, kept](const Vec3<double>& o) { return full(o) / kept; };
+  scale_probabilities(conditioned.sphere_probability, 1.0 / kept);
+  scale_probabilities(conditioned.lobe_probability, 1.0 / kept);
+  return std::make_shared<const ReferenceDistribution>(std::move(conditioned));
+}
+
 std::shared_ptr<const ReferenceDistribution> above_horizon_reference(const ClaimedDensity& density, const GGX<double>& ggx,
                                                                      const Vec3<double>& wi, int rows) {
   if (density.domain != SampleDomain::reflected_direction)
     throw std::invalid_argument("a density of microfacet normals has no horizon to condition on (reflected directions only)");
-  const DirectionFunction full = density.pdf;
-  const DirectionFunction above = [full](const Vec3<double>& o) { return o.z() > 0 ? full(o) : 0.0; };
-  std::vector<DirectionFunction> breaks = density.breaks;
-  breaks.push_back([](const Vec3<double>& o) { return o.z(); });  // where `above` jumps
-  const auto unconditioned = prepare_reference(above, density.domain, ggx, wi, rows, std::move(breaks), density.focus,
-                                               density.rel_tolerance);
-  const double kept = unconditioned->sphere_probability.total;
-  if (!(kept > 0)) throw std::invalid_argument("the claimed pdf puts no mass above the horizon for this view");
-  ReferenceDistribution conditioned = *unconditioned;
-  conditioned.kept_mass = std::min(kept, 1.0);
-  conditioned.above_horizon = true;
-  conditioned.pdf = [above, kept](const Vec3<double>& o) { return above(o) / kept; };
-  scale_probabilities(conditioned.sphere_probability, 1.0 / kept);
-  scale_probabilities(conditioned.lobe_probability, 1.0 / kept);
-  return std::make_shared<const ReferenceDistribution>(std::move(conditioned));
+  ClaimedDensity above = density;
+  above.pdf = [full = density.pdf](const Vec3<double>& o) { return o.z() > 0 ? full(o) : 0.0; };
+  above.breaks.push_back([](const Vec3<double>& o) { return o.z(); });  // where `above` jumps
+  try {
+    return kept_samples_reference(above, ggx, wi, rows);
+  } catch (const std::invalid_argument&) {
+    throw std::invalid_argument("the claimed pdf puts no mass above the horizon for this view");
+  }
 }
 
 SampleSet SampleSet::from_directions(std::span<const Vec3<double>> directions) {
@@ -399,12 +408,12 @@ ValidationReport validate_sample_file(DirectionSampleReader& reader, SampleDomai
   return validate_stream(reader, *reference, options, std::move(weights));
 }
 
-std::optional<FrameHint> diagnose_sample_frame(const std::filesystem::path& file,
+std::optional<FrameHint> diagnose_sample_frame(const std::filesystem::path& file, const SampleColumns& columns,
                                                std::shared_ptr<const ReferenceDistribution> reference,
                                                const ValidationOptions& options) {
   std::optional<FrameHint> best;
   for (const SampleFrame frame : {SampleFrame::y_up, SampleFrame::z_down, SampleFrame::negated}) {
-    DirectionSampleReader reader(file);
+    DirectionSampleReader reader(file, columns);
     reader.set_frame(frame);
     ValidationReport r = validate_sample_file(reader, reference->domain, reference->ggx, reference->wi, options, reference);
     if (r.passed) return FrameHint{frame, std::move(r)};

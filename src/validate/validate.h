@@ -103,10 +103,12 @@ struct ReferenceDistribution {
   DirectionBinning lobe;
   BinIntegrals sphere_probability;
   BinIntegrals lobe_probability;
-  // The mass of the claimed pdf this reference keeps: 1, or P(wo.z > 0) for reflected directions
-  // conditioned on the upper hemisphere (above_horizon_reference: pdf and probabilities divided by it).
+  // The mass of the claimed pdf this reference keeps: 1, or for a dump of the kept samples only their
+  // probability (kept_samples_reference, above_horizon_reference: pdf and probabilities divided by it).
   double kept_mass = 1;
-  bool above_horizon = false;  // conditioned on wo.z > 0 (above_horizon_reference)
+  bool kept_only = false;  // conditioned on the kept samples (kept_samples_reference, above_horizon_reference)
+  // The pdf the sampler returns with a sample: the claimed pdf before any conditioning on the kept samples.
+  double returned_pdf(const Vec3<double>& w) const { return pdf(w) * kept_mass; }
   // The binnings the samples are tested in, in this order (sphere, lobe).
   std::vector<ReferenceBins> binned() const { return {{sphere, sphere_probability}, {lobe, lobe_probability}}; }
 };
@@ -136,6 +138,8 @@ enum class FilePdf {
   ndf,         // normals, D(m) m.z: samplers of the NDF (Walter et al. 2007)
   bounded,     // reflected directions, the bounded VNDF (Eto & Tokuyoshi 2023)
   reflection,  // reflected directions of VNDF sampling, D_v(wi, m) / (4 <wi, m>)
+  bsdf,        // outgoing directions of a BSDF's VNDF sampling (bsdf_validation.h, file_claimed_density):
+               // a conductor's reflections, a dielectric's reflections and refractions over the whole sphere
 };
 struct ClaimedDensity {
   SampleDomain domain;
@@ -144,9 +148,10 @@ struct ClaimedDensity {
   std::vector<Vec3<double>> focus;        // where it has mass beside the lobe's lattice (prepare_reference)
   double rel_tolerance = 1e-7;            // of each bin's cubature (IntegrationOptions::rel_tolerance)
 };
+// FilePdf::bsdf needs the BSDF: std::invalid_argument here (bsdf_validation.h, file_claimed_density).
 ClaimedDensity claimed_density(FilePdf pdf, const GGX<double>& ggx, const Vec3<double>& wi);
-inline bool claims_reflected_directions(FilePdf pdf) { return pdf == FilePdf::bounded || pdf == FilePdf::reflection; }
-// Parses "vndf", "ndf", "bounded", "reflection" (std::invalid_argument naming the valid ones otherwise).
+inline bool claims_reflected_directions(FilePdf pdf) { return pdf != FilePdf::vndf && pdf != FilePdf::ndf; }
+// Parses "vndf", "ndf", "bounded", "reflection", "bsdf" (std::invalid_argument naming the valid ones otherwise).
 FilePdf parse_file_pdf(std::string_view name);
 std::shared_ptr<const ReferenceDistribution> density_reference(const ClaimedDensity& density, const GGX<double>& ggx,
                                                                const Vec3<double>& wi, int rows);
@@ -156,6 +161,12 @@ std::shared_ptr<const ReferenceDistribution> density_reference(const ClaimedDens
 // when the view leaves no mass above the horizon.
 std::shared_ptr<const ReferenceDistribution> above_horizon_reference(const ClaimedDensity& density, const GGX<double>& ggx,
                                                                      const Vec3<double>& wi, int rows);
+// A dump that holds only the samples its sampler kept, when the claimed density is already 0 where samples
+// are lost (a BSDF's sampling density, bsdf_validation.h: a dielectric loses its reflections below the
+// horizon and its refractions above it): the density conditioned on its own mass, pdf(wo) / P_kept.
+// Throws std::invalid_argument when the density has no mass for this view.
+std::shared_ptr<const ReferenceDistribution> kept_samples_reference(const ClaimedDensity& density, const GGX<double>& ggx,
+                                                                    const Vec3<double>& wi, int rows);
 // The binnings and the claimed pdf of claimed_reference, without the bin probabilities (no cubature):
 // enough to tally samples (validation_part.h), not to test them (its probabilities are empty).
 std::shared_ptr<const ReferenceDistribution> claimed_reference_bins(const SamplerInfo& sampler, const GGX<double>& ggx,
@@ -309,7 +320,7 @@ struct FrameHint {
   SampleFrame frame;
   ValidationReport report;  // of the file read in that frame
 };
-std::optional<FrameHint> diagnose_sample_frame(const std::filesystem::path& file,
+std::optional<FrameHint> diagnose_sample_frame(const std::filesystem::path& file, const SampleColumns& columns,
                                                std::shared_ptr<const ReferenceDistribution> reference,
                                                const ValidationOptions& options);
 // Whether a rejection's report calls for diagnose_sample_frame: more than 5% of its samples fall where the

@@ -7,8 +7,8 @@
 #include <fmt/core.h>
 
 #include <algorithm>
-#include <functional>
 #include <cmath>
+#include <functional>
 #include <stdexcept>
 
 namespace microsim {
@@ -98,13 +98,10 @@ SubTest bins_test(const WeightSums& s, const std::vector<std::vector<double>>& e
 void check_weight_inputs(const SampleColumns& columns, const ReferenceDistribution& ref, const Material& bsdf) {
   if (ref.domain != SampleDomain::reflected_direction)
     throw std::invalid_argument("--bsdf: the weight test needs outgoing directions (--reflected or --pdf "
-                                "reflection|bounded|dielectric)");
+                                "reflection|bounded|bsdf)");
   if (bsdf.kind() == MaterialKind::lambertian)
     throw std::invalid_argument(fmt::format("--bsdf {}: the weight test has mirror, conductor and dielectric BSDFs",
                                             bsdf.describe()));
-  if (bsdf.transmits() && ref.above_horizon)
-    throw std::invalid_argument(fmt::format("--bsdf {}: a dielectric's directions cover both sides of the horizon "
-                                            "(drop --above-horizon)", bsdf.describe()));
   if (columns.channels() != bsdf.channels())
     throw std::invalid_argument(fmt::format("--bsdf {} has {} channel(s) but the file {} weight column(s) (--columns)",
                                             bsdf.describe(), bsdf.channels(), columns.channels()));
@@ -126,8 +123,8 @@ std::vector<SubTest> weight_tests_of(const std::function<DirectionSampleReader()
                                      const ValidationOptions& options) {
   check_weight_inputs(columns, ref, bsdf);
   std::vector<std::vector<double>> expected = expected_bin_weights(ref, bsdf);
-  // Conditioned on the upper hemisphere without the dropped count: the kept samples' mean weight.
-  if (ref.above_horizon && !options.dropped_below_horizon)
+  // Conditioned on the kept samples without the dropped count: the kept samples' mean weight.
+  if (ref.kept_only && !options.dropped_below_horizon)
     for (auto& channel : expected)
       for (double& e : channel) e /= ref.kept_mass;
   DirectionSampleReader reader = open();
@@ -179,6 +176,26 @@ std::vector<Vec3<double>> refracted_lobe_focus(const DirectionBinning& lobe, con
     if (refract(wi, m, eta, t)) focus.push_back(t);
   }
   return focus;
+}
+
+std::vector<DirectionFunction> dielectric_breaks(const Vec3<double>& wi, double eta) {
+  // The refraction lobe ends where its half vector -(wi + eta wo) leaves the horizon or wi's or wo's side.
+  const auto raw_half = [wi, eta](const Vec3<double>& o) { return Vec3<double>(-(wi + eta * o)); };
+  std::vector<DirectionFunction> breaks = {
+      [](const Vec3<double>& o) { return o.z(); },  // reflection above, refraction below
+      [raw_half](const Vec3<double>& o) { return o.z() < 0 ? raw_half(o).z() : 1.0; },
+      [raw_half, wi](const Vec3<double>& o) { return o.z() < 0 ? wi.dot(raw_half(o)) : 1.0; },
+      [raw_half](const Vec3<double>& o) { return o.z() < 0 ? o.dot(raw_half(o)) : -1.0; }};
+  if (eta < 1) {  // total internal reflection beyond <wi, m> = cos_c: F has a kink there, 1 - F ends
+    const double cos_c = std::sqrt(1 - sqr(eta));
+    breaks.push_back([wi, cos_c](const Vec3<double>& o) {
+      return o.z() > 0 ? wi.dot(normalized_or_zero(Vec3<double>(wi + o))) - cos_c : 1.0;
+    });
+    breaks.push_back([wi, cos_c, raw_half](const Vec3<double>& o) {
+      return o.z() < 0 ? std::abs(wi.dot(normalized_or_zero(raw_half(o)))) - cos_c : 1.0;
+    });
+  }
+  return breaks;
 }
 
 std::vector<std::vector<double>> expected_bin_weights(const ReferenceDistribution& ref, const Material& bsdf) {

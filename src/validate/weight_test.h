@@ -46,6 +46,12 @@ struct WeightSums {
 // (the refraction of wi about each normal into eta). Empty for eta == 1.
 std::vector<Vec3<double>> refracted_lobe_focus(const DirectionBinning& lobe, const Vec3<double>& wi, double eta);
 
+// Where a dielectric's sampling density jumps or has kinks, as functions whose zero sets are those curves
+// (IntegrationOptions::breaks): the horizon, the ends of the refraction lobe (its half vector
+// -(wi + eta wo) leaving the horizon or either direction's side) and, for eta < 1, total internal
+// reflection (<wi, m> = sqrt(1 - eta^2), where F has a kink and 1 - F ends).
+std::vector<DirectionFunction> dielectric_breaks(const Vec3<double>& wi, double eta);
+
 // The expected weight per sample in every sphere bin of `ref`, per channel of `bsdf`: the integral of
 // f(wi, wo) |wo.z| over the bin (mirror, conductor: reflected directions; dielectric: reflection and
 // refraction over the whole sphere, the cubature focused on the refracted lobe too).

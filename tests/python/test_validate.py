@@ -154,8 +154,12 @@ def test_wrong_weights_are_rejected():
     wo, pdfs, weights = mirror_reflections(100_000, seed=8)
     r = microsim.validate(wo, ALPHA, THETA, pdf="reflection", weights=1.05 * weights, bsdf="mirror")
     assert not r.passed and r.p_values["bsdf_albedo"] < 1e-6
-    with pytest.raises(ValueError, match="weights and bsdf go together"):
+    with pytest.raises(ValueError, match="weights need bsdf"):
         microsim.validate(wo, ALPHA, THETA, pdf="reflection", weights=weights)
+    with pytest.raises(ValueError, match="pdf='bsdf' is the sampling density of a BSDF"):
+        microsim.validate(wo, ALPHA, THETA, pdf="bsdf")
+    with pytest.raises(ValueError, match="dielectric"):
+        microsim.validate(wo, ALPHA, THETA, pdf="reflection", bsdf="dielectric:1.5", weights=weights)
     with pytest.raises(ValueError, match="channel"):
         microsim.validate(wo, ALPHA, THETA, pdf="reflection", weights=np.column_stack([weights, weights]), bsdf="mirror")
 
