@@ -42,7 +42,8 @@ def validate(samples: np.ndarray, alpha: Alpha, theta: float, phi: float = 0.0, 
              frame: str = "z-up", rows: int = 31, significance: float = 0.01, above_horizon: bool = False,
              dropped: Optional[int] = None, progress: Progress = None) -> ValidationResult:
     """Validates samples (N, 3) float32/float64 against the density they claim (`microsim validate --from`);
-    pdfs (N,): the returned pdfs; weights (N,) or (N, C) with bsdf ('mirror', 'conductor:ETA,K'): the weights."""
+    pdfs (N,): the returned pdfs; weights (N,) or (N, C) with bsdf ('mirror', 'conductor:ETA,K', 'dielectric:ETA'):
+    the weights; pdf='bsdf' with bsdf: the BSDF's sampling density (`--pdf bsdf`)."""
 
 def validate_sampler(name: str, alpha: Alpha, theta: float, phi: float = 0.0, *, samples: int = 1000000,
                      seed: int = 1, precision: str = "double", rows: int = 31, significance: float = 0.01,
