@@ -180,3 +180,35 @@ def test_against_the_traced_oracle_identical_to_cli(tmp_path):
     assert not broken.passed
     with pytest.raises(ValueError, match="pdf='vndf'"):
         microsim.validate(samples, ALPHA, THETA, pdf="ndf", against="ellipsoid")
+
+
+def dielectric_samples(n, seed, eta=1.5):
+    """A rough dielectric's sample(): a visible normal (Heitz 2018), then reflection with the Fresnel
+    probability, else refraction (Walter et al. 2007, eq. 40)."""
+    rng = np.random.default_rng(seed)
+    wi = view(THETA)
+    m, _ = microsim.sample("heitz2018", wi, ALPHA, rng.random((n, 2)))
+    c = m @ wi
+    sin_t2 = (1 - c ** 2) / eta ** 2
+    cos_t = np.sqrt(np.maximum(0.0, 1 - sin_t2))
+    rs, rp = (c - eta * cos_t) / (c + eta * cos_t), (eta * c - cos_t) / (eta * c + cos_t)
+    fresnel = np.where(sin_t2 >= 1, 1.0, 0.5 * (rs ** 2 + rp ** 2))
+    reflected = 2 * c[:, None] * m - wi
+    refracted = -wi / eta + (c / eta - cos_t)[:, None] * m
+    is_reflected = rng.random(n) < fresnel
+    wo = np.where(is_reflected[:, None], reflected, refracted)
+    kept = np.where(is_reflected, wo[:, 2] > 0, wo[:, 2] < 0)  # a renderer drops the others
+    return wo[kept], int(n - kept.sum())
+
+
+def test_a_dielectric_dump_identical_to_cli(tmp_path):
+    wo, lost = dielectric_samples(100_000, seed=21)
+    path = tmp_path / "glass.npy"
+    np.save(path, wo)
+    cli = cli_json(tmp_path, "validate", "--from", path, "--alpha", "0.3", "--theta", "60", "--pdf", "bsdf",
+                   "--bsdf", "dielectric", "--eta", "1.5", "--above-horizon", "--dropped", lost)
+    py = microsim.validate(wo, ALPHA, THETA, pdf="bsdf", bsdf="dielectric:1.5", above_horizon=True, dropped=lost)
+    assert py.to_dict()["tests"] == cli["tests"] and py.passed, py.failures
+    wrong, wrong_lost = dielectric_samples(100_000, seed=21, eta=1.3)
+    assert not microsim.validate(wrong, ALPHA, THETA, pdf="bsdf", bsdf="dielectric:1.5", above_horizon=True,
+                                 dropped=wrong_lost).passed  # the wrong index: rejected
