@@ -315,6 +315,43 @@ void decode_npy_rows(const std::filesystem::path& path, std::string_view bytes, 
   }
 }
 
+// ---- arrays in memory -------------------------------------------------------------------------------
+
+// Value of row r of an array column (memcpy: a strided view need not be aligned).
+double array_value(const SampleArrayColumn& column, std::uint64_t r) {
+  const char* p = static_cast<const char*>(column.data) + std::ptrdiff_t(r) * column.stride;
+  if (column.is_float32) {
+    float f;
+    std::memcpy(&f, p, sizeof f);
+    return f;
+  }
+  double d;
+  std::memcpy(&d, p, sizeof d);
+  return d;
+}
+
+bool array_directions_are_float32(const SampleArray& array, const SampleColumns& columns) {
+  for (const int c : columns.direction)
+    if (array.columns[std::size_t(c)].is_float32) return true;
+  return false;
+}
+
+// Decodes and checks rows [first, first + out.size()) of an array, as decode_npy_rows does a file's.
+void decode_array_rows(const SampleArray& array, const SampleColumns& columns, std::uint64_t first,
+                       std::span<Vec3<double>> out, double* extras, InvalidRows& invalid) {
+  const bool is_float32 = array_directions_are_float32(array, columns);
+  const double tolerance = is_float32 ? kUnitLengthToleranceFloat32 : kUnitLengthToleranceFloat64;
+  const char* precision_name = is_float32 ? "float32 data" : "float64 data";
+  const std::filesystem::path name(array.name);
+  const std::size_t stride = extras_per_row(columns);
+  for (std::uint64_t i = 0; i < out.size(); ++i) {
+    const std::uint64_t r = first + i;
+    const auto value = [&](int c) { return array_value(array.columns[std::size_t(c)], r); };
+    const auto where = [r] { return "row " + std::to_string(r) + " (0-based)"; };
+    out[i] = split_row(name, where, value, columns, tolerance, precision_name, invalid, extras + i * stride);
+  }
+}
+
 // ---- text ----------------------------------------------------------------------------------------------
 
 bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
@@ -451,6 +488,7 @@ struct DirectionSampleReader::Impl {
   int fd = -1;
   std::uint64_t rows = 0;  // rows returned so far
   bool npy = false;
+  std::optional<SampleArray> array;  // rows in memory instead of a file
   // NPY: the file mapped read-only (or, for a non-regular file, read into `owned`).
   void* map = nullptr;
   std::size_t map_size = 0, released = 0;  // bytes of the map whose pages were given back
@@ -481,6 +519,7 @@ struct DirectionSampleReader::Impl {
   }
   void open_npy(bool regular, std::uint64_t size);
   std::size_t read_npy_rows(std::span<Vec3<double>> out, double* extras);
+  std::size_t read_array_rows(std::span<Vec3<double>> out, double* extras);
   void parse_pending(std::size_t end);
   void shorten_long_line();
   bool refill_text();
@@ -518,6 +557,13 @@ std::size_t DirectionSampleReader::Impl::read_npy_rows(std::span<Vec3<double>> o
       released = done;
     }
   }
+  return n;
+}
+
+std::size_t DirectionSampleReader::Impl::read_array_rows(std::span<Vec3<double>> out, double* extras) {
+  const std::size_t n = std::size_t(std::min<std::uint64_t>(out.size(), array->rows - rows));
+  decode_array_rows(*array, columns, rows, out.first(n), extras, invalid);
+  rows += n;
   return n;
 }
 
@@ -614,6 +660,24 @@ DirectionSampleReader::DirectionSampleReader(const std::filesystem::path& path, 
   }
 }
 
+DirectionSampleReader::DirectionSampleReader(SampleArray array, SampleColumns columns) : impl_(std::make_unique<Impl>()) {
+  Impl& m = *impl_;
+  if (array.columns.size() != std::size_t(columns.count))
+    throw std::invalid_argument("DirectionSampleReader: the array has " + std::to_string(array.columns.size()) +
+                                " column(s), the columns spec " + std::to_string(columns.count));
+  m.path = array.name;
+  if (array.rows == 0) fail(m.path, "empty: the array has 0 rows");
+  m.columns = std::move(columns);
+  m.array = std::move(array);
+}
+
+DirectionSampleReader DirectionSampleReader::reopened() const {
+  DirectionSampleReader r = impl_->array ? DirectionSampleReader(*impl_->array, impl_->columns)
+                                         : DirectionSampleReader(impl_->path, impl_->columns);
+  r.set_frame(impl_->frame);
+  return r;
+}
+
 DirectionSampleReader::~DirectionSampleReader() = default;
 DirectionSampleReader::DirectionSampleReader(DirectionSampleReader&&) noexcept = default;
 DirectionSampleReader& DirectionSampleReader::operator=(DirectionSampleReader&&) noexcept = default;
@@ -622,6 +686,7 @@ const std::filesystem::path& DirectionSampleReader::path() const { return impl_-
 std::uint64_t DirectionSampleReader::rows_read() const { return impl_->rows; }
 const InvalidRows& DirectionSampleReader::invalid_rows() const { return impl_->invalid; }
 std::string DirectionSampleReader::storage() const {
+  if (impl_->array) return is_float32() ? "float32 array" : "float64 array";
   if (!impl_->npy) return "text";
   return impl_->layout.is_float32 ? "float32 .npy" : "float64 .npy";
 }
@@ -636,7 +701,10 @@ std::size_t DirectionSampleReader::read(std::span<Vec3<double>> out, std::span<d
 void DirectionSampleReader::set_frame(SampleFrame frame) { impl_->frame = frame; }
 SampleFrame DirectionSampleReader::frame() const { return impl_->frame; }
 const SampleColumns& DirectionSampleReader::columns() const { return impl_->columns; }
-bool DirectionSampleReader::is_float32() const { return impl_->npy && impl_->layout.is_float32; }
+bool DirectionSampleReader::is_float32() const {
+  if (impl_->array) return array_directions_are_float32(*impl_->array, impl_->columns);
+  return impl_->npy && impl_->layout.is_float32;
+}
 
 std::string to_string(SampleFrame frame) {
   switch (frame) {
@@ -656,9 +724,9 @@ std::size_t DirectionSampleReader::read_as_stored(std::span<Vec3<double>> out, s
   if (weights.size() < out.size() * channels) throw std::invalid_argument("DirectionSampleReader: weights too short");
   std::vector<double> extras;
   std::size_t n = 0;
-  if (m.npy) {
+  if (m.npy || m.array) {
     extras.resize(out.size() * stride);
-    n = m.read_npy_rows(out, extras.data());
+    n = m.array ? m.read_array_rows(out, extras.data()) : m.read_npy_rows(out, extras.data());
   } else {
     while (n < out.size()) {
       if (m.parsed_pos == m.parsed.size() && !m.refill_text()) break;

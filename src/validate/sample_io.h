@@ -98,6 +98,22 @@ struct SampleColumns {
   std::string describe() const;  // "x y z", "x y z pdf weight"
 };
 
+// Samples already in memory (a NumPy array handed over by the Python module, src/python): each column a
+// strided view of float32 or float64 values, read in place (no copy). `stride` is in bytes between rows
+// (any sign, any alignment). The rows get the checks of an NPY file's rows with the tolerance of the
+// direction columns' precision (kUnitLengthToleranceFloat32 if any of x, y, z is float32), and the same
+// messages, `name` standing for the path ("samples: row 5 (0-based): vector ... not unit length ...").
+struct SampleArrayColumn {
+  const void* data = nullptr;  // the value of row 0
+  std::ptrdiff_t stride = 0;   // bytes from one row's value to the next
+  bool is_float32 = false;     // float32, else float64
+};
+struct SampleArray {
+  std::string name = "samples";             // stands for a file's path in messages
+  std::uint64_t rows = 0;
+  std::vector<SampleArrayColumn> columns;   // indexed by SampleColumns (its count must match)
+};
+
 // Reads a sample file (NPY or text, as above) in blocks of rows, in memory bounded whatever its size: an
 // NPY file through a read-only memory map whose pages are given back once decoded, text in chunks of
 // 1 MiB, whole lines at a time (a line may be at most 1 MiB long, a comment excepted). The same checks
@@ -106,9 +122,16 @@ class DirectionSampleReader {
 public:
   // Opens; checks an NPY header against the columns (shape (N, columns.count)).
   explicit DirectionSampleReader(const std::filesystem::path& path, SampleColumns columns = {});
+  // Reads an array in memory (above) instead of a file; the array must outlive the reader. Throws
+  // SampleFileError for 0 rows, and std::invalid_argument when its columns do not match `columns`.
+  explicit DirectionSampleReader(SampleArray array, SampleColumns columns = {});
   ~DirectionSampleReader();
   DirectionSampleReader(DirectionSampleReader&&) noexcept;
   DirectionSampleReader& operator=(DirectionSampleReader&&) noexcept;
+
+  // A new reader of the same file or array from its first row, with the same columns and frame (a second
+  // pass over the samples, as the weight test makes).
+  DirectionSampleReader reopened() const;
 
   // Fills `out` with the next rows, up to out.size(); returns how many (fewer only at the end, 0 after
   // it). Throws SampleFileError on a bad row, and at the end of a file that held no sample at all. With a
@@ -116,13 +139,13 @@ public:
   // (channels() per row, row-major); spans that are not needed may be empty.
   std::size_t read(std::span<Vec3<double>> out, std::span<double> pdfs = {}, std::span<double> weights = {});
   const SampleColumns& columns() const;
-  bool is_float32() const;  // an NPY file of float32 values
+  bool is_float32() const;  // an NPY file of float32 values, or an array whose directions are float32
   std::uint64_t rows_read() const;
   const std::filesystem::path& path() const;
   // The frame the rows are in (default z-up): read() returns them mapped to z-up (to_z_up).
   void set_frame(SampleFrame frame);
   SampleFrame frame() const;
-  // How the rows are stored: "float32 .npy", "float64 .npy" or "text".
+  // How the rows are stored: "float32 .npy", "float64 .npy", "text", "float32 array" or "float64 array".
   std::string storage() const;
   // The rows read so far that hold the sampler's failures (see above).
   const InvalidRows& invalid_rows() const;

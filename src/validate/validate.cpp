@@ -404,7 +404,7 @@ ValidationReport validate_sample_file(DirectionSampleReader& reader, SampleDomai
   if (!reference) reference = vndf_reference(domain, ggx, wi, options.rows);
   std::vector<SubTest> weights;  // a pass of its own over the file, before the main one
   if (options.bsdf)
-    weights = bsdf_weight_tests(reader.path(), reader.columns(), reader.frame(), *reference, *options.bsdf, options);
+    weights = bsdf_weight_tests(reader, *reference, *options.bsdf, options);
   return validate_stream(reader, *reference, options, std::move(weights));
 }
 

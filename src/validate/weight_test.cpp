@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <stdexcept>
 
 namespace microsim {
@@ -106,17 +107,30 @@ void check_weight_inputs(const SampleColumns& columns, const ReferenceDistributi
                                             bsdf.describe(), bsdf.channels(), columns.channels()));
 }
 
-// The sums of a file's weights, read block by block.
-WeightSums sum_weights(const std::filesystem::path& file, const SampleColumns& columns, SampleFrame frame,
-                       const DirectionBinning& sphere, int channels) {
-  DirectionSampleReader reader(file, columns);
-  reader.set_frame(frame);
+// The sums of the weights of the samples `reader` reads, block by block.
+WeightSums sum_weights(DirectionSampleReader& reader, const DirectionBinning& sphere, int channels) {
   const FastDirectionBinner binner(sphere);
   WeightSums s(channels, sphere.size());
   std::vector<Vec3<double>> rows(kSampleFileBlock);
-  std::vector<double> pdfs(columns.has_pdf() ? rows.size() : 0), weights(rows.size() * std::size_t(channels));
+  std::vector<double> pdfs(reader.columns().has_pdf() ? rows.size() : 0), weights(rows.size() * std::size_t(channels));
   while (const std::size_t n = reader.read(rows, pdfs, weights)) s.add(binner, rows, weights, n);
   return s;
+}
+
+// The weight tests of the samples `open()` reads (opened once the inputs are checked).
+std::vector<SubTest> weight_tests_of(const std::function<DirectionSampleReader()>& open, const SampleColumns& columns,
+                                     const ReferenceDistribution& ref, const Material& bsdf,
+                                     const ValidationOptions& options) {
+  check_weight_inputs(columns, ref, bsdf);
+  std::vector<std::vector<double>> expected = expected_bin_weights(ref, bsdf);
+  // Conditioned on the kept samples without the dropped count: the kept samples' mean weight.
+  if (ref.kept_only && !options.dropped_below_horizon)
+    for (auto& channel : expected)
+      for (double& e : channel) e /= ref.kept_mass;
+  DirectionSampleReader reader = open();
+  const WeightSums s = sum_weights(reader, ref.sphere, bsdf.channels());
+  const double n = double(s.rows + options.dropped_below_horizon.value_or(0));
+  return weight_checks(s, expected, n, ref.sphere, bsdf, options);
 }
 
 }  // namespace
@@ -207,15 +221,17 @@ std::vector<SubTest> weight_checks(const WeightSums& sums, const std::vector<std
 std::vector<SubTest> bsdf_weight_tests(const std::filesystem::path& file, const SampleColumns& columns, SampleFrame frame,
                                        const ReferenceDistribution& ref, const Material& bsdf,
                                        const ValidationOptions& options) {
-  check_weight_inputs(columns, ref, bsdf);
-  std::vector<std::vector<double>> expected = expected_bin_weights(ref, bsdf);
-  // Conditioned on the kept samples without the dropped count: the kept samples' mean weight.
-  if (ref.kept_only && !options.dropped_below_horizon)
-    for (auto& channel : expected)
-      for (double& e : channel) e /= ref.kept_mass;
-  const WeightSums s = sum_weights(file, columns, frame, ref.sphere, bsdf.channels());
-  const double n = double(s.rows + options.dropped_below_horizon.value_or(0));
-  return weight_checks(s, expected, n, ref.sphere, bsdf, options);
+  const auto open = [&] {
+    DirectionSampleReader reader(file, columns);
+    reader.set_frame(frame);
+    return reader;
+  };
+  return weight_tests_of(open, columns, ref, bsdf, options);
+}
+
+std::vector<SubTest> bsdf_weight_tests(const DirectionSampleReader& samples, const ReferenceDistribution& ref,
+                                       const Material& bsdf, const ValidationOptions& options) {
+  return weight_tests_of([&] { return samples.reopened(); }, samples.columns(), ref, bsdf, options);
 }
 
 }  // namespace microsim

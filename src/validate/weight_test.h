@@ -70,5 +70,8 @@ std::vector<SubTest> weight_checks(const WeightSums& sums, const std::vector<std
 std::vector<SubTest> bsdf_weight_tests(const std::filesystem::path& file, const SampleColumns& columns, SampleFrame frame,
                                        const ReferenceDistribution& reference, const Material& bsdf,
                                        const ValidationOptions& options);
+// The same for the samples of `samples` (a file or an array), read again from their start (reopened()).
+std::vector<SubTest> bsdf_weight_tests(const DirectionSampleReader& samples, const ReferenceDistribution& reference,
+                                       const Material& bsdf, const ValidationOptions& options);
 
 }  // namespace microsim

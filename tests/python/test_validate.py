@@ -1,0 +1,215 @@
+"""microsim.validate on numpy arrays: a numpy sampler passes, a broken one is rejected, results are the
+command line's for the same data, and bad input raises ValueError with the command line's message."""
+import numpy as np
+import pytest
+
+import microsim
+from conftest import cli_json, heitz2018_numpy, run_cli, view
+
+ALPHA, THETA = (0.3, 0.3), 60.0
+
+
+def numpy_samples(n, seed, remap=True, alpha=ALPHA, theta=THETA):
+    u = np.random.default_rng(seed).random((n, 2))
+    return heitz2018_numpy(view(theta), alpha, u, remap=remap)
+
+
+def test_numpy_heitz2018_passes():
+    r = microsim.validate(numpy_samples(200_000, seed=11), ALPHA, THETA)
+    assert r.passed, r.failures
+    assert r.verdict == "pass" and bool(r)
+    assert r.samples == 200_000
+    assert set(r.p_values) >= {"chi2_sphere", "chi2_lobe"}
+    assert "PASS" in repr(r)
+
+
+def test_broken_numpy_sampler_is_rejected():
+    """The negative control: the same sampler without its disk warp must be rejected."""
+    r = microsim.validate(numpy_samples(200_000, seed=11, remap=False), ALPHA, THETA)
+    assert not r.passed
+    assert r.p_value < 1e-6
+    assert r.failures and "REJECTED" in repr(r)
+    assert r.worst_cells and r.worst_cells[0]["observed"] != r.worst_cells[0]["expected"]
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_identical_to_cli_on_the_same_npy(tmp_path, dtype):
+    samples = numpy_samples(100_000, seed=5).astype(dtype)
+    path = tmp_path / "samples.npy"
+    np.save(path, samples)
+    cli = cli_json(tmp_path, "validate", "--from", path, "--alpha", "0.3", "--theta", "60")
+    py = microsim.validate(samples, 0.3, 60.0).to_dict()
+    for name, test in cli["tests"].items():
+        assert py["tests"][name] == test, name
+    for key in ("p_value", "statistic", "dof", "verdict", "samples", "failures"):
+        assert py[key] == cli[key], key
+
+
+def test_layouts_read_in_place_give_the_same_result():
+    c = numpy_samples(70_000, seed=3)
+    reference = microsim.validate(c, ALPHA, THETA).p_values
+    wide = np.zeros((c.shape[0], 5))
+    wide[:, 1:4] = c
+    for layout in (np.asfortranarray(c), wide[:, 1:4], c.astype(np.float32).astype(np.float64)):
+        assert microsim.validate(layout, ALPHA, THETA).p_values == reference
+    reversed_rows = microsim.validate(c[::-1], ALPHA, THETA)  # a negative stride: the same multiset
+    assert reversed_rows.p_values["chi2_sphere"] == reference["chi2_sphere"]
+
+
+def test_returned_pdfs_are_checked():
+    wi = view(THETA)
+    m = numpy_samples(100_000, seed=4)
+    pdfs = microsim.D_v(wi, m, ALPHA)
+    assert microsim.validate(m, ALPHA, THETA, pdfs=pdfs).passed
+    wrong = microsim.validate(m, ALPHA, THETA, pdfs=pdfs * 1.01)
+    assert not wrong.passed and any("pdf" in f for f in wrong.failures)
+
+
+def test_identical_to_cli_for_a_zoo_sampler(tmp_path):
+    cli = cli_json(tmp_path, "validate", "--sampler", "heitz2018", "--alpha", "0.05,0.5", "--theta", "75",
+                   "--samples", "100000", "--seed", "9")
+    py = microsim.validate_sampler("heitz2018", (0.05, 0.5), 75.0, samples=100_000, seed=9).to_dict()
+    for key in ("p_value", "statistic", "dof", "verdict", "tests"):
+        assert py[key] == cli[key], key
+    talk = microsim.validate_sampler("heitz2018-talk", 0.3, 60.0, samples=100_000, seed=9)
+    assert not talk.passed  # the zoo's negative control
+
+
+def test_nan_rows_are_the_samplers_failures():
+    s = numpy_samples(50_000, seed=2)
+    s[[7, 100]] = np.nan
+    r = microsim.validate(s, ALPHA, THETA)
+    assert not r.passed
+    assert any("row 7 (0-based)" in f for f in r.failures), r.failures
+
+
+@pytest.mark.parametrize("bad, expected", [
+    (np.zeros((10, 2)), "shape (10, 2) is not supported"),
+    (np.zeros(30), "shape (30,) is not supported"),
+    (np.zeros((10, 3), dtype=np.int64), "dtype int64 is not supported"),
+    (np.zeros((0, 3)), "empty"),
+    ([[0, 0, 1]], "expected a numpy array"),
+    (np.zeros((10, 3), dtype=">f8"), "big-endian dtype >f8 is not supported"),
+])
+def test_bad_arrays(bad, expected):
+    with pytest.raises(ValueError, match=expected.replace("(", r"\(").replace(")", r"\)")):
+        microsim.validate(bad, ALPHA, THETA)
+
+
+@pytest.mark.parametrize("kwargs, expected", [
+    (dict(alpha=0.0), "alpha"), (dict(alpha=-0.3), "alpha"), (dict(alpha=(0.3, 0.3, 0.3)), "pair"),
+    (dict(theta=95.0), "theta must be in"), (dict(theta=float("nan")), "theta must be in"),
+    (dict(phi=float("inf")), "phi must be finite"), (dict(pdf="foo"), "vndf"),
+    (dict(rows=4), "rows must be odd"), (dict(significance=1.5), "significance"),
+    (dict(above_horizon=True), "above_horizon"),
+])
+def test_bad_arguments(kwargs, expected):
+    args = dict(samples=numpy_samples(1000, seed=1), alpha=ALPHA, theta=THETA) | kwargs
+    with pytest.raises(ValueError, match=expected):
+        microsim.validate(**args)
+
+
+def test_non_unit_row_message_is_the_clis(tmp_path):
+    s = numpy_samples(1000, seed=1)
+    s[3] *= 2
+    path = tmp_path / "bad.npy"
+    np.save(path, s)
+    cli = run_cli("validate", "--from", path, "--alpha", "0.3", "--theta", "60", check=False)
+    assert cli.returncode == 2
+    with pytest.raises(ValueError) as error:
+        microsim.validate(s, ALPHA, THETA)
+    message = str(error.value)
+    assert message.startswith("samples: row 3 (0-based): vector")
+    assert message.split(": ", 1)[1] in cli.stderr  # the same words after the name of the source
+
+
+def test_too_few_samples():
+    with pytest.raises(ValueError, match="samples"):
+        microsim.validate(numpy_samples(5, seed=1), ALPHA, THETA)
+
+
+def mirror_reflections(n, seed):
+    """Reflections of VNDF-sampled normals off mirror facets: directions, returned pdfs, weights f cos / pdf."""
+    wi = view(THETA)
+    m = numpy_samples(n, seed)
+    wo = 2 * (m @ wi)[:, None] * m - wi
+    pdfs = microsim.reflection_pdf(wi, wo, ALPHA)
+    weights = np.where(wo[:, 2] > 0, microsim.mirror_brdf(wi, wo, ALPHA) * np.abs(wo[:, 2]) / pdfs, 0.0)
+    return wo, pdfs, weights
+
+
+def test_weights_against_the_bsdf_identical_to_cli(tmp_path):
+    wo, pdfs, weights = mirror_reflections(100_000, seed=8)
+    path = tmp_path / "rows.npy"
+    np.save(path, np.column_stack([wo, pdfs, weights]))
+    cli = cli_json(tmp_path, "validate", "--from", path, "--alpha", "0.3", "--theta", "60", "--reflected",
+                   "--columns", "x,y,z,pdf,weight", "--bsdf", "mirror")
+    py = microsim.validate(wo, ALPHA, THETA, pdf="reflection", weights=weights, pdfs=pdfs, bsdf="mirror")
+    assert py.passed and cli["verdict"] == "pass"
+    assert py.to_dict()["tests"] == cli["tests"]
+    assert "bsdf_albedo" in py.p_values
+
+
+def test_wrong_weights_are_rejected():
+    wo, pdfs, weights = mirror_reflections(100_000, seed=8)
+    r = microsim.validate(wo, ALPHA, THETA, pdf="reflection", weights=1.05 * weights, bsdf="mirror")
+    assert not r.passed and r.p_values["bsdf_albedo"] < 1e-6
+    with pytest.raises(ValueError, match="weights need bsdf"):
+        microsim.validate(wo, ALPHA, THETA, pdf="reflection", weights=weights)
+    with pytest.raises(ValueError, match="pdf='bsdf' is the sampling density of a BSDF"):
+        microsim.validate(wo, ALPHA, THETA, pdf="bsdf")
+    with pytest.raises(ValueError, match="dielectric"):
+        microsim.validate(wo, ALPHA, THETA, pdf="reflection", bsdf="dielectric:1.5", weights=weights)
+    with pytest.raises(ValueError, match="channel"):
+        microsim.validate(wo, ALPHA, THETA, pdf="reflection", weights=np.column_stack([weights, weights]), bsdf="mirror")
+
+
+def test_against_the_traced_oracle_identical_to_cli(tmp_path):
+    samples = numpy_samples(100_000, seed=12)
+    path = tmp_path / "samples.npy"
+    np.save(path, samples)
+    cli = cli_json(tmp_path, "validate", "--from", path, "--alpha", "0.3", "--theta", "60", "--against", "ellipsoid",
+                   "--rays", "400000")
+    py = microsim.validate(samples, ALPHA, THETA, against="ellipsoid", oracle_rays=400_000)
+    assert py.to_dict()["tests"] == cli["tests"] and py.passed
+    hist = tmp_path / "h.exr"
+    run_cli("trace", "vndf", "--alpha", "0.3", "--theta", "60", "--rays", "400000", "--out", hist)
+    from_file = microsim.validate(samples, ALPHA, THETA, against=str(hist))
+    assert from_file.passed
+    broken = microsim.validate(numpy_samples(100_000, seed=12, remap=False), ALPHA, THETA, against=str(hist))
+    assert not broken.passed
+    with pytest.raises(ValueError, match="pdf='vndf'"):
+        microsim.validate(samples, ALPHA, THETA, pdf="ndf", against="ellipsoid")
+
+
+def dielectric_samples(n, seed, eta=1.5):
+    """A rough dielectric's sample(): a visible normal (Heitz 2018), then reflection with the Fresnel
+    probability, else refraction (Walter et al. 2007, eq. 40)."""
+    rng = np.random.default_rng(seed)
+    wi = view(THETA)
+    m, _ = microsim.sample("heitz2018", wi, ALPHA, rng.random((n, 2)))
+    c = m @ wi
+    sin_t2 = (1 - c ** 2) / eta ** 2
+    cos_t = np.sqrt(np.maximum(0.0, 1 - sin_t2))
+    rs, rp = (c - eta * cos_t) / (c + eta * cos_t), (eta * c - cos_t) / (eta * c + cos_t)
+    fresnel = np.where(sin_t2 >= 1, 1.0, 0.5 * (rs ** 2 + rp ** 2))
+    reflected = 2 * c[:, None] * m - wi
+    refracted = -wi / eta + (c / eta - cos_t)[:, None] * m
+    is_reflected = rng.random(n) < fresnel
+    wo = np.where(is_reflected[:, None], reflected, refracted)
+    kept = np.where(is_reflected, wo[:, 2] > 0, wo[:, 2] < 0)  # a renderer drops the others
+    return wo[kept], int(n - kept.sum())
+
+
+def test_a_dielectric_dump_identical_to_cli(tmp_path):
+    wo, lost = dielectric_samples(100_000, seed=21)
+    path = tmp_path / "glass.npy"
+    np.save(path, wo)
+    cli = cli_json(tmp_path, "validate", "--from", path, "--alpha", "0.3", "--theta", "60", "--pdf", "bsdf",
+                   "--bsdf", "dielectric", "--eta", "1.5", "--above-horizon", "--dropped", lost, "--rows", "15")
+    py = microsim.validate(wo, ALPHA, THETA, pdf="bsdf", bsdf="dielectric:1.5", above_horizon=True, dropped=lost,
+                           rows=15)  # 15 rows: a cheaper cubature of the dielectric's density
+    assert py.to_dict()["tests"] == cli["tests"] and py.passed, py.failures
+    wrong, wrong_lost = dielectric_samples(100_000, seed=21, eta=1.3)
+    assert not microsim.validate(wrong, ALPHA, THETA, pdf="bsdf", bsdf="dielectric:1.5", above_horizon=True,
+                                 dropped=wrong_lost, rows=15).passed  # the wrong index: rejected
