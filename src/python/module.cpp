@@ -158,18 +158,24 @@ py::dict histogram_dict(const TracedHistogram& h) {
                   "binnings"_a = bins);
 }
 
-py::dict trace_vndf(const py::handle& alpha, double theta, double phi, std::uint64_t rays, std::uint64_t seed, int rows,
-                    int mesh_level, int threads, const py::object& progress) {
-  const GGX<double> ggx = ggx_of(alpha);
+// The request of `trace vndf` (ellipsoid or heightfield), its view and count checked as the command does.
+VndfRequest vndf_request(double theta, double phi, std::uint64_t rays, std::uint64_t seed, int rows) {
   view_of(theta, phi);  // the checks of `trace vndf --theta/--phi`
   if (rays < 1) throw py::value_error("rays must be at least 1");
-  if (mesh_level < -1 || mesh_level > 9) throw py::value_error("mesh_level must be -1 (the exact quadric) or 0..9");
   VndfRequest request;
   request.theta_deg = theta;
   request.phi_deg = phi;
   request.rays = rays;
   request.seed = seed;
   request.rows = rows;
+  return request;
+}
+
+py::dict trace_vndf(const py::handle& alpha, double theta, double phi, std::uint64_t rays, std::uint64_t seed, int rows,
+                    int mesh_level, int threads, const py::object& progress) {
+  const GGX<double> ggx = ggx_of(alpha);
+  VndfRequest request = vndf_request(theta, phi, rays, seed, rows);
+  if (mesh_level < -1 || mesh_level > 9) throw py::value_error("mesh_level must be -1 (the exact quadric) or 0..9");
   std::optional<EllipsoidVndf> result;
   run_interruptible(
       [&](const RunControl& run) {
@@ -185,14 +191,7 @@ py::dict trace_vndf(const py::handle& alpha, double theta, double phi, std::uint
 // `trace vndf --surface`: a heightfield's VNDF, in the same bins, against Smith's prediction.
 py::dict trace_surface_vndf(const microgeom::Heightfield& surface, double theta, double phi, std::uint64_t rays,
                             std::uint64_t seed, int rows, int threads, const py::object& progress) {
-  view_of(theta, phi);
-  if (rays < 1) throw py::value_error("rays must be at least 1");
-  VndfRequest request;
-  request.theta_deg = theta;
-  request.phi_deg = phi;
-  request.rays = rays;
-  request.seed = seed;
-  request.rows = rows;
+  VndfRequest request = vndf_request(theta, phi, rays, seed, rows);
   std::optional<HeightfieldVndf> result;
   run_interruptible(
       [&](const RunControl& run) {
