@@ -17,6 +17,8 @@ GRAPH = {
     "validate": ("src/validate", {"core", "microgeom", "microfacet", "stats", "trace"}),
     "scatter": ("src/scatter", {"core", "microgeom", "microfacet", "stats", "trace"}),
     "measure": ("src/measure", {"core", "microgeom", "microfacet", "stats", "trace", "validate", "scatter"}),
+    "experiment": ("src/experiment",
+                   {"core", "microgeom", "microfacet", "stats", "trace", "validate", "scatter", "measure"}),
 }
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([a-z_]+)/[^"]+"', re.M)
 
