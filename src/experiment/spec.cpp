@@ -307,7 +307,7 @@ SurfaceChoice quantity_surface(const Table& t, const std::filesystem::path& spec
   if (std::filesystem::path(name).extension() != ".exr")
     t.fail("surface", fmt::format("'{}' is neither auto, an assembly ({}) nor a heightmap .exr", name,
                                   microgeom::assembly_names(", ")));
-  const std::filesystem::path path = std::filesystem::path(name).is_absolute() ? name : spec_dir / name;
+  const std::filesystem::path path = std::filesystem::path(name).is_absolute() ? std::filesystem::path(name) : spec_dir / name;
   if (!std::filesystem::is_regular_file(path)) t.fail("surface", fmt::format("no heightmap file {}", path.string()));
   return {SurfaceChoice::Kind::heightmap, path.string()};
 }

@@ -6,8 +6,6 @@
 
 #include <fmt/core.h>
 
-#include <sstream>
-
 namespace microsim::experiment {
 namespace {
 
@@ -41,10 +39,8 @@ nlohmann::ordered_json to_json(const toml::node& node, const std::string& path, 
   if (const auto* i = node.as_integer()) return i->get();
   if (const auto* f = node.as_floating_point()) return f->get();
   if (const auto* b = node.as_boolean()) return b->get();
-  // Dates and times: no spec key takes one; kept as their text so that the reader names the key.
-  std::ostringstream text;
-  text << node;
-  return "(date/time) " + text.str();
+  // Dates and times: no spec key takes one; kept as a marker so that the reader names the key.
+  return "(a date or time)";
 }
 
 }  // namespace
