@@ -10,9 +10,11 @@ Material albedo_table_material(const SpecMaterial& material) {
   return material.facet.kind() == MaterialKind::conductor ? Material::mirror() : material.facet;
 }
 
-std::string_view albedo_target_quantity(const SpecQuantity& quantity) {
-  return quantity.orders == Orders::single ? "E1" : "E";
+bool albedo_target_applies(const SpecQuantity& quantity, std::string_view table_quantity) {
+  return table_quantity.starts_with(quantity.orders == Orders::single ? "E1" : "E");
 }
+
+std::string albedo_target_text(const SpecQuantity& quantity) { return quantity.orders == Orders::single ? "E1*" : "E*"; }
 
 AlbedoTableRequest albedo_request(const ExperimentSpec& spec, const SpecQuantity& quantity, Model model,
                                   std::uint64_t paths, int max_order, double tolerance, std::uint64_t seed,
@@ -41,12 +43,13 @@ double relative_error(const Estimate& e) {
 }
 }  // namespace
 
-double worst_relative_error(const AlbedoTable& table, std::string_view quantity) {
-  const AlbedoQuantity* q = table.find(quantity);
-  if (q == nullptr) return std::numeric_limits<double>::infinity();
+double worst_relative_error(const AlbedoTable& table, const SpecQuantity& quantity) {
   double worst = 0;
-  for (const Estimate& e : q->cells) worst = std::max(worst, relative_error(e));
-  for (const Estimate& e : q->average) worst = std::max(worst, relative_error(e));
+  for (const AlbedoQuantity& q : table.quantities) {
+    if (!albedo_target_applies(quantity, q.name)) continue;
+    for (const Estimate& e : q.cells) worst = std::max(worst, relative_error(e));
+    for (const Estimate& e : q.average) worst = std::max(worst, relative_error(e));
+  }
   return worst;
 }
 

@@ -15,17 +15,20 @@ namespace microsim::experiment {
 // for F = 1), mirror and dielectric their own.
 Material albedo_table_material(const SpecMaterial& material);
 
-// The quantity of an albedo table a target applies to: E1 (orders single) or E (all orders).
-std::string_view albedo_target_quantity(const SpecQuantity& quantity);
+// Whether a target applies to a quantity of an albedo table: orders single, the single-scattering albedos
+// (E1, E1_R, E1_T); all orders, every albedo the table holds (E, E_R, E_T and the walk's E1s), not the
+// unfinished or lost weight.
+bool albedo_target_applies(const SpecQuantity& quantity, std::string_view table_quantity);
+std::string albedo_target_text(const SpecQuantity& quantity);  // "E1*" or "E*"
 
 // The request of an albedo quantity (model: the decision's; analytic: tolerance; walk: paths, cap, seed).
 AlbedoTableRequest albedo_request(const ExperimentSpec& spec, const SpecQuantity& quantity, Model model,
                                   std::uint64_t paths, int max_order, double tolerance, std::uint64_t seed,
                                   const RunControl& run);
 
-// The largest relative error (error / value) over the cells and E_avg of one quantity of a table; an
-// infinite one when a value is 0 with a non-zero error.
-double worst_relative_error(const AlbedoTable& table, std::string_view quantity);
+// The largest relative error (error / value) over the cells and E_avg of the quantities of a table the target
+// applies to; an infinite one when a value is 0 with a non-zero error.
+double worst_relative_error(const AlbedoTable& table, const SpecQuantity& quantity);
 
 // The largest TV noise floor over the binnings of a VNDF measurement (validate/compare.h noise_floor_tv).
 double vndf_noise_floor(const EllipsoidVndf& measurement);

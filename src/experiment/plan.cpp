@@ -68,7 +68,7 @@ void plan_analytic_albedo(const ExperimentSpec& spec, const SpecQuantity& q, con
   if (t.partial) throw Cancelled("plan: albedo pilot");
   d.pilot_units = 1;
   d.pilot_seconds = t.seconds;
-  d.pilot_error = worst_relative_error(t, albedo_target_quantity(q));
+  d.pilot_error = worst_relative_error(t, q);
   d.predicted_seconds = t.seconds * double(rows);
   d.unit = "";
 }
@@ -93,11 +93,11 @@ void plan_walk_albedo(const ExperimentSpec& spec, const SpecQuantity& q, const P
   if (t.partial) throw Cancelled("plan: albedo pilot");
   d.pilot_units = o.pilot_paths;
   d.pilot_seconds = t.seconds;
-  d.pilot_error = worst_relative_error(t, albedo_target_quantity(q));
+  d.pilot_error = worst_relative_error(t, q);
   d.units = units_for_standard_error(o.pilot_paths, d.pilot_error, q.target);
   d.unit = "paths per cell";
   d.count_reason = fmt::format("pilot of {} paths per cell: worst relative SE of {} {:.2e}; n = {} x ({:.2e} / {:.0e})^2",
-                               o.pilot_paths, albedo_target_quantity(q), d.pilot_error, o.pilot_paths, d.pilot_error,
+                               o.pilot_paths, albedo_target_text(q), d.pilot_error, o.pilot_paths, d.pilot_error,
                                q.target);
   d.predicted_seconds = predicted_seconds(d.units, d.pilot_units, d.pilot_seconds);
 }

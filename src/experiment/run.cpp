@@ -71,7 +71,7 @@ void run_walk_albedo(const ExperimentSpec& spec, std::uint64_t seed, std::size_t
     tables.push_back(std::move(t));
     units.push_back(n);
     const AlbedoTable pooled = pool_tables(tables, units);
-    m.achieved = worst_relative_error(pooled, albedo_target_quantity(q));
+    m.achieved = worst_relative_error(pooled, q);
     m.rounds.push_back({n, s, 0, tables.back().seconds, m.achieved});
     m.units += n;
     m.rays += n * pooled.alphas.size() * pooled.mus.size();
@@ -91,7 +91,7 @@ void run_analytic_albedo(const ExperimentSpec& spec, const RunOptions& o, Measur
       m.partial = true;
       break;
     }
-    m.achieved = worst_relative_error(t, albedo_target_quantity(q));
+    m.achieved = worst_relative_error(t, q);
     m.rounds.push_back({0, 0, tolerance, t.seconds, m.achieved});
     m.met = m.achieved <= m.target;
     record_albedo(m, t);
@@ -165,7 +165,7 @@ MeasurementResult run_decision(const ExperimentSpec& spec, const Decision& d, st
   m.error_measure = vndf ? "the histogram's TV noise floor (expected TV of an exact sampler), largest binning"
                          : fmt::format("the worst relative {} of {} over the cells and E_avg",
                                        d.model.model == Model::analytic ? "quadrature error estimate" : "standard error",
-                                       albedo_target_quantity(q));
+                                       albedo_target_text(q));
   if (!d.runnable) return m;
   m.ran = true;
   const auto start = std::chrono::steady_clock::now();
