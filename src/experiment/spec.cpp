@@ -109,8 +109,20 @@ std::vector<Table> tables(const Table& top, std::string_view key) {
 
 }  // namespace
 
+namespace {
+// A key as a message prints it: itself when short and printable, else quoted as an excerpt (core/parse.h).
+std::string printable_key(const std::string& key) {
+  const bool plain = key.size() <= 80 && std::all_of(key.begin(), key.end(), [](char c) { return c >= 0x20 && c < 0x7f; });
+  return plain ? key : quote_excerpt(key);
+}
+// A problem as a message prints it: at most 300 bytes (a parser's message may echo what it read).
+std::string bounded(const std::string& problem) {
+  return problem.size() <= 300 ? problem : problem.substr(0, 300) + fmt::format("... ({} bytes)", problem.size());
+}
+}  // namespace
+
 SpecError::SpecError(std::string source, int line, std::string key, const std::string& problem)
-    : std::invalid_argument(fmt::format("{}: {}: {}", location(source, line), key, problem)),
+    : std::invalid_argument(fmt::format("{}: {}: {}", location(source, line), printable_key(key), bounded(problem))),
       key_(std::move(key)),
       line_(line) {}
 
@@ -133,7 +145,7 @@ bool SpecMaterial::isotropic() const {
 const SpecMaterial& ExperimentSpec::material(std::string_view wanted) const {
   for (const SpecMaterial& m : materials)
     if (m.name == wanted) return m;
-  throw std::out_of_range(fmt::format("no material named '{}'", wanted));
+  throw std::out_of_range(fmt::format("no material named {}", quote_excerpt(wanted)));
 }
 
 int SpecTree::line_of(std::string_view path) const {
@@ -203,7 +215,7 @@ Material facet_material(const Table& t) {
     return Material::mirror();
   }
   if (type == "conductor") return conductor_material(t);
-  if (type != "dielectric") t.fail("type", fmt::format("'{}' is not a material type (mirror, conductor, dielectric)", type));
+  if (type != "dielectric") t.fail("type", fmt::format("{} is not a material type (mirror, conductor, dielectric)", quote_excerpt(type)));
   if (t.has("k")) t.fail("k", "a dielectric takes eta only");
   if (!t.has("eta") || !t.at("eta").is_number()) t.fail("eta", "a dielectric needs one number eta (n inside / n outside)");
   try {
@@ -219,7 +231,7 @@ SpecMaterial read_material(const Table& t) {
   m.name = t.string("name");
   if (m.name.empty()) t.fail("name", "must not be empty");
   const std::string ndf = t.string("ndf", "ggx");
-  if (ndf != "ggx" && ndf != "beckmann") t.fail("ndf", fmt::format("'{}' is not an NDF (ggx, beckmann)", ndf));
+  if (ndf != "ggx" && ndf != "beckmann") t.fail("ndf", fmt::format("{} is not an NDF (ggx, beckmann)", quote_excerpt(ndf)));
   m.ndf = ndf == "ggx" ? WalkNdf::ggx : WalkNdf::beckmann;
   m.alphas = material_alphas(t);
   m.facet = facet_material(t);
@@ -237,7 +249,7 @@ QuantityKind quantity_kind(const Table& t) {
   const std::string kind = t.string("kind");
   for (QuantityKind k : {QuantityKind::albedo, QuantityKind::vndf, QuantityKind::scattering, QuantityKind::validation})
     if (to_string(k) == kind) return k;
-  t.fail("kind", fmt::format("'{}' is not a quantity (albedo, vndf, scattering, validation)", kind));
+  t.fail("kind", fmt::format("{} is not a quantity (albedo, vndf, scattering, validation)", quote_excerpt(kind)));
 }
 
 // The keys each kind takes, besides kind, material and surface.
@@ -305,7 +317,7 @@ SurfaceChoice quantity_surface(const Table& t, const std::filesystem::path& spec
   if (name == "auto") return s;
   if (microgeom::find_assembly(name) != nullptr) return {SurfaceChoice::Kind::assembly, name};
   if (std::filesystem::path(name).extension() != ".exr")
-    t.fail("surface", fmt::format("'{}' is neither auto, an assembly ({}) nor a heightmap .exr", name,
+    t.fail("surface", fmt::format("{} is neither auto, an assembly ({}) nor a heightmap .exr", quote_excerpt(name),
                                   microgeom::assembly_names(", ")));
   const std::filesystem::path path = std::filesystem::path(name).is_absolute() ? std::filesystem::path(name) : spec_dir / name;
   if (!std::filesystem::is_regular_file(path)) t.fail("surface", fmt::format("no heightmap file {}", path.string()));
@@ -314,22 +326,22 @@ SurfaceChoice quantity_surface(const Table& t, const std::filesystem::path& spec
 
 Orders quantity_orders(const Table& t) {
   const std::string orders = t.string("orders", "single");
-  if (orders != "single" && orders != "all") t.fail("orders", fmt::format("'{}': single or all", orders));
+  if (orders != "single" && orders != "all") t.fail("orders", fmt::format("{}: single or all", quote_excerpt(orders)));
   return orders == "single" ? Orders::single : Orders::all;
 }
 
 void check_albedo_material(const Table& t, const SpecMaterial& m, bool inside) {
   for (std::size_t i = 0; i < m.alphas.size(); ++i) {
     const auto [ax, ay] = m.alphas[i];
-    if (ax != ay) t.fail("material", fmt::format("material '{}': an albedo table is isotropic (alpha pair {}, {})", m.name, ax, ay));
+    if (ax != ay) t.fail("material", fmt::format("material {}: an albedo table is isotropic (alpha pair {}, {})", quote_excerpt(m.name), ax, ay));
     if (ax < kMinAlbedoAlpha || ax > kMaxAlbedoAlpha)
-      t.fail("material", fmt::format("material '{}': alpha {} outside an albedo table's [{}, {}]", m.name, ax,
+      t.fail("material", fmt::format("material {}: alpha {} outside an albedo table's [{}, {}]", quote_excerpt(m.name), ax,
                                      kMinAlbedoAlpha, kMaxAlbedoAlpha));
     if (i > 0 && !(ax > m.alphas[i - 1].first))
-      t.fail("material", fmt::format("material '{}': an albedo table's alphas must increase ({} after {})", m.name, ax,
+      t.fail("material", fmt::format("material {}: an albedo table's alphas must increase ({} after {})", quote_excerpt(m.name), ax,
                                      m.alphas[i - 1].first));
   }
-  if (inside && !m.facet.transmits()) t.fail("inside", fmt::format("light from inside needs a dielectric ('{}' is opaque)", m.name));
+  if (inside && !m.facet.transmits()) t.fail("inside", fmt::format("light from inside needs a dielectric ({} is opaque)", quote_excerpt(m.name)));
 }
 
 void read_kind_options(const Table& t, SpecQuantity& q, const SpecMaterial& m) {
@@ -344,12 +356,12 @@ void read_kind_options(const Table& t, SpecQuantity& q, const SpecMaterial& m) {
   if (q.kind == QuantityKind::vndf || q.kind == QuantityKind::validation) {
     q.rows = int(t.integer("rows", 31, 3, kMaxBinningRows));
     if (q.rows % 2 == 0) t.fail("rows", fmt::format("{} must be odd", q.rows));
-    if (m.ndf != WalkNdf::ggx) t.fail("material", fmt::format("material '{}': {} is for GGX (the ellipsoid oracle, the zoo)", m.name, to_string(q.kind)));
+    if (m.ndf != WalkNdf::ggx) t.fail("material", fmt::format("material {}: {} is for GGX (the ellipsoid oracle, the zoo)", quote_excerpt(m.name), to_string(q.kind)));
   }
   if (q.kind == QuantityKind::validation) {
     q.sampler = t.string("sampler");
     if (find_sampler(q.sampler) == nullptr)
-      t.fail("sampler", fmt::format("'{}' is not a sampler of the zoo ({})", q.sampler, fmt::join(sampler_names(), ", ")));
+      t.fail("sampler", fmt::format("{} is not a sampler of the zoo ({})", quote_excerpt(q.sampler), fmt::join(sampler_names(), ", ")));
     q.power = t.number("power", 0.9);
     q.significance = t.number("significance", 0.01);
     if (!(q.power > 0 && q.power < 1)) t.fail("power", fmt::format("{} must be in (0, 1)", q.power));
@@ -366,7 +378,7 @@ SpecQuantity read_quantity(const Table& t, const ExperimentSpec& spec, std::size
   t.only_keys(quantity_keys(q.kind), fmt::format("a{} {} quantity", q.kind == QuantityKind::albedo ? "n" : "", to_string(q.kind)));
   q.material = t.string("material");
   const auto m = std::find_if(spec.materials.begin(), spec.materials.end(), [&](const auto& x) { return x.name == q.material; });
-  if (m == spec.materials.end()) t.fail("material", fmt::format("no material named '{}'", q.material));
+  if (m == spec.materials.end()) t.fail("material", fmt::format("no material named {}", quote_excerpt(q.material)));
   q.target = quantity_target(t, q.kind);
   q.surface = quantity_surface(t, spec_dir);
   read_kind_options(t, q, *m);
@@ -390,7 +402,7 @@ ExperimentSpec read_spec(const SpecTree& tree) {
     spec.materials.push_back(read_material(t));
     for (std::size_t i = 0; i + 1 < spec.materials.size(); ++i)
       if (spec.materials[i].name == spec.materials.back().name)
-        t.fail("name", fmt::format("material '{}' is defined twice", spec.materials.back().name));
+        t.fail("name", fmt::format("material {} is defined twice", quote_excerpt(spec.materials.back().name)));
   }
   const std::filesystem::path dir = std::filesystem::path(tree.source).parent_path();
   std::size_t index = 0;
