@@ -7,9 +7,16 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <chrono>
 #include <cmath>
+#include <csignal>
 #include <fstream>
 #include <string>
+#include <thread>
+
+#include <fcntl.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 namespace {
 
@@ -127,6 +134,44 @@ TEST(ExperimentCli, BadSpecsNameKeyAndLineAndRunNothing) {
   }
   const auto missing = run_cli(dir, "plan nothing.toml");
   EXPECT_EQ(missing.exit_code, 2);
+  fs::remove_all(dir);
+}
+
+// Ctrl-C once the first measurement is done and the second (a long VNDF) is running: exit 130, results.json
+// written and marked partial, the finished measurement kept.
+TEST(ExperimentCli, InterruptedRunWritesWhatWasDoneMarkedPartial) {
+  const fs::path dir = scratch_dir("experiment", "interrupt");
+  write(dir / "long.toml", "[[material]]\nname = \"m\"\nalpha = 0.3\ntype = \"mirror\"\n[[quantity]]\nkind = \"albedo\"\n"
+                           "material = \"m\"\nmus = 2\ntarget_relative_error = 0.01\n[[quantity]]\nkind = \"vndf\"\n"
+                           "material = \"m\"\ntheta = [40]\ntarget_tv = 0.001\n");
+  const fs::path err = dir.parent_path() / (dir.filename().string() + ".stderr");
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    if (::chdir(dir.c_str()) != 0) ::_exit(127);
+    const int fe = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    const int fo = ::open("/dev/null", O_WRONLY);
+    ::dup2(fo, 1);
+    ::dup2(fe, 2);
+    ::execl(MICROSIM_BINARY, MICROSIM_BINARY, "run", "long.toml", "--out", "out", static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while (slurp(err).find("met after") == std::string::npos && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  ::kill(pid, SIGINT);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  const std::string stderr_text = slurp(err);
+  fs::remove(err);
+  ASSERT_TRUE(WIFEXITED(status)) << stderr_text;
+  EXPECT_EQ(WEXITSTATUS(status), 130) << stderr_text;
+  ASSERT_TRUE(fs::exists(dir / "out" / "results.json")) << stderr_text;
+  const nlohmann::json r = results_of(dir / "out");
+  EXPECT_TRUE(r["partial"].get<bool>());
+  EXPECT_FALSE(r["results"]["all_targets_met"].get<bool>());
+  ASSERT_GE(r["results"]["measurements"].size(), 1u);
+  EXPECT_TRUE(r["results"]["measurements"][0]["met"].get<bool>());
   fs::remove_all(dir);
 }
 

@@ -68,7 +68,7 @@ TEST(ExperimentSpec, ReadsAGoodTomlSpec) {
   EXPECT_EQ(s.materials[1].facet.eta(), 1.5);
   ASSERT_EQ(s.quantities.size(), 4u);
   EXPECT_EQ(s.quantities[0].directions.size(), 4u);  // theta x phi
-  EXPECT_EQ(s.quantities[0].line, 19);
+  EXPECT_EQ(s.quantities[0].line, 18);
   EXPECT_EQ(s.quantities[1].orders, Orders::all);
   EXPECT_TRUE(s.quantities[1].inside);
   ASSERT_EQ(s.quantities[2].directions.size(), 3u);
