@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <functional>
 
 namespace microsim::experiment {
 namespace {
@@ -25,32 +26,60 @@ std::string alpha_text(const std::pair<double, double>& a) {
 
 // ---- the walk's order cap -----------------------------------------------------------------------------------
 
-CapProbe probe_cap(const SmithMicrosurface& surface, const ScatterOptions& base, int cap, double* albedo) {
-  ScatterOptions o = base;
-  o.max_order = cap;
-  const ScatterHistogram h = smith_walk_scatter(surface, o);
-  if (h.partial) throw Cancelled("plan: order-cap pilot");
-  *albedo = h.albedo(0, -1).value;
-  return {cap, h.unfinished(0).value, h.unfinished(0).standard_error};
+// A pilot of the walk at one cap: the weight left on the surface relative to the albedo, at the cell or view
+// where that is largest.
+using CapPilot = std::function<CapProbe(int cap)>;
+
+// The walk of one view (a scattering measurement).
+CapPilot view_cap_pilot(const SmithMicrosurface& surface, const ScatterOptions& view) {
+  return [surface, view](int cap) {
+    ScatterOptions o = view;
+    o.max_order = cap;
+    const ScatterHistogram h = smith_walk_scatter(surface, o);
+    if (h.partial) throw Cancelled("plan: order-cap pilot");
+    const double albedo = std::max(h.albedo(0, -1).value, 1e-300);
+    Estimate u = h.unfinished(0);
+    if (u.value == 0) u.standard_error = 1.5 / double(o.paths);  // none left: the rule of three
+    return CapProbe{cap, u.value / albedo, u.standard_error / albedo};
+  };
 }
 
-// Caps 4, 8, 16, ... probed at the view where paths stay longest until one leaves less than
-// kBiasShare * target * E there; the cap and its reason.
-std::pair<int, std::string> walk_order_cap(const SmithMicrosurface& surface, const ScatterOptions& worst_view,
-                                           double relative_target, const std::string& view_text) {
+// The roughest row of an albedo table (paths stay longest on the roughest surface), every mu: the cell whose
+// unfinished weight (plus two standard errors) is the largest share of its E.
+CapPilot table_cap_pilot(AlbedoTableRequest row) {
+  return [row](int cap) {
+    AlbedoTableRequest r = row;
+    r.max_order = cap;
+    const AlbedoTable t = albedo_table(r);
+    if (t.partial) throw Cancelled("plan: order-cap pilot");
+    CapProbe worst{cap, 0, 0};
+    for (std::size_t m = 0; m < t.mus.size(); ++m) {
+      Estimate u = t.cell("unfinished", 0, m);
+      // None left among n paths: the 95% upper bound is 3 / n (the rule of three), i.e. "2 standard errors".
+      if (u.value == 0) u.standard_error = 1.5 / double(r.paths);
+      const double e = std::max(t.cell("E", 0, m).value, 1e-300);
+      if ((u.value + 2 * u.standard_error) / e > worst.unfinished + 2 * worst.unfinished_se)
+        worst = {cap, u.value / e, u.standard_error / e};
+    }
+    return worst;
+  };
+}
+
+// Caps 4, 8, 16, ... probed until one leaves less than kBiasShare of the (relative) target on the surface;
+// the cap and its reason.
+std::pair<int, std::string> walk_order_cap(const CapPilot& pilot, double relative_target, const std::string& where) {
   std::vector<CapProbe> probes;
+  const double threshold = kBiasShare * relative_target;
   for (int cap = 4; cap <= kMaxOrderCap; cap *= 2) {
-    double albedo = 0;
-    probes.push_back(probe_cap(surface, worst_view, cap, &albedo));
-    const double threshold = kBiasShare * relative_target * albedo;
+    probes.push_back(pilot(cap));
     if (const auto chosen = order_cap_for(probes, threshold))
-      return {*chosen, fmt::format("at {} ({} paths), {} orders leave {:.2e} +- {:.1e} on the surface, below "
-                                   "{} x target x E = {:.2e}",
-                                   view_text, worst_view.paths, *chosen, probes.back().unfinished,
-                                   probes.back().unfinished_se, kBiasShare, threshold)};
+      return {*chosen, fmt::format("{}: {} orders leave {:.2e} +- {:.1e} of E on the surface (worst), below {} x "
+                                   "target = {:.2e}{}",
+                                   where, *chosen, probes.back().unfinished, probes.back().unfinished_se, kBiasShare,
+                                   threshold, probes.size() > 1 ? fmt::format("; {} orders left {:.2e}", probes[probes.size() - 2].cap, probes[probes.size() - 2].unfinished) : "")};
   }
-  return {kMaxOrderCap, fmt::format("no cap up to {} leaves less than {} x target on the surface at {}: the largest "
-                                    "cap, its bias reported", kMaxOrderCap, kBiasShare, view_text)};
+  return {kMaxOrderCap, fmt::format("{}: no cap up to {} leaves less than {} x target on the surface: the largest "
+                                    "cap, its bias reported", where, kMaxOrderCap, kBiasShare)};
 }
 
 // ---- albedo -------------------------------------------------------------------------------------------------
@@ -74,20 +103,14 @@ void plan_analytic_albedo(const ExperimentSpec& spec, const SpecQuantity& q, con
 }
 
 void plan_walk_albedo(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
-  const SpecMaterial& m = spec.material(q.material);
   const std::uint64_t seed = plan_seed(spec, o);
-  const double worst_alpha = m.alphas.back().first;  // increasing: the roughest keeps paths longest
-  const double worst_mu = gauss_legendre_mus(q.mus).mus.front();
-  ScatterOptions view;
-  view.wi = albedo_view(worst_mu, q.inside);
-  view.material = albedo_table_material(m);
-  view.paths = o.cap_pilot_paths;
-  view.seed = derived_seed(seed, kCapPilot, d.quantity);
-  view.rows = 1;
-  view.run = o.run;
+  const std::uint64_t cap_paths = std::max<std::uint64_t>(1024, o.cap_pilot_paths / std::uint64_t(q.mus));
+  AlbedoTableRequest row = albedo_request(spec, q, Model::smith_walk, cap_paths, 0, 0,
+                                          derived_seed(seed, kCapPilot, d.quantity), o.run);
+  row.alphas = {row.alphas.back()};  // increasing: the roughest
   std::tie(d.order_cap, d.cap_reason) =
-      walk_order_cap({m.ndf, worst_alpha, worst_alpha}, view, q.target,
-                     fmt::format("alpha {} mu {:.4f}", worst_alpha, worst_mu));
+      walk_order_cap(table_cap_pilot(row), q.target,
+                     fmt::format("alpha {}, {} mus, {} paths per cell", row.alphas.front(), q.mus, row.paths));
   const AlbedoTable t = albedo_table(albedo_request(spec, q, Model::smith_walk, o.pilot_paths, d.order_cap, 0,
                                                     derived_seed(seed, kTablePilot, d.quantity), o.run));
   if (t.partial) throw Cancelled("plan: albedo pilot");
@@ -152,8 +175,9 @@ void plan_scattering_view(const ExperimentSpec& spec, const SpecQuantity& q, con
     view.seed = derived_seed(plan_seed(spec, o), kCapPilot, d.quantity);
     view.rows = 1;
     view.run = o.run;
-    std::tie(d.order_cap, d.cap_reason) = walk_order_cap({m.ndf, d.alpha.first, d.alpha.second}, view, q.target,
-                                                         fmt::format("theta {}", d.view.theta_deg));
+    std::tie(d.order_cap, d.cap_reason) =
+        walk_order_cap(view_cap_pilot({m.ndf, d.alpha.first, d.alpha.second}, view), q.target,
+                       fmt::format("theta {} ({} paths)", d.view.theta_deg, view.paths));
   }
   d.count_reason = "the per-order TV count rule: a later session";
   d.not_runnable = "scattering runs: a later session";
