@@ -152,7 +152,9 @@ target_tv = 0.05
     return worst;
   };
   EXPECT_LT(worst_unfinished_at(walk.order_cap), kBiasShare * 0.01);
-  if (walk.order_cap >= 16) EXPECT_GT(worst_unfinished_at(walk.order_cap / 4), kBiasShare * 0.01 * 0.5);
+  if (walk.order_cap >= 16) {
+    EXPECT_GT(worst_unfinished_at(walk.order_cap / 4), kBiasShare * 0.01 * 0.5);
+  }
   EXPECT_GE(walk.units, 1u);
   EXPECT_GT(walk.predicted_seconds, 0);
   for (std::size_t i = 1; i < 3; ++i) {

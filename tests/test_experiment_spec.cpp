@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <ostream>
 #include <string>
 
 namespace {
@@ -101,6 +102,8 @@ struct BadSpec {
   std::string words;  // part of the message
 };
 
+std::ostream& operator<<(std::ostream& os, const BadSpec& c) { return os << c.name; }
+
 // A valid one-material, one-quantity spec with `material_extra` and `quantity_extra` appended to its tables.
 std::string spec_with(const std::string& material, const std::string& quantity) {
   return "name = \"t\"\n\n[[material]]\nname = \"m\"\n" + material + "\n\n[[quantity]]\n" + quantity + "\n";
@@ -168,7 +171,7 @@ INSTANTIATE_TEST_SUITE_P(
         BadSpec{"target_a_string", spec_with(kMirror, "kind = \"vndf\"\nmaterial = \"m\"\ntheta = [30]\ntarget_tv = \"small\""),
                 "quantity[0].target_tv", 12, "must be a number"},
         BadSpec{"no_quantity", "name = \"t\"\n[[material]]\nname = \"m\"\n" + kMirror + "\n", "quantity", 0, "missing"},
-        BadSpec{"syntax", spec_with(kMirror, kVndf) + "oops = [1, \n", "(syntax)", 14, ""}),
+        BadSpec{"syntax", spec_with(kMirror, kVndf) + "oops = [1, \n", "(syntax)", 13, ""}),
     [](const auto& info) { return info.param.name; });
 
 TEST(ExperimentSpec, JsonErrorsNameTheLineOfTheKey) {
