@@ -8,6 +8,7 @@
 #include <fmt/core.h>
 
 #include <algorithm>
+#include <cmath>
 #include <chrono>
 #include <functional>
 
@@ -65,6 +66,10 @@ CapPilot table_cap_pilot(AlbedoTableRequest row) {
   };
 }
 
+// Paths per cell or view with which "none left" bounds the bias below `threshold` with room: the rule of
+// three (3 / n) at half the threshold.
+std::uint64_t paths_to_bound_bias(double threshold) { return std::uint64_t(std::ceil(6.0 / threshold)); }
+
 // Caps 4, 8, 16, ... probed until one leaves less than kBiasShare of the (relative) target on the surface;
 // the cap and its reason.
 std::pair<int, std::string> walk_order_cap(const CapPilot& pilot, double relative_target, const std::string& where) {
@@ -104,7 +109,8 @@ void plan_analytic_albedo(const ExperimentSpec& spec, const SpecQuantity& q, con
 
 void plan_walk_albedo(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
   const std::uint64_t seed = plan_seed(spec, o);
-  const std::uint64_t cap_paths = std::max<std::uint64_t>(1024, o.cap_pilot_paths / std::uint64_t(q.mus));
+  const std::uint64_t cap_paths =
+      std::max(o.cap_pilot_paths / std::uint64_t(q.mus), paths_to_bound_bias(kBiasShare * q.target));
   AlbedoTableRequest row = albedo_request(spec, q, Model::smith_walk, cap_paths, 0, 0,
                                           derived_seed(seed, kCapPilot, d.quantity), o.run);
   row.alphas = {row.alphas.back()};  // increasing: the roughest
@@ -171,7 +177,7 @@ void plan_scattering_view(const ExperimentSpec& spec, const SpecQuantity& q, con
     ScatterOptions view;
     view.wi = direction_from_degrees(d.view.theta_deg, d.view.phi_deg);
     view.material = m.facet;
-    view.paths = o.cap_pilot_paths;
+    view.paths = std::max(o.cap_pilot_paths, paths_to_bound_bias(kBiasShare * q.target));
     view.seed = derived_seed(plan_seed(spec, o), kCapPilot, d.quantity);
     view.rows = 1;
     view.run = o.run;
