@@ -139,18 +139,16 @@ void run_vndf(const ExperimentSpec& spec, std::uint64_t seed, std::size_t index,
     req.run = o.run;
     const auto start = std::chrono::steady_clock::now();
     const EllipsoidVndf round = measure_ellipsoid_vndf(target, req);
-    if (round.trace.partial) {
-      m.partial = true;
-      break;
-    }
+    m.partial = round.trace.partial;  // cancelled: its completed blocks are a shorter run of that seed, kept
+    if (round.histogram.rays == 0) break;
     add_round(sum, unbinned, round);
     const EllipsoidVndf analysed = analyse_ellipsoid_vndf(sum, unbinned);
     m.achieved = vndf_noise_floor(analysed);
-    m.units += req.rays;
-    m.rays += req.rays;
-    m.rounds.push_back({req.rays, req.seed, 0, seconds_since(start), m.achieved});
+    m.units += round.histogram.rays;
+    m.rays += round.histogram.rays;
+    m.rounds.push_back({round.histogram.rays, req.seed, 0, seconds_since(start), m.achieved});
     record_vndf(m, analysed, round.expected_hit_fraction);
-    n = next_round_units(m.units, m.achieved, m.target);
+    n = m.partial ? 0 : next_round_units(m.units, m.achieved, m.target);
   }
   m.met = !m.rounds.empty() && m.achieved <= m.target;
 }

@@ -1,14 +1,15 @@
 // experiment: carrying out a plan (`microsim run`): every runnable decision in rounds until its target is met,
 // a sequential stop on the estimate's own error (never a fixed count):
 //   albedo, smith-walk  rounds of albedo tables, each from its own seed (derived_seed), pooled cell by cell
-//                       (pool_rounds); after each round the worst relative SE of the target quantity (E for
-//                       all orders) decides: met, or a next round of next_round_units paths per cell;
+//                       (pool_rounds); after each round the worst relative SE of the quantities the target
+//                       applies to (measures.h, albedo_target_applies) decides: met, or a next round of next_round_units paths per cell;
 //   albedo, analytic    the quadrature at the planned tolerance; if an error estimate still exceeds the
 //                       target, again 100 times tighter (the result replaces the last);
 //   vndf                rounds of ellipsoid-oracle rays, each from its own seed, their exact counts summed; the
 //                       TV noise floor of the sum decides (kNoiseShare of the target).
 // At most kMaxRounds rounds: a target not met then is reported as such (met = false), never hidden.
-// Cancellation (run.cancel): the round in progress is dropped, what the completed rounds measured is kept and
+// Cancellation (run.cancel): the round in progress is dropped (a VNDF round keeps its completed blocks, the
+// block runner's prefix: a shorter run of that seed), what the completed rounds measured is kept and
 // the results are marked partial. Same seed, same results, whatever the thread count (each round is a
 // block-runner call of its own seed; the round sizes follow from the results). Never prints.
 #pragma once
