@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <ostream>
 #include <string>
 
@@ -185,6 +186,17 @@ TEST(ExperimentSpec, JsonErrorsNameTheLineOfTheKey) {
     EXPECT_EQ(e.key(), "quantity[0].target_tv");
     EXPECT_EQ(e.line(), 5) << e.what();
   }
+}
+
+TEST(ExperimentSpec, TheExamplesAreGoodSpecs) {
+  const std::filesystem::path examples = std::filesystem::path(MICROSIM_TEST_DATA) / ".." / ".." / "examples";
+  int read = 0;
+  for (const auto& e : std::filesystem::directory_iterator(examples))
+    if (e.path().extension() == ".toml" || e.path().extension() == ".json") {
+      EXPECT_NO_THROW(load_spec(e.path())) << e.path();
+      ++read;
+    }
+  EXPECT_GE(read, 1);
 }
 
 TEST(ExperimentSpec, AnUnreadableFileIsASpecError) {
