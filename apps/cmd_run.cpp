@@ -37,6 +37,7 @@ struct RunArgs {
   std::string spec, out;
   std::uint64_t seed = 0;
   int threads = 0;
+  bool dry_run = false;
 };
 
 // The digest recorded in DIR/results.json, or "" when it has none that can be read.
@@ -103,6 +104,7 @@ int run_experiment_command(const RunArgs& a) {
   const experiment::ExperimentPlan plan = experiment::plan_experiment(spec, plan_options);  // Cancelled: nothing written
   progress->finish();
   print_plan_table(plan, spec);
+  if (a.dry_run) return kExitOk;  // the plan and its predicted time; nothing written
   experiment::RunOptions options;
   options.seed = a.seed;
   options.run = plan_options.run;
@@ -132,6 +134,7 @@ CommandRegistration reg{"run", [](CLI::App& app) {
       "130 interrupted (partial results written).");
   sub->add_option("SPEC", args->spec, "the experiment spec (.toml, or .json)")->required();
   sub->add_option("--out", args->out, "the results directory (created; empty, or holding this spec's results)")->required();
+  sub->add_flag("--dry-run", args->dry_run, "plan only (the pilots run): print the plan and its predicted time, write nothing");
   add_number_option(sub, "--seed", args->seed, whole(), "seed of the pilots and rounds (0: the spec's)")->default_str("0");
   add_number_option(sub, "--threads", args->threads, integer(0, kMaxThreads),
                     at_most("worker threads (0: all cores)", kMaxThreads))

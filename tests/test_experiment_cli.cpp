@@ -69,6 +69,10 @@ TEST(ExperimentCli, PlanPrintsOneDecisionPerMeasurement) {
   EXPECT_GE(plan["plan"]["decisions"][0]["order_cap"].get<int>(), 4);
   EXPECT_FALSE(plan["plan"]["decisions"][2]["model_reason"].get<std::string>().empty());
   EXPECT_EQ(run_cli(dir, "plan --help").exit_code, 0);
+  const auto dry = run_cli(dir, "run tiny.toml --out dry --dry-run");  // the plan, nothing written
+  EXPECT_EQ(dry.exit_code, 0) << dry.err;
+  EXPECT_NE(dry.out.find("predicted total"), std::string::npos);
+  EXPECT_FALSE(fs::exists(dir / "dry"));
   fs::remove_all(dir);
 }
 
