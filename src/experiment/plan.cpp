@@ -167,7 +167,9 @@ void plan_vndf_view(const ExperimentSpec& spec, const SpecQuantity& q, const Pla
   d.unit = "rays";
   d.count_reason = fmt::format("pilot of {} rays: TV noise floor {:.2e} ~ 1/sqrt(n); resolving TV {} needs a floor "
                                "<= {} x {} (rows {})", o.pilot_rays, d.pilot_error, q.target, kNoiseShare, q.target, q.rows);
-  d.predicted_seconds = predicted_seconds(d.units, d.pilot_units, d.pilot_seconds);
+  // The tracing loop scales with the rays; the rest (the scene, the reference's cubature) is paid once.
+  const double overhead = std::max(0.0, d.pilot_seconds - m.trace.seconds);
+  d.predicted_seconds = overhead + predicted_seconds(d.units, d.pilot_units, m.trace.seconds);
   d.runnable = true;
 }
 
