@@ -142,7 +142,8 @@ void run_vndf(const ExperimentSpec& spec, std::uint64_t seed, std::size_t index,
     m.partial = round.trace.partial;  // cancelled: its completed blocks are a shorter run of that seed, kept
     if (round.histogram.rays == 0) break;
     add_round(sum, unbinned, round);
-    const EllipsoidVndf analysed = analyse_ellipsoid_vndf(sum, unbinned);
+    // One round: its own analysis is the sum's (the reference's cubature is not paid twice).
+    const EllipsoidVndf analysed = m.rounds.empty() ? round : analyse_ellipsoid_vndf(sum, unbinned);
     m.achieved = vndf_noise_floor(analysed);
     m.units += round.histogram.rays;
     m.rays += round.histogram.rays;
