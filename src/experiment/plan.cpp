@@ -217,6 +217,7 @@ void plan_views(const ExperimentSpec& spec, std::size_t index, const PlanOptions
                             v.theta_deg, v.phi_deg);
       d.model = choose_model(q, m);
       if (d.model.model == Model::heightfield) {
+        d.count_reason = "the heightfield's resolution, tile and rays from the trade tables: a later session";
         d.not_runnable = "explicit heightfields (resolution from the trade tables): a later session";
       } else if (q.kind == QuantityKind::vndf) {
         plan_vndf_view(spec, q, o, d);
