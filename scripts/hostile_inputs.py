@@ -104,6 +104,30 @@ def set_data_window(w, h):
     return edit
 
 
+# Bad experiment specs (docs/experiments.md): name -> (TOML text, the key the message must name). Each is
+# tried with `plan` and `run --out out` (nothing may be run or created).
+SPEC_MATERIAL = '[[material]]\nname = "m"\nalpha = 0.3\ntype = "mirror"\n'
+SPEC_VNDF = '[[quantity]]\nkind = "vndf"\nmaterial = "m"\ntheta = [30]\ntarget_tv = 0.05\n'
+BAD_SPECS = {
+    "spec_syntax": (SPEC_MATERIAL + "[[quantity]\n", "(syntax)"),
+    "spec_unknown_key": (SPEC_MATERIAL + SPEC_VNDF + "rays = 5\n", "quantity[0].rays"),
+    "spec_target_zero": (SPEC_MATERIAL + SPEC_VNDF.replace("0.05", "0"), "quantity[0].target_tv"),
+    "spec_target_nan": (SPEC_MATERIAL + SPEC_VNDF.replace("0.05", "nan"), "quantity[0].target_tv"),
+    "spec_unknown_material": (SPEC_MATERIAL + SPEC_VNDF.replace('"m"\ntheta', '"gold"\ntheta'), "quantity[0].material"),
+    "spec_below_horizon": (SPEC_MATERIAL + SPEC_VNDF.replace("[30]", "[30, 120]"), "quantity[0].theta"),
+    "spec_alpha_huge": (SPEC_MATERIAL.replace("0.3", "1e300") + SPEC_VNDF, "material[0].alpha"),
+    "spec_seed_negative": ("seed = -1\n" + SPEC_MATERIAL + SPEC_VNDF, "seed"),
+    "spec_no_quantity": (SPEC_MATERIAL, "quantity"),
+    "spec_huge_token": (SPEC_MATERIAL + SPEC_VNDF.replace('"vndf"', '"' + "v" * 100000 + '"'), "quantity[0].kind"),
+}
+
+
+def write_spec_fixtures(w):
+    for name, (text, _) in BAD_SPECS.items():
+        w(name + ".toml", text.encode())
+    w("spec_binary.toml", bytes(range(256)) * 4)
+
+
 def make_fixtures(binary, fixtures):
     """Valid inputs made by microsim itself, and broken variants of them."""
     os.makedirs(fixtures, exist_ok=True)
@@ -114,6 +138,7 @@ def make_fixtures(binary, fixtures):
     run("trace", "vndf", "--surface", "ellipsoid", "--alpha", "0.3", "--theta", "30", "--rays", "200000",
         "--out", "hist.exr")
     w = lambda name, data: open(os.path.join(fixtures, name), "wb").write(data)
+    write_spec_fixtures(w)
     good = unit_vectors(20000)
     w("good.npy", npy_bytes(good))
     w("good.txt", "\n".join("%r %r %r" % tuple(r) for r in good).encode())
@@ -276,6 +301,10 @@ for f in ["text_empty", "text_one_line", "text_two_cols", "text_four_cols", "tex
           "text_huge_token", "text_huge_garbage", "text_not_unit", "text_trailing_comma", "text_hex",
           "text_overflow", "text_nul"]:
     FILES.append(("validate --from %s.txt --alpha 0.3 --theta 30" % f, f))
+for f, (_, key) in BAD_SPECS.items():
+    FILES += [("plan %s.toml" % f, key), ("run %s.toml --out out" % f, key)]
+FILES += [("plan spec_binary.toml", "spec_binary.toml"), ("plan missing_spec.toml", "missing_spec.toml"),
+          ("run spec_unknown_key.toml", "--out")]
 FILES += [("validate --from missing.npy --alpha 0.3 --theta 30", "missing"),
           ("validate --from . --alpha 0.3 --theta 30", "."),
           ("validate --from /dev/null --alpha 0.3 --theta 30", "/dev/null")]

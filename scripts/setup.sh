@@ -11,6 +11,7 @@ packages=(
   libembree-dev libopenmesh-dev libeigen3-dev libopenexr-dev
   libtbb-dev libcli11-dev nlohmann-json3-dev libboost-math-dev libfmt-dev
   libfftw3-dev libhwy-dev     # libhwy-dev: Google Highway, portable SIMD (src/stats/direction_binner.cpp)
+  libtomlplusplus-dev         # toml++: experiment specs (src/experiment/spec_toml.cpp)
   libgtest-dev libgmock-dev libbenchmark-dev
   clang libclang-rt-14-dev   # the fuzzing gate (scripts/fuzz.sh): libFuzzer
   python3-numpy              # scripts/hostile_inputs.py (/usr/bin/python3)

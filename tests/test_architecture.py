@@ -17,8 +17,11 @@ GRAPH = {
     "validate": ("src/validate", {"core", "microgeom", "microfacet", "stats", "trace"}),
     "scatter": ("src/scatter", {"core", "microgeom", "microfacet", "stats", "trace"}),
     "measure": ("src/measure", {"core", "microgeom", "microfacet", "stats", "trace", "validate", "scatter"}),
+    "experiment": ("src/experiment",
+                   {"core", "microgeom", "microfacet", "stats", "trace", "validate", "scatter", "measure"}),
     # the Python module (pybind11): a front end beside apps/, over the same library
-    "python": ("src/python", {"core", "microgeom", "microfacet", "stats", "trace", "validate", "scatter", "measure"}),
+    "python": ("src/python", {"core", "microgeom", "microfacet", "stats", "trace", "validate", "scatter", "measure",
+                              "experiment"}),
 }
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([a-z_]+)/[^"]+"', re.M)
 

@@ -1,0 +1,69 @@
+#include "experiment_report.h"
+
+#include <fmt/core.h>
+
+#include <cstdio>
+
+namespace microsim::app {
+namespace {
+
+std::string units_text(const experiment::Decision& d) {
+  if (d.units == 0) return d.unit.empty() ? "-" : "?";
+  return fmt::format("{} {}", d.units, d.unit);
+}
+
+std::string seconds_text(double s) { return s > 0 ? fmt::format("{:.3g} s", s) : "-"; }
+
+}  // namespace
+
+void print_plan_table(const experiment::ExperimentPlan& plan, const experiment::ExperimentSpec& spec) {
+  fmt::print("plan of {} ({} measurements; pilots took {:.3g} s)\n\n", spec.name, plan.decisions.size(),
+             plan.pilot_seconds);
+  fmt::print("| # | measurement | model | count | order cap | predicted | runnable |\n|---|---|---|---|---|---|---|\n");
+  for (std::size_t i = 0; i < plan.decisions.size(); ++i) {
+    const experiment::Decision& d = plan.decisions[i];
+    fmt::print("| {} | {} | {} | {} | {} | {} | {} |\n", i, d.label, to_string(d.model.model), units_text(d),
+               d.order_cap > 0 ? std::to_string(d.order_cap) : "-", seconds_text(d.predicted_seconds),
+               d.runnable ? "yes" : "no");
+  }
+  fmt::print("\npredicted total: {}\n\nreasons:\n", seconds_text(plan.predicted_seconds));
+  for (std::size_t i = 0; i < plan.decisions.size(); ++i) {
+    const experiment::Decision& d = plan.decisions[i];
+    fmt::print("  [{}] model: {}\n      count: {}\n", i, d.model.reason, d.count_reason);
+    if (!d.cap_reason.empty()) fmt::print("      order cap: {}\n", d.cap_reason);
+    if (!d.runnable) fmt::print("      not run: {}\n", d.not_runnable);
+  }
+}
+
+void print_results_table(const experiment::ExperimentResults& results) {
+  fmt::print("\n| # | measurement | model | target | achieved | met | rounds | units | seconds |\n"
+             "|---|---|---|---|---|---|---|---|---|\n");
+  for (std::size_t i = 0; i < results.measurements.size(); ++i) {
+    const experiment::MeasurementResult& m = results.measurements[i];
+    if (!m.ran) {
+      fmt::print("| {} | {} | {} | - | - | not run | - | - | - |\n", i, m.decision.label, to_string(m.decision.model.model));
+      continue;
+    }
+    fmt::print("| {} | {} | {} | {:.3g} | {:.3g} | {}{} | {} | {} | {:.3g} |\n", i, m.decision.label,
+               to_string(m.decision.model.model), m.target, m.achieved, m.met ? "yes" : "NO",
+               m.partial ? " (partial)" : "", m.rounds.size(), m.units, m.seconds);
+  }
+}
+
+void print_measurement_line(const experiment::MeasurementResult& m) {
+  if (!m.ran) {
+    fmt::print(stderr, "run: {}: not run ({})\n", m.decision.label, m.decision.not_runnable);
+    return;
+  }
+  fmt::print(stderr, "run: {}: {} after {} round(s), achieved {:.3g} (target {:.3g}), {:.3g} s{}\n", m.decision.label,
+             m.met ? "met" : "NOT met", m.rounds.size(), m.achieved, m.target, m.seconds, m.partial ? ", partial" : "");
+}
+
+nlohmann::json spec_identity_json(const experiment::ExperimentSpec& spec) {
+  return {{"name", spec.name},
+          {"source", spec.source},
+          {"digest", experiment::spec_digest(spec)},
+          {"canonical", nlohmann::json::parse(experiment::canonical_spec(spec))}};
+}
+
+}  // namespace microsim::app

@@ -1,0 +1,38 @@
+// experiment: the library calls behind a decision, shared by the planner's pilots and the runs: the albedo
+// table request of a spec quantity (scatter/albedo_table.h), the ellipsoid VNDF measurement of a view
+// (measure/vndf.h), and the errors the targets are stated in.
+#pragma once
+
+#include "experiment/plan.h"
+#include "measure/vndf.h"
+#include "scatter/albedo_table.h"
+
+#include <string_view>
+
+namespace microsim::experiment {
+
+// The facet material of an albedo table: a conductor's is the mirror (Kulla & Conty 2017 tabulate E(mu)
+// for F = 1), mirror and dielectric their own.
+Material albedo_table_material(const SpecMaterial& material);
+
+// Whether a target applies to a quantity of an albedo table: orders single, the single-scattering albedos
+// (E1, E1_R, E1_T); all orders, every albedo the table holds (E, E_R, E_T and the walk's E1s), not the
+// unfinished or lost weight.
+bool albedo_target_applies(const SpecQuantity& quantity, std::string_view table_quantity);
+std::string albedo_target_text(const SpecQuantity& quantity);  // "E1*" or "E*"
+
+// The request of an albedo quantity (model: the decision's; analytic: tolerance; walk: paths, cap, seed).
+AlbedoTableRequest albedo_request(const ExperimentSpec& spec, const SpecQuantity& quantity, Model model,
+                                  std::uint64_t paths, int max_order, double tolerance, std::uint64_t seed,
+                                  const RunControl& run);
+
+// The largest relative error (error / value) over the cells and E_avg of the quantities of a table the target
+// applies to; an infinite one when a value is 0 with a non-zero error.
+double worst_relative_error(const AlbedoTable& table, const SpecQuantity& quantity);
+
+// The largest TV noise floor over the binnings of a VNDF measurement (validate/compare.h noise_floor_tv).
+double vndf_noise_floor(const EllipsoidVndf& measurement);
+// The largest measured TV against the analytic D_v over its binnings.
+double vndf_total_variation(const EllipsoidVndf& measurement);
+
+}  // namespace microsim::experiment

@@ -1,0 +1,250 @@
+// experiment: plan_experiment: the pilots behind the decisions (plan.h).
+#include "experiment/measures.h"
+#include "experiment/plan.h"
+
+#include "scatter/smith_walk.h"
+#include "stats/binning.h"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <cmath>
+#include <chrono>
+#include <functional>
+
+namespace microsim::experiment {
+namespace {
+
+enum SeedPurpose : std::uint64_t { kCapPilot = 1, kTablePilot = 2, kVndfPilot = 3 };
+
+std::uint64_t plan_seed(const ExperimentSpec& spec, const PlanOptions& options) {
+  return options.seed != 0 ? options.seed : spec.seed;
+}
+
+std::string alpha_text(const std::pair<double, double>& a) {
+  return a.first == a.second ? fmt::format("{}", a.first) : fmt::format("{},{}", a.first, a.second);
+}
+
+// ---- the walk's order cap -----------------------------------------------------------------------------------
+
+// A pilot of the walk at one cap: the weight left on the surface relative to the albedo, at the cell or view
+// where that is largest.
+using CapPilot = std::function<CapProbe(int cap)>;
+
+// The walk of one view (a scattering measurement).
+CapPilot view_cap_pilot(const SmithMicrosurface& surface, const ScatterOptions& view) {
+  return [surface, view](int cap) {
+    ScatterOptions o = view;
+    o.max_order = cap;
+    const ScatterHistogram h = smith_walk_scatter(surface, o);
+    if (h.partial) throw Cancelled("plan: order-cap pilot");
+    const double albedo = std::max(h.albedo(0, -1).value, 1e-300);
+    Estimate u = h.unfinished(0);
+    if (u.value == 0) u.standard_error = 1.5 / double(o.paths);  // none left: the rule of three
+    return CapProbe{cap, u.value / albedo, u.standard_error / albedo};
+  };
+}
+
+// The roughest row of an albedo table (paths stay longest on the roughest surface), every mu: the cell whose
+// unfinished weight (plus two standard errors) is the largest share of its E.
+CapPilot table_cap_pilot(AlbedoTableRequest row) {
+  return [row](int cap) {
+    AlbedoTableRequest r = row;
+    r.max_order = cap;
+    const AlbedoTable t = albedo_table(r);
+    if (t.partial) throw Cancelled("plan: order-cap pilot");
+    CapProbe worst{cap, 0, 0};
+    for (std::size_t m = 0; m < t.mus.size(); ++m) {
+      Estimate u = t.cell("unfinished", 0, m);
+      // None left among n paths: the 95% upper bound is 3 / n (the rule of three), i.e. "2 standard errors".
+      if (u.value == 0) u.standard_error = 1.5 / double(r.paths);
+      const double e = std::max(t.cell("E", 0, m).value, 1e-300);
+      if ((u.value + 2 * u.standard_error) / e > worst.unfinished + 2 * worst.unfinished_se)
+        worst = {cap, u.value / e, u.standard_error / e};
+    }
+    return worst;
+  };
+}
+
+// Paths per cell or view with which "none left" bounds the bias below `threshold` with room: the rule of
+// three (3 / n) at half the threshold.
+std::uint64_t paths_to_bound_bias(double threshold) { return std::uint64_t(std::ceil(6.0 / threshold)); }
+
+// Caps 4, 8, 16, ... probed until one leaves less than kBiasShare of the (relative) target on the surface;
+// the cap and its reason.
+std::pair<int, std::string> walk_order_cap(const CapPilot& pilot, double relative_target, const std::string& where) {
+  std::vector<CapProbe> probes;
+  const double threshold = kBiasShare * relative_target;
+  for (int cap = 4; cap <= kMaxOrderCap; cap *= 2) {
+    probes.push_back(pilot(cap));
+    if (const auto chosen = order_cap_for(probes, threshold))
+      return {*chosen, fmt::format("{}: {} orders leave {:.2e} +- {:.1e} of E on the surface (worst), below {} x "
+                                   "target = {:.2e}{}",
+                                   where, *chosen, probes.back().unfinished, probes.back().unfinished_se, kBiasShare,
+                                   threshold, probes.size() > 1 ? fmt::format("; {} orders left {:.2e}", probes[probes.size() - 2].cap, probes[probes.size() - 2].unfinished) : "")};
+  }
+  return {kMaxOrderCap, fmt::format("{}: no cap up to {} leaves less than {} x target on the surface: the largest "
+                                    "cap, its bias reported", where, kMaxOrderCap, kBiasShare)};
+}
+
+// ---- albedo -------------------------------------------------------------------------------------------------
+
+void plan_analytic_albedo(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
+  // The quadrature's error estimate per cell, absolute: 1e-3 of the relative target keeps it below the target
+  // for every E >= 1e-3 (a GGX mirror's E1 is above 0.05 on the table's range).
+  d.tolerance = std::clamp(1e-3 * q.target, 1e-13, 1e-2);
+  d.count_reason = fmt::format("deterministic: quadrature to {:.0e} absolute per cell (1e-3 x target); rerun "
+                               "tighter if an error estimate exceeds the target", d.tolerance);
+  AlbedoTableRequest pilot = albedo_request(spec, q, Model::analytic, 1, 0, d.tolerance, 1, o.run);
+  const std::size_t rows = pilot.alphas.size();
+  pilot.alphas = {pilot.alphas.front()};
+  const AlbedoTable t = albedo_table(pilot);
+  if (t.partial) throw Cancelled("plan: albedo pilot");
+  d.pilot_units = 1;
+  d.pilot_seconds = t.seconds;
+  d.pilot_error = worst_relative_error(t, q);
+  d.predicted_seconds = t.seconds * double(rows);
+  d.unit = "";
+}
+
+void plan_walk_albedo(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
+  const std::uint64_t seed = plan_seed(spec, o);
+  const std::uint64_t cap_paths =
+      std::max(o.cap_pilot_paths / std::uint64_t(q.mus), paths_to_bound_bias(kBiasShare * q.target));
+  AlbedoTableRequest row = albedo_request(spec, q, Model::smith_walk, cap_paths, 0, 0,
+                                          derived_seed(seed, kCapPilot, d.quantity), o.run);
+  row.alphas = {row.alphas.back()};  // increasing: the roughest
+  std::tie(d.order_cap, d.cap_reason) =
+      walk_order_cap(table_cap_pilot(row), q.target,
+                     fmt::format("alpha {}, {} mus, {} paths per cell", row.alphas.front(), q.mus, row.paths));
+  const AlbedoTable t = albedo_table(albedo_request(spec, q, Model::smith_walk, o.pilot_paths, d.order_cap, 0,
+                                                    derived_seed(seed, kTablePilot, d.quantity), o.run));
+  if (t.partial) throw Cancelled("plan: albedo pilot");
+  d.pilot_units = o.pilot_paths;
+  d.pilot_seconds = t.seconds;
+  d.pilot_error = worst_relative_error(t, q);
+  d.units = units_for_standard_error(o.pilot_paths, d.pilot_error, q.target);
+  d.unit = "paths per cell";
+  d.count_reason = fmt::format("pilot of {} paths per cell: worst relative SE of {} {:.2e}; n = {} x ({:.2e} / {:.0e})^2",
+                               o.pilot_paths, albedo_target_text(q), d.pilot_error, o.pilot_paths, d.pilot_error,
+                               q.target);
+  d.predicted_seconds = predicted_seconds(d.units, d.pilot_units, d.pilot_seconds);
+}
+
+Decision plan_albedo(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o) {
+  const SpecQuantity& q = spec.quantities[index];
+  const SpecMaterial& m = spec.material(q.material);
+  Decision d;
+  d.quantity = index;
+  d.label = fmt::format("{} albedo {} ({} alphas x {} mus{})", q.key, m.name, m.alphas.size(), q.mus,
+                        q.inside ? ", inside" : "");
+  d.model = choose_model(q, m);
+  if (d.model.model == Model::analytic) plan_analytic_albedo(spec, q, o, d);
+  if (d.model.model == Model::smith_walk) plan_walk_albedo(spec, q, o, d);
+  d.runnable = d.model.model == Model::analytic || d.model.model == Model::smith_walk;
+  if (!d.runnable) d.not_runnable = "an explicit surface's albedo table: a later session";
+  return d;
+}
+
+// ---- per view: vndf, scattering, validation ---------------------------------------------------------------
+
+void plan_vndf_view(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
+  const EllipsoidTarget target(d.alpha.first, d.alpha.second, -1);
+  VndfRequest r;
+  r.theta_deg = d.view.theta_deg;
+  r.phi_deg = d.view.phi_deg;
+  r.rays = o.pilot_rays;
+  r.seed = derived_seed(plan_seed(spec, o), kVndfPilot, d.quantity);
+  r.rows = q.rows;
+  r.run = o.run;
+  const auto start = std::chrono::steady_clock::now();
+  const EllipsoidVndf m = measure_ellipsoid_vndf(target, r);
+  if (m.trace.partial) throw Cancelled("plan: vndf pilot");
+  d.pilot_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  d.pilot_units = o.pilot_rays;
+  d.pilot_error = vndf_noise_floor(m);
+  d.units = units_for_standard_error(o.pilot_rays, d.pilot_error, kNoiseShare * q.target);
+  d.unit = "rays";
+  d.count_reason = fmt::format("pilot of {} rays: TV noise floor {:.2e} ~ 1/sqrt(n); resolving TV {} needs a floor "
+                               "<= {} x {} (rows {})", o.pilot_rays, d.pilot_error, q.target, kNoiseShare, q.target, q.rows);
+  // The tracing loop scales with the rays; the rest (the scene, the reference's cubature) is paid once.
+  const double overhead = std::max(0.0, d.pilot_seconds - m.trace.seconds);
+  d.predicted_seconds = overhead + predicted_seconds(d.units, d.pilot_units, m.trace.seconds);
+  d.runnable = true;
+}
+
+void plan_scattering_view(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
+  if (d.model.model == Model::smith_walk) {
+    const SpecMaterial& m = spec.material(q.material);
+    ScatterOptions view;
+    view.wi = direction_from_degrees(d.view.theta_deg, d.view.phi_deg);
+    view.material = m.facet;
+    view.paths = std::max(o.cap_pilot_paths, paths_to_bound_bias(kBiasShare * q.target));
+    view.seed = derived_seed(plan_seed(spec, o), kCapPilot, d.quantity);
+    view.rows = 1;
+    view.run = o.run;
+    std::tie(d.order_cap, d.cap_reason) =
+        walk_order_cap(view_cap_pilot({m.ndf, d.alpha.first, d.alpha.second}, view), q.target,
+                       fmt::format("theta {} ({} paths)", d.view.theta_deg, view.paths));
+  }
+  d.count_reason = "the per-order TV count rule: a later session";
+  d.not_runnable = "scattering runs: a later session";
+}
+
+void plan_validation_view(const SpecQuantity& q, Decision& d) {
+  // The validator's sphere binning (2 rows^2 bins) and lobe binning (as many), Sidak-combined: each test at
+  // 1 - (1 - significance)^(1/2).
+  const int df = 2 * q.rows * q.rows - 1;
+  const double per_test = 1 - std::sqrt(1 - q.significance);
+  d.units = validation_samples(q.target, df, per_test, q.power);
+  d.unit = "samples";
+  d.count_reason = fmt::format("chi-square power: df {}, level {:.3g} per binning (Sidak of {}), power {} against any "
+                               "deviation of TV {} (noncentrality >= 4 N TV^2)", df, per_test, q.significance, q.power,
+                               q.target);
+  d.not_runnable = "validation runs: a later session";
+}
+
+void plan_views(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, std::vector<Decision>& out) {
+  const SpecQuantity& q = spec.quantities[index];
+  const SpecMaterial& m = spec.material(q.material);
+  for (const auto& alpha : m.alphas)
+    for (const Direction& v : q.directions) {
+      Decision d;
+      d.quantity = index;
+      d.alpha = alpha;
+      d.view = v;
+      d.label = fmt::format("{} {} {} alpha {} theta {} phi {}", q.key, to_string(q.kind), m.name, alpha_text(alpha),
+                            v.theta_deg, v.phi_deg);
+      d.model = choose_model(q, m);
+      if (d.model.model == Model::heightfield) {
+        d.count_reason = "the heightfield's resolution, tile and rays from the trade tables: a later session";
+        d.not_runnable = "explicit heightfields (resolution from the trade tables): a later session";
+      } else if (q.kind == QuantityKind::vndf) {
+        plan_vndf_view(spec, q, o, d);
+      } else if (q.kind == QuantityKind::scattering) {
+        plan_scattering_view(spec, q, o, d);
+      } else {
+        plan_validation_view(q, d);
+      }
+      out.push_back(std::move(d));
+    }
+}
+
+}  // namespace
+
+ExperimentPlan plan_experiment(const ExperimentSpec& spec, const PlanOptions& options) {
+  ExperimentPlan plan;
+  const auto start = std::chrono::steady_clock::now();
+  for (std::size_t i = 0; i < spec.quantities.size(); ++i) {
+    if (options.run.cancelled()) throw Cancelled("plan");
+    if (spec.quantities[i].kind == QuantityKind::albedo)
+      plan.decisions.push_back(plan_albedo(spec, i, options));
+    else
+      plan_views(spec, i, options, plan.decisions);
+  }
+  plan.pilot_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  for (const Decision& d : plan.decisions) plan.predicted_seconds += d.predicted_seconds;
+  return plan;
+}
+
+}  // namespace microsim::experiment

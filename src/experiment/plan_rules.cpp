@@ -1,0 +1,112 @@
+// experiment: the planner's decision rules, as pure functions (plan.h).
+#include "experiment/plan.h"
+
+#include "core/random.h"
+
+#include <boost/math/distributions/chi_squared.hpp>
+#include <boost/math/distributions/non_central_chi_squared.hpp>
+#include <fmt/core.h>
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace microsim::experiment {
+
+std::string to_string(Model model) {
+  switch (model) {
+    case Model::analytic: return "analytic";
+    case Model::ellipsoid_oracle: return "ellipsoid-oracle";
+    case Model::smith_walk: return "smith-walk";
+    case Model::heightfield: return "heightfield";
+    case Model::analytic_validator: return "analytic-validator";
+  }
+  return "?";
+}
+
+namespace {
+
+ModelChoice explicit_surface_choice(const SpecQuantity& q) {
+  const std::string what = q.surface.kind == SurfaceChoice::Kind::assembly ? "assembly " + q.surface.name
+                                                                            : "heightmap " + q.surface.name;
+  return {Model::heightfield, fmt::format("the spec names a surface ({}): its own effects (conditional masking, "
+                                          "its multiple scattering, the assembly's correlations) are only in the "
+                                          "explicit heightfield",
+                                          what)};
+}
+
+ModelChoice albedo_or_scattering_choice(const SpecQuantity& q, const SpecMaterial& m) {
+  const std::string fresnel =
+      q.kind == QuantityKind::albedo && m.facet.kind() == MaterialKind::conductor
+          ? "; a conductor's table is the mirror's (Kulla & Conty 2017: E(mu) for F = 1, the Fresnel enters through F_avg)"
+          : "";
+  if (q.orders == Orders::single)
+    return {Model::analytic, "single scattering on the Smith microsurface has a closed form (Walter et al. 2007 with "
+                             "Smith masking): integrated by quadrature, no noise, no explicit surface needed" + fresnel};
+  return {Model::smith_walk, "multiple scattering in the Smith model: the Smith random walk (Heitz et al. 2016) is "
+                             "that model exactly, with no surface to build or trace" + fresnel};
+}
+
+}  // namespace
+
+ModelChoice choose_model(const SpecQuantity& q, const SpecMaterial& m) {
+  if (q.surface.kind != SurfaceChoice::Kind::automatic) return explicit_surface_choice(q);
+  switch (q.kind) {
+    case QuantityKind::vndf:
+      return {Model::ellipsoid_oracle, "a measured VNDF histogram: the exact ellipsoid oracle (Heitz 2018: the "
+                                       "visible normals of the convex GGX ellipsoid are D_v exactly; only Monte "
+                                       "Carlo noise, no heightfield bias)"};
+    case QuantityKind::validation:
+      return {Model::analytic_validator, "a zoo sampler against the pdf it claims: the analytic reference by "
+                                         "cubature (no tracing needed to know D_v)"};
+    case QuantityKind::albedo:
+    case QuantityKind::scattering: return albedo_or_scattering_choice(q, m);
+  }
+  return {};
+}
+
+std::uint64_t units_for_standard_error(std::uint64_t pilot_units, double pilot_se, double target_se) {
+  if (!(target_se > 0)) throw std::invalid_argument(fmt::format("target standard error {} must be > 0", target_se));
+  if (pilot_units == 0) throw std::invalid_argument("a pilot of 0 units");
+  if (!(pilot_se > 0)) return pilot_units;
+  const double ratio = pilot_se / target_se;
+  const double n = std::ceil(double(pilot_units) * ratio * ratio);
+  const double cap = double(std::numeric_limits<std::uint64_t>::max() / 2);
+  return n >= cap ? std::uint64_t(cap) : std::max<std::uint64_t>(1, std::uint64_t(n));
+}
+
+std::uint64_t next_round_units(std::uint64_t done, double achieved, double target) {
+  if (achieved <= target || done == 0) return 0;
+  const std::uint64_t needed = units_for_standard_error(done, achieved, target);
+  const double more = std::ceil(double(needed - std::min(needed, done)) * kRoundMargin);
+  return std::max<std::uint64_t>(std::uint64_t(more), std::max<std::uint64_t>(1, done / 4));
+}
+
+std::optional<int> order_cap_for(const std::vector<CapProbe>& probes, double threshold) {
+  for (const CapProbe& p : probes)
+    if (p.unfinished + 2 * p.unfinished_se < threshold) return p.cap;
+  return std::nullopt;
+}
+
+std::uint64_t validation_samples(double detect_tv, int degrees_of_freedom, double significance, double power) {
+  if (!(detect_tv > 0 && detect_tv < 1) || degrees_of_freedom < 1 || !(significance > 0 && significance < 1) ||
+      !(power > significance && power < 1))
+    throw std::invalid_argument(fmt::format("validation_samples: tv {}, df {}, significance {}, power {}", detect_tv,
+                                            degrees_of_freedom, significance, power));
+  const double df = degrees_of_freedom;
+  const double critical = boost::math::quantile(boost::math::complement(boost::math::chi_squared(df), significance));
+  // The noncentrality at which P(X > critical) = power: the miss probability 1 - power at the critical value.
+  const double lambda = boost::math::non_central_chi_squared::find_non_centrality(df, critical, 1 - power);
+  return std::uint64_t(std::ceil(lambda / (4 * detect_tv * detect_tv)));
+}
+
+double predicted_seconds(std::uint64_t units, std::uint64_t pilot_units, double pilot_seconds) {
+  if (pilot_units == 0 || !(pilot_seconds > 0)) return 0;
+  return pilot_seconds * double(units) / double(pilot_units);
+}
+
+std::uint64_t derived_seed(std::uint64_t seed, std::uint64_t purpose, std::uint64_t index) {
+  return CounterRng(seed, mix64(purpose * 0x9e3779b97f4a7c15ULL + index)).next_u64();
+}
+
+}  // namespace microsim::experiment

@@ -1,0 +1,76 @@
+// experiment: carrying out a plan (`microsim run`): every runnable decision in rounds until its target is met,
+// a sequential stop on the estimate's own error (never a fixed count):
+//   albedo, smith-walk  rounds of albedo tables, each from its own seed (derived_seed), pooled cell by cell
+//                       (pool_rounds); after each round the worst relative SE of the quantities the target
+//                       applies to (measures.h, albedo_target_applies) decides: met, or a next round of next_round_units paths per cell;
+//   albedo, analytic    the quadrature at the planned tolerance; if an error estimate still exceeds the
+//                       target, again 100 times tighter (the result replaces the last);
+//   vndf                rounds of ellipsoid-oracle rays, each from its own seed, their exact counts summed; the
+//                       TV noise floor of the sum decides (kNoiseShare of the target).
+// At most kMaxRounds rounds: a target not met then is reported as such (met = false), never hidden.
+// Cancellation (run.cancel): the round in progress is dropped (a VNDF round keeps its completed blocks, the
+// block runner's prefix: a shorter run of that seed), what the completed rounds measured is kept and
+// the results are marked partial. Same seed, same results, whatever the thread count (each round is a
+// block-runner call of its own seed; the round sizes follow from the results). Never prints.
+#pragma once
+
+#include "core/estimate.h"
+#include "experiment/plan.h"
+
+#include <nlohmann/json.hpp>
+
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace microsim::experiment {
+
+struct RoundRecord {
+  std::uint64_t units = 0;  // paths per cell, rays; 0 for a deterministic round
+  std::uint64_t seed = 0;
+  double tolerance = 0;     // analytic rounds
+  double seconds = 0;
+  double achieved = 0;      // the error after this round, in the target's unit
+};
+
+struct MeasurementResult {
+  Decision decision;
+  double target = 0;            // in the unit of `achieved`: relative SE, or the TV noise floor to reach
+  std::string error_measure;    // what `achieved` is
+  double achieved = 0;
+  bool met = false;
+  bool ran = false;             // false: not runnable in this version (decision.not_runnable says why)
+  bool partial = false;         // cancelled during its rounds
+  std::vector<RoundRecord> rounds;
+  std::uint64_t units = 0;      // summed over the rounds (paths per cell, rays)
+  std::uint64_t rays = 0;       // every ray or path traced or walked (albedo: units x cells)
+  double seconds = 0;
+  nlohmann::json values;        // what was measured (an albedo table, a VNDF analysis)
+  std::string csv;              // albedo: the table as CSV (scatter/albedo_table_io.h), else ""
+};
+
+struct ExperimentResults {
+  std::vector<MeasurementResult> measurements;
+  bool partial = false;
+  double seconds = 0;
+};
+
+struct RunOptions {
+  std::uint64_t seed = 0;  // 0: the spec's
+  RunControl run;
+  // Called after each measurement (complete, partial or skipped), on the calling thread.
+  std::function<void(const MeasurementResult&)> on_measurement;
+};
+
+ExperimentResults run_experiment(const ExperimentSpec& spec, const ExperimentPlan& plan, const RunOptions& options);
+
+// Independent rounds of n_r units with means m_r and standard errors se_r pooled as one run of sum n_r units:
+// mean sum n_r m_r / N, standard error sqrt(sum n_r^2 se_r^2) / N. Pure; throws std::invalid_argument when
+// the sizes differ or nothing was run.
+Estimate pool_rounds(const std::vector<Estimate>& rounds, const std::vector<std::uint64_t>& units);
+
+// results.json's members for a plan and for results (the CLI adds the command, version and spec).
+nlohmann::json plan_json(const ExperimentPlan& plan, const ExperimentSpec& spec);
+nlohmann::json results_json(const ExperimentResults& results);
+
+}  // namespace microsim::experiment

@@ -1,0 +1,456 @@
+// experiment: the spec reader: a SpecTree (from TOML or JSON) checked key by key into an ExperimentSpec.
+#include "experiment/spec_tree.h"
+
+#include "microfacet/roughness.h"
+#include "microfacet/samplers.h"
+#include "microgeom/assembly.h"
+#include "scatter/albedo_table.h"
+#include "stats/binning.h"
+
+#include <fmt/core.h>
+#include <fmt/format.h>
+
+#include <cmath>
+#include <fstream>
+#include <functional>
+#include <set>
+#include <sstream>
+
+namespace microsim::experiment {
+namespace {
+
+std::string location(const std::string& source, int line) {
+  return line > 0 ? fmt::format("{}:{}", source, line) : source;
+}
+
+using Json = nlohmann::ordered_json;
+
+// One table (object) of the spec and its key path: typed getters that throw SpecError naming key and line.
+class Table {
+public:
+  Table(const SpecTree& tree, const Json& value, std::string path) : tree_(tree), value_(value), path_(std::move(path)) {}
+
+  [[noreturn]] void fail(std::string_view key, const std::string& problem) const {
+    const std::string p = key.empty() ? path_ : child_path(path_, key);
+    throw SpecError(tree_.source, tree_.line_of(p), p, problem);
+  }
+  bool has(std::string_view key) const { return value_.contains(std::string(key)); }
+  const Json& at(std::string_view key) const { return value_.at(std::string(key)); }
+  std::string path(std::string_view key) const { return child_path(path_, key); }
+  const SpecTree& tree() const { return tree_; }
+
+  // Refuses any key not in `allowed`, naming it and the keys that are allowed.
+  void only_keys(const std::vector<std::string>& allowed, std::string_view what) const {
+    for (const auto& [key, v] : value_.items())
+      if (std::find(allowed.begin(), allowed.end(), key) == allowed.end())
+        fail(key, fmt::format("unknown key of {} (its keys: {})", what, fmt::join(allowed, ", ")));
+  }
+  std::string string(std::string_view key, std::optional<std::string> fallback = std::nullopt) const {
+    if (!has(key)) {
+      if (fallback) return *fallback;
+      fail(key, "missing (required)");
+    }
+    if (!at(key).is_string()) fail(key, "must be a string");
+    return at(key).get<std::string>();
+  }
+  double number(std::string_view key, std::optional<double> fallback = std::nullopt) const {
+    if (!has(key)) {
+      if (fallback) return *fallback;
+      fail(key, "missing (required)");
+    }
+    return number_value(at(key), key);
+  }
+  double number_value(const Json& v, std::string_view key) const {
+    if (!v.is_number()) fail(key, "must be a number");
+    const double x = v.get<double>();
+    if (!std::isfinite(x)) fail(key, "must be finite");
+    return x;
+  }
+  std::int64_t integer(std::string_view key, std::int64_t fallback, std::int64_t lo, std::int64_t hi) const {
+    if (!has(key)) return fallback;
+    if (!at(key).is_number_integer()) fail(key, "must be an integer");
+    const std::int64_t x = at(key).get<std::int64_t>();
+    if (x < lo || x > hi) fail(key, fmt::format("{} is outside [{}, {}]", x, lo, hi));
+    return x;
+  }
+  bool boolean(std::string_view key, bool fallback) const {
+    if (!has(key)) return fallback;
+    if (!at(key).is_boolean()) fail(key, "must be true or false");
+    return at(key).get<bool>();
+  }
+  // A number or an array of numbers, as a list.
+  std::vector<double> numbers(std::string_view key) const {
+    const Json& v = at(key);
+    if (!v.is_array()) return {number_value(v, key)};
+    if (v.empty()) fail(key, "must not be empty");
+    std::vector<double> out;
+    for (const Json& item : v) out.push_back(number_value(item, key));
+    return out;
+  }
+
+private:
+  const SpecTree& tree_;
+  const Json& value_;
+  std::string path_;
+};
+
+// The array of tables under `key` ([[material]], [[quantity]]), each with its path.
+std::vector<Table> tables(const Table& top, std::string_view key) {
+  if (!top.has(key)) top.fail(key, "missing (a spec needs at least one)");
+  const Json& v = top.at(key);
+  if (!v.is_array() || v.empty()) top.fail(key, "must be a non-empty array of tables");
+  std::vector<Table> out;
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    if (!v[i].is_object()) top.fail(key, fmt::format("item {} must be a table", i));
+    out.emplace_back(top.tree(), v[i], item_path(top.path(key), i));
+  }
+  return out;
+}
+
+}  // namespace
+
+namespace {
+// A key as a message prints it: itself when short and printable, else quoted as an excerpt (core/parse.h).
+std::string printable_key(const std::string& key) {
+  const bool plain = key.size() <= 80 && std::all_of(key.begin(), key.end(), [](char c) { return c >= 0x20 && c < 0x7f; });
+  return plain ? key : quote_excerpt(key);
+}
+// A problem as a message prints it: at most 300 bytes (a parser's message may echo what it read).
+std::string bounded(const std::string& problem) {
+  return problem.size() <= 300 ? problem : problem.substr(0, 300) + fmt::format("... ({} bytes)", problem.size());
+}
+}  // namespace
+
+SpecError::SpecError(std::string source, int line, std::string key, const std::string& problem)
+    : std::invalid_argument(fmt::format("{}: {}: {}", location(source, line), printable_key(key), bounded(problem))),
+      key_(std::move(key)),
+      line_(line) {}
+
+std::string to_string(QuantityKind kind) {
+  switch (kind) {
+    case QuantityKind::albedo: return "albedo";
+    case QuantityKind::vndf: return "vndf";
+    case QuantityKind::scattering: return "scattering";
+    case QuantityKind::validation: return "validation";
+  }
+  return "?";
+}
+
+std::string to_string(Orders orders) { return orders == Orders::single ? "single" : "all"; }
+
+bool SpecMaterial::isotropic() const {
+  return std::all_of(alphas.begin(), alphas.end(), [](const auto& a) { return a.first == a.second; });
+}
+
+const SpecMaterial& ExperimentSpec::material(std::string_view wanted) const {
+  for (const SpecMaterial& m : materials)
+    if (m.name == wanted) return m;
+  throw std::out_of_range(fmt::format("no material named {}", quote_excerpt(wanted)));
+}
+
+int SpecTree::line_of(std::string_view path) const {
+  std::string p(path);
+  while (!p.empty()) {
+    if (const auto it = lines.find(p); it != lines.end()) return it->second;
+    const std::size_t cut = p.find_last_of(".[");
+    p = cut == std::string::npos ? "" : p.substr(0, cut);
+  }
+  return 0;
+}
+
+std::string child_path(std::string_view parent, std::string_view key) {
+  return parent.empty() ? std::string(key) : fmt::format("{}.{}", parent, key);
+}
+std::string item_path(std::string_view parent, std::size_t index) { return fmt::format("{}[{}]", parent, index); }
+
+// ---- materials -------------------------------------------------------------------------------------------
+
+namespace {
+
+std::pair<double, double> alpha_item(const Table& t, std::string_view key, const Json& v) {
+  double ax = 0, ay = 0;
+  if (v.is_array() && v.size() == 2) {
+    ax = t.number_value(v[0], key);
+    ay = t.number_value(v[1], key);
+  } else if (v.is_number()) {
+    ax = ay = t.number_value(v, key);
+  } else {
+    t.fail(key, "an alpha is a number or a pair [alpha_x, alpha_y]");
+  }
+  try {
+    check_supported_alpha(t.path(key), ax, ay);
+  } catch (const ParseError& e) {
+    t.fail(key, e.what());
+  }
+  return {ax, ay};
+}
+
+std::vector<std::pair<double, double>> material_alphas(const Table& t) {
+  if (t.has("alpha") == t.has("alphas")) t.fail("alphas", "give exactly one of alpha (one value or pair) and alphas (a list)");
+  if (t.has("alpha")) return {alpha_item(t, "alpha", t.at("alpha"))};
+  const Json& list = t.at("alphas");
+  if (!list.is_array() || list.empty()) t.fail("alphas", "must be a non-empty array");
+  std::vector<std::pair<double, double>> out;
+  for (const Json& item : list) out.push_back(alpha_item(t, "alphas", item));
+  return out;
+}
+
+Material conductor_material(const Table& t) {
+  if (!t.has("eta") || !t.has("k")) t.fail(t.has("eta") ? "k" : "eta", "a conductor needs eta and k");
+  const std::vector<double> eta = t.numbers("eta"), k = t.numbers("k");
+  if (eta.size() != k.size()) t.fail("k", fmt::format("{} values for {} of eta (one per channel)", k.size(), eta.size()));
+  std::vector<std::complex<double>> ior;
+  for (std::size_t c = 0; c < eta.size(); ++c) ior.emplace_back(eta[c], k[c]);
+  try {
+    return Material::conductor(ior);
+  } catch (const std::invalid_argument& e) {
+    t.fail("eta", e.what());
+  }
+}
+
+Material facet_material(const Table& t) {
+  const std::string type = t.string("type");
+  if (type == "mirror") {
+    if (t.has("eta") || t.has("k")) t.fail(t.has("eta") ? "eta" : "k", "a mirror takes no eta or k");
+    return Material::mirror();
+  }
+  if (type == "conductor") return conductor_material(t);
+  if (type != "dielectric") t.fail("type", fmt::format("{} is not a material type (mirror, conductor, dielectric)", quote_excerpt(type)));
+  if (t.has("k")) t.fail("k", "a dielectric takes eta only");
+  if (!t.has("eta") || !t.at("eta").is_number()) t.fail("eta", "a dielectric needs one number eta (n inside / n outside)");
+  try {
+    return Material::dielectric(t.number("eta"));
+  } catch (const std::invalid_argument& e) {
+    t.fail("eta", e.what());
+  }
+}
+
+SpecMaterial read_material(const Table& t) {
+  t.only_keys({"name", "ndf", "alpha", "alphas", "type", "eta", "k"}, "a material");
+  SpecMaterial m;
+  m.name = t.string("name");
+  if (m.name.empty()) t.fail("name", "must not be empty");
+  const std::string ndf = t.string("ndf", "ggx");
+  if (ndf != "ggx" && ndf != "beckmann") t.fail("ndf", fmt::format("{} is not an NDF (ggx, beckmann)", quote_excerpt(ndf)));
+  m.ndf = ndf == "ggx" ? WalkNdf::ggx : WalkNdf::beckmann;
+  m.alphas = material_alphas(t);
+  m.facet = facet_material(t);
+  m.line = t.tree().line_of(t.path(""));
+  return m;
+}
+
+}  // namespace
+
+// ---- quantities ------------------------------------------------------------------------------------------
+
+namespace {
+
+QuantityKind quantity_kind(const Table& t) {
+  const std::string kind = t.string("kind");
+  for (QuantityKind k : {QuantityKind::albedo, QuantityKind::vndf, QuantityKind::scattering, QuantityKind::validation})
+    if (to_string(k) == kind) return k;
+  t.fail("kind", fmt::format("{} is not a quantity (albedo, vndf, scattering, validation)", quote_excerpt(kind)));
+}
+
+// The keys each kind takes, besides kind, material and surface.
+std::vector<std::string> quantity_keys(QuantityKind kind) {
+  std::vector<std::string> keys{"kind", "material", "surface"};
+  const auto add = [&](std::initializer_list<const char*> more) { keys.insert(keys.end(), more.begin(), more.end()); };
+  switch (kind) {
+    case QuantityKind::albedo: add({"orders", "target_relative_error", "mus", "inside"}); break;
+    case QuantityKind::vndf: add({"target_tv", "theta", "theta_range", "phi", "rows"}); break;
+    case QuantityKind::scattering: add({"orders", "target_tv", "theta", "theta_range", "phi"}); break;
+    case QuantityKind::validation:
+      add({"sampler", "detect_tv", "power", "significance", "theta", "theta_range", "phi", "rows"});
+      break;
+  }
+  return keys;
+}
+
+std::string target_key(QuantityKind kind) {
+  if (kind == QuantityKind::albedo) return "target_relative_error";
+  return kind == QuantityKind::validation ? "detect_tv" : "target_tv";
+}
+
+double quantity_target(const Table& t, QuantityKind kind) {
+  const std::string key = target_key(kind);
+  const double target = t.number(key);
+  if (!(target > 0)) t.fail(key, fmt::format("{} must be > 0", target));
+  if (kind != QuantityKind::albedo && target >= 1) t.fail(key, fmt::format("{}: a TV distance is below 1", target));
+  if (kind == QuantityKind::albedo && target >= 0.5) t.fail(key, fmt::format("{}: a relative error below 0.5", target));
+  return target;
+}
+
+std::vector<double> theta_values(const Table& t) {
+  if (t.has("theta") == t.has("theta_range")) t.fail("theta", "give exactly one of theta (a list) and theta_range");
+  if (t.has("theta")) return t.numbers("theta");
+  if (!t.at("theta_range").is_object()) t.fail("theta_range", "must be a table {from, to, count}");
+  const Table r(t.tree(), t.at("theta_range"), t.path("theta_range"));
+  r.only_keys({"from", "to", "count"}, "a theta_range");
+  const double from = r.number("from"), to = r.number("to");
+  const std::int64_t count = r.integer("count", 2, 1, 1000);
+  if (count > 1 && !(to > from)) r.fail("to", fmt::format("{} must be above from ({})", to, from));
+  std::vector<double> out;
+  for (std::int64_t i = 0; i < count; ++i) out.push_back(count == 1 ? from : from + (to - from) * double(i) / double(count - 1));
+  return out;
+}
+
+// theta x phi; theta checked against the horizon: [0, 90) above it, (90, 180] (light from inside) only
+// where `from_inside_ok`.
+std::vector<Direction> quantity_directions(const Table& t, bool from_inside_ok) {
+  const std::string theta_key = t.has("theta") ? "theta" : "theta_range";
+  std::vector<Direction> out;
+  for (double theta : theta_values(t)) {
+    const bool above = theta >= 0 && theta < 90, inside = from_inside_ok && theta > 90 && theta <= 180;
+    if (!above && !inside)
+      t.fail(theta_key, fmt::format("theta {} deg is {} (this quantity takes [0, 90){})", theta,
+                                    theta >= 90 && theta <= 180 ? "at or below the horizon" : "not an angle of a view",
+                                    from_inside_ok ? ", or (90, 180] from inside a dielectric" : ""));
+    for (double phi : t.has("phi") ? t.numbers("phi") : std::vector<double>{0.0}) out.push_back({theta, phi});
+  }
+  return out;
+}
+
+SurfaceChoice quantity_surface(const Table& t, const std::filesystem::path& spec_dir) {
+  SurfaceChoice s;
+  const std::string name = t.string("surface", "auto");
+  if (name == "auto") return s;
+  if (microgeom::find_assembly(name) != nullptr) return {SurfaceChoice::Kind::assembly, name};
+  if (std::filesystem::path(name).extension() != ".exr")
+    t.fail("surface", fmt::format("{} is neither auto, an assembly ({}) nor a heightmap .exr", quote_excerpt(name),
+                                  microgeom::assembly_names(", ")));
+  const std::filesystem::path path = std::filesystem::path(name).is_absolute() ? std::filesystem::path(name) : spec_dir / name;
+  if (!std::filesystem::is_regular_file(path)) t.fail("surface", fmt::format("no heightmap file {}", path.string()));
+  return {SurfaceChoice::Kind::heightmap, path.string()};
+}
+
+Orders quantity_orders(const Table& t) {
+  const std::string orders = t.string("orders", "single");
+  if (orders != "single" && orders != "all") t.fail("orders", fmt::format("{}: single or all", quote_excerpt(orders)));
+  return orders == "single" ? Orders::single : Orders::all;
+}
+
+void check_albedo_material(const Table& t, const SpecMaterial& m, bool inside) {
+  for (std::size_t i = 0; i < m.alphas.size(); ++i) {
+    const auto [ax, ay] = m.alphas[i];
+    if (ax != ay) t.fail("material", fmt::format("material {}: an albedo table is isotropic (alpha pair {}, {})", quote_excerpt(m.name), ax, ay));
+    if (ax < kMinAlbedoAlpha || ax > kMaxAlbedoAlpha)
+      t.fail("material", fmt::format("material {}: alpha {} outside an albedo table's [{}, {}]", quote_excerpt(m.name), ax,
+                                     kMinAlbedoAlpha, kMaxAlbedoAlpha));
+    if (i > 0 && !(ax > m.alphas[i - 1].first))
+      t.fail("material", fmt::format("material {}: an albedo table's alphas must increase ({} after {})", quote_excerpt(m.name), ax,
+                                     m.alphas[i - 1].first));
+  }
+  if (inside && !m.facet.transmits()) t.fail("inside", fmt::format("light from inside needs a dielectric ({} is opaque)", quote_excerpt(m.name)));
+}
+
+void read_kind_options(const Table& t, SpecQuantity& q, const SpecMaterial& m) {
+  const bool view_kind = q.kind != QuantityKind::albedo;
+  if (view_kind) q.directions = quantity_directions(t, q.kind == QuantityKind::scattering && m.facet.transmits());
+  if (q.kind == QuantityKind::albedo || q.kind == QuantityKind::scattering) q.orders = quantity_orders(t);
+  if (q.kind == QuantityKind::albedo) {
+    q.mus = int(t.integer("mus", 16, kMinAlbedoMus, kMaxAlbedoMus));
+    q.inside = t.boolean("inside", false);
+    check_albedo_material(t, m, q.inside);
+  }
+  if (q.kind == QuantityKind::vndf || q.kind == QuantityKind::validation) {
+    q.rows = int(t.integer("rows", 31, 3, kMaxBinningRows));
+    if (q.rows % 2 == 0) t.fail("rows", fmt::format("{} must be odd", q.rows));
+    if (m.ndf != WalkNdf::ggx) t.fail("material", fmt::format("material {}: {} is for GGX (the ellipsoid oracle, the zoo)", quote_excerpt(m.name), to_string(q.kind)));
+  }
+  if (q.kind == QuantityKind::validation) {
+    q.sampler = t.string("sampler");
+    if (find_sampler(q.sampler) == nullptr)
+      t.fail("sampler", fmt::format("{} is not a sampler of the zoo ({})", quote_excerpt(q.sampler), fmt::join(sampler_names(), ", ")));
+    q.power = t.number("power", 0.9);
+    q.significance = t.number("significance", 0.01);
+    if (!(q.power > 0 && q.power < 1)) t.fail("power", fmt::format("{} must be in (0, 1)", q.power));
+    if (!(q.significance > 0 && q.significance < 0.5)) t.fail("significance", fmt::format("{} must be in (0, 0.5)", q.significance));
+  }
+}
+
+SpecQuantity read_quantity(const Table& t, const ExperimentSpec& spec, std::size_t index,
+                           const std::filesystem::path& spec_dir) {
+  SpecQuantity q;
+  q.kind = quantity_kind(t);
+  q.key = item_path("quantity", index);
+  q.line = t.tree().line_of(q.key);
+  t.only_keys(quantity_keys(q.kind), fmt::format("a{} {} quantity", q.kind == QuantityKind::albedo ? "n" : "", to_string(q.kind)));
+  q.material = t.string("material");
+  const auto m = std::find_if(spec.materials.begin(), spec.materials.end(), [&](const auto& x) { return x.name == q.material; });
+  if (m == spec.materials.end()) t.fail("material", fmt::format("no material named {}", quote_excerpt(q.material)));
+  q.target = quantity_target(t, q.kind);
+  q.surface = quantity_surface(t, spec_dir);
+  read_kind_options(t, q, *m);
+  return q;
+}
+
+}  // namespace
+
+ExperimentSpec read_spec(const SpecTree& tree) {
+  const Table top(tree, tree.root, "");
+  top.only_keys({"name", "seed", "material", "quantity"}, "a spec");
+  ExperimentSpec spec;
+  spec.source = tree.source;
+  spec.name = top.string("name", std::filesystem::path(tree.source).stem().string());
+  if (top.has("seed") && !(top.at("seed").is_number_unsigned() || top.at("seed").is_number_integer()))
+    top.fail("seed", "must be a non-negative integer");
+  if (top.has("seed") && top.at("seed").is_number_integer() && !top.at("seed").is_number_unsigned() && top.at("seed").get<std::int64_t>() < 0)
+    top.fail("seed", "must be a non-negative integer");
+  spec.seed = top.has("seed") ? top.at("seed").get<std::uint64_t>() : 1;
+  for (const Table& t : tables(top, "material")) {
+    spec.materials.push_back(read_material(t));
+    for (std::size_t i = 0; i + 1 < spec.materials.size(); ++i)
+      if (spec.materials[i].name == spec.materials.back().name)
+        t.fail("name", fmt::format("material {} is defined twice", quote_excerpt(spec.materials.back().name)));
+  }
+  const std::filesystem::path dir = std::filesystem::path(tree.source).parent_path();
+  std::size_t index = 0;
+  for (const Table& t : tables(top, "quantity")) spec.quantities.push_back(read_quantity(t, spec, index++, dir));
+  return spec;
+}
+
+ExperimentSpec parse_spec_toml(std::string_view text, const std::string& source) {
+  return read_spec(toml_tree(text, source));
+}
+
+ExperimentSpec parse_spec_json(std::string_view text, const std::string& source) {
+  return read_spec(json_tree(text, source));
+}
+
+ExperimentSpec load_spec(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in || std::filesystem::is_directory(path)) throw SpecError(path.string(), 0, "(file)", "cannot be read");
+  std::stringstream text;
+  text << in.rdbuf();
+  if (path.extension() == ".json") return parse_spec_json(text.str(), path.string());
+  return parse_spec_toml(text.str(), path.string());
+}
+
+// ---- the spec's identity -----------------------------------------------------------------------------------
+
+std::string canonical_spec(const ExperimentSpec& spec) {
+  nlohmann::json j;
+  j["name"] = spec.name;
+  j["seed"] = spec.seed;
+  for (const SpecMaterial& m : spec.materials)
+    j["materials"].push_back({{"name", m.name}, {"ndf", to_string(m.ndf)}, {"alphas", m.alphas}, {"facet", m.facet.describe()}});
+  for (const SpecQuantity& q : spec.quantities) {
+    nlohmann::json d = nlohmann::json::array();
+    for (const Direction& v : q.directions) d.push_back({v.theta_deg, v.phi_deg});
+    j["quantities"].push_back({{"kind", to_string(q.kind)}, {"material", q.material}, {"orders", to_string(q.orders)},
+                               {"target", q.target}, {"directions", d}, {"surface", q.surface.name},
+                               {"mus", q.mus}, {"inside", q.inside}, {"rows", q.rows}, {"sampler", q.sampler},
+                               {"power", q.power}, {"significance", q.significance}});
+  }
+  return j.dump();
+}
+
+std::string spec_digest(const ExperimentSpec& spec) {
+  // FNV-1a 64 (Fowler, Noll, Vo): an identity check of a directory's results, not a security hash.
+  std::uint64_t h = 0xcbf29ce484222325ULL;
+  for (unsigned char c : canonical_spec(spec)) h = (h ^ c) * 0x100000001b3ULL;
+  return fmt::format("{:016x}", h);
+}
+
+}  // namespace microsim::experiment

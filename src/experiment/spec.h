@@ -1,0 +1,122 @@
+// experiment: the experiment spec (issue 12): what a scene needs, in the user's terms. A TOML file (toml++)
+// or the same structure in JSON (nlohmann-json):
+//
+//   name = "renderer-ggx-gold"          # optional; default: the file's stem
+//   seed = 1                            # optional; every measurement derives its streams from it
+//
+//   [[material]]
+//   name = "gold"
+//   ndf = "ggx"                         # ggx | beckmann
+//   alphas = [0.1, 0.25, [0.2, 0.4]]    # isotropic values or (alpha_x, alpha_y) pairs; or alpha = 0.3 / [ax, ay]
+//   type = "conductor"                  # mirror | conductor | dielectric
+//   eta = [0.143, 0.374, 1.442]         # conductor: per channel (or one number); dielectric: one number
+//   k = [3.983, 2.385, 1.603]           # conductor only, as many as eta
+//
+//   [[quantity]]
+//   kind = "albedo"                     # albedo | vndf | scattering | validation
+//   material = "gold"
+//   orders = "single"                   # albedo, scattering: single | all
+//   target_relative_error = 1e-3        # albedo's target: the relative standard error of every E(mu) and E_avg
+//   # vndf, scattering: target_tv (a total-variation distance the histogram must resolve);
+//   # validation: detect_tv (the smallest TV deviation to detect), power (0.9), significance (0.01), sampler
+//   # vndf, scattering, validation: theta = [0, 30, 60] (degrees) or theta_range = {from, to, count}; phi = [0]
+//   surface = "auto"                    # auto | an assembly name (microgeom) | a heightmap .exr path
+//
+// Every key is checked: an unknown key, a wrong type, a target <= 0, a material no quantity can find, a
+// direction below the horizon where the quantity does not allow it are SpecErrors naming the key path
+// (quantity[2].target_tv) and the line. Library code: parses and checks, never prints.
+#pragma once
+
+#include "microfacet/material.h"
+#include "scatter/smith_walk.h"
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+namespace microsim::experiment {
+
+// A bad spec: bad input (core/errors.h: std::invalid_argument -> exit 2). The message is
+// "FILE:LINE: KEY: what is wrong"; key() and line() give the parts (line 0: not known).
+class SpecError : public std::invalid_argument {
+public:
+  SpecError(std::string source, int line, std::string key, const std::string& problem);
+  const std::string& key() const { return key_; }
+  int line() const { return line_; }
+
+private:
+  std::string key_;
+  int line_ = 0;
+};
+
+enum class QuantityKind { albedo, vndf, scattering, validation };
+std::string to_string(QuantityKind kind);  // "albedo", "vndf", "scattering", "validation"
+
+enum class Orders { single, all };  // order 1 only, or every order of multiple scattering
+std::string to_string(Orders orders);  // "single", "all"
+
+struct SpecMaterial {
+  std::string name;
+  WalkNdf ndf = WalkNdf::ggx;
+  std::vector<std::pair<double, double>> alphas;  // (alpha_x, alpha_y), in the spec's order
+  Material facet = Material::mirror();
+  int line = 0;
+  bool isotropic() const;
+};
+
+struct Direction {
+  double theta_deg = 0, phi_deg = 0;
+};
+
+// The surface a quantity is measured on: the Smith model's own (auto), an assembly built by microgeom, or a
+// heightmap file.
+struct SurfaceChoice {
+  enum class Kind { automatic, assembly, heightmap } kind = Kind::automatic;
+  std::string name;  // the assembly's name or the heightmap's path
+};
+
+struct SpecQuantity {
+  QuantityKind kind = QuantityKind::albedo;
+  std::string key;       // "quantity[K]" (K from 0), as errors and the plan name it
+  int line = 0;
+  std::string material;  // a SpecMaterial's name
+  Orders orders = Orders::single;
+  double target = 0;     // albedo: relative SE; vndf, scattering: TV to resolve; validation: TV to detect
+  std::vector<Direction> directions;  // vndf, scattering, validation
+  SurfaceChoice surface;
+  int mus = 16;          // albedo: Gauss-Legendre nodes in mu
+  bool inside = false;   // albedo of a dielectric from inside
+  int rows = 31;         // vndf, validation: rows of the validator's binnings
+  std::string sampler;   // validation: a zoo sampler's name
+  double power = 0.9, significance = 0.01;  // validation
+};
+
+struct ExperimentSpec {
+  std::string name;
+  std::string source;    // the file it was read from (messages, results)
+  std::uint64_t seed = 1;
+  std::vector<SpecMaterial> materials;
+  std::vector<SpecQuantity> quantities;
+
+  const SpecMaterial& material(std::string_view name) const;  // throws std::out_of_range
+};
+
+// Parses TOML text; `source` names it in messages (a path). Throws SpecError.
+ExperimentSpec parse_spec_toml(std::string_view text, const std::string& source);
+// Parses JSON text of the same structure (lines located in the text). Throws SpecError.
+ExperimentSpec parse_spec_json(std::string_view text, const std::string& source);
+// Reads a file: .json as JSON, anything else as TOML. Throws SpecError (an unreadable file is line 0).
+ExperimentSpec load_spec(const std::filesystem::path& path);
+
+// A canonical description of the spec's content (not its source or formatting): equal for equal specs,
+// whether written in TOML or JSON. results.json records its hash; a run refuses a directory holding another
+// spec's results.
+std::string canonical_spec(const ExperimentSpec& spec);
+std::string spec_digest(const ExperimentSpec& spec);  // 16 hex digits of a 64-bit hash of canonical_spec
+
+}  // namespace microsim::experiment

@@ -1,0 +1,183 @@
+// `microsim plan` and `microsim run` end to end on a tiny spec (seconds): the plan table, results.json with
+// every decision and target met, a rerun with another seed within the stated error (and the same check
+// failing between two different materials: it can fail), bad specs (exit 2, key and line named, nothing run
+// or written), and the results directory of another spec refused.
+#include "cli_helpers.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <fstream>
+#include <string>
+#include <thread>
+
+#include <fcntl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+namespace {
+
+namespace fs = std::filesystem;
+using microsim::test::run_cli;
+using microsim::test::scratch_dir;
+using microsim::test::slurp;
+
+std::string tiny_spec(const std::string& alphas) {
+  return "name = \"tiny\"\nseed = 3\n\n[[material]]\nname = \"m\"\nalphas = " + alphas +
+         "\ntype = \"mirror\"\n\n[[quantity]]\nkind = \"albedo\"\nmaterial = \"m\"\norders = \"all\"\nmus = 4\n"
+         "target_relative_error = 0.02\n\n[[quantity]]\nkind = \"albedo\"\nmaterial = \"m\"\nmus = 4\n"
+         "target_relative_error = 0.001\n\n[[quantity]]\nkind = \"vndf\"\nmaterial = \"m\"\ntheta = [50]\nrows = 7\n"
+         "target_tv = 0.05\n";
+}
+
+void write(const fs::path& path, const std::string& text) { std::ofstream(path) << text; }
+
+nlohmann::json results_of(const fs::path& dir) { return nlohmann::json::parse(slurp(dir / "results.json")); }
+
+// The walk's albedo tables of two runs agree within their errors: every cell and E_avg of every E quantity
+// within 4 combined standard errors, and within 4 sqrt(2) times the relative target. Returns the failures.
+int disagreements(const nlohmann::json& a, const nlohmann::json& b, double target) {
+  int bad = 0;
+  const nlohmann::json& qa = a["values"]["quantities"];
+  const nlohmann::json& qb = b["values"]["quantities"];
+  for (const auto& [name, va] : qa.items()) {
+    if (name[0] != 'E') continue;
+    const nlohmann::json& vb = qb[name];
+    for (std::size_t r = 0; r < va["value"].size(); ++r)
+      for (std::size_t c = 0; c < va["value"][r].size(); ++c) {
+        const double x = va["value"][r][c], y = vb["value"][r][c];
+        const double sx = va["error"][r][c], sy = vb["error"][r][c];
+        const double diff = std::abs(x - y);
+        bad += diff > 4 * std::hypot(sx, sy) + 1e-15 || diff > 4 * std::sqrt(2.0) * target * std::abs(x);
+      }
+  }
+  return bad;
+}
+
+TEST(ExperimentCli, PlanPrintsOneDecisionPerMeasurement) {
+  const fs::path dir = scratch_dir("experiment", "plan");
+  write(dir / "tiny.toml", tiny_spec("[0.3, 0.8]"));
+  const auto r = run_cli(dir, "plan tiny.toml --json plan.json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  for (const char* word : {"smith-walk", "analytic", "ellipsoid-oracle", "paths per cell", "rays", "predicted"})
+    EXPECT_NE(r.out.find(word), std::string::npos) << word << "\n" << r.out;
+  const nlohmann::json plan = nlohmann::json::parse(slurp(dir / "plan.json"));
+  ASSERT_EQ(plan["plan"]["decisions"].size(), 4u);  // two tables, then the VNDF at each of the two alphas
+  EXPECT_GE(plan["plan"]["decisions"][0]["order_cap"].get<int>(), 4);
+  EXPECT_FALSE(plan["plan"]["decisions"][2]["model_reason"].get<std::string>().empty());
+  EXPECT_EQ(run_cli(dir, "plan --help").exit_code, 0);
+  const auto dry = run_cli(dir, "run tiny.toml --out dry --dry-run");  // the plan, nothing written
+  EXPECT_EQ(dry.exit_code, 0) << dry.err;
+  EXPECT_NE(dry.out.find("predicted total"), std::string::npos);
+  EXPECT_FALSE(fs::exists(dir / "dry"));
+  fs::remove_all(dir);
+}
+
+TEST(ExperimentCli, RunMeetsTheTargetsAndAnotherSeedAgrees) {
+  const fs::path dir = scratch_dir("experiment", "run");
+  write(dir / "tiny.toml", tiny_spec("[0.3, 0.8]"));
+  write(dir / "other.toml", tiny_spec("[0.5, 1.0]"));
+  const auto a = run_cli(dir, "run tiny.toml --out a");
+  ASSERT_EQ(a.exit_code, 0) << a.err;
+  const auto b = run_cli(dir, "run tiny.toml --out b --seed 11");
+  ASSERT_EQ(b.exit_code, 0) << b.err;
+  const nlohmann::json ra = results_of(dir / "a"), rb = results_of(dir / "b");
+  EXPECT_TRUE(ra["results"]["all_targets_met"].get<bool>());
+  EXPECT_FALSE(ra["partial"].get<bool>());
+  EXPECT_NE(ra["command"].get<std::string>().find("microsim run tiny.toml --out a"), std::string::npos);
+  for (const auto& m : ra["results"]["measurements"]) {
+    EXPECT_TRUE(m["met"].get<bool>()) << m["measurement"];
+    EXPECT_LE(m["achieved"].get<double>(), m["target"].get<double>());
+    EXPECT_GT(m["cost"]["seconds"].get<double>(), 0);
+  }
+  EXPECT_TRUE(fs::exists(dir / "a" / "albedo-0.csv"));
+  // The walk's table (measurement 0) and the analytic one (1): the other seed lands within the stated error.
+  EXPECT_EQ(disagreements(ra["results"]["measurements"][0], rb["results"]["measurements"][0], 0.02), 0);
+  EXPECT_EQ(disagreements(ra["results"]["measurements"][1], rb["results"]["measurements"][1], 0.001), 0);
+  // The VNDF: each run's histogram within the resolved TV of the analytic D_v.
+  for (const nlohmann::json* r : {&ra, &rb})
+    for (const std::size_t k : {2u, 3u})
+      EXPECT_LE((*r)["results"]["measurements"][k]["values"]["total_variation"].get<double>(), 0.05);
+  // Negative control: the same check between two materials (alphas 0.3, 0.8 against 0.5, 1) must fail.
+  const auto c = run_cli(dir, "run other.toml --out c");
+  ASSERT_EQ(c.exit_code, 0) << c.err;
+  EXPECT_GT(disagreements(ra["results"]["measurements"][0], results_of(dir / "c")["results"]["measurements"][0], 0.02), 0);
+  fs::remove_all(dir);
+}
+
+TEST(ExperimentCli, RefusesAnotherSpecsResultsAndRerunsItsOwn) {
+  const fs::path dir = scratch_dir("experiment", "refuse");
+  write(dir / "tiny.toml", "[[material]]\nname = \"m\"\nalphas = [0.3]\ntype = \"mirror\"\n[[quantity]]\nkind = \"albedo\"\n"
+                           "material = \"m\"\nmus = 2\ntarget_relative_error = 0.01\n");
+  write(dir / "other.toml", "[[material]]\nname = \"m\"\nalphas = [0.4]\ntype = \"mirror\"\n[[quantity]]\nkind = \"albedo\"\n"
+                            "material = \"m\"\nmus = 2\ntarget_relative_error = 0.01\n");
+  ASSERT_EQ(run_cli(dir, "run tiny.toml --out out").exit_code, 0);
+  const std::string before = slurp(dir / "out" / "results.json");
+  const auto other = run_cli(dir, "run other.toml --out out");
+  EXPECT_EQ(other.exit_code, 2) << other.err;
+  EXPECT_NE(other.err.find("another spec"), std::string::npos) << other.err;
+  EXPECT_EQ(slurp(dir / "out" / "results.json"), before);
+  EXPECT_EQ(run_cli(dir, "run tiny.toml --out out").exit_code, 0);  // its own results: a rerun
+  fs::create_directories(dir / "full");
+  write(dir / "full" / "notes.txt", "mine");
+  EXPECT_EQ(run_cli(dir, "run tiny.toml --out full").exit_code, 2);
+  fs::remove_all(dir);
+}
+
+TEST(ExperimentCli, BadSpecsNameKeyAndLineAndRunNothing) {
+  const fs::path dir = scratch_dir("experiment", "bad");
+  write(dir / "bad.toml", "[[material]]\nname = \"m\"\nalpha = 0.3\ntype = \"mirror\"\n\n[[quantity]]\nkind = \"vndf\"\n"
+                          "material = \"m\"\ntheta = [30]\ntarget_tv = 0\n");
+  for (const char* command : {"plan bad.toml", "run bad.toml --out out"}) {
+    const auto r = run_cli(dir, command);
+    EXPECT_EQ(r.exit_code, 2) << command;
+    EXPECT_NE(r.err.find("bad.toml:10: quantity[0].target_tv"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir / "out"));
+  }
+  const auto missing = run_cli(dir, "plan nothing.toml");
+  EXPECT_EQ(missing.exit_code, 2);
+  fs::remove_all(dir);
+}
+
+// Ctrl-C once the first measurement is done and the second (a long VNDF) is running: exit 130, results.json
+// written and marked partial, the finished measurement kept.
+TEST(ExperimentCli, InterruptedRunWritesWhatWasDoneMarkedPartial) {
+  const fs::path dir = scratch_dir("experiment", "interrupt");
+  write(dir / "long.toml", "[[material]]\nname = \"m\"\nalpha = 0.3\ntype = \"mirror\"\n[[quantity]]\nkind = \"albedo\"\n"
+                           "material = \"m\"\nmus = 2\ntarget_relative_error = 0.01\n[[quantity]]\nkind = \"vndf\"\n"
+                           "material = \"m\"\ntheta = [40]\ntarget_tv = 0.001\n");
+  const fs::path err = dir.parent_path() / (dir.filename().string() + ".stderr");
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    if (::chdir(dir.c_str()) != 0) ::_exit(127);
+    const int fe = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    const int fo = ::open("/dev/null", O_WRONLY);
+    ::dup2(fo, 1);
+    ::dup2(fe, 2);
+    ::execl(MICROSIM_BINARY, MICROSIM_BINARY, "run", "long.toml", "--out", "out", static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while (slurp(err).find("met after") == std::string::npos && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  ::kill(pid, SIGINT);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  const std::string stderr_text = slurp(err);
+  fs::remove(err);
+  ASSERT_TRUE(WIFEXITED(status)) << stderr_text;
+  EXPECT_EQ(WEXITSTATUS(status), 130) << stderr_text;
+  ASSERT_TRUE(fs::exists(dir / "out" / "results.json")) << stderr_text;
+  const nlohmann::json r = results_of(dir / "out");
+  EXPECT_TRUE(r["partial"].get<bool>());
+  EXPECT_FALSE(r["results"]["all_targets_met"].get<bool>());
+  ASSERT_GE(r["results"]["measurements"].size(), 1u);
+  EXPECT_TRUE(r["results"]["measurements"][0]["met"].get<bool>());
+  fs::remove_all(dir);
+}
+
+}  // namespace

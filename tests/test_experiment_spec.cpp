@@ -1,0 +1,206 @@
+// Experiment specs (src/experiment/spec.h): good specs in TOML and JSON read into the same content, and
+// every bad spec is a SpecError naming the key path and the line where it is.
+#include "experiment/spec.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <ostream>
+#include <string>
+
+namespace {
+
+using namespace microsim::experiment;
+
+const char* kGood = R"(name = "good"
+seed = 5
+
+[[material]]
+name = "gold"
+ndf = "ggx"
+alphas = [0.1, 0.5, [0.2, 0.4]]
+type = "conductor"
+eta = [0.2, 0.4]
+k = [3.9, 2.4]
+
+[[material]]
+name = "glass"
+alpha = 0.3
+type = "dielectric"
+eta = 1.5
+
+[[quantity]]
+kind = "vndf"
+material = "gold"
+theta = [0, 45]
+phi = [0, 90]
+target_tv = 0.01
+
+[[quantity]]
+kind = "albedo"
+material = "glass"
+orders = "all"
+inside = true
+target_relative_error = 1e-3
+
+[[quantity]]
+kind = "scattering"
+material = "glass"
+theta_range = { from = 100, to = 170, count = 3 }
+target_tv = 0.01
+
+[[quantity]]
+kind = "validation"
+material = "gold"
+sampler = "heitz2018"
+theta = [30]
+detect_tv = 0.001
+)";
+
+TEST(ExperimentSpec, ReadsAGoodTomlSpec) {
+  const ExperimentSpec s = parse_spec_toml(kGood, "good.toml");
+  EXPECT_EQ(s.name, "good");
+  EXPECT_EQ(s.seed, 5u);
+  ASSERT_EQ(s.materials.size(), 2u);
+  ASSERT_EQ(s.materials[0].alphas.size(), 3u);
+  EXPECT_EQ(s.materials[0].alphas[2], (std::pair<double, double>{0.2, 0.4}));
+  EXPECT_EQ(s.materials[0].facet.kind(), microsim::MaterialKind::conductor);
+  EXPECT_EQ(s.materials[0].facet.channels(), 2);
+  EXPECT_EQ(s.materials[0].line, 4);
+  EXPECT_EQ(s.materials[1].facet.eta(), 1.5);
+  ASSERT_EQ(s.quantities.size(), 4u);
+  EXPECT_EQ(s.quantities[0].directions.size(), 4u);  // theta x phi
+  EXPECT_EQ(s.quantities[0].line, 18);
+  EXPECT_EQ(s.quantities[1].orders, Orders::all);
+  EXPECT_TRUE(s.quantities[1].inside);
+  ASSERT_EQ(s.quantities[2].directions.size(), 3u);
+  EXPECT_DOUBLE_EQ(s.quantities[2].directions[1].theta_deg, 135);  // from inside the glass
+  EXPECT_EQ(s.quantities[3].sampler, "heitz2018");
+  EXPECT_DOUBLE_EQ(s.quantities[3].power, 0.9);
+}
+
+TEST(ExperimentSpec, JsonOfTheSameStructureIsTheSameSpec) {
+  const std::string json = R"({"name": "good", "seed": 5,
+  "material": [{"name": "gold", "ndf": "ggx", "alphas": [0.1, 0.5, [0.2, 0.4]], "type": "conductor",
+                "eta": [0.2, 0.4], "k": [3.9, 2.4]},
+               {"name": "glass", "alpha": 0.3, "type": "dielectric", "eta": 1.5}],
+  "quantity": [{"kind": "vndf", "material": "gold", "theta": [0, 45], "phi": [0, 90], "target_tv": 0.01},
+               {"kind": "albedo", "material": "glass", "orders": "all", "inside": true, "target_relative_error": 1e-3},
+               {"kind": "scattering", "material": "glass", "theta_range": {"from": 100, "to": 170, "count": 3},
+                "target_tv": 0.01},
+               {"kind": "validation", "material": "gold", "sampler": "heitz2018", "theta": [30], "detect_tv": 0.001}]})";
+  const ExperimentSpec a = parse_spec_toml(kGood, "good.toml"), b = parse_spec_json(json, "good.json");
+  EXPECT_EQ(canonical_spec(a), canonical_spec(b));
+  EXPECT_EQ(spec_digest(a), spec_digest(b));
+  ExperimentSpec c = a;
+  c.quantities[1].target = 2e-3;  // the digest sees a change of target
+  EXPECT_NE(spec_digest(a), spec_digest(c));
+}
+
+struct BadSpec {
+  std::string name, text, key;
+  int line;
+  std::string words;  // part of the message
+};
+
+std::ostream& operator<<(std::ostream& os, const BadSpec& c) { return os << c.name; }
+
+// A valid one-material, one-quantity spec with `material_extra` and `quantity_extra` appended to its tables.
+std::string spec_with(const std::string& material, const std::string& quantity) {
+  return "name = \"t\"\n\n[[material]]\nname = \"m\"\n" + material + "\n\n[[quantity]]\n" + quantity + "\n";
+}
+const std::string kMirror = "alpha = 0.3\ntype = \"mirror\"";                    // material lines 5-6
+const std::string kVndf = "kind = \"vndf\"\nmaterial = \"m\"\ntheta = [30]\ntarget_tv = 0.01";  // lines 9-12
+
+class BadSpecs : public ::testing::TestWithParam<BadSpec> {};
+
+TEST_P(BadSpecs, NameTheKeyAndTheLine) {
+  const BadSpec& c = GetParam();
+  try {
+    parse_spec_toml(c.text, "bad.toml");
+    FAIL() << c.name << ": accepted";
+  } catch (const SpecError& e) {
+    EXPECT_EQ(e.key(), c.key) << e.what();
+    EXPECT_EQ(e.line(), c.line) << e.what();
+    const std::string what = e.what();
+    const std::string where = c.line > 0 ? "bad.toml:" + std::to_string(c.line) : "bad.toml";
+    EXPECT_NE(what.find(where + ": " + c.key), std::string::npos) << what;
+    EXPECT_NE(what.find(c.words), std::string::npos) << what;
+    const std::invalid_argument& bad_input = e;  // the project's bad input: exit 2
+    (void)bad_input;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    ExperimentSpec, BadSpecs,
+    ::testing::Values(
+        BadSpec{"unknown_top_key", "colour = 3\n" + spec_with(kMirror, kVndf), "colour", 1, "unknown key"},
+        BadSpec{"unknown_quantity_key", spec_with(kMirror, kVndf + "\nrays = 5"), "quantity[0].rays", 13, "unknown key"},
+        BadSpec{"wrong_target_for_kind", spec_with(kMirror, "kind = \"albedo\"\nmaterial = \"m\"\ntarget_tv = 0.1"),
+                "quantity[0].target_tv", 11, "unknown key"},
+        BadSpec{"target_zero", spec_with(kMirror, "kind = \"vndf\"\nmaterial = \"m\"\ntheta = [30]\ntarget_tv = 0"),
+                "quantity[0].target_tv", 12, "must be > 0"},
+        BadSpec{"target_negative", spec_with(kMirror, "kind = \"albedo\"\nmaterial = \"m\"\ntarget_relative_error = -1"),
+                "quantity[0].target_relative_error", 11, "must be > 0"},
+        BadSpec{"unknown_material", spec_with(kMirror, "kind = \"vndf\"\nmaterial = \"gold\"\ntheta = [30]\ntarget_tv = 0.1"),
+                "quantity[0].material", 10, "no material named 'gold'"},
+        BadSpec{"below_horizon", spec_with(kMirror, "kind = \"vndf\"\nmaterial = \"m\"\ntheta = [30, 95]\ntarget_tv = 0.1"),
+                "quantity[0].theta", 11, "below the horizon"},
+        BadSpec{"grazing_90", spec_with(kMirror, "kind = \"vndf\"\nmaterial = \"m\"\ntheta = [90]\ntarget_tv = 0.1"),
+                "quantity[0].theta", 11, "at or below the horizon"},
+        BadSpec{"inside_an_opaque_material",
+                spec_with(kMirror, "kind = \"scattering\"\nmaterial = \"m\"\ntheta = [120]\ntarget_tv = 0.1"),
+                "quantity[0].theta", 11, "below the horizon"},
+        BadSpec{"unknown_ndf", spec_with("ndf = \"phong\"\n" + kMirror, kVndf), "material[0].ndf", 5, "not an NDF"},
+        BadSpec{"alpha_out_of_range", spec_with("alpha = 20\ntype = \"mirror\"", kVndf), "material[0].alpha", 5, "alpha"},
+        BadSpec{"dielectric_with_k", spec_with("alpha = 0.3\ntype = \"dielectric\"\neta = 1.5\nk = 1", kVndf),
+                "material[0].k", 8, "eta only"},
+        BadSpec{"conductor_channels", spec_with("alpha = 0.3\ntype = \"conductor\"\neta = [0.2, 0.3]\nk = [1]", kVndf),
+                "material[0].k", 8, "one per channel"},
+        BadSpec{"unknown_type", spec_with("alpha = 0.3\ntype = \"velvet\"", kVndf), "material[0].type", 6, "not a material type"},
+        BadSpec{"albedo_alphas_decrease",
+                spec_with("alphas = [0.5, 0.1]\ntype = \"mirror\"", "kind = \"albedo\"\nmaterial = \"m\"\ntarget_relative_error = 0.01"),
+                "quantity[0].material", 10, "must increase"},
+        BadSpec{"even_rows", spec_with(kMirror, kVndf + "\nrows = 30"), "quantity[0].rows", 13, "must be odd"},
+        BadSpec{"unknown_sampler",
+                spec_with(kMirror, "kind = \"validation\"\nmaterial = \"m\"\nsampler = \"nope\"\ntheta = [0]\ndetect_tv = 0.01"),
+                "quantity[0].sampler", 11, "not a sampler of the zoo"},
+        BadSpec{"unknown_surface", spec_with(kMirror, kVndf + "\nsurface = \"moon\""), "quantity[0].surface", 13,
+                "neither auto"},
+        BadSpec{"missing_heightmap", spec_with(kMirror, kVndf + "\nsurface = \"no-such-file.exr\""), "quantity[0].surface",
+                13, "no heightmap file"},
+        BadSpec{"target_a_string", spec_with(kMirror, "kind = \"vndf\"\nmaterial = \"m\"\ntheta = [30]\ntarget_tv = \"small\""),
+                "quantity[0].target_tv", 12, "must be a number"},
+        BadSpec{"no_quantity", "name = \"t\"\n[[material]]\nname = \"m\"\n" + kMirror + "\n", "quantity", 0, "missing"},
+        BadSpec{"syntax", spec_with(kMirror, kVndf) + "oops = [1, \n", "(syntax)", 13, ""}),
+    [](const auto& info) { return info.param.name; });
+
+TEST(ExperimentSpec, JsonErrorsNameTheLineOfTheKey) {
+  const std::string json = "{\n  \"material\": [{\"name\": \"m\", \"alpha\": 0.3, \"type\": \"mirror\"}],\n"
+                           "  \"quantity\": [\n    {\"kind\": \"vndf\", \"material\": \"m\", \"theta\": [30],\n"
+                           "     \"target_tv\": -0.5}\n  ]\n}\n";
+  try {
+    parse_spec_json(json, "bad.json");
+    FAIL() << "accepted";
+  } catch (const SpecError& e) {
+    EXPECT_EQ(e.key(), "quantity[0].target_tv");
+    EXPECT_EQ(e.line(), 5) << e.what();
+  }
+}
+
+TEST(ExperimentSpec, TheExamplesAreGoodSpecs) {
+  const std::filesystem::path examples = std::filesystem::path(MICROSIM_TEST_DATA) / ".." / ".." / "examples";
+  int read = 0;
+  for (const auto& e : std::filesystem::directory_iterator(examples))
+    if (e.path().extension() == ".toml" || e.path().extension() == ".json") {
+      EXPECT_NO_THROW(load_spec(e.path())) << e.path();
+      ++read;
+    }
+  EXPECT_GE(read, 1);
+}
+
+TEST(ExperimentSpec, AnUnreadableFileIsASpecError) {
+  EXPECT_THROW(load_spec("/nonexistent/spec.toml"), SpecError);
+}
+
+}  // namespace
