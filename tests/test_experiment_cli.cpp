@@ -150,6 +150,7 @@ TEST(ExperimentCli, InterruptedRunWritesWhatWasDoneMarkedPartial) {
                            "material = \"m\"\nmus = 2\ntarget_relative_error = 0.01\n[[quantity]]\nkind = \"vndf\"\n"
                            "material = \"m\"\ntheta = [40]\ntarget_tv = 0.001\n");
   const fs::path err = dir.parent_path() / (dir.filename().string() + ".stderr");
+  const std::string binary = microsim::test::microsim_binary();
   const pid_t pid = ::fork();
   if (pid == 0) {
     if (::chdir(dir.c_str()) != 0) ::_exit(127);
@@ -157,7 +158,7 @@ TEST(ExperimentCli, InterruptedRunWritesWhatWasDoneMarkedPartial) {
     const int fo = ::open("/dev/null", O_WRONLY);
     ::dup2(fo, 1);
     ::dup2(fe, 2);
-    ::execl(MICROSIM_BINARY, MICROSIM_BINARY, "run", "long.toml", "--out", "out", static_cast<char*>(nullptr));
+    ::execl(binary.c_str(), binary.c_str(), "run", "long.toml", "--out", "out", static_cast<char*>(nullptr));
     ::_exit(127);
   }
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
