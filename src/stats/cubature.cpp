@@ -213,19 +213,17 @@ private:
     return std::max(options_.abs_tolerance, options_.rel_tolerance * std::abs(value));
   }
 
-  // The integrand at u(theta, phi) per unit d theta d phi: pdf(w(u)) |dw/du| sin(theta).
-  double integrand(double theta, double phi) const {
-    const double st = std::sin(theta);
-    const Vec3<double> u(st * std::cos(phi), st * std::sin(phi), std::cos(theta));
+  // The integrand at u(theta, phi) per unit d theta d phi: pdf(w(u)) |dw/du| sin(theta), from the sines and
+  // cosines of theta and phi.
+  double integrand_of_trig(double st, double ct, double sp, double cp) const {
+    const Vec3<double> u(st * cp, st * sp, ct);
     return pdf_(binning_.from_param(u)) * binning_.jacobian(u) * st;
   }
-  double break_value(std::size_t k, double theta, double phi) const {
-    const double st = std::sin(theta);
-    return options_.breaks[k](binning_.from_param(Vec3<double>(st * std::cos(phi), st * std::sin(phi), std::cos(theta))));
+  double break_of_trig(std::size_t k, double st, double ct, double sp, double cp) const {
+    return options_.breaks[k](binning_.from_param(Vec3<double>(st * cp, st * sp, ct)));
   }
-  // The same at (inner, outer) of a line of the nested rule.
-  double integrand_on_line(bool theta_inner, double inner, double outer) const {
-    return integrand(theta_inner ? inner : outer, theta_inner ? outer : inner);
+  double break_value(std::size_t k, double theta, double phi) const {
+    return break_of_trig(k, std::sin(theta), std::cos(theta), std::sin(phi), std::cos(phi));
   }
   double break_on_line(bool theta_inner, std::size_t k, double inner, double outer) const {
     return break_value(k, theta_inner ? inner : outer, theta_inner ? outer : inner);
@@ -305,13 +303,17 @@ std::vector<Cell> BinCubature::focus_phase(int bin, const std::vector<FocusPoint
 int BinCubature::break_grid(const Cell& c, bool theta_inner, std::vector<double>& values, long long& evals) const {
   const CellFrame f(c, theta_inner, rule_);
   values.resize(n_breaks_ * 15 * 17);
+  std::array<double, 17> s_inner, c_inner;  // the 17 inner abscissae are the same on every line
+  for (int i = 0; i < 17; ++i) s_inner[i] = std::sin(f.xs[i]), c_inner[i] = std::cos(f.xs[i]);
   int lines_cut = 0;
   for (int j = 0; j < 15; ++j) {
     const double outer = 0.5 * (f.o0 + f.o1) + 0.5 * (f.o1 - f.o0) * rule_.x[j];
+    const double so = std::sin(outer), co = std::cos(outer);
     bool cut = false;
     for (std::size_t b = 0; b < n_breaks_; ++b) {
       for (int i = 0; i < 17; ++i) {
-        const double v = break_on_line(theta_inner, b, f.xs[i], outer);
+        const double v = theta_inner ? break_of_trig(b, s_inner[i], c_inner[i], so, co)
+                                     : break_of_trig(b, so, co, s_inner[i], c_inner[i]);
         values[(b * 15 + j) * 17 + i] = v;
         if (i > 0 && (v >= 0) != (values[(b * 15 + j) * 17 + i - 1] >= 0)) cut = true;
       }
@@ -356,9 +358,13 @@ void BinCubature::cut_line(const CellFrame& f, bool theta_inner, int j, double o
 std::pair<double, double> BinCubature::segment_rule(bool theta_inner, double a, double b, double outer,
                                                     long long& evals) const {
   const double mc = 0.5 * (a + b), mh = 0.5 * (b - a);
+  // The outer angle is fixed along the segment: its sine and cosine once, not at each of the 15 nodes.
+  const double so = std::sin(outer), co = std::cos(outer);
   double ks = 0, gs = 0;
   for (int i = 0; i < 15; ++i) {
-    const double val = integrand_on_line(theta_inner, mc + mh * rule_.x[i], outer);
+    const double inner = mc + mh * rule_.x[i];
+    const double si = std::sin(inner), ci = std::cos(inner);
+    const double val = theta_inner ? integrand_of_trig(si, ci, so, co) : integrand_of_trig(so, co, si, ci);
     ks += rule_.wk[i] * val;
     gs += rule_.wg[i] * val;
   }
