@@ -16,7 +16,7 @@ namespace microsim::app {
 
 namespace {
 
-std::string estimate_text(const Estimate& e) { return fmt::format("{:.6f} +- {:.2g}", e.value, e.standard_error); }
+std::string albedo_estimate_text(const Estimate& e) { return fmt::format("{:.6f} +- {:.2g}", e.value, e.standard_error); }
 
 // E_avg per alpha, one column per quantity.
 void print_averages(const AlbedoTable& t) {
@@ -25,7 +25,7 @@ void print_averages(const AlbedoTable& t) {
   fmt::print("\n");
   for (std::size_t a = 0; a < t.alphas.size(); ++a) {
     fmt::print("{:<8g}", t.alphas[a]);
-    for (const AlbedoQuantity& q : t.quantities) fmt::print(" {:>22}", estimate_text(q.average[a]));
+    for (const AlbedoQuantity& q : t.quantities) fmt::print(" {:>22}", albedo_estimate_text(q.average[a]));
     fmt::print("\n");
   }
 }
@@ -49,7 +49,7 @@ void print_albedo_row(const AlbedoTable& t, std::size_t row) {
   const AlbedoQuantity& q = t.quantities.front();
   const char* clear = ::isatty(STDERR_FILENO) ? "\r\033[K" : "";  // over the progress bar's line
   fmt::print(stderr, "{}albedo: alpha {} done ({} of {}, {:.1f} s): {}_avg = {}\n", clear, t.alphas[row], row + 1,
-             t.request.alphas.size(), t.row_seconds[row], q.name, estimate_text(q.average[row]));
+             t.request.alphas.size(), t.row_seconds[row], q.name, albedo_estimate_text(q.average[row]));
   std::fflush(stderr);
 }
 

@@ -158,7 +158,7 @@ void add_albedo_options(CLI::App* sub, AlbedoArgs& a) {
   sub->add_option("--json", a.json, "also write the table as JSON");
 }
 
-CommandRegistration reg{"albedo", [](CLI::App& app) {
+CommandRegistration albedo_registration{"albedo", [](CLI::App& app) {
   auto args = std::make_shared<AlbedoArgs>();
   auto* sub = app.add_subcommand(
       "albedo",

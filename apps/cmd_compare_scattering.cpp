@@ -285,7 +285,7 @@ int run_compare(const CompareArgs& a) {
   return v.rejected ? kExitRejected : kExitOk;
 }
 
-CommandRegistration reg{"compare-scattering", [](CLI::App& app) {
+CommandRegistration compare_scattering_registration{"compare-scattering", [](CLI::App& app) {
   auto args = std::make_shared<CompareArgs>();
   auto* sub = app.add_subcommand(
       "compare-scattering",

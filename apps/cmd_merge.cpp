@@ -148,7 +148,7 @@ int run_merge(const MergeArgs& a) {
   return report_heightfield_vndf(m, field, {a.out, a.json});
 }
 
-CommandRegistration reg{"merge", [](CLI::App& app) {
+CommandRegistration merge_registration{"merge", [](CLI::App& app) {
   auto args = std::make_shared<MergeArgs>();
   auto* sub = app.add_subcommand(
       "merge",

@@ -48,7 +48,7 @@ int run_plan(const PlanArgs& a) {
   return kExitOk;
 }
 
-CommandRegistration reg{"plan", [](CLI::App& app) {
+CommandRegistration plan_registration{"plan", [](CLI::App& app) {
   auto args = std::make_shared<PlanArgs>();
   auto* sub = app.add_subcommand(
       "plan",

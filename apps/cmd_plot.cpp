@@ -86,7 +86,7 @@ int run_plot(const PlotOptions& o) {
   return microsim::app::kExitOk;
 }
 
-microsim::app::CommandRegistration reg{"plot", [](CLI::App& app) {
+microsim::app::CommandRegistration plot_registration{"plot", [](CLI::App& app) {
   auto o = std::make_shared<PlotOptions>();
   auto* sub = app.add_subcommand(
       "plot",

@@ -123,7 +123,7 @@ int run_experiment_command(const RunArgs& a) {
   return kExitOk;
 }
 
-CommandRegistration reg{"run", [](CLI::App& app) {
+CommandRegistration run_registration{"run", [](CLI::App& app) {
   auto args = std::make_shared<RunArgs>();
   auto* sub = app.add_subcommand(
       "run",

@@ -226,7 +226,7 @@ int run_scatter(const ScatterArgs& a) {
   throw UsageError("scatter needs --model analytic|smith-walk or --surface SURF.exr");
 }
 
-CommandRegistration reg{"scatter", [](CLI::App& app) {
+CommandRegistration scatter_registration{"scatter", [](CLI::App& app) {
   auto args = std::make_shared<ScatterArgs>();
   auto* sub = app.add_subcommand(
       "scatter",

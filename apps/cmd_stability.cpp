@@ -76,7 +76,7 @@ int run_stability(const Options& o) {
   return ma::kExitOk;
 }
 
-ma::CommandRegistration reg{"stability", [](CLI::App& app) {
+ma::CommandRegistration stability_registration{"stability", [](CLI::App& app) {
   auto opts = std::make_shared<Options>();
   auto* sub = app.add_subcommand(
       "stability",

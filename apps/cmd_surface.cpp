@@ -87,7 +87,7 @@ using microsim::app::interrupted_nothing_written;
 
 // ---- option parsing -----------------------------------------------------------------------------------
 // "AX" or "AX,AY" in the supported range (microsim/parse.h); the assembly's own range is checked after.
-std::pair<double, double> parse_alpha(const std::string& text) {
+std::pair<double, double> surface_alpha(const std::string& text) {
   try {
     return microsim::parse_alpha("--alpha", text);
   } catch (const microsim::ParseError& e) {
@@ -244,7 +244,7 @@ struct BuildCost {
 microgeom::AssemblyParams assembly_params(const BuildOptions& o) {
   microgeom::AssemblyParams p;
   p.assembly = o.assembly;
-  std::tie(p.alpha_x, p.alpha_y) = parse_alpha(o.alpha);
+  std::tie(p.alpha_x, p.alpha_y) = surface_alpha(o.alpha);
   p.resolution = o.resolution;
   p.seed = o.seed;
   p.corr_cells = o.corr_cells;
@@ -429,7 +429,7 @@ microgeom::ReferenceNdf reference_ndf(const StatsCliOptions& o, const microgeom:
 // Alpha: the option, else the file's, else fitted (left unset).
 void set_alpha(microgeom::StatsOptions& so, const StatsCliOptions& o, const microgeom::Heightfield& field) {
   if (o.alpha_given) {
-    std::tie(so.alpha_x, so.alpha_y) = parse_alpha(o.alpha);
+    std::tie(so.alpha_x, so.alpha_y) = surface_alpha(o.alpha);
   } else if (auto ax = metadata_number(field, "alpha_x"), ay = metadata_number(field, "alpha_y");
              ax && ay && *ax > 0 && *ay > 0) {
     so.alpha_x = *ax;
@@ -604,7 +604,7 @@ void add_import_command(CLI::App* group) {
   ma::on_selected(import, [im] { return run_import(*im); });
 }
 
-microsim::app::CommandRegistration reg{"surface", [](CLI::App& app) {
+microsim::app::CommandRegistration surface_registration{"surface", [](CLI::App& app) {
   CLI::App* group = microsim::app::get_or_add_subcommand(
       app, "surface", "Periodic heightfield microsurfaces: build an assembly, measure a heightmap, import one.");
   add_build_command(group);

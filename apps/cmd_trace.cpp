@@ -144,7 +144,7 @@ int run_trace_vndf(const TraceVndfArgs& a) {
   return microsim::app::report_ellipsoid_vndf(m, target, {a.out, a.json});
 }
 
-microsim::app::CommandRegistration reg{"trace", [](CLI::App& app) {
+microsim::app::CommandRegistration trace_registration{"trace", [](CLI::App& app) {
   CLI::App* trace = microsim::app::get_or_add_subcommand(app, "trace", "Ray-trace microsurfaces (the exact oracle)");
   auto args = std::make_shared<TraceVndfArgs>();
   auto* sub = trace->add_subcommand(

@@ -310,7 +310,7 @@ int run_selected_mode(const MaskingArgs& args) {
   return run_masking(args);
 }
 
-CommandRegistration reg{"trace masking", [](CLI::App& app) {
+CommandRegistration trace_masking_registration{"trace masking", [](CLI::App& app) {
   CLI::App* trace = get_or_add_subcommand(app, "trace", "Ray-trace microsurfaces (the exact oracle)");
   auto args = std::make_shared<MaskingArgs>();
   auto* sub = trace->add_subcommand(

@@ -452,7 +452,7 @@ int run(const Args& a) {
   return a.all ? run_all(a) : run_single(a);
 }
 
-microsim::app::CommandRegistration reg{"validate", [](CLI::App& app) {
+microsim::app::CommandRegistration validate_registration{"validate", [](CLI::App& app) {
   auto args = std::make_shared<Args>();
   auto* sub = app.add_subcommand(
       "validate",

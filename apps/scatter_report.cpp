@@ -42,17 +42,17 @@ nlohmann::json hemispheres_json(UpperHemisphere u) {
   }
 }
 
-std::string estimate_text(const Estimate& e) { return fmt::format("{:.6f} +- {:.6f}", e.value, e.standard_error); }
+std::string scatter_estimate_text(const Estimate& e) { return fmt::format("{:.6f} +- {:.6f}", e.value, e.standard_error); }
 
 void print_histogram_table(const ScatterHistogram& h, const HemisphereLabels& l) {
   fmt::print("{:<8} {:<11} {:>24} {:>24} {:>24}\n", "channel", "order", l.upper, l.lower, "total");
   for (int c = 0; c < h.channels(); ++c) {
     for (int k : {0, 1, 2, 3, 4, kTotalOrder})
       fmt::print("{:<8} {:<11} {:>24} {:>24} {:>24}\n", h.channel_name(c), scatter_order_name(k),
-                 estimate_text(h.albedo(c, k, ScatterSide::reflected)), estimate_text(h.albedo(c, k, ScatterSide::transmitted)),
-                 estimate_text(h.albedo(c, k)));
-    fmt::print("{:<8} {:<11} {:>24} {:>24}\n", h.channel_name(c), "", "unfinished " + estimate_text(h.unfinished(c)),
-               "lost " + estimate_text(h.lost(c)));
+                 scatter_estimate_text(h.albedo(c, k, ScatterSide::reflected)), scatter_estimate_text(h.albedo(c, k, ScatterSide::transmitted)),
+                 scatter_estimate_text(h.albedo(c, k)));
+    fmt::print("{:<8} {:<11} {:>24} {:>24}\n", h.channel_name(c), "", "unfinished " + scatter_estimate_text(h.unfinished(c)),
+               "lost " + scatter_estimate_text(h.lost(c)));
   }
 }
 

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "binary_path.h"
+#include "scratch_dir.h"
 
 #include <gtest/gtest.h>
 
@@ -35,12 +36,6 @@ inline std::string slurp(const fs::path& path) {
 }
 
 // A fresh, empty directory under the system's temporary directory, unique to this test process.
-inline fs::path scratch_dir(const std::string& prefix, const std::string& name) {
-  auto dir = fs::temp_directory_path() / ("microsim_" + prefix + "_" + name + "_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
 
 // Runs `microsim ARGS` with DIR as its working directory. Its stdout and stderr go to files beside DIR
 // (not inside it), so that tests can assert that DIR holds exactly the files the command wrote.

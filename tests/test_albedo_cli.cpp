@@ -53,7 +53,7 @@ TEST(AlbedoCli, SampledModelsWriteTheirQuantities) {
 
 const std::string kAlbedo = "albedo --model analytic --out o.exr ";
 
-std::vector<BadInputCase> cases() {
+std::vector<BadInputCase> albedo_cli_cases() {
   return {
       {"model_unknown", "albedo --model walk --out o.exr", 2, "--model 'walk'"},
       {"model_missing", "albedo --out o.exr", 2, "--model"},
@@ -101,7 +101,7 @@ TEST_P(BadInputsAlbedo, ExitsTwoNamingTheValueAndWritesNothing) {
   microsim::test::expect_bad_input(GetParam(), "bad_albedo");
 }
 
-INSTANTIATE_TEST_SUITE_P(Cases, BadInputsAlbedo, ::testing::ValuesIn(cases()),
+INSTANTIATE_TEST_SUITE_P(Cases, BadInputsAlbedo, ::testing::ValuesIn(albedo_cli_cases()),
                          [](const auto& info) { return info.param.name; });
 
 }  // namespace

@@ -87,10 +87,10 @@ std::string binary_text() {
   return s + "\n";
 }
 
-const std::string kValidate = "validate --sampler heitz2018 --alpha 0.3 --theta 30 --samples 20000 ";
+const std::string kValidateSampler = "validate --sampler heitz2018 --alpha 0.3 --theta 30 --samples 20000 ";
 const std::string kFrom = "validate --alpha 0.3 --theta 30 --from ";
 
-std::vector<BadInputCase> cases() {
+std::vector<BadInputCase> files_cases() {
   const std::string huge_claim = "46340 x 46340 pixels x 1 channel = 8.0 GiB of float data, over the limit of 2.0 GiB";
   return {
       {"plot_hits_negative", "plot h.exr --out f.svg", 2, "attribute hits = '-1' is not a count",
@@ -107,11 +107,11 @@ std::vector<BadInputCase> cases() {
        histogram_with("binning.sphere", R"({"kind":"sphere","rows":-3})")},
       {"plot_huge_value", "plot h.exr --out f.svg", 2, "attribute partial = 'yyyy",
        histogram_with("partial", "y", 10 << 20)},
-      {"against_hits_negative", kValidate + "--against h.exr", 2, "attribute hits = '-1'",
+      {"against_hits_negative", kValidateSampler + "--against h.exr", 2, "attribute hits = '-1'",
        histogram_with("hits", "-1")},
-      {"against_binnings_twice", kValidate + "--against h.exr", 2, "names binning 'sphere' twice",
+      {"against_binnings_twice", kValidateSampler + "--against h.exr", 2, "names binning 'sphere' twice",
        histogram_with("binnings", "sphere,sphere")},
-      {"against_alpha_trailing_comma", kValidate + "--against h.exr", 2, "attribute alpha = '0.3,'",
+      {"against_alpha_trailing_comma", kValidateSampler + "--against h.exr", 2, "attribute alpha = '0.3,'",
        histogram_with("alpha", "0.3,")},
       {"stats_huge_header", "surface stats hf.exr", 2, huge_claim, heightmap_with({}, 46340, 46340)},
       {"trace_vndf_huge_header", "trace vndf --surface hf.exr --theta 30 --rays 1000 --out o.exr", 2, huge_claim,
@@ -148,7 +148,7 @@ TEST_P(BadInputsFiles, ExitTwoNamingTheValueInAShortMessageAndWritingNothing) {
   fs::remove_all(dir);
 }
 
-INSTANTIATE_TEST_SUITE_P(Readers, BadInputsFiles, ::testing::ValuesIn(cases()),
+INSTANTIATE_TEST_SUITE_P(Readers, BadInputsFiles, ::testing::ValuesIn(files_cases()),
                          [](const auto& info) { return info.param.name; });
 
 }  // namespace

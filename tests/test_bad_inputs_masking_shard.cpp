@@ -42,40 +42,40 @@ std::function<void(const fs::path&)> part2_with(std::function<void(nlohmann::jso
   };
 }
 
-const std::string kTrace = "trace masking --surface s.exr --theta 60 --samples 100000 --seed 7 ";
-const std::string kMerge = "merge p1.json p2.json p3.json --json m.json";
+const std::string kTraceMasking = "trace masking --surface s.exr --theta 60 --samples 100000 --seed 7 ";
+const std::string kMergeMaskingParts = "merge p1.json p2.json p3.json --json m.json";
 
-std::vector<BadInputCase> cases() {
+std::vector<BadInputCase> masking_shard_cases() {
   return {
-      {"shard_with_vndf_rays", kTrace + "--shard 1/3 --vndf-rays 1000 --json q.json", 2,
+      {"shard_with_vndf_rays", kTraceMasking + "--shard 1/3 --vndf-rays 1000 --json q.json", 2,
        "trace vndf --surface s.exr --shard K/N", copy_fixtures},
       {"shard_with_table", "trace masking --table --res 256 --shard 1/3 --json q.json", 2,
        "trace vndf --surface S --shard K/N", copy_fixtures},
-      {"shard_without_json", kTrace + "--shard 1/3", 2, "--shard 1/3: needs --json", copy_fixtures},
-      {"shard_zero", kTrace + "--shard 0/3 --json q.json", 2, "--shard (K) '0'", copy_fixtures},
-      {"shard_beyond", kTrace + "--shard 4/3 --json q.json", 2, "--shard", copy_fixtures},
-      {"shard_more_than_blocks", kTrace + "--shard 1/26 --json q.json", 2, "'26'", copy_fixtures},
-      {"shard_not_a_fraction", kTrace + "--shard a/b --json q.json", 2, "--shard", copy_fixtures},
-      {"sum_not_hex", kMerge, 2, "sums/g1/x",
+      {"shard_without_json", kTraceMasking + "--shard 1/3", 2, "--shard 1/3: needs --json", copy_fixtures},
+      {"shard_zero", kTraceMasking + "--shard 0/3 --json q.json", 2, "--shard (K) '0'", copy_fixtures},
+      {"shard_beyond", kTraceMasking + "--shard 4/3 --json q.json", 2, "--shard", copy_fixtures},
+      {"shard_more_than_blocks", kTraceMasking + "--shard 1/26 --json q.json", 2, "'26'", copy_fixtures},
+      {"shard_not_a_fraction", kTraceMasking + "--shard a/b --json q.json", 2, "--shard", copy_fixtures},
+      {"sum_not_hex", kMergeMaskingParts, 2, "sums/g1/x",
        part2_with([](nlohmann::json& j) { j["sums"]["g1"]["x"] = "0x12"; })},
-      {"sum_missing", kMerge, 2, "sums/mirror/pred_analytic is missing",
+      {"sum_missing", kMergeMaskingParts, 2, "sums/mirror/pred_analytic is missing",
        part2_with([](nlohmann::json& j) { j["sums"]["mirror"].erase("pred_analytic"); })},
-      {"count_negative", kMerge, 2, "sums/samples is not a count",
+      {"count_negative", kMergeMaskingParts, 2, "sums/samples is not a count",
        part2_with([](nlohmann::json& j) { j["sums"]["samples"] = -5; })},
-      {"bins_short", kMerge, 2, "sums/normal is not an array of 10 bins",
+      {"bins_short", kMergeMaskingParts, 2, "sums/normal is not an array of 10 bins",
        part2_with([](nlohmann::json& j) { j["sums"]["normal"].erase(0); })},
-      {"blocks_beyond_run", kMerge, 2, "provenance/blocks",
+      {"blocks_beyond_run", kMergeMaskingParts, 2, "provenance/blocks",
        part2_with([](nlohmann::json& j) { j["provenance"]["blocks"] = {9, 99}; })},
-      {"producer_other", kMerge, 2, "part 'p2.json': not a trace masking report",
+      {"producer_other", kMergeMaskingParts, 2, "part 'p2.json': not a trace masking report",
        part2_with([](nlohmann::json& j) { j["provenance"]["producer"] = "trace vndf"; })},
-      {"geometry_unknown", kMerge, 2, "provenance/parameters/geometry",
+      {"geometry_unknown", kMergeMaskingParts, 2, "provenance/parameters/geometry",
        part2_with([](nlohmann::json& j) { j["provenance"]["parameters"]["geometry"] = "voxels"; })},
-      {"not_json", kMerge, 2, "part 'p2.json': not a JSON file",
+      {"not_json", kMergeMaskingParts, 2, "part 'p2.json': not a JSON file",
        [](const fs::path& dir) {
          copy_fixtures(dir);
          std::ofstream(dir / "p2.json") << "{\"provenance\": ";
        }},
-      {"surface_missing", kMerge + " --surface gone.exr", 2, "--surface 'gone.exr': no such file", copy_fixtures},
+      {"surface_missing", kMergeMaskingParts + " --surface gone.exr", 2, "--surface 'gone.exr': no such file", copy_fixtures},
   };
 }
 
@@ -85,7 +85,7 @@ TEST_P(BadMaskingShardInput, ExitsTwoNamingTheValueAndWritesNothing) {
   microsim::test::expect_bad_input(GetParam(), "bad_masking_shard");
 }
 
-INSTANTIATE_TEST_SUITE_P(Cases, BadMaskingShardInput, ::testing::ValuesIn(cases()),
+INSTANTIATE_TEST_SUITE_P(Cases, BadMaskingShardInput, ::testing::ValuesIn(masking_shard_cases()),
                          [](const auto& info) { return info.param.name; });
 
 }  // namespace

@@ -30,19 +30,19 @@ void histogram_and_directory(const fs::path& dir) {
   fs::create_directory(dir / "m.ply");
 }
 
-const std::string kValidate = "validate --sampler heitz2018 --alpha 0.3 --theta 30 --samples 20000 --rows 9 ";
+const std::string kValidateRows9 = "validate --sampler heitz2018 --alpha 0.3 --theta 30 --samples 20000 --rows 9 ";
 
-std::vector<BadInputCase> cases() {
+std::vector<BadInputCase> output_dirs_cases() {
   return {
       {"PlotOutIsADirectory", "plot h.exr --out fig.svg", 2, "--out: output 'fig.svg' is a directory",
        histogram_and_directory},
       {"PlotOutInAMissingDirectory", "plot h.exr --out nodir/f.svg", 2,
        "--out: cannot write 'nodir/f.svg': directory 'nodir' does not exist", histogram_and_directory},
-      {"ValidateJsonIsADirectory", kValidate + "--json out.json", 2, "--json: output 'out.json' is a directory",
+      {"ValidateJsonIsADirectory", kValidateRows9 + "--json out.json", 2, "--json: output 'out.json' is a directory",
        histogram_and_directory},
-      {"ValidatePlotIsADirectory", kValidate + "--plot fig.svg", 2, "--plot: output 'fig.svg' is a directory",
+      {"ValidatePlotIsADirectory", kValidateRows9 + "--plot fig.svg", 2, "--plot: output 'fig.svg' is a directory",
        histogram_and_directory},
-      {"ValidatePlotInAMissingDirectory", kValidate + "--plot nodir/f.svg", 2,
+      {"ValidatePlotInAMissingDirectory", kValidateRows9 + "--plot nodir/f.svg", 2,
        "--plot: cannot write 'nodir/f.svg': directory 'nodir' does not exist", histogram_and_directory},
       {"TraceMeshOutIsADirectory", "trace vndf --alpha 0.3 --theta 30 --rays 1000 --mesh-level 1 --out o.exr --mesh-out m.ply",
        2, "--mesh-out: output 'm.ply' is a directory", histogram_and_directory},
@@ -53,7 +53,7 @@ class OutputThatCannotBeCreated : public ::testing::TestWithParam<BadInputCase> 
 
 TEST_P(OutputThatCannotBeCreated, IsRefusedBeforeAnyWork) { microsim::test::expect_bad_input(GetParam(), "output_dirs"); }
 
-INSTANTIATE_TEST_SUITE_P(Cases, OutputThatCannotBeCreated, ::testing::ValuesIn(cases()),
+INSTANTIATE_TEST_SUITE_P(Cases, OutputThatCannotBeCreated, ::testing::ValuesIn(output_dirs_cases()),
                          [](const auto& info) { return info.param.name; });
 
 }  // namespace

@@ -99,7 +99,7 @@ std::string same_outputs(const std::string& option1, const std::string& path1, c
   return option1 + " '" + path1 + "' and " + option2 + " '" + path2 + "' are the same file";
 }
 
-std::vector<BadInputCase> cases() {
+std::vector<BadInputCase> outputs_cases() {
   const auto in_txt = [](const std::string& out_option, const std::string& spelling) {
     return on_input(out_option, spelling, "--from", "in.txt");
   };
@@ -175,7 +175,7 @@ class OutputPathTable : public ::testing::TestWithParam<BadInputCase> {};
 
 TEST_P(OutputPathTable, RefusedBeforeAnyWork) { microsim::test::expect_bad_input(GetParam(), "outputs"); }
 
-INSTANTIATE_TEST_SUITE_P(SamePath, OutputPathTable, ::testing::ValuesIn(cases()),
+INSTANTIATE_TEST_SUITE_P(SamePath, OutputPathTable, ::testing::ValuesIn(outputs_cases()),
                          [](const auto& info) { return info.param.name; });
 
 // ---- what is still allowed -----------------------------------------------------------------------------

@@ -48,7 +48,7 @@ void prepare_files(const fs::path& dir) {
   microgeom::write_exr(dir / "bad.exr", bad);
 }
 
-std::vector<BadInputCase> cases() {
+std::vector<BadInputCase> scatter_cases() {
   return {
       // materials
       {"unknown_material", kAnalytic + "--material gold", 2, "'gold': unknown material"},
@@ -127,7 +127,7 @@ TEST_P(BadInputsScatter, ExitsTwoNamingTheValueAndWritesNothing) {
   microsim::test::expect_bad_input(GetParam(), "bad_scatter");
 }
 
-INSTANTIATE_TEST_SUITE_P(Cases, BadInputsScatter, ::testing::ValuesIn(cases()),
+INSTANTIATE_TEST_SUITE_P(Cases, BadInputsScatter, ::testing::ValuesIn(scatter_cases()),
                          [](const auto& info) { return info.param.name; });
 
 }  // namespace

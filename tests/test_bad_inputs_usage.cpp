@@ -14,7 +14,7 @@ namespace fs = std::filesystem;
 
 class BadUsage : public ::testing::TestWithParam<BadInputCase> {};
 
-std::vector<BadInputCase> cases() {
+std::vector<BadInputCase> usage_cases() {
   const auto one_line = [](const fs::path& dir) { std::ofstream(dir / "one.txt") << "0 0 1\n"; };
   return {
       {"unknown_command", "nosuch", 2, "unknown command 'nosuch'"},
@@ -28,6 +28,6 @@ std::vector<BadInputCase> cases() {
 
 TEST_P(BadUsage, ExitTwoNamingTheWordAndWritingNothing) { microsim::test::expect_bad_input(GetParam(), "bad_usage"); }
 
-INSTANTIATE_TEST_SUITE_P(Usage, BadUsage, ::testing::ValuesIn(cases()), [](const auto& info) { return info.param.name; });
+INSTANTIATE_TEST_SUITE_P(Usage, BadUsage, ::testing::ValuesIn(usage_cases()), [](const auto& info) { return info.param.name; });
 
 }  // namespace

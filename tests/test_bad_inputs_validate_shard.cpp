@@ -48,48 +48,48 @@ std::function<void(const fs::path&)> part_with(std::string name, std::function<v
   };
 }
 
-const std::string kValidate = "validate --sampler heitz2018 --alpha 0.3 --theta 30 --samples 200000 ";
-const std::string kMerge = "merge p1.json p2.json p3.json --json m.json";
-const std::string kMergeStability = "merge s1.json s2.json --json m.json";
+const std::string kValidateShardable = "validate --sampler heitz2018 --alpha 0.3 --theta 30 --samples 200000 ";
+const std::string kMergeValidateParts = "merge p1.json p2.json p3.json --json m.json";
+const std::string kMergeStabilityParts = "merge s1.json s2.json --json m.json";
 
-std::vector<BadInputCase> cases() {
+std::vector<BadInputCase> validate_shard_cases() {
   return {
       {"shard_with_from", "validate --from in.txt --alpha 0.3 --theta 30 --shard 1/2 --json q.json", 2,
        "--shard 1/2 with --from", copy_fixtures},
-      {"shard_against_ellipsoid", kValidate + "--against ellipsoid --shard 1/2 --json q.json", 2,
+      {"shard_against_ellipsoid", kValidateShardable + "--against ellipsoid --shard 1/2 --json q.json", 2,
        "--shard 1/2 with --against ellipsoid", copy_fixtures},
-      {"shard_without_json", kValidate + "--shard 1/2", 2, "--shard 1/2: needs --json", copy_fixtures},
-      {"shard_with_plot", kValidate + "--shard 1/2 --plot f.svg --json q.json", 2, "--shard 1/2 with --plot",
+      {"shard_without_json", kValidateShardable + "--shard 1/2", 2, "--shard 1/2: needs --json", copy_fixtures},
+      {"shard_with_plot", kValidateShardable + "--shard 1/2 --plot f.svg --json q.json", 2, "--shard 1/2 with --plot",
        copy_fixtures},
-      {"shard_zero", kValidate + "--shard 0/3 --json q.json", 2, "--shard (K) '0'", copy_fixtures},
-      {"shard_more_than_blocks", kValidate + "--shard 1/5 --json q.json", 2, "'5'", copy_fixtures},
-      {"shard_not_a_fraction", kValidate + "--shard a/b --json q.json", 2, "--shard", copy_fixtures},
+      {"shard_zero", kValidateShardable + "--shard 0/3 --json q.json", 2, "--shard (K) '0'", copy_fixtures},
+      {"shard_more_than_blocks", kValidateShardable + "--shard 1/5 --json q.json", 2, "'5'", copy_fixtures},
+      {"shard_not_a_fraction", kValidateShardable + "--shard a/b --json q.json", 2, "--shard", copy_fixtures},
       {"all_shard_without_json", "validate --all --shard 1/2", 2, "--shard 1/2: needs --json", copy_fixtures},
       {"stability_shard_without_json", "stability --shard 1/2", 2, "--shard 1/2: needs --json", copy_fixtures},
       {"stability_shard_zero", "stability --shard 0/2 --json q.json", 2, "--shard (K) '0'", copy_fixtures},
       {"stability_shard_more_than_blocks", "stability --shard 1/834 --json q.json", 2, "'834'", copy_fixtures},
       {"stability_shard_failures_only", "stability --shard 1/2 --failures-only --json q.json", 2,
        "--shard 1/2 with --failures-only", copy_fixtures},
-      {"tallies_short", kMerge, 2, "tallies is not an array of 1",
+      {"tallies_short", kMergeValidateParts, 2, "tallies is not an array of 1",
        part_with("p2.json", [](nlohmann::json& j) { j["tallies"].erase(0); })},
-      {"checks_not_exact", kMerge, 2, "tallies/0/checks/0/mean",
+      {"checks_not_exact", kMergeValidateParts, 2, "tallies/0/checks/0/mean",
        part_with("p2.json", [](nlohmann::json& j) { j["tallies"][0]["checks"][0]["mean"] = 0.5; })},
-      {"checks_of_other_blocks", kMerge, 2, "tallies/0/checks is not an array of the checks of 1 blocks",
+      {"checks_of_other_blocks", kMergeValidateParts, 2, "tallies/0/checks is not an array of the checks of 1 blocks",
        part_with("p2.json", [](nlohmann::json& j) { j["tallies"][0]["checks"].push_back(j["tallies"][0]["checks"][0]); })},
-      {"sampler_unknown", kMerge, 2, "'nope' is not a sampler of this build",
+      {"sampler_unknown", kMergeValidateParts, 2, "'nope' is not a sampler of this build",
        part_with("p2.json", [](nlohmann::json& j) { j["provenance"]["parameters"]["sampler"] = "nope"; })},
-      {"block_size_other", kMerge, 2, "provenance/parameters/block_size",
+      {"block_size_other", kMergeValidateParts, 2, "provenance/parameters/block_size",
        part_with("p2.json", [](nlohmann::json& j) { j["provenance"]["parameters"]["block_size"] = 4096; })},
-      {"validate_blocks_beyond_run", kMerge, 2, "provenance/blocks",
+      {"validate_blocks_beyond_run", kMergeValidateParts, 2, "provenance/blocks",
        part_with("p2.json", [](nlohmann::json& j) { j["provenance"]["blocks"] = {1, 9}; })},
-      {"validate_with_surface", kMerge + " --surface s.exr", 2, "--surface applies to heightfield parts", copy_fixtures},
-      {"stability_row_unknown", kMergeStability, 2, "rows/0 is no (subject, regime)",
+      {"validate_with_surface", kMergeValidateParts + " --surface s.exr", 2, "--surface applies to heightfield parts", copy_fixtures},
+      {"stability_row_unknown", kMergeStabilityParts, 2, "rows/0 is no (subject, regime)",
        part_with("s2.json", [](nlohmann::json& j) { j["rows"][0]["subject"] = "GGX::E"; })},
-      {"stability_real_not_exact", kMergeStability, 2, "rows/1/cond_claimed",
+      {"stability_real_not_exact", kMergeStabilityParts, 2, "rows/1/cond_claimed",
        part_with("s2.json", [](nlohmann::json& j) { j["rows"][1]["cond_claimed"] = "nan"; })},
-      {"stability_subjects_other", kMergeStability, 2, "provenance/parameters/subjects",
+      {"stability_subjects_other", kMergeStabilityParts, 2, "provenance/parameters/subjects",
        part_with("s1.json", [](nlohmann::json& j) { j["provenance"]["parameters"]["subjects"].erase(0); })},
-      {"stability_with_out", kMergeStability + " --out m.exr", 2, "--out 'm.exr'", copy_fixtures},
+      {"stability_with_out", kMergeStabilityParts + " --out m.exr", 2, "--out 'm.exr'", copy_fixtures},
   };
 }
 
@@ -99,7 +99,7 @@ TEST_P(BadValidateShardInput, ExitsTwoNamingTheValueAndWritesNothing) {
   microsim::test::expect_bad_input(GetParam(), "bad_validate_shard");
 }
 
-INSTANTIATE_TEST_SUITE_P(Cases, BadValidateShardInput, ::testing::ValuesIn(cases()),
+INSTANTIATE_TEST_SUITE_P(Cases, BadValidateShardInput, ::testing::ValuesIn(validate_shard_cases()),
                          [](const auto& info) { return info.param.name; });
 
 }  // namespace

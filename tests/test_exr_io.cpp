@@ -1,6 +1,8 @@
 // Round-trip and failure tests of the OpenEXR helper (microgeom/exr_io.h).
 #include "microgeom/exr_io.h"
 
+#include "scratch_dir.h"
+
 #include <fmt/core.h>
 #include <gtest/gtest.h>
 
@@ -14,13 +16,6 @@ namespace fs = std::filesystem;
 using microgeom::ExrImage;
 
 namespace {
-
-fs::path scratch_dir(const std::string& name) {
-  auto dir = fs::temp_directory_path() / ("microsim_test_exr_" + name + "_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
 
 ExrImage sample_image() {
   ExrImage img;
@@ -43,7 +38,7 @@ ExrImage sample_image() {
 }  // namespace
 
 TEST(ExrIo, RoundTripIsBitExact) {
-  const auto dir = scratch_dir("roundtrip");
+  const auto dir = microsim::test::scratch_dir("test_exr", "roundtrip");
   const auto path = dir / "img.exr";
   const ExrImage img = sample_image();
   microgeom::write_exr(path, img);
@@ -70,7 +65,7 @@ TEST(ExrIo, RoundTripIsBitExact) {
 }
 
 TEST(ExrIo, OverwriteReplacesTheFile) {
-  const auto dir = scratch_dir("overwrite");
+  const auto dir = microsim::test::scratch_dir("test_exr", "overwrite");
   const auto path = dir / "img.exr";
   ExrImage img = sample_image();
   microgeom::write_exr(path, img);
@@ -81,7 +76,7 @@ TEST(ExrIo, OverwriteReplacesTheFile) {
 }
 
 TEST(ExrIo, BadImagesThrowNamingThePathAndLeaveNothing) {
-  const auto dir = scratch_dir("bad");
+  const auto dir = microsim::test::scratch_dir("test_exr", "bad");
   const auto path = dir / "bad.exr";
   ExrImage img = sample_image();
   img.channels[1].data.pop_back();  // wrong size
@@ -104,7 +99,7 @@ TEST(ExrIo, BadImagesThrowNamingThePathAndLeaveNothing) {
 }
 
 TEST(ExrIo, ReadingGarbageOrMissingFilesThrowsNamingThePath) {
-  const auto dir = scratch_dir("garbage");
+  const auto dir = microsim::test::scratch_dir("test_exr", "garbage");
   const auto missing = dir / "missing.exr";
   try {
     microgeom::read_exr(missing);

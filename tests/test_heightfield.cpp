@@ -5,6 +5,8 @@
 
 #include "core/random.h"
 
+#include "scratch_dir.h"
+
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
@@ -26,13 +28,6 @@ Heightfield random_field(int n, double tile, std::uint64_t seed) {
   microsim::CounterRng rng(seed, 0);
   for (auto& z : h) z = float(rng.uniform() - 0.5) * float(tile);
   return Heightfield(n, tile, std::move(h));
-}
-
-fs::path scratch_dir(const std::string& name) {
-  auto dir = fs::temp_directory_path() / ("microsim_test_hf_" + name + "_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
 }
 
 using microsim::test::message_of;
@@ -133,7 +128,7 @@ TEST(Heightfield, HeightAtInterpolatesOnTheSplitAndIsPeriodic) {
 }
 
 TEST(Heightfield, HeightmapExrRoundTripKeepsHeightsTileSizeAndMetadata) {
-  const auto dir = scratch_dir("roundtrip");
+  const auto dir = microsim::test::scratch_dir("test_hf", "roundtrip");
   Heightfield f = random_field(16, 0.125, 4);
   f.metadata["assembly"] = "smith";
   f.metadata["seed"] = "7";
@@ -159,7 +154,7 @@ TEST(Heightfield, HeightmapExrRoundTripKeepsHeightsTileSizeAndMetadata) {
 }
 
 TEST(Heightfield, ExternalHeightmapsAreValidatedWithClearMessages) {
-  const auto dir = scratch_dir("external");
+  const auto dir = microsim::test::scratch_dir("test_hf", "external");
   auto write = [&](const std::string& name, int w, int h, std::vector<std::string> channels, float bad = 0.0f,
                    bool with_bad = false) {
     microgeom::ExrImage img;

@@ -29,7 +29,7 @@ struct SmallSurface {
   std::unique_ptr<AnalyticSmith> analytic;
 };
 
-const SmallSurface& small_surface() {
+const SmallSurface& small_masking_surface() {
   static const std::unique_ptr<SmallSurface> s = [] {
     microgeom::AssemblyParams p;
     p.assembly = "sorted";
@@ -46,7 +46,7 @@ const SmallSurface& small_surface() {
 }
 
 MaskingResult run_blocks(const MaskingOptions& base, std::optional<BlockRange> blocks, int threads) {
-  const SmallSurface& s = small_surface();
+  const SmallSurface& s = small_masking_surface();
   MaskingOptions o = base;
   o.blocks = blocks;
   o.run.threads = threads;
@@ -67,7 +67,7 @@ TEST_P(ExactMaskingSums, AnyGroupingOfBlocksIsTheSingleRun) {
   MaskingSums sum = MaskingSums::empty(o.normal_bins, o.height_bins);
   for (std::size_t k = 0; k < parts.size(); ++k) sum += run_blocks(o, parts[k], 1 + int(k % 2)).sums;
   EXPECT_TRUE(sum == whole.sums);
-  const SmallSurface& s = small_surface();
+  const SmallSurface& s = small_masking_surface();
   const MaskingResult merged = masking_result_from_sums(s.field, *s.analytic, *s.empirical, direction_from_degrees(70.0, 25.0),
                                                         o, sum, {0, 31});
   expect_contains(pinned_part(to_json(whole)), pinned_part(to_json(merged)), "merged");
@@ -96,7 +96,7 @@ struct MaskingShardCase {
 void PrintTo(const MaskingShardCase& c, std::ostream* os) { *os << c.name; }
 
 // The table rows and the leak test line of a report (the lines without timings).
-std::string table_of(const std::string& out) {
+std::string masking_table_of(const std::string& out) {
   std::istringstream in(out);
   std::string line, table;
   while (std::getline(in, line))
@@ -127,7 +127,7 @@ TEST_P(MaskingShardMerge, MergedShardsAreTheSingleRunBitForBit) {
   ASSERT_TRUE(want.contains("sums") && want["provenance"]["blocks"] == json::array({0, want["provenance"]["total_blocks"]}));
   expect_contains(want, got, c.name + " (whole in merged)");
   expect_contains(got, want, c.name + " (merged in whole)");
-  EXPECT_EQ(table_of(merged.out), table_of(whole.out));
+  EXPECT_EQ(masking_table_of(merged.out), masking_table_of(whole.out));
   fs::remove_all(dir);
 }
 

@@ -26,7 +26,7 @@ namespace microsim::test {
 namespace {
 
 // stdout without the lines that measure the machine ("time 1.23 s").
-std::string table_of(const std::string& out) {
+std::string validation_table_of(const std::string& out) {
   std::istringstream in(out);
   std::string line, table;
   while (std::getline(in, line))
@@ -69,7 +69,7 @@ TEST_P(ValidateShardMerge, MergedShardsAreTheSingleRunBitForBit) {
   ASSERT_TRUE(want.contains("p_value"));
   expect_contains(want, got, c.name + " (whole in merged)");
   expect_contains(got, want, c.name + " (merged in whole)");
-  EXPECT_EQ(table_of(merged.out), table_of(whole.out));
+  EXPECT_EQ(validation_table_of(merged.out), validation_table_of(whole.out));
   fs::remove_all(dir);
 }
 

@@ -14,7 +14,7 @@
 namespace microsim::experiment {
 namespace {
 
-enum SeedPurpose : std::uint64_t { kRoundSeed = 16 };
+enum RunSeedPurpose : std::uint64_t { kRoundSeed = 16 };
 
 double seconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -13,7 +13,7 @@ namespace microsim {
 
 namespace {
 
-constexpr const char* kProducer = "trace masking";
+constexpr const char* kMaskingProducer = "trace masking";
 
 // ---- the run's parameters -----------------------------------------------------------------------------------
 
@@ -67,7 +67,7 @@ Vec3<double> masking_view(const MaskingRequest& r) { return direction_from_degre
 
 Provenance masking_provenance(const nlohmann::json& parameters, std::uint64_t seed, const MaskingResult& r) {
   Provenance p;
-  p.producer = kProducer;
+  p.producer = kMaskingProducer;
   p.measurement = parameters.dump();
   p.seed = seed;
   p.total_blocks = r.total_blocks;
@@ -77,9 +77,9 @@ Provenance masking_provenance(const nlohmann::json& parameters, std::uint64_t se
 
 // ---- reading a part's JSON ----------------------------------------------------------------------------------
 
-const PartReader kReader(kProducer);
+const PartReader kMaskingReader(kMaskingProducer);
 
-[[noreturn]] void malformed(const std::string& where, const std::string& what) { kReader.malformed(where, what); }
+[[noreturn]] void malformed(const std::string& where, const std::string& what) { kMaskingReader.malformed(where, what); }
 
 // ---- exact sums as JSON -------------------------------------------------------------------------------------
 
@@ -94,7 +94,7 @@ ExactSum sum_from_json(const nlohmann::json& v, const std::string& where) {
 }
 
 ExactSum sum_member(const nlohmann::json& j, const char* key, const std::string& where) {
-  return sum_from_json(kReader.member(j, key, where), where + "/" + key);
+  return sum_from_json(kMaskingReader.member(j, key, where), where + "/" + key);
 }
 
 nlohmann::json sums_json(const std::vector<ExactSum>& sums) {
@@ -110,7 +110,7 @@ nlohmann::json ratio_json(const RatioTotals& t) {
 
 RatioTotals ratio_from_json(const nlohmann::json& j, const std::string& where) {
   RatioTotals t;
-  t.n = kReader.count(j, "n", where);
+  t.n = kMaskingReader.count(j, "n", where);
   t.x = sum_member(j, "x", where);
   t.y = sum_member(j, "y", where);
   t.xx = sum_member(j, "xx", where);
@@ -134,9 +134,9 @@ nlohmann::json g2_json(const G2Totals& g) {
 
 G2Totals g2_from_json(const nlohmann::json& j, const std::string& where) {
   G2Totals g;
-  g.measured = ratio_from_json(kReader.member(j, "measured", where), where + "/measured");
-  g.vs_analytic = ratio_from_json(kReader.member(j, "vs_analytic", where), where + "/vs_analytic");
-  g.vs_empirical = ratio_from_json(kReader.member(j, "vs_empirical", where), where + "/vs_empirical");
+  g.measured = ratio_from_json(kMaskingReader.member(j, "measured", where), where + "/measured");
+  g.vs_analytic = ratio_from_json(kMaskingReader.member(j, "vs_analytic", where), where + "/vs_analytic");
+  g.vs_empirical = ratio_from_json(kMaskingReader.member(j, "vs_empirical", where), where + "/vs_empirical");
   g.pred_analytic = sum_member(j, "pred_analytic", where);
   g.pred_empirical = sum_member(j, "pred_empirical", where);
   g.sep_analytic = sum_member(j, "sep_analytic", where);
@@ -167,7 +167,7 @@ nlohmann::json masking_sums_json(const MaskingSums& s) {
 template <class T, class Read>
 std::vector<T> array_member(const nlohmann::json& j, const char* key, std::size_t bins, const std::string& where,
                             Read read) {
-  const nlohmann::json& a = kReader.member(j, key, where);
+  const nlohmann::json& a = kMaskingReader.member(j, key, where);
   if (!a.is_array() || a.size() != bins) malformed(where + "/" + key, fmt::format("is not an array of {} bins", bins));
   std::vector<T> out;
   for (std::size_t k = 0; k < a.size(); ++k) out.push_back(read(a[k], fmt::format("{}/{}/{}", where, key, k)));
@@ -177,22 +177,22 @@ std::vector<T> array_member(const nlohmann::json& j, const char* key, std::size_
 MaskingSums masking_sums_from_json(const nlohmann::json& j, std::size_t bins) {
   const std::string w = "sums";
   MaskingSums s;
-  s.samples = kReader.count(j, "samples", w);
-  s.front = kReader.count(j, "front", w);
-  s.rays = kReader.count(j, "rays", w);
-  s.leaked = kReader.count(j, "leaked", w);
-  s.unresolved = kReader.count(j, "unresolved", w);
+  s.samples = kMaskingReader.count(j, "samples", w);
+  s.front = kMaskingReader.count(j, "front", w);
+  s.rays = kMaskingReader.count(j, "rays", w);
+  s.leaked = kMaskingReader.count(j, "leaked", w);
+  s.unresolved = kMaskingReader.count(j, "unresolved", w);
   s.leak_y = sum_member(j, "leak_y", w);
   s.leak_yy = sum_member(j, "leak_yy", w);
-  s.g1 = ratio_from_json(kReader.member(j, "g1", w), w + "/g1");
-  s.near_grazing = ratio_from_json(kReader.member(j, "near_grazing", w), w + "/near_grazing");
+  s.g1 = ratio_from_json(kMaskingReader.member(j, "g1", w), w + "/g1");
+  s.near_grazing = ratio_from_json(kMaskingReader.member(j, "near_grazing", w), w + "/near_grazing");
   s.normal = array_member<RatioTotals>(j, "normal", bins, w, ratio_from_json);
   s.height = array_member<RatioTotals>(j, "height", bins, w, ratio_from_json);
   s.height_pred_analytic = array_member<ExactSum>(j, "height_pred_analytic", bins, w, sum_from_json);
   s.height_pred_empirical = array_member<ExactSum>(j, "height_pred_empirical", bins, w, sum_from_json);
-  s.mirror = g2_from_json(kReader.member(j, "mirror", w), w + "/mirror");
-  s.pair = g2_from_json(kReader.member(j, "pair", w), w + "/pair");
-  s.cone = g2_from_json(kReader.member(j, "cone", w), w + "/cone");
+  s.mirror = g2_from_json(kMaskingReader.member(j, "mirror", w), w + "/mirror");
+  s.pair = g2_from_json(kMaskingReader.member(j, "pair", w), w + "/pair");
+  s.cone = g2_from_json(kMaskingReader.member(j, "cone", w), w + "/cone");
   return s;
 }
 
@@ -202,14 +202,14 @@ MaskingSums masking_sums_from_json(const nlohmann::json& j, std::size_t bins) {
 MaskingRequest request_from_parameters(const nlohmann::json& p, std::uint64_t seed) {
   const std::string w = "provenance/parameters";
   MaskingRequest r;
-  r.theta_deg = kReader.real(p, "theta", w);
-  r.phi_deg = kReader.real(p, "phi", w);
-  if (!kReader.member(p, "theta_l", w).is_null()) r.theta_l_deg = kReader.real(p, "theta_l", w);
-  r.phi_l_deg = kReader.real(p, "phi_l", w);
-  r.cone_deg = kReader.real(p, "cone_deg", w);
-  r.samples = kReader.count(p, "samples", w);
-  r.bins = int(kReader.count(p, "bins", w));
-  r.grazing_share = kReader.real(p, "grazing_share", w);
+  r.theta_deg = kMaskingReader.real(p, "theta", w);
+  r.phi_deg = kMaskingReader.real(p, "phi", w);
+  if (!kMaskingReader.member(p, "theta_l", w).is_null()) r.theta_l_deg = kMaskingReader.real(p, "theta_l", w);
+  r.phi_l_deg = kMaskingReader.real(p, "phi_l", w);
+  r.cone_deg = kMaskingReader.real(p, "cone_deg", w);
+  r.samples = kMaskingReader.count(p, "samples", w);
+  r.bins = int(kMaskingReader.count(p, "bins", w));
+  r.grazing_share = kMaskingReader.real(p, "grazing_share", w);
   r.seed = seed;
   return r;
 }
@@ -259,18 +259,18 @@ nlohmann::json masking_part_json(const SurfaceMasking& m) {
   return j;
 }
 
-bool is_masking_part(const nlohmann::json& report) { return producer_of(report) == kProducer; }
+bool is_masking_part(const nlohmann::json& report) { return producer_of(report) == kMaskingProducer; }
 
 MaskingPart read_masking_part(const nlohmann::json& report) {
   MaskingPart part;
-  part.provenance = kReader.provenance(report, part.parameters);
-  const std::uint64_t bins = kReader.count(part.parameters, "bins", "provenance/parameters");
+  part.provenance = kMaskingReader.provenance(report, part.parameters);
+  const std::uint64_t bins = kMaskingReader.count(part.parameters, "bins", "provenance/parameters");
   if (bins < 1 || bins > 1000000) malformed("provenance/parameters/bins", "is not a number of bins");
-  part.sums = masking_sums_from_json(kReader.member(report, "sums", ""), std::size_t(bins));
-  part.surface = kReader.text(part.parameters, "surface", "provenance/parameters");
-  part.tile_size = kReader.real(part.parameters, "tile_size", "provenance/parameters");
+  part.sums = masking_sums_from_json(kMaskingReader.member(report, "sums", ""), std::size_t(bins));
+  part.surface = kMaskingReader.text(part.parameters, "surface", "provenance/parameters");
+  part.tile_size = kMaskingReader.real(part.parameters, "tile_size", "provenance/parameters");
   try {
-    part.geometry = heightfield_geometry_from_string(kReader.text(part.parameters, "geometry", "provenance/parameters"));
+    part.geometry = heightfield_geometry_from_string(kMaskingReader.text(part.parameters, "geometry", "provenance/parameters"));
   } catch (const std::invalid_argument& e) {
     malformed("provenance/parameters/geometry", e.what());
   }
@@ -302,7 +302,7 @@ MaskingPart merge_masking_parts(const std::vector<MaskingPart>& parts) {
 
 SurfaceMasking analyse_masking_part(const MaskingPart& part, const MaskingSurface& surface) {
   const std::string digest = surface_digest(surface.field);
-  const std::string want = kReader.text(part.parameters, "surface_digest", "provenance/parameters");
+  const std::string want = kMaskingReader.text(part.parameters, "surface_digest", "provenance/parameters");
   if (digest != want || surface.field.tile_size() != part.tile_size)
     throw HistogramMergeError(fmt::format("the surface '{}' (digest {}, tile {}) is not the one the parts were traced on "
                                           "(digest {}, tile {})", surface.path, digest, surface.field.tile_size(),

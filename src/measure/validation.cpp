@@ -10,8 +10,8 @@ namespace microsim {
 
 namespace {
 
-constexpr const char* kProducer = "validate";
-const PartReader kReader(kProducer);
+constexpr const char* kValidationProducer = "validate";
+const PartReader kValidationReader(kValidationProducer);
 
 std::uint64_t fnv1a(std::uint64_t h, const void* data, std::size_t bytes) {
   const auto* p = static_cast<const unsigned char*>(data);
@@ -35,13 +35,13 @@ nlohmann::json tally_cells(int rows, const TracedHistogram* traced) {
 }
 
 std::vector<std::size_t> cells_of(const nlohmann::json& parameters) {
-  const nlohmann::json& cells = kReader.member(parameters, "cells", "provenance/parameters");
+  const nlohmann::json& cells = kValidationReader.member(parameters, "cells", "provenance/parameters");
   std::vector<std::size_t> out;
   if (!cells.is_array() || cells.empty() || cells.size() > 8)
-    kReader.malformed("provenance/parameters/cells", "is not a list of binnings' cells");
+    kValidationReader.malformed("provenance/parameters/cells", "is not a list of binnings' cells");
   for (const nlohmann::json& c : cells) {
     if (!c.is_number_unsigned() || c.get<std::uint64_t>() < 2 || c.get<std::uint64_t>() > 2ull * kMaxBinningRows * kMaxBinningRows + 1)
-      kReader.malformed("provenance/parameters/cells", "is not a list of binnings' cells");
+      kValidationReader.malformed("provenance/parameters/cells", "is not a list of binnings' cells");
     out.push_back(c.get<std::size_t>());
   }
   return out;
@@ -90,7 +90,7 @@ battery::Tally tally_case(const ValidationRun& run, const ValidationCase& c, Blo
 
 const SamplerInfo& sampler_named(const std::string& name) {
   const SamplerInfo* s = find_sampler(name);
-  if (!s) kReader.malformed("provenance/parameters/sampler", fmt::format("'{}' is not a sampler of this build", name));
+  if (!s) kValidationReader.malformed("provenance/parameters/sampler", fmt::format("'{}' is not a sampler of this build", name));
   return *s;
 }
 
@@ -144,7 +144,7 @@ ValidationPart sample_validation_part(const ValidationRun& run, BlockRange block
   const BlockPlan plan{run.options.samples, kSampleBlock};
   ValidationPart part;
   part.parameters = run_parameters(run, traced);
-  part.provenance = {kProducer, part.parameters.dump(), run.seed, plan.blocks(), selected_blocks(plan, blocks)};
+  part.provenance = {kValidationProducer, part.parameters.dump(), run.seed, plan.blocks(), selected_blocks(plan, blocks)};
   for (std::size_t i = 0; i < run.cases.size(); ++i) {
     const auto start = std::chrono::steady_clock::now();
     part.tallies.push_back(tally_case(run, run.cases[i], part.provenance.blocks, traced));
@@ -162,21 +162,21 @@ nlohmann::json validation_part_json(const ValidationPart& part) {
           {"seconds", part.seconds}};
 }
 
-bool is_validation_part(const nlohmann::json& report) { return producer_of(report) == kProducer; }
+bool is_validation_part(const nlohmann::json& report) { return producer_of(report) == kValidationProducer; }
 
 ValidationPart read_validation_part(const nlohmann::json& report) {
   ValidationPart part;
-  part.provenance = kReader.provenance(report, part.parameters);
+  part.provenance = kValidationReader.provenance(report, part.parameters);
   const ValidationRun run = validation_run_of(part);
   if (part.provenance.total_blocks != validation_blocks(run))
-    kReader.malformed("provenance/total_blocks", fmt::format("is not the {} blocks of {} samples", validation_blocks(run),
+    kValidationReader.malformed("provenance/total_blocks", fmt::format("is not the {} blocks of {} samples", validation_blocks(run),
                                                              run.options.samples));
-  const nlohmann::json& tallies = kReader.array(report, "tallies", run.cases.size(), "");
+  const nlohmann::json& tallies = kValidationReader.array(report, "tallies", run.cases.size(), "");
   for (std::size_t i = 0; i < tallies.size(); ++i)
     part.tallies.push_back(tally_from_json(tallies[i], cells_of(part.parameters), part.provenance.blocks.size(),
-                                           kReader, fmt::format("tallies/{}", i)));
+                                           kValidationReader, fmt::format("tallies/{}", i)));
   part.seconds.assign(run.cases.size(), 0.0);
-  const nlohmann::json& seconds = kReader.array(report, "seconds", run.cases.size(), "");
+  const nlohmann::json& seconds = kValidationReader.array(report, "seconds", run.cases.size(), "");
   for (std::size_t i = 0; i < seconds.size(); ++i)
     if (seconds[i].is_number()) part.seconds[i] = seconds[i].get<double>();
   return part;
@@ -208,32 +208,32 @@ ValidationRun validation_run_of(const ValidationPart& part) {
   const nlohmann::json& p = part.parameters;
   const std::string w = "provenance/parameters";
   ValidationRun run;
-  const std::string mode = kReader.text(p, "mode", w);
-  if (mode != "all" && mode != "sampler") kReader.malformed(w + "/mode", "is neither \"all\" nor \"sampler\"");
+  const std::string mode = kValidationReader.text(p, "mode", w);
+  if (mode != "all" && mode != "sampler") kValidationReader.malformed(w + "/mode", "is neither \"all\" nor \"sampler\"");
   run.batch = mode == "all";
   run.seed = part.provenance.seed;
-  run.options.samples = kReader.count(p, "samples", w);
-  run.options.rows = int(kReader.count(p, "rows", w));
+  run.options.samples = kValidationReader.count(p, "samples", w);
+  run.options.rows = int(kValidationReader.count(p, "rows", w));
   if (run.options.rows < 1 || run.options.rows > kMaxBinningRows || run.options.rows % 2 == 0)
-    kReader.malformed(w + "/rows", "is not an odd number of rows");
-  const std::string precision = kReader.text(p, "precision", w);
+    kValidationReader.malformed(w + "/rows", "is not an odd number of rows");
+  const std::string precision = kValidationReader.text(p, "precision", w);
   run.options.precision = precision == "float" ? Precision::float32 : Precision::float64;
-  run.family_significance = kReader.real(p, "significance", w);
-  if (kReader.count(p, "block_size", w) != kSampleBlock) kReader.malformed(w + "/block_size", "is not this build's");
+  run.family_significance = kValidationReader.real(p, "significance", w);
+  if (kValidationReader.count(p, "block_size", w) != kSampleBlock) kValidationReader.malformed(w + "/block_size", "is not this build's");
   if (run.batch) {
     run.cases = zoo_cases(run.seed);
     nlohmann::json samplers = nlohmann::json::array();
     for (const SamplerInfo& s : sampler_registry()) samplers.push_back(std::string(s.name));
-    if (kReader.member(p, "samplers", w) != samplers || kReader.count(p, "validations", w) != run.cases.size())
-      kReader.malformed(w + "/samplers", "are not the zoo of this build");
+    if (kValidationReader.member(p, "samplers", w) != samplers || kValidationReader.count(p, "validations", w) != run.cases.size())
+      kValidationReader.malformed(w + "/samplers", "are not the zoo of this build");
     run.options.significance = sidak_significance(run.family_significance, int(run.cases.size()));
     return run;
   }
-  const nlohmann::json& alpha = kReader.array(p, "alpha", 2, w);
-  if (!alpha[0].is_number() || !alpha[1].is_number()) kReader.malformed(w + "/alpha", "is not two numbers");
-  run.cases = {{&sampler_named(kReader.text(p, "sampler", w)), alpha[0].get<double>(), alpha[1].get<double>(),
-                kReader.real(p, "theta", w), kReader.real(p, "phi", w), run.seed}};
-  run.against = kReader.text(p, "against", w);
+  const nlohmann::json& alpha = kValidationReader.array(p, "alpha", 2, w);
+  if (!alpha[0].is_number() || !alpha[1].is_number()) kValidationReader.malformed(w + "/alpha", "is not two numbers");
+  run.cases = {{&sampler_named(kValidationReader.text(p, "sampler", w)), alpha[0].get<double>(), alpha[1].get<double>(),
+                kValidationReader.real(p, "theta", w), kValidationReader.real(p, "phi", w), run.seed}};
+  run.against = kValidationReader.text(p, "against", w);
   run.options.significance = run.family_significance;
   return run;
 }

@@ -174,4 +174,13 @@ template <class T> SampleResult<T> sample_beckmann_vndf(const Beckmann<T>& b, co
   });
 }
 
+// A visible normal of wi by the reference VNDF sampler of either NDF (GGX: Heitz 2018; Beckmann:
+// sample_beckmann_vndf), for code written once for both.
+inline SampleResult<double> sample_visible_normal(const GGX<double>& ggx, const Vec3<double>& wi, Vec2<double> u) {
+  return sample_heitz2018(ggx, wi, u);
+}
+inline SampleResult<double> sample_visible_normal(const Beckmann<double>& b, const Vec3<double>& wi, Vec2<double> u) {
+  return sample_beckmann_vndf(b, wi, u);
+}
+
 }  // namespace microsim

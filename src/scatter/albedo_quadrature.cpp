@@ -126,12 +126,6 @@ constexpr std::size_t kMaxOuterIntervals = 512;
 
 // ---- the integrand in the visible normals ------------------------------------------------------------------
 
-SampleResult<double> visible_normal(const GGX<double>& ggx, const Vec3<double>& wi, const Vec2<double>& u) {
-  return sample_heitz2018(ggx, wi, u);
-}
-SampleResult<double> visible_normal(const Beckmann<double>& b, const Vec3<double>& wi, const Vec2<double>& u) {
-  return sample_beckmann_vndf(b, wi, u);
-}
 
 // f |cos o| dwo / du of the reflection and of the refraction through the visible normal m(u) of wi:
 // dwo/dm (Walter et al. 2007, eq. 14 and 17) times dm/du = 1 / D_wi(m). Each lobe counts only on its own
@@ -139,7 +133,7 @@ SampleResult<double> visible_normal(const Beckmann<double>& b, const Vec3<double
 template <class Ndf>
 Values<2> lobe_densities(const Ndf& ndf, const Material& material, int channel, const Vec3<double>& wi,
                          const Vec2<double>& u) {
-  const SampleResult<double> s = visible_normal(ndf, wi, u);
+  const SampleResult<double> s = sample_visible_normal(ndf, wi, u);
   if (!s || !(s->pdf > 0) || !std::isfinite(s->pdf)) return {0.0, 0.0};
   const Vec3<double>& m = s->direction;
   const double im = wi.dot(m);
@@ -231,7 +225,7 @@ template <class G> void add_roots(const G& g, const std::vector<double>& values,
 // Break function k at u = (u1, u2); NaN where the sampler has no normal.
 template <class Ndf>
 double break_at(const Ndf& ndf, const Material& material, const Vec3<double>& wi, std::size_t k, double u1, double u2) {
-  const SampleResult<double> s = visible_normal(ndf, wi, Vec2<double>(u1, u2));
+  const SampleResult<double> s = sample_visible_normal(ndf, wi, Vec2<double>(u1, u2));
   return s ? break_values(material, wi, s->direction)[k] : std::nan("");
 }
 

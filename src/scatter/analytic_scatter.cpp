@@ -19,13 +19,6 @@ namespace {
 constexpr const char* ndf_name(const GGX<double>&) { return "ggx"; }
 constexpr const char* ndf_name(const Beckmann<double>&) { return "beckmann"; }
 
-// A visible normal of wi for the focus lattice (the zoo's samplers: back-side views sample for -wi, negated).
-SampleResult<double> visible_normal(const GGX<double>& ggx, const Vec3<double>& wi, const Vec2<double>& u) {
-  return sample_heitz2018(ggx, wi, u);
-}
-SampleResult<double> visible_normal(const Beckmann<double>& b, const Vec3<double>& wi, const Vec2<double>& u) {
-  return sample_beckmann_vndf(b, wi, u);
-}
 
 [[noreturn]] void no_closed_form(const Material& material) {
   throw std::invalid_argument(fmt::format("analytic single scattering: material {} has no closed-form single "
@@ -90,7 +83,7 @@ template <class Ndf> std::vector<Vec3<double>> lobe_focus(const Ndf& ndf, const 
   const double eta = wi.z() > 0 ? material.eta() : 1.0 / material.eta();  // n_transmitted / n_incident
   for (int i = 0; i < kSide; ++i)
     for (int j = 0; j < kSide; ++j) {
-      const auto s = visible_normal(ndf, wi, Vec2<double>((i + 0.5) / kSide, (j + 0.5) / kSide));
+      const auto s = sample_visible_normal(ndf, wi, Vec2<double>((i + 0.5) / kSide, (j + 0.5) / kSide));
       if (!s) continue;
       focus.push_back(reflect(wi, s->direction));
       Vec3<double> t;

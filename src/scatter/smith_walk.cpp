@@ -230,14 +230,14 @@ template <class F> decltype(auto) with_ndf(const SmithMicrosurface& s, F&& f) {
 // ---- the walk into the histogram -------------------------------------------------------------------------
 
 // How one path ended, recorded by its block and added to the histogram in block order.
-struct PathEnd {
+struct WalkEnd {
   enum Kind : int { escaped, unfinished, lost } kind;
   int order;  // facet events
   int bin;    // escaped: the bin, or -1 for a direction the binning cannot place
 };
 
 struct BlockEnds {
-  std::vector<PathEnd> ends;
+  std::vector<WalkEnd> ends;
   std::vector<double> weights;  // channels per end
 };
 
@@ -246,16 +246,16 @@ template <class Ndf>
 void walk_path(const Microsurface<Ndf>& surface, const ScatterOptions& o, const DirectionBinning& bins, CounterRng& rng,
                BlockEnds& out) {
   Path p = start_path(o.wi);
-  PathEnd end{PathEnd::lost, 0, -1};
+  WalkEnd end{WalkEnd::lost, 0, -1};
   for (;;) {
     const std::optional<double> h = surface.next_height(p.w, p.h, rng.uniform());
     if (!h) {
       const std::optional<int> bin = bins.bin_of(global_direction(p, p.w));
-      end = {PathEnd::escaped, p.events, bin ? *bin : -1};
+      end = {WalkEnd::escaped, p.events, bin ? *bin : -1};
       break;
     }
     if (p.events == o.max_order) {
-      end = {PathEnd::unfinished, p.events, -1};
+      end = {WalkEnd::unfinished, p.events, -1};
       break;
     }
     p.h = *h;
@@ -272,14 +272,14 @@ void walk_path(const Microsurface<Ndf>& surface, const ScatterOptions& o, const 
 void add_ends(ScatterHistogram& h, const BlockEnds& block, std::uint64_t paths, int channels) {
   h.add_launched(paths);
   for (std::size_t i = 0; i < block.ends.size(); ++i) {
-    const PathEnd& e = block.ends[i];
+    const WalkEnd& e = block.ends[i];
     const std::span<const double> w(block.weights.data() + i * std::size_t(channels), std::size_t(channels));
     switch (e.kind) {
-      case PathEnd::escaped:
+      case WalkEnd::escaped:
         if (e.bin >= 0) h.add_escaped(e.order, std::size_t(e.bin), w); else h.add_escaped_unbinned(e.order, w);
         break;
-      case PathEnd::unfinished: h.add_unfinished(w); break;
-      case PathEnd::lost: h.add_lost(w); break;
+      case WalkEnd::unfinished: h.add_unfinished(w); break;
+      case WalkEnd::lost: h.add_lost(w); break;
     }
   }
 }

@@ -85,7 +85,7 @@ nlohmann::json subjects_json(const std::vector<StabilityMetrics>& rows) {
   return names;
 }
 
-nlohmann::json row_json(const StabilityMetrics& r) {
+nlohmann::json part_row_json(const StabilityMetrics& r) {
   nlohmann::json j = {{"subject", r.subject}, {"regime", stability_regime_name(r.regime)}};
   for (const auto& [key, count] : kCounts) j[key] = r.*count;
   for (const auto& [key, real] : kReals) j[key] = exact_real_json(r.*real);
@@ -119,7 +119,7 @@ nlohmann::json stability_part_json(const StabilityTable& table) {
   const nlohmann::json parameters = {{"grid", grid_json(table.grid)}, {"subjects", subjects_json(skeleton)}};
   const Provenance p{kProducer, parameters.dump(), table.grid.seed, table.total_blocks, table.blocks};
   nlohmann::json rows = nlohmann::json::array();
-  for (const StabilityMetrics& r : table.rows) rows.push_back(row_json(r));
+  for (const StabilityMetrics& r : table.rows) rows.push_back(part_row_json(r));
   return {{"provenance", provenance_json(p, parameters)}, {"rows", rows}};
 }
 
