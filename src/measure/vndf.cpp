@@ -31,7 +31,10 @@ TraceOptions trace_options(const VndfRequest& r) {
 
 std::string join_counts(const std::vector<std::uint64_t>& v) {
   std::string s;
-  for (std::size_t k = 0; k < v.size(); ++k) s += (k ? "," : "") + std::to_string(v[k]);
+  for (std::size_t k = 0; k < v.size(); ++k) {
+    if (k) s += ',';
+    s += std::to_string(v[k]);
+  }
   return s;
 }
 

@@ -61,7 +61,7 @@ TraceFit fit_binning(const DirectionBinning& b, std::span<const std::uint64_t> c
   }
   std::vector<double> observed(counts.begin(), counts.end());
   const std::uint64_t binned = std::accumulate(counts.begin(), counts.end(), std::uint64_t(0));
-  observed.push_back(double(unbinned ? *unbinned : hits - binned));
+  observed.push_back(double(unbinned.value_or(hits - binned)));
   ChiSquareOptions chi;
   chi.significance = per_test;
   chi.describe_cell = [&b](int bin) { return bin < b.size() ? b.describe_bin(bin) : std::string("remainder (outside the bins)"); };
@@ -88,7 +88,8 @@ TraceAnalysis analyse_against_vndf(TracedHistogram& h, const GGX<double>& ggx, c
     if (r == reference.end() || r->binning.size() != b.size())
       throw std::invalid_argument("analyse_against_vndf: binning mismatch");
     h.probability[k] = r->probability.probability;
-    const auto outside = k < unbinned.size() ? std::optional<std::uint64_t>(unbinned[k]) : std::nullopt;
+    std::optional<std::uint64_t> outside;
+    if (k < unbinned.size()) outside.emplace(unbinned[k]);
     TraceFit fit = fit_binning(b, h.counts[k], h.hits, outside, r->probability, per_test);
     p_min = std::min(p_min, fit.chi2.p_value);
     a.rejected = a.rejected || fit.chi2.rejected;
