@@ -59,11 +59,5 @@ void print_measurement_line(const experiment::MeasurementResult& m) {
              m.met ? "met" : "NOT met", m.rounds.size(), m.achieved, m.target, m.seconds, m.partial ? ", partial" : "");
 }
 
-nlohmann::json spec_identity_json(const experiment::ExperimentSpec& spec) {
-  return {{"name", spec.name},
-          {"source", spec.source},
-          {"digest", experiment::spec_digest(spec)},
-          {"canonical", nlohmann::json::parse(experiment::canonical_spec(spec))}};
-}
 
 }  // namespace microsim::app

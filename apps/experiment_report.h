@@ -21,7 +21,4 @@ void print_results_table(const experiment::ExperimentResults& results);
 // One line on stderr when a measurement is done.
 void print_measurement_line(const experiment::MeasurementResult& m);
 
-// The spec's identity for a document: name, source, digest.
-nlohmann::json spec_identity_json(const experiment::ExperimentSpec& spec);
-
 }  // namespace microsim::app

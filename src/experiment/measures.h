@@ -7,6 +7,8 @@
 #include "measure/vndf.h"
 #include "scatter/albedo_table.h"
 
+#include <nlohmann/json.hpp>
+
 #include <string_view>
 
 namespace microsim::experiment {
@@ -25,6 +27,11 @@ std::string albedo_target_text(const SpecQuantity& quantity);  // "E1*" or "E*"
 AlbedoTableRequest albedo_request(const ExperimentSpec& spec, const SpecQuantity& quantity, Model model,
                                   std::uint64_t paths, int max_order, double tolerance, std::uint64_t seed,
                                   const RunControl& run);
+
+// The table albedo_table_json wrote (alphas, mus, weights, quantities, timings), with `request` (the table's
+// own, which the JSON names but does not hold whole). Values read back exactly (JSON numbers round-trip);
+// null reads as NaN. Throws std::invalid_argument naming a missing or malformed member. For a resumed run.
+AlbedoTable albedo_table_from_json(const nlohmann::json& table, const AlbedoTableRequest& request);
 
 // The largest relative error (error / value) over the cells and E_avg of the quantities of a table the target
 // applies to; an infinite one when a value is 0 with a non-zero error.
