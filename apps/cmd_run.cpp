@@ -79,9 +79,11 @@ int run_experiment_command(const RunArgs& a) {
   options.seed = a.seed;
   options.run = plan_options.run;
   options.resume = previous ? &previous->results : nullptr;
+  std::size_t done = 0;  // the overall progress: measurements done, and the plan's predicted time of the rest
   options.on_measurement = [&](const experiment::MeasurementResult& m) {
     progress->finish();
     print_measurement_line(m);
+    print_overall_line(plan, ++done);
   };
   const experiment::ExperimentResults results = experiment::run_experiment(spec, plan, options);
   progress->finish();

@@ -213,17 +213,17 @@ std::string vndf_fit_table(const json& values) {
   return table({"binning", "TV vs analytic D_v", "noise floor TV", "chi-square", "dof", "p"}, body);
 }
 
-std::string vndf_figure(const TracedHistogram& h, const std::string& label) {
+std::string histogram_figure(const TracedHistogram& h, const std::string& label, const std::string& expected) {
   std::vector<BinnedComparison> comparisons;
   for (std::size_t k = 0; k < h.binnings.size(); ++k) {
     if (k >= h.probability.size() || h.probability[k].size() != std::size_t(h.binnings[k].size())) continue;
     BinnedComparison c{h.binnings[k], std::vector<double>(h.counts[k].begin(), h.counts[k].end()), h.probability[k],
-                       "analytic D_v"};
+                       expected};
     for (double& e : c.expected) e *= double(h.hits);
     comparisons.push_back(std::move(c));
   }
   if (comparisons.empty()) return "";
-  const std::string subtitle = fmt::format("{} rays, {} hits{}", h.rays, h.hits, h.partial ? " (PARTIAL)" : "");
+  const std::string subtitle = fmt::format("{} counted of {}{}", h.hits, h.rays, h.partial ? " (PARTIAL)" : "");
   return "<figure>" + histogram_figure_svg(label, subtitle, comparisons) + "</figure>\n";
 }
 
@@ -237,8 +237,34 @@ std::string vndf_values(const json& values, const ReportHistograms& histograms, 
                                 report_number(member(values, "noise_floor_tv")));
   out += vndf_fit_table(values);
   const auto h = histograms.find(index);
-  if (h != histograms.end()) out += vndf_figure(h->second, label);
+  if (h != histograms.end()) out += histogram_figure(h->second, label, "analytic D_v");
   return out + fmt::format("<p>Histogram: <a href=\"vndf-{0}.exr\">vndf-{0}.exr</a>.</p>\n", index);
+}
+
+std::string validation_tests_table(const json& v) {
+  std::string body;
+  for (const auto& [name, t] : member(v, "tests").items()) {
+    std::vector<std::string> cells{esc(name)};
+    for (const char* key : {"statistic", "dof", "p_value"}) cells.push_back(t.contains(key) ? report_number(t[key]) : "-");
+    if (t.contains("rejected")) cells.push_back(text_of(t["rejected"]));
+    else cells.push_back(t.contains("passed") ? (t["passed"].get<bool>() ? "no" : "yes") : "-");
+    body += row(cells);
+  }
+  return table({"test", "statistic", "dof", "p", "rejected"}, body);
+}
+
+std::string validation_values(const json& values, const ReportHistograms& histograms, std::size_t index,
+                              const std::string& label) {
+  const json& v = member(values, "validation");
+  std::string out = fmt::format("<p>Sampler <b>{}</b>, {} samples: verdict <b>{}</b> (p {}, level {}).</p>\n",
+                                esc(text_of(member(v, "sampler"))), text_of(member(v, "samples")),
+                                esc(text_of(member(v, "verdict"))), report_number(member(v, "p_value")),
+                                report_number(member(v, "significance")));
+  for (const json& f : member(v, "failures")) out += "<p class=\"notmet\">" + esc(text_of(f)) + "</p>\n";
+  out += validation_tests_table(v);
+  const auto h = histograms.find(index);
+  if (h != histograms.end()) out += histogram_figure(h->second, label, "claimed pdf");
+  return out + fmt::format("<p>Counts: <a href=\"validation-{0}.exr\">validation-{0}.exr</a>.</p>\n", index);
 }
 
 std::string measurement_section(const json& d, const json& m, std::size_t index, const ReportHistograms& histograms) {
@@ -258,6 +284,8 @@ std::string measurement_section(const json& d, const json& m, std::size_t index,
     out += fmt::format("<p>Table: <a href=\"albedo-{0}.csv\">albedo-{0}.csv</a>.</p>\n", index);
   } else if (values.is_object() && values.contains("analysis")) {
     out += vndf_values(values, histograms, index, label);
+  } else if (values.is_object() && values.contains("validation")) {
+    out += validation_values(values, histograms, index, label);
   }
   return out + "</section>\n";
 }

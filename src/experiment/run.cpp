@@ -4,6 +4,7 @@
 #include "experiment/measures.h"
 #include "core/parse.h"
 #include "scatter/albedo_table_io.h"
+#include "validate/validate.h"
 
 #include <fmt/core.h>
 
@@ -194,7 +195,70 @@ void run_vndf(const ExperimentSpec& spec, std::uint64_t seed, std::size_t index,
   m.met = !m.rounds.empty() && !m.rounds.back().partial && m.achieved <= m.target;
 }
 
+// ---- validation --------------------------------------------------------------------------------------------
+
+// The validator's binned counts as a histogram (counts, and the claimed pdf's bin probabilities): what the
+// report draws and validation-K.exr keeps.
+TracedHistogram validation_histogram(const ValidationReport& r, const Decision& d) {
+  TracedHistogram h;
+  for (const BinnedComparison& c : r.histograms) {
+    h.binnings.push_back(c.binning);
+    std::vector<std::uint64_t> counts;
+    std::vector<double> probability;
+    for (std::size_t i = 0; i < c.observed.size(); ++i) {
+      counts.push_back(std::uint64_t(std::llround(c.observed[i])));
+      probability.push_back(r.samples > 0 ? c.expected[i] / double(r.samples) : 0.0);
+    }
+    h.counts.push_back(std::move(counts));
+    h.probability.push_back(std::move(probability));
+  }
+  h.rays = h.hits = r.samples;
+  h.attributes = {{"surface", "sampler " + r.sampler},
+                  {"alpha", fmt::format("{},{}", d.alpha.first, d.alpha.second)},
+                  {"theta", fmt::format("{}", d.view.theta_deg)},
+                  {"phi", fmt::format("{}", d.view.phi_deg)},
+                  {"seed", std::to_string(r.seed)}};
+  return h;
+}
+
+// One validation at the planned sample count (the chi-square power rule: no pilot, no rounds). Cancelled:
+// nothing is kept (the validator has no partial result), the measurement runs again on resumption.
+void run_validation(const ExperimentSpec& spec, std::uint64_t seed, std::size_t index, const RunOptions& o,
+                    MeasurementResult& m) {
+  const Decision& d = m.decision;
+  const SpecQuantity& q = spec.quantities[d.quantity];
+  const SamplerInfo* sampler = find_sampler(q.sampler);
+  if (sampler == nullptr) throw std::invalid_argument(fmt::format("{}.sampler: unknown sampler '{}'", q.key, q.sampler));
+  ValidationOptions v;
+  v.samples = first_units(d, o);
+  v.seed = round_seed(seed, index, 0);
+  v.rows = q.rows;
+  v.significance = q.significance;
+  v.run = o.run;
+  m.rounds.clear();
+  m.partial = false;
+  const auto clock = std::chrono::steady_clock::now();
+  ValidationReport r;
+  try {
+    r = validate_sampler(*sampler, GGX<double>(d.alpha.first, d.alpha.second),
+                         direction_from_degrees(d.view.theta_deg, d.view.phi_deg), v);
+  } catch (const Cancelled&) {
+    m.partial = true;
+    return;
+  }
+  // The sample count fixes the deviation detected with the asked power: N ~ 1 / tv^2 (plan.h).
+  m.achieved = q.target * std::sqrt(double(d.units) / double(r.samples));
+  m.units = m.rays = r.samples;
+  m.rounds.push_back({r.samples, r.samples, 0, false, v.seed, 0, seconds_since(clock), m.achieved});
+  m.values = {{"validation", to_json(r)}};
+  m.histogram = validation_histogram(r, d);
+  m.met = m.achieved <= m.target * (1 + 1e-12);
+}
+
 std::string error_measure(const SpecQuantity& q, const Decision& d) {
+  if (q.kind == QuantityKind::validation)
+    return fmt::format("the smallest TV deviation detected with power {} at level {} by the samples run", q.power,
+                       q.significance);
   if (q.kind == QuantityKind::vndf) return "the histogram's TV noise floor (expected TV of an exact sampler), largest binning";
   return fmt::format("the worst relative {} of {} over the cells and E_avg",
                      d.model.model == Model::analytic ? "quadrature error estimate" : "standard error",
@@ -215,6 +279,7 @@ MeasurementResult run_decision(const ExperimentSpec& spec, const Decision& d, st
   m.ran = true;
   const auto start = std::chrono::steady_clock::now();
   if (vndf) run_vndf(spec, seed, index, o, m);
+  else if (q.kind == QuantityKind::validation) run_validation(spec, seed, index, o, m);
   else if (d.model.model == Model::smith_walk) run_walk_albedo(spec, seed, index, o, m);
   else run_analytic_albedo(spec, o, m);
   m.seconds += seconds_since(start);

@@ -16,7 +16,10 @@ namespace {
 
 namespace fs = std::filesystem;
 
-fs::path vndf_path(const fs::path& dir, std::size_t index) { return dir / fmt::format("vndf-{}.exr", index); }
+// The file of a measurement's histogram: vndf-K.exr, validation-K.exr.
+fs::path histogram_path(const fs::path& dir, const MeasurementResult& m, std::size_t index) {
+  return dir / fmt::format("{}-{}.exr", m.values.contains("validation") ? "validation" : "vndf", index);
+}
 
 nlohmann::json read_document(const fs::path& path) {
   std::ifstream in(path);
@@ -50,9 +53,10 @@ void check_same_run(const fs::path& dir, const nlohmann::json& doc, const Experi
 void read_histograms(const fs::path& dir, ExperimentResults& results) {
   for (std::size_t i = 0; i < results.measurements.size(); ++i) {
     MeasurementResult& m = results.measurements[i];
-    if (!m.ran || m.rounds.empty() || !m.values.is_object() || !m.values.contains("analysis")) continue;
+    if (!m.ran || m.rounds.empty() || !m.values.is_object()) continue;
+    if (!m.values.contains("analysis") && !m.values.contains("validation")) continue;
     try {
-      m.histogram = read_histogram_exr(vndf_path(dir, i));
+      m.histogram = read_histogram_exr(histogram_path(dir, m, i));
     } catch (const HistogramIoError& e) {
       throw std::invalid_argument(fmt::format("cannot resume measurement {}: {}", i, e.what()));
     }
@@ -89,7 +93,7 @@ void write_run_directory(const fs::path& dir, const ExperimentSpec& spec, const 
     if (m.histogram.binnings.empty()) continue;
     TracedHistogram h = m.histogram;
     h.partial = m.partial;
-    write_histogram_exr(vndf_path(dir, i), h);
+    write_histogram_exr(histogram_path(dir, m, i), h);
     histograms.emplace(i, std::move(h));
   }
   const nlohmann::json doc = run_document(spec, plan, results, identity);
