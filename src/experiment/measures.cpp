@@ -51,6 +51,49 @@ AlbedoQuantity quantity_from_json(const std::string& name, const nlohmann::json&
 
 }  // namespace
 
+SmithMicrosurface scatter_surface(const SpecMaterial& material, const Decision& decision) {
+  return {material.ndf, decision.alpha.first, decision.alpha.second, HeightDistribution::uniform};
+}
+
+ScatterOptions scatter_request(const SpecMaterial& material, const Decision& decision, std::uint64_t paths,
+                               std::uint64_t seed, const RunControl& run) {
+  ScatterOptions o;
+  o.wi = direction_from_degrees(decision.view.theta_deg, decision.view.phi_deg);
+  o.material = material.facet;
+  o.paths = paths;
+  o.seed = seed;
+  o.max_order = decision.order_cap;
+  o.rows = kScatterRows;
+  o.run = run;
+  return o;
+}
+
+double scatter_order_floor(const ScatterHistogram& h, int order_bin) {
+  const Histogram& lobe = h.histogram(0, order_bin);
+  double total = 0, spread = 0;
+  const double n = double(std::max<std::uint64_t>(h.paths(), 1));
+  for (std::size_t i = 0; i < lobe.size(); ++i) {
+    total += lobe.weight(i);
+    spread += std::sqrt(std::max(0.0, lobe.weight_squared(i) - lobe.weight(i) * lobe.weight(i) / n));
+  }
+  if (!(total > 0)) return 0;
+  return 0.5 * std::sqrt(2 / kPi<double>) * spread / total;
+}
+
+std::vector<int> targeted_order_bins(const ScatterHistogram& h, double target) {
+  const double all = h.albedo(0, -1).value;
+  std::vector<int> out;
+  for (int k = 0; k < kScatterOrderBins; ++k)
+    if (all > 0 && h.albedo(0, k).value >= target * all) out.push_back(k);
+  return out;
+}
+
+double scatter_noise_floor(const ScatterHistogram& h, double target) {
+  double worst = 0;
+  for (int k : targeted_order_bins(h, target)) worst = std::max(worst, scatter_order_floor(h, k));
+  return worst;
+}
+
 AlbedoTable albedo_table_from_json(const nlohmann::json& j, const AlbedoTableRequest& request) {
   AlbedoTable t;
   t.request = request;

@@ -3,6 +3,7 @@
 
 #include "stats/curve_figure.h"
 #include "stats/figure.h"
+#include "stats/scatter_figure.h"
 #include "stats/svg_parts.h"
 
 #include <fmt/format.h>
@@ -241,6 +242,40 @@ std::string vndf_values(const json& values, const ReportHistograms& histograms, 
   return out + fmt::format("<p>Histogram: <a href=\"vndf-{0}.exr\">vndf-{0}.exr</a>.</p>\n", index);
 }
 
+std::string estimate_text(const json& e) {
+  return report_number(member(e, "value")) + " &plusmn; " + report_number(member(e, "standard_error"));
+}
+
+std::string scatter_figure(const ScatterHistogram& h, const std::string& label, int rows) {
+  std::vector<ScatterFigureRow> figure_rows;
+  const double n = double(std::max<std::uint64_t>(h.paths(), 1));
+  for (int k = 0; k < kScatterOrderBins; ++k) {
+    const Histogram& lobe = h.histogram(0, k);
+    std::vector<double> values;
+    for (std::size_t b = 0; b < lobe.size(); ++b) values.push_back(lobe.weight(b) / n);
+    figure_rows.push_back({"order bin " + std::to_string(k + 1), {{"Smith walk", values}}, {}});
+  }
+  const std::string subtitle = fmt::format("{} paths; weight per launched path per bin", h.paths());
+  return "<figure>" + scatter_figure_svg(label, subtitle, DirectionBinning::hemispheres(rows), figure_rows) + "</figure>\n";
+}
+
+std::string scattering_values(const json& values, const ReportScatters& scatters, std::size_t index,
+                              const std::string& label) {
+  const json& s = member(values, "scattering");
+  std::string out = fmt::format("<p>{} paths; albedo {}, left on the surface at the cap {}.</p>\n",
+                                text_of(member(s, "paths")), estimate_text(member(s, "albedo")),
+                                estimate_text(member(s, "unfinished")));
+  std::string body;
+  for (const json& o : member(s, "orders"))
+    body += row({esc(text_of(member(o, "order"))), estimate_text(member(o, "albedo")), estimate_text(member(o, "reflected")),
+                 estimate_text(member(o, "transmitted")), report_number(member(o, "noise_floor_tv")),
+                 member(o, "targeted").get<bool>() ? "yes" : "no (below the target's share)"});
+  out += table({"order", "albedo", "reflected", "transmitted", "lobe TV noise floor", "targeted"}, body);
+  const auto h = scatters.find(index);
+  if (h != scatters.end()) out += scatter_figure(h->second, label, member(s, "rows_per_hemisphere").get<int>());
+  return out + fmt::format("<p>Walk sums: <a href=\"scattering-{0}.exr\">scattering-{0}.exr</a>.</p>\n", index);
+}
+
 std::string validation_tests_table(const json& v) {
   std::string body;
   for (const auto& [name, t] : member(v, "tests").items()) {
@@ -267,7 +302,19 @@ std::string validation_values(const json& values, const ReportHistograms& histog
   return out + fmt::format("<p>Counts: <a href=\"validation-{0}.exr\">validation-{0}.exr</a>.</p>\n", index);
 }
 
-std::string measurement_section(const json& d, const json& m, std::size_t index, const ReportHistograms& histograms) {
+std::string measurement_values(const json& values, std::size_t index, const ReportHistograms& histograms,
+                               const ReportScatters& scatters, const std::string& label) {
+  if (!values.is_object()) return "";
+  if (values.contains("quantity_names"))
+    return albedo_values(values) + fmt::format("<p>Table: <a href=\"albedo-{0}.csv\">albedo-{0}.csv</a>.</p>\n", index);
+  if (values.contains("analysis")) return vndf_values(values, histograms, index, label);
+  if (values.contains("scattering")) return scattering_values(values, scatters, index, label);
+  if (values.contains("validation")) return validation_values(values, histograms, index, label);
+  return "";
+}
+
+std::string measurement_section(const json& d, const json& m, std::size_t index, const ReportHistograms& histograms,
+                                const ReportScatters& scatters) {
   const std::string label = text_of(member(m, "measurement"));
   std::string out = fmt::format("<section class=\"measurement\" id=\"m{}\">\n<h3>[{}] {}</h3>\n", index, index, esc(label));
   out += decision_list(d);
@@ -278,24 +325,15 @@ std::string measurement_section(const json& d, const json& m, std::size_t index,
                      member(m, "partial").get<bool>() ? " (partial: interrupted)" : "");
   if (!ran) return out + "</section>\n";
   out += rounds_table(m);
-  const json& values = member(m, "values");
-  if (values.is_object() && values.contains("quantity_names")) {
-    out += albedo_values(values);
-    out += fmt::format("<p>Table: <a href=\"albedo-{0}.csv\">albedo-{0}.csv</a>.</p>\n", index);
-  } else if (values.is_object() && values.contains("analysis")) {
-    out += vndf_values(values, histograms, index, label);
-  } else if (values.is_object() && values.contains("validation")) {
-    out += validation_values(values, histograms, index, label);
-  }
-  return out + "</section>\n";
+  return out + measurement_values(member(m, "values"), index, histograms, scatters, label) + "</section>\n";
 }
 
-std::string measurements_sections(const json& doc, const ReportHistograms& histograms) {
+std::string measurements_sections(const json& doc, const ReportHistograms& histograms, const ReportScatters& scatters) {
   const json& decisions = member(member(doc, "plan"), "decisions");
   const json& measurements = member(member(doc, "results"), "measurements");
   std::string out = "<h2>Measurements</h2>\n";
   for (std::size_t i = 0; i < measurements.size() && i < decisions.size(); ++i)
-    out += measurement_section(decisions[i], measurements[i], i, histograms);
+    out += measurement_section(decisions[i], measurements[i], i, histograms, scatters);
   for (std::size_t i = measurements.size(); i < decisions.size(); ++i)
     out += fmt::format("<section class=\"measurement\"><h3>[{}] {}</h3><p>Not reached (the run was interrupted "
                        "before it).</p></section>\n", i, esc(text_of(member(decisions[i], "measurement"))));
@@ -312,13 +350,14 @@ std::string report_number(const nlohmann::json& value) {
   return value.is_number() ? report_number(value.get<double>()) : "-";
 }
 
-std::string experiment_report_html(const nlohmann::json& document, const ReportHistograms& histograms) {
+std::string experiment_report_html(const nlohmann::json& document, const ReportHistograms& histograms,
+                                   const ReportScatters& scatters) {
   std::string page = "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n";
   page += fmt::format("<title>microsim experiment {}</title>\n", esc(text_of(member(member(document, "spec"), "name"))));
   page += kStyle;
   page += "</head>\n<body>\n";
   page += status_section(document) + plan_section(document) + results_section(document);
-  page += measurements_sections(document, histograms);
+  page += measurements_sections(document, histograms, scatters);
   page += "<h2>Files</h2>\n<p><a href=\"results.json\">results.json</a>: everything on this page as data.</p>\n";
   page += "<h2>The spec (canonical)</h2>\n<pre>" +
           esc(member(member(document, "spec"), "canonical").dump(2)) + "</pre>\n";

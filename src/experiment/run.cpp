@@ -5,10 +5,12 @@
 #include "core/parse.h"
 #include "scatter/albedo_table_io.h"
 #include "validate/validate.h"
+#include "stats/scatter_compare.h"
 
 #include <fmt/core.h>
 
 #include <chrono>
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -195,6 +197,88 @@ void run_vndf(const ExperimentSpec& spec, std::uint64_t seed, std::size_t index,
   m.met = !m.rounds.empty() && !m.rounds.back().partial && m.achieved <= m.target;
 }
 
+// ---- scattering (the Smith walk) ---------------------------------------------------------------------------
+
+// Adds a round's (or a part of a round's) exact sums to the sum; the first gives the binning and channels.
+void add_scatter_round(ScatterHistogram& sum, const ScatterHistogram& round) {
+  if (sum.binning_id().empty()) {
+    sum = round;
+    return;
+  }
+  for (int c = 0; c < round.channels(); ++c) {
+    for (int k = 0; k < kScatterOrderBins; ++k) {
+      const Histogram& h = round.histogram(c, k);
+      for (std::size_t b = 0; b < h.size(); ++b) sum.add_sums(c, k, b, h.exact_weight(b), h.exact_weight_squared(b));
+      sum.add_unbinned_sums(c, k, h.exact_unbinned_weight(), h.exact_unbinned_weight_squared());
+    }
+    sum.add_unfinished_sums(c, round.exact_unfinished(c, false), round.exact_unfinished(c, true));
+    sum.add_lost_sums(c, round.exact_lost(c, false), round.exact_lost(c, true));
+  }
+  sum.add_launched(round.paths());
+}
+
+nlohmann::json estimate_json(const Estimate& e) { return {{"value", e.value}, {"standard_error", e.standard_error}}; }
+
+void record_scatter(MeasurementResult& m, double target) {
+  const ScatterHistogram& h = m.scatter;
+  nlohmann::json orders = nlohmann::json::array();
+  const std::vector<int> targeted = targeted_order_bins(h, target);
+  for (int k = 0; k < kScatterOrderBins; ++k)
+    orders.push_back({{"order", scatter_order_name(k)},
+                      {"albedo", estimate_json(h.albedo(0, k))},
+                      {"reflected", estimate_json(h.albedo(0, k, ScatterSide::reflected))},
+                      {"transmitted", estimate_json(h.albedo(0, k, ScatterSide::transmitted))},
+                      {"noise_floor_tv", scatter_order_floor(h, k)},
+                      {"targeted", std::find(targeted.begin(), targeted.end(), k) != targeted.end()}});
+  m.values = {{"scattering", {{"paths", h.paths()},
+                              {"channel", h.channel_name(0)},
+                              {"albedo", estimate_json(h.albedo(0, -1))},
+                              {"unfinished", estimate_json(h.unfinished(0))},
+                              {"orders", orders},
+                              {"noise_floor_tv", scatter_noise_floor(h, target)},
+                              {"rows_per_hemisphere", kScatterRows}}}};
+}
+
+// The next walk round: a partial one of a resumed run from its first missing block, else a new one.
+VndfRoundStart next_walk_round(MeasurementResult& m, std::uint64_t seed, std::size_t index, const RunOptions& o) {
+  if (!m.rounds.empty() && m.rounds.back().partial) {
+    const RoundRecord r = m.rounds.back();
+    m.rounds.pop_back();
+    return {r.planned, r.blocks_done, r.seed, r.units};
+  }
+  const std::uint64_t n = m.rounds.empty() ? first_units(m.decision, o) : next_round_units(m.units, m.achieved, m.target);
+  return {n, 0, round_seed(seed, index, int(m.rounds.size())), 0};
+}
+
+bool scatter_round(const ExperimentSpec& spec, const VndfRoundStart& start, const RunOptions& o, MeasurementResult& m) {
+  const Decision& d = m.decision;
+  const SpecMaterial& material = spec.material(spec.quantities[d.quantity].material);
+  ScatterOptions options = scatter_request(material, d, start.rays, start.seed, o.run);
+  if (start.first_block > 0) options.blocks = BlockRange{start.first_block, (start.rays + kPathsPerBlock - 1) / kPathsPerBlock};
+  const auto clock = std::chrono::steady_clock::now();
+  const ScatterHistogram round = smith_walk_scatter(scatter_surface(material, d), options);
+  m.partial = round.partial;
+  if (round.paths() == 0) return false;
+  add_scatter_round(m.scatter, round);
+  m.achieved = scatter_noise_floor(m.scatter, spec.quantities[d.quantity].target);
+  m.units += round.paths();
+  m.rays += round.paths();
+  m.rounds.push_back({start.done + round.paths(), start.rays, round.provenance.blocks.end, round.partial, start.seed, 0,
+                      seconds_since(clock), m.achieved});
+  record_scatter(m, spec.quantities[d.quantity].target);
+  return true;
+}
+
+void run_scattering(const ExperimentSpec& spec, std::uint64_t seed, std::size_t index, const RunOptions& o,
+                    MeasurementResult& m) {
+  m.partial = false;
+  while (int(m.rounds.size()) < o.max_rounds || (!m.rounds.empty() && m.rounds.back().partial)) {
+    const VndfRoundStart start = next_walk_round(m, seed, index, o);
+    if (start.rays == 0 || !scatter_round(spec, start, o, m) || m.partial) break;
+  }
+  m.met = !m.rounds.empty() && !m.rounds.back().partial && m.achieved <= m.target;
+}
+
 // ---- validation --------------------------------------------------------------------------------------------
 
 // The validator's binned counts as a histogram (counts, and the claimed pdf's bin probabilities): what the
@@ -256,6 +340,8 @@ void run_validation(const ExperimentSpec& spec, std::uint64_t seed, std::size_t 
 }
 
 std::string error_measure(const SpecQuantity& q, const Decision& d) {
+  if (q.kind == QuantityKind::scattering)
+    return "the largest per-order TV noise floor of the orders carrying at least the target's share of the albedo";
   if (q.kind == QuantityKind::validation)
     return fmt::format("the smallest TV deviation detected with power {} at level {} by the samples run", q.power,
                        q.significance);
@@ -273,13 +359,15 @@ MeasurementResult run_decision(const ExperimentSpec& spec, const Decision& d, st
   m.decision = d;
   const SpecQuantity& q = spec.quantities[d.quantity];
   const bool vndf = q.kind == QuantityKind::vndf;
-  m.target = vndf ? kNoiseShare * q.target : q.target;
+  const bool histogram_tv = vndf || q.kind == QuantityKind::scattering;
+  m.target = histogram_tv ? kNoiseShare * q.target : q.target;
   m.error_measure = error_measure(q, d);
   if (!d.runnable) return m;
   m.ran = true;
   const auto start = std::chrono::steady_clock::now();
   if (vndf) run_vndf(spec, seed, index, o, m);
   else if (q.kind == QuantityKind::validation) run_validation(spec, seed, index, o, m);
+  else if (q.kind == QuantityKind::scattering) run_scattering(spec, seed, index, o, m);
   else if (d.model.model == Model::smith_walk) run_walk_albedo(spec, seed, index, o, m);
   else run_analytic_albedo(spec, o, m);
   m.seconds += seconds_since(start);

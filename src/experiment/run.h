@@ -6,7 +6,10 @@
 //   albedo, analytic    the quadrature at the planned tolerance; if an error estimate still exceeds the
 //                       target, again 100 times tighter (the result replaces the last);
 //   vndf                rounds of ellipsoid-oracle rays, each from its own seed, their exact counts summed; the
-//                       TV noise floor of the sum decides (kNoiseShare of the target).
+//                       TV noise floor of the sum decides (kNoiseShare of the target);
+//   scattering, walk    rounds of Smith walks, their exact sums added; the largest per-order TV noise floor of
+//                       the orders the target applies to decides (measures.h, scatter_noise_floor);
+//   validation          one validate_sampler run of the planned samples (the power rule needs no rounds).
 // At most kMaxRounds rounds: a target not met then is reported as such (met = false), never hidden.
 // Cancellation (run.cancel): the round in progress is dropped (a VNDF round keeps its completed blocks, the
 // block runner's prefix: a shorter run of that seed, recorded as a partial round), what the completed rounds
@@ -23,6 +26,7 @@
 #include "core/estimate.h"
 #include "experiment/plan.h"
 #include "stats/histogram_io.h"
+#include "stats/scatter_histogram.h"
 
 #include <nlohmann/json.hpp>
 
@@ -61,6 +65,7 @@ struct MeasurementResult {
   // probabilities: the report's figure) and unbinned hits; walk albedo: each completed round's table.
   TracedHistogram histogram;
   std::vector<std::uint64_t> unbinned;
+  ScatterHistogram scatter;  // scattering: the rounds' walks summed (exact sums)
   std::vector<nlohmann::json> round_tables;  // albedo_table_json of each round
 };
 

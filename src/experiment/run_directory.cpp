@@ -5,6 +5,7 @@
 #include "core/parse.h"
 #include "experiment/report.h"
 #include "stats/histogram_io.h"
+#include "stats/scatter_io.h"
 
 #include <fmt/core.h>
 
@@ -49,11 +50,21 @@ void check_same_run(const fs::path& dir, const nlohmann::json& doc, const Experi
                                             quote_excerpt(dir.string()), recorded, seed, recorded));
 }
 
-// The VNDF counts of the measurements that have them, read back into the results.
+fs::path scatter_path(const fs::path& dir, std::size_t index) { return dir / fmt::format("scattering-{}.exr", index); }
+
+// The counts and sums of the measurements that have them, read back into the results.
 void read_histograms(const fs::path& dir, ExperimentResults& results) {
   for (std::size_t i = 0; i < results.measurements.size(); ++i) {
     MeasurementResult& m = results.measurements[i];
     if (!m.ran || m.rounds.empty() || !m.values.is_object()) continue;
+    if (m.values.contains("scattering")) {
+      try {
+        m.scatter = read_scatter_exr(scatter_path(dir, i)).histogram;
+      } catch (const ScatterIoError& e) {
+        throw std::invalid_argument(fmt::format("cannot resume measurement {}: {}", i, e.what()));
+      }
+      continue;
+    }
     if (!m.values.contains("analysis") && !m.values.contains("validation")) continue;
     try {
       m.histogram = read_histogram_exr(histogram_path(dir, m, i));
@@ -87,9 +98,14 @@ void write_run_directory(const fs::path& dir, const ExperimentSpec& spec, const 
                          const ExperimentResults& results, const RunIdentity& identity) {
   fs::create_directories(dir);
   ReportHistograms histograms;
+  ReportScatters scatters;
   for (std::size_t i = 0; i < results.measurements.size(); ++i) {
     const MeasurementResult& m = results.measurements[i];
     if (!m.csv.empty()) write_file_atomically(dir / fmt::format("albedo-{}.csv", i), m.csv);
+    if (m.scatter.paths() > 0) {
+      write_scatter_exr(scatter_path(dir, i), m.scatter, {{"measurement", m.decision.label}});
+      scatters.emplace(i, m.scatter);
+    }
     if (m.histogram.binnings.empty()) continue;
     TracedHistogram h = m.histogram;
     h.partial = m.partial;
@@ -98,7 +114,7 @@ void write_run_directory(const fs::path& dir, const ExperimentSpec& spec, const 
   }
   const nlohmann::json doc = run_document(spec, plan, results, identity);
   write_file_atomically(dir / "results.json", doc.dump(2) + "\n");
-  write_file_atomically(dir / "index.html", experiment_report_html(doc, histograms));
+  write_file_atomically(dir / "index.html", experiment_report_html(doc, histograms, scatters));
 }
 
 std::optional<PreviousRun> load_previous_run(const fs::path& dir, const ExperimentSpec& spec, std::uint64_t seed) {
