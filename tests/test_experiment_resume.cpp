@@ -1,5 +1,6 @@
 // run_experiment's resumption and the planner's honesty, on tiny specs (library level, seconds):
-//   - a run cancelled part way (a VNDF round cut in its blocks; a walk albedo after its first round), written
+//   - a run cancelled part way (a VNDF round cut in its blocks; a walk albedo after its first round; a walk of
+//     per-order lobes cut in its blocks), written
 //     to JSON and read back as an interrupted run leaves it, then resumed: the same values as the
 //     uninterrupted run of that seed, bit for bit (timings aside); a resumed run with another plan's counts
 //     differs (negative control: the comparison can fail);
@@ -138,6 +139,41 @@ TEST(ExperimentResume, AWalkCutAfterItsFirstRoundKeepsItAndRunsTheRest) {
   const ExperimentResults resumed = run_with(spec, plan, RunControl{2, nullptr, {}}, 0.25, &back);
   EXPECT_FALSE(resumed.partial);
   EXPECT_EQ(measured(resumed).dump(), measured(whole).dump());
+}
+
+TEST(ExperimentResume, AnInterruptedWalkOfPerOrderLobesResumesFromItsBlocksBitForBit) {
+  const ExperimentSpec spec = parse_spec_toml(R"(
+seed = 9
+[[material]]
+name = "glass"
+alphas = [0.5]
+type = "dielectric"
+eta = 1.5
+[[quantity]]
+kind = "scattering"
+material = "glass"
+orders = "all"
+theta = [40]
+target_tv = 0.08
+)", "glass.toml");
+  const ExperimentPlan plan = tiny_plan(spec);
+  ASSERT_EQ(plan.decisions.size(), 1u);
+  ASSERT_TRUE(plan.decisions[0].runnable) << plan.decisions[0].not_runnable;
+  const ExperimentResults whole = run_with(spec, plan, RunControl{2, nullptr, {}});
+  ASSERT_TRUE(whole.measurements[0].met);
+  CancelAt cancel{"smith walk", 0.4, 1};
+  const ExperimentResults cut = run_with(spec, plan, cancel.control(2));
+  ASSERT_TRUE(cut.partial);
+  ASSERT_FALSE(cut.measurements[0].rounds.empty());
+  EXPECT_TRUE(cut.measurements[0].rounds.back().partial);
+  ExperimentResults back = as_read_back(cut, plan);
+  back.measurements[0].scatter = cut.measurements[0].scatter;
+  const ExperimentResults resumed = run_with(spec, plan, RunControl{1, nullptr, {}}, 1, &back);
+  EXPECT_FALSE(resumed.partial);
+  EXPECT_EQ(measured(resumed).dump(), measured(whole).dump());
+  for (int k = 0; k < kScatterOrderBins; ++k)  // every bin's sums, not only the summaries
+    for (std::size_t b = 0; b < whole.measurements[0].scatter.bins(); ++b)
+      EXPECT_EQ(resumed.measurements[0].scatter.histogram(0, k).weight(b), whole.measurements[0].scatter.histogram(0, k).weight(b));
 }
 
 // The TV distance between two VNDF measurements' normalised histograms, the largest over the binnings.
