@@ -6,6 +6,7 @@
 #include "experiment/measures.h"
 #include "experiment/report.h"
 #include "experiment/run_directory.h"
+#include "scatter/albedo_table_io.h"
 #include "stats/curve_figure.h"
 
 #include "stats/svg_parts.h"

@@ -74,6 +74,7 @@ ExperimentResults as_read_back(const ExperimentResults& results, const Experimen
 // A cancel token set by the progress reports once `stage` has passed `fraction` of its total in its
 // `occurrence`-th call sequence (a new sequence starts when the total changes).
 struct CancelAt {
+  CancelAt(std::string s, double f, int o) : stage(std::move(s)), fraction(f), occurrence(o) {}
   std::string stage;
   double fraction;
   int occurrence;
