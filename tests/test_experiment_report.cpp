@@ -44,6 +44,13 @@ material = "m"
 theta = [30]
 rows = 7
 target_tv = 0.1
+[[quantity]]
+kind = "validation"
+material = "m"
+sampler = "heitz2018"
+theta = [60]
+rows = 7
+detect_tv = 0.05
 )", alpha), "small.toml");
 }
 
@@ -76,12 +83,13 @@ TEST(ExperimentReport, ThePageIsSelfContainedAndHoldsEveryMeasuredValue) {
   ReportHistograms histograms;
   for (std::size_t i = 0; i < run.results.measurements.size(); ++i)
     if (!run.results.measurements[i].histogram.binnings.empty()) histograms.emplace(i, run.results.measurements[i].histogram);
-  ASSERT_EQ(histograms.size(), 2u);  // the VNDF at each alpha
+  ASSERT_EQ(histograms.size(), 4u);  // the VNDF and the validation at each alpha
   const std::string page = experiment_report_html(doc, histograms);
   EXPECT_EQ(page.rfind("<!DOCTYPE html>", 0), 0u);
   EXPECT_EQ(count(page, "<script"), 0u);
   EXPECT_EQ(count(page, "http"), count(page, "xmlns=\"http://www.w3.org/2000/svg\""));  // namespaces only, no fetch
-  EXPECT_EQ(count(page, "<svg"), 1u + 2u);  // E1(mu) per alpha, and one VNDF figure per alpha
+  EXPECT_EQ(count(page, "<svg"), 1u + 2u + 2u);  // E1(mu) per alpha; a VNDF and a validation figure per alpha
+  EXPECT_EQ(count(page, "Sampler <b>heitz2018</b>"), 2u);
   EXPECT_NE(page.find("microsim run small.toml --out x"), std::string::npos);
   for (const MeasurementResult& m : run.results.measurements) {
     EXPECT_NE(page.find(svg::escape(m.decision.model.reason)), std::string::npos) << m.decision.label;
@@ -131,13 +139,15 @@ TEST(ExperimentReport, TheRunDirectoryReadsBackAsTheSameRunAndRefusesAnother) {
   fs::remove_all(dir);
   EXPECT_FALSE(load_previous_run(dir, run.spec, 1).has_value());
   write_run_directory(dir, run.spec, run.plan, run.results, {"cmd", "0.1", 1});
-  for (const char* f : {"results.json", "index.html", "albedo-0.csv", "vndf-1.exr", "vndf-2.exr"})
+  for (const char* f : {"results.json", "index.html", "albedo-0.csv", "vndf-1.exr", "vndf-2.exr", "validation-3.exr",
+                        "validation-4.exr"})
     EXPECT_TRUE(fs::exists(dir / f)) << f;
   const auto previous = load_previous_run(dir, run.spec, 1);
   ASSERT_TRUE(previous.has_value());
   EXPECT_EQ(plan_json(previous->plan, run.spec).dump(), plan_json(run.plan, run.spec).dump());
   EXPECT_EQ(results_json(previous->results).dump(), results_json(run.results).dump());
-  EXPECT_EQ(previous->results.measurements[1].histogram.counts, run.results.measurements[1].histogram.counts);
+  for (std::size_t i : {1u, 3u})
+    EXPECT_EQ(previous->results.measurements[i].histogram.counts, run.results.measurements[i].histogram.counts);
   EXPECT_THROW(load_previous_run(dir, run.spec, 2), std::invalid_argument);             // another seed
   EXPECT_THROW(load_previous_run(dir, small_spec(0.35), 1), std::invalid_argument);  // another spec
   fs::remove_all(dir);
