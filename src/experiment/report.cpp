@@ -40,10 +40,12 @@ std::string row(const std::vector<std::string>& cells, const char* tag = "td") {
   return out + "</tr>\n";
 }
 
+// A table; an empty header: none.
 std::string table(const std::vector<std::string>& header, const std::string& body) {
   std::vector<std::string> escaped;
   for (const std::string& h : header) escaped.push_back(esc(h));
-  return "<table>\n<thead>" + row(escaped, "th") + "</thead>\n<tbody>\n" + body + "</tbody></table>\n";
+  const std::string head = header.empty() ? "" : "<thead>" + row(escaped, "th") + "</thead>\n";
+  return "<table>\n" + head + "<tbody>\n" + body + "</tbody></table>\n";
 }
 
 constexpr const char* kStyle = R"(<style>
@@ -82,7 +84,7 @@ std::string status_section(const json& doc) {
   body += row({"seed", esc(text_of(member(doc, "seed")))});
   body += row({"spec", esc(text_of(member(spec, "source")))});
   body += row({"spec digest", "<code>" + esc(text_of(member(spec, "digest"))) + "</code>"});
-  return out + "<h2>Reproduce</h2>\n" + table({"", ""}, body);
+  return out + "<h2>Reproduce</h2>\n" + table({}, body);
 }
 
 // ---- the plan --------------------------------------------------------------------------------------------
