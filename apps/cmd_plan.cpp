@@ -11,6 +11,7 @@
 
 #include "core/atomic_file.h"
 #include "experiment/plan.h"
+#include "experiment/run_directory.h"
 #include "experiment/spec.h"
 
 #include <fmt/core.h>
@@ -42,7 +43,7 @@ int run_plan(const PlanArgs& a) {
   progress->finish();
   print_plan_table(plan, spec);
   if (!a.json.empty()) {
-    nlohmann::json doc = {{"spec", spec_identity_json(spec)}, {"plan", experiment::plan_json(plan, spec)}};
+    nlohmann::json doc = {{"spec", experiment::spec_identity_json(spec)}, {"plan", experiment::plan_json(plan, spec)}};
     write_file_atomically(a.json, doc.dump(2) + "\n");
   }
   return kExitOk;

@@ -59,11 +59,15 @@ void print_measurement_line(const experiment::MeasurementResult& m) {
              m.met ? "met" : "NOT met", m.rounds.size(), m.achieved, m.target, m.seconds, m.partial ? ", partial" : "");
 }
 
-nlohmann::json spec_identity_json(const experiment::ExperimentSpec& spec) {
-  return {{"name", spec.name},
-          {"source", spec.source},
-          {"digest", experiment::spec_digest(spec)},
-          {"canonical", nlohmann::json::parse(experiment::canonical_spec(spec))}};
+
+void print_overall_line(const experiment::ExperimentPlan& plan, std::size_t done) {
+  double past = 0, left = 0;
+  for (std::size_t i = 0; i < plan.decisions.size(); ++i) (i < done ? past : left) += plan.decisions[i].predicted_seconds;
+  constexpr int kWidth = 30;
+  const double fraction = past + left > 0 ? past / (past + left) : 1.0;
+  const int filled = int(fraction * kWidth);
+  fmt::print(stderr, "run: overall [{}{}] {} of {} measurements, predicted time left {}\n", std::string(filled, '#'),
+             std::string(kWidth - filled, '.'), done, plan.decisions.size(), seconds_text(left));
 }
 
 }  // namespace microsim::app

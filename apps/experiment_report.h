@@ -20,8 +20,8 @@ void print_results_table(const experiment::ExperimentResults& results);
 
 // One line on stderr when a measurement is done.
 void print_measurement_line(const experiment::MeasurementResult& m);
-
-// The spec's identity for a document: name, source, digest.
-nlohmann::json spec_identity_json(const experiment::ExperimentSpec& spec);
+// The overall progress on stderr after `done` measurements: a bar of the plan's predicted time done, and the
+// predicted time left (the per-measurement bars are the library's stages, apps/progress_bar.h).
+void print_overall_line(const experiment::ExperimentPlan& plan, std::size_t done);
 
 }  // namespace microsim::app

@@ -138,6 +138,13 @@ def make_fixtures(binary, fixtures):
         "--out", "hist.exr")
     w = lambda name, data: open(os.path.join(fixtures, name), "wb").write(data)
     write_spec_fixtures(w)
+    # A finished experiment run (seed 1) and a run directory whose results.json is broken: a rerun resumes
+    # only the same spec at the same seed (docs/experiments.md).
+    w("run_spec.toml", (SPEC_MATERIAL + '[[quantity]]\nkind = "albedo"\nmaterial = "m"\nmus = 2\n'
+                        'target_relative_error = 0.01\n').encode())
+    run("run", "run_spec.toml", "--out", "run_done", "--seed", "1")
+    os.makedirs(os.path.join(fixtures, "run_broken"), exist_ok=True)
+    w(os.path.join("run_broken", "results.json"), b'{"spec": {"digest": ')
     good = unit_vectors(20000)
     w("good.npy", npy_bytes(good))
     w("good.txt", "\n".join("%r %r %r" % tuple(r) for r in good).encode())
@@ -304,6 +311,8 @@ for f, (_, key) in BAD_SPECS.items():
     FILES += [("plan %s.toml" % f, key), ("run %s.toml --out out" % f, key)]
 FILES += [("plan spec_binary.toml", "spec_binary.toml"), ("plan missing_spec.toml", "missing_spec.toml"),
           ("run spec_unknown_key.toml", "--out")]
+FILES += [("run run_spec.toml --out run_done --seed 2", "seed 1"),   # resume refused: another seed
+          ("run run_spec.toml --out run_broken", "results.json")]   # a results.json that cannot be read
 FILES += [("validate --from missing.npy --alpha 0.3 --theta 30", "missing"),
           ("validate --from . --alpha 0.3 --theta 30", "."),
           ("validate --from /dev/null --alpha 0.3 --theta 30", "/dev/null")]
@@ -489,7 +498,11 @@ def prepare_workdir(fixtures, pristine, work):
     shutil.rmtree(work, ignore_errors=True)
     os.makedirs(work)
     for f in os.listdir(fixtures):
-        os.link(os.path.join(fixtures, f), os.path.join(work, f))
+        src = os.path.join(fixtures, f)
+        if os.path.isdir(src):  # an experiment's run directory: small, copied
+            shutil.copytree(src, os.path.join(work, f))
+        else:
+            os.link(src, os.path.join(work, f))
     os.symlink("good.npy", os.path.join(work, "link.npy"))
     os.symlink("hf.exr", os.path.join(work, "link.exr"))
     os.link(os.path.join(work, "good.npy"), os.path.join(work, "hard.npy"))

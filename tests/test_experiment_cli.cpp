@@ -181,4 +181,64 @@ TEST(ExperimentCli, InterruptedRunWritesWhatWasDoneMarkedPartial) {
   fs::remove_all(dir);
 }
 
+// What a run measured, as results.json records it, without the timings.
+nlohmann::json measured_values(const nlohmann::json& results) {
+  nlohmann::json out = nlohmann::json::array();
+  for (nlohmann::json m : results["results"]["measurements"]) {
+    m.erase("cost");
+    for (auto& r : m["rounds"]) r.erase("seconds");
+    m["values"].erase("seconds");
+    m["values"].erase("row_seconds");
+    out.push_back(m);
+  }
+  return out;
+}
+
+// Ctrl-C in the middle of a VNDF round, then the same command again: it resumes (the finished measurement
+// kept, the round traced on from its first missing block) and results.json holds the values of an
+// uninterrupted run of the same seed, bit for bit; the report is written both times.
+TEST(ExperimentCli, InterruptedThenResumedGivesTheUninterruptedResults) {
+  const fs::path dir = scratch_dir("experiment", "resume");
+  write(dir / "spec.toml", "seed = 4\n[[material]]\nname = \"m\"\nalpha = 0.4\ntype = \"mirror\"\n[[quantity]]\n"
+                           "kind = \"albedo\"\nmaterial = \"m\"\nmus = 2\ntarget_relative_error = 0.01\n[[quantity]]\n"
+                           "kind = \"vndf\"\nmaterial = \"m\"\ntheta = [40]\nrows = 7\ntarget_tv = 0.003\n");
+  const auto whole = run_cli(dir, "run spec.toml --out whole");
+  ASSERT_EQ(whole.exit_code, 0) << whole.err;
+  const fs::path err = dir.parent_path() / (dir.filename().string() + ".resume.stderr");
+  const std::string binary = microsim::test::microsim_binary();
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    if (::chdir(dir.c_str()) != 0) ::_exit(127);
+    const int fe = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    const int fo = ::open("/dev/null", O_WRONLY);
+    ::dup2(fo, 1);
+    ::dup2(fe, 2);
+    ::execl(binary.c_str(), binary.c_str(), "run", "spec.toml", "--out", "cut", static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while (slurp(err).find("met after") == std::string::npos && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  ::kill(pid, SIGINT);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  const std::string first = slurp(err);
+  fs::remove(err);
+  ASSERT_TRUE(WIFEXITED(status)) << first;
+  ASSERT_EQ(WEXITSTATUS(status), 130) << first;  // cut in the VNDF (if it ever finishes in 200 ms: raise its cost)
+  EXPECT_TRUE(results_of(dir / "cut")["partial"].get<bool>());
+  EXPECT_TRUE(fs::exists(dir / "cut" / "index.html"));
+  const auto resumed = run_cli(dir, "run spec.toml --out cut");
+  ASSERT_EQ(resumed.exit_code, 0) << resumed.err;
+  EXPECT_NE(resumed.err.find("resuming: 1 of 2 measurements done"), std::string::npos) << resumed.err;
+  const nlohmann::json a = results_of(dir / "whole"), b = results_of(dir / "cut");
+  EXPECT_FALSE(b["partial"].get<bool>());
+  EXPECT_EQ(measured_values(b).dump(), measured_values(a).dump());
+  const auto other_seed = run_cli(dir, "run spec.toml --out cut --seed 5");  // another seed's run: refused
+  EXPECT_EQ(other_seed.exit_code, 2);
+  EXPECT_NE(other_seed.err.find("seed 4"), std::string::npos) << other_seed.err;
+  fs::remove_all(dir);
+}
+
 }  // namespace

@@ -6,6 +6,9 @@
 #include "experiment/plan.h"
 #include "measure/vndf.h"
 #include "scatter/albedo_table.h"
+#include "scatter/smith_walk.h"
+
+#include <nlohmann/json.hpp>
 
 #include <string_view>
 
@@ -26,9 +29,36 @@ AlbedoTableRequest albedo_request(const ExperimentSpec& spec, const SpecQuantity
                                   std::uint64_t paths, int max_order, double tolerance, std::uint64_t seed,
                                   const RunControl& run);
 
+// The table albedo_table_json wrote (alphas, mus, weights, quantities, timings), with `request` (the table's
+// own, which the JSON names but does not hold whole). Values read back exactly (JSON numbers round-trip);
+// null reads as NaN. Throws std::invalid_argument naming a missing or malformed member. For a resumed run.
+AlbedoTable albedo_table_from_json(const nlohmann::json& table, const AlbedoTableRequest& request);
+
 // The largest relative error (error / value) over the cells and E_avg of the quantities of a table the target
 // applies to; an infinite one when a value is 0 with a non-zero error.
 double worst_relative_error(const AlbedoTable& table, const SpecQuantity& quantity);
+
+// ---- per-order scattering (the Smith walk) ------------------------------------------------------------------
+
+// Rows per hemisphere of a scattering measurement's hemispheres binning (stats/binning.h).
+inline constexpr int kScatterRows = 8;
+
+// The walk of a scattering decision: its material's microsurface at the decision's alpha, and the options of
+// `paths` paths from the decision's view at its order cap (light from inside for theta > 90).
+SmithMicrosurface scatter_surface(const SpecMaterial& material, const Decision& decision);
+ScatterOptions scatter_request(const SpecMaterial& material, const Decision& decision, std::uint64_t paths,
+                               std::uint64_t seed, const RunControl& run);
+
+// The expected TV between an order bin's normalised lobe (channel 0) and its mean: each bin's share
+// p_i = w_i / W has a standard error ~ sqrt(w2_i - w_i^2 / n) / W, an error of that size has a mean absolute
+// value sqrt(2 / pi) times it, and TV = 1/2 sum |error| (the normalisation's covariance neglected). Falls
+// as 1/sqrt(n). 0 for an order bin without weight.
+double scatter_order_floor(const ScatterHistogram& histogram, int order_bin);
+// The order bins a per-order TV target applies to: those carrying at least `target` of the escaped albedo
+// (channel 0). A lighter order moves the whole lobe by less than the target whatever its shape.
+std::vector<int> targeted_order_bins(const ScatterHistogram& histogram, double target);
+// The largest floor over the targeted order bins.
+double scatter_noise_floor(const ScatterHistogram& histogram, double target);
 
 // The largest TV noise floor over the binnings of a VNDF measurement (validate/compare.h noise_floor_tv).
 double vndf_noise_floor(const EllipsoidVndf& measurement);

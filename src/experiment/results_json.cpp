@@ -33,9 +33,10 @@ nlohmann::json decision_json(const Decision& d, const ExperimentSpec& spec) {
 nlohmann::json measurement_json(const MeasurementResult& m) {
   nlohmann::json rounds = nlohmann::json::array();
   for (const RoundRecord& r : m.rounds)
-    rounds.push_back({{"units", r.units}, {"seed", r.seed}, {"tolerance", r.tolerance}, {"seconds", r.seconds},
+    rounds.push_back({{"units", r.units}, {"planned", r.planned}, {"blocks_done", r.blocks_done},
+                      {"partial", r.partial}, {"seed", r.seed}, {"tolerance", r.tolerance}, {"seconds", r.seconds},
                       {"achieved", r.achieved}});
-  return {{"measurement", m.decision.label},
+  nlohmann::json j = {{"measurement", m.decision.label},
           {"ran", m.ran},
           {"partial", m.partial},
           {"target", m.target},
@@ -45,6 +46,8 @@ nlohmann::json measurement_json(const MeasurementResult& m) {
           {"rounds", rounds},
           {"cost", {{"units", m.units}, {"unit", m.decision.unit}, {"rays", m.rays}, {"seconds", m.seconds}}},
           {"values", m.values}};
+  if (!m.round_tables.empty()) j["round_tables"] = m.round_tables;
+  return j;
 }
 
 }  // namespace

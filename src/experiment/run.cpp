@@ -4,10 +4,13 @@
 #include "experiment/measures.h"
 #include "core/parse.h"
 #include "scatter/albedo_table_io.h"
+#include "validate/validate.h"
+#include "stats/scatter_compare.h"
 
 #include <fmt/core.h>
 
 #include <chrono>
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -54,25 +57,36 @@ void record_albedo(MeasurementResult& m, const AlbedoTable& table) {
   m.csv = albedo_table_csv(table);
 }
 
+std::uint64_t first_units(const Decision& d, const RunOptions& o) {
+  return std::max<std::uint64_t>(1, std::uint64_t(std::ceil(double(d.units) * o.cost_factor)));
+}
+
 void run_walk_albedo(const ExperimentSpec& spec, std::uint64_t seed, std::size_t index, const RunOptions& o,
                      MeasurementResult& m) {
   const Decision& d = m.decision;
   const SpecQuantity& q = spec.quantities[d.quantity];
-  std::vector<AlbedoTable> tables;
+  std::vector<AlbedoTable> tables;  // resumed: the completed rounds' tables
   std::vector<std::uint64_t> units;
-  std::uint64_t n = d.units;
-  for (int r = 0; r < kMaxRounds && n > 0; ++r) {
+  for (std::size_t r = 0; r < m.round_tables.size(); ++r) {
+    tables.push_back(albedo_table_from_json(
+        m.round_tables[r], albedo_request(spec, q, Model::smith_walk, m.rounds[r].units, d.order_cap, 0, m.rounds[r].seed, o.run)));
+    units.push_back(m.rounds[r].units);
+  }
+  m.partial = false;
+  std::uint64_t n = tables.empty() ? first_units(d, o) : next_round_units(m.units, m.achieved, m.target);
+  for (int r = int(tables.size()); r < o.max_rounds && n > 0; ++r) {
     const std::uint64_t s = round_seed(seed, index, r);
     AlbedoTable t = albedo_table(albedo_request(spec, q, Model::smith_walk, n, d.order_cap, 0, s, o.run));
-    if (t.partial) {
+    if (t.partial) {  // a round cut short is run again whole on resumption
       m.partial = true;
       break;
     }
+    m.round_tables.push_back(albedo_table_json(t));
     tables.push_back(std::move(t));
     units.push_back(n);
     const AlbedoTable pooled = pool_tables(tables, units);
     m.achieved = worst_relative_error(pooled, q);
-    m.rounds.push_back({n, s, 0, tables.back().seconds, m.achieved});
+    m.rounds.push_back({n, n, 0, false, s, 0, tables.back().seconds, m.achieved});
     m.units += n;
     m.rays += n * pooled.alphas.size() * pooled.mus.size();
     record_albedo(m, pooled);
@@ -85,14 +99,16 @@ void run_analytic_albedo(const ExperimentSpec& spec, const RunOptions& o, Measur
   const Decision& d = m.decision;
   const SpecQuantity& q = spec.quantities[d.quantity];
   double tolerance = d.tolerance;
-  for (int r = 0; r < kMaxRounds && !m.met && tolerance >= 1e-13; ++r, tolerance /= 100) {
+  m.rounds.clear();  // resumed: deterministic and cheap, run again
+  m.partial = false;
+  for (int r = 0; r < o.max_rounds && !m.met && tolerance >= 1e-13; ++r, tolerance /= 100) {
     const AlbedoTable t = albedo_table(albedo_request(spec, q, Model::analytic, 1, 0, tolerance, 1, o.run));
     if (t.partial) {
       m.partial = true;
       break;
     }
     m.achieved = worst_relative_error(t, q);
-    m.rounds.push_back({0, 0, tolerance, t.seconds, m.achieved});
+    m.rounds.push_back({0, 0, 0, false, 0, tolerance, t.seconds, m.achieved});
     m.met = m.achieved <= m.target;
     record_albedo(m, t);
   }
@@ -120,58 +136,241 @@ void record_vndf(MeasurementResult& m, const EllipsoidVndf& analysed, double hit
               {"hits", analysed.histogram.hits},
               {"expected_hit_fraction", hit_fraction},
               {"total_variation", vndf_total_variation(analysed)},
-              {"noise_floor_tv", vndf_noise_floor(analysed)}};
+              {"noise_floor_tv", vndf_noise_floor(analysed)},
+              {"unbinned", m.unbinned}};
+  m.histogram = analysed.histogram;
+}
+
+// The round to trace next: a partial round of a resumed run from its first missing block (its record
+// removed: the finished round replaces it), else a new round of `n` rays.
+struct VndfRoundStart {
+  std::uint64_t rays = 0, first_block = 0, seed = 0, done = 0;  // done: rays of the round already counted
+};
+
+VndfRoundStart next_vndf_round(MeasurementResult& m, std::uint64_t seed, std::size_t index, const RunOptions& o) {
+  if (!m.rounds.empty() && m.rounds.back().partial) {
+    const RoundRecord r = m.rounds.back();
+    m.rounds.pop_back();
+    return {r.planned, r.blocks_done, r.seed, r.units};
+  }
+  const std::uint64_t n = m.rounds.empty() ? first_units(m.decision, o) : next_round_units(m.units, m.achieved, m.target);
+  return {std::min<std::uint64_t>(n, kMaxRays), 0, round_seed(seed, index, int(m.rounds.size())), 0};
+}
+
+// One round (or the rest of one): traced, added to the sum, the sum analysed and recorded. False when
+// nothing was traced (cancelled before its first block).
+bool vndf_round(const ExperimentSpec& spec, const EllipsoidTarget& target, const VndfRoundStart& start,
+                const RunOptions& o, MeasurementResult& m) {
+  const Decision& d = m.decision;
+  VndfRequest req;
+  req.theta_deg = d.view.theta_deg;
+  req.phi_deg = d.view.phi_deg;
+  req.rays = start.rays;
+  req.seed = start.seed;
+  req.rows = spec.quantities[d.quantity].rows;
+  req.run = o.run;
+  if (start.first_block > 0) req.blocks = BlockRange{start.first_block, (start.rays + kRaysPerBlock - 1) / kRaysPerBlock};
+  const auto clock = std::chrono::steady_clock::now();
+  const EllipsoidVndf round = measure_ellipsoid_vndf(target, req);
+  m.partial = round.trace.partial;  // cancelled: its completed blocks are a shorter run of that seed, kept
+  if (round.histogram.rays == 0) return false;
+  const bool fresh = m.histogram.binnings.empty();
+  add_round(m.histogram, m.unbinned, round);
+  // A whole first round: its own analysis is the sum's (the reference's cubature is not paid twice).
+  const EllipsoidVndf analysed = fresh && !round.trace.partial ? round : analyse_ellipsoid_vndf(m.histogram, m.unbinned);
+  m.achieved = vndf_noise_floor(analysed);
+  m.units += round.histogram.rays;
+  m.rays += round.histogram.rays;
+  m.rounds.push_back({start.done + round.histogram.rays, start.rays, round.trace.blocks.end, round.trace.partial,
+                      req.seed, 0, seconds_since(clock), m.achieved});
+  record_vndf(m, analysed, round.expected_hit_fraction);
+  return true;
 }
 
 void run_vndf(const ExperimentSpec& spec, std::uint64_t seed, std::size_t index, const RunOptions& o, MeasurementResult& m) {
-  const Decision& d = m.decision;
-  const EllipsoidTarget target(d.alpha.first, d.alpha.second, -1);
-  TracedHistogram sum;
-  std::vector<std::uint64_t> unbinned;
-  std::uint64_t n = d.units;
-  for (int r = 0; r < kMaxRounds && n > 0; ++r) {
-    VndfRequest req;
-    req.theta_deg = d.view.theta_deg;
-    req.phi_deg = d.view.phi_deg;
-    req.rays = std::min<std::uint64_t>(n, kMaxRays);
-    req.seed = round_seed(seed, index, r);
-    req.rows = spec.quantities[d.quantity].rows;
-    req.run = o.run;
-    const auto start = std::chrono::steady_clock::now();
-    const EllipsoidVndf round = measure_ellipsoid_vndf(target, req);
-    m.partial = round.trace.partial;  // cancelled: its completed blocks are a shorter run of that seed, kept
-    if (round.histogram.rays == 0) break;
-    add_round(sum, unbinned, round);
-    // One round: its own analysis is the sum's (the reference's cubature is not paid twice).
-    const EllipsoidVndf analysed = m.rounds.empty() ? round : analyse_ellipsoid_vndf(sum, unbinned);
-    m.achieved = vndf_noise_floor(analysed);
-    m.units += round.histogram.rays;
-    m.rays += round.histogram.rays;
-    m.rounds.push_back({round.histogram.rays, req.seed, 0, seconds_since(start), m.achieved});
-    record_vndf(m, analysed, round.expected_hit_fraction);
-    n = m.partial ? 0 : next_round_units(m.units, m.achieved, m.target);
+  const EllipsoidTarget target(m.decision.alpha.first, m.decision.alpha.second, -1);
+  m.partial = false;
+  while (int(m.rounds.size()) < o.max_rounds || (!m.rounds.empty() && m.rounds.back().partial)) {
+    const VndfRoundStart start = next_vndf_round(m, seed, index, o);
+    if (start.rays == 0 || !vndf_round(spec, target, start, o, m) || m.partial) break;
   }
-  m.met = !m.rounds.empty() && m.achieved <= m.target;
+  m.met = !m.rounds.empty() && !m.rounds.back().partial && m.achieved <= m.target;
 }
 
+// ---- scattering (the Smith walk) ---------------------------------------------------------------------------
+
+// Adds a round's (or a part of a round's) exact sums to the sum; the first gives the binning and channels.
+void add_scatter_round(ScatterHistogram& sum, const ScatterHistogram& round) {
+  if (sum.binning_id().empty()) {
+    sum = round;
+    return;
+  }
+  for (int c = 0; c < round.channels(); ++c) {
+    for (int k = 0; k < kScatterOrderBins; ++k) {
+      const Histogram& h = round.histogram(c, k);
+      for (std::size_t b = 0; b < h.size(); ++b) sum.add_sums(c, k, b, h.exact_weight(b), h.exact_weight_squared(b));
+      sum.add_unbinned_sums(c, k, h.exact_unbinned_weight(), h.exact_unbinned_weight_squared());
+    }
+    sum.add_unfinished_sums(c, round.exact_unfinished(c, false), round.exact_unfinished(c, true));
+    sum.add_lost_sums(c, round.exact_lost(c, false), round.exact_lost(c, true));
+  }
+  sum.add_launched(round.paths());
+}
+
+nlohmann::json estimate_json(const Estimate& e) { return {{"value", e.value}, {"standard_error", e.standard_error}}; }
+
+void record_scatter(MeasurementResult& m, double target) {
+  const ScatterHistogram& h = m.scatter;
+  nlohmann::json orders = nlohmann::json::array();
+  const std::vector<int> targeted = targeted_order_bins(h, target);
+  for (int k = 0; k < kScatterOrderBins; ++k)
+    orders.push_back({{"order", scatter_order_name(k)},
+                      {"albedo", estimate_json(h.albedo(0, k))},
+                      {"reflected", estimate_json(h.albedo(0, k, ScatterSide::reflected))},
+                      {"transmitted", estimate_json(h.albedo(0, k, ScatterSide::transmitted))},
+                      {"noise_floor_tv", scatter_order_floor(h, k)},
+                      {"targeted", std::find(targeted.begin(), targeted.end(), k) != targeted.end()}});
+  m.values = {{"scattering", {{"paths", h.paths()},
+                              {"channel", h.channel_name(0)},
+                              {"albedo", estimate_json(h.albedo(0, -1))},
+                              {"unfinished", estimate_json(h.unfinished(0))},
+                              {"orders", orders},
+                              {"noise_floor_tv", scatter_noise_floor(h, target)},
+                              {"rows_per_hemisphere", kScatterRows}}}};
+}
+
+// The next walk round: a partial one of a resumed run from its first missing block, else a new one.
+VndfRoundStart next_walk_round(MeasurementResult& m, std::uint64_t seed, std::size_t index, const RunOptions& o) {
+  if (!m.rounds.empty() && m.rounds.back().partial) {
+    const RoundRecord r = m.rounds.back();
+    m.rounds.pop_back();
+    return {r.planned, r.blocks_done, r.seed, r.units};
+  }
+  const std::uint64_t n = m.rounds.empty() ? first_units(m.decision, o) : next_round_units(m.units, m.achieved, m.target);
+  return {n, 0, round_seed(seed, index, int(m.rounds.size())), 0};
+}
+
+bool scatter_round(const ExperimentSpec& spec, const VndfRoundStart& start, const RunOptions& o, MeasurementResult& m) {
+  const Decision& d = m.decision;
+  const SpecMaterial& material = spec.material(spec.quantities[d.quantity].material);
+  ScatterOptions options = scatter_request(material, d, start.rays, start.seed, o.run);
+  if (start.first_block > 0) options.blocks = BlockRange{start.first_block, (start.rays + kPathsPerBlock - 1) / kPathsPerBlock};
+  const auto clock = std::chrono::steady_clock::now();
+  const ScatterHistogram round = smith_walk_scatter(scatter_surface(material, d), options);
+  m.partial = round.partial;
+  if (round.paths() == 0) return false;
+  add_scatter_round(m.scatter, round);
+  m.achieved = scatter_noise_floor(m.scatter, spec.quantities[d.quantity].target);
+  m.units += round.paths();
+  m.rays += round.paths();
+  m.rounds.push_back({start.done + round.paths(), start.rays, round.provenance.blocks.end, round.partial, start.seed, 0,
+                      seconds_since(clock), m.achieved});
+  record_scatter(m, spec.quantities[d.quantity].target);
+  return true;
+}
+
+void run_scattering(const ExperimentSpec& spec, std::uint64_t seed, std::size_t index, const RunOptions& o,
+                    MeasurementResult& m) {
+  m.partial = false;
+  while (int(m.rounds.size()) < o.max_rounds || (!m.rounds.empty() && m.rounds.back().partial)) {
+    const VndfRoundStart start = next_walk_round(m, seed, index, o);
+    if (start.rays == 0 || !scatter_round(spec, start, o, m) || m.partial) break;
+  }
+  m.met = !m.rounds.empty() && !m.rounds.back().partial && m.achieved <= m.target;
+}
+
+// ---- validation --------------------------------------------------------------------------------------------
+
+// The validator's binned counts as a histogram (counts, and the claimed pdf's bin probabilities): what the
+// report draws and validation-K.exr keeps.
+TracedHistogram validation_histogram(const ValidationReport& r, const Decision& d) {
+  TracedHistogram h;
+  for (const BinnedComparison& c : r.histograms) {
+    h.binnings.push_back(c.binning);
+    std::vector<std::uint64_t> counts;
+    std::vector<double> probability;
+    for (std::size_t i = 0; i < c.observed.size(); ++i) {
+      counts.push_back(std::uint64_t(std::llround(c.observed[i])));
+      probability.push_back(r.samples > 0 ? c.expected[i] / double(r.samples) : 0.0);
+    }
+    h.counts.push_back(std::move(counts));
+    h.probability.push_back(std::move(probability));
+  }
+  h.rays = h.hits = r.samples;
+  h.attributes = {{"surface", "sampler " + r.sampler},
+                  {"alpha", fmt::format("{},{}", d.alpha.first, d.alpha.second)},
+                  {"theta", fmt::format("{}", d.view.theta_deg)},
+                  {"phi", fmt::format("{}", d.view.phi_deg)},
+                  {"seed", std::to_string(r.seed)}};
+  return h;
+}
+
+// One validation at the planned sample count (the chi-square power rule: no pilot, no rounds). Cancelled:
+// nothing is kept (the validator has no partial result), the measurement runs again on resumption.
+void run_validation(const ExperimentSpec& spec, std::uint64_t seed, std::size_t index, const RunOptions& o,
+                    MeasurementResult& m) {
+  const Decision& d = m.decision;
+  const SpecQuantity& q = spec.quantities[d.quantity];
+  const SamplerInfo* sampler = find_sampler(q.sampler);
+  if (sampler == nullptr) throw std::invalid_argument(fmt::format("{}.sampler: unknown sampler '{}'", q.key, q.sampler));
+  ValidationOptions v;
+  v.samples = first_units(d, o);
+  v.seed = round_seed(seed, index, 0);
+  v.rows = q.rows;
+  v.significance = q.significance;
+  v.run = o.run;
+  m.rounds.clear();
+  m.partial = false;
+  const auto clock = std::chrono::steady_clock::now();
+  ValidationReport r;
+  try {
+    r = validate_sampler(*sampler, GGX<double>(d.alpha.first, d.alpha.second),
+                         direction_from_degrees(d.view.theta_deg, d.view.phi_deg), v);
+  } catch (const Cancelled&) {
+    m.partial = true;
+    return;
+  }
+  // The sample count fixes the deviation detected with the asked power: N ~ 1 / tv^2 (plan.h).
+  m.achieved = q.target * std::sqrt(double(d.units) / double(r.samples));
+  m.units = m.rays = r.samples;
+  m.rounds.push_back({r.samples, r.samples, 0, false, v.seed, 0, seconds_since(clock), m.achieved});
+  m.values = {{"validation", to_json(r)}};
+  m.histogram = validation_histogram(r, d);
+  m.met = m.achieved <= m.target * (1 + 1e-12);
+}
+
+std::string error_measure(const SpecQuantity& q, const Decision& d) {
+  if (q.kind == QuantityKind::scattering)
+    return "the largest per-order TV noise floor of the orders carrying at least the target's share of the albedo";
+  if (q.kind == QuantityKind::validation)
+    return fmt::format("the smallest TV deviation detected with power {} at level {} by the samples run", q.power,
+                       q.significance);
+  if (q.kind == QuantityKind::vndf) return "the histogram's TV noise floor (expected TV of an exact sampler), largest binning";
+  return fmt::format("the worst relative {} of {} over the cells and E_avg",
+                     d.model.model == Model::analytic ? "quadrature error estimate" : "standard error",
+                     albedo_target_text(q));
+}
+
+// A measurement afresh, or continued from `previous` (an interrupted run's); a finished one is kept.
 MeasurementResult run_decision(const ExperimentSpec& spec, const Decision& d, std::size_t index, std::uint64_t seed,
-                               const RunOptions& o) {
-  MeasurementResult m;
+                               const RunOptions& o, const MeasurementResult* previous) {
+  if (previous != nullptr && (!previous->partial || !d.runnable)) return *previous;
+  MeasurementResult m = previous != nullptr ? *previous : MeasurementResult{};
   m.decision = d;
   const SpecQuantity& q = spec.quantities[d.quantity];
   const bool vndf = q.kind == QuantityKind::vndf;
-  m.target = vndf ? kNoiseShare * q.target : q.target;
-  m.error_measure = vndf ? "the histogram's TV noise floor (expected TV of an exact sampler), largest binning"
-                         : fmt::format("the worst relative {} of {} over the cells and E_avg",
-                                       d.model.model == Model::analytic ? "quadrature error estimate" : "standard error",
-                                       albedo_target_text(q));
+  const bool histogram_tv = vndf || q.kind == QuantityKind::scattering;
+  m.target = histogram_tv ? kNoiseShare * q.target : q.target;
+  m.error_measure = error_measure(q, d);
   if (!d.runnable) return m;
   m.ran = true;
   const auto start = std::chrono::steady_clock::now();
   if (vndf) run_vndf(spec, seed, index, o, m);
+  else if (q.kind == QuantityKind::validation) run_validation(spec, seed, index, o, m);
+  else if (q.kind == QuantityKind::scattering) run_scattering(spec, seed, index, o, m);
   else if (d.model.model == Model::smith_walk) run_walk_albedo(spec, seed, index, o, m);
   else run_analytic_albedo(spec, o, m);
-  m.seconds = seconds_since(start);
+  m.seconds += seconds_since(start);
   return m;
 }
 
@@ -199,11 +398,13 @@ ExperimentResults run_experiment(const ExperimentSpec& spec, const ExperimentPla
       results.partial = true;
       break;
     }
-    results.measurements.push_back(run_decision(spec, plan.decisions[i], i, seed, options));
+    const MeasurementResult* previous =
+        options.resume != nullptr && i < options.resume->measurements.size() ? &options.resume->measurements[i] : nullptr;
+    results.measurements.push_back(run_decision(spec, plan.decisions[i], i, seed, options, previous));
     results.partial = results.partial || results.measurements.back().partial;
     if (options.on_measurement) options.on_measurement(results.measurements.back());
   }
-  results.seconds = seconds_since(start);
+  results.seconds = seconds_since(start) + (options.resume != nullptr ? options.resume->seconds : 0);
   return results;
 }
 

@@ -6,16 +6,27 @@
 //   albedo, analytic    the quadrature at the planned tolerance; if an error estimate still exceeds the
 //                       target, again 100 times tighter (the result replaces the last);
 //   vndf                rounds of ellipsoid-oracle rays, each from its own seed, their exact counts summed; the
-//                       TV noise floor of the sum decides (kNoiseShare of the target).
+//                       TV noise floor of the sum decides (kNoiseShare of the target);
+//   scattering, walk    rounds of Smith walks, their exact sums added; the largest per-order TV noise floor of
+//                       the orders the target applies to decides (measures.h, scatter_noise_floor);
+//   validation          one validate_sampler run of the planned samples (the power rule needs no rounds).
 // At most kMaxRounds rounds: a target not met then is reported as such (met = false), never hidden.
 // Cancellation (run.cancel): the round in progress is dropped (a VNDF round keeps its completed blocks, the
-// block runner's prefix: a shorter run of that seed), what the completed rounds measured is kept and
-// the results are marked partial. Same seed, same results, whatever the thread count (each round is a
-// block-runner call of its own seed; the round sizes follow from the results). Never prints.
+// block runner's prefix: a shorter run of that seed, recorded as a partial round), what the completed rounds
+// measured is kept and the results are marked partial. Same seed, same results, whatever the thread count
+// (each round is a block-runner call of its own seed; the round sizes follow from the results).
+// Resumption (RunOptions::resume, the results of an interrupted run of the same spec, plan and seed): a
+// finished measurement is kept as it is; a partial one continues: a VNDF measurement from its summed counts,
+// its partial round traced on from its first missing block (the same seed and blocks: the counts are those of
+// the uninterrupted run, bit for bit); a walk albedo from its completed rounds' tables (a round cut short is
+// run again whole: its completed rows are not kept); an analytic albedo again (deterministic, cheap). Never
+// prints.
 #pragma once
 
 #include "core/estimate.h"
 #include "experiment/plan.h"
+#include "stats/histogram_io.h"
+#include "stats/scatter_histogram.h"
 
 #include <nlohmann/json.hpp>
 
@@ -27,6 +38,9 @@ namespace microsim::experiment {
 
 struct RoundRecord {
   std::uint64_t units = 0;  // paths per cell, rays; 0 for a deterministic round
+  std::uint64_t planned = 0;      // the units the round was asked for (a partial VNDF round: more than units)
+  std::uint64_t blocks_done = 0;  // VNDF: the round's blocks [0, blocks_done) are in the counts
+  bool partial = false;           // cancelled part way (VNDF: resumable from blocks_done)
   std::uint64_t seed = 0;
   double tolerance = 0;     // analytic rounds
   double seconds = 0;
@@ -47,6 +61,12 @@ struct MeasurementResult {
   double seconds = 0;
   nlohmann::json values;        // what was measured (an albedo table, a VNDF analysis)
   std::string csv;              // albedo: the table as CSV (scatter/albedo_table_io.h), else ""
+  // What a resumed run continues from (not in `values`): VNDF: the summed counts (with the analytic
+  // probabilities: the report's figure) and unbinned hits; walk albedo: each completed round's table.
+  TracedHistogram histogram;
+  std::vector<std::uint64_t> unbinned;
+  ScatterHistogram scatter;  // scattering: the rounds' walks summed (exact sums)
+  std::vector<nlohmann::json> round_tables;  // albedo_table_json of each round
 };
 
 struct ExperimentResults {
@@ -58,6 +78,14 @@ struct ExperimentResults {
 struct RunOptions {
   std::uint64_t seed = 0;  // 0: the spec's
   RunControl run;
+  // The results of an interrupted run of the same spec, plan and seed, to continue (see the header); null:
+  // start afresh.
+  const ExperimentResults* resume = nullptr;
+  // The first round's units are the planned units times this (the honesty check: a run at 4x the planned
+  // cost must not move the results by more than the target); 1 normally.
+  double cost_factor = 1;
+  // Rounds at most (a fixed-cost run: 1); a target not met then is reported as such.
+  int max_rounds = kMaxRounds;
   // Called after each measurement (complete, partial or skipped), on the calling thread.
   std::function<void(const MeasurementResult&)> on_measurement;
 };
@@ -72,5 +100,11 @@ Estimate pool_rounds(const std::vector<Estimate>& rounds, const std::vector<std:
 // results.json's members for a plan and for results (the CLI adds the command, version and spec).
 nlohmann::json plan_json(const ExperimentPlan& plan, const ExperimentSpec& spec);
 nlohmann::json results_json(const ExperimentResults& results);
+
+// The inverses, for a resumed run: the plan of a document's "plan" member for this spec, and the results of
+// its "results" member for that plan (the VNDF histograms are not in the JSON: the caller reads them, see
+// run_directory.h). Throw std::invalid_argument naming the first member that is missing or malformed.
+ExperimentPlan plan_from_json(const nlohmann::json& plan, const ExperimentSpec& spec);
+ExperimentResults results_from_json(const nlohmann::json& results, const ExperimentPlan& plan);
 
 }  // namespace microsim::experiment

@@ -1,0 +1,369 @@
+// experiment: the report page of a run (report.h).
+#include "experiment/report.h"
+
+#include "stats/curve_figure.h"
+#include "stats/figure.h"
+#include "stats/scatter_figure.h"
+#include "stats/svg_parts.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace microsim::experiment {
+namespace {
+
+using nlohmann::json;
+
+std::string esc(const std::string& s) { return svg::escape(s); }
+
+std::string text_of(const json& v) {
+  if (v.is_string()) return v.get<std::string>();
+  if (v.is_number()) return report_number(v);
+  if (v.is_boolean()) return v.get<bool>() ? "yes" : "no";
+  return v.is_null() ? "-" : v.dump();
+}
+
+// The member `key` of `j`, or std::invalid_argument naming it.
+const json& member(const json& j, const char* key) {
+  if (!j.is_object() || !j.contains(key))
+    throw std::invalid_argument(fmt::format("experiment_report_html: the document has no '{}'", key));
+  return j.at(key);
+}
+
+std::string row(const std::vector<std::string>& cells, const char* tag = "td") {
+  std::string out = "<tr>";
+  for (const std::string& c : cells) out += fmt::format("<{0}>{1}</{0}>", tag, c);
+  return out + "</tr>\n";
+}
+
+// A table; an empty header: none.
+std::string table(const std::vector<std::string>& header, const std::string& body) {
+  std::vector<std::string> escaped;
+  for (const std::string& h : header) escaped.push_back(esc(h));
+  const std::string head = header.empty() ? "" : "<thead>" + row(escaped, "th") + "</thead>\n";
+  return "<table>\n" + head + "<tbody>\n" + body + "</tbody></table>\n";
+}
+
+constexpr const char* kStyle = R"(<style>
+body{font-family:sans-serif;max-width:1400px;margin:1.5em auto;padding:0 1em;color:#222;line-height:1.4}
+table{border-collapse:collapse;margin:0.6em 0 1.2em;font-size:13px}
+th,td{border:1px solid #bbb;padding:3px 7px;text-align:left;vertical-align:top}
+th{background:#eee} td.num{text-align:right;font-variant-numeric:tabular-nums}
+.met{color:#060;font-weight:bold} .notmet{color:#a00;font-weight:bold}
+.partial{background:#fff3cd;border:1px solid #d9b600;padding:0.5em 1em}
+pre{background:#f6f6f6;padding:0.6em;overflow-x:auto;font-size:12px} figure{margin:0.5em 0;overflow-x:auto}
+section.measurement{border-top:2px solid #999;margin-top:2em}
+</style>
+)";
+
+std::string met_text(bool ran, bool met) {
+  if (!ran) return "not run";
+  return met ? R"(<span class="met">met</span>)" : R"(<span class="notmet">NOT met</span>)";
+}
+
+// ---- the head: status and how to reproduce -------------------------------------------------------------
+
+std::string status_section(const json& doc) {
+  const json& results = member(doc, "results");
+  const bool partial = member(doc, "partial").get<bool>();
+  std::string out = fmt::format("<h1>Experiment {}</h1>\n", esc(text_of(member(member(doc, "spec"), "name"))));
+  if (partial)
+    out += "<p class=\"partial\">PARTIAL: the run was interrupted; running the same command again resumes it. "
+           "The values below are what the completed rounds measured.</p>\n";
+  out += fmt::format("<p>All targets met: <b id=\"all-targets-met\">{}</b>; run time {} s.</p>\n",
+                     member(results, "all_targets_met").get<bool>() ? "yes" : "no",
+                     report_number(member(results, "seconds")));
+  const json& spec = member(doc, "spec");
+  std::string body;
+  body += row({"command", "<code>" + esc(text_of(member(doc, "command"))) + "</code>"});
+  body += row({"version", esc(text_of(member(doc, "version")))});
+  body += row({"seed", esc(text_of(member(doc, "seed")))});
+  body += row({"spec", esc(text_of(member(spec, "source")))});
+  body += row({"spec digest", "<code>" + esc(text_of(member(spec, "digest"))) + "</code>"});
+  return out + "<h2>Reproduce</h2>\n" + table({}, body);
+}
+
+// ---- the plan --------------------------------------------------------------------------------------------
+
+std::string count_text(const json& d) {
+  const auto units = member(d, "units").get<std::uint64_t>();
+  if (units == 0) return "-";
+  return fmt::format("{} {}", units, text_of(member(d, "unit")));
+}
+
+std::string plan_section(const json& doc) {
+  const json& plan = member(doc, "plan");
+  std::string body;
+  std::size_t i = 0;
+  for (const json& d : member(plan, "decisions")) {
+    const int cap = member(d, "order_cap").get<int>();
+    body += row({std::to_string(i++), esc(text_of(member(d, "measurement"))), esc(text_of(member(d, "model"))),
+                 esc(count_text(d)), cap > 0 ? std::to_string(cap) : "-",
+                 report_number(member(d, "predicted_seconds")), member(d, "runnable").get<bool>() ? "yes" : "no"});
+  }
+  return fmt::format("<h2>Plan</h2>\n<p>Pilots took {} s; predicted run time {} s. Each measurement's reasons "
+                     "are in its section below.</p>\n",
+                     report_number(member(plan, "pilot_seconds")), report_number(member(plan, "predicted_seconds"))) +
+         table({"#", "measurement", "model", "count", "order cap", "predicted s", "runnable"}, body);
+}
+
+// ---- the results summary ------------------------------------------------------------------------------------
+
+std::string results_section(const json& doc) {
+  std::string body;
+  std::size_t i = 0;
+  for (const json& m : member(member(doc, "results"), "measurements")) {
+    const bool ran = member(m, "ran").get<bool>();
+    const json& cost = member(m, "cost");
+    body += row({std::to_string(i++), esc(text_of(member(m, "measurement"))), report_number(member(m, "target")),
+                 ran ? report_number(member(m, "achieved")) : "-",
+                 met_text(ran, member(m, "met").get<bool>()) + (member(m, "partial").get<bool>() ? " (partial)" : ""),
+                 std::to_string(member(m, "rounds").size()), esc(text_of(member(cost, "units"))),
+                 report_number(member(cost, "seconds"))});
+  }
+  return "<h2>Results</h2>\n" +
+         table({"#", "measurement", "target", "achieved", "met", "rounds", "units", "seconds"}, body);
+}
+
+// ---- one measurement ------------------------------------------------------------------------------------
+
+std::string decision_list(const json& d) {
+  std::string out = "<ul>\n";
+  out += fmt::format("<li><b>model</b> {}: {}</li>\n", esc(text_of(member(d, "model"))),
+                     esc(text_of(member(d, "model_reason"))));
+  out += fmt::format("<li><b>count</b> {}: {}</li>\n", esc(count_text(d)), esc(text_of(member(d, "count_reason"))));
+  if (!member(d, "cap_reason").get<std::string>().empty())
+    out += fmt::format("<li><b>order cap</b> {}: {}</li>\n", text_of(member(d, "order_cap")),
+                       esc(text_of(member(d, "cap_reason"))));
+  const json& pilot = member(d, "pilot");
+  out += fmt::format("<li><b>pilot</b> {} units in {} s, error {}; predicted {} s</li>\n",
+                     text_of(member(pilot, "units")), report_number(member(pilot, "seconds")),
+                     report_number(member(pilot, "error")), report_number(member(d, "predicted_seconds")));
+  if (d.contains("not_runnable")) out += fmt::format("<li><b>not run</b>: {}</li>\n", esc(text_of(d["not_runnable"])));
+  return out + "</ul>\n";
+}
+
+std::string rounds_table(const json& m) {
+  std::string body;
+  std::size_t i = 0;
+  for (const json& r : member(m, "rounds")) {
+    const double tolerance = member(r, "tolerance").get<double>();
+    body += row({std::to_string(i++), text_of(member(r, "units")), text_of(member(r, "seed")),
+                 tolerance > 0 ? report_number(tolerance) : "-", report_number(member(r, "seconds")),
+                 report_number(member(r, "achieved"))});
+  }
+  return table({"round", "units", "seed", "tolerance", "seconds", "error after it"}, body);
+}
+
+// The rows of one albedo quantity: E(mu) +- error per alpha, then E_avg +- error.
+std::string albedo_quantity_table(const json& values, const json& q) {
+  std::vector<std::string> header{"alpha"};
+  for (const json& mu : member(values, "mus")) header.push_back("mu " + report_number(mu));
+  header.push_back("E_avg");
+  std::string body;
+  const json& alphas = member(values, "alphas");
+  for (std::size_t a = 0; a < alphas.size(); ++a) {
+    std::vector<std::string> cells{report_number(alphas[a])};
+    for (std::size_t k = 0; k < member(q, "value")[a].size(); ++k)
+      cells.push_back(report_number(q["value"][a][k]) + " &plusmn; " + report_number(member(q, "error")[a][k]));
+    cells.push_back("<b>" + report_number(member(q, "average")[a]) + "</b> &plusmn; " +
+                    report_number(member(q, "average_error")[a]));
+    body += row(cells);
+  }
+  return table(header, body);
+}
+
+std::string albedo_quantity_figure(const json& values, const std::string& name, const json& q) {
+  std::vector<Curve> curves;
+  const json& alphas = member(values, "alphas");
+  for (std::size_t a = 0; a < alphas.size(); ++a)
+    curves.push_back({"alpha " + report_number(alphas[a]), member(values, "mus").get<std::vector<double>>(),
+                      member(q, "value")[a].get<std::vector<double>>(), member(q, "error")[a].get<std::vector<double>>()});
+  if (curves.empty()) return "";
+  const std::string subtitle = fmt::format("{} ({}), error bars: {}", text_of(member(values, "model")),
+                                           text_of(member(values, "material")), text_of(member(values, "error")));
+  return "<figure>" + curve_figure_svg(name + "(mu) per alpha", subtitle, {"mu = cos theta_i", name}, curves) +
+         "</figure>\n";
+}
+
+std::string albedo_values(const json& values) {
+  std::string out = fmt::format("<p>{} {}, {} side; error: {}.</p>\n", esc(text_of(member(values, "model"))),
+                                esc(text_of(member(values, "material"))), esc(text_of(member(values, "side"))),
+                                esc(text_of(member(values, "error"))));
+  for (const json& name : member(values, "quantity_names")) {
+    const std::string n = name.get<std::string>();
+    const json& q = member(member(values, "quantities"), n.c_str());
+    out += fmt::format("<h4>{}</h4>\n", esc(n)) + albedo_quantity_table(values, q);
+    if (n != "unfinished" && n != "lost") out += albedo_quantity_figure(values, n, q);
+  }
+  return out;
+}
+
+std::string vndf_fit_table(const json& values) {
+  std::string body;
+  for (const json& fit : member(member(values, "analysis"), "binnings")) {
+    std::vector<std::string> cells{esc(text_of(member(fit, "binning")))};
+    for (const char* key : {"total_variation", "noise_floor_tv"}) cells.push_back(report_number(member(fit, key)));
+    const json& chi2 = fit.contains("chi2") ? fit["chi2"] : json::object();
+    for (const char* key : {"statistic", "dof", "p_value"})
+      cells.push_back(chi2.contains(key) ? report_number(chi2[key]) : "-");
+    body += row(cells);
+  }
+  return table({"binning", "TV vs analytic D_v", "noise floor TV", "chi-square", "dof", "p"}, body);
+}
+
+std::string histogram_figure(const TracedHistogram& h, const std::string& label, const std::string& expected) {
+  std::vector<BinnedComparison> comparisons;
+  for (std::size_t k = 0; k < h.binnings.size(); ++k) {
+    if (k >= h.probability.size() || h.probability[k].size() != std::size_t(h.binnings[k].size())) continue;
+    BinnedComparison c{h.binnings[k], std::vector<double>(h.counts[k].begin(), h.counts[k].end()), h.probability[k],
+                       expected};
+    for (double& e : c.expected) e *= double(h.hits);
+    comparisons.push_back(std::move(c));
+  }
+  if (comparisons.empty()) return "";
+  const std::string subtitle = fmt::format("{} counted of {}{}", h.hits, h.rays, h.partial ? " (PARTIAL)" : "");
+  return "<figure>" + histogram_figure_svg(label, subtitle, comparisons) + "</figure>\n";
+}
+
+std::string vndf_values(const json& values, const ReportHistograms& histograms, std::size_t index,
+                        const std::string& label) {
+  std::string out = fmt::format("<p>{} rays, {} hits (expected hit fraction {}); measured TV against the analytic "
+                                "D_v {}, noise floor {}.</p>\n",
+                                text_of(member(values, "rays")), text_of(member(values, "hits")),
+                                report_number(member(values, "expected_hit_fraction")),
+                                report_number(member(values, "total_variation")),
+                                report_number(member(values, "noise_floor_tv")));
+  out += vndf_fit_table(values);
+  const auto h = histograms.find(index);
+  if (h != histograms.end()) out += histogram_figure(h->second, label, "analytic D_v");
+  return out + fmt::format("<p>Histogram: <a href=\"vndf-{0}.exr\">vndf-{0}.exr</a>.</p>\n", index);
+}
+
+std::string estimate_text(const json& e) {
+  return report_number(member(e, "value")) + " &plusmn; " + report_number(member(e, "standard_error"));
+}
+
+std::string scatter_figure(const ScatterHistogram& h, const std::string& label, int rows) {
+  std::vector<ScatterFigureRow> figure_rows;
+  const double n = double(std::max<std::uint64_t>(h.paths(), 1));
+  for (int k = 0; k < kScatterOrderBins; ++k) {
+    const Histogram& lobe = h.histogram(0, k);
+    std::vector<double> values;
+    for (std::size_t b = 0; b < lobe.size(); ++b) values.push_back(lobe.weight(b) / n);
+    figure_rows.push_back({"order bin " + std::to_string(k + 1), {{"Smith walk", values}}, {}});
+  }
+  const std::string subtitle = fmt::format("{} paths; weight per launched path per bin", h.paths());
+  return "<figure>" + scatter_figure_svg(label, subtitle, DirectionBinning::hemispheres(rows), figure_rows) + "</figure>\n";
+}
+
+std::string scattering_values(const json& values, const ReportScatters& scatters, std::size_t index,
+                              const std::string& label) {
+  const json& s = member(values, "scattering");
+  std::string out = fmt::format("<p>{} paths; albedo {}, left on the surface at the cap {}.</p>\n",
+                                text_of(member(s, "paths")), estimate_text(member(s, "albedo")),
+                                estimate_text(member(s, "unfinished")));
+  std::string body;
+  for (const json& o : member(s, "orders"))
+    body += row({esc(text_of(member(o, "order"))), estimate_text(member(o, "albedo")), estimate_text(member(o, "reflected")),
+                 estimate_text(member(o, "transmitted")), report_number(member(o, "noise_floor_tv")),
+                 member(o, "targeted").get<bool>() ? "yes" : "no (below the target's share)"});
+  out += table({"order", "albedo", "reflected", "transmitted", "lobe TV noise floor", "targeted"}, body);
+  const auto h = scatters.find(index);
+  if (h != scatters.end()) out += scatter_figure(h->second, label, member(s, "rows_per_hemisphere").get<int>());
+  return out + fmt::format("<p>Walk sums: <a href=\"scattering-{0}.exr\">scattering-{0}.exr</a>.</p>\n", index);
+}
+
+std::string validation_tests_table(const json& v) {
+  std::string body;
+  for (const auto& [name, t] : member(v, "tests").items()) {
+    std::vector<std::string> cells{esc(name)};
+    for (const char* key : {"statistic", "dof", "p_value"}) cells.push_back(t.contains(key) ? report_number(t[key]) : "-");
+    if (t.contains("rejected")) cells.push_back(text_of(t["rejected"]));
+    else cells.push_back(t.contains("passed") ? (t["passed"].get<bool>() ? "no" : "yes") : "-");
+    body += row(cells);
+  }
+  return table({"test", "statistic", "dof", "p", "rejected"}, body);
+}
+
+std::string validation_values(const json& values, const ReportHistograms& histograms, std::size_t index,
+                              const std::string& label) {
+  const json& v = member(values, "validation");
+  std::string out = fmt::format("<p>Sampler <b>{}</b>, {} samples: verdict <b>{}</b> (p {}, level {}).</p>\n",
+                                esc(text_of(member(v, "sampler"))), text_of(member(v, "samples")),
+                                esc(text_of(member(v, "verdict"))), report_number(member(v, "p_value")),
+                                report_number(member(v, "significance")));
+  for (const json& f : member(v, "failures")) out += "<p class=\"notmet\">" + esc(text_of(f)) + "</p>\n";
+  out += validation_tests_table(v);
+  const auto h = histograms.find(index);
+  if (h != histograms.end()) out += histogram_figure(h->second, label, "claimed pdf");
+  return out + fmt::format("<p>Counts: <a href=\"validation-{0}.exr\">validation-{0}.exr</a>.</p>\n", index);
+}
+
+std::string measurement_values(const json& values, std::size_t index, const ReportHistograms& histograms,
+                               const ReportScatters& scatters, const std::string& label) {
+  if (!values.is_object()) return "";
+  if (values.contains("quantity_names"))
+    return albedo_values(values) + fmt::format("<p>Table: <a href=\"albedo-{0}.csv\">albedo-{0}.csv</a>.</p>\n", index);
+  if (values.contains("analysis")) return vndf_values(values, histograms, index, label);
+  if (values.contains("scattering")) return scattering_values(values, scatters, index, label);
+  if (values.contains("validation")) return validation_values(values, histograms, index, label);
+  return "";
+}
+
+std::string measurement_section(const json& d, const json& m, std::size_t index, const ReportHistograms& histograms,
+                                const ReportScatters& scatters) {
+  const std::string label = text_of(member(m, "measurement"));
+  std::string out = fmt::format("<section class=\"measurement\" id=\"m{}\">\n<h3>[{}] {}</h3>\n", index, index, esc(label));
+  out += decision_list(d);
+  const bool ran = member(m, "ran").get<bool>();
+  out += fmt::format("<p>Target {} ({}); achieved <b>{}</b>: {}{}.</p>\n", report_number(member(m, "target")),
+                     esc(text_of(member(m, "error_measure"))), ran ? report_number(member(m, "achieved")) : "-",
+                     met_text(ran, member(m, "met").get<bool>()),
+                     member(m, "partial").get<bool>() ? " (partial: interrupted)" : "");
+  if (!ran) return out + "</section>\n";
+  out += rounds_table(m);
+  return out + measurement_values(member(m, "values"), index, histograms, scatters, label) + "</section>\n";
+}
+
+std::string measurements_sections(const json& doc, const ReportHistograms& histograms, const ReportScatters& scatters) {
+  const json& decisions = member(member(doc, "plan"), "decisions");
+  const json& measurements = member(member(doc, "results"), "measurements");
+  std::string out = "<h2>Measurements</h2>\n";
+  for (std::size_t i = 0; i < measurements.size() && i < decisions.size(); ++i)
+    out += measurement_section(decisions[i], measurements[i], i, histograms, scatters);
+  for (std::size_t i = measurements.size(); i < decisions.size(); ++i)
+    out += fmt::format("<section class=\"measurement\"><h3>[{}] {}</h3><p>Not reached (the run was interrupted "
+                       "before it).</p></section>\n", i, esc(text_of(member(decisions[i], "measurement"))));
+  return out;
+}
+
+}  // namespace
+
+std::string report_number(double value) { return std::isfinite(value) ? fmt::format("{:.6g}", value) : "-"; }
+
+std::string report_number(const nlohmann::json& value) {
+  if (value.is_number_unsigned()) return std::to_string(value.get<std::uint64_t>());
+  if (value.is_number_integer()) return std::to_string(value.get<std::int64_t>());
+  return value.is_number() ? report_number(value.get<double>()) : "-";
+}
+
+std::string experiment_report_html(const nlohmann::json& document, const ReportHistograms& histograms,
+                                   const ReportScatters& scatters) {
+  std::string page = "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n";
+  page += fmt::format("<title>microsim experiment {}</title>\n", esc(text_of(member(member(document, "spec"), "name"))));
+  page += kStyle;
+  page += "</head>\n<body>\n";
+  page += status_section(document) + plan_section(document) + results_section(document);
+  page += measurements_sections(document, histograms, scatters);
+  page += "<h2>Files</h2>\n<p><a href=\"results.json\">results.json</a>: everything on this page as data.</p>\n";
+  page += "<h2>The spec (canonical)</h2>\n<pre>" +
+          esc(member(member(document, "spec"), "canonical").dump(2)) + "</pre>\n";
+  return page + "</body>\n</html>\n";
+}
+
+}  // namespace microsim::experiment

@@ -1,0 +1,139 @@
+// experiment: a run's directory: writing it, reading it back (run_directory.h).
+#include "experiment/run_directory.h"
+
+#include "core/atomic_file.h"
+#include "core/parse.h"
+#include "experiment/report.h"
+#include "stats/histogram_io.h"
+#include "stats/scatter_io.h"
+
+#include <fmt/core.h>
+
+#include <fstream>
+#include <stdexcept>
+
+namespace microsim::experiment {
+namespace {
+
+namespace fs = std::filesystem;
+
+// The file of a measurement's histogram: vndf-K.exr, validation-K.exr.
+fs::path histogram_path(const fs::path& dir, const MeasurementResult& m, std::size_t index) {
+  return dir / fmt::format("{}-{}.exr", m.values.contains("validation") ? "validation" : "vndf", index);
+}
+
+nlohmann::json read_document(const fs::path& path) {
+  std::ifstream in(path);
+  const nlohmann::json j = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
+  if (j.is_discarded() || !j.is_object())
+    throw std::invalid_argument(fmt::format("{}: not a results.json (cannot be parsed): refusing to write over it", quote_excerpt(path.string())));
+  return j;
+}
+
+std::string text_member(const nlohmann::json& j, const char* object, const char* key) {
+  if (!j.contains(object) || !j[object].is_object() || !j[object].contains(key) || !j[object][key].is_string())
+    return "";
+  return j[object][key].get<std::string>();
+}
+
+// The document must be this spec's, at this seed.
+void check_same_run(const fs::path& dir, const nlohmann::json& doc, const ExperimentSpec& spec, std::uint64_t seed) {
+  const std::string digest = text_member(doc, "spec", "digest");
+  if (digest != spec_digest(spec))
+    throw std::invalid_argument(fmt::format("--out {}: holds the results of another spec (digest '{}', this spec's {}): "
+                                            "refusing to overwrite them; use another --out",
+                                            quote_excerpt(dir.string()), digest, spec_digest(spec)));
+  const auto recorded = doc.contains("seed") && doc["seed"].is_number_unsigned() ? doc["seed"].get<std::uint64_t>() : 0;
+  if (recorded != seed)
+    throw std::invalid_argument(fmt::format("--out {}: holds this spec's run with seed {}, this run's seed is {}: "
+                                            "refusing to mix them; rerun with --seed {} to resume it, or use another --out",
+                                            quote_excerpt(dir.string()), recorded, seed, recorded));
+}
+
+fs::path scatter_path(const fs::path& dir, std::size_t index) { return dir / fmt::format("scattering-{}.exr", index); }
+
+// The counts and sums of the measurements that have them, read back into the results.
+void read_histograms(const fs::path& dir, ExperimentResults& results) {
+  for (std::size_t i = 0; i < results.measurements.size(); ++i) {
+    MeasurementResult& m = results.measurements[i];
+    if (!m.ran || m.rounds.empty() || !m.values.is_object()) continue;
+    if (m.values.contains("scattering")) {
+      try {
+        m.scatter = read_scatter_exr(scatter_path(dir, i)).histogram;
+      } catch (const ScatterIoError& e) {
+        throw std::invalid_argument(fmt::format("cannot resume measurement {}: {}", i, e.what()));
+      }
+      continue;
+    }
+    if (!m.values.contains("analysis") && !m.values.contains("validation")) continue;
+    try {
+      m.histogram = read_histogram_exr(histogram_path(dir, m, i));
+    } catch (const HistogramIoError& e) {
+      throw std::invalid_argument(fmt::format("cannot resume measurement {}: {}", i, e.what()));
+    }
+  }
+}
+
+}  // namespace
+
+nlohmann::json spec_identity_json(const ExperimentSpec& spec) {
+  return {{"name", spec.name},
+          {"source", spec.source},
+          {"digest", spec_digest(spec)},
+          {"canonical", nlohmann::json::parse(canonical_spec(spec))}};
+}
+
+nlohmann::json run_document(const ExperimentSpec& spec, const ExperimentPlan& plan, const ExperimentResults& results,
+                            const RunIdentity& identity) {
+  return {{"command", identity.command},
+          {"version", identity.version},
+          {"spec", spec_identity_json(spec)},
+          {"seed", identity.seed},
+          {"plan", plan_json(plan, spec)},
+          {"results", results_json(results)},
+          {"partial", results.partial}};
+}
+
+void write_run_directory(const fs::path& dir, const ExperimentSpec& spec, const ExperimentPlan& plan,
+                         const ExperimentResults& results, const RunIdentity& identity) {
+  fs::create_directories(dir);
+  ReportHistograms histograms;
+  ReportScatters scatters;
+  for (std::size_t i = 0; i < results.measurements.size(); ++i) {
+    const MeasurementResult& m = results.measurements[i];
+    if (!m.csv.empty()) write_file_atomically(dir / fmt::format("albedo-{}.csv", i), m.csv);
+    if (m.scatter.paths() > 0) {
+      write_scatter_exr(scatter_path(dir, i), m.scatter, {{"measurement", m.decision.label}});
+      scatters.emplace(i, m.scatter);
+    }
+    if (m.histogram.binnings.empty()) continue;
+    TracedHistogram h = m.histogram;
+    h.partial = m.partial;
+    write_histogram_exr(histogram_path(dir, m, i), h);
+    histograms.emplace(i, std::move(h));
+  }
+  const nlohmann::json doc = run_document(spec, plan, results, identity);
+  write_file_atomically(dir / "results.json", doc.dump(2) + "\n");
+  write_file_atomically(dir / "index.html", experiment_report_html(doc, histograms, scatters));
+}
+
+std::optional<PreviousRun> load_previous_run(const fs::path& dir, const ExperimentSpec& spec, std::uint64_t seed) {
+  if (!fs::exists(dir)) {
+    const fs::path parent = dir.has_parent_path() ? dir.parent_path() : fs::path(".");
+    if (!fs::is_directory(parent)) throw std::invalid_argument(fmt::format("--out {}: its parent is not a directory", quote_excerpt(dir.string())));
+    return std::nullopt;
+  }
+  if (!fs::is_directory(dir)) throw std::invalid_argument(fmt::format("--out {}: not a directory", quote_excerpt(dir.string())));
+  if (fs::is_empty(dir)) return std::nullopt;
+  if (!fs::exists(dir / "results.json"))
+    throw std::invalid_argument(fmt::format("--out {}: not empty and holds no results.json: refusing to write into it", quote_excerpt(dir.string())));
+  const nlohmann::json doc = read_document(dir / "results.json");
+  check_same_run(dir, doc, spec, seed);
+  PreviousRun previous;
+  previous.plan = plan_from_json(doc.value("plan", nlohmann::json::object()), spec);
+  previous.results = results_from_json(doc.value("results", nlohmann::json::object()), previous.plan);
+  read_histograms(dir, previous.results);
+  return previous;
+}
+
+}  // namespace microsim::experiment

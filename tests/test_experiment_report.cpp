@@ -1,0 +1,156 @@
+// The report of a run (experiment/report.h, run_directory.h) on a tiny spec: the page is self-contained (no
+// script, no external resource), holds the plan's reasons and every measured value as report_number prints
+// it, an inline SVG per figure; a document missing a member is refused; the line chart checks its input;
+// an albedo table read back from its JSON is the same table, bit for bit; the run directory is written and
+// read back as the same plan and results, and another seed's or spec's run is refused.
+#include "experiment/measures.h"
+#include "experiment/report.h"
+#include "experiment/run_directory.h"
+#include "scatter/albedo_table_io.h"
+#include "stats/curve_figure.h"
+
+#include "stats/svg_parts.h"
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <unistd.h>
+
+namespace {
+
+using namespace microsim;
+using namespace microsim::experiment;
+namespace fs = std::filesystem;
+
+ExperimentSpec small_spec(double alpha) {
+  return parse_spec_toml(fmt::format(R"(
+name = "report-test"
+[[material]]
+name = "m"
+alphas = [{}, 0.6]
+type = "mirror"
+[[quantity]]
+kind = "albedo"
+material = "m"
+mus = 3
+target_relative_error = 0.001
+[[quantity]]
+kind = "vndf"
+material = "m"
+theta = [30]
+rows = 7
+target_tv = 0.1
+[[quantity]]
+kind = "validation"
+material = "m"
+sampler = "heitz2018"
+theta = [60]
+rows = 7
+detect_tv = 0.05
+)", alpha), "small.toml");
+}
+
+struct SmallRun {
+  ExperimentSpec spec = small_spec(0.3);
+  ExperimentPlan plan;
+  ExperimentResults results;
+  SmallRun() {
+    PlanOptions p;
+    p.pilot_rays = 1 << 13;
+    plan = plan_experiment(spec, p);
+    results = run_experiment(spec, plan, RunOptions{});
+  }
+};
+
+const SmallRun& small_run() {
+  static const SmallRun run;
+  return run;
+}
+
+std::size_t count(const std::string& text, const std::string& what) {
+  std::size_t n = 0;
+  for (std::size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+  return n;
+}
+
+TEST(ExperimentReport, ThePageIsSelfContainedAndHoldsEveryMeasuredValue) {
+  const SmallRun& run = small_run();
+  const nlohmann::json doc = run_document(run.spec, run.plan, run.results, {"microsim run small.toml --out x", "0.1", 1});
+  ReportHistograms histograms;
+  for (std::size_t i = 0; i < run.results.measurements.size(); ++i)
+    if (!run.results.measurements[i].histogram.binnings.empty()) histograms.emplace(i, run.results.measurements[i].histogram);
+  ASSERT_EQ(histograms.size(), 4u);  // the VNDF and the validation at each alpha
+  const std::string page = experiment_report_html(doc, histograms);
+  EXPECT_EQ(page.rfind("<!DOCTYPE html>", 0), 0u);
+  EXPECT_EQ(count(page, "<script"), 0u);
+  EXPECT_EQ(count(page, "http"), count(page, "xmlns=\"http://www.w3.org/2000/svg\""));  // namespaces only, no fetch
+  EXPECT_EQ(count(page, "<svg"), 1u + 2u + 2u);  // E1(mu) per alpha; a VNDF and a validation figure per alpha
+  EXPECT_EQ(count(page, "Sampler <b>heitz2018</b>"), 2u);
+  EXPECT_NE(page.find("microsim run small.toml --out x"), std::string::npos);
+  for (const MeasurementResult& m : run.results.measurements) {
+    EXPECT_NE(page.find(svg::escape(m.decision.model.reason)), std::string::npos) << m.decision.label;
+    EXPECT_NE(page.find("<b>" + report_number(m.achieved) + "</b>"), std::string::npos) << m.decision.label;
+  }
+  const nlohmann::json& e1 = doc["results"]["measurements"][0]["values"]["quantities"]["E1"];
+  for (std::size_t a = 0; a < 2; ++a) {
+    EXPECT_NE(page.find("<b>" + report_number(e1["average"][a]) + "</b>"), std::string::npos);
+    for (const auto& v : e1["value"][a]) EXPECT_NE(page.find(report_number(v) + " &plusmn;"), std::string::npos);
+  }
+  nlohmann::json broken = doc;
+  broken.erase("plan");
+  EXPECT_THROW(experiment_report_html(broken, histograms), std::invalid_argument);
+}
+
+TEST(ExperimentReport, CurveFigureChecksItsInput) {
+  EXPECT_NE(curve_figure_svg("t", "s", {"x", "y"}, {{"a", {0, 1}, {1, 2}, {0.1, 0.1}}}).find("<polyline"), std::string::npos);
+  EXPECT_THROW(curve_figure_svg("t", "s", {"x", "y"}, {{"a", {0, 1}, {1}, {}}}), std::invalid_argument);
+  EXPECT_THROW(curve_figure_svg("t", "s", {"x", "y"}, {{"a", {0, 1}, {1, 2}, {0.1}}}), std::invalid_argument);
+  EXPECT_THROW(curve_figure_svg("t", "s", {"x", "y"}, {}), std::invalid_argument);
+}
+
+TEST(ExperimentReport, AnAlbedoTableReadBackFromItsJsonIsTheSameTable) {
+  AlbedoTableRequest r;
+  r.model = AlbedoModel::smith_walk;
+  r.alphas = {0.2, 0.7};
+  r.mus = 3;
+  r.paths = 2000;
+  r.seed = 4;
+  const AlbedoTable t = albedo_table(r);
+  const AlbedoTable back = albedo_table_from_json(nlohmann::json::parse(albedo_table_json(t).dump()), r);
+  EXPECT_EQ(albedo_table_json(back).dump(), albedo_table_json(t).dump());
+  ASSERT_EQ(back.quantities.size(), t.quantities.size());
+  for (std::size_t k = 0; k < t.quantities.size(); ++k)
+    for (std::size_t i = 0; i < t.quantities[k].cells.size(); ++i) {
+      EXPECT_EQ(back.quantities[k].cells[i].value, t.quantities[k].cells[i].value);
+      EXPECT_EQ(back.quantities[k].cells[i].standard_error, t.quantities[k].cells[i].standard_error);
+    }
+  nlohmann::json broken = albedo_table_json(t);
+  broken["quantities"]["E"]["value"][0].erase(0);
+  EXPECT_THROW(albedo_table_from_json(broken, r), std::invalid_argument);
+}
+
+TEST(ExperimentReport, TheRunDirectoryReadsBackAsTheSameRunAndRefusesAnother) {
+  const SmallRun& run = small_run();
+  const fs::path dir = fs::temp_directory_path() / ("microsim_report_dir_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  EXPECT_FALSE(load_previous_run(dir, run.spec, 1).has_value());
+  write_run_directory(dir, run.spec, run.plan, run.results, {"cmd", "0.1", 1});
+  for (const char* f : {"results.json", "index.html", "albedo-0.csv", "vndf-1.exr", "vndf-2.exr", "validation-3.exr",
+                        "validation-4.exr"})
+    EXPECT_TRUE(fs::exists(dir / f)) << f;
+  const auto previous = load_previous_run(dir, run.spec, 1);
+  ASSERT_TRUE(previous.has_value());
+  EXPECT_EQ(plan_json(previous->plan, run.spec).dump(), plan_json(run.plan, run.spec).dump());
+  EXPECT_EQ(results_json(previous->results).dump(), results_json(run.results).dump());
+  for (std::size_t i : {1u, 3u})
+    EXPECT_EQ(previous->results.measurements[i].histogram.counts, run.results.measurements[i].histogram.counts);
+  EXPECT_THROW(load_previous_run(dir, run.spec, 2), std::invalid_argument);             // another seed
+  EXPECT_THROW(load_previous_run(dir, small_spec(0.35), 1), std::invalid_argument);  // another spec
+  fs::remove_all(dir);
+}
+
+}  // namespace
