@@ -361,9 +361,10 @@ std::uint64_t sort_key(float nonneg_value, std::uint32_t index) {
 // One marginal-matching step: (mx, my) = the normalised slopes (ux, uy) with each radius replaced by the
 // GGX (alpha = 1) quantile of its rank, P(r < R) = R^2 / (1 + R^2) => R = sqrt(q / (1 - q)),
 // q = rank / (n + 1) (ranks from 1), keeping the angle. Zero slopes keep angle 0 (atan2(0, 0) = 0).
+// With reference = beckmann (NdfMatch::joint only) the radius quantile is sqrt(-log(1 - q)) instead.
 void match_ggx_marginal(const std::vector<float>& ux, const std::vector<float>& uy, std::vector<float>& mx,
-                        std::vector<float>& my, std::vector<std::uint64_t>& keys,
-                        std::vector<std::uint64_t>& scratch) {
+                        std::vector<float>& my, std::vector<std::uint64_t>& keys, std::vector<std::uint64_t>& scratch,
+                        ReferenceNdf reference = ReferenceNdf::ggx) {
   const std::size_t n = ux.size();
   keys.resize(n);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& range) {
@@ -378,7 +379,8 @@ void match_ggx_marginal(const std::vector<float>& ux, const std::vector<float>& 
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& range) {
     for (std::size_t rank = range.begin(); rank != range.end(); ++rank) {
       const double q = double(rank + 1) / double(n + 1);
-      mx[std::uint32_t(keys[rank])] = float(std::sqrt(q / (1.0 - q)));
+      mx[std::uint32_t(keys[rank])] =
+          float(reference == ReferenceNdf::ggx ? std::sqrt(q / (1.0 - q)) : std::sqrt(-std::log1p(-q)));
     }
   });
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& range) {
@@ -433,12 +435,13 @@ void stop_if_cancelled(const BuildCancel& cancelled) {
 struct SlopeTargets {
   NdfMatch mode = NdfMatch::radial;
   ReferenceNdf reference = ReferenceNdf::ggx;
+  int radial_from = -1;  // the iteration from which the radius alone is matched (-1: never switch)
   std::vector<std::uint64_t> keys, scratch;
   std::vector<std::uint16_t> stratum;
   void match(const std::vector<float>& ux, const std::vector<float>& uy, std::vector<float>& mx,
              std::vector<float>& my) {
     if (mode == NdfMatch::joint) match_joint_target(ux, uy, reference, mx, my, keys, scratch, stratum);
-    else match_ggx_marginal(ux, uy, mx, my, keys, scratch);
+    else match_ggx_marginal(ux, uy, mx, my, keys, scratch, reference);
   }
 };
 
@@ -455,6 +458,7 @@ std::vector<double> match_slopes(Spectral& fft, std::vector<double> h, double ax
                progress_from + (progress_to - progress_from) * it / iterations);
     stop_if_cancelled(cancelled);
     triangle_slopes(h, n, ax, ay, ux, uy);
+    if (it == targets.radial_from) targets.mode = NdfMatch::radial;
     targets.match(ux, uy, mx, my);
     if (it > 0) report.residuals.push_back(slope_residual(ux, uy, mx, my, n));
     stop_if_cancelled(cancelled);
@@ -477,6 +481,7 @@ std::vector<double> match_jointly(Spectral& fft, std::vector<double> h, double a
     SlopeTargets targets;
     targets.mode = NdfMatch::joint;
     targets.reference = reference;
+    targets.radial_from = (iterations + 1) / 2;  // the second half radial: restores the tail quantiles (measured)
     h = match_slopes(fft, std::move(h), ax, ay, iterations, targets, report, progress, 0.05, 0.6, cancelled);
   }
   if (progress) progress("binned NDF refinement", 0.6);
