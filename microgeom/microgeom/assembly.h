@@ -45,8 +45,8 @@ std::optional<ReferenceNdf> reference_ndf_from_string(std::string_view name);
 //   of the reference (ndf_match.h, match_joint_target), the second half the radius alone (which restores
 //   the tail quantiles the joint targets cannot reach: q = 0.999 was 9.7% short at N = 256 with joint
 //   targets only, 1.4% with half radial), then a final refinement of the vertex heights brings the triangle
-//   counts and mean slopes of the lobe bins of `trace vndf` and the counts of 1024 radius bins to the
-//   reference law (refine_binned_ndf). Applies to the Beckmann control too (otherwise only rescaled).
+//   counts and mean slopes of the lobe bins of `trace vndf`, the counts of its sphere bins and of 1024
+//   radius bins to the reference law (refine_binned_ndf). Applies to the Beckmann control too (otherwise only rescaled).
 enum class NdfMatch { radial, joint };
 std::string_view to_string(NdfMatch m);
 // "radial" or "joint"; nullopt for any other text.

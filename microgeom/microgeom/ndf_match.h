@@ -6,7 +6,8 @@
 //   with the exact reference probability and first moment of each bin;
 // - the joint (radius, angle) target of the slope matching: a stratified slope set of the reference law;
 // - the final refinement: vertex-height moves that bring the triangle counts (and the mean normalised
-//   slope) of every lobe bin, and the counts of fine radius bins, to the reference law;
+//   slope) of every lobe bin, the counts of fine radius bins and of the sphere bins of `trace vndf`, to the
+//   reference law;
 // - the error of a field's NDF in the lobe bins, beside the noise of as many independent triangles.
 //
 // Normalised slope u = (sx / ax, sy / ay); in the lobe parameter space of Heitz 2018 (JCGT 7(4), sec. 2-3)
@@ -85,8 +86,9 @@ struct NdfRefineReport {
 // Moves vertex heights (cell units; slopes normalised by ax, ay) one at a time, in row order, each by the
 // first of +-step, +-0.3 step, +-0.1 step that lowers the discrepancy
 //   sum over lobe bins of ((c - t)^2 + |m - M|^2 / rbar^2) / t  +  sum over radius bins of (c - t)^2 / t
+//   + sum over the sphere bins of trace vndf (rows, or rows + 1 if even) of (c - t)^2 / max(t, 5)
 // (c, m: triangle count and sum of u in the bin; t, M: their reference values; rbar: the row's mean
-// radius); stops after max_sweeps sweeps or when a sweep moves fewer than 1e-4 of the vertices. Sequential:
+// radius; the sphere bins depend on (ax, ay): ndf_refine.cpp, SphereNdfBins); stops after max_sweeps sweeps or when a sweep moves fewer than 1e-4 of the vertices. Sequential:
 // the result does not depend on the thread count. `cancelled` is polled between sweeps (throws
 // BuildCancelled).
 NdfRefineReport refine_binned_ndf(std::vector<double>& h, int n, double ax, double ay, ReferenceNdf ref,
