@@ -138,6 +138,16 @@ void print_ndf(const microgeom::SurfaceStats& st) {
     fmt::print("{:+6.2f}{}", 100 * st.angular_bin_errors[b], (b + 1) % microgeom::kAngleBins == 0 ? "\n" : " ");
 }
 
+// The NDF error in the lobe bins of trace vndf, beside the noise of as many independent triangles: a traced
+// VNDF at theta = 0 resolves it from about `resolving_rays` rays on.
+void print_lobe_error(const microgeom::LobeNdfError& e) {
+  fmt::print("\nNDF in the lobe bins of trace vndf ({} rows, {} bins, seen from the normal):\n", e.rows, e.bins);
+  fmt::print("| total variation | noise of {} independent triangles | max bin error | resolved from about |\n"
+             "|---|---|---|---|\n", e.triangles);
+  fmt::print("| {:.5f} | {:.5f} | {:.2f}% | {:.3g} rays |\n", e.total_variation, e.iid_noise_tv,
+             100 * e.max_rel_error, e.resolving_rays);
+}
+
 // The NDF check: the largest errors against their tolerances.
 void print_ndf_check(const microgeom::SurfaceStats& st) {
   fmt::print("\n| NDF check                | max error | tolerance |\n|{:-<26}|{:-<11}|{:-<11}|\n", "", "", "");
@@ -148,6 +158,7 @@ void print_ndf_check(const microgeom::SurfaceStats& st) {
   fmt::print("| (radius, angle) bins     | {:>8.3f}% | {:>8.3f}% |\n", 100 * st.max_angular_bin_error,
              100 * st.tolerance.angular_bin);
   fmt::print("NDF verdict: {}\n", st.ndf_verdict);
+  print_lobe_error(st.lobe);
 }
 
 // Slopes, heights and their coupling.
@@ -204,6 +215,12 @@ nlohmann::json stats_json(const microgeom::SurfaceStats& st) {
                     {"angular_bin", st.tolerance.angular_bin}};
   j["ndf_within_tolerance"] = st.ndf_within_tolerance;
   j["ndf_verdict"] = st.ndf_verdict;
+  j["lobe_bins"] = {{"rows", st.lobe.rows},
+                    {"bins", st.lobe.bins},
+                    {"total_variation", st.lobe.total_variation},
+                    {"iid_noise_tv", st.lobe.iid_noise_tv},
+                    {"max_rel_error", st.lobe.max_rel_error},
+                    {"resolving_rays", st.lobe.resolving_rays}};
   j["slopes"] = {{"mean", {st.mean_slope_x, st.mean_slope_y}},
                  {"rms", {st.rms_slope_x, st.rms_slope_y}},
                  {"normalised_second_moment", {st.normalised_second_moment_x, st.normalised_second_moment_y}},
@@ -227,7 +244,7 @@ std::string assembly_help() {
 }
 // ---- surface build ------------------------------------------------------------------------------------
 struct BuildOptions {
-  std::string assembly, alpha, out, mesh, normals, json;
+  std::string assembly, alpha, out, mesh, normals, json, ndf_match = "radial";
   int resolution = 0, mesh_crop = 0, iterations = 0;
   std::uint64_t seed = 1;
   double corr_cells = 0, tile_size = 1.0;
@@ -250,6 +267,9 @@ microgeom::AssemblyParams assembly_params(const BuildOptions& o) {
   p.corr_cells = o.corr_cells;
   p.tile_size = o.tile_size;
   p.iterations = o.iterations;
+  const auto match = microgeom::ndf_match_from_string(o.ndf_match);
+  if (!match) throw UsageError(fmt::format("--ndf-match '{}' must be radial or joint", o.ndf_match));
+  p.ndf_match = *match;
   try {
     microgeom::validate(p);
     if (!o.unsupported) microgeom::check_supported_range(p);
@@ -313,8 +333,9 @@ microgeom::StatsOptions build_stats_options(const microgeom::AssemblyParams& p, 
 
 void print_build(const microgeom::AssemblyParams& p, double l, const microgeom::BuildReport& report) {
   fmt::print("surface build: assembly {}, alpha ({:.6g}, {:.6g}), resolution {}, seed {}, correlation length {:.6g} "
-             "cells ({:.4g} per tile), {} slope-matching iterations\n",
-             p.assembly, p.alpha_x, p.alpha_y, p.resolution, p.seed, l, p.resolution / l, report.iterations);
+             "cells ({:.4g} per tile), {} slope-matching iterations, NDF matched {}\n",
+             p.assembly, p.alpha_x, p.alpha_y, p.resolution, p.seed, l, p.resolution / l, report.iterations,
+             microgeom::to_string(p.ndf_match));
   for (const auto& note : report.notes) fmt::print("  {}\n", note);
   if (!report.residuals.empty()) {
     fmt::print("slope-matching residual per iteration:");
@@ -341,6 +362,11 @@ nlohmann::json build_json(const BuildOptions& o, const microgeom::AssemblyParams
   j["corr_cells"] = l;
   j["tile_size"] = p.tile_size;
   j["iterations"] = report.iterations;
+  j["ndf_match"] = std::string(microgeom::to_string(p.ndf_match));
+  j["refinement"] = {{"sweeps", report.refine_sweeps},
+                     {"moves", report.refine_moves},
+                     {"objective_before", report.refine_objective_before},
+                     {"objective_after", report.refine_objective_after}};
   j["residuals"] = report.residuals;
   j["notes"] = report.notes;
   j["build_seconds"] = c.build_seconds;
@@ -551,6 +577,9 @@ void add_build_command(CLI::App* group) {
                     "physical side L of the tile (default 1)");
   add_number_option(build, "--iterations", b->iterations, ma::integer(0, 100),
                     "slope-matching iterations, 0..100 (default 8)");
+  build->add_option("--ndf-match", b->ndf_match,
+                    "radial (default: slope radii rank-matched, angles kept) or joint (the (radius, angle) law "
+                    "matched, then the lobe bins of trace vndf refined; docs/surfaces.md section 8)");
   build->add_option("--out", b->out, "heightmap EXR (channel 'height', attributes microsim.*)")->required();
   build->add_option("--mesh", b->mesh, "also write the mesh (.ply or .obj) through OpenMesh");
   add_number_option(build, "--mesh-crop", b->mesh_crop, ma::integer(0, std::numeric_limits<int>::max()),

@@ -93,6 +93,7 @@ struct MaskingArgs {
   long long table_vndf_rays = 2'000'000;
   std::string markdown;
   std::string seeds;  // table: several realisations per cell ("1,2,3"); empty: --seed only
+  std::string ndf_match = "radial";  // table: how the surfaces' NDF is matched
 };
 
 // The request of a single-surface run; --shard K/N: block range K of N of the run's blocks of
@@ -213,6 +214,9 @@ MaskingTableRequest table_request(const MaskingArgs& a) {
   r.thetas = parse_double_list("--thetas", a.thetas);
   r.assemblies = split_names("--assemblies", a.assemblies);
   r.seeds = parse_seeds(a);
+  const auto match = microgeom::ndf_match_from_string(a.ndf_match);
+  if (!match) throw UsageError(fmt::format("--ndf-match '{}' must be radial or joint", a.ndf_match));
+  r.ndf_match = *match;
   check_table_lists(r);
   if (a.table_vndf_rays <= 0) throw UsageError(fmt::format("--vndf-rays {}: must be positive", a.table_vndf_rays));
   if (!std::isfinite(a.table_phi)) throw UsageError(fmt::format("--phi {}: must be finite", a.table_phi));
@@ -291,6 +295,8 @@ void add_table_options(CLI::App* sub, MaskingArgs& a) {
   add_number_option(sub, "--corr-cells", a.corr_cells, real(),
                     "table: correlation length in cells (0: assembly default)")
       ->default_str(fmt::format("{}", a.corr_cells));
+  sub->add_option("--ndf-match", a.ndf_match, "table: radial or joint (microsim surface build --ndf-match)")
+      ->capture_default_str();
   sub->add_option("--seeds", a.seeds,
                   "table: several surface realisations per cell, e.g. 1,2,3 (each cell: mean over the realisations "
                   "± its standard error across them, and the Monte Carlo error of the mean); default: --seed only");

@@ -1,5 +1,7 @@
 #include "microgeom/assembly.h"
 
+#include "microgeom/ndf_match.h"
+
 #include "core/random.h"
 
 #include <fftw3.h>
@@ -53,6 +55,14 @@ void radix_sort_by_high32(std::vector<std::uint64_t>& keys, std::vector<std::uin
 }  // namespace detail
 
 std::string_view to_string(ReferenceNdf r) { return r == ReferenceNdf::ggx ? "ggx" : "beckmann"; }
+
+std::string_view to_string(NdfMatch m) { return m == NdfMatch::radial ? "radial" : "joint"; }
+
+std::optional<NdfMatch> ndf_match_from_string(std::string_view name) {
+  for (const NdfMatch m : {NdfMatch::radial, NdfMatch::joint})
+    if (to_string(m) == name) return m;
+  return std::nullopt;
+}
 
 std::optional<ReferenceNdf> reference_ndf_from_string(std::string_view name) {
   for (const ReferenceNdf r : {ReferenceNdf::ggx, ReferenceNdf::beckmann})
@@ -351,9 +361,10 @@ std::uint64_t sort_key(float nonneg_value, std::uint32_t index) {
 // One marginal-matching step: (mx, my) = the normalised slopes (ux, uy) with each radius replaced by the
 // GGX (alpha = 1) quantile of its rank, P(r < R) = R^2 / (1 + R^2) => R = sqrt(q / (1 - q)),
 // q = rank / (n + 1) (ranks from 1), keeping the angle. Zero slopes keep angle 0 (atan2(0, 0) = 0).
+// With reference = beckmann (NdfMatch::joint only) the radius quantile is sqrt(-log(1 - q)) instead.
 void match_ggx_marginal(const std::vector<float>& ux, const std::vector<float>& uy, std::vector<float>& mx,
-                        std::vector<float>& my, std::vector<std::uint64_t>& keys,
-                        std::vector<std::uint64_t>& scratch) {
+                        std::vector<float>& my, std::vector<std::uint64_t>& keys, std::vector<std::uint64_t>& scratch,
+                        ReferenceNdf reference = ReferenceNdf::ggx) {
   const std::size_t n = ux.size();
   keys.resize(n);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& range) {
@@ -368,7 +379,8 @@ void match_ggx_marginal(const std::vector<float>& ux, const std::vector<float>& 
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& range) {
     for (std::size_t rank = range.begin(); rank != range.end(); ++rank) {
       const double q = double(rank + 1) / double(n + 1);
-      mx[std::uint32_t(keys[rank])] = float(std::sqrt(q / (1.0 - q)));
+      mx[std::uint32_t(keys[rank])] =
+          float(reference == ReferenceNdf::ggx ? std::sqrt(q / (1.0 - q)) : std::sqrt(-std::log1p(-q)));
     }
   });
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& range) {
@@ -418,13 +430,27 @@ void stop_if_cancelled(const BuildCancel& cancelled) {
   if (cancelled && cancelled()) throw BuildCancelled("surface build cancelled");
 }
 
-std::vector<double> match_ggx(Spectral& fft, std::vector<double> h, double ax, double ay, int iterations,
-                              BuildReport& report, const BuildProgress& progress, double progress_from,
-                              double progress_to, const BuildCancel& cancelled) {
+// The slope targets of one iteration: the radius rank-matched to GGX (angles kept), or the joint
+// stratified target of the reference law (ndf_match.h).
+struct SlopeTargets {
+  NdfMatch mode = NdfMatch::radial;
+  ReferenceNdf reference = ReferenceNdf::ggx;
+  int radial_from = -1;  // the iteration from which the radius alone is matched (-1: never switch)
+  std::vector<std::uint64_t> keys, scratch;
+  std::vector<std::uint16_t> stratum;
+  void match(const std::vector<float>& ux, const std::vector<float>& uy, std::vector<float>& mx,
+             std::vector<float>& my) {
+    if (mode == NdfMatch::joint) match_joint_target(ux, uy, reference, mx, my, keys, scratch, stratum);
+    else match_ggx_marginal(ux, uy, mx, my, keys, scratch, reference);
+  }
+};
+
+std::vector<double> match_slopes(Spectral& fft, std::vector<double> h, double ax, double ay, int iterations,
+                                 SlopeTargets& targets, BuildReport& report, const BuildProgress& progress,
+                                 double progress_from, double progress_to, const BuildCancel& cancelled) {
   const int n = fft.n();
   const std::size_t tris = 2 * std::size_t(n) * n;
   std::vector<float> ux(tris), uy(tris), mx(tris), my(tris);
-  std::vector<std::uint64_t> keys, scratch;
   std::vector<std::complex<double>> gx_spec;
   for (int it = 0; it < iterations; ++it) {
     if (progress)
@@ -432,7 +458,8 @@ std::vector<double> match_ggx(Spectral& fft, std::vector<double> h, double ax, d
                progress_from + (progress_to - progress_from) * it / iterations);
     stop_if_cancelled(cancelled);
     triangle_slopes(h, n, ax, ay, ux, uy);
-    match_ggx_marginal(ux, uy, mx, my, keys, scratch);
+    if (it == targets.radial_from) targets.mode = NdfMatch::radial;
+    targets.match(ux, uy, mx, my);
     if (it > 0) report.residuals.push_back(slope_residual(ux, uy, mx, my, n));
     stop_if_cancelled(cancelled);
     h = reintegrate(fft, mx, my, ax, ay, gx_spec);
@@ -440,9 +467,31 @@ std::vector<double> match_ggx(Spectral& fft, std::vector<double> h, double ax, d
   stop_if_cancelled(cancelled);
   if (iterations > 0) {  // the residual of the final field
     triangle_slopes(h, n, ax, ay, ux, uy);
-    match_ggx_marginal(ux, uy, mx, my, keys, scratch);
+    targets.match(ux, uy, mx, my);
     report.residuals.push_back(slope_residual(ux, uy, mx, my, n));
   }
+  return h;
+}
+
+// NdfMatch::joint: joint iterations, then the binned refinement of the vertex heights.
+std::vector<double> match_jointly(Spectral& fft, std::vector<double> h, double ax, double ay, int iterations,
+                                  ReferenceNdf reference, BuildReport& report, const BuildProgress& progress,
+                                  const BuildCancel& cancelled) {
+  {
+    SlopeTargets targets;
+    targets.mode = NdfMatch::joint;
+    targets.reference = reference;
+    targets.radial_from = (iterations + 1) / 2;  // the second half radial: restores the tail quantiles (measured)
+    h = match_slopes(fft, std::move(h), ax, ay, iterations, targets, report, progress, 0.05, 0.6, cancelled);
+  }
+  if (progress) progress("binned NDF refinement", 0.6);
+  const NdfRefineReport refined = refine_binned_ndf(h, fft.n(), ax, ay, reference, NdfRefineOptions{}, cancelled);
+  report.refine_sweeps = refined.sweeps;
+  report.refine_moves = refined.moves;
+  report.refine_objective_before = refined.objective_before;
+  report.refine_objective_after = refined.objective_after;
+  report.notes.push_back(fmt::format("binned NDF refinement: {} sweeps, {} vertex moves, discrepancy {:.4g} -> {:.4g}",
+                                     refined.sweeps, refined.moves, refined.objective_before, refined.objective_after));
   return h;
 }
 
@@ -570,9 +619,16 @@ std::vector<double> assembly_heights(const AssemblyInfo& info, const AssemblyPar
   if (info.reference == ReferenceNdf::beckmann) {
     rescale_to_beckmann(h, n, ax, ay);
     report.iterations = 0;
-    return h;
+    if (p.ndf_match == NdfMatch::radial) return h;
+    report.iterations = iterations;
+    return match_jointly(fft, std::move(h), ax, ay, iterations, info.reference, report, progress, cancelled);
   }
-  h = match_ggx(fft, std::move(h), ax, ay, iterations, report, progress, 0.05, 1.0, cancelled);
+  if (p.ndf_match == NdfMatch::joint) {
+    h = match_jointly(fft, std::move(h), ax, ay, iterations, info.reference, report, progress, cancelled);
+  } else {
+    SlopeTargets targets;
+    h = match_slopes(fft, std::move(h), ax, ay, iterations, targets, report, progress, 0.05, 1.0, cancelled);
+  }
   if (info.upside_down)
     for (double& z : h) z = -z;
   report.iterations = iterations;
@@ -612,6 +668,7 @@ Heightfield build_assembly(const AssemblyParams& p, BuildReport* report_out, con
   field.metadata["corr_cells"] = fmt::format("{:.17g}", l);
   field.metadata["iterations"] = std::to_string(report.iterations);
   field.metadata["reference_ndf"] = std::string(to_string(info->reference));
+  field.metadata["ndf_match"] = std::string(to_string(p.ndf_match));
   if (progress) progress("done", 1.0);
   if (report_out) *report_out = std::move(report);
   return field;

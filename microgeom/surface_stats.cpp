@@ -314,6 +314,18 @@ void steepest_heights(SurfaceStats& st, const std::vector<float>& hc, const std:
   st.steepest_01pct_height_z = top_mean(0.001);
 }
 
+// The NDF error in the lobe bins of trace vndf (normalised slopes).
+void lobe_bins_error(SurfaceStats& st, const TriangleSamples& t, double ax, double ay) {
+  std::vector<float> ux(t.sx.size()), uy(t.sy.size());
+  parallel_chunks(ux.size(), [&](std::size_t b, std::size_t e) {
+    for (std::size_t k = b; k < e; ++k) {
+      ux[k] = float(t.sx[k] / ax);
+      uy[k] = float(t.sy[k] / ay);
+    }
+  });
+  st.lobe = lobe_ndf_error(ux, uy, st.reference, kDefaultLobeRows);
+}
+
 }  // namespace
 
 SurfaceStats measure_surface(const Heightfield& field, const StatsOptions& opt) {
@@ -332,6 +344,7 @@ SurfaceStats measure_surface(const Heightfield& field, const StatsOptions& opt) 
   const std::vector<std::uint64_t> radius_order = sorted_keys(radius);
   radius_quantiles(st, radius, radius_order);
   ndf_verdict(st);
+  lobe_bins_error(st, t, ax, ay);
   height_moments(st, field);
   height_slope_ranks(st, t.hc, radius_order);
   steepest_heights(st, t.hc, radius_order);

@@ -38,6 +38,20 @@ std::string_view to_string(ReferenceNdf r);
 // The NDF of that name ("ggx", "beckmann"); nullopt for any other text.
 std::optional<ReferenceNdf> reference_ndf_from_string(std::string_view name);
 
+// How the slopes are matched to the reference NDF (issue 14; docs/surfaces.md, section 8):
+// - radial: the slope radii are rank-matched to the reference radius law, the angles kept (the angular law
+//   is that of the start field: exact only in expectation);
+// - joint: the first half of the iterations match the joint (radius, angle) law to a stratified slope set
+//   of the reference (ndf_match.h, match_joint_target), the second half the radius alone (which restores
+//   the tail quantiles the joint targets cannot reach: q = 0.999 was 9.7% short at N = 256 with joint
+//   targets only, 1.4% with half radial), then a final refinement of the vertex heights brings the triangle
+//   counts and mean slopes of the lobe bins of `trace vndf`, the counts of its sphere bins and of 1024
+//   radius bins to the reference law (refine_binned_ndf). Applies to the Beckmann control too (otherwise only rescaled).
+enum class NdfMatch { radial, joint };
+std::string_view to_string(NdfMatch m);
+// "radial" or "joint"; nullopt for any other text.
+std::optional<NdfMatch> ndf_match_from_string(std::string_view name);
+
 // What build_assembly does to the Gaussian random field before its slopes are matched.
 enum class AssemblyShaping {
   none,
@@ -73,6 +87,7 @@ struct AssemblyParams {
   double corr_cells = 0;       // feature size l in cells; 0 -> default_corr_cells(N)
   double tile_size = 1.0;      // L, physical units
   int iterations = 0;          // marginal-matching iterations; 0 -> kDefaultIterations
+  NdfMatch ndf_match = NdfMatch::radial;
 };
 
 inline constexpr int kDefaultIterations = 8;
@@ -131,6 +146,11 @@ struct BuildReport {
   // triangles, divided by the mean |target| (0 = the matched slopes were exactly integrable).
   std::vector<double> residuals;
   std::vector<std::string> notes;  // construction details (e.g. the mixture's patch size)
+  // The final refinement of NdfMatch::joint (zero otherwise): sweeps, accepted vertex moves, and the
+  // binned discrepancy before and after (ndf_match.h, refine_binned_ndf).
+  int refine_sweeps = 0;
+  std::uint64_t refine_moves = 0;
+  double refine_objective_before = 0, refine_objective_after = 0;
 };
 
 // (stage, fraction of the whole build done in [0, 1]); called from the building thread.
@@ -146,7 +166,7 @@ struct BuildCancelled : std::runtime_error {
 };
 
 // Builds the surface (heights in the unit of tile_size, mean 0). Metadata: assembly, alpha, seed,
-// corr_cells, iterations, reference. Validates first. Memory: about 80 bytes per texel at the peak.
+// corr_cells, iterations, reference, ndf_match. Validates first. Memory: about 80 bytes per texel at the peak.
 // Throws BuildCancelled when `cancelled` asks to stop.
 Heightfield build_assembly(const AssemblyParams& params, BuildReport* report = nullptr,
                            const BuildProgress& progress = {}, const BuildCancel& cancelled = {});

@@ -12,6 +12,7 @@
 
 #include "microgeom/assembly.h"
 #include "microgeom/heightfield.h"
+#include "microgeom/ndf_match.h"
 
 #include <array>
 #include <optional>
@@ -83,6 +84,9 @@ struct SurfaceStats {
   NdfTolerance tolerance;
   bool ndf_within_tolerance = false;
   std::string ndf_verdict;  // "ok" or which bound was exceeded and by how much
+  // The NDF error in the lobe bins of `trace vndf` (kDefaultLobeRows rows; ndf_match.h), beside the noise
+  // of as many independent triangles and the ray count that resolves it. Reported, not checked.
+  LobeNdfError lobe;
 
   // Slopes (physical): mean, rms per axis; second moment of the normalised slopes per axis.
   double mean_slope_x = 0, mean_slope_y = 0, rms_slope_x = 0, rms_slope_y = 0;

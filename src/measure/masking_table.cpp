@@ -112,6 +112,7 @@ microgeom::AssemblyParams assembly_params(const MaskingTableRequest& r, const st
   p.resolution = r.resolution;
   p.seed = seed;
   p.corr_cells = r.corr_cells;
+  p.ndf_match = r.ndf_match;
   return p;
 }
 

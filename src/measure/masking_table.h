@@ -7,6 +7,7 @@
 #pragma once
 
 #include "core/run_control.h"
+#include "microgeom/assembly.h"
 #include "trace/masking.h"
 
 #include <cstdint>
@@ -24,6 +25,7 @@ struct MaskingTableRequest {
   int resolution = 1024;                // vertices per side of each surface
   double corr_cells = 0;                // correlation length in cells (0: the assembly's default)
   std::vector<std::uint64_t> seeds{1};  // surface realisations per cell (also the seed of the tracing)
+  microgeom::NdfMatch ndf_match = microgeom::NdfMatch::radial;  // how each surface's NDF is matched
   std::uint64_t samples = 1'000'000;    // surface points per view
   std::uint64_t vndf_rays = 2'000'000;  // VNDF rays per view
   double grazing_share = 0.02;          // share of the near-grazing class of G1(v | m)
