@@ -13,7 +13,7 @@ using namespace microsim;
 
 namespace {
 
-std::size_t count(const std::string& text, const std::string& what) {
+std::size_t occurrences(const std::string& text, const std::string& what) {
   std::size_t n = 0;
   for (std::size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + what.size())) ++n;
   return n;
@@ -31,13 +31,13 @@ TEST(Figure, WellFormedWithThreePanelsPerBinning) {
   const std::string svg = histogram_figure_svg("title <&>", "sub", c);
   EXPECT_EQ(svg.rfind("<svg", 0), 0u);
   EXPECT_NE(svg.find("</svg>"), std::string::npos);
-  EXPECT_EQ(count(svg, "<g "), count(svg, "</g>"));
-  EXPECT_EQ(count(svg, "<g shape-rendering"), 6u);  // 2 binnings x (observed, expected, residual)
+  EXPECT_EQ(occurrences(svg, "<g "), occurrences(svg, "</g>"));
+  EXPECT_EQ(occurrences(svg, "<g shape-rendering"), 6u);  // 2 binnings x (observed, expected, residual)
   EXPECT_NE(svg.find("title &lt;&amp;&gt;"), std::string::npos);  // text is escaped
   // Equal observed and expected counts: residual 0 everywhere, drawn as the diverging scale's white
   // midpoint (#f7f7f7); the count panels are uniform too, so each row is one run.
-  EXPECT_EQ(count(svg, R"(fill="#f7f7f7")"), 5u + 7u);
-  EXPECT_EQ(count(svg, "<rect x=\"0\" y="), 3u * (5 + 7));
+  EXPECT_EQ(occurrences(svg, R"(fill="#f7f7f7")"), 5u + 7u);
+  EXPECT_EQ(occurrences(svg, "<rect x=\"0\" y="), 3u * (5 + 7));
 }
 
 TEST(Figure, MarksSamplesWherePdfIsZeroAndPooledCells) {
@@ -48,10 +48,10 @@ TEST(Figure, MarksSamplesWherePdfIsZeroAndPooledCells) {
   c.observed[2] = 160; // +6 sigma: clipped to the red end of the scale
   c.observed[3] = 40;  // -6 sigma: clipped to the blue end
   const std::string svg = histogram_figure_svg("t", "s", {c});
-  EXPECT_EQ(count(svg, R"(fill="#000000")"), 1u);
-  EXPECT_EQ(count(svg, R"(fill="#c8c8c8")"), 1u);
-  EXPECT_EQ(count(svg, R"(fill="#b4192d")"), 1u);  // kDiverging's last stop, (180, 25, 45)
-  EXPECT_EQ(count(svg, R"(fill="#2355aa")"), 1u);  // its first stop, (35, 85, 170)
+  EXPECT_EQ(occurrences(svg, R"(fill="#000000")"), 1u);
+  EXPECT_EQ(occurrences(svg, R"(fill="#c8c8c8")"), 1u);
+  EXPECT_EQ(occurrences(svg, R"(fill="#b4192d")"), 1u);  // kDiverging's last stop, (180, 25, 45)
+  EXPECT_EQ(occurrences(svg, R"(fill="#2355aa")"), 1u);  // its first stop, (35, 85, 170)
 }
 
 TEST(Figure, RejectsVectorsOfTheWrongSize) {

@@ -29,14 +29,14 @@ using microsim::test::CliRun;
 using microsim::test::file_count;
 using microsim::test::slurp;
 
-CliRun run(const fs::path& dir, const std::string& args) { return microsim::test::run_cli(dir, args); }
-fs::path scratch_dir(const std::string& name) { return microsim::test::scratch_dir("trace_cli", name); }
+CliRun run_trace_cli(const fs::path& dir, const std::string& args) { return microsim::test::run_cli(dir, args); }
+fs::path trace_cli_dir(const std::string& name) { return microsim::test::scratch_dir("trace_cli", name); }
 
 }  // namespace
 
 TEST(TraceCli, WritesHistogramJsonAndMesh) {
-  const auto dir = scratch_dir("ok");
-  const CliRun r = run(dir, "trace vndf --alpha 0.3,0.6 --theta 60 --phi 15 --rays 200000 --seed 4 --rows 15 "
+  const auto dir = trace_cli_dir("ok");
+  const CliRun r = run_trace_cli(dir, "trace vndf --alpha 0.3,0.6 --theta 60 --phi 15 --rays 200000 --seed 4 --rows 15 "
                             "--out h.exr --json h.json");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("distance to analytic D_v"), std::string::npos) << r.out;
@@ -58,12 +58,12 @@ TEST(TraceCli, WritesHistogramJsonAndMesh) {
   EXPECT_EQ(h.binnings[0].rows(), 15);
   ASSERT_EQ(h.probability[1].size(), std::size_t(h.binnings[1].size()));  // the expected channel
   // Same seed, other thread count: the same histogram.
-  const CliRun r1 = run(dir, "trace vndf --alpha 0.3,0.6 --theta 60 --phi 15 --rays 200000 --seed 4 --rows 15 "
+  const CliRun r1 = run_trace_cli(dir, "trace vndf --alpha 0.3,0.6 --theta 60 --phi 15 --rays 200000 --seed 4 --rows 15 "
                              "--threads 1 --out h1.exr");
   ASSERT_EQ(r1.exit_code, 0) << r1.err;
   EXPECT_EQ(microsim::read_histogram_exr(dir / "h1.exr").counts, h.counts);
   // A mesh level, written out.
-  const CliRun m = run(dir, "trace vndf --alpha 0.5 --theta 30 --rays 20000 --mesh-level 2 --rows 7 --out m.exr "
+  const CliRun m = run_trace_cli(dir, "trace vndf --alpha 0.5 --theta 30 --rays 20000 --mesh-level 2 --rows 7 --out m.exr "
                             "--mesh-out m.ply");
   ASSERT_EQ(m.exit_code, 0) << m.err;
   EXPECT_TRUE(fs::exists(dir / "m.ply"));
@@ -74,7 +74,7 @@ TEST(TraceCli, WritesHistogramJsonAndMesh) {
 }
 
 TEST(TraceCli, BadInputExits2AndWritesNothing) {
-  const auto dir = scratch_dir("bad");
+  const auto dir = trace_cli_dir("bad");
   const std::string ok = " --rays 1000 --out h.exr --json h.json";
   const std::pair<std::string, std::string> cases[] = {
       {"trace vndf --alpha 0 --theta 30" + ok, "--alpha"},
@@ -97,7 +97,7 @@ TEST(TraceCli, BadInputExits2AndWritesNothing) {
       {"trace vndf --alpha 0.5 --theta 30 --rows 16" + ok, "--rows '16'"},
   };
   for (const auto& [args, needle] : cases) {
-    const CliRun r = run(dir, args);
+    const CliRun r = run_trace_cli(dir, args);
     EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.err;
     EXPECT_NE(r.err.find(needle), std::string::npos) << args << "\nstderr: " << r.err;
     EXPECT_EQ(file_count(dir), 0u) << args;
@@ -108,7 +108,7 @@ TEST(TraceCli, BadInputExits2AndWritesNothing) {
 // Ctrl-C during a long run: exit 130, and the histogram of the rays traced so far is written, marked
 // partial (in the EXR attributes and the JSON).
 TEST(TraceCli, InterruptWritesPartialHistogram) {
-  const auto dir = scratch_dir("sigint");
+  const auto dir = trace_cli_dir("sigint");
   const std::string binary = microsim::test::microsim_binary();
   const pid_t pid = ::fork();
   ASSERT_GE(pid, 0);
@@ -140,20 +140,20 @@ TEST(TraceCli, InterruptWritesPartialHistogram) {
 // `microsim validate --against ellipsoid | HIST.exr` (the validator's front end calling compare.h): same
 // verdicts and exit codes as the analytic validation; --from works too; bad combinations exit 2.
 TEST(TraceCli, ValidateAgainstTracedOracle) {
-  const auto dir = scratch_dir("against");
+  const auto dir = trace_cli_dir("against");
   const std::string cfg = " --alpha 0.3,0.6 --theta 70 --phi 20";
-  const CliRun good = run(dir, "validate --sampler heitz2018" + cfg + " --against ellipsoid --rays 1000000 "
+  const CliRun good = run_trace_cli(dir, "validate --sampler heitz2018" + cfg + " --against ellipsoid --rays 1000000 "
                                 "--samples 300000 --json v.json");
   EXPECT_EQ(good.exit_code, 0) << good.out << good.err;
   const nlohmann::json j = nlohmann::json::parse(slurp(dir / "v.json"));
   for (const char* key : {"verdict", "p_value", "statistic", "dof", "samples", "against", "oracle_rays"})
     EXPECT_TRUE(j.contains(key)) << key;
   EXPECT_EQ(j["verdict"], "pass");
-  const CliRun bad = run(dir, "validate --sampler heitz2018-talk" + cfg + " --against ellipsoid --rays 1000000 "
+  const CliRun bad = run_trace_cli(dir, "validate --sampler heitz2018-talk" + cfg + " --against ellipsoid --rays 1000000 "
                                "--samples 300000");
   EXPECT_EQ(bad.exit_code, 1) << bad.out << bad.err;
   // A histogram traced once, then samples from a file validated against it.
-  ASSERT_EQ(run(dir, "trace vndf" + cfg + " --rays 1000000 --out h.exr").exit_code, 0);
+  ASSERT_EQ(run_trace_cli(dir, "trace vndf" + cfg + " --rays 1000000 --out h.exr").exit_code, 0);
   std::vector<microsim::Vec3<double>> heitz, ndf;
   const microsim::GGX<double> ggx(0.3, 0.6);
   const auto wi = microsim::direction_from_degrees(70.0, 20.0);
@@ -165,9 +165,9 @@ TEST(TraceCli, ValidateAgainstTracedOracle) {
   }
   microsim::write_npy(dir / "heitz.npy", heitz, /*as_float32=*/true);
   microsim::write_npy(dir / "ndf.npy", ndf, /*as_float32=*/false);
-  EXPECT_EQ(run(dir, "validate --from heitz.npy" + cfg + " --against h.exr").exit_code, 0);
-  EXPECT_EQ(run(dir, "validate --from ndf.npy" + cfg + " --against h.exr").exit_code, 1);
-  EXPECT_EQ(run(dir, "validate --sampler dupuy2023" + cfg + " --samples 300000 --against h.exr").exit_code, 0);
+  EXPECT_EQ(run_trace_cli(dir, "validate --from heitz.npy" + cfg + " --against h.exr").exit_code, 0);
+  EXPECT_EQ(run_trace_cli(dir, "validate --from ndf.npy" + cfg + " --against h.exr").exit_code, 1);
+  EXPECT_EQ(run_trace_cli(dir, "validate --sampler dupuy2023" + cfg + " --samples 300000 --against h.exr").exit_code, 0);
   // Bad combinations: exit 2 with a message.
   const std::pair<std::string, std::string> cases[] = {
       {"validate --sampler heitz2018 --alpha 0.3,0.6 --theta 71 --phi 20 --against h.exr", "made for"},
@@ -180,7 +180,7 @@ TEST(TraceCli, ValidateAgainstTracedOracle) {
       {"validate --from heitz.npy --reflected" + cfg + " --against h.exr", "reflected"},
   };
   for (const auto& [args, needle] : cases) {
-    const CliRun r = run(dir, args);
+    const CliRun r = run_trace_cli(dir, args);
     EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.err;
     EXPECT_NE(r.err.find(needle), std::string::npos) << args << "\nstderr: " << r.err;
   }

@@ -16,7 +16,7 @@ namespace {
 
 using namespace svg;
 
-constexpr double kMargin = 60, kPlotWidth = 520, kPlotHeight = 300, kLegendWidth = 170, kTicks = 5;
+constexpr double kCurveMargin = 60, kPlotWidth = 520, kPlotHeight = 300, kLegendWidth = 170, kTicks = 5;
 // Colour-blind-safe qualitative colours (Okabe & Ito 2008), cycled.
 constexpr std::array<const char*, 8> kColors{"#0072b2", "#d55e00", "#009e73", "#cc79a7",
                                              "#e69f00", "#56b4e9", "#000000", "#f0e442"};
@@ -99,15 +99,15 @@ std::string curve_figure_svg(const std::string& title, const std::string& subtit
   const std::vector<std::string> lines = subtitle_lines(subtitle);
   const double y0 = 50 + 17.0 * double(lines.size());
   const double height = y0 + kPlotHeight + 50;
-  std::string svg = document_header(kMargin + kPlotWidth + kLegendWidth, height, kMargin - 40, title, lines);
-  svg += frame_and_ticks(kMargin, y0, x, y, axes);
+  std::string svg = document_header(kCurveMargin + kPlotWidth + kLegendWidth, height, kCurveMargin - 40, title, lines);
+  svg += frame_and_ticks(kCurveMargin, y0, x, y, axes);
   for (std::size_t i = 0; i < curves.size(); ++i) {
     const char* color = kColors[i % kColors.size()];
-    svg += curve_path(curves[i], color, kMargin, y0, x, y);
+    svg += curve_path(curves[i], color, kCurveMargin, y0, x, y);
     const double ly = y0 + 12 + 16.0 * double(i);
     svg += fmt::format(R"(<line x1="{0}" x2="{1}" y1="{2}" y2="{2}" stroke="{3}" stroke-width="2"/>)",
-                       kMargin + kPlotWidth + 12, kMargin + kPlotWidth + 30, ly, color);
-    svg += fmt::format(R"(<text x="{}" y="{}" font-size="11">{}</text>)", kMargin + kPlotWidth + 35, ly + 4,
+                       kCurveMargin + kPlotWidth + 12, kCurveMargin + kPlotWidth + 30, ly, color);
+    svg += fmt::format(R"(<text x="{}" y="{}" font-size="11">{}</text>)", kCurveMargin + kPlotWidth + 35, ly + 4,
                        escape(curves[i].label));
   }
   return svg + "</svg>\n";
