@@ -3,6 +3,7 @@
 
 #include "stats/curve_figure.h"
 #include "stats/figure.h"
+#include "stats/scatter_compare.h"
 #include "stats/scatter_figure.h"
 #include "stats/svg_parts.h"
 
@@ -255,7 +256,7 @@ std::string scatter_figure(const ScatterHistogram& h, const std::string& label, 
     const Histogram& lobe = h.histogram(0, k);
     std::vector<double> values;
     for (std::size_t b = 0; b < lobe.size(); ++b) values.push_back(lobe.weight(b) / n);
-    figure_rows.push_back({"order bin " + std::to_string(k + 1), {{"Smith walk", values}}, {}});
+    figure_rows.push_back({scatter_order_name(k), {{"Smith walk", values}}, {}});
   }
   const std::string subtitle = fmt::format("{} paths; weight per launched path per bin", h.paths());
   return "<figure>" + scatter_figure_svg(label, subtitle, DirectionBinning::hemispheres(rows), figure_rows) + "</figure>\n";
