@@ -1,7 +1,8 @@
 // microsim surface build | stats | import: periodic heightfield microsurfaces (microgeom/assembly.h).
 //
 //   surface build  --assembly NAME --alpha AX[,AY] --res N [--seed S] [--corr-cells C] [--tile-size L]
-//                  [--iterations K] --out SURF.exr [--mesh F.ply|obj] [--mesh-crop C] [--normals F.exr]
+//                  [--iterations K] [--ndf-match radial|joint] --out SURF.exr [--mesh F.ply|obj] [--mesh-crop C]
+//                  [--normals F.exr]
 //                  [--json PATH]
 //   surface stats  SURF.exr [--tile-size L] [--alpha AX[,AY]] [--reference ggx|beckmann] [--corr-cells C]
 //                  [--check] [--json PATH] [--mesh F] [--mesh-crop C] [--normals F]

@@ -74,7 +74,8 @@ nlohmann::json parameters_json(const MaskingTableRequest& r) {
   return {{"assemblies", r.assemblies}, {"alphas", r.alphas},   {"thetas", r.thetas},
           {"phi", r.phi_deg},           {"resolution", r.resolution}, {"corr_cells", r.corr_cells},
           {"seeds", r.seeds},           {"samples", r.samples},   {"vndf_rays", r.vndf_rays},
-          {"vndf_lobe_rows", kMaskingVndfRows}, {"grazing_share", r.grazing_share}};
+          {"vndf_lobe_rows", kMaskingVndfRows}, {"grazing_share", r.grazing_share},
+          {"ndf_match", std::string(microgeom::to_string(r.ndf_match))}};
 }
 
 nlohmann::json view_json(const View& view) {

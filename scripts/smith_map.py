@@ -15,7 +15,7 @@ lambda +- 1 sd.
 Usage:
   scripts/smith_map.py [--microsim build/microsim] [--work DIR] [--assemblies smith:radial,smith:joint]
                        [--alphas 0.05,0.1,0.3,0.5,1] [--thetas 0,15,30,45,60,75] [--res 1024] [--seed 1]
-                       [--rays 4000000] [--phi 30] [--json map.json] [--svg map.svg]
+                       [--rays 4000000] [--phi 30] [--cached-only] [--json map.json] [--svg map.svg]
 Prints a markdown table per assembly. Cells already traced (their JSON in --work) are reused.
 """
 import argparse
@@ -37,7 +37,7 @@ def run(cmd):
 
 def surface(args, assembly, match, alpha):
     path = os.path.join(args.work, f"{assembly}-{match}-a{alpha}-n{args.res}-s{args.seed}.exr")
-    if not os.path.exists(path):
+    if not os.path.exists(path) and not args.cached_only:
         run(["nice", "-n", "15", args.microsim, "surface", "build", "--assembly", assembly, "--alpha", str(alpha),
              "--res", str(args.res), "--seed", str(args.seed), "--ndf-match", match, "--out", path, "--quiet"])
     return path
@@ -46,6 +46,8 @@ def surface(args, assembly, match, alpha):
 def trace(args, surf, theta):
     base = os.path.splitext(surf)[0] + f"-t{theta}-p{args.phi}-r{args.rays}"
     js = base + ".json"
+    if not os.path.exists(js) and args.cached_only:
+        return None
     if not os.path.exists(js):
         run(["nice", "-n", "15", args.microsim, "trace", "vndf", "--surface", surf, "--theta", str(theta), "--phi",
              str(args.phi), "--rays", str(args.rays), "--seed", str(args.seed), "--out", base + ".exr", "--json", js])
@@ -74,6 +76,8 @@ def resolving_rays(stat, dof, rays):
 
 def cell(args, assembly, match, alpha, theta):
     j = trace(args, surface(args, assembly, match, alpha), theta)
+    if j is None:
+        return None
     lobe = [c for c in j["comparisons"] if c["binning"] == "lobe"][0]
     out = {"assembly": assembly, "match": match, "alpha": alpha, "theta": theta, "rays": j["rays"],
            "tv_analytic": lobe["tv_smith_analytic"], "tv_own": lobe["tv_smith_empirical"],
@@ -163,7 +167,9 @@ def main():
     p.add_argument("--res", type=int, default=1024)
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--rays", type=int, default=4000000)
-    p.add_argument("--phi", type=float, default=30)
+    p.add_argument("--phi", type=float, default=30.0)
+    p.add_argument("--cached-only", action="store_true",
+                   help="only the cells whose trace JSON is in --work (the others are left out: 'not measured')")
     p.add_argument("--json")
     p.add_argument("--svg")
     args = p.parse_args()
@@ -175,8 +181,10 @@ def main():
         assembly, match = spec.split(":")
         for a in alphas:
             for t in thetas:
-                cells.append(cell(args, assembly, match, a, t))
-                print(json.dumps(cells[-1]), file=sys.stderr, flush=True)
+                c = cell(args, assembly, match, a, t)
+                if c is not None:
+                    cells.append(c)
+                    print(json.dumps(c), file=sys.stderr, flush=True)
     print(markdown(cells, alphas, thetas))
     if args.json:
         with open(args.json, "w") as f:
