@@ -142,14 +142,11 @@ TEST(ExperimentCli, BadSpecsNameKeyAndLineAndRunNothing) {
   fs::remove_all(dir);
 }
 
-// Ctrl-C once the first measurement is done and the second (a long VNDF) is running: exit 130, results.json
-// written and marked partial, the finished measurement kept.
-TEST(ExperimentCli, InterruptedRunWritesWhatWasDoneMarkedPartial) {
-  const fs::path dir = scratch_dir("experiment", "interrupt");
-  write(dir / "long.toml", "[[material]]\nname = \"m\"\nalpha = 0.3\ntype = \"mirror\"\n[[quantity]]\nkind = \"albedo\"\n"
-                           "material = \"m\"\nmus = 2\ntarget_relative_error = 0.01\n[[quantity]]\nkind = \"vndf\"\n"
-                           "material = \"m\"\ntheta = [40]\ntarget_tv = 0.001\n");
-  const fs::path err = dir.parent_path() / (dir.filename().string() + ".stderr");
+// `microsim run SPEC --out OUT` in dir, interrupted (SIGINT) `after_ms` after its first measurement met its
+// target; the exit status (waitpid's) and the run's stderr.
+int run_experiment_and_interrupt(const fs::path& dir, const std::string& spec, const std::string& out, int after_ms,
+                                 std::string& stderr_text) {
+  const fs::path err = dir.parent_path() / (dir.filename().string() + "." + out + ".stderr");
   const std::string binary = microsim::test::microsim_binary();
   const pid_t pid = ::fork();
   if (pid == 0) {
@@ -158,18 +155,30 @@ TEST(ExperimentCli, InterruptedRunWritesWhatWasDoneMarkedPartial) {
     const int fo = ::open("/dev/null", O_WRONLY);
     ::dup2(fo, 1);
     ::dup2(fe, 2);
-    ::execl(binary.c_str(), binary.c_str(), "run", "long.toml", "--out", "out", static_cast<char*>(nullptr));
+    ::execl(binary.c_str(), binary.c_str(), "run", spec.c_str(), "--out", out.c_str(), static_cast<char*>(nullptr));
     ::_exit(127);
   }
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
   while (slurp(err).find("met after") == std::string::npos && std::chrono::steady_clock::now() < deadline)
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  std::this_thread::sleep_for(std::chrono::milliseconds(after_ms));
   ::kill(pid, SIGINT);
   int status = 0;
   ::waitpid(pid, &status, 0);
-  const std::string stderr_text = slurp(err);
+  stderr_text = slurp(err);
   fs::remove(err);
+  return status;
+}
+
+// Ctrl-C once the first measurement is done and the second (a long VNDF) is running: exit 130, results.json
+// written and marked partial, the finished measurement kept.
+TEST(ExperimentCli, InterruptedRunWritesWhatWasDoneMarkedPartial) {
+  const fs::path dir = scratch_dir("experiment", "interrupt");
+  write(dir / "long.toml", "[[material]]\nname = \"m\"\nalpha = 0.3\ntype = \"mirror\"\n[[quantity]]\nkind = \"albedo\"\n"
+                           "material = \"m\"\nmus = 2\ntarget_relative_error = 0.01\n[[quantity]]\nkind = \"vndf\"\n"
+                           "material = \"m\"\ntheta = [40]\ntarget_tv = 0.001\n");
+  std::string stderr_text;
+  const int status = run_experiment_and_interrupt(dir, "long.toml", "out", 300, stderr_text);
   ASSERT_TRUE(WIFEXITED(status)) << stderr_text;
   EXPECT_EQ(WEXITSTATUS(status), 130) << stderr_text;
   ASSERT_TRUE(fs::exists(dir / "out" / "results.json")) << stderr_text;
@@ -204,27 +213,8 @@ TEST(ExperimentCli, InterruptedThenResumedGivesTheUninterruptedResults) {
                            "kind = \"vndf\"\nmaterial = \"m\"\ntheta = [40]\nrows = 7\ntarget_tv = 0.003\n");
   const auto whole = run_cli(dir, "run spec.toml --out whole");
   ASSERT_EQ(whole.exit_code, 0) << whole.err;
-  const fs::path err = dir.parent_path() / (dir.filename().string() + ".resume.stderr");
-  const std::string binary = microsim::test::microsim_binary();
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    if (::chdir(dir.c_str()) != 0) ::_exit(127);
-    const int fe = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const int fo = ::open("/dev/null", O_WRONLY);
-    ::dup2(fo, 1);
-    ::dup2(fe, 2);
-    ::execl(binary.c_str(), binary.c_str(), "run", "spec.toml", "--out", "cut", static_cast<char*>(nullptr));
-    ::_exit(127);
-  }
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
-  while (slurp(err).find("met after") == std::string::npos && std::chrono::steady_clock::now() < deadline)
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  std::this_thread::sleep_for(std::chrono::milliseconds(200));
-  ::kill(pid, SIGINT);
-  int status = 0;
-  ::waitpid(pid, &status, 0);
-  const std::string first = slurp(err);
-  fs::remove(err);
+  std::string first;
+  const int status = run_experiment_and_interrupt(dir, "spec.toml", "cut", 200, first);
   ASSERT_TRUE(WIFEXITED(status)) << first;
   ASSERT_EQ(WEXITSTATUS(status), 130) << first;  // cut in the VNDF (if it ever finishes in 200 ms: raise its cost)
   EXPECT_TRUE(results_of(dir / "cut")["partial"].get<bool>());
