@@ -11,6 +11,7 @@
 
 #include <chrono>
 #include <algorithm>
+#include <limits>
 #include <cmath>
 #include <stdexcept>
 
@@ -141,25 +142,26 @@ void record_vndf(MeasurementResult& m, const EllipsoidVndf& analysed, double hit
   m.histogram = analysed.histogram;
 }
 
-// The round to trace next: a partial round of a resumed run from its first missing block (its record
-// removed: the finished round replaces it), else a new round of `n` rays.
-struct VndfRoundStart {
+// The round to run next (a traced VNDF or a walk): a partial round of a resumed run from its first missing
+// block (its record removed: the finished round replaces it), else a new round of at most `max_units` rays.
+struct RoundStart {
   std::uint64_t rays = 0, first_block = 0, seed = 0, done = 0;  // done: rays of the round already counted
 };
 
-VndfRoundStart next_vndf_round(MeasurementResult& m, std::uint64_t seed, std::size_t index, const RunOptions& o) {
+RoundStart next_round(MeasurementResult& m, std::uint64_t seed, std::size_t index, const RunOptions& o,
+                      std::uint64_t max_units) {
   if (!m.rounds.empty() && m.rounds.back().partial) {
     const RoundRecord r = m.rounds.back();
     m.rounds.pop_back();
     return {r.planned, r.blocks_done, r.seed, r.units};
   }
   const std::uint64_t n = m.rounds.empty() ? first_units(m.decision, o) : next_round_units(m.units, m.achieved, m.target);
-  return {std::min<std::uint64_t>(n, kMaxRays), 0, round_seed(seed, index, int(m.rounds.size())), 0};
+  return {std::min(n, max_units), 0, round_seed(seed, index, int(m.rounds.size())), 0};
 }
 
 // One round (or the rest of one): traced, added to the sum, the sum analysed and recorded. False when
 // nothing was traced (cancelled before its first block).
-bool vndf_round(const ExperimentSpec& spec, const EllipsoidTarget& target, const VndfRoundStart& start,
+bool vndf_round(const ExperimentSpec& spec, const EllipsoidTarget& target, const RoundStart& start,
                 const RunOptions& o, MeasurementResult& m) {
   const Decision& d = m.decision;
   VndfRequest req;
@@ -191,7 +193,7 @@ void run_vndf(const ExperimentSpec& spec, std::uint64_t seed, std::size_t index,
   const EllipsoidTarget target(m.decision.alpha.first, m.decision.alpha.second, -1);
   m.partial = false;
   while (int(m.rounds.size()) < o.max_rounds || (!m.rounds.empty() && m.rounds.back().partial)) {
-    const VndfRoundStart start = next_vndf_round(m, seed, index, o);
+    const RoundStart start = next_round(m, seed, index, o, kMaxRays);
     if (start.rays == 0 || !vndf_round(spec, target, start, o, m) || m.partial) break;
   }
   m.met = !m.rounds.empty() && !m.rounds.back().partial && m.achieved <= m.target;
@@ -239,18 +241,7 @@ void record_scatter(MeasurementResult& m, double target) {
                               {"rows_per_hemisphere", kScatterRows}}}};
 }
 
-// The next walk round: a partial one of a resumed run from its first missing block, else a new one.
-VndfRoundStart next_walk_round(MeasurementResult& m, std::uint64_t seed, std::size_t index, const RunOptions& o) {
-  if (!m.rounds.empty() && m.rounds.back().partial) {
-    const RoundRecord r = m.rounds.back();
-    m.rounds.pop_back();
-    return {r.planned, r.blocks_done, r.seed, r.units};
-  }
-  const std::uint64_t n = m.rounds.empty() ? first_units(m.decision, o) : next_round_units(m.units, m.achieved, m.target);
-  return {n, 0, round_seed(seed, index, int(m.rounds.size())), 0};
-}
-
-bool scatter_round(const ExperimentSpec& spec, const VndfRoundStart& start, const RunOptions& o, MeasurementResult& m) {
+bool scatter_round(const ExperimentSpec& spec, const RoundStart& start, const RunOptions& o, MeasurementResult& m) {
   const Decision& d = m.decision;
   const SpecMaterial& material = spec.material(spec.quantities[d.quantity].material);
   ScatterOptions options = scatter_request(material, d, start.rays, start.seed, o.run);
@@ -273,7 +264,7 @@ void run_scattering(const ExperimentSpec& spec, std::uint64_t seed, std::size_t 
                     MeasurementResult& m) {
   m.partial = false;
   while (int(m.rounds.size()) < o.max_rounds || (!m.rounds.empty() && m.rounds.back().partial)) {
-    const VndfRoundStart start = next_walk_round(m, seed, index, o);
+    const RoundStart start = next_round(m, seed, index, o, std::numeric_limits<std::uint64_t>::max());
     if (start.rays == 0 || !scatter_round(spec, start, o, m) || m.partial) break;
   }
   m.met = !m.rounds.empty() && !m.rounds.back().partial && m.achieved <= m.target;
