@@ -352,12 +352,6 @@ std::vector<double> reintegrate(Spectral& fft, const std::vector<float>& tx, con
   return h;
 }
 
-// Sort keys: a non-negative float's bit pattern orders like the float; the low 32 bits (the index)
-// break ties deterministically.
-std::uint64_t sort_key(float nonneg_value, std::uint32_t index) {
-  return (std::uint64_t(std::bit_cast<std::uint32_t>(nonneg_value)) << 32) | index;
-}
-
 // One marginal-matching step: (mx, my) = the normalised slopes (ux, uy) with each radius replaced by the
 // GGX (alpha = 1) quantile of its rank, P(r < R) = R^2 / (1 + R^2) => R = sqrt(q / (1 - q)),
 // q = rank / (n + 1) (ranks from 1), keeping the angle. Zero slopes keep angle 0 (atan2(0, 0) = 0).

@@ -15,8 +15,6 @@ namespace microgeom {
 
 namespace {
 
-constexpr double kTwoPi = 2.0 * std::numbers::pi;
-
 template <class F> void parallel_range(std::size_t n, F&& f) {
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1 << 14),
                     [&](const tbb::blocked_range<std::size_t>& r) { f(r.begin(), r.end()); });
@@ -26,10 +24,6 @@ template <class F> void parallel_range(std::size_t n, F&& f) {
 double radius_of_z(double z) {
   if (!(z > 0)) return std::numeric_limits<double>::infinity();
   return std::sqrt(std::max(0.0, 1.0 / (z * z) - 1.0));
-}
-
-std::uint64_t angle_sort_key(float nonneg_value, std::uint32_t index) {
-  return (std::uint64_t(std::bit_cast<std::uint32_t>(nonneg_value)) << 32) | index;
 }
 
 }  // namespace
@@ -114,7 +108,7 @@ void assign_angles(const std::vector<float>& ux, const std::vector<float>& uy, s
   const std::size_t n = ux.size();
   keys.resize(n);
   parallel_range(n, [&](std::size_t b, std::size_t e) {
-    for (std::size_t k = b; k < e; ++k) keys[k] = angle_sort_key(angle_of(ux[k], uy[k]), std::uint32_t(k));
+    for (std::size_t k = b; k < e; ++k) keys[k] = sort_key(angle_of(ux[k], uy[k]), std::uint32_t(k));
   });
   detail::radix_sort_by_high32(keys, scratch);
   const std::size_t per_stratum = n / std::size_t(strata);
@@ -133,7 +127,7 @@ void assign_radii(const std::vector<float>& ux, const std::vector<float>& uy, Re
                   const std::vector<std::uint16_t>& stratum, int strata) {
   const std::size_t n = ux.size();
   parallel_range(n, [&](std::size_t b, std::size_t e) {
-    for (std::size_t k = b; k < e; ++k) keys[k] = angle_sort_key(std::sqrt(ux[k] * ux[k] + uy[k] * uy[k]), std::uint32_t(k));
+    for (std::size_t k = b; k < e; ++k) keys[k] = sort_key(std::sqrt(ux[k] * ux[k] + uy[k] * uy[k]), std::uint32_t(k));
   });
   detail::radix_sort_by_high32(keys, scratch);
   const double per_stratum = double(n / std::size_t(strata));

@@ -13,8 +13,6 @@ namespace microgeom {
 
 namespace {
 
-constexpr double kRefineTwoPi = 2.0 * std::numbers::pi;
-
 struct TriangleBins {
   int lobe = 0, radial = 0, sphere = 0;
   double ux = 0, uy = 0;
@@ -41,7 +39,7 @@ public:
     std::vector<double> p(static_cast<std::size_t>(size()), 0.0);
     const int nodes = 64 * cols();
     for (int k = 0; k < nodes; ++k) {
-      const double phi = kRefineTwoPi * (k + 0.5) / nodes, c = std::cos(phi), s = std::sin(phi);
+      const double phi = kTwoPi * (k + 0.5) / nodes, c = std::cos(phi), s = std::sin(phi);
       const double g = std::hypot(ax_ * c, ay_ * s);
       const int col = column(std::atan2(-ay_ * s, -ax_ * c));
       for (int row = 0; row < rows_; ++row) {
@@ -57,8 +55,8 @@ public:
 private:
   int cols() const { return 2 * rows_; }
   int column(double phi) const {
-    if (phi < 0) phi += kRefineTwoPi;
-    return std::clamp(int(std::floor(phi / (kRefineTwoPi / cols()))), 0, cols() - 1);
+    if (phi < 0) phi += kTwoPi;
+    return std::clamp(int(std::floor(phi / (kTwoPi / cols()))), 0, cols() - 1);
   }
   static double tan_of(double z) { return z > 0 ? std::sqrt(std::max(0.0, 1.0 / (z * z) - 1.0)) : INFINITY; }
   int rows_;

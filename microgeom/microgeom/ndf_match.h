@@ -22,10 +22,20 @@
 #include "microgeom/assembly.h"
 
 #include <array>
+#include <bit>
 #include <cstdint>
+#include <numbers>
 #include <vector>
 
 namespace microgeom {
+
+inline constexpr double kTwoPi = 2.0 * std::numbers::pi;  // the angle range of the lobe bins' sectors
+
+// A rank sort key: a non-negative float's bit pattern orders like the float; the low 32 bits (the index)
+// break ties deterministically (the slope matchings of assembly.cpp and ndf_match.cpp sort by it).
+inline std::uint64_t sort_key(float nonneg_value, std::uint32_t index) {
+  return (std::uint64_t(std::bit_cast<std::uint32_t>(nonneg_value)) << 32) | index;
+}
 
 // The rows of the lobe binning of `trace vndf` and `validate` by default (measure/vndf.h, VndfRequest).
 inline constexpr int kDefaultLobeRows = 31;
