@@ -2,7 +2,8 @@
 // script, no external resource), holds the plan's reasons and every measured value as report_number prints
 // it, an inline SVG per figure; a document missing a member is refused; the line chart checks its input;
 // an albedo table read back from its JSON is the same table, bit for bit; the run directory is written and
-// read back as the same plan and results, and another seed's or spec's run is refused.
+// read back as the same plan and results (the analytic order-1 lobes too), and another seed's or spec's run
+// is refused.
 #include "experiment/measures.h"
 #include "experiment/report.h"
 #include "experiment/run_directory.h"
@@ -51,6 +52,11 @@ sampler = "heitz2018"
 theta = [60]
 rows = 7
 detect_tv = 0.05
+[[quantity]]
+kind = "scattering"
+material = "m"
+theta = [20]
+target_tv = 0.01
 )", alpha), "small.toml");
 }
 
@@ -84,17 +90,23 @@ TEST(ExperimentReport, ThePageIsSelfContainedAndHoldsEveryMeasuredValue) {
   for (std::size_t i = 0; i < run.results.measurements.size(); ++i)
     if (!run.results.measurements[i].histogram.binnings.empty()) histograms.emplace(i, run.results.measurements[i].histogram);
   ASSERT_EQ(histograms.size(), 4u);  // the VNDF and the validation at each alpha
-  const std::string page = experiment_report_html(doc, histograms);
+  ReportScatters lobes;
+  for (std::size_t i : {5u, 6u}) lobes.emplace(i, ScatterFile{ScatterFileKind::expectation, {}, run.results.measurements[i].expectation, {}});
+  const std::string page = experiment_report_html(doc, histograms, lobes);
   EXPECT_EQ(page.rfind("<!DOCTYPE html>", 0), 0u);
   EXPECT_EQ(count(page, "<script"), 0u);
   EXPECT_EQ(count(page, "http"), count(page, "xmlns=\"http://www.w3.org/2000/svg\""));  // namespaces only, no fetch
-  EXPECT_EQ(count(page, "<svg"), 1u + 2u + 2u);  // E1(mu) per alpha; a VNDF and a validation figure per alpha
+  // E1(mu) per alpha; a VNDF, a validation and an order-1 lobe figure per alpha
+  EXPECT_EQ(count(page, "<svg"), 1u + 2u + 2u + 2u);
   EXPECT_EQ(count(page, "Sampler <b>heitz2018</b>"), 2u);
   EXPECT_NE(page.find("microsim run small.toml --out x"), std::string::npos);
   for (const MeasurementResult& m : run.results.measurements) {
     EXPECT_NE(page.find(svg::escape(m.decision.model.reason)), std::string::npos) << m.decision.label;
     EXPECT_NE(page.find("<b>" + report_number(m.achieved) + "</b>"), std::string::npos) << m.decision.label;
   }
+  for (std::size_t i : {5u, 6u})  // the analytic lobes' albedos
+    EXPECT_NE(page.find("albedo " + report_number(doc["results"]["measurements"][i]["values"]["analytic_scattering"]["albedo"]["value"])),
+              std::string::npos);
   const nlohmann::json& e1 = doc["results"]["measurements"][0]["values"]["quantities"]["E1"];
   for (std::size_t a = 0; a < 2; ++a) {
     EXPECT_NE(page.find("<b>" + report_number(e1["average"][a]) + "</b>"), std::string::npos);
@@ -140,7 +152,7 @@ TEST(ExperimentReport, TheRunDirectoryReadsBackAsTheSameRunAndRefusesAnother) {
   EXPECT_FALSE(load_previous_run(dir, run.spec, 1).has_value());
   write_run_directory(dir, run.spec, run.plan, run.results, {"cmd", "0.1", 1});
   for (const char* f : {"results.json", "index.html", "albedo-0.csv", "vndf-1.exr", "vndf-2.exr", "validation-3.exr",
-                        "validation-4.exr"})
+                        "validation-4.exr", "scattering-5.exr", "scattering-6.exr"})
     EXPECT_TRUE(fs::exists(dir / f)) << f;
   const auto previous = load_previous_run(dir, run.spec, 1);
   ASSERT_TRUE(previous.has_value());
@@ -148,6 +160,10 @@ TEST(ExperimentReport, TheRunDirectoryReadsBackAsTheSameRunAndRefusesAnother) {
   EXPECT_EQ(results_json(previous->results).dump(), results_json(run.results).dump());
   for (std::size_t i : {1u, 3u})
     EXPECT_EQ(previous->results.measurements[i].histogram.counts, run.results.measurements[i].histogram.counts);
+  for (std::size_t i : {5u, 6u}) {
+    ASSERT_GT(run.results.measurements[i].expectation.bins(), 0u);
+    EXPECT_EQ(previous->results.measurements[i].expectation.order1, run.results.measurements[i].expectation.order1);
+  }
   EXPECT_THROW(load_previous_run(dir, run.spec, 2), std::invalid_argument);             // another seed
   EXPECT_THROW(load_previous_run(dir, small_spec(0.35), 1), std::invalid_argument);  // another spec
   fs::remove_all(dir);

@@ -1,6 +1,8 @@
 // experiment: the library calls behind a decision (measures.h).
 #include "experiment/measures.h"
 
+#include "scatter/analytic_scatter.h"
+
 #include <fmt/core.h>
 
 #include <cmath>
@@ -66,6 +68,34 @@ ScatterOptions scatter_request(const SpecMaterial& material, const Decision& dec
   o.rows = kScatterRows;
   o.run = run;
   return o;
+}
+
+ScatterExpectation analytic_scatter_lobe(const SpecMaterial& material, const Decision& decision, const RunControl& run) {
+  const Vec3<double> wi = direction_from_degrees(decision.view.theta_deg, decision.view.phi_deg);
+  const auto [ax, ay] = decision.alpha;
+  if (material.ndf == WalkNdf::beckmann)
+    return analytic_single_scattering(Beckmann<double>(ax, ay), wi, material.facet, kScatterRows, run);
+  return analytic_single_scattering(GGX<double>(ax, ay), wi, material.facet, kScatterRows, run);
+}
+
+double expectation_albedo(const ScatterExpectation& lobe, const Direction& view) {
+  return expectation_albedo(lobe, view, ScatterSide::reflected) + expectation_albedo(lobe, view, ScatterSide::transmitted);
+}
+
+double expectation_albedo(const ScatterExpectation& lobe, const Direction& view, ScatterSide side) {
+  // Reflected light leaves into the hemisphere it came from: the upper one for light from above.
+  const bool upper = (view.theta_deg < 90) == (side == ScatterSide::reflected);
+  double sum = 0;
+  for (std::size_t b = 0; b < lobe.bins(); ++b)
+    if (lobe.reflection_bins[b] == upper) sum += lobe.order1[0][b];
+  return sum;
+}
+
+double analytic_lobe_error(const ScatterExpectation& lobe, const Direction& view) {
+  const double error = lobe.error_estimate.empty() ? 0 : lobe.error_estimate[0];
+  if (error == 0) return 0;
+  const double albedo = expectation_albedo(lobe, view);
+  return albedo > 0 ? error / albedo : std::numeric_limits<double>::infinity();
 }
 
 double scatter_order_floor(const ScatterHistogram& h, int order_bin) {

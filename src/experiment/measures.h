@@ -7,6 +7,7 @@
 #include "measure/vndf.h"
 #include "scatter/albedo_table.h"
 #include "scatter/smith_walk.h"
+#include "stats/scatter_expectation.h"
 
 #include <nlohmann/json.hpp>
 
@@ -37,6 +38,21 @@ AlbedoTable albedo_table_from_json(const nlohmann::json& table, const AlbedoTabl
 // The largest relative error (error / value) over the cells and E_avg of the quantities of a table the target
 // applies to; an infinite one when a value is 0 with a non-zero error.
 double worst_relative_error(const AlbedoTable& table, const SpecQuantity& quantity);
+
+// ---- the analytic order-1 lobe (orders = "single") -----------------------------------------------------------
+
+// The order-1 lobe of a scattering decision: the single-scattering expectation of its material at its alpha
+// and view (light from inside for theta > 90), binned like the walk's lobes (kScatterRows rows per
+// hemisphere) by the cubature of scatter/analytic_scatter.h. Deterministic; Cancelled when run.cancel is set.
+ScatterExpectation analytic_scatter_lobe(const SpecMaterial& material, const Decision& decision, const RunControl& run);
+// The channel-0 order-1 albedo of an expectation: all of it, or what leaves on one side of the surface
+// (reflected: the hemisphere of the light's own side).
+double expectation_albedo(const ScatterExpectation& lobe, const Direction& view);
+double expectation_albedo(const ScatterExpectation& lobe, const Direction& view, ScatterSide side);
+// The cubature's summed error estimate (channel 0) over the albedo: to first order a bound on the TV between
+// the computed normalised lobe and the exact one (TV = 1/2 sum |p_i - q_i| <= sum |error_i| / W). 0 for an
+// exact lobe; infinite when the albedo is 0 with a non-zero error.
+double analytic_lobe_error(const ScatterExpectation& lobe, const Direction& view);
 
 // ---- per-order scattering (the Smith walk) ------------------------------------------------------------------
 

@@ -198,13 +198,23 @@ void plan_scattering_count(const ExperimentSpec& spec, const SpecQuantity& q, co
   d.runnable = true;
 }
 
+// The analytic order-1 lobe: deterministic, no count. Its pilot is the cubature itself (its time and error
+// estimate are what the plan states; the run computes it again, as cheaply).
+void plan_analytic_scattering(const SpecMaterial& m, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
+  const auto start = std::chrono::steady_clock::now();
+  const ScatterExpectation lobe = analytic_scatter_lobe(m, d, o.run);
+  d.pilot_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  d.pilot_error = analytic_lobe_error(lobe, d.view);
+  d.count_reason = fmt::format("deterministic: the cubature of the order-1 lobe ({} rows per hemisphere), no rays; "
+                               "its error estimate is {:.2e} of the albedo, against the target TV {}",
+                               kScatterRows, d.pilot_error, q.target);
+  d.predicted_seconds = d.pilot_seconds;
+  d.runnable = true;
+}
+
 void plan_scattering_view(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
-  if (d.model.model != Model::smith_walk) {
-    d.count_reason = "analytic per-order lobes (the cubature of the single-scattering expectation): a later session";
-    d.not_runnable = "analytic scattering lobes: a later session (orders = \"all\" runs the walk)";
-    return;
-  }
   const SpecMaterial& m = spec.material(q.material);
+  if (d.model.model == Model::analytic) return plan_analytic_scattering(m, q, o, d);
   ScatterOptions view;
   view.wi = direction_from_degrees(d.view.theta_deg, d.view.phi_deg);
   view.material = m.facet;

@@ -262,6 +262,12 @@ std::string scatter_figure(const ScatterHistogram& h, const std::string& label, 
   return "<figure>" + scatter_figure_svg(label, subtitle, DirectionBinning::hemispheres(rows), figure_rows) + "</figure>\n";
 }
 
+std::string expectation_figure(const ScatterExpectation& lobe, const std::string& label, int rows) {
+  const std::vector<ScatterFigureRow> figure_rows{{"order 1", {{"analytic", lobe.order1.at(0)}}, {}}};
+  const std::string subtitle = "the single-scattering expectation by cubature; weight per launched path per bin";
+  return "<figure>" + scatter_figure_svg(label, subtitle, DirectionBinning::hemispheres(rows), figure_rows) + "</figure>\n";
+}
+
 std::string scattering_values(const json& values, const ReportScatters& scatters, std::size_t index,
                               const std::string& label) {
   const json& s = member(values, "scattering");
@@ -275,8 +281,24 @@ std::string scattering_values(const json& values, const ReportScatters& scatters
                  member(o, "targeted").get<bool>() ? "yes" : "no (below the target's share)"});
   out += table({"order", "albedo", "reflected", "transmitted", "lobe TV noise floor", "targeted"}, body);
   const auto h = scatters.find(index);
-  if (h != scatters.end()) out += scatter_figure(h->second, label, member(s, "rows_per_hemisphere").get<int>());
+  if (h != scatters.end() && h->second.kind == ScatterFileKind::histogram)
+    out += scatter_figure(h->second.histogram, label, member(s, "rows_per_hemisphere").get<int>());
   return out + fmt::format("<p>Walk sums: <a href=\"scattering-{0}.exr\">scattering-{0}.exr</a>.</p>\n", index);
+}
+
+std::string analytic_scattering_values(const json& values, const ReportScatters& scatters, std::size_t index,
+                                       const std::string& label) {
+  const json& s = member(values, "analytic_scattering");
+  std::string out = fmt::format("<p>Order 1 by cubature (no rays): albedo {}, reflected {}, transmitted {}; error "
+                                "estimate {} ({} of the albedo).</p>\n",
+                                report_number(member(member(s, "albedo"), "value")),
+                                report_number(member(member(s, "reflected"), "value")),
+                                report_number(member(member(s, "transmitted"), "value")),
+                                report_number(member(s, "error_estimate")), report_number(member(s, "relative_error")));
+  const auto h = scatters.find(index);
+  if (h != scatters.end() && h->second.kind == ScatterFileKind::expectation)
+    out += expectation_figure(h->second.expectation, label, member(s, "rows_per_hemisphere").get<int>());
+  return out + fmt::format("<p>Lobe: <a href=\"scattering-{0}.exr\">scattering-{0}.exr</a>.</p>\n", index);
 }
 
 std::string validation_tests_table(const json& v) {
@@ -312,6 +334,7 @@ std::string measurement_values(const json& values, std::size_t index, const Repo
     return albedo_values(values) + fmt::format("<p>Table: <a href=\"albedo-{0}.csv\">albedo-{0}.csv</a>.</p>\n", index);
   if (values.contains("analysis")) return vndf_values(values, histograms, index, label);
   if (values.contains("scattering")) return scattering_values(values, scatters, index, label);
+  if (values.contains("analytic_scattering")) return analytic_scattering_values(values, scatters, index, label);
   if (values.contains("validation")) return validation_values(values, histograms, index, label);
   return "";
 }

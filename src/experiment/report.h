@@ -8,7 +8,8 @@
 //     vndf    the fit against the analytic D_v per binning (TV, noise floor, chi-square) and the figure of
 //             observed, expected and residual counts (stats/figure.h, as `microsim plot` draws it);
 //     scattering  per order the albedo (reflected, transmitted) and the lobe's TV noise floor, and the lobes
-//             per order (stats/scatter_figure.h, as `microsim compare-scattering` draws them);
+//             per order (stats/scatter_figure.h, as `microsim compare-scattering` draws them); analytic: the
+//             order-1 albedo, the cubature's error estimate and the lobe;
 //     validation  the verdict, every test, and the figure of the counts against the claimed pdf.
 // The page is built from the run's document (results.json, run_directory.h) and the VNDF histograms (the
 // counts behind the figures, which results.json does not hold). Numbers are printed by report_number.
@@ -16,7 +17,7 @@
 #pragma once
 
 #include "stats/histogram_io.h"
-#include "stats/scatter_histogram.h"
+#include "stats/scatter_io.h"
 
 #include <nlohmann/json.hpp>
 
@@ -28,8 +29,8 @@ namespace microsim::experiment {
 
 // VNDF histograms (with their analytic probabilities) by measurement index.
 using ReportHistograms = std::map<std::size_t, TracedHistogram>;
-// Scattering measurements' summed walks (the per-order lobes), by measurement index.
-using ReportScatters = std::map<std::size_t, ScatterHistogram>;
+// Scattering measurements' summed walks (the per-order lobes) or analytic order-1 lobes, by measurement index.
+using ReportScatters = std::map<std::size_t, ScatterFile>;
 
 // The page. Throws std::invalid_argument when the document lacks a member the page needs (a document
 // not written by run_document).

@@ -9,6 +9,8 @@
 //                       TV noise floor of the sum decides (kNoiseShare of the target);
 //   scattering, walk    rounds of Smith walks, their exact sums added; the largest per-order TV noise floor of
 //                       the orders the target applies to decides (measures.h, scatter_noise_floor);
+//   scattering, analytic  the order-1 lobe by cubature, once (measures.h, analytic_scatter_lobe); its error
+//                       estimate over the albedo is the achieved error (the whole target: no noise);
 //   validation          one validate_sampler run of the planned samples (the power rule needs no rounds).
 // At most kMaxRounds rounds: a target not met then is reported as such (met = false), never hidden.
 // Cancellation (run.cancel): the round in progress is dropped (a VNDF round keeps its completed blocks, the
@@ -26,6 +28,7 @@
 #include "core/estimate.h"
 #include "experiment/plan.h"
 #include "stats/histogram_io.h"
+#include "stats/scatter_expectation.h"
 #include "stats/scatter_histogram.h"
 
 #include <nlohmann/json.hpp>
@@ -66,6 +69,7 @@ struct MeasurementResult {
   TracedHistogram histogram;
   std::vector<std::uint64_t> unbinned;
   ScatterHistogram scatter;  // scattering: the rounds' walks summed (exact sums)
+  ScatterExpectation expectation;  // analytic scattering: the order-1 lobe
   std::vector<nlohmann::json> round_tables;  // albedo_table_json of each round
 };
 

@@ -57,9 +57,11 @@ void read_histograms(const fs::path& dir, ExperimentResults& results) {
   for (std::size_t i = 0; i < results.measurements.size(); ++i) {
     MeasurementResult& m = results.measurements[i];
     if (!m.ran || m.rounds.empty() || !m.values.is_object()) continue;
-    if (m.values.contains("scattering")) {
+    if (m.values.contains("scattering") || m.values.contains("analytic_scattering")) {
       try {
-        m.scatter = read_scatter_exr(scatter_path(dir, i)).histogram;
+        ScatterFile file = read_scatter_exr(scatter_path(dir, i));
+        m.scatter = std::move(file.histogram);
+        m.expectation = std::move(file.expectation);
       } catch (const ScatterIoError& e) {
         throw std::invalid_argument(fmt::format("cannot resume measurement {}: {}", i, e.what()));
       }
@@ -104,7 +106,11 @@ void write_run_directory(const fs::path& dir, const ExperimentSpec& spec, const 
     if (!m.csv.empty()) write_file_atomically(dir / fmt::format("albedo-{}.csv", i), m.csv);
     if (m.scatter.paths() > 0) {
       write_scatter_exr(scatter_path(dir, i), m.scatter, {{"measurement", m.decision.label}});
-      scatters.emplace(i, m.scatter);
+      scatters.emplace(i, ScatterFile{ScatterFileKind::histogram, m.scatter, {}, {}});
+    }
+    if (m.expectation.bins() > 0) {
+      write_scatter_exr(scatter_path(dir, i), m.expectation, {{"measurement", m.decision.label}});
+      scatters.emplace(i, ScatterFile{ScatterFileKind::expectation, {}, m.expectation, {}});
     }
     if (m.histogram.binnings.empty()) continue;
     TracedHistogram h = m.histogram;
