@@ -111,6 +111,8 @@ std::string spec_with(const std::string& material, const std::string& quantity) 
 }
 const std::string kMirror = "alpha = 0.3\ntype = \"mirror\"";                    // material lines 5-6
 const std::string kVndf = "kind = \"vndf\"\nmaterial = \"m\"\ntheta = [30]\ntarget_tv = 0.01";  // lines 9-12
+const std::string kValidation = "kind = \"validation\"\nmaterial = \"m\"\ntheta = [30]\ndetect_tv = 0.01";  // lines 9-12
+const std::string kDump = MICROSIM_TEST_DATA "/npy_samples_f8.npy";  // an existing sample file
 
 class BadSpecs : public ::testing::TestWithParam<BadSpec> {};
 
@@ -165,6 +167,23 @@ INSTANTIATE_TEST_SUITE_P(
         BadSpec{"unknown_sampler",
                 spec_with(kMirror, "kind = \"validation\"\nmaterial = \"m\"\nsampler = \"nope\"\ntheta = [0]\ndetect_tv = 0.01"),
                 "quantity[0].sampler", 11, "not a sampler of the zoo"},
+        BadSpec{"sampler_and_dump", spec_with(kMirror, kValidation + "\nsampler = \"heitz2018\"\ndump = \"" + kDump + "\""),
+                "quantity[0].sampler", 13, "exactly one of sampler"},
+        BadSpec{"neither_sampler_nor_dump", spec_with(kMirror, kValidation), "quantity[0].sampler", 8, "exactly one of sampler"},
+        BadSpec{"missing_dump", spec_with(kMirror, kValidation + "\ndump = \"no-such-dump.npy\""), "quantity[0].dump", 13,
+                "no sample file"},
+        BadSpec{"dump_at_two_alphas", spec_with("alphas = [0.3, 0.5]\ntype = \"mirror\"", kValidation + "\ndump = \"" + kDump + "\""),
+                "quantity[0].dump", 13, "one alpha and one view (material 'm' has 2 alpha(s)"},
+        BadSpec{"dump_at_two_views", spec_with(kMirror, "kind = \"validation\"\nmaterial = \"m\"\ntheta = [0, 30]\ndetect_tv = 0.01\ndump = \"" + kDump + "\""),
+                "quantity[0].dump", 13, "the quantity 2 view(s)"},
+        BadSpec{"dump_of_a_bsdf", spec_with(kMirror, kValidation + "\ndump = \"" + kDump + "\"\npdf = \"bsdf\""),
+                "quantity[0].pdf", 14, "microsim validate --from FILE --pdf bsdf"},
+        BadSpec{"dump_unknown_pdf", spec_with(kMirror, kValidation + "\ndump = \"" + kDump + "\"\npdf = \"ggx\""),
+                "quantity[0].pdf", 14, "vndf"},
+        BadSpec{"dump_normals_above_horizon", spec_with(kMirror, kValidation + "\ndump = \"" + kDump + "\"\nabove_horizon = true"),
+                "quantity[0].above_horizon", 14, "a density of normals"},
+        BadSpec{"sampler_with_pdf", spec_with(kMirror, kValidation + "\nsampler = \"heitz2018\"\npdf = \"ndf\""),
+                "quantity[0].pdf", 14, "applies to a dump"},
         BadSpec{"unknown_surface", spec_with(kMirror, kVndf + "\nsurface = \"moon\""), "quantity[0].surface", 13,
                 "neither auto"},
         BadSpec{"missing_heightmap", spec_with(kMirror, kVndf + "\nsurface = \"no-such-file.exr\""), "quantity[0].surface",

@@ -2,6 +2,7 @@
 #include "experiment/measures.h"
 #include "experiment/plan.h"
 
+#include "validate/sample_io.h"
 #include "scatter/smith_walk.h"
 #include "stats/binning.h"
 #include "stats/scatter_compare.h"
@@ -228,6 +229,15 @@ void plan_scattering_view(const ExperimentSpec& spec, const SpecQuantity& q, con
   plan_scattering_count(spec, q, o, d);
 }
 
+// A dump that cannot be opened (or an NPY header of the wrong shape) is bad input before anything runs.
+void check_dump_opens(const SpecQuantity& q) {
+  try {
+    DirectionSampleReader reader{std::filesystem::path(q.dump)};
+  } catch (const SampleFileError& e) {
+    throw std::invalid_argument(fmt::format("{}.dump: {}", q.key, e.what()));
+  }
+}
+
 void plan_validation_view(const SpecQuantity& q, Decision& d) {
   // The validator's sphere binning (2 rows^2 bins) and lobe binning (as many), Sidak-combined: each test at
   // 1 - (1 - significance)^(1/2).
@@ -238,6 +248,10 @@ void plan_validation_view(const SpecQuantity& q, Decision& d) {
   d.count_reason = fmt::format("chi-square power: df {}, level {:.3g} per binning (Sidak of {}), power {} against any "
                                "deviation of TV {} (noncentrality >= 4 N TV^2)", df, per_test, q.significance, q.power,
                                q.target);
+  if (!q.dump.empty()) {
+    check_dump_opens(q);
+    d.count_reason += "; the dump's samples are given: all are tested, and their number fixes the TV detected";
+  }
   d.runnable = true;
 }
 

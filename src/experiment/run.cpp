@@ -5,6 +5,7 @@
 #include "core/parse.h"
 #include "scatter/albedo_table_io.h"
 #include "validate/validate.h"
+#include "validate/sample_io.h"
 #include "stats/scatter_compare.h"
 
 #include <fmt/core.h>
@@ -329,12 +330,55 @@ TracedHistogram validation_histogram(const ValidationReport& r, const Decision& 
   return h;
 }
 
+// The validation's result: the deviation its samples detect (N ~ 1 / tv^2, plan.h), the report and counts.
+void record_validation(const ValidationReport& r, const SpecQuantity& q, std::uint64_t planned, double seconds,
+                       MeasurementResult& m) {
+  const Decision& d = m.decision;
+  m.achieved = q.target * std::sqrt(double(d.units) / double(std::max<std::uint64_t>(r.samples, 1)));
+  m.units = m.rays = r.samples;
+  m.rounds.push_back({r.samples, planned, 0, false, r.seed, 0, seconds, m.achieved});
+  m.values = {{"validation", to_json(r)}};
+  m.histogram = validation_histogram(r, d);
+  m.met = m.achieved <= m.target * (1 + 1e-12);
+}
+
+// A dump: every sample of the file against the density it claims (validate_sample_file, streamed). A file
+// that cannot be read, or holds too few samples, is bad input (std::invalid_argument naming the file).
+void run_dump_validation(const SpecQuantity& q, const RunOptions& o, MeasurementResult& m) {
+  const Decision& d = m.decision;
+  const GGX<double> ggx(d.alpha.first, d.alpha.second);
+  const Vec3<double> wi = direction_from_degrees(d.view.theta_deg, d.view.phi_deg);
+  ValidationOptions v;
+  v.rows = q.rows;
+  v.significance = q.significance;
+  v.run = o.run;
+  m.rounds.clear();
+  m.partial = false;
+  const auto clock = std::chrono::steady_clock::now();
+  const ClaimedDensity density = claimed_density(parse_file_pdf(q.dump_pdf), ggx, wi);
+  const auto reference = q.above_horizon ? above_horizon_reference(density, ggx, wi, q.rows)
+                                         : density_reference(density, ggx, wi, q.rows);
+  try {
+    DirectionSampleReader reader{std::filesystem::path(q.dump)};
+    ValidationReport r = validate_sample_file(reader, density.domain, ggx, wi, v, reference);
+    r.sampler = q.dump;
+    record_validation(r, q, d.units, seconds_since(clock), m);
+  } catch (const Cancelled&) {
+    m.partial = true;
+  } catch (const SampleFileError& e) {
+    throw std::invalid_argument(fmt::format("{}.dump: {}", q.key, e.what()));
+  } catch (const InsufficientData& e) {
+    throw std::invalid_argument(fmt::format("{}.dump: {}", q.key, e.what()));
+  }
+}
+
 // One validation at the planned sample count (the chi-square power rule: no pilot, no rounds). Cancelled:
 // nothing is kept (the validator has no partial result), the measurement runs again on resumption.
 void run_validation(const ExperimentSpec& spec, std::uint64_t seed, std::size_t index, const RunOptions& o,
                     MeasurementResult& m) {
   const Decision& d = m.decision;
   const SpecQuantity& q = spec.quantities[d.quantity];
+  if (!q.dump.empty()) return run_dump_validation(q, o, m);
   const SamplerInfo* sampler = find_sampler(q.sampler);
   if (sampler == nullptr) throw std::invalid_argument(fmt::format("{}.sampler: unknown sampler '{}'", q.key, q.sampler));
   ValidationOptions v;
@@ -354,13 +398,7 @@ void run_validation(const ExperimentSpec& spec, std::uint64_t seed, std::size_t 
     m.partial = true;
     return;
   }
-  // The sample count fixes the deviation detected with the asked power: N ~ 1 / tv^2 (plan.h).
-  m.achieved = q.target * std::sqrt(double(d.units) / double(r.samples));
-  m.units = m.rays = r.samples;
-  m.rounds.push_back({r.samples, r.samples, 0, false, v.seed, 0, seconds_since(clock), m.achieved});
-  m.values = {{"validation", to_json(r)}};
-  m.histogram = validation_histogram(r, d);
-  m.met = m.achieved <= m.target * (1 + 1e-12);
+  record_validation(r, q, r.samples, seconds_since(clock), m);
 }
 
 std::string error_measure(const SpecQuantity& q, const Decision& d) {

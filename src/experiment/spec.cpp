@@ -3,6 +3,7 @@
 
 #include "microfacet/roughness.h"
 #include "microfacet/samplers.h"
+#include "validate/validate.h"
 #include "microgeom/assembly.h"
 #include "scatter/albedo_table.h"
 #include "stats/binning.h"
@@ -261,7 +262,8 @@ std::vector<std::string> quantity_keys(QuantityKind kind) {
     case QuantityKind::vndf: add({"target_tv", "theta", "theta_range", "phi", "rows"}); break;
     case QuantityKind::scattering: add({"orders", "target_tv", "theta", "theta_range", "phi"}); break;
     case QuantityKind::validation:
-      add({"sampler", "detect_tv", "power", "significance", "theta", "theta_range", "phi", "rows"});
+      add({"sampler", "dump", "pdf", "above_horizon", "detect_tv", "power", "significance", "theta", "theta_range", "phi",
+           "rows"});
       break;
   }
   return keys;
@@ -344,7 +346,37 @@ void check_albedo_material(const Table& t, const SpecMaterial& m, bool inside) {
   if (inside && !m.facet.transmits()) t.fail("inside", fmt::format("light from inside needs a dielectric ({} is opaque)", quote_excerpt(m.name)));
 }
 
-void read_kind_options(const Table& t, SpecQuantity& q, const SpecMaterial& m) {
+void read_zoo_sampler(const Table& t, SpecQuantity& q) {
+  for (const char* key : {"pdf", "above_horizon"})
+    if (t.has(key)) t.fail(key, fmt::format("{} applies to a dump (a zoo sampler's density is its own)", key));
+  q.sampler = t.string("sampler");
+  if (find_sampler(q.sampler) == nullptr)
+    t.fail("sampler", fmt::format("{} is not a sampler of the zoo ({})", quote_excerpt(q.sampler), fmt::join(sampler_names(), ", ")));
+}
+
+// A dump was sampled at one alpha and one view; its density is one the validator knows without a BSDF.
+void read_dump(const Table& t, SpecQuantity& q, const SpecMaterial& m, const std::filesystem::path& spec_dir) {
+  const std::string name = t.string("dump");
+  const std::filesystem::path path = std::filesystem::path(name).is_absolute() ? std::filesystem::path(name) : spec_dir / name;
+  if (!std::filesystem::is_regular_file(path)) t.fail("dump", fmt::format("no sample file {}", quote_excerpt(path.string())));
+  if (m.alphas.size() != 1 || q.directions.size() != 1)
+    t.fail("dump", fmt::format("a dump is sampled at one alpha and one view (material {} has {} alpha(s), the quantity {} "
+                               "view(s))", quote_excerpt(m.name), m.alphas.size(), q.directions.size()));
+  q.dump = path.string();
+  q.dump_pdf = t.string("pdf", "vndf");
+  if (q.dump_pdf == "bsdf") t.fail("pdf", "bsdf needs the BSDF's parameters: `microsim validate --from FILE --pdf bsdf`");
+  FilePdf pdf = FilePdf::vndf;
+  try {
+    pdf = parse_file_pdf(q.dump_pdf);
+  } catch (const std::invalid_argument& e) {
+    t.fail("pdf", e.what());
+  }
+  q.above_horizon = t.boolean("above_horizon", false);
+  if (q.above_horizon && !claims_reflected_directions(pdf))
+    t.fail("above_horizon", fmt::format("pdf {} is a density of normals (none is below the horizon)", q.dump_pdf));
+}
+
+void read_kind_options(const Table& t, SpecQuantity& q, const SpecMaterial& m, const std::filesystem::path& spec_dir) {
   const bool view_kind = q.kind != QuantityKind::albedo;
   if (view_kind) q.directions = quantity_directions(t, q.kind == QuantityKind::scattering && m.facet.transmits());
   if (q.kind == QuantityKind::albedo || q.kind == QuantityKind::scattering) q.orders = quantity_orders(t);
@@ -359,9 +391,10 @@ void read_kind_options(const Table& t, SpecQuantity& q, const SpecMaterial& m) {
     if (m.ndf != WalkNdf::ggx) t.fail("material", fmt::format("material {}: {} is for GGX (the ellipsoid oracle, the zoo)", quote_excerpt(m.name), to_string(q.kind)));
   }
   if (q.kind == QuantityKind::validation) {
-    q.sampler = t.string("sampler");
-    if (find_sampler(q.sampler) == nullptr)
-      t.fail("sampler", fmt::format("{} is not a sampler of the zoo ({})", quote_excerpt(q.sampler), fmt::join(sampler_names(), ", ")));
+    if (t.has("sampler") == t.has("dump"))
+      t.fail("sampler", "give exactly one of sampler (a zoo sampler, drawn) and dump (a file of samples)");
+    if (t.has("dump")) read_dump(t, q, m, spec_dir);
+    else read_zoo_sampler(t, q);
     q.power = t.number("power", 0.9);
     q.significance = t.number("significance", 0.01);
     if (!(q.power > 0 && q.power < 1)) t.fail("power", fmt::format("{} must be in (0, 1)", q.power));
@@ -381,7 +414,7 @@ SpecQuantity read_quantity(const Table& t, const ExperimentSpec& spec, std::size
   if (m == spec.materials.end()) t.fail("material", fmt::format("no material named {}", quote_excerpt(q.material)));
   q.target = quantity_target(t, q.kind);
   q.surface = quantity_surface(t, spec_dir);
-  read_kind_options(t, q, *m);
+  read_kind_options(t, q, *m, spec_dir);
   return q;
 }
 
@@ -442,6 +475,8 @@ std::string canonical_spec(const ExperimentSpec& spec) {
                                {"target", q.target}, {"directions", d}, {"surface", q.surface.name},
                                {"mus", q.mus}, {"inside", q.inside}, {"rows", q.rows}, {"sampler", q.sampler},
                                {"power", q.power}, {"significance", q.significance}});
+    if (!q.dump.empty())  // the path names the dump: a file replaced under the same path is not detected
+      j["quantities"].back().update({{"dump", q.dump}, {"pdf", q.dump_pdf}, {"above_horizon", q.above_horizon}});
   }
   return j.dump();
 }

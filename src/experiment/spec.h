@@ -92,7 +92,10 @@ struct SpecQuantity {
   int mus = 16;          // albedo: Gauss-Legendre nodes in mu
   bool inside = false;   // albedo of a dielectric from inside
   int rows = 31;         // vndf, validation: rows of the validator's binnings
-  std::string sampler;   // validation: a zoo sampler's name
+  std::string sampler;   // validation: a zoo sampler's name (drawn), or
+  std::string dump;      // validation: a sample file (.npy or text; a relative path is the spec folder's)
+  std::string dump_pdf = "vndf";  // validation of a dump: the density it claims (FilePdf: vndf, ndf, bounded, reflection)
+  bool above_horizon = false;     // validation of a dump of reflections: only those above the horizon kept
   double power = 0.9, significance = 0.01;  // validation
 };
 

@@ -1,0 +1,192 @@
+// Two measurements of an experiment:
+//   - the analytic order-1 lobe (`orders = "single"` scattering, experiment/measures.h
+//     analytic_scatter_lobe): planned without a count, run once by cubature, its target met by the
+//     cubature's error estimate; and it is the walk's order 1. The same spec's `orders = "all"` measurement
+//     of the same view (the Smith walk, Heitz et al. 2016, whose order 1 is the single-scattering BSDF)
+//     agrees with it bin by bin: a chi-square of the walk's per-bin means against the lobe, at the 0.1%
+//     level (Boost.Math's chi-square quantile). Negative control: the lobe at another roughness is rejected.
+//   - the validation of a dump (a sample file, `dump = ...`): every sample tested against the density it
+//     claims; a dump of the right sampler passes, one drawn at another alpha fails (a measured verdict, not an
+//     error), the deviation its sample count detects is the achieved error, and a file that is not a sample
+//     file stops the plan (bad input) before anything runs.
+#include "experiment/measures.h"
+#include "experiment/plan.h"
+#include "experiment/run.h"
+#include "validate/sample_io.h"
+#include "validate/validate.h"
+
+#include "scratch_dir.h"
+
+#include <fmt/format.h>
+
+#include <boost/math/distributions/chi_squared.hpp>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+namespace {
+
+using namespace microsim;
+using namespace microsim::experiment;
+using microsim::test::scratch_dir;
+
+ExperimentSpec single_and_all_spec() {
+  return parse_spec_toml(R"(
+seed = 4
+[[material]]
+name = "glass"
+alphas = [0.5]
+type = "dielectric"
+eta = 1.5
+[[quantity]]
+kind = "scattering"
+material = "glass"
+orders = "single"
+theta = [40]
+target_tv = 0.001
+[[quantity]]
+kind = "scattering"
+material = "glass"
+orders = "all"
+theta = [40]
+target_tv = 0.03
+)", "single-and-all.toml");
+}
+
+struct SingleAndAll {
+  ExperimentSpec spec = single_and_all_spec();
+  ExperimentPlan plan;
+  ExperimentResults results;
+  SingleAndAll() {
+    PlanOptions p;
+    p.pilot_rays = 1 << 14;
+    p.cap_pilot_paths = 1 << 13;
+    plan = plan_experiment(spec, p);
+    results = run_experiment(spec, plan, RunOptions{});
+  }
+};
+
+const SingleAndAll& single_and_all() {
+  static const SingleAndAll run;
+  return run;
+}
+
+// sum over the bins of ((walk mean - expected) / walk standard error)^2, and the bins it summed.
+std::pair<double, int> order_one_chi_square(const ScatterHistogram& walk, const ScatterExpectation& lobe) {
+  const Histogram& order1 = walk.histogram(0, 0);
+  const double n = double(walk.paths());
+  double chi2 = 0;
+  int bins = 0;
+  for (std::size_t b = 0; b < order1.size(); ++b) {
+    const double mean = order1.weight(b) / n;
+    const double variance = (order1.weight_squared(b) / n - mean * mean) / n;
+    if (!(variance > 0)) continue;
+    chi2 += (mean - lobe.order1[0][b]) * (mean - lobe.order1[0][b]) / variance;
+    ++bins;
+  }
+  return {chi2, bins};
+}
+
+TEST(ExperimentAnalyticScattering, IsPlannedWithoutACountAndMeetsItsTargetByCubature) {
+  const SingleAndAll& run = single_and_all();
+  ASSERT_EQ(run.plan.decisions.size(), 2u);
+  const Decision& d = run.plan.decisions[0];
+  EXPECT_EQ(d.model.model, Model::analytic);
+  EXPECT_TRUE(d.runnable) << d.not_runnable;
+  EXPECT_EQ(d.units, 0u);
+  const MeasurementResult& m = run.results.measurements[0];
+  ASSERT_TRUE(m.ran);
+  EXPECT_TRUE(m.met);
+  EXPECT_EQ(m.target, 0.001);  // the whole target: the cubature has no noise
+  EXPECT_LE(m.achieved, m.target);
+  ASSERT_EQ(m.rounds.size(), 1u);
+  EXPECT_EQ(m.units, 0u);
+  const nlohmann::json& v = m.values.at("analytic_scattering");
+  EXPECT_NEAR(v["albedo"]["value"].get<double>(),
+              v["reflected"]["value"].get<double>() + v["transmitted"]["value"].get<double>(), 1e-12);
+  EXPECT_GT(v["transmitted"]["value"].get<double>(), v["reflected"]["value"].get<double>());  // glass at 40 degrees
+}
+
+TEST(ExperimentAnalyticScattering, IsTheWalksOrderOneAndAnotherRoughnessIsNot) {
+  const SingleAndAll& run = single_and_all();
+  const MeasurementResult& lobe = run.results.measurements[0];
+  const MeasurementResult& walk = run.results.measurements[1];
+  ASSERT_TRUE(walk.met);
+  ASSERT_EQ(lobe.expectation.bins(), walk.scatter.bins());
+  const auto [chi2, bins] = order_one_chi_square(walk.scatter, lobe.expectation);
+  ASSERT_GT(bins, 50);
+  const double critical = boost::math::quantile(boost::math::complement(boost::math::chi_squared(bins), 0.001));
+  EXPECT_LT(chi2, critical) << bins << " bins";
+  // Negative control: the lobe of alpha 0.45 against the same walk.
+  Decision other = run.plan.decisions[0];
+  other.alpha = {0.45, 0.45};
+  const ScatterExpectation wrong = analytic_scatter_lobe(run.spec.material("glass"), other, {});
+  EXPECT_GT(order_one_chi_square(walk.scatter, wrong).first, critical);
+}
+
+// A spec validating `dump` (drawn by heitz2018 at alpha 0.3, theta 40) as a GGX alpha-0.3 VNDF.
+ExperimentSpec dump_spec(const std::filesystem::path& dump) {
+  return parse_spec_toml(fmt::format(R"(
+[[material]]
+name = "m"
+alphas = [0.3]
+type = "mirror"
+[[quantity]]
+kind = "validation"
+material = "m"
+dump = "{}"
+theta = [40]
+rows = 15
+detect_tv = 0.02
+)", dump.string()), "dump.toml");
+}
+
+std::filesystem::path write_dump(const std::filesystem::path& dir, const std::string& name, double alpha) {
+  ValidationOptions o;
+  o.samples = 200000;
+  o.seed = 3;
+  const SampleSet s = draw_samples(*find_sampler("heitz2018"), GGX<double>(alpha), direction_from_degrees(40.0, 0.0), o);
+  const std::filesystem::path path = dir / name;
+  write_npy(path, s.directions, false);
+  return path;
+}
+
+MeasurementResult run_dump(const std::filesystem::path& dump) {
+  const ExperimentSpec spec = dump_spec(dump);
+  const ExperimentPlan plan = plan_experiment(spec, PlanOptions{});
+  return run_experiment(spec, plan, RunOptions{}).measurements.at(0);
+}
+
+TEST(ExperimentDump, TheRightSamplerPassesAndAnotherAlphaFails) {
+  const std::filesystem::path dir = scratch_dir("experiment", "dump");
+  const MeasurementResult good = run_dump(write_dump(dir, "good.npy", 0.3));
+  ASSERT_TRUE(good.ran);
+  EXPECT_EQ(good.units, 200000u);
+  EXPECT_EQ(good.values["validation"]["verdict"], "pass");
+  // The planned count for TV 0.02 is below the dump's 200000: the dump detects less than 0.02.
+  EXPECT_LT(good.decision.units, 200000u);
+  EXPECT_NEAR(good.achieved, 0.02 * std::sqrt(double(good.decision.units) / 200000.0), 1e-12);
+  EXPECT_TRUE(good.met);
+  const MeasurementResult wrong = run_dump(write_dump(dir, "wrong.npy", 0.36));
+  EXPECT_EQ(wrong.values["validation"]["verdict"], "fail");
+  EXPECT_TRUE(wrong.met);  // the measurement met its target: its verdict is the result
+  std::filesystem::remove_all(dir);
+}
+
+TEST(ExperimentDump, AFileThatIsNotASampleFileStopsThePlan) {
+  const std::filesystem::path dir = scratch_dir("experiment", "dump_bad");
+  const std::filesystem::path bad = dir / "bad.npy";
+  std::ofstream(bad) << "not an npy file";
+  const ExperimentSpec spec = dump_spec(bad);
+  try {
+    plan_experiment(spec, PlanOptions{});
+    FAIL() << "planned";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("quantity[0].dump"), std::string::npos) << e.what();
+  }
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
