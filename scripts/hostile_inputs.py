@@ -107,6 +107,7 @@ def set_data_window(w, h):
 # tried with `plan` and `run --out out` (nothing may be run or created).
 SPEC_MATERIAL = '[[material]]\nname = "m"\nalpha = 0.3\ntype = "mirror"\n'
 SPEC_VNDF = '[[quantity]]\nkind = "vndf"\nmaterial = "m"\ntheta = [30]\ntarget_tv = 0.05\n'
+SPEC_VALIDATION = '[[quantity]]\nkind = "validation"\nmaterial = "m"\ntheta = [30]\ndetect_tv = 0.05\n'
 BAD_SPECS = {
     "spec_syntax": (SPEC_MATERIAL + "[[quantity]\n", "(syntax)"),
     "spec_unknown_key": (SPEC_MATERIAL + SPEC_VNDF + "rays = 5\n", "quantity[0].rays"),
@@ -118,6 +119,10 @@ BAD_SPECS = {
     "spec_seed_negative": ("seed = -1\n" + SPEC_MATERIAL + SPEC_VNDF, "seed"),
     "spec_no_quantity": (SPEC_MATERIAL, "quantity"),
     "spec_huge_token": (SPEC_MATERIAL + SPEC_VNDF.replace('"vndf"', '"' + "v" * 100000 + '"'), "quantity[0].kind"),
+    "spec_dump_missing": (SPEC_MATERIAL + SPEC_VALIDATION + 'dump = "no_such_dump.npy"\n', "quantity[0].dump"),
+    "spec_dump_not_samples": (SPEC_MATERIAL + SPEC_VALIDATION + 'dump = "npy_bad_magic.npy"\n', "quantity[0].dump"),
+    "spec_dump_and_sampler": (SPEC_MATERIAL + SPEC_VALIDATION + 'sampler = "heitz2018"\ndump = "npy_f2.npy"\n',
+                              "quantity[0].sampler"),
 }
 
 
