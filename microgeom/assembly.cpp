@@ -484,11 +484,8 @@ std::vector<double> match_jointly(Spectral& fft, std::vector<double> h, double a
   report.refine_moves = refined.moves;
   report.refine_objective_before = refined.objective_before;
   report.refine_objective_after = refined.objective_after;
-  report.notes.push_back(fmt::format(
-      "binned NDF refinement: {} sweeps, {} vertex moves, then {} tail sweeps over {} vertices, {} moves; "
-      "discrepancy {:.4g} -> {:.4g}",
-      refined.sweeps, refined.moves, refined.tail_sweeps, refined.tail_vertices, refined.tail_moves,
-      refined.objective_before, refined.objective_after));
+  report.notes.push_back(fmt::format("binned NDF refinement: {} sweeps, {} vertex moves, discrepancy {:.4g} -> {:.4g}",
+                                     refined.sweeps, refined.moves, refined.objective_before, refined.objective_after));
   return h;
 }
 

@@ -21,17 +21,10 @@ struct TriangleBins {
 // The sphere bins of trace vndf (stats/binning.h, DirectionBinning::sphere(rows), rows odd): the normal
 // m = normalize(-sx, -sy, 1) binned in `rows` bands uniform in m.z over [-1, 1] times 2 rows sectors in the
 // azimuth of m. They resolve the NDF's tail, which the lobe bins lump into their last row. Reference
-// values: along each direction phi_u of the normalised slope the azimuth of m is fixed and the slope
-// magnitude is r g(phi_u), g = |(ax cos, ay sin)|, so a band [t1, t2] of tan(theta_m) holds the radius
-// range [t1 / g, t2 / g], of mass F(t2 / g) - F(t1 / g) and first moment (cos, sin) phi_u times the
-// integral of r dF over that range (exact); the integral over phi_u is a midpoint rule with 64 nodes per
-// sector.
-struct SphereReference {
-  std::vector<double> probability;                 // P(bin)
-  std::vector<std::array<double, 2>> first_moment;  // E[u 1{u in bin}]
-  std::vector<double> mean_radius;                  // E[|u| | bin] (0 when the bin has no mass)
-};
-
+// probabilities: along each direction phi_u of the normalised slope the azimuth of m is fixed and the
+// slope magnitude is r g(phi_u), g = |(ax cos, ay sin)|, so a band [t1, t2] of tan(theta_m) holds the
+// radius range [t1 / g, t2 / g], of mass F(t2 / g) - F(t1 / g) (exact); the integral over phi_u is a
+// midpoint rule with 64 nodes per sector.
 class SphereNdfBins {
 public:
   SphereNdfBins(int rows, double ax, double ay) : rows_(rows), ax_(ax), ay_(ay) {}
@@ -42,11 +35,8 @@ public:
     const int row = std::clamp(int(std::floor((1.0 - z) / (2.0 / rows_))), 0, rows_ - 1);
     return row * cols() + column(std::atan2(-sy, -sx));
   }
-  SphereReference reference(ReferenceNdf ref) const {
-    const std::size_t bins = std::size_t(size());
-    SphereReference out{std::vector<double>(bins, 0.0), std::vector<std::array<double, 2>>(bins, {0.0, 0.0}),
-                        std::vector<double>(bins, 0.0)};
-    std::vector<double> radial_moment(bins, 0.0);
+  std::vector<double> probabilities(ReferenceNdf ref) const {
+    std::vector<double> p(static_cast<std::size_t>(size()), 0.0);
     const int nodes = 64 * cols();
     for (int k = 0; k < nodes; ++k) {
       const double phi = kTwoPi * (k + 0.5) / nodes, c = std::cos(phi), s = std::sin(phi);
@@ -55,19 +45,11 @@ public:
       for (int row = 0; row < rows_; ++row) {
         const double z_hi = 1.0 - 2.0 * row / rows_, z_lo = std::max(0.0, 1.0 - 2.0 * (row + 1) / rows_);
         if (z_hi <= 0) break;
-        const double r_lo = tan_of(z_hi) / g, r_hi = tan_of(z_lo) / g;
-        const double mass = reference_radius_cdf(ref, r_hi) - reference_radius_cdf(ref, r_lo);
-        const double moment = reference_radius_partial_mean(ref, r_hi) - reference_radius_partial_mean(ref, r_lo);
-        const std::size_t b = std::size_t(row * cols() + col);
-        out.probability[b] += mass / nodes;
-        out.first_moment[b][0] += c * moment / nodes;
-        out.first_moment[b][1] += s * moment / nodes;
-        radial_moment[b] += moment / nodes;
+        const double mass = reference_radius_cdf(ref, tan_of(z_lo) / g) - reference_radius_cdf(ref, tan_of(z_hi) / g);
+        p[static_cast<std::size_t>(row * cols() + col)] += mass / nodes;
       }
     }
-    for (std::size_t b = 0; b < bins; ++b)
-      out.mean_radius[b] = out.probability[b] > 0 ? radial_moment[b] / out.probability[b] : 0.0;
-    return out;
+    return p;
   }
 
 private:
@@ -109,18 +91,9 @@ public:
       const double a = tail_edge(s), b = s + 1 == tail_bins_ ? 0.0 : tail_edge(s + 1);
       radial_target_[std::size_t(radius_bins_ - 1 + s)] = triangles * (a - b);
     }
-    SphereReference sphere = sphere_.reference(ref);
-    sphere_target_ = std::move(sphere.probability);
-    sphere_moment_target_ = std::move(sphere.first_moment);
-    sphere_moment_weight_.resize(sphere_target_.size());
-    for (std::size_t b = 0; b < sphere_target_.size(); ++b) {
-      sphere_target_[b] *= triangles;
-      for (double& m : sphere_moment_target_[b]) m *= triangles;
-      const double r = sphere.mean_radius[b];
-      sphere_moment_weight_[b] = r > 0 ? 1.0 / (r * r) : 0.0;
-    }
+    sphere_target_ = sphere_.probabilities(ref);
+    for (double& t : sphere_target_) t *= triangles;
     sphere_count_.assign(sphere_target_.size(), 0.0);
-    sphere_moment_.assign(sphere_target_.size(), {0.0, 0.0});
     count_.assign(target_.size(), 0.0);
     moment_.assign(target_.size(), {0.0, 0.0});
     radial_count_.assign(radial_target_.size(), 0.0);
@@ -143,8 +116,6 @@ public:
     moment_[std::size_t(t.lobe)][1] += sign * t.uy;
     radial_count_[std::size_t(t.radial)] += sign;
     sphere_count_[std::size_t(t.sphere)] += sign;
-    sphere_moment_[std::size_t(t.sphere)][0] += sign * t.ux;
-    sphere_moment_[std::size_t(t.sphere)][1] += sign * t.uy;
   }
 
   double lobe_cost(int b) const {
@@ -159,19 +130,12 @@ public:
     const double dc = radial_count_[k] - radial_target_[k];
     return radial_target_[k] > 0 ? dc * dc / radial_target_[k] : 0.0;
   }
-  // Counts and first moments, as in the lobe bins: a steep bin's projected area (w_z - s . w_xy)+ is carried
-  // by its slopes more than by its count. Sphere bins expecting fewer than 5 triangles weigh as if they
-  // expected 5 (the chi-square test pools them).
+  // Sphere bins expecting fewer than 5 triangles weigh as if they expected 5 (the chi-square test pools them).
   double sphere_cost(int b) const {
     const std::size_t k = std::size_t(b);
-    const double dc = sphere_count_[k] - sphere_target_[k], dx = sphere_moment_[k][0] - sphere_moment_target_[k][0],
-                 dy = sphere_moment_[k][1] - sphere_moment_target_[k][1];
-    return (dc * dc + sphere_moment_weight_[k] * (dx * dx + dy * dy)) / std::max(sphere_target_[k], 5.0);
+    const double dc = sphere_count_[k] - sphere_target_[k];
+    return dc * dc / std::max(sphere_target_[k], 5.0);
   }
-  // Whether a triangle of these bins lies in the sparse tail: a sphere bin expecting fewer than
-  // kSparseSphereBin triangles (the tail sweeps of refine_binned_ndf revisit the vertices of such triangles).
-  bool in_sparse_tail(const TriangleBins& t) const { return sphere_target_[std::size_t(t.sphere)] < kSparseSphereBin; }
-  static constexpr double kSparseSphereBin = 20.0;
   double total() const {
     double s = 0;
     for (int b = 0; b < int(sphere_target_.size()); ++b) s += sphere_cost(b);
@@ -187,8 +151,7 @@ private:
   LobeNdfBins lobe_;
   SphereNdfBins sphere_;
   int radius_bins_, tail_bins_ = 1;
-  std::vector<double> sphere_target_, sphere_count_, sphere_moment_weight_;
-  std::vector<std::array<double, 2>> sphere_moment_target_, sphere_moment_;
+  std::vector<double> sphere_target_, sphere_count_;
   std::vector<double> target_, moment_weight_, count_, radial_target_, radial_count_;
   std::vector<std::array<double, 2>> moment_target_, moment_;
 };
@@ -263,24 +226,6 @@ bool try_vertex(PeriodicField& field, BinnedNdfObjective& f, int i, int j, doubl
   return false;
 }
 
-// The vertices (linear indices j n + i, ascending, distinct) of the triangles in sparse tail bins.
-std::vector<std::uint32_t> sparse_tail_vertices(const PeriodicField& field, const BinnedNdfObjective& f, int n) {
-  std::vector<std::uint32_t> v;
-  const auto index = [n](int i, int j) { return std::uint32_t((j % n) * n + (i % n)); };
-  for (int j = 0; j < n; ++j)
-    for (int i = 0; i < n; ++i)
-      for (int t = 0; t < 2; ++t) {
-        const auto u = field.slope(i, j, t);
-        if (!f.in_sparse_tail(f.classify(u[0], u[1]))) continue;
-        v.push_back(index(i, j));
-        v.push_back(index(i + 1, j + 1));
-        v.push_back(t == 0 ? index(i + 1, j) : index(i, j + 1));
-      }
-  std::sort(v.begin(), v.end());
-  v.erase(std::unique(v.begin(), v.end()), v.end());
-  return v;
-}
-
 }  // namespace
 
 NdfRefineReport refine_binned_ndf(std::vector<double>& h, int n, double ax, double ay, ReferenceNdf ref,
@@ -304,16 +249,6 @@ NdfRefineReport refine_binned_ndf(std::vector<double>& h, int n, double ax, doub
     report.moves += moved;
     report.sweeps = sweep + 1;
     if (double(moved) < 1e-4 * double(n) * n) break;
-  }
-  const std::vector<std::uint32_t> tail = sparse_tail_vertices(field, objective, n);
-  report.tail_vertices = tail.size();
-  for (int sweep = 0; sweep < options.tail_sweeps && !tail.empty(); ++sweep) {
-    if (cancelled && cancelled()) throw BuildCancelled("surface build cancelled");
-    std::uint64_t moved = 0;
-    for (const std::uint32_t v : tail) moved += try_vertex(field, objective, int(v % n), int(v / n), step_height) ? 1 : 0;
-    report.tail_moves += moved;
-    report.tail_sweeps = sweep + 1;
-    if (double(moved) < 0.01 * double(tail.size())) break;
   }
   report.objective_after = objective.total();
   return report;

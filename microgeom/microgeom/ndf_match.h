@@ -85,28 +85,20 @@ struct NdfRefineOptions {
   int radius_bins = 1024;       // radius bins of equal reference probability (the last one split in the tail)
   int max_sweeps = 2;  // measured at 1024^2: the first sweep removes 99% of the discrepancy, later ones ~1-10% each
   double step = 0.03;           // largest move, in normalised slope units (x max(1, |u|) of the steepest neighbour)
-  // Then up to this many sweeps over the vertices of the triangles in sparse sphere bins (expecting fewer
-  // than 20 triangles: the steep tail, where a few facets carry a bin's projected area and a vertex's
-  // relative step limits how far one sweep can move a slope); stop when a sweep moves < 1% of them.
-  int tail_sweeps = 32;
 };
 
 struct NdfRefineReport {
   int sweeps = 0;
   std::uint64_t moves = 0;            // accepted vertex moves
-  int tail_sweeps = 0;
-  std::uint64_t tail_vertices = 0, tail_moves = 0;  // the tail sweeps' vertices and accepted moves
   double objective_before = 0, objective_after = 0;  // chi-square-like discrepancy (see ndf_match.cpp)
 };
 
 // Moves vertex heights (cell units; slopes normalised by ax, ay) one at a time, in row order, each by the
 // first of +-step, +-0.3 step, +-0.1 step that lowers the discrepancy
 //   sum over lobe bins of ((c - t)^2 + |m - M|^2 / rbar^2) / t  +  sum over radius bins of (c - t)^2 / t
-//   + sum over the sphere bins of trace vndf (rows, or rows + 1 if even) of ((c - t)^2 + |m - M|^2 / rbar^2) / max(t, 5)
-// (c, m: triangle count and sum of u in the bin; t, M: their reference values; rbar: the lobe row's, or
-// the sphere bin's, mean radius; the sphere bins depend on (ax, ay): ndf_refine.cpp, SphereNdfBins);
-// stops after max_sweeps sweeps or when a sweep moves fewer than 1e-4 of the vertices; then the tail
-// sweeps (NdfRefineOptions::tail_sweeps) over the vertices of the triangles in sparse sphere bins. Sequential:
+//   + sum over the sphere bins of trace vndf (rows, or rows + 1 if even) of (c - t)^2 / max(t, 5)
+// (c, m: triangle count and sum of u in the bin; t, M: their reference values; rbar: the row's mean
+// radius; the sphere bins depend on (ax, ay): ndf_refine.cpp, SphereNdfBins); stops after max_sweeps sweeps or when a sweep moves fewer than 1e-4 of the vertices. Sequential:
 // the result does not depend on the thread count. `cancelled` is polled between sweeps (throws
 // BuildCancelled).
 NdfRefineReport refine_binned_ndf(std::vector<double>& h, int n, double ax, double ay, ReferenceNdf ref,
