@@ -15,8 +15,11 @@ lambda +- 1 sd.
 Usage:
   scripts/smith_map.py [--microsim build/microsim] [--work DIR] [--assemblies smith:radial,smith:joint]
                        [--alphas 0.05,0.1,0.3,0.5,1] [--thetas 0,15,30,45,60,75] [--res 1024] [--seed 1]
-                       [--rays 4000000] [--phi 30] [--cached-only] [--json map.json] [--svg map.svg]
-Prints a markdown table per assembly. Cells already traced (their JSON in --work) are reused.
+                       [--rays 4000000] [--phi 30] [--cached-only] [--reuse OLD.json] [--json map.json] [--svg map.svg]
+Prints a markdown table per assembly. Cells already traced (their JSON in --work) are reused, and so are the
+cells of --reuse (a --json of an earlier run) with the same assembly, match, alpha, theta, rays, resolution,
+seed and phi (cells without the last three, written before they were recorded, were measured at the
+defaults 1024, 1, 30).
 """
 import argparse
 import json
@@ -80,6 +83,7 @@ def cell(args, assembly, match, alpha, theta):
         return None
     lobe = [c for c in j["comparisons"] if c["binning"] == "lobe"][0]
     out = {"assembly": assembly, "match": match, "alpha": alpha, "theta": theta, "rays": j["rays"],
+           "res": args.res, "seed": args.seed, "phi": args.phi,
            "tv_analytic": lobe["tv_smith_analytic"], "tv_own": lobe["tv_smith_empirical"],
            "tv_noise": lobe["tv_noise_floor"]}
     for key, name in (("chi2_smith_empirical", "own"), ("chi2_smith_analytic", "analytic")):
@@ -87,6 +91,17 @@ def cell(args, assembly, match, alpha, theta):
         out[name] = resolving_rays(c["statistic"], c["dof"], j["rays"])
         out[name]["chi2"], out[name]["dof"], out[name]["p"] = c["statistic"], c["dof"], c["p_value"]
     return out
+
+
+def reused_cell(args, old, assembly, match, alpha, theta):
+    """The cell of an earlier run's JSON measured with the same parameters (None if there is none)."""
+    defaults = {"res": 1024, "seed": 1, "phi": 30.0}
+    for c in old:
+        if (c["assembly"], c["match"], c["alpha"], c["theta"], c["rays"]) != (assembly, match, alpha, theta, args.rays):
+            continue
+        if all(c.get(k, defaults[k]) == getattr(args, k) for k in defaults):
+            return c
+    return None
 
 
 def fmt_rays(r):
@@ -170,18 +185,23 @@ def main():
     p.add_argument("--phi", type=float, default=30.0)
     p.add_argument("--cached-only", action="store_true",
                    help="only the cells whose trace JSON is in --work (the others are left out: 'not measured')")
+    p.add_argument("--reuse", help="an earlier --json: its cells measured with the same parameters are kept")
     p.add_argument("--json")
     p.add_argument("--svg")
     args = p.parse_args()
     os.makedirs(args.work, exist_ok=True)
     alphas = [float(a) for a in args.alphas.split(",")]
     thetas = [float(t) for t in args.thetas.split(",")]
+    old = []
+    if args.reuse:
+        with open(args.reuse) as f:
+            old = json.load(f)
     cells = []
     for spec in args.assemblies.split(","):
         assembly, match = spec.split(":")
         for a in alphas:
             for t in thetas:
-                c = cell(args, assembly, match, a, t)
+                c = reused_cell(args, old, assembly, match, a, t) or cell(args, assembly, match, a, t)
                 if c is not None:
                     cells.append(c)
                     print(json.dumps(c), file=sys.stderr, flush=True)
