@@ -104,28 +104,35 @@ def reused_cell(args, old, assembly, match, alpha, theta):
     return None
 
 
+def short(v):
+    """2.2e6 (two significant digits, no '+' or leading zero in the exponent)."""
+    if v >= 1e15:
+        return "inf"
+    m, e = f"{v:.1e}".split("e")
+    return f"{m}e{int(e)}"
+
+
 def fmt_rays(r):
-    v = r["rays"]
-    text = f"{v:.2g}" if v < 1e15 else "inf"
+    text = short(r["rays"])
     if r["lower_bound"]:
         return "> " + text
     lo, hi = r["low"], r["high"]
-    return f"{text} ({lo:.2g}-{hi:.2g})" if hi else f"{text} ({lo:.2g}-)"
+    return f"{text} ({short(lo)}-{short(hi)})" if hi else f"{text} ({short(lo)}-)"
 
 
 def markdown(cells, alphas, thetas):
-    lines = []
-    for key in sorted({(c["assembly"], c["match"]) for c in cells}):
-        lines.append(f"\n{key[0]}, --ndf-match {key[1]}: rays at which the traced VNDF is distinguishable from "
-                     f"Smith (own NDF / analytic NDF)\n")
-        lines.append("| alpha \\ theta | " + " | ".join(str(t) for t in thetas) + " |")
-        lines.append("|---" * (len(thetas) + 1) + "|")
-        for a in alphas:
+    """One table (as in docs/surfaces.md 8.3): a row per (assembly, match, alpha), a column per theta,
+    each cell 'own NDF / analytic NDF', '-' where not measured."""
+    keys = sorted({(c["assembly"], c["match"]) for c in cells}, key=lambda k: (k[0], k[1] != "radial", k[1]))
+    lines = ["| assembly, match | alpha | " + " | ".join(f"theta {t:g}" for t in thetas) + " |",
+             "|---|---|" + "---|" * len(thetas)]
+    for a in alphas:
+        for key in keys:
             row = []
             for t in thetas:
                 m = [c for c in cells if (c["assembly"], c["match"]) == key and c["alpha"] == a and c["theta"] == t]
                 row.append(f"{fmt_rays(m[0]['own'])} / {fmt_rays(m[0]['analytic'])}" if m else "-")
-            lines.append(f"| {a} | " + " | ".join(row) + " |")
+            lines.append(f"| {key[0]}, {key[1]} | {a:g} | " + " | ".join(row) + " |")
     return "\n".join(lines)
 
 
