@@ -78,7 +78,7 @@ def simulate(p_sampler, p_trace, samples, rays, runs, rng):
     return float(np.median(ps)), float(np.mean(ps < LEVEL))
 
 
-def main():
+def parse_args():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("surface")
     ap.add_argument("histogram")
@@ -86,51 +86,69 @@ def main():
     ap.add_argument("--runs", type=int, default=100)
     ap.add_argument("--from-row", type=int, default=14)
     ap.add_argument("--seed", type=int, default=7)
-    args = ap.parse_args()
+    return ap.parse_args()
 
-    hist = microsim.read_histogram(args.histogram)
+
+def traced_sphere(path):
+    """(counts, analytic probabilities, rows, cols, view, alpha) of a trace vndf histogram's sphere bins."""
+    hist = microsim.read_histogram(path)
     sphere = hist["binnings"]["sphere"]
     counts = np.asarray(sphere["counts"], dtype=float)
     rows, cols = counts.shape
-    counts = counts.ravel()
     analytic = np.asarray(sphere["expected_probability"], dtype=float).ravel()
     wi = np.array([float(x) for x in str(hist["attributes"]["wi"]).split(",")])
     alpha = float(str(hist["attributes"]["alpha"]).split(",")[0])
+    return counts.ravel(), analytic, rows, cols, wi, alpha
 
-    field = microsim.load_heightfield(args.surface)
-    sx, sy = triangle_slopes(field)
+
+def own_ndf_smith(sx, sy, wi, rows):
+    """Smith's VNDF with the tile's own NDF per sphere bin (projected areas (w_z - s . w_xy)+), and the
+    triangle count per bin."""
     bins = sphere_bins_of(sx, sy, rows)
-    area = np.maximum(wi[2] - sx * wi[0] - sy * wi[1], 0.0)  # projected area per unit base area
-    own = np.bincount(bins, weights=area, minlength=rows * cols)
-    own /= own.sum()
-    triangles = np.bincount(bins, minlength=rows * cols)
-    traced = counts / counts.sum()
-    n = len(sx)
+    area = np.maximum(wi[2] - sx * wi[0] - sy * wi[1], 0.0)
+    own = np.bincount(bins, weights=area, minlength=rows * 2 * rows)
+    return own / own.sum(), np.bincount(bins, minlength=rows * 2 * rows)
 
-    print(f"{args.surface}: {n} triangles, alpha {alpha}, view {wi}, {int(counts.sum())} traced rays")
+
+def ggx_triangles_in_row(r, rows, alpha, n):
+    """GGX's expected count of n triangles whose normal lies in upper row r (isotropic alpha)."""
+    z_hi, z_lo = 1 - 2 * r / rows, max(0.0, 1 - 2 * (r + 1) / rows)
+    u_lo = math.sqrt(1 / z_hi ** 2 - 1) / alpha
+    u_hi = math.inf if z_lo == 0 else math.sqrt(1 / z_lo ** 2 - 1) / alpha
+    return n * (1 / (1 + u_lo ** 2) - (0.0 if math.isinf(u_hi) else 1 / (1 + u_hi ** 2))), z_hi, z_lo
+
+
+def print_rows(triangles, own, analytic, traced, rows, cols, alpha, first_row):
+    n = int(triangles.sum())
     print("| row | theta_m (deg) | triangles | GGX | bins occupied | per bin | own/analytic mass | traced/own mass |")
     print("|---|---|---|---|---|---|---|---|")
-    for r in range(rows // 2 + 1):
-        z_hi, z_lo = 1 - 2 * r / rows, max(0.0, 1 - 2 * (r + 1) / rows)
-        u_lo = math.sqrt(1 / z_hi ** 2 - 1) / alpha
-        u_hi = math.inf if z_lo == 0 else math.sqrt(1 / z_lo ** 2 - 1) / alpha
-        ggx = n * (1 / (1 + u_lo ** 2) - (0.0 if math.isinf(u_hi) else 1 / (1 + u_hi ** 2)))
+    for r in range(first_row, rows // 2 + 1):
+        ggx, z_hi, z_lo = ggx_triangles_in_row(r, rows, alpha, n)
         sl = slice(r * cols, (r + 1) * cols)
-        if ggx < 1e-3 * n or r >= args.from_row - 4:
-            print(f"| {r} | {math.degrees(math.acos(z_hi)):.1f}-{math.degrees(math.acos(z_lo)):.1f} | "
-                  f"{triangles[sl].sum()} | {ggx:.1f} | {np.sum(triangles[sl] > 0)}/{cols} | "
-                  f"{triangles[sl].min()}-{triangles[sl].max()} | {own[sl].sum() / analytic[sl].sum():.3f} | "
-                  f"{traced[sl].sum() / own[sl].sum():.3f} |")
+        print(f"| {r} | {math.degrees(math.acos(z_hi)):.1f}-{math.degrees(math.acos(z_lo)):.1f} | "
+              f"{triangles[sl].sum()} | {ggx:.1f} | {np.sum(triangles[sl] > 0)}/{cols} | "
+              f"{triangles[sl].min()}-{triangles[sl].max()} | {own[sl].sum() / analytic[sl].sum():.3f} | "
+              f"{traced[sl].sum() / own[sl].sum():.3f} |")
+
+
+def main():
+    args = parse_args()
+    counts, analytic, rows, cols, wi, alpha = traced_sphere(args.histogram)
+    sx, sy = triangle_slopes(microsim.load_heightfield(args.surface))
+    own, triangles = own_ndf_smith(sx, sy, wi, rows)
+    traced = counts / counts.sum()
+    rays = int(counts.sum())
+    print(f"{args.surface}: {len(sx)} triangles, alpha {alpha}, view {wi}, {rays} traced rays")
+    print_rows(triangles, own, analytic, traced, rows, cols, alpha, max(0, args.from_row - 6))
 
     rng = np.random.default_rng(args.seed)
-    rays = int(counts.sum())
     tail = own.copy()
     tail[args.from_row * cols:] = analytic[args.from_row * cols:]
     print(f"\nsimulated validate, sphere bins ({args.runs} runs, {args.samples} samples against {rays} rays, "
           f"level {LEVEL:.5f}): median p, fraction rejected")
     for name, law in (("trace = analytic D_v (calibration)", analytic),
                       ("trace = own-NDF Smith VNDF (NDF error only)", own),
-                      (f"own-NDF Smith, rows >= {args.from_row} analytic", tail / tail.sum())):
+                      (f"own-NDF Smith, rows >= {args.from_row} analytic", tail)):
         median, rejected = simulate(analytic, law, args.samples, rays, args.runs, rng)
         print(f"  {name}: {median:.3g}, {rejected:.2f}")
     return 0
