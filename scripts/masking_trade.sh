@@ -5,7 +5,7 @@
 #   microsim surface build           (build time and peak RSS per resolution)
 #   microsim trace masking --surface (tracing a stored 4096^2 tile: peak RSS, rays per second)
 # Usage: scripts/masking_trade.sh [OUTDIR] [PART...]
-#   parts: table table1 res corr tile seeds build big backface (default: all but backface)
+#   parts: table joint table1 res corr tile seeds build big backface (default: all but backface and joint)
 # Runtime on 2 cores (shared, loaded): table ~35 min, table1 ~20 min, the trade parts ~30 min, big ~10 min.
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
@@ -25,6 +25,10 @@ trade() {  # name res corr
 # realisations (seeds 1, 2, 3) per cell, 5e5 surface points and 1e6 VNDF rays per view and realisation.
 has table && tm "$B" trace masking --table --res 1024 --seeds 1,2,3 --samples 500000 --vndf-rays 1000000 \
   --markdown "$out/table-1024-seeds123.md" --json "$out/table-1024-seeds123.json" > /dev/null 2> "$out/table-1024-seeds123.log"
+# The same for `smith` with the NDF matched bin by bin (docs/masking.md 6.3, `--ndf-match joint`).
+has joint && tm "$B" trace masking --table --assemblies smith --ndf-match joint --res 1024 --seeds 1,2,3 --samples 500000 \
+  --vndf-rays 1000000 --markdown "$out/table-joint-1024-seeds123.md" --json "$out/table-joint-1024-seeds123.json" \
+  > /dev/null 2> "$out/table-joint-1024-seeds123.log"
 # The one-realisation table (seed 1, 1e6 points and 2e6 VNDF rays per view).
 has table1 && tm "$B" trace masking --table --res 1024 --markdown "$out/table-1024.md" --json "$out/table-1024.json" \
   > /dev/null 2> "$out/table-1024.log"

@@ -15,8 +15,11 @@ lambda +- 1 sd.
 Usage:
   scripts/smith_map.py [--microsim build/microsim] [--work DIR] [--assemblies smith:radial,smith:joint]
                        [--alphas 0.05,0.1,0.3,0.5,1] [--thetas 0,15,30,45,60,75] [--res 1024] [--seed 1]
-                       [--rays 4000000] [--phi 30] [--cached-only] [--json map.json] [--svg map.svg]
-Prints a markdown table per assembly. Cells already traced (their JSON in --work) are reused.
+                       [--rays 4000000] [--phi 30] [--cached-only] [--reuse OLD.json] [--json map.json] [--svg map.svg]
+Prints a markdown table per assembly. Cells already traced (their JSON in --work) are reused, and so are the
+cells of --reuse (a --json of an earlier run) with the same assembly, match, alpha, theta, rays, resolution,
+seed and phi (cells without the last three, written before they were recorded, were measured at the
+defaults 1024, 1, 30).
 """
 import argparse
 import json
@@ -80,6 +83,7 @@ def cell(args, assembly, match, alpha, theta):
         return None
     lobe = [c for c in j["comparisons"] if c["binning"] == "lobe"][0]
     out = {"assembly": assembly, "match": match, "alpha": alpha, "theta": theta, "rays": j["rays"],
+           "res": args.res, "seed": args.seed, "phi": args.phi,
            "tv_analytic": lobe["tv_smith_analytic"], "tv_own": lobe["tv_smith_empirical"],
            "tv_noise": lobe["tv_noise_floor"]}
     for key, name in (("chi2_smith_empirical", "own"), ("chi2_smith_analytic", "analytic")):
@@ -89,28 +93,46 @@ def cell(args, assembly, match, alpha, theta):
     return out
 
 
+def reused_cell(args, old, assembly, match, alpha, theta):
+    """The cell of an earlier run's JSON measured with the same parameters (None if there is none)."""
+    defaults = {"res": 1024, "seed": 1, "phi": 30.0}
+    for c in old:
+        if (c["assembly"], c["match"], c["alpha"], c["theta"], c["rays"]) != (assembly, match, alpha, theta, args.rays):
+            continue
+        if all(c.get(k, defaults[k]) == getattr(args, k) for k in defaults):
+            return c
+    return None
+
+
+def short(v):
+    """2.2e6 (two significant digits, no '+' or leading zero in the exponent)."""
+    if v >= 1e15:
+        return "inf"
+    m, e = f"{v:.1e}".split("e")
+    return f"{m}e{int(e)}"
+
+
 def fmt_rays(r):
-    v = r["rays"]
-    text = f"{v:.2g}" if v < 1e15 else "inf"
+    text = short(r["rays"])
     if r["lower_bound"]:
         return "> " + text
     lo, hi = r["low"], r["high"]
-    return f"{text} ({lo:.2g}-{hi:.2g})" if hi else f"{text} ({lo:.2g}-)"
+    return f"{text} ({short(lo)}-{short(hi)})" if hi else f"{text} ({short(lo)}-)"
 
 
 def markdown(cells, alphas, thetas):
-    lines = []
-    for key in sorted({(c["assembly"], c["match"]) for c in cells}):
-        lines.append(f"\n{key[0]}, --ndf-match {key[1]}: rays at which the traced VNDF is distinguishable from "
-                     f"Smith (own NDF / analytic NDF)\n")
-        lines.append("| alpha \\ theta | " + " | ".join(str(t) for t in thetas) + " |")
-        lines.append("|---" * (len(thetas) + 1) + "|")
-        for a in alphas:
+    """One table (as in docs/surfaces.md 8.3): a row per (assembly, match, alpha), a column per theta,
+    each cell 'own NDF / analytic NDF', '-' where not measured."""
+    keys = sorted({(c["assembly"], c["match"]) for c in cells}, key=lambda k: (k[0], k[1] != "radial", k[1]))
+    lines = ["| assembly, match | alpha | " + " | ".join(f"theta {t:g}" for t in thetas) + " |",
+             "|---|---|" + "---|" * len(thetas)]
+    for a in alphas:
+        for key in keys:
             row = []
             for t in thetas:
                 m = [c for c in cells if (c["assembly"], c["match"]) == key and c["alpha"] == a and c["theta"] == t]
                 row.append(f"{fmt_rays(m[0]['own'])} / {fmt_rays(m[0]['analytic'])}" if m else "-")
-            lines.append(f"| {a} | " + " | ".join(row) + " |")
+            lines.append(f"| {key[0]}, {key[1]} | {a:g} | " + " | ".join(row) + " |")
     return "\n".join(lines)
 
 
@@ -170,18 +192,23 @@ def main():
     p.add_argument("--phi", type=float, default=30.0)
     p.add_argument("--cached-only", action="store_true",
                    help="only the cells whose trace JSON is in --work (the others are left out: 'not measured')")
+    p.add_argument("--reuse", help="an earlier --json: its cells measured with the same parameters are kept")
     p.add_argument("--json")
     p.add_argument("--svg")
     args = p.parse_args()
     os.makedirs(args.work, exist_ok=True)
     alphas = [float(a) for a in args.alphas.split(",")]
     thetas = [float(t) for t in args.thetas.split(",")]
+    old = []
+    if args.reuse:
+        with open(args.reuse) as f:
+            old = json.load(f)
     cells = []
     for spec in args.assemblies.split(","):
         assembly, match = spec.split(":")
         for a in alphas:
             for t in thetas:
-                c = cell(args, assembly, match, a, t)
+                c = reused_cell(args, old, assembly, match, a, t) or cell(args, assembly, match, a, t)
                 if c is not None:
                     cells.append(c)
                     print(json.dumps(c), file=sys.stderr, flush=True)
