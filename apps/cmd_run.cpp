@@ -11,6 +11,7 @@
 #include "command.h"
 #include "experiment_report.h"
 #include "number_options.h"
+#include "mpi_ranks.h"
 #include "progress_bar.h"
 
 #include "core/atomic_file.h"
@@ -18,6 +19,7 @@
 #include "experiment/run.h"
 #include "experiment/run_directory.h"
 #include "experiment/spec.h"
+#include "experiment/split_rounds.h"
 
 #include <fmt/core.h>
 
@@ -61,7 +63,23 @@ experiment::ExperimentPlan plan_of(const experiment::ExperimentSpec& spec, const
   return experiment::plan_experiment(spec, options);  // Cancelled: nothing written
 }
 
-int run_experiment_command(const RunArgs& a) {
+// DIR's files and the summary; the exit code (130 when the results are partial).
+int write_results(const RunArgs& a, const experiment::ExperimentSpec& spec, const experiment::ExperimentPlan& plan,
+                  const experiment::ExperimentResults& results, std::uint64_t seed) {
+  print_results_table(results);
+  experiment::write_run_directory(a.out, spec, plan, results, {reproduce_command(a), MICROSIM_VERSION, seed});
+  fmt::print(stderr, "run: wrote {} and {}\n", (fs::path(a.out) / "results.json").string(),
+             (fs::path(a.out) / "index.html").string());
+  if (results.partial) {
+    fmt::print(stderr, "run: interrupted: results marked partial; run the same command again to resume\n");
+    return kExitInterrupted;
+  }
+  return kExitOk;
+}
+
+// The run on the root (alone, or rank 0 of an MPI job: `ranks` then serve its rounds). `plan_sent`: whether
+// the other ranks got the plan (after that, an error must abort the job: they may be inside a round).
+int run_experiment_command(const RunArgs& a, experiment::Ranks& ranks, bool& plan_sent) {
   const experiment::ExperimentSpec spec = experiment::load_spec(a.spec);  // SpecError: exit 2, nothing run
   check_distinct_outputs({{"SPEC", a.spec}}, {{"--out", (fs::path(a.out) / "results.json").string()}});
   const std::uint64_t seed = a.seed != 0 ? a.seed : spec.seed;
@@ -74,11 +92,17 @@ int run_experiment_command(const RunArgs& a) {
   const experiment::ExperimentPlan plan = plan_of(spec, previous, plan_options);
   progress->finish();
   print_plan_table(plan, spec);
-  if (a.dry_run) return kExitOk;  // the plan and its predicted time; nothing written
+  if (a.dry_run) {  // the plan and its predicted time; nothing written
+    experiment::send_stop(ranks, kExitOk);
+    return kExitOk;
+  }
+  experiment::send_plan(ranks, spec, plan);
+  plan_sent = true;
   experiment::RunOptions options;
   options.seed = a.seed;
   options.run = plan_options.run;
   options.resume = previous ? &previous->results : nullptr;
+  options.ranks = &ranks;
   std::size_t done = 0;  // the overall progress: measurements done, and the plan's predicted time of the rest
   options.on_measurement = [&](const experiment::MeasurementResult& m) {
     progress->finish();
@@ -87,15 +111,61 @@ int run_experiment_command(const RunArgs& a) {
   };
   const experiment::ExperimentResults results = experiment::run_experiment(spec, plan, options);
   progress->finish();
-  print_results_table(results);
-  experiment::write_run_directory(a.out, spec, plan, results, {reproduce_command(a), MICROSIM_VERSION, seed});
-  fmt::print(stderr, "run: wrote {} and {}\n", (fs::path(a.out) / "results.json").string(),
-             (fs::path(a.out) / "index.html").string());
-  if (results.partial) {
-    fmt::print(stderr, "run: interrupted: results marked partial; run the same command again to resume\n");
-    return kExitInterrupted;
+  const int code = write_results(a, spec, plan, results, seed);
+  experiment::send_stop(ranks, code);
+  return code;
+}
+
+// ---- under an MPI launcher (apps/mpi_ranks.h; docs/cluster.md) ----------------------------------------------
+
+// Rank 0: the run; an error before the plan went out stops the other ranks with its exit code, after it
+// aborts the job (MPI_Abort with the code: the other ranks may be inside a round).
+int run_as_root(const RunArgs& a, MpiSession& mpi) {
+  bool plan_sent = false;
+  try {
+    return run_experiment_command(a, mpi.ranks(), plan_sent);
+  } catch (...) {
+    const int code = report_error(std::current_exception());
+    if (plan_sent) mpi.abort(code);
+    experiment::send_stop(mpi.ranks(), code);
+    return code;
   }
-  return kExitOk;
+}
+
+// Ranks 1..: silent; they run their shards of the root's rounds and return the root's exit code. Their own
+// error (a spec that differs from the root's, a failure in a shard) is printed with the rank and aborts the job.
+int serve_as_rank(const RunArgs& a, MpiSession& mpi) {
+  try {
+    RunControl run = cli_run_control(a.threads, nullptr);
+    return experiment::serve_rounds(mpi.ranks(), [&] { return experiment::load_spec(a.spec); }, run);
+  } catch (...) {
+    mpi.abort(report_error(std::current_exception(), fmt::format("microsim run (rank {})", mpi.ranks().rank())));
+  }
+}
+
+// Started by a launcher without MPI compiled in: every process would run the whole experiment into one DIR.
+int refuse_without_mpi(const LaunchedRank& launched) {
+  if (launched.rank == 0)
+    fmt::print(stderr,
+               "microsim: error: run: started by an MPI launcher ({}={}) but MPI is not compiled in (CMake found no MPI, "
+               "or MICROSIM_MPI=OFF): refusing to run the whole experiment in every process; run it without mpirun, "
+               "or split it with --shard K/N (docs/cluster.md)\n",
+               launched.variable, launched.rank);
+  return kExitUsage;
+}
+
+int run_command(const RunArgs& a) {
+  const std::optional<LaunchedRank> launched = mpi_launch();
+  if (!launched || (!mpi_compiled_in() && launched->size == 1)) {
+    experiment::SingleProcess alone;
+    bool plan_sent = false;
+    return run_experiment_command(a, alone, plan_sent);
+  }
+  if (!mpi_compiled_in()) return refuse_without_mpi(*launched);
+  MpiSession mpi;
+  install_interrupt_handler();
+  install_termination_handler();  // mpirun turns Ctrl-C into SIGTERM for every rank
+  return mpi.ranks().rank() == 0 ? run_as_root(a, mpi) : serve_as_rank(a, mpi);
 }
 
 CommandRegistration run_registration{"run", [](CLI::App& app) {
@@ -107,7 +177,11 @@ CommandRegistration run_registration{"run", [](CLI::App& app) {
       "command, version), the report DIR/index.html, DIR/albedo-K.csv and DIR/vndf-K.exr. Run again with the same "
       "seed, it resumes an interrupted run. Runs albedo (analytic, smith-walk) and vndf (ellipsoid oracle) "
       "measurements; others are planned and reported as not run. Exit 0 done, 2 bad spec or usage (nothing run), "
-      "130 interrupted (partial results written).");
+      "130 interrupted (partial results written). " +
+          std::string(mpi_compiled_in()
+                          ? "MPI is compiled in: under mpirun or srun every VNDF and scattering round is split over the "
+                            "ranks, bit for bit the one-process results (docs/cluster.md)."
+                          : "MPI is not compiled in: a run under mpirun or srun is refused (docs/cluster.md)."));
   sub->add_option("SPEC", args->spec, "the experiment spec (.toml, or .json)")->required();
   sub->add_option("--out", args->out, "the results directory (created; empty, or holding this spec's run at this seed: resumed)")->required();
   sub->add_flag("--dry-run", args->dry_run, "plan only (the pilots run): print the plan and its predicted time, write nothing");
@@ -115,7 +189,7 @@ CommandRegistration run_registration{"run", [](CLI::App& app) {
   add_number_option(sub, "--threads", args->threads, integer(0, kMaxThreads),
                     at_most("worker threads (0: all cores)", kMaxThreads))
       ->default_str("0");
-  on_selected(sub, [args] { return run_experiment_command(*args); });
+  on_selected(sub, [args] { return run_command(*args); });
 }};
 
 }  // namespace

@@ -25,6 +25,7 @@
 
 #include "core/estimate.h"
 #include "experiment/plan.h"
+#include "experiment/ranks.h"
 #include "stats/histogram_io.h"
 #include "stats/scatter_histogram.h"
 
@@ -86,6 +87,9 @@ struct RunOptions {
   double cost_factor = 1;
   // Rounds at most (a fixed-cost run: 1); a target not met then is reported as such.
   int max_rounds = kMaxRounds;
+  // The ranks the VNDF and scattering rounds are split over (split_rounds.h; this process is the root, and
+  // the others serve_rounds); null: this process alone. Same results either way, bit for bit.
+  Ranks* ranks = nullptr;
   // Called after each measurement (complete, partial or skipped), on the calling thread.
   std::function<void(const MeasurementResult&)> on_measurement;
 };

@@ -1,0 +1,46 @@
+// experiment: the rounds of run_experiment split over ranks (ranks.h; `mpirun -n P microsim run`).
+//
+// A VNDF or scattering round is one seed and one range of blocks (core/block_runner.h). The root sends it to
+// every rank (a RoundTask), rank r runs its contiguous shard of the range (rank_blocks: shard r + 1 of P by
+// shard_range, so rank order is block order), the parts are gathered to the root and combined there in rank
+// order. The tallies are exact (VNDF: integer counts; scattering: ExactSum fixed point), so the combined round
+// is the one-process round bit for bit, as a merge of `--shard` parts is. A part cancelled part way ends the
+// round there: the parts of later ranks are dropped and the combined round is the completed prefix of the
+// range, marked partial (resumed like a one-process round). A part whose blocks are not its rank's shard (out
+// of order, missing, overlapping) is a bug: InternalError. The root alone decides the rounds' sizes and when
+// to stop, from the combined rounds; the other ranks only run what it sends (serve_rounds) until it stops.
+// Albedo tables and validations are not split: the root runs them while the other ranks wait.
+#pragma once
+
+#include "experiment/plan.h"
+#include "experiment/ranks.h"
+#include "experiment/spec.h"
+#include "measure/vndf.h"
+#include "scatter/smith_walk.h"
+
+#include <functional>
+
+namespace microsim::experiment {
+
+// Rank `rank`'s shard of `round` (rank 0 .. ranks - 1): shard rank + 1 of `ranks`, offset to round.begin.
+BlockRange rank_blocks(const BlockRange& round, int rank, int ranks);
+
+// The root's side. Without ranks (null) or with one, these are measure_ellipsoid_vndf and smith_walk_scatter.
+// `measurement` is the decision's index in the plan the other ranks received (send_plan).
+EllipsoidVndf split_vndf_round(Ranks* ranks, std::size_t measurement, const EllipsoidTarget& target,
+                               const VndfRequest& request);
+ScatterHistogram split_scatter_round(Ranks* ranks, std::size_t measurement, const SmithMicrosurface& surface,
+                                     const ScatterOptions& options);
+
+// The root starts the other ranks with the plan (and the spec's digest, which theirs must match), and stops
+// them with the exit code they are to return (also before the plan: a run that stops early). No-ops alone.
+void send_plan(Ranks& ranks, const ExperimentSpec& spec, const ExperimentPlan& plan);
+void send_stop(Ranks& ranks, int exit_code);
+
+// A rank other than the root: waits for the plan (or a stop), loads the spec (load_spec: called only when a
+// plan came, so a bad spec is reported once, by the root), checks that it is the root's (digest), then runs
+// its shard of every round the root sends until the root stops; returns the exit code the root sent. Throws
+// std::invalid_argument when the spec differs from the root's, InternalError on a malformed message.
+int serve_rounds(Ranks& ranks, const std::function<ExperimentSpec()>& load_spec, const RunControl& run);
+
+}  // namespace microsim::experiment
