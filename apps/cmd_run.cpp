@@ -15,10 +15,12 @@
 #include "progress_bar.h"
 
 #include "core/atomic_file.h"
+#include "core/parse.h"
 #include "experiment/plan.h"
 #include "experiment/run.h"
 #include "experiment/run_directory.h"
 #include "experiment/spec.h"
+#include "experiment/shards.h"
 #include "experiment/split_rounds.h"
 
 #include <fmt/core.h>
@@ -27,6 +29,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #ifndef MICROSIM_VERSION
 #define MICROSIM_VERSION "unknown"
@@ -39,6 +42,8 @@ namespace fs = std::filesystem;
 
 struct RunArgs {
   std::string spec, out;
+  std::string shard;               // --shard K/N: this job's shard of the first rounds (shards.h)
+  std::vector<std::string> merge;  // --merge PART...: the shards' directories
   std::uint64_t seed = 0;
   int threads = 0;
   bool dry_run = false;
@@ -47,6 +52,20 @@ struct RunArgs {
 std::string reproduce_command(const RunArgs& a) {
   return fmt::format("microsim run {} --out {}{}{}", a.spec, a.out, a.seed ? fmt::format(" --seed {}", a.seed) : "",
                      a.threads ? fmt::format(" --threads {}", a.threads) : "");
+}
+
+// The shards of `--merge`, checked (one job: same spec, seed, plan and N, each K once); UsageError naming the
+// problem. Their first rounds are taken from their parts; everything else runs here.
+experiment::StoredRounds merged_shards(const RunArgs& a, const experiment::ExperimentSpec& spec, std::uint64_t seed,
+                                       experiment::ExperimentPlan& plan) {
+  std::vector<experiment::ShardParts> shards;
+  try {
+    for (const std::string& dir : a.merge) shards.push_back(experiment::read_shard_directory(dir, spec, seed));
+    plan = experiment::plan_from_json(shards.front().plan, spec);
+    return experiment::merge_shards(shards, a.merge);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
 }
 
 // The plan: an earlier run's (resumed: its pilots are not run again), or from the pilots.
@@ -89,7 +108,11 @@ int run_experiment_command(const RunArgs& a, experiment::Ranks& ranks, bool& pla
   plan_options.seed = a.seed;
   plan_options.run = cli_run_control(a.threads, progress);
   install_interrupt_handler();
-  const experiment::ExperimentPlan plan = plan_of(spec, previous, plan_options);
+  experiment::ExperimentPlan plan;
+  experiment::StoredRounds stored;
+  if (!a.merge.empty() && previous) throw UsageError(fmt::format("--merge: --out {} holds a run: the merge writes a new one", a.out));
+  if (!a.merge.empty()) stored = merged_shards(a, spec, seed, plan);
+  else plan = plan_of(spec, previous, plan_options);
   progress->finish();
   print_plan_table(plan, spec);
   if (a.dry_run) {  // the plan and its predicted time; nothing written
@@ -103,6 +126,7 @@ int run_experiment_command(const RunArgs& a, experiment::Ranks& ranks, bool& pla
   options.run = plan_options.run;
   options.resume = previous ? &previous->results : nullptr;
   options.ranks = &ranks;
+  options.stored = a.merge.empty() ? nullptr : &stored;
   std::size_t done = 0;  // the overall progress: measurements done, and the plan's predicted time of the rest
   options.on_measurement = [&](const experiment::MeasurementResult& m) {
     progress->finish();
@@ -154,8 +178,42 @@ int refuse_without_mpi(const LaunchedRank& launched) {
   return kExitUsage;
 }
 
+// ---- a job array's shard (`--shard K/N`; src/experiment/shards.h) --------------------------------------------
+
+constexpr std::uint64_t kMaxShards = 100000;
+
+int run_one_shard(const RunArgs& a) {
+  if (!a.merge.empty() || a.dry_run) throw UsageError("--shard runs one shard of a job array: not with --merge or --dry-run");
+  const ShardSpec s = parse_shard("--shard", a.shard, kMaxShards);  // ParseError: exit 2
+  const experiment::ExperimentSpec spec = experiment::load_spec(a.spec);
+  check_distinct_outputs({{"SPEC", a.spec}}, {{"--out", (fs::path(a.out) / "shard.json").string()}});
+  if (fs::exists(a.out) && (!fs::is_directory(a.out) || !fs::is_empty(a.out)))
+    throw UsageError(fmt::format("--out {}: a shard's directory must be new or empty", a.out));
+  const std::uint64_t seed = a.seed != 0 ? a.seed : spec.seed;
+  const auto progress = std::make_shared<CliProgress>(true);
+  experiment::PlanOptions plan_options;
+  plan_options.seed = a.seed;
+  plan_options.run = cli_run_control(a.threads, progress);
+  install_interrupt_handler();
+  fmt::print(stderr, "run: {}: planning (pilots)\n", spec.name);
+  const experiment::ExperimentPlan plan = experiment::plan_experiment(spec, plan_options);
+  progress->finish();
+  print_plan_table(plan, spec);
+  const experiment::ShardParts shard = experiment::run_shard(spec, plan, seed, s.index, s.count, plan_options.run);
+  progress->finish();
+  experiment::write_shard_directory(a.out, spec, shard);
+  fmt::print(stderr, "run: shard {}/{}: the first rounds of {} measurements written to {}; when all {} are done: "
+             "microsim run {} --out DIR --merge PART...{}\n", s.index, s.count, shard.tasks.size(), a.out, s.count, a.spec,
+             a.seed ? fmt::format(" --seed {}", a.seed) : "");
+  return kExitOk;
+}
+
 int run_command(const RunArgs& a) {
   const std::optional<LaunchedRank> launched = mpi_launch();
+  if (!a.shard.empty()) {
+    if (launched && launched->size != 1) throw UsageError("--shard is for job arrays without MPI: not under mpirun or srun");
+    return run_one_shard(a);
+  }
   if (!launched || (!mpi_compiled_in() && launched->size == 1)) {
     experiment::SingleProcess alone;
     bool plan_sent = false;
@@ -184,6 +242,14 @@ CommandRegistration run_registration{"run", [](CLI::App& app) {
                           : "MPI is not compiled in: a run under mpirun or srun is refused (docs/cluster.md)."));
   sub->add_option("SPEC", args->spec, "the experiment spec (.toml, or .json)")->required();
   sub->add_option("--out", args->out, "the results directory (created; empty, or holding this spec's run at this seed: resumed)")->required();
+  sub->add_option("--shard", args->shard,
+                  "K/N: run block shard K of N of the first round of every VNDF and scattering measurement (a job "
+                  "array without MPI) into --out PART (new or empty); then --merge (docs/cluster.md)");
+  sub->add_option("--merge", args->merge,
+                  "PART...: the N shard directories of one job: their first rounds combined (bit for bit the "
+                  "one-process rounds), the sequential stop decided on them, further rounds and the other "
+                  "measurements run here; --out must be new or empty")
+      ->expected(1, -1);
   sub->add_flag("--dry-run", args->dry_run, "plan only (the pilots run): print the plan and its predicted time, write nothing");
   add_number_option(sub, "--seed", args->seed, whole(), "seed of the pilots and rounds (0: the spec's)")->default_str("0");
   add_number_option(sub, "--threads", args->threads, integer(0, kMaxThreads),

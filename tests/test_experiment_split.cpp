@@ -5,11 +5,14 @@
 //     attribute (the rate aside) and every scattering sum equal to the one-process run's, bit for bit;
 //   - negative controls: the root given the parts reversed (out of block order), with one missing, or with one
 //     emptied (a shard's blocks lost): an InternalError, never a wrong result;
+//   - the first rounds run as 3 shards of a job array (shards.h), given in any order, merged: bit for bit again;
+//     with two shards' parts swapped an InternalError, with a shard missing or given twice a bad input;
 //   - a rank cancelled from the start: the run is partial, what it kept is the prefix of the round before that
 //     rank's shard, and resumed in one process it gives the uninterrupted results.
 #include "core/errors.h"
 #include "experiment/plan.h"
 #include "experiment/run.h"
+#include "experiment/shards.h"
 #include "experiment/split_rounds.h"
 
 #include <gtest/gtest.h>
@@ -223,6 +226,27 @@ TEST_F(ExperimentSplit, ACancelledRankEndsTheRoundAtItsShardAndTheRunResumesBitF
   const ExperimentResults resumed = run_alone(*spec_, *plan_, &back);
   EXPECT_FALSE(resumed.partial);
   EXPECT_EQ(measured(resumed, false).dump(), measured(*alone_, false).dump());
+}
+
+TEST_F(ExperimentSplit, ShardsOfTheFirstRoundsMergeIntoTheOneProcessRunBitForBit) {
+  std::vector<ShardParts> shards;
+  std::vector<std::string> names;
+  for (std::uint64_t k = 3; k >= 1; --k) {  // given in any order: ordered by K
+    shards.push_back(run_shard(*spec_, *plan_, spec_->seed, k, 3, RunControl{1, nullptr, {}}));
+    names.push_back("shard " + std::to_string(k));
+  }
+  ASSERT_EQ(shards[0].tasks.size(), 2u);  // the VNDF's and the scattering's first rounds
+  const StoredRounds stored = merge_shards(shards, names);
+  RunOptions o;
+  o.run = RunControl{1, nullptr, {}};
+  o.stored = &stored;
+  EXPECT_EQ(measured(run_experiment(*spec_, *plan_, o)).dump(), measured(*alone_).dump());
+  StoredRounds swapped = stored;  // negative control: shards 2 and 3 of the scattering's round exchanged
+  std::swap(swapped.parts[1][1], swapped.parts[1][2]);
+  o.stored = &swapped;
+  EXPECT_THROW(run_experiment(*spec_, *plan_, o), InternalError);
+  EXPECT_THROW(merge_shards({shards[0], shards[2]}, {names[0], names[2]}), std::invalid_argument);  // 2/3 missing
+  EXPECT_THROW(merge_shards({shards[0], shards[1], shards[1]}, {names[0], names[1], names[1]}), std::invalid_argument);
 }
 
 }  // namespace

@@ -167,7 +167,7 @@ bool vndf_round(const ExperimentSpec& spec, const EllipsoidTarget& target, const
   VndfRequest req = vndf_request(spec, m.decision, start.rays, start.seed, o.run);
   if (start.first_block > 0) req.blocks = BlockRange{start.first_block, (start.rays + kRaysPerBlock - 1) / kRaysPerBlock};
   const auto clock = std::chrono::steady_clock::now();
-  const EllipsoidVndf round = split_vndf_round(o.ranks, index, target, req);
+  const EllipsoidVndf round = split_vndf_round({o.ranks, o.stored}, index, target, req);
   m.partial = round.trace.partial;  // cancelled: its completed blocks are a shorter run of that seed, kept
   if (round.histogram.rays == 0) return false;
   const bool fresh = m.histogram.binnings.empty();
@@ -242,7 +242,7 @@ bool scatter_round(const ExperimentSpec& spec, const RoundStart& start, std::siz
   ScatterOptions options = scatter_request(material, d, start.rays, start.seed, o.run);
   if (start.first_block > 0) options.blocks = BlockRange{start.first_block, (start.rays + kPathsPerBlock - 1) / kPathsPerBlock};
   const auto clock = std::chrono::steady_clock::now();
-  const ScatterHistogram round = split_scatter_round(o.ranks, index, scatter_surface(material, d), options);
+  const ScatterHistogram round = split_scatter_round({o.ranks, o.stored}, index, scatter_surface(material, d), options);
   m.partial = round.partial;
   if (round.paths() == 0) return false;
   add_scatter_round(m.scatter, round);
@@ -373,6 +373,21 @@ Estimate pool_rounds(const std::vector<Estimate>& rounds, const std::vector<std:
   }
   if (!(total > 0)) throw std::invalid_argument("pool_rounds: no units");
   return {weighted / total, std::sqrt(variance) / total};
+}
+
+std::vector<RoundTask> first_split_rounds(const ExperimentSpec& spec, const ExperimentPlan& plan, std::uint64_t seed) {
+  std::vector<RoundTask> tasks;
+  const RunOptions planned;  // the first round at the planned cost
+  for (std::size_t i = 0; i < plan.decisions.size(); ++i) {
+    const Decision& d = plan.decisions[i];
+    const QuantityKind kind = spec.quantities[d.quantity].kind;
+    if (!d.runnable || (kind != QuantityKind::vndf && kind != QuantityKind::scattering)) continue;
+    const bool vndf = kind == QuantityKind::vndf;  // as next_round caps them: run_vndf, run_scattering
+    const std::uint64_t units = std::min(first_units(d, planned), vndf ? kMaxRays : std::numeric_limits<std::uint64_t>::max());
+    const std::uint64_t block = vndf ? kRaysPerBlock : kPathsPerBlock;
+    tasks.push_back({i, units, round_seed(seed, i, 0), {0, units / block + (units % block != 0)}});
+  }
+  return tasks;
 }
 
 ExperimentResults run_experiment(const ExperimentSpec& spec, const ExperimentPlan& plan, const RunOptions& options) {

@@ -120,18 +120,29 @@ void add_vndf_part(TraceResult& t, const std::string& bytes, const BlockRange& r
 
 std::string joined_counts(const std::vector<std::uint64_t>& v) {
   std::string s;
-  for (std::size_t k = 0; k < v.size(); ++k) s += (k ? "," : "") + std::to_string(v[k]);
+  for (std::size_t k = 0; k < v.size(); ++k) {
+    if (k > 0) s += ',';
+    s += std::to_string(v[k]);
+  }
   return s;
 }
 
-// The root's own part (the first shard) and the gathered parts in rank order, as the one-process round: the
-// counts summed, the histogram's per-part attributes (blocks, unbinned, rate) those of the whole, analysed.
+// Checks the measurement the parts are added to: the root's own part (first = 1: rank 0's shard), or nothing
+// yet (first = 0, the parts of shard jobs: no block at all, at the round's start).
+void check_start(const BlockRange& own, bool partial, const BlockRange& round, int first, int ranks) {
+  if (first == 1) return check_shard(own, partial, round, 0, ranks);
+  if (own != BlockRange{round.begin, round.begin} || partial)
+    throw InternalError(fmt::format("a round's start holds blocks {}", own.to_string()));
+}
+
+// The parts (from `first` on; the root's own is rank 0's) in rank order, as the one-process round: the counts
+// summed, the histogram's per-part attributes (blocks, unbinned, rate) those of the whole, analysed.
 EllipsoidVndf combine_vndf_parts(EllipsoidVndf own, const std::vector<std::string>& parts, const BlockRange& round,
-                                 double seconds) {
-  const int ranks = int(parts.size());  // split_vndf_round checked: one part per rank
+                                 int first, double seconds) {
+  const int ranks = int(parts.size());  // checked: one part per rank
   TraceResult t = std::move(own.trace);
-  check_shard(t.blocks, t.partial, round, 0, ranks);
-  for (int r = 1; r < ranks && !t.partial; ++r) add_vndf_part(t, parts[std::size_t(r)], round, r, ranks);
+  check_start(t.blocks, t.partial, round, first, ranks);
+  for (int r = first; r < ranks && !t.partial; ++r) add_vndf_part(t, parts[std::size_t(r)], round, r, ranks);
   t.seconds = seconds;
   TracedHistogram h = std::move(own.histogram);
   h.counts = t.counts;
@@ -201,10 +212,14 @@ void add_scatter_part(ScatterHistogram& sum, const std::string& bytes, const Blo
 
 std::string stop_message(int exit_code) { return nlohmann::json{{"stop", exit_code}}.dump(); }
 
-std::string task_message(std::size_t measurement, std::uint64_t units, std::uint64_t seed, const BlockRange& round) {
-  return nlohmann::json{{"round", {{"measurement", measurement}, {"units", units}, {"seed", seed},
-                                   {"blocks", {round.begin, round.end}}}}}
-      .dump();
+std::string task_message(const RoundTask& task) { return nlohmann::json{{"round", round_task_json(task)}}.dump(); }
+
+// The stored parts of this round (a merge of shard jobs), or null.
+const std::vector<std::string>* stored_parts(const StoredRounds* stored, const RoundTask& task) {
+  if (stored == nullptr) return nullptr;
+  for (std::size_t t = 0; t < stored->tasks.size(); ++t)
+    if (stored->tasks[t] == task) return &stored->parts[t];
+  return nullptr;
 }
 
 nlohmann::json parse_message(const std::string& text) {
@@ -236,32 +251,48 @@ BlockRange rank_blocks(const BlockRange& round, int rank, int ranks) {
   return {round.begin + shard.begin, round.begin + shard.end};
 }
 
-EllipsoidVndf split_vndf_round(Ranks* ranks, std::size_t measurement, const EllipsoidTarget& target,
+EllipsoidVndf split_vndf_round(const RoundSplit& split, std::size_t measurement, const EllipsoidTarget& target,
                                const VndfRequest& request) {
-  if (ranks == nullptr || ranks->size() == 1) return measure_ellipsoid_vndf(target, request);
   const auto start = std::chrono::steady_clock::now();
   const BlockRange round = round_blocks(request.blocks, request.rays, kRaysPerBlock);
-  ranks->broadcast(task_message(measurement, request.rays, request.seed, round));
+  const RoundTask task{measurement, request.rays, request.seed, round};
   VndfRequest own = request;
-  own.blocks = rank_blocks(round, 0, ranks->size());
+  if (const std::vector<std::string>* stored = stored_parts(split.stored, task)) {
+    own.blocks = BlockRange{round.begin, round.begin};  // nothing traced: the binnings and attributes
+    return combine_vndf_parts(measure_ellipsoid_vndf(target, own), *stored, round, 0, split_seconds_since(start));
+  }
+  if (split.ranks == nullptr || split.ranks->size() == 1) return measure_ellipsoid_vndf(target, request);
+  split.ranks->broadcast(task_message(task));
+  own.blocks = rank_blocks(round, 0, split.ranks->size());
   EllipsoidVndf part = measure_ellipsoid_vndf(target, own);
-  const std::vector<std::string> parts = ranks->gather(vndf_part(part));
-  check_part_count(parts, ranks->size());
-  return combine_vndf_parts(std::move(part), parts, round, split_seconds_since(start));
+  const std::vector<std::string> parts = split.ranks->gather(vndf_part(part));
+  check_part_count(parts, split.ranks->size());
+  return combine_vndf_parts(std::move(part), parts, round, 1, split_seconds_since(start));
 }
 
-ScatterHistogram split_scatter_round(Ranks* ranks, std::size_t measurement, const SmithMicrosurface& surface,
+ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measurement, const SmithMicrosurface& surface,
                                      const ScatterOptions& options) {
-  if (ranks == nullptr || ranks->size() == 1) return smith_walk_scatter(surface, options);
   const BlockRange round = round_blocks(options.blocks, options.paths, kPathsPerBlock);
-  ranks->broadcast(task_message(measurement, options.paths, options.seed, round));
+  const RoundTask task{measurement, options.paths, options.seed, round};
   ScatterOptions own = options;
-  own.blocks = rank_blocks(round, 0, ranks->size());
+  const std::vector<std::string>* parts = stored_parts(split.stored, task);
+  if (parts == nullptr && (split.ranks == nullptr || split.ranks->size() == 1)) return smith_walk_scatter(surface, options);
+  std::vector<std::string> gathered;
+  if (parts == nullptr) {
+    split.ranks->broadcast(task_message(task));
+    own.blocks = rank_blocks(round, 0, split.ranks->size());
+  } else {
+    own.blocks = BlockRange{round.begin, round.begin};  // nothing walked: the binning and provenance
+  }
   ScatterHistogram sum = smith_walk_scatter(surface, own);
-  const std::vector<std::string> parts = ranks->gather(scatter_part(sum));
-  check_part_count(parts, ranks->size());
-  check_shard(sum.provenance.blocks, sum.partial, round, 0, ranks->size());
-  for (int r = 1; r < ranks->size() && !sum.partial; ++r) add_scatter_part(sum, parts[std::size_t(r)], round, r, ranks->size());
+  if (parts == nullptr) {
+    gathered = split.ranks->gather(scatter_part(sum));
+    check_part_count(gathered, split.ranks->size());
+    parts = &gathered;
+  }
+  const int first = gathered.empty() ? 0 : 1, ranks = int(parts->size());
+  check_start(sum.provenance.blocks, sum.partial, round, first, ranks);
+  for (int r = first; r < ranks && !sum.partial; ++r) add_scatter_part(sum, (*parts)[std::size_t(r)], round, r, ranks);
   return sum;
 }
 
@@ -275,27 +306,54 @@ void send_stop(Ranks& ranks, int exit_code) {
 
 namespace {
 
-// Rank r's shard of the round `task` (a RoundTask message) names, run, and its part.
-std::string run_shard(const ExperimentSpec& spec, const ExperimentPlan& plan, const nlohmann::json& task,
-                      const Ranks& ranks, const RunControl& run) {
-  const auto i = task.at("measurement").get<std::size_t>();
-  if (i >= plan.decisions.size()) throw InternalError(fmt::format("a round of measurement {}: the plan has {}", i, plan.decisions.size()));
-  const Decision& d = plan.decisions[i];
+}  // namespace
+
+std::string run_part(const ExperimentSpec& spec, const ExperimentPlan& plan, const RoundTask& task, int rank, int ranks,
+                     const RunControl& run) {
+  if (task.measurement >= plan.decisions.size())
+    throw InternalError(fmt::format("a round of measurement {}: the plan has {}", task.measurement, plan.decisions.size()));
+  const Decision& d = plan.decisions[task.measurement];
   const SpecQuantity& q = spec.quantities[d.quantity];
-  const auto units = task.at("units").get<std::uint64_t>(), seed = task.at("seed").get<std::uint64_t>();
-  const BlockRange round{task.at("blocks").at(0).get<std::uint64_t>(), task.at("blocks").at(1).get<std::uint64_t>()};
-  const BlockRange mine = rank_blocks(round, ranks.rank(), ranks.size());
+  const BlockRange mine = rank_blocks(task.blocks, rank, ranks);
   if (q.kind == QuantityKind::vndf) {
-    VndfRequest request = vndf_request(spec, d, units, seed, run);
+    VndfRequest request = vndf_request(spec, d, task.units, task.seed, run);
     request.blocks = mine;
     return vndf_part(measure_ellipsoid_vndf(EllipsoidTarget(d.alpha.first, d.alpha.second, -1), request));
   }
-  if (q.kind != QuantityKind::scattering) throw InternalError(fmt::format("a round of measurement {}, which is not split", i));
+  if (q.kind != QuantityKind::scattering)
+    throw InternalError(fmt::format("a round of measurement {}, which is not split", task.measurement));
   const SpecMaterial& material = spec.material(q.material);
-  ScatterOptions options = scatter_request(material, d, units, seed, run);
+  ScatterOptions options = scatter_request(material, d, task.units, task.seed, run);
   options.blocks = mine;
   return scatter_part(smith_walk_scatter(scatter_surface(material, d), options));
 }
+
+bool part_is_partial(const std::string& part) {
+  PartReader in(part, 0);
+  in.next();
+  in.next();
+  return in.next() != 0;
+}
+
+void check_whole_part(const std::string& part, const BlockRange& round, int rank, int ranks) {
+  PartReader in(part, rank);
+  bool partial = false;
+  read_header(in, round, rank, ranks, partial);
+  if (partial) in.fail("cancelled part way");
+}
+
+nlohmann::json round_task_json(const RoundTask& task) {
+  return {{"measurement", task.measurement}, {"units", task.units}, {"seed", task.seed},
+          {"blocks", {task.blocks.begin, task.blocks.end}}};
+}
+
+RoundTask round_task_from_json(const nlohmann::json& task) {
+  return {task.at("measurement").get<std::size_t>(), task.at("units").get<std::uint64_t>(),
+          task.at("seed").get<std::uint64_t>(),
+          BlockRange{task.at("blocks").at(0).get<std::uint64_t>(), task.at("blocks").at(1).get<std::uint64_t>()}};
+}
+
+namespace {
 
 // The plan the root sent, for this rank's spec (which must be the root's).
 ExperimentPlan received_plan(const nlohmann::json& message, const ExperimentSpec& spec, int rank) {
@@ -324,7 +382,7 @@ int serve_rounds(Ranks& ranks, const std::function<ExperimentSpec()>& load_spec,
     if (message.contains("stop")) return message.at("stop").get<int>();
     std::string part;
     try {
-      part = run_shard(spec, plan, message.at("round"), ranks, run);
+      part = run_part(spec, plan, round_task_from_json(message.at("round")), ranks.rank(), ranks.size(), run);
     } catch (const nlohmann::json::exception& e) {
       throw InternalError(fmt::format("rank {}: a round from the root is malformed: {}", ranks.rank(), e.what()));
     }

@@ -18,19 +18,54 @@
 #include "measure/vndf.h"
 #include "scatter/smith_walk.h"
 
+#include <nlohmann/json.hpp>
+
 #include <functional>
+#include <string>
+#include <vector>
 
 namespace microsim::experiment {
 
 // Rank `rank`'s shard of `round` (rank 0 .. ranks - 1): shard rank + 1 of `ranks`, offset to round.begin.
 BlockRange rank_blocks(const BlockRange& round, int rank, int ranks);
 
-// The root's side. Without ranks (null) or with one, these are measure_ellipsoid_vndf and smith_walk_scatter.
-// `measurement` is the decision's index in the plan the other ranks received (send_plan).
-EllipsoidVndf split_vndf_round(Ranks* ranks, std::size_t measurement, const EllipsoidTarget& target,
+// One round: a measurement's (its index in the plan), of `units` units of `seed`, over these blocks.
+struct RoundTask {
+  std::size_t measurement = 0;
+  std::uint64_t units = 0, seed = 0;
+  BlockRange blocks;
+  bool operator==(const RoundTask&) const = default;
+};
+nlohmann::json round_task_json(const RoundTask& task);
+RoundTask round_task_from_json(const nlohmann::json& task);  // throws nlohmann::json::exception
+
+// Parts of rounds run elsewhere (shard jobs, shards.h): parts[t] holds task t's parts in shard order.
+struct StoredRounds {
+  std::vector<RoundTask> tasks;
+  std::vector<std::vector<std::string>> parts;
+};
+
+// Where the root's rounds come from: its own work only (null, or one rank), shared with ranks, or, for a
+// round that `stored` holds, those parts (the other ranks then have nothing to do for it).
+struct RoundSplit {
+  Ranks* ranks = nullptr;
+  const StoredRounds* stored = nullptr;
+};
+
+// The root's side: measure_ellipsoid_vndf and smith_walk_scatter, split. `measurement` is the decision's index
+// in the plan the other ranks received (send_plan).
+EllipsoidVndf split_vndf_round(const RoundSplit& split, std::size_t measurement, const EllipsoidTarget& target,
                                const VndfRequest& request);
-ScatterHistogram split_scatter_round(Ranks* ranks, std::size_t measurement, const SmithMicrosurface& surface,
+ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measurement, const SmithMicrosurface& surface,
                                      const ScatterOptions& options);
+
+// Rank `rank`'s part of a round (`ranks` ranks) run in this process: its tallies, in the split's encoding.
+std::string run_part(const ExperimentSpec& spec, const ExperimentPlan& plan, const RoundTask& task, int rank, int ranks,
+                     const RunControl& run);
+// Whether a part was cancelled part way (a prefix of its blocks).
+bool part_is_partial(const std::string& part);
+// Checks that a part holds rank `rank`'s shard of `round`, whole; InternalError naming what it holds.
+void check_whole_part(const std::string& part, const BlockRange& round, int rank, int ranks);
 
 // The root starts the other ranks with the plan (and the spec's digest, which theirs must match), and stops
 // them with the exit code they are to return (also before the plan: a run that stops early). No-ops alone.

@@ -5,10 +5,7 @@
 // The comparison can fail: a run with another seed differs. Under mpirun a bad spec is one message and exit 2.
 // Built only with MPI and mpirun (CMakeLists.txt); the library-level tests of the split are
 // tests/test_experiment_split.cpp (ranks as threads, with the negative controls of a wrong combination).
-#include "../cli_helpers.h"
-
-#include "stats/histogram_io.h"
-#include "stats/scatter_io.h"
+#include "../run_directory_contents.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -59,48 +56,12 @@ std::string mpirun(int ranks) {
          std::to_string(ranks) + " ";
 }
 
-// results.json without what differs between two runs of the same seed: timings and rates, the host's.
-nlohmann::json measured(nlohmann::json doc) {
-  if (doc.is_object()) {
-    nlohmann::json out = nlohmann::json::object();
-    for (auto& [key, value] : doc.items())
-      if (key.find("seconds") == std::string::npos && key != "rays_per_second") out[key] = measured(value);
-    return out;
-  }
-  if (doc.is_array())
-    for (auto& item : doc) item = measured(item);
-  return doc;
-}
-
-// Every result file of a run directory, read: the measured results, the histograms (the rate attribute
-// aside), the scattering sums and the CSV tables.
-std::string run_contents(const fs::path& dir) {
-  std::string out = measured(nlohmann::json::parse(slurp(dir / "results.json"))).dump();
-  for (const auto& entry : fs::directory_iterator(dir)) {
-    const std::string name = entry.path().filename().string();
-    if (name.rfind("vndf-", 0) == 0) {
-      microsim::TracedHistogram h = microsim::read_histogram_exr(entry.path());
-      h.attributes.erase("rays_per_second");
-      out += name + nlohmann::json(h.counts).dump() + nlohmann::json(h.probability).dump() + nlohmann::json(h.attributes).dump();
-    } else if (name.rfind("scattering-", 0) == 0) {
-      const microsim::ScatterFile f = microsim::read_scatter_exr(entry.path());
-      for (int k = 0; k < microsim::kScatterOrderBins; ++k)
-        for (std::size_t b = 0; b < f.histogram.bins(); ++b)
-          out += std::to_string(f.histogram.histogram(0, k).exact_weight(b).low_bits()) + ",";
-      out += name + f.histogram.provenance.blocks.to_string() + std::to_string(f.histogram.paths());
-    } else if (name.size() > 4 && name.substr(name.size() - 4) == ".csv") {
-      out += name + slurp(entry.path());
-    }
-  }
-  return out;
-}
-
 TEST(RunMpi, TwoAndThreeRanksWriteTheOneProcessResultsBitForBit) {
   const fs::path dir = scratch_dir();
   std::ofstream(dir / "split.toml") << kSpec;
   const auto alone = run_cli(dir, "run split.toml --out alone --threads 1");
   ASSERT_EQ(alone.exit_code, 0) << alone.err;
-  const std::string expected = run_contents(dir / "alone");
+  const std::string expected = microsim::test::run_directory_contents(dir / "alone");
   ASSERT_NE(expected.find("scattering-1.exr"), std::string::npos);
   ASSERT_NE(expected.find("vndf-0.exr"), std::string::npos);
   ASSERT_NE(expected.find("albedo-2.csv"), std::string::npos);
@@ -111,14 +72,14 @@ TEST(RunMpi, TwoAndThreeRanksWriteTheOneProcessResultsBitForBit) {
     const int status = std::system(cmd.c_str());
     const std::string err = slurp(dir / (out + ".stderr"));
     ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << ranks << " ranks: " << err;
-    EXPECT_EQ(run_contents(dir / out), expected) << ranks << " ranks";
+    EXPECT_EQ(microsim::test::run_directory_contents(dir / out), expected) << ranks << " ranks";
     const std::string printed = slurp(dir / (out + ".stdout"));
     EXPECT_EQ(printed.find("split"), printed.rfind("split")) << "stdout printed once: " << printed;
     EXPECT_EQ(err.find("rank "), std::string::npos) << err;
   }
   const auto other_seed = run_cli(dir, "run split.toml --out seed8 --threads 1 --seed 8");
   ASSERT_EQ(other_seed.exit_code, 0) << other_seed.err;
-  EXPECT_NE(run_contents(dir / "seed8"), expected) << "negative control: the comparison sees another seed";
+  EXPECT_NE(microsim::test::run_directory_contents(dir / "seed8"), expected) << "negative control: the comparison sees another seed";
 }
 
 TEST(RunMpi, ABadSpecUnderMpirunIsOneMessageAndExit2NothingWritten) {
