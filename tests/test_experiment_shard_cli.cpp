@@ -41,7 +41,7 @@ kind = "scattering"
 material = "glass"
 orders = "all"
 theta = [50]
-target_tv = 0.08
+target_tv = 0.04
 
 [[quantity]]
 kind = "albedo"
@@ -50,15 +50,15 @@ mus = 4
 target_relative_error = 0.001
 )";
 
-// Runs shards 1..n of the spec into DIR/n-K; returns the --merge arguments.
-std::string run_shards(const fs::path& dir, int n, const std::string& extra = "") {
+// Runs shards 1..n of the spec into DIR/n-K; returns the --merge arguments, each prefixed with `prefix`.
+std::string run_shards(const fs::path& dir, int n, const std::string& prefix = "") {
   std::string parts;
   for (int k = 1; k <= n; ++k) {
     const std::string part = std::to_string(n) + "-" + std::to_string(k);
     const auto r = run_cli(dir, "run shards.toml --threads 1 --out " + part + " --shard " + std::to_string(k) + "/" +
-                                    std::to_string(n) + extra);
+                                    std::to_string(n));
     EXPECT_EQ(r.exit_code, 0) << r.err;
-    parts += " " + part;
+    parts += " " + prefix + part;
   }
   return parts;
 }
@@ -68,9 +68,10 @@ protected:
   void SetUp() override {
     dir_ = scratch_dir();
     std::ofstream(dir_ / "shards.toml") << kShardSpec;
-    const auto alone = run_cli(dir_, "run shards.toml --out alone --threads 1");
+    fs::create_directory(dir_ / "a");  // every run directory is `out` beside the spec's `..`: the same command
+    const auto alone = run_cli(dir_ / "a", "run ../shards.toml --out out --threads 1");
     ASSERT_EQ(alone.exit_code, 0) << alone.err;
-    expected_ = run_directory_contents(dir_ / "alone");
+    expected_ = run_directory_contents(dir_ / "a" / "out");
   }
   // A bad merge: exit 2, `message` on stderr, nothing written or changed.
   void expect_refused(const std::string& args, const std::string& message) {
@@ -87,11 +88,12 @@ protected:
 TEST_F(ExperimentShardCli, TwoAndThreeShardsMergeIntoTheOneProcessRunBitForBit) {
   ASSERT_NE(expected_.find("scattering-1.exr"), std::string::npos);
   for (int n : {2, 3}) {
-    const std::string parts = run_shards(dir_, n);
-    const std::string merged = "merged" + std::to_string(n);
-    const auto r = run_cli(dir_, "run shards.toml --threads 1 --out " + merged + " --merge" + parts);
+    const std::string parts = run_shards(dir_, n, "../");
+    const fs::path merged = dir_ / ("merged" + std::to_string(n));
+    fs::create_directory(merged);
+    const auto r = run_cli(merged, "run ../shards.toml --out out --threads 1 --merge" + parts);
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    EXPECT_EQ(run_directory_contents(dir_ / merged), expected_) << n << " shards";
+    EXPECT_EQ(run_directory_contents(merged / "out"), expected_) << n << " shards";
   }
 }
 
@@ -107,7 +109,7 @@ TEST_F(ExperimentShardCli, AMissingRepeatedForeignOrChangedShardIsRefusedNothing
   bytes[bytes.size() - 1] ^= 1;  // one count changed by one
   std::ofstream(dir_ / "3-2" / "part-0.bin", std::ios::binary) << bytes;
   expect_refused("--out m --merge" + parts, "part-0.bin is missing, or not what shard.json records");
-  expect_refused("--out m --merge 3-1 alone", "holds no shard.json");
+  expect_refused("--out m --merge 3-1 a/out", "holds no shard.json");
 }
 
 TEST_F(ExperimentShardCli, BadShardValuesAreRefusedNothingWritten) {
@@ -115,8 +117,8 @@ TEST_F(ExperimentShardCli, BadShardValuesAreRefusedNothingWritten) {
   expect_refused("--out p --shard 3/2", "--shard (K)");
   expect_refused("--out p --shard 1/0", "--shard (N)");
   expect_refused("--out p --shard 2", "not a shard K/N");
-  expect_refused("--out p --shard 1/2 --merge alone", "not with --merge");
-  expect_refused("--out alone --shard 1/2", "must be new or empty");
+  expect_refused("--out p --shard 1/2 --merge a/out", "not with --merge");
+  expect_refused("--out a/out --shard 1/2", "must be new or empty");
 }
 
 }  // namespace

@@ -22,7 +22,7 @@ long double bisect(long double y, bool dmode) {
   long double lo = 0, hi = kPi<long double> / 4;
   for (int i = 0; i < 200; ++i) {
     const long double m = (lo + hi) / 2, s = std::sin(m), c = std::cos(m);
-    const long double g = dmode ? detail::d_minus_sin_cos(m, s, c) : m + s * c;
+    const long double g = dmode ? microsim::detail::d_minus_sin_cos(m, s, c) : m + s * c;
     (g > y ? hi : lo) = m;
   }
   return (lo + hi) / 2;
@@ -40,11 +40,11 @@ template <class T> std::pair<double, double> worst_errors(double u_min) {
     constexpr double eps = std::numeric_limits<T>::epsilon();
     if (y < top_d) {
       const long double ref = bisect(y, true);
-      worst_d = std::max(worst_d, double(std::abs(detail::solve_d_minus_sin_cos(y) - ref) / ref) / eps);
+      worst_d = std::max(worst_d, double(std::abs(microsim::detail::solve_d_minus_sin_cos(y) - ref) / ref) / eps);
     }
     if (y < top_b) {
       const long double ref = bisect(y, false);
-      worst_b = std::max(worst_b, double(std::abs(detail::solve_b_plus_sin_cos(y) - ref) / ref) / eps);
+      worst_b = std::max(worst_b, double(std::abs(microsim::detail::solve_b_plus_sin_cos(y) - ref) / ref) / eps);
     }
   }
   return {worst_d, worst_b};
@@ -67,18 +67,18 @@ TEST(HeitzDEon2014Roots, WithinTwoUlpsOverTheSamplersRange) {
 
 template <class T> void check_boundaries() {
   const T quarter = kPi<T> / T(4);
-  EXPECT_EQ(detail::solve_d_minus_sin_cos(T(0)), T(0));
-  EXPECT_EQ(detail::solve_b_plus_sin_cos(T(0)), T(0));
-  EXPECT_EQ(detail::solve_d_minus_sin_cos(std::numeric_limits<T>::quiet_NaN()), T(0));
+  EXPECT_EQ(microsim::detail::solve_d_minus_sin_cos(T(0)), T(0));
+  EXPECT_EQ(microsim::detail::solve_b_plus_sin_cos(T(0)), T(0));
+  EXPECT_EQ(microsim::detail::solve_d_minus_sin_cos(std::numeric_limits<T>::quiet_NaN()), T(0));
   // The top of the range and just above it (rounding of pi min(u, 1 - u) at the branch point).
   for (T y : {std::nextafter(quarter - T(0.5), T(0)), quarter - T(0.5), std::nextafter(quarter - T(0.5), T(1)), T(1)})
-    EXPECT_NEAR(double(detail::solve_d_minus_sin_cos(y)), double(quarter), 1e-3) << y;
+    EXPECT_NEAR(double(microsim::detail::solve_d_minus_sin_cos(y)), double(quarter), 1e-3) << y;
   for (T y : {std::nextafter(quarter + T(0.5), T(0)), quarter + T(0.5), std::nextafter(quarter + T(0.5), T(2)), T(2)})
-    EXPECT_NEAR(double(detail::solve_b_plus_sin_cos(y)), double(quarter), 1e-3) << y;
+    EXPECT_NEAR(double(microsim::detail::solve_b_plus_sin_cos(y)), double(quarter), 1e-3) << y;
   // The smallest positive inputs.
   const T tiny = std::numeric_limits<T>::min();
-  EXPECT_NEAR(double(detail::solve_d_minus_sin_cos(tiny)), double(std::cbrt(1.5L * tiny)), 1e-6 * double(std::cbrt(1.5L * tiny)));
-  EXPECT_NEAR(double(detail::solve_b_plus_sin_cos(tiny)), double(tiny) / 2, 1e-6 * double(tiny));
+  EXPECT_NEAR(double(microsim::detail::solve_d_minus_sin_cos(tiny)), double(std::cbrt(1.5L * tiny)), 1e-6 * double(std::cbrt(1.5L * tiny)));
+  EXPECT_NEAR(double(microsim::detail::solve_b_plus_sin_cos(tiny)), double(tiny) / 2, 1e-6 * double(tiny));
 }
 
 TEST(HeitzDEon2014Roots, BoundaryValues) {

@@ -390,12 +390,12 @@ TEST(LongDoubleAgreement, SamplersAtTheEndsOfTheirDomain) {
 template <class T> void check_cos2_inverse_cdf(double tol, double rel) {
   for (int i = 0; i <= 2000; ++i) {
     const T u = T(i) / T(2000);
-    const Vec2<T> cs = detail::cos_sin_of_cos2_inverse_cdf(clamp_unit(u));
+    const Vec2<T> cs = microsim::detail::cos_sin_of_cos2_inverse_cdf(clamp_unit(u));
     const long double b = std::atan2((long double)cs.y(), (long double)cs.x());
     const long double residual = b + std::sin(b) * std::cos(b) - kPi<long double> * ((long double)clamp_unit(u) - 0.5L);
     EXPECT_LT(double(std::abs(residual)), tol) << "u " << u;
     EXPECT_NEAR(double(cs.squaredNorm()), 1.0, 4 * tol);
-    const Vec2<long double> ref = detail::cos_sin_of_cos2_inverse_cdf((long double)clamp_unit(u));
+    const Vec2<long double> ref = microsim::detail::cos_sin_of_cos2_inverse_cdf((long double)clamp_unit(u));
     EXPECT_LE(double(std::abs(ref.x() - cs.x())), rel * double(std::abs(ref.x()))) << "u " << u;  // cos b keeps relative precision at the ends
   }
 }
@@ -406,12 +406,12 @@ TEST(HeitzDEon2014, InverseCdfOfCos2IsAccurate) {
 }
 
 TEST(CosSin2Pi, ExactAtQuarterTurns) {
-  EXPECT_EQ(detail::cos_sin_2pi(0.5), Vec2<double>(-1, 0));
-  EXPECT_EQ(detail::cos_sin_2pi(0.25), Vec2<double>(0, 1));
-  EXPECT_EQ(detail::cos_sin_2pi(0.75f), Vec2<float>(0, -1));
-  EXPECT_EQ(detail::cos_sin_2pi(0.0), Vec2<double>(1, 0));
+  EXPECT_EQ(microsim::detail::cos_sin_2pi(0.5), Vec2<double>(-1, 0));
+  EXPECT_EQ(microsim::detail::cos_sin_2pi(0.25), Vec2<double>(0, 1));
+  EXPECT_EQ(microsim::detail::cos_sin_2pi(0.75f), Vec2<float>(0, -1));
+  EXPECT_EQ(microsim::detail::cos_sin_2pi(0.0), Vec2<double>(1, 0));
   for (double u : {0.1, 0.3, 0.6, 0.9, 1 - 0x1p-53}) {
-    const Vec2<double> cs = detail::cos_sin_2pi(u);
+    const Vec2<double> cs = microsim::detail::cos_sin_2pi(u);
     EXPECT_NEAR(cs.x(), std::cos(2 * kPi<double> * u), 1e-15);
     EXPECT_NEAR(cs.y(), std::sin(2 * kPi<double> * u), 1e-15);
   }

@@ -41,7 +41,7 @@ kind = "scattering"
 material = "glass"
 orders = "all"
 theta = [50]
-target_tv = 0.08
+target_tv = 0.04
 
 [[quantity]]
 kind = "albedo"
@@ -56,30 +56,38 @@ std::string mpirun(int ranks) {
          std::to_string(ranks) + " ";
 }
 
+// Runs `microsim run ../split.toml --out out --threads 1 EXTRA` in DIR/NAME (every run directory is `out`:
+// the same command, recorded in results.json), under `launcher` (empty: alone); the exit code, stdout, stderr.
+microsim::test::CliRun run_in(const fs::path& dir, const std::string& name, const std::string& launcher,
+                              const std::string& extra = "") {
+  fs::create_directory(dir / name);
+  const std::string cmd = "cd '" + (dir / name).string() + "' && " + launcher + "'" + microsim::test::microsim_binary() +
+                          "' run ../split.toml --out out --threads 1" + extra + " > run.stdout 2> run.stderr";
+  const int status = std::system(cmd.c_str());
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(dir / name / "run.stdout"), slurp(dir / name / "run.stderr")};
+}
+
 TEST(RunMpi, TwoAndThreeRanksWriteTheOneProcessResultsBitForBit) {
   const fs::path dir = scratch_dir();
   std::ofstream(dir / "split.toml") << kSpec;
-  const auto alone = run_cli(dir, "run split.toml --out alone --threads 1");
+  const auto alone = run_in(dir, "alone", "");
   ASSERT_EQ(alone.exit_code, 0) << alone.err;
-  const std::string expected = microsim::test::run_directory_contents(dir / "alone");
+  const std::string expected = microsim::test::run_directory_contents(dir / "alone" / "out");
   ASSERT_NE(expected.find("scattering-1.exr"), std::string::npos);
   ASSERT_NE(expected.find("vndf-0.exr"), std::string::npos);
   ASSERT_NE(expected.find("albedo-2.csv"), std::string::npos);
   for (int ranks : {2, 3}) {
-    const std::string out = "ranks" + std::to_string(ranks);
-    const std::string cmd = "cd '" + dir.string() + "' && " + mpirun(ranks) + "'" + microsim::test::microsim_binary() +
-                            "' run split.toml --out " + out + " --threads 1 > " + out + ".stdout 2> " + out + ".stderr";
-    const int status = std::system(cmd.c_str());
-    const std::string err = slurp(dir / (out + ".stderr"));
-    ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << ranks << " ranks: " << err;
-    EXPECT_EQ(microsim::test::run_directory_contents(dir / out), expected) << ranks << " ranks";
-    const std::string printed = slurp(dir / (out + ".stdout"));
-    EXPECT_EQ(printed.find("split"), printed.rfind("split")) << "stdout printed once: " << printed;
-    EXPECT_EQ(err.find("rank "), std::string::npos) << err;
+    const std::string name = "ranks" + std::to_string(ranks);
+    const auto r = run_in(dir, name, mpirun(ranks));
+    ASSERT_EQ(r.exit_code, 0) << ranks << " ranks: " << r.err;
+    EXPECT_EQ(microsim::test::run_directory_contents(dir / name / "out"), expected) << ranks << " ranks";
+    EXPECT_EQ(r.out.find("plan of split"), r.out.rfind("plan of split")) << "stdout printed once: " << r.out;
+    EXPECT_NE(r.out.find("plan of split"), std::string::npos) << r.out;
   }
-  const auto other_seed = run_cli(dir, "run split.toml --out seed8 --threads 1 --seed 8");
+  const auto other_seed = run_in(dir, "seed8", "", " --seed 8");
   ASSERT_EQ(other_seed.exit_code, 0) << other_seed.err;
-  EXPECT_NE(microsim::test::run_directory_contents(dir / "seed8"), expected) << "negative control: the comparison sees another seed";
+  EXPECT_NE(microsim::test::run_directory_contents(dir / "seed8" / "out"), expected)
+      << "negative control: the comparison sees another seed";
 }
 
 TEST(RunMpi, ABadSpecUnderMpirunIsOneMessageAndExit2NothingWritten) {
