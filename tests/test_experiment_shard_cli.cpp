@@ -66,7 +66,7 @@ std::string run_shards(const fs::path& dir, int n, const std::string& prefix = "
 class ExperimentShardCli : public ::testing::Test {
 protected:
   void SetUp() override {
-    dir_ = scratch_dir();
+    dir_ = scratch_dir("shard_cli", ::testing::UnitTest::GetInstance()->current_test_info()->name());
     std::ofstream(dir_ / "shards.toml") << kShardSpec;
     fs::create_directory(dir_ / "a");  // every run directory is `out` beside the spec's `..`: the same command
     const auto alone = run_cli(dir_ / "a", "run ../shards.toml --out out --threads 1");

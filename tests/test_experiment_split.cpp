@@ -49,7 +49,7 @@ kind = "scattering"
 material = "glass"
 orders = "all"
 theta = [40]
-target_tv = 0.08
+target_tv = 0.05
 )", "split.toml");
 }
 
@@ -130,7 +130,7 @@ SplitRun run_split(const ExperimentSpec& spec, const ExperimentPlan& plan, int r
   return out;
 }
 
-ExperimentResults run_alone(const ExperimentSpec& spec, const ExperimentPlan& plan, const ExperimentResults* resume = nullptr) {
+ExperimentResults run_in_one_process(const ExperimentSpec& spec, const ExperimentPlan& plan, const ExperimentResults* resume = nullptr) {
   RunOptions o;
   o.run = RunControl{1, nullptr, {}};
   o.resume = resume;
@@ -140,7 +140,7 @@ ExperimentResults run_alone(const ExperimentSpec& spec, const ExperimentPlan& pl
 // What a run measured, without its timings: values, errors, rounds, counts; every VNDF count and attribute
 // (the measured rate aside; all of them without `attributes`: a resumed round keeps its first part's) and
 // every scattering sum.
-nlohmann::json measured(const ExperimentResults& results, bool attributes_too = true) {
+nlohmann::json split_measured(const ExperimentResults& results, bool attributes_too = true) {
   nlohmann::json out = nlohmann::json::array();
   for (const MeasurementResult& m : results.measurements) {
     nlohmann::json rounds = nlohmann::json::array();
@@ -168,7 +168,7 @@ protected:
   static void SetUpTestSuite() {
     spec_ = new ExperimentSpec(split_spec());
     plan_ = new ExperimentPlan(split_plan(*spec_));
-    alone_ = new ExperimentResults(run_alone(*spec_, *plan_));
+    alone_ = new ExperimentResults(run_in_one_process(*spec_, *plan_));
   }
   static void TearDownTestSuite() {
     delete alone_;
@@ -189,12 +189,12 @@ TEST_F(ExperimentSplit, TwoAndThreeRanksGiveTheOneProcessResultsBitForBit) {
     ASSERT_TRUE(m.ran && m.met) << m.decision.label;
     EXPECT_GE(m.rounds.front().units, 3 * 4096u) << "at least a block per rank";
   }
-  const std::string expected = measured(*alone_).dump();
+  const std::string expected = split_measured(*alone_).dump();
   for (int ranks : {2, 3}) {
     const SplitRun split = run_split(*spec_, *plan_, ranks);
     EXPECT_EQ(split.internal_error, "");
     EXPECT_FALSE(split.results.partial);
-    EXPECT_EQ(measured(split.results).dump(), expected) << ranks << " ranks";
+    EXPECT_EQ(split_measured(split.results).dump(), expected) << ranks << " ranks";
   }
 }
 
@@ -223,9 +223,9 @@ TEST_F(ExperimentSplit, ACancelledRankEndsTheRoundAtItsShardAndTheRunResumesBitF
   EXPECT_EQ(vndf.rounds[0].blocks_done, rank_blocks({0, blocks}, 2, 3).begin);  // ranks 0 and 1: a prefix
   ExperimentResults back = results_from_json(nlohmann::json::parse(results_json(split.results).dump()), *plan_);
   back.measurements[0].histogram = vndf.histogram;
-  const ExperimentResults resumed = run_alone(*spec_, *plan_, &back);
+  const ExperimentResults resumed = run_in_one_process(*spec_, *plan_, &back);
   EXPECT_FALSE(resumed.partial);
-  EXPECT_EQ(measured(resumed, false).dump(), measured(*alone_, false).dump());
+  EXPECT_EQ(split_measured(resumed, false).dump(), split_measured(*alone_, false).dump());
 }
 
 TEST_F(ExperimentSplit, ShardsOfTheFirstRoundsMergeIntoTheOneProcessRunBitForBit) {
@@ -240,7 +240,7 @@ TEST_F(ExperimentSplit, ShardsOfTheFirstRoundsMergeIntoTheOneProcessRunBitForBit
   RunOptions o;
   o.run = RunControl{1, nullptr, {}};
   o.stored = &stored;
-  EXPECT_EQ(measured(run_experiment(*spec_, *plan_, o)).dump(), measured(*alone_).dump());
+  EXPECT_EQ(split_measured(run_experiment(*spec_, *plan_, o)).dump(), split_measured(*alone_).dump());
   StoredRounds swapped = stored;  // negative control: shards 2 and 3 of the scattering's round exchanged
   std::swap(swapped.parts[1][1], swapped.parts[1][2]);
   o.stored = &swapped;

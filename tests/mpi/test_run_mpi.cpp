@@ -68,7 +68,7 @@ microsim::test::CliRun run_in(const fs::path& dir, const std::string& name, cons
 }
 
 TEST(RunMpi, TwoAndThreeRanksWriteTheOneProcessResultsBitForBit) {
-  const fs::path dir = scratch_dir();
+  const fs::path dir = scratch_dir("run_mpi", "bit_for_bit");
   std::ofstream(dir / "split.toml") << kSpec;
   const auto alone = run_in(dir, "alone", "");
   ASSERT_EQ(alone.exit_code, 0) << alone.err;
@@ -91,7 +91,7 @@ TEST(RunMpi, TwoAndThreeRanksWriteTheOneProcessResultsBitForBit) {
 }
 
 TEST(RunMpi, ABadSpecUnderMpirunIsOneMessageAndExit2NothingWritten) {
-  const fs::path dir = scratch_dir();
+  const fs::path dir = scratch_dir("run_mpi", "bad_spec");
   std::ofstream(dir / "bad.toml") << "seed = 1\n[[material]]\nname = \"m\"\nalpha = 0.3\ntype = \"velvet\"\n";
   const std::string cmd = "cd '" + dir.string() + "' && " + mpirun(2) + "'" + microsim::test::microsim_binary() +
                           "' run bad.toml --out out > bad.stdout 2> bad.stderr";
