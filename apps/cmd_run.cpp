@@ -96,6 +96,17 @@ int write_results(const RunArgs& a, const experiment::ExperimentSpec& spec, cons
   return kExitOk;
 }
 
+// The plan: the shards' (`--merge`: `stored` receives their first rounds), an earlier run's, or the pilots'.
+experiment::ExperimentPlan plan_or_shards(const RunArgs& a, const experiment::ExperimentSpec& spec, std::uint64_t seed,
+                                          const std::optional<experiment::PreviousRun>& previous,
+                                          const experiment::PlanOptions& options, experiment::StoredRounds& stored) {
+  if (a.merge.empty()) return plan_of(spec, previous, options);
+  if (previous) throw UsageError(fmt::format("--merge: --out {} holds a run: the merge writes a new one", a.out));
+  experiment::ExperimentPlan plan;
+  stored = merged_shards(a, spec, seed, plan);
+  return plan;
+}
+
 // The run on the root (alone, or rank 0 of an MPI job: `ranks` then serve its rounds). `plan_sent`: whether
 // the other ranks got the plan (after that, an error must abort the job: they may be inside a round).
 int run_experiment_command(const RunArgs& a, experiment::Ranks& ranks, bool& plan_sent) {
@@ -108,11 +119,8 @@ int run_experiment_command(const RunArgs& a, experiment::Ranks& ranks, bool& pla
   plan_options.seed = a.seed;
   plan_options.run = cli_run_control(a.threads, progress);
   install_interrupt_handler();
-  experiment::ExperimentPlan plan;
   experiment::StoredRounds stored;
-  if (!a.merge.empty() && previous) throw UsageError(fmt::format("--merge: --out {} holds a run: the merge writes a new one", a.out));
-  if (!a.merge.empty()) stored = merged_shards(a, spec, seed, plan);
-  else plan = plan_of(spec, previous, plan_options);
+  const experiment::ExperimentPlan plan = plan_or_shards(a, spec, seed, previous, plan_options, stored);
   progress->finish();
   print_plan_table(plan, spec);
   if (a.dry_run) {  // the plan and its predicted time; nothing written
