@@ -380,9 +380,8 @@ std::vector<RoundTask> first_split_rounds(const ExperimentSpec& spec, const Expe
   const RunOptions planned;  // the first round at the planned cost
   for (std::size_t i = 0; i < plan.decisions.size(); ++i) {
     const Decision& d = plan.decisions[i];
-    const QuantityKind kind = spec.quantities[d.quantity].kind;
-    if (!d.runnable || (kind != QuantityKind::vndf && kind != QuantityKind::scattering)) continue;
-    const bool vndf = kind == QuantityKind::vndf;  // as next_round caps them: run_vndf, run_scattering
+    if (!d.runnable || !is_split(spec, d)) continue;
+    const bool vndf = spec.quantities[d.quantity].kind == QuantityKind::vndf;  // capped as next_round caps them
     const std::uint64_t units = std::min(first_units(d, planned), vndf ? kMaxRays : std::numeric_limits<std::uint64_t>::max());
     const std::uint64_t block = vndf ? kRaysPerBlock : kPathsPerBlock;
     tasks.push_back({i, units, round_seed(seed, i, 0), {0, units / block + (units % block != 0)}});

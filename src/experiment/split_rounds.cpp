@@ -208,6 +208,15 @@ void add_scatter_part(ScatterHistogram& sum, const std::string& bytes, const Blo
   sum.partial = partial;
 }
 
+// The parts (from `first` on, as combine_vndf_parts) added to `own` in rank order: the one-process round.
+ScatterHistogram combine_scatter_parts(ScatterHistogram own, const std::vector<std::string>& parts, const BlockRange& round,
+                                       int first) {
+  const int ranks = int(parts.size());
+  check_start(own.provenance.blocks, own.partial, round, first, ranks);
+  for (int r = first; r < ranks && !own.partial; ++r) add_scatter_part(own, parts[std::size_t(r)], round, r, ranks);
+  return own;
+}
+
 // ---- messages ---------------------------------------------------------------------------------------------
 
 std::string stop_message(int exit_code) { return nlohmann::json{{"stop", exit_code}}.dump(); }
@@ -246,6 +255,12 @@ double split_seconds_since(std::chrono::steady_clock::time_point start) {
 
 }  // namespace
 
+bool is_split(const ExperimentSpec& spec, const Decision& decision) {
+  const QuantityKind kind = spec.quantities[decision.quantity].kind;
+  return (kind == QuantityKind::vndf && decision.model.model == Model::ellipsoid_oracle) ||
+         (kind == QuantityKind::scattering && decision.model.model == Model::smith_walk);
+}
+
 BlockRange rank_blocks(const BlockRange& round, int rank, int ranks) {
   const BlockRange shard = shard_range(round.size(), std::uint64_t(rank) + 1, std::uint64_t(ranks));
   return {round.begin + shard.begin, round.begin + shard.end};
@@ -275,25 +290,17 @@ ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measur
   const BlockRange round = round_blocks(options.blocks, options.paths, kPathsPerBlock);
   const RoundTask task{measurement, options.paths, options.seed, round};
   ScatterOptions own = options;
-  const std::vector<std::string>* parts = stored_parts(split.stored, task);
-  if (parts == nullptr && (split.ranks == nullptr || split.ranks->size() == 1)) return smith_walk_scatter(surface, options);
-  std::vector<std::string> gathered;
-  if (parts == nullptr) {
-    split.ranks->broadcast(task_message(task));
-    own.blocks = rank_blocks(round, 0, split.ranks->size());
-  } else {
+  if (const std::vector<std::string>* stored = stored_parts(split.stored, task)) {
     own.blocks = BlockRange{round.begin, round.begin};  // nothing walked: the binning and provenance
+    return combine_scatter_parts(smith_walk_scatter(surface, own), *stored, round, 0);
   }
-  ScatterHistogram sum = smith_walk_scatter(surface, own);
-  if (parts == nullptr) {
-    gathered = split.ranks->gather(scatter_part(sum));
-    check_part_count(gathered, split.ranks->size());
-    parts = &gathered;
-  }
-  const int first = gathered.empty() ? 0 : 1, ranks = int(parts->size());
-  check_start(sum.provenance.blocks, sum.partial, round, first, ranks);
-  for (int r = first; r < ranks && !sum.partial; ++r) add_scatter_part(sum, (*parts)[std::size_t(r)], round, r, ranks);
-  return sum;
+  if (split.ranks == nullptr || split.ranks->size() == 1) return smith_walk_scatter(surface, options);
+  split.ranks->broadcast(task_message(task));
+  own.blocks = rank_blocks(round, 0, split.ranks->size());
+  ScatterHistogram part = smith_walk_scatter(surface, own);
+  const std::vector<std::string> parts = split.ranks->gather(scatter_part(part));
+  check_part_count(parts, split.ranks->size());
+  return combine_scatter_parts(std::move(part), parts, round, 1);
 }
 
 void send_plan(Ranks& ranks, const ExperimentSpec& spec, const ExperimentPlan& plan) {
@@ -304,10 +311,6 @@ void send_stop(Ranks& ranks, int exit_code) {
   if (ranks.size() > 1) ranks.broadcast(stop_message(exit_code));
 }
 
-namespace {
-
-}  // namespace
-
 std::string run_part(const ExperimentSpec& spec, const ExperimentPlan& plan, const RoundTask& task, int rank, int ranks,
                      const RunControl& run) {
   if (task.measurement >= plan.decisions.size())
@@ -315,13 +318,12 @@ std::string run_part(const ExperimentSpec& spec, const ExperimentPlan& plan, con
   const Decision& d = plan.decisions[task.measurement];
   const SpecQuantity& q = spec.quantities[d.quantity];
   const BlockRange mine = rank_blocks(task.blocks, rank, ranks);
+  if (!is_split(spec, d)) throw InternalError(fmt::format("a round of measurement {}, which is not split", task.measurement));
   if (q.kind == QuantityKind::vndf) {
     VndfRequest request = vndf_request(spec, d, task.units, task.seed, run);
     request.blocks = mine;
     return vndf_part(measure_ellipsoid_vndf(EllipsoidTarget(d.alpha.first, d.alpha.second, -1), request));
   }
-  if (q.kind != QuantityKind::scattering)
-    throw InternalError(fmt::format("a round of measurement {}, which is not split", task.measurement));
   const SpecMaterial& material = spec.material(q.material);
   ScatterOptions options = scatter_request(material, d, task.units, task.seed, run);
   options.blocks = mine;

@@ -26,6 +26,9 @@
 
 namespace microsim::experiment {
 
+// Whether a decision's rounds are split: a VNDF on the ellipsoid oracle, a scattering by the Smith walk.
+bool is_split(const ExperimentSpec& spec, const Decision& decision);
+
 // Rank `rank`'s shard of `round` (rank 0 .. ranks - 1): shard rank + 1 of `ranks`, offset to round.begin.
 BlockRange rank_blocks(const BlockRange& round, int rank, int ranks);
 
