@@ -45,6 +45,19 @@ inline std::string scatter_contents(const fs::path& path) {
   return out + f.histogram.provenance.blocks.to_string() + std::to_string(f.histogram.paths());
 }
 
+// Whether some round of the run in DIR (its first rounds only, with `first_only`) has a block count (4096 rays
+// or paths per block) that `parts` do not divide: a split into that many parts is uneven.
+inline bool has_uneven_round(const fs::path& dir, int parts, bool first_only = false) {
+  const nlohmann::json doc = nlohmann::json::parse(slurp(dir / "results.json"));
+  for (const auto& m : doc.at("results").at("measurements"))
+    for (const auto& r : m.value("rounds", nlohmann::json::array())) {
+      const std::uint64_t units = r.at("units"), blocks = (units + 4095) / 4096;
+      if (blocks % std::uint64_t(parts) != 0) return true;
+      if (first_only) break;
+    }
+  return false;
+}
+
 inline std::string run_directory_contents(const fs::path& dir) {
   std::string out = without_timings(nlohmann::json::parse(slurp(dir / "results.json"))).dump();
   for (const auto& entry : fs::directory_iterator(dir)) {

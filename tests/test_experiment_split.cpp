@@ -189,6 +189,10 @@ TEST_F(ExperimentSplit, TwoAndThreeRanksGiveTheOneProcessResultsBitForBit) {
     ASSERT_TRUE(m.ran && m.met) << m.decision.label;
     EXPECT_GE(m.rounds.front().units, 3 * 4096u) << "at least a block per rank";
   }
+  bool uneven = false;  // 3 ranks: some round's blocks (4096 units each) are not a multiple of 3
+  for (const MeasurementResult& m : alone_->measurements)
+    for (const RoundRecord& r : m.rounds) uneven = uneven || (r.units + 4095) / 4096 % 3 != 0;
+  EXPECT_TRUE(uneven);
   const std::string expected = split_measured(*alone_).dump();
   for (int ranks : {2, 3}) {
     const SplitRun split = run_split(*spec_, *plan_, ranks);

@@ -76,6 +76,7 @@ TEST(RunMpi, TwoAndThreeRanksWriteTheOneProcessResultsBitForBit) {
   ASSERT_NE(expected.find("scattering-1.exr"), std::string::npos);
   ASSERT_NE(expected.find("vndf-0.exr"), std::string::npos);
   ASSERT_NE(expected.find("albedo-2.csv"), std::string::npos);
+  EXPECT_TRUE(microsim::test::has_uneven_round(dir / "alone" / "out", 3)) << "3 ranks: an uneven split";
   for (int ranks : {2, 3}) {
     const std::string name = "ranks" + std::to_string(ranks);
     const auto r = run_in(dir, name, mpirun(ranks));
