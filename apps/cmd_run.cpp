@@ -11,13 +11,17 @@
 #include "command.h"
 #include "experiment_report.h"
 #include "number_options.h"
+#include "mpi_ranks.h"
 #include "progress_bar.h"
 
 #include "core/atomic_file.h"
+#include "core/parse.h"
 #include "experiment/plan.h"
 #include "experiment/run.h"
 #include "experiment/run_directory.h"
 #include "experiment/spec.h"
+#include "experiment/shards.h"
+#include "experiment/split_rounds.h"
 
 #include <fmt/core.h>
 
@@ -25,6 +29,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #ifndef MICROSIM_VERSION
 #define MICROSIM_VERSION "unknown"
@@ -37,6 +42,8 @@ namespace fs = std::filesystem;
 
 struct RunArgs {
   std::string spec, out;
+  std::string shard;               // --shard K/N: this job's shard of the first rounds (shards.h)
+  std::vector<std::string> merge;  // --merge PART...: the shards' directories
   std::uint64_t seed = 0;
   int threads = 0;
   bool dry_run = false;
@@ -45,6 +52,20 @@ struct RunArgs {
 std::string reproduce_command(const RunArgs& a) {
   return fmt::format("microsim run {} --out {}{}{}", a.spec, a.out, a.seed ? fmt::format(" --seed {}", a.seed) : "",
                      a.threads ? fmt::format(" --threads {}", a.threads) : "");
+}
+
+// The shards of `--merge`, checked (one job: same spec, seed, plan and N, each K once); UsageError naming the
+// problem. Their first rounds are taken from their parts; everything else runs here.
+experiment::StoredRounds merged_shards(const RunArgs& a, const experiment::ExperimentSpec& spec, std::uint64_t seed,
+                                       experiment::ExperimentPlan& plan) {
+  std::vector<experiment::ShardParts> shards;
+  try {
+    for (const std::string& dir : a.merge) shards.push_back(experiment::read_shard_directory(dir, spec, seed));
+    plan = experiment::plan_from_json(shards.front().plan, spec);
+    return experiment::merge_shards(shards, a.merge);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
 }
 
 // The plan: an earlier run's (resumed: its pilots are not run again), or from the pilots.
@@ -61,32 +82,9 @@ experiment::ExperimentPlan plan_of(const experiment::ExperimentSpec& spec, const
   return experiment::plan_experiment(spec, options);  // Cancelled: nothing written
 }
 
-int run_experiment_command(const RunArgs& a) {
-  const experiment::ExperimentSpec spec = experiment::load_spec(a.spec);  // SpecError: exit 2, nothing run
-  check_distinct_outputs({{"SPEC", a.spec}}, {{"--out", (fs::path(a.out) / "results.json").string()}});
-  const std::uint64_t seed = a.seed != 0 ? a.seed : spec.seed;
-  const std::optional<experiment::PreviousRun> previous = experiment::load_previous_run(a.out, spec, seed);
-  const auto progress = std::make_shared<CliProgress>(true);
-  experiment::PlanOptions plan_options;
-  plan_options.seed = a.seed;
-  plan_options.run = cli_run_control(a.threads, progress);
-  install_interrupt_handler();
-  const experiment::ExperimentPlan plan = plan_of(spec, previous, plan_options);
-  progress->finish();
-  print_plan_table(plan, spec);
-  if (a.dry_run) return kExitOk;  // the plan and its predicted time; nothing written
-  experiment::RunOptions options;
-  options.seed = a.seed;
-  options.run = plan_options.run;
-  options.resume = previous ? &previous->results : nullptr;
-  std::size_t done = 0;  // the overall progress: measurements done, and the plan's predicted time of the rest
-  options.on_measurement = [&](const experiment::MeasurementResult& m) {
-    progress->finish();
-    print_measurement_line(m);
-    print_overall_line(plan, ++done);
-  };
-  const experiment::ExperimentResults results = experiment::run_experiment(spec, plan, options);
-  progress->finish();
+// DIR's files and the summary; the exit code (130 when the results are partial).
+int write_results(const RunArgs& a, const experiment::ExperimentSpec& spec, const experiment::ExperimentPlan& plan,
+                  const experiment::ExperimentResults& results, std::uint64_t seed) {
   print_results_table(results);
   experiment::write_run_directory(a.out, spec, plan, results, {reproduce_command(a), MICROSIM_VERSION, seed});
   fmt::print(stderr, "run: wrote {} and {}\n", (fs::path(a.out) / "results.json").string(),
@@ -98,6 +96,144 @@ int run_experiment_command(const RunArgs& a) {
   return kExitOk;
 }
 
+// The plan: the shards' (`--merge`: `stored` receives their first rounds), an earlier run's, or the pilots'.
+experiment::ExperimentPlan plan_or_shards(const RunArgs& a, const experiment::ExperimentSpec& spec, std::uint64_t seed,
+                                          const std::optional<experiment::PreviousRun>& previous,
+                                          const experiment::PlanOptions& options, experiment::StoredRounds& stored) {
+  if (a.merge.empty()) return plan_of(spec, previous, options);
+  if (previous) throw UsageError(fmt::format("--merge: --out {} holds a run: the merge writes a new one", a.out));
+  experiment::ExperimentPlan plan;
+  stored = merged_shards(a, spec, seed, plan);
+  return plan;
+}
+
+// The run on the root (alone, or rank 0 of an MPI job: `ranks` then serve its rounds). `plan_sent`: whether
+// the other ranks got the plan (after that, an error must abort the job: they may be inside a round).
+int run_experiment_command(const RunArgs& a, experiment::Ranks& ranks, bool& plan_sent) {
+  const experiment::ExperimentSpec spec = experiment::load_spec(a.spec);  // SpecError: exit 2, nothing run
+  check_distinct_outputs({{"SPEC", a.spec}}, {{"--out", (fs::path(a.out) / "results.json").string()}});
+  const std::uint64_t seed = a.seed != 0 ? a.seed : spec.seed;
+  const std::optional<experiment::PreviousRun> previous = experiment::load_previous_run(a.out, spec, seed);
+  const auto progress = std::make_shared<CliProgress>(true);
+  experiment::PlanOptions plan_options;
+  plan_options.seed = a.seed;
+  plan_options.run = cli_run_control(a.threads, progress);
+  install_interrupt_handler();
+  experiment::StoredRounds stored;
+  const experiment::ExperimentPlan plan = plan_or_shards(a, spec, seed, previous, plan_options, stored);
+  progress->finish();
+  print_plan_table(plan, spec);
+  if (a.dry_run) {  // the plan and its predicted time; nothing written
+    experiment::send_stop(ranks, kExitOk);
+    return kExitOk;
+  }
+  experiment::send_plan(ranks, spec, plan);
+  plan_sent = true;
+  experiment::RunOptions options;
+  options.seed = a.seed;
+  options.run = plan_options.run;
+  options.resume = previous ? &previous->results : nullptr;
+  options.ranks = &ranks;
+  options.stored = a.merge.empty() ? nullptr : &stored;
+  std::size_t done = 0;  // the overall progress: measurements done, and the plan's predicted time of the rest
+  options.on_measurement = [&](const experiment::MeasurementResult& m) {
+    progress->finish();
+    print_measurement_line(m);
+    print_overall_line(plan, ++done);
+  };
+  const experiment::ExperimentResults results = experiment::run_experiment(spec, plan, options);
+  progress->finish();
+  const int code = write_results(a, spec, plan, results, seed);
+  experiment::send_stop(ranks, code);
+  return code;
+}
+
+// ---- under an MPI launcher (apps/mpi_ranks.h; docs/cluster.md) ----------------------------------------------
+
+// Rank 0: the run; an error before the plan went out stops the other ranks with its exit code, after it
+// aborts the job (MPI_Abort with the code: the other ranks may be inside a round).
+int run_as_root(const RunArgs& a, MpiSession& mpi) {
+  bool plan_sent = false;
+  try {
+    return run_experiment_command(a, mpi.ranks(), plan_sent);
+  } catch (...) {
+    const int code = report_error(std::current_exception());
+    if (plan_sent) mpi.abort(code);
+    experiment::send_stop(mpi.ranks(), code);
+    return code;
+  }
+}
+
+// Ranks 1..: silent; they run their shards of the root's rounds and return the root's exit code. Their own
+// error (a spec that differs from the root's, a failure in a shard) is printed with the rank and aborts the job.
+int serve_as_rank(const RunArgs& a, MpiSession& mpi) {
+  try {
+    RunControl run = cli_run_control(a.threads, nullptr);
+    return experiment::serve_rounds(mpi.ranks(), [&] { return experiment::load_spec(a.spec); }, run);
+  } catch (...) {
+    mpi.abort(report_error(std::current_exception(), fmt::format("microsim run (rank {})", mpi.ranks().rank())));
+  }
+}
+
+// Started by a launcher without MPI compiled in: every process would run the whole experiment into one DIR.
+int refuse_without_mpi(const LaunchedRank& launched) {
+  if (launched.rank == 0)
+    fmt::print(stderr,
+               "microsim: error: run: started by an MPI launcher ({}={}) but MPI is not compiled in (CMake found no MPI, "
+               "or MICROSIM_MPI=OFF): refusing to run the whole experiment in every process; run it without mpirun, "
+               "or split it with --shard K/N (docs/cluster.md)\n",
+               launched.variable, launched.rank);
+  return kExitUsage;
+}
+
+// ---- a job array's shard (`--shard K/N`; src/experiment/shards.h) --------------------------------------------
+
+constexpr std::uint64_t kMaxShards = 100000;
+
+int run_one_shard(const RunArgs& a) {
+  if (!a.merge.empty() || a.dry_run) throw UsageError("--shard runs one shard of a job array: not with --merge or --dry-run");
+  const ShardSpec s = parse_shard("--shard", a.shard, kMaxShards);  // ParseError: exit 2
+  const experiment::ExperimentSpec spec = experiment::load_spec(a.spec);
+  check_distinct_outputs({{"SPEC", a.spec}}, {{"--out", (fs::path(a.out) / "shard.json").string()}});
+  if (fs::exists(a.out) && (!fs::is_directory(a.out) || !fs::is_empty(a.out)))
+    throw UsageError(fmt::format("--out {}: a shard's directory must be new or empty", a.out));
+  const std::uint64_t seed = a.seed != 0 ? a.seed : spec.seed;
+  const auto progress = std::make_shared<CliProgress>(true);
+  experiment::PlanOptions plan_options;
+  plan_options.seed = a.seed;
+  plan_options.run = cli_run_control(a.threads, progress);
+  install_interrupt_handler();
+  fmt::print(stderr, "run: {}: planning (pilots)\n", spec.name);
+  const experiment::ExperimentPlan plan = experiment::plan_experiment(spec, plan_options);
+  progress->finish();
+  print_plan_table(plan, spec);
+  const experiment::ShardParts shard = experiment::run_shard(spec, plan, seed, s.index, s.count, plan_options.run);
+  progress->finish();
+  experiment::write_shard_directory(a.out, spec, shard);
+  fmt::print(stderr, "run: shard {}/{}: the first rounds of {} measurements written to {}; when all {} are done: "
+             "microsim run {} --out DIR --merge PART...{}\n", s.index, s.count, shard.tasks.size(), a.out, s.count, a.spec,
+             a.seed ? fmt::format(" --seed {}", a.seed) : "");
+  return kExitOk;
+}
+
+int run_command(const RunArgs& a) {
+  const std::optional<LaunchedRank> launched = mpi_launch();
+  if (!a.shard.empty()) {
+    if (launched && launched->size != 1) throw UsageError("--shard is for job arrays without MPI: not under mpirun or srun");
+    return run_one_shard(a);
+  }
+  if (!launched || (!mpi_compiled_in() && launched->size == 1)) {
+    experiment::SingleProcess alone;
+    bool plan_sent = false;
+    return run_experiment_command(a, alone, plan_sent);
+  }
+  if (!mpi_compiled_in()) return refuse_without_mpi(*launched);
+  MpiSession mpi;
+  install_interrupt_handler();
+  install_termination_handler();  // mpirun turns Ctrl-C into SIGTERM for every rank
+  return mpi.ranks().rank() == 0 ? run_as_root(a, mpi) : serve_as_rank(a, mpi);
+}
+
 CommandRegistration run_registration{"run", [](CLI::App& app) {
   auto args = std::make_shared<RunArgs>();
   auto* sub = app.add_subcommand(
@@ -107,15 +243,27 @@ CommandRegistration run_registration{"run", [](CLI::App& app) {
       "command, version), the report DIR/index.html, DIR/albedo-K.csv and DIR/vndf-K.exr. Run again with the same "
       "seed, it resumes an interrupted run. Runs albedo (analytic, smith-walk) and vndf (ellipsoid oracle) "
       "measurements; others are planned and reported as not run. Exit 0 done, 2 bad spec or usage (nothing run), "
-      "130 interrupted (partial results written).");
+      "130 interrupted (partial results written). " +
+          std::string(mpi_compiled_in()
+                          ? "MPI is compiled in: under mpirun or srun every VNDF and scattering round is split over the "
+                            "ranks, bit for bit the one-process results (docs/cluster.md)."
+                          : "MPI is not compiled in: a run under mpirun or srun is refused (docs/cluster.md)."));
   sub->add_option("SPEC", args->spec, "the experiment spec (.toml, or .json)")->required();
   sub->add_option("--out", args->out, "the results directory (created; empty, or holding this spec's run at this seed: resumed)")->required();
+  sub->add_option("--shard", args->shard,
+                  "K/N: run block shard K of N of the first round of every VNDF and scattering measurement (a job "
+                  "array without MPI) into --out PART (new or empty); then --merge (docs/cluster.md)");
+  sub->add_option("--merge", args->merge,
+                  "PART...: the N shard directories of one job: their first rounds combined (bit for bit the "
+                  "one-process rounds), the sequential stop decided on them, further rounds and the other "
+                  "measurements run here; --out must be new or empty")
+      ->expected(1, -1);
   sub->add_flag("--dry-run", args->dry_run, "plan only (the pilots run): print the plan and its predicted time, write nothing");
   add_number_option(sub, "--seed", args->seed, whole(), "seed of the pilots and rounds (0: the spec's)")->default_str("0");
   add_number_option(sub, "--threads", args->threads, integer(0, kMaxThreads),
                     at_most("worker threads (0: all cores)", kMaxThreads))
       ->default_str("0");
-  on_selected(sub, [args] { return run_experiment_command(*args); });
+  on_selected(sub, [args] { return run_command(*args); });
 }};
 
 }  // namespace

@@ -61,25 +61,33 @@ double peak_rss_mib() {
 
 void on_selected(CLI::App* sub, std::function<int()> action) { actions().push_back({sub, std::move(action)}); }
 
+int report_error(const std::exception_ptr& error, std::string_view who) {
+  try {
+    std::rethrow_exception(error);
+  } catch (const UsageError& e) {
+    fmt::print(stderr, "{}: error: {}\n", who, e.what());
+    return kExitUsage;
+  } catch (const microsim::Cancelled& e) {  // a step with no partial result to keep
+    return interrupted_nothing_written(who, fmt::format("({})", e.what()));
+  } catch (const std::bad_alloc&) {
+    fmt::print(stderr, "{}: internal error: out of memory\n", who);
+    return kExitInternal;
+  } catch (const microsim::InternalError& e) {
+    fmt::print(stderr, "{}: internal error: {}\n", who, e.what());
+    return kExitInternal;
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "{}: error: {}\n", who, e.what());
+    return kExitUsage;
+  }
+}
+
 int run_selected() {
   for (auto& s : actions()) {
     if (!s.sub->parsed()) continue;
     try {
       return s.action();
-    } catch (const UsageError& e) {
-      fmt::print(stderr, "microsim: error: {}\n", e.what());
-      return kExitUsage;
-    } catch (const microsim::Cancelled& e) {  // a step with no partial result to keep
-      return interrupted_nothing_written("microsim", fmt::format("({})", e.what()));
-    } catch (const std::bad_alloc&) {
-      fmt::print(stderr, "microsim: internal error: out of memory\n");
-      return kExitInternal;
-    } catch (const microsim::InternalError& e) {
-      fmt::print(stderr, "microsim: internal error: {}\n", e.what());
-      return kExitInternal;
-    } catch (const std::exception& e) {
-      fmt::print(stderr, "microsim: error: {}\n", e.what());
-      return kExitUsage;
+    } catch (...) {
+      return report_error(std::current_exception());
     }
   }
   fmt::print(stderr, "microsim: no subcommand given (see --help)\n");

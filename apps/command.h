@@ -9,6 +9,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include <exception>
+
 #include <functional>
 #include <string>
 #include <string_view>
@@ -48,6 +50,11 @@ void on_selected(CLI::App* sub, std::function<int()> action);
 
 // Runs the action of the selected subcommand; returns its exit code.
 int run_selected();
+
+// The exit code of an error a command threw (UsageError and std::exception: 2; Cancelled: 130; bad_alloc and
+// InternalError: 3), its message printed on stderr as "WHO: error: ..." (run_selected's, for a command that
+// must act on the code itself: `run` under MPI).
+int report_error(const std::exception_ptr& error, std::string_view who = "microsim");
 
 struct CommandRegistration {
   CommandRegistration(std::string name, std::function<void(CLI::App&)> setup) {

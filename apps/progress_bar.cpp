@@ -23,6 +23,7 @@ extern "C" void on_sigint(int) {
 }  // namespace
 
 void install_interrupt_handler() { std::signal(SIGINT, on_sigint); }
+void install_termination_handler() { std::signal(SIGTERM, on_sigint); }
 bool interrupted() { return g_interrupt.cancelled(); }
 const CancelToken& interrupt_token() { return g_interrupt; }
 

@@ -48,6 +48,9 @@ private:
 // its next block and returns what it measured, which the command writes marked as partial (exit 130).
 // A second Ctrl-C kills the process (the default action).
 void install_interrupt_handler();
+// SIGTERM handled as Ctrl-C (the first cancels, a second kills): what mpirun sends every rank on Ctrl-C, and
+// what Slurm's scancel sends. Installed by `microsim run` under an MPI launcher.
+void install_termination_handler();
 bool interrupted();
 const CancelToken& interrupt_token();
 

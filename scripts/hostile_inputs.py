@@ -448,6 +448,16 @@ USAGE = [
     ("scatter --model walk --alpha 0.3 --theta 30 --out o.exr", "walk"),
     ("scatter --alpha 0.3 --theta 30 --out o.exr", "--model"),
     ("compare-scattering hist.exr", "hist.exr"),
+    # an experiment in the shards of a job array (docs/cluster.md): bad K/N, a merge of what is not a shard
+    ("run run_spec.toml --out p --shard 0/2", "--shard"),
+    ("run run_spec.toml --out p --shard 3/2", "--shard"),
+    ("run run_spec.toml --out p --shard 1/0", "--shard"),
+    ("run run_spec.toml --out p --shard two", "--shard"),
+    ("run run_spec.toml --out p --shard 1/2 --merge run_done", "--merge"),
+    ("run run_spec.toml --out p --shard 1/2 --dry-run", "--dry-run"),
+    ("run run_spec.toml --out run_done --shard 1/2", "run_done"),
+    ("run run_spec.toml --out m --merge run_done", "run_done"),
+    ("run run_spec.toml --out m --merge no_such_shard", "no_such_shard"),
     ("nosuch", "nosuch"),
 ]
 

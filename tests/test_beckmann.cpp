@@ -154,7 +154,7 @@ TEST(BeckmannSlopeInversion, ReturnedSlopeHasTheRequestedCdfInBothTails) {
   for (double theta_deg : {0.0, 0.5, 10.0, 45.0, 75.0, 80.0, 89.99, 90.0, 90.01, 100.0, 135.0, 170.0, 179.0, 179.9}) {
     const double theta = theta_deg * kPi<double> / 180;
     for (double u : us) {
-      const std::optional<double> x = detail::beckmann_visible_slope_x(std::cos(theta), std::sin(theta), u);
+      const std::optional<double> x = microsim::detail::beckmann_visible_slope_x(std::cos(theta), std::sin(theta), u);
       ASSERT_TRUE(x.has_value()) << theta_deg;
       ASSERT_TRUE(std::isfinite(*x)) << theta_deg << " u=" << u;
       const SlopeTails t = slope_cdf_by_quadrature(theta, *x);
@@ -169,7 +169,7 @@ TEST(BeckmannSlopeInversion, ReturnedSlopeHasTheRequestedCdfInBothTails) {
       }
     }
   }
-  EXPECT_FALSE(detail::beckmann_visible_slope_x(-1.0, 0.0, 0.5).has_value());  // straight up from below
+  EXPECT_FALSE(microsim::detail::beckmann_visible_slope_x(-1.0, 0.0, 0.5).has_value());  // straight up from below
 }
 
 // ---- the samplers' histograms ----------------------------------------------------------------------------

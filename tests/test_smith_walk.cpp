@@ -401,7 +401,7 @@ TEST(SmithWalkSideChange, KeepingTheHeightOnRefractionIsRejected) {
   for (double theta : {80.0, 100.0}) {
     const Vec3<double> wi = from_degrees(theta, 20);
     const ScatterOptions o = walk_options(wi, Material::dielectric(1.5), 200000, 3);
-    const ScatterHistogram bad = detail::smith_walk_scatter(s, o, detail::WalkFault::keep_height_on_refraction);
+    const ScatterHistogram bad = microsim::detail::smith_walk_scatter(s, o, microsim::detail::WalkFault::keep_height_on_refraction);
     EXPECT_TRUE(conserves(energy(bad))) << theta;
     const SideAlbedos ref = global_frame_walk(g, 1.5, wi, 200000, 4, o.max_order);
     EXPECT_LT(side_change_p_value(bad, ref), 1e-6) << "theta " << theta;

@@ -53,6 +53,18 @@ AlbedoQuantity quantity_from_json(const std::string& name, const nlohmann::json&
 
 }  // namespace
 
+VndfRequest vndf_request(const ExperimentSpec& spec, const Decision& decision, std::uint64_t rays, std::uint64_t seed,
+                         const RunControl& run) {
+  VndfRequest request;
+  request.theta_deg = decision.view.theta_deg;
+  request.phi_deg = decision.view.phi_deg;
+  request.rays = rays;
+  request.seed = seed;
+  request.rows = spec.quantities[decision.quantity].rows;
+  request.run = run;
+  return request;
+}
+
 SmithMicrosurface scatter_surface(const SpecMaterial& material, const Decision& decision) {
   return {material.ndf, decision.alpha.first, decision.alpha.second, HeightDistribution::uniform};
 }

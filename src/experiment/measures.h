@@ -35,6 +35,10 @@ AlbedoTableRequest albedo_request(const ExperimentSpec& spec, const SpecQuantity
 // null reads as NaN. Throws std::invalid_argument naming a missing or malformed member. For a resumed run.
 AlbedoTable albedo_table_from_json(const nlohmann::json& table, const AlbedoTableRequest& request);
 
+// The ellipsoid-oracle request of a VNDF decision: `rays` rays of `seed` from its view, in its quantity's rows.
+VndfRequest vndf_request(const ExperimentSpec& spec, const Decision& decision, std::uint64_t rays, std::uint64_t seed,
+                         const RunControl& run);
+
 // The largest relative error (error / value) over the cells and E_avg of the quantities of a table the target
 // applies to; an infinite one when a value is 0 with a non-zero error.
 double worst_relative_error(const AlbedoTable& table, const SpecQuantity& quantity);

@@ -2,6 +2,7 @@
 #include "experiment/run.h"
 
 #include "experiment/measures.h"
+#include "experiment/split_rounds.h"
 #include "core/parse.h"
 #include "scatter/albedo_table_io.h"
 #include "validate/validate.h"
@@ -162,19 +163,12 @@ RoundStart next_round(MeasurementResult& m, std::uint64_t seed, std::size_t inde
 
 // One round (or the rest of one): traced, added to the sum, the sum analysed and recorded. False when
 // nothing was traced (cancelled before its first block).
-bool vndf_round(const ExperimentSpec& spec, const EllipsoidTarget& target, const RoundStart& start,
+bool vndf_round(const ExperimentSpec& spec, const EllipsoidTarget& target, const RoundStart& start, std::size_t index,
                 const RunOptions& o, MeasurementResult& m) {
-  const Decision& d = m.decision;
-  VndfRequest req;
-  req.theta_deg = d.view.theta_deg;
-  req.phi_deg = d.view.phi_deg;
-  req.rays = start.rays;
-  req.seed = start.seed;
-  req.rows = spec.quantities[d.quantity].rows;
-  req.run = o.run;
+  VndfRequest req = vndf_request(spec, m.decision, start.rays, start.seed, o.run);
   if (start.first_block > 0) req.blocks = BlockRange{start.first_block, (start.rays + kRaysPerBlock - 1) / kRaysPerBlock};
   const auto clock = std::chrono::steady_clock::now();
-  const EllipsoidVndf round = measure_ellipsoid_vndf(target, req);
+  const EllipsoidVndf round = split_vndf_round({o.ranks, o.stored}, index, target, req);
   m.partial = round.trace.partial;  // cancelled: its completed blocks are a shorter run of that seed, kept
   if (round.histogram.rays == 0) return false;
   const bool fresh = m.histogram.binnings.empty();
@@ -195,7 +189,7 @@ void run_vndf(const ExperimentSpec& spec, std::uint64_t seed, std::size_t index,
   m.partial = false;
   while (int(m.rounds.size()) < o.max_rounds || (!m.rounds.empty() && m.rounds.back().partial)) {
     const RoundStart start = next_round(m, seed, index, o, kMaxRays);
-    if (start.rays == 0 || !vndf_round(spec, target, start, o, m) || m.partial) break;
+    if (start.rays == 0 || !vndf_round(spec, target, start, index, o, m) || m.partial) break;
   }
   m.met = !m.rounds.empty() && !m.rounds.back().partial && m.achieved <= m.target;
 }
@@ -242,13 +236,14 @@ void record_scatter(MeasurementResult& m, double target) {
                               {"rows_per_hemisphere", kScatterRows}}}};
 }
 
-bool scatter_round(const ExperimentSpec& spec, const RoundStart& start, const RunOptions& o, MeasurementResult& m) {
+bool scatter_round(const ExperimentSpec& spec, const RoundStart& start, std::size_t index, const RunOptions& o,
+                   MeasurementResult& m) {
   const Decision& d = m.decision;
   const SpecMaterial& material = spec.material(spec.quantities[d.quantity].material);
   ScatterOptions options = scatter_request(material, d, start.rays, start.seed, o.run);
   if (start.first_block > 0) options.blocks = BlockRange{start.first_block, (start.rays + kPathsPerBlock - 1) / kPathsPerBlock};
   const auto clock = std::chrono::steady_clock::now();
-  const ScatterHistogram round = smith_walk_scatter(scatter_surface(material, d), options);
+  const ScatterHistogram round = split_scatter_round({o.ranks, o.stored}, index, scatter_surface(material, d), options);
   m.partial = round.partial;
   if (round.paths() == 0) return false;
   add_scatter_round(m.scatter, round);
@@ -266,7 +261,7 @@ void run_scattering(const ExperimentSpec& spec, std::uint64_t seed, std::size_t 
   m.partial = false;
   while (int(m.rounds.size()) < o.max_rounds || (!m.rounds.empty() && m.rounds.back().partial)) {
     const RoundStart start = next_round(m, seed, index, o, std::numeric_limits<std::uint64_t>::max());
-    if (start.rays == 0 || !scatter_round(spec, start, o, m) || m.partial) break;
+    if (start.rays == 0 || !scatter_round(spec, start, index, o, m) || m.partial) break;
   }
   m.met = !m.rounds.empty() && !m.rounds.back().partial && m.achieved <= m.target;
 }
@@ -462,12 +457,26 @@ Estimate pool_rounds(const std::vector<Estimate>& rounds, const std::vector<std:
   return {weighted / total, std::sqrt(variance) / total};
 }
 
+std::vector<RoundTask> first_split_rounds(const ExperimentSpec& spec, const ExperimentPlan& plan, std::uint64_t seed) {
+  std::vector<RoundTask> tasks;
+  const RunOptions planned;  // the first round at the planned cost
+  for (std::size_t i = 0; i < plan.decisions.size(); ++i) {
+    const Decision& d = plan.decisions[i];
+    if (!d.runnable || !is_split(spec, d)) continue;
+    const bool vndf = spec.quantities[d.quantity].kind == QuantityKind::vndf;  // capped as next_round caps them
+    const std::uint64_t units = std::min(first_units(d, planned), vndf ? kMaxRays : std::numeric_limits<std::uint64_t>::max());
+    const std::uint64_t block = vndf ? kRaysPerBlock : kPathsPerBlock;
+    tasks.push_back({i, units, round_seed(seed, i, 0), {0, units / block + (units % block != 0)}});
+  }
+  return tasks;
+}
+
 ExperimentResults run_experiment(const ExperimentSpec& spec, const ExperimentPlan& plan, const RunOptions& options) {
   ExperimentResults results;
   const std::uint64_t seed = options.seed != 0 ? options.seed : spec.seed;
   const auto start = std::chrono::steady_clock::now();
   for (std::size_t i = 0; i < plan.decisions.size(); ++i) {
-    if (options.run.cancelled()) {
+    if (options.run.cancelled() || results.partial) {  // partial: a rank's part was cancelled (split rounds)
       results.partial = true;
       break;
     }

@@ -27,6 +27,8 @@
 
 #include "core/estimate.h"
 #include "experiment/plan.h"
+#include "experiment/ranks.h"
+#include "experiment/split_rounds.h"
 #include "stats/histogram_io.h"
 #include "stats/scatter_expectation.h"
 #include "stats/scatter_histogram.h"
@@ -90,11 +92,20 @@ struct RunOptions {
   double cost_factor = 1;
   // Rounds at most (a fixed-cost run: 1); a target not met then is reported as such.
   int max_rounds = kMaxRounds;
+  // The ranks the VNDF and scattering rounds are split over (split_rounds.h; this process is the root, and
+  // the others serve_rounds); null: this process alone. Same results either way, bit for bit.
+  Ranks* ranks = nullptr;
+  // The first rounds run by shard jobs (`run --shard K/N`, shards.h), taken from their parts; null: none.
+  const StoredRounds* stored = nullptr;
   // Called after each measurement (complete, partial or skipped), on the calling thread.
   std::function<void(const MeasurementResult&)> on_measurement;
 };
 
 ExperimentResults run_experiment(const ExperimentSpec& spec, const ExperimentPlan& plan, const RunOptions& options);
+
+// The first round of every split measurement (VNDF, scattering) as run_experiment starts it afresh at `seed`
+// (the run's: options.seed, or the spec's): units, seed and blocks. What shard jobs run (shards.h).
+std::vector<RoundTask> first_split_rounds(const ExperimentSpec& spec, const ExperimentPlan& plan, std::uint64_t seed);
 
 // Independent rounds of n_r units with means m_r and standard errors se_r pooled as one run of sum n_r units:
 // mean sum n_r m_r / N, standard error sqrt(sum n_r^2 se_r^2) / N. Pure; throws std::invalid_argument when

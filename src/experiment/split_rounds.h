@@ -1,0 +1,84 @@
+// experiment: the rounds of run_experiment split over ranks (ranks.h; `mpirun -n P microsim run`).
+//
+// A VNDF or scattering round is one seed and one range of blocks (core/block_runner.h). The root sends it to
+// every rank (a RoundTask), rank r runs its contiguous shard of the range (rank_blocks: shard r + 1 of P by
+// shard_range, so rank order is block order), the parts are gathered to the root and combined there in rank
+// order. The tallies are exact (VNDF: integer counts; scattering: ExactSum fixed point), so the combined round
+// is the one-process round bit for bit, as a merge of `--shard` parts is. A part cancelled part way ends the
+// round there: the parts of later ranks are dropped and the combined round is the completed prefix of the
+// range, marked partial (resumed like a one-process round). A part whose blocks are not its rank's shard (out
+// of order, missing, overlapping) is a bug: InternalError. The root alone decides the rounds' sizes and when
+// to stop, from the combined rounds; the other ranks only run what it sends (serve_rounds) until it stops.
+// Albedo tables and validations are not split: the root runs them while the other ranks wait.
+#pragma once
+
+#include "experiment/plan.h"
+#include "experiment/ranks.h"
+#include "experiment/spec.h"
+#include "measure/vndf.h"
+#include "scatter/smith_walk.h"
+
+#include <nlohmann/json.hpp>
+
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace microsim::experiment {
+
+// Whether a decision's rounds are split: a VNDF on the ellipsoid oracle, a scattering by the Smith walk.
+bool is_split(const ExperimentSpec& spec, const Decision& decision);
+
+// Rank `rank`'s shard of `round` (rank 0 .. ranks - 1): shard rank + 1 of `ranks`, offset to round.begin.
+BlockRange rank_blocks(const BlockRange& round, int rank, int ranks);
+
+// One round: a measurement's (its index in the plan), of `units` units of `seed`, over these blocks.
+struct RoundTask {
+  std::size_t measurement = 0;
+  std::uint64_t units = 0, seed = 0;
+  BlockRange blocks;
+  bool operator==(const RoundTask&) const = default;
+};
+nlohmann::json round_task_json(const RoundTask& task);
+RoundTask round_task_from_json(const nlohmann::json& task);  // throws nlohmann::json::exception
+
+// Parts of rounds run elsewhere (shard jobs, shards.h): parts[t] holds task t's parts in shard order.
+struct StoredRounds {
+  std::vector<RoundTask> tasks;
+  std::vector<std::vector<std::string>> parts;
+};
+
+// Where the root's rounds come from: its own work only (null, or one rank), shared with ranks, or, for a
+// round that `stored` holds, those parts (the other ranks then have nothing to do for it).
+struct RoundSplit {
+  Ranks* ranks = nullptr;
+  const StoredRounds* stored = nullptr;
+};
+
+// The root's side: measure_ellipsoid_vndf and smith_walk_scatter, split. `measurement` is the decision's index
+// in the plan the other ranks received (send_plan).
+EllipsoidVndf split_vndf_round(const RoundSplit& split, std::size_t measurement, const EllipsoidTarget& target,
+                               const VndfRequest& request);
+ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measurement, const SmithMicrosurface& surface,
+                                     const ScatterOptions& options);
+
+// Rank `rank`'s part of a round (`ranks` ranks) run in this process: its tallies, in the split's encoding.
+std::string run_part(const ExperimentSpec& spec, const ExperimentPlan& plan, const RoundTask& task, int rank, int ranks,
+                     const RunControl& run);
+// Whether a part was cancelled part way (a prefix of its blocks).
+bool part_is_partial(const std::string& part);
+// Checks that a part holds rank `rank`'s shard of `round`, whole; InternalError naming what it holds.
+void check_whole_part(const std::string& part, const BlockRange& round, int rank, int ranks);
+
+// The root starts the other ranks with the plan (and the spec's digest, which theirs must match), and stops
+// them with the exit code they are to return (also before the plan: a run that stops early). No-ops alone.
+void send_plan(Ranks& ranks, const ExperimentSpec& spec, const ExperimentPlan& plan);
+void send_stop(Ranks& ranks, int exit_code);
+
+// A rank other than the root: waits for the plan (or a stop), loads the spec (load_spec: called only when a
+// plan came, so a bad spec is reported once, by the root), checks that it is the root's (digest), then runs
+// its shard of every round the root sends until the root stops; returns the exit code the root sent. Throws
+// std::invalid_argument when the spec differs from the root's, InternalError on a malformed message.
+int serve_rounds(Ranks& ranks, const std::function<ExperimentSpec()>& load_spec, const RunControl& run);
+
+}  // namespace microsim::experiment

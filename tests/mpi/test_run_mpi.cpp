@@ -1,0 +1,107 @@
+// `mpirun -n 2` and `mpirun -n 3` (an uneven split) of `microsim run` on a small spec (a VNDF and a per-order
+// scattering measurement, split over the ranks; an analytic albedo table, run by rank 0 alone) against the
+// one-process run: results.json's measured values (timings and the host's rates aside) and every histogram
+// (vndf-K.exr, scattering-K.exr) and table (albedo-K.csv) equal, bit for bit; stdout printed once, by rank 0.
+// The comparison can fail: a run with another seed differs. Under mpirun a bad spec is one message and exit 2.
+// Built only with MPI and mpirun (CMakeLists.txt); the library-level tests of the split are
+// tests/test_experiment_split.cpp (ranks as threads, with the negative controls of a wrong combination).
+#include "../run_directory_contents.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <fstream>
+#include <string>
+
+namespace {
+
+namespace fs = std::filesystem;
+using microsim::test::run_cli;
+using microsim::test::scratch_dir;
+using microsim::test::slurp;
+
+const char* kSpec = R"(name = "split"
+seed = 7
+
+[[material]]
+name = "glass"
+alphas = [0.4]
+type = "dielectric"
+eta = 1.5
+
+[[quantity]]
+kind = "vndf"
+material = "glass"
+theta = [30]
+rows = 7
+target_tv = 0.03
+
+[[quantity]]
+kind = "scattering"
+material = "glass"
+orders = "all"
+theta = [50]
+target_tv = 0.04
+
+[[quantity]]
+kind = "albedo"
+material = "glass"
+mus = 4
+target_relative_error = 0.001
+)";
+
+// mpirun's options for a test: as root too (containers), more ranks than cores, shared memory only.
+std::string mpirun(int ranks) {
+  return std::string(MICROSIM_MPIEXEC) + " --allow-run-as-root --oversubscribe --mca btl self,vader -n " +
+         std::to_string(ranks) + " ";
+}
+
+// Runs `microsim run ../split.toml --out out --threads 1 EXTRA` in DIR/NAME (every run directory is `out`:
+// the same command, recorded in results.json), under `launcher` (empty: alone); the exit code, stdout, stderr.
+microsim::test::CliRun run_in(const fs::path& dir, const std::string& name, const std::string& launcher,
+                              const std::string& extra = "") {
+  fs::create_directory(dir / name);
+  const std::string cmd = "cd '" + (dir / name).string() + "' && " + launcher + "'" + microsim::test::microsim_binary() +
+                          "' run ../split.toml --out out --threads 1" + extra + " > run.stdout 2> run.stderr";
+  const int status = std::system(cmd.c_str());
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(dir / name / "run.stdout"), slurp(dir / name / "run.stderr")};
+}
+
+TEST(RunMpi, TwoAndThreeRanksWriteTheOneProcessResultsBitForBit) {
+  const fs::path dir = scratch_dir("run_mpi", "bit_for_bit");
+  std::ofstream(dir / "split.toml") << kSpec;
+  const auto alone = run_in(dir, "alone", "");
+  ASSERT_EQ(alone.exit_code, 0) << alone.err;
+  const std::string expected = microsim::test::run_directory_contents(dir / "alone" / "out");
+  ASSERT_NE(expected.find("scattering-1.exr"), std::string::npos);
+  ASSERT_NE(expected.find("vndf-0.exr"), std::string::npos);
+  ASSERT_NE(expected.find("albedo-2.csv"), std::string::npos);
+  EXPECT_TRUE(microsim::test::has_uneven_round(dir / "alone" / "out", 3)) << "3 ranks: an uneven split";
+  for (int ranks : {2, 3}) {
+    const std::string name = "ranks" + std::to_string(ranks);
+    const auto r = run_in(dir, name, mpirun(ranks));
+    ASSERT_EQ(r.exit_code, 0) << ranks << " ranks: " << r.err;
+    EXPECT_EQ(microsim::test::run_directory_contents(dir / name / "out"), expected) << ranks << " ranks";
+    EXPECT_EQ(r.out.find("plan of split"), r.out.rfind("plan of split")) << "stdout printed once: " << r.out;
+    EXPECT_NE(r.out.find("plan of split"), std::string::npos) << r.out;
+  }
+  const auto other_seed = run_in(dir, "seed8", "", " --seed 8");
+  ASSERT_EQ(other_seed.exit_code, 0) << other_seed.err;
+  EXPECT_NE(microsim::test::run_directory_contents(dir / "seed8" / "out"), expected)
+      << "negative control: the comparison sees another seed";
+}
+
+TEST(RunMpi, ABadSpecUnderMpirunIsOneMessageAndExit2NothingWritten) {
+  const fs::path dir = scratch_dir("run_mpi", "bad_spec");
+  std::ofstream(dir / "bad.toml") << "seed = 1\n[[material]]\nname = \"m\"\nalpha = 0.3\ntype = \"velvet\"\n";
+  const std::string cmd = "cd '" + dir.string() + "' && " + mpirun(2) + "'" + microsim::test::microsim_binary() +
+                          "' run bad.toml --out out > bad.stdout 2> bad.stderr";
+  const int status = std::system(cmd.c_str());
+  const std::string err = slurp(dir / "bad.stderr");
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 2) << err;
+  EXPECT_NE(err.find("material[0].type"), std::string::npos) << err;
+  EXPECT_EQ(err.find("material[0].type"), err.rfind("material[0].type")) << "one message, rank 0's: " << err;
+  EXPECT_FALSE(fs::exists(dir / "out"));
+}
+
+}  // namespace

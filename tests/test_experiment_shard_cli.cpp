@@ -1,0 +1,125 @@
+// `microsim run --shard K/N` and `--merge` end to end (src/experiment/shards.h): a small spec (a VNDF and a
+// per-order scattering measurement, split; an analytic albedo table, run by the merge) in 2 and in 3 shards
+// (an uneven split), merged: results.json's measured values, every histogram and table equal to the
+// one-process run's, bit for bit. The checks can fail: merging with a shard missing, given twice, of another
+// seed or another N, or with a part file changed is refused (exit 2, the problem named, nothing written), and
+// so are bad --shard values.
+#include "cli_helpers.h"
+#include "run_directory_contents.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <string>
+
+namespace {
+
+namespace fs = std::filesystem;
+using microsim::test::run_cli;
+using microsim::test::run_directory_contents;
+using microsim::test::scratch_dir;
+using microsim::test::snapshot_files;
+
+const char* kShardSpec = R"(name = "shards"
+seed = 11
+
+[[material]]
+name = "glass"
+alphas = [0.4]
+type = "dielectric"
+eta = 1.5
+
+[[quantity]]
+kind = "vndf"
+material = "glass"
+theta = [30]
+rows = 7
+target_tv = 0.03
+
+[[quantity]]
+kind = "scattering"
+material = "glass"
+orders = "all"
+theta = [50]
+target_tv = 0.04
+
+[[quantity]]
+kind = "albedo"
+material = "glass"
+mus = 4
+target_relative_error = 0.001
+)";
+
+// Runs shards 1..n of the spec into DIR/n-K; returns the --merge arguments, each prefixed with `prefix`.
+std::string run_shards(const fs::path& dir, int n, const std::string& prefix = "") {
+  std::string parts;
+  for (int k = 1; k <= n; ++k) {
+    const std::string part = std::to_string(n) + "-" + std::to_string(k);
+    const auto r = run_cli(dir, "run shards.toml --threads 1 --out " + part + " --shard " + std::to_string(k) + "/" +
+                                    std::to_string(n));
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    parts += " " + prefix + part;
+  }
+  return parts;
+}
+
+class ExperimentShardCli : public ::testing::Test {
+protected:
+  void SetUp() override {
+    dir_ = scratch_dir("shard_cli", ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::ofstream(dir_ / "shards.toml") << kShardSpec;
+    fs::create_directory(dir_ / "a");  // every run directory is `out` beside the spec's `..`: the same command
+    const auto alone = run_cli(dir_ / "a", "run ../shards.toml --out out --threads 1");
+    ASSERT_EQ(alone.exit_code, 0) << alone.err;
+    expected_ = run_directory_contents(dir_ / "a" / "out");
+  }
+  // A bad merge: exit 2, `message` on stderr, nothing written or changed.
+  void expect_refused(const std::string& args, const std::string& message) {
+    const auto before = snapshot_files(dir_);
+    const auto r = run_cli(dir_, "run shards.toml --threads 1 " + args);
+    EXPECT_EQ(r.exit_code, 2) << args << ": " << r.err;
+    EXPECT_NE(r.err.find(message), std::string::npos) << args << ": " << r.err;
+    EXPECT_EQ(snapshot_files(dir_), before) << args;
+  }
+  fs::path dir_;
+  std::string expected_;
+};
+
+TEST_F(ExperimentShardCli, TwoAndThreeShardsMergeIntoTheOneProcessRunBitForBit) {
+  ASSERT_NE(expected_.find("scattering-1.exr"), std::string::npos);
+  EXPECT_TRUE(microsim::test::has_uneven_round(dir_ / "a" / "out", 3, true)) << "3 shards: an uneven split";
+  for (int n : {2, 3}) {
+    const std::string parts = run_shards(dir_, n, "../");
+    const fs::path merged = dir_ / ("merged" + std::to_string(n));
+    fs::create_directory(merged);
+    const auto r = run_cli(merged, "run ../shards.toml --out out --threads 1 --merge" + parts);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ(run_directory_contents(merged / "out"), expected_) << n << " shards";
+  }
+}
+
+TEST_F(ExperimentShardCli, AMissingRepeatedForeignOrChangedShardIsRefusedNothingWritten) {
+  const std::string parts = run_shards(dir_, 3);
+  expect_refused("--out m --merge 3-1 3-3", "shard 2/3 is missing");
+  expect_refused("--out m --merge 3-1 3-2 3-2 3-3", "given twice");
+  run_shards(dir_, 2);
+  expect_refused("--out m --merge 3-1 3-2 2-2", "a shard of 2");
+  ASSERT_EQ(run_cli(dir_, "run shards.toml --threads 1 --out s12 --shard 2/3 --seed 12").exit_code, 0);
+  expect_refused("--out m --merge 3-1 s12 3-3", "a shard of seed 12");
+  std::string bytes = microsim::test::slurp(dir_ / "3-2" / "part-0.bin");
+  bytes[bytes.size() - 1] ^= 1;  // one count changed by one
+  std::ofstream(dir_ / "3-2" / "part-0.bin", std::ios::binary) << bytes;
+  expect_refused("--out m --merge" + parts, "part-0.bin is missing, or not what shard.json records");
+  expect_refused("--out m --merge 3-1 a/out", "holds no shard.json");
+}
+
+TEST_F(ExperimentShardCli, BadShardValuesAreRefusedNothingWritten) {
+  expect_refused("--out p --shard 0/2", "--shard (K)");
+  expect_refused("--out p --shard 3/2", "--shard (K)");
+  expect_refused("--out p --shard 1/0", "--shard (N)");
+  expect_refused("--out p --shard 2", "not a shard K/N");
+  expect_refused("--out p --shard 1/2 --merge a/out", "not with --merge");
+  expect_refused("--out a/out --shard 1/2", "must be new or empty");
+}
+
+}  // namespace

@@ -1,0 +1,256 @@
+// run_experiment with its rounds split over ranks (src/experiment/split_rounds.h), the ranks being threads of
+// this process (ThreadRanks: a broadcast or a gather is shared slots between two barriers), against the
+// one-process run of the same plan and seed (library level, no MPI; tests/mpi/ runs the same under mpirun):
+//   - 2 ranks and 3 ranks (an uneven split): every value, error, round and count, every VNDF count and histogram
+//     attribute (the rate aside) and every scattering sum equal to the one-process run's, bit for bit;
+//   - negative controls: the root given the parts reversed (out of block order), with one missing, or with one
+//     emptied (a shard's blocks lost): an InternalError, never a wrong result;
+//   - the first rounds run as 3 shards of a job array (shards.h), given in any order, merged: bit for bit again;
+//     with two shards' parts swapped an InternalError, with a shard missing or given twice a bad input;
+//   - a rank cancelled from the start: the run is partial, what it kept is the prefix of the round before that
+//     rank's shard, and resumed in one process it gives the uninterrupted results.
+#include "core/errors.h"
+#include "experiment/plan.h"
+#include "experiment/run.h"
+#include "experiment/shards.h"
+#include "experiment/split_rounds.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <barrier>
+#include <exception>
+#include <functional>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace {
+
+using namespace microsim;
+using namespace microsim::experiment;
+
+ExperimentSpec split_spec() {
+  return parse_spec_toml(R"(
+seed = 21
+[[material]]
+name = "glass"
+alphas = [0.5]
+type = "dielectric"
+eta = 1.5
+[[quantity]]
+kind = "vndf"
+material = "glass"
+theta = [40]
+rows = 7
+target_tv = 0.03
+[[quantity]]
+kind = "scattering"
+material = "glass"
+orders = "all"
+theta = [40]
+target_tv = 0.05
+)", "split.toml");
+}
+
+ExperimentPlan split_plan(const ExperimentSpec& spec) {
+  PlanOptions o;
+  o.pilot_rays = 1 << 14;
+  o.cap_pilot_paths = 1 << 13;
+  return plan_experiment(spec, o);
+}
+
+// P ranks as threads of this process.
+struct ThreadHub {
+  explicit ThreadHub(int n) : size(n), barrier(n), parts(std::size_t(n)) {}
+  int size;
+  std::barrier<> barrier;
+  std::string message;
+  std::vector<std::string> parts;
+};
+
+class ThreadRanks final : public Ranks {
+public:
+  using Tamper = std::function<void(std::vector<std::string>&)>;  // what the root's gathered parts go through
+  ThreadRanks(ThreadHub& hub, int rank, Tamper tamper = {}) : hub_(hub), rank_(rank), tamper_(std::move(tamper)) {}
+  int rank() const override { return rank_; }
+  int size() const override { return hub_.size; }
+  std::string broadcast(const std::string& message) override {
+    if (rank_ == 0) hub_.message = message;
+    hub_.barrier.arrive_and_wait();
+    std::string received = hub_.message;
+    hub_.barrier.arrive_and_wait();
+    return received;
+  }
+  std::vector<std::string> gather(const std::string& part) override {
+    hub_.parts[std::size_t(rank_)] = part;
+    hub_.barrier.arrive_and_wait();
+    std::vector<std::string> parts = rank_ == 0 ? hub_.parts : std::vector<std::string>{};
+    hub_.barrier.arrive_and_wait();
+    if (tamper_ && rank_ == 0) tamper_(parts);
+    return parts;
+  }
+
+private:
+  ThreadHub& hub_;
+  int rank_;
+  Tamper tamper_;
+};
+
+struct SplitRun {
+  ExperimentResults results;
+  std::string internal_error;  // the root's InternalError, if it threw one
+};
+
+// The run over `ranks` thread ranks; rank `cancelled_rank` (if > 0) runs with its cancel token set.
+SplitRun run_split(const ExperimentSpec& spec, const ExperimentPlan& plan, int ranks, ThreadRanks::Tamper tamper = {},
+                   int cancelled_rank = 0) {
+  ThreadHub hub(ranks);
+  CancelToken cancelled;
+  cancelled.cancel();
+  std::vector<std::thread> others;
+  for (int r = 1; r < ranks; ++r)
+    others.emplace_back([&, r] {
+      ThreadRanks me(hub, r);
+      serve_rounds(me, [&] { return spec; }, RunControl{1, r == cancelled_rank ? &cancelled : nullptr, {}});
+    });
+  ThreadRanks root(hub, 0, std::move(tamper));
+  SplitRun out;
+  send_plan(root, spec, plan);
+  RunOptions o;
+  o.run = RunControl{1, nullptr, {}};
+  o.ranks = &root;
+  try {
+    out.results = run_experiment(spec, plan, o);
+  } catch (const InternalError& e) {  // thrown after a gather: the other ranks wait for the next message
+    out.internal_error = e.what();
+  }
+  send_stop(root, 0);
+  for (std::thread& t : others) t.join();
+  return out;
+}
+
+ExperimentResults run_in_one_process(const ExperimentSpec& spec, const ExperimentPlan& plan, const ExperimentResults* resume = nullptr) {
+  RunOptions o;
+  o.run = RunControl{1, nullptr, {}};
+  o.resume = resume;
+  return run_experiment(spec, plan, o);
+}
+
+// What a run measured, without its timings: values, errors, rounds, counts; every VNDF count and attribute
+// (the measured rate aside; all of them without `attributes`: a resumed round keeps its first part's) and
+// every scattering sum.
+nlohmann::json split_measured(const ExperimentResults& results, bool attributes_too = true) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const MeasurementResult& m : results.measurements) {
+    nlohmann::json rounds = nlohmann::json::array();
+    for (const RoundRecord& r : m.rounds) rounds.push_back({r.units, r.planned, r.blocks_done, r.seed, r.achieved, r.partial});
+    auto attributes = m.histogram.attributes;
+    attributes.erase("rays_per_second");
+    if (!attributes_too) attributes.clear();
+    nlohmann::json values = m.values;
+    values.erase("seconds");
+    values.erase("row_seconds");
+    nlohmann::json sums = nlohmann::json::array();
+    if (!m.scatter.binning_id().empty())
+      for (int k = 0; k < kScatterOrderBins; ++k)
+        for (std::size_t b = 0; b < m.scatter.bins(); ++b)
+          sums.push_back({m.scatter.histogram(0, k).exact_weight(b).low_bits(), m.scatter.histogram(0, k).exact_weight_squared(b).low_bits()});
+    out.push_back({{"values", values}, {"rounds", rounds}, {"achieved", m.achieved}, {"units", m.units}, {"met", m.met},
+                   {"counts", m.histogram.counts}, {"attributes", attributes}, {"sums", sums},
+                   {"paths", m.scatter.paths()}, {"blocks", m.scatter.provenance.blocks.to_string()}});
+  }
+  return out;
+}
+
+class ExperimentSplit : public ::testing::Test {
+protected:
+  static void SetUpTestSuite() {
+    spec_ = new ExperimentSpec(split_spec());
+    plan_ = new ExperimentPlan(split_plan(*spec_));
+    alone_ = new ExperimentResults(run_in_one_process(*spec_, *plan_));
+  }
+  static void TearDownTestSuite() {
+    delete alone_;
+    delete plan_;
+    delete spec_;
+  }
+  static ExperimentSpec* spec_;
+  static ExperimentPlan* plan_;
+  static ExperimentResults* alone_;
+};
+ExperimentSpec* ExperimentSplit::spec_ = nullptr;
+ExperimentPlan* ExperimentSplit::plan_ = nullptr;
+ExperimentResults* ExperimentSplit::alone_ = nullptr;
+
+TEST_F(ExperimentSplit, TwoAndThreeRanksGiveTheOneProcessResultsBitForBit) {
+  ASSERT_EQ(alone_->measurements.size(), 2u);
+  for (const MeasurementResult& m : alone_->measurements) {
+    ASSERT_TRUE(m.ran && m.met) << m.decision.label;
+    EXPECT_GE(m.rounds.front().units, 3 * 4096u) << "at least a block per rank";
+  }
+  bool uneven = false;  // 3 ranks: some round's blocks (4096 units each) are not a multiple of 3
+  for (const MeasurementResult& m : alone_->measurements)
+    for (const RoundRecord& r : m.rounds) uneven = uneven || (r.units + 4095) / 4096 % 3 != 0;
+  EXPECT_TRUE(uneven);
+  const std::string expected = split_measured(*alone_).dump();
+  for (int ranks : {2, 3}) {
+    const SplitRun split = run_split(*spec_, *plan_, ranks);
+    EXPECT_EQ(split.internal_error, "");
+    EXPECT_FALSE(split.results.partial);
+    EXPECT_EQ(split_measured(split.results).dump(), expected) << ranks << " ranks";
+  }
+}
+
+TEST_F(ExperimentSplit, PartsOutOfOrderMissingOrEmptiedAreAnInternalErrorNeverAResult) {
+  const std::vector<std::pair<std::string, ThreadRanks::Tamper>> tampers = {
+      {"reversed", [](std::vector<std::string>& p) { std::reverse(p.begin(), p.end()); }},
+      {"missing", [](std::vector<std::string>& p) { p.pop_back(); }},
+      // rank 1 claims its shard's first block as its end, nothing run: its blocks are lost
+      {"emptied", [](std::vector<std::string>& p) { p[1] = p[1].substr(0, 8) + p[1].substr(0, 8) + std::string(8, '\0'); }}};
+  for (const auto& [name, tamper] : tampers) {
+    const SplitRun split = run_split(*spec_, *plan_, 3, tamper);
+    EXPECT_NE(split.internal_error, "") << name;
+    EXPECT_TRUE(split.results.measurements.empty()) << name;
+  }
+}
+
+TEST_F(ExperimentSplit, ACancelledRankEndsTheRoundAtItsShardAndTheRunResumesBitForBit) {
+  const SplitRun split = run_split(*spec_, *plan_, 3, {}, 2);
+  EXPECT_EQ(split.internal_error, "");
+  ASSERT_TRUE(split.results.partial);
+  ASSERT_EQ(split.results.measurements.size(), 1u);  // the VNDF, cut; the scattering not run
+  const MeasurementResult& vndf = split.results.measurements[0];
+  ASSERT_EQ(vndf.rounds.size(), 1u);
+  const std::uint64_t blocks = (vndf.rounds[0].planned + 4095) / 4096;
+  EXPECT_TRUE(vndf.rounds[0].partial);
+  EXPECT_EQ(vndf.rounds[0].blocks_done, rank_blocks({0, blocks}, 2, 3).begin);  // ranks 0 and 1: a prefix
+  ExperimentResults back = results_from_json(nlohmann::json::parse(results_json(split.results).dump()), *plan_);
+  back.measurements[0].histogram = vndf.histogram;
+  const ExperimentResults resumed = run_in_one_process(*spec_, *plan_, &back);
+  EXPECT_FALSE(resumed.partial);
+  EXPECT_EQ(split_measured(resumed, false).dump(), split_measured(*alone_, false).dump());
+}
+
+TEST_F(ExperimentSplit, ShardsOfTheFirstRoundsMergeIntoTheOneProcessRunBitForBit) {
+  std::vector<ShardParts> shards;
+  std::vector<std::string> names;
+  for (std::uint64_t k = 3; k >= 1; --k) {  // given in any order: ordered by K
+    shards.push_back(run_shard(*spec_, *plan_, spec_->seed, k, 3, RunControl{1, nullptr, {}}));
+    names.push_back("shard " + std::to_string(k));
+  }
+  ASSERT_EQ(shards[0].tasks.size(), 2u);  // the VNDF's and the scattering's first rounds
+  const StoredRounds stored = merge_shards(shards, names);
+  RunOptions o;
+  o.run = RunControl{1, nullptr, {}};
+  o.stored = &stored;
+  EXPECT_EQ(split_measured(run_experiment(*spec_, *plan_, o)).dump(), split_measured(*alone_).dump());
+  StoredRounds swapped = stored;  // negative control: shards 2 and 3 of the scattering's round exchanged
+  std::swap(swapped.parts[1][1], swapped.parts[1][2]);
+  o.stored = &swapped;
+  EXPECT_THROW(run_experiment(*spec_, *plan_, o), InternalError);
+  EXPECT_THROW(merge_shards({shards[0], shards[2]}, {names[0], names[2]}), std::invalid_argument);  // 2/3 missing
+  EXPECT_THROW(merge_shards({shards[0], shards[1], shards[1]}, {names[0], names[1], names[1]}), std::invalid_argument);
+}
+
+}  // namespace
