@@ -14,6 +14,39 @@
 
 namespace microsim::test {
 
+// The spec both compare: a VNDF and a per-order scattering measurement (split over ranks or shards) and an
+// analytic albedo table (run by rank 0 or by the merge), of one glass.
+inline std::string split_spec(const std::string& name, int seed) {
+  return "name = \"" + name + "\"\nseed = " + std::to_string(seed) + R"(
+
+[[material]]
+name = "glass"
+alphas = [0.4]
+type = "dielectric"
+eta = 1.5
+
+[[quantity]]
+kind = "vndf"
+material = "glass"
+theta = [30]
+rows = 7
+target_tv = 0.03
+
+[[quantity]]
+kind = "scattering"
+material = "glass"
+orders = "all"
+theta = [50]
+target_tv = 0.04
+
+[[quantity]]
+kind = "albedo"
+material = "glass"
+mus = 4
+target_relative_error = 0.001
+)";
+}
+
 // results.json without what differs between two runs of the same seed: timings and rates.
 inline nlohmann::json without_timings(nlohmann::json doc) {
   if (doc.is_object()) {

@@ -16,6 +16,7 @@
 #include "validate/validate.h"
 
 #include "scratch_dir.h"
+#include "small_pilots.h"
 
 #include <fmt/format.h>
 
@@ -58,10 +59,7 @@ struct GlassLobes {
   ExperimentPlan plan;
   ExperimentResults results;
   explicit GlassLobes(bool walk) : spec(glass_lobes_spec(walk)) {
-    PlanOptions p;
-    p.pilot_rays = 1 << 14;
-    p.cap_pilot_paths = 1 << 13;
-    plan = plan_experiment(spec, p);
+    plan = microsim::test::plan_with_small_pilots(spec);
     results = run_experiment(spec, plan, RunOptions{});
   }
 };

@@ -8,6 +8,7 @@
 //     the planned run; at 1/16 of the planned cost it is not (the check can fail).
 #include "experiment/plan.h"
 #include "experiment/run.h"
+#include "small_pilots.h"
 
 #include <gtest/gtest.h>
 
@@ -20,6 +21,7 @@ namespace {
 
 using namespace microsim;
 using namespace microsim::experiment;
+using microsim::test::plan_with_small_pilots;
 
 ExperimentSpec tiny_spec() {
   return parse_spec_toml(R"(
@@ -41,14 +43,6 @@ orders = "all"
 mus = 3
 target_relative_error = 0.01
 )", "tiny.toml");
-}
-
-ExperimentPlan tiny_plan(const ExperimentSpec& spec) {
-  PlanOptions o;
-  o.pilot_paths = 1024;
-  o.pilot_rays = 1 << 14;
-  o.cap_pilot_paths = 1 << 13;
-  return plan_experiment(spec, o);
 }
 
 // What a run measured, without its timings (which differ from run to run): the values and errors.
@@ -106,7 +100,7 @@ ExperimentResults run_with(const ExperimentSpec& spec, const ExperimentPlan& pla
 
 TEST(ExperimentResume, AnInterruptedVndfRoundResumesFromItsBlocksBitForBit) {
   const ExperimentSpec spec = tiny_spec();
-  const ExperimentPlan plan = tiny_plan(spec);
+  const ExperimentPlan plan = plan_with_small_pilots(spec);
   const ExperimentResults whole = run_with(spec, plan, RunControl{2, nullptr, {}});
   CancelAt cancel{"trace vndf", 0.4, 1};
   const ExperimentResults cut = run_with(spec, plan, cancel.control(2));
@@ -129,7 +123,7 @@ TEST(ExperimentResume, AnInterruptedVndfRoundResumesFromItsBlocksBitForBit) {
 
 TEST(ExperimentResume, AWalkCutAfterItsFirstRoundKeepsItAndRunsTheRest) {
   const ExperimentSpec spec = tiny_spec();
-  const ExperimentPlan plan = tiny_plan(spec);
+  const ExperimentPlan plan = plan_with_small_pilots(spec);
   // At a quarter of the planned paths the first round cannot meet the target: a second round follows.
   const ExperimentResults whole = run_with(spec, plan, RunControl{2, nullptr, {}}, 0.25);
   ASSERT_GE(whole.measurements[1].rounds.size(), 2u);
@@ -159,7 +153,7 @@ orders = "all"
 theta = [40]
 target_tv = 0.05
 )", "glass.toml");
-  const ExperimentPlan plan = tiny_plan(spec);
+  const ExperimentPlan plan = plan_with_small_pilots(spec);
   ASSERT_EQ(plan.decisions.size(), 1u);
   ASSERT_TRUE(plan.decisions[0].runnable) << plan.decisions[0].not_runnable;
   const ExperimentResults whole = run_with(spec, plan, RunControl{2, nullptr, {}});
@@ -195,7 +189,7 @@ double tv_between(const MeasurementResult& a, const MeasurementResult& b) {
 
 TEST(ExperimentHonesty, FourTimesThePlannedCostMovesTheVndfByLessThanTheTarget) {
   const ExperimentSpec spec = tiny_spec();
-  ExperimentPlan plan = tiny_plan(spec);
+  ExperimentPlan plan = plan_with_small_pilots(spec);
   plan.decisions.resize(1);  // the VNDF
   const double target = spec.quantities[0].target;
   const ExperimentResults planned = run_with(spec, plan, RunControl{2, nullptr, {}});

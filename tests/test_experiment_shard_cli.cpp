@@ -20,35 +20,6 @@ using microsim::test::run_directory_contents;
 using microsim::test::scratch_dir;
 using microsim::test::snapshot_files;
 
-const char* kShardSpec = R"(name = "shards"
-seed = 11
-
-[[material]]
-name = "glass"
-alphas = [0.4]
-type = "dielectric"
-eta = 1.5
-
-[[quantity]]
-kind = "vndf"
-material = "glass"
-theta = [30]
-rows = 7
-target_tv = 0.03
-
-[[quantity]]
-kind = "scattering"
-material = "glass"
-orders = "all"
-theta = [50]
-target_tv = 0.04
-
-[[quantity]]
-kind = "albedo"
-material = "glass"
-mus = 4
-target_relative_error = 0.001
-)";
 
 // Runs shards 1..n of the spec into DIR/n-K; returns the --merge arguments, each prefixed with `prefix`.
 std::string run_shards(const fs::path& dir, int n, const std::string& prefix = "") {
@@ -67,7 +38,7 @@ class ExperimentShardCli : public ::testing::Test {
 protected:
   void SetUp() override {
     dir_ = scratch_dir("shard_cli", ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    std::ofstream(dir_ / "shards.toml") << kShardSpec;
+    std::ofstream(dir_ / "shards.toml") << microsim::test::split_spec("shards", 11);
     fs::create_directory(dir_ / "a");  // every run directory is `out` beside the spec's `..`: the same command
     const auto alone = run_cli(dir_ / "a", "run ../shards.toml --out out --threads 1");
     ASSERT_EQ(alone.exit_code, 0) << alone.err;

@@ -14,6 +14,7 @@
 #include "experiment/run.h"
 #include "experiment/shards.h"
 #include "experiment/split_rounds.h"
+#include "small_pilots.h"
 
 #include <gtest/gtest.h>
 
@@ -29,6 +30,7 @@ namespace {
 
 using namespace microsim;
 using namespace microsim::experiment;
+using microsim::test::plan_with_small_pilots;
 
 ExperimentSpec split_spec() {
   return parse_spec_toml(R"(
@@ -51,13 +53,6 @@ orders = "all"
 theta = [40]
 target_tv = 0.05
 )", "split.toml");
-}
-
-ExperimentPlan split_plan(const ExperimentSpec& spec) {
-  PlanOptions o;
-  o.pilot_rays = 1 << 14;
-  o.cap_pilot_paths = 1 << 13;
-  return plan_experiment(spec, o);
 }
 
 // P ranks as threads of this process.
@@ -167,7 +162,7 @@ class ExperimentSplit : public ::testing::Test {
 protected:
   static void SetUpTestSuite() {
     spec_ = new ExperimentSpec(split_spec());
-    plan_ = new ExperimentPlan(split_plan(*spec_));
+    plan_ = new ExperimentPlan(plan_with_small_pilots(*spec_));
     alone_ = new ExperimentResults(run_in_one_process(*spec_, *plan_));
   }
   static void TearDownTestSuite() {

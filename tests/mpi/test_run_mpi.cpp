@@ -20,35 +20,6 @@ using microsim::test::run_cli;
 using microsim::test::scratch_dir;
 using microsim::test::slurp;
 
-const char* kSpec = R"(name = "split"
-seed = 7
-
-[[material]]
-name = "glass"
-alphas = [0.4]
-type = "dielectric"
-eta = 1.5
-
-[[quantity]]
-kind = "vndf"
-material = "glass"
-theta = [30]
-rows = 7
-target_tv = 0.03
-
-[[quantity]]
-kind = "scattering"
-material = "glass"
-orders = "all"
-theta = [50]
-target_tv = 0.04
-
-[[quantity]]
-kind = "albedo"
-material = "glass"
-mus = 4
-target_relative_error = 0.001
-)";
 
 // mpirun's options for a test: as root too (containers), more ranks than cores, shared memory only.
 std::string mpirun(int ranks) {
@@ -69,7 +40,7 @@ microsim::test::CliRun run_in(const fs::path& dir, const std::string& name, cons
 
 TEST(RunMpi, TwoAndThreeRanksWriteTheOneProcessResultsBitForBit) {
   const fs::path dir = scratch_dir("run_mpi", "bit_for_bit");
-  std::ofstream(dir / "split.toml") << kSpec;
+  std::ofstream(dir / "split.toml") << microsim::test::split_spec("split", 7);
   const auto alone = run_in(dir, "alone", "");
   ASSERT_EQ(alone.exit_code, 0) << alone.err;
   const std::string expected = microsim::test::run_directory_contents(dir / "alone" / "out");
