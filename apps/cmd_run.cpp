@@ -240,12 +240,15 @@ CommandRegistration run_registration{"run", [](CLI::App& app) {
       "run",
       "Carry out an experiment spec (docs/experiments.md): plan it (pilots), then run each measurement in rounds "
       "until its target accuracy is met, and write DIR/results.json (decisions, reasons, achieved accuracy, cost, "
-      "command, version), the report DIR/index.html, DIR/albedo-K.csv and DIR/vndf-K.exr. Run again with the same "
-      "seed, it resumes an interrupted run. Runs albedo (analytic, smith-walk) and vndf (ellipsoid oracle) "
-      "measurements; others are planned and reported as not run. Exit 0 done, 2 bad spec or usage (nothing run), "
+      "command, version), the report DIR/index.html, DIR/albedo-K.csv, DIR/vndf-K.exr, DIR/scattering-K.exr and "
+      "DIR/validation-K.exr. Run again with the same seed, it resumes an interrupted run. Runs albedo (analytic, "
+      "smith-walk), vndf (ellipsoid oracle), scattering (smith-walk; order 1 analytic) and validation (a zoo sampler "
+      "or a dump) measurements; those that need an explicit heightfield are planned and reported as not run. Exit 0 "
+      "done, 2 bad spec or usage (nothing run), "
       "130 interrupted (partial results written). " +
           std::string(mpi_compiled_in()
-                          ? "MPI is compiled in: under mpirun or srun every VNDF and scattering round is split over the "
+                          ? "MPI is compiled in: under mpirun or srun every VNDF and scattering round and every "
+                            "validation of a zoo sampler is split over the "
                             "ranks, bit for bit the one-process results (docs/cluster.md)."
                           : "MPI is not compiled in: a run under mpirun or srun is refused (docs/cluster.md)."));
   sub->add_option("SPEC", args->spec, "the experiment spec (.toml, or .json)")->required();

@@ -14,8 +14,9 @@
 
 namespace microsim::test {
 
-// The spec both compare: a VNDF and a per-order scattering measurement (split over ranks or shards) and an
-// analytic albedo table (run by rank 0 or by the merge), of one glass.
+// The spec both compare: a VNDF and a per-order scattering measurement of one glass (split over ranks or
+// shards), an analytic albedo table (run by rank 0 or by the merge) and a validation of heitz2018 (5 blocks of
+// samples: split over ranks, run by the merge of shards).
 inline std::string split_spec(const std::string& name, int seed) {
   return "name = \"" + name + "\"\nseed = " + std::to_string(seed) + R"(
 
@@ -44,6 +45,19 @@ kind = "albedo"
 material = "glass"
 mus = 4
 target_relative_error = 0.001
+
+[[material]]
+name = "ggx"
+alphas = [0.3]
+type = "mirror"
+
+[[quantity]]
+kind = "validation"
+material = "ggx"
+sampler = "heitz2018"
+theta = [40]
+rows = 7
+detect_tv = 0.005
 )";
 }
 

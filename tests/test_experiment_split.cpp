@@ -248,4 +248,57 @@ TEST_F(ExperimentSplit, ShardsOfTheFirstRoundsMergeIntoTheOneProcessRunBitForBit
   EXPECT_THROW(merge_shards({shards[0], shards[1], shards[1]}, {names[0], names[1], names[1]}), std::invalid_argument);
 }
 
+// A drawn validation over the ranks: each tallies its shard of the samples' blocks, the root merges the
+// tallies and reports: the one-process verdict, p-values and counts, bit for bit.
+ExperimentSpec validation_spec() {
+  return parse_spec_toml(R"(
+seed = 23
+[[material]]
+name = "ggx"
+alphas = [0.3]
+type = "mirror"
+[[quantity]]
+kind = "validation"
+material = "ggx"
+sampler = "heitz2018"
+theta = [40]
+rows = 7
+detect_tv = 0.005
+)", "validation.toml");
+}
+
+// The validation's report without its time, and its counts.
+nlohmann::json validation_measured(const ExperimentResults& results) {
+  nlohmann::json report = results.measurements.at(0).values.at("validation");
+  report.erase("seconds");
+  return {report, results.measurements.at(0).histogram.counts, results.measurements.at(0).achieved};
+}
+
+TEST(ExperimentSplitValidation, TwoAndThreeRanksGiveTheOneProcessReportBitForBit) {
+  const ExperimentSpec spec = validation_spec();
+  const ExperimentPlan plan = plan_with_small_pilots(spec);
+  const ExperimentResults alone = run_in_one_process(spec, plan);
+  const std::uint64_t blocks = (alone.measurements.at(0).units + 65535) / 65536;
+  ASSERT_GE(blocks, 4u);
+  EXPECT_NE(blocks % 3, 0u) << "an uneven split over 3 ranks";
+  EXPECT_EQ(alone.measurements[0].values["validation"]["verdict"], "pass");
+  const std::string expected = validation_measured(alone).dump();
+  for (int ranks : {2, 3}) {
+    const SplitRun split = run_split(spec, plan, ranks);
+    EXPECT_EQ(split.internal_error, "");
+    ASSERT_FALSE(split.results.partial);
+    EXPECT_EQ(validation_measured(split.results).dump(), expected) << ranks << " ranks";
+  }
+  // Negative controls: parts out of rank order are a bug, never a result; a cancelled rank cancels the
+  // validation (no partial result), and the resumed run is the one-process run.
+  const SplitRun reversed = run_split(spec, plan, 3, [](std::vector<std::string>& p) { std::reverse(p.begin(), p.end()); });
+  EXPECT_NE(reversed.internal_error, "");
+  const SplitRun cancelled = run_split(spec, plan, 3, {}, 1);
+  ASSERT_TRUE(cancelled.results.partial);
+  ASSERT_EQ(cancelled.results.measurements.size(), 1u);
+  EXPECT_TRUE(cancelled.results.measurements[0].partial);
+  ExperimentResults back = results_from_json(nlohmann::json::parse(results_json(cancelled.results).dump()), plan);
+  EXPECT_EQ(validation_measured(run_in_one_process(spec, plan, &back)).dump(), expected);
+}
+
 }  // namespace

@@ -394,7 +394,7 @@ void run_validation(const ExperimentSpec& spec, std::uint64_t seed, std::size_t 
   const auto clock = std::chrono::steady_clock::now();
   ValidationReport r;
   try {
-    r = validate_sampler(*sampler, GGX<double>(d.alpha.first, d.alpha.second),
+    r = split_validation({o.ranks, o.stored}, index, *sampler, GGX<double>(d.alpha.first, d.alpha.second),
                          direction_from_degrees(d.view.theta_deg, d.view.phi_deg), v);
   } catch (const Cancelled&) {
     m.partial = true;

@@ -4,12 +4,16 @@
 #include "core/errors.h"
 #include "experiment/measures.h"
 #include "experiment/run.h"
+#include "core/run_control.h"
+#include "stats/part_json.h"
+#include "validate/validation_part.h"
 
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
 #include <chrono>
 #include <cstring>
+#include <optional>
 #include <stdexcept>
 
 namespace microsim::experiment {
@@ -217,6 +221,65 @@ ScatterHistogram combine_scatter_parts(ScatterHistogram own, const std::vector<s
   return own;
 }
 
+// ---- validation parts (a drawn validation's tally) ---------------------------------------------------------
+
+// A rank's tally of its blocks (tally_json), or a cancelled part (no tally).
+std::string validation_part(const BlockRange& blocks, const std::optional<battery::Tally>& tally) {
+  nlohmann::json part{{"blocks", {blocks.begin, blocks.end}}, {"cancelled", !tally.has_value()}};
+  if (tally) part["tally"] = tally_json(*tally);
+  return part.dump();
+}
+
+// Rank r's tally (its blocks checked as check_shard checks them), or nullopt when it was cancelled.
+std::optional<battery::Tally> read_validation_part(const std::string& text, const std::vector<std::size_t>& cells,
+                                                   const BlockRange& round, int rank, int ranks) {
+  try {
+    const nlohmann::json part = nlohmann::json::parse(text);
+    if (part.at("cancelled").get<bool>()) return std::nullopt;
+    const BlockRange blocks{part.at("blocks").at(0).get<std::uint64_t>(), part.at("blocks").at(1).get<std::uint64_t>()};
+    check_shard(blocks, false, round, rank, ranks);
+    return tally_from_json(part.at("tally"), cells, blocks.size(), microsim::PartReader("validation part"),
+                           fmt::format("rank {}", rank));
+  } catch (const nlohmann::json::exception& e) {
+    throw InternalError(fmt::format("the part of rank {} of a split validation is malformed: {}", rank, e.what()));
+  } catch (const HistogramMergeError& e) {
+    throw InternalError(fmt::format("the part of rank {} of a split validation is malformed: {}", rank, e.what()));
+  }
+}
+
+// This rank's tally of its blocks of a validation, or nullopt when cancelled.
+std::optional<battery::Tally> own_tally(const SamplerInfo& sampler, const ReferenceDistribution& reference,
+                                        ValidationOptions options, const BlockRange& blocks) {
+  options.blocks = blocks;
+  try {
+    return tally_drawn_samples(sampler, reference, options);
+  } catch (const Cancelled&) {
+    return std::nullopt;
+  }
+}
+
+std::vector<std::size_t> tally_cells(const battery::Tally& tally) {
+  std::vector<std::size_t> cells;
+  for (const auto& counts : tally.counts) cells.push_back(counts.size());
+  return cells;
+}
+
+// The ranks' tallies in rank order as one (merge_tallies); Cancelled when any part was cancelled.
+battery::Tally merged_validation_tally(const std::optional<battery::Tally>& own, const std::vector<std::string>& parts,
+                                       const BlockRange& round) {
+  if (!own) throw Cancelled("validation");
+  const int ranks = int(parts.size());
+  std::vector<battery::Tally> tallies{*own};
+  for (int r = 1; r < ranks; ++r) {
+    std::optional<battery::Tally> t = read_validation_part(parts[std::size_t(r)], tally_cells(*own), round, r, ranks);
+    if (!t) throw Cancelled("validation");
+    tallies.push_back(std::move(*t));
+  }
+  std::vector<const battery::Tally*> in_order;
+  for (const battery::Tally& t : tallies) in_order.push_back(&t);
+  return merge_tallies(in_order);
+}
+
 // ---- messages ---------------------------------------------------------------------------------------------
 
 std::string stop_message(int exit_code) { return nlohmann::json{{"stop", exit_code}}.dump(); }
@@ -261,6 +324,11 @@ bool is_split(const ExperimentSpec& spec, const Decision& decision) {
          (kind == QuantityKind::scattering && decision.model.model == Model::smith_walk);
 }
 
+bool is_shared_by_ranks(const ExperimentSpec& spec, const Decision& decision) {
+  const SpecQuantity& q = spec.quantities[decision.quantity];
+  return is_split(spec, decision) || (q.kind == QuantityKind::validation && q.dump.empty());
+}
+
 BlockRange rank_blocks(const BlockRange& round, int rank, int ranks) {
   const BlockRange shard = shard_range(round.size(), std::uint64_t(rank) + 1, std::uint64_t(ranks));
   return {round.begin + shard.begin, round.begin + shard.end};
@@ -303,6 +371,23 @@ ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measur
   return combine_scatter_parts(std::move(part), parts, round, 1);
 }
 
+ValidationReport split_validation(const RoundSplit& split, std::size_t measurement, const SamplerInfo& sampler,
+                                  const GGX<double>& ggx, const Vec3<double>& wi, const ValidationOptions& options) {
+  if (split.ranks == nullptr || split.ranks->size() == 1) return validate_sampler(sampler, ggx, wi, options);
+  const auto start = std::chrono::steady_clock::now();
+  require_samples_for_any_test(options.samples);  // before the cubature, as validate_sampler
+  const auto reference = claimed_reference(sampler, ggx, wi, options.rows);
+  require_samples(options.samples, *reference);
+  const BlockRange round{0, options.samples / kSampleBlock + (options.samples % kSampleBlock != 0)};
+  split.ranks->broadcast(task_message({measurement, options.samples, options.seed, round}));
+  const std::optional<battery::Tally> own = own_tally(sampler, *reference, options, rank_blocks(round, 0, split.ranks->size()));
+  const std::vector<std::string> parts = split.ranks->gather(validation_part(rank_blocks(round, 0, split.ranks->size()), own));
+  check_part_count(parts, split.ranks->size());
+  ValidationReport r = report_drawn_samples(sampler, *reference, merged_validation_tally(own, parts, round), options);
+  r.seconds = split_seconds_since(start);
+  return r;
+}
+
 void send_plan(Ranks& ranks, const ExperimentSpec& spec, const ExperimentPlan& plan) {
   if (ranks.size() > 1) ranks.broadcast(nlohmann::json{{"plan", plan_json(plan, spec)}, {"spec_digest", spec_digest(spec)}}.dump());
 }
@@ -311,6 +396,26 @@ void send_stop(Ranks& ranks, int exit_code) {
   if (ranks.size() > 1) ranks.broadcast(stop_message(exit_code));
 }
 
+namespace {
+
+// A rank's part of a drawn validation: its blocks' tally against the claimed pdf's binnings (no cubature).
+std::string validation_rank_part(const SpecQuantity& q, const Decision& d, const RoundTask& task, const BlockRange& mine,
+                                 const RunControl& run) {
+  const SamplerInfo* sampler = find_sampler(q.sampler);
+  if (sampler == nullptr) throw InternalError(fmt::format("a split validation of an unknown sampler '{}'", q.sampler));
+  ValidationOptions options;
+  options.samples = task.units;
+  options.seed = task.seed;
+  options.rows = q.rows;
+  options.significance = q.significance;
+  options.run = run;
+  const GGX<double> ggx(d.alpha.first, d.alpha.second);
+  const auto bins = claimed_reference_bins(*sampler, ggx, direction_from_degrees(d.view.theta_deg, d.view.phi_deg), q.rows);
+  return validation_part(mine, own_tally(*sampler, *bins, options, mine));
+}
+
+}  // namespace
+
 std::string run_part(const ExperimentSpec& spec, const ExperimentPlan& plan, const RoundTask& task, int rank, int ranks,
                      const RunControl& run) {
   if (task.measurement >= plan.decisions.size())
@@ -318,7 +423,9 @@ std::string run_part(const ExperimentSpec& spec, const ExperimentPlan& plan, con
   const Decision& d = plan.decisions[task.measurement];
   const SpecQuantity& q = spec.quantities[d.quantity];
   const BlockRange mine = rank_blocks(task.blocks, rank, ranks);
-  if (!is_split(spec, d)) throw InternalError(fmt::format("a round of measurement {}, which is not split", task.measurement));
+  if (!is_shared_by_ranks(spec, d))
+    throw InternalError(fmt::format("a round of measurement {}, which is not split", task.measurement));
+  if (q.kind == QuantityKind::validation) return validation_rank_part(q, d, task, mine, run);
   if (q.kind == QuantityKind::vndf) {
     VndfRequest request = vndf_request(spec, d, task.units, task.seed, run);
     request.blocks = mine;

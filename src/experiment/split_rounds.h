@@ -9,7 +9,12 @@
 // range, marked partial (resumed like a one-process round). A part whose blocks are not its rank's shard (out
 // of order, missing, overlapping) is a bug: InternalError. The root alone decides the rounds' sizes and when
 // to stop, from the combined rounds; the other ranks only run what it sends (serve_rounds) until it stops.
-// Albedo tables and validations are not split: the root runs them while the other ranks wait.
+// A drawn validation (a zoo sampler's) is split over ranks too: rank r tallies its shard of the samples'
+// blocks (tally_drawn_samples), the root merges the tallies in rank order (merge_tallies: counts added, the
+// blocks' checks reduced again from the first) and reports from them: validate_sampler's report, bit for bit
+// (validation_part.h). A validation cancelled on any rank is cancelled whole (it has no partial result).
+// Albedo tables, analytic lobes and dumps are not split: the root runs them while the other ranks wait; a job
+// array's shards (shards.h) split only VNDF and scattering rounds.
 #pragma once
 
 #include "experiment/plan.h"
@@ -17,6 +22,7 @@
 #include "experiment/spec.h"
 #include "measure/vndf.h"
 #include "scatter/smith_walk.h"
+#include "validate/validate.h"
 
 #include <nlohmann/json.hpp>
 
@@ -28,6 +34,8 @@ namespace microsim::experiment {
 
 // Whether a decision's rounds are split: a VNDF on the ellipsoid oracle, a scattering by the Smith walk.
 bool is_split(const ExperimentSpec& spec, const Decision& decision);
+// Whether the ranks share a decision's work: is_split's, and a drawn validation's.
+bool is_shared_by_ranks(const ExperimentSpec& spec, const Decision& decision);
 
 // Rank `rank`'s shard of `round` (rank 0 .. ranks - 1): shard rank + 1 of `ranks`, offset to round.begin.
 BlockRange rank_blocks(const BlockRange& round, int rank, int ranks);
@@ -61,6 +69,10 @@ EllipsoidVndf split_vndf_round(const RoundSplit& split, std::size_t measurement,
                                const VndfRequest& request);
 ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measurement, const SmithMicrosurface& surface,
                                      const ScatterOptions& options);
+// validate_sampler over the ranks (split.ranks; alone without them). Throws Cancelled when any rank's part
+// was cancelled (after every rank has answered), InsufficientData as validate_sampler.
+ValidationReport split_validation(const RoundSplit& split, std::size_t measurement, const SamplerInfo& sampler,
+                                  const GGX<double>& ggx, const Vec3<double>& wi, const ValidationOptions& options);
 
 // Rank `rank`'s part of a round (`ranks` ranks) run in this process: its tallies, in the split's encoding.
 std::string run_part(const ExperimentSpec& spec, const ExperimentPlan& plan, const RoundTask& task, int rank, int ranks,
