@@ -82,6 +82,17 @@ ScatterOptions scatter_request(const SpecMaterial& material, const Decision& dec
   return o;
 }
 
+ValidationOptions validation_request(const SpecQuantity& quantity, std::uint64_t samples, std::uint64_t seed,
+                                     const RunControl& run) {
+  ValidationOptions v;
+  v.samples = samples;
+  v.seed = seed;
+  v.rows = quantity.rows;
+  v.significance = quantity.significance;
+  v.run = run;
+  return v;
+}
+
 ScatterExpectation analytic_scatter_lobe(const SpecMaterial& material, const Decision& decision, const RunControl& run) {
   const Vec3<double> wi = direction_from_degrees(decision.view.theta_deg, decision.view.phi_deg);
   const auto [ax, ay] = decision.alpha;

@@ -8,6 +8,7 @@
 #include "scatter/albedo_table.h"
 #include "scatter/smith_walk.h"
 #include "stats/scatter_expectation.h"
+#include "validate/validate.h"
 
 #include <nlohmann/json.hpp>
 
@@ -42,6 +43,11 @@ VndfRequest vndf_request(const ExperimentSpec& spec, const Decision& decision, s
 // The largest relative error (error / value) over the cells and E_avg of the quantities of a table the target
 // applies to; an infinite one when a value is 0 with a non-zero error.
 double worst_relative_error(const AlbedoTable& table, const SpecQuantity& quantity);
+
+// The validator's options of a validation quantity: `samples` drawn from `seed` (0, 0 for a dump, whose
+// samples are given) at the quantity's rows and level. The same for the root and every rank of a split one.
+ValidationOptions validation_request(const SpecQuantity& quantity, std::uint64_t samples, std::uint64_t seed,
+                                     const RunControl& run);
 
 // ---- the analytic order-1 lobe (orders = "single") -----------------------------------------------------------
 

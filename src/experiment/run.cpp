@@ -337,15 +337,6 @@ void record_validation(const ValidationReport& r, const SpecQuantity& q, std::ui
   m.met = m.achieved <= m.target * (1 + 1e-12);
 }
 
-// The validator's options of a validation quantity (rows, level, run control); the caller sets the samples.
-ValidationOptions validation_options(const SpecQuantity& q, const RunOptions& o) {
-  ValidationOptions v;
-  v.rows = q.rows;
-  v.significance = q.significance;
-  v.run = o.run;
-  return v;
-}
-
 std::invalid_argument dump_error(const SpecQuantity& q, const std::exception& e) {
   return std::invalid_argument(fmt::format("{}.dump: {}", q.key, e.what()));
 }
@@ -356,7 +347,7 @@ void run_dump_validation(const SpecQuantity& q, const RunOptions& o, Measurement
   const Decision& d = m.decision;
   const GGX<double> ggx(d.alpha.first, d.alpha.second);
   const Vec3<double> wi = direction_from_degrees(d.view.theta_deg, d.view.phi_deg);
-  const ValidationOptions v = validation_options(q, o);
+  const ValidationOptions v = validation_request(q, 0, 0, o.run);
   m.rounds.clear();
   m.partial = false;
   const auto clock = std::chrono::steady_clock::now();
@@ -386,9 +377,7 @@ void run_validation(const ExperimentSpec& spec, std::uint64_t seed, std::size_t 
   if (!q.dump.empty()) return run_dump_validation(q, o, m);
   const SamplerInfo* sampler = find_sampler(q.sampler);
   if (sampler == nullptr) throw std::invalid_argument(fmt::format("{}.sampler: unknown sampler '{}'", q.key, q.sampler));
-  ValidationOptions v = validation_options(q, o);
-  v.samples = first_units(d, o);
-  v.seed = round_seed(seed, index, 0);
+  const ValidationOptions v = validation_request(q, first_units(d, o), round_seed(seed, index, 0), o.run);
   m.rounds.clear();
   m.partial = false;
   const auto clock = std::chrono::steady_clock::now();

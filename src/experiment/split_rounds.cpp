@@ -403,12 +403,7 @@ std::string validation_rank_part(const SpecQuantity& q, const Decision& d, const
                                  const RunControl& run) {
   const SamplerInfo* sampler = find_sampler(q.sampler);
   if (sampler == nullptr) throw InternalError(fmt::format("a split validation of an unknown sampler '{}'", q.sampler));
-  ValidationOptions options;
-  options.samples = task.units;
-  options.seed = task.seed;
-  options.rows = q.rows;
-  options.significance = q.significance;
-  options.run = run;
+  const ValidationOptions options = validation_request(q, task.units, task.seed, run);
   const GGX<double> ggx(d.alpha.first, d.alpha.second);
   const auto bins = claimed_reference_bins(*sampler, ggx, direction_from_degrees(d.view.theta_deg, d.view.phi_deg), q.rows);
   return validation_part(mine, own_tally(*sampler, *bins, options, mine));
