@@ -180,4 +180,18 @@ TEST(ExperimentDump, AFileThatIsNotASampleFileStopsThePlan) {
   std::filesystem::remove_all(dir);
 }
 
+TEST(ExperimentDump, IsPlannedWithoutAPilotWhereADrawnValidationHasOne) {
+  const std::filesystem::path dir = scratch_dir("experiment", "dump_plan");
+  const ExperimentPlan dumped = plan_experiment(dump_spec(write_dump(dir, "d.npy", 0.3)), PlanOptions{});
+  EXPECT_EQ(dumped.decisions.at(0).pilot_units, 0u);  // a dump's count is the file's: no time predicted
+  EXPECT_EQ(dumped.decisions.at(0).predicted_seconds, 0.0);
+  ExperimentSpec drawn = dump_spec(dir / "d.npy");
+  drawn.quantities[0].dump.clear();
+  drawn.quantities[0].sampler = "heitz2018";
+  const Decision d = plan_experiment(drawn, PlanOptions{}).decisions.at(0);
+  EXPECT_EQ(d.pilot_units, std::min<std::uint64_t>(d.units, kChunkBlocks * kSampleBlock));
+  EXPECT_GT(d.predicted_seconds, d.pilot_seconds * 0.5);  // the reference's cubature and the samples' rate
+  std::filesystem::remove_all(dir);
+}
+
 }  // namespace

@@ -3,6 +3,7 @@
 #include "experiment/plan.h"
 
 #include "validate/sample_io.h"
+#include "validate/validation_part.h"
 #include "scatter/smith_walk.h"
 #include "stats/binning.h"
 #include "stats/scatter_compare.h"
@@ -17,7 +18,7 @@
 namespace microsim::experiment {
 namespace {
 
-enum SeedPurpose : std::uint64_t { kCapPilot = 1, kTablePilot = 2, kVndfPilot = 3, kScatterPilot = 4 };
+enum SeedPurpose : std::uint64_t { kCapPilot = 1, kTablePilot = 2, kVndfPilot = 3, kScatterPilot = 4, kValidationPilot = 5 };
 
 std::uint64_t plan_seed(const ExperimentSpec& spec, const PlanOptions& options) {
   return options.seed != 0 ? options.seed : spec.seed;
@@ -238,7 +239,25 @@ void check_dump_opens(const SpecQuantity& q) {
   }
 }
 
-void plan_validation_view(const SpecQuantity& q, Decision& d) {
+// The time of a drawn validation: its reference's cubature (paid once), then the samples at the rate of a
+// pilot of kChunkBlocks blocks of them (as many as the validator runs at once: every thread busy).
+void time_validation(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
+  const SamplerInfo& sampler = *find_sampler(q.sampler);  // the spec names a zoo sampler (spec.cpp)
+  const auto start = std::chrono::steady_clock::now();
+  const auto reference = claimed_reference(sampler, GGX<double>(d.alpha.first, d.alpha.second),
+                                           direction_from_degrees(d.view.theta_deg, d.view.phi_deg), q.rows);
+  const auto drawn = std::chrono::steady_clock::now();
+  const std::uint64_t pilot = std::min<std::uint64_t>(d.units, kChunkBlocks * kSampleBlock);
+  tally_drawn_samples(sampler, *reference,
+                      validation_request(q, pilot, derived_seed(plan_seed(spec, o), kValidationPilot, d.quantity), o.run));
+  const double reference_seconds = std::chrono::duration<double>(drawn - start).count();
+  const double tally_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - drawn).count();
+  d.pilot_units = pilot;
+  d.pilot_seconds = reference_seconds + tally_seconds;
+  d.predicted_seconds = reference_seconds + predicted_seconds(d.units, pilot, tally_seconds);
+}
+
+void plan_validation_view(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
   // The validator's sphere binning (2 rows^2 bins) and lobe binning (as many), Sidak-combined: each test at
   // 1 - (1 - significance)^(1/2).
   const int df = 2 * q.rows * q.rows - 1;
@@ -251,6 +270,8 @@ void plan_validation_view(const SpecQuantity& q, Decision& d) {
   if (!q.dump.empty()) {
     check_dump_opens(q);
     d.count_reason += "; the dump's samples are given: all are tested, and their number fixes the TV detected";
+  } else {
+    time_validation(spec, q, o, d);
   }
   d.runnable = true;
 }
@@ -275,7 +296,7 @@ void plan_views(const ExperimentSpec& spec, std::size_t index, const PlanOptions
       } else if (q.kind == QuantityKind::scattering) {
         plan_scattering_view(spec, q, o, d);
       } else {
-        plan_validation_view(q, d);
+        plan_validation_view(spec, q, o, d);
       }
       out.push_back(std::move(d));
     }
