@@ -3,6 +3,7 @@
 
 #include "core/atomic_file.h"
 #include "core/errors.h"
+#include "core/fnv1a.h"
 #include "core/parse.h"
 #include "core/run_control.h"
 #include "experiment/run.h"
@@ -20,12 +21,8 @@ namespace fs = std::filesystem;
 
 std::string part_file(std::size_t task) { return fmt::format("part-{}.bin", task); }
 
-// FNV-1a, 64 bits: shard.json records each part's, so a part changed after it was written is refused.
-std::string part_digest(const std::string& bytes) {
-  std::uint64_t h = 14695981039346656037ull;
-  for (const unsigned char c : bytes) h = (h ^ c) * 1099511628211ull;
-  return fmt::format("{:016x}", h);
-}
+// shard.json records each part's, so a part changed after it was written is refused.
+std::string part_digest(const std::string& bytes) { return fmt::format("{:016x}", fnv1a(bytes)); }
 
 std::string read_bytes(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);

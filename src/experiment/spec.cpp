@@ -1,6 +1,7 @@
 // experiment: the spec reader: a SpecTree (from TOML or JSON) checked key by key into an ExperimentSpec.
 #include "experiment/spec_tree.h"
 
+#include "core/fnv1a.h"
 #include "microfacet/roughness.h"
 #include "microfacet/samplers.h"
 #include "validate/validate.h"
@@ -313,6 +314,11 @@ std::vector<Direction> quantity_directions(const Table& t, bool from_inside_ok) 
   return out;
 }
 
+// A file named in a spec: as given when absolute, else in the spec's folder.
+std::filesystem::path spec_file_path(const std::string& name, const std::filesystem::path& spec_dir) {
+  return std::filesystem::path(name).is_absolute() ? std::filesystem::path(name) : spec_dir / name;
+}
+
 SurfaceChoice quantity_surface(const Table& t, const std::filesystem::path& spec_dir) {
   SurfaceChoice s;
   const std::string name = t.string("surface", "auto");
@@ -321,7 +327,7 @@ SurfaceChoice quantity_surface(const Table& t, const std::filesystem::path& spec
   if (std::filesystem::path(name).extension() != ".exr")
     t.fail("surface", fmt::format("{} is neither auto, an assembly ({}) nor a heightmap .exr", quote_excerpt(name),
                                   microgeom::assembly_names(", ")));
-  const std::filesystem::path path = std::filesystem::path(name).is_absolute() ? std::filesystem::path(name) : spec_dir / name;
+  const std::filesystem::path path = spec_file_path(name, spec_dir);
   if (!std::filesystem::is_regular_file(path)) t.fail("surface", fmt::format("no heightmap file {}", path.string()));
   return {SurfaceChoice::Kind::heightmap, path.string()};
 }
@@ -357,7 +363,7 @@ void read_zoo_sampler(const Table& t, SpecQuantity& q) {
 // A dump was sampled at one alpha and one view; its density is one the validator knows without a BSDF.
 void read_dump(const Table& t, SpecQuantity& q, const SpecMaterial& m, const std::filesystem::path& spec_dir) {
   const std::string name = t.string("dump");
-  const std::filesystem::path path = std::filesystem::path(name).is_absolute() ? std::filesystem::path(name) : spec_dir / name;
+  const std::filesystem::path path = spec_file_path(name, spec_dir);
   if (!std::filesystem::is_regular_file(path)) t.fail("dump", fmt::format("no sample file {}", quote_excerpt(path.string())));
   if (m.alphas.size() != 1 || q.directions.size() != 1)
     t.fail("dump", fmt::format("a dump is sampled at one alpha and one view (material {} has {} alpha(s), the quantity {} "
@@ -482,10 +488,7 @@ std::string canonical_spec(const ExperimentSpec& spec) {
 }
 
 std::string spec_digest(const ExperimentSpec& spec) {
-  // FNV-1a 64 (Fowler, Noll, Vo): an identity check of a directory's results, not a security hash.
-  std::uint64_t h = 0xcbf29ce484222325ULL;
-  for (unsigned char c : canonical_spec(spec)) h = (h ^ c) * 0x100000001b3ULL;
-  return fmt::format("{:016x}", h);
+  return fmt::format("{:016x}", fnv1a(canonical_spec(spec)));  // an identity check of a directory's results
 }
 
 }  // namespace microsim::experiment

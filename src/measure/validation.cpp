@@ -1,5 +1,7 @@
 #include "measure/validation.h"
 
+#include "core/fnv1a.h"
+
 #include <fmt/core.h>
 
 #include <chrono>
@@ -12,15 +14,6 @@ namespace {
 
 constexpr const char* kValidationProducer = "validate";
 const PartReader kValidationReader(kValidationProducer);
-
-std::uint64_t fnv1a(std::uint64_t h, const void* data, std::size_t bytes) {
-  const auto* p = static_cast<const unsigned char*>(data);
-  for (std::size_t k = 0; k < bytes; ++k) {
-    h ^= p[k];
-    h *= 1099511628211ull;
-  }
-  return h;
-}
 
 // The cells of each binning the samples are counted in (bins and the remainder cell): the sphere and lobe
 // binnings of `rows` rows, or the traced histogram's.
