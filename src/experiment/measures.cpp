@@ -93,6 +93,10 @@ ValidationOptions validation_request(const SpecQuantity& quantity, std::uint64_t
   return v;
 }
 
+std::invalid_argument dump_error(const SpecQuantity& quantity, const std::exception& e) {
+  return std::invalid_argument(fmt::format("{}.dump: {}", quantity.key, e.what()));
+}
+
 ScatterExpectation analytic_scatter_lobe(const SpecMaterial& material, const Decision& decision, const RunControl& run) {
   const Vec3<double> wi = direction_from_degrees(decision.view.theta_deg, decision.view.phi_deg);
   const auto [ax, ay] = decision.alpha;

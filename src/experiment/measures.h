@@ -49,6 +49,9 @@ double worst_relative_error(const AlbedoTable& table, const SpecQuantity& quanti
 ValidationOptions validation_request(const SpecQuantity& quantity, std::uint64_t samples, std::uint64_t seed,
                                      const RunControl& run);
 
+// Bad input in a validation's dump (a file that is not samples, too few of them), naming the spec key.
+std::invalid_argument dump_error(const SpecQuantity& quantity, const std::exception& e);
+
 // ---- the analytic order-1 lobe (orders = "single") -----------------------------------------------------------
 
 // The order-1 lobe of a scattering decision: the single-scattering expectation of its material at its alpha

@@ -235,7 +235,7 @@ void check_dump_opens(const SpecQuantity& q) {
   try {
     DirectionSampleReader reader{std::filesystem::path(q.dump)};
   } catch (const SampleFileError& e) {
-    throw std::invalid_argument(fmt::format("{}.dump: {}", q.key, e.what()));
+    throw dump_error(q, e);
   }
 }
 

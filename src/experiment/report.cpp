@@ -249,6 +249,12 @@ std::string estimate_text(const json& e) {
   return report_number(member(e, "value")) + " &plusmn; " + report_number(member(e, "standard_error"));
 }
 
+// Lobes in the hemispheres binning of `rows` rows per hemisphere, as a figure of the page.
+std::string lobes_figure(const std::string& label, const std::string& subtitle, int rows,
+                         const std::vector<ScatterFigureRow>& figure_rows) {
+  return "<figure>" + scatter_figure_svg(label, subtitle, DirectionBinning::hemispheres(rows), figure_rows) + "</figure>\n";
+}
+
 std::string scatter_figure(const ScatterHistogram& h, const std::string& label, int rows) {
   std::vector<ScatterFigureRow> figure_rows;
   const double n = double(std::max<std::uint64_t>(h.paths(), 1));
@@ -259,13 +265,13 @@ std::string scatter_figure(const ScatterHistogram& h, const std::string& label, 
     figure_rows.push_back({scatter_order_name(k), {{"Smith walk", values}}, {}});
   }
   const std::string subtitle = fmt::format("{} paths; weight per launched path per bin", h.paths());
-  return "<figure>" + scatter_figure_svg(label, subtitle, DirectionBinning::hemispheres(rows), figure_rows) + "</figure>\n";
+  return lobes_figure(label, subtitle, rows, figure_rows);
 }
 
 std::string expectation_figure(const ScatterExpectation& lobe, const std::string& label, int rows) {
   const std::vector<ScatterFigureRow> figure_rows{{"order 1", {{"analytic", lobe.order1.at(0)}}, {}}};
   const std::string subtitle = "the single-scattering expectation by cubature; weight per launched path per bin";
-  return "<figure>" + scatter_figure_svg(label, subtitle, DirectionBinning::hemispheres(rows), figure_rows) + "</figure>\n";
+  return lobes_figure(label, subtitle, rows, figure_rows);
 }
 
 std::string scattering_values(const json& values, const ReportScatters& scatters, std::size_t index,

@@ -337,10 +337,6 @@ void record_validation(const ValidationReport& r, const SpecQuantity& q, std::ui
   m.met = m.achieved <= m.target * (1 + 1e-12);
 }
 
-std::invalid_argument dump_error(const SpecQuantity& q, const std::exception& e) {
-  return std::invalid_argument(fmt::format("{}.dump: {}", q.key, e.what()));
-}
-
 // A dump: every sample of the file against the density it claims (validate_sample_file, streamed). A file
 // that cannot be read, or holds too few samples, is bad input (std::invalid_argument naming the file).
 void run_dump_validation(const SpecQuantity& q, const RunOptions& o, MeasurementResult& m) {
