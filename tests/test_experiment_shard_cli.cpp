@@ -39,7 +39,10 @@ protected:
   void SetUp() override {
     dir_ = scratch_dir("shard_cli", ::testing::UnitTest::GetInstance()->current_test_info()->name());
     std::ofstream(dir_ / "shards.toml") << microsim::test::split_spec("shards", 11);
-    fs::create_directory(dir_ / "a");  // every run directory is `out` beside the spec's `..`: the same command
+    fs::create_directory(dir_ / "a");
+  }
+  // The one-process run, in a/out: every run directory is `out` beside the spec's `..`: the same command.
+  void run_alone() {
     const auto alone = run_cli(dir_ / "a", "run ../shards.toml --out out --threads 1");
     ASSERT_EQ(alone.exit_code, 0) << alone.err;
     expected_ = run_directory_contents(dir_ / "a" / "out");
@@ -57,6 +60,7 @@ protected:
 };
 
 TEST_F(ExperimentShardCli, TwoAndThreeShardsMergeIntoTheOneProcessRunBitForBit) {
+  ASSERT_NO_FATAL_FAILURE(run_alone());
   ASSERT_NE(expected_.find("scattering-1.exr"), std::string::npos);
   EXPECT_TRUE(microsim::test::has_uneven_round(dir_ / "a" / "out", 3, true)) << "3 shards: an uneven split";
   for (int n : {2, 3}) {
@@ -70,6 +74,7 @@ TEST_F(ExperimentShardCli, TwoAndThreeShardsMergeIntoTheOneProcessRunBitForBit) 
 }
 
 TEST_F(ExperimentShardCli, AMissingRepeatedForeignOrChangedShardIsRefusedNothingWritten) {
+  ASSERT_NO_FATAL_FAILURE(run_alone());
   const std::string parts = run_shards(dir_, 3);
   expect_refused("--out m --merge 3-1 3-3", "shard 2/3 is missing");
   expect_refused("--out m --merge 3-1 3-2 3-2 3-3", "given twice");
@@ -90,6 +95,8 @@ TEST_F(ExperimentShardCli, BadShardValuesAreRefusedNothingWritten) {
   expect_refused("--out p --shard 1/0", "--shard (N)");
   expect_refused("--out p --shard 2", "not a shard K/N");
   expect_refused("--out p --shard 1/2 --merge a/out", "not with --merge");
+  fs::create_directory(dir_ / "a" / "out");
+  std::ofstream(dir_ / "a" / "out" / "results.json") << "{}";
   expect_refused("--out a/out --shard 1/2", "must be new or empty");
 }
 
