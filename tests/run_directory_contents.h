@@ -38,7 +38,7 @@ kind = "scattering"
 material = "glass"
 orders = "all"
 theta = [50]
-target_tv = 0.05
+target_tv = 0.055
 
 [[quantity]]
 kind = "albedo"

@@ -140,14 +140,31 @@ double scatter_order_floor(const ScatterHistogram& h, int order_bin) {
 std::vector<int> targeted_order_bins(const ScatterHistogram& h, double target) {
   const double all = h.albedo(0, -1).value;
   std::vector<int> out;
-  for (int k = 0; k < kScatterOrderBins; ++k)
-    if (all > 0 && h.albedo(0, k).value >= target * all) out.push_back(k);
+  if (!(all > 0)) return out;
+  for (int k = 0; k < kScatterOrderBins; ++k) {
+    const Estimate order = h.albedo(0, k);
+    if (order.value > 0 && order.value + kShareMargin * order.standard_error >= target * all) out.push_back(k);
+  }
   return out;
 }
 
-double scatter_noise_floor(const ScatterHistogram& h, double target) {
+double scatter_noise_floor(const ScatterHistogram& h, const std::vector<int>& order_bins) {
   double worst = 0;
-  for (int k : targeted_order_bins(h, target)) worst = std::max(worst, scatter_order_floor(h, k));
+  for (int k : order_bins) worst = std::max(worst, scatter_order_floor(h, k));
+  return worst;
+}
+
+double extrapolated_scatter_floor(const ScatterHistogram& quarter, const ScatterHistogram& whole,
+                                  const std::vector<int>& order_bins) {
+  const double root_ratio = std::sqrt(double(std::max<std::uint64_t>(quarter.paths(), 1)) /
+                                      double(std::max<std::uint64_t>(whole.paths(), 1)));
+  double worst = 0;
+  for (int k : order_bins) {
+    const double at_whole = scatter_order_floor(whole, k);
+    // In units of the whole pilot's floor: C(n/4) / sqrt(n) = floor(n/4) sqrt(n/4) / sqrt(n).
+    const double at_quarter = scatter_order_floor(quarter, k) * root_ratio;
+    worst = std::max(worst, std::max(at_whole, 2 * at_whole - at_quarter));
+  }
   return worst;
 }
 

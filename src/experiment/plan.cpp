@@ -176,26 +176,48 @@ void plan_vndf_view(const ExperimentSpec& spec, const SpecQuantity& q, const Pla
   d.runnable = true;
 }
 
+// A walk pilot run as its first quarter of blocks and the rest, merged: the whole pilot bit for bit, and its
+// quarter for extrapolated_scatter_floor. Under 2 blocks, `quarter` is the whole pilot.
+struct ScatterPilot {
+  ScatterHistogram quarter, whole;
+};
+ScatterPilot run_scatter_pilot(const SmithMicrosurface& surface, const ScatterOptions& request) {
+  const std::uint64_t blocks = (request.paths + kPathsPerBlock - 1) / kPathsPerBlock;
+  if (blocks < 2) {
+    ScatterHistogram whole = smith_walk_scatter(surface, request);
+    return {whole, whole};
+  }
+  ScatterOptions first = request, rest = request;
+  first.blocks = BlockRange{0, std::max<std::uint64_t>(1, blocks / 4)};
+  rest.blocks = BlockRange{first.blocks->end, blocks};
+  ScatterPilot pilot{smith_walk_scatter(surface, first), {}};
+  pilot.whole = pilot.quarter;
+  pilot.whole.merge(smith_walk_scatter(surface, rest));
+  return pilot;
+}
+
 // The count of a walk's per-order lobes: a pilot of pilot_rays paths at the planned cap gives each order's
-// TV noise floor (scatter_order_floor, ~ 1/sqrt(n)); the paths bring the worst targeted order's to kNoiseShare
-// of the target.
+// TV noise floor, extrapolated to its 1/sqrt(n) law (extrapolated_scatter_floor); the paths bring the worst
+// targeted order's to kNoiseShare of the target.
 void plan_scattering_count(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
   const SpecMaterial& m = spec.material(q.material);
   const auto start = std::chrono::steady_clock::now();
-  const ScatterHistogram pilot = smith_walk_scatter(
+  const ScatterPilot pilot = run_scatter_pilot(
       scatter_surface(m, d), scatter_request(m, d, o.pilot_rays, derived_seed(plan_seed(spec, o), kScatterPilot, d.quantity), o.run));
-  if (pilot.partial) throw Cancelled("plan: scattering pilot");
+  if (pilot.whole.partial || pilot.quarter.partial) throw Cancelled("plan: scattering pilot");
   d.pilot_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   d.pilot_units = o.pilot_rays;
-  d.pilot_error = scatter_noise_floor(pilot, q.target);
+  d.targeted_orders = targeted_order_bins(pilot.whole, q.target);
+  d.pilot_error = extrapolated_scatter_floor(pilot.quarter, pilot.whole, d.targeted_orders);
   d.units = units_for_standard_error(o.pilot_rays, d.pilot_error, kNoiseShare * q.target);
   d.unit = "paths";
   std::string orders;
-  for (int k : targeted_order_bins(pilot, q.target))
-    orders += fmt::format("{}{} {:.2e}", orders.empty() ? "" : ", ", scatter_order_name(k), scatter_order_floor(pilot, k));
-  d.count_reason = fmt::format("pilot of {} paths: per-order TV noise floors ~ 1/sqrt(n) ({}; orders carrying at least "
-                               "{} of the albedo); resolving TV {} needs every floor <= {} x {} ({} rows per hemisphere)",
-                               o.pilot_rays, orders, q.target, q.target, kNoiseShare, q.target, kScatterRows);
+  for (int k : d.targeted_orders)
+    orders += fmt::format("{}{} {:.2e}", orders.empty() ? "" : ", ", scatter_order_name(k), scatter_order_floor(pilot.whole, k));
+  d.count_reason = fmt::format("pilot of {} paths: per-order TV noise floors ({}; orders that may carry at least {} of the "
+                               "albedo), the worst extrapolated to the 1/sqrt(n) law from the pilot's first quarter: "
+                               "{:.2e}; resolving TV {} needs every floor <= {} x {} ({} rows per hemisphere)",
+                               o.pilot_rays, orders, q.target, d.pilot_error, q.target, kNoiseShare, q.target, kScatterRows);
   d.predicted_seconds = predicted_seconds(d.units, d.pilot_units, d.pilot_seconds);
   d.runnable = true;
 }

@@ -91,6 +91,7 @@ struct Decision {
   std::string unit;          // "paths per cell", "rays", "samples", "" (deterministic)
   std::string count_reason;
   int order_cap = 0;         // the walk's cap; 0: not a walk
+  std::vector<int> targeted_orders;  // scattering, walk: the order bins the target applies to (measures.h)
   std::string cap_reason;
   double tolerance = 0;      // analytic albedo: the quadrature's absolute tolerance per cell
   double predicted_seconds = 0;

@@ -26,6 +26,7 @@ nlohmann::json decision_json(const Decision& d, const ExperimentSpec& spec) {
     j["view"] = {{"theta_deg", d.view.theta_deg}, {"phi_deg", d.view.phi_deg}};
   }
   if (d.tolerance > 0) j["tolerance"] = d.tolerance;
+  if (!d.targeted_orders.empty()) j["targeted_orders"] = d.targeted_orders;
   if (!d.runnable) j["not_runnable"] = d.not_runnable;
   return j;
 }

@@ -57,6 +57,9 @@ Decision decision_from_json(const json& j, const ExperimentSpec& spec, const std
   d.pilot_seconds = get<double>(pilot, "seconds", where + ".pilot");
   d.pilot_error = get<double>(pilot, "error", where + ".pilot");
   d.runnable = get<bool>(j, "runnable", where);
+  // A walk's per-order lobes resolve the orders its plan targeted (a plan of an earlier version has none).
+  if (d.runnable && spec.quantities[d.quantity].kind == QuantityKind::scattering && d.model.model == Model::smith_walk)
+    d.targeted_orders = get<std::vector<int>>(j, "targeted_orders", where);
   if (j.contains("not_runnable")) d.not_runnable = get<std::string>(j, "not_runnable", where);
   return d;
 }

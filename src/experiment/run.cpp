@@ -216,10 +216,10 @@ void add_scatter_round(ScatterHistogram& sum, const ScatterHistogram& round) {
 
 nlohmann::json estimate_json(const Estimate& e) { return {{"value", e.value}, {"standard_error", e.standard_error}}; }
 
-void record_scatter(MeasurementResult& m, double target) {
+void record_scatter(MeasurementResult& m) {
   const ScatterHistogram& h = m.scatter;
   nlohmann::json orders = nlohmann::json::array();
-  const std::vector<int> targeted = targeted_order_bins(h, target);
+  const std::vector<int>& targeted = m.decision.targeted_orders;
   for (int k = 0; k < kScatterOrderBins; ++k)
     orders.push_back({{"order", scatter_order_name(k)},
                       {"albedo", estimate_json(h.albedo(0, k))},
@@ -232,7 +232,7 @@ void record_scatter(MeasurementResult& m, double target) {
                               {"albedo", estimate_json(h.albedo(0, -1))},
                               {"unfinished", estimate_json(h.unfinished(0))},
                               {"orders", orders},
-                              {"noise_floor_tv", scatter_noise_floor(h, target)},
+                              {"noise_floor_tv", scatter_noise_floor(h, targeted)},
                               {"rows_per_hemisphere", kScatterRows}}}};
 }
 
@@ -247,12 +247,12 @@ bool scatter_round(const ExperimentSpec& spec, const RoundStart& start, std::siz
   m.partial = round.partial;
   if (round.paths() == 0) return false;
   add_scatter_round(m.scatter, round);
-  m.achieved = scatter_noise_floor(m.scatter, spec.quantities[d.quantity].target);
+  m.achieved = scatter_noise_floor(m.scatter, d.targeted_orders);
   m.units += round.paths();
   m.rays += round.paths();
   m.rounds.push_back({start.done + round.paths(), start.rays, round.provenance.blocks.end, round.partial, start.seed, 0,
                       seconds_since(clock), m.achieved});
-  record_scatter(m, spec.quantities[d.quantity].target);
+  record_scatter(m);
   return true;
 }
 

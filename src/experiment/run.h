@@ -8,7 +8,7 @@
 //   vndf                rounds of ellipsoid-oracle rays, each from its own seed, their exact counts summed; the
 //                       TV noise floor of the sum decides (kNoiseShare of the target);
 //   scattering, walk    rounds of Smith walks, their exact sums added; the largest per-order TV noise floor of
-//                       the orders the target applies to decides (measures.h, scatter_noise_floor);
+//                       the orders the plan targeted decides (measures.h, targeted_order_bins);
 //   scattering, analytic  the order-1 lobe by cubature, once (measures.h, analytic_scatter_lobe); its error
 //                       estimate over the albedo is the achieved error (the whole target: no noise);
 //   validation          one validate_sampler run of the planned samples (the power rule needs no rounds).
