@@ -15,7 +15,7 @@
 namespace microsim::test {
 
 // The spec both compare: a VNDF and a per-order scattering measurement of one glass (split over ranks or
-// shards), an analytic albedo table (run by rank 0 or by the merge) and a validation of heitz2018 (3 blocks of
+// shards), a walk albedo table (its 4 cells split likewise) and a validation of heitz2018 (3 blocks of
 // samples: split over ranks, run by the merge of shards).
 inline std::string split_spec(const std::string& name, int seed) {
   return "name = \"" + name + "\"\nseed = " + std::to_string(seed) + R"(
@@ -43,8 +43,9 @@ target_tv = 0.055
 [[quantity]]
 kind = "albedo"
 material = "glass"
+orders = "all"
 mus = 4
-target_relative_error = 0.001
+target_relative_error = 0.02
 
 [[material]]
 name = "ggx"

@@ -8,7 +8,8 @@
 //   - the first rounds run as 3 shards of a job array (shards.h), given in any order, merged: bit for bit again;
 //     with two shards' parts swapped an InternalError, with a shard missing or given twice a bad input;
 //   - a rank cancelled from the start: the run is partial, what it kept is the prefix of the round before that
-//     rank's shard, and resumed in one process it gives the uninterrupted results.
+//     rank's shard, and resumed in one process it gives the uninterrupted results;
+//   - a walk albedo table, its cells split over 2 and 3 ranks and over 3 shards: the one-process table.
 #include "core/errors.h"
 #include "experiment/plan.h"
 #include "experiment/run.h"
@@ -299,6 +300,66 @@ TEST(ExperimentSplitValidation, TwoAndThreeRanksGiveTheOneProcessReportBitForBit
   EXPECT_TRUE(cancelled.results.measurements[0].partial);
   ExperimentResults back = results_from_json(nlohmann::json::parse(results_json(cancelled.results).dump()), plan);
   EXPECT_EQ(validation_measured(run_in_one_process(spec, plan, &back)).dump(), expected);
+}
+
+// ---- a walk albedo table: its cells split over the ranks ---------------------------------------------------
+
+ExperimentSpec albedo_spec() {
+  return parse_spec_toml(R"(
+seed = 31
+[[material]]
+name = "glass"
+alphas = [0.3, 0.6]
+type = "dielectric"
+eta = 1.5
+[[quantity]]
+kind = "albedo"
+material = "glass"
+orders = "all"
+mus = 4
+target_relative_error = 0.02
+)", "albedo.toml");
+}
+
+// 2 and 3 ranks (8 cells: 3 + 3 + 2) give the one-process table, bit for bit; parts out of rank order are an
+// InternalError; a cancelled rank cancels the round (an albedo round cut short is run again whole), and the
+// resumed run is the one-process run; shards of the first round merged give it too, parts swapped do not.
+TEST(ExperimentSplitAlbedo, RanksAndShardsGiveTheOneProcessTableBitForBit) {
+  const ExperimentSpec spec = albedo_spec();
+  const ExperimentPlan plan = plan_with_small_pilots(spec);
+  ASSERT_EQ(plan.decisions.at(0).model.model, Model::smith_walk);
+  ASSERT_TRUE(is_split(spec, plan.decisions[0]));
+  const ExperimentResults alone = run_in_one_process(spec, plan);
+  ASSERT_TRUE(alone.measurements.at(0).met);
+  const std::string expected = split_measured(alone).dump();
+  for (int ranks : {2, 3}) {
+    const SplitRun split = run_split(spec, plan, ranks);
+    EXPECT_EQ(split.internal_error, "");
+    EXPECT_EQ(split_measured(split.results).dump(), expected) << ranks << " ranks";
+  }
+  const SplitRun reversed = run_split(spec, plan, 3, [](std::vector<std::string>& p) { std::reverse(p.begin(), p.end()); });
+  EXPECT_NE(reversed.internal_error, "");
+  const SplitRun cancelled = run_split(spec, plan, 3, {}, 2);
+  ASSERT_TRUE(cancelled.results.partial);
+  ASSERT_EQ(cancelled.results.measurements.size(), 1u);
+  EXPECT_TRUE(cancelled.results.measurements[0].rounds.empty()) << "the cut round is dropped whole";
+  const ExperimentResults back = results_from_json(nlohmann::json::parse(results_json(cancelled.results).dump()), plan);
+  EXPECT_EQ(split_measured(run_in_one_process(spec, plan, &back)).dump(), expected) << "resumed";
+  std::vector<ShardParts> shards;
+  std::vector<std::string> names;
+  for (std::uint64_t k = 1; k <= 3; ++k) {
+    shards.push_back(run_shard(spec, plan, spec.seed, k, 3, RunControl{1, nullptr, {}}));
+    names.push_back("shard " + std::to_string(k));
+  }
+  StoredRounds stored = merge_shards(shards, names);
+  ASSERT_EQ(stored.tasks.size(), 1u);
+  EXPECT_EQ(stored.tasks[0].blocks, (BlockRange{0, 8})) << "the table's cells";
+  RunOptions o;
+  o.run = RunControl{1, nullptr, {}};
+  o.stored = &stored;
+  EXPECT_EQ(split_measured(run_experiment(spec, plan, o)).dump(), expected) << "shards merged";
+  std::swap(stored.parts[0][0], stored.parts[0][1]);
+  EXPECT_THROW(run_experiment(spec, plan, o), InternalError) << "shards' parts swapped";
 }
 
 }  // namespace

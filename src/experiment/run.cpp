@@ -79,7 +79,8 @@ void run_walk_albedo(const ExperimentSpec& spec, std::uint64_t seed, std::size_t
   std::uint64_t n = tables.empty() ? first_units(d, o) : next_round_units(m.units, m.achieved, m.target);
   for (int r = int(tables.size()); r < o.max_rounds && n > 0; ++r) {
     const std::uint64_t s = round_seed(seed, index, r);
-    AlbedoTable t = albedo_table(albedo_request(spec, q, Model::smith_walk, n, d.order_cap, 0, s, o.run));
+    AlbedoTable t = split_albedo_round({o.ranks, o.stored}, index,
+                                       albedo_request(spec, q, Model::smith_walk, n, d.order_cap, 0, s, o.run));
     if (t.partial) {  // a round cut short is run again whole on resumption
       m.partial = true;
       break;
@@ -448,10 +449,13 @@ std::vector<RoundTask> first_split_rounds(const ExperimentSpec& spec, const Expe
   for (std::size_t i = 0; i < plan.decisions.size(); ++i) {
     const Decision& d = plan.decisions[i];
     if (!d.runnable || !is_split(spec, d)) continue;
-    const bool vndf = spec.quantities[d.quantity].kind == QuantityKind::vndf;  // capped as next_round caps them
+    const QuantityKind kind = spec.quantities[d.quantity].kind;
+    const bool vndf = kind == QuantityKind::vndf;  // capped as next_round caps them
     const std::uint64_t units = std::min(first_units(d, planned), vndf ? kMaxRays : std::numeric_limits<std::uint64_t>::max());
     const std::uint64_t block = vndf ? kRaysPerBlock : kPathsPerBlock;
-    tasks.push_back({i, units, round_seed(seed, i, 0), {0, units / block + (units % block != 0)}});
+    const BlockRange blocks = kind == QuantityKind::albedo ? BlockRange{0, albedo_round_cells(spec, d)}  // its cells
+                                                           : BlockRange{0, units / block + (units % block != 0)};
+    tasks.push_back({i, units, round_seed(seed, i, 0), blocks});
   }
   return tasks;
 }

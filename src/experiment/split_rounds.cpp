@@ -11,6 +11,7 @@
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
+#include <bit>
 #include <chrono>
 #include <cstring>
 #include <optional>
@@ -221,6 +222,59 @@ ScatterHistogram combine_scatter_parts(ScatterHistogram own, const std::vector<s
   return own;
 }
 
+// ---- walk albedo parts (a shard of a table's cells) -----------------------------------------------------------
+
+// The cells' estimates as their bits (nullopt: cancelled, no cell).
+std::string albedo_part(const BlockRange& cells, const std::optional<AlbedoCells>& estimates) {
+  Words w;
+  put_header(w, cells, !estimates);
+  if (estimates)
+    for (const std::vector<Estimate>& cell : *estimates) {
+      w.push_back(cell.size());
+      for (const Estimate& e : cell) w.insert(w.end(), {std::bit_cast<std::uint64_t>(e.value), std::bit_cast<std::uint64_t>(e.standard_error)});
+    }
+  return words_to_bytes(w);
+}
+
+// Rank r's cells appended to `cells` (its shard checked as check_shard checks blocks); false when it was
+// cancelled.
+bool add_albedo_part(AlbedoCells& cells, const std::string& bytes, const BlockRange& round, int rank, int ranks) {
+  PartReader in(bytes, rank);
+  bool partial = false;
+  const BlockRange got{in.next(), in.next()};
+  partial = in.next() != 0;
+  if (partial) return false;
+  check_shard(got, false, round, rank, ranks);
+  for (std::uint64_t c = got.begin; c < got.end; ++c) {
+    std::vector<Estimate> cell(in.next());
+    for (Estimate& e : cell) {
+      e.value = std::bit_cast<double>(in.next());
+      e.standard_error = std::bit_cast<double>(in.next());
+    }
+    cells.push_back(std::move(cell));
+  }
+  in.finish();
+  return true;
+}
+
+// A round cut short: no row (it is run again whole on resumption).
+AlbedoTable cancelled_albedo_table(const AlbedoTableRequest& request) {
+  AlbedoTable cancelled;
+  cancelled.request = request;
+  cancelled.partial = true;
+  return cancelled;
+}
+
+// The parts from `first` on, in rank order, after `cells` (rank 0's, or none): the whole table, or a partial
+// one (no row) when a part was cancelled.
+AlbedoTable combine_albedo_parts(const AlbedoTableRequest& request, AlbedoCells cells, const std::vector<std::string>& parts,
+                                 const BlockRange& round, int first, double seconds) {
+  bool complete = true;
+  for (int r = first; r < int(parts.size()) && complete; ++r)
+    complete = add_albedo_part(cells, parts[std::size_t(r)], round, r, int(parts.size()));
+  return complete ? albedo_table_from_cells(request, cells, seconds) : cancelled_albedo_table(request);
+}
+
 // ---- validation parts (a drawn validation's tally) ---------------------------------------------------------
 
 // A rank's tally of its blocks (tally_json), or a cancelled part (no tally).
@@ -321,7 +375,7 @@ double split_seconds_since(std::chrono::steady_clock::time_point start) {
 bool is_split(const ExperimentSpec& spec, const Decision& decision) {
   const QuantityKind kind = spec.quantities[decision.quantity].kind;
   return (kind == QuantityKind::vndf && decision.model.model == Model::ellipsoid_oracle) ||
-         (kind == QuantityKind::scattering && decision.model.model == Model::smith_walk);
+         ((kind == QuantityKind::scattering || kind == QuantityKind::albedo) && decision.model.model == Model::smith_walk);
 }
 
 bool is_shared_by_ranks(const ExperimentSpec& spec, const Decision& decision) {
@@ -369,6 +423,27 @@ ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measur
   const std::vector<std::string> parts = split.ranks->gather(scatter_part(part));
   check_part_count(parts, split.ranks->size());
   return combine_scatter_parts(std::move(part), parts, round, 1);
+}
+
+AlbedoTable split_albedo_round(const RoundSplit& split, std::size_t measurement, const AlbedoTableRequest& request) {
+  const auto start = std::chrono::steady_clock::now();
+  const BlockRange round{0, request.alphas.size() * std::uint64_t(request.mus)};
+  const RoundTask task{measurement, request.paths, request.seed, round};
+  if (const std::vector<std::string>* stored = stored_parts(split.stored, task))
+    return combine_albedo_parts(request, {}, *stored, round, 0, split_seconds_since(start));
+  if (split.ranks == nullptr || split.ranks->size() == 1) return albedo_table(request);
+  split.ranks->broadcast(task_message(task));
+  const BlockRange mine = rank_blocks(round, 0, split.ranks->size());
+  const std::optional<AlbedoCells> own = walk_albedo_cells(request, mine);
+  const std::vector<std::string> parts = split.ranks->gather(albedo_part(mine, own));
+  check_part_count(parts, split.ranks->size());
+  if (!own) return cancelled_albedo_table(request);
+  return combine_albedo_parts(request, *own, parts, round, 1, split_seconds_since(start));
+}
+
+std::uint64_t albedo_round_cells(const ExperimentSpec& spec, const Decision& decision) {
+  const SpecQuantity& q = spec.quantities[decision.quantity];
+  return spec.material(q.material).alphas.size() * std::uint64_t(q.mus);
 }
 
 ValidationReport split_validation(const RoundSplit& split, std::size_t measurement, const SamplerInfo& sampler,
@@ -421,6 +496,8 @@ std::string run_part(const ExperimentSpec& spec, const ExperimentPlan& plan, con
   if (!is_shared_by_ranks(spec, d))
     throw InternalError(fmt::format("a round of measurement {}, which is not split", task.measurement));
   if (q.kind == QuantityKind::validation) return validation_rank_part(q, d, task, mine, run);
+  if (q.kind == QuantityKind::albedo)
+    return albedo_part(mine, walk_albedo_cells(albedo_request(spec, q, Model::smith_walk, task.units, d.order_cap, 0, task.seed, run), mine));
   if (q.kind == QuantityKind::vndf) {
     VndfRequest request = vndf_request(spec, d, task.units, task.seed, run);
     request.blocks = mine;

@@ -13,14 +13,19 @@
 // blocks (tally_drawn_samples), the root merges the tallies in rank order (merge_tallies: counts added, the
 // blocks' checks reduced again from the first) and reports from them: validate_sampler's report, bit for bit
 // (validation_part.h). A validation cancelled on any rank is cancelled whole (it has no partial result).
-// Albedo tables, analytic lobes and dumps are not split: the root runs them while the other ranks wait; a job
-// array's shards (shards.h) split only VNDF and scattering rounds.
+// A walk albedo table's round is split by cells (its "blocks" are the table's cells, row-major: each cell its
+// own walk from its own seed, scatter/albedo_table.h walk_albedo_cells): rank r computes its shard of the
+// cells, the root joins them in rank order (albedo_table_from_cells): albedo_table's table, bit for bit; a
+// part cancelled part way cancels the round (an albedo round cut short is run again whole).
+// Analytic albedo tables, analytic lobes and dumps are not split: the root runs them while the other ranks
+// wait; a job array's shards (shards.h) split the VNDF, scattering and walk albedo rounds.
 #pragma once
 
 #include "experiment/plan.h"
 #include "experiment/ranks.h"
 #include "experiment/spec.h"
 #include "measure/vndf.h"
+#include "scatter/albedo_table.h"
 #include "scatter/smith_walk.h"
 #include "validate/validate.h"
 
@@ -32,7 +37,8 @@
 
 namespace microsim::experiment {
 
-// Whether a decision's rounds are split: a VNDF on the ellipsoid oracle, a scattering by the Smith walk.
+// Whether a decision's rounds are split: a VNDF on the ellipsoid oracle, a scattering or an albedo table by
+// the Smith walk.
 bool is_split(const ExperimentSpec& spec, const Decision& decision);
 // Whether the ranks share a decision's work: is_split's, and a drawn validation's.
 bool is_shared_by_ranks(const ExperimentSpec& spec, const Decision& decision);
@@ -69,6 +75,11 @@ EllipsoidVndf split_vndf_round(const RoundSplit& split, std::size_t measurement,
                                const VndfRequest& request);
 ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measurement, const SmithMicrosurface& surface,
                                      const ScatterOptions& options);
+// albedo_table of a Smith-walk request, its cells split (`measurement` as above); partial when a part was
+// cancelled.
+AlbedoTable split_albedo_round(const RoundSplit& split, std::size_t measurement, const AlbedoTableRequest& request);
+// The cells of a walk albedo table's round: alphas x mus (its blocks, for the split and the shards).
+std::uint64_t albedo_round_cells(const ExperimentSpec& spec, const Decision& decision);
 // validate_sampler over the ranks (split.ranks; alone without them). Throws Cancelled when any rank's part
 // was cancelled (after every rank has answered), InsufficientData as validate_sampler.
 ValidationReport split_validation(const RoundSplit& split, std::size_t measurement, const SamplerInfo& sampler,

@@ -245,6 +245,14 @@ std::optional<RowCells> sampled_row(const AlbedoTableRequest& r, std::size_t row
   return cells;
 }
 
+// The quantities of walk cell (row, j), or nullopt when cancelled.
+std::optional<std::vector<Estimate>> walk_cell(const AlbedoTableRequest& r, std::size_t row, std::size_t j, const MuGrid& grid) {
+  const SmithMicrosurface surface{r.ndf, r.alphas[row], r.alphas[row], HeightDistribution::uniform};
+  const ScatterHistogram h = smith_walk_scatter(surface, cell_options(r, row, j, grid));
+  if (h.partial) return std::nullopt;
+  return sampled_cell(r, h);
+}
+
 std::optional<RowCells> walk_row(const AlbedoTableRequest& r, std::size_t row, const MuGrid& grid) {
   const SmithMicrosurface surface{r.ndf, r.alphas[row], r.alphas[row], HeightDistribution::uniform};
   return sampled_row(r, row, grid, [&](const ScatterOptions& o) { return smith_walk_scatter(surface, o); });
@@ -280,6 +288,43 @@ AlbedoTable empty_table(const AlbedoTableRequest& r, const MuGrid& grid) {
 }
 
 }  // namespace
+
+std::optional<AlbedoCells> walk_albedo_cells(const AlbedoTableRequest& r, const BlockRange& cells) {
+  check_albedo_request(r);
+  if (r.model != AlbedoModel::smith_walk) throw std::invalid_argument("walk_albedo_cells: a Smith-walk table only");
+  const MuGrid grid = gauss_legendre_mus(r.mus);
+  const std::uint64_t n = grid.mus.size();
+  if (cells.begin > cells.end || cells.end > r.alphas.size() * n)
+    throw std::invalid_argument(fmt::format("walk_albedo_cells: cells {} of a table of {}", cells.to_string(), r.alphas.size() * n));
+  AlbedoCells out;
+  for (std::uint64_t c = cells.begin; c < cells.end; ++c) {
+    if (r.run.cancelled()) return std::nullopt;
+    std::optional<std::vector<Estimate>> cell = walk_cell(r, std::size_t(c / n), std::size_t(c % n), grid);
+    if (!cell) return std::nullopt;
+    out.push_back(std::move(*cell));
+  }
+  return out;
+}
+
+AlbedoTable albedo_table_from_cells(const AlbedoTableRequest& r, const AlbedoCells& cells, double seconds) {
+  const MuGrid grid = gauss_legendre_mus(r.mus);
+  const std::size_t n = grid.mus.size(), quantities = albedo_quantity_names(r.model, r.material).size();
+  if (cells.size() != r.alphas.size() * n)
+    throw std::invalid_argument(fmt::format("albedo_table_from_cells: {} cells for a table of {}", cells.size(), r.alphas.size() * n));
+  AlbedoTable table = empty_table(r, grid);
+  for (std::size_t row = 0; row < r.alphas.size(); ++row) {
+    RowCells rows(quantities, std::vector<Estimate>(n));
+    for (std::size_t j = 0; j < n; ++j) {
+      const std::vector<Estimate>& cell = cells[row * n + j];
+      if (cell.size() != quantities) throw std::invalid_argument("albedo_table_from_cells: a cell of another model");
+      for (std::size_t q = 0; q < quantities; ++q) rows[q][j] = cell[q];
+    }
+    append_row(table, r.alphas[row], rows, grid);
+    table.row_seconds.push_back(seconds / double(r.alphas.size()));
+  }
+  table.seconds = seconds;
+  return table;
+}
 
 AlbedoTable albedo_table(const AlbedoTableRequest& r, const AlbedoRowCallback& on_row) {
   check_albedo_request(r);

@@ -55,6 +55,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -157,5 +158,16 @@ using AlbedoRowCallback = std::function<void(const AlbedoTable& so_far, std::siz
 
 // Fills the table of the request (check_albedo_request first; throws what it throws, std::invalid_argument).
 AlbedoTable albedo_table(const AlbedoTableRequest& request, const AlbedoRowCallback& on_row = {});
+
+// A walk table's cells split over processes (`mpirun`, a job array: experiment/split_rounds.h). Cell c is
+// (alpha c / mus, mu c % mus), row-major; each is its own walk of request.paths paths from its own seed
+// (albedo_cell_seed), so any split of the cells gives the table albedo_table gives, bit for bit.
+using AlbedoCells = std::vector<std::vector<Estimate>>;  // per cell: its quantities (albedo_quantity_names)
+// The cells [cells.begin, cells.end) of a Smith-walk table; nullopt when cancelled. Throws
+// std::invalid_argument for another model, a bad request (check_albedo_request) or cells beyond the table.
+std::optional<AlbedoCells> walk_albedo_cells(const AlbedoTableRequest& request, const BlockRange& cells);
+// The table of every cell (alphas x mus of them, in order), as albedo_table computes it from them; `seconds`
+// the time they took (row_seconds: its share per row). Throws std::invalid_argument for a wrong count.
+AlbedoTable albedo_table_from_cells(const AlbedoTableRequest& request, const AlbedoCells& cells, double seconds);
 
 }  // namespace microsim
