@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -456,10 +457,34 @@ std::string measurement_section(const json& d, const json& m, std::size_t index,
   return out + measurement_values(member(m, "values"), index, histograms, scatters, label) + "</section>\n";
 }
 
+// G1(v) against theta_v per masking quantity, alpha and view phi (the masking curves against Smith), from
+// the measurements that ran and measured G1; a curve needs two views.
+std::string masking_curves_section(const json& decisions, const json& measurements) {
+  std::map<std::string, std::pair<std::vector<double>, std::vector<const json*>>> curves;
+  for (std::size_t i = 0; i < measurements.size() && i < decisions.size(); ++i) {
+    const json& d = decisions[i];
+    const json& values = member(measurements[i], "values");
+    if (text_of(member(d, "kind")) != "masking" || !values.is_object() || !values.contains("masking") ||
+        !values["masking"].contains("g1"))
+      continue;
+    const std::string key = fmt::format("{} alpha ({}, {}), phi_v {}", text_of(member(d, "quantity")),
+                                        report_number(member(d, "alpha")[0]), report_number(member(d, "alpha")[1]),
+                                        report_number(member(member(d, "view"), "phi_deg")));
+    curves[key].first.push_back(member(member(d, "view"), "theta_deg").get<double>());
+    curves[key].second.push_back(&values["masking"]["g1"]);
+  }
+  std::string out;
+  for (const auto& [key, points] : curves)
+    if (points.first.size() >= 2)
+      out += masking_curves_figure("G1(v): " + key, "measured (or Smith's closed form) against Smith; error bars: one standard error",
+                                   {"theta_v (deg)", "G1(v)"}, points.first, points.second);
+  return out.empty() ? "" : "<h2>Masking curves</h2>\n" + out;
+}
+
 std::string measurements_sections(const json& doc, const ReportHistograms& histograms, const ReportScatters& scatters) {
   const json& decisions = member(member(doc, "plan"), "decisions");
   const json& measurements = member(member(doc, "results"), "measurements");
-  std::string out = "<h2>Measurements</h2>\n";
+  std::string out = masking_curves_section(decisions, measurements) + "<h2>Measurements</h2>\n";
   for (std::size_t i = 0; i < measurements.size() && i < decisions.size(); ++i)
     out += measurement_section(decisions[i], measurements[i], i, histograms, scatters);
   for (std::size_t i = measurements.size(); i < decisions.size(); ++i)
