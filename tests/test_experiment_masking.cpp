@@ -12,6 +12,8 @@
 //     the uninterrupted run's values without redoing the completed round.
 #include "experiment/masking_runs.h"
 #include "experiment/plan.h"
+#include "experiment/report.h"
+#include "experiment/run_directory.h"
 #include "experiment/run.h"
 #include "experiment/spec.h"
 
@@ -290,6 +292,12 @@ TEST(ExperimentMasking, ConditionalMaskingRunsToItsTargetAndResumes) {
   // G1 against Smith with the surface's own NDF: equal in expectation (docs/masking.md section 1).
   EXPECT_LT(std::abs(mk["g1"]["difference_own_ndf"]["value"].get<double>()), 5 * mk["g1"]["standard_error"].get<double>());
   for (const nlohmann::json& b : mk["conditional"]["by_normal"]) EXPECT_LE(b["standard_error"].get<double>(), 0.004);
+  // The report shows the values, the conditional tables and their figures against Smith.
+  const std::string page = experiment_report_html(run_document(spec, plan, whole, {"microsim run cond.toml", "test", 4}), {}, {});
+  EXPECT_NE(page.find(report_number(mk["g1"]["value"])), std::string::npos);
+  EXPECT_NE(page.find(report_number(mk["conditional"]["by_height"][0]["value"])), std::string::npos);
+  EXPECT_NE(page.find("G1(v | height)"), std::string::npos);
+  EXPECT_NE(page.find("<svg"), std::string::npos);
 
   // Cut in the second round, read back through JSON, resumed: the uninterrupted run's values, with the
   // completed first round kept (its samples are not drawn again).

@@ -367,8 +367,10 @@ std::string masking_curves_figure(const std::string& title, const std::string& s
     analytic.y.push_back(p->value("smith_analytic", std::nan("")));
     own.y.push_back(p->value("smith_own_ndf", std::nan("")));
   }
-  std::vector<Curve> curves{measured, analytic};
-  if (std::any_of(own.y.begin(), own.y.end(), [](double y) { return std::isfinite(y); })) curves.push_back(own);
+  const bool traced = std::any_of(own.y.begin(), own.y.end(), [](double y) { return std::isfinite(y); });
+  if (!traced) analytic.label = "Smith's closed form (exact)";  // the analytic model: nothing measured
+  std::vector<Curve> curves{analytic};
+  if (traced) curves = {measured, analytic, own};
   return "<figure>" + curve_figure_svg(title, subtitle, axes, curves) + "</figure>\n";
 }
 
@@ -476,7 +478,7 @@ std::string masking_curves_section(const json& decisions, const json& measuremen
   std::string out;
   for (const auto& [key, points] : curves)
     if (points.first.size() >= 2)
-      out += masking_curves_figure("G1(v): " + key, "measured (or Smith's closed form) against Smith; error bars: one standard error",
+      out += masking_curves_figure("G1(v): " + key, "measured against Smith (analytic model: the closed form); error bars: one standard error",
                                    {"theta_v (deg)", "G1(v)"}, points.first, points.second);
   return out.empty() ? "" : "<h2>Masking curves</h2>\n" + out;
 }
