@@ -271,14 +271,13 @@ nlohmann::json measured(const MeasurementResult& m) {
   return {{"values", v}, {"rounds", rounds}, {"achieved", m.achieved}, {"units", m.units}, {"met", m.met}};
 }
 
-TEST(ExperimentMasking, ConditionalMaskingRunsToItsTargetAndResumes) {
+TEST(ExperimentMasking, ConditionalMaskingRunsToItsTargetInRounds) {
   const ExperimentSpec spec = conditional_spec();
   const ExperimentPlan plan = plan_experiment(spec, PlanOptions{});
   ASSERT_EQ(plan.decisions.size(), 1u);
-  const Decision& d = plan.decisions[0];
-  EXPECT_EQ(d.model.model, Model::heightfield);
-  EXPECT_GT(d.units, 0u);
-  EXPECT_EQ(d.units % kSamplesPerBlock, 0u);
+  EXPECT_EQ(plan.decisions[0].model.model, Model::heightfield);
+  EXPECT_GT(plan.decisions[0].units, 0u);
+  EXPECT_EQ(plan.decisions[0].units % kSamplesPerBlock, 0u);
   // At a quarter of the planned count the first round cannot meet the target: a second round follows.
   const ExperimentResults whole = run_with(spec, plan, RunControl{2, nullptr, {}}, 0.25);
   const MeasurementResult& m = whole.measurements.at(0);
@@ -298,9 +297,11 @@ TEST(ExperimentMasking, ConditionalMaskingRunsToItsTargetAndResumes) {
   EXPECT_NE(page.find(report_number(mk["conditional"]["by_height"][0]["value"])), std::string::npos);
   EXPECT_NE(page.find("G1(v | height)"), std::string::npos);
   EXPECT_NE(page.find("<svg"), std::string::npos);
+}
 
-  // Cut in the second round, read back through JSON, resumed: the uninterrupted run's values, with the
-  // completed first round kept (its samples are not drawn again).
+// The run cancelled half way through its second round's blocks (the "trace masking" progress of its second
+// call), as results.json's JSON leaves it.
+ExperimentResults cut_in_its_second_round(const ExperimentSpec& spec, const ExperimentPlan& plan) {
   CancelToken token;
   std::atomic<int> sequences{0};
   std::atomic<std::uint64_t> last_total{0};
@@ -310,9 +311,19 @@ TEST(ExperimentMasking, ConditionalMaskingRunsToItsTargetAndResumes) {
                        if (sequences.load() >= 2 && 2 * done >= total) token.cancel();
                      }};
   const ExperimentResults cut = run_with(spec, plan, cut_run, 0.25);
-  ASSERT_TRUE(cut.partial);
-  ASSERT_EQ(cut.measurements.at(0).rounds.size(), 1u);
-  const ExperimentResults back = results_from_json(nlohmann::json::parse(results_json(cut).dump()), plan);
+  EXPECT_TRUE(cut.partial);
+  EXPECT_EQ(cut.measurements.at(0).rounds.size(), 1u);
+  return results_from_json(nlohmann::json::parse(results_json(cut).dump()), plan);
+}
+
+TEST(ExperimentMasking, ConditionalMaskingResumesWithoutRedoingItsCompletedRound) {
+  const ExperimentSpec spec = conditional_spec();
+  const ExperimentPlan plan = plan_experiment(spec, PlanOptions{});
+  const ExperimentResults whole = run_with(spec, plan, RunControl{2, nullptr, {}}, 0.25);
+  const MeasurementResult& m = whole.measurements.at(0);
+  const ExperimentResults back = cut_in_its_second_round(spec, plan);
+  // Resumed on one thread: the uninterrupted two-thread run's values, bit for bit; the first round's samples
+  // are not drawn again.
   std::atomic<std::uint64_t> drawn{0};
   RunControl counting{1, nullptr, [&](std::string_view stage, std::uint64_t done, std::uint64_t) {
                         if (stage == "trace masking") drawn = std::max<std::uint64_t>(drawn, done);
@@ -320,7 +331,15 @@ TEST(ExperimentMasking, ConditionalMaskingRunsToItsTargetAndResumes) {
   const ExperimentResults resumed = run_with(spec, plan, counting, 0.25, &back);
   EXPECT_FALSE(resumed.partial);
   EXPECT_EQ(measured(resumed.measurements.at(0)).dump(), measured(m).dump());
-  EXPECT_LE(drawn.load(), m.units - m.rounds[0].units);  // only the later rounds were sampled
+  EXPECT_LE(drawn.load(), m.units - m.rounds[0].units);
+  // Another seed is another surface and other samples: its run differs (the comparison can fail), and the
+  // completed round of this seed is not continued under it (bad input, nothing mixed).
+  RunOptions other;
+  other.seed = 1234;
+  other.cost_factor = 0.25;
+  EXPECT_NE(measured(run_experiment(spec, plan, other).measurements.at(0)).dump(), measured(m).dump());
+  other.resume = &back;
+  EXPECT_THROW(run_experiment(spec, plan, other), std::invalid_argument);
 }
 
 }  // namespace masking_tests
