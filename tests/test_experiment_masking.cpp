@@ -16,6 +16,7 @@
 #include "experiment/run_directory.h"
 #include "experiment/run.h"
 #include "experiment/spec.h"
+#include "scratch_dir.h"
 
 #include <boost/math/quadrature/gauss_kronrod.hpp>
 #include <fmt/format.h>
@@ -300,7 +301,7 @@ TEST(ExperimentMasking, ConditionalMaskingRunsToItsTargetInRounds) {
 }
 
 // The run cancelled half way through its second round's blocks (the "trace masking" progress of its second
-// call), as results.json's JSON leaves it.
+// call), written to a run directory and read back as a rerun of the command reads it.
 ExperimentResults cut_in_its_second_round(const ExperimentSpec& spec, const ExperimentPlan& plan) {
   CancelToken token;
   std::atomic<int> sequences{0};
@@ -313,7 +314,12 @@ ExperimentResults cut_in_its_second_round(const ExperimentSpec& spec, const Expe
   const ExperimentResults cut = run_with(spec, plan, cut_run, 0.25);
   EXPECT_TRUE(cut.partial);
   EXPECT_EQ(cut.measurements.at(0).rounds.size(), 1u);
-  return results_from_json(nlohmann::json::parse(results_json(cut).dump()), plan);
+  const std::filesystem::path dir = microsim::test::scratch_dir("masking", "cut");
+  write_run_directory(dir, spec, plan, cut, {"microsim run cond.toml --out DIR", "test", spec.seed});
+  const std::optional<PreviousRun> previous = load_previous_run(dir, spec, spec.seed);
+  std::filesystem::remove_all(dir);
+  if (!previous) throw std::runtime_error("the run directory was not read back");
+  return previous->results;
 }
 
 TEST(ExperimentMasking, ConditionalMaskingResumesWithoutRedoingItsCompletedRound) {
