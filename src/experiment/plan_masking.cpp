@@ -46,7 +46,8 @@ void plan_heightfield_masking(const SpecQuantity& q, const microgeom::Heightfiel
                                "n = {} x ({:.2e} / {})^2, in whole blocks of {}",
                                d.pilot_units, to_string(q.masking), d.pilot_error, d.pilot_units, d.pilot_error,
                                q.target, kSamplesPerBlock);
-  d.model.reason += "; surface: " + text;
+  d.model.reason += "; surface: " + text +
+                    " (the target is the Monte Carlo error on this one surface: the spread between realisations is not in it)";
   // The surface's build and the scene are paid once per measurement; the sampling scales with the points.
   const double setup = std::max(0.0, d.pilot_seconds - pilot.seconds());
   d.predicted_seconds = build_seconds + setup + predicted_seconds(d.units, d.pilot_units, pilot.seconds());
