@@ -4,7 +4,8 @@
 //   - the planner's choice: G1/G2 on the automatic surface -> Smith's closed forms; conditional masking or
 //     a named surface -> the explicit heightfield;
 //   - the analytic G1 and G2 against an independent computation: the projected-area definition
-//     G1(v) = v_z / integral <v, m>+ D(m) dm (Heitz 2014 eq. 2 with the Smith form of eq. 43) by Boost.Math
+//     G1(v) = v_z / integral <v, m>+ D(m) dm (the Smith masking as the projected-area normalisation of Heitz
+//     2014, sec. 2 and 5; 1 + Lambda = A(v) / v_z) by Boost.Math
 //     Gauss-Kronrod quadrature over the hemisphere of m, GGX and Beckmann, isotropic and anisotropic; a wrong
 //     alpha is detected (negative control);
 //   - a small heightfield spec (conditional masking on a 128^2 `smith` assembly) that runs in rounds to its
@@ -16,6 +17,7 @@
 #include "experiment/run_directory.h"
 #include "experiment/run.h"
 #include "experiment/spec.h"
+#include "microgeom/assembly.h"
 #include "scratch_dir.h"
 
 #include <boost/math/quadrature/gauss_kronrod.hpp>
@@ -346,6 +348,36 @@ TEST(ExperimentMasking, ConditionalMaskingResumesWithoutRedoingItsCompletedRound
   EXPECT_NE(measured(run_experiment(spec, plan, other).measurements.at(0)).dump(), measured(m).dump());
   other.resume = &back;
   EXPECT_THROW(run_experiment(spec, plan, other), std::invalid_argument);
+}
+
+TEST(ExperimentMasking, ANamedHeightmapIsTracedAsItIs) {
+  microgeom::AssemblyParams params;
+  params.alpha_x = params.alpha_y = 0.5;
+  params.resolution = 64;
+  params.corr_cells = 4;
+  const std::filesystem::path dir = microsim::test::scratch_dir("masking", "heightmap");
+  microgeom::save_heightmap_exr(dir / "surface.exr", microgeom::build_assembly(params));
+  const std::string spec_text = fmt::format(
+      "seed = 2\n[[material]]\nname = \"m\"\nalphas = [0.5]\ntype = \"mirror\"\n[[quantity]]\nkind = \"masking\"\n"
+      "material = \"m\"\nsurface = \"{}\"\nwhat = [\"g1\", \"g2\"]\ntheta = [50]\nlight_theta = [40]\n"
+      "light_phi = [180]\ntarget_standard_error = 0.01\n", (dir / "surface.exr").string());
+  const ExperimentSpec spec = parse_spec_toml(spec_text, "hm.toml");
+  const ExperimentPlan plan = plan_experiment(spec, PlanOptions{});
+  ASSERT_EQ(plan.decisions.size(), 1u);
+  EXPECT_EQ(plan.decisions[0].model.model, Model::heightfield);
+  EXPECT_NE(plan.decisions[0].model.reason.find("heightmap"), std::string::npos);
+  const ExperimentResults r = run_experiment(spec, plan, RunOptions{});
+  const MeasurementResult& m = r.measurements.at(0);
+  EXPECT_TRUE(m.met);
+  const nlohmann::json& mk = m.values.at("masking");
+  ASSERT_EQ(mk["g2"].size(), 1u);
+  EXPECT_LE(mk["g2"][0]["standard_error"].get<double>(), 0.01);
+  EXPECT_NE(mk["reference"].get<std::string>().find("metadata"), std::string::npos);  // the assembly's own NDF
+  // A heightmap is one surface: a material of two alphas is refused.
+  std::string two = spec_text;
+  two.replace(two.find("[0.5]"), 5, "[0.5, 0.6]");
+  EXPECT_THROW(parse_spec_toml(two, "hm.toml"), SpecError);
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace masking_tests
