@@ -243,7 +243,9 @@ CommandRegistration run_registration{"run", [](CLI::App& app) {
       "command, version), the report DIR/index.html, DIR/albedo-K.csv, DIR/vndf-K.exr, DIR/scattering-K.exr and "
       "DIR/validation-K.exr. Run again with the same seed, it resumes an interrupted run. Runs albedo (analytic, "
       "smith-walk), vndf (ellipsoid oracle), scattering (smith-walk; order 1 analytic) and validation (a zoo sampler "
-      "or a dump) measurements; those that need an explicit heightfield are planned and reported as not run. Exit 0 "
+      "or a dump) and masking (G1, G2 by Smith's closed forms; conditional masking or a named surface traced on the "
+      "explicit heightfield) measurements; the other kinds' that need an explicit heightfield are planned and "
+      "reported as not run. Exit 0 "
       "done, 2 bad spec or usage (nothing run), "
       "130 interrupted (partial results written). " +
           std::string(mpi_compiled_in()

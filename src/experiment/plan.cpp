@@ -1,4 +1,5 @@
 // experiment: plan_experiment: the pilots behind the decisions (plan.h).
+#include "experiment/masking_runs.h"
 #include "experiment/measures.h"
 #include "experiment/plan.h"
 
@@ -333,6 +334,8 @@ ExperimentPlan plan_experiment(const ExperimentSpec& spec, const PlanOptions& op
     if (options.run.cancelled()) throw Cancelled("plan");
     if (spec.quantities[i].kind == QuantityKind::albedo)
       plan.decisions.push_back(plan_albedo(spec, i, options));
+    else if (spec.quantities[i].kind == QuantityKind::masking)
+      plan_masking(spec, i, options, plan.decisions);
     else
       plan_views(spec, i, options, plan.decisions);
   }

@@ -47,9 +47,34 @@ ModelChoice albedo_or_scattering_choice(const SpecQuantity& q, const SpecMateria
                              "that model exactly, with no surface to build or trace" + fresnel};
 }
 
+// Masking: Smith's closed forms unless the quantity needs a surface (conditional masking: Smith assumes
+// masking independent of the facet and of height, so only an explicit surface has it) or names one.
+ModelChoice masking_choice(const SpecQuantity& q, const SpecMaterial& m) {
+  const std::string ndf = to_string(m.ndf);
+  if (q.surface.kind != SurfaceChoice::Kind::automatic)
+    return {Model::heightfield,
+            fmt::format("the spec names a surface ({} {}): its own masking is measured by tracing it (measure_masking), "
+                        "in rounds to the target standard error, beside Smith's prediction with the analytic NDF "
+                        "and with the surface's own NDF",
+                        q.surface.kind == SurfaceChoice::Kind::assembly ? "assembly" : "heightmap", q.surface.name)};
+  if (q.masking.conditional)
+    return {Model::heightfield,
+            fmt::format("conditional masking (G1 given <v, m> or height) is not in the Smith model, which assumes "
+                        "masking independent of both: it needs an explicit surface; none is named, so the {} "
+                        "assembly (built to {}) is built per alpha at {}^2 with the default correlation length, "
+                        "and traced in rounds to the target standard error",
+                        m.ndf == WalkNdf::ggx ? "smith" : "beckmann", ndf, q.resolution)};
+  return {Model::analytic,
+          fmt::format("G1 and G2 of the Smith model have closed forms: G1 = 1 / (1 + Lambda(v)) (Heitz 2014, eq. 43), "
+                      "height-correlated G2 = 1 / (1 + Lambda(v) + Lambda(l)) (eq. 99; separable G1 G1, eq. 98, "
+                      "beside it) with the {} Lambda: exact, no noise, no surface to build",
+                      ndf)};
+}
+
 }  // namespace
 
 ModelChoice choose_model(const SpecQuantity& q, const SpecMaterial& m) {
+  if (q.kind == QuantityKind::masking) return masking_choice(q, m);
   if (q.surface.kind != SurfaceChoice::Kind::automatic) return explicit_surface_choice(q);
   switch (q.kind) {
     case QuantityKind::vndf:
@@ -61,6 +86,7 @@ ModelChoice choose_model(const SpecQuantity& q, const SpecMaterial& m) {
                                          "cubature (no tracing needed to know D_v)"};
     case QuantityKind::albedo:
     case QuantityKind::scattering: return albedo_or_scattering_choice(q, m);
+    case QuantityKind::masking: return masking_choice(q, m);
   }
   return {};
 }

@@ -9,7 +9,9 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
+#include <map>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -333,6 +335,102 @@ std::string validation_values(const json& values, const ReportHistograms& histog
   return out + fmt::format("<p>Counts: <a href=\"validation-{0}.exr\">validation-{0}.exr</a>.</p>\n", index);
 }
 
+// ---- masking: values against Smith ---------------------------------------------------------------------
+
+// A member's text, or "-" when absent.
+std::string optional_number(const json& j, const char* key) { return j.contains(key) ? report_number(j[key]) : "-"; }
+
+std::string difference_text(const json& j, const char* key) {
+  return j.contains(key) ? estimate_text(j[key]) : "-";
+}
+
+// One row of a masking table: the value +- its standard error beside Smith's predictions and the differences.
+std::vector<std::string> masking_row(const std::string& name, const json& v) {
+  return {esc(name), estimate_text(v), optional_number(v, "smith_analytic"), optional_number(v, "smith_own_ndf"),
+          difference_text(v, "difference"), difference_text(v, "difference_own_ndf")};
+}
+
+const std::vector<std::string> kMaskingHeader{"quantity", "value", "Smith (analytic NDF)", "Smith (own NDF)",
+                                              "value - Smith (analytic)", "value - Smith (own NDF)"};
+
+std::string light_text(const json& l) {
+  return fmt::format("l = (theta {}, phi {})", report_number(member(l, "theta_deg")), report_number(member(l, "phi_deg")));
+}
+
+// Measured values with error bars against Smith's predictions (analytic NDF, own NDF) along x.
+std::string masking_curves_figure(const std::string& title, const std::string& subtitle, const CurveAxes& axes,
+                                  const std::vector<double>& x, const std::vector<const json*>& points) {
+  Curve measured{"measured", x, {}, {}}, analytic{"Smith, analytic NDF", x, {}, {}}, own{"Smith, own NDF", x, {}, {}};
+  for (const json* p : points) {
+    measured.y.push_back(member(*p, "value").get<double>());
+    measured.error.push_back(member(*p, "standard_error").get<double>());
+    analytic.y.push_back(p->value("smith_analytic", std::nan("")));
+    own.y.push_back(p->value("smith_own_ndf", std::nan("")));
+  }
+  const bool traced = std::any_of(own.y.begin(), own.y.end(), [](double y) { return std::isfinite(y); });
+  if (!traced) analytic.label = "Smith's closed form (exact)";  // the analytic model: nothing measured
+  std::vector<Curve> curves{analytic};
+  if (traced) curves = {measured, analytic, own};
+  return "<figure>" + curve_figure_svg(title, subtitle, axes, curves) + "</figure>\n";
+}
+
+std::string masking_bins_section(const json& bins, const std::string& what, const std::string& label) {
+  std::string body;
+  std::vector<double> x;
+  std::vector<const json*> points;
+  for (std::size_t i = 0; i < bins.size(); ++i) {
+    const json& b = bins[i];
+    std::vector<std::string> cells = masking_row(fmt::format("bin {}: [{}, {}]", i, report_number(member(b, "lo")),
+                                                             report_number(member(b, "hi"))), b);
+    cells.insert(cells.begin() + 1, {report_number(member(b, "share")), text_of(member(b, "samples"))});
+    body += row(cells);
+    x.push_back(0.5 * (member(b, "lo").get<double>() + member(b, "hi").get<double>()));
+    points.push_back(&b);
+  }
+  std::vector<std::string> header = kMaskingHeader;
+  header[0] = "bin of " + what;
+  header.insert(header.begin() + 1, {"share", "samples"});
+  std::string out = fmt::format("<h4>G1(v | {})</h4>\n", esc(what)) + table(header, body);
+  if (!points.empty())
+    out += masking_curves_figure(label + ": G1(v | " + what + ")", "error bars: one standard error", {what, "G1(v | bin)"}, x, points);
+  return out;
+}
+
+std::string masking_g2_figure(const json& g2, const std::string& label) {
+  std::vector<double> x;
+  std::vector<const json*> points;
+  for (const json& g : g2) {
+    x.push_back(member(member(g, "light"), "theta_deg").get<double>());
+    points.push_back(&g);
+  }
+  if (points.size() < 2) return "";
+  return masking_curves_figure(label + ": G2(v, l)", "against the light's theta (every light phi on one axis); error bars: one standard error",
+                               {"theta_l (deg)", "G2(v, l)"}, x, points);
+}
+
+std::string masking_values(const json& values, const std::string& label) {
+  const json& mk = member(values, "masking");
+  const bool traced = text_of(member(mk, "model")) == "heightfield";
+  std::string out = traced ? fmt::format("<p>Traced on {} (Smith's analytic NDF: {}): {} surface points, {} shadow rays; "
+                                         "leak ratio {} (must be 1).</p>\n",
+                                         esc(text_of(member(mk, "surface"))), esc(text_of(member(mk, "reference"))),
+                                         text_of(member(mk, "samples")), text_of(member(mk, "rays")),
+                                         estimate_text(member(mk, "leak_ratio")))
+                           : fmt::format("<p>Smith's closed forms ({} NDF): Lambda(v) = {}; exact (standard error 0).</p>\n",
+                                         esc(text_of(member(mk, "ndf"))), report_number(member(mk, "lambda")));
+  std::string body;
+  if (mk.contains("g1")) body += row(masking_row("G1(v)", mk["g1"]));
+  if (mk.contains("g2"))
+    for (const json& g : mk["g2"]) body += row(masking_row("G2(v, l), " + light_text(member(g, "light")), g));
+  if (!body.empty()) out += table(kMaskingHeader, body);
+  if (mk.contains("g2")) out += masking_g2_figure(mk["g2"], label);
+  if (mk.contains("conditional")) {
+    out += masking_bins_section(member(mk["conditional"], "by_normal"), "<v, m>", label);
+    out += masking_bins_section(member(mk["conditional"], "by_height"), "height", label);
+  }
+  return out;
+}
+
 std::string measurement_values(const json& values, std::size_t index, const ReportHistograms& histograms,
                                const ReportScatters& scatters, const std::string& label) {
   if (!values.is_object()) return "";
@@ -342,6 +440,7 @@ std::string measurement_values(const json& values, std::size_t index, const Repo
   if (values.contains("scattering")) return scattering_values(values, scatters, index, label);
   if (values.contains("analytic_scattering")) return analytic_scattering_values(values, scatters, index, label);
   if (values.contains("validation")) return validation_values(values, histograms, index, label);
+  if (values.contains("masking")) return masking_values(values, label);
   return "";
 }
 
@@ -360,10 +459,34 @@ std::string measurement_section(const json& d, const json& m, std::size_t index,
   return out + measurement_values(member(m, "values"), index, histograms, scatters, label) + "</section>\n";
 }
 
+// G1(v) against theta_v per masking quantity, alpha and view phi (the masking curves against Smith), from
+// the measurements that ran and measured G1; a curve needs two views.
+std::string masking_curves_section(const json& decisions, const json& measurements) {
+  std::map<std::string, std::pair<std::vector<double>, std::vector<const json*>>> curves;
+  for (std::size_t i = 0; i < measurements.size() && i < decisions.size(); ++i) {
+    const json& d = decisions[i];
+    const json& values = member(measurements[i], "values");
+    if (text_of(member(d, "kind")) != "masking" || !values.is_object() || !values.contains("masking") ||
+        !values["masking"].contains("g1"))
+      continue;
+    const std::string key = fmt::format("{} alpha ({}, {}), phi_v {}", text_of(member(d, "quantity")),
+                                        report_number(member(d, "alpha")[0]), report_number(member(d, "alpha")[1]),
+                                        report_number(member(member(d, "view"), "phi_deg")));
+    curves[key].first.push_back(member(member(d, "view"), "theta_deg").get<double>());
+    curves[key].second.push_back(&values["masking"]["g1"]);
+  }
+  std::string out;
+  for (const auto& [key, points] : curves)
+    if (points.first.size() >= 2)
+      out += masking_curves_figure("G1(v): " + key, "measured against Smith (analytic model: the closed form); error bars: one standard error",
+                                   {"theta_v (deg)", "G1(v)"}, points.first, points.second);
+  return out.empty() ? "" : "<h2>Masking curves</h2>\n" + out;
+}
+
 std::string measurements_sections(const json& doc, const ReportHistograms& histograms, const ReportScatters& scatters) {
   const json& decisions = member(member(doc, "plan"), "decisions");
   const json& measurements = member(member(doc, "results"), "measurements");
-  std::string out = "<h2>Measurements</h2>\n";
+  std::string out = masking_curves_section(decisions, measurements) + "<h2>Measurements</h2>\n";
   for (std::size_t i = 0; i < measurements.size() && i < decisions.size(); ++i)
     out += measurement_section(decisions[i], measurements[i], i, histograms, scatters);
   for (std::size_t i = measurements.size(); i < decisions.size(); ++i)

@@ -1,6 +1,7 @@
 // experiment: run_experiment: the sequential rounds of each runnable decision (run.h).
 #include "experiment/run.h"
 
+#include "experiment/masking_runs.h"
 #include "experiment/measures.h"
 #include "experiment/split_rounds.h"
 #include "core/parse.h"
@@ -390,6 +391,10 @@ void run_validation(const ExperimentSpec& spec, std::uint64_t seed, std::size_t 
 }
 
 std::string error_measure(const SpecQuantity& q, const Decision& d) {
+  if (q.kind == QuantityKind::masking && d.model.model == Model::analytic) return "none: Smith's closed forms are exact";
+  if (q.kind == QuantityKind::masking)
+    return fmt::format("the largest standard error of the measured {}{}", to_string(q.masking),
+                       q.masking.conditional ? " (every bin of <v, m> and of height)" : "");
   if (q.kind == QuantityKind::scattering && d.model.model == Model::analytic)
     return "the cubature's summed error estimate over the order-1 albedo (to first order a bound on the lobe's TV error)";
   if (q.kind == QuantityKind::scattering)
@@ -418,7 +423,8 @@ MeasurementResult run_decision(const ExperimentSpec& spec, const Decision& d, st
   if (!d.runnable) return m;
   m.ran = true;
   const auto start = std::chrono::steady_clock::now();
-  if (vndf) run_vndf(spec, seed, index, o, m);
+  if (q.kind == QuantityKind::masking) run_masking(spec, seed, round_seed(seed, index, 0), first_units(d, o), o, m);
+  else if (vndf) run_vndf(spec, seed, index, o, m);
   else if (q.kind == QuantityKind::validation) run_validation(spec, seed, index, o, m);
   else if (q.kind == QuantityKind::scattering && analytic) run_analytic_scattering(spec, o, m);
   else if (q.kind == QuantityKind::scattering) run_scattering(spec, seed, index, o, m);

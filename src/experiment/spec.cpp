@@ -134,6 +134,7 @@ std::string to_string(QuantityKind kind) {
     case QuantityKind::vndf: return "vndf";
     case QuantityKind::scattering: return "scattering";
     case QuantityKind::validation: return "validation";
+    case QuantityKind::masking: return "masking";
   }
   return "?";
 }
@@ -249,9 +250,10 @@ namespace {
 
 QuantityKind quantity_kind(const Table& t) {
   const std::string kind = t.string("kind");
-  for (QuantityKind k : {QuantityKind::albedo, QuantityKind::vndf, QuantityKind::scattering, QuantityKind::validation})
+  for (QuantityKind k : {QuantityKind::albedo, QuantityKind::vndf, QuantityKind::scattering, QuantityKind::validation,
+                         QuantityKind::masking})
     if (to_string(k) == kind) return k;
-  t.fail("kind", fmt::format("{} is not a quantity (albedo, vndf, scattering, validation)", quote_excerpt(kind)));
+  t.fail("kind", fmt::format("{} is not a quantity (albedo, vndf, scattering, validation, masking)", quote_excerpt(kind)));
 }
 
 // The keys each kind takes, besides kind, material and surface.
@@ -266,12 +268,16 @@ std::vector<std::string> quantity_keys(QuantityKind kind) {
       add({"sampler", "dump", "pdf", "above_horizon", "detect_tv", "power", "significance", "theta", "theta_range", "phi",
            "rows"});
       break;
+    case QuantityKind::masking:
+      add({"what", "target_standard_error", "theta", "theta_range", "phi", "light_theta", "light_phi", "bins", "resolution"});
+      break;
   }
   return keys;
 }
 
 std::string target_key(QuantityKind kind) {
   if (kind == QuantityKind::albedo) return "target_relative_error";
+  if (kind == QuantityKind::masking) return "target_standard_error";
   return kind == QuantityKind::validation ? "detect_tv" : "target_tv";
 }
 
@@ -279,7 +285,10 @@ double quantity_target(const Table& t, QuantityKind kind) {
   const std::string key = target_key(kind);
   const double target = t.number(key);
   if (!(target > 0)) t.fail(key, fmt::format("{} must be > 0", target));
-  if (kind != QuantityKind::albedo && target >= 1) t.fail(key, fmt::format("{}: a TV distance is below 1", target));
+  if (kind == QuantityKind::masking && target >= 0.5)
+    t.fail(key, fmt::format("{}: a standard error of a masking probability below 0.5", target));
+  if (kind != QuantityKind::albedo && kind != QuantityKind::masking && target >= 1)
+    t.fail(key, fmt::format("{}: a TV distance is below 1", target));
   if (kind == QuantityKind::albedo && target >= 0.5) t.fail(key, fmt::format("{}: a relative error below 0.5", target));
   return target;
 }
@@ -382,6 +391,70 @@ void read_dump(const Table& t, SpecQuantity& q, const SpecMaterial& m, const std
     t.fail("above_horizon", fmt::format("pdf {} is a density of normals (none is below the horizon)", q.dump_pdf));
 }
 
+// ---- masking ----------------------------------------------------------------------------------------------
+
+// `what`: one name or a list of g1, g2, conditional (default g1), each at most once.
+MaskingWhat masking_what(const Table& t) {
+  if (!t.has("what")) return {true, false, false};
+  const Json& v = t.at("what");
+  if (v.is_array() && v.empty()) t.fail("what", "must not be empty");
+  MaskingWhat w;
+  for (const Json& item : v.is_array() ? v : Json::array({v})) {
+    if (!item.is_string()) t.fail("what", "a list of g1, g2, conditional");
+    const std::string name = item.get<std::string>();
+    bool* flag = name == "g1" ? &w.g1 : name == "g2" ? &w.g2 : name == "conditional" ? &w.conditional : nullptr;
+    if (flag == nullptr) t.fail("what", fmt::format("{} is not a masking quantity (g1, g2, conditional)", quote_excerpt(name)));
+    if (*flag) t.fail("what", fmt::format("{} is listed twice", name));
+    *flag = true;
+  }
+  return w;
+}
+
+// G2's lights: light_theta (required with g2, in [0, 90)) x light_phi (default [0]); refused without g2.
+std::vector<Direction> masking_lights(const Table& t, bool g2) {
+  for (const char* key : {"light_theta", "light_phi"})
+    if (!g2 && t.has(key)) t.fail(key, "lights apply to g2 (what = [\"g2\", ...])");
+  if (!g2) return {};
+  if (!t.has("light_theta")) t.fail("light_theta", "g2 needs its lights: light_theta = [...] (degrees; light_phi default [0])");
+  std::vector<Direction> out;
+  for (double theta : t.numbers("light_theta")) {
+    if (!(theta >= 0 && theta < 90))
+      t.fail("light_theta", fmt::format("theta {} deg is at or below the horizon or not an angle (a light takes [0, 90))", theta));
+    for (double phi : t.has("light_phi") ? t.numbers("light_phi") : std::vector<double>{0.0}) out.push_back({theta, phi});
+  }
+  return out;
+}
+
+// The surface of a masking quantity: a built one (an assembly, or conditional masking on auto) takes a
+// resolution; a heightmap is one surface (one alpha); an assembly is built to the material's NDF.
+void check_masking_surface(const Table& t, SpecQuantity& q, const SpecMaterial& m) {
+  const bool built = q.surface.kind == SurfaceChoice::Kind::assembly ||
+                     (q.surface.kind == SurfaceChoice::Kind::automatic && q.masking.conditional);
+  if (t.has("resolution") && !built)
+    t.fail("resolution", q.surface.kind == SurfaceChoice::Kind::heightmap
+                             ? "a heightmap has its own resolution"
+                             : "the analytic Smith model has no surface (resolution applies to an assembly or to conditional masking)");
+  q.resolution = int(t.integer("resolution", kDefaultMaskingResolution, kMinMaskingResolution, kMaxMaskingResolution));
+  if ((q.resolution & (q.resolution - 1)) != 0) t.fail("resolution", fmt::format("{} must be a power of two", q.resolution));
+  if (q.surface.kind == SurfaceChoice::Kind::heightmap && m.alphas.size() != 1)
+    t.fail("surface", fmt::format("a heightmap is one surface: material {} must have one alpha (it has {})",
+                                  quote_excerpt(m.name), m.alphas.size()));
+  if (q.surface.kind != SurfaceChoice::Kind::assembly) return;
+  const microgeom::ReferenceNdf wanted = m.ndf == WalkNdf::ggx ? microgeom::ReferenceNdf::ggx : microgeom::ReferenceNdf::beckmann;
+  if (microgeom::find_assembly(q.surface.name)->reference != wanted)
+    t.fail("surface", fmt::format("assembly {} is built to {}, material {} is {}", q.surface.name,
+                                  microgeom::to_string(microgeom::find_assembly(q.surface.name)->reference),
+                                  quote_excerpt(m.name), to_string(m.ndf)));
+}
+
+void read_masking(const Table& t, SpecQuantity& q, const SpecMaterial& m) {
+  q.masking = masking_what(t);
+  q.lights = masking_lights(t, q.masking.g2);
+  if (t.has("bins") && !q.masking.conditional) t.fail("bins", "bins apply to conditional masking");
+  q.bins = int(t.integer("bins", 10, 2, 100));
+  check_masking_surface(t, q, m);
+}
+
 void read_kind_options(const Table& t, SpecQuantity& q, const SpecMaterial& m, const std::filesystem::path& spec_dir) {
   const bool view_kind = q.kind != QuantityKind::albedo;
   if (view_kind) q.directions = quantity_directions(t, q.kind == QuantityKind::scattering && m.facet.transmits());
@@ -406,6 +479,7 @@ void read_kind_options(const Table& t, SpecQuantity& q, const SpecMaterial& m, c
     if (!(q.power > 0 && q.power < 1)) t.fail("power", fmt::format("{} must be in (0, 1)", q.power));
     if (!(q.significance > 0 && q.significance < 0.5)) t.fail("significance", fmt::format("{} must be in (0, 0.5)", q.significance));
   }
+  if (q.kind == QuantityKind::masking) read_masking(t, q, m);
 }
 
 SpecQuantity read_quantity(const Table& t, const ExperimentSpec& spec, std::size_t index,
@@ -468,6 +542,22 @@ ExperimentSpec load_spec(const std::filesystem::path& path) {
 
 // ---- the spec's identity -----------------------------------------------------------------------------------
 
+namespace {
+nlohmann::json masking_canonical(const SpecQuantity& q) {
+  nlohmann::json lights = nlohmann::json::array();
+  for (const Direction& l : q.lights) lights.push_back({l.theta_deg, l.phi_deg});
+  return {{"what", to_string(q.masking)}, {"lights", lights}, {"bins", q.bins}, {"resolution", q.resolution}};
+}
+}  // namespace
+
+std::string to_string(const MaskingWhat& what) {
+  std::vector<std::string> names;
+  if (what.g1) names.push_back("g1");
+  if (what.g2) names.push_back("g2");
+  if (what.conditional) names.push_back("conditional");
+  return fmt::format("{}", fmt::join(names, ", "));
+}
+
 std::string canonical_spec(const ExperimentSpec& spec) {
   nlohmann::json j;
   j["name"] = spec.name;
@@ -483,6 +573,7 @@ std::string canonical_spec(const ExperimentSpec& spec) {
                                {"power", q.power}, {"significance", q.significance}});
     if (!q.dump.empty())  // the path names the dump: a file replaced under the same path is not detected
       j["quantities"].back().update({{"dump", q.dump}, {"pdf", q.dump_pdf}, {"above_horizon", q.above_horizon}});
+    if (q.kind == QuantityKind::masking) j["quantities"].back().update(masking_canonical(q));
   }
   return j.dump();
 }

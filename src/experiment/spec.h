@@ -13,13 +13,15 @@
 //   k = [3.983, 2.385, 1.603]           # conductor only, as many as eta
 //
 //   [[quantity]]
-//   kind = "albedo"                     # albedo | vndf | scattering | validation
+//   kind = "albedo"                     # albedo | vndf | scattering | validation | masking
 //   material = "gold"
 //   orders = "single"                   # albedo, scattering: single | all
 //   target_relative_error = 1e-3        # albedo's target: the relative standard error of every E(mu) and E_avg
 //   # vndf, scattering: target_tv (a total-variation distance the histogram must resolve);
 //   # validation: detect_tv (the smallest TV deviation to detect), power (0.9), significance (0.01), sampler
 //   # vndf, scattering, validation: theta = [0, 30, 60] (degrees) or theta_range = {from, to, count}; phi = [0]
+//   # masking: what = ["g1", "g2", "conditional"], target_standard_error (absolute), theta/phi as above,
+//   #   light_theta = [..], light_phi = [0] (g2's lights), bins = 10 (conditional), resolution = 256 (a built surface)
 //   surface = "auto"                    # auto | an assembly name (microgeom) | a heightmap .exr path
 //
 // Every key is checked: an unknown key, a wrong type, a target <= 0, a material no quantity can find, a
@@ -54,8 +56,8 @@ private:
   int line_ = 0;
 };
 
-enum class QuantityKind { albedo, vndf, scattering, validation };
-std::string to_string(QuantityKind kind);  // "albedo", "vndf", "scattering", "validation"
+enum class QuantityKind { albedo, vndf, scattering, validation, masking };
+std::string to_string(QuantityKind kind);  // "albedo", "vndf", "scattering", "validation", "masking"
 
 enum class Orders { single, all };  // order 1 only, or every order of multiple scattering
 std::string to_string(Orders orders);  // "single", "all"
@@ -80,14 +82,29 @@ struct SurfaceChoice {
   std::string name;  // the assembly's name or the heightmap's path
 };
 
+// What a masking quantity measures (its `what`): the scalar Smith masking G1(v); the masking-shadowing
+// G2(v, l) for each of its lights; the conditional masking G1(v | bin) in bins of <v, m> and of height (an
+// explicit surface's: Smith's model has none of its own).
+struct MaskingWhat {
+  bool g1 = false, g2 = false, conditional = false;
+};
+std::string to_string(const MaskingWhat& what);  // "g1, g2, conditional" (those asked for)
+
+// A masking quantity's surface built per alpha when the spec names an assembly or asks for conditional
+// masking on the automatic surface: N x N, N a power of two in [kMinMaskingResolution, kMaxMaskingResolution].
+inline constexpr int kDefaultMaskingResolution = 256;
+inline constexpr int kMinMaskingResolution = 16;
+inline constexpr int kMaxMaskingResolution = 4096;
+
 struct SpecQuantity {
   QuantityKind kind = QuantityKind::albedo;
   std::string key;       // "quantity[K]" (K from 0), as errors and the plan name it
   int line = 0;
   std::string material;  // a SpecMaterial's name
   Orders orders = Orders::single;
-  double target = 0;     // albedo: relative SE; vndf, scattering: TV to resolve; validation: TV to detect
-  std::vector<Direction> directions;  // vndf, scattering, validation
+  double target = 0;     // albedo: relative SE; vndf, scattering: TV to resolve; validation: TV to detect;
+                         // masking: the absolute SE of every G1, G2 and conditional G1(v | bin)
+  std::vector<Direction> directions;  // vndf, scattering, validation, masking (the views)
   SurfaceChoice surface;
   int mus = 16;          // albedo: Gauss-Legendre nodes in mu
   bool inside = false;   // albedo of a dielectric from inside
@@ -97,6 +114,10 @@ struct SpecQuantity {
   std::string dump_pdf = "vndf";  // validation of a dump: the density it claims (FilePdf: vndf, ndf, bounded, reflection)
   bool above_horizon = false;     // validation of a dump of reflections: only those above the horizon kept
   double power = 0.9, significance = 0.01;  // validation
+  MaskingWhat masking;                      // masking: what is measured
+  std::vector<Direction> lights;            // masking with g2: the lights, every one with every view
+  int bins = 10;                            // masking, conditional: bins of <v, m> and of height
+  int resolution = kDefaultMaskingResolution;  // masking on a surface built per alpha
 };
 
 struct ExperimentSpec {
