@@ -250,7 +250,9 @@ TEST(ScatterPilotFloor, ExtrapolatedFromItsQuarterPredictsALongRunsFloor) {
     const double plain = scatter_order_floor(pilot, k) * std::sqrt(double(kPilot));
     const double extrapolated = extrapolated_scatter_floor(quarter, pilot, {k}) * std::sqrt(double(kPilot));
     EXPECT_NEAR(extrapolated / reference, 1.0, 0.08) << "order " << k + 1;
-    if (k == 2) EXPECT_LT(plain / reference, 0.92) << "the pilot's own floor falls short at order 3";
+    if (k == 2) {
+      EXPECT_LT(plain / reference, 0.92) << "the pilot's own floor falls short at order 3";
+    }
   }
 }
 
