@@ -97,6 +97,9 @@ struct RunOptions {
   Ranks* ranks = nullptr;
   // The first rounds run by shard jobs (`run --shard K/N`, shards.h), taken from their parts; null: none.
   const StoredRounds* stored = nullptr;
+  // Where the explicit surfaces of heightfield decisions are built once or read back (surface_cache.h: the
+  // plan's cache, DIR/surfaces); null: a cache in memory for this call.
+  SurfaceCache* surfaces = nullptr;
   // Called after each measurement (complete, partial or skipped), on the calling thread.
   std::function<void(const MeasurementResult&)> on_measurement;
 };
