@@ -6,8 +6,10 @@
 //     another alpha or seed is another key, a tampered, foreign or unreadable cache file is rebuilt;
 //   - end to end on a small `smith` tile (256^2, the smallest the size rule takes for a GGX assembly): a VNDF
 //     planned, run, written, read back and resumed after a cut inside a round, bit for bit, without building the
-//     surface again; the measured histogram agrees with Smith with the tile's own NDF (chi-square, level 0.001)
-//     and not with Smith at another roughness (negative control); per-order scattering on the tile.
+//     surface again; the run's summed rounds agree with a direct trace of the same tile, another seed (two-sample
+//     chi-square, level 0.001), and not with a trace of the alpha 0.6 tile (negative control); per-order
+//     scattering on the tile.
+#include "experiment/heightfield_measures.h"
 #include "experiment/heightfield_trade.h"
 #include "experiment/plan.h"
 #include "experiment/run.h"
@@ -16,17 +18,17 @@
 #include "measure/vndf.h"
 #include "microgeom/exr_io.h"
 #include "scratch_dir.h"
-#include "trace/masking.h"
-#include "trace/smith_prediction.h"
+#include "stats/chi2.h"
 
 #include <fmt/core.h>
 #include <gtest/gtest.h>
 
 #include <atomic>
 #include <fstream>
+#include <iostream>
 #include <string>
 
-namespace {
+namespace heightfield_experiment_test {
 
 using namespace microsim;
 using namespace microsim::experiment;
@@ -267,17 +269,17 @@ TEST(ExperimentHeightfield, AnAssemblyVndfRunsWritesAndResumesWithoutRedoingWork
   EXPECT_GT(d.predicted_seconds, 0);
   EXPECT_EQ(cache.builds(), 1u);  // the plan built it (its pilot traced it)
 
-  // The whole run (at 40x the planned rays: rounds of many blocks), on the plan's cache: nothing rebuilt.
-  const ExperimentResults whole = run_on(spec, plan, cache, RunControl{2, nullptr, {}}, 40);
+  // The whole run (at 400x the planned rays: a round of many blocks), on the plan's cache: nothing rebuilt.
+  const ExperimentResults whole = run_on(spec, plan, cache, RunControl{2, nullptr, {}}, 400);
   EXPECT_EQ(cache.builds(), 1u);
   ASSERT_TRUE(whole.measurements[0].met);
   const MeasurementResult& w = whole.measurements[0];
-  EXPECT_GT(w.units, 100000u);
+  EXPECT_GT(w.units, 50000u);
   ASSERT_TRUE(w.values.contains("heightfield"));
 
   // Cut at 40% of its round, written to DIR, read back as a rerun finds it, resumed with a new cache on DIR.
   CancelPart cancel;
-  const ExperimentResults cut = run_on(spec, plan, cache, cancel.control("trace vndf (heightfield)", 0.4), 40);
+  const ExperimentResults cut = run_on(spec, plan, cache, cancel.control("trace vndf (heightfield)", 0.4), 400);
   ASSERT_TRUE(cut.partial);
   ASSERT_TRUE(cut.measurements[0].rounds.back().partial);
   EXPECT_LT(cut.measurements[0].units, w.units);
@@ -286,41 +288,48 @@ TEST(ExperimentHeightfield, AnAssemblyVndfRunsWritesAndResumesWithoutRedoingWork
   ASSERT_TRUE(previous);
   ASSERT_TRUE(previous->plan.decisions[0].surface.hash == d.surface.hash);
   SurfaceCache again(dir / "surfaces");
-  const ExperimentResults resumed = run_on(spec, previous->plan, again, RunControl{1, nullptr, {}}, 40, &previous->results);
+  const ExperimentResults resumed = run_on(spec, previous->plan, again, RunControl{1, nullptr, {}}, 400, &previous->results);
   EXPECT_FALSE(resumed.partial);
   EXPECT_EQ(again.builds(), 0u);  // read from DIR/surfaces
   EXPECT_EQ(measured(resumed).dump(), measured(whole).dump());
   // A finished run run again: kept as it is (nothing traced, nothing built).
   SurfaceCache third(dir / "surfaces");
-  const ExperimentResults kept = run_on(spec, previous->plan, third, RunControl{1, nullptr, {}}, 40, &resumed);
+  const ExperimentResults kept = run_on(spec, previous->plan, third, RunControl{1, nullptr, {}}, 400, &resumed);
   EXPECT_EQ(third.events().size(), 0u);
   EXPECT_EQ(measured(kept).dump(), measured(whole).dump());
 }
 
-// The histogram of a heightfield VNDF against Smith at a given analytic roughness, lobe binning (the last).
-VndfComparison against(const MeasurementResult& m, const microgeom::Heightfield& field, double alpha) {
-  const TracedHistogram& h = m.histogram;
-  const std::size_t k = h.binnings.size() - 1;
-  return compare_vndf(h.counts[k], m.unbinned[k], h.binnings[k], vndf_view(h), AnalyticSmith(AnalyticNdf::ggx, alpha, alpha),
-                      EmpiricalSmith(field));
+// Two-sample chi-square (stats/chi2.h) of the run's summed counts against a direct trace, lobe binning.
+double homogeneity_p(const TracedHistogram& run, const TracedHistogram& direct) {
+  const std::size_t k = run.binnings.size() - 1;
+  const std::vector<double> a(run.counts[k].begin(), run.counts[k].end()), b(direct.counts[k].begin(), direct.counts[k].end());
+  return two_sample_homogeneity(a, b).p_value;
 }
 
-TEST(ExperimentHeightfield, TheTilesVndfAgreesWithSmithOnItsOwnNdfAndNotAtAnotherRoughness) {
+TEST(ExperimentHeightfield, TheRunsRoundsAgreeWithADirectTraceOfTheTileAndNotOfAnother) {
   const ExperimentSpec spec = smith_spec("vndf", 0.42);
   SurfaceCache cache;
   const ExperimentPlan plan = small_plan(spec, cache);
-  const ExperimentResults r = run_on(spec, plan, cache, RunControl{2, nullptr, {}}, 4);
+  const ExperimentResults r = run_on(spec, plan, cache, RunControl{2, nullptr, {}}, 400);
   const MeasurementResult& m = r.measurements[0];
   ASSERT_TRUE(m.met);
-  const microgeom::Heightfield& field = cache.surface_for(surface_key(plan.decisions[0].surface, {0.5, 0.5}));
+  const Decision& d = plan.decisions[0];
+  // The same tile from the cache (not built again), traced directly with another seed and as many rays.
+  const microgeom::Heightfield& field = cache.surface_for(surface_key(d.surface, d.alpha));
   EXPECT_EQ(cache.builds(), 1u);
-  // Seed 7, about 1e5 rays in 98 lobe bins: Smith with the tile's own NDF is not rejected at the 0.001 level
-  // (the 256^2 tile's masking error needs more rays than that)...
-  const VndfComparison own = against(m, field, 0.5);
-  EXPECT_GT(own.p_value_empirical, 1e-3) << "chi2 " << own.chi2_empirical << " dof " << own.dof_empirical;
-  // ... and Smith at alpha 0.6 is (negative control: the check can fail).
-  const VndfComparison other = against(m, field, 0.6);
-  EXPECT_LT(other.p_value_analytic, 1e-6) << "chi2 " << other.chi2_analytic;
+  VndfRequest direct;
+  direct.theta_deg = 40;
+  direct.rays = m.units;
+  direct.seed = 991;
+  direct.rows = 7;
+  const double same = homogeneity_p(m.histogram, measure_heightfield_vndf(field, "direct", direct).histogram);
+  EXPECT_GT(same, 1e-3) << "the run's histogram is not the tile's VNDF (level 0.001)";
+  // Negative control: the tile of alpha 0.6 (same seed, size), as many rays: rejected.
+  SurfaceKey rougher = surface_key(d.surface, d.alpha);
+  rougher.alpha_x = rougher.alpha_y = 0.6;
+  const double other = homogeneity_p(m.histogram, measure_heightfield_vndf(cache.surface_for(rougher), "other", direct).histogram);
+  EXPECT_LT(other, 1e-6);
+  std::cout << "rays " << m.units << ": p same tile " << same << ", p alpha 0.6 tile " << other << "\n";
 }
 
 TEST(ExperimentHeightfield, PerOrderScatteringOnATileRuns) {
@@ -363,6 +372,7 @@ TEST(ExperimentHeightfield, AHeightmapKeepsItsSizeAndStatesTheBiasTheTablePredic
 [[material]]
 name = "m"
 alphas = [0.5]
+type = "mirror"
 [[quantity]]
 kind = "vndf"
 material = "m"
@@ -382,4 +392,4 @@ target_tv = 0.1
   EXPECT_EQ(cache.builds(), 0u);
 }
 
-}  // namespace
+}  // namespace heightfield_experiment_test
