@@ -36,8 +36,8 @@ using microsim::test::scratch_dir;
 
 // ---- the size rule ---------------------------------------------------------------------------------------------
 
-SurfaceSize size_for(double target, double theta = 30, double anisotropy = 1) {
-  return choose_surface_size(builtin_trade_table(), {target, anisotropy, theta, 256});
+SurfaceSize size_for(double target, double theta = 30, double anisotropy = 1, bool scattering = false) {
+  return choose_surface_size(builtin_trade_table(), {target, anisotropy, theta, scattering, 256});
 }
 
 TEST(HeightfieldTrade, TheBuiltinTableIsTheDocsData) {
@@ -45,22 +45,27 @@ TEST(HeightfieldTrade, TheBuiltinTableIsTheDocsData) {
   EXPECT_EQ(t.rows.size(), 10u);
   EXPECT_EQ(t.grazing_theta_deg, 60);
   EXPECT_EQ(t.grazing_min_tiles, 64);
+  EXPECT_EQ(t.scattering_min_tiles, 64);
+  EXPECT_DOUBLE_EQ(t.rows[5].bias(), 0.0456);  // joint 256^2: as independent triangles outside its own bins
   EXPECT_NE(t.source.find("docs/surfaces.md"), std::string::npos);
 }
 
 TEST(HeightfieldTrade, ASmallerTargetGetsABiggerOrBetterMatchedTile) {
   // 1/4 of the target: 0.125 admits radial 256^2 (NDF TV 0.1035); 0.075 needs radial 512^2 (0.0536);
-  // 0.005 is cheapest as joint 512^2 (0.0019, 4.4 CPU s) before radial reaches it (never, up to 4096^2).
-  const SurfaceSize coarse = size_for(0.5), finer = size_for(0.3), fine = size_for(0.02);
-  ASSERT_TRUE(coarse.found && finer.found && fine.found);
+  // 0.0125 radial 2048^2 (0.0119, 6.7 CPU s: joint 512^2's 0.0228 does not fit); 0.005 only joint 4096^2
+  // (0.0029 as independent triangles; radial 4096^2 is 0.0067).
+  const SurfaceSize coarse = size_for(0.5), finer = size_for(0.3), fine = size_for(0.05), finest = size_for(0.02);
+  ASSERT_TRUE(coarse.found && finer.found && fine.found && finest.found);
   EXPECT_EQ(coarse.resolution, 256);
   EXPECT_EQ(coarse.ndf_match, "radial");
   EXPECT_DOUBLE_EQ(coarse.bias, 0.1035);
   EXPECT_EQ(finer.resolution, 512);
   EXPECT_EQ(finer.ndf_match, "radial");
-  EXPECT_EQ(fine.resolution, 512);
-  EXPECT_EQ(fine.ndf_match, "joint");
-  EXPECT_LE(fine.bias, kBiasShare * 0.02);
+  EXPECT_EQ(fine.resolution, 2048);
+  EXPECT_EQ(fine.ndf_match, "radial");
+  EXPECT_EQ(finest.resolution, 4096);
+  EXPECT_EQ(finest.ndf_match, "joint");
+  EXPECT_LE(finest.bias, kBiasShare * 0.02);
   EXPECT_NE(finer.reason.find("radial 512^2"), std::string::npos) << finer.reason;  // the row used
   EXPECT_NE(finer.reason.find("5.36e-02"), std::string::npos) << finer.reason;      // its bias
 }
@@ -68,6 +73,9 @@ TEST(HeightfieldTrade, ASmallerTargetGetsABiggerOrBetterMatchedTile) {
 TEST(HeightfieldTrade, GrazingViewsAndAnisotropyNeedMore) {
   // Beyond 60 deg at least 64 correlation lengths: 1024^2 at l = 16, though 256^2 meets the bias at 30 deg.
   EXPECT_EQ(size_for(0.5, 75).resolution, 1024);
+  // Per-order scattering: at least 64 l at any view.
+  EXPECT_EQ(size_for(0.5, 30, 1, true).resolution, 1024);
+  EXPECT_NE(size_for(0.5, 30, 1, true).reason.find("per-order scattering"), std::string::npos);
   // 1:4: twice the bias (sqrt 4): radial 256^2 (0.207) no longer fits 0.125, 512^2 (0.107) does.
   const SurfaceSize aniso = size_for(0.5, 30, 4);
   EXPECT_EQ(aniso.resolution, 512);
@@ -78,9 +86,9 @@ TEST(HeightfieldTrade, AnUnreachableTargetIsReportedWithWhatIsReachable) {
   const SurfaceSize none = size_for(1e-4);
   EXPECT_FALSE(none.found);
   EXPECT_NE(none.reason.find("no tile up to 4096^2"), std::string::npos) << none.reason;
-  EXPECT_NE(none.reason.find("4.40e-04"), std::string::npos) << none.reason;  // joint 4096^2: 1.1e-4 / 0.25
+  EXPECT_NE(none.reason.find("1.16e-02"), std::string::npos) << none.reason;  // joint 4096^2: 0.0029 / 0.25
   // Negative control: the smallest reachable target is reached.
-  EXPECT_TRUE(size_for(4.41e-4).found);
+  EXPECT_TRUE(size_for(0.01161).found);
   EXPECT_THROW(size_for(0), std::invalid_argument);
 }
 
@@ -91,7 +99,7 @@ TEST(HeightfieldTrade, AHeightmapsBiasComesFromTheRowWithNoMoreCorrelationLength
   EXPECT_DOUBLE_EQ(exact->bias, 0.0316);
   const auto between = predicted_bias(t, 1024, 12, "joint", 1);  // 85 l: the 64 l row (1024^2 joint)
   ASSERT_TRUE(between);
-  EXPECT_DOUBLE_EQ(between->bias, 0.00074);
+  EXPECT_DOUBLE_EQ(between->bias, 0.0114);
   EXPECT_FALSE(predicted_bias(t, 256, 32, "radial", 1));  // 8 l: narrower than every row
 }
 
@@ -193,7 +201,8 @@ TEST(SurfaceCache, ATamperedForeignOrUnreadableFileIsRebuilt) {
 
 // ---- end to end --------------------------------------------------------------------------------------------------
 
-ExperimentSpec smith_spec(const std::string& kind, double target) {
+// A spec of one quantity at theta 40 on `surface` (an assembly, or a heightmap's path).
+ExperimentSpec smith_spec(const std::string& kind, double target, const std::string& surface = "smith") {
   return parse_spec_toml(fmt::format(R"(
 seed = 7
 [[material]]
@@ -203,11 +212,11 @@ type = "mirror"
 [[quantity]]
 kind = "{}"
 material = "m"
-surface = "smith"
+surface = "{}"
 theta = [40]
 {}
 target_tv = {}
-)", kind, kind == "vndf" ? "rows = 7" : "orders = \"all\"", target), "smith.toml");
+)", kind, surface, kind == "vndf" ? "rows = 7" : "orders = \"all\"", target), "smith.toml");
 }
 
 ExperimentPlan small_plan(const ExperimentSpec& spec, SurfaceCache& cache) {
@@ -332,16 +341,29 @@ TEST(ExperimentHeightfield, TheRunsRoundsAgreeWithADirectTraceOfTheTileAndNotOfA
   std::cout << "rays " << m.units << ": p same tile " << same << ", p alpha 0.6 tile " << other << "\n";
 }
 
+// A 256^2 smith tile (alpha 0.5, l 16, radial) written as a heightmap.
+std::string small_heightmap(const std::filesystem::path& dir) {
+  SurfaceKey key;
+  key.resolution = 256;
+  key.corr_cells = 16;
+  key.seed = 2;
+  microgeom::save_heightmap_exr(dir / "tile.exr", microgeom::build_assembly(assembly_params(key)));
+  return (dir / "tile.exr").string();
+}
+
 TEST(ExperimentHeightfield, PerOrderScatteringOnATileRuns) {
-  const ExperimentSpec spec = smith_spec("scattering", 0.42);
+  // On a heightmap (its own size: 256^2; an assembly's per-order scattering gets at least 64 l, 1024^2,
+  // as HeightfieldTrade.GrazingViewsAndAnisotropyNeedMore checks).
+  const ExperimentSpec spec = smith_spec("scattering", 0.42, small_heightmap(scratch_dir("experiment_heightfield", "scatter")));
   SurfaceCache cache;
   const ExperimentPlan plan = small_plan(spec, cache);
   ASSERT_TRUE(plan.decisions[0].runnable) << plan.decisions[0].not_runnable;
+  EXPECT_EQ(plan.decisions[0].surface.resolution, 256);
   EXPECT_GE(plan.decisions[0].order_cap, 4);
   const ExperimentResults r = run_on(spec, plan, cache, RunControl{2, nullptr, {}});
   const MeasurementResult& m = r.measurements[0];
   EXPECT_TRUE(m.met);
-  EXPECT_EQ(cache.builds(), 1u);
+  EXPECT_EQ(cache.builds(), 0u);
   ASSERT_TRUE(m.values.contains("scattering"));
   // A lossless mirror: what leaves plus what is still on the surface is all of it.
   const double albedo = m.values["scattering"]["albedo"]["value"].get<double>();
@@ -363,11 +385,7 @@ TEST(ExperimentHeightfield, AnUnreachableTargetIsNotRunnableAndBuildsNothing) {
 
 TEST(ExperimentHeightfield, AHeightmapKeepsItsSizeAndStatesTheBiasTheTablePredicts) {
   const auto dir = scratch_dir("experiment_heightfield", "heightmap");
-  SurfaceKey key;
-  key.resolution = 256;
-  key.corr_cells = 16;
-  key.seed = 2;
-  microgeom::save_heightmap_exr(dir / "tile.exr", microgeom::build_assembly(assembly_params(key)));
+  const std::string tile = small_heightmap(dir);
   const ExperimentSpec spec = parse_spec_toml(fmt::format(R"(
 [[material]]
 name = "m"
@@ -380,7 +398,7 @@ surface = "{}"
 theta = [30]
 rows = 7
 target_tv = 0.1
-)", (dir / "tile.exr").string()), (dir / "spec.toml").string());
+)", tile), (dir / "spec.toml").string());
   SurfaceCache cache;
   const ExperimentPlan plan = small_plan(spec, cache);
   const Decision& d = plan.decisions[0];

@@ -27,7 +27,8 @@ SurfaceDecision plan_assembly_surface(const SpecQuantity& q, const Decision& d, 
   p.seed = seed;
   const SurfaceSize size = choose_surface_size(
       builtin_trade_table(),
-      {q.target, anisotropy_of(d.alpha), d.view.theta_deg, ggx ? microgeom::kMinGgxCheckedResolution : kMinSurfaceResolution});
+      {q.target, anisotropy_of(d.alpha), d.view.theta_deg, q.kind == QuantityKind::scattering,
+       ggx ? microgeom::kMinGgxCheckedResolution : kMinSurfaceResolution});
   p.reason = (ggx ? "" : "the table was measured on smith (GGX): taken for this assembly too; ") + size.reason;
   if (!size.found) {
     out.why = size.reason;

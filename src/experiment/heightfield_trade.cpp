@@ -41,8 +41,8 @@ double anisotropy_factor(double anisotropy) { return std::sqrt(std::max(1.0, ani
 bool power_of_two(int n) { return n > 0 && (n & (n - 1)) == 0; }
 
 std::string row_text(const TradeRow& r) {
-  return fmt::format("{} {}^2, l {} cells ({} l per tile): NDF TV {}", r.ndf_match, r.resolution, r.corr_cells,
-                     r.tiles(), r.bias_tv);
+  return fmt::format("{} {}^2, l {} cells ({} l per tile): NDF TV {} in the table's bins, {} for independent "
+                     "triangles", r.ndf_match, r.resolution, r.corr_cells, r.tiles(), r.bias_tv, r.iid_noise_tv);
 }
 
 std::string anisotropy_text(double anisotropy) {
@@ -51,13 +51,24 @@ std::string anisotropy_text(double anisotropy) {
                         : "";
 }
 
+// Why only wide tiles were considered ("" when every width was).
+std::string wide_text(const TradeTable& table, const SizeRequest& request) {
+  if (request.scattering && table.scattering_min_tiles > 0)
+    return fmt::format("; per-order scattering: at least {} l per tile", table.scattering_min_tiles);
+  if (request.theta_deg > table.grazing_theta_deg)
+    return fmt::format("; theta {} > {}: at least {} l per tile", request.theta_deg, table.grazing_theta_deg,
+                       table.grazing_min_tiles);
+  return "";
+}
+
 // The rows a request may use: buildable sizes, wide enough for its view, cheapest build first.
 std::vector<TradeRow> candidate_rows(const TradeTable& table, const SizeRequest& request) {
   std::vector<TradeRow> rows;
   const bool grazing = request.theta_deg > table.grazing_theta_deg;
+  const double min_tiles = std::max(grazing ? table.grazing_min_tiles : 0, request.scattering ? table.scattering_min_tiles : 0);
   for (const TradeRow& r : table.rows)
     if (power_of_two(r.resolution) && r.resolution >= std::max(request.min_resolution, kMinSurfaceResolution) &&
-        r.resolution <= kMaxSurfaceResolution && (!grazing || r.tiles() >= table.grazing_min_tiles))
+        r.resolution <= kMaxSurfaceResolution && r.tiles() >= min_tiles)
       rows.push_back(r);
   std::stable_sort(rows.begin(), rows.end(),
                    [](const TradeRow& a, const TradeRow& b) { return a.build_cpu_seconds < b.build_cpu_seconds; });
@@ -76,6 +87,8 @@ TradeTable trade_table_from_json(const nlohmann::json& document) {
     t.grazing_theta_deg = trade_member<double>(document["grazing"], "theta_above_deg", "grazing");
     t.grazing_min_tiles = trade_member<double>(document["grazing"], "min_tiles", "grazing");
   }
+  if (document.contains("scattering"))
+    t.scattering_min_tiles = trade_member<double>(document["scattering"], "min_tiles", "scattering");
   return t;
 }
 
@@ -90,23 +103,23 @@ SurfaceSize choose_surface_size(const TradeTable& table, const SizeRequest& requ
   const double factor = anisotropy_factor(request.anisotropy);
   const std::vector<TradeRow> rows = candidate_rows(table, request);
   for (const TradeRow& r : rows)
-    if (r.bias_tv * factor <= allowed)
-      return {true, r.resolution, r.corr_cells, r.ndf_match, r.bias_tv * factor,
-              fmt::format("the cheapest tile to build ({} CPU s measured) whose predicted bias {:.2e} (table row: {}{}) "
+    if (r.bias() * factor <= allowed)
+      return {true, r.resolution, r.corr_cells, r.ndf_match, r.bias() * factor,
+              fmt::format("the cheapest tile to build ({} CPU s measured{}) whose predicted bias {:.2e} (table row: {}{}) "
                           "is at most {} x target TV {} = {:.2e}; source: {}",
-                          r.build_cpu_seconds, r.bias_tv * factor, row_text(r), anisotropy_text(request.anisotropy),
-                          kBiasShare, request.target_tv, allowed, table.source)};
+                          r.build_cpu_seconds, wide_text(table, request), r.bias() * factor, row_text(r),
+                          anisotropy_text(request.anisotropy), kBiasShare, request.target_tv, allowed, table.source)};
   SurfaceSize none;
   const auto best = std::min_element(rows.begin(), rows.end(),
-                                     [](const TradeRow& a, const TradeRow& b) { return a.bias_tv < b.bias_tv; });
+                                     [](const TradeRow& a, const TradeRow& b) { return a.bias() < b.bias(); });
   none.reason = best == rows.end()
                     ? fmt::format("no row of the trade table fits the view (theta {}) and the assembly's sizes ({} to {})",
                                   request.theta_deg, request.min_resolution, kMaxSurfaceResolution)
                     : fmt::format("no tile up to {}^2 meets the target: the smallest predicted bias is {:.2e} ({}{}), above "
                                   "{} x target TV {} = {:.2e}; a target TV >= {:.2e} is reachable",
-                                  kMaxSurfaceResolution, best->bias_tv * factor, row_text(*best),
+                                  kMaxSurfaceResolution, best->bias() * factor, row_text(*best),
                                   anisotropy_text(request.anisotropy), kBiasShare, request.target_tv, allowed,
-                                  best->bias_tv * factor / kBiasShare);
+                                  best->bias() * factor / kBiasShare);
   return none;
 }
 
@@ -118,7 +131,7 @@ std::optional<SurfaceSize> predicted_bias(const TradeTable& table, int resolutio
     if (r.ndf_match == ndf_match && r.tiles() <= tiles * (1 + 1e-9) && (used == nullptr || r.tiles() > used->tiles()))
       used = &r;
   if (used == nullptr) return std::nullopt;
-  const double bias = used->bias_tv * anisotropy_factor(anisotropy);
+  const double bias = used->bias() * anisotropy_factor(anisotropy);
   return SurfaceSize{true, resolution, corr_cells, ndf_match, bias,
                      fmt::format("the heightmap's own size ({}^2, l {} cells: {:.4g} l per tile, NDF matched {}): predicted "
                                  "bias {:.2e} from the table row with the most correlation lengths not above it ({}{}); "

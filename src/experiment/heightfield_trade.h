@@ -8,7 +8,8 @@
 // smallest tile, in correlation lengths, for views beyond a polar angle (docs/heightfield-trade.md 3).
 //
 // choose_surface_size (pure): among the rows the assembly can build (a minimum resolution, at most 4096) and
-// that are wide enough for the view, the cheapest to build whose bias, scaled by sqrt(anisotropy), is at most
+// that are wide enough for the view and the quantity, the cheapest to build whose bias (TradeRow::bias),
+// scaled by sqrt(anisotropy), is at most
 // kBiasShare of the target TV; none: not found, with the smallest bias the table offers. predicted_bias
 // (pure): the bias the table predicts for a given tile (a user's heightmap): the row of its NDF matching with
 // the largest N/l not above the tile's (fewer correlation lengths, more bias: conservative).
@@ -30,6 +31,9 @@ struct TradeRow {
   double iid_noise_tv = 0;
   double build_cpu_seconds = 0;
   double tiles() const { return resolution / corr_cells; }  // N / l
+  // The bias in any binning: a joint tile is matched bin by bin in the table's bins only; in others its
+  // triangles deviate like independent ones (iid_noise_tv).
+  double bias() const { return bias_tv > iid_noise_tv ? bias_tv : iid_noise_tv; }
 };
 
 struct TradeTable {
@@ -37,6 +41,7 @@ struct TradeTable {
   std::vector<TradeRow> rows;
   double grazing_theta_deg = 90;  // views beyond it need at least grazing_min_tiles correlation lengths
   double grazing_min_tiles = 0;
+  double scattering_min_tiles = 0;  // per-order scattering at any view (it sees the heights, not only the NDF)
 };
 
 // The table of a document (the format of docs/data/heightfield-trade.json). Throws std::invalid_argument
@@ -61,6 +66,7 @@ struct SizeRequest {
   double target_tv = 0;
   double anisotropy = 1;          // max(ax, ay) / min(ax, ay)
   double theta_deg = 0;           // the view (grazing views need wide tiles)
+  bool scattering = false;        // per-order scattering (wide tiles at any view)
   int min_resolution = kMinSurfaceResolution;  // the assembly's supported range
 };
 // The cheapest row (by build time) meeting bias <= kBiasShare target_tv. Pure.

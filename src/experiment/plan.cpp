@@ -328,6 +328,7 @@ void plan_heightfield_view(const ExperimentSpec& spec, const SpecQuantity& q, co
     return;
   }
   const auto start = std::chrono::steady_clock::now();
+  const std::size_t built = cache.builds();
   const microgeom::Heightfield& field = decision_surface(d, cache, o.run);
   const double surface_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (q.kind == QuantityKind::vndf) {
@@ -336,7 +337,10 @@ void plan_heightfield_view(const ExperimentSpec& spec, const SpecQuantity& q, co
     const HeightfieldScene scene(field);
     plan_walk_scattering(spec, q, o, d, [&scene](const ScatterOptions& r) { return scatter_on_surface(scene, r); });
   }
-  d.surface.reason += fmt::format("; the tile took {:.3g} s to build or read, in the plan (cached for the run)", surface_seconds);
+  d.surface.reason += cache.builds() > built
+                          ? fmt::format("; built in {:.3g} s during the plan (kept for the run)", surface_seconds)
+                          : fmt::format("; not built: {} ({:.3g} s)", q.surface.kind == SurfaceChoice::Kind::heightmap
+                                                                         ? "the user's file" : "shared or read back", surface_seconds);
   d.runnable = true;
 }
 
