@@ -334,8 +334,11 @@ void plan_heightfield_view(const ExperimentSpec& spec, const SpecQuantity& q, co
   if (q.kind == QuantityKind::vndf) {
     plan_heightfield_vndf(spec, q, o, field, d);
   } else {
+    const auto scene_start = std::chrono::steady_clock::now();
     const HeightfieldScene scene(field);
+    const double scene_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - scene_start).count();
     plan_walk_scattering(spec, q, o, d, [&scene](const ScatterOptions& r) { return scatter_on_surface(scene, r); });
+    d.predicted_seconds += scene_seconds;  // the run builds the tile's Embree scene once per measurement
   }
   d.surface.reason += cache.builds() > built
                           ? fmt::format("; built in {:.3g} s during the plan (kept for the run)", surface_seconds)

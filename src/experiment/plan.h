@@ -9,7 +9,9 @@
 //               albedo / scattering, orders all, surface auto: the Smith random walk (Heitz et al. 2016);
 //               validation  the analytic validator (the sampler against the pdf it claims);
 //               a surface named in the spec (assembly, heightmap): the explicit heightfield, whose effects
-//                           (conditional masking, its own multiple scattering) only it has.
+//                           (conditional masking, its own multiple scattering) only it has; vndf and scattering
+//                           run on it, the tile sized by the trade table (heightfield_trade.h) and built once
+//                           (surface_cache.h).
 //   order cap the smallest cap of the walk at which the weight still on the surface (the walk's `unfinished`,
 //             measured by a pilot at the worst view) is below kBiasShare of the target (order_cap_for).
 //   count     from a pilot's standard error: n = n_pilot (se_pilot / se_target)^2 (units_for_standard_error);
