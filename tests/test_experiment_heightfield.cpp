@@ -26,6 +26,7 @@
 #include <atomic>
 #include <fstream>
 #include <iostream>
+#include <iterator>
 #include <string>
 
 namespace heightfield_experiment_test {
@@ -293,6 +294,12 @@ TEST(ExperimentHeightfield, AnAssemblyVndfRunsWritesAndResumesWithoutRedoingWork
   ASSERT_TRUE(cut.measurements[0].rounds.back().partial);
   EXPECT_LT(cut.measurements[0].units, w.units);
   write_run_directory(dir, spec, plan, cut, {"test", "test", spec.seed});
+  {  // the report states the tile, where it is cached and its predicted bias
+    std::ifstream page(dir / "index.html");
+    const std::string html((std::istreambuf_iterator<char>(page)), std::istreambuf_iterator<char>());
+    EXPECT_NE(html.find("surfaces/" + d.surface.hash + ".exr"), std::string::npos);
+    EXPECT_NE(html.find("predicted bias (TV) 0.1035"), std::string::npos);
+  }
   const std::optional<PreviousRun> previous = load_previous_run(dir, spec, spec.seed);
   ASSERT_TRUE(previous);
   ASSERT_TRUE(previous->plan.decisions[0].surface.hash == d.surface.hash);
