@@ -279,8 +279,8 @@ TEST(ExperimentHeightfield, AnAssemblyVndfRunsWritesAndResumesWithoutRedoingWork
   EXPECT_GT(d.predicted_seconds, 0);
   EXPECT_EQ(cache.builds(), 1u);  // the plan built it (its pilot traced it)
 
-  // The whole run (at 400x the planned rays: a round of many blocks), on the plan's cache: nothing rebuilt.
-  const ExperimentResults whole = run_on(spec, plan, cache, RunControl{2, nullptr, {}}, 400);
+  // The whole run (at 200x the planned rays: a round of many blocks), on the plan's cache: nothing rebuilt.
+  const ExperimentResults whole = run_on(spec, plan, cache, RunControl{2, nullptr, {}}, 200);
   EXPECT_EQ(cache.builds(), 1u);
   ASSERT_TRUE(whole.measurements[0].met);
   const MeasurementResult& w = whole.measurements[0];
@@ -289,7 +289,7 @@ TEST(ExperimentHeightfield, AnAssemblyVndfRunsWritesAndResumesWithoutRedoingWork
 
   // Cut at 40% of its round, written to DIR, read back as a rerun finds it, resumed with a new cache on DIR.
   CancelPart cancel;
-  const ExperimentResults cut = run_on(spec, plan, cache, cancel.control("trace vndf (heightfield)", 0.4), 400);
+  const ExperimentResults cut = run_on(spec, plan, cache, cancel.control("trace vndf (heightfield)", 0.4), 200);
   ASSERT_TRUE(cut.partial);
   ASSERT_TRUE(cut.measurements[0].rounds.back().partial);
   EXPECT_LT(cut.measurements[0].units, w.units);
@@ -304,13 +304,13 @@ TEST(ExperimentHeightfield, AnAssemblyVndfRunsWritesAndResumesWithoutRedoingWork
   ASSERT_TRUE(previous);
   ASSERT_TRUE(previous->plan.decisions[0].surface.hash == d.surface.hash);
   SurfaceCache again(dir / "surfaces");
-  const ExperimentResults resumed = run_on(spec, previous->plan, again, RunControl{1, nullptr, {}}, 400, &previous->results);
+  const ExperimentResults resumed = run_on(spec, previous->plan, again, RunControl{1, nullptr, {}}, 200, &previous->results);
   EXPECT_FALSE(resumed.partial);
   EXPECT_EQ(again.builds(), 0u);  // read from DIR/surfaces
   EXPECT_EQ(measured(resumed).dump(), measured(whole).dump());
   // A finished run run again: kept as it is (nothing traced, nothing built).
   SurfaceCache third(dir / "surfaces");
-  const ExperimentResults kept = run_on(spec, previous->plan, third, RunControl{1, nullptr, {}}, 400, &resumed);
+  const ExperimentResults kept = run_on(spec, previous->plan, third, RunControl{1, nullptr, {}}, 200, &resumed);
   EXPECT_EQ(third.events().size(), 0u);
   EXPECT_EQ(measured(kept).dump(), measured(whole).dump());
 }
@@ -326,7 +326,7 @@ TEST(ExperimentHeightfield, TheRunsRoundsAgreeWithADirectTraceOfTheTileAndNotOfA
   const ExperimentSpec spec = smith_spec("vndf", 0.42);
   SurfaceCache cache;
   const ExperimentPlan plan = small_plan(spec, cache);
-  const ExperimentResults r = run_on(spec, plan, cache, RunControl{2, nullptr, {}}, 400);
+  const ExperimentResults r = run_on(spec, plan, cache, RunControl{2, nullptr, {}}, 200);
   const MeasurementResult& m = r.measurements[0];
   ASSERT_TRUE(m.met);
   const Decision& d = plan.decisions[0];
