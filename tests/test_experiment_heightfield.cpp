@@ -417,4 +417,17 @@ target_tv = 0.1
   EXPECT_EQ(cache.builds(), 0u);
 }
 
+TEST(ExperimentHeightfield, AHeightmapThatCannotBeReadIsBadInputNamingTheKey) {
+  const auto dir = scratch_dir("experiment_heightfield", "bad_heightmap");
+  std::ofstream(dir / "tile.exr") << "not an image";
+  const ExperimentSpec spec = smith_spec("vndf", 0.1, (dir / "tile.exr").string());
+  SurfaceCache cache;
+  try {
+    small_plan(spec, cache);
+    FAIL() << "planned";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("quantity[0].surface: ", 0), 0u) << e.what();
+  }
+}
+
 }  // namespace heightfield_experiment_test

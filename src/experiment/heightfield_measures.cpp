@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <stdexcept>
 #include <string>
 
 namespace microsim::experiment {
@@ -57,9 +58,18 @@ double metadata_number(const microgeom::Heightfield& field, const std::string& k
   return end != it->second.c_str() && *end == '\0' ? x : otherwise;
 }
 
+// The user's heightmap; one that cannot be read is bad input naming the spec's key.
+const microgeom::Heightfield& read_heightmap(const SpecQuantity& q, SurfaceCache& cache) {
+  try {
+    return cache.heightmap(q.surface.name);
+  } catch (const std::runtime_error& e) {
+    throw std::invalid_argument(fmt::format("{}.surface: {}", q.key, e.what()));
+  }
+}
+
 SurfaceDecision plan_heightmap_surface(const SpecQuantity& q, const Decision& d, SurfaceCache& cache) {
   SurfaceDecision out;
-  const microgeom::Heightfield& field = cache.heightmap(q.surface.name);
+  const microgeom::Heightfield& field = read_heightmap(q, cache);
   SurfacePlan& p = out.plan;
   p.kind = "heightmap";
   p.name = q.surface.name;

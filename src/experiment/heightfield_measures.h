@@ -16,7 +16,7 @@ namespace microsim::experiment {
 // built-in table (its supported range: microgeom::check_supported_range), or a heightmap read through
 // `cache` (its own resolution; the bias the table predicts for it). `runnable` false with `why` when no tile
 // meets the target (or the assembly cannot be built at the material's alphas). Pure but for reading a
-// heightmap.
+// heightmap (one that cannot be read: std::invalid_argument naming the quantity's key).
 struct SurfaceDecision {
   SurfacePlan plan;
   bool runnable = false;
