@@ -26,9 +26,10 @@ SurfaceDecision plan_assembly_surface(const SpecQuantity& q, const Decision& d, 
   p.name = q.surface.name;
   p.ndf = std::string(microgeom::to_string(info.reference));
   p.seed = seed;
+  // Every quantity but the VNDF (per-order scattering; masking) sees the tile's heights: a wide tile.
   const SurfaceSize size = choose_surface_size(
       builtin_trade_table(),
-      {q.target, anisotropy_of(d.alpha), d.view.theta_deg, q.kind == QuantityKind::scattering,
+      {q.target, anisotropy_of(d.alpha), d.view.theta_deg, q.kind != QuantityKind::vndf,
        ggx ? microgeom::kMinGgxCheckedResolution : kMinSurfaceResolution});
   p.reason = (ggx ? "" : "the table was measured on smith (GGX): taken for this assembly too; ") + size.reason;
   if (!size.found) {

@@ -66,7 +66,8 @@ struct SizeRequest {
   double target_tv = 0;
   double anisotropy = 1;          // max(ax, ay) / min(ax, ay)
   double theta_deg = 0;           // the view (grazing views need wide tiles)
-  bool scattering = false;        // per-order scattering (wide tiles at any view)
+  bool scattering = false;        // the quantity sees the heights (per-order scattering, masking): wide tiles
+                                  // (TradeTable::scattering_min_tiles) at any view
   int min_resolution = kMinSurfaceResolution;  // the assembly's supported range
 };
 // The cheapest row (by build time) meeting bias <= kBiasShare target_tv. Pure.
