@@ -9,6 +9,10 @@
 //                       TV noise floor of the sum decides (kNoiseShare of the target);
 //   scattering, walk    rounds of Smith walks, their exact sums added; the largest per-order TV noise floor of
 //                       the orders the target applies to decides (measures.h, scatter_noise_floor);
+//   heightfield         (vndf, scattering on an explicit tile) the tile through the SurfaceCache (built once,
+//                       or read back from DIR/surfaces), then rounds as above: rays traced on the tile
+//                       (measure_heightfield_vndf), or paths on its Embree scene (scatter_on_surface); the root
+//                       runs them (not split over ranks);
 //   scattering, analytic  the order-1 lobe by cubature, once (measures.h, analytic_scatter_lobe); its error
 //                       estimate over the albedo is the achieved error (the whole target: no noise);
 //   validation          one validate_sampler run of the planned samples (the power rule needs no rounds).
