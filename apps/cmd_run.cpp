@@ -22,6 +22,7 @@
 #include "experiment/spec.h"
 #include "experiment/shards.h"
 #include "experiment/split_rounds.h"
+#include "experiment/surface_cache.h"
 
 #include <fmt/core.h>
 
@@ -118,6 +119,9 @@ int run_experiment_command(const RunArgs& a, experiment::Ranks& ranks, bool& pla
   experiment::PlanOptions plan_options;
   plan_options.seed = a.seed;
   plan_options.run = cli_run_control(a.threads, progress);
+  // Explicit surfaces: built once, in DIR/surfaces (a dry run keeps them in memory: nothing written).
+  experiment::SurfaceCache surfaces(a.dry_run ? fs::path{} : fs::path(a.out) / "surfaces");
+  plan_options.surfaces = &surfaces;
   install_interrupt_handler();
   experiment::StoredRounds stored;
   const experiment::ExperimentPlan plan = plan_or_shards(a, spec, seed, previous, plan_options, stored);
@@ -135,6 +139,7 @@ int run_experiment_command(const RunArgs& a, experiment::Ranks& ranks, bool& pla
   options.resume = previous ? &previous->results : nullptr;
   options.ranks = &ranks;
   options.stored = a.merge.empty() ? nullptr : &stored;
+  options.surfaces = &surfaces;
   std::size_t done = 0;  // the overall progress: measurements done, and the plan's predicted time of the rest
   options.on_measurement = [&](const experiment::MeasurementResult& m) {
     progress->finish();

@@ -31,6 +31,9 @@ void print_plan_table(const experiment::ExperimentPlan& plan, const experiment::
     const experiment::Decision& d = plan.decisions[i];
     fmt::print("  [{}] model: {}\n      count: {}\n", i, d.model.reason, d.count_reason);
     if (!d.cap_reason.empty()) fmt::print("      order cap: {}\n", d.cap_reason);
+    if (!d.surface.kind.empty())
+      fmt::print("      surface: {} {}, {}^2, l {} cells, NDF matched {}: {}\n", d.surface.kind, d.surface.name,
+                 d.surface.resolution, d.surface.corr_cells, d.surface.ndf_match, d.surface.reason);
     if (!d.runnable) fmt::print("      not run: {}\n", d.not_runnable);
   }
 }

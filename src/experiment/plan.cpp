@@ -1,11 +1,14 @@
 // experiment: plan_experiment: the pilots behind the decisions (plan.h).
+#include "experiment/heightfield_measures.h"
 #include "experiment/masking_runs.h"
 #include "experiment/measures.h"
 #include "experiment/plan.h"
+#include "experiment/surface_cache.h"
 
 #include "validate/sample_io.h"
 #include "validate/validation_part.h"
 #include "scatter/smith_walk.h"
+#include "scatter/surface_scatter.h"
 #include "stats/binning.h"
 #include "stats/scatter_compare.h"
 
@@ -35,12 +38,15 @@ std::string alpha_text(const std::pair<double, double>& a) {
 // where that is largest.
 using CapPilot = std::function<CapProbe(int cap)>;
 
+// The walk of a pilot: the Smith walk, or the paths traced on an explicit surface.
+using ScatterPilot = std::function<ScatterHistogram(const ScatterOptions&)>;
+
 // The walk of one view (a scattering measurement).
-CapPilot view_cap_pilot(const SmithMicrosurface& surface, const ScatterOptions& view) {
-  return [surface, view](int cap) {
+CapPilot view_cap_pilot(const ScatterPilot& walk, const ScatterOptions& view) {
+  return [walk, view](int cap) {
     ScatterOptions o = view;
     o.max_order = cap;
-    const ScatterHistogram h = smith_walk_scatter(surface, o);
+    const ScatterHistogram h = walk(o);
     if (h.partial) throw Cancelled("plan: order-cap pilot");
     const double albedo = std::max(h.albedo(0, -1).value, 1e-300);
     Estimate u = h.unfinished(0);
@@ -177,34 +183,36 @@ void plan_vndf_view(const ExperimentSpec& spec, const SpecQuantity& q, const Pla
   d.runnable = true;
 }
 
-// A walk pilot run as its first quarter of blocks and the rest, merged: the whole pilot bit for bit, and its
-// quarter for extrapolated_scatter_floor. Under 2 blocks, `quarter` is the whole pilot.
-struct ScatterPilot {
+// A scattering pilot (`walk`: the Smith walk, or paths on a tile) run as its first quarter of blocks and the
+// rest, merged: the whole pilot bit for bit, and its quarter for extrapolated_scatter_floor. Under 2 blocks,
+// `quarter` is the whole pilot.
+struct QuarteredPilot {
   ScatterHistogram quarter, whole;
 };
-ScatterPilot run_scatter_pilot(const SmithMicrosurface& surface, const ScatterOptions& request) {
+QuarteredPilot run_quartered_pilot(const ScatterPilot& walk, const ScatterOptions& request) {
   const std::uint64_t blocks = (request.paths + kPathsPerBlock - 1) / kPathsPerBlock;
   if (blocks < 2) {
-    ScatterHistogram whole = smith_walk_scatter(surface, request);
+    ScatterHistogram whole = walk(request);
     return {whole, whole};
   }
   ScatterOptions first = request, rest = request;
   first.blocks = BlockRange{0, std::max<std::uint64_t>(1, blocks / 4)};
   rest.blocks = BlockRange{first.blocks->end, blocks};
-  ScatterPilot pilot{smith_walk_scatter(surface, first), {}};
+  QuarteredPilot pilot{walk(first), {}};
   pilot.whole = pilot.quarter;
-  pilot.whole.merge(smith_walk_scatter(surface, rest));
+  pilot.whole.merge(walk(rest));
   return pilot;
 }
 
 // The count of a walk's per-order lobes: a pilot of pilot_rays paths at the planned cap gives each order's
 // TV noise floor, extrapolated to its 1/sqrt(n) law (extrapolated_scatter_floor); the paths bring the worst
 // targeted order's to kNoiseShare of the target.
-void plan_scattering_count(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
+void plan_scattering_count(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d,
+                           const ScatterPilot& walk) {
   const SpecMaterial& m = spec.material(q.material);
   const auto start = std::chrono::steady_clock::now();
-  const ScatterPilot pilot = run_scatter_pilot(
-      scatter_surface(m, d), scatter_request(m, d, o.pilot_rays, derived_seed(plan_seed(spec, o), kScatterPilot, d.quantity), o.run));
+  const QuarteredPilot pilot = run_quartered_pilot(
+      walk, scatter_request(m, d, o.pilot_rays, derived_seed(plan_seed(spec, o), kScatterPilot, d.quantity), o.run));
   if (pilot.whole.partial || pilot.quarter.partial) throw Cancelled("plan: scattering pilot");
   d.pilot_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   d.pilot_units = o.pilot_rays;
@@ -237,9 +245,10 @@ void plan_analytic_scattering(const SpecMaterial& m, const SpecQuantity& q, cons
   d.runnable = true;
 }
 
-void plan_scattering_view(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
+// The order cap and the count of a walk's per-order lobes, `walk` the Smith walk or the paths on a surface.
+void plan_walk_scattering(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d,
+                          const ScatterPilot& walk) {
   const SpecMaterial& m = spec.material(q.material);
-  if (d.model.model == Model::analytic) return plan_analytic_scattering(m, q, o, d);
   ScatterOptions view;
   view.wi = direction_from_degrees(d.view.theta_deg, d.view.phi_deg);
   view.material = m.facet;
@@ -248,9 +257,15 @@ void plan_scattering_view(const ExperimentSpec& spec, const SpecQuantity& q, con
   view.rows = 1;
   view.run = o.run;
   std::tie(d.order_cap, d.cap_reason) =
-      walk_order_cap(view_cap_pilot({m.ndf, d.alpha.first, d.alpha.second}, view), q.target,
-                     fmt::format("theta {} ({} paths)", d.view.theta_deg, view.paths));
-  plan_scattering_count(spec, q, o, d);
+      walk_order_cap(view_cap_pilot(walk, view), q.target, fmt::format("theta {} ({} paths)", d.view.theta_deg, view.paths));
+  plan_scattering_count(spec, q, o, d, walk);
+}
+
+void plan_scattering_view(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
+  const SpecMaterial& m = spec.material(q.material);
+  if (d.model.model == Model::analytic) return plan_analytic_scattering(m, q, o, d);
+  const SmithMicrosurface surface = scatter_surface(m, d);
+  plan_walk_scattering(spec, q, o, d, [surface](const ScatterOptions& r) { return smith_walk_scatter(surface, r); });
 }
 
 // A dump that cannot be opened (or an NPY header of the wrong shape) is bad input before anything runs.
@@ -299,7 +314,65 @@ void plan_validation_view(const ExperimentSpec& spec, const SpecQuantity& q, con
   d.runnable = true;
 }
 
-void plan_views(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, std::vector<Decision>& out) {
+// ---- an explicit heightfield (vndf, scattering) ---------------------------------------------------------------
+
+// The VNDF traced on the tile: a pilot of pilot_rays rays gives the noise floor (~ 1/sqrt(n)) and the rate.
+void plan_heightfield_vndf(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o,
+                           const microgeom::Heightfield& field, Decision& d) {
+  const auto start = std::chrono::steady_clock::now();
+  const HeightfieldVndf m = measure_heightfield_vndf(
+      field, surface_label(d.surface),
+      vndf_request(spec, d, o.pilot_rays, derived_seed(plan_seed(spec, o), kVndfPilot, d.quantity), o.run));
+  if (m.trace.partial) throw Cancelled("plan: vndf pilot");
+  d.pilot_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  d.pilot_units = o.pilot_rays;
+  d.pilot_error = heightfield_noise_floor(m);
+  d.units = units_for_standard_error(o.pilot_rays, d.pilot_error, kNoiseShare * q.target);
+  d.unit = "rays";
+  d.count_reason = fmt::format("pilot of {} rays on the tile: TV noise floor {:.2e} ~ 1/sqrt(n); resolving TV {} needs a "
+                               "floor <= {} x {} (rows {})", o.pilot_rays, d.pilot_error, q.target, kNoiseShare, q.target, q.rows);
+  // The tracing scales with the rays; the scene and the empirical Smith tables are paid once per round.
+  const double overhead = std::max(0.0, d.pilot_seconds - m.trace.seconds);
+  d.predicted_seconds = overhead + predicted_seconds(d.units, d.pilot_units, m.trace.seconds);
+}
+
+// The tile of a heightfield decision (the trade table's size, or the user's), built (or read) through the
+// cache, then its pilot: the VNDF's rays, or the order cap and paths of its per-order scattering.
+void plan_heightfield_view(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, SurfaceCache& cache,
+                           Decision& d) {
+  if (q.kind != QuantityKind::vndf && q.kind != QuantityKind::scattering) {
+    d.not_runnable = "an explicit surface's " + to_string(q.kind) + ": a later session";
+    return;
+  }
+  const SurfaceDecision s = plan_surface(q, d, plan_seed(spec, o), cache);
+  d.surface = s.plan;
+  if (!s.runnable) {
+    d.count_reason = "no tile: " + s.why;
+    d.not_runnable = s.why;
+    return;
+  }
+  const auto start = std::chrono::steady_clock::now();
+  const std::size_t built = cache.builds();
+  const microgeom::Heightfield& field = decision_surface(d, cache, o.run);
+  const double surface_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (q.kind == QuantityKind::vndf) {
+    plan_heightfield_vndf(spec, q, o, field, d);
+  } else {
+    const auto scene_start = std::chrono::steady_clock::now();
+    const HeightfieldScene scene(field);
+    const double scene_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - scene_start).count();
+    plan_walk_scattering(spec, q, o, d, [&scene](const ScatterOptions& r) { return scatter_on_surface(scene, r); });
+    d.predicted_seconds += scene_seconds;  // the run builds the tile's Embree scene once per measurement
+  }
+  d.surface.reason += cache.builds() > built
+                          ? fmt::format("; built in {:.3g} s during the plan (kept for the run)", surface_seconds)
+                          : fmt::format("; not built: {} ({:.3g} s)", q.surface.kind == SurfaceChoice::Kind::heightmap
+                                                                         ? "the user's file" : "shared or read back", surface_seconds);
+  d.runnable = true;
+}
+
+void plan_views(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& cache,
+                std::vector<Decision>& out) {
   const SpecQuantity& q = spec.quantities[index];
   const SpecMaterial& m = spec.material(q.material);
   for (const auto& alpha : m.alphas)
@@ -312,8 +385,7 @@ void plan_views(const ExperimentSpec& spec, std::size_t index, const PlanOptions
                             v.theta_deg, v.phi_deg);
       d.model = choose_model(q, m);
       if (d.model.model == Model::heightfield) {
-        d.count_reason = "the heightfield's resolution, tile and rays from the trade tables: a later session";
-        d.not_runnable = "explicit heightfields (resolution from the trade tables): a later session";
+        plan_heightfield_view(spec, q, o, cache, d);
       } else if (q.kind == QuantityKind::vndf) {
         plan_vndf_view(spec, q, o, d);
       } else if (q.kind == QuantityKind::scattering) {
@@ -329,6 +401,8 @@ void plan_views(const ExperimentSpec& spec, std::size_t index, const PlanOptions
 
 ExperimentPlan plan_experiment(const ExperimentSpec& spec, const PlanOptions& options) {
   ExperimentPlan plan;
+  SurfaceCache memory;  // without the caller's cache: surfaces for this plan only
+  SurfaceCache& surfaces = options.surfaces != nullptr ? *options.surfaces : memory;
   const auto start = std::chrono::steady_clock::now();
   for (std::size_t i = 0; i < spec.quantities.size(); ++i) {
     if (options.run.cancelled()) throw Cancelled("plan");
@@ -337,7 +411,7 @@ ExperimentPlan plan_experiment(const ExperimentSpec& spec, const PlanOptions& op
     else if (spec.quantities[i].kind == QuantityKind::masking)
       plan_masking(spec, i, options, plan.decisions);
     else
-      plan_views(spec, i, options, plan.decisions);
+      plan_views(spec, i, options, surfaces, plan.decisions);
   }
   plan.pilot_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   for (const Decision& d : plan.decisions) plan.predicted_seconds += d.predicted_seconds;

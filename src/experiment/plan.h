@@ -9,7 +9,9 @@
 //               albedo / scattering, orders all, surface auto: the Smith random walk (Heitz et al. 2016);
 //               validation  the analytic validator (the sampler against the pdf it claims);
 //               a surface named in the spec (assembly, heightmap): the explicit heightfield, whose effects
-//                           (conditional masking, its own multiple scattering) only it has.
+//                           (conditional masking, its own multiple scattering) only it has; vndf and scattering
+//                           run on it, the tile sized by the trade table (heightfield_trade.h) and built once
+//                           (surface_cache.h).
 //   order cap the smallest cap of the walk at which the weight still on the surface (the walk's `unfinished`,
 //             measured by a pilot at the worst view) is below kBiasShare of the target (order_cap_for).
 //   count     from a pilot's standard error: n = n_pilot (se_pilot / se_target)^2 (units_for_standard_error);
@@ -28,6 +30,8 @@
 #include <vector>
 
 namespace microsim::experiment {
+
+class SurfaceCache;  // surface_cache.h
 
 // The share of a target that a truncation bias may take (the order cap): the total error is then at most
 // sqrt(1 + 1/16) = 1.03 times the statistical target.
@@ -79,6 +83,21 @@ std::uint64_t validation_samples(double detect_tv, int degrees_of_freedom, doubl
 // Seconds for `units` at the pilot's rate (pilot_units in pilot_seconds); 0 when the pilot measured nothing.
 double predicted_seconds(std::uint64_t units, std::uint64_t pilot_units, double pilot_seconds);
 
+// The explicit surface of a heightfield decision: which tile and why (heightfield_trade.h for the size rule;
+// surface_cache.h for where a built one is kept).
+struct SurfacePlan {
+  std::string kind;          // "assembly" or "heightmap"; "" when the model is not a heightfield
+  std::string name;          // the assembly's name, or the heightmap's path
+  std::string ndf;           // the surface's reference NDF ("ggx", "beckmann")
+  int resolution = 0;        // N
+  double corr_cells = 0;     // l; a heightmap without the attribute: 0 (unknown)
+  std::string ndf_match;     // "radial" or "joint"
+  std::uint64_t seed = 0;    // assembly: the build's seed (the run's)
+  double bias = -1;          // the bias (TV) the trade table predicts; -1: beyond the table (unknown)
+  std::string hash;          // assembly: its cache key's hash (DIR/surfaces/<hash>.exr)
+  std::string reason;
+};
+
 // One measurement: a quantity at one alpha and view (vndf, scattering, validation) or a quantity's whole
 // table (albedo).
 struct Decision {
@@ -100,6 +119,7 @@ struct Decision {
   double pilot_error = 0;    // the pilot's achieved error, in the target's unit
   bool runnable = false;     // `microsim run` carries it out in this version
   std::string not_runnable;  // why not, when not
+  SurfacePlan surface;       // Model::heightfield: the tile
 };
 
 struct ExperimentPlan {
@@ -114,6 +134,9 @@ struct PlanOptions {
   std::uint64_t cap_pilot_paths = 1 << 15;  // the order cap's pilots at the worst view
   std::uint64_t seed = 0;               // 0: the spec's; pilots draw from seeds derived from it
   RunControl run;                       // threads, cancel (Cancelled thrown), progress
+  // Where explicit surfaces are built once (surface_cache.h; the run reuses them); null: a cache in memory
+  // for this call.
+  SurfaceCache* surfaces = nullptr;
 };
 
 // Runs the pilots and returns every decision. Throws Cancelled when run.cancel is set.

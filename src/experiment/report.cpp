@@ -134,6 +134,18 @@ std::string results_section(const json& doc) {
 
 // ---- one measurement ------------------------------------------------------------------------------------
 
+// An explicit surface's decision: the tile, its predicted bias and why.
+std::string surface_item(const json& s) {
+  const bool assembly = text_of(member(s, "kind")) == "assembly";
+  const double bias = member(s, "bias").get<double>();
+  return fmt::format("<li><b>surface</b> {} {}{}, {}^2, l {} cells, NDF matched {}{}; predicted bias (TV) {}: {}</li>\n",
+                     esc(text_of(member(s, "kind"))), esc(text_of(member(s, "name"))),
+                     assembly ? " seed " + text_of(member(s, "seed")) : "", text_of(member(s, "resolution")),
+                     report_number(member(s, "corr_cells")), esc(text_of(member(s, "ndf_match"))),
+                     assembly ? ", cached as surfaces/" + esc(text_of(member(s, "hash"))) + ".exr" : "",
+                     bias >= 0 ? report_number(bias) : "unknown", esc(text_of(member(s, "reason"))));
+}
+
 std::string decision_list(const json& d) {
   std::string out = "<ul>\n";
   out += fmt::format("<li><b>model</b> {}: {}</li>\n", esc(text_of(member(d, "model"))),
@@ -146,6 +158,7 @@ std::string decision_list(const json& d) {
   out += fmt::format("<li><b>pilot</b> {} units in {} s, error {}; predicted {} s</li>\n",
                      text_of(member(pilot, "units")), report_number(member(pilot, "seconds")),
                      report_number(member(pilot, "error")), report_number(member(d, "predicted_seconds")));
+  if (d.contains("surface")) out += surface_item(d["surface"]);
   if (d.contains("not_runnable")) out += fmt::format("<li><b>not run</b>: {}</li>\n", esc(text_of(d["not_runnable"])));
   return out + "</ul>\n";
 }
@@ -242,6 +255,14 @@ std::string vndf_values(const json& values, const ReportHistograms& histograms, 
                                 report_number(member(values, "total_variation")),
                                 report_number(member(values, "noise_floor_tv")));
   out += vndf_fit_table(values);
+  if (values.contains("heightfield")) {
+    const json& f = values["heightfield"];
+    out += fmt::format("<p>On the tile ({}): TV to Smith with the tile's own NDF {} (its masking, without the NDF's "
+                       "bias); back-facing first hits {}, convex-edge grazes passed over {}, leaked {}, unresolved {}.</p>\n",
+                       esc(text_of(member(f, "surface"))), report_number(member(f, "tv_own_ndf")),
+                       text_of(member(f, "backfacing")), text_of(member(f, "edge_grazes")), text_of(member(f, "leaked")),
+                       text_of(member(f, "unresolved")));
+  }
   const auto h = histograms.find(index);
   if (h != histograms.end()) out += histogram_figure(h->second, label, "analytic D_v");
   return out + fmt::format("<p>Histogram: <a href=\"vndf-{0}.exr\">vndf-{0}.exr</a>.</p>\n", index);

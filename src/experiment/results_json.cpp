@@ -4,6 +4,12 @@
 namespace microsim::experiment {
 namespace {
 
+nlohmann::json surface_plan_json(const SurfacePlan& p) {
+  return {{"kind", p.kind},           {"name", p.name},   {"ndf", p.ndf},   {"resolution", p.resolution},
+          {"corr_cells", p.corr_cells}, {"ndf_match", p.ndf_match}, {"seed", p.seed}, {"bias", p.bias},
+          {"hash", p.hash},           {"reason", p.reason}};
+}
+
 nlohmann::json decision_json(const Decision& d, const ExperimentSpec& spec) {
   const SpecQuantity& q = spec.quantities[d.quantity];
   nlohmann::json j = {{"measurement", d.label},
@@ -28,6 +34,7 @@ nlohmann::json decision_json(const Decision& d, const ExperimentSpec& spec) {
   if (d.tolerance > 0) j["tolerance"] = d.tolerance;
   if (!d.targeted_orders.empty()) j["targeted_orders"] = d.targeted_orders;
   if (!d.runnable) j["not_runnable"] = d.not_runnable;
+  if (!d.surface.kind.empty()) j["surface"] = surface_plan_json(d.surface);
   return j;
 }
 

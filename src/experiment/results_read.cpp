@@ -37,6 +37,21 @@ std::size_t quantity_index(const ExperimentSpec& spec, const std::string& key, c
   throw std::invalid_argument(fmt::format("results.json: {}.quantity: '{}' is not a quantity of the spec", where, key));
 }
 
+SurfacePlan surface_plan_from_json(const json& j, const std::string& where) {
+  SurfacePlan p;
+  p.kind = get<std::string>(j, "kind", where);
+  p.name = get<std::string>(j, "name", where);
+  p.ndf = get<std::string>(j, "ndf", where);
+  p.resolution = get<int>(j, "resolution", where);
+  p.corr_cells = get<double>(j, "corr_cells", where);
+  p.ndf_match = get<std::string>(j, "ndf_match", where);
+  p.seed = get<std::uint64_t>(j, "seed", where);
+  p.bias = get<double>(j, "bias", where);
+  p.hash = get<std::string>(j, "hash", where);
+  p.reason = get<std::string>(j, "reason", where);
+  return p;
+}
+
 Decision decision_from_json(const json& j, const ExperimentSpec& spec, const std::string& where) {
   Decision d;
   d.quantity = quantity_index(spec, get<std::string>(j, "quantity", where), where);
@@ -57,10 +72,12 @@ Decision decision_from_json(const json& j, const ExperimentSpec& spec, const std
   d.pilot_seconds = get<double>(pilot, "seconds", where + ".pilot");
   d.pilot_error = get<double>(pilot, "error", where + ".pilot");
   d.runnable = get<bool>(j, "runnable", where);
-  // A walk's per-order lobes resolve the orders its plan targeted (a plan of an earlier version has none).
-  if (d.runnable && spec.quantities[d.quantity].kind == QuantityKind::scattering && d.model.model == Model::smith_walk)
+  // Sampled per-order lobes (the walk's, a tile's) resolve the orders their plan targeted (a plan of an earlier
+  // version has none).
+  if (d.runnable && spec.quantities[d.quantity].kind == QuantityKind::scattering && d.model.model != Model::analytic)
     d.targeted_orders = get<std::vector<int>>(j, "targeted_orders", where);
   if (j.contains("not_runnable")) d.not_runnable = get<std::string>(j, "not_runnable", where);
+  if (j.contains("surface")) d.surface = surface_plan_from_json(j["surface"], where + ".surface");
   return d;
 }
 

@@ -1,11 +1,13 @@
 // experiment: run_experiment: the sequential rounds of each runnable decision (run.h).
 #include "experiment/run.h"
 
+#include "experiment/heightfield_measures.h"
 #include "experiment/masking_runs.h"
 #include "experiment/measures.h"
 #include "experiment/split_rounds.h"
 #include "core/parse.h"
 #include "scatter/albedo_table_io.h"
+#include "scatter/surface_scatter.h"
 #include "validate/validate.h"
 #include "validate/sample_io.h"
 #include "stats/scatter_compare.h"
@@ -122,17 +124,22 @@ void run_analytic_albedo(const ExperimentSpec& spec, const RunOptions& o, Measur
 // ---- vndf --------------------------------------------------------------------------------------------------
 
 // Adds a round's exact counts to the sum (the first round gives the binnings and attributes).
-void add_round(TracedHistogram& sum, std::vector<std::uint64_t>& unbinned, const EllipsoidVndf& round) {
+void add_counts(TracedHistogram& sum, std::vector<std::uint64_t>& unbinned, const TracedHistogram& round,
+                const std::vector<std::uint64_t>& round_unbinned) {
   if (sum.binnings.empty()) {
-    sum = round.histogram;
-    unbinned = round.trace.unbinned;
+    sum = round;
+    unbinned = round_unbinned;
     return;
   }
   for (std::size_t k = 0; k < sum.counts.size(); ++k)
-    for (std::size_t i = 0; i < sum.counts[k].size(); ++i) sum.counts[k][i] += round.histogram.counts[k][i];
-  for (std::size_t k = 0; k < unbinned.size(); ++k) unbinned[k] += round.trace.unbinned[k];
-  sum.rays += round.histogram.rays;
-  sum.hits += round.histogram.hits;
+    for (std::size_t i = 0; i < sum.counts[k].size(); ++i) sum.counts[k][i] += round.counts[k][i];
+  for (std::size_t k = 0; k < unbinned.size(); ++k) unbinned[k] += round_unbinned[k];
+  sum.rays += round.rays;
+  sum.hits += round.hits;
+}
+
+void add_round(TracedHistogram& sum, std::vector<std::uint64_t>& unbinned, const EllipsoidVndf& round) {
+  add_counts(sum, unbinned, round.histogram, round.trace.unbinned);
 }
 
 void record_vndf(MeasurementResult& m, const EllipsoidVndf& analysed, double hit_fraction) {
@@ -186,14 +193,22 @@ bool vndf_round(const ExperimentSpec& spec, const EllipsoidTarget& target, const
   return true;
 }
 
-void run_vndf(const ExperimentSpec& spec, std::uint64_t seed, std::size_t index, const RunOptions& o, MeasurementResult& m) {
-  const EllipsoidTarget target(m.decision.alpha.first, m.decision.alpha.second, -1);
+// The sequential rounds of a histogram (a VNDF, a walk's lobes): rounds of at most `max_units` until the
+// target is met, kMaxRounds are run or a round is cut short (a partial round of a resumed run first).
+void run_rounds(MeasurementResult& m, std::uint64_t seed, std::size_t index, const RunOptions& o, std::uint64_t max_units,
+                const std::function<bool(const RoundStart&)>& round) {
   m.partial = false;
   while (int(m.rounds.size()) < o.max_rounds || (!m.rounds.empty() && m.rounds.back().partial)) {
-    const RoundStart start = next_round(m, seed, index, o, kMaxRays);
-    if (start.rays == 0 || !vndf_round(spec, target, start, index, o, m) || m.partial) break;
+    const RoundStart start = next_round(m, seed, index, o, max_units);
+    if (start.rays == 0 || !round(start) || m.partial) break;
   }
   m.met = !m.rounds.empty() && !m.rounds.back().partial && m.achieved <= m.target;
+}
+
+void run_vndf(const ExperimentSpec& spec, std::uint64_t seed, std::size_t index, const RunOptions& o, MeasurementResult& m) {
+  const EllipsoidTarget target(m.decision.alpha.first, m.decision.alpha.second, -1);
+  run_rounds(m, seed, index, o, kMaxRays,
+             [&](const RoundStart& start) { return vndf_round(spec, target, start, index, o, m); });
 }
 
 // ---- scattering (the Smith walk) ---------------------------------------------------------------------------
@@ -238,14 +253,17 @@ void record_scatter(MeasurementResult& m) {
                               {"rows_per_hemisphere", kScatterRows}}}};
 }
 
-bool scatter_round(const ExperimentSpec& spec, const RoundStart& start, std::size_t index, const RunOptions& o,
+// The paths of one round: the Smith walk (split over the ranks) or the paths traced on an explicit surface.
+using ScatterWalk = std::function<ScatterHistogram(const ScatterOptions&)>;
+
+bool scatter_round(const ExperimentSpec& spec, const RoundStart& start, const RunOptions& o, const ScatterWalk& walk,
                    MeasurementResult& m) {
   const Decision& d = m.decision;
   const SpecMaterial& material = spec.material(spec.quantities[d.quantity].material);
   ScatterOptions options = scatter_request(material, d, start.rays, start.seed, o.run);
   if (start.first_block > 0) options.blocks = BlockRange{start.first_block, (start.rays + kPathsPerBlock - 1) / kPathsPerBlock};
   const auto clock = std::chrono::steady_clock::now();
-  const ScatterHistogram round = split_scatter_round({o.ranks, o.stored}, index, scatter_surface(material, d), options);
+  const ScatterHistogram round = walk(options);
   m.partial = round.partial;
   if (round.paths() == 0) return false;
   add_scatter_round(m.scatter, round);
@@ -260,12 +278,68 @@ bool scatter_round(const ExperimentSpec& spec, const RoundStart& start, std::siz
 
 void run_scattering(const ExperimentSpec& spec, std::uint64_t seed, std::size_t index, const RunOptions& o,
                     MeasurementResult& m) {
-  m.partial = false;
-  while (int(m.rounds.size()) < o.max_rounds || (!m.rounds.empty() && m.rounds.back().partial)) {
-    const RoundStart start = next_round(m, seed, index, o, std::numeric_limits<std::uint64_t>::max());
-    if (start.rays == 0 || !scatter_round(spec, start, index, o, m) || m.partial) break;
+  const SmithMicrosurface surface = scatter_surface(spec.material(spec.quantities[m.decision.quantity].material), m.decision);
+  const ScatterWalk walk = [&](const ScatterOptions& options) {
+    return split_scatter_round({o.ranks, o.stored}, index, surface, options);
+  };
+  run_rounds(m, seed, index, o, std::numeric_limits<std::uint64_t>::max(),
+             [&](const RoundStart& start) { return scatter_round(spec, start, o, walk, m); });
+}
+
+// ---- an explicit heightfield (vndf, scattering) --------------------------------------------------------------
+
+// The tracer's diagnostics of a round added to the sum's attributes (the analysis reads them from there).
+void add_diagnostics(TracedHistogram& sum, const TracedHistogram& round) {
+  for (const char* key : {"backfacing", "edge_grazes", "leaked", "unresolved"}) {
+    const auto a = sum.attributes.find(key);
+    const auto b = round.attributes.find(key);
+    if (a != sum.attributes.end() && b != round.attributes.end())
+      a->second = std::to_string(parse_uint(key, a->second) + parse_uint(key, b->second));
   }
-  m.met = !m.rounds.empty() && !m.rounds.back().partial && m.achieved <= m.target;
+}
+
+// One round (or the rest of one) of rays traced on the tile, added to the sum, the sum analysed and recorded.
+bool heightfield_vndf_round(const ExperimentSpec& spec, const microgeom::Heightfield& field, const RoundStart& start,
+                            const RunOptions& o, MeasurementResult& m) {
+  VndfRequest req = vndf_request(spec, m.decision, start.rays, start.seed, o.run);
+  if (start.first_block > 0) req.blocks = BlockRange{start.first_block, (start.rays + kRaysPerBlock - 1) / kRaysPerBlock};
+  const auto clock = std::chrono::steady_clock::now();
+  const HeightfieldVndf round = measure_heightfield_vndf(field, surface_label(m.decision.surface), req);
+  m.partial = round.trace.partial;
+  if (round.histogram.rays == 0) return false;
+  const bool fresh = m.histogram.binnings.empty();
+  if (!fresh) add_diagnostics(m.histogram, round.histogram);
+  add_counts(m.histogram, m.unbinned, round.histogram, round.trace.unbinned);
+  const HeightfieldVndf analysed = fresh && !round.trace.partial ? round : analyse_heightfield_vndf(m.histogram, m.unbinned, field);
+  m.achieved = heightfield_noise_floor(analysed);
+  m.units += round.histogram.rays;
+  m.rays += round.histogram.rays;
+  m.rounds.push_back({start.done + round.histogram.rays, start.rays, round.trace.blocks.end, round.trace.partial,
+                      req.seed, 0, seconds_since(clock), m.achieved});
+  m.values = heightfield_vndf_values(analysed, m.unbinned, m.decision.surface);
+  m.histogram = analysed.histogram;
+  return true;
+}
+
+// The tile (built once through the cache, or read back), then the rounds on it: rays for a VNDF, paths for
+// the per-order lobes (not split over ranks: the root traces them).
+void run_heightfield(const ExperimentSpec& spec, std::uint64_t seed, std::size_t index, const RunOptions& o,
+                     SurfaceCache& cache, MeasurementResult& m) {
+  m.partial = false;
+  const microgeom::Heightfield* field = nullptr;
+  try {
+    field = &decision_surface(m.decision, cache, o.run);
+  } catch (const Cancelled&) {
+    m.partial = true;
+    return;
+  }
+  if (spec.quantities[m.decision.quantity].kind == QuantityKind::vndf)
+    return run_rounds(m, seed, index, o, kMaxRays,
+                      [&](const RoundStart& start) { return heightfield_vndf_round(spec, *field, start, o, m); });
+  const HeightfieldScene scene(*field);
+  const ScatterWalk walk = [&scene](const ScatterOptions& options) { return scatter_on_surface(scene, options); };
+  run_rounds(m, seed, index, o, std::numeric_limits<std::uint64_t>::max(),
+             [&](const RoundStart& start) { return scatter_round(spec, start, o, walk, m); });
 }
 
 // ---- scattering (the analytic order-1 lobe) ----------------------------------------------------------------
@@ -410,7 +484,7 @@ std::string error_measure(const SpecQuantity& q, const Decision& d) {
 
 // A measurement afresh, or continued from `previous` (an interrupted run's); a finished one is kept.
 MeasurementResult run_decision(const ExperimentSpec& spec, const Decision& d, std::size_t index, std::uint64_t seed,
-                               const RunOptions& o, const MeasurementResult* previous) {
+                               const RunOptions& o, SurfaceCache& surfaces, const MeasurementResult* previous) {
   if (previous != nullptr && (!previous->partial || !d.runnable)) return *previous;
   MeasurementResult m = previous != nullptr ? *previous : MeasurementResult{};
   m.decision = d;
@@ -424,6 +498,7 @@ MeasurementResult run_decision(const ExperimentSpec& spec, const Decision& d, st
   m.ran = true;
   const auto start = std::chrono::steady_clock::now();
   if (q.kind == QuantityKind::masking) run_masking(spec, seed, round_seed(seed, index, 0), first_units(d, o), o, m);
+  else if (d.model.model == Model::heightfield) run_heightfield(spec, seed, index, o, surfaces, m);
   else if (vndf) run_vndf(spec, seed, index, o, m);
   else if (q.kind == QuantityKind::validation) run_validation(spec, seed, index, o, m);
   else if (q.kind == QuantityKind::scattering && analytic) run_analytic_scattering(spec, o, m);
@@ -468,6 +543,8 @@ std::vector<RoundTask> first_split_rounds(const ExperimentSpec& spec, const Expe
 
 ExperimentResults run_experiment(const ExperimentSpec& spec, const ExperimentPlan& plan, const RunOptions& options) {
   ExperimentResults results;
+  SurfaceCache memory;  // without the caller's cache: surfaces for this run only
+  SurfaceCache& surfaces = options.surfaces != nullptr ? *options.surfaces : memory;
   const std::uint64_t seed = options.seed != 0 ? options.seed : spec.seed;
   const auto start = std::chrono::steady_clock::now();
   for (std::size_t i = 0; i < plan.decisions.size(); ++i) {
@@ -477,7 +554,7 @@ ExperimentResults run_experiment(const ExperimentSpec& spec, const ExperimentPla
     }
     const MeasurementResult* previous =
         options.resume != nullptr && i < options.resume->measurements.size() ? &options.resume->measurements[i] : nullptr;
-    results.measurements.push_back(run_decision(spec, plan.decisions[i], i, seed, options, previous));
+    results.measurements.push_back(run_decision(spec, plan.decisions[i], i, seed, options, surfaces, previous));
     results.partial = results.partial || results.measurements.back().partial;
     if (options.on_measurement) options.on_measurement(results.measurements.back());
   }

@@ -9,6 +9,10 @@
 //                       TV noise floor of the sum decides (kNoiseShare of the target);
 //   scattering, walk    rounds of Smith walks, their exact sums added; the largest per-order TV noise floor of
 //                       the orders the plan targeted decides (measures.h, targeted_order_bins);
+//   heightfield         (vndf, scattering on an explicit tile) the tile through the SurfaceCache (built once,
+//                       or read back from DIR/surfaces), then rounds as above: rays traced on the tile
+//                       (measure_heightfield_vndf), or paths on its Embree scene (scatter_on_surface); the root
+//                       runs them (not split over ranks);
 //   scattering, analytic  the order-1 lobe by cubature, once (measures.h, analytic_scatter_lobe); its error
 //                       estimate over the albedo is the achieved error (the whole target: no noise);
 //   validation          one validate_sampler run of the planned samples (the power rule needs no rounds).
@@ -97,6 +101,9 @@ struct RunOptions {
   Ranks* ranks = nullptr;
   // The first rounds run by shard jobs (`run --shard K/N`, shards.h), taken from their parts; null: none.
   const StoredRounds* stored = nullptr;
+  // Where the explicit surfaces of heightfield decisions are built once or read back (surface_cache.h: the
+  // plan's cache, DIR/surfaces); null: a cache in memory for this call.
+  SurfaceCache* surfaces = nullptr;
   // Called after each measurement (complete, partial or skipped), on the calling thread.
   std::function<void(const MeasurementResult&)> on_measurement;
 };

@@ -76,6 +76,13 @@ void read_histograms(const fs::path& dir, ExperimentResults& results) {
   }
 }
 
+// Empty, or holding only the surface cache (DIR/surfaces: a plan interrupted after building a surface).
+bool holds_only_surfaces(const fs::path& dir) {
+  for (const fs::directory_entry& e : fs::directory_iterator(dir))
+    if (e.path().filename() != "surfaces" || !e.is_directory()) return false;
+  return true;
+}
+
 }  // namespace
 
 nlohmann::json spec_identity_json(const ExperimentSpec& spec) {
@@ -130,7 +137,7 @@ std::optional<PreviousRun> load_previous_run(const fs::path& dir, const Experime
     return std::nullopt;
   }
   if (!fs::is_directory(dir)) throw std::invalid_argument(fmt::format("--out {}: not a directory", quote_excerpt(dir.string())));
-  if (fs::is_empty(dir)) return std::nullopt;
+  if (holds_only_surfaces(dir)) return std::nullopt;
   if (!fs::exists(dir / "results.json"))
     throw std::invalid_argument(fmt::format("--out {}: not empty and holds no results.json: refusing to write into it", quote_excerpt(dir.string())));
   const nlohmann::json doc = read_document(dir / "results.json");
