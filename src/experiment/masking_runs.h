@@ -20,6 +20,7 @@
 
 #include "experiment/plan.h"
 #include "experiment/run.h"
+#include "experiment/surface_cache.h"
 #include "measure/masking.h"
 
 #include <nlohmann/json.hpp>
@@ -89,7 +90,8 @@ double masking_worst_standard_error(const SpecQuantity& quantity, const MaskingR
 // The planner's decisions of masking quantity `index` (plan_masking.cpp), appended to `out`: one per alpha
 // and view; a heightfield decision's count from a pilot of kMaskingPilotBlocks blocks on its surface (built
 // once per alpha for the pilots). Throws Cancelled.
-void plan_masking(const ExperimentSpec& spec, std::size_t index, const PlanOptions& options, std::vector<Decision>& out);
+void plan_masking(const ExperimentSpec& spec, std::size_t index, const PlanOptions& options, SurfaceCache& surfaces,
+                  std::vector<Decision>& out);
 
 // Runs (or continues: m holds an interrupted run's completed rounds) a masking decision (run_masking.cpp):
 // analytic, the closed forms once; heightfield, the surface of `seed` (the run's) acquired, then rounds of
@@ -97,6 +99,6 @@ void plan_masking(const ExperimentSpec& spec, std::size_t index, const PlanOptio
 // largest standard error is at most the target or `max_rounds` rounds ran. A cancelled round is dropped
 // (m.partial; the completed rounds are kept in m.values' parts).
 void run_masking(const ExperimentSpec& spec, std::uint64_t seed, std::uint64_t sample_seed, std::uint64_t first_units,
-                 const RunOptions& options, MeasurementResult& m);
+                 const RunOptions& options, SurfaceCache& surfaces, MeasurementResult& m);
 
 }  // namespace microsim::experiment

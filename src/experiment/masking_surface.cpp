@@ -26,16 +26,26 @@ std::string masking_surface_text(const SpecQuantity& q, const SpecMaterial& m, s
                      p.resolution, p.corr_cells, p.alpha_x, p.alpha_y, p.seed);
 }
 
-microgeom::Heightfield acquire_masking_surface(const SpecQuantity& q, const SpecMaterial& m,
-                                               std::pair<double, double> alpha, std::uint64_t seed,
-                                               const RunControl& run) {
-  if (q.surface.kind == SurfaceChoice::Kind::heightmap) return microgeom::load_heightmap_exr(q.surface.name);
-  try {
-    return microgeom::build_assembly(masking_assembly_params(q, m, alpha, seed), nullptr, {},
-                                     [&run] { return run.cancelled(); });
-  } catch (const microgeom::BuildCancelled&) {
-    throw Cancelled("masking surface build");
-  }
+SurfaceKey masking_surface_key(const SpecQuantity& q, const SpecMaterial& m, std::pair<double, double> alpha,
+                               std::uint64_t seed) {
+  const microgeom::AssemblyParams p = masking_assembly_params(q, m, alpha, seed);
+  SurfaceKey key;
+  key.assembly = p.assembly;
+  key.ndf = m.ndf == WalkNdf::ggx ? "ggx" : "beckmann";
+  key.alpha_x = p.alpha_x;
+  key.alpha_y = p.alpha_y;
+  key.resolution = p.resolution;
+  key.corr_cells = p.corr_cells;
+  key.ndf_match = "radial";
+  key.seed = p.seed;
+  return key;
+}
+
+const microgeom::Heightfield& acquire_masking_surface(const SpecQuantity& q, const SpecMaterial& m,
+                                                      std::pair<double, double> alpha, std::uint64_t seed,
+                                                      SurfaceCache& cache, const RunControl& run) {
+  if (q.surface.kind == SurfaceChoice::Kind::heightmap) return cache.heightmap(q.surface.name);
+  return cache.surface_for(masking_surface_key(q, m, alpha, seed), run);
 }
 
 }  // namespace microsim::experiment

@@ -1,11 +1,11 @@
 // experiment: the one place a masking measurement gets its explicit heightfield (plan.h: Model::heightfield
-// for a masking quantity): the spec's heightmap loaded, or an assembly built in-process with microgeom per
-// alpha. Kept small on purpose: a surface cache (built once per parameters' hash, on disk) goes behind
-// acquire_masking_surface without changing its callers.
+// for a masking quantity): the spec's heightmap, or an assembly per alpha, both through the run's surface
+// cache (surface_cache.h: built once per parameters' hash, kept in DIR/surfaces, read back on resumption).
 #pragma once
 
 #include "core/run_control.h"
 #include "experiment/spec.h"
+#include "experiment/surface_cache.h"
 #include "microgeom/assembly.h"
 #include "microgeom/heightfield.h"
 
@@ -27,11 +27,14 @@ microgeom::AssemblyParams masking_assembly_params(const SpecQuantity& quantity, 
 std::string masking_surface_text(const SpecQuantity& quantity, const SpecMaterial& material,
                                  std::pair<double, double> alpha, std::uint64_t seed);
 
-// The heightfield: the heightmap (the quantity's surface is a heightmap .exr), else the assembly of
-// masking_assembly_params, built now. Throws Cancelled when run.cancel is set during a build, and what
-// load_heightmap_exr and build_assembly throw (bad input: std::invalid_argument).
-microgeom::Heightfield acquire_masking_surface(const SpecQuantity& quantity, const SpecMaterial& material,
-                                               std::pair<double, double> alpha, std::uint64_t seed,
-                                               const RunControl& run);
+// The cache key of masking_assembly_params (the material's NDF, radial NDF matching: build_assembly's default).
+SurfaceKey masking_surface_key(const SpecQuantity& quantity, const SpecMaterial& material,
+                               std::pair<double, double> alpha, std::uint64_t seed);
+// The heightfield, from `cache`: the heightmap (the quantity's surface is a heightmap .exr), else the
+// assembly of masking_surface_key (built once, or read back). Throws Cancelled when run.cancel is set during
+// a build, and what the cache throws for a heightmap it cannot read or a build it refuses.
+const microgeom::Heightfield& acquire_masking_surface(const SpecQuantity& quantity, const SpecMaterial& material,
+                                                      std::pair<double, double> alpha, std::uint64_t seed,
+                                                      SurfaceCache& cache, const RunControl& run);
 
 }  // namespace microsim::experiment

@@ -409,7 +409,7 @@ ExperimentPlan plan_experiment(const ExperimentSpec& spec, const PlanOptions& op
     if (spec.quantities[i].kind == QuantityKind::albedo)
       plan.decisions.push_back(plan_albedo(spec, i, options));
     else if (spec.quantities[i].kind == QuantityKind::masking)
-      plan_masking(spec, i, options, plan.decisions);
+      plan_masking(spec, i, options, surfaces, plan.decisions);
     else
       plan_views(spec, i, options, surfaces, plan.decisions);
   }

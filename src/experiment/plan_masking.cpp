@@ -55,16 +55,17 @@ void plan_heightfield_masking(const SpecQuantity& q, const microgeom::Heightfiel
 
 }  // namespace
 
-void plan_masking(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, std::vector<Decision>& out) {
+void plan_masking(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& surfaces,
+                  std::vector<Decision>& out) {
   const SpecQuantity& q = spec.quantities[index];
   const SpecMaterial& m = spec.material(q.material);
   const std::uint64_t seed = o.seed != 0 ? o.seed : spec.seed;
   for (const auto& alpha : m.alphas) {
-    std::optional<microgeom::Heightfield> field;  // built once per alpha, for the pilots of its views
+    const microgeom::Heightfield* field = nullptr;  // from the cache once per alpha, for the pilots of its views
     double build_seconds = 0;
     if (choose_model(q, m).model == Model::heightfield) {
       const auto start = std::chrono::steady_clock::now();
-      field = acquire_masking_surface(q, m, alpha, seed, o.run);
+      field = &acquire_masking_surface(q, m, alpha, seed, surfaces, o.run);
       build_seconds = masking_seconds_since(start);
     }
     for (const Direction& v : q.directions) {

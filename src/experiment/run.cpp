@@ -497,7 +497,7 @@ MeasurementResult run_decision(const ExperimentSpec& spec, const Decision& d, st
   if (!d.runnable) return m;
   m.ran = true;
   const auto start = std::chrono::steady_clock::now();
-  if (q.kind == QuantityKind::masking) run_masking(spec, seed, round_seed(seed, index, 0), first_units(d, o), o, m);
+  if (q.kind == QuantityKind::masking) run_masking(spec, seed, round_seed(seed, index, 0), first_units(d, o), o, surfaces, m);
   else if (d.model.model == Model::heightfield) run_heightfield(spec, seed, index, o, surfaces, m);
   else if (vndf) run_vndf(spec, seed, index, o, m);
   else if (q.kind == QuantityKind::validation) run_validation(spec, seed, index, o, m);

@@ -50,14 +50,14 @@ void run_heightfield_rounds(HeightfieldMasking& h, std::uint64_t first_units, co
 }  // namespace
 
 void run_masking(const ExperimentSpec& spec, std::uint64_t seed, std::uint64_t sample_seed, std::uint64_t first_units,
-                 const RunOptions& o, MeasurementResult& m) {
+                 const RunOptions& o, SurfaceCache& surfaces, MeasurementResult& m) {
   const Decision& d = m.decision;
   if (d.model.model == Model::analytic) return run_analytic_masking(spec, m);
   const SpecQuantity& q = spec.quantities[d.quantity];
   const SpecMaterial& material = spec.material(q.material);
   std::optional<HeightfieldMasking> h;
   try {
-    h.emplace(q, d, acquire_masking_surface(q, material, d.alpha, seed, o.run),
+    h.emplace(q, d, acquire_masking_surface(q, material, d.alpha, seed, surfaces, o.run),
               masking_surface_text(q, material, d.alpha, seed), sample_seed);
   } catch (const Cancelled&) {
     m.partial = true;
