@@ -138,13 +138,8 @@ std::vector<MaskingResult> HeightfieldMasking::results() const {
   std::vector<MaskingResult> out;
   for (std::size_t k = 0; k < parts_.size(); ++k) {
     const MaskingRequest r = request(k, blocks_done_, RunControl{});
-    MaskingOptions o;
-    o.samples = r.samples;
-    o.seed = r.seed;
-    o.normal_bins = o.height_bins = r.bins;
-    o.cone_deg = r.cone_deg;
-    o.grazing_share = r.grazing_share;
-    if (r.theta_l_deg) o.light = direction_from_degrees(*r.theta_l_deg, r.phi_l_deg);
+    MaskingOptions o = masking_options(r);
+    o.blocks.reset();  // the sums are of blocks [0, blocks_done_), passed below
     out.push_back(masking_result_from_sums(*field_, surface_->analytic, surface_->empirical,
                                            direction_from_degrees(r.theta_deg, r.phi_deg), o, parts_[k].result.sums,
                                            BlockRange{0, blocks_done_}));

@@ -18,6 +18,7 @@
 #include <cmath>
 #include <chrono>
 #include <functional>
+#include <string_view>
 
 namespace microsim::experiment {
 namespace {
@@ -158,6 +159,21 @@ Decision plan_albedo(const ExperimentSpec& spec, std::size_t index, const PlanOp
 
 // ---- per view: vndf, scattering, validation ---------------------------------------------------------------
 
+// A VNDF's rays from its pilot (on the ellipsoid, or `on` a tile): the TV noise floor ~ 1/sqrt(n) brought to
+// kNoiseShare of the target. The tracing scales with the rays; what the pilot spent besides tracing (the
+// scene, the reference's cubature, the empirical Smith tables) is paid once.
+void count_vndf_rays(const SpecQuantity& q, const PlanOptions& o, double pilot_floor, double trace_seconds,
+                     std::string_view on, Decision& d) {
+  d.pilot_units = o.pilot_rays;
+  d.pilot_error = pilot_floor;
+  d.units = units_for_standard_error(o.pilot_rays, d.pilot_error, kNoiseShare * q.target);
+  d.unit = "rays";
+  d.count_reason = fmt::format("pilot of {} rays{}: TV noise floor {:.2e} ~ 1/sqrt(n); resolving TV {} needs a floor "
+                               "<= {} x {} (rows {})", o.pilot_rays, on, d.pilot_error, q.target, kNoiseShare, q.target, q.rows);
+  const double overhead = std::max(0.0, d.pilot_seconds - trace_seconds);
+  d.predicted_seconds = overhead + predicted_seconds(d.units, d.pilot_units, trace_seconds);
+}
+
 void plan_vndf_view(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
   const EllipsoidTarget target(d.alpha.first, d.alpha.second, -1);
   VndfRequest r;
@@ -171,15 +187,7 @@ void plan_vndf_view(const ExperimentSpec& spec, const SpecQuantity& q, const Pla
   const EllipsoidVndf m = measure_ellipsoid_vndf(target, r);
   if (m.trace.partial) throw Cancelled("plan: vndf pilot");
   d.pilot_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  d.pilot_units = o.pilot_rays;
-  d.pilot_error = vndf_noise_floor(m);
-  d.units = units_for_standard_error(o.pilot_rays, d.pilot_error, kNoiseShare * q.target);
-  d.unit = "rays";
-  d.count_reason = fmt::format("pilot of {} rays: TV noise floor {:.2e} ~ 1/sqrt(n); resolving TV {} needs a floor "
-                               "<= {} x {} (rows {})", o.pilot_rays, d.pilot_error, q.target, kNoiseShare, q.target, q.rows);
-  // The tracing loop scales with the rays; the rest (the scene, the reference's cubature) is paid once.
-  const double overhead = std::max(0.0, d.pilot_seconds - m.trace.seconds);
-  d.predicted_seconds = overhead + predicted_seconds(d.units, d.pilot_units, m.trace.seconds);
+  count_vndf_rays(q, o, vndf_noise_floor(m), m.trace.seconds, "", d);
   d.runnable = true;
 }
 
@@ -325,15 +333,7 @@ void plan_heightfield_vndf(const ExperimentSpec& spec, const SpecQuantity& q, co
       vndf_request(spec, d, o.pilot_rays, derived_seed(plan_seed(spec, o), kVndfPilot, d.quantity), o.run));
   if (m.trace.partial) throw Cancelled("plan: vndf pilot");
   d.pilot_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  d.pilot_units = o.pilot_rays;
-  d.pilot_error = heightfield_noise_floor(m);
-  d.units = units_for_standard_error(o.pilot_rays, d.pilot_error, kNoiseShare * q.target);
-  d.unit = "rays";
-  d.count_reason = fmt::format("pilot of {} rays on the tile: TV noise floor {:.2e} ~ 1/sqrt(n); resolving TV {} needs a "
-                               "floor <= {} x {} (rows {})", o.pilot_rays, d.pilot_error, q.target, kNoiseShare, q.target, q.rows);
-  // The tracing scales with the rays; the scene and the empirical Smith tables are paid once per round.
-  const double overhead = std::max(0.0, d.pilot_seconds - m.trace.seconds);
-  d.predicted_seconds = overhead + predicted_seconds(d.units, d.pilot_units, m.trace.seconds);
+  count_vndf_rays(q, o, heightfield_noise_floor(m), m.trace.seconds, " on the tile", d);
 }
 
 // The tile of a heightfield decision (the trade table's size, or the user's), built (or read) through the

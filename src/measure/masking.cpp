@@ -50,19 +50,6 @@ nlohmann::json masking_parameters(const MaskingSurface& surface, const MaskingRe
           {"block_size", kSamplesPerBlock}};
 }
 
-MaskingOptions masking_options(const MaskingRequest& r) {
-  MaskingOptions o;
-  o.samples = r.samples;
-  o.seed = r.seed;
-  o.blocks = r.blocks;
-  o.run = r.run;
-  o.normal_bins = o.height_bins = r.bins;
-  o.cone_deg = r.cone_deg;
-  o.grazing_share = r.grazing_share;
-  if (r.theta_l_deg) o.light = direction_from_degrees(*r.theta_l_deg, r.phi_l_deg);
-  return o;
-}
-
 Vec3<double> masking_view(const MaskingRequest& r) { return direction_from_degrees(r.theta_deg, r.phi_deg); }
 
 Provenance masking_provenance(const nlohmann::json& parameters, std::uint64_t seed, const MaskingResult& r) {
@@ -315,6 +302,19 @@ SurfaceMasking analyse_masking_part(const MaskingPart& part, const MaskingSurfac
                                       masking_options(m.request), part.sums, part.provenance.blocks);
   m.result.seconds = part.seconds;
   return m;
+}
+
+MaskingOptions masking_options(const MaskingRequest& r) {
+  MaskingOptions o;
+  o.samples = r.samples;
+  o.seed = r.seed;
+  o.blocks = r.blocks;
+  o.run = r.run;
+  o.normal_bins = o.height_bins = r.bins;
+  o.cone_deg = r.cone_deg;
+  o.grazing_share = r.grazing_share;
+  if (r.theta_l_deg) o.light = direction_from_degrees(*r.theta_l_deg, r.phi_l_deg);
+  return o;
 }
 
 }  // namespace microsim

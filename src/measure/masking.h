@@ -70,6 +70,9 @@ struct SurfaceMasking {
   std::optional<MaskingVndf> vndf;  // measure_masking_vndf, if run
 };
 
+// The tracer's options of a request (trace/masking.h): its samples, seed, blocks, run, bins, cone, light.
+MaskingOptions masking_options(const MaskingRequest& request);
+
 // Samples the view (the request's blocks, or all). Throws std::invalid_argument for a surface without a
 // scene and for what estimate_masking refuses.
 SurfaceMasking measure_masking(const MaskingSurface& surface, const MaskingRequest& request);
