@@ -317,7 +317,7 @@ kind = "albedo"
 material = "glass"
 orders = "all"
 mus = 4
-target_relative_error = 0.02
+target_relative_error = 0.04
 )", "albedo.toml");
 }
 
