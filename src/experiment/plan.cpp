@@ -1,5 +1,6 @@
 // experiment: plan_experiment: the pilots behind the decisions (plan.h).
 #include "experiment/heightfield_measures.h"
+#include "core/wall_clock.h"
 #include "experiment/masking_runs.h"
 #include "experiment/measures.h"
 #include "experiment/plan.h"
@@ -186,7 +187,7 @@ void plan_vndf_view(const ExperimentSpec& spec, const SpecQuantity& q, const Pla
   const auto start = std::chrono::steady_clock::now();
   const EllipsoidVndf m = measure_ellipsoid_vndf(target, r);
   if (m.trace.partial) throw Cancelled("plan: vndf pilot");
-  d.pilot_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  d.pilot_seconds = seconds_since(start);
   count_vndf_rays(q, o, vndf_noise_floor(m), m.trace.seconds, "", d);
   d.runnable = true;
 }
@@ -222,7 +223,7 @@ void plan_scattering_count(const ExperimentSpec& spec, const SpecQuantity& q, co
   const QuarteredPilot pilot = run_quartered_pilot(
       walk, scatter_request(m, d, o.pilot_rays, derived_seed(plan_seed(spec, o), kScatterPilot, d.quantity), o.run));
   if (pilot.whole.partial || pilot.quarter.partial) throw Cancelled("plan: scattering pilot");
-  d.pilot_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  d.pilot_seconds = seconds_since(start);
   d.pilot_units = o.pilot_rays;
   d.targeted_orders = targeted_order_bins(pilot.whole, q.target);
   d.pilot_error = extrapolated_scatter_floor(pilot.quarter, pilot.whole, d.targeted_orders);
@@ -244,7 +245,7 @@ void plan_scattering_count(const ExperimentSpec& spec, const SpecQuantity& q, co
 void plan_analytic_scattering(const SpecMaterial& m, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
   const auto start = std::chrono::steady_clock::now();
   const ScatterExpectation lobe = analytic_scatter_lobe(m, d, o.run);
-  d.pilot_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  d.pilot_seconds = seconds_since(start);
   d.pilot_error = analytic_lobe_error(lobe, d.view);
   d.count_reason = fmt::format("deterministic: the cubature of the order-1 lobe ({} rows per hemisphere), no rays; "
                                "its error estimate is {:.2e} of the albedo, against the target TV {}",
@@ -297,7 +298,7 @@ void time_validation(const ExperimentSpec& spec, const SpecQuantity& q, const Pl
   tally_drawn_samples(sampler, *reference,
                       validation_request(q, pilot, derived_seed(plan_seed(spec, o), kValidationPilot, d.quantity), o.run));
   const double reference_seconds = std::chrono::duration<double>(drawn - start).count();
-  const double tally_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - drawn).count();
+  const double tally_seconds = seconds_since(drawn);
   d.pilot_units = pilot;
   d.pilot_seconds = reference_seconds + tally_seconds;
   d.predicted_seconds = reference_seconds + predicted_seconds(d.units, pilot, tally_seconds);
@@ -332,7 +333,7 @@ void plan_heightfield_vndf(const ExperimentSpec& spec, const SpecQuantity& q, co
       field, surface_label(d.surface),
       vndf_request(spec, d, o.pilot_rays, derived_seed(plan_seed(spec, o), kVndfPilot, d.quantity), o.run));
   if (m.trace.partial) throw Cancelled("plan: vndf pilot");
-  d.pilot_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  d.pilot_seconds = seconds_since(start);
   count_vndf_rays(q, o, heightfield_noise_floor(m), m.trace.seconds, " on the tile", d);
 }
 
@@ -354,13 +355,13 @@ void plan_heightfield_view(const ExperimentSpec& spec, const SpecQuantity& q, co
   const auto start = std::chrono::steady_clock::now();
   const std::size_t built = cache.builds();
   const microgeom::Heightfield& field = decision_surface(d, cache, o.run);
-  const double surface_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double surface_seconds = seconds_since(start);
   if (q.kind == QuantityKind::vndf) {
     plan_heightfield_vndf(spec, q, o, field, d);
   } else {
     const auto scene_start = std::chrono::steady_clock::now();
     const HeightfieldScene scene(field);
-    const double scene_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - scene_start).count();
+    const double scene_seconds = seconds_since(scene_start);
     plan_walk_scattering(spec, q, o, d, [&scene](const ScatterOptions& r) { return scatter_on_surface(scene, r); });
     d.predicted_seconds += scene_seconds;  // the run builds the tile's Embree scene once per measurement
   }
@@ -413,7 +414,7 @@ ExperimentPlan plan_experiment(const ExperimentSpec& spec, const PlanOptions& op
     else
       plan_views(spec, i, options, surfaces, plan.decisions);
   }
-  plan.pilot_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  plan.pilot_seconds = seconds_since(start);
   for (const Decision& d : plan.decisions) plan.predicted_seconds += d.predicted_seconds;
   return plan;
 }

@@ -1,5 +1,6 @@
 // experiment: the decisions of a masking quantity (masking_runs.h: plan_masking): one per alpha and view.
 #include "experiment/masking_runs.h"
+#include "core/wall_clock.h"
 #include "experiment/masking_surface.h"
 
 #include <fmt/core.h>
@@ -10,10 +11,6 @@ namespace microsim::experiment {
 namespace {
 
 enum : std::uint64_t { kMaskingPilotSeed = 32 };  // derived_seed purposes of plan.cpp are below 32
-
-double masking_seconds_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 Decision masking_decision(const SpecQuantity& q, const SpecMaterial& m, std::size_t index,
                           std::pair<double, double> alpha, const Direction& v) {
@@ -37,7 +34,7 @@ void plan_heightfield_masking(const SpecQuantity& q, const microgeom::Heightfiel
   HeightfieldMasking pilot(q, d, field, text, pilot_seed);
   if (!pilot.add_blocks(kMaskingPilotBlocks, o.run)) throw Cancelled("plan: masking pilot");
   d.pilot_error = pilot.worst_standard_error();
-  d.pilot_seconds = masking_seconds_since(start);
+  d.pilot_seconds = seconds_since(start);
   d.pilot_units = pilot.samples();
   const std::uint64_t n = units_for_standard_error(d.pilot_units, d.pilot_error, q.target);
   d.units = (n + kSamplesPerBlock - 1) / kSamplesPerBlock * kSamplesPerBlock;
@@ -66,7 +63,7 @@ void plan_masking(const ExperimentSpec& spec, std::size_t index, const PlanOptio
     if (choose_model(q, m).model == Model::heightfield) {
       const auto start = std::chrono::steady_clock::now();
       field = &acquire_masking_surface(q, m, alpha, seed, surfaces, o.run);
-      build_seconds = masking_seconds_since(start);
+      build_seconds = seconds_since(start);
     }
     for (const Direction& v : q.directions) {
       Decision d = masking_decision(q, m, index, alpha, v);

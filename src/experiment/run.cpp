@@ -1,5 +1,6 @@
 // experiment: run_experiment: the sequential rounds of each runnable decision (run.h).
 #include "experiment/run.h"
+#include "core/wall_clock.h"
 
 #include "experiment/heightfield_measures.h"
 #include "experiment/masking_runs.h"
@@ -24,10 +25,6 @@ namespace microsim::experiment {
 namespace {
 
 enum RunSeedPurpose : std::uint64_t { kRoundSeed = 16 };
-
-double seconds_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 std::uint64_t round_seed(std::uint64_t seed, std::size_t decision, int round) {
   return derived_seed(seed, kRoundSeed, std::uint64_t(decision) * 1024 + std::uint64_t(round));

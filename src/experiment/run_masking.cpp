@@ -1,15 +1,12 @@
 // experiment: a masking decision's rounds (masking_runs.h: run_masking).
 #include "experiment/masking_runs.h"
+#include "core/wall_clock.h"
 #include "experiment/masking_surface.h"
 
 #include <chrono>
 
 namespace microsim::experiment {
 namespace {
-
-double masking_seconds_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 // The closed forms, once (deterministic: resumed, computed again).
 void run_analytic_masking(const ExperimentSpec& spec, MeasurementResult& m) {
@@ -19,7 +16,7 @@ void run_analytic_masking(const ExperimentSpec& spec, MeasurementResult& m) {
   m.partial = false;
   m.values = analytic_masking_json(q, spec.material(q.material), m.decision);
   m.achieved = 0;
-  m.rounds.push_back({0, 0, 0, false, 0, 0, masking_seconds_since(clock), 0});
+  m.rounds.push_back({0, 0, 0, false, 0, 0, seconds_since(clock), 0});
   m.met = true;
 }
 
@@ -38,7 +35,7 @@ void run_heightfield_rounds(HeightfieldMasking& h, std::uint64_t first_units, co
       break;
     }
     m.achieved = h.worst_standard_error();
-    m.rounds.push_back({h.samples() - before, n, end, false, h.seed(), 0, masking_seconds_since(clock), m.achieved});
+    m.rounds.push_back({h.samples() - before, n, end, false, h.seed(), 0, seconds_since(clock), m.achieved});
     m.units = h.samples();
     m.rays = h.rays();
     m.values = h.values_json();

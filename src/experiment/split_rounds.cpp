@@ -1,5 +1,6 @@
 // experiment: the rounds of run_experiment split over ranks (split_rounds.h).
 #include "experiment/split_rounds.h"
+#include "core/wall_clock.h"
 
 #include "core/errors.h"
 #include "experiment/measures.h"
@@ -366,10 +367,6 @@ void check_part_count(const std::vector<std::string>& parts, int ranks) {
     throw InternalError(fmt::format("a split round gathered {} parts from {} ranks", parts.size(), ranks));
 }
 
-double split_seconds_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
 }  // namespace
 
 bool is_split(const ExperimentSpec& spec, const Decision& decision) {
@@ -396,7 +393,7 @@ EllipsoidVndf split_vndf_round(const RoundSplit& split, std::size_t measurement,
   VndfRequest own = request;
   if (const std::vector<std::string>* stored = stored_parts(split.stored, task)) {
     own.blocks = BlockRange{round.begin, round.begin};  // nothing traced: the binnings and attributes
-    return combine_vndf_parts(measure_ellipsoid_vndf(target, own), *stored, round, 0, split_seconds_since(start));
+    return combine_vndf_parts(measure_ellipsoid_vndf(target, own), *stored, round, 0, seconds_since(start));
   }
   if (split.ranks == nullptr || split.ranks->size() == 1) return measure_ellipsoid_vndf(target, request);
   split.ranks->broadcast(task_message(task));
@@ -404,7 +401,7 @@ EllipsoidVndf split_vndf_round(const RoundSplit& split, std::size_t measurement,
   EllipsoidVndf part = measure_ellipsoid_vndf(target, own);
   const std::vector<std::string> parts = split.ranks->gather(vndf_part(part));
   check_part_count(parts, split.ranks->size());
-  return combine_vndf_parts(std::move(part), parts, round, 1, split_seconds_since(start));
+  return combine_vndf_parts(std::move(part), parts, round, 1, seconds_since(start));
 }
 
 ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measurement, const SmithMicrosurface& surface,
@@ -430,7 +427,7 @@ AlbedoTable split_albedo_round(const RoundSplit& split, std::size_t measurement,
   const BlockRange round{0, request.alphas.size() * std::uint64_t(request.mus)};
   const RoundTask task{measurement, request.paths, request.seed, round};
   if (const std::vector<std::string>* stored = stored_parts(split.stored, task))
-    return combine_albedo_parts(request, {}, *stored, round, 0, split_seconds_since(start));
+    return combine_albedo_parts(request, {}, *stored, round, 0, seconds_since(start));
   if (split.ranks == nullptr || split.ranks->size() == 1) return albedo_table(request);
   split.ranks->broadcast(task_message(task));
   const BlockRange mine = rank_blocks(round, 0, split.ranks->size());
@@ -438,7 +435,7 @@ AlbedoTable split_albedo_round(const RoundSplit& split, std::size_t measurement,
   const std::vector<std::string> parts = split.ranks->gather(albedo_part(mine, own));
   check_part_count(parts, split.ranks->size());
   if (!own) return cancelled_albedo_table(request);
-  return combine_albedo_parts(request, *own, parts, round, 1, split_seconds_since(start));
+  return combine_albedo_parts(request, *own, parts, round, 1, seconds_since(start));
 }
 
 std::uint64_t albedo_round_cells(const ExperimentSpec& spec, const Decision& decision) {
@@ -459,7 +456,7 @@ ValidationReport split_validation(const RoundSplit& split, std::size_t measureme
   const std::vector<std::string> parts = split.ranks->gather(validation_part(rank_blocks(round, 0, split.ranks->size()), own));
   check_part_count(parts, split.ranks->size());
   ValidationReport r = report_drawn_samples(sampler, *reference, merged_validation_tally(own, parts, round), options);
-  r.seconds = split_seconds_since(start);
+  r.seconds = seconds_since(start);
   return r;
 }
 

@@ -1,4 +1,5 @@
 #include "measure/masking_table.h"
+#include "core/wall_clock.h"
 
 #include "measure/masking.h"
 #include "microgeom/assembly.h"
@@ -18,7 +19,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
 
 void check_request(const MaskingTableRequest& r) {
   if (r.assemblies.empty() || r.alphas.empty() || r.thetas.empty() || r.seeds.empty())

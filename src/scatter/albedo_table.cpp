@@ -1,4 +1,5 @@
 #include "scatter/albedo_table.h"
+#include "core/wall_clock.h"
 
 #include "core/parse.h"
 #include "core/random.h"
@@ -132,7 +133,6 @@ Vec3<double> albedo_view(double mu, bool inside) {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 // One row's cells: per quantity (the table's order), per mu.
 using RowCells = std::vector<std::vector<Estimate>>;
