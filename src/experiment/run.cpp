@@ -250,10 +250,7 @@ void record_scatter(MeasurementResult& m) {
                               {"rows_per_hemisphere", kScatterRows}}}};
 }
 
-// The paths of one round: the Smith walk (split over the ranks) or the paths traced on an explicit surface.
-using ScatterWalk = std::function<ScatterHistogram(const ScatterOptions&)>;
-
-bool scatter_round(const ExperimentSpec& spec, const RoundStart& start, const RunOptions& o, const ScatterWalk& walk,
+bool scatter_round(const ExperimentSpec& spec, const RoundStart& start, const RunOptions& o, const ScatterPaths& walk,
                    MeasurementResult& m) {
   const Decision& d = m.decision;
   const SpecMaterial& material = spec.material(spec.quantities[d.quantity].material);
@@ -276,7 +273,7 @@ bool scatter_round(const ExperimentSpec& spec, const RoundStart& start, const Ru
 void run_scattering(const ExperimentSpec& spec, std::uint64_t seed, std::size_t index, const RunOptions& o,
                     MeasurementResult& m) {
   const SmithMicrosurface surface = scatter_surface(spec.material(spec.quantities[m.decision.quantity].material), m.decision);
-  const ScatterWalk walk = [&](const ScatterOptions& options) {
+  const ScatterPaths walk = [&](const ScatterOptions& options) {
     return split_scatter_round({o.ranks, o.stored}, index, surface, options);
   };
   run_rounds(m, seed, index, o, std::numeric_limits<std::uint64_t>::max(),
@@ -284,16 +281,6 @@ void run_scattering(const ExperimentSpec& spec, std::uint64_t seed, std::size_t 
 }
 
 // ---- an explicit heightfield (vndf, scattering) --------------------------------------------------------------
-
-// The tracer's diagnostics of a round added to the sum's attributes (the analysis reads them from there).
-void add_diagnostics(TracedHistogram& sum, const TracedHistogram& round) {
-  for (const char* key : {"backfacing", "edge_grazes", "leaked", "unresolved"}) {
-    const auto a = sum.attributes.find(key);
-    const auto b = round.attributes.find(key);
-    if (a != sum.attributes.end() && b != round.attributes.end())
-      a->second = std::to_string(parse_uint(key, a->second) + parse_uint(key, b->second));
-  }
-}
 
 // One round (or the rest of one) of rays traced on the tile, added to the sum, the sum analysed and recorded.
 bool heightfield_vndf_round(const ExperimentSpec& spec, const microgeom::Heightfield& field, const RoundStart& start,
@@ -305,7 +292,7 @@ bool heightfield_vndf_round(const ExperimentSpec& spec, const microgeom::Heightf
   m.partial = round.trace.partial;
   if (round.histogram.rays == 0) return false;
   const bool fresh = m.histogram.binnings.empty();
-  if (!fresh) add_diagnostics(m.histogram, round.histogram);
+  if (!fresh) add_heightfield_diagnostics(m.histogram, round.histogram);  // the analysis reads them there
   add_counts(m.histogram, m.unbinned, round.histogram, round.trace.unbinned);
   const HeightfieldVndf analysed = fresh && !round.trace.partial ? round : analyse_heightfield_vndf(m.histogram, m.unbinned, field);
   m.achieved = heightfield_noise_floor(analysed);
@@ -334,7 +321,7 @@ void run_heightfield(const ExperimentSpec& spec, std::uint64_t seed, std::size_t
     return run_rounds(m, seed, index, o, kMaxRays,
                       [&](const RoundStart& start) { return heightfield_vndf_round(spec, *field, start, o, m); });
   const HeightfieldScene scene(*field);
-  const ScatterWalk walk = [&scene](const ScatterOptions& options) { return scatter_on_surface(scene, options); };
+  const ScatterPaths walk = [&scene](const ScatterOptions& options) { return scatter_on_surface(scene, options); };
   run_rounds(m, seed, index, o, std::numeric_limits<std::uint64_t>::max(),
              [&](const RoundStart& start) { return scatter_round(spec, start, o, walk, m); });
 }

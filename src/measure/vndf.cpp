@@ -254,6 +254,7 @@ TracedHistogram merge_vndf_parts(const std::vector<TracedHistogram>& parts, std:
     if (u.size() != unbinned.size()) throw HistogramMergeError(fmt::format("{}: attribute unbinned has {} values", name, u.size()));
     for (std::size_t k = 0; k < u.size(); ++k) unbinned[k] += u[k];
     if (i == 0) continue;
+    add_heightfield_diagnostics(merged, p);
     merged.rays += p.rays;
     merged.hits += p.hits;
     for (std::size_t k = 0; k < merged.counts.size(); ++k)
@@ -264,13 +265,12 @@ TracedHistogram merge_vndf_parts(const std::vector<TracedHistogram>& parts, std:
   merged.attributes["blocks"] = fmt::format("{},{}", all.begin, all.end);
   merged.attributes["unbinned"] = join_counts(unbinned);
   merged.attributes.erase("shard");
-  for (const char* key : {"backfacing", "edge_grazes", "leaked", "unresolved"}) {  // heightfield diagnostics
-    if (!merged.attributes.count(key)) continue;
-    std::uint64_t sum = 0;
-    for (const TracedHistogram& p : parts) sum += count_attribute(p, key);
-    merged.attributes[key] = std::to_string(sum);
-  }
   return merged;
+}
+
+void add_heightfield_diagnostics(TracedHistogram& sum, const TracedHistogram& part) {
+  for (const char* key : {"backfacing", "edge_grazes", "leaked", "unresolved"})
+    if (sum.attributes.count(key)) sum.attributes[key] = std::to_string(count_attribute(sum, key) + count_attribute(part, key));
 }
 
 }  // namespace microsim

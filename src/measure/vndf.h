@@ -78,6 +78,9 @@ Provenance vndf_provenance(const TracedHistogram& histogram);
 // HistogramMergeError naming the problem: parts of different runs (the first attribute that differs),
 // different binnings, or blocks repeated or missing (named as ranges). `unbinned` receives the sum.
 TracedHistogram merge_vndf_parts(const std::vector<TracedHistogram>& parts, std::vector<std::uint64_t>& unbinned);
+// Adds a part's (or a round's) heightfield tracer diagnostics (backfacing, edge_grazes, leaked, unresolved) to
+// those `sum` records; an ellipsoid histogram has none. Throws HistogramMergeError for a malformed or missing one.
+void add_heightfield_diagnostics(TracedHistogram& sum, const TracedHistogram& part);
 
 // The analyses of a merged histogram, exactly as measure_*_vndf computes them for the same counts.
 EllipsoidVndf analyse_ellipsoid_vndf(TracedHistogram histogram, const std::vector<std::uint64_t>& unbinned);
