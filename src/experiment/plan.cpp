@@ -40,11 +40,8 @@ std::string alpha_text(const std::pair<double, double>& a) {
 // where that is largest.
 using CapPilot = std::function<CapProbe(int cap)>;
 
-// The walk of a pilot: the Smith walk, or the paths traced on an explicit surface.
-using ScatterPilot = std::function<ScatterHistogram(const ScatterOptions&)>;
-
 // The walk of one view (a scattering measurement).
-CapPilot view_cap_pilot(const ScatterPilot& walk, const ScatterOptions& view) {
+CapPilot view_cap_pilot(const ScatterPaths& walk, const ScatterOptions& view) {
   return [walk, view](int cap) {
     ScatterOptions o = view;
     o.max_order = cap;
@@ -198,7 +195,7 @@ void plan_vndf_view(const ExperimentSpec& spec, const SpecQuantity& q, const Pla
 struct QuarteredPilot {
   ScatterHistogram quarter, whole;
 };
-QuarteredPilot run_quartered_pilot(const ScatterPilot& walk, const ScatterOptions& request) {
+QuarteredPilot run_quartered_pilot(const ScatterPaths& walk, const ScatterOptions& request) {
   const std::uint64_t blocks = (request.paths + kPathsPerBlock - 1) / kPathsPerBlock;
   if (blocks < 2) {
     ScatterHistogram whole = walk(request);
@@ -217,7 +214,7 @@ QuarteredPilot run_quartered_pilot(const ScatterPilot& walk, const ScatterOption
 // TV noise floor, extrapolated to its 1/sqrt(n) law (extrapolated_scatter_floor); the paths bring the worst
 // targeted order's to kNoiseShare of the target.
 void plan_scattering_count(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d,
-                           const ScatterPilot& walk) {
+                           const ScatterPaths& walk) {
   const SpecMaterial& m = spec.material(q.material);
   const auto start = std::chrono::steady_clock::now();
   const QuarteredPilot pilot = run_quartered_pilot(
@@ -256,7 +253,7 @@ void plan_analytic_scattering(const SpecMaterial& m, const SpecQuantity& q, cons
 
 // The order cap and the count of a walk's per-order lobes, `walk` the Smith walk or the paths on a surface.
 void plan_walk_scattering(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d,
-                          const ScatterPilot& walk) {
+                          const ScatterPaths& walk) {
   const SpecMaterial& m = spec.material(q.material);
   ScatterOptions view;
   view.wi = direction_from_degrees(d.view.theta_deg, d.view.phi_deg);
