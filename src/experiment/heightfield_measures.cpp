@@ -1,12 +1,12 @@
 // experiment: the tile of a heightfield decision, the surface, its VNDF's values (heightfield_measures.h).
 #include "experiment/heightfield_measures.h"
 
+#include "core/parse.h"
 #include "microgeom/assembly.h"
 
 #include <fmt/core.h>
 
 #include <algorithm>
-#include <cstdlib>
 #include <stdexcept>
 #include <string>
 
@@ -53,10 +53,7 @@ SurfaceDecision plan_assembly_surface(const SpecQuantity& q, const Decision& d, 
 
 double metadata_number(const microgeom::Heightfield& field, const std::string& key, double otherwise) {
   const auto it = field.metadata.find(key);
-  if (it == field.metadata.end()) return otherwise;
-  char* end = nullptr;
-  const double x = std::strtod(it->second.c_str(), &end);
-  return end != it->second.c_str() && *end == '\0' ? x : otherwise;
+  return it == field.metadata.end() ? otherwise : try_parse_double(it->second).value_or(otherwise);
 }
 
 // The user's heightmap; one that cannot be read is bad input naming the spec's key.
