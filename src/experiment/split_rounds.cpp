@@ -237,15 +237,12 @@ std::string albedo_part(const BlockRange& cells, const std::optional<AlbedoCells
   return words_to_bytes(w);
 }
 
-// Rank r's cells appended to `cells` (its shard checked as check_shard checks blocks); false when it was
-// cancelled.
+// Rank r's cells appended to `cells` (its header checked: read_header); false when it was cancelled.
 bool add_albedo_part(AlbedoCells& cells, const std::string& bytes, const BlockRange& round, int rank, int ranks) {
   PartReader in(bytes, rank);
   bool partial = false;
-  const BlockRange got{in.next(), in.next()};
-  partial = in.next() != 0;
+  const BlockRange got = read_header(in, round, rank, ranks, partial);
   if (partial) return false;
-  check_shard(got, false, round, rank, ranks);
   for (std::uint64_t c = got.begin; c < got.end; ++c) {
     std::vector<Estimate> cell(in.next());
     for (Estimate& e : cell) {
