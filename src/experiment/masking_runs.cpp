@@ -88,11 +88,10 @@ double masking_worst_standard_error(const SpecQuantity& q, const MaskingResult& 
 
 // ---- the heightfield ------------------------------------------------------------------------------------------
 
-HeightfieldMasking::HeightfieldMasking(const SpecQuantity& q, const Decision& d, microgeom::Heightfield field,
+HeightfieldMasking::HeightfieldMasking(const SpecQuantity& q, const Decision& d, const microgeom::Heightfield& field,
                                        std::string surface_text, std::uint64_t seed)
-    : quantity_(q), decision_(d), field_(std::make_unique<microgeom::Heightfield>(std::move(field))),
-      surface_text_(std::move(surface_text)),
-      surface_(std::make_unique<MaskingSurface>(*field_, surface_text_, HeightfieldGeometry::triangles, true)),
+    : quantity_(q), decision_(d), field_(field), surface_text_(std::move(surface_text)),
+      surface_(std::make_unique<MaskingSurface>(field_, surface_text_, HeightfieldGeometry::triangles, true)),
       seed_(seed) {}
 
 MaskingRequest HeightfieldMasking::request(std::size_t light, std::uint64_t end, const RunControl& run) const {
@@ -140,7 +139,7 @@ std::vector<MaskingResult> HeightfieldMasking::results() const {
     const MaskingRequest r = request(k, blocks_done_, RunControl{});
     MaskingOptions o = masking_options(r);
     o.blocks.reset();  // the sums are of blocks [0, blocks_done_), passed below
-    out.push_back(masking_result_from_sums(*field_, surface_->analytic, surface_->empirical,
+    out.push_back(masking_result_from_sums(field_, surface_->analytic, surface_->empirical,
                                            direction_from_degrees(r.theta_deg, r.phi_deg), o, parts_[k].result.sums,
                                            BlockRange{0, blocks_done_}));
   }

@@ -45,11 +45,12 @@ AnalyticSmith analytic_smith(const SpecMaterial& material, std::pair<double, dou
 // "lambda", "g1": {...}, "g2": [{"light", "value", "separable", ...}]}}, every standard error 0.
 nlohmann::json analytic_masking_json(const SpecQuantity& quantity, const SpecMaterial& material, const Decision& decision);
 
-// The heightfield measurement of one decision: its surface (owned), and the exact sums of the blocks
+// The heightfield measurement of one decision: its surface (`field`, which must outlive it: the surface
+// cache's), its scene, and the exact sums of the blocks
 // [0, blocks_done()) of `seed` per light (one when the quantity has no G2).
 class HeightfieldMasking {
 public:
-  HeightfieldMasking(const SpecQuantity& quantity, const Decision& decision, microgeom::Heightfield field,
+  HeightfieldMasking(const SpecQuantity& quantity, const Decision& decision, const microgeom::Heightfield& field,
                      std::string surface_text, std::uint64_t seed);
   HeightfieldMasking(const HeightfieldMasking&) = delete;
   HeightfieldMasking& operator=(const HeightfieldMasking&) = delete;
@@ -76,7 +77,7 @@ private:
   MaskingRequest request(std::size_t light, std::uint64_t end, const RunControl& run) const;
   const SpecQuantity& quantity_;
   Decision decision_;
-  std::unique_ptr<microgeom::Heightfield> field_;
+  const microgeom::Heightfield& field_;  // the surface cache's (surface_cache.h), which outlives the measurement
   std::string surface_text_;
   std::unique_ptr<MaskingSurface> surface_;
   std::uint64_t seed_ = 0, blocks_done_ = 0, rays_ = 0;
