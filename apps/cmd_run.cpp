@@ -171,10 +171,13 @@ int run_as_root(const RunArgs& a, MpiSession& mpi) {
 
 // Ranks 1..: silent; they run their shards of the root's rounds and return the root's exit code. Their own
 // error (a spec that differs from the root's, a failure in a shard) is printed with the rank and aborts the job.
+// Explicit surfaces: the root's files in DIR/surfaces where this rank sees them, else built here in memory (the
+// root alone writes DIR).
 int serve_as_rank(const RunArgs& a, MpiSession& mpi) {
   try {
     RunControl run = cli_run_control(a.threads, nullptr);
-    return experiment::serve_rounds(mpi.ranks(), [&] { return experiment::load_spec(a.spec); }, run);
+    experiment::SurfaceCache surfaces(fs::path(a.out) / "surfaces", experiment::CacheFiles::read_only);
+    return experiment::serve_rounds(mpi.ranks(), [&] { return experiment::load_spec(a.spec); }, run, surfaces);
   } catch (...) {
     mpi.abort(report_error(std::current_exception(), fmt::format("microsim run (rank {})", mpi.ranks().rank())));
   }
@@ -207,12 +210,14 @@ int run_one_shard(const RunArgs& a) {
   experiment::PlanOptions plan_options;
   plan_options.seed = a.seed;
   plan_options.run = cli_run_control(a.threads, progress);
+  experiment::SurfaceCache surfaces;  // explicit surfaces in memory: built once, for the plan and the rounds
+  plan_options.surfaces = &surfaces;
   install_interrupt_handler();
   fmt::print(stderr, "run: {}: planning (pilots)\n", spec.name);
   const experiment::ExperimentPlan plan = experiment::plan_experiment(spec, plan_options);
   progress->finish();
   print_plan_table(plan, spec);
-  const experiment::ShardParts shard = experiment::run_shard(spec, plan, seed, s.index, s.count, plan_options.run);
+  const experiment::ShardParts shard = experiment::run_shard(spec, plan, seed, s.index, s.count, plan_options.run, surfaces);
   progress->finish();
   experiment::write_shard_directory(a.out, spec, shard);
   fmt::print(stderr, "run: shard {}/{}: the first rounds of {} measurements written to {}; when all {} are done: "

@@ -9,19 +9,28 @@
 //     with two shards' parts swapped an InternalError, with a shard missing or given twice a bad input;
 //   - a rank cancelled from the start: the run is partial, what it kept is the prefix of the round before that
 //     rank's shard, and resumed in one process it gives the uninterrupted results;
-//   - a walk albedo table, its cells split over 2 and 3 ranks and over 3 shards: the one-process table.
+//   - a drawn validation over 2 and 3 ranks and over 3 shards: the one-process report;
+//   - a walk albedo table, its cells split over 2 and 3 ranks and over 3 shards: the one-process table;
+//   - a VNDF and per-order lobes on explicit heightfields (an assembly's tile, a heightmap), each rank with its
+//     own surface cache (the tile built again there): 2 and 3 ranks and 3 shards give the one-process results;
+//     negative controls: a rank tracing another tile (another seed) moves the counts, parts swapped are an
+//     InternalError, a rank whose tile build is cancelled cuts the round where its shard begins.
 #include "core/errors.h"
 #include "experiment/plan.h"
 #include "experiment/run.h"
 #include "experiment/shards.h"
 #include "experiment/split_rounds.h"
+#include "microgeom/assembly.h"
+#include "scratch_dir.h"
 #include "small_pilots.h"
 
+#include <fmt/core.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <barrier>
 #include <exception>
+#include <filesystem>
 #include <functional>
 #include <string>
 #include <thread>
@@ -98,9 +107,13 @@ struct SplitRun {
   std::string internal_error;  // the root's InternalError, if it threw one
 };
 
-// The run over `ranks` thread ranks; rank `cancelled_rank` (if > 0) runs with its cancel token set.
+// The plan a rank other than the root serves (the root's, or another: a negative control).
+using RankPlan = std::function<ExperimentSpec(int rank)>;
+
+// The run over `ranks` thread ranks; rank `cancelled_rank` (if > 0) runs with its cancel token set. Each rank
+// has its own surface cache in memory (it builds the tiles it traces).
 SplitRun run_split(const ExperimentSpec& spec, const ExperimentPlan& plan, int ranks, ThreadRanks::Tamper tamper = {},
-                   int cancelled_rank = 0) {
+                   int cancelled_rank = 0, const RankPlan& rank_spec = {}) {
   ThreadHub hub(ranks);
   CancelToken cancelled;
   cancelled.cancel();
@@ -108,7 +121,9 @@ SplitRun run_split(const ExperimentSpec& spec, const ExperimentPlan& plan, int r
   for (int r = 1; r < ranks; ++r)
     others.emplace_back([&, r] {
       ThreadRanks me(hub, r);
-      serve_rounds(me, [&] { return spec; }, RunControl{1, r == cancelled_rank ? &cancelled : nullptr, {}});
+      SurfaceCache surfaces;
+      serve_rounds(me, [&] { return rank_spec ? rank_spec(r) : spec; },
+                   RunControl{1, r == cancelled_rank ? &cancelled : nullptr, {}}, surfaces);
     });
   ThreadRanks root(hub, 0, std::move(tamper));
   SplitRun out;
@@ -232,7 +247,8 @@ TEST_F(ExperimentSplit, ShardsOfTheFirstRoundsMergeIntoTheOneProcessRunBitForBit
   std::vector<ShardParts> shards;
   std::vector<std::string> names;
   for (std::uint64_t k = 3; k >= 1; --k) {  // given in any order: ordered by K
-    shards.push_back(run_shard(*spec_, *plan_, spec_->seed, k, 3, RunControl{1, nullptr, {}}));
+    SurfaceCache surfaces;
+    shards.push_back(run_shard(*spec_, *plan_, spec_->seed, k, 3, RunControl{1, nullptr, {}}, surfaces));
     names.push_back("shard " + std::to_string(k));
   }
   ASSERT_EQ(shards[0].tasks.size(), 2u);  // the VNDF's and the scattering's first rounds
@@ -300,6 +316,21 @@ TEST(ExperimentSplitValidation, TwoAndThreeRanksGiveTheOneProcessReportBitForBit
   EXPECT_TRUE(cancelled.results.measurements[0].partial);
   ExperimentResults back = results_from_json(nlohmann::json::parse(results_json(cancelled.results).dump()), plan);
   EXPECT_EQ(validation_measured(run_in_one_process(spec, plan, &back)).dump(), expected);
+  // 3 shards of a job array: each tallies its blocks, the merge reports from their tallies: the same report;
+  // two shards' parts exchanged are an InternalError.
+  std::vector<ShardParts> shards;
+  for (std::uint64_t k = 1; k <= 3; ++k) {
+    SurfaceCache surfaces;
+    shards.push_back(run_shard(spec, plan, spec.seed, k, 3, RunControl{1, nullptr, {}}, surfaces));
+  }
+  ASSERT_EQ(shards[0].tasks.size(), 1u);
+  StoredRounds stored = merge_shards(shards, {"1", "2", "3"});
+  RunOptions o;
+  o.run = RunControl{1, nullptr, {}};
+  o.stored = &stored;
+  EXPECT_EQ(validation_measured(run_experiment(spec, plan, o)).dump(), expected);
+  std::swap(stored.parts[0][0], stored.parts[0][2]);
+  EXPECT_THROW(run_experiment(spec, plan, o), InternalError);
 }
 
 // ---- a walk albedo table: its cells split over the ranks ---------------------------------------------------
@@ -348,7 +379,8 @@ TEST(ExperimentSplitAlbedo, RanksAndShardsGiveTheOneProcessTableBitForBit) {
   std::vector<ShardParts> shards;
   std::vector<std::string> names;
   for (std::uint64_t k = 1; k <= 3; ++k) {
-    shards.push_back(run_shard(spec, plan, spec.seed, k, 3, RunControl{1, nullptr, {}}));
+    SurfaceCache surfaces;
+    shards.push_back(run_shard(spec, plan, spec.seed, k, 3, RunControl{1, nullptr, {}}, surfaces));
     names.push_back("shard " + std::to_string(k));
   }
   StoredRounds stored = merge_shards(shards, names);
@@ -363,3 +395,140 @@ TEST(ExperimentSplitAlbedo, RanksAndShardsGiveTheOneProcessTableBitForBit) {
 }
 
 }  // namespace
+
+// ---- rounds on explicit heightfields --------------------------------------------------------------------------
+
+// A VNDF on smith's tile (the size the trade table gives this target: 256^2; the plan builds it), then a VNDF
+// and per-order lobes on a 256^2 heightmap (`heightmap`, an absolute path).
+ExperimentSpec heightfield_split_spec(const std::string& heightmap) {
+  return parse_spec_toml(fmt::format(R"(
+seed = 25
+[[material]]
+name = "m"
+alphas = [0.5]
+type = "mirror"
+[[quantity]]
+kind = "vndf"
+material = "m"
+surface = "smith"
+theta = [40]
+rows = 7
+target_tv = 0.3
+[[quantity]]
+kind = "vndf"
+material = "m"
+surface = "{0}"
+theta = [40]
+rows = 7
+target_tv = 0.06
+[[quantity]]
+kind = "scattering"
+material = "m"
+surface = "{0}"
+orders = "all"
+theta = [40]
+target_tv = 0.15
+)", heightmap), "heightfield_split.toml");
+}
+
+// A 256^2 smith tile of `seed` (alpha 0.5, l 16, radial) written as a heightmap at `path`.
+void write_tile(const std::filesystem::path& path, std::uint64_t seed) {
+  SurfaceKey key;
+  key.resolution = 256;
+  key.corr_cells = 16;
+  key.seed = seed;
+  microgeom::save_heightmap_exr(path, microgeom::build_assembly(assembly_params(key)));
+}
+
+class ExperimentSplitHeightfield : public ::testing::Test {
+protected:
+  static void SetUpTestSuite() {
+    tile_ = new std::filesystem::path(microsim::test::scratch_dir("experiment_split", "heightfield") / "tile.exr");
+    write_tile(*tile_, 2);
+    spec_ = new ExperimentSpec(heightfield_split_spec(tile_->string()));
+    plan_ = new ExperimentPlan(plan_with_small_pilots(*spec_));
+    alone_ = new ExperimentResults(run_in_one_process(*spec_, *plan_));
+  }
+  static void TearDownTestSuite() {
+    delete alone_;
+    delete plan_;
+    delete spec_;
+    delete tile_;
+  }
+  static std::filesystem::path* tile_;
+  static ExperimentSpec* spec_;
+  static ExperimentPlan* plan_;
+  static ExperimentResults* alone_;
+};
+std::filesystem::path* ExperimentSplitHeightfield::tile_ = nullptr;
+ExperimentSpec* ExperimentSplitHeightfield::spec_ = nullptr;
+ExperimentPlan* ExperimentSplitHeightfield::plan_ = nullptr;
+ExperimentResults* ExperimentSplitHeightfield::alone_ = nullptr;
+
+TEST_F(ExperimentSplitHeightfield, RanksAndShardsGiveTheOneProcessResultsBitForBit) {
+  ASSERT_EQ(alone_->measurements.size(), 3u);
+  for (const MeasurementResult& m : alone_->measurements) {
+    ASSERT_EQ(m.decision.model.model, Model::heightfield) << m.decision.label;
+    ASSERT_TRUE(m.ran && m.met) << m.decision.label;
+  }
+  for (int i : {1, 2}) EXPECT_GE(alone_->measurements[std::size_t(i)].rounds.front().units, 3 * 4096u) << "a block per rank";
+  ASSERT_TRUE(alone_->measurements[1].values.contains("heightfield"));
+  const std::string expected = split_measured(*alone_).dump();
+  for (int ranks : {2, 3}) {
+    const SplitRun split = run_split(*spec_, *plan_, ranks);
+    EXPECT_EQ(split.internal_error, "");
+    EXPECT_FALSE(split.results.partial);
+    EXPECT_EQ(split_measured(split.results).dump(), expected) << ranks << " ranks";
+  }
+  std::vector<ShardParts> shards;
+  for (std::uint64_t k = 1; k <= 3; ++k) {
+    SurfaceCache surfaces;  // each shard job builds the tile itself
+    shards.push_back(run_shard(*spec_, *plan_, spec_->seed, k, 3, RunControl{1, nullptr, {}}, surfaces));
+  }
+  ASSERT_EQ(shards[0].tasks.size(), 3u);
+  const StoredRounds stored = merge_shards(shards, {"1", "2", "3"});
+  RunOptions o;
+  o.run = RunControl{1, nullptr, {}};
+  o.stored = &stored;
+  EXPECT_EQ(split_measured(run_experiment(*spec_, *plan_, o)).dump(), expected);
+}
+
+TEST_F(ExperimentSplitHeightfield, PartsReversedOrACancelledTileBuildNeverGiveAWrongResult) {
+  const SplitRun reversed = run_split(*spec_, *plan_, 3, [](std::vector<std::string>& p) { std::reverse(p.begin(), p.end()); });
+  EXPECT_NE(reversed.internal_error, "");
+  // Rank 2's build of the assembly's tile is cancelled: the first VNDF's round (one block: rank 2's shard) ends
+  // before that block, nothing traced, and the run stops there, partial.
+  const MeasurementResult& first = alone_->measurements[0];
+  const BlockRange blocks{0, (first.rounds.at(0).units + 4095) / 4096};
+  ASSERT_EQ(blocks.size(), 1u);
+  ASSERT_EQ(rank_blocks(blocks, 2, 3), blocks);
+  const SplitRun cut = run_split(*spec_, *plan_, 3, {}, 2);
+  EXPECT_EQ(cut.internal_error, "");
+  ASSERT_TRUE(cut.results.partial);
+  ASSERT_EQ(cut.results.measurements.size(), 1u);
+  EXPECT_TRUE(cut.results.measurements[0].partial);
+  EXPECT_EQ(cut.results.measurements[0].units, 0u);
+}
+
+TEST_F(ExperimentSplitHeightfield, ARankThatReadsAnotherHeightmapRefusesIt) {
+  // The heightmap at the planned path changed (another node's copy, or edited since the plan): a rank's part
+  // of the lobes' round is refused, naming the file; the planned one is accepted.
+  const std::size_t lobes = 2;
+  const RoundTask task = first_split_rounds(*spec_, *plan_, spec_->seed).at(lobes);
+  ASSERT_EQ(task.measurement, lobes);
+  const auto other = microsim::test::scratch_dir("experiment_split", "other_tile") / "tile.exr";
+  write_tile(other, 3);
+  ExperimentSpec moved = *spec_;  // the same plan, the path of another tile
+  moved.quantities[lobes].surface.name = other.string();
+  ExperimentPlan planned = *plan_;
+  planned.decisions[lobes].surface.name = other.string();
+  SurfaceCache surfaces;
+  try {
+    run_part(moved, planned, task, 1, 2, RunControl{1, nullptr, {}}, surfaces);
+    ADD_FAILURE() << "another tile was traced";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find(other.string()), std::string::npos) << e.what();
+  }
+  SurfaceCache fresh;
+  EXPECT_FALSE(part_is_partial(run_part(*spec_, *plan_, task, 1, 2, RunControl{1, nullptr, {}}, fresh)));
+}

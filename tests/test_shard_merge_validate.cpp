@@ -94,15 +94,16 @@ INSTANTIATE_TEST_SUITE_P(
                           3, 0}),
     [](const auto& info) { return info.param.name; });
 
-// The batch: every sampler of the zoo over the grid, 3 blocks of samples each, in 3 shards.
+// The batch: every sampler of the zoo over the grid, 2 blocks of samples each (the second one sample), in 2
+// shards given in reverse order (3 blocks in 3 shards took 57 s; the uneven 3-way split is the cases' above).
 TEST(ValidateAllShardMerge, MergedShardsAreTheSingleBatchBitForBit) {
   const fs::path dir = scratch_dir("validate_shard", "all");
-  const std::string all = "validate --all --samples 131073 --rows 3 --seed 3";
+  const std::string all = "validate --all --samples 65537 --rows 3 --seed 3";
   const CliRun whole = run_cli(dir, all + " --json whole.json");
   ASSERT_EQ(whole.exit_code, 0) << whole.err;
-  for (int k = 1; k <= 3; ++k)
-    ASSERT_EQ(run_cli(dir, all + " --shard " + std::to_string(k) + "/3 --json p" + std::to_string(k) + ".json").exit_code, 0);
-  const CliRun merged = run_cli(dir, "merge p2.json p3.json p1.json --json merged.json");
+  for (int k = 1; k <= 2; ++k)
+    ASSERT_EQ(run_cli(dir, all + " --shard " + std::to_string(k) + "/2 --json p" + std::to_string(k) + ".json").exit_code, 0);
+  const CliRun merged = run_cli(dir, "merge p2.json p1.json --json merged.json");
   ASSERT_EQ(merged.exit_code, 0) << merged.err;
   const json want = pinned_part(json::parse(slurp(dir / "whole.json")));
   const json got = pinned_part(json::parse(slurp(dir / "merged.json")));

@@ -94,7 +94,8 @@ struct SurfacePlan {
   std::string ndf_match;     // "radial" or "joint"
   std::uint64_t seed = 0;    // assembly: the build's seed (the run's)
   double bias = -1;          // the bias (TV) the trade table predicts; -1: beyond the table (unknown)
-  std::string hash;          // assembly: its cache key's hash (DIR/surfaces/<hash>.exr)
+  std::string hash;          // assembly: its cache key's hash (DIR/surfaces/<hash>.exr); heightmap: its heights'
+                             // digest (heights_digest: a rank or a resumed run refuses another file)
   std::string reason;
 };
 

@@ -274,7 +274,8 @@ void run_scattering(const ExperimentSpec& spec, std::uint64_t seed, std::size_t 
                     MeasurementResult& m) {
   const SmithMicrosurface surface = scatter_surface(spec.material(spec.quantities[m.decision.quantity].material), m.decision);
   const ScatterPaths walk = [&](const ScatterOptions& options) {
-    return split_scatter_round({o.ranks, o.stored}, index, surface, options);
+    return split_scatter_round({o.ranks, o.stored}, index,
+                               [&surface](const ScatterOptions& part) { return smith_walk_scatter(surface, part); }, options);
   };
   run_rounds(m, seed, index, o, std::numeric_limits<std::uint64_t>::max(),
              [&](const RoundStart& start) { return scatter_round(spec, start, o, walk, m); });
@@ -284,11 +285,11 @@ void run_scattering(const ExperimentSpec& spec, std::uint64_t seed, std::size_t 
 
 // One round (or the rest of one) of rays traced on the tile, added to the sum, the sum analysed and recorded.
 bool heightfield_vndf_round(const ExperimentSpec& spec, const microgeom::Heightfield& field, const RoundStart& start,
-                            const RunOptions& o, MeasurementResult& m) {
+                            std::size_t index, const RunOptions& o, MeasurementResult& m) {
   VndfRequest req = vndf_request(spec, m.decision, start.rays, start.seed, o.run);
   if (start.first_block > 0) req.blocks = BlockRange{start.first_block, (start.rays + kRaysPerBlock - 1) / kRaysPerBlock};
   const auto clock = std::chrono::steady_clock::now();
-  const HeightfieldVndf round = measure_heightfield_vndf(field, surface_label(m.decision.surface), req);
+  const HeightfieldVndf round = split_heightfield_vndf_round({o.ranks, o.stored}, index, field, surface_label(m.decision.surface), req);
   m.partial = round.trace.partial;
   if (round.histogram.rays == 0) return false;
   const bool fresh = m.histogram.binnings.empty();
@@ -306,7 +307,7 @@ bool heightfield_vndf_round(const ExperimentSpec& spec, const microgeom::Heightf
 }
 
 // The tile (built once through the cache, or read back), then the rounds on it: rays for a VNDF, paths for
-// the per-order lobes (not split over ranks: the root traces them).
+// the per-order lobes, split over the ranks (every rank traces the same tile: split_rounds.h).
 void run_heightfield(const ExperimentSpec& spec, std::uint64_t seed, std::size_t index, const RunOptions& o,
                      SurfaceCache& cache, MeasurementResult& m) {
   m.partial = false;
@@ -319,9 +320,12 @@ void run_heightfield(const ExperimentSpec& spec, std::uint64_t seed, std::size_t
   }
   if (spec.quantities[m.decision.quantity].kind == QuantityKind::vndf)
     return run_rounds(m, seed, index, o, kMaxRays,
-                      [&](const RoundStart& start) { return heightfield_vndf_round(spec, *field, start, o, m); });
+                      [&](const RoundStart& start) { return heightfield_vndf_round(spec, *field, start, index, o, m); });
   const HeightfieldScene scene(*field);
-  const ScatterPaths walk = [&scene](const ScatterOptions& options) { return scatter_on_surface(scene, options); };
+  const ScatterPaths walk = [&](const ScatterOptions& options) {
+    return split_scatter_round({o.ranks, o.stored}, index,
+                               [&scene](const ScatterOptions& part) { return scatter_on_surface(scene, part); }, options);
+  };
   run_rounds(m, seed, index, o, std::numeric_limits<std::uint64_t>::max(),
              [&](const RoundStart& start) { return scatter_round(spec, start, o, walk, m); });
 }
@@ -513,11 +517,11 @@ std::vector<RoundTask> first_split_rounds(const ExperimentSpec& spec, const Expe
   const RunOptions planned;  // the first round at the planned cost
   for (std::size_t i = 0; i < plan.decisions.size(); ++i) {
     const Decision& d = plan.decisions[i];
-    if (!d.runnable || !is_split(spec, d)) continue;
+    if (!d.runnable || !is_shared_by_ranks(spec, d)) continue;
     const QuantityKind kind = spec.quantities[d.quantity].kind;
     const bool vndf = kind == QuantityKind::vndf;  // capped as next_round caps them
     const std::uint64_t units = std::min(first_units(d, planned), vndf ? kMaxRays : std::numeric_limits<std::uint64_t>::max());
-    const std::uint64_t block = vndf ? kRaysPerBlock : kPathsPerBlock;
+    const std::uint64_t block = vndf ? kRaysPerBlock : kind == QuantityKind::validation ? kSampleBlock : kPathsPerBlock;
     const BlockRange blocks = kind == QuantityKind::albedo ? BlockRange{0, albedo_round_cells(spec, d)}  // its cells
                                                            : BlockRange{0, units / block + (units % block != 0)};
     tasks.push_back({i, units, round_seed(seed, i, 0), blocks});

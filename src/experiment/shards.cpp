@@ -89,10 +89,10 @@ void check_same_job(const ShardParts& a, const ShardParts& b, const std::string&
 }  // namespace
 
 ShardParts run_shard(const ExperimentSpec& spec, const ExperimentPlan& plan, std::uint64_t seed, std::uint64_t k,
-                     std::uint64_t n, const RunControl& run) {
+                     std::uint64_t n, const RunControl& run, SurfaceCache& surfaces) {
   ShardParts shard{k, n, seed, spec_digest(spec), plan_json(plan, spec), first_split_rounds(spec, plan, seed), {}};
   for (const RoundTask& task : shard.tasks) {
-    shard.parts.push_back(run_part(spec, plan, task, int(k - 1), int(n), run));
+    shard.parts.push_back(run_part(spec, plan, task, int(k - 1), int(n), run, surfaces));
     if (part_is_partial(shard.parts.back())) throw Cancelled("a shard keeps nothing when interrupted");
   }
   return shard;

@@ -5,8 +5,10 @@
 // A round's size follows from the previous round's combined estimate (the sequential stop), so only the first
 // round of each measurement is known before any shard has run: its size is the plan's (the pilots draw from the
 // seed, so every shard plans the same) and its seed and blocks are run_experiment's (first_split_rounds). A
-// shard job runs block shard K of N of the first round of every VNDF and scattering measurement (run_part: the
-// exact tallies of split_rounds.h) and writes them to PART (shard.json, part-I.bin); nothing else. The merge
+// shard job runs block shard K of N of the first round of every measurement is_split names (VNDF, scattering and
+// walk albedo; on an explicit heightfield too: each shard job builds the tile in memory, for its plan and its
+// rounds; run_part: the exact tallies of split_rounds.h) and writes them to PART (shard.json, part-I.bin);
+// nothing else. The merge
 // checks the shards (one spec, seed, plan and N, each K once) and hands their parts to run_experiment
 // (RunOptions::stored), which combines each first round in shard order (the one-process round, bit for bit),
 // decides the stop on it, and runs any further round and the measurements that are not split (albedo tables,
@@ -35,10 +37,10 @@ struct ShardParts {
   std::vector<std::string> parts;  // per task: shard k's part
 };
 
-// Shard k of n of the first rounds of `plan` at `seed`. Throws Cancelled when cancelled (a shard keeps nothing:
-// run it again).
+// Shard k of n of the first rounds of `plan` at `seed` (an explicit heightfield's tile from `surfaces`: the
+// plan's, or built). Throws Cancelled when cancelled (a shard keeps nothing: run it again).
 ShardParts run_shard(const ExperimentSpec& spec, const ExperimentPlan& plan, std::uint64_t seed, std::uint64_t k,
-                     std::uint64_t n, const RunControl& run);
+                     std::uint64_t n, const RunControl& run, SurfaceCache& surfaces);
 
 // PART: shard.json (spec name and digest, seed, K/N, plan, tasks, part files and their sizes) and part-I.bin,
 // each written atomically, shard.json last. PART must be new or empty (std::invalid_argument: nothing written).

@@ -3,9 +3,11 @@
 #include "core/wall_clock.h"
 
 #include "core/errors.h"
+#include "experiment/heightfield_measures.h"
 #include "experiment/measures.h"
 #include "experiment/run.h"
 #include "core/run_control.h"
+#include "scatter/surface_scatter.h"
 #include "stats/part_json.h"
 #include "validate/validation_part.h"
 
@@ -53,6 +55,16 @@ public:
   void finish() {
     if (at_ != words_.size()) fail("longer than its content");
   }
+  bool at_end() const { return at_ == words_.size(); }
+  // The next `length` bytes as text, read in whole words (the padding after them skipped), then the end.
+  std::string next_text(std::uint64_t length) {
+    const std::uint64_t words = (length + sizeof(std::uint64_t) - 1) / sizeof(std::uint64_t);
+    if (words > words_.size() - at_) fail("truncated");
+    std::string text(reinterpret_cast<const char*>(words_.data() + at_), length);
+    at_ += words;
+    finish();
+    return text;
+  }
   [[noreturn]] void fail(const std::string& what) const {
     throw InternalError(fmt::format("the part of rank {} of a split round is malformed: {}", rank_, what));
   }
@@ -92,7 +104,13 @@ BlockRange read_header(PartReader& in, const BlockRange& round, int rank, int ra
 
 // ---- VNDF parts -------------------------------------------------------------------------------------------
 
-std::string vndf_part(const EllipsoidVndf& m) {
+// The traced sums of a VNDF round: counts and the heightfield tracer's diagnostics (0 on the ellipsoid).
+struct VndfSums {
+  TraceResult trace;
+  HeightfieldVndfDiagnostics diagnostics;
+};
+
+std::string vndf_part(const VndfSums& m) {
   Words w;
   put_header(w, m.trace.blocks, m.trace.partial);
   w.insert(w.end(), {m.trace.rays, m.trace.hits, m.trace.counts.size()});
@@ -102,14 +120,31 @@ std::string vndf_part(const EllipsoidVndf& m) {
   }
   w.push_back(m.trace.unbinned.size());
   w.insert(w.end(), m.trace.unbinned.begin(), m.trace.unbinned.end());
+  const HeightfieldVndfDiagnostics& d = m.diagnostics;
+  w.insert(w.end(), {d.backfacing, d.edge_grazes, d.leaked, d.unresolved});
   return words_to_bytes(w);
 }
 
-// Adds rank r's part to the trace of the ranks before it (whose blocks end where this part begins).
-void add_vndf_part(TraceResult& t, const std::string& bytes, const BlockRange& round, int rank, int ranks) {
+// A part cancelled before its first block with nothing measured (a tile's build cancelled on that rank).
+std::string cancelled_part(const BlockRange& mine) {
+  Words w;
+  put_header(w, BlockRange{mine.begin, mine.begin}, true);
+  return words_to_bytes(w);
+}
+
+// Whether a part is cancelled_part's (read past its header): nothing to add.
+bool holds_nothing(const PartReader& in, const BlockRange& blocks, bool partial) {
+  return partial && blocks.size() == 0 && in.at_end();
+}
+
+// Adds rank r's part to the sums of the ranks before it (whose blocks end where this part begins).
+void add_vndf_part(VndfSums& sums, const std::string& bytes, const BlockRange& round, int rank, int ranks) {
   PartReader in(bytes, rank);
   bool partial = false;
   const BlockRange blocks = read_header(in, round, rank, ranks, partial);
+  TraceResult& t = sums.trace;
+  t.partial = partial;
+  if (holds_nothing(in, blocks, partial)) return;
   t.rays += in.next();
   t.hits += in.next();
   in.expect(t.counts.size(), "binnings");
@@ -119,9 +154,10 @@ void add_vndf_part(TraceResult& t, const std::string& bytes, const BlockRange& r
   }
   in.expect(t.unbinned.size(), "binnings");
   for (std::uint64_t& u : t.unbinned) u += in.next();
+  HeightfieldVndfDiagnostics& d = sums.diagnostics;
+  for (std::uint64_t* count : {&d.backfacing, &d.edge_grazes, &d.leaked, &d.unresolved}) *count += in.next();
   in.finish();
   t.blocks.end = blocks.end;
-  t.partial = partial;
 }
 
 std::string joined_counts(const std::vector<std::uint64_t>& v) {
@@ -141,16 +177,21 @@ void check_start(const BlockRange& own, bool partial, const BlockRange& round, i
     throw InternalError(fmt::format("a round's start holds blocks {}", own.to_string()));
 }
 
-// The parts (from `first` on; the root's own is rank 0's) in rank order, as the one-process round: the counts
-// summed, the histogram's per-part attributes (blocks, unbinned, rate) those of the whole, analysed.
-EllipsoidVndf combine_vndf_parts(EllipsoidVndf own, const std::vector<std::string>& parts, const BlockRange& round,
-                                 int first, double seconds) {
+// The parts (from `first` on; the root's own is rank 0's) added to `own` in rank order: the one-process round's
+// sums, timed `seconds`.
+VndfSums combine_vndf_sums(VndfSums own, const std::vector<std::string>& parts, const BlockRange& round, int first,
+                           double seconds) {
   const int ranks = int(parts.size());  // checked: one part per rank
-  TraceResult t = std::move(own.trace);
-  check_start(t.blocks, t.partial, round, first, ranks);
-  for (int r = first; r < ranks && !t.partial; ++r) add_vndf_part(t, parts[std::size_t(r)], round, r, ranks);
-  t.seconds = seconds;
-  TracedHistogram h = std::move(own.histogram);
+  check_start(own.trace.blocks, own.trace.partial, round, first, ranks);
+  for (int r = first; r < ranks && !own.trace.partial; ++r) add_vndf_part(own, parts[std::size_t(r)], round, r, ranks);
+  own.trace.seconds = seconds;
+  return own;
+}
+
+// The root's histogram (binnings, run attributes) holding the combined sums: the counts, and the per-part
+// attributes (blocks, unbinned, rate; a tile's diagnostics) those of the whole.
+TracedHistogram combined_histogram(TracedHistogram h, const VndfSums& sums) {
+  const TraceResult& t = sums.trace;
   h.counts = t.counts;
   h.rays = t.rays;
   h.hits = t.hits;
@@ -158,9 +199,32 @@ EllipsoidVndf combine_vndf_parts(EllipsoidVndf own, const std::vector<std::strin
   h.attributes["blocks"] = fmt::format("{},{}", t.blocks.begin, t.blocks.end);
   h.attributes["unbinned"] = joined_counts(t.unbinned);
   h.attributes["rays_per_second"] = fmt::format("{:.17g}", t.rays_per_second());
-  EllipsoidVndf combined = analyse_ellipsoid_vndf(std::move(h), t.unbinned);
-  combined.trace = std::move(t);
+  if (h.attributes.count("backfacing")) {
+    const HeightfieldVndfDiagnostics& d = sums.diagnostics;
+    h.attributes["backfacing"] = std::to_string(d.backfacing);
+    h.attributes["edge_grazes"] = std::to_string(d.edge_grazes);
+    h.attributes["leaked"] = std::to_string(d.leaked);
+    h.attributes["unresolved"] = std::to_string(d.unresolved);
+  }
+  return h;
+}
+
+EllipsoidVndf combine_vndf_parts(EllipsoidVndf own, const std::vector<std::string>& parts, const BlockRange& round,
+                                 int first, double seconds) {
+  VndfSums sums = combine_vndf_sums({std::move(own.trace), {}}, parts, round, first, seconds);
+  EllipsoidVndf combined = analyse_ellipsoid_vndf(combined_histogram(std::move(own.histogram), sums), sums.trace.unbinned);
+  combined.trace = std::move(sums.trace);
   combined.expected_hit_fraction = own.expected_hit_fraction;
+  return combined;
+}
+
+HeightfieldVndf combine_heightfield_parts(HeightfieldVndf own, const std::vector<std::string>& parts,
+                                          const BlockRange& round, int first, double seconds,
+                                          const microgeom::Heightfield& field) {
+  VndfSums sums = combine_vndf_sums({std::move(own.trace), own.diagnostics}, parts, round, first, seconds);
+  HeightfieldVndf combined =
+      analyse_heightfield_vndf(combined_histogram(std::move(own.histogram), sums), sums.trace.unbinned, field);
+  combined.trace = std::move(sums.trace);
   return combined;
 }
 
@@ -191,6 +255,8 @@ void add_scatter_part(ScatterHistogram& sum, const std::string& bytes, const Blo
   PartReader in(bytes, rank);
   bool partial = false;
   const BlockRange blocks = read_header(in, round, rank, ranks, partial);
+  sum.partial = partial;
+  if (holds_nothing(in, blocks, partial)) return;
   const std::uint64_t paths = in.next();
   in.expect(std::uint64_t(sum.channels()), "channels");
   in.expect(sum.bins(), "bins");
@@ -211,7 +277,6 @@ void add_scatter_part(ScatterHistogram& sum, const std::string& bytes, const Blo
   in.finish();
   sum.add_launched(paths);
   sum.provenance.blocks.end = blocks.end;
-  sum.partial = partial;
 }
 
 // The parts (from `first` on, as combine_vndf_parts) added to `own` in rank order: the one-process round.
@@ -275,27 +340,34 @@ AlbedoTable combine_albedo_parts(const AlbedoTableRequest& request, AlbedoCells 
 
 // ---- validation parts (a drawn validation's tally) ---------------------------------------------------------
 
-// A rank's tally of its blocks (tally_json), or a cancelled part (no tally).
+// A rank's tally of its blocks: the header of every part (part_is_partial and check_whole_part read it), then
+// tally_json's text (its length, its bytes padded to whole words); a cancelled part is the header alone.
 std::string validation_part(const BlockRange& blocks, const std::optional<battery::Tally>& tally) {
-  nlohmann::json part{{"blocks", {blocks.begin, blocks.end}}, {"cancelled", !tally.has_value()}};
-  if (tally) part["tally"] = tally_json(*tally);
-  return part.dump();
+  Words w;
+  put_header(w, tally ? blocks : BlockRange{blocks.begin, blocks.begin}, !tally);
+  if (!tally) return words_to_bytes(w);
+  const std::string text = tally_json(*tally).dump();
+  w.push_back(text.size());
+  std::string bytes = words_to_bytes(w) + text;
+  bytes.resize((bytes.size() + sizeof(std::uint64_t) - 1) / sizeof(std::uint64_t) * sizeof(std::uint64_t), ' ');
+  return bytes;
 }
 
-// Rank r's tally (its blocks checked as check_shard checks them), or nullopt when it was cancelled.
-std::optional<battery::Tally> read_validation_part(const std::string& text, const std::vector<std::size_t>& cells,
+// Rank r's tally (its blocks checked: read_header), or nullopt when it was cancelled.
+std::optional<battery::Tally> read_validation_part(const std::string& bytes, const std::vector<std::size_t>& cells,
                                                    const BlockRange& round, int rank, int ranks) {
+  PartReader in(bytes, rank);
+  bool partial = false;
+  const BlockRange blocks = read_header(in, round, rank, ranks, partial);
+  if (partial) return std::nullopt;
+  const std::string text = in.next_text(in.next());
   try {
-    const nlohmann::json part = nlohmann::json::parse(text);
-    if (part.at("cancelled").get<bool>()) return std::nullopt;
-    const BlockRange blocks{part.at("blocks").at(0).get<std::uint64_t>(), part.at("blocks").at(1).get<std::uint64_t>()};
-    check_shard(blocks, false, round, rank, ranks);
-    return tally_from_json(part.at("tally"), cells, blocks.size(), microsim::PartReader("validation part"),
+    return tally_from_json(nlohmann::json::parse(text), cells, blocks.size(), microsim::PartReader("validation part"),
                            fmt::format("rank {}", rank));
   } catch (const nlohmann::json::exception& e) {
-    throw InternalError(fmt::format("the part of rank {} of a split validation is malformed: {}", rank, e.what()));
+    in.fail(e.what());
   } catch (const HistogramMergeError& e) {
-    throw InternalError(fmt::format("the part of rank {} of a split validation is malformed: {}", rank, e.what()));
+    in.fail(e.what());
   }
 }
 
@@ -316,14 +388,18 @@ std::vector<std::size_t> tally_cells(const battery::Tally& tally) {
   return cells;
 }
 
-// The ranks' tallies in rank order as one (merge_tallies); Cancelled when any part was cancelled.
-battery::Tally merged_validation_tally(const std::optional<battery::Tally>& own, const std::vector<std::string>& parts,
-                                       const BlockRange& round) {
-  if (!own) throw Cancelled("validation");
+// The tallies in rank order as one (merge_tallies): `own` (rank 0's; none for the parts of shard jobs, whose
+// first part is then rank 0's) and the parts after it. Cancelled when any part was cancelled.
+battery::Tally merged_validation_tally(const std::optional<battery::Tally>& own, const std::vector<std::size_t>& cells,
+                                       const std::vector<std::string>& parts, const BlockRange& round, int first) {
+  std::vector<battery::Tally> tallies;
+  if (first == 1) {
+    if (!own) throw Cancelled("validation");
+    tallies.push_back(*own);
+  }
   const int ranks = int(parts.size());
-  std::vector<battery::Tally> tallies{*own};
-  for (int r = 1; r < ranks; ++r) {
-    std::optional<battery::Tally> t = read_validation_part(parts[std::size_t(r)], tally_cells(*own), round, r, ranks);
+  for (int r = first; r < ranks; ++r) {
+    std::optional<battery::Tally> t = read_validation_part(parts[std::size_t(r)], cells, round, r, ranks);
     if (!t) throw Cancelled("validation");
     tallies.push_back(std::move(*t));
   }
@@ -364,12 +440,40 @@ void check_part_count(const std::vector<std::string>& parts, int ranks) {
     throw InternalError(fmt::format("a split round gathered {} parts from {} ranks", parts.size(), ranks));
 }
 
+// A request with its blocks replaced (a rank's shard, or none of a stored round), or as it is (nullopt).
+template <class Request>
+Request with_blocks(Request request, const std::optional<BlockRange>& blocks) {
+  if (blocks) request.blocks = *blocks;
+  return request;
+}
+
+// The shape of every split VNDF and scattering round. Stored parts (a merge of shard jobs): `measure` of no
+// block (the binnings and attributes) and every part combined from the first; alone: `measure` of the whole
+// round; with ranks: the task broadcast, rank 0's shard measured, every rank's part gathered and combined from
+// the second (`combine(own, parts, first)`).
+template <class Result>
+Result split_round(const RoundSplit& split, const RoundTask& task,
+                   const std::function<Result(const std::optional<BlockRange>&)>& measure,
+                   const std::function<std::string(const Result&)>& encode,
+                   const std::function<Result(Result, const std::vector<std::string>&, int)>& combine) {
+  if (const std::vector<std::string>* stored = stored_parts(split.stored, task))
+    return combine(measure(BlockRange{task.blocks.begin, task.blocks.begin}), *stored, 0);
+  if (split.ranks == nullptr || split.ranks->size() == 1) return measure(std::nullopt);
+  split.ranks->broadcast(task_message(task));
+  Result own = measure(rank_blocks(task.blocks, 0, split.ranks->size()));
+  const std::vector<std::string> parts = split.ranks->gather(encode(own));
+  check_part_count(parts, split.ranks->size());
+  return combine(std::move(own), parts, 1);
+}
+
 }  // namespace
 
 bool is_split(const ExperimentSpec& spec, const Decision& decision) {
   const QuantityKind kind = spec.quantities[decision.quantity].kind;
-  return (kind == QuantityKind::vndf && decision.model.model == Model::ellipsoid_oracle) ||
-         ((kind == QuantityKind::scattering || kind == QuantityKind::albedo) && decision.model.model == Model::smith_walk);
+  const Model model = decision.model.model;
+  return (kind == QuantityKind::vndf && model == Model::ellipsoid_oracle) ||
+         ((kind == QuantityKind::scattering || kind == QuantityKind::albedo) && model == Model::smith_walk) ||
+         ((kind == QuantityKind::vndf || kind == QuantityKind::scattering) && model == Model::heightfield);
 }
 
 bool is_shared_by_ranks(const ExperimentSpec& spec, const Decision& decision) {
@@ -386,37 +490,41 @@ EllipsoidVndf split_vndf_round(const RoundSplit& split, std::size_t measurement,
                                const VndfRequest& request) {
   const auto start = std::chrono::steady_clock::now();
   const BlockRange round = round_blocks(request.blocks, request.rays, kRaysPerBlock);
-  const RoundTask task{measurement, request.rays, request.seed, round};
-  VndfRequest own = request;
-  if (const std::vector<std::string>* stored = stored_parts(split.stored, task)) {
-    own.blocks = BlockRange{round.begin, round.begin};  // nothing traced: the binnings and attributes
-    return combine_vndf_parts(measure_ellipsoid_vndf(target, own), *stored, round, 0, seconds_since(start));
-  }
-  if (split.ranks == nullptr || split.ranks->size() == 1) return measure_ellipsoid_vndf(target, request);
-  split.ranks->broadcast(task_message(task));
-  own.blocks = rank_blocks(round, 0, split.ranks->size());
-  EllipsoidVndf part = measure_ellipsoid_vndf(target, own);
-  const std::vector<std::string> parts = split.ranks->gather(vndf_part(part));
-  check_part_count(parts, split.ranks->size());
-  return combine_vndf_parts(std::move(part), parts, round, 1, seconds_since(start));
+  return split_round<EllipsoidVndf>(
+      split, {measurement, request.rays, request.seed, round},
+      [&](const std::optional<BlockRange>& blocks) { return measure_ellipsoid_vndf(target, with_blocks(request, blocks)); },
+      [](const EllipsoidVndf& own) { return vndf_part({own.trace, {}}); },
+      [&](EllipsoidVndf own, const std::vector<std::string>& parts, int first) {
+        return combine_vndf_parts(std::move(own), parts, round, first, seconds_since(start));
+      });
 }
 
-ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measurement, const SmithMicrosurface& surface,
+HeightfieldVndf split_heightfield_vndf_round(const RoundSplit& split, std::size_t measurement,
+                                             const microgeom::Heightfield& field, const std::string& label,
+                                             const VndfRequest& request) {
+  const auto start = std::chrono::steady_clock::now();
+  const BlockRange round = round_blocks(request.blocks, request.rays, kRaysPerBlock);
+  return split_round<HeightfieldVndf>(
+      split, {measurement, request.rays, request.seed, round},
+      [&](const std::optional<BlockRange>& blocks) {
+        return measure_heightfield_vndf(field, label, with_blocks(request, blocks));
+      },
+      [](const HeightfieldVndf& own) { return vndf_part({own.trace, own.diagnostics}); },
+      [&](HeightfieldVndf own, const std::vector<std::string>& parts, int first) {
+        return combine_heightfield_parts(std::move(own), parts, round, first, seconds_since(start), field);
+      });
+}
+
+ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measurement, const ScatterPaths& paths,
                                      const ScatterOptions& options) {
   const BlockRange round = round_blocks(options.blocks, options.paths, kPathsPerBlock);
-  const RoundTask task{measurement, options.paths, options.seed, round};
-  ScatterOptions own = options;
-  if (const std::vector<std::string>* stored = stored_parts(split.stored, task)) {
-    own.blocks = BlockRange{round.begin, round.begin};  // nothing walked: the binning and provenance
-    return combine_scatter_parts(smith_walk_scatter(surface, own), *stored, round, 0);
-  }
-  if (split.ranks == nullptr || split.ranks->size() == 1) return smith_walk_scatter(surface, options);
-  split.ranks->broadcast(task_message(task));
-  own.blocks = rank_blocks(round, 0, split.ranks->size());
-  ScatterHistogram part = smith_walk_scatter(surface, own);
-  const std::vector<std::string> parts = split.ranks->gather(scatter_part(part));
-  check_part_count(parts, split.ranks->size());
-  return combine_scatter_parts(std::move(part), parts, round, 1);
+  return split_round<ScatterHistogram>(
+      split, {measurement, options.paths, options.seed, round},
+      [&](const std::optional<BlockRange>& blocks) { return paths(with_blocks(options, blocks)); },
+      [](const ScatterHistogram& own) { return scatter_part(own); },
+      [&](ScatterHistogram own, const std::vector<std::string>& parts, int first) {
+        return combine_scatter_parts(std::move(own), parts, round, first);
+      });
 }
 
 AlbedoTable split_albedo_round(const RoundSplit& split, std::size_t measurement, const AlbedoTableRequest& request) {
@@ -442,17 +550,30 @@ std::uint64_t albedo_round_cells(const ExperimentSpec& spec, const Decision& dec
 
 ValidationReport split_validation(const RoundSplit& split, std::size_t measurement, const SamplerInfo& sampler,
                                   const GGX<double>& ggx, const Vec3<double>& wi, const ValidationOptions& options) {
-  if (split.ranks == nullptr || split.ranks->size() == 1) return validate_sampler(sampler, ggx, wi, options);
+  const BlockRange round{0, options.samples / kSampleBlock + (options.samples % kSampleBlock != 0)};
+  const RoundTask task{measurement, options.samples, options.seed, round};
+  const std::vector<std::string>* stored = stored_parts(split.stored, task);
+  const bool ranks = split.ranks != nullptr && split.ranks->size() > 1;
+  if (stored == nullptr && !ranks) return validate_sampler(sampler, ggx, wi, options);
   const auto start = std::chrono::steady_clock::now();
   require_samples_for_any_test(options.samples);  // before the cubature, as validate_sampler
   const auto reference = claimed_reference(sampler, ggx, wi, options.rows);
   require_samples(options.samples, *reference);
-  const BlockRange round{0, options.samples / kSampleBlock + (options.samples % kSampleBlock != 0)};
-  split.ranks->broadcast(task_message({measurement, options.samples, options.seed, round}));
-  const std::optional<battery::Tally> own = own_tally(sampler, *reference, options, rank_blocks(round, 0, split.ranks->size()));
-  const std::vector<std::string> parts = split.ranks->gather(validation_part(rank_blocks(round, 0, split.ranks->size()), own));
-  check_part_count(parts, split.ranks->size());
-  ValidationReport r = report_drawn_samples(sampler, *reference, merged_validation_tally(own, parts, round), options);
+  // The cells of the tallies: those of a tally of no sample.
+  const std::optional<battery::Tally> none = own_tally(sampler, *reference, options, BlockRange{0, 0});
+  if (!none) throw Cancelled("validation");
+  battery::Tally tally;
+  if (stored != nullptr) {
+    tally = merged_validation_tally(std::nullopt, tally_cells(*none), *stored, round, 0);
+  } else {
+    split.ranks->broadcast(task_message(task));
+    const BlockRange mine = rank_blocks(round, 0, split.ranks->size());
+    const std::optional<battery::Tally> own = own_tally(sampler, *reference, options, mine);
+    const std::vector<std::string> parts = split.ranks->gather(validation_part(mine, own));
+    check_part_count(parts, split.ranks->size());
+    tally = merged_validation_tally(own, tally_cells(*none), parts, round, 1);
+  }
+  ValidationReport r = report_drawn_samples(sampler, *reference, tally, options);
   r.seconds = seconds_since(start);
   return r;
 }
@@ -478,10 +599,32 @@ std::string validation_rank_part(const SpecQuantity& q, const Decision& d, const
   return validation_part(mine, own_tally(*sampler, *bins, options, mine));
 }
 
+// A rank's part of a round on an explicit heightfield: the tile from `surfaces` (its build cancelled: a part
+// cancelled before its first block), then its shard of the VNDF's rays or of the paths.
+std::string heightfield_rank_part(const ExperimentSpec& spec, const Decision& d, const RoundTask& task,
+                                  const BlockRange& mine, const RunControl& run, SurfaceCache& surfaces) {
+  const microgeom::Heightfield* field = nullptr;
+  try {
+    field = &decision_surface(d, surfaces, run);
+  } catch (const Cancelled&) {
+    return cancelled_part(mine);
+  }
+  const SpecQuantity& q = spec.quantities[d.quantity];
+  if (q.kind == QuantityKind::vndf) {
+    VndfRequest request = vndf_request(spec, d, task.units, task.seed, run);
+    request.blocks = mine;
+    const HeightfieldVndf m = measure_heightfield_vndf(*field, surface_label(d.surface), request);
+    return vndf_part({m.trace, m.diagnostics});
+  }
+  ScatterOptions options = scatter_request(spec.material(q.material), d, task.units, task.seed, run);
+  options.blocks = mine;
+  return scatter_part(scatter_on_surface(*field, options));
+}
+
 }  // namespace
 
 std::string run_part(const ExperimentSpec& spec, const ExperimentPlan& plan, const RoundTask& task, int rank, int ranks,
-                     const RunControl& run) {
+                     const RunControl& run, SurfaceCache& surfaces) {
   if (task.measurement >= plan.decisions.size())
     throw InternalError(fmt::format("a round of measurement {}: the plan has {}", task.measurement, plan.decisions.size()));
   const Decision& d = plan.decisions[task.measurement];
@@ -490,12 +633,13 @@ std::string run_part(const ExperimentSpec& spec, const ExperimentPlan& plan, con
   if (!is_shared_by_ranks(spec, d))
     throw InternalError(fmt::format("a round of measurement {}, which is not split", task.measurement));
   if (q.kind == QuantityKind::validation) return validation_rank_part(q, d, task, mine, run);
+  if (d.model.model == Model::heightfield) return heightfield_rank_part(spec, d, task, mine, run, surfaces);
   if (q.kind == QuantityKind::albedo)
     return albedo_part(mine, walk_albedo_cells(albedo_request(spec, q, Model::smith_walk, task.units, d.order_cap, 0, task.seed, run), mine));
   if (q.kind == QuantityKind::vndf) {
     VndfRequest request = vndf_request(spec, d, task.units, task.seed, run);
     request.blocks = mine;
-    return vndf_part(measure_ellipsoid_vndf(EllipsoidTarget(d.alpha.first, d.alpha.second, -1), request));
+    return vndf_part({measure_ellipsoid_vndf(EllipsoidTarget(d.alpha.first, d.alpha.second, -1), request).trace, {}});
   }
   const SpecMaterial& material = spec.material(q.material);
   ScatterOptions options = scatter_request(material, d, task.units, task.seed, run);
@@ -542,7 +686,8 @@ ExperimentPlan received_plan(const nlohmann::json& message, const ExperimentSpec
 
 }  // namespace
 
-int serve_rounds(Ranks& ranks, const std::function<ExperimentSpec()>& load_spec, const RunControl& run) {
+int serve_rounds(Ranks& ranks, const std::function<ExperimentSpec()>& load_spec, const RunControl& run,
+                 SurfaceCache& surfaces) {
   nlohmann::json message = parse_message(ranks.broadcast(""));
   if (message.contains("stop")) return message.at("stop").get<int>();
   const ExperimentSpec spec = load_spec();
@@ -557,7 +702,7 @@ int serve_rounds(Ranks& ranks, const std::function<ExperimentSpec()>& load_spec,
     if (message.contains("stop")) return message.at("stop").get<int>();
     std::string part;
     try {
-      part = run_part(spec, plan, round_task_from_json(message.at("round")), ranks.rank(), ranks.size(), run);
+      part = run_part(spec, plan, round_task_from_json(message.at("round")), ranks.rank(), ranks.size(), run, surfaces);
     } catch (const nlohmann::json::exception& e) {
       throw InternalError(fmt::format("rank {}: a round from the root is malformed: {}", ranks.rank(), e.what()));
     }

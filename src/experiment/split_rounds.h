@@ -9,6 +9,10 @@
 // range, marked partial (resumed like a one-process round). A part whose blocks are not its rank's shard (out
 // of order, missing, overlapping) is a bug: InternalError. The root alone decides the rounds' sizes and when
 // to stop, from the combined rounds; the other ranks only run what it sends (serve_rounds) until it stops.
+// The rounds on an explicit heightfield (a VNDF, per-order lobes) are split the same way: every rank traces
+// the same tile, which it takes from its SurfaceCache (the root's file in DIR/surfaces, which the plan wrote
+// before the ranks got it, or built from the same key: a build is a pure function of its key); a VNDF part
+// also carries the tracer's diagnostics (backfacing, edge grazes, leaked, unresolved), summed in rank order.
 // A drawn validation (a zoo sampler's) is split over ranks too: rank r tallies its shard of the samples'
 // blocks (tally_drawn_samples), the root merges the tallies in rank order (merge_tallies: counts added, the
 // blocks' checks reduced again from the first) and reports from them: validate_sampler's report, bit for bit
@@ -17,13 +21,15 @@
 // own walk from its own seed, scatter/albedo_table.h walk_albedo_cells): rank r computes its shard of the
 // cells, the root joins them in rank order (albedo_table_from_cells): albedo_table's table, bit for bit; a
 // part cancelled part way cancels the round (an albedo round cut short is run again whole).
-// Analytic albedo tables, analytic lobes and dumps are not split: the root runs them while the other ranks
-// wait; a job array's shards (shards.h) split the VNDF, scattering and walk albedo rounds.
+// Analytic albedo tables, analytic lobes, dumps and masking are not split: the root runs them while the other
+// ranks wait; a job array's shards (shards.h) split the rounds is_split names.
 #pragma once
 
+#include "experiment/measures.h"
 #include "experiment/plan.h"
 #include "experiment/ranks.h"
 #include "experiment/spec.h"
+#include "experiment/surface_cache.h"
 #include "measure/vndf.h"
 #include "scatter/albedo_table.h"
 #include "scatter/smith_walk.h"
@@ -38,7 +44,7 @@
 namespace microsim::experiment {
 
 // Whether a decision's rounds are split: a VNDF on the ellipsoid oracle, a scattering or an albedo table by
-// the Smith walk.
+// the Smith walk, a VNDF or a scattering on an explicit heightfield.
 bool is_split(const ExperimentSpec& spec, const Decision& decision);
 // Whether the ranks share a decision's work: is_split's, and a drawn validation's.
 bool is_shared_by_ranks(const ExperimentSpec& spec, const Decision& decision);
@@ -69,11 +75,15 @@ struct RoundSplit {
   const StoredRounds* stored = nullptr;
 };
 
-// The root's side: measure_ellipsoid_vndf and smith_walk_scatter, split. `measurement` is the decision's index
-// in the plan the other ranks received (send_plan).
+// The root's side: measure_ellipsoid_vndf, measure_heightfield_vndf (`label` names the tile: surface_label)
+// and the paths of a scattering round (the Smith walk, or paths on a tile: run_part runs the same on the other
+// ranks), split. `measurement` is the decision's index in the plan the other ranks received (send_plan).
 EllipsoidVndf split_vndf_round(const RoundSplit& split, std::size_t measurement, const EllipsoidTarget& target,
                                const VndfRequest& request);
-ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measurement, const SmithMicrosurface& surface,
+HeightfieldVndf split_heightfield_vndf_round(const RoundSplit& split, std::size_t measurement,
+                                             const microgeom::Heightfield& field, const std::string& label,
+                                             const VndfRequest& request);
+ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measurement, const ScatterPaths& paths,
                                      const ScatterOptions& options);
 // albedo_table of a Smith-walk request, its cells split (`measurement` as above); partial when a part was
 // cancelled.
@@ -85,9 +95,10 @@ std::uint64_t albedo_round_cells(const ExperimentSpec& spec, const Decision& dec
 ValidationReport split_validation(const RoundSplit& split, std::size_t measurement, const SamplerInfo& sampler,
                                   const GGX<double>& ggx, const Vec3<double>& wi, const ValidationOptions& options);
 
-// Rank `rank`'s part of a round (`ranks` ranks) run in this process: its tallies, in the split's encoding.
+// Rank `rank`'s part of a round (`ranks` ranks) run in this process: its tallies, in the split's encoding. A
+// heightfield's tile comes from `surfaces` (a build cancelled there: a part cancelled before its first block).
 std::string run_part(const ExperimentSpec& spec, const ExperimentPlan& plan, const RoundTask& task, int rank, int ranks,
-                     const RunControl& run);
+                     const RunControl& run, SurfaceCache& surfaces);
 // Whether a part was cancelled part way (a prefix of its blocks).
 bool part_is_partial(const std::string& part);
 // Checks that a part holds rank `rank`'s shard of `round`, whole; InternalError naming what it holds.
@@ -100,8 +111,10 @@ void send_stop(Ranks& ranks, int exit_code);
 
 // A rank other than the root: waits for the plan (or a stop), loads the spec (load_spec: called only when a
 // plan came, so a bad spec is reported once, by the root), checks that it is the root's (digest), then runs
-// its shard of every round the root sends until the root stops; returns the exit code the root sent. Throws
-// std::invalid_argument when the spec differs from the root's, InternalError on a malformed message.
-int serve_rounds(Ranks& ranks, const std::function<ExperimentSpec()>& load_spec, const RunControl& run);
+// its shard of every round the root sends until the root stops (tiles from `surfaces`: run_part); returns the
+// exit code the root sent. Throws std::invalid_argument when the spec differs from the root's, InternalError on
+// a malformed message.
+int serve_rounds(Ranks& ranks, const std::function<ExperimentSpec()>& load_spec, const RunControl& run,
+                 SurfaceCache& surfaces);
 
 }  // namespace microsim::experiment

@@ -12,11 +12,6 @@ namespace {
 
 std::string g17(double x) { return fmt::format("{:.17g}", x); }
 
-std::string heights_digest(const microgeom::Heightfield& field) {
-  const std::vector<float>& h = field.heights();
-  return fmt::format("{:016x}", fnv1a(kFnv1aOffset, h.data(), h.size() * sizeof(float)));
-}
-
 std::string metadata_or(const microgeom::Heightfield& field, const std::string& key) {
   const auto it = field.metadata.find(key);
   return it == field.metadata.end() ? "(none)" : it->second;
@@ -41,6 +36,11 @@ std::string canonical_surface_key(const SurfaceKey& k) {
                      k.seed, k.builder_version);
 }
 
+std::string heights_digest(const microgeom::Heightfield& field) {
+  const std::vector<float>& h = field.heights();
+  return fmt::format("{:016x}", fnv1a(kFnv1aOffset, h.data(), h.size() * sizeof(float)));
+}
+
 std::string surface_key_hash(const SurfaceKey& key) { return fmt::format("{:016x}", fnv1a(canonical_surface_key(key))); }
 
 microgeom::AssemblyParams assembly_params(const SurfaceKey& key) {
@@ -57,7 +57,8 @@ microgeom::AssemblyParams assembly_params(const SurfaceKey& key) {
   return p;
 }
 
-SurfaceCache::SurfaceCache(std::filesystem::path directory) : directory_(std::move(directory)) {}
+SurfaceCache::SurfaceCache(std::filesystem::path directory, CacheFiles files)
+    : directory_(std::move(directory)), files_(files) {}
 
 std::filesystem::path SurfaceCache::path_for(const SurfaceKey& key) const {
   return directory_.empty() ? std::filesystem::path{} : directory_ / (surface_key_hash(key) + ".exr");
@@ -105,7 +106,7 @@ microgeom::Heightfield SurfaceCache::build(const SurfaceKey& key, const RunContr
   ++builds_;
   field.metadata["cache_key"] = canonical_surface_key(key);
   field.metadata["cache_heights"] = heights_digest(field);
-  const std::filesystem::path path = path_for(key);
+  const std::filesystem::path path = files_ == CacheFiles::read_write ? path_for(key) : std::filesystem::path{};
   if (!path.empty()) {
     std::filesystem::create_directories(directory_);
     microgeom::save_heightmap_exr(path, field);

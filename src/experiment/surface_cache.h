@@ -8,8 +8,10 @@
 // holds another key (a hash collision, a file copied in) or heights that changed since it was written is
 // rebuilt (and rewritten), never silently used; every such event is in events().
 //
-// Without a directory the cache lives in memory only (`run --dry-run`, `plan`). Surfaces stay in memory for
-// the cache's lifetime (references returned stay valid). Not thread-safe: one caller at a time.
+// Without a directory the cache lives in memory only (`run --dry-run`, `plan`). A read-only cache (the ranks
+// of an MPI run other than the root, which own no file of DIR) uses a valid file of its directory but builds
+// in memory what it lacks, never writing. Surfaces stay in memory for the cache's lifetime (references returned
+// stay valid). Not thread-safe: one caller at a time.
 #pragma once
 
 #include "core/run_control.h"
@@ -42,13 +44,18 @@ struct SurfaceKey {
 // (numbers with 17 significant digits: equal keys, equal strings).
 std::string canonical_surface_key(const SurfaceKey& key);
 std::string surface_key_hash(const SurfaceKey& key);  // 16 hex digits
+// FNV-1a of a surface's heights (their float bytes), 16 hex digits: what names a heightmap's content.
+std::string heights_digest(const microgeom::Heightfield& field);
 // The build parameters of a key (throws std::invalid_argument for an unknown NDF matching).
 microgeom::AssemblyParams assembly_params(const SurfaceKey& key);
+
+// Whether a cache writes the files of the surfaces it builds.
+enum class CacheFiles { read_write, read_only };
 
 class SurfaceCache {
 public:
   // `directory`: where the cache files live (created on the first build); empty: memory only.
-  explicit SurfaceCache(std::filesystem::path directory = {});
+  explicit SurfaceCache(std::filesystem::path directory = {}, CacheFiles files = CacheFiles::read_write);
 
   // The surface of `key`: from memory, else its cache file, else built (and its file written). Throws
   // Cancelled when run.cancel stops the build, std::invalid_argument for parameters the assembly refuses,
@@ -66,6 +73,7 @@ private:
   microgeom::Heightfield build(const SurfaceKey& key, const RunControl& run);
 
   std::filesystem::path directory_;
+  CacheFiles files_ = CacheFiles::read_write;
   std::map<std::string, microgeom::Heightfield> surfaces_;  // by hash, or "file:" path
   std::size_t builds_ = 0;
   std::vector<std::string> events_;
