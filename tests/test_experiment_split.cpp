@@ -14,7 +14,10 @@
 //   - a VNDF and per-order lobes on explicit heightfields (an assembly's tile, a heightmap), each rank with its
 //     own surface cache (the tile built again there): 2 and 3 ranks and 3 shards give the one-process results;
 //     negative controls: a rank tracing another tile (another seed) moves the counts, parts swapped are an
-//     InternalError, a rank whose tile build is cancelled cuts the round where its shard begins.
+//     InternalError, a rank whose tile build is cancelled cuts the round where its shard begins;
+//   - masking on a heightfield (G1, G2 for two lights, conditional bins), its rounds over 2 and 3 ranks and its
+//     first round over 3 shards: the one-process sums and values; parts swapped: an InternalError; a cancelled
+//     rank drops the round.
 #include "core/errors.h"
 #include "experiment/plan.h"
 #include "experiment/run.h"
@@ -531,4 +534,81 @@ TEST_F(ExperimentSplitHeightfield, ARankThatReadsAnotherHeightmapRefusesIt) {
   }
   SurfaceCache fresh;
   EXPECT_FALSE(part_is_partial(run_part(*spec_, *plan_, task, 1, 2, RunControl{1, nullptr, {}}, fresh)));
+}
+
+// ---- masking on a heightfield: every light's sums of a shard of the round's blocks ---------------------------
+
+// G1, G2 for two lights and conditional masking on a 128^2 smith assembly (built from the run's seed: each rank
+// builds its own), in rounds of several blocks.
+ExperimentSpec masking_split_spec() {
+  return parse_spec_toml(R"(
+seed = 27
+[[material]]
+name = "m"
+alpha = 0.5
+type = "mirror"
+[[quantity]]
+kind = "masking"
+material = "m"
+what = ["g1", "g2", "conditional"]
+theta = [60]
+light_theta = [30, 70]
+light_phi = [180]
+bins = 4
+resolution = 128
+target_standard_error = 0.0065
+)", "masking_split.toml");
+}
+
+// The masking values (without timings) and their exact sums.
+nlohmann::json masking_measured(const ExperimentResults& results) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const MeasurementResult& m : results.measurements) {
+    nlohmann::json values = m.values;
+    values["masking"].erase("seconds");
+    nlohmann::json rounds = nlohmann::json::array();
+    for (const RoundRecord& r : m.rounds) rounds.push_back({r.units, r.planned, r.blocks_done, r.seed, r.achieved, r.partial});
+    out.push_back({{"values", values}, {"rounds", rounds}, {"achieved", m.achieved}, {"met", m.met}});
+  }
+  return out;
+}
+
+TEST(ExperimentSplitMasking, RanksAndShardsGiveTheOneProcessSumsBitForBit) {
+  const ExperimentSpec spec = masking_split_spec();
+  const ExperimentPlan plan = plan_with_small_pilots(spec);
+  ASSERT_EQ(plan.decisions.at(0).model.model, Model::heightfield);
+  const ExperimentResults alone = run_in_one_process(spec, plan);
+  const MeasurementResult& m = alone.measurements.at(0);
+  ASSERT_TRUE(m.ran && m.met);
+  ASSERT_TRUE(m.values["masking"].contains("parts"));
+  EXPECT_EQ(m.values["masking"]["parts"].size(), 2u) << "one per light";
+  EXPECT_GE(m.rounds.front().blocks_done, 3u) << "a block per rank";
+  EXPECT_NE(m.rounds.front().blocks_done % 3, 0u) << "an uneven split over 3 ranks";
+  const std::string expected = masking_measured(alone).dump();
+  for (int ranks : {2, 3}) {
+    const SplitRun split = run_split(spec, plan, ranks);
+    EXPECT_EQ(split.internal_error, "");
+    ASSERT_FALSE(split.results.partial);
+    EXPECT_EQ(masking_measured(split.results).dump(), expected) << ranks << " ranks";
+  }
+  std::vector<ShardParts> shards;
+  for (std::uint64_t k = 1; k <= 3; ++k) {
+    SurfaceCache surfaces;
+    shards.push_back(run_shard(spec, plan, spec.seed, k, 3, RunControl{1, nullptr, {}}, surfaces));
+  }
+  ASSERT_EQ(shards[0].tasks.size(), 1u);
+  EXPECT_EQ(shards[0].tasks[0].surface_seed, spec.seed);
+  StoredRounds stored = merge_shards(shards, {"1", "2", "3"});
+  RunOptions o;
+  o.run = RunControl{1, nullptr, {}};
+  o.stored = &stored;
+  EXPECT_EQ(masking_measured(run_experiment(spec, plan, o)).dump(), expected);
+  // Negative controls: parts out of rank order are an InternalError; a cancelled rank drops the round.
+  std::swap(stored.parts[0][0], stored.parts[0][1]);
+  EXPECT_THROW(run_experiment(spec, plan, o), InternalError);
+  const SplitRun reversed = run_split(spec, plan, 3, [](std::vector<std::string>& p) { std::reverse(p.begin(), p.end()); });
+  EXPECT_NE(reversed.internal_error, "");
+  const SplitRun cut = run_split(spec, plan, 3, {}, 1);
+  ASSERT_TRUE(cut.results.partial);
+  EXPECT_TRUE(cut.results.measurements.at(0).rounds.empty());
 }

@@ -94,7 +94,7 @@ HeightfieldMasking::HeightfieldMasking(const SpecQuantity& q, const Decision& d,
       surface_(std::make_unique<MaskingSurface>(field_, surface_text_, HeightfieldGeometry::triangles, true)),
       seed_(seed) {}
 
-MaskingRequest HeightfieldMasking::request(std::size_t light, std::uint64_t end, const RunControl& run) const {
+MaskingRequest HeightfieldMasking::request(std::size_t light, const BlockRange& blocks, const RunControl& run) const {
   MaskingRequest r;
   r.theta_deg = decision_.view.theta_deg;
   r.phi_deg = decision_.view.phi_deg;
@@ -105,26 +105,35 @@ MaskingRequest HeightfieldMasking::request(std::size_t light, std::uint64_t end,
   r.samples = kMaskingRunSamples;
   r.seed = seed_;
   r.bins = quantity_.bins;
-  r.blocks = BlockRange{blocks_done_, end};
+  r.blocks = blocks;
   r.run = run;
   return r;
 }
 
-bool HeightfieldMasking::add_blocks(std::uint64_t end, const RunControl& run) {
-  if (end <= blocks_done_) return true;
+std::optional<std::vector<SurfaceMasking>> HeightfieldMasking::measure_round(const BlockRange& blocks,
+                                                                             const RunControl& run) const {
   std::vector<SurfaceMasking> round;
   for (std::size_t k = 0; k < masking_call_lights(quantity_).size(); ++k) {
-    if (run.cancelled()) return false;
-    round.push_back(measure_masking(*surface_, request(k, end, run)));
-    if (round.back().result.partial) return false;
+    if (run.cancelled()) return std::nullopt;
+    round.push_back(measure_masking(*surface_, request(k, blocks, run)));
+    if (round.back().result.partial) return std::nullopt;
   }
-  for (std::size_t k = 0; k < round.size(); ++k) {
-    rays_ += round[k].result.rays;
-    seconds_ += round[k].result.seconds;
+  return round;
+}
+
+bool HeightfieldMasking::add_blocks(std::uint64_t end, const RunControl& run, const MaskingRound& measure) {
+  if (end <= blocks_done_) return true;
+  const BlockRange blocks{blocks_done_, end};
+  std::optional<std::vector<SurfaceMasking>> round = measure ? measure(blocks) : measure_round(blocks, run);
+  if (!round) return false;
+  for (std::size_t k = 0; k < round->size(); ++k) {
+    SurfaceMasking& r = (*round)[k];
+    rays_ += r.result.rays;
+    seconds_ += r.result.seconds;
     if (parts_.size() <= k) {
-      parts_.push_back(std::move(round[k]));
+      parts_.push_back(std::move(r));
     } else {
-      parts_[k].result.sums += round[k].result.sums;
+      parts_[k].result.sums += r.result.sums;
       parts_[k].provenance.blocks.end = end;
     }
   }
@@ -136,7 +145,7 @@ std::vector<MaskingResult> HeightfieldMasking::results() const {
   if (blocks_done_ == 0) throw std::logic_error("HeightfieldMasking::results: no blocks sampled");
   std::vector<MaskingResult> out;
   for (std::size_t k = 0; k < parts_.size(); ++k) {
-    const MaskingRequest r = request(k, blocks_done_, RunControl{});
+    const MaskingRequest r = request(k, BlockRange{blocks_done_, blocks_done_}, RunControl{});
     MaskingOptions o = masking_options(r);
     o.blocks.reset();  // the sums are of blocks [0, blocks_done_), passed below
     out.push_back(masking_result_from_sums(field_, surface_->analytic, surface_->empirical,

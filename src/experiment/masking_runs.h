@@ -25,6 +25,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -45,6 +46,11 @@ AnalyticSmith analytic_smith(const SpecMaterial& material, std::pair<double, dou
 // "lambda", "g1": {...}, "g2": [{"light", "value", "separable", ...}]}}, every standard error 0.
 nlohmann::json analytic_masking_json(const SpecQuantity& quantity, const SpecMaterial& material, const Decision& decision);
 
+// A round's measurement of some blocks for every light (one SurfaceMasking per light, in call order, its
+// sums exact): this process's (HeightfieldMasking::measure_round) or the ranks' combined (split_rounds.h).
+// nullopt: cancelled (nothing of the round is kept).
+using MaskingRound = std::function<std::optional<std::vector<SurfaceMasking>>(const BlockRange& blocks)>;
+
 // The heightfield measurement of one decision: its surface (`field`, which must outlive it: the surface
 // cache's), its scene, and the exact sums of the blocks
 // [0, blocks_done()) of `seed` per light (one when the quantity has no G2).
@@ -55,8 +61,11 @@ public:
   HeightfieldMasking(const HeightfieldMasking&) = delete;
   HeightfieldMasking& operator=(const HeightfieldMasking&) = delete;
 
-  // Samples blocks [blocks_done(), end) for every light and adds them. False (nothing added) when cancelled.
-  bool add_blocks(std::uint64_t end, const RunControl& run);
+  // Samples blocks [blocks_done(), end) for every light (by `round`; empty: measure_round here) and adds them.
+  // False (nothing added) when cancelled.
+  bool add_blocks(std::uint64_t end, const RunControl& run, const MaskingRound& round = {});
+  // This process's measurement of `blocks` for every light; nullopt when cancelled.
+  std::optional<std::vector<SurfaceMasking>> measure_round(const BlockRange& blocks, const RunControl& run) const;
   std::uint64_t seed() const { return seed_; }
   std::uint64_t blocks_done() const { return blocks_done_; }
   std::uint64_t samples() const { return blocks_done_ * kSamplesPerBlock; }
@@ -74,7 +83,7 @@ public:
   void restore(const nlohmann::json& values);
 
 private:
-  MaskingRequest request(std::size_t light, std::uint64_t end, const RunControl& run) const;
+  MaskingRequest request(std::size_t light, const BlockRange& blocks, const RunControl& run) const;
   const SpecQuantity& quantity_;
   Decision decision_;
   const microgeom::Heightfield& field_;  // the surface cache's (surface_cache.h), which outlives the measurement
@@ -94,12 +103,13 @@ double masking_worst_standard_error(const SpecQuantity& quantity, const MaskingR
 void plan_masking(const ExperimentSpec& spec, std::size_t index, const PlanOptions& options, SurfaceCache& surfaces,
                   std::vector<Decision>& out);
 
-// Runs (or continues: m holds an interrupted run's completed rounds) a masking decision (run_masking.cpp):
-// analytic, the closed forms once; heightfield, the surface of `seed` (the run's) acquired, then rounds of
-// blocks of `sample_seed`, the first of `first_units` samples, each next of next_round_units, until the
-// largest standard error is at most the target or `max_rounds` rounds ran. A cancelled round is dropped
+// Runs (or continues: m holds an interrupted run's completed rounds) masking decision `index` of the plan
+// (run_masking.cpp): analytic, the closed forms once; heightfield, the surface of `seed` (the run's)
+// acquired, then rounds of blocks of `sample_seed`, the first of `first_units` samples, each next of
+// next_round_units, until the largest standard error is at most the target or `max_rounds` rounds ran; each
+// round split over options.ranks, or its stored parts (split_rounds.h). A cancelled round is dropped
 // (m.partial; the completed rounds are kept in m.values' parts).
-void run_masking(const ExperimentSpec& spec, std::uint64_t seed, std::uint64_t sample_seed, std::uint64_t first_units,
-                 const RunOptions& options, SurfaceCache& surfaces, MeasurementResult& m);
+void run_masking(const ExperimentSpec& spec, std::size_t index, std::uint64_t seed, std::uint64_t sample_seed,
+                 std::uint64_t first_units, const RunOptions& options, SurfaceCache& surfaces, MeasurementResult& m);
 
 }  // namespace microsim::experiment

@@ -485,7 +485,7 @@ MeasurementResult run_decision(const ExperimentSpec& spec, const Decision& d, st
   if (!d.runnable) return m;
   m.ran = true;
   const auto start = std::chrono::steady_clock::now();
-  if (q.kind == QuantityKind::masking) run_masking(spec, seed, round_seed(seed, index, 0), first_units(d, o), o, surfaces, m);
+  if (q.kind == QuantityKind::masking) run_masking(spec, index, seed, round_seed(seed, index, 0), first_units(d, o), o, surfaces, m);
   else if (d.model.model == Model::heightfield) run_heightfield(spec, seed, index, o, surfaces, m);
   else if (vndf) run_vndf(spec, seed, index, o, m);
   else if (q.kind == QuantityKind::validation) run_validation(spec, seed, index, o, m);
@@ -520,11 +520,15 @@ std::vector<RoundTask> first_split_rounds(const ExperimentSpec& spec, const Expe
     if (!d.runnable || !is_shared_by_ranks(spec, d)) continue;
     const QuantityKind kind = spec.quantities[d.quantity].kind;
     const bool vndf = kind == QuantityKind::vndf;  // capped as next_round caps them
-    const std::uint64_t units = std::min(first_units(d, planned), vndf ? kMaxRays : std::numeric_limits<std::uint64_t>::max());
-    const std::uint64_t block = vndf ? kRaysPerBlock : kind == QuantityKind::validation ? kSampleBlock : kPathsPerBlock;
+    std::uint64_t units = std::min(first_units(d, planned), vndf ? kMaxRays : std::numeric_limits<std::uint64_t>::max());
+    const std::uint64_t block = vndf                                 ? kRaysPerBlock
+                                : kind == QuantityKind::validation ? kSampleBlock
+                                : kind == QuantityKind::masking    ? kSamplesPerBlock
+                                                                   : kPathsPerBlock;
     const BlockRange blocks = kind == QuantityKind::albedo ? BlockRange{0, albedo_round_cells(spec, d)}  // its cells
                                                            : BlockRange{0, units / block + (units % block != 0)};
-    tasks.push_back({i, units, round_seed(seed, i, 0), blocks});
+    if (kind == QuantityKind::masking) units = kMaskingRunSamples;  // its rounds are block ranges of one run
+    tasks.push_back({i, units, round_seed(seed, i, 0), blocks, kind == QuantityKind::masking ? seed : 0});
   }
   return tasks;
 }

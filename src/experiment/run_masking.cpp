@@ -2,6 +2,7 @@
 #include "experiment/masking_runs.h"
 #include "core/wall_clock.h"
 #include "experiment/masking_surface.h"
+#include "experiment/split_rounds.h"
 
 #include <chrono>
 
@@ -22,7 +23,8 @@ void run_analytic_masking(const ExperimentSpec& spec, MeasurementResult& m) {
 
 // Rounds of blocks until the target standard error is met (the completed rounds of an interrupted run are
 // restored from m.values first).
-void run_heightfield_rounds(HeightfieldMasking& h, std::uint64_t first_units, const RunOptions& o, MeasurementResult& m) {
+void run_heightfield_rounds(HeightfieldMasking& h, std::uint64_t first_units, const RunOptions& o, const MaskingRound& round,
+                            MeasurementResult& m) {
   if (!m.rounds.empty()) h.restore(m.values);
   m.partial = false;
   std::uint64_t n = m.rounds.empty() ? first_units : next_round_units(m.units, m.achieved, m.target);
@@ -30,7 +32,7 @@ void run_heightfield_rounds(HeightfieldMasking& h, std::uint64_t first_units, co
     const auto clock = std::chrono::steady_clock::now();
     const std::uint64_t before = h.samples();
     const std::uint64_t end = h.blocks_done() + (n + kSamplesPerBlock - 1) / kSamplesPerBlock;
-    if (!h.add_blocks(end, o.run)) {
+    if (!h.add_blocks(end, o.run, round)) {
       m.partial = true;
       break;
     }
@@ -46,8 +48,8 @@ void run_heightfield_rounds(HeightfieldMasking& h, std::uint64_t first_units, co
 
 }  // namespace
 
-void run_masking(const ExperimentSpec& spec, std::uint64_t seed, std::uint64_t sample_seed, std::uint64_t first_units,
-                 const RunOptions& o, SurfaceCache& surfaces, MeasurementResult& m) {
+void run_masking(const ExperimentSpec& spec, std::size_t index, std::uint64_t seed, std::uint64_t sample_seed,
+                 std::uint64_t first_units, const RunOptions& o, SurfaceCache& surfaces, MeasurementResult& m) {
   const Decision& d = m.decision;
   if (d.model.model == Model::analytic) return run_analytic_masking(spec, m);
   const SpecQuantity& q = spec.quantities[d.quantity];
@@ -60,7 +62,9 @@ void run_masking(const ExperimentSpec& spec, std::uint64_t seed, std::uint64_t s
     m.partial = true;
     return;
   }
-  run_heightfield_rounds(*h, first_units, o, m);
+  run_heightfield_rounds(*h, first_units, o, [&](const BlockRange& blocks) {
+    return split_masking_round({o.ranks, o.stored}, index, *h, seed, blocks, o.run);
+  }, m);
 }
 
 }  // namespace microsim::experiment

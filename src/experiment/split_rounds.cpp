@@ -4,6 +4,8 @@
 
 #include "core/errors.h"
 #include "experiment/heightfield_measures.h"
+#include "experiment/masking_runs.h"
+#include "experiment/masking_surface.h"
 #include "experiment/measures.h"
 #include "experiment/run.h"
 #include "core/run_control.h"
@@ -340,35 +342,89 @@ AlbedoTable combine_albedo_parts(const AlbedoTableRequest& request, AlbedoCells 
 
 // ---- validation parts (a drawn validation's tally) ---------------------------------------------------------
 
-// A rank's tally of its blocks: the header of every part (part_is_partial and check_whole_part read it), then
-// tally_json's text (its length, its bytes padded to whole words); a cancelled part is the header alone.
-std::string validation_part(const BlockRange& blocks, const std::optional<battery::Tally>& tally) {
+// A part whose content is text (a JSON document): the header of every part (part_is_partial and
+// check_whole_part read it), then the text's length and its bytes padded to whole words; a cancelled part
+// (nullopt) is the header alone, with no block.
+std::string text_part(const BlockRange& blocks, const std::optional<std::string>& text) {
   Words w;
-  put_header(w, tally ? blocks : BlockRange{blocks.begin, blocks.begin}, !tally);
-  if (!tally) return words_to_bytes(w);
-  const std::string text = tally_json(*tally).dump();
-  w.push_back(text.size());
-  std::string bytes = words_to_bytes(w) + text;
+  put_header(w, text ? blocks : BlockRange{blocks.begin, blocks.begin}, !text);
+  if (!text) return words_to_bytes(w);
+  w.push_back(text->size());
+  std::string bytes = words_to_bytes(w) + *text;
   bytes.resize((bytes.size() + sizeof(std::uint64_t) - 1) / sizeof(std::uint64_t) * sizeof(std::uint64_t), ' ');
   return bytes;
 }
 
-// Rank r's tally (its blocks checked: read_header), or nullopt when it was cancelled.
-std::optional<battery::Tally> read_validation_part(const std::string& bytes, const std::vector<std::size_t>& cells,
-                                                   const BlockRange& round, int rank, int ranks) {
+// Rank r's text part: its blocks (checked: read_header) and its JSON, or nullopt when it was cancelled.
+std::optional<std::pair<BlockRange, nlohmann::json>> read_text_part(const std::string& bytes, const BlockRange& round,
+                                                                    int rank, int ranks) {
   PartReader in(bytes, rank);
   bool partial = false;
   const BlockRange blocks = read_header(in, round, rank, ranks, partial);
   if (partial) return std::nullopt;
   const std::string text = in.next_text(in.next());
   try {
-    return tally_from_json(nlohmann::json::parse(text), cells, blocks.size(), microsim::PartReader("validation part"),
-                           fmt::format("rank {}", rank));
+    return std::pair{blocks, nlohmann::json::parse(text)};
   } catch (const nlohmann::json::exception& e) {
     in.fail(e.what());
-  } catch (const HistogramMergeError& e) {
-    in.fail(e.what());
   }
+}
+
+// A rank's tally of its blocks (tally_json), or a cancelled part.
+std::string validation_part(const BlockRange& blocks, const std::optional<battery::Tally>& tally) {
+  return text_part(blocks, tally ? std::optional<std::string>(tally_json(*tally).dump()) : std::nullopt);
+}
+
+// Rank r's tally (its blocks checked), or nullopt when it was cancelled.
+std::optional<battery::Tally> read_validation_part(const std::string& bytes, const std::vector<std::size_t>& cells,
+                                                   const BlockRange& round, int rank, int ranks) {
+  const auto part = read_text_part(bytes, round, rank, ranks);
+  if (!part) return std::nullopt;
+  try {
+    return tally_from_json(part->second, cells, part->first.size(), microsim::PartReader("validation part"),
+                           fmt::format("rank {}", rank));
+  } catch (const HistogramMergeError& e) {
+    throw InternalError(fmt::format("the part of rank {} of a split validation is malformed: {}", rank, e.what()));
+  }
+}
+
+// ---- heightfield masking parts (every light's exact sums of a shard of the round's blocks) ---------------------
+
+std::string masking_round_part(const BlockRange& blocks, const std::optional<std::vector<SurfaceMasking>>& round) {
+  if (!round) return text_part(blocks, std::nullopt);
+  nlohmann::json lights = nlohmann::json::array();
+  for (const SurfaceMasking& light : *round) lights.push_back(masking_part_json(light));
+  return text_part(blocks, lights.dump());
+}
+
+// Rank r's sums added to `sum` (the ranks' before it, per light); false when it was cancelled.
+bool add_masking_part(std::vector<SurfaceMasking>& sum, const std::string& bytes, const BlockRange& round, int rank,
+                      int ranks) {
+  const auto part = read_text_part(bytes, round, rank, ranks);
+  if (!part) return false;
+  try {
+    if (!part->second.is_array() || part->second.size() != sum.size()) throw std::invalid_argument("not one part per light");
+    for (std::size_t k = 0; k < sum.size(); ++k) {
+      const MaskingPart light = read_masking_part(part->second[k]);
+      sum[k].result.sums += light.sums;
+      sum[k].result.rays += light.sums.rays;
+      sum[k].provenance.blocks.end = part->first.end;
+    }
+  } catch (const std::exception& e) {  // a malformed part, or sums of other bins
+    throw InternalError(fmt::format("the part of rank {} of a split masking round is malformed: {}", rank, e.what()));
+  }
+  return true;
+}
+
+// The parts from `first` on added to `own` (rank 0's, or the stored round's start) in rank order; nullopt when
+// any part was cancelled.
+std::optional<std::vector<SurfaceMasking>> combine_masking_parts(std::optional<std::vector<SurfaceMasking>> own,
+                                                                 const std::vector<std::string>& parts,
+                                                                 const BlockRange& round, int first) {
+  if (!own) return std::nullopt;
+  for (int r = first; r < int(parts.size()); ++r)
+    if (!add_masking_part(*own, parts[std::size_t(r)], round, r, int(parts.size()))) return std::nullopt;
+  return own;
 }
 
 // This rank's tally of its blocks of a validation, or nullopt when cancelled.
@@ -473,7 +529,8 @@ bool is_split(const ExperimentSpec& spec, const Decision& decision) {
   const Model model = decision.model.model;
   return (kind == QuantityKind::vndf && model == Model::ellipsoid_oracle) ||
          ((kind == QuantityKind::scattering || kind == QuantityKind::albedo) && model == Model::smith_walk) ||
-         ((kind == QuantityKind::vndf || kind == QuantityKind::scattering) && model == Model::heightfield);
+         ((kind == QuantityKind::vndf || kind == QuantityKind::scattering || kind == QuantityKind::masking) &&
+          model == Model::heightfield);
 }
 
 bool is_shared_by_ranks(const ExperimentSpec& spec, const Decision& decision) {
@@ -525,6 +582,21 @@ ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measur
       [&](ScatterHistogram own, const std::vector<std::string>& parts, int first) {
         return combine_scatter_parts(std::move(own), parts, round, first);
       });
+}
+
+std::optional<std::vector<SurfaceMasking>> split_masking_round(const RoundSplit& split, std::size_t measurement,
+                                                               const HeightfieldMasking& h, std::uint64_t surface_seed,
+                                                               const BlockRange& blocks, const RunControl& run) {
+  const RoundTask task{measurement, kMaskingRunSamples, h.seed(), blocks, surface_seed};
+  if (const std::vector<std::string>* stored = stored_parts(split.stored, task))
+    return combine_masking_parts(h.measure_round({blocks.begin, blocks.begin}, run), *stored, blocks, 0);
+  if (split.ranks == nullptr || split.ranks->size() == 1) return h.measure_round(blocks, run);
+  split.ranks->broadcast(task_message(task));
+  const BlockRange mine = rank_blocks(blocks, 0, split.ranks->size());
+  std::optional<std::vector<SurfaceMasking>> own = h.measure_round(mine, run);
+  const std::vector<std::string> parts = split.ranks->gather(masking_round_part(mine, own));
+  check_part_count(parts, split.ranks->size());
+  return combine_masking_parts(std::move(own), parts, blocks, 1);
 }
 
 AlbedoTable split_albedo_round(const RoundSplit& split, std::size_t measurement, const AlbedoTableRequest& request) {
@@ -599,6 +671,22 @@ std::string validation_rank_part(const SpecQuantity& q, const Decision& d, const
   return validation_part(mine, own_tally(*sampler, *bins, options, mine));
 }
 
+// A rank's part of a heightfield masking round: the surface of the run's seed from `surfaces` (a build cancelled:
+// a cancelled part), then its shard of the blocks for every light.
+std::string masking_rank_part(const ExperimentSpec& spec, const Decision& d, const RoundTask& task, const BlockRange& mine,
+                              const RunControl& run, SurfaceCache& surfaces) {
+  const SpecQuantity& q = spec.quantities[d.quantity];
+  const SpecMaterial& material = spec.material(q.material);
+  const microgeom::Heightfield* field = nullptr;
+  try {
+    field = &acquire_masking_surface(q, material, d.alpha, task.surface_seed, surfaces, run);
+  } catch (const Cancelled&) {
+    return masking_round_part(mine, std::nullopt);
+  }
+  const HeightfieldMasking h(q, d, *field, masking_surface_text(q, material, d.alpha, task.surface_seed), task.seed);
+  return masking_round_part(mine, h.measure_round(mine, run));
+}
+
 // A rank's part of a round on an explicit heightfield: the tile from `surfaces` (its build cancelled: a part
 // cancelled before its first block), then its shard of the VNDF's rays or of the paths.
 std::string heightfield_rank_part(const ExperimentSpec& spec, const Decision& d, const RoundTask& task,
@@ -633,6 +721,7 @@ std::string run_part(const ExperimentSpec& spec, const ExperimentPlan& plan, con
   if (!is_shared_by_ranks(spec, d))
     throw InternalError(fmt::format("a round of measurement {}, which is not split", task.measurement));
   if (q.kind == QuantityKind::validation) return validation_rank_part(q, d, task, mine, run);
+  if (q.kind == QuantityKind::masking) return masking_rank_part(spec, d, task, mine, run, surfaces);
   if (d.model.model == Model::heightfield) return heightfield_rank_part(spec, d, task, mine, run, surfaces);
   if (q.kind == QuantityKind::albedo)
     return albedo_part(mine, walk_albedo_cells(albedo_request(spec, q, Model::smith_walk, task.units, d.order_cap, 0, task.seed, run), mine));
@@ -662,14 +751,17 @@ void check_whole_part(const std::string& part, const BlockRange& round, int rank
 }
 
 nlohmann::json round_task_json(const RoundTask& task) {
-  return {{"measurement", task.measurement}, {"units", task.units}, {"seed", task.seed},
-          {"blocks", {task.blocks.begin, task.blocks.end}}};
+  nlohmann::json j{{"measurement", task.measurement}, {"units", task.units}, {"seed", task.seed},
+                   {"blocks", {task.blocks.begin, task.blocks.end}}};
+  if (task.surface_seed != 0) j["surface_seed"] = task.surface_seed;
+  return j;
 }
 
 RoundTask round_task_from_json(const nlohmann::json& task) {
   return {task.at("measurement").get<std::size_t>(), task.at("units").get<std::uint64_t>(),
           task.at("seed").get<std::uint64_t>(),
-          BlockRange{task.at("blocks").at(0).get<std::uint64_t>(), task.at("blocks").at(1).get<std::uint64_t>()}};
+          BlockRange{task.at("blocks").at(0).get<std::uint64_t>(), task.at("blocks").at(1).get<std::uint64_t>()},
+          task.value("surface_seed", std::uint64_t(0))};
 }
 
 namespace {

@@ -21,8 +21,11 @@
 // own walk from its own seed, scatter/albedo_table.h walk_albedo_cells): rank r computes its shard of the
 // cells, the root joins them in rank order (albedo_table_from_cells): albedo_table's table, bit for bit; a
 // part cancelled part way cancels the round (an albedo round cut short is run again whole).
-// Analytic albedo tables, analytic lobes, dumps and masking are not split: the root runs them while the other
-// ranks wait; a job array's shards (shards.h) split the rounds is_split names.
+// A heightfield masking round (successive block ranges of one run) is split the same way: every rank measures
+// its shard of the blocks for every light on the same surface, the exact sums (MaskingSums) added in rank
+// order; a part cancelled part way drops the round (as in one process).
+// Analytic albedo tables, analytic lobes, analytic masking and dumps are not split: the root runs them while
+// the other ranks wait; a job array's shards (shards.h) split the first rounds of what is_shared_by_ranks names.
 #pragma once
 
 #include "experiment/measures.h"
@@ -30,6 +33,7 @@
 #include "experiment/ranks.h"
 #include "experiment/spec.h"
 #include "experiment/surface_cache.h"
+#include "measure/masking.h"
 #include "measure/vndf.h"
 #include "scatter/albedo_table.h"
 #include "scatter/smith_walk.h"
@@ -43,8 +47,10 @@
 
 namespace microsim::experiment {
 
+class HeightfieldMasking;  // masking_runs.h (which includes run.h, and run.h this header)
+
 // Whether a decision's rounds are split: a VNDF on the ellipsoid oracle, a scattering or an albedo table by
-// the Smith walk, a VNDF or a scattering on an explicit heightfield.
+// the Smith walk, a VNDF, a scattering or masking on an explicit heightfield.
 bool is_split(const ExperimentSpec& spec, const Decision& decision);
 // Whether the ranks share a decision's work: is_split's, and a drawn validation's.
 bool is_shared_by_ranks(const ExperimentSpec& spec, const Decision& decision);
@@ -52,11 +58,13 @@ bool is_shared_by_ranks(const ExperimentSpec& spec, const Decision& decision);
 // Rank `rank`'s shard of `round` (rank 0 .. ranks - 1): shard rank + 1 of `ranks`, offset to round.begin.
 BlockRange rank_blocks(const BlockRange& round, int rank, int ranks);
 
-// One round: a measurement's (its index in the plan), of `units` units of `seed`, over these blocks.
+// One round: a measurement's (its index in the plan), of `units` units of `seed`, over these blocks; a masking
+// round on a heightfield also names the run's seed, which its assembly is built from (0 otherwise).
 struct RoundTask {
   std::size_t measurement = 0;
   std::uint64_t units = 0, seed = 0;
   BlockRange blocks;
+  std::uint64_t surface_seed = 0;
   bool operator==(const RoundTask&) const = default;
 };
 nlohmann::json round_task_json(const RoundTask& task);
@@ -85,6 +93,12 @@ HeightfieldVndf split_heightfield_vndf_round(const RoundSplit& split, std::size_
                                              const VndfRequest& request);
 ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measurement, const ScatterPaths& paths,
                                      const ScatterOptions& options);
+// A heightfield masking round (blocks `blocks` of h's run, every light), split: each rank measures its shard
+// (the surface of `surface_seed`, the run's, from its own cache), the sums added in rank order: h's own
+// measure_round, bit for bit. nullopt when any part was cancelled (the round is dropped, as in one process).
+std::optional<std::vector<SurfaceMasking>> split_masking_round(const RoundSplit& split, std::size_t measurement,
+                                                               const HeightfieldMasking& h, std::uint64_t surface_seed,
+                                                               const BlockRange& blocks, const RunControl& run);
 // albedo_table of a Smith-walk request, its cells split (`measurement` as above); partial when a part was
 // cancelled.
 AlbedoTable split_albedo_round(const RoundSplit& split, std::size_t measurement, const AlbedoTableRequest& request);

@@ -2,7 +2,8 @@
 // scattering measurement, split over the ranks; an analytic albedo table, run by rank 0 alone) against the
 // one-process run: results.json's measured values (timings and the host's rates aside) and every histogram
 // (vndf-K.exr, scattering-K.exr) and table (albedo-K.csv) equal, bit for bit; stdout printed once, by rank 0.
-// The comparison can fail: a run with another seed differs. Under mpirun a bad spec is one message and exit 2.
+// The comparison can fail: a run with another seed differs. Per-order lobes on an assembly's tile: the ranks
+// trace rank 0's tile, the one-process results again. Under mpirun a bad spec is one message and exit 2.
 // Built only with MPI and mpirun (CMakeLists.txt); the library-level tests of the split are
 // tests/test_experiment_split.cpp (ranks as threads, with the negative controls of a wrong combination).
 #include "../run_directory_contents.h"
@@ -60,6 +61,38 @@ TEST(RunMpi, TwoAndThreeRanksWriteTheOneProcessResultsBitForBit) {
   ASSERT_EQ(other_seed.exit_code, 0) << other_seed.err;
   EXPECT_NE(microsim::test::run_directory_contents(dir / "seed8" / "out"), expected)
       << "negative control: the comparison sees another seed";
+}
+
+// Per-order lobes on smith's tile (built by rank 0's plan in out/surfaces; the other rank reads it there, and
+// writes nothing): `mpirun -n 2` writes the one-process run directory, bit for bit.
+TEST(RunMpi, TheRanksTraceRankZerosTileAndWriteTheOneProcessResults) {
+  const fs::path dir = scratch_dir("run_mpi", "tile");
+  std::ofstream(dir / "split.toml") << R"(name = "tile"
+seed = 9
+[[material]]
+name = "m"
+alphas = [0.5]
+type = "mirror"
+[[quantity]]
+kind = "scattering"
+material = "m"
+surface = "smith"
+orders = "all"
+theta = [40]
+target_tv = 0.2
+)";
+  const auto alone = run_in(dir, "alone", "");
+  ASSERT_EQ(alone.exit_code, 0) << alone.err;
+  const std::string expected = microsim::test::run_directory_contents(dir / "alone" / "out");
+  ASSERT_NE(expected.find("scattering-0.exr"), std::string::npos);
+  ASSERT_NE(expected.find("\"surface\""), std::string::npos) << "a heightfield decision";
+  EXPECT_TRUE(microsim::test::has_uneven_round(dir / "alone" / "out", 2)) << "an uneven split";
+  const auto two = run_in(dir, "ranks2", mpirun(2));
+  ASSERT_EQ(two.exit_code, 0) << two.err;
+  EXPECT_EQ(microsim::test::run_directory_contents(dir / "ranks2" / "out"), expected);
+  std::size_t tiles = 0;
+  for (const auto& entry : fs::directory_iterator(dir / "ranks2" / "out" / "surfaces")) tiles += entry.is_regular_file();
+  EXPECT_EQ(tiles, 1u) << "one tile, rank 0's";
 }
 
 TEST(RunMpi, ABadSpecUnderMpirunIsOneMessageAndExit2NothingWritten) {
