@@ -80,7 +80,7 @@ experiment::ExperimentPlan plan_of(const experiment::ExperimentSpec& spec, const
     return previous->plan;
   }
   fmt::print(stderr, "run: {}: planning (pilots)\n", spec.name);
-  return experiment::plan_experiment(spec, options);  // Cancelled: nothing written
+  return experiment::plan_experiment(spec, options);  // Cancelled: no results written (built tiles are kept)
 }
 
 // DIR's files and the summary; the exit code (130 when the results are partial).
@@ -124,7 +124,17 @@ int run_experiment_command(const RunArgs& a, experiment::Ranks& ranks, bool& pla
   plan_options.surfaces = &surfaces;
   install_interrupt_handler();
   experiment::StoredRounds stored;
-  const experiment::ExperimentPlan plan = plan_or_shards(a, spec, seed, previous, plan_options, stored);
+  experiment::ExperimentPlan plan;
+  try {
+    plan = plan_or_shards(a, spec, seed, previous, plan_options, stored);
+  } catch (const Cancelled&) {
+    if (surfaces.builds() == 0 || a.dry_run) throw;  // nothing written: the common message
+    progress->finish();
+    fmt::print(stderr, "run: interrupted while planning: no results written; the {} surface(s) built so far are kept "
+               "in {} for the next run\n", surfaces.builds(), (fs::path(a.out) / "surfaces").string());
+    experiment::send_stop(ranks, kExitInterrupted);
+    return kExitInterrupted;
+  }
   progress->finish();
   print_plan_table(plan, spec);
   if (a.dry_run) {  // the plan and its predicted time; nothing written

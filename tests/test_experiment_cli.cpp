@@ -11,6 +11,7 @@
 #include <cmath>
 #include <csignal>
 #include <fstream>
+#include <functional>
 #include <string>
 #include <thread>
 
@@ -142,10 +143,14 @@ TEST(ExperimentCli, BadSpecsNameKeyAndLineAndRunNothing) {
   fs::remove_all(dir);
 }
 
-// `microsim run SPEC --out OUT` in dir, interrupted (SIGINT) `after_ms` after its first measurement met its
-// target; the exit status (waitpid's) and the run's stderr.
+// Whether the run's stderr (the file `err`) says its first measurement met its target.
+bool first_met(const fs::path& err) { return slurp(err).find("met after") != std::string::npos; }
+
+// `microsim run SPEC --out OUT` in dir, interrupted (SIGINT) `after_ms` after `ready` (by default: its first
+// measurement met its target); the exit status (waitpid's) and the run's stderr.
 int run_experiment_and_interrupt(const fs::path& dir, const std::string& spec, const std::string& out, int after_ms,
-                                 std::string& stderr_text) {
+                                 std::string& stderr_text,
+                                 const std::function<bool(const fs::path& err)>& ready = first_met) {
   const fs::path err = dir.parent_path() / (dir.filename().string() + "." + out + ".stderr");
   const std::string binary = microsim::test::microsim_binary();
   const pid_t pid = ::fork();
@@ -159,7 +164,7 @@ int run_experiment_and_interrupt(const fs::path& dir, const std::string& spec, c
     ::_exit(127);
   }
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
-  while (slurp(err).find("met after") == std::string::npos && std::chrono::steady_clock::now() < deadline)
+  while (!ready(err) && std::chrono::steady_clock::now() < deadline)
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   std::this_thread::sleep_for(std::chrono::milliseconds(after_ms));
   ::kill(pid, SIGINT);
@@ -187,6 +192,33 @@ TEST(ExperimentCli, InterruptedRunWritesWhatWasDoneMarkedPartial) {
   EXPECT_FALSE(r["results"]["all_targets_met"].get<bool>());
   ASSERT_GE(r["results"]["measurements"].size(), 1u);
   EXPECT_TRUE(r["results"]["measurements"][0]["met"].get<bool>());
+  fs::remove_all(dir);
+}
+
+// Ctrl-C while planning, after the first of two tiles was built (smith 256^2 for a VNDF at TV 0.42; the
+// second, for TV 0.05, is 2048^2): exit 130, no results, and the message says the built tile is kept in
+// DIR/surfaces (it is: not "nothing written").
+TEST(ExperimentCli, InterruptedWhilePlanningKeepsTheTilesItBuilt) {
+  const fs::path dir = scratch_dir("experiment", "interrupt_plan");
+  write(dir / "tiles.toml", "[[material]]\nname = \"m\"\nalpha = 0.5\ntype = \"mirror\"\n"
+                            "[[quantity]]\nkind = \"vndf\"\nmaterial = \"m\"\nsurface = \"smith\"\ntheta = [40]\n"
+                            "target_tv = 0.42\n[[quantity]]\nkind = \"vndf\"\nmaterial = \"m\"\nsurface = \"smith\"\n"
+                            "theta = [40]\ntarget_tv = 0.05\n");
+  const auto tiles = [&] {
+    std::size_t n = 0;
+    if (fs::is_directory(dir / "out" / "surfaces"))
+      for (const auto& e : fs::directory_iterator(dir / "out" / "surfaces")) n += e.path().extension() == ".exr";
+    return n;
+  };
+  std::string stderr_text;
+  const int status = run_experiment_and_interrupt(dir, "tiles.toml", "out", 0, stderr_text,
+                                                  [&](const fs::path&) { return tiles() >= 1; });
+  ASSERT_TRUE(WIFEXITED(status)) << stderr_text;
+  EXPECT_EQ(WEXITSTATUS(status), 130) << stderr_text;
+  EXPECT_FALSE(fs::exists(dir / "out" / "results.json"));
+  ASSERT_GE(tiles(), 1u);
+  EXPECT_NE(stderr_text.find("kept in"), std::string::npos) << stderr_text;
+  EXPECT_EQ(stderr_text.find("nothing written"), std::string::npos) << stderr_text;
   fs::remove_all(dir);
 }
 
