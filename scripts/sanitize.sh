@@ -22,7 +22,8 @@ command -v ccache > /dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
 [[ -f "$here/build/CMakeCache.txt" ]] || cmake -S "$here" -B "$here/build" -DCMAKE_BUILD_TYPE=Release > /dev/null
 cmake --build "$here/build" -j"$(nproc)" --target microsim_cli_tests
 cmake -S "$here" -B "$build" -DCMAKE_CXX_COMPILER=g++ -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-  -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" -DMICROSIM_FRONT_END_OPT=-O0 -DMICROSIM_SANITIZE=ON \
+  -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" -DMICROSIM_FRONT_END_OPT=-O0 -DMICROSIM_LIBRARY_TESTS_OPT= \
+  -DMICROSIM_SANITIZE=ON \
   -DMICROSIM_BUILD_BENCHMARKS=OFF -DMICROSIM_CLI_TESTS_EXECUTABLE="$here/build/microsim_cli_tests" \
   "${launcher[@]}" > /dev/null
 cmake --build "$build" -j"$(nproc)"
