@@ -151,6 +151,25 @@ ExperimentResults run_in_one_process(const ExperimentSpec& spec, const Experimen
   return run_experiment(spec, plan, o);
 }
 
+// Shard jobs K of 3 of the first rounds, in `order` (each with its own surface cache: it builds its tiles).
+std::vector<ShardParts> three_shards(const ExperimentSpec& spec, const ExperimentPlan& plan,
+                                     const std::vector<std::uint64_t>& order = {1, 2, 3}) {
+  std::vector<ShardParts> shards;
+  for (const std::uint64_t k : order) {
+    SurfaceCache surfaces;
+    shards.push_back(run_shard(spec, plan, spec.seed, k, 3, RunControl{1, nullptr, {}}, surfaces));
+  }
+  return shards;
+}
+
+// The run of `plan` whose first rounds are the shard jobs' `stored` parts (a merge).
+ExperimentResults run_stored(const ExperimentSpec& spec, const ExperimentPlan& plan, const StoredRounds& stored) {
+  RunOptions o;
+  o.run = RunControl{1, nullptr, {}};
+  o.stored = &stored;
+  return run_experiment(spec, plan, o);
+}
+
 // What a run measured, without its timings: values, errors, rounds, counts; every VNDF count and attribute
 // (the measured rate aside; all of them without `attributes`: a resumed round keeps its first part's) and
 // every scattering sum.
@@ -247,23 +266,14 @@ TEST_F(ExperimentSplit, ACancelledRankEndsTheRoundAtItsShardAndTheRunResumesBitF
 }
 
 TEST_F(ExperimentSplit, ShardsOfTheFirstRoundsMergeIntoTheOneProcessRunBitForBit) {
-  std::vector<ShardParts> shards;
-  std::vector<std::string> names;
-  for (std::uint64_t k = 3; k >= 1; --k) {  // given in any order: ordered by K
-    SurfaceCache surfaces;
-    shards.push_back(run_shard(*spec_, *plan_, spec_->seed, k, 3, RunControl{1, nullptr, {}}, surfaces));
-    names.push_back("shard " + std::to_string(k));
-  }
+  const std::vector<ShardParts> shards = three_shards(*spec_, *plan_, {3, 2, 1});  // any order: ordered by K
+  const std::vector<std::string> names{"shard 3", "shard 2", "shard 1"};
   ASSERT_EQ(shards[0].tasks.size(), 2u);  // the VNDF's and the scattering's first rounds
   const StoredRounds stored = merge_shards(shards, names);
-  RunOptions o;
-  o.run = RunControl{1, nullptr, {}};
-  o.stored = &stored;
-  EXPECT_EQ(split_measured(run_experiment(*spec_, *plan_, o)).dump(), split_measured(*alone_).dump());
+  EXPECT_EQ(split_measured(run_stored(*spec_, *plan_, stored)).dump(), split_measured(*alone_).dump());
   StoredRounds swapped = stored;  // negative control: shards 2 and 3 of the scattering's round exchanged
   std::swap(swapped.parts[1][1], swapped.parts[1][2]);
-  o.stored = &swapped;
-  EXPECT_THROW(run_experiment(*spec_, *plan_, o), InternalError);
+  EXPECT_THROW(run_stored(*spec_, *plan_, swapped), InternalError);
   EXPECT_THROW(merge_shards({shards[0], shards[2]}, {names[0], names[2]}), std::invalid_argument);  // 2/3 missing
   EXPECT_THROW(merge_shards({shards[0], shards[1], shards[1]}, {names[0], names[1], names[1]}), std::invalid_argument);
 }
@@ -321,19 +331,12 @@ TEST(ExperimentSplitValidation, TwoAndThreeRanksGiveTheOneProcessReportBitForBit
   EXPECT_EQ(validation_measured(run_in_one_process(spec, plan, &back)).dump(), expected);
   // 3 shards of a job array: each tallies its blocks, the merge reports from their tallies: the same report;
   // two shards' parts exchanged are an InternalError.
-  std::vector<ShardParts> shards;
-  for (std::uint64_t k = 1; k <= 3; ++k) {
-    SurfaceCache surfaces;
-    shards.push_back(run_shard(spec, plan, spec.seed, k, 3, RunControl{1, nullptr, {}}, surfaces));
-  }
+  const std::vector<ShardParts> shards = three_shards(spec, plan);
   ASSERT_EQ(shards[0].tasks.size(), 1u);
   StoredRounds stored = merge_shards(shards, {"1", "2", "3"});
-  RunOptions o;
-  o.run = RunControl{1, nullptr, {}};
-  o.stored = &stored;
-  EXPECT_EQ(validation_measured(run_experiment(spec, plan, o)).dump(), expected);
+  EXPECT_EQ(validation_measured(run_stored(spec, plan, stored)).dump(), expected);
   std::swap(stored.parts[0][0], stored.parts[0][2]);
-  EXPECT_THROW(run_experiment(spec, plan, o), InternalError);
+  EXPECT_THROW(run_stored(spec, plan, stored), InternalError);
 }
 
 // ---- a walk albedo table: its cells split over the ranks ---------------------------------------------------
@@ -379,25 +382,14 @@ TEST(ExperimentSplitAlbedo, RanksAndShardsGiveTheOneProcessTableBitForBit) {
   EXPECT_TRUE(cancelled.results.measurements[0].rounds.empty()) << "the cut round is dropped whole";
   const ExperimentResults back = results_from_json(nlohmann::json::parse(results_json(cancelled.results).dump()), plan);
   EXPECT_EQ(split_measured(run_in_one_process(spec, plan, &back)).dump(), expected) << "resumed";
-  std::vector<ShardParts> shards;
-  std::vector<std::string> names;
-  for (std::uint64_t k = 1; k <= 3; ++k) {
-    SurfaceCache surfaces;
-    shards.push_back(run_shard(spec, plan, spec.seed, k, 3, RunControl{1, nullptr, {}}, surfaces));
-    names.push_back("shard " + std::to_string(k));
-  }
-  StoredRounds stored = merge_shards(shards, names);
+  const std::vector<ShardParts> shards = three_shards(spec, plan);
+  StoredRounds stored = merge_shards(shards, {"shard 1", "shard 2", "shard 3"});
   ASSERT_EQ(stored.tasks.size(), 1u);
   EXPECT_EQ(stored.tasks[0].blocks, (BlockRange{0, 8})) << "the table's cells";
-  RunOptions o;
-  o.run = RunControl{1, nullptr, {}};
-  o.stored = &stored;
-  EXPECT_EQ(split_measured(run_experiment(spec, plan, o)).dump(), expected) << "shards merged";
+  EXPECT_EQ(split_measured(run_stored(spec, plan, stored)).dump(), expected) << "shards merged";
   std::swap(stored.parts[0][0], stored.parts[0][1]);
-  EXPECT_THROW(run_experiment(spec, plan, o), InternalError) << "shards' parts swapped";
+  EXPECT_THROW(run_stored(spec, plan, stored), InternalError) << "shards' parts swapped";
 }
-
-}  // namespace
 
 // ---- rounds on explicit heightfields --------------------------------------------------------------------------
 
@@ -483,17 +475,9 @@ TEST_F(ExperimentSplitHeightfield, RanksAndShardsGiveTheOneProcessResultsBitForB
     EXPECT_FALSE(split.results.partial);
     EXPECT_EQ(split_measured(split.results).dump(), expected) << ranks << " ranks";
   }
-  std::vector<ShardParts> shards;
-  for (std::uint64_t k = 1; k <= 3; ++k) {
-    SurfaceCache surfaces;  // each shard job builds the tile itself
-    shards.push_back(run_shard(*spec_, *plan_, spec_->seed, k, 3, RunControl{1, nullptr, {}}, surfaces));
-  }
+  const std::vector<ShardParts> shards = three_shards(*spec_, *plan_);  // each shard job builds the tile itself
   ASSERT_EQ(shards[0].tasks.size(), 3u);
-  const StoredRounds stored = merge_shards(shards, {"1", "2", "3"});
-  RunOptions o;
-  o.run = RunControl{1, nullptr, {}};
-  o.stored = &stored;
-  EXPECT_EQ(split_measured(run_experiment(*spec_, *plan_, o)).dump(), expected);
+  EXPECT_EQ(split_measured(run_stored(*spec_, *plan_, merge_shards(shards, {"1", "2", "3"}))).dump(), expected);
 }
 
 TEST_F(ExperimentSplitHeightfield, PartsReversedOrACancelledTileBuildNeverGiveAWrongResult) {
@@ -591,24 +575,19 @@ TEST(ExperimentSplitMasking, RanksAndShardsGiveTheOneProcessSumsBitForBit) {
     ASSERT_FALSE(split.results.partial);
     EXPECT_EQ(masking_measured(split.results).dump(), expected) << ranks << " ranks";
   }
-  std::vector<ShardParts> shards;
-  for (std::uint64_t k = 1; k <= 3; ++k) {
-    SurfaceCache surfaces;
-    shards.push_back(run_shard(spec, plan, spec.seed, k, 3, RunControl{1, nullptr, {}}, surfaces));
-  }
+  const std::vector<ShardParts> shards = three_shards(spec, plan);
   ASSERT_EQ(shards[0].tasks.size(), 1u);
   EXPECT_EQ(shards[0].tasks[0].surface_seed, spec.seed);
   StoredRounds stored = merge_shards(shards, {"1", "2", "3"});
-  RunOptions o;
-  o.run = RunControl{1, nullptr, {}};
-  o.stored = &stored;
-  EXPECT_EQ(masking_measured(run_experiment(spec, plan, o)).dump(), expected);
+  EXPECT_EQ(masking_measured(run_stored(spec, plan, stored)).dump(), expected);
   // Negative controls: parts out of rank order are an InternalError; a cancelled rank drops the round.
   std::swap(stored.parts[0][0], stored.parts[0][1]);
-  EXPECT_THROW(run_experiment(spec, plan, o), InternalError);
+  EXPECT_THROW(run_stored(spec, plan, stored), InternalError);
   const SplitRun reversed = run_split(spec, plan, 3, [](std::vector<std::string>& p) { std::reverse(p.begin(), p.end()); });
   EXPECT_NE(reversed.internal_error, "");
   const SplitRun cut = run_split(spec, plan, 3, {}, 1);
   ASSERT_TRUE(cut.results.partial);
   EXPECT_TRUE(cut.results.measurements.at(0).rounds.empty());
 }
+
+}  // namespace

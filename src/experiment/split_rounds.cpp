@@ -84,7 +84,11 @@ void put_sum(Words& w, const ExactSum& s) {
 
 // The header of every part: its blocks and whether it was cancelled part way.
 void put_header(Words& w, const BlockRange& blocks, bool partial) {
-  w.insert(w.end(), {blocks.begin, blocks.end, std::uint64_t(partial)});
+  // push_back, not insert of a list: GCC 12 at -O3 warns (-Wstringop-overflow) on a list inserted into the
+  // empty vector of a text part, a false alarm.
+  w.push_back(blocks.begin);
+  w.push_back(blocks.end);
+  w.push_back(std::uint64_t(partial));
 }
 
 // Checks that a part's blocks are rank r's shard of the round (a prefix of it when cancelled part way).
