@@ -710,7 +710,7 @@ std::string heightfield_rank_part(const ExperimentSpec& spec, const Decision& d,
   }
   ScatterOptions options = scatter_request(spec.material(q.material), d, task.units, task.seed, run);
   options.blocks = mine;
-  return scatter_part(scatter_on_surface(*field, options));
+  return scatter_part(scatter_on_surface(surfaces.scene_for(*field), options));
 }
 
 }  // namespace

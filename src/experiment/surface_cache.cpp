@@ -78,6 +78,15 @@ const microgeom::Heightfield& SurfaceCache::heightmap(const std::filesystem::pat
   return surfaces_.emplace(id, microgeom::load_heightmap_exr(path)).first->second;
 }
 
+const HeightfieldScene& SurfaceCache::scene_for(const microgeom::Heightfield& field) {
+  if (scene_field_ != &field) {
+    scene_.reset();  // the previous scene's memory first
+    scene_ = std::make_unique<HeightfieldScene>(field);
+    scene_field_ = &field;
+  }
+  return *scene_;
+}
+
 microgeom::Heightfield SurfaceCache::read_or_build(const SurfaceKey& key, const RunControl& run) {
   const std::filesystem::path path = path_for(key);
   if (path.empty() || !std::filesystem::exists(path)) return build(key, run);

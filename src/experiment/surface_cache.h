@@ -17,10 +17,12 @@
 #include "core/run_control.h"
 #include "microgeom/assembly.h"
 #include "microgeom/heightfield.h"
+#include "trace/heightfield_trace.h"
 
 #include <cstdint>
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -64,6 +66,11 @@ public:
   // A user's heightmap (a path), read once. Throws std::runtime_error naming the file.
   const microgeom::Heightfield& heightmap(const std::filesystem::path& path);
 
+  // The Embree scene (triangles) of a surface this cache returned, built once and kept until a scene of
+  // another surface is asked for (one at a time: a 1024^2 scene is hundreds of MB). For the ranks of a split
+  // run, which trace the same tile round after round.
+  const HeightfieldScene& scene_for(const microgeom::Heightfield& field);
+
   std::filesystem::path path_for(const SurfaceKey& key) const;  // empty without a directory
   std::size_t builds() const { return builds_; }                // surfaces built by this cache
   const std::vector<std::string>& events() const { return events_; }  // built, read, rebuilt (why), in order
@@ -76,6 +83,8 @@ private:
   CacheFiles files_ = CacheFiles::read_write;
   std::map<std::string, microgeom::Heightfield> surfaces_;  // by hash, or "file:" path
   std::size_t builds_ = 0;
+  std::unique_ptr<HeightfieldScene> scene_;  // of scene_field_
+  const microgeom::Heightfield* scene_field_ = nullptr;
   std::vector<std::string> events_;
 };
 
