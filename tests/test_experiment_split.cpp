@@ -172,7 +172,7 @@ ExperimentResults run_stored(const ExperimentSpec& spec, const ExperimentPlan& p
 
 // What a run measured, without its timings: values, errors, rounds, counts; every VNDF count and attribute
 // (the measured rate aside; all of them without `attributes`: a resumed round keeps its first part's) and
-// every scattering sum.
+// every scattering sum (a masking measurement's exact sums are its values' parts).
 nlohmann::json split_measured(const ExperimentResults& results, bool attributes_too = true) {
   nlohmann::json out = nlohmann::json::array();
   for (const MeasurementResult& m : results.measurements) {
@@ -184,6 +184,7 @@ nlohmann::json split_measured(const ExperimentResults& results, bool attributes_
     nlohmann::json values = m.values;
     values.erase("seconds");
     values.erase("row_seconds");
+    if (values.contains("masking")) values["masking"].erase("seconds");  // its exact sums are in "parts"
     nlohmann::json sums = nlohmann::json::array();
     if (!m.scatter.binning_id().empty())
       for (int k = 0; k < kScatterOrderBins; ++k)
@@ -544,19 +545,6 @@ target_standard_error = 0.0065
 )", "masking_split.toml");
 }
 
-// The masking values (without timings) and their exact sums.
-nlohmann::json masking_measured(const ExperimentResults& results) {
-  nlohmann::json out = nlohmann::json::array();
-  for (const MeasurementResult& m : results.measurements) {
-    nlohmann::json values = m.values;
-    values["masking"].erase("seconds");
-    nlohmann::json rounds = nlohmann::json::array();
-    for (const RoundRecord& r : m.rounds) rounds.push_back({r.units, r.planned, r.blocks_done, r.seed, r.achieved, r.partial});
-    out.push_back({{"values", values}, {"rounds", rounds}, {"achieved", m.achieved}, {"met", m.met}});
-  }
-  return out;
-}
-
 TEST(ExperimentSplitMasking, RanksAndShardsGiveTheOneProcessSumsBitForBit) {
   const ExperimentSpec spec = masking_split_spec();
   const ExperimentPlan plan = plan_with_small_pilots(spec);
@@ -568,18 +556,18 @@ TEST(ExperimentSplitMasking, RanksAndShardsGiveTheOneProcessSumsBitForBit) {
   EXPECT_EQ(m.values["masking"]["parts"].size(), 2u) << "one per light";
   EXPECT_GE(m.rounds.front().blocks_done, 3u) << "a block per rank";
   EXPECT_NE(m.rounds.front().blocks_done % 3, 0u) << "an uneven split over 3 ranks";
-  const std::string expected = masking_measured(alone).dump();
+  const std::string expected = split_measured(alone).dump();
   for (int ranks : {2, 3}) {
     const SplitRun split = run_split(spec, plan, ranks);
     EXPECT_EQ(split.internal_error, "");
     ASSERT_FALSE(split.results.partial);
-    EXPECT_EQ(masking_measured(split.results).dump(), expected) << ranks << " ranks";
+    EXPECT_EQ(split_measured(split.results).dump(), expected) << ranks << " ranks";
   }
   const std::vector<ShardParts> shards = three_shards(spec, plan);
   ASSERT_EQ(shards[0].tasks.size(), 1u);
   EXPECT_EQ(shards[0].tasks[0].surface_seed, spec.seed);
   StoredRounds stored = merge_shards(shards, {"1", "2", "3"});
-  EXPECT_EQ(masking_measured(run_stored(spec, plan, stored)).dump(), expected);
+  EXPECT_EQ(split_measured(run_stored(spec, plan, stored)).dump(), expected);
   // Negative controls: parts out of rank order are an InternalError; a cancelled rank drops the round.
   std::swap(stored.parts[0][0], stored.parts[0][1]);
   EXPECT_THROW(run_stored(spec, plan, stored), InternalError);

@@ -77,7 +77,7 @@ SurfaceDecision plan_heightmap_surface(const SpecQuantity& q, const Decision& d,
   p.ndf_match = match != field.metadata.end() ? match->second : "radial";
   const auto ndf = field.metadata.find("reference_ndf");
   p.ndf = ndf != field.metadata.end() ? ndf->second : "ggx";
-  p.hash = heights_digest(field);
+  p.hash = cache.heightmap_digest(q.surface.name);
   const auto predicted = p.corr_cells > 0 ? predicted_bias(builtin_trade_table(), p.resolution, p.corr_cells,
                                                            p.ndf_match, anisotropy_of(d.alpha))
                                           : std::nullopt;
@@ -123,12 +123,12 @@ SurfaceKey surface_key(const SurfacePlan& plan, const std::pair<double, double>&
 const microgeom::Heightfield& decision_surface(const Decision& decision, SurfaceCache& cache, const RunControl& run) {
   const SurfacePlan& p = decision.surface;
   if (p.kind != "heightmap") return cache.surface_for(surface_key(p, decision.alpha), run);
-  const microgeom::Heightfield& field = cache.heightmap(p.name);
-  if (!p.hash.empty() && heights_digest(field) != p.hash)  // a plan of an earlier version has no digest
+  const std::string& digest = cache.heightmap_digest(p.name);
+  if (!p.hash.empty() && digest != p.hash)  // a plan of an earlier version has no digest
     throw std::invalid_argument(fmt::format("the heightmap {} is not the one planned: its heights' digest is {}, the "
                                             "plan's {} (changed since the plan, or another file on this node)",
-                                            p.name, heights_digest(field), p.hash));
-  return field;
+                                            p.name, digest, p.hash));
+  return cache.heightmap(p.name);
 }
 
 std::string surface_label(const SurfacePlan& plan) {

@@ -111,7 +111,7 @@ struct RunOptions {
 ExperimentResults run_experiment(const ExperimentSpec& spec, const ExperimentPlan& plan, const RunOptions& options);
 
 // The first round of every measurement the ranks share (is_shared_by_ranks: VNDF, scattering, a walk albedo
-// table, a drawn validation: its one round) as run_experiment starts it afresh at `seed` (the run's:
+// table, heightfield masking, a drawn validation: its one round) as run_experiment starts it afresh at `seed` (the run's:
 // options.seed, or the spec's): units, seed and blocks. What shard jobs run (shards.h).
 std::vector<RoundTask> first_split_rounds(const ExperimentSpec& spec, const ExperimentPlan& plan, std::uint64_t seed);
 

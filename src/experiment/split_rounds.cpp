@@ -347,12 +347,12 @@ AlbedoTable combine_albedo_parts(const AlbedoTableRequest& request, AlbedoCells 
 // ---- validation parts (a drawn validation's tally) ---------------------------------------------------------
 
 // A part whose content is text (a JSON document): the header of every part (part_is_partial and
-// check_whole_part read it), then the text's length and its bytes padded to whole words; a cancelled part
-// (nullopt) is the header alone, with no block.
+// check_whole_part read it), then the text's length and its bytes padded to whole words; a cancelled one
+// (nullopt) is cancelled_part's.
 std::string text_part(const BlockRange& blocks, const std::optional<std::string>& text) {
+  if (!text) return cancelled_part(blocks);
   Words w;
-  put_header(w, text ? blocks : BlockRange{blocks.begin, blocks.begin}, !text);
-  if (!text) return words_to_bytes(w);
+  put_header(w, blocks, false);
   w.push_back(text->size());
   std::string bytes = words_to_bytes(w) + *text;
   bytes.resize((bytes.size() + sizeof(std::uint64_t) - 1) / sizeof(std::uint64_t) * sizeof(std::uint64_t), ' ');
@@ -387,6 +387,8 @@ std::optional<battery::Tally> read_validation_part(const std::string& bytes, con
   try {
     return tally_from_json(part->second, cells, part->first.size(), microsim::PartReader("validation part"),
                            fmt::format("rank {}", rank));
+  } catch (const nlohmann::json::exception& e) {
+    throw InternalError(fmt::format("the part of rank {} of a split validation is malformed: {}", rank, e.what()));
   } catch (const HistogramMergeError& e) {
     throw InternalError(fmt::format("the part of rank {} of a split validation is malformed: {}", rank, e.what()));
   }

@@ -75,7 +75,14 @@ const microgeom::Heightfield& SurfaceCache::heightmap(const std::filesystem::pat
   const std::string id = "file:" + path.string();
   const auto found = surfaces_.find(id);
   if (found != surfaces_.end()) return found->second;
-  return surfaces_.emplace(id, microgeom::load_heightmap_exr(path)).first->second;
+  const microgeom::Heightfield& field = surfaces_.emplace(id, microgeom::load_heightmap_exr(path)).first->second;
+  heightmap_digests_.emplace(id, heights_digest(field));
+  return field;
+}
+
+const std::string& SurfaceCache::heightmap_digest(const std::filesystem::path& path) {
+  heightmap(path);
+  return heightmap_digests_.at("file:" + path.string());
 }
 
 const HeightfieldScene& SurfaceCache::scene_for(const microgeom::Heightfield& field) {

@@ -65,6 +65,8 @@ public:
   const microgeom::Heightfield& surface_for(const SurfaceKey& key, const RunControl& run = {});
   // A user's heightmap (a path), read once. Throws std::runtime_error naming the file.
   const microgeom::Heightfield& heightmap(const std::filesystem::path& path);
+  // Its heights_digest, computed once when it is read.
+  const std::string& heightmap_digest(const std::filesystem::path& path);
 
   // The Embree scene (triangles) of a surface this cache returned, built once and kept until a scene of
   // another surface is asked for (one at a time: a 1024^2 scene is hundreds of MB). For the ranks of a split
@@ -82,6 +84,7 @@ private:
   std::filesystem::path directory_;
   CacheFiles files_ = CacheFiles::read_write;
   std::map<std::string, microgeom::Heightfield> surfaces_;  // by hash, or "file:" path
+  std::map<std::string, std::string> heightmap_digests_;    // by "file:" path
   std::size_t builds_ = 0;
   std::unique_ptr<HeightfieldScene> scene_;  // of scene_field_
   const microgeom::Heightfield* scene_field_ = nullptr;
