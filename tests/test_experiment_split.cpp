@@ -10,7 +10,8 @@
 //   - a rank cancelled from the start: the run is partial, what it kept is the prefix of the round before that
 //     rank's shard, and resumed in one process it gives the uninterrupted results;
 //   - a drawn validation over 2 and 3 ranks and over 3 shards: the one-process report;
-//   - a walk albedo table, its cells split over 2 and 3 ranks and over 3 shards: the one-process table;
+//   - a walk albedo table, its cells split over 2 and 3 ranks and over 3 shards: the one-process table; the
+//     same for a table on explicit tiles (each rank builds them; another realisation moves the table);
 //   - a VNDF and per-order lobes on explicit heightfields (an assembly's tile, a heightmap), each rank with its
 //     own surface cache (the tile built again there): 2 and 3 ranks and 3 shards give the one-process results;
 //     negative controls: a rank tracing another tile (another seed) moves the counts, parts swapped are an
@@ -19,6 +20,7 @@
 //     first round over 3 shards: the one-process sums and values; parts swapped: an InternalError; a cancelled
 //     rank drops the round.
 #include "core/errors.h"
+#include "experiment/heightfield_measures.h"
 #include "experiment/plan.h"
 #include "experiment/run.h"
 #include "experiment/shards.h"
@@ -390,6 +392,56 @@ TEST(ExperimentSplitAlbedo, RanksAndShardsGiveTheOneProcessTableBitForBit) {
   EXPECT_EQ(split_measured(run_stored(spec, plan, stored)).dump(), expected) << "shards merged";
   std::swap(stored.parts[0][0], stored.parts[0][1]);
   EXPECT_THROW(run_stored(spec, plan, stored), InternalError) << "shards' parts swapped";
+}
+
+// ---- an albedo table on explicit surfaces: its cells split, each rank tracing its own tiles -------------------
+
+// A mirror's table on smith tiles (two alphas, 2 mus: 4 cells), its tiles 256^2: the plan's own (1024^2, the
+// width rule) replaced by the smallest a GGX assembly takes, to keep the test's builds short (how the cells
+// are split does not depend on the tile's size; every rank builds the same keys).
+TEST(ExperimentSplitAlbedo, OnTilesRanksAndShardsGiveTheOneProcessTableBitForBit) {
+  const ExperimentSpec spec = parse_spec_toml(R"(
+seed = 33
+[[material]]
+name = "m"
+alphas = [0.4, 0.6]
+type = "mirror"
+[[quantity]]
+kind = "albedo"
+material = "m"
+surface = "smith"
+orders = "all"
+mus = 2
+target_relative_error = 0.3
+)", "albedo_tiles.toml");
+  ExperimentPlan plan = plan_with_small_pilots(spec);
+  Decision& d = plan.decisions.at(0);
+  ASSERT_TRUE(d.runnable) << d.not_runnable;
+  ASSERT_EQ(d.model.model, Model::heightfield);
+  ASSERT_TRUE(is_split(spec, d));
+  d.surface.resolution = 256;
+  d.surface.hash = surface_key_hash(surface_key(d.surface, {0.4, 0.4})) + "," + surface_key_hash(surface_key(d.surface, {0.6, 0.6}));
+  const ExperimentResults alone = run_in_one_process(spec, plan);
+  ASSERT_TRUE(alone.measurements.at(0).met);
+  EXPECT_EQ(alone.measurements[0].values.at("model"), "surface");
+  EXPECT_TRUE(alone.measurements[0].values.at("quantities").contains("lost"));
+  const std::string expected = split_measured(alone).dump();
+  for (int ranks : {2, 3}) {
+    const SplitRun split = run_split(spec, plan, ranks);
+    EXPECT_EQ(split.internal_error, "");
+    EXPECT_EQ(split_measured(split.results).dump(), expected) << ranks << " ranks";
+  }
+  StoredRounds stored = merge_shards(three_shards(spec, plan), {"1", "2", "3"});
+  EXPECT_EQ(stored.tasks.at(0).blocks, (BlockRange{0, 4})) << "the table's cells";
+  EXPECT_EQ(split_measured(run_stored(spec, plan, stored)).dump(), expected) << "shards merged";
+  // Negative controls: a rank tracing another realisation (the tiles of seed + 1) moves the table; a rank
+  // cancelled in its tile's build cancels the round.
+  ExperimentPlan other = plan;
+  other.decisions[0].surface.seed += 1;
+  EXPECT_NE(split_measured(run_in_one_process(spec, other)).dump(), expected);
+  const SplitRun cut = run_split(spec, plan, 3, {}, 2);
+  ASSERT_TRUE(cut.results.partial);
+  EXPECT_TRUE(cut.results.measurements.at(0).rounds.empty()) << "the cut round is dropped whole";
 }
 
 // ---- rounds on explicit heightfields --------------------------------------------------------------------------

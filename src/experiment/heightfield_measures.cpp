@@ -17,38 +17,46 @@ double anisotropy_of(const std::pair<double, double>& alpha) {
   return std::max(alpha.first, alpha.second) / std::min(alpha.first, alpha.second);
 }
 
-SurfaceDecision plan_assembly_surface(const SpecQuantity& q, const Decision& d, std::uint64_t seed) {
+}  // namespace
+
+SurfaceDecision plan_assembly_tile(const std::string& assembly, SizeRequest size, const std::pair<double, double>& alpha,
+                                   std::uint64_t seed) {
   SurfaceDecision out;
-  const microgeom::AssemblyInfo& info = *microgeom::find_assembly(q.surface.name);  // the spec checked the name
+  const microgeom::AssemblyInfo& info = *microgeom::find_assembly(assembly);  // the spec checked the name
   const bool ggx = info.reference == microgeom::ReferenceNdf::ggx;
   SurfacePlan& p = out.plan;
   p.kind = "assembly";
-  p.name = q.surface.name;
+  p.name = assembly;
   p.ndf = std::string(microgeom::to_string(info.reference));
   p.seed = seed;
-  // Every quantity but the VNDF (per-order scattering; masking) sees the tile's heights: a wide tile.
-  const SurfaceSize size = choose_surface_size(
-      builtin_trade_table(),
-      {q.target, anisotropy_of(d.alpha), d.view.theta_deg, q.kind != QuantityKind::vndf,
-       ggx ? microgeom::kMinGgxCheckedResolution : kMinSurfaceResolution});
-  p.reason = (ggx ? "" : "the table was measured on smith (GGX): taken for this assembly too; ") + size.reason;
-  if (!size.found) {
-    out.why = size.reason;
+  size.min_resolution = ggx ? microgeom::kMinGgxCheckedResolution : kMinSurfaceResolution;
+  const SurfaceSize chosen = choose_surface_size(builtin_trade_table(), size);
+  p.reason = (ggx ? "" : "the table was measured on smith (GGX): taken for this assembly too; ") + chosen.reason;
+  if (!chosen.found) {
+    out.why = chosen.reason;
     return out;
   }
-  p.resolution = size.resolution;
-  p.corr_cells = size.corr_cells;
-  p.ndf_match = size.ndf_match;
-  p.bias = size.bias;
-  p.hash = surface_key_hash(surface_key(p, d.alpha));
+  p.resolution = chosen.resolution;
+  p.corr_cells = chosen.corr_cells;
+  p.ndf_match = chosen.ndf_match;
+  p.bias = chosen.bias;
+  p.hash = surface_key_hash(surface_key(p, alpha));
   try {
-    microgeom::check_supported_range(assembly_params(surface_key(p, d.alpha)));
+    microgeom::check_supported_range(assembly_params(surface_key(p, alpha)));
   } catch (const std::invalid_argument& e) {  // OutsideSupportedRange, or what validate() refuses
-    out.why = fmt::format("assembly {} at alpha ({}, {}): {}", p.name, d.alpha.first, d.alpha.second, e.what());
+    out.why = fmt::format("assembly {} at alpha ({}, {}): {}", p.name, alpha.first, alpha.second, e.what());
     return out;
   }
   out.runnable = true;
   return out;
+}
+
+namespace {
+
+SurfaceDecision plan_assembly_surface(const SpecQuantity& q, const Decision& d, std::uint64_t seed) {
+  // Every quantity but the VNDF (per-order scattering; masking) sees the tile's heights: a wide tile.
+  const SizeRequest size{q.target, anisotropy_of(d.alpha), d.view.theta_deg, q.kind != QuantityKind::vndf};
+  return plan_assembly_tile(q.surface.name, size, d.alpha, seed);
 }
 
 double metadata_number(const microgeom::Heightfield& field, const std::string& key, double otherwise) {

@@ -25,6 +25,12 @@ struct SurfaceDecision {
 SurfaceDecision plan_surface(const SpecQuantity& quantity, const Decision& decision, std::uint64_t seed,
                              SurfaceCache& cache);
 
+// The tile of an assembly at one alpha pair and `seed`: the cheapest size of the built-in trade table meeting
+// `size` (its min_resolution: the assembly's supported range), then the assembly's own range at that size.
+// Pure. `runnable` false with `why` when no size fits or the assembly cannot be built there.
+SurfaceDecision plan_assembly_tile(const std::string& assembly, SizeRequest size, const std::pair<double, double>& alpha,
+                                   std::uint64_t seed);
+
 // The cache key of an assembly's planned tile.
 SurfaceKey surface_key(const SurfacePlan& plan, const std::pair<double, double>& alpha);
 

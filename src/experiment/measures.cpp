@@ -198,7 +198,9 @@ AlbedoTableRequest albedo_request(const ExperimentSpec& spec, const SpecQuantity
                                   const RunControl& run) {
   const SpecMaterial& m = spec.material(quantity.material);
   AlbedoTableRequest r;
-  r.model = model == Model::smith_walk ? AlbedoModel::smith_walk : AlbedoModel::analytic;
+  r.model = model == Model::smith_walk   ? AlbedoModel::smith_walk
+            : model == Model::heightfield ? AlbedoModel::surface
+                                          : AlbedoModel::analytic;
   r.ndf = m.ndf;
   r.material = albedo_table_material(m);
   r.inside = quantity.inside;

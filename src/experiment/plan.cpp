@@ -4,6 +4,8 @@
 #include "experiment/masking_runs.h"
 #include "experiment/measures.h"
 #include "experiment/plan.h"
+#include "experiment/split_rounds.h"
+#include "experiment/surface_albedo.h"
 #include "experiment/surface_cache.h"
 
 #include "validate/sample_io.h"
@@ -55,12 +57,12 @@ CapPilot view_cap_pilot(const ScatterPaths& walk, const ScatterOptions& view) {
 }
 
 // The roughest row of an albedo table (paths stay longest on the roughest surface), every mu: the cell whose
-// unfinished weight (plus two standard errors) is the largest share of its E.
-CapPilot table_cap_pilot(AlbedoTableRequest row) {
-  return [row](int cap) {
+// unfinished weight (plus two standard errors) is the largest share of its E. `cells`: the walk's, or on tiles.
+CapPilot table_cap_pilot(AlbedoTableRequest row, const AlbedoCellsOf& cells) {
+  return [row, cells](int cap) {
     AlbedoTableRequest r = row;
     r.max_order = cap;
-    const AlbedoTable t = albedo_table(r);
+    const AlbedoTable t = split_albedo_round({}, 0, r, cells);
     if (t.partial) throw Cancelled("plan: order-cap pilot");
     CapProbe worst{cap, 0, 0};
     for (std::size_t m = 0; m < t.mus.size(); ++m) {
@@ -116,18 +118,24 @@ void plan_analytic_albedo(const ExperimentSpec& spec, const SpecQuantity& q, con
   d.unit = "";
 }
 
-void plan_walk_albedo(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
+// A sampled table (the walk's, or on the decision's tiles: `cells`): its order cap from the roughest row (1
+// for single scattering, which only an explicit surface samples), then a pilot table for the paths per cell.
+void plan_sampled_albedo(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, const AlbedoCellsOf& cells,
+                         Decision& d) {
   const std::uint64_t seed = plan_seed(spec, o);
   const std::uint64_t cap_paths =
       std::max(o.cap_pilot_paths / std::uint64_t(q.mus), paths_to_bound_bias(kBiasShare * q.target));
-  AlbedoTableRequest row = albedo_request(spec, q, Model::smith_walk, cap_paths, 0, 0,
-                                          derived_seed(seed, kCapPilot, d.quantity), o.run);
-  row.alphas = {row.alphas.back()};  // increasing: the roughest
-  std::tie(d.order_cap, d.cap_reason) =
-      walk_order_cap(table_cap_pilot(row), q.target,
-                     fmt::format("alpha {}, {} mus, {} paths per cell", row.alphas.front(), q.mus, row.paths));
-  const AlbedoTable t = albedo_table(albedo_request(spec, q, Model::smith_walk, o.pilot_paths, d.order_cap, 0,
-                                                    derived_seed(seed, kTablePilot, d.quantity), o.run));
+  if (q.orders == Orders::single) {
+    d.order_cap = 1;
+    d.cap_reason = "single scattering: the first bounce only";
+  } else {
+    AlbedoTableRequest row = sampled_albedo_request(spec, d, cap_paths, derived_seed(seed, kCapPilot, d.quantity), o.run);
+    row.alphas = {row.alphas.back()};  // increasing: the roughest
+    std::tie(d.order_cap, d.cap_reason) = walk_order_cap(
+        table_cap_pilot(row, cells), q.target, fmt::format("alpha {}, {} mus, {} paths per cell", row.alphas.front(), q.mus, row.paths));
+  }
+  const AlbedoTable t = split_albedo_round(
+      {}, 0, sampled_albedo_request(spec, d, o.pilot_paths, derived_seed(seed, kTablePilot, d.quantity), o.run), cells);
   if (t.partial) throw Cancelled("plan: albedo pilot");
   d.pilot_units = o.pilot_paths;
   d.pilot_seconds = t.seconds;
@@ -138,9 +146,38 @@ void plan_walk_albedo(const ExperimentSpec& spec, const SpecQuantity& q, const P
                                o.pilot_paths, albedo_target_text(q), d.pilot_error, o.pilot_paths, d.pilot_error,
                                q.target);
   d.predicted_seconds = predicted_seconds(d.units, d.pilot_units, d.pilot_seconds);
+  d.runnable = true;
 }
 
-Decision plan_albedo(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o) {
+// An albedo table on explicit surfaces (surface_albedo.h): its tiles (the same size at every alpha) built
+// into `cache`, then as a walk's, the paths on the tiles.
+void plan_surface_albedo(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, SurfaceCache& cache,
+                         Decision& d) {
+  const SurfaceDecision s = plan_albedo_surfaces(spec, q, plan_seed(spec, o), o.run);
+  d.surface = s.plan;
+  if (!s.runnable) {
+    d.count_reason = "no tile: " + s.why;
+    d.not_runnable = s.why;
+    return;
+  }
+  const auto start = std::chrono::steady_clock::now();
+  const std::size_t built = cache.builds();
+  double scene_seconds = 0;  // every tile's Embree scene: built again in each round (the cache keeps one at a time)
+  for (const auto& alpha : spec.material(q.material).alphas) {
+    const microgeom::Heightfield& field = cache.surface_for(surface_key(d.surface, {alpha.first, alpha.first}), o.run);
+    const auto scene_start = std::chrono::steady_clock::now();
+    cache.scene_for(field);
+    scene_seconds += seconds_since(scene_start);
+  }
+  d.surface.reason += fmt::format("; {} tiles ({} built during the plan, kept for the run; {:.3g} s with their scenes)",
+                                  spec.material(q.material).alphas.size(), cache.builds() - built, seconds_since(start));
+  plan_sampled_albedo(spec, q, o, albedo_cells_of(d, cache), d);
+  d.count_reason += " (the error on these tiles: the spread between realisations is not in it)";
+  // The pilot's time holds the scenes too: they are paid per round, the tracing per path.
+  d.predicted_seconds = scene_seconds + predicted_seconds(d.units, d.pilot_units, std::max(0.0, d.pilot_seconds - scene_seconds));
+}
+
+Decision plan_albedo(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& cache) {
   const SpecQuantity& q = spec.quantities[index];
   const SpecMaterial& m = spec.material(q.material);
   Decision d;
@@ -148,10 +185,14 @@ Decision plan_albedo(const ExperimentSpec& spec, std::size_t index, const PlanOp
   d.label = fmt::format("{} albedo {} ({} alphas x {} mus{})", q.key, m.name, m.alphas.size(), q.mus,
                         q.inside ? ", inside" : "");
   d.model = choose_model(q, m);
-  if (d.model.model == Model::analytic) plan_analytic_albedo(spec, q, o, d);
-  if (d.model.model == Model::smith_walk) plan_walk_albedo(spec, q, o, d);
-  d.runnable = d.model.model == Model::analytic || d.model.model == Model::smith_walk;
-  if (!d.runnable) d.not_runnable = "an explicit surface's albedo table: a later session";
+  if (d.model.model == Model::analytic) {
+    plan_analytic_albedo(spec, q, o, d);
+    d.runnable = true;
+  } else if (d.model.model == Model::smith_walk) {
+    plan_sampled_albedo(spec, q, o, walk_albedo_cells, d);
+  } else {
+    plan_surface_albedo(spec, q, o, cache, d);
+  }
   return d;
 }
 
@@ -405,7 +446,7 @@ ExperimentPlan plan_experiment(const ExperimentSpec& spec, const PlanOptions& op
   for (std::size_t i = 0; i < spec.quantities.size(); ++i) {
     if (options.run.cancelled()) throw Cancelled("plan");
     if (spec.quantities[i].kind == QuantityKind::albedo)
-      plan.decisions.push_back(plan_albedo(spec, i, options));
+      plan.decisions.push_back(plan_albedo(spec, i, options, surfaces));
     else if (spec.quantities[i].kind == QuantityKind::masking)
       plan_masking(spec, i, options, surfaces, plan.decisions);
     else

@@ -138,11 +138,14 @@ std::string results_section(const json& doc) {
 std::string surface_item(const json& s) {
   const bool assembly = text_of(member(s, "kind")) == "assembly";
   const double bias = member(s, "bias").get<double>();
+  std::string files = text_of(member(s, "hash"));  // an albedo table's: one tile per alpha, comma-separated
+  for (std::size_t i = files.find(','); i != std::string::npos; i = files.find(',', i + 15))
+    files.replace(i, 1, ".exr, surfaces/");
   return fmt::format("<li><b>surface</b> {} {}{}, {}^2, l {} cells, NDF matched {}{}; predicted bias (TV) {}: {}</li>\n",
                      esc(text_of(member(s, "kind"))), esc(text_of(member(s, "name"))),
                      assembly ? " seed " + text_of(member(s, "seed")) : "", text_of(member(s, "resolution")),
                      report_number(member(s, "corr_cells")), esc(text_of(member(s, "ndf_match"))),
-                     assembly ? ", cached as surfaces/" + esc(text_of(member(s, "hash"))) + ".exr" : "",
+                     assembly ? ", cached as surfaces/" + esc(files) + ".exr" : "",
                      bias >= 0 ? report_number(bias) : "unknown", esc(text_of(member(s, "reason"))));
 }
 

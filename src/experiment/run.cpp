@@ -1,5 +1,6 @@
 // experiment: run_experiment: the sequential rounds of each runnable decision (run.h).
 #include "experiment/run.h"
+#include "experiment/surface_albedo.h"
 #include "core/wall_clock.h"
 
 #include "experiment/heightfield_measures.h"
@@ -64,23 +65,24 @@ std::uint64_t first_units(const Decision& d, const RunOptions& o) {
   return std::max<std::uint64_t>(1, std::uint64_t(std::ceil(double(d.units) * o.cost_factor)));
 }
 
-void run_walk_albedo(const ExperimentSpec& spec, std::uint64_t seed, std::size_t index, const RunOptions& o,
-                     MeasurementResult& m) {
+// A sampled table (the walk's, or on the decision's tiles from `surfaces`) in rounds until its target is met.
+void run_sampled_albedo(const ExperimentSpec& spec, std::uint64_t seed, std::size_t index, const RunOptions& o,
+                        SurfaceCache& surfaces, MeasurementResult& m) {
   const Decision& d = m.decision;
   const SpecQuantity& q = spec.quantities[d.quantity];
+  const AlbedoCellsOf cells = albedo_cells_of(d, surfaces);
   std::vector<AlbedoTable> tables;  // resumed: the completed rounds' tables
   std::vector<std::uint64_t> units;
   for (std::size_t r = 0; r < m.round_tables.size(); ++r) {
-    tables.push_back(albedo_table_from_json(
-        m.round_tables[r], albedo_request(spec, q, Model::smith_walk, m.rounds[r].units, d.order_cap, 0, m.rounds[r].seed, o.run)));
+    tables.push_back(albedo_table_from_json(m.round_tables[r],
+                                            sampled_albedo_request(spec, d, m.rounds[r].units, m.rounds[r].seed, o.run)));
     units.push_back(m.rounds[r].units);
   }
   m.partial = false;
   std::uint64_t n = tables.empty() ? first_units(d, o) : next_round_units(m.units, m.achieved, m.target);
   for (int r = int(tables.size()); r < o.max_rounds && n > 0; ++r) {
     const std::uint64_t s = round_seed(seed, index, r);
-    AlbedoTable t = split_albedo_round({o.ranks, o.stored}, index,
-                                       albedo_request(spec, q, Model::smith_walk, n, d.order_cap, 0, s, o.run));
+    AlbedoTable t = split_albedo_round({o.ranks, o.stored}, index, sampled_albedo_request(spec, d, n, s, o.run), cells);
     if (t.partial) {  // a round cut short is run again whole on resumption
       m.partial = true;
       break;
@@ -486,12 +488,12 @@ MeasurementResult run_decision(const ExperimentSpec& spec, const Decision& d, st
   m.ran = true;
   const auto start = std::chrono::steady_clock::now();
   if (q.kind == QuantityKind::masking) run_masking(spec, index, seed, round_seed(seed, index, 0), first_units(d, o), o, surfaces, m);
+  else if (q.kind == QuantityKind::albedo && !analytic) run_sampled_albedo(spec, seed, index, o, surfaces, m);
   else if (d.model.model == Model::heightfield) run_heightfield(spec, seed, index, o, surfaces, m);
   else if (vndf) run_vndf(spec, seed, index, o, m);
   else if (q.kind == QuantityKind::validation) run_validation(spec, seed, index, o, m);
   else if (q.kind == QuantityKind::scattering && analytic) run_analytic_scattering(spec, o, m);
   else if (q.kind == QuantityKind::scattering) run_scattering(spec, seed, index, o, m);
-  else if (d.model.model == Model::smith_walk) run_walk_albedo(spec, seed, index, o, m);
   else run_analytic_albedo(spec, o, m);
   m.seconds += seconds_since(start);
   return m;

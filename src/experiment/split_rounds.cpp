@@ -1,5 +1,6 @@
 // experiment: the rounds of run_experiment split over ranks (split_rounds.h).
 #include "experiment/split_rounds.h"
+#include "experiment/surface_albedo.h"
 #include "core/wall_clock.h"
 
 #include "core/errors.h"
@@ -535,8 +536,8 @@ bool is_split(const ExperimentSpec& spec, const Decision& decision) {
   const Model model = decision.model.model;
   return (kind == QuantityKind::vndf && model == Model::ellipsoid_oracle) ||
          ((kind == QuantityKind::scattering || kind == QuantityKind::albedo) && model == Model::smith_walk) ||
-         ((kind == QuantityKind::vndf || kind == QuantityKind::scattering || kind == QuantityKind::masking) &&
-          model == Model::heightfield);
+         ((kind == QuantityKind::vndf || kind == QuantityKind::scattering || kind == QuantityKind::masking ||
+           kind == QuantityKind::albedo) && model == Model::heightfield);
 }
 
 bool is_shared_by_ranks(const ExperimentSpec& spec, const Decision& decision) {
@@ -605,20 +606,31 @@ std::optional<std::vector<SurfaceMasking>> split_masking_round(const RoundSplit&
   return combine_masking_parts(std::move(own), parts, blocks, 1);
 }
 
-AlbedoTable split_albedo_round(const RoundSplit& split, std::size_t measurement, const AlbedoTableRequest& request) {
+AlbedoTable split_albedo_round(const RoundSplit& split, std::size_t measurement, const AlbedoTableRequest& request,
+                               const AlbedoCellsOf& cells) {
   const auto start = std::chrono::steady_clock::now();
   const BlockRange round{0, request.alphas.size() * std::uint64_t(request.mus)};
   const RoundTask task{measurement, request.paths, request.seed, round};
   if (const std::vector<std::string>* stored = stored_parts(split.stored, task))
     return combine_albedo_parts(request, {}, *stored, round, 0, seconds_since(start));
-  if (split.ranks == nullptr || split.ranks->size() == 1) return albedo_table(request);
+  if (split.ranks == nullptr || split.ranks->size() == 1) {
+    const std::optional<AlbedoCells> all = cells(request, round);
+    return all ? albedo_table_from_cells(request, *all, seconds_since(start)) : cancelled_albedo_table(request);
+  }
   split.ranks->broadcast(task_message(task));
   const BlockRange mine = rank_blocks(round, 0, split.ranks->size());
-  const std::optional<AlbedoCells> own = walk_albedo_cells(request, mine);
+  const std::optional<AlbedoCells> own = cells(request, mine);
   const std::vector<std::string> parts = split.ranks->gather(albedo_part(mine, own));
   check_part_count(parts, split.ranks->size());
   if (!own) return cancelled_albedo_table(request);
   return combine_albedo_parts(request, *own, parts, round, 1, seconds_since(start));
+}
+
+AlbedoCellsOf albedo_cells_of(const Decision& decision, SurfaceCache& surfaces) {
+  if (decision.model.model != Model::heightfield) return walk_albedo_cells;
+  return [plan = decision.surface, &surfaces](const AlbedoTableRequest& request, const BlockRange& cells) {
+    return surface_albedo_cells_of(request, cells, plan, surfaces);
+  };
 }
 
 std::uint64_t albedo_round_cells(const ExperimentSpec& spec, const Decision& decision) {
@@ -728,9 +740,9 @@ std::string run_part(const ExperimentSpec& spec, const ExperimentPlan& plan, con
     throw InternalError(fmt::format("a round of measurement {}, which is not split", task.measurement));
   if (q.kind == QuantityKind::validation) return validation_rank_part(q, d, task, mine, run);
   if (q.kind == QuantityKind::masking) return masking_rank_part(spec, d, task, mine, run, surfaces);
-  if (d.model.model == Model::heightfield) return heightfield_rank_part(spec, d, task, mine, run, surfaces);
   if (q.kind == QuantityKind::albedo)
-    return albedo_part(mine, walk_albedo_cells(albedo_request(spec, q, Model::smith_walk, task.units, d.order_cap, 0, task.seed, run), mine));
+    return albedo_part(mine, albedo_cells_of(d, surfaces)(sampled_albedo_request(spec, d, task.units, task.seed, run), mine));
+  if (d.model.model == Model::heightfield) return heightfield_rank_part(spec, d, task, mine, run, surfaces);
   if (q.kind == QuantityKind::vndf) {
     VndfRequest request = vndf_request(spec, d, task.units, task.seed, run);
     request.blocks = mine;

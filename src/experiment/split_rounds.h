@@ -18,7 +18,8 @@
 // blocks' checks reduced again from the first) and reports from them: validate_sampler's report, bit for bit
 // (validation_part.h). A validation cancelled on any rank is cancelled whole (it has no partial result).
 // A walk albedo table's round is split by cells (its "blocks" are the table's cells, row-major: each cell its
-// own walk from its own seed, scatter/albedo_table.h walk_albedo_cells): rank r computes its shard of the
+// own walk from its own seed, scatter/albedo_table.h walk_albedo_cells; on explicit surfaces each rank traces
+// the tiles of the plan from its own SurfaceCache, surface_albedo.h): rank r computes its shard of the
 // cells, the root joins them in rank order (albedo_table_from_cells): albedo_table's table, bit for bit; a
 // part cancelled part way cancels the round (an albedo round cut short is run again whole).
 // A heightfield masking round (successive block ranges of one run) is split the same way: every rank measures
@@ -50,7 +51,7 @@ namespace microsim::experiment {
 class HeightfieldMasking;  // masking_runs.h (which includes run.h, and run.h this header)
 
 // Whether a decision's rounds are split: a VNDF on the ellipsoid oracle, a scattering or an albedo table by
-// the Smith walk, a VNDF, a scattering or masking on an explicit heightfield.
+// the Smith walk, a VNDF, a scattering, masking or an albedo table on explicit heightfields.
 bool is_split(const ExperimentSpec& spec, const Decision& decision);
 // Whether the ranks share a decision's work: is_split's, and a drawn validation's.
 bool is_shared_by_ranks(const ExperimentSpec& spec, const Decision& decision);
@@ -99,10 +100,16 @@ ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measur
 std::optional<std::vector<SurfaceMasking>> split_masking_round(const RoundSplit& split, std::size_t measurement,
                                                                const HeightfieldMasking& h, std::uint64_t surface_seed,
                                                                const BlockRange& blocks, const RunControl& run);
-// albedo_table of a Smith-walk request, its cells split (`measurement` as above); partial when a part was
-// cancelled.
-AlbedoTable split_albedo_round(const RoundSplit& split, std::size_t measurement, const AlbedoTableRequest& request);
-// The cells of a walk albedo table's round: alphas x mus (its blocks, for the split and the shards).
+// The cells of a sampled albedo request: walk_albedo_cells (a walk), or its tiles' (surface_albedo.h).
+using AlbedoCellsOf = std::function<std::optional<AlbedoCells>(const AlbedoTableRequest& request, const BlockRange& cells)>;
+AlbedoTable split_albedo_round(const RoundSplit& split, std::size_t measurement, const AlbedoTableRequest& request,
+                               const AlbedoCellsOf& cells);
+// ^ the table of a sampled request (a walk's, or on tiles) from `cells`, its cells split (`measurement` as
+// above): albedo_table's, bit for bit; partial (no row) when a part was cancelled.
+// The cells of an albedo decision's requests: the walk's, or those on the tiles of its surface plan, from
+// `surfaces` (which must outlive the function).
+AlbedoCellsOf albedo_cells_of(const Decision& decision, SurfaceCache& surfaces);
+// The cells of a sampled albedo table's round: alphas x mus (its blocks, for the split and the shards).
 std::uint64_t albedo_round_cells(const ExperimentSpec& spec, const Decision& decision);
 // validate_sampler over the ranks (split.ranks; alone without them). Throws Cancelled when any rank's part
 // was cancelled (after every rank has answered), InsufficientData as validate_sampler.

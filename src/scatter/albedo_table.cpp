@@ -245,12 +245,31 @@ std::optional<RowCells> sampled_row(const AlbedoTableRequest& r, std::size_t row
   return cells;
 }
 
-// The quantities of walk cell (row, j), or nullopt when cancelled.
-std::optional<std::vector<Estimate>> walk_cell(const AlbedoTableRequest& r, std::size_t row, std::size_t j, const MuGrid& grid) {
-  const SmithMicrosurface surface{r.ndf, r.alphas[row], r.alphas[row], HeightDistribution::uniform};
-  const ScatterHistogram h = smith_walk_scatter(surface, cell_options(r, row, j, grid));
+// The quantities of sampled cell (row, j) from `paths` (row, options), or nullopt when cancelled.
+template <class RowPaths>
+std::optional<std::vector<Estimate>> sampled_cell_of(const AlbedoTableRequest& r, std::size_t row, std::size_t j,
+                                                     const MuGrid& grid, const RowPaths& paths) {
+  const ScatterHistogram h = paths(row, cell_options(r, row, j, grid));
   if (h.partial) return std::nullopt;
   return sampled_cell(r, h);
+}
+
+// The cells [cells.begin, cells.end) of a sampled table, each from `paths`; nullopt when cancelled.
+template <class RowPaths>
+std::optional<AlbedoCells> sampled_cells(const AlbedoTableRequest& r, const BlockRange& cells, std::string_view who,
+                                         const RowPaths& paths) {
+  const MuGrid grid = gauss_legendre_mus(r.mus);
+  const std::uint64_t n = grid.mus.size();
+  if (cells.begin > cells.end || cells.end > r.alphas.size() * n)
+    throw std::invalid_argument(fmt::format("{}: cells {} of a table of {}", who, cells.to_string(), r.alphas.size() * n));
+  AlbedoCells out;
+  for (std::uint64_t c = cells.begin; c < cells.end; ++c) {
+    if (r.run.cancelled()) return std::nullopt;
+    std::optional<std::vector<Estimate>> cell = sampled_cell_of(r, std::size_t(c / n), std::size_t(c % n), grid, paths);
+    if (!cell) return std::nullopt;
+    out.push_back(std::move(*cell));
+  }
+  return out;
 }
 
 std::optional<RowCells> walk_row(const AlbedoTableRequest& r, std::size_t row, const MuGrid& grid) {
@@ -292,18 +311,18 @@ AlbedoTable empty_table(const AlbedoTableRequest& r, const MuGrid& grid) {
 std::optional<AlbedoCells> walk_albedo_cells(const AlbedoTableRequest& r, const BlockRange& cells) {
   check_albedo_request(r);
   if (r.model != AlbedoModel::smith_walk) throw std::invalid_argument("walk_albedo_cells: a Smith-walk table only");
-  const MuGrid grid = gauss_legendre_mus(r.mus);
-  const std::uint64_t n = grid.mus.size();
-  if (cells.begin > cells.end || cells.end > r.alphas.size() * n)
-    throw std::invalid_argument(fmt::format("walk_albedo_cells: cells {} of a table of {}", cells.to_string(), r.alphas.size() * n));
-  AlbedoCells out;
-  for (std::uint64_t c = cells.begin; c < cells.end; ++c) {
-    if (r.run.cancelled()) return std::nullopt;
-    std::optional<std::vector<Estimate>> cell = walk_cell(r, std::size_t(c / n), std::size_t(c % n), grid);
-    if (!cell) return std::nullopt;
-    out.push_back(std::move(*cell));
-  }
-  return out;
+  return sampled_cells(r, cells, "walk_albedo_cells", [&r](std::size_t row, const ScatterOptions& o) {
+    return smith_walk_scatter(SmithMicrosurface{r.ndf, r.alphas[row], r.alphas[row], HeightDistribution::uniform}, o);
+  });
+}
+
+std::optional<AlbedoCells> surface_albedo_cells(const AlbedoTableRequest& r, const BlockRange& cells,
+                                                const AlbedoSurfacePaths& paths) {
+  if (r.model != AlbedoModel::surface) throw std::invalid_argument("surface_albedo_cells: a surface table only");
+  AlbedoTableRequest checked = r;  // the surfaces are the caller's: its build parameters are not checked here
+  checked.model = AlbedoModel::smith_walk;
+  check_albedo_request(checked);
+  return sampled_cells(r, cells, "surface_albedo_cells", paths);
 }
 
 AlbedoTable albedo_table_from_cells(const AlbedoTableRequest& r, const AlbedoCells& cells, double seconds) {

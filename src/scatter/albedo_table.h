@@ -166,6 +166,14 @@ using AlbedoCells = std::vector<std::vector<Estimate>>;  // per cell: its quanti
 // The cells [cells.begin, cells.end) of a Smith-walk table; nullopt when cancelled. Throws
 // std::invalid_argument for another model, a bad request (check_albedo_request) or cells beyond the table.
 std::optional<AlbedoCells> walk_albedo_cells(const AlbedoTableRequest& request, const BlockRange& cells);
+// The paths of one cell of a surface table: row `row`'s surface (alpha row; its caller builds or reads it)
+// traced with `options` (the cell's view, seed and paths: scatter_on_surface on that surface's scene).
+using AlbedoSurfacePaths = std::function<ScatterHistogram(std::size_t row, const ScatterOptions& options)>;
+// The cells [cells.begin, cells.end) of a surface table whose rows' surfaces `paths` traces (each cell from
+// its own seed, as a walk's: any split gives the same cells). The request's resolution and seed are not used
+// (the surfaces are the caller's). nullopt when cancelled; throws as walk_albedo_cells for another model.
+std::optional<AlbedoCells> surface_albedo_cells(const AlbedoTableRequest& request, const BlockRange& cells,
+                                                const AlbedoSurfacePaths& paths);
 // The table of every cell (alphas x mus of them, in order), as albedo_table computes it from them; `seconds`
 // the time they took (row_seconds: its share per row). Throws std::invalid_argument for a wrong count.
 AlbedoTable albedo_table_from_cells(const AlbedoTableRequest& request, const AlbedoCells& cells, double seconds);
