@@ -286,18 +286,19 @@ void run_scattering(const ExperimentSpec& spec, std::uint64_t seed, std::size_t 
 // ---- an explicit heightfield (vndf, scattering) --------------------------------------------------------------
 
 // One round (or the rest of one) of rays traced on the tile, added to the sum, the sum analysed and recorded.
-bool heightfield_vndf_round(const ExperimentSpec& spec, const microgeom::Heightfield& field, const RoundStart& start,
-                            std::size_t index, const RunOptions& o, MeasurementResult& m) {
+bool heightfield_vndf_round(const ExperimentSpec& spec, const HeightfieldScene& scene, const microgeom::Heightfield& field,
+                            const RoundStart& start, std::size_t index, const RunOptions& o, MeasurementResult& m) {
   VndfRequest req = vndf_request(spec, m.decision, start.rays, start.seed, o.run);
   if (start.first_block > 0) req.blocks = BlockRange{start.first_block, (start.rays + kRaysPerBlock - 1) / kRaysPerBlock};
   const auto clock = std::chrono::steady_clock::now();
-  const HeightfieldVndf round = split_heightfield_vndf_round({o.ranks, o.stored}, index, field, surface_label(m.decision.surface), req);
+  const HeightfieldVndf round =
+      split_heightfield_vndf_round({o.ranks, o.stored}, index, scene, field, surface_label(m.decision.surface), req);
   m.partial = round.trace.partial;
   if (round.histogram.rays == 0) return false;
   const bool fresh = m.histogram.binnings.empty();
   if (!fresh) add_heightfield_diagnostics(m.histogram, round.histogram);  // the analysis reads them there
   add_counts(m.histogram, m.unbinned, round.histogram, round.trace.unbinned);
-  const HeightfieldVndf analysed = fresh && !round.trace.partial ? round : analyse_heightfield_vndf(m.histogram, m.unbinned, field);
+  const HeightfieldVndf analysed = analyse_heightfield_vndf(m.histogram, m.unbinned, field);  // the sum so far
   m.achieved = heightfield_noise_floor(analysed);
   m.units += round.histogram.rays;
   m.rays += round.histogram.rays;
@@ -320,10 +321,10 @@ void run_heightfield(const ExperimentSpec& spec, std::uint64_t seed, std::size_t
     m.partial = true;
     return;
   }
+  const HeightfieldScene& scene = cache.scene_for(*field);  // kept by the cache for the rounds (and the next decision)
   if (spec.quantities[m.decision.quantity].kind == QuantityKind::vndf)
     return run_rounds(m, seed, index, o, kMaxRays,
-                      [&](const RoundStart& start) { return heightfield_vndf_round(spec, *field, start, index, o, m); });
-  const HeightfieldScene scene(*field);
+                      [&](const RoundStart& start) { return heightfield_vndf_round(spec, scene, *field, start, index, o, m); });
   const ScatterPaths walk = [&](const ScatterOptions& options) {
     return split_scatter_round({o.ranks, o.stored}, index,
                                [&scene](const ScatterOptions& part) { return scatter_on_surface(scene, part); }, options);

@@ -226,12 +226,12 @@ EllipsoidVndf combine_vndf_parts(EllipsoidVndf own, const std::vector<std::strin
 }
 
 HeightfieldVndf combine_heightfield_parts(HeightfieldVndf own, const std::vector<std::string>& parts,
-                                          const BlockRange& round, int first, double seconds,
-                                          const microgeom::Heightfield& field) {
+                                          const BlockRange& round, int first, double seconds) {
   VndfSums sums = combine_vndf_sums({std::move(own.trace), own.diagnostics}, parts, round, first, seconds);
-  HeightfieldVndf combined =
-      analyse_heightfield_vndf(combined_histogram(std::move(own.histogram), sums), sums.trace.unbinned, field);
+  HeightfieldVndf combined;
+  combined.histogram = combined_histogram(std::move(own.histogram), sums);
   combined.trace = std::move(sums.trace);
+  combined.diagnostics = sums.diagnostics;
   return combined;
 }
 
@@ -564,18 +564,18 @@ EllipsoidVndf split_vndf_round(const RoundSplit& split, std::size_t measurement,
 }
 
 HeightfieldVndf split_heightfield_vndf_round(const RoundSplit& split, std::size_t measurement,
-                                             const microgeom::Heightfield& field, const std::string& label,
-                                             const VndfRequest& request) {
+                                             const HeightfieldScene& scene, const microgeom::Heightfield& field,
+                                             const std::string& label, const VndfRequest& request) {
   const auto start = std::chrono::steady_clock::now();
   const BlockRange round = round_blocks(request.blocks, request.rays, kRaysPerBlock);
   return split_round<HeightfieldVndf>(
       split, {measurement, request.rays, request.seed, round},
       [&](const std::optional<BlockRange>& blocks) {
-        return measure_heightfield_vndf(field, label, with_blocks(request, blocks));
+        return trace_heightfield_vndf(scene, field, label, with_blocks(request, blocks));
       },
       [](const HeightfieldVndf& own) { return vndf_part({own.trace, own.diagnostics}); },
       [&](HeightfieldVndf own, const std::vector<std::string>& parts, int first) {
-        return combine_heightfield_parts(std::move(own), parts, round, first, seconds_since(start), field);
+        return combine_heightfield_parts(std::move(own), parts, round, first, seconds_since(start));
       });
 }
 
@@ -719,7 +719,7 @@ std::string heightfield_rank_part(const ExperimentSpec& spec, const Decision& d,
   if (q.kind == QuantityKind::vndf) {
     VndfRequest request = vndf_request(spec, d, task.units, task.seed, run);
     request.blocks = mine;
-    const HeightfieldVndf m = measure_heightfield_vndf(*field, surface_label(d.surface), request);
+    const HeightfieldVndf m = trace_heightfield_vndf(surfaces.scene_for(*field), *field, surface_label(d.surface), request);
     return vndf_part({m.trace, m.diagnostics});
   }
   ScatterOptions options = scatter_request(spec.material(q.material), d, task.units, task.seed, run);

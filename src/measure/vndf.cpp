@@ -213,28 +213,34 @@ HeightfieldVndf analyse_heightfield_vndf(TracedHistogram histogram, const std::v
   return m;
 }
 
-HeightfieldVndf measure_heightfield_vndf(const microgeom::Heightfield& field, const std::string& surface,
-                                         const VndfRequest& req) {
+HeightfieldVndf trace_heightfield_vndf(const HeightfieldScene& scene, const microgeom::Heightfield& field,
+                                       const std::string& surface, const VndfRequest& req) {
   const AnalyticSmith analytic = analytic_reference(field);
-  const HeightfieldScene scene(field);
   const Vec3<double> wi = direction_from_degrees(req.theta_deg, req.phi_deg);
   std::vector<DirectionBinning> binnings =
       vndf_binnings(GGX<double>(analytic.alpha_x(), analytic.alpha_y()), wi, req.rows);
-  HeightfieldVndfDiagnostics diagnostics;
-  const TraceResult r = trace_vndf_heightfield(scene, wi, binnings, trace_options(req), &diagnostics);
-  TracedHistogram h = traced_histogram(std::move(binnings), r, req, wi);
+  HeightfieldVndf m;
+  m.trace = trace_vndf_heightfield(scene, wi, binnings, trace_options(req), &m.diagnostics);
+  TracedHistogram& h = m.histogram = traced_histogram(std::move(binnings), m.trace, req, wi);
   h.attributes["surface"] = surface;
   h.attributes["target"] = fmt::format("heightfield {} x {} tile {}", field.resolution(), field.resolution(), g17(field.tile_size()));
   h.attributes["mesh_level"] = "-1";
   h.attributes["alpha"] = g17(analytic.alpha_x()) + "," + g17(analytic.alpha_y());
   h.attributes["reference_ndf"] = to_string(analytic.ndf());
-  h.attributes["backfacing"] = std::to_string(diagnostics.backfacing);
-  h.attributes["edge_grazes"] = std::to_string(diagnostics.edge_grazes);
-  h.attributes["leaked"] = std::to_string(diagnostics.leaked);
-  h.attributes["unresolved"] = std::to_string(diagnostics.unresolved);
-  HeightfieldVndf m = analyse_heightfield_vndf(std::move(h), r.unbinned, field);
-  m.trace = r;
-  m.diagnostics = diagnostics;
+  h.attributes["backfacing"] = std::to_string(m.diagnostics.backfacing);
+  h.attributes["edge_grazes"] = std::to_string(m.diagnostics.edge_grazes);
+  h.attributes["leaked"] = std::to_string(m.diagnostics.leaked);
+  h.attributes["unresolved"] = std::to_string(m.diagnostics.unresolved);
+  return m;
+}
+
+HeightfieldVndf measure_heightfield_vndf(const microgeom::Heightfield& field, const std::string& surface,
+                                         const VndfRequest& req) {
+  const HeightfieldScene scene(field);
+  HeightfieldVndf traced = trace_heightfield_vndf(scene, field, surface, req);
+  HeightfieldVndf m = analyse_heightfield_vndf(std::move(traced.histogram), traced.trace.unbinned, field);
+  m.trace = std::move(traced.trace);
+  m.diagnostics = traced.diagnostics;
   return m;
 }
 

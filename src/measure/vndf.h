@@ -52,6 +52,12 @@ struct HeightfieldVndf {
 // `surface` names the heightmap in the attributes (its path).
 HeightfieldVndf measure_heightfield_vndf(const microgeom::Heightfield& field, const std::string& surface,
                                          const VndfRequest& request);
+// The rays alone on `scene` (the Embree scene of `field`, which the caller keeps between calls): the counts,
+// the run's attributes and the tracer's diagnostics, no comparison (`comparisons` empty; the histogram's
+// probabilities unset). analyse_heightfield_vndf of it is measure_heightfield_vndf's result, but for `trace`
+// (its timing). For rounds whose sum is analysed once: a rank's part, a round added to the earlier ones.
+HeightfieldVndf trace_heightfield_vndf(const HeightfieldScene& scene, const microgeom::Heightfield& field,
+                                       const std::string& surface, const VndfRequest& request);
 
 // The view of a trace vndf histogram, exactly as the run computed it (from its attributes theta, phi).
 Vec3<double> vndf_view(const TracedHistogram& histogram);
