@@ -365,14 +365,15 @@ void plan_validation_view(const ExperimentSpec& spec, const SpecQuantity& q, con
 
 // The VNDF traced on the tile: a pilot of pilot_rays rays gives the noise floor (~ 1/sqrt(n)) and the rate.
 void plan_heightfield_vndf(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o,
-                           const microgeom::Heightfield& field, Decision& d) {
+                           const microgeom::Heightfield& field, SurfaceCache& cache, Decision& d) {
   const auto start = std::chrono::steady_clock::now();
-  const HeightfieldVndf m = measure_heightfield_vndf(
-      field, surface_label(d.surface),
+  HeightfieldVndf traced = trace_heightfield_vndf(
+      cache.scene_for(field), field, surface_label(d.surface),  // the scene kept: the run's rounds may use it
       vndf_request(spec, d, o.pilot_rays, derived_seed(plan_seed(spec, o), kVndfPilot, d.quantity), o.run));
-  if (m.trace.partial) throw Cancelled("plan: vndf pilot");
+  if (traced.trace.partial) throw Cancelled("plan: vndf pilot");
+  const HeightfieldVndf m = analyse_heightfield_vndf(std::move(traced.histogram), traced.trace.unbinned, field);
   d.pilot_seconds = seconds_since(start);
-  count_vndf_rays(q, o, heightfield_noise_floor(m), m.trace.seconds, " on the tile", d);
+  count_vndf_rays(q, o, heightfield_noise_floor(m), traced.trace.seconds, " on the tile", d);
 }
 
 // The tile of a heightfield decision (the trade table's size, or the user's), built (or read) through the
@@ -395,10 +396,10 @@ void plan_heightfield_view(const ExperimentSpec& spec, const SpecQuantity& q, co
   const microgeom::Heightfield& field = decision_surface(d, cache, o.run);
   const double surface_seconds = seconds_since(start);
   if (q.kind == QuantityKind::vndf) {
-    plan_heightfield_vndf(spec, q, o, field, d);
+    plan_heightfield_vndf(spec, q, o, field, cache, d);
   } else {
     const auto scene_start = std::chrono::steady_clock::now();
-    const HeightfieldScene scene(field);
+    const HeightfieldScene& scene = cache.scene_for(field);  // kept: the run's rounds on this tile use it
     const double scene_seconds = seconds_since(scene_start);
     plan_walk_scattering(spec, q, o, d, [&scene](const ScatterOptions& r) { return scatter_on_surface(scene, r); });
     d.predicted_seconds += scene_seconds;  // the run builds the tile's Embree scene once per measurement

@@ -286,7 +286,7 @@ void run_scattering(const ExperimentSpec& spec, std::uint64_t seed, std::size_t 
 // ---- an explicit heightfield (vndf, scattering) --------------------------------------------------------------
 
 // One round (or the rest of one) of rays traced on the tile, added to the sum, the sum analysed and recorded.
-bool heightfield_vndf_round(const ExperimentSpec& spec, const HeightfieldScene& scene, const microgeom::Heightfield& field,
+bool heightfield_vndf_round(const ExperimentSpec& spec, const SceneOf& scene, const microgeom::Heightfield& field,
                             const RoundStart& start, std::size_t index, const RunOptions& o, MeasurementResult& m) {
   VndfRequest req = vndf_request(spec, m.decision, start.rays, start.seed, o.run);
   if (start.first_block > 0) req.blocks = BlockRange{start.first_block, (start.rays + kRaysPerBlock - 1) / kRaysPerBlock};
@@ -321,13 +321,15 @@ void run_heightfield(const ExperimentSpec& spec, std::uint64_t seed, std::size_t
     m.partial = true;
     return;
   }
-  const HeightfieldScene& scene = cache.scene_for(*field);  // kept by the cache for the rounds (and the next decision)
+  // The scene, kept by the cache between rounds (and for the next decision on the tile), is built when the
+  // root's own part begins: after the round was sent, while the other ranks build theirs.
+  const SceneOf scene = [&cache, field]() -> const HeightfieldScene& { return cache.scene_for(*field); };
   if (spec.quantities[m.decision.quantity].kind == QuantityKind::vndf)
     return run_rounds(m, seed, index, o, kMaxRays,
                       [&](const RoundStart& start) { return heightfield_vndf_round(spec, scene, *field, start, index, o, m); });
   const ScatterPaths walk = [&](const ScatterOptions& options) {
     return split_scatter_round({o.ranks, o.stored}, index,
-                               [&scene](const ScatterOptions& part) { return scatter_on_surface(scene, part); }, options);
+                               [&scene](const ScatterOptions& part) { return scatter_on_surface(scene(), part); }, options);
   };
   run_rounds(m, seed, index, o, std::numeric_limits<std::uint64_t>::max(),
              [&](const RoundStart& start) { return scatter_round(spec, start, o, walk, m); });

@@ -563,15 +563,15 @@ EllipsoidVndf split_vndf_round(const RoundSplit& split, std::size_t measurement,
       });
 }
 
-HeightfieldVndf split_heightfield_vndf_round(const RoundSplit& split, std::size_t measurement,
-                                             const HeightfieldScene& scene, const microgeom::Heightfield& field,
-                                             const std::string& label, const VndfRequest& request) {
+HeightfieldVndf split_heightfield_vndf_round(const RoundSplit& split, std::size_t measurement, const SceneOf& scene,
+                                             const microgeom::Heightfield& field, const std::string& label,
+                                             const VndfRequest& request) {
   const auto start = std::chrono::steady_clock::now();
   const BlockRange round = round_blocks(request.blocks, request.rays, kRaysPerBlock);
   return split_round<HeightfieldVndf>(
       split, {measurement, request.rays, request.seed, round},
       [&](const std::optional<BlockRange>& blocks) {
-        return trace_heightfield_vndf(scene, field, label, with_blocks(request, blocks));
+        return trace_heightfield_vndf(scene(), field, label, with_blocks(request, blocks));
       },
       [](const HeightfieldVndf& own) { return vndf_part({own.trace, own.diagnostics}); },
       [&](HeightfieldVndf own, const std::vector<std::string>& parts, int first) {

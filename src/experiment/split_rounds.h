@@ -84,15 +84,18 @@ struct RoundSplit {
   const StoredRounds* stored = nullptr;
 };
 
-// The root's side: measure_ellipsoid_vndf, trace_heightfield_vndf on `scene` (`field`'s; `label` names the
+// The root's side: measure_ellipsoid_vndf, trace_heightfield_vndf on `scene()` (`field`'s; `label` names the
 // tile: surface_label; the round's counts and diagnostics, not analysed: the caller analyses its sum) and
 // the paths of a scattering round (the Smith walk, or paths on a tile: run_part runs the same on the other
 // ranks), split. `measurement` is the decision's index in the plan the other ranks received (send_plan).
 EllipsoidVndf split_vndf_round(const RoundSplit& split, std::size_t measurement, const EllipsoidTarget& target,
                                const VndfRequest& request);
-HeightfieldVndf split_heightfield_vndf_round(const RoundSplit& split, std::size_t measurement,
-                                             const HeightfieldScene& scene, const microgeom::Heightfield& field,
-                                             const std::string& label, const VndfRequest& request);
+// `scene` gives `field`'s scene (SurfaceCache::scene_for); the root asks for it after sending the round, so
+// that the ranks build theirs at the same time.
+using SceneOf = std::function<const HeightfieldScene&()>;
+HeightfieldVndf split_heightfield_vndf_round(const RoundSplit& split, std::size_t measurement, const SceneOf& scene,
+                                             const microgeom::Heightfield& field, const std::string& label,
+                                             const VndfRequest& request);
 ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measurement, const ScatterPaths& paths,
                                      const ScatterOptions& options);
 // A heightfield masking round (blocks `blocks` of h's run, every light), split: each rank measures its shard
