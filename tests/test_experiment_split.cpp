@@ -593,7 +593,7 @@ light_theta = [30, 70]
 light_phi = [180]
 bins = 4
 resolution = 128
-target_standard_error = 0.0065
+target_standard_error = 0.0068
 )", "masking_split.toml");
 }
 

@@ -3,6 +3,8 @@
 
 #include <fmt/core.h>
 
+#include <algorithm>
+
 namespace microsim::experiment {
 
 microgeom::AssemblyParams masking_assembly_params(const SpecQuantity& q, const SpecMaterial& m,
@@ -14,16 +16,26 @@ microgeom::AssemblyParams masking_assembly_params(const SpecQuantity& q, const S
   p.alpha_y = alpha.second;
   p.resolution = q.resolution;
   p.seed = seed;
-  p.corr_cells = microgeom::default_corr_cells(q.resolution);
+  p.corr_cells = masking_corr_cells(p.assembly, q.resolution);
   return p;
+}
+
+double masking_corr_cells(const std::string& assembly, int resolution) {
+  const microgeom::AssemblyInfo* info = microgeom::find_assembly(assembly);
+  if (info == nullptr || info->reference != microgeom::ReferenceNdf::ggx) return microgeom::default_corr_cells(resolution);
+  return std::clamp(double(resolution) / kMaskingMinTiles, kMaskingMinCorrCells, kMaskingMaxCorrCells);
 }
 
 std::string masking_surface_text(const SpecQuantity& q, const SpecMaterial& m, std::pair<double, double> alpha,
                                  std::uint64_t seed) {
   if (q.surface.kind == SurfaceChoice::Kind::heightmap) return "heightmap " + q.surface.name;
   const microgeom::AssemblyParams p = masking_assembly_params(q, m, alpha, seed);
-  return fmt::format("assembly {} {}^2, correlation length {} cells, alpha ({}, {}), seed {}", p.assembly,
-                     p.resolution, p.corr_cells, p.alpha_x, p.alpha_y, p.seed);
+  const double tiles = p.resolution / p.corr_cells;
+  return fmt::format("assembly {} {}^2, correlation length {} cells ({} l per tile{}), alpha ({}, {}), seed {}",
+                     p.assembly, p.resolution, p.corr_cells, tiles,
+                     tiles < kMaskingMinTiles ? fmt::format(": narrower than {} l, its masking biased beyond the "
+                                                            "spread of realisations", kMaskingMinTiles) : "",
+                     p.alpha_x, p.alpha_y, p.seed);
 }
 
 SurfaceKey masking_surface_key(const SpecQuantity& q, const SpecMaterial& m, std::pair<double, double> alpha,

@@ -61,8 +61,9 @@ ModelChoice masking_choice(const SpecQuantity& q, const SpecMaterial& m) {
     return {Model::heightfield,
             fmt::format("conditional masking (G1 given <v, m> or height) is not in the Smith model, which assumes "
                         "masking independent of both: it needs an explicit surface; none is named, so the {} "
-                        "assembly (built to {}) is built per alpha at {}^2 with the default correlation length, "
-                        "and traced in rounds to the target standard error",
+                        "assembly (built to {}) is built per alpha at {}^2 with a correlation length of N/64 cells "
+                        "(4 to 16: 64 correlation lengths per tile, masking_surface.h), and traced in rounds to the "
+                        "target standard error",
                         m.ndf == WalkNdf::ggx ? "smith" : "beckmann", ndf, q.resolution)};
   return {Model::analytic,
           fmt::format("G1 and G2 of the Smith model have closed forms: G1 = 1 / (1 + Lambda(v)) (Heitz 2014, eq. 43), "
