@@ -7,13 +7,19 @@
 //   - the rule's claim, measured: the smith tile's E1, traced with many paths, is within the bias the rule
 //     allows (kBiasShare x target x E_min) plus 3 standard errors of Smith's analytic E1 (Walter et al. 2007
 //     with Smith masking, by quadrature), at every cell; negative control: the analytic E1 of another alpha
-//     (1.0) is outside it.
+//     (1.0) is outside it;
+//   - a validation against the tile's traced visible normals (two-sample chi-square): a correct VNDF sampler
+//     and a dump of it pass at the planned count, a dump of another alpha's VNDF is rejected, samplers and dumps
+//     that do not claim the visible normals are not runnable.
 #include "experiment/heightfield_measures.h"
 #include "experiment/plan.h"
 #include "experiment/run.h"
 #include "experiment/surface_albedo.h"
 #include "experiment/surface_cache.h"
 #include "scatter/albedo_table.h"
+#include "core/random.h"
+#include "microfacet/samplers.h"
+#include "validate/sample_io.h"
 #include "microgeom/exr_io.h"
 #include "scratch_dir.h"
 
@@ -21,6 +27,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <utility>
+#include <vector>
 #include <iostream>
 #include <string>
 
@@ -132,3 +141,91 @@ TEST(ExperimentSurfaceAlbedo, ATightTargetOrAHeightmapIsNotRunnableAndBuildsNoth
 }
 
 }  // namespace surface_albedo_test
+
+// ---- a validation against a tile's traced visible normals ------------------------------------------------------
+
+namespace surface_validation_test {
+
+using namespace microsim;
+using namespace microsim::experiment;
+
+// heitz2018 (or a dump, pdf `pdf`) at alpha 0.5, theta 40, against smith's tile, detecting TV 0.2.
+ExperimentSpec tile_validation_spec(const std::string& what, const std::string& pdf = "vndf") {
+  const std::string source = what.ends_with(".npy") ? fmt::format("dump = \"{}\"\npdf = \"{}\"", what, pdf)
+                                                    : fmt::format("sampler = \"{}\"", what);
+  return parse_spec_toml(fmt::format(R"(
+seed = 8
+[[material]]
+name = "m"
+alpha = 0.5
+type = "mirror"
+[[quantity]]
+kind = "validation"
+material = "m"
+surface = "smith"
+{}
+theta = [40]
+rows = 7
+detect_tv = 0.2
+)", source), "tile_validation.toml");
+}
+
+// `n` samples of heitz2018 at `alpha` for the view of tile_validation_spec, as an NPY dump.
+std::string heitz_dump(const std::filesystem::path& path, double alpha, std::uint64_t n) {
+  const GGX<double> ggx(alpha, alpha);
+  const Vec3<double> wi = direction_from_degrees(40.0, 0.0);
+  CounterRng rng(5, 0);
+  std::vector<Vec3<double>> normals;
+  for (std::uint64_t i = 0; i < n; ++i) normals.push_back(sample_heitz2018(ggx, wi, Vec2<double>(rng.uniform(), rng.uniform()))->direction);
+  write_npy(path, normals, /*as_float32=*/false);
+  return path.string();
+}
+
+const MeasurementResult& run_one(const ExperimentSpec& spec, const ExperimentPlan& plan, SurfaceCache& cache,
+                                 ExperimentResults& out) {
+  RunOptions o;
+  o.run.threads = 2;
+  o.surfaces = &cache;
+  out = run_experiment(spec, plan, o);
+  return out.measurements.at(0);
+}
+
+// A correct VNDF sampler passes at the planned count, on the tile the size rule picks for TV 0.2 (bias <= 0.05);
+// a dump of the alpha 1.0 VNDF declared as alpha 0.5's is rejected (negative control), a dump of alpha 0.5's
+// passes; a sampler or a dump that does not claim the visible normals is not runnable and says why.
+TEST(ExperimentSurfaceValidation, ATracedTileValidatesVndfSamplersAndDumps) {
+  SurfaceCache cache;
+  const ExperimentSpec spec = tile_validation_spec("heitz2018");
+  const ExperimentPlan plan = surface_albedo_test::plan_on(spec, cache);
+  const Decision& d = plan.decisions.at(0);
+  ASSERT_TRUE(d.runnable) << d.not_runnable;
+  EXPECT_EQ(d.model.model, Model::heightfield);
+  EXPECT_LE(d.surface.bias, kBiasShare * 0.2);
+  EXPECT_NE(d.count_reason.find("two-sample"), std::string::npos) << d.count_reason;
+  ExperimentResults r;
+  const MeasurementResult& m = run_one(spec, plan, cache, r);
+  EXPECT_TRUE(m.met);
+  const nlohmann::json& v = m.values.at("validation");
+  EXPECT_EQ(v.at("verdict"), "pass") << v.dump().substr(0, 600);
+  EXPECT_NE(v.at("reference").get<std::string>().find("rays traced on assembly smith"), std::string::npos);
+  EXPECT_EQ(cache.builds(), 1u) << "the plan's tile";
+
+  const auto dir = microsim::test::scratch_dir("experiment_surface_validation", "dumps");
+  const std::uint64_t n = d.units;
+  for (const auto& [alpha, verdict] : {std::pair{0.5, "pass"}, std::pair{1.0, "fail"}}) {
+    const ExperimentSpec dump = tile_validation_spec(heitz_dump(dir / fmt::format("heitz{}.npy", alpha), alpha, n));
+    const ExperimentPlan dump_plan = surface_albedo_test::plan_on(dump, cache);
+    ASSERT_TRUE(dump_plan.decisions.at(0).runnable) << dump_plan.decisions[0].not_runnable;
+    ExperimentResults dr;
+    EXPECT_EQ(run_one(dump, dump_plan, cache, dr).values.at("validation").at("verdict"), verdict) << "alpha " << alpha;
+  }
+  const ExperimentPlan ndf = surface_albedo_test::plan_on(tile_validation_spec("ndf"), cache);
+  EXPECT_FALSE(ndf.decisions.at(0).runnable);
+  EXPECT_NE(ndf.decisions[0].not_runnable.find("does not claim the visible normals"), std::string::npos);
+  const ExperimentPlan other_pdf =
+      surface_albedo_test::plan_on(tile_validation_spec(heitz_dump(dir / "n.npy", 0.5, 10), "ndf"), cache);
+  EXPECT_FALSE(other_pdf.decisions.at(0).runnable);
+  EXPECT_NE(other_pdf.decisions[0].not_runnable.find("pdf vndf only"), std::string::npos);
+}
+
+}  // namespace surface_validation_test

@@ -54,8 +54,9 @@ SurfaceDecision plan_assembly_tile(const std::string& assembly, SizeRequest size
 namespace {
 
 SurfaceDecision plan_assembly_surface(const SpecQuantity& q, const Decision& d, std::uint64_t seed) {
-  // Every quantity but the VNDF (per-order scattering; masking) sees the tile's heights: a wide tile.
-  const SizeRequest size{q.target, anisotropy_of(d.alpha), d.view.theta_deg, q.kind != QuantityKind::vndf};
+  // Every quantity but the visible normals (a VNDF, a validation against them) sees the tile's heights: a wide tile.
+  const bool normals = q.kind == QuantityKind::vndf || q.kind == QuantityKind::validation;
+  const SizeRequest size{q.target, anisotropy_of(d.alpha), d.view.theta_deg, !normals};
   return plan_assembly_tile(q.surface.name, size, d.alpha, seed);
 }
 

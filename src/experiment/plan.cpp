@@ -8,6 +8,7 @@
 #include "experiment/surface_albedo.h"
 #include "experiment/surface_cache.h"
 
+#include "validate/compare.h"
 #include "validate/sample_io.h"
 #include "validate/validation_part.h"
 #include "scatter/smith_walk.h"
@@ -376,13 +377,58 @@ void plan_heightfield_vndf(const ExperimentSpec& spec, const SpecQuantity& q, co
   count_vndf_rays(q, o, heightfield_noise_floor(m), traced.trace.seconds, " on the tile", d);
 }
 
+// Why a validation cannot be made against a tile's traced visible normals ("" when it can): the reference is
+// D_v of the tile, so the samples must claim D_v (a zoo sampler of visible normals; a dump with pdf vndf).
+std::string surface_validation_refusal(const SpecQuantity& q) {
+  if (!q.dump.empty())
+    return q.dump_pdf == "vndf" ? "" : fmt::format("a dump of pdf {} against a surface: the traced reference is the tile's "
+                                                   "visible normals (pdf vndf only)", q.dump_pdf);
+  const SamplerInfo& sampler = *find_sampler(q.sampler);  // the spec names a zoo sampler (spec.cpp)
+  if (sampler.domain == SampleDomain::microfacet_normal && sampler.claims == ClaimedPdf::visible_normals) return "";
+  return fmt::format("sampler {} does not claim the visible normals: the traced reference is the tile's visible "
+                     "normals", sampler.name);
+}
+
+// A validation against the tile's traced visible normals (validate/compare.h: the two-sample chi-square in
+// each binning of the traced histogram, Sidak-combined). A two-sample test of n samples against n rays has the
+// noncentrality of a one-sample test of n / 2: twice the analytic validator's samples, and as many rays (at
+// least twice the two-sample minimum of a pilot's proportions). The tile's bias is at most kBiasShare of the
+// deviation to detect (its size rule), so a correct sampler is rejected little more often than the level says.
+void plan_heightfield_validation(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o,
+                                 const microgeom::Heightfield& field, SurfaceCache& cache, Decision& d) {
+  const int df = 2 * q.rows * q.rows - 1;
+  const double per_test = 1 - std::sqrt(1 - q.significance);
+  const auto start = std::chrono::steady_clock::now();
+  const HeightfieldVndf pilot = trace_heightfield_vndf(
+      cache.scene_for(field), field, surface_label(d.surface),
+      vndf_request(spec, d, o.pilot_rays, derived_seed(plan_seed(spec, o), kVndfPilot, d.quantity), o.run));
+  if (pilot.trace.partial) throw Cancelled("plan: validation pilot on the tile");
+  const std::uint64_t minimum = 2 * trace_minimum_samples(pilot.histogram);
+  d.units = std::max(2 * validation_samples(q.target, df, per_test, q.power), minimum);
+  d.unit = "samples";
+  d.count_reason = fmt::format("two-sample chi-square against as many rays traced on the tile: power {} at level {:.3g} "
+                               "per binning (Sidak of {}), df {}, against any deviation of TV {}: twice the one-sample "
+                               "count (noncentrality >= 4 (n/2) TV^2), at least twice the two-sample minimum of the "
+                               "pilot's proportions ({})",
+                               q.power, per_test, q.significance, df, q.target, minimum);
+  if (!q.dump.empty()) {
+    check_dump_opens(q);
+    d.count_reason += "; the dump's samples are given: all are tested, against that many rays";
+  }
+  d.pilot_units = o.pilot_rays;
+  d.pilot_seconds = seconds_since(start);
+  d.pilot_error = 0;
+  // The tracing scales with the rays (the samples' draws are cheaper and not timed).
+  d.predicted_seconds = predicted_seconds(d.units, d.pilot_units, pilot.trace.seconds);
+}
+
 // The tile of a heightfield decision (the trade table's size, or the user's), built (or read) through the
 // cache, then its pilot: the VNDF's rays, or the order cap and paths of its per-order scattering.
 void plan_heightfield_view(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, SurfaceCache& cache,
                            Decision& d) {
-  if (q.kind != QuantityKind::vndf && q.kind != QuantityKind::scattering) {
-    d.not_runnable = "an explicit surface's " + to_string(q.kind) + ": a later session";
-    return;
+  if (q.kind == QuantityKind::validation) {
+    d.not_runnable = surface_validation_refusal(q);
+    if (!d.not_runnable.empty()) return;
   }
   const SurfaceDecision s = plan_surface(q, d, plan_seed(spec, o), cache);
   d.surface = s.plan;
@@ -397,6 +443,8 @@ void plan_heightfield_view(const ExperimentSpec& spec, const SpecQuantity& q, co
   const double surface_seconds = seconds_since(start);
   if (q.kind == QuantityKind::vndf) {
     plan_heightfield_vndf(spec, q, o, field, cache, d);
+  } else if (q.kind == QuantityKind::validation) {
+    plan_heightfield_validation(spec, q, o, field, cache, d);
   } else {
     const auto scene_start = std::chrono::steady_clock::now();
     const HeightfieldScene& scene = cache.scene_for(field);  // kept: the run's rounds on this tile use it

@@ -10,6 +10,7 @@
 #include "core/parse.h"
 #include "scatter/albedo_table_io.h"
 #include "scatter/surface_scatter.h"
+#include "validate/compare.h"
 #include "validate/validate.h"
 #include "validate/sample_io.h"
 #include "stats/scatter_compare.h"
@@ -309,6 +310,47 @@ bool heightfield_vndf_round(const ExperimentSpec& spec, const SceneOf& scene, co
   return true;
 }
 
+void record_validation(const ValidationReport& r, const SpecQuantity& q, std::uint64_t planned, double seconds,
+                       MeasurementResult& m);  // the validations' section, below
+
+// A validation against the tile's traced visible normals (plan.cpp plan_heightfield_validation): the planned
+// rays traced in one round on this process (the other ranks wait), then the zoo sampler's samples (drawn as
+// validate_sampler draws them, from the round seed) or the dump's against them (validate/compare.h). Cancelled:
+// nothing is kept, as an analytic validation.
+void run_heightfield_validation(const ExperimentSpec& spec, std::uint64_t seed, std::size_t index, const RunOptions& o,
+                                const SceneOf& scene, const microgeom::Heightfield& field, MeasurementResult& m) {
+  const Decision& d = m.decision;
+  const SpecQuantity& q = spec.quantities[d.quantity];
+  const std::uint64_t n = first_units(d, o);
+  m.rounds.clear();
+  m.partial = false;
+  const auto clock = std::chrono::steady_clock::now();
+  const HeightfieldVndf traced = split_heightfield_vndf_round(
+      {}, index, scene, field, surface_label(d.surface), vndf_request(spec, d, n, round_seed(seed, index, 1), o.run));
+  const GGX<double> ggx(d.alpha.first, d.alpha.second);
+  const Vec3<double> wi = direction_from_degrees(d.view.theta_deg, d.view.phi_deg);
+  const ValidationOptions v = validation_request(q, n, round_seed(seed, index, 0), o.run);
+  try {
+    if (traced.trace.partial) throw Cancelled("the validation's rays");
+    ValidationReport r;
+    if (q.dump.empty()) {
+      r = compare_sampler_to_trace(*find_sampler(q.sampler), ggx, wi, v, traced.histogram);
+    } else {
+      DirectionSampleReader reader{std::filesystem::path(q.dump)};
+      r = compare_sample_file_to_trace(reader, q.dump, ggx, wi, v, traced.histogram);
+    }
+    record_validation(r, q, n, seconds_since(clock), m);
+    m.values["validation"]["reference"] = fmt::format("{} rays traced on {}", traced.histogram.hits, surface_label(d.surface));
+  } catch (const Cancelled&) {
+    m.partial = true;
+  } catch (const SampleFileError& e) {
+    throw dump_error(q, e);
+  } catch (const InsufficientData& e) {
+    if (q.dump.empty()) throw;
+    throw dump_error(q, e);
+  }
+}
+
 // The tile (built once through the cache, or read back), then the rounds on it: rays for a VNDF, paths for
 // the per-order lobes, split over the ranks (every rank traces the same tile: split_rounds.h).
 void run_heightfield(const ExperimentSpec& spec, std::uint64_t seed, std::size_t index, const RunOptions& o,
@@ -324,6 +366,8 @@ void run_heightfield(const ExperimentSpec& spec, std::uint64_t seed, std::size_t
   // The scene, kept by the cache between rounds (and for the next decision on the tile), is built when the
   // root's own part begins: after the round was sent, while the other ranks build theirs.
   const SceneOf scene = [&cache, field]() -> const HeightfieldScene& { return cache.scene_for(*field); };
+  if (spec.quantities[m.decision.quantity].kind == QuantityKind::validation)
+    return run_heightfield_validation(spec, seed, index, o, scene, *field, m);
   if (spec.quantities[m.decision.quantity].kind == QuantityKind::vndf)
     return run_rounds(m, seed, index, o, kMaxRays,
                       [&](const RoundStart& start) { return heightfield_vndf_round(spec, scene, *field, start, index, o, m); });

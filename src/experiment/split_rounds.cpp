@@ -542,7 +542,8 @@ bool is_split(const ExperimentSpec& spec, const Decision& decision) {
 
 bool is_shared_by_ranks(const ExperimentSpec& spec, const Decision& decision) {
   const SpecQuantity& q = spec.quantities[decision.quantity];
-  return is_split(spec, decision) || (q.kind == QuantityKind::validation && q.dump.empty());
+  return is_split(spec, decision) ||
+         (q.kind == QuantityKind::validation && q.dump.empty() && decision.model.model != Model::heightfield);
 }
 
 BlockRange rank_blocks(const BlockRange& round, int rank, int ranks) {

@@ -25,8 +25,8 @@
 // A heightfield masking round (successive block ranges of one run) is split the same way: every rank measures
 // its shard of the blocks for every light on the same surface, the exact sums (MaskingSums) added in rank
 // order; a part cancelled part way drops the round (as in one process).
-// Analytic albedo tables, analytic lobes, analytic masking and dumps are not split: the root runs them while
-// the other ranks wait; a job array's shards (shards.h) split the first rounds of what is_shared_by_ranks names.
+// Analytic albedo tables, analytic lobes, analytic masking, dumps and validations against a tile's traced
+// visible normals are not split: the root runs them while the other ranks wait; a job array's shards (shards.h) split the first rounds of what is_shared_by_ranks names.
 #pragma once
 
 #include "experiment/measures.h"
@@ -53,7 +53,7 @@ class HeightfieldMasking;  // masking_runs.h (which includes run.h, and run.h th
 // Whether a decision's rounds are split: a VNDF on the ellipsoid oracle, a scattering or an albedo table by
 // the Smith walk, a VNDF, a scattering, masking or an albedo table on explicit heightfields.
 bool is_split(const ExperimentSpec& spec, const Decision& decision);
-// Whether the ranks share a decision's work: is_split's, and a drawn validation's.
+// Whether the ranks share a decision's work: is_split's, and a drawn validation's against the analytic reference.
 bool is_shared_by_ranks(const ExperimentSpec& spec, const Decision& decision);
 
 // Rank `rank`'s shard of `round` (rank 0 .. ranks - 1): shard rank + 1 of `ranks`, offset to round.begin.

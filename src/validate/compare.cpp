@@ -193,6 +193,8 @@ std::vector<std::vector<double>> oracle_counts(const TracedHistogram& traced) {
   return oracle;
 }
 
+}  // namespace
+
 // How many samples the two-sample tests need, from the oracle's histogram: under homogeneity cell i
 // expects min(Na, Nb) q_i (q: the oracle's proportions) on the smaller side, and pooling (chi2.h) must
 // leave two cells, so both the samples and the oracle's hits need goodness_of_fit_minimum_samples(q).
@@ -204,6 +206,8 @@ std::uint64_t trace_minimum_samples(const TracedHistogram& traced) {
   }
   return needed;
 }
+
+namespace {
 
 constexpr const char* kTwoSampleRule =
     "so that the cells of the two-sample test do not pool into one: its largest cell must expect at least 5 samples "

@@ -96,6 +96,7 @@ ValidationReport compare_sample_file_to_trace(DirectionSampleReader& reader, std
                                               const TracedHistogram& traced);
 // Too few samples (or oracle hits) throw InsufficientData (chi2.h) before any sample is drawn (after the
 // file is read): the two-sample tests need, on each side, goodness_of_fit_minimum_samples of the
-// oracle's proportions (with its remainder cell).
+// oracle's proportions (with its remainder cell): trace_minimum_samples.
+std::uint64_t trace_minimum_samples(const TracedHistogram& traced);
 
 }  // namespace microsim
