@@ -150,17 +150,20 @@ void plan_sampled_albedo(const ExperimentSpec& spec, const SpecQuantity& q, cons
   d.runnable = true;
 }
 
+// The tile a decision planned, into d.surface; false (with why it is not runnable) when none fits.
+bool take_surface(const SurfaceDecision& s, Decision& d) {
+  d.surface = s.plan;
+  if (s.runnable) return true;
+  d.count_reason = "no tile: " + s.why;
+  d.not_runnable = s.why;
+  return false;
+}
+
 // An albedo table on explicit surfaces (surface_albedo.h): its tiles (the same size at every alpha) built
 // into `cache`, then as a walk's, the paths on the tiles.
 void plan_surface_albedo(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, SurfaceCache& cache,
                          Decision& d) {
-  const SurfaceDecision s = plan_albedo_surfaces(spec, q, plan_seed(spec, o), o.run);
-  d.surface = s.plan;
-  if (!s.runnable) {
-    d.count_reason = "no tile: " + s.why;
-    d.not_runnable = s.why;
-    return;
-  }
+  if (!take_surface(plan_albedo_surfaces(spec, q, plan_seed(spec, o), o.run), d)) return;
   const auto start = std::chrono::steady_clock::now();
   const std::size_t built = cache.builds();
   double scene_seconds = 0;  // every tile's Embree scene: built again in each round (the cache keeps one at a time)
@@ -430,13 +433,7 @@ void plan_heightfield_view(const ExperimentSpec& spec, const SpecQuantity& q, co
     d.not_runnable = surface_validation_refusal(q);
     if (!d.not_runnable.empty()) return;
   }
-  const SurfaceDecision s = plan_surface(q, d, plan_seed(spec, o), cache);
-  d.surface = s.plan;
-  if (!s.runnable) {
-    d.count_reason = "no tile: " + s.why;
-    d.not_runnable = s.why;
-    return;
-  }
+  if (!take_surface(plan_surface(q, d, plan_seed(spec, o), cache), d)) return;
   const auto start = std::chrono::steady_clock::now();
   const std::size_t built = cache.builds();
   const microgeom::Heightfield& field = decision_surface(d, cache, o.run);
