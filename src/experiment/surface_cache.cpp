@@ -5,6 +5,9 @@
 
 #include <fmt/core.h>
 
+#include <algorithm>
+#include <string_view>
+
 #include <stdexcept>
 
 namespace microsim::experiment {
@@ -115,7 +118,10 @@ microgeom::Heightfield SurfaceCache::read_or_build(const SurfaceKey& key, const 
 microgeom::Heightfield SurfaceCache::build(const SurfaceKey& key, const RunControl& run) {
   microgeom::Heightfield field;
   try {
-    field = microgeom::build_assembly(assembly_params(key), nullptr, {}, [&run] { return run.cancelled(); });
+    const auto progress = [&run](std::string_view, double fraction) {  // thousandths of this build
+      run.report("build surface", std::uint64_t(std::clamp(fraction, 0.0, 1.0) * 1000), 1000);
+    };
+    field = microgeom::build_assembly(assembly_params(key), nullptr, progress, [&run] { return run.cancelled(); });
   } catch (const microgeom::BuildCancelled&) {
     throw Cancelled("surface build");
   }

@@ -59,7 +59,8 @@ public:
   // `directory`: where the cache files live (created on the first build); empty: memory only.
   explicit SurfaceCache(std::filesystem::path directory = {}, CacheFiles files = CacheFiles::read_write);
 
-  // The surface of `key`: from memory, else its cache file, else built (and its file written). Throws
+  // The surface of `key`: from memory, else its cache file, else built (and its file written; progress:
+  // "build surface", thousandths of the build, through run.progress). Throws
   // Cancelled when run.cancel stops the build, std::invalid_argument for parameters the assembly refuses,
   // FileWriteError-like std::runtime_error when the file cannot be written.
   const microgeom::Heightfield& surface_for(const SurfaceKey& key, const RunControl& run = {});
