@@ -137,7 +137,14 @@ INSTANTIATE_TEST_SUITE_P(
                    "what = \"conditional\"\ntheta = [30]\nresolution = 100\ntarget_standard_error = 0.01",
                    "quantity[0].resolution", 14, "power of two"},
         BadMasking{"assembly_of_another_ndf", "surface = \"beckmann\"\ntheta = [30]\ntarget_standard_error = 0.01",
-                   "quantity[0].surface", 12, "built to beckmann"}),
+                   "quantity[0].surface", 12, "built to beckmann"},
+        BadMasking{"realisations_of_the_analytic_model", "theta = [30]\nrealisations = 3\ntarget_standard_error = 0.01",
+                   "quantity[0].realisations", 13, "no surface"},
+        BadMasking{"no_realisation", "what = \"conditional\"\ntheta = [30]\nrealisations = 0\ntarget_standard_error = 0.01",
+                   "quantity[0].realisations", 14, ""},
+        BadMasking{"too_many_realisations",
+                   "what = \"conditional\"\ntheta = [30]\nrealisations = 65\ntarget_standard_error = 0.01",
+                   "quantity[0].realisations", 14, ""}),
     [](const ::testing::TestParamInfo<BadMasking>& info) { return info.param.name; });
 
 // ---- the planner's choice -----------------------------------------------------------------------------------
@@ -353,6 +360,65 @@ target_standard_error = 0.001
   EXPECT_GT(std::abs(narrow_g1 - smith), 2 * std::abs(wide - smith)) << "16 l: " << narrow_g1 << " against Smith " << smith;
   std::cout << fmt::format("G1 at alpha 0.5, theta 60: 64 l {:.4f}, 16 l {:.4f}, Smith {:.4f} (SE {:.4f})\n", wide,
                            narrow_g1, smith, g1["standard_error"].get<double>());
+}
+
+// Several realisations: independent surfaces (realisation 0 is the run's own, measured as with one), each
+// its own measurement to the target; results.json's masking_realisations holds each value's mean with the
+// standard error of their spread and the Monte Carlo part; the plan's realisations read back.
+TEST(ExperimentMasking, RealisationsAreIndependentSurfacesAndTheirMeanCarriesTheirSpread) {
+  const auto spec_with = [](int realisations, bool write_one = false) {
+    return parse_spec_toml(fmt::format(R"(
+seed = 4
+[[material]]
+name = "m"
+alpha = 0.5
+type = "mirror"
+[[quantity]]
+kind = "masking"
+material = "m"
+what = ["g1", "conditional"]
+theta = [60]
+bins = 2
+resolution = 128
+{}target_standard_error = 0.004
+)", realisations > 1 || write_one ? fmt::format("realisations = {}\n", realisations) : ""), "real.toml");
+  };
+  const ExperimentSpec one = spec_with(1), three = spec_with(3);
+  EXPECT_EQ(spec_digest(one), spec_digest(spec_with(1, true))) << "realisations = 1: the digest without the key";
+  EXPECT_NE(spec_digest(one), spec_digest(three));
+  const ExperimentPlan plan1 = plan_experiment(one, PlanOptions{}), plan3 = plan_experiment(three, PlanOptions{});
+  ASSERT_EQ(plan3.decisions.size(), 3u);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(plan3.decisions[std::size_t(k)].realisation, k);
+    EXPECT_NE(plan3.decisions[std::size_t(k)].label.find(fmt::format("realisation {}", k)), std::string::npos);
+  }
+  const ExperimentResults r1 = run_with(one, plan1, RunControl{2, nullptr, {}}, 1);
+  const ExperimentResults r3 = run_with(three, plan3, RunControl{2, nullptr, {}}, 1);
+  EXPECT_EQ(r3.measurements[0].values["masking"]["g1"], r1.measurements[0].values["masking"]["g1"])
+      << "realisation 0 is the run's own surface";
+  std::vector<double> g1;
+  double mc = 0;
+  for (const MeasurementResult& m : r3.measurements) {
+    g1.push_back(m.values["masking"]["g1"]["value"].get<double>());
+    mc += std::pow(m.values["masking"]["g1"]["standard_error"].get<double>(), 2);
+  }
+  EXPECT_NE(g1[0], g1[1]);
+  EXPECT_NE(g1[1], g1[2]);
+  const double mean = (g1[0] + g1[1] + g1[2]) / 3;
+  const double sd = std::sqrt((std::pow(g1[0] - mean, 2) + std::pow(g1[1] - mean, 2) + std::pow(g1[2] - mean, 2)) / 2);
+  const nlohmann::json doc = results_json(r3);
+  ASSERT_TRUE(doc.contains("masking_realisations"));
+  const nlohmann::json& g = doc["masking_realisations"].at(0);
+  EXPECT_EQ(g["realisations"], 3);
+  EXPECT_NEAR(g["g1"]["mean"].get<double>(), mean, 1e-15);
+  EXPECT_NEAR(g["g1"]["standard_error"].get<double>(), sd / std::sqrt(3.0), 1e-15);
+  EXPECT_NEAR(g["g1"]["monte_carlo_error"].get<double>(), std::sqrt(mc) / 3, 1e-15);
+  EXPECT_EQ(g["conditional"]["by_normal"].size(), 2u);
+  EXPECT_FALSE(results_json(r1).contains("masking_realisations")) << "one realisation: nothing to average";
+  const ExperimentPlan back = plan_from_json(plan_json(plan3, three), three);
+  EXPECT_EQ(back.decisions[2].realisation, 2);
+  std::cout << fmt::format("G1 over 3 realisations: {:.4f} +- {:.4f} (Monte Carlo part {:.4f})\n", mean,
+                           sd / std::sqrt(3.0), std::sqrt(mc) / 3);
 }
 
 // The run cancelled half way through its second round's blocks (the "trace masking" progress of its second

@@ -97,6 +97,15 @@ private:
 // The largest standard error of the wanted values of one result (G1, the pair G2, the conditional bins).
 double masking_worst_standard_error(const SpecQuantity& quantity, const MaskingResult& result);
 
+// Masking over several realisations (a quantity's `realisations` > 1): per quantity, alpha and view whose
+// realisations ran (at least two), every measured value's mean over them with its standard error from their
+// spread (sample standard deviation / sqrt(K): the realisations are independent surfaces, so it holds both the
+// spread between surfaces and each one's Monte Carlo error) and the Monte Carlo part alone (the root mean
+// square of their standard errors / sqrt(K)). An array of {"label", "realisations", "g1", "g2": [...],
+// "conditional": {"by_normal": [...], "by_height": [...]}}, each value {"mean", "standard_error",
+// "monte_carlo_error"}; empty when no quantity has several.
+nlohmann::json masking_realisation_means(const std::vector<MeasurementResult>& measurements);
+
 // The planner's decisions of masking quantity `index` (plan_masking.cpp), appended to `out`: one per alpha
 // and view; a heightfield decision's count from a pilot of kMaskingPilotBlocks blocks on its surface (built
 // once per alpha for the pilots). Throws Cancelled.

@@ -1,11 +1,17 @@
 // experiment: the heightfield of a masking measurement (masking_surface.h).
 #include "experiment/masking_surface.h"
+#include "experiment/plan.h"
 
 #include <fmt/core.h>
 
 #include <algorithm>
 
 namespace microsim::experiment {
+
+std::uint64_t masking_surface_seed(std::uint64_t run_seed, int realisation) {
+  constexpr std::uint64_t kRealisationPurpose = 33;  // derived_seed purposes: plan.cpp's below 32, the pilots' 32
+  return realisation == 0 ? run_seed : derived_seed(run_seed, kRealisationPurpose, std::uint64_t(realisation));
+}
 
 microgeom::AssemblyParams masking_assembly_params(const SpecQuantity& q, const SpecMaterial& m,
                                                   std::pair<double, double> alpha, std::uint64_t seed) {

@@ -27,6 +27,10 @@ inline constexpr double kMaskingMinCorrCells = 4;
 inline constexpr double kMaskingMaxCorrCells = 16;
 double masking_corr_cells(const std::string& assembly, int resolution);
 
+// The build seed of realisation k of a masking quantity's surface at the run's seed: the run's own for k = 0,
+// else a seed derived from it (independent surfaces of the same assembly, NDF and size).
+std::uint64_t masking_surface_seed(std::uint64_t run_seed, int realisation);
+
 // The assembly a masking decision builds (the quantity's surface is an assembly, or auto with conditional
 // masking): the named assembly, or for auto the Smith-like one of the material's NDF (`smith` for GGX,
 // `beckmann` for Beckmann), at `alpha`, the quantity's resolution, masking_corr_cells and `seed`. Pure.

@@ -121,6 +121,7 @@ struct Decision {
   bool runnable = false;     // `microsim run` carries it out in this version
   std::string not_runnable;  // why not, when not
   SurfacePlan surface;       // Model::heightfield: the tile
+  int realisation = 0;       // masking on a built surface: which realisation (masking_surface_seed)
 };
 
 struct ExperimentPlan {

@@ -50,31 +50,43 @@ void plan_heightfield_masking(const SpecQuantity& q, const microgeom::Heightfiel
   d.predicted_seconds = build_seconds + setup + predicted_seconds(d.units, d.pilot_units, pilot.seconds());
 }
 
-}  // namespace
 
-void plan_masking(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& surfaces,
-                  std::vector<Decision>& out) {
+// The decisions of one alpha: per realisation of its surface (one without a surface), per view.
+void plan_alpha(const ExperimentSpec& spec, std::size_t index, std::pair<double, double> alpha, const PlanOptions& o,
+                SurfaceCache& surfaces, std::vector<Decision>& out) {
   const SpecQuantity& q = spec.quantities[index];
   const SpecMaterial& m = spec.material(q.material);
-  const std::uint64_t seed = o.seed != 0 ? o.seed : spec.seed;
-  for (const auto& alpha : m.alphas) {
-    const microgeom::Heightfield* field = nullptr;  // from the cache once per alpha, for the pilots of its views
+  const bool traced = choose_model(q, m).model == Model::heightfield;
+  const std::uint64_t run_seed = o.seed != 0 ? o.seed : spec.seed;
+  for (int k = 0; k < (traced ? q.realisations : 1); ++k) {
+    const std::uint64_t seed = masking_surface_seed(run_seed, k);
+    const microgeom::Heightfield* field = nullptr;  // from the cache once per realisation, for its views' pilots
     double build_seconds = 0;
-    if (choose_model(q, m).model == Model::heightfield) {
+    if (traced) {
       const auto start = std::chrono::steady_clock::now();
       field = &acquire_masking_surface(q, m, alpha, seed, surfaces, o.run);
       build_seconds = seconds_since(start);
     }
     for (const Direction& v : q.directions) {
       Decision d = masking_decision(q, m, index, alpha, v);
+      d.realisation = k;
+      if (q.realisations > 1 && traced) d.label += fmt::format(" realisation {}", k);
       if (field)
         plan_heightfield_masking(q, *field, masking_surface_text(q, m, alpha, seed),
-                                 derived_seed(seed, kMaskingPilotSeed, out.size()), build_seconds, o, d);
+                                 derived_seed(run_seed, kMaskingPilotSeed, out.size()), build_seconds, o, d);
       else
         d.count_reason = "deterministic: Smith's closed form, no samples";
       out.push_back(std::move(d));
     }
   }
+}
+
+}  // namespace
+
+void plan_masking(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& surfaces,
+                  std::vector<Decision>& out) {
+  for (const auto& alpha : spec.material(spec.quantities[index].material).alphas)
+    plan_alpha(spec, index, alpha, o, surfaces, out);
 }
 
 }  // namespace microsim::experiment

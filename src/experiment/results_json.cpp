@@ -1,5 +1,6 @@
 // experiment: plans and results as JSON (run.h: plan_json, results_json), the content of results.json.
 #include "experiment/run.h"
+#include "experiment/masking_runs.h"
 
 namespace microsim::experiment {
 namespace {
@@ -35,6 +36,7 @@ nlohmann::json decision_json(const Decision& d, const ExperimentSpec& spec) {
   if (!d.targeted_orders.empty()) j["targeted_orders"] = d.targeted_orders;
   if (!d.runnable) j["not_runnable"] = d.not_runnable;
   if (!d.surface.kind.empty()) j["surface"] = surface_plan_json(d.surface);
+  if (d.realisation > 0) j["realisation"] = d.realisation;
   return j;
 }
 
@@ -73,10 +75,13 @@ nlohmann::json results_json(const ExperimentResults& results) {
     measurements.push_back(measurement_json(m));
     all_met = all_met && (!m.ran || m.met);
   }
-  return {{"measurements", measurements},
-          {"partial", results.partial},
-          {"all_targets_met", all_met && !results.partial},
-          {"seconds", results.seconds}};
+  nlohmann::json out{{"measurements", measurements},
+                     {"partial", results.partial},
+                     {"all_targets_met", all_met && !results.partial},
+                     {"seconds", results.seconds}};
+  const nlohmann::json means = masking_realisation_means(results.measurements);
+  if (!means.empty()) out["masking_realisations"] = means;  // derived: not read back
+  return out;
 }
 
 }  // namespace microsim::experiment

@@ -78,6 +78,7 @@ Decision decision_from_json(const json& j, const ExperimentSpec& spec, const std
     d.targeted_orders = get<std::vector<int>>(j, "targeted_orders", where);
   if (j.contains("not_runnable")) d.not_runnable = get<std::string>(j, "not_runnable", where);
   if (j.contains("surface")) d.surface = surface_plan_from_json(j["surface"], where + ".surface");
+  if (j.contains("realisation")) d.realisation = get<int>(j, "realisation", where);
   return d;
 }
 

@@ -5,6 +5,7 @@
 
 #include "experiment/heightfield_measures.h"
 #include "experiment/masking_runs.h"
+#include "experiment/masking_surface.h"
 #include "experiment/measures.h"
 #include "experiment/split_rounds.h"
 #include "core/parse.h"
@@ -534,7 +535,9 @@ MeasurementResult run_decision(const ExperimentSpec& spec, const Decision& d, st
   if (!d.runnable) return m;
   m.ran = true;
   const auto start = std::chrono::steady_clock::now();
-  if (q.kind == QuantityKind::masking) run_masking(spec, index, seed, round_seed(seed, index, 0), first_units(d, o), o, surfaces, m);
+  if (q.kind == QuantityKind::masking)
+    run_masking(spec, index, masking_surface_seed(seed, d.realisation), round_seed(seed, index, 0), first_units(d, o), o,
+                surfaces, m);
   else if (q.kind == QuantityKind::albedo && !analytic) run_sampled_albedo(spec, seed, index, o, surfaces, m);
   else if (d.model.model == Model::heightfield) run_heightfield(spec, seed, index, o, surfaces, m);
   else if (vndf) run_vndf(spec, seed, index, o, m);
@@ -577,7 +580,8 @@ std::vector<RoundTask> first_split_rounds(const ExperimentSpec& spec, const Expe
     const BlockRange blocks = kind == QuantityKind::albedo ? BlockRange{0, albedo_round_cells(spec, d)}  // its cells
                                                            : BlockRange{0, units / block + (units % block != 0)};
     if (kind == QuantityKind::masking) units = kMaskingRunSamples;  // its rounds are block ranges of one run
-    tasks.push_back({i, units, round_seed(seed, i, 0), blocks, kind == QuantityKind::masking ? seed : 0});
+    tasks.push_back({i, units, round_seed(seed, i, 0), blocks,
+                     kind == QuantityKind::masking ? masking_surface_seed(seed, d.realisation) : 0});
   }
   return tasks;
 }

@@ -269,7 +269,8 @@ std::vector<std::string> quantity_keys(QuantityKind kind) {
            "rows"});
       break;
     case QuantityKind::masking:
-      add({"what", "target_standard_error", "theta", "theta_range", "phi", "light_theta", "light_phi", "bins", "resolution"});
+      add({"what", "target_standard_error", "theta", "theta_range", "phi", "light_theta", "light_phi", "bins", "resolution",
+           "realisations"});
       break;
   }
   return keys;
@@ -436,6 +437,11 @@ void check_masking_surface(const Table& t, SpecQuantity& q, const SpecMaterial& 
                              : "the analytic Smith model has no surface (resolution applies to an assembly or to conditional masking)");
   q.resolution = int(t.integer("resolution", kDefaultMaskingResolution, kMinMaskingResolution, kMaxMaskingResolution));
   if ((q.resolution & (q.resolution - 1)) != 0) t.fail("resolution", fmt::format("{} must be a power of two", q.resolution));
+  if (t.has("realisations") && !built)
+    t.fail("realisations", q.surface.kind == SurfaceChoice::Kind::heightmap
+                               ? "a heightmap is one realisation"
+                               : "the analytic Smith model has no surface (realisations apply to an assembly or to conditional masking)");
+  q.realisations = int(t.integer("realisations", 1, 1, kMaxMaskingRealisations));
   if (q.surface.kind == SurfaceChoice::Kind::heightmap && m.alphas.size() != 1)
     t.fail("surface", fmt::format("a heightmap is one surface: material {} must have one alpha (it has {})",
                                   quote_excerpt(m.name), m.alphas.size()));
@@ -546,7 +552,9 @@ namespace {
 nlohmann::json masking_canonical(const SpecQuantity& q) {
   nlohmann::json lights = nlohmann::json::array();
   for (const Direction& l : q.lights) lights.push_back({l.theta_deg, l.phi_deg});
-  return {{"what", to_string(q.masking)}, {"lights", lights}, {"bins", q.bins}, {"resolution", q.resolution}};
+  nlohmann::json j{{"what", to_string(q.masking)}, {"lights", lights}, {"bins", q.bins}, {"resolution", q.resolution}};
+  if (q.realisations > 1) j["realisations"] = q.realisations;  // one realisation: the digest of earlier versions
+  return j;
 }
 }  // namespace
 

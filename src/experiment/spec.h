@@ -95,6 +95,7 @@ std::string to_string(const MaskingWhat& what);  // "g1, g2, conditional" (those
 inline constexpr int kDefaultMaskingResolution = 256;
 inline constexpr int kMinMaskingResolution = 16;
 inline constexpr int kMaxMaskingResolution = 4096;
+inline constexpr int kMaxMaskingRealisations = 64;
 
 struct SpecQuantity {
   QuantityKind kind = QuantityKind::albedo;
@@ -118,6 +119,7 @@ struct SpecQuantity {
   std::vector<Direction> lights;            // masking with g2: the lights, every one with every view
   int bins = 10;                            // masking, conditional: bins of <v, m> and of height
   int resolution = kDefaultMaskingResolution;  // masking on a surface built per alpha
+  int realisations = 1;  // masking on a built surface: independent surfaces (seeds), each measured to the target
 };
 
 struct ExperimentSpec {
