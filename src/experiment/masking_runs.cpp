@@ -261,7 +261,7 @@ nlohmann::json masking_realisation_means(const std::vector<MeasurementResult>& m
   std::vector<std::string> order;
   for (const MeasurementResult& m : measurements) {
     const Decision& d = m.decision;
-    if (!m.ran || !m.met || d.model.model != Model::heightfield || !m.values.contains("masking")) continue;
+    if (!m.ran || m.partial || d.model.model != Model::heightfield || !m.values.contains("masking")) continue;
     const std::string label = d.label.substr(0, d.label.rfind(" realisation "));
     if (label.size() == d.label.size()) continue;  // one realisation
     if (groups[label].empty()) order.push_back(label);

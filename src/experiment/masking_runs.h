@@ -98,10 +98,10 @@ private:
 double masking_worst_standard_error(const SpecQuantity& quantity, const MaskingResult& result);
 
 // Masking over several realisations (a quantity's `realisations` > 1): per quantity, alpha and view whose
-// realisations ran (at least two), every measured value's mean over them with its standard error from their
-// spread (sample standard deviation / sqrt(K): the realisations are independent surfaces, so it holds both the
-// spread between surfaces and each one's Monte Carlo error) and the Monte Carlo part alone (the root mean
-// square of their standard errors / sqrt(K)). An array of {"label", "realisations", "g1", "g2": [...],
+// realisations ran whole (at least two; met or not, so that none is selected by its values), every measured
+// value's mean over them with its standard error from their spread (sample standard deviation / sqrt(K): the
+// realisations are independent surfaces, so it holds both the spread between surfaces and each one's Monte
+// Carlo error) and the Monte Carlo part alone (the root mean square of their standard errors / sqrt(K)). An array of {"label", "realisations", "g1", "g2": [...],
 // "conditional": {"by_normal": [...], "by_height": [...]}}, each value {"mean", "standard_error",
 // "monte_carlo_error"}; empty when no quantity has several.
 nlohmann::json masking_realisation_means(const std::vector<MeasurementResult>& measurements);
