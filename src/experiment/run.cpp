@@ -33,6 +33,9 @@ std::uint64_t round_seed(std::uint64_t seed, std::size_t decision, int round) {
   return derived_seed(seed, kRoundSeed, std::uint64_t(decision) * 1024 + std::uint64_t(round));
 }
 
+// The reference rays of a validation against a tile: round 1's seed (its samples draw from round 0's).
+std::uint64_t validation_rays_seed(std::uint64_t seed, std::size_t decision) { return round_seed(seed, decision, 1); }
+
 // ---- albedo ----------------------------------------------------------------------------------------------
 
 // The rounds' tables as one table of their summed paths per cell (pool_rounds per cell and per E_avg).
@@ -315,9 +318,9 @@ void record_validation(const ValidationReport& r, const SpecQuantity& q, std::ui
                        MeasurementResult& m);  // the validations' section, below
 
 // A validation against the tile's traced visible normals (plan.cpp plan_heightfield_validation): the planned
-// rays traced in one round on this process (the other ranks wait), then the zoo sampler's samples (drawn as
-// validate_sampler draws them, from the round seed) or the dump's against them (validate/compare.h). Cancelled:
-// nothing is kept, as an analytic validation.
+// rays traced in one round of seed 1 (split over the ranks, or a merge's stored parts: validation_rays_round),
+// then the zoo sampler's samples (drawn as validate_sampler draws them, from the round seed 0) or the dump's
+// against them on this process (validate/compare.h). Cancelled: nothing is kept, as an analytic validation.
 void run_heightfield_validation(const ExperimentSpec& spec, std::uint64_t seed, std::size_t index, const RunOptions& o,
                                 const SceneOf& scene, const microgeom::Heightfield& field, MeasurementResult& m) {
   const Decision& d = m.decision;
@@ -327,7 +330,8 @@ void run_heightfield_validation(const ExperimentSpec& spec, std::uint64_t seed, 
   m.partial = false;
   const auto clock = std::chrono::steady_clock::now();
   const HeightfieldVndf traced = split_heightfield_vndf_round(
-      {}, index, scene, field, surface_label(d.surface), vndf_request(spec, d, n, round_seed(seed, index, 1), o.run));
+      {o.ranks, o.stored}, index, scene, field, surface_label(d.surface),
+      vndf_request(spec, d, n, validation_rays_seed(seed, index), o.run));
   const GGX<double> ggx(d.alpha.first, d.alpha.second);
   const Vec3<double> wi = direction_from_degrees(d.view.theta_deg, d.view.phi_deg);
   const ValidationOptions v = validation_request(q, n, round_seed(seed, index, 0), o.run);
@@ -572,15 +576,16 @@ std::vector<RoundTask> first_split_rounds(const ExperimentSpec& spec, const Expe
     if (!d.runnable || !is_shared_by_ranks(spec, d)) continue;
     const QuantityKind kind = spec.quantities[d.quantity].kind;
     const bool vndf = kind == QuantityKind::vndf;  // capped as next_round caps them
+    const bool tile_rays = kind == QuantityKind::validation && d.model.model == Model::heightfield;  // its one round
     std::uint64_t units = std::min(first_units(d, planned), vndf ? kMaxRays : std::numeric_limits<std::uint64_t>::max());
-    const std::uint64_t block = vndf                                 ? kRaysPerBlock
+    const std::uint64_t block = vndf || tile_rays                    ? kRaysPerBlock
                                 : kind == QuantityKind::validation ? kSampleBlock
                                 : kind == QuantityKind::masking    ? kSamplesPerBlock
                                                                    : kPathsPerBlock;
     const BlockRange blocks = kind == QuantityKind::albedo ? BlockRange{0, albedo_round_cells(spec, d)}  // its cells
                                                            : BlockRange{0, units / block + (units % block != 0)};
     if (kind == QuantityKind::masking) units = kMaskingRunSamples;  // its rounds are block ranges of one run
-    tasks.push_back({i, units, round_seed(seed, i, 0), blocks,
+    tasks.push_back({i, units, tile_rays ? validation_rays_seed(seed, i) : round_seed(seed, i, 0), blocks,
                      kind == QuantityKind::masking ? masking_surface_seed(seed, d.realisation) : 0});
   }
   return tasks;

@@ -11,8 +11,9 @@
 //                       the orders the plan targeted decides (measures.h, targeted_order_bins);
 //   heightfield         (vndf, scattering on an explicit tile) the tile through the SurfaceCache (built once,
 //                       or read back from DIR/surfaces), then rounds as above: rays traced on the tile
-//                       (measure_heightfield_vndf), or paths on its Embree scene (scatter_on_surface); the root
-//                       runs them (not split over ranks);
+//                       (measure_heightfield_vndf), or paths on its Embree scene (scatter_on_surface), split
+//                       over the ranks (split_rounds.h); a validation against the tile: its planned rays in
+//                       one round (split likewise), then the samples against them on the root;
 //   scattering, analytic  the order-1 lobe by cubature, once (measures.h, analytic_scatter_lobe); its error
 //                       estimate over the albedo is the achieved error (the whole target: no noise);
 //   validation          one validate_sampler run of the planned samples (the power rule needs no rounds).
@@ -111,7 +112,8 @@ struct RunOptions {
 ExperimentResults run_experiment(const ExperimentSpec& spec, const ExperimentPlan& plan, const RunOptions& options);
 
 // The first round of every measurement the ranks share (is_shared_by_ranks: VNDF, scattering, a walk albedo
-// table, heightfield masking, a drawn validation: its one round) as run_experiment starts it afresh at `seed` (the run's:
+// table, heightfield masking, a drawn validation: its one round; a validation against a tile: its rays) as
+// run_experiment starts it afresh at `seed` (the run's:
 // options.seed, or the spec's): units, seed and blocks. What shard jobs run (shards.h).
 std::vector<RoundTask> first_split_rounds(const ExperimentSpec& spec, const ExperimentPlan& plan, std::uint64_t seed);
 

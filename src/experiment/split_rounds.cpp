@@ -543,7 +543,7 @@ bool is_split(const ExperimentSpec& spec, const Decision& decision) {
 bool is_shared_by_ranks(const ExperimentSpec& spec, const Decision& decision) {
   const SpecQuantity& q = spec.quantities[decision.quantity];
   return is_split(spec, decision) ||
-         (q.kind == QuantityKind::validation && q.dump.empty() && decision.model.model != Model::heightfield);
+         (q.kind == QuantityKind::validation && (q.dump.empty() || decision.model.model == Model::heightfield));
 }
 
 BlockRange rank_blocks(const BlockRange& round, int rank, int ranks) {
@@ -707,7 +707,8 @@ std::string masking_rank_part(const ExperimentSpec& spec, const Decision& d, con
 }
 
 // A rank's part of a round on an explicit heightfield: the tile from `surfaces` (its build cancelled: a part
-// cancelled before its first block), then its shard of the VNDF's rays or of the paths.
+// cancelled before its first block), then its shard of the VNDF's rays (a VNDF's, or the reference rays of a
+// validation against the tile) or of the paths.
 std::string heightfield_rank_part(const ExperimentSpec& spec, const Decision& d, const RoundTask& task,
                                   const BlockRange& mine, const RunControl& run, SurfaceCache& surfaces) {
   const microgeom::Heightfield* field = nullptr;
@@ -717,7 +718,7 @@ std::string heightfield_rank_part(const ExperimentSpec& spec, const Decision& d,
     return cancelled_part(mine);
   }
   const SpecQuantity& q = spec.quantities[d.quantity];
-  if (q.kind == QuantityKind::vndf) {
+  if (q.kind == QuantityKind::vndf || q.kind == QuantityKind::validation) {
     VndfRequest request = vndf_request(spec, d, task.units, task.seed, run);
     request.blocks = mine;
     const HeightfieldVndf m = trace_heightfield_vndf(surfaces.scene_for(*field), *field, surface_label(d.surface), request);
@@ -739,11 +740,12 @@ std::string run_part(const ExperimentSpec& spec, const ExperimentPlan& plan, con
   const BlockRange mine = rank_blocks(task.blocks, rank, ranks);
   if (!is_shared_by_ranks(spec, d))
     throw InternalError(fmt::format("a round of measurement {}, which is not split", task.measurement));
+  if (d.model.model == Model::heightfield && q.kind != QuantityKind::masking && q.kind != QuantityKind::albedo)
+    return heightfield_rank_part(spec, d, task, mine, run, surfaces);
   if (q.kind == QuantityKind::validation) return validation_rank_part(q, d, task, mine, run);
   if (q.kind == QuantityKind::masking) return masking_rank_part(spec, d, task, mine, run, surfaces);
   if (q.kind == QuantityKind::albedo)
     return albedo_part(mine, albedo_cells_of(d, surfaces)(sampled_albedo_request(spec, d, task.units, task.seed, run), mine));
-  if (d.model.model == Model::heightfield) return heightfield_rank_part(spec, d, task, mine, run, surfaces);
   if (q.kind == QuantityKind::vndf) {
     VndfRequest request = vndf_request(spec, d, task.units, task.seed, run);
     request.blocks = mine;

@@ -9,7 +9,8 @@
 // range, marked partial (resumed like a one-process round). A part whose blocks are not its rank's shard (out
 // of order, missing, overlapping) is a bug: InternalError. The root alone decides the rounds' sizes and when
 // to stop, from the combined rounds; the other ranks only run what it sends (serve_rounds) until it stops.
-// The rounds on an explicit heightfield (a VNDF, per-order lobes) are split the same way: every rank traces
+// The rounds on an explicit heightfield (a VNDF, per-order lobes, the reference rays of a validation against the
+// tile's traced visible normals) are split the same way: every rank traces
 // the same tile, which it takes from its SurfaceCache (the root's file in DIR/surfaces, which the plan wrote
 // before the ranks got it, or built from the same key: a build is a pure function of its key); a VNDF part
 // also carries the tracer's diagnostics (backfacing, edge grazes, leaked, unresolved), summed in rank order.
@@ -25,8 +26,11 @@
 // A heightfield masking round (successive block ranges of one run) is split the same way: every rank measures
 // its shard of the blocks for every light on the same surface, the exact sums (MaskingSums) added in rank
 // order; a part cancelled part way drops the round (as in one process).
-// Analytic albedo tables, analytic lobes, analytic masking, dumps and validations against a tile's traced
-// visible normals are not split: the root runs them while the other ranks wait; a job array's shards (shards.h) split the first rounds of what is_shared_by_ranks names.
+// A validation against a tile shares only its rays: the samples (a zoo sampler's, drawn on the root, or a dump's)
+// are compared with the combined histogram on the root.
+// Analytic albedo tables, analytic lobes, analytic masking and dumps against an analytic pdf are not split: the
+// root runs them while the other ranks wait; a job array's shards (shards.h) split the first rounds of what
+// is_shared_by_ranks names.
 #pragma once
 
 #include "experiment/measures.h"
@@ -53,7 +57,8 @@ class HeightfieldMasking;  // masking_runs.h (which includes run.h, and run.h th
 // Whether a decision's rounds are split: a VNDF on the ellipsoid oracle, a scattering or an albedo table by
 // the Smith walk, a VNDF, a scattering, masking or an albedo table on explicit heightfields.
 bool is_split(const ExperimentSpec& spec, const Decision& decision);
-// Whether the ranks share a decision's work: is_split's, and a drawn validation's against the analytic reference.
+// Whether the ranks share a decision's work: is_split's, a drawn validation's against the analytic reference,
+// and the rays of a validation against a tile (a zoo sampler's or a dump's).
 bool is_shared_by_ranks(const ExperimentSpec& spec, const Decision& decision);
 
 // Rank `rank`'s shard of `round` (rank 0 .. ranks - 1): shard rank + 1 of `ranks`, offset to round.begin.

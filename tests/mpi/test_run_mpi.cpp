@@ -63,8 +63,9 @@ TEST(RunMpi, TwoAndThreeRanksWriteTheOneProcessResultsBitForBit) {
       << "negative control: the comparison sees another seed";
 }
 
-// Per-order lobes on smith's tile (built by rank 0's plan in out/surfaces; the other rank reads it there, and
-// writes nothing): `mpirun -n 2` writes the one-process run directory, bit for bit.
+// Per-order lobes on smith's tile and a validation of heitz2018 against another smith tile's traced visible
+// normals (built by rank 0's plan in out/surfaces; the other rank reads them there, and writes nothing; the
+// validation's rays are split too): `mpirun -n 2` writes the one-process run directory, bit for bit.
 TEST(RunMpi, TheRanksTraceRankZerosTileAndWriteTheOneProcessResults) {
   const fs::path dir = scratch_dir("run_mpi", "tile");
   std::ofstream(dir / "split.toml") << R"(name = "tile"
@@ -80,19 +81,28 @@ surface = "smith"
 orders = "all"
 theta = [40]
 target_tv = 0.2
+[[quantity]]
+kind = "validation"
+material = "m"
+surface = "smith"
+sampler = "heitz2018"
+theta = [40]
+rows = 7
+detect_tv = 0.2
 )";
   const auto alone = run_in(dir, "alone", "");
   ASSERT_EQ(alone.exit_code, 0) << alone.err;
   const std::string expected = microsim::test::run_directory_contents(dir / "alone" / "out");
   ASSERT_NE(expected.find("scattering-0.exr"), std::string::npos);
   ASSERT_NE(expected.find("\"surface\""), std::string::npos) << "a heightfield decision";
+  ASSERT_NE(expected.find("rays traced on assembly smith"), std::string::npos) << "a validation against a tile";
   EXPECT_TRUE(microsim::test::has_uneven_round(dir / "alone" / "out", 2)) << "an uneven split";
   const auto two = run_in(dir, "ranks2", mpirun(2));
   ASSERT_EQ(two.exit_code, 0) << two.err;
   EXPECT_EQ(microsim::test::run_directory_contents(dir / "ranks2" / "out"), expected);
   std::size_t tiles = 0;
   for (const auto& entry : fs::directory_iterator(dir / "ranks2" / "out" / "surfaces")) tiles += entry.is_regular_file();
-  EXPECT_EQ(tiles, 1u) << "one tile, rank 0's";
+  EXPECT_EQ(tiles, 2u) << "two tiles, rank 0's";
 }
 
 TEST(RunMpi, ABadSpecUnderMpirunIsOneMessageAndExit2NothingWritten) {
