@@ -14,6 +14,7 @@
 #include "progress_bar.h"
 #include "validate/bsdf_validation.h"
 #include "validate/compare.h"
+#include "validate/dump_validation.h"
 #include "validate/sample_io.h"
 #include "validate/validate.h"
 #include "validate_report.h"
@@ -42,6 +43,8 @@ struct Args {
   std::string columns;                      // with --from: what the columns hold (SampleColumns::parse)
   std::string bsdf;                         // with --from and weight columns: mirror, conductor or a material spec
   std::string eta, k;                       // with --bsdf conductor: per channel
+  std::string transport;                    // with --bsdf: radiance (default) or importance
+  std::string masking;                      // with --bsdf: height-correlated (default) or separable
   bool above_horizon = false;               // with --reflected: the dump holds the reflections above it only
   std::optional<long long> dropped;         // with --above-horizon: how many the renderer dropped below it
   bool all = false;
@@ -79,6 +82,18 @@ microsim::Material dielectric_of(const Args& a) {
   return microsim::Material::dielectric(eta.front());
 }
 
+// The convention of the --bsdf's weights: --transport (radiance unless said) and --masking (height-correlated).
+microsim::BsdfConvention bsdf_convention(const Args& a) {
+  microsim::BsdfConvention c;
+  try {
+    if (!a.transport.empty()) c.transport = microsim::parse_transport_mode("--transport", a.transport);
+    if (!a.masking.empty()) c.masking = microsim::parse_masking_form("--masking", a.masking);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
+  return c;
+}
+
 microsim::ValidationOptions base_options(const Args& a) {
   microsim::ValidationOptions o;
   o.seed = a.seed;
@@ -87,6 +102,7 @@ microsim::ValidationOptions base_options(const Args& a) {
   o.precision = a.use_float ? microsim::Precision::float32 : microsim::Precision::float64;
   if (a.dropped) o.dropped_below_horizon = std::uint64_t(*a.dropped);
   if (sample_columns(a).channels() > 0) o.bsdf = bsdf_of(a);  // the weight test (--pdf bsdf may come without it)
+  o.convention = bsdf_convention(a);
   return o;
 }
 
@@ -103,9 +119,13 @@ template <class F> auto usage_errors_of(F&& validation, const std::string& file 
   }
 }
 
-// The density a --from file claims: --pdf NAME, or --reflected for the reflection pdf, else the VNDF.
+// The density a --from file claims: --pdf NAME, or --reflected for the reflection pdf, or with --bsdf the
+// BSDF's own outgoing density (its samples are its outgoing directions), else the VNDF.
 microsim::FilePdf file_pdf(const Args& a) {
-  if (a.pdf.empty()) return a.reflected ? microsim::FilePdf::reflection : microsim::FilePdf::vndf;
+  if (a.pdf.empty()) {
+    if (a.reflected) return microsim::FilePdf::reflection;
+    return a.bsdf.empty() || !a.against.empty() ? microsim::FilePdf::vndf : microsim::FilePdf::bsdf;
+  }
   try {
     return microsim::parse_file_pdf(a.pdf);
   } catch (const std::invalid_argument& e) {
@@ -166,32 +186,6 @@ microsim::DirectionSampleReader open_samples_or_usage_error(const Args& a) {
   auto reader = usage_errors_of([&] { return microsim::DirectionSampleReader(a.from, sample_columns(a)); });
   reader.set_frame(sample_frame(a));
   return reader;
-}
-
-std::string frame_mistake(microsim::SampleFrame f) {
-  switch (f) {
-    case microsim::SampleFrame::y_up: return "in a y-up frame, (x, y, z) -> (x, -z, y)";
-    case microsim::SampleFrame::z_down: return "with z flipped (the normal or the view pointing into the surface)";
-    default: return "negated (the directions flipped)";
-  }
-}
-
-// A rejected file with most samples where the claimed pdf is zero: which frame mistake would explain it.
-void add_frame_hint(microsim::ValidationReport& r, const Args& a,
-                    std::shared_ptr<const microsim::ReferenceDistribution> reference, const microsim::ValidationOptions& o) {
-  const double share = 100.0 * double(r.samples_where_pdf_is_zero) / double(r.samples);
-  const auto hint = usage_errors_of([&] { return microsim::diagnose_sample_frame(a.from, sample_columns(a), reference, o); }, a.from);
-  if (!hint) {
-    r.failures.push_back(fmt::format("{:.0f}% of the samples fall where the claimed pdf is zero; none of the common frame "
-                                     "mistakes (y-up, z flipped, negated) explains it",
-                                     share));
-    return;
-  }
-  const std::string fix = hint->frame == microsim::SampleFrame::y_up ? "give --frame y-up" : "fix the dump's frame";
-  r.failures.push_back(fmt::format("hint: {:.0f}% of the samples fall where the claimed pdf is zero; read {} they {} "
-                                   "(p = {:.3g}): {}",
-                                   share, frame_mistake(hint->frame), hint->report.passed ? "pass" : "are still rejected",
-                                   hint->report.p_value, fix));
 }
 
 // --against ellipsoid | HIST.exr: two-sample chi-square against the traced oracle (compare.h); same report,
@@ -309,10 +303,38 @@ void check_shard(const Args& a) {
     throw UsageError(fmt::format("--shard {}: needs --json PART.json (the partial result for `microsim merge`)", a.shard));
 }
 
+// --from FILE against the density it claims (dump_validation.h), light from inside a dielectric as its mirror
+// image; the report keeps the view as given.
+microsim::ValidationReport validate_file(const Args& a, const microsim::GGX<double>& ggx, const microsim::Vec3<double>& view,
+                                         microsim::ValidationOptions o) {
+  using namespace microsim;
+  DirectionSampleReader samples = open_samples_or_usage_error(a);
+  ViewFromOutside v;
+  try {
+    v = seen_from_outside(view, bsdf_of(a));
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(fmt::format("--theta {:g}: {}", *a.theta, e.what()));
+  }
+  samples.set_mirrored(v.mirrored);
+  if (o.bsdf) o.bsdf = v.bsdf;
+  std::shared_ptr<const ReferenceDistribution> reference;
+  try {
+    reference = dump_reference({file_pdf(a), v.bsdf, a.above_horizon}, ggx, v.wi, o.rows);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(fmt::format("--above-horizon: {}", e.what()));
+  }
+  // A frame given explicitly is not second-guessed.
+  ValidationReport report =
+      usage_errors_of([&] { return validate_dump(samples, reference, ggx, v.wi, o, a.frame.empty()); }, a.from);
+  report.sampler = a.from;
+  report.wi = view;
+  return report;
+}
+
 int run_single(const Args& a) {
   using namespace microsim;
   if (a.alpha.empty()) throw UsageError("--alpha is required (e.g. --alpha 0.3 or --alpha 0.05,0.5)");
-  if (!a.theta) throw UsageError("--theta is required (degrees in [0, 90))");
+  if (!a.theta) throw UsageError("--theta is required (degrees in [0, 90); (90, 180) for light from inside a dielectric)");
   const auto [ax, ay] = microsim::parse_alpha("--alpha", a.alpha);
   const GGX<double> ggx(ax, ay);
   const Vec3<double> wi = direction_from_degrees(*a.theta, a.phi);
@@ -328,20 +350,7 @@ int run_single(const Args& a) {
   ValidationReport report;
   std::string source;
   if (!a.from.empty()) {
-    DirectionSampleReader samples = open_samples_or_usage_error(a);
-    const ClaimedDensity density = file_claimed_density(file_pdf(a), bsdf_of(a), ggx, wi);
-    std::shared_ptr<const ReferenceDistribution> reference;
-    try {
-      // A BSDF's sampling density is 0 where its samples are lost: the kept ones are its own support.
-      reference = !a.above_horizon                          ? density_reference(density, ggx, wi, o.rows)
-                  : file_pdf(a) == microsim::FilePdf::bsdf ? kept_samples_reference(density, ggx, wi, o.rows)
-                                                           : above_horizon_reference(density, ggx, wi, o.rows);
-    } catch (const std::invalid_argument& e) {
-      throw UsageError(fmt::format("--above-horizon: {}", e.what()));
-    }
-    report = usage_errors_of([&] { return validate_sample_file(samples, density.domain, ggx, wi, o, reference); }, a.from);
-    if (a.frame.empty() && looks_like_a_frame_mistake(report)) add_frame_hint(report, a, reference, o);
-    report.sampler = a.from;
+    report = validate_file(a, ggx, wi, o);
     source = fmt::format("samples from '{}'", a.from);
   } else {
     o.samples = std::uint64_t(a.samples.value_or(1'000'000));
@@ -408,13 +417,18 @@ void check_file_options(const Args& a) {
     if (a.from.empty() || !a.against.empty()) throw UsageError("--bsdf applies to --from FILE (its weight columns)");
     if (bsdf->transmits() && file_pdf(a) != microsim::FilePdf::bsdf)
       throw UsageError(fmt::format("--bsdf {}: a dielectric's dump holds reflections and refractions; test them against "
-                                   "its sampling density with --pdf bsdf", bsdf->describe()));
+                                   "its sampling density (--pdf bsdf, implied by --bsdf), not --pdf {}",
+                                   bsdf->describe(), a.reflected ? "reflection" : a.pdf));
     const bool directions_only = sample_columns(a).channels() == 0 && file_pdf(a) == microsim::FilePdf::bsdf;
     if (!directions_only && sample_columns(a).channels() != bsdf->channels())
       throw UsageError(fmt::format("--bsdf {} has {} channel(s): give as many weight columns (--columns x,y,z,weight...), "
                                    "got {}",
                                    bsdf->describe(), bsdf->channels(), sample_columns(a).channels()));
   }
+  if ((!a.transport.empty() || !a.masking.empty()) && a.bsdf.empty())
+    throw UsageError(fmt::format("{} is the convention of a BSDF's weights: give the BSDF with --bsdf",
+                                 a.transport.empty() ? "--masking" : "--transport"));
+  bsdf_convention(a);  // an unknown name is exit 2 here, before any work
   if (file_pdf(a) == microsim::FilePdf::bsdf && !bsdf_of(a))
     throw UsageError("--pdf bsdf is the sampling density of a BSDF: give it with --bsdf (e.g. --bsdf dielectric --eta 1.5)");
   sample_frame(a);  // an unknown frame is exit 2 here, before any work
@@ -429,8 +443,11 @@ int run(const Args& a) {
   check_file_options(a);
   if (a.use_float && !a.from.empty()) throw UsageError("--float applies to --sampler and --all, not to --from");
   if (a.samples && !a.from.empty()) throw UsageError("--samples does not apply to --from (the file gives the samples)");
-  if (a.theta && !(*a.theta >= 0 && *a.theta < 90))
-    throw UsageError(fmt::format("--theta must be in [0, 90) degrees, got {}", *a.theta));
+  const bool inside = a.theta && *a.theta > 90 && *a.theta < 180 && !a.from.empty() && a.against.empty();
+  if (a.theta && !(*a.theta >= 0 && *a.theta < 90) && !inside)
+    throw UsageError(fmt::format("--theta must be in [0, 90) degrees (or (90, 180) with --from and --bsdf dielectric: "
+                                 "light from inside), got {}",
+                                 *a.theta));
   if (!std::isfinite(a.phi)) throw UsageError(fmt::format("--phi must be finite, got {}", a.phi));
   if (!(a.significance > 0 && a.significance < 1))
     throw UsageError(fmt::format("--significance must be in (0, 1), got {}", a.significance));
@@ -472,13 +489,21 @@ microsim::app::CommandRegistration validate_registration{"validate", [](CLI::App
                   "with --from: what the columns of a row hold, e.g. x,y,z,pdf (the pdf the sampler returned: checked "
                   "against the claimed pdf at each sample) or x,y,z,pdf,weight; '-' skips a column (default x,y,z)");
   sub->add_option("--bsdf", args->bsdf,
-                  "with --from and weight columns: test the weights (f cos / pdf) against this BSDF: mirror, conductor "
-                  "(with --eta and --k), dielectric (with --eta) or a spec as scatter --material takes "
-                  "(conductor:0.2,3.9;0.9,2.4, dielectric:1.5); with --pdf bsdf also the density of the directions");
+                  "with --from: the rows are this BSDF's samples, tested against its outgoing density (--pdf bsdf unless "
+                  "--pdf or --reflected says otherwise) and, with weight columns, their weights (f cos / pdf) against "
+                  "the BSDF: mirror, conductor (with --eta and --k), dielectric (with --eta) or a spec as scatter "
+                  "--material takes (conductor:0.2,3.9;0.9,2.4, dielectric:1.5)");
   sub->add_option("--eta", args->eta,
                   "with --bsdf conductor: the real parts of the indices, one per weight column; with --bsdf dielectric: "
                   "the index inside over outside (a view from inside: mirror the rows and give 1 / eta)");
   sub->add_option("--k", args->k, "with --bsdf conductor: the imaginary parts, one per weight column");
+  sub->add_option("--transport", args->transport,
+                  "with --bsdf: the transport mode of the weights: radiance (default: camera paths; a refraction's weight "
+                  "holds (n_given / n_sampled)^2, as pbrt-v4 and Mitsuba 3 in radiance mode) or importance (light "
+                  "paths: no such factor)");
+  sub->add_option("--masking", args->masking,
+                  "with --bsdf: the masking-shadowing form of the BSDF: height-correlated (default, Smith's G2 = 1 / (1 "
+                  "+ Lambda_i + Lambda_o), pbrt-v4) or separable (G1(wi) G1(wo), Mitsuba 3)");
   sub->add_option("--frame", args->frame,
                   "with --from: the frame of the rows: z-up (default, microsim's) or y-up (normal along +y, rotated to "
                   "z-up by (x, y, z) -> (x, -z, y); --theta/--phi stay z-up)");
@@ -494,7 +519,8 @@ microsim::app::CommandRegistration validate_registration{"validate", [](CLI::App
   sub->add_option("--alpha", args->alpha,
                   "roughness AX or AX,AY, each in [1e-4, 10], anisotropy at most 1:1000 (docs/conventions.md)");
   using microsim::app::add_number_option;
-  add_number_option(sub, "--theta", args->theta, microsim::app::real(), "view zenith angle in degrees, [0, 90)");
+  add_number_option(sub, "--theta", args->theta, microsim::app::real(), "view zenith angle in degrees, [0, 90); with --from and --bsdf dielectric also (90, 180): light from "
+                    "inside the dielectric (the view below the surface)");
   add_number_option(sub, "--phi", args->phi, microsim::app::real(), "view azimuth in degrees (default 0)");
   add_number_option(sub, "--samples", args->samples, microsim::app::whole(1, microsim::kMaxSamples),
                     microsim::app::at_most("number of samples (default 1000000; 200000 per validation with --all)",

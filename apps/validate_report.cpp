@@ -132,6 +132,9 @@ void print_report(const ValidationReport& r, const std::string& source) {
     fmt::print("\nrejected because:\n");
     for (const auto& f : r.failures) fmt::print("  - {}\n", f);
   }
+  for (const auto& h : r.hints) fmt::print("  - hint: {}\n", h);
+  if (!r.notes.empty()) fmt::print("\nnote:\n");
+  for (const auto& n : r.notes) fmt::print("  - {}\n", n);
   fmt::print("\ntime {:.2f} s\n", r.seconds);
 }
 
@@ -229,22 +232,36 @@ std::string BsdfZooReferences::key(const BsdfValidationCase& c) {
   return fmt::format("{} {} {}", c.alpha, c.theta_deg, c.material().describe());
 }
 
+std::string BsdfZooReferences::flux_key(const BsdfValidationCase& c) {
+  return fmt::format("{} {}", key(c), describe(c.sampler->convention));
+}
+
 void BsdfZooReferences::prepare(const std::vector<BsdfValidationCase>& cases, int rows) {
   const auto t0 = std::chrono::steady_clock::now();
-  std::vector<const BsdfValidationCase*> firsts;
-  for (const BsdfValidationCase& c : cases)
-    if (references_.try_emplace(key(c)).second) firsts.push_back(&c);
-  std::vector<BsdfReference> computed(firsts.size());
+  // The sampling density's binnings once per configuration and material, then its flux once per convention.
+  std::map<std::string, std::shared_ptr<const ReferenceDistribution>> directions;
+  std::vector<const BsdfValidationCase*> firsts, flux_firsts;
+  for (const BsdfValidationCase& c : cases) {
+    if (directions.try_emplace(key(c)).second) firsts.push_back(&c);
+    if (references_.try_emplace(flux_key(c)).second) flux_firsts.push_back(&c);
+  }
+  std::vector<std::shared_ptr<const ReferenceDistribution>> computed(firsts.size());
   tbb::parallel_for(std::size_t(0), firsts.size(), [&](std::size_t i) {
     const BsdfValidationCase& c = *firsts[i];
-    computed[i] = bsdf_reference(c.material(), c.ggx(), c.wi(), rows);
+    computed[i] = density_reference(bsdf_sampling_density(c.material(), c.ggx(), c.wi()), c.ggx(), c.wi(), rows);
   });
-  for (std::size_t i = 0; i < firsts.size(); ++i) references_[key(*firsts[i])] = std::move(computed[i]);
+  for (std::size_t i = 0; i < firsts.size(); ++i) directions[key(*firsts[i])] = computed[i];
+  std::vector<BsdfReference> fluxes(flux_firsts.size());
+  tbb::parallel_for(std::size_t(0), flux_firsts.size(), [&](std::size_t i) {
+    const BsdfValidationCase& c = *flux_firsts[i];
+    fluxes[i] = bsdf_reference(directions.at(key(c)), c.material(), c.sampler->convention);
+  });
+  for (std::size_t i = 0; i < flux_firsts.size(); ++i) references_[flux_key(*flux_firsts[i])] = std::move(fluxes[i]);
   count_ += int(firsts.size());
   seconds_ += elapsed(t0);
 }
 
-const BsdfReference& BsdfZooReferences::get(const BsdfValidationCase& c) const { return references_.at(key(c)); }
+const BsdfReference& BsdfZooReferences::get(const BsdfValidationCase& c) const { return references_.at(flux_key(c)); }
 
 void ZooReport::begin_bsdf_section(std::size_t validations) {
   requested_ += validations;
@@ -392,6 +409,7 @@ bool run_bsdf_section(const ValidationRun& run, ZooReport& report, BsdfZooRefere
   for (const BsdfValidationCase& c : cases) {
     if (interrupted()) return false;
     vo.seed = c.seed;
+    vo.convention = c.sampler->convention;  // each sampler's weights in its own transport mode
     report.add_bsdf(c, usage_errors_of([&] {
       return validate_bsdf_sampler(*c.sampler, c.material(), c.ggx(), c.wi(), vo, &references.get(c));
     }));

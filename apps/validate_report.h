@@ -60,8 +60,9 @@ public:
   double seconds() const { return seconds_; }
 
 private:
-  static std::string key(const BsdfValidationCase& c);
-  std::map<std::string, BsdfReference> references_;  // by configuration and material
+  static std::string key(const BsdfValidationCase& c);       // configuration and material
+  static std::string flux_key(const BsdfValidationCase& c);  // and the sampler's convention
+  std::map<std::string, BsdfReference> references_;          // by flux_key
   int count_ = 0;
   double seconds_ = 0;
 };

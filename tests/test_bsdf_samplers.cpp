@@ -13,6 +13,8 @@
 
 #include <algorithm>
 #include <map>
+#include <optional>
+#include <utility>
 #include <string>
 
 namespace microsim {
@@ -23,10 +25,13 @@ struct View {
   bool inside;
 };
 
-ValidationReport validate(std::string_view name, const View& v) {
+// The sampler's weights tested in `mode` (its own transport mode unless given).
+ValidationReport validate(std::string_view name, const View& v, std::optional<TransportMode> mode = std::nullopt) {
   const BsdfSamplerInfo& s = *find_bsdf_sampler(name);
   ValidationOptions o;
   o.seed = 11;
+  o.convention = s.convention;
+  if (mode) o.convention.transport = *mode;
   return validate_bsdf_sampler(s, zoo_bsdf_material(s, v.inside), GGX<double>(v.alpha, v.alpha),
                                direction_from_degrees(v.theta, 0.0), o);
 }
@@ -38,7 +43,7 @@ double weight_p(const ValidationReport& r) {
 TEST(BsdfSamplers, CorrectSamplersPassTheWholeBatteryFromBothSides) {
   const View views[] = {{0.3, 60, false}, {0.05, 89, false}, {0.3, 30, true}};
   for (const View& v : views)
-    for (std::string_view name : {"conductor_vndf", "dielectric_vndf"}) {
+    for (std::string_view name : {"conductor_vndf", "dielectric_vndf", "dielectric_vndf_importance"}) {
       if (v.inside && name == "conductor_vndf") continue;
       const ValidationReport r = validate(name, v);
       EXPECT_TRUE(r.passed) << name << " alpha " << v.alpha << " theta " << v.theta << " inside " << v.inside << ": "
@@ -53,7 +58,11 @@ TEST(BsdfSamplers, EachNegativeControlIsRejectedByTheWeightTest) {
   const struct {
     std::string_view name;
     View view;
-  } cases[] = {{"cond_alpha_sq", {2.0, 60, false}}, {"diel_wrong_jac", {0.3, 30, true}}};  // off the --all grid
+  } cases[] = {{"cond_alpha_sq", {2.0, 60, false}},  // off the --all grid
+               {"diel_wrong_jac", {0.3, 30, true}},
+               {"diel_eta2_twice", {0.3, 30, true}},
+               {"diel_eta2_reflect", {0.3, 45, false}},
+               {"diel_g1_for_g2", {0.6, 70, false}}};
   for (const auto& c : cases) {
     const BsdfSamplerInfo& s = *find_bsdf_sampler(c.name);
     ASSERT_TRUE(s.negative_control);
@@ -77,11 +86,13 @@ TEST(BsdfSamplers, EveryNegativeControlIsRejectedByTheWeightTestOnTheWholeAllGri
   int rejected = 0;
   for (const BsdfValidationCase& c : bsdf_zoo_cases(1)) {
     if (!c.sampler->negative_control || !c.expects_rejection(kSamples)) continue;
-    const std::string key = fmt::format("{} {} {}", c.alpha, c.theta_deg, c.material().describe());
-    if (!references.count(key)) references[key] = bsdf_reference(c.material(), c.ggx(), c.wi(), 31);
+    const std::string key =
+        fmt::format("{} {} {} {}", c.alpha, c.theta_deg, c.material().describe(), describe(c.sampler->convention));
+    if (!references.count(key)) references[key] = bsdf_reference(c.material(), c.sampler->convention, c.ggx(), c.wi(), 31);
     ValidationOptions o;
     o.samples = kSamples;
     o.seed = c.seed;
+    o.convention = c.sampler->convention;
     const ValidationReport r = validate_bsdf_sampler(*c.sampler, c.material(), c.ggx(), c.wi(), o, &references[key]);
     const int tests = int(std::count_if(r.checks.begin(), r.checks.end(), [](const SubTest& t) { return t.statistical; })) + 2;
     EXPECT_LT(weight_p(r), o.significance / tests)
@@ -97,7 +108,7 @@ TEST(BsdfSamplers, ABugWithoutEffectPassesAndIsSaidToHaveNone) {
   const struct {
     std::string_view name;
     View view;
-  } cases[] = {{"cond_alpha_sq", {1.0, 60, false}}, {"diel_no_eta2", {1e-3, 60, true}}};
+  } cases[] = {{"cond_alpha_sq", {1.0, 60, false}}, {"diel_eta2_twice", {1e-3, 60, true}}};
   for (const auto& c : cases) {
     const BsdfSamplerInfo& s = *find_bsdf_sampler(c.name);
     const Material m = zoo_bsdf_material(s, c.view.inside);
@@ -125,12 +136,45 @@ TEST(BsdfSamplers, ClaimedDensityHoldsTheSamplesThatAreKept) {
   const auto ref = density_reference(bsdf_sampling_density(Material::dielectric(kZooDielectricEta), g, wi), g, wi, 31);
   EXPECT_NEAR(ref->sphere_probability.total, double(kept) / n, 3e-3);
   EXPECT_GT(refracted, n / 2);
-  const BsdfSamplerInfo& bug = *find_bsdf_sampler("diel_no_eta2");
+  const BsdfSamplerInfo& bug = *find_bsdf_sampler("diel_eta2_twice");
   // From outside, the refraction weights are off by 1 / eta^2: seen at 1e6 samples, not by one.
   EXPECT_GT(mean_weight_shift_z(bug.sample, s.sample, g, kZooDielectricEta, wi, 1'000'000), 100);
   EXPECT_LT(mean_weight_shift_z(bug.sample, s.sample, g, kZooDielectricEta, wi, 1), 6);
   // From inside beyond the critical angle at alpha 1e-3 nothing refracts: no shift at all.
   EXPECT_EQ(mean_weight_shift_z(bug.sample, s.sample, GGX<double>(1e-3, 1e-3), 1 / kZooDielectricEta, wi, 1'000'000), 0);
+}
+
+// Transport modes (bsdf_convention.h): each correct dielectric sampler passes in its own mode and is rejected by
+// the weight test in the other (a refraction's weight differs by eta^2), from outside and from inside, while
+// its directions pass (they do not depend on the mode). A conductor is the same in both modes.
+TEST(BsdfSamplers, EachTransportModesCorrectSamplerIsRejectedInTheOtherMode) {
+  for (const View v : {View{0.3, 30, false}, View{0.3, 30, true}})
+    for (const auto& [name, other] : {std::pair{"dielectric_vndf", TransportMode::importance},
+                                      std::pair{"dielectric_vndf_importance", TransportMode::radiance}}) {
+      EXPECT_TRUE(validate(name, v).passed) << name << " inside " << v.inside;
+      const ValidationReport r = validate(name, v, other);
+      EXPECT_FALSE(r.passed) << name << " inside " << v.inside;
+      EXPECT_LT(weight_p(r), 1e-6) << name << " inside " << v.inside;
+      EXPECT_GT(r.chi2("sphere").p_value, 1e-3) << name << ": the directions do not depend on the mode";
+    }
+  EXPECT_TRUE(validate("conductor_vndf", {0.3, 60, false}, TransportMode::importance).passed);
+}
+
+// The radiance convention is the importance one with the light's direction reversed: f_radiance(wg, ws) =
+// f_importance(ws, wg), so a refraction's f differs by (n_g / n_s)^2 and a reflection's not at all.
+TEST(BsdfSamplers, RadianceIsImportanceWithTheDirectionsSwapped) {
+  const GGX<double> g(0.4, 0.2);
+  const Vec3<double> wi = direction_from_degrees(40.0, 20.0);
+  const BsdfConvention radiance{TransportMode::radiance, MaskingForm::height_correlated};
+  const BsdfConvention importance{TransportMode::importance, MaskingForm::height_correlated};
+  const Vec3<double> refracted = direction_from_degrees(150.0, 200.0), reflected = direction_from_degrees(50.0, 190.0);
+  for (const double eta : {1.5, 1 / 1.5}) {
+    const double fr = dielectric_bsdf_as(g, eta, wi, refracted, radiance);
+    const double fi = dielectric_bsdf_as(g, eta, wi, refracted, importance);
+    ASSERT_GT(fi, 0);
+    EXPECT_NEAR(fr / fi, 1 / (eta * eta), 1e-12) << eta;
+    EXPECT_DOUBLE_EQ(dielectric_bsdf_as(g, eta, wi, reflected, radiance), dielectric_bsdf_as(g, eta, wi, reflected, importance));
+  }
 }
 
 }  // namespace

@@ -293,8 +293,9 @@ TEST(CliValidate, BsdfMisuseIsBadUsage) {
 
 // A rough dielectric's sample() dumped as a renderer would (wo, pdf, weight per row, reflections and
 // refractions): --pdf bsdf --bsdf dielectric tests the directions against its sampling density over the
-// whole sphere and the weights against the BSDF; the refraction weight without eta^2 (a real renderer
-// bug, bsdf_samplers.h: diel_no_eta2) is rejected with the same directions.
+// whole sphere and the weights against the BSDF in the dump's transport mode (radiance unless --transport
+// says importance); the radiance factor applied twice (bsdf_samplers.h: diel_eta2_twice) is rejected with the
+// same directions, and each mode's correct dump is rejected in the other mode.
 TEST(CliValidate, DielectricDumpsAreTestedWithPdfBsdf) {
   const fs::path dir = scratch_dir();
   const GGX<double> ggx(0.3, 0.3);
@@ -317,7 +318,8 @@ TEST(CliValidate, DielectricDumpsAreTestedWithPdfBsdf) {
   };
   const long long lost = dump("dielectric_vndf", dir / "glass.txt");
   ASSERT_GT(lost, 400) << "the view must lose samples for the conditioning to matter";
-  dump("diel_no_eta2", dir / "glass_no_eta2.txt");
+  dump("diel_eta2_twice", dir / "glass_eta2_twice.txt");
+  dump("dielectric_vndf_importance", dir / "glass_importance.txt");
   // 11 rows: a coarse binning (the dielectric's reference cubature is the cost of each run).
   const std::string args = " --alpha 0.3 --theta 50 --rows 11 --pdf bsdf --columns x,y,z,pdf,weight --bsdf dielectric "
                            "--eta 1.5 --above-horizon";
@@ -327,10 +329,21 @@ TEST(CliValidate, DielectricDumpsAreTestedWithPdfBsdf) {
   const CliRun counted = run(glass + args + " --dropped " + std::to_string(lost));
   EXPECT_EQ(counted.exit_code, 0) << counted.out << counted.err;
   EXPECT_EQ(run(glass + args + " --dropped " + std::to_string(lost * 13 / 10)).exit_code, 1) << "30% too many lost";
-  // Without --above-horizon the lost samples' share of the density is missing from the file: rejected.
-  EXPECT_EQ(run(glass + " --alpha 0.3 --theta 50 --rows 11 --pdf bsdf --columns x,y,z,pdf,weight --bsdf dielectric:1.5").exit_code,
-            1);
-  const CliRun bad = run("--from '" + (dir / "glass_no_eta2.txt").string() + "'" + args);
+  // Without --above-horizon the lost samples' share of the density is missing from the file: rejected, with a
+  // hint naming --above-horizon (--bsdf implies --pdf bsdf).
+  const CliRun no_kept = run(glass + " --alpha 0.3 --theta 50 --rows 11 --columns x,y,z,pdf,weight --bsdf dielectric:1.5");
+  EXPECT_EQ(no_kept.exit_code, 1) << no_kept.out << no_kept.err;
+  EXPECT_NE(no_kept.out.find("hint: the claimed density loses"), std::string::npos) << no_kept.out;
+  EXPECT_NE(no_kept.out.find("--above-horizon"), std::string::npos) << no_kept.out;
+  // Transport modes: the radiance dump is rejected as importance, the importance dump passes as importance
+  // and is rejected as radiance (the default, said in the report).
+  EXPECT_NE(ok.out.find("radiance transport (camera paths)"), std::string::npos) << ok.out;
+  EXPECT_EQ(run(glass + args + " --transport importance").exit_code, 1);
+  const std::string importance = "--from '" + (dir / "glass_importance.txt").string() + "'";
+  const CliRun as_importance = run(importance + args + " --transport importance");
+  EXPECT_EQ(as_importance.exit_code, 0) << as_importance.out << as_importance.err;
+  EXPECT_EQ(run(importance + args).exit_code, 1);
+  const CliRun bad = run("--from '" + (dir / "glass_eta2_twice.txt").string() + "'" + args);
   EXPECT_EQ(bad.exit_code, 1) << bad.out << bad.err;
   EXPECT_NE(bad.out.find("BSDF"), std::string::npos) << "rejected by a weight test\n" << bad.out;
   // Directions only (no weight column): the same density, no weight test.

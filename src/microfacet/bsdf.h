@@ -11,6 +11,7 @@
 // value f (without the cosine factor), 0 for impossible configurations, never NaN.
 #pragma once
 
+#include "microfacet/bsdf_convention.h"
 #include "microfacet/ggx.h"
 
 #include <cmath>
@@ -58,23 +59,34 @@ template <class T> Vec3<T> reflection_half_vector(const Vec3<T>& wi, const Vec3<
 // The BSDFs below take any Smith microfacet distribution with D and G2: GGX (ggx.h) or Beckmann
 // (beckmann.h); the formulas of Walter et al. 2007 hold for both.
 //
+// The masking-shadowing of a pair in the named form (bsdf_convention.h): Heitz 2014 eq. 99 or eq. 98.
+template <class T, template <class> class Ndf>
+T masking_shadowing(const Ndf<T>& ndf, const Vec3<T>& wi, const Vec3<T>& wo, MaskingForm form) {
+  return form == MaskingForm::separable ? ndf.G2_separable(wi, wo) : ndf.G2(wi, wo);
+}
+
+//
 // Single-scattering BRDF of a perfect mirror microsurface (F = 1): D G2 / (4 |cos i| |cos o|),
 // with the height-correlated G2. Reflection only: both directions on the upper side.
-template <class T, template <class> class Ndf> T mirror_brdf(const Ndf<T>& ggx, const Vec3<T>& wi, const Vec3<T>& wo) {
+// `masking` names the masking-shadowing form (the height-correlated G2 unless said).
+template <class T, template <class> class Ndf>
+T mirror_brdf(const Ndf<T>& ggx, const Vec3<T>& wi, const Vec3<T>& wo,
+              MaskingForm masking = MaskingForm::height_correlated) {
   if (!(wi.z() > T(0) && wo.z() > T(0))) return T(0);
   const Vec3<T> m = reflection_half_vector(wi, wo);
   if (!(wi.dot(m) > T(0) && wo.dot(m) > T(0))) return T(0);
-  return ggx.D(m) * ggx.G2(wi, wo) / (T(4) * wi.z() * wo.z());
+  return ggx.D(m) * masking_shadowing(ggx, wi, wo, masking) / (T(4) * wi.z() * wo.z());
 }
 
 // Single-scattering BRDF of a conductor: F(<wi, m>) D G2 / (4 cos i cos o).
 template <class T, template <class> class Ndf>
-T conductor_brdf(const Ndf<T>& ggx, std::complex<T> eta, const Vec3<T>& wi, const Vec3<T>& wo) {
+T conductor_brdf(const Ndf<T>& ggx, std::complex<T> eta, const Vec3<T>& wi, const Vec3<T>& wo,
+                 MaskingForm masking = MaskingForm::height_correlated) {
   if (!(wi.z() > T(0) && wo.z() > T(0))) return T(0);
   const Vec3<T> m = reflection_half_vector(wi, wo);
   const T im = wi.dot(m);
   if (!(im > T(0) && wo.dot(m) > T(0))) return T(0);
-  return fresnel_conductor(im, eta) * ggx.D(m) * ggx.G2(wi, wo) / (T(4) * wi.z() * wo.z());
+  return fresnel_conductor(im, eta) * ggx.D(m) * masking_shadowing(ggx, wi, wo, masking) / (T(4) * wi.z() * wo.z());
 }
 
 // The height-correlated masking-shadowing of a REFRACTED pair on the Smith microsurface: the two ends of
@@ -95,7 +107,8 @@ T transmission_G2(const Ndf<T>& ndf, const Vec3<T>& wi, const Vec3<T>& wo) {
 
 namespace detail {
 template <class T, template <class> class Ndf>
-T dielectric_bsdf_with(const Ndf<T>& ggx, T eta, const Vec3<T>& wi, const Vec3<T>& wo, bool smith_transmission) {
+T dielectric_bsdf_with(const Ndf<T>& ggx, T eta, const Vec3<T>& wi, const Vec3<T>& wo, bool smith_transmission,
+                       MaskingForm masking) {
   const T ci = wi.z(), co = wo.z();
   if (ci == T(0) || co == T(0)) return T(0);
   const bool reflection = (ci > T(0)) == (co > T(0));
@@ -105,7 +118,7 @@ T dielectric_bsdf_with(const Ndf<T>& ggx, T eta, const Vec3<T>& wi, const Vec3<T
     // Both directions must see the same side of the facet.
     if (im * ci <= T(0) || om * co <= T(0) || m.z() <= T(0)) return T(0);
     const T F = fresnel_dielectric(im, eta);
-    return F * ggx.D(m) * ggx.G2(wi, wo) / (T(4) * std::abs(ci) * std::abs(co));
+    return F * ggx.D(m) * masking_shadowing(ggx, wi, wo, masking) / (T(4) * std::abs(ci) * std::abs(co));
   }
   const T eta_i = ci > T(0) ? T(1) : eta;  // index on wi's side (relative to outside = 1)
   const T eta_o = ci > T(0) ? eta : T(1);
@@ -123,7 +136,7 @@ T dielectric_bsdf_with(const Ndf<T>& ggx, T eta, const Vec3<T>& wi, const Vec3<T
   // cosine: accurate, and the same value for wi -> wo and wo -> wi (exact reciprocity).
   const bool wi_on_thin_side = (eta_o >= eta_i);
   const T F = wi_on_thin_side ? fresnel_dielectric(im, eta) : fresnel_dielectric(om, eta);
-  const T G2 = smith_transmission ? transmission_G2(ggx, wi, wo) : ggx.G2(wi, wo);
+  const T G2 = smith_transmission ? transmission_G2(ggx, wi, wo) : masking_shadowing(ggx, wi, wo, masking);
   return std::abs(im) * std::abs(om) / (std::abs(ci) * std::abs(co)) * sqr(eta_o) * (T(1) - F) * ggx.D(m) * G2 / denom;
 }
 }  // namespace detail
@@ -132,17 +145,28 @@ T dielectric_bsdf_with(const Ndf<T>& ggx, T eta, const Vec3<T>& wi, const Vec3<T
 // eta = n_inside / n_outside (the lower half-space is the inside). The refraction half vector is
 // m = -(eta_i wi + eta_o wo) (eq. 16), oriented to +z. The refraction term follows eq. 21 including the
 // eta_o^2 factor (radiance, not importance): f_t(i->o) / eta_o^2 = f_t(o->i) / eta_i^2. Both lobes use the
-// height-correlated G2 of reflection, 1 / (1 + Lambda_i + Lambda_o).
+// height-correlated G2 of reflection, 1 / (1 + Lambda_i + Lambda_o), unless `masking` names another form.
 template <class T, template <class> class Ndf>
-T dielectric_bsdf(const Ndf<T>& ggx, T eta, const Vec3<T>& wi, const Vec3<T>& wo) {
-  return detail::dielectric_bsdf_with(ggx, eta, wi, wo, false);
+T dielectric_bsdf(const Ndf<T>& ggx, T eta, const Vec3<T>& wi, const Vec3<T>& wo,
+                  MaskingForm masking = MaskingForm::height_correlated) {
+  return detail::dielectric_bsdf_with(ggx, eta, wi, wo, false, masking);
+}
+
+// The rough dielectric as a renderer's BSDF evaluates it for a sample: wg the direction it was given, ws the
+// one it sampled, in its convention. Importance: light flows from wg to ws, dielectric_bsdf(wg, ws).
+// Radiance: light flows from ws to wg, dielectric_bsdf(ws, wg) = dielectric_bsdf(wg, ws) (n_g / n_s)^2 for a
+// refraction (Walter 2007 eq. 21 with the reciprocity f_t(i->o) / eta_o^2 = f_t(o->i) / eta_i^2).
+template <class T, template <class> class Ndf>
+T dielectric_bsdf_as(const Ndf<T>& ggx, T eta, const Vec3<T>& wg, const Vec3<T>& ws, const BsdfConvention& c) {
+  return c.transport == TransportMode::importance ? dielectric_bsdf(ggx, eta, wg, ws, c.masking)
+                                                  : dielectric_bsdf(ggx, eta, ws, wg, c.masking);
 }
 
 // The same BSDF with the refraction lobe's masking of the Smith microsurface itself, transmission_G2: the
 // single scattering of the Smith random walk (Heitz, Hanika, d'Eon, Dachsbacher 2016), i.e. its order 1.
 template <class T, template <class> class Ndf>
 T dielectric_bsdf_smith(const Ndf<T>& ggx, T eta, const Vec3<T>& wi, const Vec3<T>& wo) {
-  return detail::dielectric_bsdf_with(ggx, eta, wi, wo, true);
+  return detail::dielectric_bsdf_with(ggx, eta, wi, wo, true, MaskingForm::height_correlated);
 }
 
 }  // namespace microsim

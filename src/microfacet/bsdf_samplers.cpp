@@ -59,24 +59,39 @@ BsdfSampleResult conductor_event(const GGX<double>& ggx, std::complex<double> et
   return BsdfSample{wo, v->pdf * reflection_jacobian(wo, v->m), weight};
 }
 
-enum class DielectricBug { none, jacobian_of_wrong_side, transmission_without_eta2 };
+enum class DielectricBug {
+  none,
+  jacobian_of_wrong_side,   // the refraction pdf with d omega_m / d omega_i
+  eta2_twice,               // the radiance factor (n_g / n_s)^2 applied twice
+  eta2_on_reflection,       // the radiance factor of a refraction applied to reflections too
+  g1_for_g2,                // G2 replaced by G1(wi): the weight without G1(wo)
+};
 
-// A dielectric: reflection with probability F, else refraction; lost on the wrong side of the horizon.
+// The factor a refraction's weight carries in `mode` (bsdf_convention.h): (n_given / n_sampled)^2 = 1 / eta^2
+// for radiance (eta: the index across the interface over the index on wi's side), 1 for importance.
+double radiance_factor(TransportMode mode, double eta) { return mode == TransportMode::radiance ? 1 / sqr(eta) : 1.0; }
+
+// A dielectric: reflection with probability F, else refraction; lost on the wrong side of the horizon. The
+// weight G2 / G1(wi) times, for a refraction, the transport mode's factor.
 BsdfSampleResult dielectric_event(const GGX<double>& ggx, double eta, const Vec3<double>& wi, const Vec3<double>& u,
-                                  DielectricBug bug) {
+                                  TransportMode mode, DielectricBug bug) {
   const auto v = visible_normal(ggx, wi, u);
   if (!v) return std::nullopt;
   const double F = fresnel_dielectric(wi.dot(v->m), eta);
+  const double factor = radiance_factor(mode, eta);
   if (u.z() < F) {
     const Vec3<double> wo = reflect(wi, v->m);
     if (!(wo.z() > 0)) return std::nullopt;
-    return BsdfSample{wo, F * v->pdf * reflection_jacobian(wo, v->m), ggx.G2(wi, wo) / ggx.G1(wi)};
+    const double g = bug == DielectricBug::g1_for_g2 ? 1.0 : ggx.G2(wi, wo) / ggx.G1(wi);
+    return BsdfSample{wo, F * v->pdf * reflection_jacobian(wo, v->m),
+                      bug == DielectricBug::eta2_on_reflection ? g * factor : g};
   }
   Vec3<double> wo;
   if (!refract(wi, v->m, eta, wo) || !(wo.z() < 0)) return std::nullopt;
   const double jacobian = refraction_jacobian(wi, wo, v->m, eta);
-  double weight = ggx.G2(wi, wo) / ggx.G1(wi), pdf = (1 - F) * v->pdf * jacobian;
-  if (bug == DielectricBug::transmission_without_eta2) weight /= sqr(eta);
+  double weight = (bug == DielectricBug::g1_for_g2 ? 1.0 : ggx.G2(wi, wo) / ggx.G1(wi)) * factor;
+  double pdf = (1 - F) * v->pdf * jacobian;
+  if (bug == DielectricBug::eta2_twice) weight *= factor;
   if (bug == DielectricBug::jacobian_of_wrong_side) {
     const double wrong = refraction_jacobian_of_wi(wi, wo, v->m, eta);
     weight *= jacobian / wrong;  // f |wo.z| / pdf with the wrong pdf
@@ -100,18 +115,20 @@ BsdfSampleResult sample_conductor_alpha_squared(const GGX<double>& g, std::compl
                                                 const Vec3<double>& u) {
   return conductor_event(GGX<double>(sqr(g.alpha_x()), sqr(g.alpha_y())), eta, wi, u, false);
 }
-BsdfSampleResult sample_dielectric_vndf(const GGX<double>& g, std::complex<double> eta, const Vec3<double>& wi,
-                                        const Vec3<double>& u) {
-  return dielectric_event(g, eta.real(), wi, u, DielectricBug::none);
+// The rough dielectric's samplers: correct in radiance and in importance transport, and the bugs (radiance).
+template <TransportMode Mode, DielectricBug Bug>
+BsdfSampleResult sample_dielectric(const GGX<double>& g, std::complex<double> eta, const Vec3<double>& wi,
+                                   const Vec3<double>& u) {
+  return dielectric_event(g, eta.real(), wi, u, Mode, Bug);
 }
-BsdfSampleResult sample_dielectric_wrong_jacobian(const GGX<double>& g, std::complex<double> eta, const Vec3<double>& wi,
-                                                  const Vec3<double>& u) {
-  return dielectric_event(g, eta.real(), wi, u, DielectricBug::jacobian_of_wrong_side);
-}
-BsdfSampleResult sample_dielectric_no_eta2(const GGX<double>& g, std::complex<double> eta, const Vec3<double>& wi,
-                                           const Vec3<double>& u) {
-  return dielectric_event(g, eta.real(), wi, u, DielectricBug::transmission_without_eta2);
-}
+constexpr auto sample_dielectric_vndf = sample_dielectric<TransportMode::radiance, DielectricBug::none>;
+constexpr auto sample_dielectric_vndf_importance = sample_dielectric<TransportMode::importance, DielectricBug::none>;
+constexpr auto sample_dielectric_wrong_jacobian =
+    sample_dielectric<TransportMode::radiance, DielectricBug::jacobian_of_wrong_side>;
+constexpr auto sample_dielectric_eta2_twice = sample_dielectric<TransportMode::radiance, DielectricBug::eta2_twice>;
+constexpr auto sample_dielectric_eta2_on_reflection =
+    sample_dielectric<TransportMode::radiance, DielectricBug::eta2_on_reflection>;
+constexpr auto sample_dielectric_g1_for_g2 = sample_dielectric<TransportMode::radiance, DielectricBug::g1_for_g2>;
 
 // alpha^2 == alpha only at alpha = 1, and both clamp to kMinAlpha at or below it (GGX's constructor).
 bool squaring_changes(double a) { return a > kMinAlpha && a != 1.0; }
@@ -125,22 +142,37 @@ bool shifts_mean_weight(const GGX<double>& g, std::complex<double> eta, const Ve
   return mean_weight_shift_z(Bug, Correct, g, eta, wi, samples) >= 6;
 }
 
+constexpr BsdfConvention kRadiance{TransportMode::radiance, MaskingForm::height_correlated};
+constexpr BsdfConvention kImportance{TransportMode::importance, MaskingForm::height_correlated};
+
 constexpr BsdfSamplerInfo kRegistry[] = {
     {"conductor_vndf", "conductor: Heitz 2018 VNDF, mirror reflection, weight F G2 / G1(wi)", MaterialKind::conductor,
-     false, sample_conductor_vndf, conductor_vndf_pdf, nullptr},
-    {"dielectric_vndf", "rough dielectric: Heitz 2018 VNDF, reflect with probability F else refract, weight G2 / G1(wi)",
-     MaterialKind::dielectric, false, sample_dielectric_vndf, dielectric_vndf_pdf, nullptr},
+     false, sample_conductor_vndf, conductor_vndf_pdf, nullptr, kRadiance},
+    {"dielectric_vndf",
+     "rough dielectric, radiance transport (camera paths): Heitz 2018 VNDF, reflect with probability F else refract, "
+     "weight G2 / G1(wi), a refraction's times (n_given / n_sampled)^2",
+     MaterialKind::dielectric, false, sample_dielectric_vndf, dielectric_vndf_pdf, nullptr, kRadiance},
+    {"dielectric_vndf_importance",
+     "rough dielectric, importance transport (light paths): Heitz 2018 VNDF, reflect with probability F else refract, "
+     "weight G2 / G1(wi)",
+     MaterialKind::dielectric, false, sample_dielectric_vndf_importance, dielectric_vndf_pdf, nullptr, kImportance},
     {"cond_no_g1_wo", "NEGATIVE CONTROL: conductor weight F, without G1(wo)", MaterialKind::conductor, true,
-     sample_conductor_no_g1_wo, conductor_vndf_pdf,
-     shifts_mean_weight<sample_conductor_no_g1_wo, sample_conductor_vndf>},
+     sample_conductor_no_g1_wo, conductor_vndf_pdf, shifts_mean_weight<sample_conductor_no_g1_wo, sample_conductor_vndf>,
+     kRadiance},
     {"cond_alpha_sq", "NEGATIVE CONTROL: conductor with the roughness squared twice (samples and weighs alpha^2)",
-     MaterialKind::conductor, true, sample_conductor_alpha_squared, conductor_vndf_pdf, squaring_has_effect},
+     MaterialKind::conductor, true, sample_conductor_alpha_squared, conductor_vndf_pdf, squaring_has_effect, kRadiance},
     {"diel_wrong_jac", "NEGATIVE CONTROL: dielectric refraction pdf with the half-vector Jacobian of wi's side",
      MaterialKind::dielectric, true, sample_dielectric_wrong_jacobian, dielectric_vndf_pdf,
-     shifts_mean_weight<sample_dielectric_wrong_jacobian, sample_dielectric_vndf>},
-    {"diel_no_eta2", "NEGATIVE CONTROL: dielectric refraction weight without the eta^2 factor", MaterialKind::dielectric,
-     true, sample_dielectric_no_eta2, dielectric_vndf_pdf,
-     shifts_mean_weight<sample_dielectric_no_eta2, sample_dielectric_vndf>},
+     shifts_mean_weight<sample_dielectric_wrong_jacobian, sample_dielectric_vndf>, kRadiance},
+    {"diel_eta2_twice", "NEGATIVE CONTROL: dielectric refraction weight with the radiance factor 1 / eta^2 applied twice",
+     MaterialKind::dielectric, true, sample_dielectric_eta2_twice, dielectric_vndf_pdf,
+     shifts_mean_weight<sample_dielectric_eta2_twice, sample_dielectric_vndf>, kRadiance},
+    {"diel_eta2_reflect", "NEGATIVE CONTROL: dielectric with the radiance factor 1 / eta^2 on reflections too",
+     MaterialKind::dielectric, true, sample_dielectric_eta2_on_reflection, dielectric_vndf_pdf,
+     shifts_mean_weight<sample_dielectric_eta2_on_reflection, sample_dielectric_vndf>, kRadiance},
+    {"diel_g1_for_g2", "NEGATIVE CONTROL: dielectric weight with G1(wi) for G2 (without G1(wo))", MaterialKind::dielectric,
+     true, sample_dielectric_g1_for_g2, dielectric_vndf_pdf,
+     shifts_mean_weight<sample_dielectric_g1_for_g2, sample_dielectric_vndf>, kRadiance},
 };
 
 }  // namespace

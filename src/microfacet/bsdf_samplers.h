@@ -14,11 +14,13 @@
 // The weights, from Walter et al. 2007 (EGSR) eq. 14 and 17 (the half-vector Jacobians), eq. 20-21 (the
 // BSDF) and the VNDF of Heitz 2014 (eq. 16): with m drawn from D_v(wi, m) = G1(wi) <wi, m> D(m) / wi.z,
 //   reflection   pdf = P_r D_v / (4 <wi, m>),                       weight = F G2 / (P_r G1(wi))
-//   refraction   pdf = P_t D_v eta^2 |<wo, m>| / (<wi, m> + eta <wo, m>)^2,   weight = (1 - F) G2 / (P_t G1(wi))
+//   refraction   pdf = P_t D_v eta^2 |<wo, m>| / (<wi, m> + eta <wo, m>)^2,   weight = (1 - F) G2 / (P_t G1(wi)) s
 // where P_r, P_t are the probabilities of choosing the lobe (1 and 0 for a conductor, F and 1 - F for a
-// dielectric) and G2 = 1 / (1 + Lambda_i + Lambda_o) (Heitz 2014 eq. 99), as in microfacet/bsdf.h.
+// dielectric), G2 = 1 / (1 + Lambda_i + Lambda_o) (Heitz 2014 eq. 99), as in microfacet/bsdf.h, and s the
+// transport mode's factor (bsdf_convention.h): 1 / eta^2 in radiance (camera paths), 1 in importance.
 #pragma once
 
+#include "microfacet/bsdf_convention.h"
 #include "microfacet/ggx.h"
 #include "microfacet/material.h"
 
@@ -67,6 +69,7 @@ struct BsdfSamplerInfo {
   // bugs: where the mean weight moves by at least 6 standard errors of the mean at `samples` samples
   // (mean_weight_shift_z >= 6).
   bool (*bug_has_effect)(const GGX<double>&, std::complex<double> eta, const Vec3<double>& wi, std::uint64_t samples);
+  BsdfConvention convention;  // what its weights are (bsdf_convention.h): a dielectric's transport mode
 };
 
 // The z a sample count gives the change of the mean weight that sampler `bug` makes against `correct`:

@@ -7,6 +7,7 @@
 #include "stats/binning.h"
 #include "stats/histogram_io.h"
 #include "validate/bsdf_validation.h"
+#include "validate/dump_validation.h"
 #include "validate/compare.h"
 #include "validate/sample_io.h"
 #include "validate/validate.h"
@@ -251,22 +252,6 @@ ValidationOptions validation_options(int rows, double significance, std::uint64_
 
 // ---- validate ------------------------------------------------------------------------------------------------
 
-// The claimed density's reference, as `validate --from` builds it (--pdf bsdf: the BSDF's sampling density;
-// --above-horizon: conditioned on the kept samples).
-std::shared_ptr<const ReferenceDistribution> file_reference(FilePdf pdf, const std::optional<Material>& bsdf,
-                                                            const GGX<double>& ggx, const Vec3<double>& wi, int rows,
-                                                            bool above_horizon) {
-  const ClaimedDensity density = file_claimed_density(pdf, bsdf, ggx, wi);
-  if (!above_horizon) return density_reference(density, ggx, wi, rows);
-  try {
-    // A BSDF's sampling density is 0 where its samples are lost: the kept ones are its own support.
-    return pdf == FilePdf::bsdf ? kept_samples_reference(density, ggx, wi, rows)
-                                : above_horizon_reference(density, ggx, wi, rows);
-  } catch (const std::invalid_argument& e) {
-    throw py::value_error(std::string("above_horizon: ") + e.what());
-  }
-}
-
 // The BSDF of `validate --bsdf`: a material spec as parse_material reads it, checked as the command line
 // checks it against the weights and the claimed density.
 std::optional<Material> bsdf_of(const std::optional<std::string>& spec, FilePdf pdf, const py::handle& weights) {
@@ -280,8 +265,27 @@ std::optional<Material> bsdf_of(const std::optional<std::string>& spec, FilePdf 
     throw py::value_error("bsdf applies to weights (f cos / pdf) or to pdf='bsdf'");
   if (bsdf.transmits() && pdf != FilePdf::bsdf)
     throw py::value_error("bsdf " + bsdf.describe() + ": a dielectric's samples hold reflections and refractions; test "
-                          "them against its sampling density with pdf='bsdf'");
+                          "them against its sampling density (pdf='bsdf', implied by bsdf)");
   return bsdf;
+}
+
+// The claimed density: `pdf`, or with a BSDF its own outgoing density (as `validate --bsdf` implies --pdf bsdf).
+FilePdf claimed_pdf_of(const std::optional<std::string>& pdf, const std::optional<std::string>& bsdf,
+                       const std::optional<std::string>& against) {
+  if (pdf) return parse_file_pdf(*pdf);  // std::invalid_argument naming the valid ones: ValueError
+  return bsdf && !against ? FilePdf::bsdf : FilePdf::vndf;
+}
+
+// The weights' convention: transport mode and masking form (bsdf_convention.h), with a BSDF only.
+BsdfConvention convention_of(const std::optional<std::string>& transport, const std::optional<std::string>& masking,
+                             const std::optional<std::string>& bsdf) {
+  if ((transport || masking) && !bsdf)
+    throw py::value_error(std::string(transport ? "transport" : "masking") +
+                          " is the convention of a BSDF's weights: give the BSDF with bsdf");
+  BsdfConvention c;
+  if (transport) c.transport = parse_transport_mode("transport", *transport);
+  if (masking) c.masking = parse_masking_form("masking", *masking);
+  return c;
 }
 
 // The traced oracle of `validate --against`: "ellipsoid" (traced now, seed mixed as the command line mixes it)
@@ -306,6 +310,7 @@ struct Reference {
   bool above_horizon = false;
   std::optional<std::string> against;
   std::uint64_t oracle_rays = 0, seed = 1;
+  bool diagnose_frame = true;  // no frame given: a rejection looking like a frame mistake is diagnosed
 };
 
 ValidationReport validate_reader(DirectionSampleReader& reader, const GGX<double>& ggx, const Vec3<double>& wi,
@@ -314,39 +319,63 @@ ValidationReport validate_reader(DirectionSampleReader& reader, const GGX<double
     const TracedHistogram traced = oracle_of(*r.against, ggx, wi, o.rows, r.oracle_rays, r.seed, o.run);
     return compare_sample_file_to_trace(reader, "samples", ggx, wi, o, traced);
   }
-  const auto reference = file_reference(r.claimed, r.bsdf, ggx, wi, o.rows, r.above_horizon);
-  return validate_sample_file(reader, reference->domain, ggx, wi, o, reference);
+  std::shared_ptr<const ReferenceDistribution> reference;
+  try {
+    reference = dump_reference({r.claimed, r.bsdf, r.above_horizon}, ggx, wi, o.rows);
+  } catch (const std::invalid_argument& e) {
+    throw py::value_error(std::string("above_horizon: ") + e.what());
+  }
+  return validate_dump(reader, reference, ggx, wi, o, r.diagnose_frame);
 }
 
 // What `against` excludes, as `validate --against` refuses it.
-void check_against(const Reference& r, const std::string& pdf, const py::handle& weights) {
+void check_against(const Reference& r, const py::handle& weights) {
   if (!r.against) return;
-  if (pdf != "vndf") throw py::value_error("against: the traced oracle measures visible normals (pdf='vndf'), not '" + pdf + "'");
+  if (r.claimed != FilePdf::vndf) throw py::value_error("against: the traced oracle measures visible normals (pdf='vndf')");
   if (r.above_horizon) throw py::value_error("above_horizon tests against the analytic pdf, not against the traced oracle");
   if (!weights.is_none()) throw py::value_error("weights are tested against the analytic BSDF, not against the traced oracle");
   if (*r.against != "ellipsoid" && std::filesystem::path(*r.against).extension() != ".exr")
     throw py::value_error("against '" + *r.against + "': use 'ellipsoid' or a histogram .exr from `microsim trace vndf`");
 }
 
+// What validate() is asked beside the arrays and the view (keyword arguments).
+struct DumpArguments {
+  std::optional<std::string> pdf, bsdf, transport, masking, frame;
+  int rows = 31;
+  double significance = 0.01;
+  bool above_horizon = false;
+  std::optional<std::uint64_t> dropped;
+  std::optional<std::string> against;
+  std::uint64_t oracle_rays = 0, seed = 1;
+};
+
 ValidationReport validate_array(const py::handle& samples, const py::handle& alpha, double theta, double phi,
-                                const std::string& pdf, const py::handle& weights, const py::handle& pdfs,
-                                const std::optional<std::string>& bsdf, const std::string& frame, int rows,
-                                double significance, bool above_horizon, std::optional<std::uint64_t> dropped,
-                                const std::optional<std::string>& against, std::uint64_t oracle_rays, std::uint64_t seed,
+                                const py::handle& weights, const py::handle& pdfs, const DumpArguments& d,
                                 const py::object& progress) {
   const GGX<double> ggx = ggx_of(alpha);
-  const Vec3<double> wi = view_of(theta, phi);
-  ValidationOptions o = validation_options(rows, significance, seed);
-  if (dropped && !above_horizon) throw py::value_error("dropped applies with above_horizon=True only");
-  o.dropped_below_horizon = dropped;
-  const FilePdf claimed = parse_file_pdf(pdf);  // std::invalid_argument naming the valid ones: ValueError
-  const std::optional<Material> material = bsdf_of(bsdf, claimed, weights);
+  // Light from inside a dielectric: theta in (90, 180), validated as its mirror image (dump_validation.h).
+  const bool inside = theta > 90 && theta < 180 && d.bsdf && !d.against;
+  const Vec3<double> view = inside ? direction_from_degrees(theta, phi) : view_of(theta, phi);
+  ValidationOptions o = validation_options(d.rows, d.significance, d.seed);
+  if (d.dropped && !d.above_horizon) throw py::value_error("dropped applies with above_horizon=True only");
+  o.dropped_below_horizon = d.dropped;
+  const FilePdf claimed = claimed_pdf_of(d.pdf, d.bsdf, d.against);
+  ViewFromOutside v;
+  try {
+    v = seen_from_outside(view, bsdf_of(d.bsdf, claimed, weights));
+  } catch (const std::invalid_argument& e) {
+    throw py::value_error(std::string("theta: ") + e.what());
+  }
+  const Vec3<double> wi = v.wi;
+  const std::optional<Material> material = v.bsdf;
   if (!weights.is_none()) o.bsdf = material;  // the weight test
-  if (above_horizon && !claims_reflected_directions(claimed))
+  o.convention = convention_of(d.transport, d.masking, d.bsdf);
+  if (d.above_horizon && !claims_reflected_directions(claimed))
     throw py::value_error("above_horizon applies to reflected directions: give pdf='reflection', 'bounded' or 'bsdf'");
-  const Reference reference{claimed, material, above_horizon, against, oracle_rays, seed};
-  check_against(reference, pdf, weights);
-  DirectionSampleReader reader = sample_reader(samples, pdfs, weights, frame);
+  const Reference reference{claimed, material, d.above_horizon, d.against, d.oracle_rays, d.seed, !d.frame};
+  check_against(reference, weights);
+  DirectionSampleReader reader = sample_reader(samples, pdfs, weights, d.frame.value_or("z-up"));
+  reader.set_mirrored(v.mirrored);
   ValidationReport report;
   run_interruptible(
       [&](const RunControl& run) {
@@ -355,7 +384,21 @@ ValidationReport validate_array(const py::handle& samples, const py::handle& alp
       },
       progress);
   report.sampler = "samples";
+  report.wi = view;
   return report;
+}
+
+// validate()'s signature: the arrays, the view and its keyword arguments.
+ValidationReport validate_with_keywords(const py::handle& samples, const py::handle& alpha, double theta, double phi,
+                                        std::optional<std::string> pdf, const py::handle& weights, const py::handle& pdfs,
+                                        std::optional<std::string> bsdf, std::optional<std::string> transport,
+                                        std::optional<std::string> masking, std::optional<std::string> frame, int rows,
+                                        double significance, bool above_horizon, std::optional<std::uint64_t> dropped,
+                                        std::optional<std::string> against, std::uint64_t oracle_rays, std::uint64_t seed,
+                                        const py::object& progress) {
+  const DumpArguments d{pdf, bsdf, transport, masking, frame, rows, significance, above_horizon,
+                        dropped, against, oracle_rays, seed};
+  return validate_array(samples, alpha, theta, phi, weights, pdfs, d, progress);
 }
 
 ValidationReport validate_zoo_sampler(const std::string& name, const py::handle& alpha, double theta, double phi,
@@ -404,7 +447,8 @@ py::list worst_cells_of(const ValidationReport& r) {
 std::string repr_of(const ValidationReport& r) {
   return std::string("<ValidationResult ") + (r.passed ? "PASS" : "REJECTED") + " p=" +
          py::repr(py::float_(r.p_value)).cast<std::string>() + " samples=" + std::to_string(r.samples) +
-         (r.failures.empty() ? "" : " failure: " + r.failures.front()) + ">";
+         (r.failures.empty() ? "" : " failure: " + r.failures.front()) +
+         (r.hints.empty() ? "" : " hint: " + r.hints.front()) + ">";
 }
 
 void bind_result(py::module_& m) {
@@ -416,6 +460,10 @@ void bind_result(py::module_& m) {
       .def_readonly("dof", &ValidationReport::dof, "its degrees of freedom")
       .def_readonly("samples", &ValidationReport::samples, "number of samples tested")
       .def_readonly("failures", &ValidationReport::failures, "why it failed (empty when passed)")
+      .def_readonly("hints", &ValidationReport::hints,
+                    "what would explain a rejection: a frame mistake, samples a renderer dropped (as the CLI prints)")
+      .def_readonly("notes", &ValidationReport::notes,
+                    "what the report says whatever the verdict: what the dump could not show, the weights' convention")
       .def_readonly("seconds", &ValidationReport::seconds, "wall-clock time of the validation")
       .def_property_readonly("p_values", &p_values_of, "p-value of each statistical test, by name")
       .def_property_readonly("worst_cells", &worst_cells_of, "the cells contributing most to each chi-square statistic")
@@ -478,19 +526,24 @@ py::array_t<double, py::array::c_style | py::array::forcecast> directions_of(con
 void bind_validation(py::module_& m) {
   using namespace pybind11::literals;
   bind_result(m);
-  m.def("validate", &validate_array, R"(Validates samples against the density they claim (what `microsim validate --from` does).
+  m.def("validate", &validate_with_keywords, R"(Validates samples against the density they claim (what `microsim validate --from` does).
 
 samples: (N, 3) float32 or float64 array of unit directions in the z-up frame (any order or strides: read in
   place); NaN rows are the sampler's failures (the validation rejects and names them).
-alpha: roughness, a number or (alpha_x, alpha_y); theta, phi: the view in degrees (theta in [0, 90)).
-pdf: the claimed density: 'vndf' (normals, D_v), 'ndf' (normals, D(m) m.z), 'bounded' or 'reflection'
-  (reflected directions), 'bsdf' (the outgoing directions of `bsdf`'s VNDF sampling, a dielectric's
-  reflections and refractions).
+alpha: roughness, a number or (alpha_x, alpha_y); theta, phi: the view in degrees (theta in [0, 90); with a
+  dielectric bsdf also (90, 180): light from inside, validated as its mirror image).
+pdf: the claimed density: 'vndf' (normals, D_v; the default without bsdf), 'ndf' (normals, D(m) m.z),
+  'bounded' or 'reflection' (reflected directions), 'bsdf' (the outgoing directions of `bsdf`'s VNDF
+  sampling, a conductor's reflections, a dielectric's reflections and refractions; the default with bsdf).
 weights: optional (N,) or (N, C) array of the weights f cos / pdf the sampler returned (one column per
   channel), tested against `bsdf` ('mirror', 'conductor:ETA,K[;ETA,K...]', 'dielectric:ETA' as a
   material spec of `validate --bsdf`).
 pdfs: optional (N,) array of the pdfs the sampler returned, checked against the claimed pdf.
-frame: 'z-up' or 'y-up'; rows, significance: as the command line's --rows, --significance;
+transport: the weights' transport mode with bsdf: 'radiance' (default: camera paths, a refraction's weight holds
+  (n_given / n_sampled)^2) or 'importance' (light paths); masking: 'height-correlated' (default, Smith's G2)
+  or 'separable' (G1(wi) G1(wo), as Mitsuba 3).
+frame: 'z-up' (default) or 'y-up'; without it a rejection that looks like a frame mistake is diagnosed (hints);
+rows, significance: as the command line's --rows, --significance;
 above_horizon, dropped: reflections above the horizon only (--above-horizon, --dropped).
 against: None (the claimed pdf), 'ellipsoid' (the oracle traced now with oracle_rays rays, its seed mixed from
   `seed` as the command line does) or the path of a histogram EXR of `microsim trace vndf`: the two-sample
@@ -498,9 +551,9 @@ against: None (the claimed pdf), 'ellipsoid' (the oracle traced now with oracle_
 progress: optional callable progress(stage, done, total).
 Returns a ValidationResult; raises ValueError for bad input (the command line's messages) and
 KeyboardInterrupt on Ctrl-C.)",
-        "samples"_a, "alpha"_a, "theta"_a, "phi"_a = 0.0, "pdf"_a = "vndf", "weights"_a = py::none(), "pdfs"_a = py::none(),
-        py::kw_only(), "bsdf"_a = py::none(),
-        "frame"_a = "z-up", "rows"_a = 31, "significance"_a = 0.01, "above_horizon"_a = false, "dropped"_a = py::none(),
+        "samples"_a, "alpha"_a, "theta"_a, "phi"_a = 0.0, "pdf"_a = py::none(), "weights"_a = py::none(),
+        "pdfs"_a = py::none(), py::kw_only(), "bsdf"_a = py::none(), "transport"_a = py::none(), "masking"_a = py::none(),
+        "frame"_a = py::none(), "rows"_a = 31, "significance"_a = 0.01, "above_horizon"_a = false, "dropped"_a = py::none(),
         "against"_a = py::none(), "oracle_rays"_a = 4'000'000, "seed"_a = 1, "progress"_a = py::none());
   m.def("validate_sampler", &validate_zoo_sampler, R"(Validates a sampler of the zoo (what `microsim validate --sampler` does).
 

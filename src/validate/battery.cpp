@@ -651,7 +651,7 @@ ValidationReport analytic_report(const SampleSource& source, const Tally& tally,
   r.samples_where_pdf_is_zero = samples_in_massless_bins(tally.counts.front(), ref.sphere_probability);
   decide(r);
   if (!r.passed && !source.seeded)
-    if (std::string note = no_samples_below_horizon_note(tally, ref); !note.empty()) r.failures.push_back(std::move(note));
+    if (std::string note = no_samples_below_horizon_note(tally, ref); !note.empty()) r.hints.push_back(std::move(note));
   return r;
 }
 

@@ -121,11 +121,17 @@ ClaimedDensity file_claimed_density(FilePdf pdf, const std::optional<Material>& 
   return bsdf_sampling_density(*bsdf, ggx, wi);
 }
 
-BsdfReference bsdf_reference(const Material& bsdf, const GGX<double>& ggx, const Vec3<double>& wi, int rows) {
-  const ClaimedDensity density = bsdf_sampling_density(bsdf, ggx, wi);
+BsdfReference bsdf_reference(const Material& bsdf, const BsdfConvention& convention, const GGX<double>& ggx,
+                             const Vec3<double>& wi, int rows) {
+  return bsdf_reference(density_reference(bsdf_sampling_density(bsdf, ggx, wi), ggx, wi, rows), bsdf, convention);
+}
+
+BsdfReference bsdf_reference(std::shared_ptr<const ReferenceDistribution> directions, const Material& bsdf,
+                             const BsdfConvention& convention) {
   BsdfReference r;
-  r.directions = density_reference(density, ggx, wi, rows);
-  r.flux = expected_bin_weights(*r.directions, bsdf);
+  r.directions = std::move(directions);
+  r.flux = expected_bin_weights(*r.directions, bsdf, convention);
+  r.convention = convention;
   return r;
 }
 
@@ -138,9 +144,12 @@ ValidationReport validate_bsdf_sampler(const BsdfSamplerInfo& sampler, const Mat
   require_samples_for_any_test(options.samples);
   BsdfReference own;
   if (!reference) {
-    own = bsdf_reference(bsdf, ggx, wi, options.rows);
+    own = bsdf_reference(bsdf, options.convention, ggx, wi, options.rows);
     reference = &own;
   }
+  if (!(reference->convention == options.convention))
+    throw std::invalid_argument(fmt::format("validate_bsdf_sampler: the reference's flux is in {}, the options ask for {}",
+                                            describe(reference->convention), describe(options.convention)));
   const ReferenceDistribution& ref = *reference->directions;
   require_samples(options.samples, ref);
   ValidationOptions o = options;

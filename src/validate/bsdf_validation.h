@@ -40,12 +40,19 @@ ClaimedDensity file_claimed_density(FilePdf pdf, const std::optional<Material>& 
 // over two binnings and of the BSDF's flux over the sphere bins).
 struct BsdfReference {
   std::shared_ptr<const ReferenceDistribution> directions;
-  std::vector<std::vector<double>> flux;  // expected weight per sample, [channel][sphere bin]
+  std::vector<std::vector<double>> flux;  // expected weight per sample, [channel][sphere bin], in `convention`
+  BsdfConvention convention;
 };
-BsdfReference bsdf_reference(const Material& bsdf, const GGX<double>& ggx, const Vec3<double>& wi, int rows);
+BsdfReference bsdf_reference(const Material& bsdf, const BsdfConvention& convention, const GGX<double>& ggx,
+                             const Vec3<double>& wi, int rows);
+// The flux in `convention` over the binnings of sampling directions already computed (shared by conventions).
+BsdfReference bsdf_reference(std::shared_ptr<const ReferenceDistribution> directions, const Material& bsdf,
+                             const BsdfConvention& convention);
 
 // Draws options.samples samples of `sampler` for `bsdf` (float64; options.precision is ignored) and
-// validates them; the report's checks hold "bsdf_albedo" and "bsdf_bins". Throws InsufficientData before
+// validates them, the weights in options.convention (the zoo's: the sampler's own, sampler.convention); the
+// report's checks hold "bsdf_albedo" and "bsdf_bins". A reference must be in that convention
+// (std::invalid_argument otherwise). Throws InsufficientData before
 // drawing when options.samples is too few, std::invalid_argument for a material of another kind.
 ValidationReport validate_bsdf_sampler(const BsdfSamplerInfo& sampler, const Material& bsdf, const GGX<double>& ggx,
                                        const Vec3<double>& wi, const ValidationOptions& options,

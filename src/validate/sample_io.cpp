@@ -504,6 +504,7 @@ struct DirectionSampleReader::Impl {
   bool eof = false, bom_checked = false, in_comment = false;
   InvalidRows invalid;
   SampleFrame frame = SampleFrame::z_up;
+  bool mirrored = false;  // z -> -z after the frame
 
   ~Impl() {
     if (map) ::munmap(map, map_size);
@@ -675,6 +676,7 @@ DirectionSampleReader DirectionSampleReader::reopened() const {
   DirectionSampleReader r = impl_->array ? DirectionSampleReader(*impl_->array, impl_->columns)
                                          : DirectionSampleReader(impl_->path, impl_->columns);
   r.set_frame(impl_->frame);
+  r.set_mirrored(impl_->mirrored);
   return r;
 }
 
@@ -695,10 +697,14 @@ std::size_t DirectionSampleReader::read(std::span<Vec3<double>> out, std::span<d
   const std::size_t n = read_as_stored(out, pdfs, weights);
   if (impl_->frame != SampleFrame::z_up)
     for (std::size_t i = 0; i < n; ++i) out[i] = to_z_up(impl_->frame, out[i]);
+  if (impl_->mirrored)
+    for (std::size_t i = 0; i < n; ++i) out[i].z() = -out[i].z();
   return n;
 }
 
 void DirectionSampleReader::set_frame(SampleFrame frame) { impl_->frame = frame; }
+void DirectionSampleReader::set_mirrored(bool mirrored) { impl_->mirrored = mirrored; }
+bool DirectionSampleReader::mirrored() const { return impl_->mirrored; }
 SampleFrame DirectionSampleReader::frame() const { return impl_->frame; }
 const SampleColumns& DirectionSampleReader::columns() const { return impl_->columns; }
 bool DirectionSampleReader::is_float32() const {

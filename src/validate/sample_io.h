@@ -145,6 +145,10 @@ public:
   // The frame the rows are in (default z-up): read() returns them mapped to z-up (to_z_up).
   void set_frame(SampleFrame frame);
   SampleFrame frame() const;
+  // Mirror every row in z after its frame (z -> -z): light from inside a dielectric validated as its mirror
+  // image seen from outside (dump_validation.h, seen_from_outside).
+  void set_mirrored(bool mirrored);
+  bool mirrored() const;
   // How the rows are stored: "float32 .npy", "float64 .npy", "text", "float32 array" or "float64 array".
   std::string storage() const;
   // The rows read so far that hold the sampler's failures (see above).

@@ -463,7 +463,10 @@ nlohmann::json to_json(const ValidationReport& r) {
   j["significance"] = r.significance;
   j["statistical_tests"] = r.statistical_tests;
   j["per_test_significance"] = r.per_test_significance;
+  j["samples_where_pdf_is_zero"] = r.samples_where_pdf_is_zero;
   j["failures"] = r.failures;
+  j["hints"] = r.hints;
+  j["notes"] = r.notes;
   j["seconds"] = r.seconds;
   nlohmann::json tests = nlohmann::json::object();
   for (const BinnedTest& b : r.binned) tests[b.name] = to_json(b.chi2);

@@ -28,6 +28,7 @@
 #include "stats/chi2.h"
 #include "stats/figure.h"
 #include "microfacet/ggx.h"
+#include "microfacet/bsdf_convention.h"
 #include "microfacet/material.h"
 #include "microfacet/samplers.h"
 #include "validate/sample_io.h"
@@ -81,6 +82,8 @@ struct ValidationOptions {
   // The BSDF a file's weight columns are tested against (weight_test.h; reflected directions, mirror or
   // conductor); unset: the weights are not tested.
   std::optional<Material> bsdf;
+  // The convention of the renderer's BSDF that the weights are tested in (transport mode, masking form).
+  BsdfConvention convention;
   RunControl run;  // threads, cancel token, progress ("sampling")
   // Draw only these blocks of kSampleBlock samples (a shard: validation_part.h); all when unset.
   std::optional<BlockRange> blocks;
@@ -232,6 +235,9 @@ struct ValidationReport {
   int dof = 0;
   bool passed = false;
   std::vector<std::string> failures;  // why it failed (empty when passed)
+  // What would explain a rejection (a frame mistake, samples a renderer dropped), and what the user must know
+  // whatever the verdict (what a dump could not show: dump_validation.h).
+  std::vector<std::string> hints, notes;
   double seconds = 0;
   // The binned counts behind the chi-square tests (one per binning, in the same order; bins only,
   // without the remainder cell), for figures (figure.h): expected = samples x the reference's bin

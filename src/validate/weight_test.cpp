@@ -15,12 +15,15 @@ namespace microsim {
 
 namespace {
 
-// f(wi, wo) |cos(wo)| of channel c: the single-scattering flux per unit solid angle of wo.
-double bsdf_flux(const GGX<double>& ggx, const Material& bsdf, int c, const Vec3<double>& wi, const Vec3<double>& wo) {
+// f(wi, wo) |cos(wo)| of channel c in the renderer's convention: the expected weight per unit solid angle of
+// the sampled wo (wi: the direction the sampler was given).
+double bsdf_flux(const GGX<double>& ggx, const Material& bsdf, const BsdfConvention& convention, int c,
+                 const Vec3<double>& wi, const Vec3<double>& wo) {
   switch (bsdf.kind()) {
-    case MaterialKind::mirror: return mirror_brdf(ggx, wi, wo) * std::max(wo.z(), 0.0);
-    case MaterialKind::conductor: return conductor_brdf(ggx, bsdf.ior(c), wi, wo) * std::max(wo.z(), 0.0);
-    case MaterialKind::dielectric: return dielectric_bsdf(ggx, bsdf.eta(), wi, wo) * std::abs(wo.z());
+    case MaterialKind::mirror: return mirror_brdf(ggx, wi, wo, convention.masking) * std::max(wo.z(), 0.0);
+    case MaterialKind::conductor:
+      return conductor_brdf(ggx, bsdf.ior(c), wi, wo, convention.masking) * std::max(wo.z(), 0.0);
+    case MaterialKind::dielectric: return dielectric_bsdf_as(ggx, bsdf.eta(), wi, wo, convention) * std::abs(wo.z());
     case MaterialKind::lambertian: break;
   }
   return 0.0;
@@ -62,8 +65,8 @@ SubTest albedo_test(const WeightSums& s, const std::vector<std::vector<double>>&
   t.tolerance = albedo.front();
   const std::string dropped =
       options.dropped_below_horizon ? fmt::format(" + {} dropped", *options.dropped_below_horizon) : "";
-  t.detail = fmt::format("mean weight {:.6g} vs the BSDF's directional albedo {:.6g} ({}, {} samples{})", measured.front(),
-                         albedo.front(), bsdf.describe(), s.rows, dropped);
+  t.detail = fmt::format("mean weight {:.6g} vs the BSDF's directional albedo {:.6g} ({}, {}; {} samples{})",
+                         measured.front(), albedo.front(), bsdf.describe(), describe(options.convention), s.rows, dropped);
   return t;
 }
 
@@ -122,7 +125,7 @@ std::vector<SubTest> weight_tests_of(const std::function<DirectionSampleReader()
                                      const ReferenceDistribution& ref, const Material& bsdf,
                                      const ValidationOptions& options) {
   check_weight_inputs(columns, ref, bsdf);
-  std::vector<std::vector<double>> expected = expected_bin_weights(ref, bsdf);
+  std::vector<std::vector<double>> expected = expected_bin_weights(ref, bsdf, options.convention);
   // Conditioned on the kept samples without the dropped count: the kept samples' mean weight.
   if (ref.kept_only && !options.dropped_below_horizon)
     for (auto& channel : expected)
@@ -198,7 +201,8 @@ std::vector<DirectionFunction> dielectric_breaks(const Vec3<double>& wi, double 
   return breaks;
 }
 
-std::vector<std::vector<double>> expected_bin_weights(const ReferenceDistribution& ref, const Material& bsdf) {
+std::vector<std::vector<double>> expected_bin_weights(const ReferenceDistribution& ref, const Material& bsdf,
+                                                      const BsdfConvention& convention) {
   IntegrationOptions o;
   o.focus = ref.lobe.lattice_directions(4096);
   if (bsdf.transmits()) {
@@ -208,8 +212,9 @@ std::vector<std::vector<double>> expected_bin_weights(const ReferenceDistributio
   o.z_breaks = {0.0, -ref.wi.z()};
   std::vector<std::vector<double>> e;
   for (int c = 0; c < bsdf.channels(); ++c)
-    e.push_back(ref.sphere.integrate([&](const Vec3<double>& wo) { return bsdf_flux(ref.ggx, bsdf, c, ref.wi, wo); }, o)
-                    .probability);
+    e.push_back(
+        ref.sphere.integrate([&](const Vec3<double>& wo) { return bsdf_flux(ref.ggx, bsdf, convention, c, ref.wi, wo); }, o)
+            .probability);
   return e;
 }
 

@@ -9,9 +9,9 @@
 // the bins with at least kMinWeightBinSamples samples and the channels, each Sidak-corrected. They catch
 // a weight without G1(wo), a wrong Fresnel, a wrong Jacobian, a roughness squared twice, even when the
 // directions are right. Reflected directions of a mirror or conductor BSDF (microfacet/bsdf.h:
-// mirror_brdf, conductor_brdf, Walter et al. 2007 eq. 20 with the height-correlated G2 of Heitz 2014
-// eq. 99), and both lobes of the rough dielectric (dielectric_bsdf); the flux integrals by the binning's
-// adaptive cubature.
+// mirror_brdf, conductor_brdf, Walter et al. 2007 eq. 20), and both lobes of the rough dielectric
+// (dielectric_bsdf_as), in the renderer's convention (ValidationOptions::convention: transport mode and
+// masking form); the flux integrals by the binning's adaptive cubature.
 #pragma once
 
 #include "microfacet/material.h"
@@ -53,9 +53,11 @@ std::vector<Vec3<double>> refracted_lobe_focus(const DirectionBinning& lobe, con
 std::vector<DirectionFunction> dielectric_breaks(const Vec3<double>& wi, double eta);
 
 // The expected weight per sample in every sphere bin of `ref`, per channel of `bsdf`: the integral of
-// f(wi, wo) |wo.z| over the bin (mirror, conductor: reflected directions; dielectric: reflection and
-// refraction over the whole sphere, the cubature focused on the refracted lobe too).
-std::vector<std::vector<double>> expected_bin_weights(const ReferenceDistribution& ref, const Material& bsdf);
+// f(wi, wo) |wo.z| over the bin, f in the renderer's `convention` (transport mode, masking form:
+// bsdf_convention.h) (mirror, conductor: reflected directions; dielectric: reflection and refraction over the
+// whole sphere, the cubature focused on the refracted lobe too).
+std::vector<std::vector<double>> expected_bin_weights(const ReferenceDistribution& ref, const Material& bsdf,
+                                                      const BsdfConvention& convention);
 
 // The checks "bsdf_albedo" and "bsdf_bins" of sums over n samples (lost ones weigh 0) against `expected`.
 std::vector<SubTest> weight_checks(const WeightSums& sums, const std::vector<std::vector<double>>& expected, double n,

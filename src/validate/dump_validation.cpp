@@ -1,0 +1,112 @@
+#include "validate/dump_validation.h"
+
+#include "validate/sample_io.h"
+
+#include <fmt/core.h>
+
+#include <stdexcept>
+
+namespace microsim {
+
+namespace {
+
+std::string frame_mistake(SampleFrame f) {
+  switch (f) {
+    case SampleFrame::y_up: return "in a y-up frame, (x, y, z) -> (x, -z, y)";
+    case SampleFrame::z_down: return "with z flipped (the normal or the view pointing into the surface)";
+    default: return "negated (the directions flipped)";
+  }
+}
+
+// A rejected dump with many samples where the claimed pdf is zero: which frame mistake would explain it.
+std::string frame_hint(const ValidationReport& r, const DirectionSampleReader& samples,
+                       const std::shared_ptr<const ReferenceDistribution>& reference, const ValidationOptions& o) {
+  const double share = 100.0 * double(r.samples_where_pdf_is_zero) / double(r.samples);
+  std::optional<FrameHint> best;
+  for (const SampleFrame frame : {SampleFrame::y_up, SampleFrame::z_down, SampleFrame::negated}) {
+    DirectionSampleReader reader = samples.reopened();
+    reader.set_frame(frame);
+    ValidationReport tried = validate_sample_file(reader, reference->domain, reference->ggx, reference->wi, o, reference);
+    const bool fits = double(tried.samples_where_pdf_is_zero) < 0.01 * double(tried.samples);
+    if (tried.passed || (fits && (!best || tried.samples_where_pdf_is_zero < best->report.samples_where_pdf_is_zero)))
+      best = FrameHint{frame, std::move(tried)};
+    if (best && best->report.passed) break;
+  }
+  if (!best)
+    return fmt::format("{:.0f}% of the samples fall where the claimed pdf is zero; none of the common frame mistakes "
+                       "(y-up, z flipped, negated) explains it",
+                       share);
+  const std::string fix = best->frame == SampleFrame::y_up ? "give --frame y-up (Python: frame='y-up')"
+                                                           : "fix the dump's frame";
+  return fmt::format("{:.0f}% of the samples fall where the claimed pdf is zero; read {} they {} (p = {:.3g}): {}", share,
+                     frame_mistake(best->frame), best->report.passed ? "pass" : "are still rejected",
+                     best->report.p_value, fix);
+}
+
+// The claimed density loses samples (a BSDF's reflections below the horizon, a dielectric's refractions above
+// it) that a renderer drops from its dump: the file holds none of them, where the test expects them.
+std::string dropped_samples_hint(const ValidationReport& r, const ReferenceDistribution& ref) {
+  if (ref.kept_only) return "";
+  const double lost = 1.0 - ref.sphere_probability.total;
+  const double expected = lost * double(r.samples);
+  if (!(expected >= 5) || double(r.failed_samples) > 0.5 * expected) return "";
+  return fmt::format("the claimed density loses {:.4g}% of the samples (the reflections below the horizon, a "
+                     "dielectric's refractions above it): about {:.0f} expected, and the dump marks {}: a renderer's "
+                     "dump that drops the samples its sampler loses? Test it with --above-horizon "
+                     "(above_horizon=True) and --dropped N (dropped=N), the count it dropped",
+                     100 * lost, expected, r.failed_samples);
+}
+
+// What the report must say whatever the verdict: what a dump without some column could not show.
+std::vector<std::string> dump_notes(const ValidationReport& r, const DirectionSampleReader& samples,
+                                    const ValidationOptions& o) {
+  std::vector<std::string> notes;
+  if (!samples.columns().has_pdf())
+    notes.push_back("the returned pdfs were not checked: the dump has no pdf column (a pdf wrong by the same factor "
+                    "as f leaves the weights right)");
+  if (samples.mirrored())
+    notes.push_back("light from inside: the view and the rows mirrored in z, validated as the dielectric of index "
+                    "1 / eta seen from outside");
+  if (o.bsdf && o.bsdf->transmits())
+    notes.push_back(fmt::format("weights tested in {}", describe(o.convention)));
+  else if (o.bsdf)
+    notes.push_back(fmt::format("weights tested with the {}", o.convention.masking == MaskingForm::separable
+                                                                   ? "separable masking G1(wi) G1(wo)"
+                                                                   : "height-correlated masking G2"));
+  if (samples.columns().channels() == 0 && r.domain == SampleDomain::reflected_direction)
+    notes.push_back("the weights were not checked: the dump has no weight column");
+  return notes;
+}
+
+}  // namespace
+
+ViewFromOutside seen_from_outside(const Vec3<double>& wi, const std::optional<Material>& bsdf) {
+  if (!(wi.z() < 0)) return {wi, bsdf, false};
+  if (!bsdf || !bsdf->transmits())
+    throw std::invalid_argument("a view below the surface (theta > 90 deg) is light from inside a dielectric: give "
+                                "its BSDF (--bsdf dielectric --eta ETA, bsdf='dielectric:ETA')");
+  return {Vec3<double>(wi.x(), wi.y(), -wi.z()), Material::dielectric(1.0 / bsdf->eta()), true};
+}
+
+std::shared_ptr<const ReferenceDistribution> dump_reference(const DumpClaims& claims, const GGX<double>& ggx,
+                                                            const Vec3<double>& wi, int rows) {
+  const ClaimedDensity density = file_claimed_density(claims.pdf, claims.bsdf, ggx, wi);
+  if (!claims.kept_only) return density_reference(density, ggx, wi, rows);
+  // A BSDF's sampling density is 0 where its samples are lost: the kept ones are its own support.
+  return claims.pdf == FilePdf::bsdf ? kept_samples_reference(density, ggx, wi, rows)
+                                     : above_horizon_reference(density, ggx, wi, rows);
+}
+
+ValidationReport validate_dump(const DirectionSampleReader& samples, std::shared_ptr<const ReferenceDistribution> reference,
+                               const GGX<double>& ggx, const Vec3<double>& wi, const ValidationOptions& options,
+                               bool diagnose_frame) {
+  DirectionSampleReader reader = samples.reopened();
+  ValidationReport r = validate_sample_file(reader, reference->domain, ggx, wi, options, reference);
+  r.notes = dump_notes(r, samples, options);
+  if (r.passed) return r;
+  if (diagnose_frame && looks_like_a_frame_mistake(r)) r.hints.push_back(frame_hint(r, samples, reference, options));
+  if (std::string hint = dropped_samples_hint(r, *reference); !hint.empty()) r.hints.push_back(std::move(hint));
+  return r;
+}
+
+}  // namespace microsim

@@ -1,0 +1,195 @@
+"""Renderers' BSDF dumps, written from the math the way each renderer convention writes them, through the command
+line and Python alike: every correct dump passes, every bug is rejected by a test its correct twin passes, and
+the two front ends give the same verdict.
+
+A renderer samples wo from the direction wg it was given (the camera side on camera paths) and returns the pdf
+and the weight f |cos wo| / pdf; it drops the samples it loses (a reflection below the horizon, a refraction back
+up). Conventions (src/microfacet/bsdf_convention.h):
+- transport: radiance (camera paths; a refraction's f holds (n_g / n_s)^2, pbrt-v4 DielectricBxDF and Mitsuba 3
+  roughdielectric in radiance mode) or importance (light paths: no such factor);
+- masking: height-correlated G2 = 1 / (1 + Lambda_g + Lambda_o) (pbrt-v4) or separable G1(wg) G1(wo) (Mitsuba 3).
+Walter et al. 2007 eq. 20-21 (f), eq. 14 and 17 (the half-vector Jacobians); Heitz 2018 (VNDF sampling,
+conftest.heitz2018_numpy). Each case is one seed, 100000 samples, the verdict at the level 0.01."""
+import numpy as np
+import pytest
+
+import microsim
+from conftest import heitz2018_numpy, run_cli, view
+
+N = 100_000
+GOLD = (0.2, 3.9)  # a conductor's eta, k
+
+
+# ---- GGX from the math (Heitz 2014 eq. 85-86; Walter 2007 eq. 33) ----------------------------------------------
+def ggx_d(m, ax, ay):
+    e = (m[:, 0] / ax) ** 2 + (m[:, 1] / ay) ** 2 + m[:, 2] ** 2
+    return np.where(m[:, 2] > 0, 1 / (np.pi * ax * ay * e ** 2), 0.0)
+
+
+def ggx_lambda(w, ax, ay):
+    t2 = ((ax * w[..., 0]) ** 2 + (ay * w[..., 1]) ** 2) / w[..., 2] ** 2
+    return (-1 + np.sqrt(1 + t2)) / 2
+
+
+def fresnel_dielectric(c, eta):
+    """Unpolarised Fresnel reflectance for cos c > 0 on the side of index 1, eta across (1 beyond TIR)."""
+    s2 = (1 - c ** 2) / eta ** 2
+    ct = np.sqrt(np.maximum(0.0, 1 - s2))
+    rs = (c - eta * ct) / (c + eta * ct)
+    rp = (eta * c - ct) / (eta * c + ct)
+    return np.where(s2 >= 1, 1.0, (rs ** 2 + rp ** 2) / 2)
+
+
+def fresnel_conductor(c, eta, k):
+    n = complex(eta, k)
+    ct = np.sqrt(1 - (1 - c ** 2) / n ** 2 + 0j)
+    rs = (c - n * ct) / (c + n * ct)
+    rp = (n * c - ct) / (n * c + ct)
+    return (np.abs(rs) ** 2 + np.abs(rp) ** 2) / 2
+
+
+# ---- a renderer's sample(): the conventions and the bugs ---------------------------------------------------------
+def renderer_dump(kind, wg, alpha, transport="radiance", masking="height-correlated", bug=None, eta=1.5, seed=7):
+    """Samples of a rough conductor (kind 'conductor', GOLD) or dielectric of index eta from wg (either side):
+    (directions (K, 3), pdfs (K,), weights (K,), dropped); the lost samples are dropped as renderers drop them."""
+    ax, ay = alpha
+    u = np.random.default_rng(seed).random((N, 3))
+    up = wg[2] > 0
+    flip = np.array([1.0, 1.0, 1.0 if up else -1.0])
+    g = wg * flip  # the given direction on the upper side; mirrored back at the end
+    eta_r = eta if up else 1 / eta  # the index across over the index on wg's side
+    m = heitz2018_numpy(g, alpha, u[:, :2])
+    c = m @ g
+    if kind == "conductor":
+        F = fresnel_conductor(c, *GOLD)
+        reflect = np.ones(N, bool)
+    else:
+        F = fresnel_dielectric(c, eta_r)
+        reflect = u[:, 2] < F
+    wr = 2 * c[:, None] * m - g
+    ct = np.sqrt(np.maximum(0.0, 1 - (1 - c ** 2) / eta_r ** 2))
+    wt = -g / eta_r + (c / eta_r - ct)[:, None] * m
+    wo = np.where(reflect[:, None], wr, wt)
+    kept = np.where(reflect, wo[:, 2] > 0, wo[:, 2] < 0)
+    wo, m, c, F, reflect = wo[kept], m[kept], c[kept], F[kept], reflect[kept]
+    om = np.einsum("ij,ij->i", wo, m)
+    D = ggx_d(m, ax, ay)
+    lg, lo = ggx_lambda(g, ax, ay), ggx_lambda(wo, ax, ay)
+    g1g = 1 / (1 + lg)
+    dv = g1g * c * D / g[2]
+    p_lobe = F if kind == "dielectric" else np.ones_like(F)
+    denom = (c + eta_r * om) ** 2
+    jac = np.where(reflect, 1 / (4 * np.abs(om)), eta_r ** 2 * np.abs(om) / denom)
+    pdf = np.where(reflect, p_lobe, 1 - p_lobe) * dv * jac
+    G = 1 / (1 + lg + lo) if masking == "height-correlated" else g1g / (1 + lo)
+    if bug == "g1_for_g2":
+        G = g1g * np.ones_like(lo)
+    f_r = F * D * G / (4 * g[2] * np.abs(wo[:, 2]))
+    f_t = (1 - F) * D * G * eta_r ** 2 * c * np.abs(om) / (g[2] * np.abs(wo[:, 2]) * denom)
+    s = 1 / eta_r ** 2 if transport == "radiance" else 1.0  # radiance compression of a refraction
+    f = np.where(reflect, f_r * (s if bug == "eta2_on_reflection" else 1.0),
+                 f_t * (s * s if bug == "eta2_twice" else s))
+    if bug == "pdf_and_f_eta2":  # f and pdf of a refraction both off by eta^2: the weight stays right
+        f, pdf = np.where(reflect, f, f * eta_r ** 2), np.where(reflect, pdf, pdf * eta_r ** 2)
+    weight = f * np.abs(wo[:, 2]) / pdf
+    return wo * flip, pdf, weight, N - int(kept.sum())
+
+
+# ---- the cases: (name, dump arguments, claims, layout, passes) ---------------------------------------------------
+# claims: what the user tells microsim (the bsdf and, where not the default, transport and masking).
+GLASS = {"bsdf": "dielectric:1.5"}
+CASES = [
+    ("pbrt-v4 glass, radiance (camera paths)", dict(kind="dielectric", theta=50), GLASS, "c32", True),
+    ("pbrt-v4 glass, importance (light paths)", dict(kind="dielectric", theta=50, transport="importance"),
+     {**GLASS, "transport": "importance"}, "c64", True),
+    ("pbrt-v4 glass, light from inside", dict(kind="dielectric", theta=130), GLASS, "c32", True),
+    ("pbrt-v4 glass, anisotropic, y-up renderer frame", dict(kind="dielectric", theta=40, phi=30, alpha=(0.15, 0.5)),
+     {**GLASS, "frame": "y-up"}, "text", True),
+    ("Mitsuba 3 glass, separable masking", dict(kind="dielectric", theta=70, masking="separable"),
+     {**GLASS, "masking": "separable"}, "c64", True),
+    ("Mitsuba 3 gold, separable masking, 80 deg", dict(kind="conductor", theta=80, masking="separable"),
+     {"bsdf": "conductor:0.2,3.9", "masking": "separable"}, "c32", True),
+    ("pbrt-v4 gold, 80 deg", dict(kind="conductor", theta=80), {"bsdf": "conductor:0.2,3.9"}, "c32", True),
+    ("glass without a pdf column", dict(kind="dielectric", theta=50), GLASS, "c32-nopdf", True),
+    # The other convention's correct dump, and real bugs wrong in both conventions.
+    ("radiance glass claimed as importance", dict(kind="dielectric", theta=50), {**GLASS, "transport": "importance"},
+     "c32", False),
+    ("importance glass claimed as radiance", dict(kind="dielectric", theta=50, transport="importance"), GLASS, "c32",
+     False),
+    ("Mitsuba 3 gold claimed height-correlated", dict(kind="conductor", theta=80, masking="separable"),
+     {"bsdf": "conductor:0.2,3.9"}, "c32", False),
+    ("glass, eta^2 factor applied twice", dict(kind="dielectric", theta=50, bug="eta2_twice"), GLASS, "c32", False),
+    ("glass from inside, eta^2 factor twice", dict(kind="dielectric", theta=130, bug="eta2_twice"), GLASS, "c32",
+     False),
+    ("glass, eta^2 factor on reflection", dict(kind="dielectric", theta=50, bug="eta2_on_reflection"), GLASS, "c32",
+     False),
+    ("glass, G1 for G2", dict(kind="dielectric", theta=60, bug="g1_for_g2"), GLASS, "c32", False),
+    ("gold, G1 for G2", dict(kind="conductor", theta=60, bug="g1_for_g2"), {"bsdf": "conductor:0.2,3.9"}, "c32",
+     False),
+    ("glass, f and pdf both off by eta^2", dict(kind="dielectric", theta=50, bug="pdf_and_f_eta2"), GLASS, "c32",
+     False),
+]
+
+
+def write_dump(path, layout, directions, pdfs, weights, frame):
+    if frame == "y-up":  # a renderer whose normal is +y stores (x, z, -y) for microsim's (x, y, z)
+        directions = np.stack([directions[:, 0], directions[:, 2], -directions[:, 1]], axis=1)
+    cols = [directions, weights[:, None]] if layout.endswith("nopdf") else [directions, pdfs[:, None], weights[:, None]]
+    rows = np.concatenate(cols, axis=1)
+    if layout == "text":
+        np.savetxt(path, rows, fmt="%.17g")
+    else:
+        np.save(path, rows.astype(np.float32 if layout.startswith("c32") else np.float64))
+    return "x,y,z,weight" if layout.endswith("nopdf") else "x,y,z,pdf,weight"
+
+
+@pytest.mark.parametrize("name,dump,claims,layout,passes", CASES, ids=[c[0] for c in CASES])
+def test_renderer_dump_verdicts_agree_in_cli_and_python(tmp_path, name, dump, claims, layout, passes):
+    theta, phi, alpha = dump.pop("theta"), dump.pop("phi", 0.0), dump.pop("alpha", (0.3, 0.3))
+    kind = dump.pop("kind")
+    directions, pdfs, weights, dropped = renderer_dump(kind, view(theta, phi), alpha, **dump)
+    claims = dict(claims)
+    frame = claims.pop("frame", None)
+    path = tmp_path / ("dump.txt" if layout == "text" else "dump.npy")
+    columns = write_dump(path, layout, directions, pdfs, weights, frame)
+    cli = ["validate", "--from", path, "--alpha", f"{alpha[0]},{alpha[1]}", "--theta", theta, "--phi", phi,
+           "--columns", columns, "--above-horizon", "--dropped", dropped, "--rows", 11]
+    for key, value in claims.items():
+        cli += [f"--{key}", value]
+    if frame:
+        cli += ["--frame", frame]
+    p = run_cli(*cli)
+    assert p.returncode == (0 if passes else 1), f"{name}: exit {p.returncode}\n{p.stdout}\n{p.stderr}"
+    loaded = np.loadtxt(path) if layout == "text" else np.load(path)
+    d = loaded[:, :3]
+    kwargs = dict(claims, rows=11, above_horizon=True, dropped=dropped, frame=frame or "z-up", weights=loaded[:, -1])
+    if not layout.endswith("nopdf"):
+        kwargs["pdfs"] = loaded[:, 3]
+    r = microsim.validate(d, alpha, theta, phi, **kwargs)
+    assert r.passed == passes, f"{name}: Python {r!r}"
+    if layout.endswith("nopdf"):
+        assert any("returned pdfs were not checked" in n for n in r.notes)
+        assert "returned pdfs were not checked" in p.stdout
+    if "bsdf" in claims and claims["bsdf"].startswith("dielectric"):
+        mode = claims.get("transport", "radiance")
+        assert f"{mode} transport" in p.stdout
+        assert any(f"{mode} transport" in n for n in r.notes)
+
+
+def test_the_pdf_bug_is_caught_only_with_the_pdf_column(tmp_path):
+    """f and pdf off by the same factor leave the weights right: only the returned pdf shows it, and a dump without
+    the pdf column passes, with the report saying the pdfs were not checked."""
+    directions, pdfs, weights, dropped = renderer_dump("dielectric", view(50), (0.3, 0.3), bug="pdf_and_f_eta2")
+    common = dict(bsdf="dielectric:1.5", rows=11, above_horizon=True, dropped=dropped, weights=weights)
+    with_pdf = microsim.validate(directions, 0.3, 50, pdfs=pdfs, **common)
+    assert not with_pdf.passed and with_pdf.to_dict()["tests"]["returned_pdf"]["passed"] is False
+    without = microsim.validate(directions, 0.3, 50, **common)
+    assert without.passed and any("returned pdfs were not checked" in n for n in without.notes)
+
+
+def test_a_dump_that_drops_its_lost_samples_gets_the_hint(tmp_path):
+    """Without above_horizon the lost samples' share is missing: rejected, with the hint naming the fix."""
+    directions, pdfs, weights, _ = renderer_dump("dielectric", view(50), (0.3, 0.3))
+    r = microsim.validate(directions, 0.3, 50, pdfs=pdfs, weights=weights, bsdf="dielectric:1.5", rows=11)
+    assert not r.passed
+    assert any("above_horizon=True" in h for h in r.hints), r.hints
