@@ -282,7 +282,13 @@ TEST(CliValidate, BsdfMisuseIsBadUsage) {
       {from + "--columns x,y,z,weight --bsdf dielectric --eta 1.5 --k 1", "a dielectric takes --eta only"},
       {from + "--columns x,y,z,weight --bsdf dielectric --eta 1.5,1.6", "--eta"},
       {"--from '" + f.string() + "' --pdf bsdf --alpha 0.3 --theta 30", "--pdf bsdf is the sampling density of a BSDF"},
-      {from + "--columns x,y,z,weight --bsdf dielectric:1.5", "test them against its sampling density with --pdf bsdf"},
+      {from + "--columns x,y,z,weight --bsdf dielectric:1.5", "test them against its sampling density (--pdf bsdf"},
+      {from + "--columns x,y,z,weight --bsdf mirror --transport camera", "--transport 'camera': unknown transport mode"},
+      {from + "--columns x,y,z,weight --bsdf mirror --masking smith", "--masking 'smith': unknown masking-shadowing form"},
+      {from + "--columns x,y,z,weight --transport importance", "--transport is the convention of a BSDF's weights"},
+      {"--from '" + f.string() + "' --reflected --alpha 0.3 --theta 120 --columns x,y,z,weight --bsdf mirror",
+       "light from inside a dielectric"},
+      {"--from '" + f.string() + "' --alpha 0.3 --theta 120", "light from inside a dielectric"},
   };
   for (const auto& [args, message] : cases) {
     const CliRun r = run(args);

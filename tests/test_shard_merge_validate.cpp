@@ -107,7 +107,7 @@ TEST(ValidateAllShardMerge, MergedShardsAreTheSingleBatchBitForBit) {
   ASSERT_EQ(merged.exit_code, 0) << merged.err;
   const json want = pinned_part(json::parse(slurp(dir / "whole.json")));
   const json got = pinned_part(json::parse(slurp(dir / "merged.json")));
-  ASSERT_EQ(want["results"].size(), 240u + 81u);  // the direction zoo, then the BSDF section
+  ASSERT_EQ(want["results"].size(), 240u + 135u);  // the direction zoo, then the BSDF section
   expect_contains(want, got, "all (whole in merged)");
   expect_contains(got, want, "all (merged in whole)");
   fs::remove_all(dir);

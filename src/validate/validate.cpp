@@ -434,8 +434,9 @@ nlohmann::json to_json(const SubTest& t) {
   j["statistical"] = t.statistical;
   j["passed"] = t.passed;
   if (t.statistical) j["p_value"] = t.p_value;
-  j["value"] = num(t.value);
-  j["tolerance"] = num(t.tolerance);
+  // A test that did not run has no value (null, not a 0 that reads as a measurement).
+  j["value"] = t.applicable ? num(t.value) : nlohmann::json(nullptr);
+  j["tolerance"] = t.applicable ? num(t.tolerance) : nlohmann::json(nullptr);
   j["detail"] = t.detail;
   return j;
 }
