@@ -268,7 +268,8 @@ TEST(ScatterPilotFloor, TheRunResolvesTheOrdersThePlanTargeted) {
   const ExperimentResults results = run_experiment(spec, plan, RunOptions{});
   const MeasurementResult& m = results.measurements.at(0);
   ASSERT_TRUE(m.met);
-  EXPECT_DOUBLE_EQ(m.achieved, scatter_noise_floor(m.scatter, d.targeted_orders));
+  EXPECT_EQ(m.target, 0.05);  // the spec's target_tv, and the achieved error in its unit: the TV resolved
+  EXPECT_DOUBLE_EQ(m.achieved, resolved_tv(scatter_noise_floor(m.scatter, d.targeted_orders)));
   std::vector<int> reported;
   const nlohmann::json& orders = m.values.at("scattering").at("orders");
   for (std::size_t k = 0; k < orders.size(); ++k)

@@ -40,6 +40,10 @@ inline constexpr double kBiasShare = 0.25;
 // many counts, validate/compare.h noise_floor_tv) is at most kNoiseShare d: a true deviation d then stands
 // out at twice the noise.
 inline constexpr double kNoiseShare = 0.5;
+// The TV distance a histogram resolves: its noise floor over kNoiseShare. The achieved error of a VNDF and of
+// sampled per-order lobes, in the unit of their target_tv as the spec asks it (floor <= kNoiseShare d exactly
+// when resolved_tv(floor) <= d: kNoiseShare is 1/2, the division exact).
+inline double resolved_tv(double noise_floor) { return noise_floor / kNoiseShare; }
 // Rounds of a sequential run: the next round aims this much beyond the predicted need (the pilot's variance
 // is itself noisy), and a run gives up (target not met, reported) after kMaxRounds.
 inline constexpr double kRoundMargin = 1.1;
