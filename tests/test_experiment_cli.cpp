@@ -353,6 +353,15 @@ TEST(ExperimentCli, APassingDumpPassesAndARunWithoutATestHasNoVerdict) {
   EXPECT_EQ(r["tested"], 1);
   EXPECT_NE(run.out.find("All targets met: yes. Verdict: pass"), std::string::npos) << run.out;
   EXPECT_NE(headline(dir / "out", "pass").find("Verdict: pass"), std::string::npos);
+  // The plan and the report say what is done with a dump: its rows, read from the file (detect_tv optional).
+  EXPECT_NE(slurp(dir / "out" / "index.html").find("a renderer's dump (good.npy)"), std::string::npos);
+  write(dir / "rows.toml", "[[material]]\nname = \"m\"\nalpha = 0.3\ntype = \"mirror\"\n[[quantity]]\nkind = \"validation\"\n"
+                           "material = \"m\"\ndump = \"good.npy\"\ntheta = [40]\nrows = 7\n");
+  const auto plan = run_cli(dir, "plan rows.toml");
+  EXPECT_EQ(plan.exit_code, 0) << plan.err;
+  for (const char* words : {"| 50000 samples |", "a renderer's dump (good.npy)", "the dump's 50000 rows (read from good.npy)",
+                            "no detect_tv asked"})
+    EXPECT_NE(plan.out.find(words), std::string::npos) << words << "\n" << plan.out;
   // No validation: nothing tested, nothing could reject.
   write(dir / "none.toml", "[[material]]\nname = \"m\"\nalpha = 0.3\ntype = \"mirror\"\n[[quantity]]\nkind = \"albedo\"\n"
                            "material = \"m\"\nmus = 2\ntarget_relative_error = 0.01\n");

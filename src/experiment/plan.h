@@ -83,6 +83,18 @@ std::optional<int> order_cap_for(const std::vector<CapProbe>& probes, double thr
 // lambda_needed / (4 tv^2), lambda_needed from the noncentral chi-square (Boost.Math): the count at which the
 // least detectable deviation of that size is still detected. Pure.
 std::uint64_t validation_samples(double detect_tv, int degrees_of_freedom, double significance, double power);
+// The inverse: the smallest TV deviation `samples` samples detect with that power at that level,
+// sqrt(lambda_needed / (4 N)) (a dump's rows are given: they fix it). Pure; throws std::invalid_argument as
+// validation_samples does, or for 0 samples.
+double detectable_tv(std::uint64_t samples, int degrees_of_freedom, double significance, double power);
+
+// The validator's chi-square tests as the planner counts them: its sphere and lobe binnings of `rows` rows,
+// 2 rows^2 bins each (degrees of freedom 2 rows^2 - 1), Sidak-combined: each at 1 - (1 - significance)^(1/2).
+struct ValidationTests {
+  int dof = 0;
+  double level = 0;  // per binning
+};
+ValidationTests validation_tests(int rows, double significance);
 
 // Seconds for `units` at the pilot's rate (pilot_units in pilot_seconds); 0 when the pilot measured nothing.
 double predicted_seconds(std::uint64_t units, std::uint64_t pilot_units, double pilot_seconds);

@@ -443,11 +443,25 @@ TracedHistogram validation_histogram(const ValidationReport& r, const Decision& 
   return h;
 }
 
-// The validation's result: the deviation its samples detect (N ~ 1 / tv^2, plan.h), the report and counts.
+// The TV deviation `samples` rows of a dump detect against its analytic reference (their count is the file's,
+// not planned: plan.h detectable_tv).
+double dump_detected_tv(const SpecQuantity& q, std::uint64_t samples) {
+  const ValidationTests tests = validation_tests(q.rows, q.significance);
+  return detectable_tv(std::max<std::uint64_t>(samples, 1), tests.dof, tests.level, q.power);
+}
+
+bool is_analytic_dump(const SpecQuantity& q, const Decision& d) {
+  return !q.dump.empty() && d.model.model == Model::analytic_validator;
+}
+
+// The validation's result: the deviation its samples detect (N ~ 1 / tv^2, plan.h: the planned count detects
+// the target; a dump's rows what they detect), the report and counts.
 void record_validation(const ValidationReport& r, const SpecQuantity& q, std::uint64_t planned, double seconds,
                        MeasurementResult& m) {
   const Decision& d = m.decision;
-  m.achieved = q.target * std::sqrt(double(d.units) / double(std::max<std::uint64_t>(r.samples, 1)));
+  m.achieved = is_analytic_dump(q, d)
+                   ? dump_detected_tv(q, r.samples)
+                   : q.target * std::sqrt(double(d.units) / double(std::max<std::uint64_t>(r.samples, 1)));
   m.units = m.rays = r.samples;
   m.rounds.push_back({r.samples, planned, 0, false, r.seed, 0, seconds, m.achieved});
   m.values = {{"validation", to_json(r)}};
@@ -516,6 +530,9 @@ std::string error_measure(const SpecQuantity& q, const Decision& d) {
   if (q.kind == QuantityKind::scattering)
     return fmt::format("the TV the lobes resolve: the largest per-order TV noise floor of the orders carrying at least "
                        "the target's share of the albedo, over {}", kNoiseShare);
+  if (q.kind == QuantityKind::validation && is_analytic_dump(q, d))
+    return fmt::format("the smallest TV deviation detected with power {} at level {} by the dump's rows{}", q.power,
+                       q.significance, q.target > 0 ? "" : " (no detect_tv asked: the target is what they detect)");
   if (q.kind == QuantityKind::validation)
     return fmt::format("the smallest TV deviation detected with power {} at level {} by the samples run", q.power,
                        q.significance);
@@ -536,7 +553,9 @@ MeasurementResult run_decision(const ExperimentSpec& spec, const Decision& d, st
   const SpecQuantity& q = spec.quantities[d.quantity];
   const bool vndf = q.kind == QuantityKind::vndf;
   const bool analytic = d.model.model == Model::analytic;
-  m.target = q.target;  // as the spec asks it: every achieved error is in its unit (a histogram's: resolved_tv)
+  // As the spec asks it: every achieved error is in its unit (a histogram's: resolved_tv). A dump without
+  // detect_tv: what the plan's count of its rows detects.
+  m.target = q.target > 0 || !is_analytic_dump(q, d) ? q.target : dump_detected_tv(q, d.units);
   m.error_measure = error_measure(q, d);
   if (!d.runnable) return m;
   m.ran = true;
