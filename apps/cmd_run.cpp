@@ -5,9 +5,14 @@
 // created if missing; an existing DIR must be empty or hold this same spec's run at the same seed, which is
 // then resumed (finished measurements kept, a partial one continued, its pilots not run again).
 //
-// Exit codes: 0 done (a target not met within the rounds is reported in the table and results.json, with
-// all_targets_met false), 2 bad spec or usage (nothing run, nothing written), 130 interrupted (during the
-// pilots: nothing written; during the runs: what was done written, marked partial).
+// Exit codes (the run's verdict, src/experiment/verdict.h, decides 0 or 1): 0 done and no statistical test
+// rejected (every validation passed, or none ran; a target not met within the rounds is reported in the table
+// and results.json, with all_targets_met false, and is not an error), 1 done and a validation rejected (verdict
+// fail: its name on stdout, in results.json's `rejected` and the report's headline; enough samples or not),
+// 2 bad spec or usage (nothing run, nothing written), 3 internal error, 130 interrupted (during the pilots:
+// nothing written; during the runs: what was done written, marked partial, its verdict so far recorded). The
+// same for `--merge` and under MPI (rank 0 decides the code and sends it to the other ranks, which return it),
+// and for a resumed run (the verdict is derived from the results again: the same code).
 #include "command.h"
 #include "experiment_report.h"
 #include "number_options.h"
@@ -23,6 +28,7 @@
 #include "experiment/shards.h"
 #include "experiment/split_rounds.h"
 #include "experiment/surface_cache.h"
+#include "experiment/verdict.h"
 
 #include <fmt/core.h>
 
@@ -83,18 +89,25 @@ experiment::ExperimentPlan plan_of(const experiment::ExperimentSpec& spec, const
   return experiment::plan_experiment(spec, options);  // Cancelled: no results written (built tiles are kept)
 }
 
-// DIR's files and the summary; the exit code (130 when the results are partial).
+// The exit code of a written run: 130 interrupted (resumable; its verdict may already be fail), 1 when a
+// validation rejected (the verdict fail), else 0 (every test passed, or none ran).
+int run_exit_code(const experiment::ExperimentResults& results) {
+  if (results.partial) return kExitInterrupted;
+  return experiment::run_verdict(results).verdict == experiment::Verdict::fail ? kExitRejected : kExitOk;
+}
+
+// DIR's files and the summary; the exit code (run_exit_code).
 int write_results(const RunArgs& a, const experiment::ExperimentSpec& spec, const experiment::ExperimentPlan& plan,
                   const experiment::ExperimentResults& results, std::uint64_t seed) {
   print_results_table(results);
   experiment::write_run_directory(a.out, spec, plan, results, {reproduce_command(a), MICROSIM_VERSION, seed});
   fmt::print(stderr, "run: wrote {} and {}\n", (fs::path(a.out) / "results.json").string(),
              (fs::path(a.out) / "index.html").string());
-  if (results.partial) {
+  const int code = run_exit_code(results);
+  if (code == kExitInterrupted)
     fmt::print(stderr, "run: interrupted: results marked partial; run the same command again to resume\n");
-    return kExitInterrupted;
-  }
-  return kExitOk;
+  if (code == kExitRejected) fmt::print(stderr, "run: a validation rejected: exit {}\n", kExitRejected);
+  return code;
 }
 
 // The plan: the shards' (`--merge`: `stored` receives their first rounds), an earlier run's, or the pilots'.
@@ -266,7 +279,8 @@ CommandRegistration run_registration{"run", [](CLI::App& app) {
       "or a dump) and masking (G1, G2 by Smith's closed forms; conditional masking or a named surface traced on the "
       "explicit heightfield) measurements; the other kinds' that need an explicit heightfield are planned and "
       "reported as not run. Exit 0 "
-      "done, 2 bad spec or usage (nothing run), "
+      "done and no test rejected, 1 a validation rejected (verdict fail: named on stdout, in results.json and the "
+      "report's headline), 2 bad spec or usage (nothing run), 3 internal error, "
       "130 interrupted (partial results written). " +
           std::string(mpi_compiled_in()
                           ? "MPI is compiled in: under mpirun or srun every VNDF and scattering round and every "

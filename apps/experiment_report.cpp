@@ -1,6 +1,8 @@
 #include "experiment_report.h"
 
-#include <fmt/core.h>
+#include "experiment/verdict.h"
+
+#include <fmt/format.h>
 
 #include <cstdio>
 
@@ -13,6 +15,25 @@ std::string units_text(const experiment::Decision& d) {
 }
 
 std::string seconds_text(double s) { return s > 0 ? fmt::format("{:.3g} s", s) : "-"; }
+
+// A measurement's statistical test: a validation's pass or REJECTED, "-" for the kinds that test nothing.
+std::string test_text(const experiment::MeasurementResult& m) {
+  if (!experiment::validation_tested(m)) return "-";
+  return experiment::validation_rejected(m) ? "REJECTED" : "pass";
+}
+
+// "All targets met: yes. Verdict: FAIL (rejected: NAME, ...)": enough samples, and what the tests found.
+std::string summary_line(const experiment::ExperimentResults& results) {
+  const experiment::RunVerdict v = experiment::run_verdict(results);
+  std::string verdict;
+  switch (v.verdict) {
+    case experiment::Verdict::fail: verdict = fmt::format("FAIL (rejected: {})", fmt::join(v.rejected, ", ")); break;
+    case experiment::Verdict::pass: verdict = fmt::format("pass ({} test(s), none rejected)", v.tested); break;
+    case experiment::Verdict::none: verdict = "none (no statistical test in this run)"; break;
+    case experiment::Verdict::incomplete: verdict = "incomplete (interrupted; none rejected so far)"; break;
+  }
+  return fmt::format("All targets met: {}. Verdict: {}", experiment::all_targets_met(results) ? "yes" : "no", verdict);
+}
 
 }  // namespace
 
@@ -39,18 +60,19 @@ void print_plan_table(const experiment::ExperimentPlan& plan, const experiment::
 }
 
 void print_results_table(const experiment::ExperimentResults& results) {
-  fmt::print("\n| # | measurement | model | target | achieved | met | rounds | units | seconds |\n"
-             "|---|---|---|---|---|---|---|---|---|\n");
+  fmt::print("\n| # | measurement | model | target | achieved | met | test | rounds | units | seconds |\n"
+             "|---|---|---|---|---|---|---|---|---|---|\n");
   for (std::size_t i = 0; i < results.measurements.size(); ++i) {
     const experiment::MeasurementResult& m = results.measurements[i];
     if (!m.ran) {
-      fmt::print("| {} | {} | {} | - | - | not run | - | - | - |\n", i, m.decision.label, to_string(m.decision.model.model));
+      fmt::print("| {} | {} | {} | - | - | not run | - | - | - | - |\n", i, m.decision.label, to_string(m.decision.model.model));
       continue;
     }
-    fmt::print("| {} | {} | {} | {:.3g} | {:.3g} | {}{} | {} | {} | {:.3g} |\n", i, m.decision.label,
+    fmt::print("| {} | {} | {} | {:.3g} | {:.3g} | {}{} | {} | {} | {} | {:.3g} |\n", i, m.decision.label,
                to_string(m.decision.model.model), m.target, m.achieved, m.met ? "yes" : "NO",
-               m.partial ? " (partial)" : "", m.rounds.size(), m.units, m.seconds);
+               m.partial ? " (partial)" : "", test_text(m), m.rounds.size(), m.units, m.seconds);
   }
+  fmt::print("\n{}\n", summary_line(results));
 }
 
 void print_measurement_line(const experiment::MeasurementResult& m) {
@@ -58,8 +80,9 @@ void print_measurement_line(const experiment::MeasurementResult& m) {
     fmt::print(stderr, "run: {}: not run ({})\n", m.decision.label, m.decision.not_runnable);
     return;
   }
-  fmt::print(stderr, "run: {}: {} after {} round(s), achieved {:.3g} (target {:.3g}), {:.3g} s{}\n", m.decision.label,
-             m.met ? "met" : "NOT met", m.rounds.size(), m.achieved, m.target, m.seconds, m.partial ? ", partial" : "");
+  fmt::print(stderr, "run: {}: {} after {} round(s), achieved {:.3g} (target {:.3g}), {:.3g} s{}{}\n", m.decision.label,
+             m.met ? "met" : "NOT met", m.rounds.size(), m.achieved, m.target, m.seconds, m.partial ? ", partial" : "",
+             experiment::validation_rejected(m) ? "; its test REJECTED" : "");
 }
 
 

@@ -15,7 +15,9 @@ namespace microsim::app {
 // One row per measurement: quantity, model, units, order cap, predicted time, then the reasons.
 void print_plan_table(const experiment::ExperimentPlan& plan, const experiment::ExperimentSpec& spec);
 
-// The results of a run as a table (stdout): measurement, model, target, achieved, met, rounds, cost.
+// The results of a run as a table (stdout): measurement, model, target, achieved, met, the validation's test
+// (pass, REJECTED), rounds, cost; then the summary line "All targets met: yes. Verdict: FAIL (rejected: NAME,
+// ...)" (experiment/verdict.h: enough samples is one thing, what the tests found another).
 void print_results_table(const experiment::ExperimentResults& results);
 
 // One line on stderr when a measurement is done.

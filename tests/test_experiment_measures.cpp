@@ -9,8 +9,9 @@
 //     predicts a long run's, and the run resolves the orders the plan targeted;
 //   - the validation of a dump (a sample file, `dump = ...`): every sample tested against the density it
 //     claims; a dump of the right sampler passes, one drawn at another alpha fails (a measured verdict, not an
-//     error), the deviation its sample count detects is the achieved error, and a file that is not a sample
-//     file stops the plan (bad input) before anything runs.
+//     error), the deviation its sample count detects is the achieved error, the plan counts its rows from the
+//     file and says so (detect_tv optional: without it the target is what the rows detect), and a file that
+//     is not a sample file stops the plan (bad input) before anything runs.
 #include "experiment/measures.h"
 #include "experiment/plan.h"
 #include "experiment/run.h"
@@ -120,8 +121,9 @@ TEST(ExperimentAnalyticScattering, IsTheWalksOrderOneAndAnotherRoughnessIsNot) {
   EXPECT_GT(order_one_chi_square(walk.scatter, wrong).first, critical);
 }
 
-// A spec validating `dump` (drawn by heitz2018 at alpha 0.3, theta 40) as a GGX alpha-0.3 VNDF.
-ExperimentSpec dump_spec(const std::filesystem::path& dump) {
+// A spec validating `dump` (drawn by heitz2018 at alpha 0.3, theta 40) as a GGX alpha-0.3 VNDF; `detect` the
+// spec's detect_tv line ("": none, the dump's rows fix it).
+ExperimentSpec dump_spec(const std::filesystem::path& dump, const std::string& detect = "detect_tv = 0.02") {
   return parse_spec_toml(fmt::format(R"(
 [[material]]
 name = "m"
@@ -133,8 +135,14 @@ material = "m"
 dump = "{}"
 theta = [40]
 rows = 15
-detect_tv = 0.02
-)", dump.string()), "dump.toml");
+{}
+)", dump.string(), detect), "dump.toml");
+}
+
+// The TV 200000 rows detect at the spec's rows 15 (df 449), level 0.01 (Sidak of two binnings), power 0.9.
+double dump_rows_detect() {
+  const ValidationTests tests = validation_tests(15, 0.01);
+  return detectable_tv(200000, tests.dof, tests.level, 0.9);
 }
 
 std::filesystem::path write_dump(const std::filesystem::path& dir, const std::string& name, double alpha) {
@@ -147,8 +155,8 @@ std::filesystem::path write_dump(const std::filesystem::path& dir, const std::st
   return path;
 }
 
-MeasurementResult run_dump(const std::filesystem::path& dump) {
-  const ExperimentSpec spec = dump_spec(dump);
+MeasurementResult run_dump(const std::filesystem::path& dump, const std::string& detect = "detect_tv = 0.02") {
+  const ExperimentSpec spec = dump_spec(dump, detect);
   const ExperimentPlan plan = plan_experiment(spec, PlanOptions{});
   return run_experiment(spec, plan, RunOptions{}).measurements.at(0);
 }
@@ -159,13 +167,40 @@ TEST(ExperimentDump, TheRightSamplerPassesAndAnotherAlphaFails) {
   ASSERT_TRUE(good.ran);
   EXPECT_EQ(good.units, 200000u);
   EXPECT_EQ(good.values["validation"]["verdict"], "pass");
-  // The planned count for TV 0.02 is below the dump's 200000: the dump detects less than 0.02.
-  EXPECT_LT(good.decision.units, 200000u);
-  EXPECT_NEAR(good.achieved, 0.02 * std::sqrt(double(good.decision.units) / 200000.0), 1e-12);
+  // The count is the dump's 200000 rows; they detect less than the 0.02 asked (which needs fewer).
+  EXPECT_EQ(good.decision.units, 200000u);
+  EXPECT_NEAR(good.achieved, dump_rows_detect(), 1e-12);
+  EXPECT_LT(good.achieved, 0.02);
   EXPECT_TRUE(good.met);
   const MeasurementResult wrong = run_dump(write_dump(dir, "wrong.npy", 0.36));
   EXPECT_EQ(wrong.values["validation"]["verdict"], "fail");
   EXPECT_TRUE(wrong.met);  // the measurement met its target: its verdict is the result
+  std::filesystem::remove_all(dir);
+}
+
+// The plan says what is done with a dump: its rows read from the file, the TV they detect; without detect_tv
+// that is the target (met), with a detect_tv its rows cannot reach the target is not met (and the plan says so).
+TEST(ExperimentDump, ThePlanCountsItsRowsAndDetectTvIsOptional) {
+  const std::filesystem::path dir = scratch_dir("experiment", "dump_rows");
+  const std::filesystem::path dump = write_dump(dir, "d.npy", 0.3);
+  const ExperimentSpec spec = dump_spec(dump, "");
+  EXPECT_EQ(spec.quantities.at(0).target, 0.0);
+  const Decision d = plan_experiment(spec, PlanOptions{}).decisions.at(0);
+  EXPECT_EQ(d.units, 200000u);
+  EXPECT_NE(d.model.reason.find("a renderer's dump (d.npy)"), std::string::npos) << d.model.reason;
+  EXPECT_EQ(d.model.reason.find("zoo sampler"), std::string::npos) << d.model.reason;
+  EXPECT_NE(d.count_reason.find("the dump's 200000 rows (read from d.npy)"), std::string::npos) << d.count_reason;
+  EXPECT_NE(d.count_reason.find("no detect_tv asked"), std::string::npos) << d.count_reason;
+  const MeasurementResult asked_nothing = run_dump(dump, "");
+  EXPECT_NEAR(asked_nothing.target, dump_rows_detect(), 1e-12);
+  EXPECT_EQ(asked_nothing.achieved, asked_nothing.target);
+  EXPECT_TRUE(asked_nothing.met);
+  // Negative control: a detect_tv below what 200000 rows detect is a target the dump misses.
+  const Decision tight = plan_experiment(dump_spec(dump, "detect_tv = 0.005"), PlanOptions{}).decisions.at(0);
+  EXPECT_NE(tight.count_reason.find("the dump has fewer (target not met)"), std::string::npos) << tight.count_reason;
+  const MeasurementResult missed = run_dump(dump, "detect_tv = 0.005");
+  EXPECT_EQ(missed.target, 0.005);
+  EXPECT_FALSE(missed.met);
   std::filesystem::remove_all(dir);
 }
 
@@ -268,7 +303,8 @@ TEST(ScatterPilotFloor, TheRunResolvesTheOrdersThePlanTargeted) {
   const ExperimentResults results = run_experiment(spec, plan, RunOptions{});
   const MeasurementResult& m = results.measurements.at(0);
   ASSERT_TRUE(m.met);
-  EXPECT_DOUBLE_EQ(m.achieved, scatter_noise_floor(m.scatter, d.targeted_orders));
+  EXPECT_EQ(m.target, 0.05);  // the spec's target_tv, and the achieved error in its unit: the TV resolved
+  EXPECT_DOUBLE_EQ(m.achieved, resolved_tv(scatter_noise_floor(m.scatter, d.targeted_orders)));
   std::vector<int> reported;
   const nlohmann::json& orders = m.values.at("scattering").at("orders");
   for (std::size_t k = 0; k < orders.size(); ++k)

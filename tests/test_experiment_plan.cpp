@@ -78,8 +78,13 @@ TEST(ExperimentPlan, ValidationSamplesGiveThePowerAtTheWorstDeviation) {
       };
       EXPECT_NEAR(power_at(double(n)), 0.9, 1e-3) << df << " " << tv;
       EXPECT_LT(power_at(0.8 * double(n)), 0.88) << "fewer samples must lose power";
+      // The inverse (a dump's rows are given): n samples detect tv, to the rounding of n up.
+      EXPECT_LE(detectable_tv(n, df, 0.01, 0.9), tv);
+      EXPECT_NEAR(detectable_tv(n, df, 0.01, 0.9), tv, 1e-3 * tv);
+      EXPECT_NEAR(detectable_tv(4 * n, df, 0.01, 0.9), tv / 2, 1e-3 * tv);
     }
   EXPECT_GT(validation_samples(0.001, 100, 0.01, 0.9), validation_samples(0.002, 100, 0.01, 0.9));
+  EXPECT_THROW(detectable_tv(0, 100, 0.01, 0.9), std::invalid_argument);
 }
 
 TEST(ExperimentPlan, PooledRoundsAreTheRunOfAllTheirUnits) {

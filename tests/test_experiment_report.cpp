@@ -3,10 +3,12 @@
 // it, an inline SVG per figure; a document missing a member is refused; the line chart checks its input;
 // an albedo table read back from its JSON is the same table, bit for bit; the run directory is written and
 // read back as the same plan and results (the analytic order-1 lobes too), and another seed's or spec's run
-// is refused.
+// is refused. The run's verdict (verdict.h) is decided by the validations alone (pass, fail with the rejected
+// names, incomplete when interrupted, none without a test), and the page shows it first, the rejected row in red.
 #include "experiment/measures.h"
 #include "experiment/report.h"
 #include "experiment/run_directory.h"
+#include "experiment/verdict.h"
 #include "scatter/albedo_table_io.h"
 #include "stats/curve_figure.h"
 
@@ -20,6 +22,7 @@
 #include <sstream>
 #include <string>
 #include <unistd.h>
+#include <vector>
 
 namespace {
 
@@ -115,6 +118,61 @@ TEST(ExperimentReport, ThePageIsSelfContainedAndHoldsEveryMeasuredValue) {
   nlohmann::json broken = doc;
   broken.erase("plan");
   EXPECT_THROW(experiment_report_html(broken, histograms), std::invalid_argument);
+}
+
+// The index of the first validation measurement of the small run.
+std::size_t first_validation(const ExperimentResults& results) {
+  for (std::size_t i = 0; i < results.measurements.size(); ++i)
+    if (results.measurements[i].values.contains("validation")) return i;
+  return results.measurements.size();
+}
+
+// The page's body begins with the verdict's headline, of this class.
+bool headline_first(const std::string& page, const std::string& verdict) {
+  const std::size_t body = page.find("<body>\n");
+  const std::string head = "<p id=\"verdict\" class=\"verdict " + verdict + "\">";
+  return body != std::string::npos && page.compare(body + 7, head.size(), head) == 0;
+}
+
+TEST(ExperimentVerdict, TheValidationsAloneDecideItAndThePageShowsItFirst) {
+  const SmallRun& run = small_run();
+  const std::size_t k = first_validation(run.results);
+  ASSERT_LT(k, run.results.measurements.size());
+  const RunVerdict passed = run_verdict(run.results);  // heitz2018 at two alphas
+  EXPECT_EQ(passed.verdict, Verdict::pass);
+  EXPECT_EQ(passed.tested, 2u);
+  EXPECT_TRUE(passed.rejected.empty());
+  const RunIdentity id{"microsim run small.toml --out x", "0.1", 1};
+  EXPECT_TRUE(headline_first(experiment_report_html(run_document(run.spec, run.plan, run.results, id), {}), "pass"));
+  // One validation's test rejected, its target met: the run fails, that measurement named and marked.
+  ExperimentResults rejected = run.results;
+  rejected.measurements[k].values["validation"]["verdict"] = "fail";
+  ASSERT_TRUE(rejected.measurements[k].met);
+  const RunVerdict failed = run_verdict(rejected);
+  EXPECT_EQ(failed.verdict, Verdict::fail);
+  EXPECT_EQ(failed.rejected, std::vector<std::string>{rejected.measurements[k].decision.label});
+  const nlohmann::json doc = run_document(run.spec, run.plan, rejected, id);
+  EXPECT_TRUE(doc["results"]["all_targets_met"].get<bool>());
+  EXPECT_EQ(doc["results"]["verdict"], "fail");
+  EXPECT_EQ(doc["results"]["rejected"], nlohmann::json::array({rejected.measurements[k].decision.label}));
+  const std::string page = experiment_report_html(doc, {});
+  EXPECT_TRUE(headline_first(page, "fail")) << page.substr(0, 2000);
+  EXPECT_NE(page.find(fmt::format("<a href=\"#m{}\">{}</a>", k, svg::escape(failed.rejected[0]))), std::string::npos);
+  EXPECT_EQ(count(page, "<td><span class=\"notmet\">rejected</span></td>"), 1u);
+  // Interrupted: a rejection is final, otherwise the verdict waits for the rest.
+  ExperimentResults cut = run.results;
+  cut.partial = true;
+  EXPECT_EQ(run_verdict(cut).verdict, Verdict::incomplete);
+  rejected.partial = true;
+  EXPECT_EQ(run_verdict(rejected).verdict, Verdict::fail);
+  // A validation cut short tested nothing; without a validation there is no test at all.
+  cut.measurements[k].partial = true;
+  EXPECT_FALSE(validation_tested(cut.measurements[k]));
+  ExperimentResults untested;
+  for (const MeasurementResult& m : run.results.measurements)
+    if (!m.values.contains("validation")) untested.measurements.push_back(m);
+  EXPECT_EQ(run_verdict(untested).verdict, Verdict::none);
+  EXPECT_EQ(run_verdict(untested).tested, 0u);
 }
 
 TEST(ExperimentReport, CurveFigureChecksItsInput) {

@@ -3,7 +3,8 @@
 // (an uneven split), merged: results.json's measured values, every histogram and table equal to the
 // one-process run's, bit for bit. The checks can fail: merging with a shard missing, given twice, of another
 // seed or another N, or with a part file changed is refused (exit 2, the problem named, nothing written), and
-// so are bad --shard values.
+// so are bad --shard values. The merge decides the verdict as the one-process run does: a rejected validation
+// (the talk listing, its samples drawn by the shards) exits 1 with the one-process run's directory.
 #include "cli_helpers.h"
 #include "run_directory_contents.h"
 
@@ -98,6 +99,30 @@ TEST_F(ExperimentShardCli, BadShardValuesAreRefusedNothingWritten) {
   fs::create_directory(dir_ / "a" / "out");
   std::ofstream(dir_ / "a" / "out" / "results.json") << "{}";
   expect_refused("--out a/out --shard 1/2", "must be new or empty");
+}
+
+// The talk listing validated with its samples split over 2 shards (2 blocks): each shard exits 0 (a part holds
+// no verdict), the merge exits 1 with the one-process run's directory, verdict fail, the validation rejected.
+TEST_F(ExperimentShardCli, AMergeOfARejectedValidationExits1AsTheOneProcessRunDoes) {
+  std::ofstream(dir_ / "talk.toml") << "name = \"talk\"\nseed = 2\n[[material]]\nname = \"m\"\nalpha = 0.3\n"
+                                       "type = \"mirror\"\n[[quantity]]\nkind = \"validation\"\nmaterial = \"m\"\n"
+                                       "sampler = \"heitz2018-talk\"\ntheta = [40]\nrows = 7\ndetect_tv = 0.01\n";
+  const auto alone = run_cli(dir_ / "a", "run ../talk.toml --out out --threads 1");
+  ASSERT_EQ(alone.exit_code, 1) << alone.err;
+  for (const char* k : {"1", "2"}) {
+    const auto part = run_cli(dir_, std::string("run talk.toml --threads 1 --out t-") + k + " --shard " + k + "/2");
+    ASSERT_EQ(part.exit_code, 0) << part.err;
+  }
+  fs::create_directory(dir_ / "m");
+  const auto merged = run_cli(dir_ / "m", "run ../talk.toml --out out --threads 1 --merge ../t-1 ../t-2");
+  EXPECT_EQ(merged.exit_code, 1) << merged.err;
+  EXPECT_NE(merged.out.find("Verdict: FAIL (rejected: "), std::string::npos) << merged.out;
+  EXPECT_EQ(run_directory_contents(dir_ / "m" / "out"), run_directory_contents(dir_ / "a" / "out"));
+  const auto doc = nlohmann::json::parse(microsim::test::slurp(dir_ / "m" / "out" / "results.json"));
+  EXPECT_EQ(doc["results"]["verdict"], "fail");
+  EXPECT_EQ(doc["results"]["rejected"].size(), 1u);
+  EXPECT_GE(doc["results"]["measurements"][0]["rounds"][0]["units"].get<std::uint64_t>(), 65537u) << "2 blocks: split";
+  fs::remove_all(dir_);
 }
 
 }  // namespace

@@ -184,6 +184,10 @@ INSTANTIATE_TEST_SUITE_P(
                 "quantity[0].above_horizon", 14, "a density of normals"},
         BadSpec{"sampler_with_pdf", spec_with(kMirror, kValidation + "\nsampler = \"heitz2018\"\npdf = \"ndf\""),
                 "quantity[0].pdf", 14, "applies to a dump"},
+        BadSpec{"dump_on_a_surface_without_detect_tv",  // the tile is sized from it
+                spec_with(kMirror, "kind = \"validation\"\nmaterial = \"m\"\ntheta = [30]\nsurface = \"smith\"\ndump = \"" +
+                                       kDump + "\""),
+                "quantity[0].detect_tv", 8, "missing (required)"},
         BadSpec{"unknown_surface", spec_with(kMirror, kVndf + "\nsurface = \"moon\""), "quantity[0].surface", 13,
                 "neither auto"},
         BadSpec{"missing_heightmap", spec_with(kMirror, kVndf + "\nsurface = \"no-such-file.exr\""), "quantity[0].surface",

@@ -2,8 +2,11 @@
 // renders DIR/index.html from the file system with the network off: a screenshot of non-trivial size is
 // produced, and the rendered page's text (--dump-dom) holds the measured values of results.json as the
 // report prints them (experiment/report.h report_number). Negative control: a blank page's DOM does not.
+// A run whose validation rejected (a dump of the talk listing's samples): the rendered page's first element is
+// the verdict's headline (id "verdict", class "verdict fail": red), naming the rejected measurement.
 // Skipped (GTEST_SKIP, with the reason) only when no `chromium` is installed; CI installs it (scripts/setup.sh).
 #include "cli_helpers.h"
+#include "sample_dumps.h"
 
 #include "experiment/report.h"
 
@@ -106,6 +109,41 @@ TEST(ReportBrowser, ChromiumRendersTheReportWithItsMeasuredValues) {
   // Negative control: the same check on a blank page fails.
   ASSERT_EQ(chromium(binary, dir, "--dump-dom", "about:blank", dir / "blank.html"), 0);
   EXPECT_EQ(slurp(dir / "blank.html").find(values.front()), std::string::npos);
+  fs::remove_all(dir);
+}
+
+// The first element of the rendered body (from its '<' to the end of its text), or "".
+std::string first_body_element(const std::string& dom) {
+  const std::size_t body = dom.find("<body");
+  if (body == std::string::npos) return "";
+  const std::size_t start = dom.find('<', dom.find('>', body) + 1);
+  const std::size_t end = dom.find("</", start);
+  return start == std::string::npos || end == std::string::npos ? "" : dom.substr(start, end - start);
+}
+
+TEST(ReportBrowser, ChromiumShowsARejectedRunsVerdictFirst) {
+  const std::string binary = find_chromium();
+  if (binary.empty())
+    GTEST_SKIP() << "chromium is not installed (Debian package 'chromium', installed by scripts/setup.sh): "
+                    "the report's browser test cannot run here";
+  const fs::path dir = scratch_dir("report", "browser_verdict");
+  microsim::test::write_sampler_dump(dir / "talk.npy", "heitz2018-talk", 0.3, 40, 50000);
+  std::ofstream(dir / "talk.toml")
+      << "[[material]]\nname = \"m\"\nalpha = 0.3\ntype = \"mirror\"\n[[quantity]]\nkind = \"validation\"\n"
+         "material = \"m\"\ndump = \"talk.npy\"\ntheta = [40]\nrows = 7\ndetect_tv = 0.05\n";
+  const auto run = run_cli(dir, "run talk.toml --out out");
+  ASSERT_EQ(run.exit_code, 1) << run.err;
+  const nlohmann::json results = nlohmann::json::parse(slurp(dir / "out" / "results.json"))["results"];
+  ASSERT_EQ(results["rejected"].size(), 1u);
+  const std::string url = "file://" + (dir / "out" / "index.html").string();
+  ASSERT_EQ(chromium(binary, dir, "--dump-dom", url, dir / "dom.html"), 0) << slurp(dir / "chromium.stderr");
+  const std::string first = first_body_element(slurp(dir / "dom.html"));
+  EXPECT_EQ(first.rfind("<p id=\"verdict\" class=\"verdict fail\">", 0), 0u) << first;
+  EXPECT_NE(first.find("Verdict: FAIL"), std::string::npos) << first;
+  EXPECT_NE(first.find(results["rejected"][0].get<std::string>()), std::string::npos) << first;
+  // Negative control: the same reading of a blank page finds no headline.
+  ASSERT_EQ(chromium(binary, dir, "--dump-dom", "about:blank", dir / "blank.html"), 0);
+  EXPECT_EQ(first_body_element(slurp(dir / "blank.html")).find("verdict"), std::string::npos);
   fs::remove_all(dir);
 }
 

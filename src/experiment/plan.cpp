@@ -21,8 +21,10 @@
 #include <algorithm>
 #include <cmath>
 #include <chrono>
+#include <filesystem>
 #include <functional>
 #include <string_view>
+#include <vector>
 
 namespace microsim::experiment {
 namespace {
@@ -319,10 +321,15 @@ void plan_scattering_view(const ExperimentSpec& spec, const SpecQuantity& q, con
   plan_walk_scattering(spec, q, o, d, [surface](const ScatterOptions& r) { return smith_walk_scatter(surface, r); });
 }
 
-// A dump that cannot be opened (or an NPY header of the wrong shape) is bad input before anything runs.
-void check_dump_opens(const SpecQuantity& q) {
+// A dump's rows, read from the file (every row checked: a file that cannot be read as samples is bad input
+// naming the spec's key, before anything runs). A second pass over the file, the run's being the first to test.
+std::uint64_t dump_rows(const SpecQuantity& q, const RunControl& run) {
   try {
     DirectionSampleReader reader{std::filesystem::path(q.dump)};
+    std::vector<Vec3<double>> block(kSampleFileBlock);
+    while (reader.read(block) > 0)
+      if (run.cancelled()) throw Cancelled("plan: reading a dump");
+    return reader.rows_read();
   } catch (const SampleFileError& e) {
     throw dump_error(q, e);
   }
@@ -346,22 +353,36 @@ void time_validation(const ExperimentSpec& spec, const SpecQuantity& q, const Pl
   d.predicted_seconds = reference_seconds + predicted_seconds(d.units, pilot, tally_seconds);
 }
 
+// A dump against its analytic reference: every row is tested, so the count is the file's rows and the TV they
+// detect follows from it; detect_tv, when the spec gives one, is a target those rows meet or not.
+void plan_dump_validation(const SpecQuantity& q, const PlanOptions& o, Decision& d) {
+  const ValidationTests tests = validation_tests(q.rows, q.significance);
+  d.units = dump_rows(q, o.run);
+  d.unit = "samples";
+  const double detected = detectable_tv(d.units, tests.dof, tests.level, q.power);
+  d.count_reason = fmt::format("the dump's {} rows (read from {}), all tested: they detect any deviation of TV {:.3g} "
+                               "with power {} at level {:.3g} per binning (Sidak of {}), df {} (noncentrality >= 4 N "
+                               "TV^2)", d.units, std::filesystem::path(q.dump).filename().string(), detected, q.power,
+                               tests.level, q.significance, tests.dof);
+  if (q.target > 0) {
+    const std::uint64_t needed = validation_samples(q.target, tests.dof, tests.level, q.power);
+    d.count_reason += fmt::format("; detect_tv {} needs {} rows: {}", q.target, needed,
+                                  d.units >= needed ? "the dump has them" : "the dump has fewer (target not met)");
+  } else {
+    d.count_reason += "; no detect_tv asked: the rows fix the TV detected";
+  }
+  d.runnable = true;
+}
+
 void plan_validation_view(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
-  // The validator's sphere binning (2 rows^2 bins) and lobe binning (as many), Sidak-combined: each test at
-  // 1 - (1 - significance)^(1/2).
-  const int df = 2 * q.rows * q.rows - 1;
-  const double per_test = 1 - std::sqrt(1 - q.significance);
-  d.units = validation_samples(q.target, df, per_test, q.power);
+  if (!q.dump.empty()) return plan_dump_validation(q, o, d);
+  const ValidationTests tests = validation_tests(q.rows, q.significance);
+  d.units = validation_samples(q.target, tests.dof, tests.level, q.power);
   d.unit = "samples";
   d.count_reason = fmt::format("chi-square power: df {}, level {:.3g} per binning (Sidak of {}), power {} against any "
-                               "deviation of TV {} (noncentrality >= 4 N TV^2)", df, per_test, q.significance, q.power,
-                               q.target);
-  if (!q.dump.empty()) {
-    check_dump_opens(q);
-    d.count_reason += "; the dump's samples are given: all are tested, and their number fixes the TV detected";
-  } else {
-    time_validation(spec, q, o, d);
-  }
+                               "deviation of TV {} (noncentrality >= 4 N TV^2)", tests.dof, tests.level, q.significance,
+                               q.power, q.target);
+  time_validation(spec, q, o, d);
   d.runnable = true;
 }
 
@@ -399,25 +420,23 @@ std::string surface_validation_refusal(const SpecQuantity& q) {
 // deviation to detect (its size rule), so a correct sampler is rejected little more often than the level says.
 void plan_heightfield_validation(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o,
                                  const microgeom::Heightfield& field, SurfaceCache& cache, Decision& d) {
-  const int df = 2 * q.rows * q.rows - 1;
-  const double per_test = 1 - std::sqrt(1 - q.significance);
+  const ValidationTests tests = validation_tests(q.rows, q.significance);
   const auto start = std::chrono::steady_clock::now();
   const HeightfieldVndf pilot = trace_heightfield_vndf(
       cache.scene_for(field), field, surface_label(d.surface),
       vndf_request(spec, d, o.pilot_rays, derived_seed(plan_seed(spec, o), kVndfPilot, d.quantity), o.run));
   if (pilot.trace.partial) throw Cancelled("plan: validation pilot on the tile");
   const std::uint64_t minimum = 2 * trace_minimum_samples(pilot.histogram);
-  d.units = std::max(2 * validation_samples(q.target, df, per_test, q.power), minimum);
+  d.units = std::max(2 * validation_samples(q.target, tests.dof, tests.level, q.power), minimum);
   d.unit = "samples";
   d.count_reason = fmt::format("two-sample chi-square against as many rays traced on the tile: power {} at level {:.3g} "
                                "per binning (Sidak of {}), df {}, against any deviation of TV {}: twice the one-sample "
                                "count (noncentrality >= 4 (n/2) TV^2), at least twice the two-sample minimum of the "
                                "pilot's proportions ({})",
-                               q.power, per_test, q.significance, df, q.target, minimum);
-  if (!q.dump.empty()) {
-    check_dump_opens(q);
-    d.count_reason += "; the dump's samples are given: all are tested, against that many rays";
-  }
+                               q.power, tests.level, q.significance, tests.dof, q.target, minimum);
+  if (!q.dump.empty())
+    d.count_reason += fmt::format("; the dump's {} rows (read from {}) are all tested, against the planned rays",
+                                  dump_rows(q, o.run), std::filesystem::path(q.dump).filename().string());
   d.pilot_units = o.pilot_rays;
   d.pilot_seconds = seconds_since(start);
   d.pilot_error = 0;

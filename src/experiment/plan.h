@@ -40,6 +40,10 @@ inline constexpr double kBiasShare = 0.25;
 // many counts, validate/compare.h noise_floor_tv) is at most kNoiseShare d: a true deviation d then stands
 // out at twice the noise.
 inline constexpr double kNoiseShare = 0.5;
+// The TV distance a histogram resolves: its noise floor over kNoiseShare. The achieved error of a VNDF and of
+// sampled per-order lobes, in the unit of their target_tv as the spec asks it (floor <= kNoiseShare d exactly
+// when resolved_tv(floor) <= d: kNoiseShare is 1/2, the division exact).
+inline double resolved_tv(double noise_floor) { return noise_floor / kNoiseShare; }
 // Rounds of a sequential run: the next round aims this much beyond the predicted need (the pilot's variance
 // is itself noisy), and a run gives up (target not met, reported) after kMaxRounds.
 inline constexpr double kRoundMargin = 1.1;
@@ -79,6 +83,18 @@ std::optional<int> order_cap_for(const std::vector<CapProbe>& probes, double thr
 // lambda_needed / (4 tv^2), lambda_needed from the noncentral chi-square (Boost.Math): the count at which the
 // least detectable deviation of that size is still detected. Pure.
 std::uint64_t validation_samples(double detect_tv, int degrees_of_freedom, double significance, double power);
+// The inverse: the smallest TV deviation `samples` samples detect with that power at that level,
+// sqrt(lambda_needed / (4 N)) (a dump's rows are given: they fix it). Pure; throws std::invalid_argument as
+// validation_samples does, or for 0 samples.
+double detectable_tv(std::uint64_t samples, int degrees_of_freedom, double significance, double power);
+
+// The validator's chi-square tests as the planner counts them: its sphere and lobe binnings of `rows` rows,
+// 2 rows^2 bins each (degrees of freedom 2 rows^2 - 1), Sidak-combined: each at 1 - (1 - significance)^(1/2).
+struct ValidationTests {
+  int dof = 0;
+  double level = 0;  // per binning
+};
+ValidationTests validation_tests(int rows, double significance);
 
 // Seconds for `units` at the pilot's rate (pilot_units in pilot_seconds); 0 when the pilot measured nothing.
 double predicted_seconds(std::uint64_t units, std::uint64_t pilot_units, double pilot_seconds);

@@ -8,6 +8,7 @@
 #include <fmt/core.h>
 
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <stdexcept>
 
@@ -72,6 +73,27 @@ ModelChoice masking_choice(const SpecQuantity& q, const SpecMaterial& m) {
                       ndf)};
 }
 
+// A validation against its analytic reference: a zoo sampler's samples are drawn, a renderer's dump is read.
+ModelChoice validation_choice(const SpecQuantity& q) {
+  if (q.dump.empty())
+    return {Model::analytic_validator, "a zoo sampler against the pdf it claims: the analytic reference by "
+                                       "cubature (no tracing needed to know D_v)"};
+  return {Model::analytic_validator,
+          fmt::format("a renderer's dump ({}) against the density it claims (pdf {}{}): its rows are read, not drawn; "
+                      "the analytic reference by cubature (no tracing needed)",
+                      std::filesystem::path(q.dump).filename().string(), q.dump_pdf,
+                      q.above_horizon ? ", only the reflections above the horizon" : "")};
+}
+
+// The noncentrality at which a chi-square test of `dof` at `significance` rejects with probability `power`:
+// the noncentral chi-square (Boost.Math) whose miss probability at the critical value is 1 - power.
+double needed_noncentrality(int dof, double significance, double power) {
+  if (dof < 1 || !(significance > 0 && significance < 1) || !(power > significance && power < 1))
+    throw std::invalid_argument(fmt::format("validation power: df {}, significance {}, power {}", dof, significance, power));
+  const double critical = boost::math::quantile(boost::math::complement(boost::math::chi_squared(dof), significance));
+  return boost::math::non_central_chi_squared::find_non_centrality(double(dof), critical, 1 - power);
+}
+
 }  // namespace
 
 ModelChoice choose_model(const SpecQuantity& q, const SpecMaterial& m) {
@@ -82,9 +104,7 @@ ModelChoice choose_model(const SpecQuantity& q, const SpecMaterial& m) {
       return {Model::ellipsoid_oracle, "a measured VNDF histogram: the exact ellipsoid oracle (Heitz 2018: the "
                                        "visible normals of the convex GGX ellipsoid are D_v exactly; only Monte "
                                        "Carlo noise, no heightfield bias)"};
-    case QuantityKind::validation:
-      return {Model::analytic_validator, "a zoo sampler against the pdf it claims: the analytic reference by "
-                                         "cubature (no tracing needed to know D_v)"};
+    case QuantityKind::validation: return validation_choice(q);
     case QuantityKind::albedo:
     case QuantityKind::scattering: return albedo_or_scattering_choice(q, m);
     case QuantityKind::masking: return masking_choice(q, m);
@@ -116,15 +136,19 @@ std::optional<int> order_cap_for(const std::vector<CapProbe>& probes, double thr
 }
 
 std::uint64_t validation_samples(double detect_tv, int degrees_of_freedom, double significance, double power) {
-  if (!(detect_tv > 0 && detect_tv < 1) || degrees_of_freedom < 1 || !(significance > 0 && significance < 1) ||
-      !(power > significance && power < 1))
+  if (!(detect_tv > 0 && detect_tv < 1))
     throw std::invalid_argument(fmt::format("validation_samples: tv {}, df {}, significance {}, power {}", detect_tv,
                                             degrees_of_freedom, significance, power));
-  const double df = degrees_of_freedom;
-  const double critical = boost::math::quantile(boost::math::complement(boost::math::chi_squared(df), significance));
-  // The noncentrality at which P(X > critical) = power: the miss probability 1 - power at the critical value.
-  const double lambda = boost::math::non_central_chi_squared::find_non_centrality(df, critical, 1 - power);
-  return std::uint64_t(std::ceil(lambda / (4 * detect_tv * detect_tv)));
+  return std::uint64_t(std::ceil(needed_noncentrality(degrees_of_freedom, significance, power) / (4 * detect_tv * detect_tv)));
+}
+
+double detectable_tv(std::uint64_t samples, int degrees_of_freedom, double significance, double power) {
+  if (samples == 0) throw std::invalid_argument("detectable_tv: 0 samples detect nothing");
+  return std::sqrt(needed_noncentrality(degrees_of_freedom, significance, power) / (4 * double(samples)));
+}
+
+ValidationTests validation_tests(int rows, double significance) {
+  return {2 * rows * rows - 1, 1 - std::sqrt(1 - significance)};
 }
 
 double predicted_seconds(std::uint64_t units, std::uint64_t pilot_units, double pilot_seconds) {

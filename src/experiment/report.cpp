@@ -58,14 +58,54 @@ th,td{border:1px solid #bbb;padding:3px 7px;text-align:left;vertical-align:top}
 th{background:#eee} td.num{text-align:right;font-variant-numeric:tabular-nums}
 .met{color:#060;font-weight:bold} .notmet{color:#a00;font-weight:bold}
 .partial{background:#fff3cd;border:1px solid #d9b600;padding:0.5em 1em}
+.verdict{font-size:1.3em;font-weight:bold;padding:0.5em 1em;border:2px solid #888}
+.verdict.fail{color:#a00;border-color:#a00;background:#fdecea} .verdict.pass{color:#060;border-color:#060}
 pre{background:#f6f6f6;padding:0.6em;overflow-x:auto;font-size:12px} figure{margin:0.5em 0;overflow-x:auto}
 section.measurement{border-top:2px solid #999;margin-top:2em}
 </style>
 )";
 
-std::string met_text(bool ran, bool met) {
+// A measurement's badge: whether it ran enough samples, unless its test rejected (then "rejected", in red:
+// a rejected validation is never shown as a success; its section says whether its target was met).
+std::string met_text(bool ran, bool met, bool rejected = false) {
   if (!ran) return "not run";
+  if (rejected) return R"(<span class="notmet">rejected</span>)";
   return met ? R"(<span class="met">met</span>)" : R"(<span class="notmet">NOT met</span>)";
+}
+
+// ---- the headline: the run's verdict (experiment/verdict.h), the first thing on the page -----------------
+
+// Whether the measurement named `label` is one of results.rejected.
+bool is_rejected(const json& doc, const json& label) {
+  const json& rejected = member(member(doc, "results"), "rejected");
+  return std::find(rejected.begin(), rejected.end(), label) != rejected.end();
+}
+
+// The rejected measurements, each a link to its section (#mK).
+std::string rejected_links(const json& doc) {
+  const json& measurements = member(member(doc, "results"), "measurements");
+  std::vector<std::string> links;
+  for (std::size_t i = 0; i < measurements.size(); ++i)
+    if (is_rejected(doc, member(measurements[i], "measurement")))
+      links.push_back(fmt::format("<a href=\"#m{}\">{}</a>", i, esc(text_of(measurements[i]["measurement"]))));
+  return fmt::format("{}", fmt::join(links, ", "));
+}
+
+std::string verdict_headline(const json& doc) {
+  const json& results = member(doc, "results");
+  const std::string verdict = text_of(member(results, "verdict"));
+  const std::string tested = text_of(member(results, "tested"));
+  std::string text;
+  if (verdict == "fail")
+    text = fmt::format("Verdict: FAIL. Rejected: {} ({} of the {} statistical tests).",
+                       rejected_links(doc), member(results, "rejected").size(), tested);
+  else if (verdict == "pass")
+    text = fmt::format("Verdict: pass. None of the {} statistical tests rejected.", tested);
+  else if (verdict == "incomplete")
+    text = "Verdict: incomplete. The run was interrupted before every measurement ran; no test rejected so far.";
+  else
+    text = "Verdict: none. No statistical test in this run (its measurements test nothing): nothing could reject.";
+  return fmt::format("<p id=\"verdict\" class=\"verdict {}\">{}</p>\n", esc(verdict), text);
 }
 
 // ---- the head: status and how to reproduce -------------------------------------------------------------
@@ -77,7 +117,8 @@ std::string status_section(const json& doc) {
   if (partial)
     out += "<p class=\"partial\">PARTIAL: the run was interrupted; running the same command again resumes it. "
            "The values below are what the completed rounds measured.</p>\n";
-  out += fmt::format("<p>All targets met: <b id=\"all-targets-met\">{}</b>; run time {} s.</p>\n",
+  out += fmt::format("<p>All targets met (enough samples; the verdict above says what the tests found): <b "
+                     "id=\"all-targets-met\">{}</b>; run time {} s.</p>\n",
                      member(results, "all_targets_met").get<bool>() ? "yes" : "no",
                      report_number(member(results, "seconds")));
   const json& spec = member(doc, "spec");
@@ -124,7 +165,8 @@ std::string results_section(const json& doc) {
     const json& cost = member(m, "cost");
     body += row({std::to_string(i++), esc(text_of(member(m, "measurement"))), report_number(member(m, "target")),
                  ran ? report_number(member(m, "achieved")) : "-",
-                 met_text(ran, member(m, "met").get<bool>()) + (member(m, "partial").get<bool>() ? " (partial)" : ""),
+                 met_text(ran, member(m, "met").get<bool>(), is_rejected(doc, member(m, "measurement"))) +
+                     (member(m, "partial").get<bool>() ? " (partial)" : ""),
                  std::to_string(member(m, "rounds").size()), esc(text_of(member(cost, "units"))),
                  report_number(member(cost, "seconds"))});
   }
@@ -469,15 +511,16 @@ std::string measurement_values(const json& values, std::size_t index, const Repo
 }
 
 std::string measurement_section(const json& d, const json& m, std::size_t index, const ReportHistograms& histograms,
-                                const ReportScatters& scatters) {
+                                const ReportScatters& scatters, bool rejected) {
   const std::string label = text_of(member(m, "measurement"));
   std::string out = fmt::format("<section class=\"measurement\" id=\"m{}\">\n<h3>[{}] {}</h3>\n", index, index, esc(label));
   out += decision_list(d);
   const bool ran = member(m, "ran").get<bool>();
-  out += fmt::format("<p>Target {} ({}); achieved <b>{}</b>: {}{}.</p>\n", report_number(member(m, "target")),
+  out += fmt::format("<p>Target {} ({}); achieved <b>{}</b>: {}{}{}.</p>\n", report_number(member(m, "target")),
                      esc(text_of(member(m, "error_measure"))), ran ? report_number(member(m, "achieved")) : "-",
                      met_text(ran, member(m, "met").get<bool>()),
-                     member(m, "partial").get<bool>() ? " (partial: interrupted)" : "");
+                     member(m, "partial").get<bool>() ? " (partial: interrupted)" : "",
+                     rejected ? R"(; its test <span class="notmet">rejected</span>)" : "");
   if (!ran) return out + "</section>\n";
   out += rounds_table(m);
   return out + measurement_values(member(m, "values"), index, histograms, scatters, label) + "</section>\n";
@@ -512,7 +555,8 @@ std::string measurements_sections(const json& doc, const ReportHistograms& histo
   const json& measurements = member(member(doc, "results"), "measurements");
   std::string out = masking_curves_section(decisions, measurements) + "<h2>Measurements</h2>\n";
   for (std::size_t i = 0; i < measurements.size() && i < decisions.size(); ++i)
-    out += measurement_section(decisions[i], measurements[i], i, histograms, scatters);
+    out += measurement_section(decisions[i], measurements[i], i, histograms, scatters,
+                               is_rejected(doc, member(measurements[i], "measurement")));
   for (std::size_t i = measurements.size(); i < decisions.size(); ++i)
     out += fmt::format("<section class=\"measurement\"><h3>[{}] {}</h3><p>Not reached (the run was interrupted "
                        "before it).</p></section>\n", i, esc(text_of(member(decisions[i], "measurement"))));
@@ -560,7 +604,7 @@ std::string experiment_report_html(const nlohmann::json& document, const ReportH
   page += fmt::format("<title>microsim experiment {}</title>\n", esc(text_of(member(member(document, "spec"), "name"))));
   page += kStyle;
   page += "</head>\n<body>\n";
-  page += status_section(document) + plan_section(document) + results_section(document);
+  page += verdict_headline(document) + status_section(document) + plan_section(document) + results_section(document);
   page += measurements_sections(document, histograms, scatters) + realisations_section(document);
   page += "<h2>Files</h2>\n<p><a href=\"results.json\">results.json</a>: everything on this page as data.</p>\n";
   page += "<h2>The spec (canonical)</h2>\n<pre>" +

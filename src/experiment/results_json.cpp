@@ -1,6 +1,7 @@
 // experiment: plans and results as JSON (run.h: plan_json, results_json), the content of results.json.
 #include "experiment/run.h"
 #include "experiment/masking_runs.h"
+#include "experiment/verdict.h"
 
 namespace microsim::experiment {
 namespace {
@@ -70,15 +71,13 @@ nlohmann::json plan_json(const ExperimentPlan& plan, const ExperimentSpec& spec)
 
 nlohmann::json results_json(const ExperimentResults& results) {
   nlohmann::json measurements = nlohmann::json::array();
-  bool all_met = true;
-  for (const MeasurementResult& m : results.measurements) {
-    measurements.push_back(measurement_json(m));
-    all_met = all_met && (!m.ran || m.met);
-  }
+  for (const MeasurementResult& m : results.measurements) measurements.push_back(measurement_json(m));
+  // all_targets_met: every measurement that ran has enough samples; the verdict (verdict.h): what the tests found.
   nlohmann::json out{{"measurements", measurements},
                      {"partial", results.partial},
-                     {"all_targets_met", all_met && !results.partial},
+                     {"all_targets_met", all_targets_met(results)},
                      {"seconds", results.seconds}};
+  out.update(verdict_json(run_verdict(results)));  // derived: not read back (a resumed run derives it again)
   const nlohmann::json means = masking_realisation_means(results.measurements);
   if (!means.empty()) out["masking_realisations"] = means;  // derived: not read back
   return out;

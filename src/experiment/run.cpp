@@ -188,7 +188,7 @@ bool vndf_round(const ExperimentSpec& spec, const EllipsoidTarget& target, const
   add_round(m.histogram, m.unbinned, round);
   // A whole first round: its own analysis is the sum's (the reference's cubature is not paid twice).
   const EllipsoidVndf analysed = fresh && !round.trace.partial ? round : analyse_ellipsoid_vndf(m.histogram, m.unbinned);
-  m.achieved = vndf_noise_floor(analysed);
+  m.achieved = resolved_tv(vndf_noise_floor(analysed));
   m.units += round.histogram.rays;
   m.rays += round.histogram.rays;
   m.rounds.push_back({start.done + round.histogram.rays, start.rays, round.trace.blocks.end, round.trace.partial,
@@ -268,7 +268,7 @@ bool scatter_round(const ExperimentSpec& spec, const RoundStart& start, const Ru
   m.partial = round.partial;
   if (round.paths() == 0) return false;
   add_scatter_round(m.scatter, round);
-  m.achieved = scatter_noise_floor(m.scatter, d.targeted_orders);
+  m.achieved = resolved_tv(scatter_noise_floor(m.scatter, d.targeted_orders));
   m.units += round.paths();
   m.rays += round.paths();
   m.rounds.push_back({start.done + round.paths(), start.rays, round.provenance.blocks.end, round.partial, start.seed, 0,
@@ -304,7 +304,7 @@ bool heightfield_vndf_round(const ExperimentSpec& spec, const SceneOf& scene, co
   if (!fresh) add_heightfield_diagnostics(m.histogram, round.histogram);  // the analysis reads them there
   add_counts(m.histogram, m.unbinned, round.histogram, round.trace.unbinned);
   const HeightfieldVndf analysed = analyse_heightfield_vndf(m.histogram, m.unbinned, field);  // the sum so far
-  m.achieved = heightfield_noise_floor(analysed);
+  m.achieved = resolved_tv(heightfield_noise_floor(analysed));
   m.units += round.histogram.rays;
   m.rays += round.histogram.rays;
   m.rounds.push_back({start.done + round.histogram.rays, start.rays, round.trace.blocks.end, round.trace.partial,
@@ -443,11 +443,25 @@ TracedHistogram validation_histogram(const ValidationReport& r, const Decision& 
   return h;
 }
 
-// The validation's result: the deviation its samples detect (N ~ 1 / tv^2, plan.h), the report and counts.
+// The TV deviation `samples` rows of a dump detect against its analytic reference (their count is the file's,
+// not planned: plan.h detectable_tv).
+double dump_detected_tv(const SpecQuantity& q, std::uint64_t samples) {
+  const ValidationTests tests = validation_tests(q.rows, q.significance);
+  return detectable_tv(std::max<std::uint64_t>(samples, 1), tests.dof, tests.level, q.power);
+}
+
+bool is_analytic_dump(const SpecQuantity& q, const Decision& d) {
+  return !q.dump.empty() && d.model.model == Model::analytic_validator;
+}
+
+// The validation's result: the deviation its samples detect (N ~ 1 / tv^2, plan.h: the planned count detects
+// the target; a dump's rows what they detect), the report and counts.
 void record_validation(const ValidationReport& r, const SpecQuantity& q, std::uint64_t planned, double seconds,
                        MeasurementResult& m) {
   const Decision& d = m.decision;
-  m.achieved = q.target * std::sqrt(double(d.units) / double(std::max<std::uint64_t>(r.samples, 1)));
+  m.achieved = is_analytic_dump(q, d)
+                   ? dump_detected_tv(q, r.samples)
+                   : q.target * std::sqrt(double(d.units) / double(std::max<std::uint64_t>(r.samples, 1)));
   m.units = m.rays = r.samples;
   m.rounds.push_back({r.samples, planned, 0, false, r.seed, 0, seconds, m.achieved});
   m.values = {{"validation", to_json(r)}};
@@ -514,11 +528,17 @@ std::string error_measure(const SpecQuantity& q, const Decision& d) {
   if (q.kind == QuantityKind::scattering && d.model.model == Model::analytic)
     return "the cubature's summed error estimate over the order-1 albedo (to first order a bound on the lobe's TV error)";
   if (q.kind == QuantityKind::scattering)
-    return "the largest per-order TV noise floor of the orders carrying at least the target's share of the albedo";
+    return fmt::format("the TV the lobes resolve: the largest per-order TV noise floor of the orders carrying at least "
+                       "the target's share of the albedo, over {}", kNoiseShare);
+  if (q.kind == QuantityKind::validation && is_analytic_dump(q, d))
+    return fmt::format("the smallest TV deviation detected with power {} at level {} by the dump's rows{}", q.power,
+                       q.significance, q.target > 0 ? "" : " (no detect_tv asked: the target is what they detect)");
   if (q.kind == QuantityKind::validation)
     return fmt::format("the smallest TV deviation detected with power {} at level {} by the samples run", q.power,
                        q.significance);
-  if (q.kind == QuantityKind::vndf) return "the histogram's TV noise floor (expected TV of an exact sampler), largest binning";
+  if (q.kind == QuantityKind::vndf)
+    return fmt::format("the TV the histogram resolves: its TV noise floor (expected TV of an exact sampler, largest "
+                       "binning) over {}", kNoiseShare);
   return fmt::format("the worst relative {} of {} over the cells and E_avg",
                      d.model.model == Model::analytic ? "quadrature error estimate" : "standard error",
                      albedo_target_text(q));
@@ -533,8 +553,9 @@ MeasurementResult run_decision(const ExperimentSpec& spec, const Decision& d, st
   const SpecQuantity& q = spec.quantities[d.quantity];
   const bool vndf = q.kind == QuantityKind::vndf;
   const bool analytic = d.model.model == Model::analytic;
-  const bool histogram_tv = vndf || (q.kind == QuantityKind::scattering && !analytic);
-  m.target = histogram_tv ? kNoiseShare * q.target : q.target;
+  // As the spec asks it: every achieved error is in its unit (a histogram's: resolved_tv). A dump without
+  // detect_tv: what the plan's count of its rows detects.
+  m.target = q.target > 0 || !is_analytic_dump(q, d) ? q.target : dump_detected_tv(q, d.units);
   m.error_measure = error_measure(q, d);
   if (!d.runnable) return m;
   m.ran = true;

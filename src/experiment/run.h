@@ -6,9 +6,10 @@
 //   albedo, analytic    the quadrature at the planned tolerance; if an error estimate still exceeds the
 //                       target, again 100 times tighter (the result replaces the last);
 //   vndf                rounds of ellipsoid-oracle rays, each from its own seed, their exact counts summed; the
-//                       TV noise floor of the sum decides (kNoiseShare of the target);
-//   scattering, walk    rounds of Smith walks, their exact sums added; the largest per-order TV noise floor of
-//                       the orders the plan targeted decides (measures.h, targeted_order_bins);
+//                       TV the sum resolves (resolved_tv: its noise floor over kNoiseShare) decides against the
+//                       spec's target_tv;
+//   scattering, walk    rounds of Smith walks, their exact sums added; the TV resolved by the largest per-order
+//                       noise floor of the orders the plan targeted decides (measures.h, targeted_order_bins);
 //   heightfield         (vndf, scattering on an explicit tile) the tile through the SurfaceCache (built once,
 //                       or read back from DIR/surfaces), then rounds as above: rays traced on the tile
 //                       (measure_heightfield_vndf), or paths on its Embree scene (scatter_on_surface), split
@@ -59,7 +60,7 @@ struct RoundRecord {
 
 struct MeasurementResult {
   Decision decision;
-  double target = 0;            // in the unit of `achieved`: relative SE, or the TV noise floor to reach
+  double target = 0;            // the spec's target: relative SE, a TV to resolve (achieved: resolved_tv) or detect
   std::string error_measure;    // what `achieved` is
   double achieved = 0;
   bool met = false;

@@ -488,6 +488,13 @@ void read_kind_options(const Table& t, SpecQuantity& q, const SpecMaterial& m, c
   if (q.kind == QuantityKind::masking) read_masking(t, q, m);
 }
 
+// A dump validated against its analytic reference needs no detect_tv: its rows are given, and they fix the TV
+// detected (the plan states it). Against a surface it does: the tile is sized from it.
+bool dump_detects_what_its_rows_do(const Table& t, const SpecQuantity& q) {
+  return q.kind == QuantityKind::validation && t.has("dump") && !t.has("detect_tv") &&
+         q.surface.kind == SurfaceChoice::Kind::automatic;
+}
+
 SpecQuantity read_quantity(const Table& t, const ExperimentSpec& spec, std::size_t index,
                            const std::filesystem::path& spec_dir) {
   SpecQuantity q;
@@ -498,8 +505,8 @@ SpecQuantity read_quantity(const Table& t, const ExperimentSpec& spec, std::size
   q.material = t.string("material");
   const auto m = std::find_if(spec.materials.begin(), spec.materials.end(), [&](const auto& x) { return x.name == q.material; });
   if (m == spec.materials.end()) t.fail("material", fmt::format("no material named {}", quote_excerpt(q.material)));
-  q.target = quantity_target(t, q.kind);
   q.surface = quantity_surface(t, spec_dir);
+  q.target = dump_detects_what_its_rows_do(t, q) ? 0.0 : quantity_target(t, q.kind);
   read_kind_options(t, q, *m, spec_dir);
   return q;
 }

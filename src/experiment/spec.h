@@ -103,8 +103,9 @@ struct SpecQuantity {
   int line = 0;
   std::string material;  // a SpecMaterial's name
   Orders orders = Orders::single;
-  double target = 0;     // albedo: relative SE; vndf, scattering: TV to resolve; validation: TV to detect;
-                         // masking: the absolute SE of every G1, G2 and conditional G1(v | bin)
+  double target = 0;     // albedo: relative SE; vndf, scattering: TV to resolve; validation: TV to detect (0:
+                         // a dump without detect_tv, its rows fix it); masking: the absolute SE of every G1, G2
+                         // and conditional G1(v | bin)
   std::vector<Direction> directions;  // vndf, scattering, validation, masking (the views)
   SurfaceChoice surface;
   int mus = 16;          // albedo: Gauss-Legendre nodes in mu

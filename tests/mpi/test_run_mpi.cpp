@@ -3,7 +3,8 @@
 // one-process run: results.json's measured values (timings and the host's rates aside) and every histogram
 // (vndf-K.exr, scattering-K.exr) and table (albedo-K.csv) equal, bit for bit; stdout printed once, by rank 0.
 // The comparison can fail: a run with another seed differs. Per-order lobes on an assembly's tile: the ranks
-// trace rank 0's tile, the one-process results again. Under mpirun a bad spec is one message and exit 2.
+// trace rank 0's tile, the one-process results again. Under mpirun a bad spec is one message and exit 2, and
+// a rejected validation exit 1 (rank 0 decides the code and the other ranks return it).
 // Built only with MPI and mpirun (CMakeLists.txt); the library-level tests of the split are
 // tests/test_experiment_split.cpp (ranks as threads, with the negative controls of a wrong combination).
 #include "../run_directory_contents.h"
@@ -116,6 +117,24 @@ TEST(RunMpi, ABadSpecUnderMpirunIsOneMessageAndExit2NothingWritten) {
   EXPECT_NE(err.find("material[0].type"), std::string::npos) << err;
   EXPECT_EQ(err.find("material[0].type"), err.rfind("material[0].type")) << "one message, rank 0's: " << err;
   EXPECT_FALSE(fs::exists(dir / "out"));
+}
+
+// The talk listing validated with its samples split over the ranks: rank 0 decides the verdict, every rank
+// returns its exit code, 1, and the directory is the one-process run's.
+TEST(RunMpi, ARejectedValidationExits1UnderMpirunAsAlone) {
+  const fs::path dir = scratch_dir("run_mpi", "rejected");
+  std::ofstream(dir / "split.toml") << "name = \"talk\"\nseed = 2\n[[material]]\nname = \"m\"\nalpha = 0.3\n"
+                                       "type = \"mirror\"\n[[quantity]]\nkind = \"validation\"\nmaterial = \"m\"\n"
+                                       "sampler = \"heitz2018-talk\"\ntheta = [40]\nrows = 7\ndetect_tv = 0.01\n";
+  const auto alone = run_in(dir, "alone", "");
+  ASSERT_EQ(alone.exit_code, 1) << alone.err;
+  const auto two = run_in(dir, "ranks2", mpirun(2));
+  EXPECT_EQ(two.exit_code, 1) << two.err;
+  EXPECT_NE(two.out.find("Verdict: FAIL (rejected: "), std::string::npos) << two.out;
+  EXPECT_EQ(microsim::test::run_directory_contents(dir / "ranks2" / "out"),
+            microsim::test::run_directory_contents(dir / "alone" / "out"));
+  EXPECT_EQ(nlohmann::json::parse(slurp(dir / "ranks2" / "out" / "results.json"))["results"]["verdict"], "fail");
+  fs::remove_all(dir);
 }
 
 }  // namespace

@@ -1,0 +1,47 @@
+// experiment: the verdict of a run (`microsim run`): what its statistical tests found, apart from whether each
+// target was met. A validation measurement tests a sampler or a dump against a reference (validate/validate.h:
+// pass or fail at the spec's level); every other kind measures values to a target accuracy and tests nothing.
+// `met` says a measurement ran enough samples for its target; the verdict says whether a test rejected. A
+// validation that met its target and rejected is a failure of the run, never a success:
+//   fail        at least one validation rejected (final: a finished measurement is kept when the run resumes);
+//   incomplete  the run was interrupted before every measurement ran, and none rejected so far;
+//   pass        every measurement ran, at least one validation's test ran, none rejected;
+//   none        every measurement ran and no statistical test ran (no validation, or none runnable).
+// A validation the plan could not run (not runnable) tests nothing: the plan and the report say why.
+// Derived from the results alone (the validations' values), so a resumed run gives the same verdict. This is
+// the one place that decides it: results.json (results_json), the report and the command's exit code read it.
+#pragma once
+
+#include "experiment/run.h"
+
+#include <nlohmann/json.hpp>
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+namespace microsim::experiment {
+
+enum class Verdict { pass, fail, none, incomplete };
+std::string to_string(Verdict verdict);  // "pass", "fail", "none", "incomplete"
+
+struct RunVerdict {
+  Verdict verdict = Verdict::none;
+  std::vector<std::string> rejected;  // the labels of the validations that rejected, in plan order
+  std::size_t tested = 0;             // the validations whose test ran to its end (passed or rejected)
+};
+
+// Whether a measurement is a validation whose test ran to its end; and whether that test rejected.
+bool validation_tested(const MeasurementResult& m);
+bool validation_rejected(const MeasurementResult& m);
+
+RunVerdict run_verdict(const ExperimentResults& results);
+
+// Enough samples: the run is complete and every measurement that ran met its target (results.json's
+// all_targets_met). Says nothing of what the tests found: a rejected validation may have met its target.
+bool all_targets_met(const ExperimentResults& results);
+
+// results.json's members of the verdict: "verdict", "rejected" (labels) and "tested" (a count).
+nlohmann::json verdict_json(const RunVerdict& verdict);
+
+}  // namespace microsim::experiment
