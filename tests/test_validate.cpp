@@ -319,9 +319,9 @@ TEST(ValidateAboveHorizon, ARendererStyleDumpPassesConditionedAndFailsUnconditio
   ValidationOptions o;
   const ValidationReport full = validate_samples(dump, SampleDomain::reflected_direction, ggx, wi, o);
   EXPECT_FALSE(full.passed);
-  ASSERT_FALSE(full.failures.empty());
-  EXPECT_NE(full.failures.back().find("no sample below the horizon"), std::string::npos) << full.failures.back();
-  EXPECT_NE(full.failures.back().find("--above-horizon"), std::string::npos) << full.failures.back();
+  ASSERT_FALSE(full.hints.empty());  // a rejection, and the hint that explains it
+  EXPECT_NE(full.hints.back().find("no sample below the horizon"), std::string::npos) << full.hints.back();
+  EXPECT_NE(full.hints.back().find("--above-horizon"), std::string::npos) << full.hints.back();
 
   const auto conditioned = above_horizon_reference(claimed_density(FilePdf::reflection, ggx, wi), ggx, wi, o.rows);
   EXPECT_NEAR(1.0 - conditioned->kept_mass, double(dropped) / 400'000.0, 0.002);

@@ -111,6 +111,8 @@ CASES = [
      {"bsdf": "conductor:0.2,3.9", "masking": "separable"}, "c32", True),
     ("pbrt-v4 gold, 80 deg", dict(kind="conductor", theta=80), {"bsdf": "conductor:0.2,3.9"}, "c32", True),
     ("glass without a pdf column", dict(kind="dielectric", theta=50), GLASS, "c32-nopdf", True),
+    ("pbrt-v4 gold, Fortran-order float32 .npy", dict(kind="conductor", theta=30), {"bsdf": "conductor:0.2,3.9"},
+     "f32", True),
     # The other convention's correct dump, and real bugs wrong in both conventions.
     ("radiance glass claimed as importance", dict(kind="dielectric", theta=50), {**GLASS, "transport": "importance"},
      "c32", False),
@@ -138,6 +140,8 @@ def write_dump(path, layout, directions, pdfs, weights, frame):
     rows = np.concatenate(cols, axis=1)
     if layout == "text":
         np.savetxt(path, rows, fmt="%.17g")
+    elif layout == "f32":  # numpy writes Fortran order for a column-indexed or transposed array
+        np.save(path, np.asfortranarray(rows.astype(np.float32)))
     else:
         np.save(path, rows.astype(np.float32 if layout.startswith("c32") else np.float64))
     return "x,y,z,weight" if layout.endswith("nopdf") else "x,y,z,pdf,weight"
