@@ -218,6 +218,22 @@ TEST(CliValidate, FortranOrderNpyValidatesAsTheCOrderFile) {
   EXPECT_EQ(report[1]["storage"], "float64 .npy");
 }
 
+// A 4-column dump given 3 column names: exit 2, the counts named and a --columns that matches suggested
+// ('-' ignores the extra column), with which it passes.
+TEST(CliValidate, AColumnCountMismatchSuggestsMatchingColumns) {
+  const fs::path dir = scratch_dir();
+  std::vector<std::vector<double>> rows;
+  for (const Vec3<double>& m : samples_of("heitz2018", 0.3, 40, 20000)) rows.push_back({m.x(), m.y(), m.z(), 1.0});
+  write_npy_rows(dir / "four.npy", rows, false);
+  const std::string from = "--from '" + (dir / "four.npy").string() + "' --alpha 0.3 --theta 40 ";
+  const CliRun wrong = run(from + "--columns x,y,z");
+  EXPECT_EQ(wrong.exit_code, 2) << wrong.err;
+  EXPECT_NE(wrong.err.find("the file has 4 column(s), --columns x,y,z (the default) names 3: give --columns x,y,z,-"),
+            std::string::npos) << wrong.err;
+  const CliRun skipped = run(from + "--columns x,y,z,-");
+  EXPECT_EQ(skipped.exit_code, 0) << skipped.out << skipped.err;
+}
+
 // A renderer's reflected dump without the reflections below the horizon: the plain test rejects it and
 // says why; --above-horizon passes it, --dropped N tests the count; misuse is exit 2.
 TEST(CliValidate, AboveHorizonTestsARendererStyleReflectedDump) {
@@ -309,7 +325,8 @@ TEST(CliValidate, DumpsWithAPdfColumnGetTheReturnedPdfCheck) {
   EXPECT_NE(bad.out.find("returned pdf"), std::string::npos) << bad.out;
   const CliRun plain = run("--from '" + (dir / "good.txt").string() + "' --alpha 0.3 --theta 40");
   EXPECT_EQ(plain.exit_code, 2) << "four columns without --columns are bad input\n" << plain.err;
-  EXPECT_NE(plain.err.find("found 4 numbers, expected 3"), std::string::npos) << plain.err;
+  EXPECT_NE(plain.err.find("found 4 numbers, --columns x,y,z (the default) names 3: give --columns x,y,z,-"),
+            std::string::npos) << plain.err;
   const CliRun spec = run("--from '" + (dir / "good.txt").string() + "' --alpha 0.3 --theta 40 --columns x,y,pdf");
   EXPECT_EQ(spec.exit_code, 2) << spec.err;
   EXPECT_NE(spec.err.find("--columns"), std::string::npos) << spec.err;

@@ -12,6 +12,7 @@
 #include <limits>
 #include <random>
 #include <string>
+#include <tuple>
 #include <unistd.h>
 
 using namespace microsim;
@@ -463,6 +464,33 @@ TEST(SampleColumns, ParsesNamesAndRefusesBadSpecs) {
   }
 }
 
+// A row of another count than --columns names: the message suggests a --columns that matches, with a '-'
+// for each column more or without the trailing pdf, weights and '-' for each column fewer.
+TEST_F(SampleIo, AColumnCountMismatchSuggestsMatchingColumns) {
+  const auto message = [&](const std::string& name, const std::string& bytes, const char* spec) {
+    try {
+      DirectionSampleReader r(write_bytes(name, bytes), SampleColumns::parse(spec));
+      std::vector<Vec3<double>> d(4);
+      std::vector<double> pdfs(4), weights(16);
+      r.read(d, pdfs, weights);
+    } catch (const SampleFileError& e) {
+      return std::string(e.what());
+    }
+    ADD_FAILURE() << "no error for " << name;
+    return std::string();
+  };
+  const std::string six = f8_data({0, 0, 1, 1, 1, 1}), five = f8_data({0, 0, 1, 1, 1});
+  const std::vector<std::tuple<std::string, std::string, const char*, std::string>> cases = {
+      {"six.npy", npy_bytes(1, 0, dict("<f8", "(1, 6)"), six), "x,y,z,pdf", "give --columns x,y,z,pdf,-,-"},
+      {"one.npy", npy_bytes(1, 0, dict("<f8", "(1, 5)"), five), "z,x,y,weight,-,pdf,weight", "give --columns z,x,y,weight,-"},
+      {"few.npy", npy_bytes(1, 0, dict("<f8", "(1, 3)"), f8_data({0, 0, 1})), "x,pdf,y,z", "give --columns x,y,z"},
+      {"two.npy", npy_bytes(1, 0, dict("<f8", "(1, 2)"), f8_data({0, 1})), "x,y,z", "names 3: a row needs x, y and z"},
+      {"five.txt", "0 0 1 1 1\n", "x,y,z,pdf", "found 5 numbers, --columns x,y,z,pdf names 4: give --columns x,y,z,pdf,-"},
+  };
+  for (const auto& [name, bytes, spec, expected] : cases)
+    EXPECT_NE(message(name, bytes, spec).find(expected), std::string::npos) << message(name, bytes, spec);
+}
+
 TEST_F(SampleIo, ExtraColumnsGoToPdfsAndWeights) {
   const SampleColumns c = SampleColumns::parse("x,y,z,pdf,weight");
   DirectionSampleReader text(write_bytes("five.txt", "0 0 1 0.5 0.9\n0.6 0 0.8 2.5 1.1\n"), c);
@@ -483,13 +511,15 @@ TEST_F(SampleIo, ExtraColumnsGoToPdfsAndWeights) {
     DirectionSampleReader wrong(write_bytes("three.npy", npy_bytes(1, 0, dict("<f8", "(1, 3)"), f8_data({0, 0, 1}))), c);
     ADD_FAILURE() << "no error";
   } catch (const SampleFileError& e) {
-    EXPECT_NE(std::string(e.what()).find("(expected (N, 5): x y z pdf weight)"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("the file has 3 column(s), --columns x,y,z,pdf,weight names 5: give --columns x,y,z"),
+              std::string::npos) << e.what();
   }
   try {
     DirectionSampleReader four(write_bytes("four.npy", npy_bytes(1, 0, dict("<f8", "(1, 4)"), f8_data({0, 0, 1, 1}))));
     ADD_FAILURE() << "no error";
   } catch (const SampleFileError& e) {
-    EXPECT_NE(std::string(e.what()).find("--columns names extra columns"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("the file has 4 column(s), --columns x,y,z (the default) names 3: give "
+                                         "--columns x,y,z,- ('-' ignores a column)"), std::string::npos) << e.what();
   }
   DirectionSampleReader short_text(write_bytes("short.txt", "0 0 1 0.5\n"), c);
   EXPECT_THROW(short_text.read(d, pdfs, weights), SampleFileError);

@@ -9,6 +9,7 @@
 #include "core/strict_parse.h"
 #include "core/atomic_file.h"
 
+#include <algorithm>
 #include <array>
 #include <bit>
 #include <charconv>
@@ -90,6 +91,45 @@ Vec3<double> split_row(const std::filesystem::path& path, const Where& where, co
   if (c.has_pdf()) extras[k++] = value(c.pdf);
   for (const int col : c.weights) extras[k++] = value(col);
   return checked_direction(path, where, w, tolerance, precision_name, invalid);
+}
+
+// ---- the column count -------------------------------------------------------------------------------------
+
+// The names of `columns` as --columns spells them: "x,y,z,pdf".
+std::string columns_spec(const SampleColumns& columns) {
+  std::string s = columns.describe();
+  std::replace(s.begin(), s.end(), ' ', ',');
+  return s;
+}
+
+// A --columns for rows of `found` values from the names of `columns`: a '-' (ignored) for each value more, or
+// for each value fewer one name other than x, y, z left out from the end; empty when none fits (x, y and z
+// need three columns; a row of very many values gets no list of dashes).
+std::string matching_columns(const SampleColumns& columns, std::uint64_t found) {
+  constexpr std::uint64_t kMostSuggested = 32;
+  if (found < 3 || found > kMostSuggested) return {};
+  std::vector<std::string> names;
+  std::istringstream words(columns.describe());
+  for (std::string w; words >> w;) names.push_back(w);
+  while (names.size() < found) names.emplace_back("-");
+  for (std::size_t i = names.size(); names.size() > found && i-- > 0;)
+    if (names[i] != "x" && names[i] != "y" && names[i] != "z") names.erase(names.begin() + std::ptrdiff_t(i));
+  std::string spec;
+  for (const std::string& n : names) spec += (spec.empty() ? "" : ",") + n;
+  return spec;
+}
+
+// What to say after the count of `found` values in a row when `columns` names another count: the columns
+// given, and a --columns that matches.
+std::string column_count_advice(const SampleColumns& columns, std::uint64_t found) {
+  const std::string given = columns_spec(columns);
+  std::string s = "--columns " + given + (given == "x,y,z" ? " (the default)" : "") + " names " +
+                  std::to_string(columns.count);
+  const std::string match = matching_columns(columns, found);
+  if (!match.empty())
+    return s + ": give --columns " + match +
+           (found > std::uint64_t(columns.count) ? " ('-' ignores a column), or name the extra columns (pdf, weight)" : "");
+  return s + (found < 3 ? ": a row needs x, y and z" : "");
 }
 
 // ---- NPY -----------------------------------------------------------------------------------------------
@@ -281,9 +321,12 @@ NpyLayout read_npy_layout(const std::filesystem::path& path, std::string_view by
   } else {
     fail(path, "unsupported NPY dtype " + reader::quote_excerpt(h.descr) + " (expected '<f4' float32 or '<f8' float64)");
   }
-  if (h.shape.size() != 2 || h.shape[1] != std::uint64_t(columns.count))
+  if (h.shape.size() != 2)
     fail(path, "unsupported NPY shape " + shape_string(h.shape) + " (expected (N, " + std::to_string(columns.count) +
-                   "): " + columns.describe() + (columns.count == 3 ? "; --columns names extra columns)" : ")"));
+                   "): " + columns.describe() + ")");
+  if (h.shape[1] != std::uint64_t(columns.count))
+    fail(path, "NPY shape " + shape_string(h.shape) + ": the file has " + std::to_string(h.shape[1]) + " column(s), " +
+                   column_count_advice(columns, h.shape[1]));
   const std::uint64_t rows = h.shape[0];
   if (rows == 0) fail(path, "empty: the NPY array has 0 rows (shape (0, 3))");
 
@@ -415,8 +458,8 @@ void read_text_lines(const std::filesystem::path& path, std::string_view text, s
       }
     }
     if (values.size() != std::size_t(columns.count))
-      fail(path, where + ": wrong column count: found " + std::to_string(values.size()) + " numbers, expected " +
-                     std::to_string(columns.count) + " (" + columns.describe() + ")");
+      fail(path, where + ": wrong column count: found " + std::to_string(values.size()) + " numbers, " +
+                     column_count_advice(columns, values.size()));
     extras.resize(extras.size() + extras_per_row(columns));
     out.push_back(split_row(path, [&where] { return where; }, [&values](int c) { return values[std::size_t(c)]; },
                             columns, kUnitLengthToleranceText, "text data", invalid,
