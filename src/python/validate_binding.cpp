@@ -236,6 +236,34 @@ DirectionSampleReader sample_reader(const py::handle& samples_in, const py::hand
   return reader;
 }
 
+// A path (str or os.PathLike) of a sample file rather than an array.
+bool is_path(const py::handle& samples) { return py::isinstance<py::str>(samples) || py::hasattr(samples, "__fspath__"); }
+
+// The sample file at `path` (.npy in any order, or text), read as `validate --from` reads it, with its
+// `columns` as --columns names them: a file's pdfs and weights are its columns, never arrays beside it.
+DirectionSampleReader file_sample_reader(const py::handle& path, const std::optional<std::string>& columns,
+                                         const py::handle& pdfs, const py::handle& weights, const std::string& frame) {
+  if (!pdfs.is_none() || !weights.is_none())
+    throw py::value_error("pdfs and weights are arrays beside an array of samples; a file's are its own columns: "
+                          "name them with columns (e.g. columns='x,y,z,pdf,weight')");
+  SampleColumns c;
+  try {
+    if (columns) c = SampleColumns::parse(*columns);
+  } catch (const std::invalid_argument& e) {
+    throw py::value_error(std::string("columns: ") + e.what());
+  }
+  DirectionSampleReader reader(py::module_::import("os").attr("fsdecode")(path).cast<std::string>(), c);
+  reader.set_frame(frame_of(frame));
+  return reader;
+}
+
+// The samples' reader: the file of a path, or the array (with the pdfs and weights arrays beside it).
+DirectionSampleReader samples_reader(const py::handle& samples, const std::optional<std::string>& columns,
+                                     const py::handle& pdfs, const py::handle& weights, const std::string& frame) {
+  if (is_path(samples)) return file_sample_reader(samples, columns, pdfs, weights, frame);
+  if (columns) throw py::value_error("columns names the columns of a sample file: give samples as a path");
+  return sample_reader(samples, pdfs, weights, frame);
+}
 
 ValidationOptions validation_options(int rows, double significance, std::uint64_t seed) {
   if (!(significance > 0 && significance < 1))
@@ -269,14 +297,14 @@ std::shared_ptr<const ReferenceDistribution> file_reference(FilePdf pdf, const s
 
 // The BSDF of `validate --bsdf`: a material spec as parse_material reads it, checked as the command line
 // checks it against the weights and the claimed density.
-std::optional<Material> bsdf_of(const std::optional<std::string>& spec, FilePdf pdf, const py::handle& weights) {
-  if (!weights.is_none() && !spec)
+std::optional<Material> bsdf_of(const std::optional<std::string>& spec, FilePdf pdf, bool has_weights) {
+  if (has_weights && !spec)
     throw py::value_error("weights need bsdf: the weights (f cos / pdf) are tested against the BSDF");
   if (pdf == FilePdf::bsdf && !spec)
     throw py::value_error("pdf='bsdf' is the sampling density of a BSDF: give it with bsdf (e.g. bsdf='dielectric:1.5')");
   if (!spec) return std::nullopt;
   const Material bsdf = parse_material("bsdf", *spec);
-  if (weights.is_none() && pdf != FilePdf::bsdf)
+  if (!has_weights && pdf != FilePdf::bsdf)
     throw py::value_error("bsdf applies to weights (f cos / pdf) or to pdf='bsdf'");
   if (bsdf.transmits() && pdf != FilePdf::bsdf)
     throw py::value_error("bsdf " + bsdf.describe() + ": a dielectric's samples hold reflections and refractions; test "
@@ -319,34 +347,35 @@ ValidationReport validate_reader(DirectionSampleReader& reader, const GGX<double
 }
 
 // What `against` excludes, as `validate --against` refuses it.
-void check_against(const Reference& r, const std::string& pdf, const py::handle& weights) {
+void check_against(const Reference& r, const std::string& pdf, bool has_weights) {
   if (!r.against) return;
   if (pdf != "vndf") throw py::value_error("against: the traced oracle measures visible normals (pdf='vndf'), not '" + pdf + "'");
   if (r.above_horizon) throw py::value_error("above_horizon tests against the analytic pdf, not against the traced oracle");
-  if (!weights.is_none()) throw py::value_error("weights are tested against the analytic BSDF, not against the traced oracle");
+  if (has_weights) throw py::value_error("weights are tested against the analytic BSDF, not against the traced oracle");
   if (*r.against != "ellipsoid" && std::filesystem::path(*r.against).extension() != ".exr")
     throw py::value_error("against '" + *r.against + "': use 'ellipsoid' or a histogram .exr from `microsim trace vndf`");
 }
 
 ValidationReport validate_array(const py::handle& samples, const py::handle& alpha, double theta, double phi,
                                 const std::string& pdf, const py::handle& weights, const py::handle& pdfs,
-                                const std::optional<std::string>& bsdf, const std::string& frame, int rows,
-                                double significance, bool above_horizon, std::optional<std::uint64_t> dropped,
-                                const std::optional<std::string>& against, std::uint64_t oracle_rays, std::uint64_t seed,
-                                const py::object& progress) {
+                                const std::optional<std::string>& bsdf, const std::optional<std::string>& columns,
+                                const std::string& frame, int rows, double significance, bool above_horizon,
+                                std::optional<std::uint64_t> dropped, const std::optional<std::string>& against,
+                                std::uint64_t oracle_rays, std::uint64_t seed, const py::object& progress) {
   const GGX<double> ggx = ggx_of(alpha);
   const Vec3<double> wi = view_of(theta, phi);
   ValidationOptions o = validation_options(rows, significance, seed);
   if (dropped && !above_horizon) throw py::value_error("dropped applies with above_horizon=True only");
   o.dropped_below_horizon = dropped;
   const FilePdf claimed = parse_file_pdf(pdf);  // std::invalid_argument naming the valid ones: ValueError
-  const std::optional<Material> material = bsdf_of(bsdf, claimed, weights);
-  if (!weights.is_none()) o.bsdf = material;  // the weight test
+  DirectionSampleReader reader = samples_reader(samples, columns, pdfs, weights, frame);
+  const bool has_weights = reader.columns().channels() > 0;
+  const std::optional<Material> material = bsdf_of(bsdf, claimed, has_weights);
+  if (has_weights) o.bsdf = material;  // the weight test
   if (above_horizon && !claims_reflected_directions(claimed))
     throw py::value_error("above_horizon applies to reflected directions: give pdf='reflection', 'bounded' or 'bsdf'");
   const Reference reference{claimed, material, above_horizon, against, oracle_rays, seed};
-  check_against(reference, pdf, weights);
-  DirectionSampleReader reader = sample_reader(samples, pdfs, weights, frame);
+  check_against(reference, pdf, has_weights);
   ValidationReport report;
   run_interruptible(
       [&](const RunControl& run) {
@@ -481,7 +510,8 @@ void bind_validation(py::module_& m) {
   m.def("validate", &validate_array, R"(Validates samples against the density they claim (what `microsim validate --from` does).
 
 samples: (N, 3) float32 or float64 array of unit directions in the z-up frame (any order or strides: read in
-  place); NaN rows are the sampler's failures (the validation rejects and names them).
+  place); NaN rows are the sampler's failures (the validation rejects and names them). Or the path (str or
+  os.PathLike) of a sample file (.npy in C or Fortran order, or text) as `validate --from FILE` reads it.
 alpha: roughness, a number or (alpha_x, alpha_y); theta, phi: the view in degrees (theta in [0, 90)).
 pdf: the claimed density: 'vndf' (normals, D_v), 'ndf' (normals, D(m) m.z), 'bounded' or 'reflection'
   (reflected directions), 'bsdf' (the outgoing directions of `bsdf`'s VNDF sampling, a dielectric's
@@ -490,6 +520,8 @@ weights: optional (N,) or (N, C) array of the weights f cos / pdf the sampler re
   channel), tested against `bsdf` ('mirror', 'conductor:ETA,K[;ETA,K...]', 'dielectric:ETA' as a
   material spec of `validate --bsdf`).
 pdfs: optional (N,) array of the pdfs the sampler returned, checked against the claimed pdf.
+columns: a file's columns as `--columns` names them ('x,y,z' by default; 'x,y,z,pdf,weight', '-' to skip a
+  column): with a path, its pdfs and weights are its columns (the arrays pdfs and weights are for arrays).
 frame: 'z-up' or 'y-up'; rows, significance: as the command line's --rows, --significance;
 above_horizon, dropped: reflections above the horizon only (--above-horizon, --dropped).
 against: None (the claimed pdf), 'ellipsoid' (the oracle traced now with oracle_rays rays, its seed mixed from
@@ -499,7 +531,7 @@ progress: optional callable progress(stage, done, total).
 Returns a ValidationResult; raises ValueError for bad input (the command line's messages) and
 KeyboardInterrupt on Ctrl-C.)",
         "samples"_a, "alpha"_a, "theta"_a, "phi"_a = 0.0, "pdf"_a = "vndf", "weights"_a = py::none(), "pdfs"_a = py::none(),
-        py::kw_only(), "bsdf"_a = py::none(),
+        py::kw_only(), "bsdf"_a = py::none(), "columns"_a = py::none(),
         "frame"_a = "z-up", "rows"_a = 31, "significance"_a = 0.01, "above_horizon"_a = false, "dropped"_a = py::none(),
         "against"_a = py::none(), "oracle_rays"_a = 4'000'000, "seed"_a = 1, "progress"_a = py::none());
   m.def("validate_sampler", &validate_zoo_sampler, R"(Validates a sampler of the zoo (what `microsim validate --sampler` does).
