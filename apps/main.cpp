@@ -60,8 +60,9 @@ std::string command_line_of(const CLI::App* app) {
 
 // The option of `app` spelled nearest to `word` (--long or -s), if near enough to be a slip of the keyboard:
 // a third of the name's length (without its dashes) in edits, 1 to 3, and none for a name of 1 or 2
-// characters (-q is no slip of -h). Empty when none is.
+// characters (-q is no slip of -h), nor for a word far longer than any option. Empty when none is.
 std::string nearest_option(const CLI::App* app, std::string_view word) {
+  if (word.size() > 64) return {};  // the distance's table is word.size() by the option's length
   const std::size_t name = word.size() - std::min(word.find_first_not_of('-'), word.size());
   std::size_t best_distance = (name < 3 ? 0 : std::clamp<std::size_t>(name / 3, 1, 3)) + 1;
   std::string best;

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <string>
 #include <vector>
 
 namespace {
@@ -33,6 +34,8 @@ std::vector<BadInputCase> usage_cases() {
        "unknown option '--zzzzzzzz' for `microsim validate` (its options: microsim validate --help)"},
       {"short_option_is_no_slip", "validate --sampler heitz2018 --alpha 0.3 --theta 30 -q", 2,
        "unknown option '-q' for `microsim validate` (its options"},
+      {"very_long_unknown_option", "validate --sampler heitz2018 --alpha 0.3 --theta 30 --" + std::string(5000, 'x'), 2,
+       "unknown option '--xxxxxxxx"},
       {"unexpected_argument", "validate heitz2018 --alpha 0.3 --theta 30", 2,
        "unexpected argument 'heitz2018' for `microsim validate`"},
       // Too few samples in a file: the message names the file as well as the number needed.
