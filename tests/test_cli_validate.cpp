@@ -27,11 +27,10 @@ namespace {
 using microsim::test::CliRun;
 using microsim::test::slurp;
 
-// One directory for the whole test program (not cleared between runs: tests write sample files there
-// before running the command on them).
+// One directory for the whole test program, made once (tests write sample files there before running the
+// command on them) and removed when the program exits (scratch_dir.h).
 fs::path scratch_dir() {
-  const fs::path dir = fs::temp_directory_path() / ("microsim_cli_validate_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
+  static const fs::path dir = microsim::test::scratch_dir("cli_validate", "files");
   return dir;
 }
 
