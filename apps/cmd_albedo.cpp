@@ -58,6 +58,11 @@ Material albedo_material(const AlbedoArgs& a) {
   } catch (const std::invalid_argument& e) {  // ParseError, or a constructor's check
     throw UsageError(e.what());
   }
+  // A conductor's table is not the mirror's scaled by a Fresnel average (F varies over the facets seen and
+  // with the order): it is not computed, and the mirror's table is the one to use.
+  if (m.kind() == MaterialKind::conductor)
+    throw UsageError(fmt::format("--material {}: conductor tables are not computed yet; use --material mirror (F = 1) "
+                                 "for the Kulla-Conty E(mu) of a conductor's microsurface", quote_excerpt(a.material)));
   if (m.kind() != MaterialKind::mirror && m.kind() != MaterialKind::dielectric)
     throw UsageError(fmt::format("--material {}: an albedo table is for mirror or dielectric:ETA", quote_excerpt(a.material)));
   if (a.inside && !m.transmits())

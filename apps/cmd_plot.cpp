@@ -1,15 +1,21 @@
 // `microsim plot HIST.exr --out FIG.svg`: the picture of a traced histogram (`microsim trace vndf`, on the
 // ellipsoid or on a heightfield): observed counts, the expected counts stored with it (analytic D_v for the
 // ellipsoid, Smith's D_v with the analytic NDF for a heightfield), and the Pearson residuals, per binning
-// (src/microsim/figure.h).
+// (src/stats/figure.h); or of a scattering result (`microsim scatter --out F.exr`): its lobes by order
+// (src/stats/scatter_figure.h).
 #include "command.h"
+#include "merge_scatter.h"
 
 #include "stats/figure.h"
 #include "core/atomic_file.h"
 #include "stats/histogram_io.h"
+#include "stats/scatter_compare.h"
+#include "stats/scatter_figure.h"
+#include "stats/scatter_io.h"
 #include "core/parse.h"
 
 #include <fmt/core.h>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cstdlib>
@@ -50,12 +56,61 @@ std::string short_numbers(const microsim::TracedHistogram& h, const std::string&
   return out;
 }
 
+// The figure of a scattering result (`microsim scatter --out F.exr`): one row per order (1-4, 5+, total; an
+// expectation has order 1 only), each channel's lobe side by side, the mean weight per launched path in each
+// bin of the hemispheres binning (stats/scatter_figure.h, as compare-scattering --svg draws lobes).
+std::string scatter_figure(const std::string& path, const microsim::ScatterFile& f) {
+  using namespace microsim;
+  const bool measured = f.kind == ScatterFileKind::histogram;
+  const int channels = measured ? f.histogram.channels() : f.expectation.channels();
+  std::vector<ScatterFigureRow> rows;
+  for (const int k : {0, 1, 2, 3, 4, kTotalOrder}) {
+    ScatterFigureRow row{scatter_order_name(k), {}, {}};
+    for (int c = 0; c < channels; ++c) {
+      const std::string& name = measured ? f.histogram.channel_name(c) : f.expectation.channel_names[std::size_t(c)];
+      if (const auto lobe = scatter_lobe(f, c, k)) row.lobes.push_back({"channel " + name, lobe->mean});
+    }
+    if (!row.lobes.empty()) rows.push_back(std::move(row));
+  }
+  std::string notes;
+  for (const auto& [key, value] : f.notes) notes += (notes.empty() ? "" : ", ") + key + " " + value;
+  const std::string subtitle =
+      measured ? fmt::format("{}: {} paths, {}{}", path, f.histogram.paths(), f.histogram.provenance.producer,
+                             f.histogram.partial ? " (PARTIAL: interrupted run)" : "")
+               : fmt::format("{}: expectation, {}", path, f.expectation.producer);
+  const DirectionBinning b = DirectionBinning::from_description(
+      nlohmann::json::parse(measured ? f.histogram.binning_id() : f.expectation.binning_id));
+  return scatter_figure_svg("scattering: weight per launched path by order", subtitle + "\n" + notes, b, rows);
+}
+
+// Reads the scatter EXR `path` and draws it.
+std::string scatter_file_figure(const std::string& path) {
+  try {
+    return scatter_figure(path, microsim::read_scatter_exr(path));
+  } catch (const microsim::ScatterIoError& e) {
+    throw UsageError(e.what());
+  }
+}
+
+void write_figure(const std::string& out, const std::string& svg) {
+  try {
+    microsim::write_file_atomically(out, svg);
+  } catch (const microsim::FileWriteError& e) {
+    throw UsageError(fmt::format("--out: {}", e.what()));
+  }
+}
+
 int run_plot(const PlotOptions& o) {
   using namespace microsim;
   microsim::app::check_distinct_outputs({{"histogram", o.histogram}}, {{"--out", o.out}});
   if (fs::path(o.out).extension() != ".svg")
     throw UsageError(fmt::format("--out: '{}' must end in .svg (the figure is SVG)", o.out));
   microsim::app::check_output("--out", o.out);
+  if (microsim::app::is_scatter_part(o.histogram)) {
+    write_figure(o.out, scatter_file_figure(o.histogram));
+    fmt::print("wrote {} (scattering lobes by order)\n", o.out);
+    return microsim::app::kExitOk;
+  }
   TracedHistogram h;
   try {
     h = read_histogram_exr(o.histogram);
@@ -77,11 +132,7 @@ int run_plot(const PlotOptions& o) {
                                         short_numbers(h, "theta"), short_numbers(h, "phi"));
   const std::string subtitle = fmt::format("{}: {} rays, {} hits, seed {}{}", o.histogram, h.rays, h.hits,
                                            attribute(h, "seed"), h.partial ? " (PARTIAL: interrupted run)" : "");
-  try {
-    write_file_atomically(o.out, histogram_figure_svg(title, subtitle, comparisons));
-  } catch (const FileWriteError& e) {
-    throw UsageError(fmt::format("--out: {}", e.what()));
-  }
+  write_figure(o.out, histogram_figure_svg(title, subtitle, comparisons));
   fmt::print("wrote {} ({} binnings)\n", o.out, comparisons.size());
   return microsim::app::kExitOk;
 }
@@ -92,8 +143,10 @@ microsim::app::CommandRegistration plot_registration{"plot", [](CLI::App& app) {
       "plot",
       "Draw a traced histogram (from `microsim trace vndf --out HIST.exr`) as an SVG figure: per binning, the "
       "observed counts, the expected counts stored with it (analytic D_v; Smith's for a heightfield) and the "
-      "Pearson residuals (observed - expected) / sqrt(expected). Exit 0 written, 2 bad input.");
-  sub->add_option("histogram", o->histogram, "traced histogram EXR")->required();
+      "Pearson residuals (observed - expected) / sqrt(expected). A scattering result (`microsim scatter --out "
+      "F.exr`) is drawn as its lobes by order and channel (to compare results: compare-scattering --svg). Exit 0 "
+      "written, 2 bad input.");
+  sub->add_option("histogram", o->histogram, "traced histogram EXR, or scatter EXR")->required();
   sub->add_option("--out", o->out, "the figure, FIG.svg (written atomically)")->required();
   microsim::app::on_selected(sub, [o] { return run_plot(*o); });
 }};

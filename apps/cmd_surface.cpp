@@ -243,6 +243,12 @@ std::string assembly_help() {
     s += fmt::format("\n  {:<9} {} (NDF: {})", a.name, a.summary, microgeom::to_string(a.reference));
   return s;
 }
+// "smith, ..., beckmann": the assemblies' names, for an option's help line.
+std::string assembly_names() {
+  std::string s;
+  for (const auto& a : microgeom::assembly_registry()) s += (s.empty() ? "" : ", ") + a.name;
+  return s;
+}
 // ---- surface build ------------------------------------------------------------------------------------
 struct BuildOptions {
   std::string assembly, alpha, out, mesh, normals, json, ndf_match = "radial";
@@ -564,7 +570,9 @@ void add_build_command(CLI::App* group) {
                 "\nSupported range (where a build meets its NDF check; docs/surfaces.md): N >= 256 for the GGX "
                 "assemblies (beckmann: N >= 16), max/min alpha <= 4, --corr-cells in [min(8, max(N >= 256 ? 4 : 2, "
                 "N/128)), N/16] (beckmann: up to N/8); outside it the build is refused (exit 2) unless --unsupported.");
-  build->add_option("--assembly", b->assembly, "assembly name (see above)")->required();
+  build->add_option("--assembly", b->assembly,
+                    "assembly name: " + assembly_names() + " (described under \"Assemblies\" below)")
+      ->required();
   build->add_option("--alpha", b->alpha, "GGX/Beckmann roughness AX or AX,AY, each in [0.005, 2]")->required();
   add_number_option(build, "--res", b->resolution,
                     ma::power_of_two(microgeom::kMinAssemblyResolution, microgeom::kMaxAssemblyResolution),

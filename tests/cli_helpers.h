@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -35,8 +36,6 @@ inline std::string slurp(const fs::path& path) {
   return ss.str();
 }
 
-// A fresh, empty directory under the system's temporary directory, unique to this test process.
-
 // Runs `microsim ARGS` with DIR as its working directory. Its stdout and stderr go to files beside DIR
 // (not inside it), so that tests can assert that DIR holds exactly the files the command wrote.
 inline CliRun run_cli(const fs::path& dir, const std::string& args) {
@@ -51,12 +50,36 @@ inline CliRun run_cli(const fs::path& dir, const std::string& args) {
   return r;
 }
 
+// Where the shared fixtures live: beside the test binary, in the build tree, not in the system's temporary
+// directory (they outlive the test processes that use them: no process can remove them at its exit).
+inline fs::path shared_fixture_root() {
+  const fs::path root = fs::read_symlink("/proc/self/exe").parent_path() / "test-fixtures";
+  fs::create_directories(root);
+  return root;
+}
+
+// Removes the fixtures `name` of other builds (another key) published more than a day ago: no test run uses
+// them any more, and the build tree does not keep a set per rebuild.
+inline void remove_stale_fixtures(const fs::path& root, const std::string& name, const fs::path& current) {
+  const std::string prefix = "microsim_fixture_" + name + "_";
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(root, ec)) {
+    const std::string file = entry.path().filename().string();
+    if (entry.path() == current || file.rfind(prefix, 0) != 0 ||
+        file.find_first_not_of("0123456789", prefix.size()) != std::string::npos)
+      continue;  // the current fixture, another name, or a fixture being made (_tmp_PID)
+    const auto published = fs::last_write_time(entry.path() / ".complete", ec);
+    if (!ec && fs::file_time_type::clock::now() - published > std::chrono::hours(24)) fs::remove_all(entry.path(), ec);
+  }
+}
+
 // A directory of inputs that many tests share, built once per build of the tests. ctest runs every test in
-// a process of its own, so a function-local static would be rebuilt by each; this one lives under the
-// temporary directory, keyed by the size and modification time of the test binary and of `microsim` (a new
+// a process of its own, so a function-local static would be rebuilt by each; this one lives in
+// shared_fixture_root(), keyed by the size and modification time of the test binary and of `microsim` (a new
 // build gets a new directory). `build` fills a private directory that is then renamed into place; when
 // two processes race, the first rename wins and the other uses its files (both built the same content). A
-// fixture whose making failed a test assertion is used by this process only, never published.
+// fixture whose making failed a test assertion is used by this process only, never published, and removed
+// when it exits.
 inline fs::path shared_fixture_dir(const std::string& name, const std::function<void(const fs::path&)>& build) {
   std::size_t key = 0;
   for (const fs::path& f : {fs::read_symlink("/proc/self/exe"), fs::path(microsim_binary())}) {
@@ -64,17 +87,22 @@ inline fs::path shared_fixture_dir(const std::string& name, const std::function<
     key = key * 1000003u ^ std::hash<std::string>{}(f.string() + ":" + std::to_string(fs::file_size(f)) + ":" +
                                                      std::to_string(stamp));
   }
-  const fs::path dir = fs::temp_directory_path() / ("microsim_fixture_" + name + "_" + std::to_string(key));
+  const fs::path root = shared_fixture_root();
+  const fs::path dir = root / ("microsim_fixture_" + name + "_" + std::to_string(key));
   if (fs::exists(dir / ".complete")) return dir;
-  const fs::path tmp = fs::temp_directory_path() / ("microsim_fixture_" + name + "_tmp_" + std::to_string(::getpid()));
+  const fs::path tmp = root / ("microsim_fixture_" + name + "_tmp_" + std::to_string(::getpid()));
   fs::remove_all(tmp);
   fs::create_directories(tmp);
   build(tmp);
-  if (::testing::Test::HasFailure()) return tmp;  // never publish a fixture whose making failed
+  if (::testing::Test::HasFailure()) {  // never publish a fixture whose making failed
+    scratch_directories().add(tmp);
+    return tmp;
+  }
   std::ofstream(tmp / ".complete") << "complete\n";
   std::error_code ec;
   fs::rename(tmp, dir, ec);  // fails when another process got there first
   if (ec) fs::remove_all(tmp);
+  else remove_stale_fixtures(root, name, dir);
   return dir;
 }
 

@@ -58,7 +58,9 @@ std::vector<BadInputCase> albedo_cli_cases() {
       {"model_unknown", "albedo --model walk --out o.exr", 2, "--model 'walk'"},
       {"model_missing", "albedo --out o.exr", 2, "--model"},
       {"material_unknown", kAlbedo + "--material gold", 2, "'gold': unknown material"},
-      {"material_conductor", kAlbedo + "--material conductor:0.2,3.9", 2, "mirror or dielectric:ETA"},
+      {"material_conductor", kAlbedo + "--material conductor:0.2,3.9", 2,
+       "'conductor:0.2,3.9': conductor tables are not computed yet; use --material mirror (F = 1) for the Kulla-Conty "
+       "E(mu) of a conductor's microsurface"},
       {"material_lambertian", kAlbedo + "--material lambertian", 2, "mirror or dielectric:ETA"},
       {"eta_zero", kAlbedo + "--material dielectric:0", 2, "'0'"},
       {"eta_negative", kAlbedo + "--material dielectric:-1.5", 2, "'-1.5'"},

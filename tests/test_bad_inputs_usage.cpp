@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <string>
 #include <vector>
 
 namespace {
@@ -20,6 +21,23 @@ std::vector<BadInputCase> usage_cases() {
       {"unknown_command", "nosuch", 2, "unknown command 'nosuch'"},
       {"unknown_subcommand", "trace nosuch", 2, "unknown command 'nosuch' (commands here: vndf, masking)"},
       {"unknown_surface_subcommand", "surface nosuch", 2, "unknown command 'nosuch'"},
+      // An unknown or misspelt option: named with its command, and the nearest valid option of that command.
+      {"misspelt_option", "validate --sampel heitz2018 --alpha 0.3 --theta 30", 2,
+       "unknown option '--sampel' for `microsim validate`; did you mean '--sampler'?"},
+      {"swapped_letters", "trace vndf --alpah 0.3 --theta 30 --out o.exr", 2,
+       "unknown option '--alpah' for `microsim trace vndf`; did you mean '--alpha'?"},
+      {"misspelt_option_with_value", "validate --sampler=heitz2018 --alpha 0.3 --theta 30 --sedd=3", 2,
+       "unknown option '--sedd' for `microsim validate`; did you mean '--seed'?"},
+      {"misspelt_required_option", "plot h.exr --outt f.svg", 2,
+       "unknown option '--outt' for `microsim plot`; did you mean '--out'?"},
+      {"unknown_option_far_from_any", "validate --sampler heitz2018 --alpha 0.3 --theta 30 --zzzzzzzz", 2,
+       "unknown option '--zzzzzzzz' for `microsim validate` (its options: microsim validate --help)"},
+      {"short_option_is_no_slip", "validate --sampler heitz2018 --alpha 0.3 --theta 30 -q", 2,
+       "unknown option '-q' for `microsim validate` (its options"},
+      {"very_long_unknown_option", "validate --sampler heitz2018 --alpha 0.3 --theta 30 --" + std::string(5000, 'x'), 2,
+       "unknown option '--xxxxxxxx"},
+      {"unexpected_argument", "validate heitz2018 --alpha 0.3 --theta 30", 2,
+       "unexpected argument 'heitz2018' for `microsim validate`"},
       // Too few samples in a file: the message names the file as well as the number needed.
       {"from_too_few_names_file", "validate --from one.txt --alpha 0.3 --theta 30", 2, "--from 'one.txt': 1 sample",
        one_line},

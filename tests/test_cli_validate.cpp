@@ -27,11 +27,10 @@ namespace {
 using microsim::test::CliRun;
 using microsim::test::slurp;
 
-// One directory for the whole test program (not cleared between runs: tests write sample files there
-// before running the command on them).
+// One directory for the whole test program, made once (tests write sample files there before running the
+// command on them) and removed when the program exits (scratch_dir.h).
 fs::path scratch_dir() {
-  const fs::path dir = fs::temp_directory_path() / ("microsim_cli_validate_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
+  static const fs::path dir = microsim::test::scratch_dir("cli_validate", "files");
   return dir;
 }
 
@@ -165,6 +164,75 @@ TEST(CliValidate, FromDumpReportsItsStorageAndRejectsNanRowsNamingThem) {
   EXPECT_EQ(jb["outside_domain"], 4);
 }
 
+namespace {
+
+// An NPY 1.0 file of float64 `rows` (each of the same length) in C order or in Fortran order (column by
+// column, as np.save writes a transposed or column-indexed array).
+void write_npy_rows(const fs::path& path, const std::vector<std::vector<double>>& rows, bool fortran) {
+  std::string header = fmt::format("{{'descr': '<f8', 'fortran_order': {}, 'shape': ({}, {}), }}",
+                                   fortran ? "True" : "False", rows.size(), rows.front().size());
+  header.append((10 + header.size() + 1 + 63) / 64 * 64 - 10 - header.size() - 1, ' ');
+  header.push_back('\n');
+  std::string bytes = "\x93NUMPY\x01";
+  bytes.push_back('\0');
+  bytes.push_back(char(header.size() & 0xFF));
+  bytes.push_back(char(header.size() >> 8));
+  bytes += header;
+  const auto put = [&](double v) { bytes.append(reinterpret_cast<const char*>(&v), sizeof v); };  // little-endian host
+  if (!fortran)
+    for (const auto& row : rows)
+      for (const double v : row) put(v);
+  for (std::size_t c = 0; fortran && c < rows.front().size(); ++c)
+    for (const auto& row : rows) put(row[c]);
+  std::ofstream(path, std::ios::binary) << bytes;
+}
+
+}  // namespace
+
+// A dump saved in Fortran order (np.save of m[:, [0, 2, 1]] or of a transposed stack) is the same array: its
+// validation is the C-order file's, test for test.
+TEST(CliValidate, FortranOrderNpyValidatesAsTheCOrderFile) {
+  const fs::path dir = scratch_dir();
+  const SamplerInfo* s = find_sampler("heitz2018");
+  const GGX<double> ggx(0.3);
+  const Vec3<double> wi = direction_from_degrees(40.0, 0.0);
+  std::vector<std::vector<double>> rows;
+  for (int i = 0; i < 100000; ++i) {
+    CounterRng rng(42, std::uint64_t(i));
+    if (const auto r = s->sample_double(ggx, wi, Vec2<double>(rng.uniform(), rng.uniform())))
+      rows.push_back({r->direction.x(), r->pdf, r->direction.z(), r->direction.y()});
+  }
+  write_npy_rows(dir / "c_order.npy", rows, false);
+  write_npy_rows(dir / "f_order.npy", rows, true);
+  nlohmann::json report[2];
+  for (const bool fortran : {false, true}) {
+    const fs::path json = dir / (fortran ? "f.json" : "c.json");
+    const CliRun r = run("--from '" + (dir / (fortran ? "f_order.npy" : "c_order.npy")).string() +
+                         "' --alpha 0.3 --theta 40 --columns x,pdf,z,y --json '" + json.string() + "'");
+    EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
+    report[fortran] = nlohmann::json::parse(slurp(json));
+  }
+  for (const char* key : {"tests", "p_value", "statistic", "dof", "verdict", "samples", "failures", "storage"})
+    EXPECT_EQ(report[1][key], report[0][key]) << key;
+  EXPECT_EQ(report[1]["storage"], "float64 .npy");
+}
+
+// A 4-column dump given 3 column names: exit 2, the counts named and a --columns that matches suggested
+// ('-' ignores the extra column), with which it passes.
+TEST(CliValidate, AColumnCountMismatchSuggestsMatchingColumns) {
+  const fs::path dir = scratch_dir();
+  std::vector<std::vector<double>> rows;
+  for (const Vec3<double>& m : samples_of("heitz2018", 0.3, 40, 20000)) rows.push_back({m.x(), m.y(), m.z(), 1.0});
+  write_npy_rows(dir / "four.npy", rows, false);
+  const std::string from = "--from '" + (dir / "four.npy").string() + "' --alpha 0.3 --theta 40 ";
+  const CliRun wrong = run(from + "--columns x,y,z");
+  EXPECT_EQ(wrong.exit_code, 2) << wrong.err;
+  EXPECT_NE(wrong.err.find("the file has 4 column(s), --columns x,y,z (the default) names 3: give --columns x,y,z,-"),
+            std::string::npos) << wrong.err;
+  const CliRun skipped = run(from + "--columns x,y,z,-");
+  EXPECT_EQ(skipped.exit_code, 0) << skipped.out << skipped.err;
+}
+
 // A renderer's reflected dump without the reflections below the horizon: the plain test rejects it and
 // says why; --above-horizon passes it, --dropped N tests the count; misuse is exit 2.
 TEST(CliValidate, AboveHorizonTestsARendererStyleReflectedDump) {
@@ -256,7 +324,8 @@ TEST(CliValidate, DumpsWithAPdfColumnGetTheReturnedPdfCheck) {
   EXPECT_NE(bad.out.find("returned pdf"), std::string::npos) << bad.out;
   const CliRun plain = run("--from '" + (dir / "good.txt").string() + "' --alpha 0.3 --theta 40");
   EXPECT_EQ(plain.exit_code, 2) << "four columns without --columns are bad input\n" << plain.err;
-  EXPECT_NE(plain.err.find("found 4 numbers, expected 3"), std::string::npos) << plain.err;
+  EXPECT_NE(plain.err.find("found 4 numbers, --columns x,y,z (the default) names 3: give --columns x,y,z,-"),
+            std::string::npos) << plain.err;
   const CliRun spec = run("--from '" + (dir / "good.txt").string() + "' --alpha 0.3 --theta 40 --columns x,y,pdf");
   EXPECT_EQ(spec.exit_code, 2) << spec.err;
   EXPECT_NE(spec.err.find("--columns"), std::string::npos) << spec.err;

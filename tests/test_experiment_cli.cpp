@@ -252,7 +252,7 @@ TEST(ExperimentCli, InterruptedThenResumedGivesTheUninterruptedResults) {
   const fs::path dir = scratch_dir("experiment", "resume");
   write(dir / "spec.toml", "seed = 4\n[[material]]\nname = \"m\"\nalpha = 0.4\ntype = \"mirror\"\n[[quantity]]\n"
                            "kind = \"albedo\"\nmaterial = \"m\"\nmus = 2\ntarget_relative_error = 0.01\n[[quantity]]\n"
-                           "kind = \"vndf\"\nmaterial = \"m\"\ntheta = [40]\nrows = 7\ntarget_tv = 0.003\n");
+                           "kind = \"vndf\"\nmaterial = \"m\"\ntheta = [40]\nrows = 7\ntarget_tv = 0.0015\n");
   const auto whole = run_cli(dir, "run spec.toml --out whole");
   ASSERT_EQ(whole.exit_code, 0) << whole.err;
   std::string first;

@@ -31,3 +31,25 @@ TEST(PlotCli, DrawsATracedHistogramAndRejectsBadInput) {
   EXPECT_EQ(file_count(dir), 2u);
   fs::remove_all(dir);
 }
+
+// A scattering result of `microsim scatter` is drawn as its lobes, one row per order and a panel per channel.
+TEST(PlotCli, DrawsAScatterResultByOrder) {
+  const auto dir = scratch_dir("plot_cli", "scatter");
+  const CliRun walk = run_cli(dir, "scatter --model smith-walk --alpha 0.5 --theta 60 --material dielectric:1.5 "
+                                   "--rays 20000 --rows 6 --out s.exr");
+  ASSERT_EQ(walk.exit_code, 0) << walk.err;
+  const CliRun ok = run_cli(dir, "plot s.exr --out s.svg");
+  ASSERT_EQ(ok.exit_code, 0) << ok.err;
+  const std::string svg = slurp(dir / "s.svg");
+  EXPECT_EQ(svg.rfind("<svg", 0), 0u);
+  for (const char* text : {"scattering: weight per launched path by order", "s.exr: 20000 paths", "order1", "order5plus",
+                           "total", "material dielectric"})
+    EXPECT_NE(svg.find(text), std::string::npos) << text;
+  ASSERT_EQ(run_cli(dir, "scatter --model analytic --alpha 0.5 --theta 60 --rows 6 --out a.exr").exit_code, 0);
+  const CliRun expectation = run_cli(dir, "plot a.exr --out a.svg");
+  ASSERT_EQ(expectation.exit_code, 0) << expectation.err;
+  const std::string a = slurp(dir / "a.svg");
+  EXPECT_NE(a.find("order1"), std::string::npos);
+  EXPECT_EQ(a.find("order2"), std::string::npos) << "an expectation has order 1 only";
+  fs::remove_all(dir);
+}

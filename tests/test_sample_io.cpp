@@ -12,6 +12,7 @@
 #include <limits>
 #include <random>
 #include <string>
+#include <tuple>
 #include <unistd.h>
 
 using namespace microsim;
@@ -290,7 +291,6 @@ TEST_F(SampleIo, NpyHeaderErrors) {
   expect_error(write_bytes("struct.npy",
                            npy_bytes(1, 0, "{'descr': [('x', '<f8')], 'fortran_order': False, 'shape': (1,), }", d)),
                {"structured"});
-  expect_error(write_bytes("fortran.npy", npy_bytes(1, 0, dict("<f8", "(1, 3)", "True"), d)), {"Fortran order"});
   expect_error(write_bytes("badbool.npy", npy_bytes(1, 0, dict("<f8", "(1, 3)", "0"), d)), {"True or False"});
   expect_error(write_bytes("1d.npy", npy_bytes(1, 0, dict("<f8", "(3,)"), d)), {"shape (3,)", "(N, 3)"});
   expect_error(write_bytes("n4.npy", npy_bytes(1, 0, dict("<f8", "(1, 4)"), d)), {"shape (1, 4)"});
@@ -323,7 +323,7 @@ std::string slurp(const fs::path& p) {
 }  // namespace
 
 TEST_F(SampleIo, ReadsFilesWrittenByNumpy) {
-  for (const char* name : {"npy_samples_f8.npy", "npy_samples_f8_v2.npy", "text_samples_numpy.txt"}) {
+  for (const char* name : {"npy_samples_f8.npy", "npy_samples_f8_v2.npy", "npy_samples_fortran.npy", "text_samples_numpy.txt"}) {
     const auto r = read_direction_samples(kData / name);
     ASSERT_EQ(r.size(), kFixtureRows.size()) << name;
     for (std::size_t i = 0; i < r.size(); ++i) EXPECT_LE((r[i] - kFixtureRows[i]).norm(), 4e-16) << name << i;
@@ -333,7 +333,6 @@ TEST_F(SampleIo, ReadsFilesWrittenByNumpy) {
     ASSERT_EQ(r.size(), kFixtureRows.size()) << name;
     for (std::size_t i = 0; i < r.size(); ++i) EXPECT_LE((r[i] - kFixtureRows[i]).norm(), 2e-7) << name << i;
   }
-  expect_error(kData / "npy_samples_fortran.npy", {"Fortran order"});
   expect_error(kData / "npy_samples_int.npy", {"dtype '<i8'"});
   expect_error(kData / "npy_samples_f4_be.npy", {"'>f4'", "big-endian"});
 }
@@ -343,6 +342,111 @@ TEST_F(SampleIo, WriterOutputIsByteIdenticalToNumpySave) {
   write_npy(file("f4.npy"), kFixtureRows, /*as_float32=*/true);
   EXPECT_EQ(slurp(file("f8.npy")), slurp(kData / "npy_samples_f8.npy"));
   EXPECT_EQ(slurp(file("f4.npy")), slurp(kData / "npy_samples_f4.npy"));
+}
+
+// ---- Fortran order (np.save of a transposed or column-indexed array) ---------------------------------------
+
+namespace {
+
+// The data of an (N, k) array of `rows` (each k values) in C order (row by row) or Fortran order (column by
+// column), as float32 or float64.
+std::string array_data(const std::vector<std::vector<double>>& rows, bool fortran, bool as_float32) {
+  std::string s;
+  const auto put = [&](double v) {
+    if (as_float32) append_le(s, std::bit_cast<std::uint32_t>(float(v)), 4);
+    else append_le(s, std::bit_cast<std::uint64_t>(v), 8);
+  };
+  const std::size_t k = rows.front().size();
+  if (!fortran)
+    for (const auto& row : rows)
+      for (const double v : row) put(v);
+  for (std::size_t c = 0; fortran && c < k; ++c)
+    for (const auto& row : rows) put(row[c]);
+  return s;
+}
+
+// n rows of x, y, z (a unit vector), pdf, weight.
+std::vector<std::vector<double>> five_column_rows(int n, unsigned seed) {
+  std::vector<std::vector<double>> rows;
+  for (const Vec3<double>& w : random_unit_vectors(n, seed))
+    rows.push_back({w.x(), w.y(), w.z(), 1.0 + w.x() * w.x(), 0.5 + 0.25 * w.z()});
+  return rows;
+}
+
+struct ReadRows {
+  std::vector<Vec3<double>> directions;
+  std::vector<double> pdfs, weights;
+};
+
+// Every row of `path` read through the block reader in blocks of `block` rows.
+ReadRows read_all(const fs::path& path, const SampleColumns& columns, std::size_t block) {
+  DirectionSampleReader reader(path, columns);
+  ReadRows all;
+  std::vector<Vec3<double>> d(block);
+  std::vector<double> pdfs(columns.has_pdf() ? block : 0), weights(block * std::size_t(columns.channels()));
+  while (const std::size_t n = reader.read(d, pdfs, weights)) {
+    all.directions.insert(all.directions.end(), d.begin(), d.begin() + std::ptrdiff_t(n));
+    if (columns.has_pdf()) all.pdfs.insert(all.pdfs.end(), pdfs.begin(), pdfs.begin() + std::ptrdiff_t(n));
+    all.weights.insert(all.weights.end(), weights.begin(), weights.begin() + std::ptrdiff_t(n * std::size_t(columns.channels())));
+  }
+  return all;
+}
+
+void expect_same_rows(const ReadRows& a, const ReadRows& b) {
+  EXPECT_TRUE(a.directions == b.directions);
+  EXPECT_TRUE(a.pdfs == b.pdfs);
+  EXPECT_TRUE(a.weights == b.weights);
+}
+
+}  // namespace
+
+TEST_F(SampleIo, FortranOrderReadsAsCOrderInAnyBlockSize) {
+  const auto rows = five_column_rows(3000, 7);
+  const SampleColumns c = SampleColumns::parse("x,y,z,pdf,weight");
+  const std::string shape = "(" + std::to_string(rows.size()) + ", 5)";
+  for (const bool f4 : {false, true}) {
+    const std::string descr = f4 ? "<f4" : "<f8";
+    const fs::path c_order = write_bytes("c.npy", npy_bytes(1, 0, dict(descr, shape), array_data(rows, false, f4)));
+    const fs::path f_order = write_bytes("f.npy", npy_bytes(1, 0, dict(descr, shape, "True"), array_data(rows, true, f4)));
+    const ReadRows expected = read_all(c_order, c, 1 << 16);
+    ASSERT_EQ(expected.directions.size(), rows.size());
+    for (const std::size_t block : {std::size_t(1), std::size_t(7), std::size_t(1) << 16}) {
+      SCOPED_TRACE(descr + " block " + std::to_string(block));
+      expect_same_rows(read_all(f_order, c, block), expected);
+    }
+    EXPECT_EQ(DirectionSampleReader(f_order, c).storage(), f4 ? "float32 .npy" : "float64 .npy");
+  }
+}
+
+// Large enough that the reader gives back the pages of each column as it goes (16 MiB over 3 columns).
+TEST_F(SampleIo, FortranOrderLargeFileReadsAsCOrder) {
+  std::vector<std::vector<double>> rows;
+  for (const Vec3<double>& w : random_unit_vectors(800000, 8)) rows.push_back({w.x(), w.y(), w.z()});
+  const std::string shape = "(" + std::to_string(rows.size()) + ", 3)";
+  const fs::path c_order = write_bytes("c.npy", npy_bytes(1, 0, dict("<f8", shape), array_data(rows, false, false)));
+  const fs::path f_order = write_bytes("f.npy", npy_bytes(1, 0, dict("<f8", shape, "True"), array_data(rows, true, false)));
+  expect_same_rows(read_all(f_order, SampleColumns{}, kSampleFileBlock), read_all(c_order, SampleColumns{}, kSampleFileBlock));
+  EXPECT_TRUE(parse_direction_samples(slurp(f_order), "f.npy") == read_direction_samples(c_order));
+}
+
+TEST_F(SampleIo, FortranOrderErrorsNameTheRow) {
+  auto rows = five_column_rows(4, 9);  // 8 rows: 4 random, 4 awkward
+  rows[2][1] += 0.5;                   // row 2 is not unit length
+  const SampleColumns c = SampleColumns::parse("x,y,z,pdf,weight");
+  const fs::path bad = write_bytes("bad.npy", npy_bytes(1, 0, dict("<f8", "(8, 5)", "True"), array_data(rows, true, false)));
+  EXPECT_THROW(
+      {
+        try {
+          read_all(bad, c, 16);
+        } catch (const SampleFileError& e) {
+          EXPECT_NE(std::string(e.what()).find("row 2 (0-based)"), std::string::npos) << e.what();
+          throw;
+        }
+      },
+      SampleFileError);
+  // The data ends in the last column: the rows it lacks are counted as in C order (88 of 96 bytes: 3 rows).
+  expect_error(write_bytes("trunc.npy", npy_bytes(1, 0, dict("<f8", "(4, 3)", "True"), std::string(88, '\0'))),
+               {"truncated", "row 3"});
 }
 
 // ---- extra columns (validate --columns) -------------------------------------------------------------------
@@ -358,6 +462,33 @@ TEST(SampleColumns, ParsesNamesAndRefusesBadSpecs) {
   for (const char* bad : {"x,y", "x,x,y,z", "x,y,z,pdf,pdf", "x,y,z,w", "x,,y,z", ""}) {
     EXPECT_THROW(SampleColumns::parse(bad), std::invalid_argument) << bad;
   }
+}
+
+// A row of another count than --columns names: the message suggests a --columns that matches, with a '-'
+// for each column more or without the trailing pdf, weights and '-' for each column fewer.
+TEST_F(SampleIo, AColumnCountMismatchSuggestsMatchingColumns) {
+  const auto message = [&](const std::string& name, const std::string& bytes, const char* spec) {
+    try {
+      DirectionSampleReader r(write_bytes(name, bytes), SampleColumns::parse(spec));
+      std::vector<Vec3<double>> d(4);
+      std::vector<double> pdfs(4), weights(16);
+      r.read(d, pdfs, weights);
+    } catch (const SampleFileError& e) {
+      return std::string(e.what());
+    }
+    ADD_FAILURE() << "no error for " << name;
+    return std::string();
+  };
+  const std::string six = f8_data({0, 0, 1, 1, 1, 1}), five = f8_data({0, 0, 1, 1, 1});
+  const std::vector<std::tuple<std::string, std::string, const char*, std::string>> cases = {
+      {"six.npy", npy_bytes(1, 0, dict("<f8", "(1, 6)"), six), "x,y,z,pdf", "give --columns x,y,z,pdf,-,-"},
+      {"one.npy", npy_bytes(1, 0, dict("<f8", "(1, 5)"), five), "z,x,y,weight,-,pdf,weight", "give --columns z,x,y,weight,-"},
+      {"few.npy", npy_bytes(1, 0, dict("<f8", "(1, 3)"), f8_data({0, 0, 1})), "x,pdf,y,z", "give --columns x,y,z"},
+      {"two.npy", npy_bytes(1, 0, dict("<f8", "(1, 2)"), f8_data({0, 1})), "x,y,z", "names 3: a row needs x, y and z"},
+      {"five.txt", "0 0 1 1 1\n", "x,y,z,pdf", "found 5 numbers, --columns x,y,z,pdf names 4: give --columns x,y,z,pdf,-"},
+  };
+  for (const auto& [name, bytes, spec, expected] : cases)
+    EXPECT_NE(message(name, bytes, spec).find(expected), std::string::npos) << message(name, bytes, spec);
 }
 
 TEST_F(SampleIo, ExtraColumnsGoToPdfsAndWeights) {
@@ -380,13 +511,15 @@ TEST_F(SampleIo, ExtraColumnsGoToPdfsAndWeights) {
     DirectionSampleReader wrong(write_bytes("three.npy", npy_bytes(1, 0, dict("<f8", "(1, 3)"), f8_data({0, 0, 1}))), c);
     ADD_FAILURE() << "no error";
   } catch (const SampleFileError& e) {
-    EXPECT_NE(std::string(e.what()).find("(expected (N, 5): x y z pdf weight)"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("the file has 3 column(s), --columns x,y,z,pdf,weight names 5: give --columns x,y,z"),
+              std::string::npos) << e.what();
   }
   try {
     DirectionSampleReader four(write_bytes("four.npy", npy_bytes(1, 0, dict("<f8", "(1, 4)"), f8_data({0, 0, 1, 1}))));
     ADD_FAILURE() << "no error";
   } catch (const SampleFileError& e) {
-    EXPECT_NE(std::string(e.what()).find("--columns names extra columns"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("the file has 4 column(s), --columns x,y,z (the default) names 3: give "
+                                         "--columns x,y,z,- ('-' ignores a column)"), std::string::npos) << e.what();
   }
   DirectionSampleReader short_text(write_bytes("short.txt", "0 0 1 0.5\n"), c);
   EXPECT_THROW(short_text.read(d, pdfs, weights), SampleFileError);

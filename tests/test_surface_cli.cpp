@@ -143,3 +143,17 @@ TEST(SurfaceCli, ImportedHeightmapIsStudiedLikeABuiltOne) {
   EXPECT_TRUE(fs::exists(dir / "imp.ply"));
   fs::remove_all(dir);
 }
+
+// The help names the assemblies on the --assembly line and points down to their descriptions, which the
+// footer prints after the options.
+TEST(SurfaceCli, BuildHelpPointsToTheAssembliesBelow) {
+  const auto dir = scratch_dir("help");
+  const CliRun h = run(dir, "surface build --help");
+  ASSERT_EQ(h.exit_code, 0) << h.err;
+  EXPECT_EQ(h.out.find("see above"), std::string::npos) << h.out;
+  const std::size_t option = h.out.find("assembly name: smith"), listed = h.out.find("Assemblies (");
+  ASSERT_NE(option, std::string::npos) << h.out;
+  EXPECT_NE(h.out.find("described under \"Assemblies\" below", option), std::string::npos) << h.out;
+  EXPECT_LT(option, listed) << h.out;
+  fs::remove_all(dir);
+}

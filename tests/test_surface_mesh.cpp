@@ -1,6 +1,7 @@
 // Tests of the heightfield mesh export through OpenMesh (microgeom/mesh_io.h).
 #include "microgeom/heightfield.h"
 #include "microgeom/mesh_io.h"
+#include "scratch_dir.h"
 
 #include <OpenMesh/Core/IO/MeshIO.hh>
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
@@ -17,12 +18,7 @@ microgeom::Heightfield ramp_field(int n) {
     for (int i = 0; i < n; ++i) h[std::size_t(j) * n + i] = 0.01f * float(i * i + 3 * j);
   return microgeom::Heightfield(n, 2.0, std::move(h));
 }
-fs::path scratch_dir() {
-  auto dir = fs::temp_directory_path() / ("microsim_test_mesh_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+fs::path scratch_dir() { return microsim::test::scratch_dir("test", "mesh"); }
 }  // namespace
 
 TEST(SurfaceMesh, CropWritesTheDocumentedVerticesAndFaces) {

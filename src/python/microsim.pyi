@@ -1,6 +1,7 @@
 """microsim: a microsurface ray-tracing oracle for Smith-GGX microfacet models, from numpy (docs/python.md).
 
 Type stub of the compiled module (src/python/*.cpp) for editors and type checkers."""
+import os
 from typing import Any, Callable, Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -37,13 +38,16 @@ class ValidationResult:
     def to_dict(self) -> dict[str, Any]: ...
     def __bool__(self) -> bool: ...
 
-def validate(samples: np.ndarray, alpha: Alpha, theta: float, phi: float = 0.0, pdf: str = "vndf",
-             weights: Optional[np.ndarray] = None, pdfs: Optional[np.ndarray] = None, *, bsdf: Optional[str] = None,
-             frame: str = "z-up", rows: int = 31, significance: float = 0.01, above_horizon: bool = False,
-             dropped: Optional[int] = None, progress: Progress = None) -> ValidationResult:
+def validate(samples: Union[np.ndarray, str, os.PathLike], alpha: Alpha, theta: float, phi: float = 0.0,
+             pdf: str = "vndf", weights: Optional[np.ndarray] = None, pdfs: Optional[np.ndarray] = None, *,
+             bsdf: Optional[str] = None, columns: Optional[str] = None, frame: str = "z-up", rows: int = 31,
+             significance: float = 0.01, above_horizon: bool = False, dropped: Optional[int] = None,
+             against: Optional[str] = None, oracle_rays: int = 4000000, seed: int = 1,
+             progress: Progress = None) -> ValidationResult:
     """Validates samples (N, 3) float32/float64 against the density they claim (`microsim validate --from`);
     pdfs (N,): the returned pdfs; weights (N,) or (N, C) with bsdf ('mirror', 'conductor:ETA,K', 'dielectric:ETA'):
-    the weights; pdf='bsdf' with bsdf: the BSDF's sampling density (`--pdf bsdf`)."""
+    the weights; pdf='bsdf' with bsdf: the BSDF's sampling density (`--pdf bsdf`). samples may be the path of a
+    sample file (.npy in C or Fortran order, or text) with its columns named as --columns names them."""
 
 def validate_sampler(name: str, alpha: Alpha, theta: float, phi: float = 0.0, *, samples: int = 1000000,
                      seed: int = 1, precision: str = "double", rows: int = 31, significance: float = 0.01,

@@ -237,6 +237,34 @@ DirectionSampleReader sample_reader(const py::handle& samples_in, const py::hand
   return reader;
 }
 
+// A path (str or os.PathLike) of a sample file rather than an array.
+bool is_path(const py::handle& samples) { return py::isinstance<py::str>(samples) || py::hasattr(samples, "__fspath__"); }
+
+// The sample file at `path` (.npy in any order, or text), read as `validate --from` reads it, with its
+// `columns` as --columns names them: a file's pdfs and weights are its columns, never arrays beside it.
+DirectionSampleReader file_sample_reader(const py::handle& path, const std::optional<std::string>& columns,
+                                         const py::handle& pdfs, const py::handle& weights, const std::string& frame) {
+  if (!pdfs.is_none() || !weights.is_none())
+    throw py::value_error("pdfs and weights are arrays beside an array of samples; a file's are its own columns: "
+                          "name them with columns (e.g. columns='x,y,z,pdf,weight')");
+  SampleColumns c;
+  try {
+    if (columns) c = SampleColumns::parse(*columns);
+  } catch (const std::invalid_argument& e) {
+    throw py::value_error(std::string("columns: ") + e.what());
+  }
+  DirectionSampleReader reader(py::module_::import("os").attr("fsdecode")(path).cast<std::string>(), c);
+  reader.set_frame(frame_of(frame));
+  return reader;
+}
+
+// The samples' reader: the file of a path, or the array (with the pdfs and weights arrays beside it).
+DirectionSampleReader samples_reader(const py::handle& samples, const std::optional<std::string>& columns,
+                                     const py::handle& pdfs, const py::handle& weights, const std::string& frame) {
+  if (is_path(samples)) return file_sample_reader(samples, columns, pdfs, weights, frame);
+  if (columns) throw py::value_error("columns names the columns of a sample file: give samples as a path");
+  return sample_reader(samples, pdfs, weights, frame);
+}
 
 ValidationOptions validation_options(int rows, double significance, std::uint64_t seed) {
   if (!(significance > 0 && significance < 1))
@@ -254,14 +282,14 @@ ValidationOptions validation_options(int rows, double significance, std::uint64_
 
 // The BSDF of `validate --bsdf`: a material spec as parse_material reads it, checked as the command line
 // checks it against the weights and the claimed density.
-std::optional<Material> bsdf_of(const std::optional<std::string>& spec, FilePdf pdf, const py::handle& weights) {
-  if (!weights.is_none() && !spec)
+std::optional<Material> bsdf_of(const std::optional<std::string>& spec, FilePdf pdf, bool has_weights) {
+  if (has_weights && !spec)
     throw py::value_error("weights need bsdf: the weights (f cos / pdf) are tested against the BSDF");
   if (pdf == FilePdf::bsdf && !spec)
     throw py::value_error("pdf='bsdf' is the sampling density of a BSDF: give it with bsdf (e.g. bsdf='dielectric:1.5')");
   if (!spec) return std::nullopt;
   const Material bsdf = parse_material("bsdf", *spec);
-  if (weights.is_none() && pdf != FilePdf::bsdf)
+  if (!has_weights && pdf != FilePdf::bsdf)
     throw py::value_error("bsdf applies to weights (f cos / pdf) or to pdf='bsdf'");
   if (bsdf.transmits() && pdf != FilePdf::bsdf)
     throw py::value_error("bsdf " + bsdf.describe() + ": a dielectric's samples hold reflections and refractions; test "
@@ -329,18 +357,18 @@ ValidationReport validate_reader(DirectionSampleReader& reader, const GGX<double
 }
 
 // What `against` excludes, as `validate --against` refuses it.
-void check_against(const Reference& r, const py::handle& weights) {
+void check_against(const Reference& r, bool has_weights) {
   if (!r.against) return;
   if (r.claimed != FilePdf::vndf) throw py::value_error("against: the traced oracle measures visible normals (pdf='vndf')");
   if (r.above_horizon) throw py::value_error("above_horizon tests against the analytic pdf, not against the traced oracle");
-  if (!weights.is_none()) throw py::value_error("weights are tested against the analytic BSDF, not against the traced oracle");
+  if (has_weights) throw py::value_error("weights are tested against the analytic BSDF, not against the traced oracle");
   if (*r.against != "ellipsoid" && std::filesystem::path(*r.against).extension() != ".exr")
     throw py::value_error("against '" + *r.against + "': use 'ellipsoid' or a histogram .exr from `microsim trace vndf`");
 }
 
 // What validate() is asked beside the arrays and the view (keyword arguments).
 struct DumpArguments {
-  std::optional<std::string> pdf, bsdf, transport, masking, frame;
+  std::optional<std::string> pdf, bsdf, transport, masking, columns, frame;
   int rows = 31;
   double significance = 0.01;
   bool above_horizon = false;
@@ -360,21 +388,22 @@ ValidationReport validate_array(const py::handle& samples, const py::handle& alp
   if (d.dropped && !d.above_horizon) throw py::value_error("dropped applies with above_horizon=True only");
   o.dropped_below_horizon = d.dropped;
   const FilePdf claimed = claimed_pdf_of(d.pdf, d.bsdf, d.against);
+  DirectionSampleReader reader = samples_reader(samples, d.columns, pdfs, weights, d.frame.value_or("z-up"));
+  const bool has_weights = reader.columns().channels() > 0;
   ViewFromOutside v;
   try {
-    v = seen_from_outside(view, bsdf_of(d.bsdf, claimed, weights));
+    v = seen_from_outside(view, bsdf_of(d.bsdf, claimed, has_weights));
   } catch (const std::invalid_argument& e) {
     throw py::value_error(std::string("theta: ") + e.what());
   }
   const Vec3<double> wi = v.wi;
   const std::optional<Material> material = v.bsdf;
-  if (!weights.is_none()) o.bsdf = material;  // the weight test
+  if (has_weights) o.bsdf = material;  // the weight test
   o.convention = convention_of(d.transport, d.masking, d.bsdf);
   if (d.above_horizon && !claims_reflected_directions(claimed))
     throw py::value_error("above_horizon applies to reflected directions: give pdf='reflection', 'bounded' or 'bsdf'");
   const Reference reference{claimed, material, d.above_horizon, d.against, d.oracle_rays, d.seed, !d.frame};
-  check_against(reference, weights);
-  DirectionSampleReader reader = sample_reader(samples, pdfs, weights, d.frame.value_or("z-up"));
+  check_against(reference, has_weights);
   reader.set_mirrored(v.mirrored);
   ValidationReport report;
   run_interruptible(
@@ -392,12 +421,13 @@ ValidationReport validate_array(const py::handle& samples, const py::handle& alp
 ValidationReport validate_with_keywords(const py::handle& samples, const py::handle& alpha, double theta, double phi,
                                         std::optional<std::string> pdf, const py::handle& weights, const py::handle& pdfs,
                                         std::optional<std::string> bsdf, std::optional<std::string> transport,
-                                        std::optional<std::string> masking, std::optional<std::string> frame, int rows,
+                                        std::optional<std::string> masking, std::optional<std::string> columns,
+                                        std::optional<std::string> frame, int rows,
                                         double significance, bool above_horizon, std::optional<std::uint64_t> dropped,
                                         std::optional<std::string> against, std::uint64_t oracle_rays, std::uint64_t seed,
                                         const py::object& progress) {
-  const DumpArguments d{pdf, bsdf, transport, masking, frame, rows, significance, above_horizon,
-                        dropped, against, oracle_rays, seed};
+  const DumpArguments d{pdf,           bsdf,    transport, masking,     columns, frame, rows, significance,
+                        above_horizon, dropped, against,   oracle_rays, seed};
   return validate_array(samples, alpha, theta, phi, weights, pdfs, d, progress);
 }
 
@@ -529,7 +559,8 @@ void bind_validation(py::module_& m) {
   m.def("validate", &validate_with_keywords, R"(Validates samples against the density they claim (what `microsim validate --from` does).
 
 samples: (N, 3) float32 or float64 array of unit directions in the z-up frame (any order or strides: read in
-  place); NaN rows are the sampler's failures (the validation rejects and names them).
+  place); NaN rows are the sampler's failures (the validation rejects and names them). Or the path (str or
+  os.PathLike) of a sample file (.npy in C or Fortran order, or text) as `validate --from FILE` reads it.
 alpha: roughness, a number or (alpha_x, alpha_y); theta, phi: the view in degrees (theta in [0, 90); with a
   dielectric bsdf also (90, 180): light from inside, validated as its mirror image).
 pdf: the claimed density: 'vndf' (normals, D_v; the default without bsdf), 'ndf' (normals, D(m) m.z),
@@ -542,6 +573,8 @@ pdfs: optional (N,) array of the pdfs the sampler returned, checked against the 
 transport: the weights' transport mode with bsdf: 'radiance' (default: camera paths, a refraction's weight holds
   (n_given / n_sampled)^2) or 'importance' (light paths); masking: 'height-correlated' (default, Smith's G2)
   or 'separable' (G1(wi) G1(wo), as Mitsuba 3).
+columns: a file's columns as `--columns` names them ('x,y,z' by default; 'x,y,z,pdf,weight', '-' to skip a
+  column): with a path, its pdfs and weights are its columns (the arrays pdfs and weights are for arrays).
 frame: 'z-up' (default) or 'y-up'; without it a rejection that looks like a frame mistake is diagnosed (hints);
 rows, significance: as the command line's --rows, --significance;
 above_horizon, dropped: reflections above the horizon only (--above-horizon, --dropped).
@@ -553,7 +586,8 @@ Returns a ValidationResult; raises ValueError for bad input (the command line's 
 KeyboardInterrupt on Ctrl-C.)",
         "samples"_a, "alpha"_a, "theta"_a, "phi"_a = 0.0, "pdf"_a = py::none(), "weights"_a = py::none(),
         "pdfs"_a = py::none(), py::kw_only(), "bsdf"_a = py::none(), "transport"_a = py::none(), "masking"_a = py::none(),
-        "frame"_a = py::none(), "rows"_a = 31, "significance"_a = 0.01, "above_horizon"_a = false, "dropped"_a = py::none(),
+        "columns"_a = py::none(), "frame"_a = py::none(), "rows"_a = 31, "significance"_a = 0.01,
+        "above_horizon"_a = false, "dropped"_a = py::none(),
         "against"_a = py::none(), "oracle_rays"_a = 4'000'000, "seed"_a = 1, "progress"_a = py::none());
   m.def("validate_sampler", &validate_zoo_sampler, R"(Validates a sampler of the zoo (what `microsim validate --sampler` does).
 

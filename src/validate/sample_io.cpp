@@ -9,6 +9,7 @@
 #include "core/strict_parse.h"
 #include "core/atomic_file.h"
 
+#include <algorithm>
 #include <array>
 #include <bit>
 #include <charconv>
@@ -90,6 +91,45 @@ Vec3<double> split_row(const std::filesystem::path& path, const Where& where, co
   if (c.has_pdf()) extras[k++] = value(c.pdf);
   for (const int col : c.weights) extras[k++] = value(col);
   return checked_direction(path, where, w, tolerance, precision_name, invalid);
+}
+
+// ---- the column count -------------------------------------------------------------------------------------
+
+// The names of `columns` as --columns spells them: "x,y,z,pdf".
+std::string columns_spec(const SampleColumns& columns) {
+  std::string s = columns.describe();
+  std::replace(s.begin(), s.end(), ' ', ',');
+  return s;
+}
+
+// A --columns for rows of `found` values from the names of `columns`: a '-' (ignored) for each value more, or
+// for each value fewer one name other than x, y, z left out from the end; empty when none fits (x, y and z
+// need three columns; a row of very many values gets no list of dashes).
+std::string matching_columns(const SampleColumns& columns, std::uint64_t found) {
+  constexpr std::uint64_t kMostSuggested = 32;
+  if (found < 3 || found > kMostSuggested) return {};
+  std::vector<std::string> names;
+  std::istringstream words(columns.describe());
+  for (std::string w; words >> w;) names.push_back(w);
+  while (names.size() < found) names.emplace_back("-");
+  for (std::size_t i = names.size(); names.size() > found && i-- > 0;)
+    if (names[i] != "x" && names[i] != "y" && names[i] != "z") names.erase(names.begin() + std::ptrdiff_t(i));
+  std::string spec;
+  for (const std::string& n : names) spec += (spec.empty() ? "" : ",") + n;
+  return spec;
+}
+
+// What to say after the count of `found` values in a row when `columns` names another count: the columns
+// given, and a --columns that matches.
+std::string column_count_advice(const SampleColumns& columns, std::uint64_t found) {
+  const std::string given = columns_spec(columns);
+  std::string s = "--columns " + given + (given == "x,y,z" ? " (the default)" : "") + " names " +
+                  std::to_string(columns.count);
+  const std::string match = matching_columns(columns, found);
+  if (!match.empty())
+    return s + ": give --columns " + match +
+           (found > std::uint64_t(columns.count) ? " ('-' ignores a column), or name the extra columns (pdf, weight)" : "");
+  return s + (found < 3 ? ": a row needs x, y and z" : "");
 }
 
 // ---- NPY -----------------------------------------------------------------------------------------------
@@ -231,6 +271,17 @@ struct NpyLayout {
   std::size_t data_offset = 0;
   bool is_float32 = false;
   int columns = 3;
+  bool fortran_order = false;  // column-major: each column's `rows` values are contiguous
+  std::size_t item() const { return is_float32 ? 4 : 8; }
+  // Byte offset in the file of the value of row r in column c (C order: row by row; Fortran order: column by
+  // column, as numpy saves a transposed or column-indexed array).
+  std::size_t offset(std::uint64_t r, int c) const {
+    const std::uint64_t index = fortran_order ? std::uint64_t(c) * rows + r : r * std::uint64_t(columns) + std::uint64_t(c);
+    return data_offset + std::size_t(index) * item();
+  }
+  // The runs of the data read front to back as the rows are read in order: the whole data in C order, each
+  // column in Fortran order. After r rows, run s has been read up to offset(r, s).
+  int runs() const { return fortran_order ? columns : 1; }
 };
 
 NpyLayout read_npy_layout(const std::filesystem::path& path, std::string_view bytes, const SampleColumns& columns) {
@@ -270,11 +321,12 @@ NpyLayout read_npy_layout(const std::filesystem::path& path, std::string_view by
   } else {
     fail(path, "unsupported NPY dtype " + reader::quote_excerpt(h.descr) + " (expected '<f4' float32 or '<f8' float64)");
   }
-  if (h.fortran_order)
-    fail(path, "unsupported NPY array in Fortran order (save np.ascontiguousarray(arr) instead)");
-  if (h.shape.size() != 2 || h.shape[1] != std::uint64_t(columns.count))
+  if (h.shape.size() != 2)
     fail(path, "unsupported NPY shape " + shape_string(h.shape) + " (expected (N, " + std::to_string(columns.count) +
-                   "): " + columns.describe() + (columns.count == 3 ? "; --columns names extra columns)" : ")"));
+                   "): " + columns.describe() + ")");
+  if (h.shape[1] != std::uint64_t(columns.count))
+    fail(path, "NPY shape " + shape_string(h.shape) + ": the file has " + std::to_string(h.shape[1]) + " column(s), " +
+                   column_count_advice(columns, h.shape[1]));
   const std::uint64_t rows = h.shape[0];
   if (rows == 0) fail(path, "empty: the NPY array has 0 rows (shape (0, 3))");
 
@@ -289,7 +341,7 @@ NpyLayout read_npy_layout(const std::filesystem::path& path, std::string_view by
     fail(path, "NPY data has " + std::to_string(available - rows * row_bytes) +
                    " unexpected trailing bytes after the " + std::to_string(rows) + " declared rows");
 
-  return NpyLayout{rows, prefix + static_cast<std::size_t>(header_len), is_float32, columns.count};
+  return NpyLayout{rows, prefix + static_cast<std::size_t>(header_len), is_float32, columns.count, h.fortran_order};
 }
 
 // Decodes and checks rows [first, first + out.size()) of a checked NPY file (`bytes` as above); the extra
@@ -298,17 +350,16 @@ void decode_npy_rows(const std::filesystem::path& path, std::string_view bytes, 
                      const SampleColumns& columns, std::uint64_t first, std::span<Vec3<double>> out, double* extras,
                      InvalidRows& invalid) {
   const bool is_float32 = layout.is_float32;
-  const std::size_t item = is_float32 ? 4 : 8, row_bytes = std::size_t(layout.columns) * item;
-  const unsigned char* p =
-      reinterpret_cast<const unsigned char*>(bytes.data()) + layout.data_offset + first * row_bytes;
+  const auto* data = reinterpret_cast<const unsigned char*>(bytes.data());
   const double tolerance = is_float32 ? kUnitLengthToleranceFloat32 : kUnitLengthToleranceFloat64;
   const char* precision_name = is_float32 ? "float32 data" : "float64 data";
   const std::size_t stride = extras_per_row(columns);
-  for (std::uint64_t i = 0; i < out.size(); ++i, p += row_bytes) {
+  for (std::uint64_t i = 0; i < out.size(); ++i) {
     const std::uint64_t r = first + i;
     const auto value = [&](int c) -> double {
-      if (is_float32) return std::bit_cast<float>(static_cast<std::uint32_t>(read_le(p + 4 * c, 4)));
-      return std::bit_cast<double>(read_le(p + 8 * c, 8));
+      const unsigned char* p = data + layout.offset(r, c);
+      if (is_float32) return std::bit_cast<float>(static_cast<std::uint32_t>(read_le(p, 4)));
+      return std::bit_cast<double>(read_le(p, 8));
     };
     const auto where = [r] { return "row " + std::to_string(r) + " (0-based)"; };
     out[i] = split_row(path, where, value, columns, tolerance, precision_name, invalid, extras + i * stride);
@@ -407,8 +458,8 @@ void read_text_lines(const std::filesystem::path& path, std::string_view text, s
       }
     }
     if (values.size() != std::size_t(columns.count))
-      fail(path, where + ": wrong column count: found " + std::to_string(values.size()) + " numbers, expected " +
-                     std::to_string(columns.count) + " (" + columns.describe() + ")");
+      fail(path, where + ": wrong column count: found " + std::to_string(values.size()) + " numbers, " +
+                     column_count_advice(columns, values.size()));
     extras.resize(extras.size() + extras_per_row(columns));
     out.push_back(split_row(path, [&where] { return where; }, [&values](int c) { return values[std::size_t(c)]; },
                             columns, kUnitLengthToleranceText, "text data", invalid,
@@ -491,7 +542,8 @@ struct DirectionSampleReader::Impl {
   std::optional<SampleArray> array;  // rows in memory instead of a file
   // NPY: the file mapped read-only (or, for a non-regular file, read into `owned`).
   void* map = nullptr;
-  std::size_t map_size = 0, released = 0;  // bytes of the map whose pages were given back
+  std::size_t map_size = 0;
+  std::vector<std::size_t> released;  // per run of the data (NpyLayout::runs): where its pages given back end
   std::string owned;
   std::string_view bytes;
   NpyLayout layout;
@@ -520,6 +572,7 @@ struct DirectionSampleReader::Impl {
   }
   void open_npy(bool regular, std::uint64_t size);
   std::size_t read_npy_rows(std::span<Vec3<double>> out, double* extras);
+  void release_decoded_pages();
   std::size_t read_array_rows(std::span<Vec3<double>> out, double* extras);
   void parse_pending(std::size_t end);
   void shorten_long_line();
@@ -549,16 +602,24 @@ std::size_t DirectionSampleReader::Impl::read_npy_rows(std::span<Vec3<double>> o
   const std::size_t n = std::size_t(std::min<std::uint64_t>(out.size(), layout.rows - rows));
   decode_npy_rows(path, bytes, layout, columns, rows, out.first(n), extras, invalid);
   rows += n;
-  if (map) {  // give back the pages decoded: resident memory stays bounded whatever the file's size
-    const std::size_t page = std::size_t(::sysconf(_SC_PAGESIZE));
-    const std::size_t done =
-        (layout.data_offset + rows * std::size_t(layout.columns) * (layout.is_float32 ? 4 : 8)) / page * page;
-    if (done > released + (std::size_t(16) << 20) || rows == layout.rows) {
-      ::madvise(static_cast<char*>(map) + released, done - released, MADV_DONTNEED);
-      released = done;
+  if (map) release_decoded_pages();
+  return n;
+}
+
+// Gives back the mapped pages decoded (those before where each run of the data has been read), 16 MiB at a
+// time over all runs: resident memory stays bounded whatever the file's size or order. A page dropped that
+// still holds the unread start of the next column is read again from the file when reached.
+void DirectionSampleReader::Impl::release_decoded_pages() {
+  const std::size_t page = std::size_t(::sysconf(_SC_PAGESIZE)), runs = std::size_t(layout.runs());
+  if (released.empty())
+    for (std::size_t s = 0; s < runs; ++s) released.push_back(layout.offset(0, int(s)) / page * page);
+  for (std::size_t s = 0; s < runs; ++s) {
+    const std::size_t done = layout.offset(rows, int(s)) / page * page;
+    if (done > released[s] + (std::size_t(16) << 20) / runs || rows == layout.rows) {
+      ::madvise(static_cast<char*>(map) + released[s], done - released[s], MADV_DONTNEED);
+      released[s] = done;
     }
   }
-  return n;
 }
 
 std::size_t DirectionSampleReader::Impl::read_array_rows(std::span<Vec3<double>> out, double* extras) {

@@ -3,8 +3,9 @@
 //
 // Formats (docs/analytic.md, "Sample files"):
 // - NPY (NumPy format versions 1.0, 2.0 and 3.0; https://numpy.org/doc/stable/reference/generated/
-//   numpy.lib.format.html): dtype '<f4' or '<f8' (little-endian float32/float64), fortran_order False,
-//   shape (N, 3). Recognised by its magic string "\x93NUMPY", whatever the file name.
+//   numpy.lib.format.html): dtype '<f4' or '<f8' (little-endian float32/float64), shape (N, 3), in C order
+//   (row by row) or Fortran order (fortran_order True: column by column, as np.save writes a transposed or
+//   column-indexed array). Recognised by its magic string "\x93NUMPY", whatever the file name.
 // - Text: three numbers per line separated by whitespace and/or single commas; '#' starts a comment that
 //   runs to the end of the line; blank lines are ignored; CRLF line ends and a UTF-8 byte order mark
 //   are accepted.
@@ -115,7 +116,8 @@ struct SampleArray {
 };
 
 // Reads a sample file (NPY or text, as above) in blocks of rows, in memory bounded whatever its size: an
-// NPY file through a read-only memory map whose pages are given back once decoded, text in chunks of
+// NPY file through a read-only memory map whose pages are given back once decoded (in Fortran order each
+// column is read front to back, from its own place in the map), text in chunks of
 // 1 MiB, whole lines at a time (a line may be at most 1 MiB long, a comment excepted). The same checks
 // and messages as read_direction_samples, which reads through it; a bad row throws when it is reached.
 class DirectionSampleReader {
@@ -165,7 +167,7 @@ inline constexpr std::size_t kSampleFileBlock = std::size_t(1) << 16;
 
 // Reads sampled directions from an NPY or text file (see above; the sampler's failures are NaN vectors).
 // Throws SampleFileError on a file that cannot be opened, a malformed line, a wrong column count, a
-// nonzero vector far from unit length, an unsupported NPY version/dtype/order/shape, truncated or trailing data, or no samples at all.
+// nonzero vector far from unit length, an unsupported NPY version/dtype/shape, truncated or trailing data, or no samples at all.
 std::vector<Vec3<double>> read_direction_samples(const std::filesystem::path& path);
 // The same for the bytes of a file in memory (the fuzz target's entry point); `name` stands for the path
 // in messages, and its extension .npy demands the NPY magic as for a file.

@@ -56,6 +56,63 @@ def test_layouts_read_in_place_give_the_same_result():
     assert reversed_rows.p_values["chi2_sphere"] == reference["chi2_sphere"]
 
 
+def fortran_order_of(path):
+    with open(path, "rb") as f:
+        np.lib.format.read_magic(f)
+        return np.lib.format.read_array_header_1_0(f)[1]
+
+
+def fortran_layouts(table):
+    """The same (N, k) table as numpy arrays that np.save writes in Fortran order: column-indexed, a transposed
+    stack of columns, asfortranarray."""
+    cols = [table[:, j] for j in range(table.shape[1])]
+    return {"indexed": table[:, list(range(table.shape[1]))], "stacked": np.stack(cols).T,
+            "asfortranarray": np.asfortranarray(table)}
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_fortran_order_files_validate_as_the_c_order_file(tmp_path, dtype):
+    """A dump saved in Fortran order, columns x, z, pdf, y: the command line and validate(path) give the C-order
+    file's result exactly, and so does validate() on each of those arrays."""
+    m = numpy_samples(100_000, seed=6)
+    table = np.column_stack([m[:, 0], m[:, 2], microsim.D_v(view(THETA), m, ALPHA), m[:, 1]]).astype(dtype)
+    c_path = tmp_path / "c.npy"
+    np.save(c_path, table)
+    args = ("--alpha", "0.3", "--theta", "60", "--columns", "x,z,pdf,y")
+    expected = cli_json(tmp_path, "validate", "--from", c_path, *args)
+    assert expected["verdict"] == "pass"
+    keys = ("tests", "p_value", "statistic", "dof", "verdict", "samples", "failures", "storage")
+    for name, array in fortran_layouts(table).items():
+        path = tmp_path / f"{name}.npy"
+        np.save(path, array)
+        assert fortran_order_of(path), name
+        cli = cli_json(tmp_path, "validate", "--from", path, *args)
+        py = microsim.validate(path, ALPHA, THETA, columns="x,z,pdf,y").to_dict()
+        direct = microsim.validate(array[:, [0, 3, 1]], ALPHA, THETA, pdfs=array[:, 2]).to_dict()
+        for key in keys:
+            assert cli[key] == expected[key], (name, key)
+            assert py[key] == expected[key], (name, key)
+            if key != "storage":
+                assert direct[key] == expected[key], (name, key)
+
+
+def test_a_path_takes_columns_and_refuses_arrays_beside_it(tmp_path):
+    m = numpy_samples(10_000, seed=1)
+    path = tmp_path / "s.npy"
+    np.save(path, np.column_stack([m, np.ones(10_000)]))
+    with pytest.raises(ValueError, match="columns names the columns of a sample file"):
+        microsim.validate(m, ALPHA, THETA, columns="x,y,z")
+    with pytest.raises(ValueError, match="a file's are its own columns"):
+        microsim.validate(path, ALPHA, THETA, pdfs=np.ones(10_000))
+    with pytest.raises(ValueError, match="the file has 4 column"):
+        microsim.validate(str(path), ALPHA, THETA)
+    with pytest.raises(ValueError, match="columns: 'x,y'"):
+        microsim.validate(path, ALPHA, THETA, columns="x,y")
+    with pytest.raises(ValueError, match="missing.npy"):
+        microsim.validate(tmp_path / "missing.npy", ALPHA, THETA)
+    assert microsim.validate(path, ALPHA, THETA, columns="x,y,z,-").samples == 10_000
+
+
 def test_returned_pdfs_are_checked():
     wi = view(THETA)
     m = numpy_samples(100_000, seed=4)
@@ -147,6 +204,8 @@ def test_weights_against_the_bsdf_identical_to_cli(tmp_path):
     py = microsim.validate(wo, ALPHA, THETA, pdf="reflection", weights=weights, pdfs=pdfs, bsdf="mirror")
     assert py.passed and cli["verdict"] == "pass"
     assert py.to_dict()["tests"] == cli["tests"]
+    from_path = microsim.validate(path, ALPHA, THETA, pdf="reflection", columns="x,y,z,pdf,weight", bsdf="mirror")
+    assert from_path.to_dict()["tests"] == cli["tests"]
     assert "bsdf_albedo" in py.p_values
 
 
