@@ -35,6 +35,8 @@ f4 = b"".join(struct.pack("<3f", *r) for r in ROWS)
 put("npy", "good_f8", npy("{'descr': '<f8', 'fortran_order': False, 'shape': (3, 3), }", f8))
 put("npy", "good_f4", npy("{'descr': '<f4', 'fortran_order': False, 'shape': (3, 3), }", f4))
 put("npy", "good_v2", npy("{'descr': '<f8', 'fortran_order': False, 'shape': (3, 3), }", f8, major=2))
+put("npy", "good_fortran", npy("{'descr': '<f8', 'fortran_order': True, 'shape': (3, 3), }",
+                               b"".join(struct.pack("<3d", *column) for column in zip(*ROWS))))
 put("npy", "good_odd", npy('{"shape": (3L, 3L), "fortran_order": False, "descr": "<f8"}', f8, major=3))
 put("npy", "bad_no_newline", npy("{'descr': '<f8', 'fortran_order': False, 'shape': (3, 3), }", f8, newline=False))
 put("npy", "bad_truncated", npy("{'descr': '<f8', 'fortran_order': False, 'shape': (3, 3), }", f8)[:-7])
