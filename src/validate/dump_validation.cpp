@@ -22,16 +22,7 @@ std::string frame_mistake(SampleFrame f) {
 std::string frame_hint(const ValidationReport& r, const DirectionSampleReader& samples,
                        const std::shared_ptr<const ReferenceDistribution>& reference, const ValidationOptions& o) {
   const double share = 100.0 * double(r.samples_where_pdf_is_zero) / double(r.samples);
-  std::optional<FrameHint> best;
-  for (const SampleFrame frame : {SampleFrame::y_up, SampleFrame::z_down, SampleFrame::negated}) {
-    DirectionSampleReader reader = samples.reopened();
-    reader.set_frame(frame);
-    ValidationReport tried = validate_sample_file(reader, reference->domain, reference->ggx, reference->wi, o, reference);
-    const bool fits = double(tried.samples_where_pdf_is_zero) < 0.01 * double(tried.samples);
-    if (tried.passed || (fits && (!best || tried.samples_where_pdf_is_zero < best->report.samples_where_pdf_is_zero)))
-      best = FrameHint{frame, std::move(tried)};
-    if (best && best->report.passed) break;
-  }
+  const std::optional<FrameHint> best = diagnose_sample_frame(samples, reference, o);
   if (!best)
     return fmt::format("{:.0f}% of the samples fall where the claimed pdf is zero; none of the common frame mistakes "
                        "(y-up, z flipped, negated) explains it",

@@ -408,12 +408,12 @@ ValidationReport validate_sample_file(DirectionSampleReader& reader, SampleDomai
   return validate_stream(reader, *reference, options, std::move(weights));
 }
 
-std::optional<FrameHint> diagnose_sample_frame(const std::filesystem::path& file, const SampleColumns& columns,
+std::optional<FrameHint> diagnose_sample_frame(const DirectionSampleReader& samples,
                                                std::shared_ptr<const ReferenceDistribution> reference,
                                                const ValidationOptions& options) {
   std::optional<FrameHint> best;
   for (const SampleFrame frame : {SampleFrame::y_up, SampleFrame::z_down, SampleFrame::negated}) {
-    DirectionSampleReader reader(file, columns);
+    DirectionSampleReader reader = samples.reopened();
     reader.set_frame(frame);
     ValidationReport r = validate_sample_file(reader, reference->domain, reference->ggx, reference->wi, options, reference);
     if (r.passed) return FrameHint{frame, std::move(r)};

@@ -318,15 +318,15 @@ ValidationReport validate_sample_file(DirectionSampleReader& reader, SampleDomai
                                       const Vec3<double>& wi, const ValidationOptions& options,
                                       std::shared_ptr<const ReferenceDistribution> reference = nullptr);
 
-// A file rejected with many of its samples where the claimed pdf is zero: the common frame mistakes of
-// renderers' dumps (SampleFrame y_up, z_down, negated) undone one at a time, each a full validation of
-// the file read in that frame against `reference`. The first that passes; else the one that leaves the
+// Samples (a file or an array, read again from their start) rejected with many of them where the claimed pdf
+// is zero: the common frame mistakes of renderers' dumps (SampleFrame y_up, z_down, negated) undone one at a
+// time, each a full validation of the samples read in that frame against `reference`. The first that passes; else the one that leaves the
 // fewest samples where the pdf is zero, if under 1%; else nothing (no frame mistake explains it).
 struct FrameHint {
   SampleFrame frame;
   ValidationReport report;  // of the file read in that frame
 };
-std::optional<FrameHint> diagnose_sample_frame(const std::filesystem::path& file, const SampleColumns& columns,
+std::optional<FrameHint> diagnose_sample_frame(const DirectionSampleReader& samples,
                                                std::shared_ptr<const ReferenceDistribution> reference,
                                                const ValidationOptions& options);
 // Whether a rejection's report calls for diagnose_sample_frame: more than 5% of its samples fall where the
