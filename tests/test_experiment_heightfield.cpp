@@ -1,4 +1,4 @@
-// Explicit heightfields in experiments (issue 12):
+// Explicit heightfields in experiments:
 //   - the size rule on the trade table (pure): a smaller target gets a bigger (or better matched) tile, a
 //     grazing view or an anisotropic alpha a wider one, an unreachable target is reported with what is
 //     reachable; a heightmap's own size gets the bias of the table row with no more correlation lengths;
