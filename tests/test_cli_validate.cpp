@@ -297,6 +297,23 @@ TEST(CliValidate, FrameMistakesGetAHintAndYUpDumpsPassWithFrameYUp) {
   }
 }
 
+// A theta given in radians (1.2 for 68.75 deg) is read in degrees: the rejection says what was probably meant;
+// the same dump at its view passes, and a rejection at an ordinary view gets no such hint.
+TEST(CliValidate, AThetaThatLooksLikeRadiansGetsAHint) {
+  const fs::path dir = scratch_dir();
+  const fs::path dump = dir / "vndf.npy";
+  write_npy(dump, samples_of("heitz2018", 0.5, 1.2 * 180 / kPi<double>, 100000), false);
+  const CliRun r = run("--from '" + dump.string() + "' --alpha 0.5 --theta 1.2");
+  EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
+  EXPECT_NE(r.out.find("if 1.2 was meant in radians, give --theta 68.75"), std::string::npos) << r.out;
+  const CliRun ok = run("--from '" + dump.string() + "' --alpha 0.5 --theta 68.7549354");
+  EXPECT_EQ(ok.exit_code, 0) << ok.out << ok.err;
+  EXPECT_EQ(ok.out.find("radians"), std::string::npos) << ok.out;
+  const CliRun other = run("--from '" + dump.string() + "' --alpha 0.5 --theta 40");
+  EXPECT_EQ(other.exit_code, 1) << other.out;
+  EXPECT_EQ(other.out.find("radians"), std::string::npos) << other.out;
+}
+
 // A renderer-style dump with the pdf its sampler returned: --columns x,y,z,pdf turns on the returned-pdf
 // check and the E[weight] test; a pdf 5% too high is rejected by them, though the directions are right.
 TEST(CliValidate, DumpsWithAPdfColumnGetTheReturnedPdfCheck) {
