@@ -1,6 +1,7 @@
 // Tests of `microsim validate` as a user runs it: exit codes 0 (pass) / 1 (rejected) / 2 (bad usage or
 // input), the JSON keys, --from with sample files, and nothing written on bad input.
 #include "cli_helpers.h"
+#include "sample_dumps.h"
 #include "core/random.h"
 #include "validate/sample_io.h"
 #include "microfacet/bsdf_samplers.h"
@@ -393,20 +394,7 @@ TEST(CliValidate, DielectricDumpsAreTestedWithPdfBsdf) {
   const GGX<double> ggx(0.3, 0.3);
   const Vec3<double> wi = direction_from_degrees(50.0, 0.0);
   const auto dump = [&](const char* name, const fs::path& path) {
-    const BsdfSamplerInfo* s = find_bsdf_sampler(name);
-    std::ofstream out(path);
-    long long lost = 0;
-    for (int i = 0; i < 50000; ++i) {
-      CounterRng rng(7, std::uint64_t(i));
-      const Vec3<double> u(rng.uniform(), rng.uniform(), rng.uniform());
-      const auto r = s->sample(ggx, std::complex<double>(1.5), wi, u);
-      if (!r) {  // a lost sample (a reflection below the horizon, a refraction back up): renderers emit nothing
-        ++lost;
-        continue;
-      }
-      out << fmt::format("{:.17g} {:.17g} {:.17g} {:.17g} {:.17g}\n", r->wo.x(), r->wo.y(), r->wo.z(), r->pdf, r->weight);
-    }
-    return lost;
+    return microsim::test::write_bsdf_dump(path, name, ggx, std::complex<double>(1.5), wi, 50000);
   };
   const long long lost = dump("dielectric_vndf", dir / "glass.txt");
   ASSERT_GT(lost, 400) << "the view must lose samples for the conditioning to matter";

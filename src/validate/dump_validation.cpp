@@ -114,4 +114,15 @@ ValidationReport validate_dump(const DirectionSampleReader& samples, std::shared
   return r;
 }
 
+ValidationReport validate_dump_as_given(DirectionSampleReader& samples, const DumpClaims& claims, const GGX<double>& ggx,
+                                        const Vec3<double>& view, ValidationOptions options, bool diagnose_frame) {
+  const ViewFromOutside v = seen_from_outside(view, claims.bsdf);
+  samples.set_mirrored(v.mirrored);
+  if (options.bsdf) options.bsdf = v.bsdf;
+  const auto reference = dump_reference({claims.pdf, v.bsdf, claims.kept_only}, ggx, v.wi, options.rows);
+  ValidationReport report = validate_dump(samples, reference, ggx, v.wi, options, diagnose_frame);
+  report.wi = view;
+  return report;
+}
+
 }  // namespace microsim
