@@ -27,6 +27,7 @@
 #include "stats/scatter_figure.h"
 
 #include <fmt/core.h>
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include <cmath>
@@ -282,6 +283,16 @@ std::string figure(const std::vector<Input>& in, const std::vector<PairCompariso
   return scatter_figure_svg("compare-scattering", subtitle, b, rows);
 }
 
+// A file given twice has nothing to compare with itself.
+void refuse_repeated_files(const std::vector<std::string>& files) {
+  for (std::size_t i = 0; i < files.size(); ++i)
+    for (std::size_t j = i + 1; j < files.size(); ++j) {
+      std::error_code ec;
+      if (files[i] == files[j] || std::filesystem::equivalent(files[i], files[j], ec))
+        throw UsageError(fmt::format("'{}' is given twice ({}): compare two different results", files[j], files[i]));
+    }
+}
+
 // The inputs when the first file is a traced histogram (all must be, 2 or 3 of them), else nullopt.
 std::optional<std::vector<TracedInput>> traced_inputs(const CompareArgs& a) {
   AnyInput first = read_any_input(a.files.front());
@@ -291,7 +302,9 @@ std::optional<std::vector<TracedInput>> traced_inputs(const CompareArgs& a) {
                                  "it with `microsim validate --against`, or with another traced histogram)",
                                  a.analytic ? "--analytic" : "--orders", a.files.front()));
   if (a.files.size() < 2 || a.files.size() > 3)
-    throw UsageError(fmt::format("compare-scattering compares 2 or 3 traced histograms, got {}", a.files.size()));
+    throw UsageError(fmt::format("compare-scattering compares 2 or 3 traced histograms, got {} ('{}')", a.files.size(),
+                                 fmt::join(a.files, "', '")));
+  refuse_repeated_files(a.files);
   std::vector<TracedInput> inputs{{a.files.front(), std::move(*first.traced)}};
   for (std::size_t i = 1; i < a.files.size(); ++i) {
     AnyInput in = read_any_input(a.files[i]);
