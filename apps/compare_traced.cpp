@@ -57,16 +57,16 @@ Family family(const std::vector<Pair>& pairs, double level) {
   return f;
 }
 
-nlohmann::json number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
-nlohmann::json estimate(const Estimate& e) { return {{"value", e.value}, {"standard_error", e.standard_error}}; }
+nlohmann::json traced_number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+nlohmann::json traced_estimate(const Estimate& e) { return {{"value", e.value}, {"standard_error", e.standard_error}}; }
 
 nlohmann::json comparison_json(const TracedComparison& c, const Family& f) {
   nlohmann::json chi2 = to_json(*c.lobe.chi2);
   chi2["rejected"] = c.lobe.chi2->p_value < f.per_test;
   chi2["significance"] = f.per_test;
-  return {{"binning", c.binning},         {"tv", number(c.lobe.tv)},
-          {"tv_noise_floor", number(c.lobe.tv_noise_floor)},
-          {"hit_fraction_a", estimate(c.lobe.albedo_a)}, {"hit_fraction_b", estimate(c.lobe.albedo_b)},
+  return {{"binning", c.binning},         {"tv", traced_number(c.lobe.tv)},
+          {"tv_noise_floor", traced_number(c.lobe.tv_noise_floor)},
+          {"hit_fraction_a", traced_estimate(c.lobe.albedo_a)}, {"hit_fraction_b", traced_estimate(c.lobe.albedo_b)},
           {"hit_fraction_difference_p", c.lobe.difference_p}, {"hit_fraction_rejected", c.lobe.difference_p < f.per_test},
           {"chi2", chi2}};
 }

@@ -16,13 +16,13 @@ std::string check(const char* plugin, const std::string& claims) {
   return std::string("check-bsdf --plugin ") + plugin + " " + claims + " --samples 100000 --json c.json";
 }
 
-const std::string kGlass = "--param kind=dielectric --param alpha=0.3 --param eta=1.5 --bsdf dielectric:1.5 --alpha 0.3";
-const std::string kGold = "--param kind=conductor --param alpha=0.3 --param eta=0.2 --param k=3.9 --bsdf conductor:0.2,3.9 "
+const std::string kPluginGlass = "--param kind=dielectric --param alpha=0.3 --param eta=1.5 --bsdf dielectric:1.5 --alpha 0.3";
+const std::string kPluginGold = "--param kind=conductor --param alpha=0.3 --param eta=0.2 --param k=3.9 --bsdf conductor:0.2,3.9 "
                           "--alpha 0.3";
 
 TEST(CheckBsdfCli, TheWorkedPluginsPassWhole) {
   const fs::path dir = scratch_dir("check_bsdf", "good");
-  for (const std::string& claims : {kGlass, kGold}) {
+  for (const std::string& claims : {kPluginGlass, kPluginGold}) {
     const CliRun r = run_cli(dir, check(MICROSIM_PLUGIN_GOOD, claims));
     EXPECT_EQ(r.exit_code, 0) << claims << "\n" << r.out << r.err;
     const nlohmann::json j = nlohmann::json::parse(slurp(dir / "c.json"));
@@ -34,7 +34,7 @@ TEST(CheckBsdfCli, TheWorkedPluginsPassWhole) {
 
 TEST(CheckBsdfCli, APlantedEvalBugIsRejectedByTheEvalAndConsistencyTests) {
   const fs::path dir = scratch_dir("check_bsdf", "bug");
-  const CliRun r = run_cli(dir, check(MICROSIM_PLUGIN_EVAL_BUG, kGlass));
+  const CliRun r = run_cli(dir, check(MICROSIM_PLUGIN_EVAL_BUG, kPluginGlass));
   EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
   const nlohmann::json j = nlohmann::json::parse(slurp(dir / "c.json"));
   for (const nlohmann::json& t : j["tests"]) {
@@ -44,7 +44,7 @@ TEST(CheckBsdfCli, APlantedEvalBugIsRejectedByTheEvalAndConsistencyTests) {
     if (test == "consistency" && t["view"] == "60 deg") EXPECT_FALSE(t["passed"].get<bool>()) << t.dump();
   }
   // The conductor has no refraction: the bug does not touch it.
-  EXPECT_EQ(run_cli(dir, check(MICROSIM_PLUGIN_EVAL_BUG, kGold)).exit_code, 0);
+  EXPECT_EQ(run_cli(dir, check(MICROSIM_PLUGIN_EVAL_BUG, kPluginGold)).exit_code, 0);
   fs::remove_all(dir);
 }
 

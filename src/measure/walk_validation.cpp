@@ -79,7 +79,7 @@ WalkValidationReport channel_report(const ScatterHistogram& dump, const ScatterH
   return r;
 }
 
-void verdict(WalkValidationReport& r, int channels, double significance, bool transmits) {
+void walk_verdict(WalkValidationReport& r, int channels, double significance, bool transmits) {
   r.tests = channels * (transmits ? 3 : 2);
   r.per_test_significance = sidak_significance(significance, r.tests);
   const double p_min = std::min({r.chi2->p_value, r.p_reflected, transmits ? r.p_transmitted : 1.0});
@@ -114,7 +114,7 @@ WalkValidationReport validate_dump_against_walk(DirectionSampleReader& dump, con
     WalkValidationReport r = channel_report(d, walk, c, wi.z() < 0);
     if (!r.chi2)
       throw InsufficientData(fmt::format("too little data for the lobe's shape test: {}", r.insufficient), d.paths(), 0);
-    verdict(r, material.channels(), options.significance, material.transmits());
+    walk_verdict(r, material.channels(), options.significance, material.transmits());
     if (c == 0 || r.p_value < best.p_value) best = std::move(r);
   }
   best.rows = d.paths();

@@ -15,7 +15,7 @@ constexpr double kViewThetas[] = {0, 30, 60, 80, 89.9};
 constexpr double kViewPhis[] = {0, 45};
 constexpr double kGrazing = 89.9;
 
-Vec3<double> from_degrees(double theta, double phi) {
+Vec3<double> query_direction(double theta, double phi) {
   const double t = theta * kPi<double> / 180, p = phi * kPi<double> / 180;
   return {std::sin(t) * std::cos(p), std::sin(t) * std::sin(p), std::cos(t)};
 }
@@ -38,7 +38,7 @@ void edge_cases(std::vector<BsdfQuery>& out, const Vec3<double>& wi, const Mater
   out.push_back({wi, wi});
   out.push_back({wi, -wi});
   for (int k = 0; k < 8; ++k) {
-    const Vec3<double> g = from_degrees(kGrazing, 45.0 * k);
+    const Vec3<double> g = query_direction(kGrazing, 45.0 * k);
     out.push_back({wi, Vec3<double>(g.x(), g.y(), side * g.z())});
     if (bsdf.transmits()) out.push_back({wi, Vec3<double>(g.x(), g.y(), -side * g.z())});
   }
@@ -73,7 +73,7 @@ std::vector<BsdfQuery> bsdf_queries(const Material& bsdf, int per_view, std::uin
     for (const double theta : kViewThetas)
       for (const double phi : kViewPhis) {
         if (theta == 0 && phi != 0) continue;
-        const Vec3<double> v = from_degrees(theta, phi), wi(v.x(), v.y(), side * v.z());
+        const Vec3<double> v = query_direction(theta, phi), wi(v.x(), v.y(), side * v.z());
         CounterRng rng(seed, view++);
         stratified(out, wi, per_view, bsdf.transmits() ? -1.0 : 0.0, rng);
         edge_cases(out, wi, bsdf);

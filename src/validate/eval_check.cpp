@@ -152,7 +152,7 @@ Epsilons epsilons(const DirectionSampleReader& reader, Precision arithmetic) {
   return reader.is_float32() ? Epsilons{a, e32, e32} : Epsilons{a, e64, e64};
 }
 
-Vec3<float> to_float(const Vec3<double>& w) { return w.cast<float>(); }
+Vec3<float> float_direction(const Vec3<double>& w) { return w.cast<float>(); }
 
 // One reference (a channel's value, or the pdf) at (wi, wo), in double and in the renderer's arithmetic.
 using Reference = std::function<double(const Vec3<double>&, const Vec3<double>&, bool as_float)>;
@@ -187,7 +187,7 @@ double fresnel_amplification(const Material& bsdf, const Vec3<double>& wi, const
 
 // The renderer's rounding of the directions and the half vector is a perturbation of its inputs by its
 // epsilon: the direction term takes the larger of storage and arithmetic.
-double tolerance(const Reference& ref, double value, const Vec3<double>& wi, const Vec3<double>& wo, const Epsilons& e,
+double eval_tolerance(const Reference& ref, double value, const Vec3<double>& wi, const Vec3<double>& wo, const Epsilons& e,
                  double amplification) {
   const double in_arithmetic = e.arithmetic > 1e-10 ? ref(wi, wo, true) : value;
   const double rounding = std::isfinite(in_arithmetic) ? std::abs(in_arithmetic - value) : std::abs(value);
@@ -212,11 +212,11 @@ struct EvalContext {
 };
 
 // Compares one number; records it in the report.
-void compare(EvalCheckReport& r, const EvalContext& x, const Reference& ref, std::uint64_t row, const Vec3<double>& wi,
+void compare_number(EvalCheckReport& r, const EvalContext& x, const Reference& ref, std::uint64_t row, const Vec3<double>& wi,
              const Vec3<double>& wo, const std::string& quantity, double given, bool pdf) {
   const double value = ref(wi, wo, false);
   EvalMismatch m{row, wi, wo, quantity, given, value,
-                 tolerance(ref, value, wi, wo, x.eps, fresnel_amplification(x.bsdf, wi, wo))};
+                 eval_tolerance(ref, value, wi, wo, x.eps, fresnel_amplification(x.bsdf, wi, wo))};
   ++(pdf ? r.pdfs_checked : r.values_checked);
   if (value != 0 && m.tolerance > kLooseRelativeTolerance * std::abs(value)) ++r.loose;
   else if (value != 0) r.max_relative_tolerance_tight = std::max(r.max_relative_tolerance_tight, m.tolerance / std::abs(value));
@@ -228,14 +228,14 @@ void compare(EvalCheckReport& r, const EvalContext& x, const Reference& ref, std
 
 Reference value_reference(const EvalContext& x, int c) {
   return [&x, c](const Vec3<double>& wi, const Vec3<double>& wo, bool as_float) {
-    return as_float ? double(bsdf_value_cos(x.bsdf, x.ggx32, x.options.convention, c, to_float(wi), to_float(wo)))
+    return as_float ? double(bsdf_value_cos(x.bsdf, x.ggx32, x.options.convention, c, float_direction(wi), float_direction(wo)))
                     : bsdf_value_cos(x.bsdf, x.ggx, x.options.convention, c, wi, wo);
   };
 }
 
 Reference pdf_reference(const EvalContext& x) {
   return [&x](const Vec3<double>& wi, const Vec3<double>& wo, bool as_float) {
-    return as_float ? double(renderer_pdf(x.bsdf, x.ggx32, to_float(wi), to_float(wo))) : renderer_pdf(x.bsdf, x.ggx, wi, wo);
+    return as_float ? double(renderer_pdf(x.bsdf, x.ggx32, float_direction(wi), float_direction(wo))) : renderer_pdf(x.bsdf, x.ggx, wi, wo);
   };
 }
 
@@ -248,8 +248,8 @@ void check_row(EvalCheckReport& r, const EvalContext& x, std::uint64_t row, cons
   }
   const int channels = x.bsdf.channels();
   for (int c = 0; c < channels; ++c)
-    compare(r, x, value_reference(x, c), row, wi, wo, "value " + x.bsdf.channel_name(c), values[c], false);
-  if (pdf != nullptr) compare(r, x, pdf_reference(x), row, wi, wo, "pdf", *pdf, true);
+    compare_number(r, x, value_reference(x, c), row, wi, wo, "value " + x.bsdf.channel_name(c), values[c], false);
+  if (pdf != nullptr) compare_number(r, x, pdf_reference(x), row, wi, wo, "pdf", *pdf, true);
 }
 
 std::vector<std::string> eval_notes(const EvalCheckReport& r, const EvalContext& x, bool has_pdf) {
