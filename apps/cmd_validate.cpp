@@ -306,28 +306,28 @@ void check_shard(const Args& a) {
 // --from FILE against the density it claims (dump_validation.h), light from inside a dielectric as its mirror
 // image; the report keeps the view as given.
 microsim::ValidationReport validate_file(const Args& a, const microsim::GGX<double>& ggx, const microsim::Vec3<double>& view,
-                                         microsim::ValidationOptions o) {
+                                         const microsim::ValidationOptions& o) {
   using namespace microsim;
   DirectionSampleReader samples = open_samples_or_usage_error(a);
-  ViewFromOutside v;
+  const DumpClaims claims{file_pdf(a), bsdf_of(a), a.above_horizon};
   try {
-    v = seen_from_outside(view, bsdf_of(a));
+    (void)seen_from_outside(view, claims.bsdf);
   } catch (const std::invalid_argument& e) {
     throw UsageError(fmt::format("--theta {:g}: {}", *a.theta, e.what()));
   }
-  samples.set_mirrored(v.mirrored);
-  if (o.bsdf) o.bsdf = v.bsdf;
-  std::shared_ptr<const ReferenceDistribution> reference;
-  try {
-    reference = dump_reference({file_pdf(a), v.bsdf, a.above_horizon}, ggx, v.wi, o.rows);
-  } catch (const std::invalid_argument& e) {
-    throw UsageError(fmt::format("--above-horizon: {}", e.what()));
-  }
   // A frame given explicitly is not second-guessed.
-  ValidationReport report =
-      usage_errors_of([&] { return validate_dump(samples, reference, ggx, v.wi, o, a.frame.empty()); }, a.from);
+  ValidationReport report = usage_errors_of(
+      [&] {
+        try {
+          return validate_dump_as_given(samples, claims, ggx, view, o, a.frame.empty());
+        } catch (const InsufficientData&) {
+          throw;
+        } catch (const std::invalid_argument& e) {  // the claims' reference (dump_reference)
+          throw UsageError(fmt::format("--above-horizon: {}", e.what()));
+        }
+      },
+      a.from);
   report.sampler = a.from;
-  report.wi = view;
   return report;
 }
 
