@@ -219,9 +219,9 @@ TEST(Assembly, RadixSortMatchesAStableSortByTheUpperHalf) {
   }
   auto expected = keys;
   std::sort(expected.begin(), expected.end());  // (value, index): the stable order
-  detail::radix_sort_by_high32(keys, scratch);
+  microgeom::detail::radix_sort_by_high32(keys, scratch);
   EXPECT_EQ(keys, expected);
   std::vector<std::uint64_t> empty;
-  detail::radix_sort_by_high32(empty, scratch);
+  microgeom::detail::radix_sort_by_high32(empty, scratch);
   EXPECT_TRUE(empty.empty());
 }
