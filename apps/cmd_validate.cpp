@@ -3,7 +3,7 @@
 // rendered by validate_report.h (shared with `microsim merge`). With --shard K/N only block range K of N of
 // every validation's samples is drawn and --json holds the partial result (measure/validation.h).
 // Exit codes: 0 pass (a shard: written), 1 rejected, 2 bad usage or bad input, 130 interrupted.
-// See docs/validation.md.
+// See docs/reference/validator.md.
 #include "command.h"
 #include "number_options.h"
 #include "microfacet/roughness.h"
@@ -501,7 +501,7 @@ microsim::app::CommandRegistration validate_registration{"validate", [](CLI::App
                     "dielectric's refractions above it; tested against the fraction the pdf loses)");
   sub->add_flag("--all", args->all, "validate the whole zoo over the standard grid (Sidak-corrected over the batch)");
   sub->add_option("--alpha", args->alpha,
-                  "roughness AX or AX,AY, each in [1e-4, 10], anisotropy at most 1:1000 (docs/conventions.md)");
+                  "roughness AX or AX,AY, each in [1e-4, 10], anisotropy at most 1:1000 (docs/reference/conventions.md)");
   using microsim::app::add_number_option;
   add_number_option(sub, "--theta", args->theta, microsim::app::real(), "view zenith angle in degrees, [0, 90); with --from and --bsdf dielectric also (90, 180): light from "
                     "inside the dielectric (the view below the surface)");

@@ -1,7 +1,7 @@
 // tests: a renderer's dump of samples, written as a test needs it: `n` directions drawn by a zoo sampler (the
 // talk listing `heitz2018-talk` for a dump that must be rejected, `heitz2018` for one that passes) at GGX
 // `alpha` and the view (theta_deg, phi 0), from `seed`, saved as an NPY (N, 3) float64 file as a renderer would.
-// Which experiment specs validate (`dump = "..."`, docs/experiments.md); the caller removes the file.
+// Which experiment specs validate (`dump = "..."`, docs/reference/experiments.md); the caller removes the file.
 // write_bsdf_dump: a BSDF sampler of the zoo (microfacet/bsdf_samplers.h) dumped as a renderer's sample()
 // (wo, pdf, weight per row, text), its lost samples left out as renderers drop them; returns how many.
 #pragma once

@@ -38,7 +38,7 @@ namespace microgeom {
 // The NDF a surface is built to have: the one NDF type of every module (core/ndf_kind.h).
 using microsim::NdfKind;
 
-// How the slopes are matched to the reference NDF (issue 14; docs/surfaces.md, section 8):
+// How the slopes are matched to the reference NDF (docs/reference/surfaces.md, section 8):
 // - radial: the slope radii are rank-matched to the reference radius law, the angles kept (the angular law
 //   is that of the start field: exact only in expectation);
 // - joint: the first half of the iterations match the joint (radius, angle) law to a stratified slope set
@@ -105,7 +105,7 @@ void validate(const AssemblyParams& params);
 // ---- the supported range: where a build meets its own NDF check ------------------------------------------
 // validate() states what can be built at all; the supported range is the part of it where the built tile
 // meets its NDF check (surface_stats.h, tolerance_for) with a margin, measured over seeds by
-// scripts/surface_range.sh (docs/surfaces.md, "Supported range", has the tables). Outside it a build
+// scripts/surface_range.sh (docs/reference/surfaces.md, "Supported range", has the tables). Outside it a build
 // fails its own check, or passes by luck of the seed, so `surface build` refuses it before any work.
 // Isotropic alpha does not enter: the construction works in normalised slope space, and alpha in
 // [0.005, 2] gives identical verdicts.
