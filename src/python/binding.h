@@ -22,6 +22,8 @@ namespace py = pybind11;
 void bind_validation(py::module_& m);
 // Registers albedo_table() and stability() (tables_binding.cpp).
 void bind_tables(py::module_& m);
+// Registers check_bsdf() (battery_binding.cpp).
+void bind_battery(py::module_& m);
 
 // Runs `work(run)` with the GIL released, on a worker thread, while the calling thread waits and, every
 // 50 ms and at the end, takes the GIL to pass the latest progress to `progress` (a Python callable

@@ -2,7 +2,7 @@
 
 Type stub of the compiled module (src/python/*.cpp) for editors and type checkers."""
 import os
-from typing import Any, Callable, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Dict, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -142,3 +142,11 @@ def build_surface(assembly: str = "smith", alpha: Alpha = 0.5, *, resolution: in
                   corr_cells: float = 0.0, tile_size: float = 1.0, iterations: int = 0, check_range: bool = True,
                   progress: Progress = None) -> Heightfield:
     """Builds a periodic heightfield microsurface (`microsim surface build`): same heights for the same seed."""
+
+def check_bsdf(sample: Callable[[np.ndarray, np.ndarray], Tuple[np.ndarray, np.ndarray, np.ndarray]],
+               eval: Callable[[np.ndarray, np.ndarray], np.ndarray], pdf: Callable[[np.ndarray, np.ndarray], np.ndarray], *,
+               bsdf: str, alpha: Alpha, channels: int = 1, transport: str = "radiance",
+               masking: str = "height-correlated", samples: int = 200000, seed: int = 1, level: float = 0.01,
+               arithmetic: str = "float32") -> Dict[str, Any]:
+    """The whole BSDF battery (`microsim check-bsdf`) on vectorised numpy callables: the report as a dict."""
+    ...

@@ -299,6 +299,29 @@ EvalCheckReport check_eval_file(const std::filesystem::path& file, const EvalCol
   return r;
 }
 
+EvalCheckReport check_eval_values(std::span<const BsdfQuery> pairs, std::span<const double> values,
+                                  std::span<const double> pdfs, const Material& bsdf, const GGX<double>& ggx,
+                                  const EvalCheckOptions& options, const std::string& name) {
+  if (bsdf.kind() == MaterialKind::lambertian) throw std::invalid_argument("an eval check needs a mirror, a conductor or a dielectric");
+  const std::size_t channels = std::size_t(bsdf.channels());
+  if (values.size() != pairs.size() * channels || (!pdfs.empty() && pdfs.size() != pairs.size()))
+    throw std::invalid_argument(fmt::format("eval check: {} pairs, {} values, {} pdfs", pairs.size(), values.size(), pdfs.size()));
+  const double eps = options.arithmetic == Precision::float32 ? std::numeric_limits<float>::epsilon() / 2
+                                                              : std::numeric_limits<double>::epsilon() / 2;
+  const EvalContext x{bsdf, ggx, GGX<float>(float(ggx.alpha_x()), float(ggx.alpha_y())), options, Epsilons{eps, eps, eps}};
+  EvalCheckReport r;
+  r.file = name;
+  r.storage = "in process";
+  for (std::size_t i = 0; i < pairs.size(); ++i) {
+    if (i % 4096 == 0 && options.run.cancelled()) throw Cancelled("the eval check");
+    check_row(r, x, i, pairs[i].wi, pairs[i].wo, &values[i * channels], pdfs.empty() ? nullptr : &pdfs[i]);
+  }
+  r.rows = pairs.size();
+  r.passed = r.value_failures == 0 && r.pdf_failures == 0;
+  r.notes = eval_notes(r, x, !pdfs.empty());
+  return r;
+}
+
 namespace {
 nlohmann::json mismatch_json(const EvalMismatch& m) {
   const auto finite = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };

@@ -28,6 +28,7 @@
 #include "microfacet/ggx.h"
 #include "microfacet/material.h"
 #include "core/run_control.h"
+#include "validate/bsdf_queries.h"
 #include "validate/sample_io.h"
 #include "validate/validate.h"
 
@@ -35,6 +36,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -91,6 +93,12 @@ T renderer_pdf(const Material& bsdf, const GGX<T>& ggx, const Vec3<T>& wi, const
 // std::invalid_argument for a Lambertian BSDF.
 EvalCheckReport check_eval_file(const std::filesystem::path& file, const EvalColumns& columns, const Material& bsdf,
                                 const GGX<double>& ggx, const EvalCheckOptions& options);
+
+// The same for values computed in process (a renderer's plugin): per pair its channels' values and, unless
+// `pdfs` is empty, its pdf; the arithmetic's epsilon stands for the storage's. `name` names the source.
+EvalCheckReport check_eval_values(std::span<const BsdfQuery> pairs, std::span<const double> values,
+                                  std::span<const double> pdfs, const Material& bsdf, const GGX<double>& ggx,
+                                  const EvalCheckOptions& options, const std::string& name);
 
 nlohmann::json to_json(const EvalCheckReport& report);
 

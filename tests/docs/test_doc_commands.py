@@ -90,7 +90,8 @@ def expected_exit(command):
 
 
 def prepare(folder, binary, python_path):
-    """A page's folder: examples/ copied, bin/ with microsim and python3, build/microsim and build/python."""
+    """A page's folder: examples/ copied, bin/ with microsim and python3, build/microsim, the example BSDF plugins
+    built beside it (build/microsim_plugin_*.so) and build/python."""
     folder.mkdir(parents=True)
     shutil.copytree(ROOT / "examples", folder / "examples", ignore=shutil.ignore_patterns("__pycache__"))
     (folder / "bin").mkdir()
@@ -98,6 +99,8 @@ def prepare(folder, binary, python_path):
     if binary:
         (folder / "bin/microsim").symlink_to(pathlib.Path(binary).resolve())
         (folder / "build/microsim").symlink_to(pathlib.Path(binary).resolve())
+        for plugin in pathlib.Path(binary).resolve().parent.glob("microsim_plugin_*.so"):
+            (folder / "build" / plugin.name).symlink_to(plugin)
     (folder / "bin/python3").symlink_to(sys.executable)
     if python_path:
         (folder / "build/python").symlink_to(pathlib.Path(python_path).resolve())

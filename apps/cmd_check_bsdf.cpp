@@ -1,0 +1,166 @@
+// microsim check-bsdf --plugin LIB.so: a renderer's BSDF, loaded in process through the C interface of
+// include/microsim/bsdf_plugin.h (dlopen), run through the battery of measure/bsdf_battery.h against the exact
+// single-scattering BSDF it claims (--bsdf, --alpha). Exit 0 every test passed, 1 one rejected, 2 bad usage or
+// a plugin that cannot be loaded, 130 interrupted.
+#include "command.h"
+#include "number_options.h"
+#include "progress_bar.h"
+
+#include "microsim/bsdf_plugin.h"
+#include "core/atomic_file.h"
+#include "microfacet/roughness.h"
+#include "measure/bsdf_battery.h"
+
+#include <dlfcn.h>
+#include <fmt/core.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace microsim::app {
+namespace {
+
+struct CheckArgs {
+  std::string plugin, bsdf, alpha, json, arithmetic = "float32";
+  std::vector<std::string> params;
+  long long samples = 200'000;
+  unsigned long long seed = 1;
+  double level = 0.01;
+};
+
+// The loaded library and one BSDF it created; both released in reverse order.
+class LoadedPlugin {
+public:
+  LoadedPlugin(const std::string& path, const std::string& params) {
+    library_ = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
+    if (!library_) throw UsageError(fmt::format("--plugin '{}': {}", path, dlerror()));
+    const auto entry = reinterpret_cast<microsim_bsdf_plugin_entry_fn>(dlsym(library_, "microsim_bsdf_plugin_entry"));
+    if (!entry) throw UsageError(fmt::format("--plugin '{}': no microsim_bsdf_plugin_entry", path));
+    api_ = entry();
+    if (!api_ || api_->abi_version != MICROSIM_BSDF_PLUGIN_ABI)
+      throw UsageError(fmt::format("--plugin '{}': not of ABI version {}", path, MICROSIM_BSDF_PLUGIN_ABI));
+    if (api_->channels < 1 || api_->channels > MICROSIM_BSDF_MAX_CHANNELS)
+      throw UsageError(fmt::format("--plugin '{}': {} channels", path, api_->channels));
+    self_ = api_->create(params.c_str());
+    if (!self_) throw UsageError(fmt::format("--plugin '{}': create(\"{}\") refused the parameters", path, params));
+  }
+  ~LoadedPlugin() {
+    if (self_) api_->destroy(self_);
+    if (library_) dlclose(library_);
+  }
+  LoadedPlugin(const LoadedPlugin&) = delete;
+  LoadedPlugin& operator=(const LoadedPlugin&) = delete;
+  const microsim_bsdf_plugin& api() const { return *api_; }
+  void* self() const { return self_; }
+
+private:
+  void* library_ = nullptr;
+  const microsim_bsdf_plugin* api_ = nullptr;
+  void* self_ = nullptr;
+};
+
+// The plugin as a BSDF under test: each row one call.
+BsdfUnderTest under_test(const LoadedPlugin& p) {
+  BsdfUnderTest b;
+  b.name = p.api().name ? p.api().name : "plugin";
+  b.channels = p.api().channels;
+  b.convention = {p.api().transport == 1 ? TransportMode::importance : TransportMode::radiance,
+                  p.api().masking == 1 ? MaskingForm::separable : MaskingForm::height_correlated};
+  const auto raw = [](const Vec3<double>& v, double out[3]) { out[0] = v.x(), out[1] = v.y(), out[2] = v.z(); };
+  const std::size_t c = std::size_t(b.channels);
+  b.sample = [&p, raw, c](std::span<const Vec3<double>> wi, std::span<const double> u, std::span<Vec3<double>> wo,
+                          std::span<double> pdf, std::span<double> weight, std::span<unsigned char> kept) {
+    for (std::size_t i = 0; i < wi.size(); ++i) {
+      double in[3], out[3] = {0, 0, 0};
+      raw(wi[i], in);
+      kept[i] = (unsigned char)(p.api().sample(p.self(), in, &u[3 * i], out, &pdf[i], &weight[c * i]) != 0);
+      wo[i] = Vec3<double>(out[0], out[1], out[2]);
+    }
+  };
+  b.eval = [&p, raw, c](std::span<const Vec3<double>> wi, std::span<const Vec3<double>> wo, std::span<double> value) {
+    for (std::size_t i = 0; i < wi.size(); ++i) {
+      double in[3], out[3];
+      raw(wi[i], in), raw(wo[i], out);
+      p.api().eval(p.self(), in, out, &value[c * i]);
+    }
+  };
+  b.pdf = [&p, raw](std::span<const Vec3<double>> wi, std::span<const Vec3<double>> wo, std::span<double> pdf) {
+    for (std::size_t i = 0; i < wi.size(); ++i) {
+      double in[3], out[3];
+      raw(wi[i], in), raw(wo[i], out);
+      pdf[i] = p.api().pdf(p.self(), in, out);
+    }
+  };
+  return b;
+}
+
+void print_table(const BatteryReport& r) {
+  fmt::print("{:<12} {:<13} {:>9} {:<9} {}\n", "test", "view", "p", "verdict", "detail");
+  for (const BatteryLine& l : r.lines)
+    fmt::print("{:<12} {:<13} {:>9} {:<9} {}\n", l.test, l.view, l.p < 0 ? "-" : fmt::format("{:.3g}", l.p),
+               l.passed ? "pass" : "REJECTED", l.detail);
+  fmt::print("{}\n", r.passed ? "passed" : "REJECTED");
+}
+
+int run_check_bsdf(const CheckArgs& a) {
+  check_distinct_outputs({{"--plugin", a.plugin}}, {{"--json", a.json}});
+  check_output("--json", a.json);
+  if (a.arithmetic != "float32" && a.arithmetic != "float64")
+    throw UsageError(fmt::format("--arithmetic {}: float32 or float64", quote_excerpt(a.arithmetic)));
+  const Material m = parse_material("--bsdf", a.bsdf);
+  if (m.kind() == MaterialKind::lambertian) throw UsageError("--bsdf: mirror, conductor:ETA,K or dielectric:ETA");
+  const auto [ax, ay] = parse_alpha("--alpha", a.alpha);
+  const GGX<double> ggx(ax, ay);
+  std::string params;
+  for (const std::string& p : a.params) params += (params.empty() ? "" : " ") + p;
+  const LoadedPlugin plugin(a.plugin, params);
+  if (plugin.api().channels != m.channels())
+    throw UsageError(fmt::format("--plugin has {} channel(s), --bsdf {} has {}", plugin.api().channels, a.bsdf, m.channels()));
+  install_interrupt_handler();
+  BatteryOptions o;
+  o.samples = std::uint64_t(a.samples);
+  o.seed = a.seed;
+  o.level = a.level;
+  o.arithmetic = a.arithmetic == "float64" ? Precision::float64 : Precision::float32;
+  o.run = cli_run_control(0, nullptr);
+  BatteryReport r;
+  try {
+    r = run_bsdf_battery(under_test(plugin), m, ggx, o);
+  } catch (const Cancelled&) {
+    return interrupted_nothing_written("check-bsdf");
+  }
+  if (!a.json.empty()) {
+    nlohmann::json j = to_json(r);
+    j.update({{"plugin", a.plugin}, {"bsdf", a.bsdf}, {"alpha", a.alpha}, {"level", a.level}});
+    write_file_atomically(a.json, j.dump(2) + "\n");
+  }
+  print_table(r);
+  return r.passed ? kExitOk : kExitRejected;
+}
+
+CommandRegistration check_bsdf_registration{"check-bsdf", [](CLI::App& app) {
+  auto a = std::make_shared<CheckArgs>();
+  auto* sub = app.add_subcommand(
+      "check-bsdf",
+      "Test a renderer's BSDF in process through the C plugin interface (include/microsim/bsdf_plugin.h) against the "
+      "exact single-scattering BSDF it claims: its samples per view (directions, returned pdfs, weights), its eval() "
+      "and pdf() at the pairs of bsdf-queries, its weights against eval / pdf, non-finite values. Exit 0 passed, 1 "
+      "rejected, 2 bad usage or a plugin that cannot be loaded.");
+  sub->add_option("--plugin", a->plugin, "the shared library (.so) defining microsim_bsdf_plugin_entry")->required();
+  sub->add_option("--param", a->params, "a key=value parameter passed to the plugin's create() (repeatable)");
+  sub->add_option("--bsdf", a->bsdf, "the BSDF it claims: mirror, conductor:ETA,K or dielectric:ETA")->required();
+  sub->add_option("--alpha", a->alpha, "its GGX roughness AX or AX,AY")->required();
+  add_number_option(sub, "--samples", a->samples, whole(1000, 100'000'000), "samples per view")->default_str("200000");
+  add_number_option(sub, "--seed", a->seed, whole(), "seed of the uniforms")->default_str("1");
+  add_number_option(sub, "--level", a->level, real(), "family-wise significance level (Sidak over the views)")->default_str("0.01");
+  sub->add_option("--arithmetic", a->arithmetic, "the plugin's arithmetic for the eval tolerances: float32 or float64")
+      ->capture_default_str();
+  sub->add_option("--json", a->json, "write the report as JSON");
+  on_selected(sub, [a] { return run_check_bsdf(*a); });
+}};
+
+}  // namespace
+}  // namespace microsim::app

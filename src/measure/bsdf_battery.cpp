@@ -1,0 +1,179 @@
+// The whole battery of a renderer's BSDF in process (bsdf_battery.h).
+#include "measure/bsdf_battery.h"
+
+#include "core/random.h"
+#include "stats/chi2.h"
+#include "validate/bsdf_queries.h"
+#include "validate/dump_validation.h"
+#include "validate/sample_io.h"
+
+#include <fmt/core.h>
+
+#include <cmath>
+#include <stdexcept>
+
+namespace microsim {
+
+namespace {
+
+constexpr std::size_t kBatch = 65536;
+constexpr double kConsistency = 1e-3;  // relative
+
+struct Samples {
+  std::vector<Vec3<double>> wo;
+  std::vector<double> pdf, weight;  // weight: channels per row
+  std::uint64_t lost = 0, non_finite = 0;
+};
+
+bool finite_row(const Vec3<double>& wo, double pdf, const double* weight, int channels) {
+  bool ok = wo.allFinite() && std::isfinite(pdf);
+  for (int c = 0; c < channels; ++c) ok = ok && std::isfinite(weight[c]);
+  return ok;
+}
+
+// n samples from wi: uniforms of sample i from CounterRng(seed, i), as the command line's dumps draw them.
+Samples draw(const BsdfUnderTest& b, const Vec3<double>& wi, const BatteryOptions& o) {
+  Samples s;
+  const std::size_t c = std::size_t(b.channels);
+  for (std::uint64_t first = 0; first < o.samples; first += kBatch) {
+    if (o.run.cancelled()) throw Cancelled("the BSDF's samples");
+    const std::size_t n = std::size_t(std::min<std::uint64_t>(kBatch, o.samples - first));
+    std::vector<Vec3<double>> in(n, wi), wo(n);
+    std::vector<double> u(3 * n), pdf(n), weight(c * n);
+    std::vector<unsigned char> kept(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      CounterRng rng(o.seed, first + i);
+      for (int k = 0; k < 3; ++k) u[3 * i + std::size_t(k)] = rng.uniform();
+    }
+    b.sample(in, u, wo, pdf, weight, kept);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!kept[i]) {
+        ++s.lost;
+        continue;
+      }
+      if (!finite_row(wo[i], pdf[i], &weight[c * i], b.channels)) ++s.non_finite;
+      s.wo.push_back(wo[i]);
+      s.pdf.push_back(pdf[i]);
+      s.weight.insert(s.weight.end(), weight.begin() + std::ptrdiff_t(c * i), weight.begin() + std::ptrdiff_t(c * (i + 1)));
+    }
+  }
+  return s;
+}
+
+// The samples as an array in memory: columns x, y, z, pdf, weight per channel.
+DirectionSampleReader sample_reader(const Samples& s, int channels) {
+  SampleArray a;
+  a.name = "the BSDF's samples";
+  a.rows = s.wo.size();
+  for (int k = 0; k < 3; ++k) a.columns.push_back({&s.wo.front()[k], std::ptrdiff_t(sizeof(Vec3<double>)), false});
+  a.columns.push_back({s.pdf.data(), std::ptrdiff_t(sizeof(double)), false});
+  for (int c = 0; c < channels; ++c) a.columns.push_back({s.weight.data() + c, std::ptrdiff_t(sizeof(double)) * channels, false});
+  std::string spec = "x,y,z,pdf";
+  for (int c = 0; c < channels; ++c) spec += ",weight";
+  return DirectionSampleReader(std::move(a), SampleColumns::parse(spec));
+}
+
+// Each sample's weight against eval / pdf, and its pdf against pdf(), at the sampled direction.
+BatteryLine consistency(const BsdfUnderTest& b, const Vec3<double>& wi, const Samples& s, const std::string& view) {
+  const std::size_t n = s.wo.size(), c = std::size_t(b.channels);
+  std::vector<Vec3<double>> in(n, wi);
+  std::vector<double> value(c * n), pdf(n);
+  b.eval(in, s.wo, value);
+  b.pdf(in, s.wo, pdf);
+  std::uint64_t bad = 0;
+  std::string first;
+  for (std::size_t i = 0; i < n; ++i) {
+    bool ok = std::abs(pdf[i] - s.pdf[i]) <= kConsistency * std::abs(s.pdf[i]) + 1e-300;
+    for (std::size_t k = 0; k < c; ++k)
+      ok = ok && std::abs(s.weight[c * i + k] - value[c * i + k] / pdf[i]) <= kConsistency * std::abs(s.weight[c * i + k]) + 1e-300;
+    if (!ok && bad++ == 0)
+      first = fmt::format("e.g. wo ({:.4f}, {:.4f}, {:.4f}): weight {:.6g}, eval / pdf {:.6g}, pdf {:.6g} vs pdf() {:.6g}",
+                          s.wo[i].x(), s.wo[i].y(), s.wo[i].z(), s.weight[c * i], value[c * i] / pdf[i], s.pdf[i], pdf[i]);
+  }
+  return {"consistency", view,
+          bad == 0 ? "weights = eval / pdf and pdfs = pdf() at every sample"
+                   : fmt::format("{} of {} samples disagree; {}", bad, n, first),
+          -1, bad == 0};
+}
+
+std::vector<double> view_thetas(const Material& m) {
+  std::vector<double> v{0, 30, 60, 80, 89.9};
+  if (m.transmits()) v.insert(v.end(), {120, 150});
+  return v;
+}
+
+// The sampling validation of one view (at its Sidak share of the level), and the samples' consistency.
+void check_view(const BsdfUnderTest& b, const Material& m, const GGX<double>& ggx, double theta, const BatteryOptions& o,
+                double level, std::vector<BatteryLine>& lines) {
+  const std::string view = fmt::format("{:g} deg", theta);
+  const Vec3<double> wi = direction_from_degrees(theta, 0.0);
+  const Samples s = draw(b, wi, o);
+  if (s.non_finite > 0) lines.push_back({"finite", view, fmt::format("{} samples with a non-finite value", s.non_finite), -1, false});
+  if (s.wo.empty()) {
+    lines.push_back({"sampling", view, "every sample was lost", -1, false});
+    return;
+  }
+  DirectionSampleReader reader = sample_reader(s, b.channels);
+  ValidationOptions v;
+  v.significance = level;
+  v.bsdf = m;
+  v.convention = b.convention;
+  v.dropped_below_horizon = s.lost;
+  v.run = o.run;
+  const ValidationReport r = validate_dump_as_given(reader, {FilePdf::bsdf, m, true}, ggx, wi, v, false);
+  lines.push_back({"sampling", view, r.passed ? fmt::format("{} samples, {} lost", s.wo.size(), s.lost) : r.failures.front(),
+                   r.p_value, r.passed});
+  lines.push_back(consistency(b, wi, s, view));
+}
+
+// eval() and pdf() at the query pairs.
+BatteryLine check_eval(const BsdfUnderTest& b, const Material& m, const GGX<double>& ggx, const BatteryOptions& o,
+                       EvalCheckReport& report) {
+  const std::vector<BsdfQuery> q = bsdf_queries(m, 256, o.seed, ggx);
+  std::vector<Vec3<double>> wi, wo;
+  for (const BsdfQuery& x : q) wi.push_back(x.wi), wo.push_back(x.wo);
+  std::vector<double> values(q.size() * std::size_t(b.channels)), pdfs(q.size());
+  b.eval(wi, wo, values);
+  b.pdf(wi, wo, pdfs);
+  EvalCheckOptions e;
+  e.convention = b.convention;
+  e.arithmetic = o.arithmetic;
+  e.run = o.run;
+  report = check_eval_values(q, values, pdfs, m, ggx, e, b.name);
+  std::string detail = fmt::format("{} pairs: {} values, {} pdfs outside their tolerance", q.size(), report.value_failures,
+                                   report.pdf_failures);
+  if (!report.passed && !report.worst.empty()) {
+    const EvalMismatch& w = report.worst.front();
+    detail += fmt::format("; worst: {} {:.6g} against {:.6g} at wi ({:.3f}, {:.3f}, {:.3f}), wo ({:.3f}, {:.3f}, {:.3f})",
+                          w.quantity, w.given, w.reference, w.wi.x(), w.wi.y(), w.wi.z(), w.wo.x(), w.wo.y(), w.wo.z());
+  }
+  return {"eval", "bsdf-queries", detail, -1, report.passed};
+}
+
+}  // namespace
+
+BatteryReport run_bsdf_battery(const BsdfUnderTest& bsdf, const Material& claimed, const GGX<double>& ggx,
+                               const BatteryOptions& options) {
+  if (claimed.kind() == MaterialKind::lambertian) throw std::invalid_argument("the battery needs a mirror, a conductor or a dielectric");
+  if (bsdf.channels != claimed.channels())
+    throw std::invalid_argument(fmt::format("the BSDF has {} channel(s), the claimed {} has {}", bsdf.channels,
+                                            claimed.describe(), claimed.channels()));
+  const std::vector<double> thetas = view_thetas(claimed);
+  const double level = sidak_significance(options.level, int(thetas.size()));
+  BatteryReport r;
+  for (const double theta : thetas) check_view(bsdf, claimed, ggx, theta, options, level, r.lines);
+  r.lines.push_back(check_eval(bsdf, claimed, ggx, options, r.eval));
+  r.passed = true;
+  for (const BatteryLine& l : r.lines) r.passed = r.passed && l.passed;
+  return r;
+}
+
+nlohmann::json to_json(const BatteryReport& r) {
+  nlohmann::json tests = nlohmann::json::array();
+  for (const BatteryLine& l : r.lines)
+    tests.push_back({{"test", l.test}, {"view", l.view}, {"p", l.p < 0 ? nlohmann::json(nullptr) : nlohmann::json(l.p)},
+                     {"passed", l.passed}, {"detail", l.detail}});
+  return {{"verdict", r.passed ? "pass" : "fail"}, {"tests", tests}, {"eval", to_json(r.eval)}};
+}
+
+}  // namespace microsim

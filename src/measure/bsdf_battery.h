@@ -1,0 +1,72 @@
+// measure: the whole battery a renderer's BSDF runs in process (`microsim check-bsdf`, Python
+// `microsim.check_bsdf`), against the exact single-scattering BSDF it claims:
+//   - per view (0, 30, 60, 80 and 89.9 deg; 120 and 150 deg from inside a dielectric): its samples' directions
+//     against its sampling density, their returned pdfs, and their weights against the BSDF in its convention
+//     (validate/dump_validation.h; the lost samples dropped and counted as a renderer drops them), at the
+//     family-wise level Sidak-shared over the views;
+//   - its consistency with itself: each sample's weight against eval / pdf at the sampled direction, and its
+//     returned pdf against pdf(), within 1e-3 relative;
+//   - its eval() and pdf() at the pairs of bsdf_queries, pointwise (validate/eval_check.h);
+//   - non-finite outputs: a failure.
+// The BSDF is called in batches (one view's wi repeated), from the calling thread.
+#pragma once
+
+#include "core/run_control.h"
+#include "microfacet/bsdf_convention.h"
+#include "microfacet/ggx.h"
+#include "microfacet/material.h"
+#include "validate/eval_check.h"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <functional>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace microsim {
+
+// A BSDF under test, vectorised over n rows: wi and wo unit, z-up; values per channel, row-major.
+struct BsdfUnderTest {
+  std::string name;
+  int channels = 1;
+  BsdfConvention convention;
+  // wi (n), u (3 n) -> wo (n), pdf (n), weight (channels n), kept (n: 0 for a lost sample).
+  std::function<void(std::span<const Vec3<double>> wi, std::span<const double> u, std::span<Vec3<double>> wo,
+                     std::span<double> pdf, std::span<double> weight, std::span<unsigned char> kept)>
+      sample;
+  // (wi, wo) (n) -> f(wi, wo) |cos wo| (channels n).
+  std::function<void(std::span<const Vec3<double>> wi, std::span<const Vec3<double>> wo, std::span<double> value)> eval;
+  // (wi, wo) (n) -> the density sample() draws wo with (n).
+  std::function<void(std::span<const Vec3<double>> wi, std::span<const Vec3<double>> wo, std::span<double> pdf)> pdf;
+};
+
+struct BatteryOptions {
+  std::uint64_t samples = 200'000;  // per view
+  std::uint64_t seed = 1;
+  double level = 0.01;
+  Precision arithmetic = Precision::float32;  // of the BSDF, for the eval tolerances
+  RunControl run;
+};
+
+struct BatteryLine {
+  std::string test, view, detail;
+  double p = -1;  // a statistical test's Sidak-adjusted p; -1 for the others
+  bool passed = true;
+};
+
+struct BatteryReport {
+  std::vector<BatteryLine> lines;
+  EvalCheckReport eval;
+  bool passed = false;
+};
+
+// Throws std::invalid_argument when the BSDF's channels are not the material's (or a Lambertian material),
+// Cancelled.
+BatteryReport run_bsdf_battery(const BsdfUnderTest& bsdf, const Material& claimed, const GGX<double>& ggx,
+                               const BatteryOptions& options);
+
+nlohmann::json to_json(const BatteryReport& report);
+
+}  // namespace microsim
