@@ -95,7 +95,7 @@ AlbedoTableRequest albedo_request(const AlbedoArgs& a) {
   AlbedoTableRequest r;
   try {
     r.model = parse_albedo_model("--model", a.model);
-    r.ndf = parse_walk_ndf("--ndf", a.ndf);
+    r.ndf = parse_ndf_kind("--ndf", a.ndf);
     r.alphas = albedo_alphas(a);
   } catch (const ParseError& e) {
     throw UsageError(e.what());

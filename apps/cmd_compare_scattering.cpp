@@ -18,6 +18,7 @@
 #include "progress_bar.h"
 
 #include "core/atomic_file.h"
+#include "core/ndf_kind.h"
 #include "core/strict_parse.h"
 #include "microfacet/material.h"
 #include "microfacet/roughness.h"
@@ -112,9 +113,10 @@ double note_number(const Input& in, const char* key) {
 
 // The analytic single scattering of the configuration the first input's notes record, binned alike.
 Input analytic_input(const Input& first, int threads) {
-  const std::string& ndf = note(first, "ndf");
-  if (ndf != "ggx" && ndf != "beckmann")
-    throw UsageError(fmt::format("--analytic: '{}' note.ndf = {} (ggx or beckmann)", first.name, quote_excerpt(ndf)));
+  const std::optional<NdfKind> ndf = ndf_kind_from_string(note(first, "ndf"));
+  if (!ndf)
+    throw UsageError(fmt::format("--analytic: '{}' note.ndf = {} (ggx or beckmann)", first.name,
+                                 quote_excerpt(note(first, "ndf"))));
   const auto [ax, ay] = parse_alpha("--analytic note.alpha", note(first, "alpha"));
   const double theta = note_number(first, "theta") * kPi<double> / 180, phi = note_number(first, "phi") * kPi<double> / 180;
   const Material material = parse_material("--analytic note.material", note(first, "material"));
@@ -124,8 +126,9 @@ Input analytic_input(const Input& first, int threads) {
   in.file.kind = ScatterFileKind::expectation;
   install_interrupt_handler();
   const RunControl run = cli_run_control(threads, nullptr);
-  in.file.expectation = ndf == "beckmann" ? analytic_single_scattering(Beckmann<double>(ax, ay), wi, material, b.rows() / 2, run)
-                                          : analytic_single_scattering(GGX<double>(ax, ay), wi, material, b.rows() / 2, run);
+  in.file.expectation = *ndf == NdfKind::beckmann
+                            ? analytic_single_scattering(Beckmann<double>(ax, ay), wi, material, b.rows() / 2, run)
+                            : analytic_single_scattering(GGX<double>(ax, ay), wi, material, b.rows() / 2, run);
   return in;
 }
 

@@ -55,6 +55,12 @@ struct ScatterArgs {
   std::set<std::string> given;  // the options given on the command line
 };
 
+// --ndf: the NDF of --model analytic and smith-walk.
+NdfKind scatter_ndf(const ScatterArgs& a) {
+  if (const std::optional<NdfKind> ndf = ndf_kind_from_string(a.ndf)) return *ndf;
+  throw UsageError(fmt::format("--ndf {}: unknown (ggx or beckmann)", a.ndf));
+}
+
 // wi of --theta (degrees from +z: below 90 light from above, above 90 from below) and --phi.
 Vec3<double> scatter_view(double theta, double phi) {
   if (!std::isfinite(theta) || theta < 0 || theta > 180 || theta == 90)
@@ -141,8 +147,8 @@ int run_analytic(const ScatterArgs& a) {
              a.ndf, ax, ay, material.describe(), a.theta, a.phi, a.rows);
   ScatterExpectation e;
   try {
-    e = a.ndf == "beckmann" ? analytic_single_scattering(Beckmann<double>(ax, ay), o.wi, material, o.rows, run)
-                            : analytic_single_scattering(GGX<double>(ax, ay), o.wi, material, o.rows, run);
+    e = scatter_ndf(a) == NdfKind::beckmann ? analytic_single_scattering(Beckmann<double>(ax, ay), o.wi, material, o.rows, run)
+                                            : analytic_single_scattering(GGX<double>(ax, ay), o.wi, material, o.rows, run);
   } catch (const Cancelled&) {
     return interrupted_nothing_written("scatter", "during the cubature");
   }
@@ -156,7 +162,7 @@ int run_walk(const ScatterArgs& a) {
   const auto [ax, ay] = parse_alpha("--alpha", a.alpha);
   surface.alpha_x = ax;
   surface.alpha_y = ay;
-  surface.ndf = a.ndf == "beckmann" ? WalkNdf::beckmann : WalkNdf::ggx;
+  surface.ndf = scatter_ndf(a);
   const Material material = scatter_material(a.material);
   ScatterOptions o = scatter_options(a, material);
   try {
@@ -215,7 +221,7 @@ int run_surface(const ScatterArgs& a) {
 
 int run_scatter(const ScatterArgs& a) {
   check_distinct_outputs({{"--surface", a.surface}}, {{"--out", a.out}, {"--json", a.json}});
-  if (a.ndf != "ggx" && a.ndf != "beckmann") throw UsageError(fmt::format("--ndf {}: unknown (ggx or beckmann)", a.ndf));
+  scatter_ndf(a);  // an unknown --ndf is bad usage whatever the model
   if (!a.surface.empty() && !a.model.empty())
     throw UsageError(fmt::format("--surface and --model {} exclude each other (a surface is traced, a model is not)", a.model));
   if (a.model == "analytic") return run_analytic(a);

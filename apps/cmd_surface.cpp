@@ -193,7 +193,7 @@ void print_stats(const microgeom::SurfaceStats& st, const microgeom::Heightfield
 nlohmann::json stats_json(const microgeom::SurfaceStats& st) {
   nlohmann::json j;
   j["triangles"] = st.triangles;
-  j["reference"] = std::string(microgeom::to_string(st.reference));
+  j["reference"] = to_string(st.reference);
   j["alpha"] = {st.alpha_x, st.alpha_y};
   j["alpha_fitted"] = st.alpha_fitted;
   j["fitted_alpha"] = {st.fitted_alpha_x, st.fitted_alpha_y};
@@ -240,7 +240,7 @@ nlohmann::json stats_json(const microgeom::SurfaceStats& st) {
 std::string assembly_help() {
   std::string s;
   for (const auto& a : microgeom::assembly_registry())
-    s += fmt::format("\n  {:<9} {} (NDF: {})", a.name, a.summary, microgeom::to_string(a.reference));
+    s += fmt::format("\n  {:<9} {} (NDF: {})", a.name, a.summary, to_string(a.reference));
   return s;
 }
 // "smith, ..., beckmann": the assemblies' names, for an option's help line.
@@ -422,7 +422,7 @@ int run_build(const BuildOptions& o) {
   print_cost(cost, *field);
   if (!st.ndf_within_tolerance)
     throw UsageError(fmt::format("the {} surface misses its {} NDF: {} (nothing written)", p.assembly,
-                                 microgeom::to_string(so.reference), st.ndf_verdict));
+                                 to_string(so.reference), st.ndf_verdict));
   write_build_outputs(o, *field, build_json(o, p, l, report, cost, st));
   if (!o.quiet) fmt::print(stderr, "surface build: wrote {}\n", o.out);
   return microsim::app::kExitOk;
@@ -449,13 +449,13 @@ std::optional<double> metadata_number(const microgeom::Heightfield& f, const std
 }
 
 // Reference: the option, else the file's, else GGX.
-microgeom::ReferenceNdf reference_ndf(const StatsCliOptions& o, const microgeom::Heightfield& field) {
+microsim::NdfKind reference_ndf(const StatsCliOptions& o, const microgeom::Heightfield& field) {
   std::string ref = o.reference;
   if (ref.empty()) {
     auto it = field.metadata.find("reference_ndf");
     ref = it != field.metadata.end() ? it->second : "ggx";
   }
-  if (const auto ndf = microgeom::reference_ndf_from_string(ref)) return *ndf;
+  if (const auto ndf = microsim::ndf_kind_from_string(ref)) return *ndf;
   throw UsageError(fmt::format("--reference '{}' must be ggx or beckmann", ref));
 }
 

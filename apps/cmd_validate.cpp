@@ -371,33 +371,17 @@ int run_all(const Args& a) {
   if (!a.alpha.empty() || a.theta) throw UsageError("--all runs its own grid: drop --alpha/--theta/--phi");
   if (!a.shard.empty()) return run_shard(a, nullptr);
   install_interrupt_handler();
-  const ValidationRun run = validation_run(a, nullptr);
+  ValidationRun run = validation_run(a, nullptr);
   // Too few samples for any test: refused before any work (each validation checks its own bound too).
   // Sidak over the batch: each validation (itself Sidak over its own tests) runs at the level that
   // keeps the family-wise level of the whole batch at --significance (validation_run).
   usage_errors_of([&] { require_samples_for_any_test(run.options.samples); });
-  microsim::app::ZooReport report(run);
-  microsim::app::ZooReferences references;  // one per configuration and claimed pdf
-  ProgressBar bar("validate --all", std::uint64_t(run.cases.size()));
-  bool partial = false;
-  for (const ValidationCase& c : run.cases) {
-    if (interrupted()) {
-      partial = true;
-      break;
-    }
-    const auto ref = references.get(c, run.options.rows);
-    ValidationOptions vo = run.options;
-    vo.seed = c.seed;  // independent streams per validation
-    const auto t_start = std::chrono::steady_clock::now();
-    ValidationReport r = usage_errors_of([&] { return validate_sampler(*c.sampler, c.ggx(), c.wi(), vo, ref); });
-    r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
-    report.add(c, r);
-    bar.add(1);
-  }
-  bar.finish();
-  microsim::app::BsdfZooReferences bsdf_references;
-  if (!partial) partial = !microsim::app::run_bsdf_section(run, report, bsdf_references);
-  return report.finish(partial, references, a.json, &bsdf_references);
+  const microsim::app::ZooReport report(run);
+  const auto progress = std::make_shared<CliProgress>(true);
+  run.options.run = cli_run_control(0, progress);  // Ctrl-C stops the batch between validations
+  const ZooResult result = usage_errors_of([&] { return validate_all(run, report.observer()); });
+  progress->finish();
+  return report.finish(result, a.json);
 }
 
 // The options that describe a --from file (what it claims, its columns, frame, BSDF): checked before any

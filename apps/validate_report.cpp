@@ -10,7 +10,6 @@
 
 #include <fmt/core.h>
 #include <fmt/ranges.h>
-#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
@@ -20,8 +19,6 @@ namespace microsim::app {
 
 namespace {
 
-constexpr double kNegativeControlP = 1e-6;  // a negative control must be rejected with p below this
-
 std::string fmt_p(double p) { return p >= 1e-3 ? fmt::format("{:.4f}", p) : fmt::format("{:.2e}", p); }
 
 std::string fmt_alpha(double ax, double ay) {
@@ -29,10 +26,6 @@ std::string fmt_alpha(double ax, double ay) {
 }
 
 const char* pass_fail(bool passed) { return passed ? "pass" : "FAIL"; }
-
-double elapsed(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 void print_worst(const std::string& title, const ChiSquareResult& c, int n) {
   if (c.worst_cells.empty()) return;
@@ -176,23 +169,52 @@ TracedHistogram read_oracle_histogram(const std::string& option, const std::stri
 
 // ---- validate --all ----------------------------------------------------------------------------------------
 
-std::shared_ptr<const ReferenceDistribution> ZooReferences::get(const ValidationCase& c, int rows) {
-  const std::vector<double> configuration = {c.alpha_x, c.alpha_y, c.theta_deg, c.phi_deg};
-  if (configuration != configuration_) {
-    configuration_ = configuration;
-    references_.clear();
-  }
-  auto& ref = references_[c.sampler->claims];
-  if (!ref) {
-    const auto t0 = std::chrono::steady_clock::now();
-    ref = claimed_reference(*c.sampler, c.ggx(), c.wi(), rows);
-    ++count_;
-    seconds_ += elapsed(t0);
-  }
-  return ref;
+namespace {
+
+void print_zoo_row(const ZooRow& row) {
+  const ValidationReport& r = row.report;
+  const SubTest& weight = r.check("weight_mean");
+  const SubTest& pdf = r.check("returned_pdf");
+  fmt::print("{:<15} {:>10} {:>6g} {:>6g}  {:>9} {:>10} {:>10} {:>10} {:>10} {:>9}  {:>7.2f}\n", row.sampler,
+             fmt_alpha(row.alpha_x, row.alpha_y), row.theta_deg, row.phi_deg, row.verdict, fmt_p(r.p_value),
+             fmt_p(r.chi2("sphere").p_value), fmt_p(r.chi2("lobe").p_value),
+             weight.applicable ? fmt_p(weight.p_value) : "n/a", pdf.applicable ? fmt::format("{:.1e}", pdf.value) : "n/a",
+             r.seconds);
 }
 
-ZooReport::ZooReport(const ValidationRun& run) : run_(run), requested_(run.cases.size()) {
+void print_bsdf_row(const ZooRow& row) {
+  const ValidationReport& r = row.report;
+  const SubTest& pdf = r.check("returned_pdf");
+  fmt::print("{:<15} {:>6g} {:>6g} {:>7}  {:>9} {:>10} {:>10} {:>10} {:>10} {:>10} {:>9}  {:>7.2f}\n", row.sampler,
+             row.alpha_x, row.theta_deg, row.inside ? "inside" : "outside", row.verdict, fmt_p(r.p_value),
+             fmt_p(r.chi2("sphere").p_value), fmt_p(r.chi2("lobe").p_value), fmt_p(r.check("bsdf_albedo").p_value),
+             fmt_p(r.check("bsdf_bins").p_value), pdf.applicable ? fmt::format("{:.1e}", pdf.value) : "n/a", r.seconds);
+}
+
+void print_bsdf_header(std::size_t validations) {
+  fmt::print("\nBSDF samplers: {} validations (directions against the claimed pdf, weights f cos / pdf against the "
+             "analytic BSDF; conductor {}+{}i, dielectric {} from outside and, mirrored, from inside)\n",
+             validations, kZooConductorIor.real(), kZooConductorIor.imag(), kZooDielectricEta);
+  fmt::print("{:<15} {:>6} {:>6} {:>7}  {:>9} {:>10} {:>10} {:>10} {:>10} {:>10} {:>9}  {:>7}\n", "sampler", "alpha",
+             "theta", "side", "verdict", "p-value", "p sphere", "p lobe", "p albedo", "p bins", "pdf err", "time s");
+}
+
+void print_summary(const ZooResult& result) {
+  fmt::print("\nsummary per sampler:\n");
+  fmt::print("{:<15} {:>8} {:>12} {:>12} {:>12} {:>9}  {}\n", "sampler", "passed", "min p", "max p", "expected", "time s",
+             "outcome");
+  for (const ZooSummaryRow& sm : result.summary) {
+    const std::string expected = !sm.negative_control  ? "all pass"
+                                 : sm.without_effect ? fmt::format("rejected ({} no effect)", sm.without_effect)
+                                                     : "all rejected";
+    fmt::print("{:<15} {:>4}/{:<3} {:>12} {:>12} {:>12} {:>9.1f}  {}\n", sm.sampler, sm.passed, sm.total,
+               fmt_p(sm.min_p), fmt_p(sm.max_p), expected, sm.seconds, sm.expectation_met ? "as expected" : "UNEXPECTED");
+  }
+}
+
+}  // namespace
+
+ZooReport::ZooReport(const ValidationRun& run) {
   const ValidationOptions& o = run.options;
   fmt::print("microsim validate --all: {} samplers x {} configurations, {} samples each ({}), seed {}\n",
              sampler_registry().size(), kZooConfigurations, o.samples, to_string(o.precision), run.seed);
@@ -203,185 +225,35 @@ ZooReport::ZooReport(const ValidationRun& run) : run_(run), requested_(run.cases
              "phi", "verdict", "p-value", "p sphere", "p lobe", "p weight", "pdf err", "time s");
 }
 
-void ZooReport::add(const ValidationCase& c, const ValidationReport& r) {
-  const SamplerInfo& s = *c.sampler;
-  Summary& sm = summary_[std::string(s.name)];
-  sm.total += 1;
-  sm.passed += r.passed;
-  sm.min_p = std::min(sm.min_p, r.p_value);
-  sm.max_p = std::max(sm.max_p, r.p_value);
-  sm.seconds += r.seconds;
-  if (s.negative_control ? (r.passed || !(r.p_value < kNegativeControlP)) : !r.passed) sm.expectation_met = false;
-  const SubTest& weight = r.check("weight_mean");
-  const SubTest& pdf = r.check("returned_pdf");
-  fmt::print("{:<15} {:>10} {:>6g} {:>6g}  {:>9} {:>10} {:>10} {:>10} {:>10} {:>9}  {:>7.2f}\n", s.name,
-             fmt_alpha(c.alpha_x, c.alpha_y), c.theta_deg, c.phi_deg,
-             r.passed ? "pass" : (s.negative_control ? "rejected" : "FAIL"), fmt_p(r.p_value),
-             fmt_p(r.chi2("sphere").p_value), fmt_p(r.chi2("lobe").p_value),
-             weight.applicable ? fmt_p(weight.p_value) : "n/a", pdf.applicable ? fmt::format("{:.1e}", pdf.value) : "n/a",
-             r.seconds);
-  std::fflush(stdout);
-  nlohmann::json j = to_json(r);
-  j["negative_control"] = s.negative_control;
-  j["theta_deg"] = c.theta_deg;
-  j["phi_deg"] = c.phi_deg;
-  results_.push_back(j);
+ZooObserver ZooReport::observer() const {
+  ZooObserver o;
+  o.row = [](const ZooRow& row) {
+    row.bsdf ? print_bsdf_row(row) : print_zoo_row(row);
+    std::fflush(stdout);
+  };
+  o.bsdf_section = print_bsdf_header;
+  return o;
 }
 
-std::string BsdfZooReferences::key(const BsdfValidationCase& c) {
-  return fmt::format("{} {} {}", c.alpha, c.theta_deg, c.material().describe());
-}
-
-std::string BsdfZooReferences::flux_key(const BsdfValidationCase& c) {
-  return fmt::format("{} {}", key(c), describe(c.sampler->convention));
-}
-
-void BsdfZooReferences::prepare(const std::vector<BsdfValidationCase>& cases, int rows) {
-  const auto t0 = std::chrono::steady_clock::now();
-  // The sampling density's binnings once per configuration and material, then its flux once per convention.
-  std::map<std::string, std::shared_ptr<const ReferenceDistribution>> directions;
-  std::vector<const BsdfValidationCase*> firsts, flux_firsts;
-  for (const BsdfValidationCase& c : cases) {
-    if (directions.try_emplace(key(c)).second) firsts.push_back(&c);
-    if (references_.try_emplace(flux_key(c)).second) flux_firsts.push_back(&c);
-  }
-  std::vector<std::shared_ptr<const ReferenceDistribution>> computed(firsts.size());
-  tbb::parallel_for(std::size_t(0), firsts.size(), [&](std::size_t i) {
-    const BsdfValidationCase& c = *firsts[i];
-    computed[i] = density_reference(bsdf_sampling_density(c.material(), c.ggx(), c.wi()), c.ggx(), c.wi(), rows);
-  });
-  for (std::size_t i = 0; i < firsts.size(); ++i) directions[key(*firsts[i])] = computed[i];
-  std::vector<BsdfReference> fluxes(flux_firsts.size());
-  tbb::parallel_for(std::size_t(0), flux_firsts.size(), [&](std::size_t i) {
-    const BsdfValidationCase& c = *flux_firsts[i];
-    fluxes[i] = bsdf_reference(directions.at(key(c)), c.material(), c.sampler->convention);
-  });
-  for (std::size_t i = 0; i < flux_firsts.size(); ++i) references_[flux_key(*flux_firsts[i])] = std::move(fluxes[i]);
-  count_ += int(firsts.size());
-  seconds_ += elapsed(t0);
-}
-
-const BsdfReference& BsdfZooReferences::get(const BsdfValidationCase& c) const { return references_.at(flux_key(c)); }
-
-void ZooReport::begin_bsdf_section(std::size_t validations) {
-  requested_ += validations;
-  fmt::print("\nBSDF samplers: {} validations (directions against the claimed pdf, weights f cos / pdf against the "
-             "analytic BSDF; conductor {}+{}i, dielectric {} from outside and, mirrored, from inside)\n",
-             validations, kZooConductorIor.real(), kZooConductorIor.imag(), kZooDielectricEta);
-  fmt::print("{:<15} {:>6} {:>6} {:>7}  {:>9} {:>10} {:>10} {:>10} {:>10} {:>10} {:>9}  {:>7}\n", "sampler", "alpha",
-             "theta", "side", "verdict", "p-value", "p sphere", "p lobe", "p albedo", "p bins", "pdf err", "time s");
-}
-
-void ZooReport::add_bsdf(const BsdfValidationCase& c, const ValidationReport& r) {
-  const BsdfSamplerInfo& s = *c.sampler;
-  Summary& sm = summary_[std::string(s.name)];
-  const bool expects_rejection = c.expects_rejection(r.samples);
-  const bool without_effect = s.negative_control && !expects_rejection;
-  sm.total += 1;
-  sm.passed += r.passed;
-  sm.without_effect += without_effect;
-  sm.min_p = std::min(sm.min_p, r.p_value);
-  sm.max_p = std::max(sm.max_p, r.p_value);
-  sm.seconds += r.seconds;
-  const double weight_p = std::min(r.check("bsdf_albedo").p_value, r.check("bsdf_bins").p_value);
-  if (expects_rejection ? (r.passed || !(weight_p < kNegativeControlP)) : (!s.negative_control && !r.passed))
-    sm.expectation_met = false;
-  const std::string verdict = r.passed ? (without_effect ? "no effect" : "pass") : (s.negative_control ? "rejected" : "FAIL");
-  const SubTest& pdf = r.check("returned_pdf");
-  fmt::print("{:<15} {:>6g} {:>6g} {:>7}  {:>9} {:>10} {:>10} {:>10} {:>10} {:>10} {:>9}  {:>7.2f}\n", s.name, c.alpha,
-             c.theta_deg, c.inside ? "inside" : "outside", verdict, fmt_p(r.p_value), fmt_p(r.chi2("sphere").p_value),
-             fmt_p(r.chi2("lobe").p_value), fmt_p(r.check("bsdf_albedo").p_value), fmt_p(r.check("bsdf_bins").p_value),
-             pdf.applicable ? fmt::format("{:.1e}", pdf.value) : "n/a", r.seconds);
-  std::fflush(stdout);
-  nlohmann::json j = to_json(r);
-  j["bsdf_sampler"] = true;
-  j["negative_control"] = s.negative_control;
-  j["bug_has_effect"] = expects_rejection;
-  j["material"] = c.material().describe();
-  j["theta_deg"] = c.theta_deg;
-  j["phi_deg"] = 0.0;
-  j["side"] = c.inside ? "inside" : "outside";
-  results_.push_back(j);
-}
-
-void ZooReport::print_summary_row(std::string_view name, bool negative_control, nlohmann::json& summary_json,
-                                  bool& all_met) const {
-  const auto it = summary_.find(std::string(name));
-  if (it == summary_.end()) return;
-  const Summary& sm = it->second;
-  all_met = all_met && sm.expectation_met;
-  const std::string expected = !negative_control  ? "all pass"
-                               : sm.without_effect ? fmt::format("rejected ({} no effect)", sm.without_effect)
-                                                   : "all rejected";
-  fmt::print("{:<15} {:>4}/{:<3} {:>12} {:>12} {:>12} {:>9.1f}  {}\n", name, sm.passed, sm.total, fmt_p(sm.min_p),
-             fmt_p(sm.max_p), expected, sm.seconds, sm.expectation_met ? "as expected" : "UNEXPECTED");
-  summary_json.push_back({{"sampler", name},
-                          {"negative_control", negative_control},
-                          {"passed", sm.passed},
-                          {"total", sm.total},
-                          {"without_effect", sm.without_effect},
-                          {"min_p_value", sm.min_p},
-                          {"max_p_value", sm.max_p},
-                          {"expectation_met", sm.expectation_met},
-                          {"seconds", sm.seconds}});
-}
-
-// The summary table per sampler (and its JSON); true when every sampler met its expectation.
-bool ZooReport::print_summary(nlohmann::json& summary_json) const {
-  bool all_met = true;
-  fmt::print("\nsummary per sampler:\n");
-  fmt::print("{:<15} {:>8} {:>12} {:>12} {:>12} {:>9}  {}\n", "sampler", "passed", "min p", "max p", "expected", "time s",
-             "outcome");
-  for (const SamplerInfo& s : sampler_registry()) print_summary_row(s.name, s.negative_control, summary_json, all_met);
-  for (const BsdfSamplerInfo& s : bsdf_sampler_registry())
-    print_summary_row(s.name, s.negative_control, summary_json, all_met);
-  return all_met;
-}
-
-int ZooReport::finish(bool partial, const ZooReferences& references, const std::string& json,
-                      const BsdfZooReferences* bsdf_references) {
-  const double seconds = elapsed(start_);
-  nlohmann::json summary_json = nlohmann::json::array();
-  const bool all_met = print_summary(summary_json) && !partial;
-  const std::size_t done = results_.size();
-  fmt::print("\nexpected counts (adaptive cubature of {} claimed pdfs x 2 binnings): {:.1f} s\n", references.count(),
-             references.seconds());
-  if (bsdf_references)
-    fmt::print("BSDF references (cubature of {} claimed pdfs x 2 binnings and BSDF fluxes, in parallel): {:.1f} s\n",
-               bsdf_references->count(), bsdf_references->seconds());
-  if (partial) {
-    fmt::print("overall: INTERRUPTED: partial results, {} of {} validations in {:.1f} s (no verdict)\n", done,
-               requested_, seconds);
+int ZooReport::finish(const ZooResult& result, const std::string& json) const {
+  print_summary(result);
+  fmt::print("\nexpected counts (adaptive cubature of {} claimed pdfs x 2 binnings): {:.1f} s\n", result.references,
+             result.reference_seconds);
+  fmt::print("BSDF references (cubature of {} claimed pdfs x 2 binnings and BSDF fluxes, in parallel): {:.1f} s\n",
+             result.bsdf_references, result.bsdf_reference_seconds);
+  if (result.partial) {
+    fmt::print("overall: INTERRUPTED: partial results, {} of {} validations in {:.1f} s (no verdict)\n",
+               result.rows.size(), result.requested, result.seconds);
   } else {
     fmt::print("overall: {} ({} validations in {:.1f} s)\n",
-               all_met ? "PASS: every correct sampler passes and every negative control is rejected" : "FAIL", done,
-               seconds);
+               result.all_met ? "PASS: every correct sampler passes and every negative control is rejected" : "FAIL",
+               result.rows.size(), result.seconds);
   }
-  if (!json.empty()) {
-    const ValidationOptions& o = run_.options;
-    nlohmann::json j;
-    j["verdict"] = partial ? "interrupted" : all_met ? "pass" : "fail";
-    j["partial"] = partial;
-    j["validations_requested"] = requested_;
-    j["validations_done"] = done;
-    j["samples"] = o.samples;
-    j["seed"] = run_.seed;
-    j["precision"] = to_string(o.precision);
-    j["significance"] = run_.family_significance;
-    j["per_validation_significance"] = o.significance;
-    j["negative_control_p_threshold"] = kNegativeControlP;
-    j["seconds"] = seconds;
-    j["reference_seconds"] = references.seconds();
-    j["summary"] = summary_json;
-    j["results"] = results_;
-    write_file_atomically(json, j.dump(2) + "\n");
-  }
-  if (partial) {
+  if (!json.empty()) write_file_atomically(json, to_json(result).dump(2) + "\n");
+  if (result.partial)
     fmt::print(stderr, "validate --all: interrupted: partial results{}\n",
                json.empty() ? "" : fmt::format(", written marked partial to '{}'", json));
-    return kExitInterrupted;
-  }
-  return all_met ? kExitOk : kExitRejected;
+  return exit_code(result);
 }
 
 // ---- merge -------------------------------------------------------------------------------------------------
@@ -389,7 +261,7 @@ int ZooReport::finish(bool partial, const ZooReferences& references, const std::
 namespace {
 
 // Too few samples for the tests is bad input, as in the single run.
-template <class F> ValidationReport usage_errors_of(F&& validation) {
+template <class F> auto usage_errors_of(F&& validation) {
   try {
     return validation();
   } catch (const InsufficientData& e) {
@@ -399,30 +271,12 @@ template <class F> ValidationReport usage_errors_of(F&& validation) {
 
 }  // namespace
 
-bool run_bsdf_section(const ValidationRun& run, ZooReport& report, BsdfZooReferences& references) {
-  const std::vector<BsdfValidationCase> cases = bsdf_zoo_cases(run.seed);
-  report.begin_bsdf_section(cases.size());
-  ValidationOptions vo = run.options;
-  vo.significance = sidak_significance(run.family_significance, int(cases.size()));
-  references.prepare(cases, vo.rows);
-  ProgressBar bar("validate --all: BSDF samplers", std::uint64_t(cases.size()));
-  for (const BsdfValidationCase& c : cases) {
-    if (interrupted()) return false;
-    vo.seed = c.seed;
-    vo.convention = c.sampler->convention;  // each sampler's weights in its own transport mode
-    report.add_bsdf(c, usage_errors_of([&] {
-      return validate_bsdf_sampler(*c.sampler, c.material(), c.ggx(), c.wi(), vo, &references.get(c));
-    }));
-    bar.add(1);
-  }
-  bar.finish();
-  return true;
-}
-
 namespace {
 
 int report_merged_batch(const ValidationRun& run, const ValidationPart& merged, const std::string& json) {
-  ZooReport report(run);
+  const ZooReport report(run);
+  const ZooObserver observer = report.observer();
+  ZooBatch batch(run);
   ZooReferences references;
   for (std::size_t i = 0; i < run.cases.size(); ++i) {
     const ValidationCase& c = run.cases[i];
@@ -434,11 +288,15 @@ int report_merged_batch(const ValidationRun& run, const ValidationPart& merged, 
       return report_drawn_samples(*c.sampler, *ref, merged.tallies[i], o);
     });
     r.seconds = merged.seconds[i];
-    report.add(c, r);
+    observer.row(batch.add(c, std::move(r)));
   }
   BsdfZooReferences bsdf_references;
-  const bool partial = !run_bsdf_section(run, report, bsdf_references);
-  return report.finish(partial, references, json, &bsdf_references);
+  ValidationRun bsdf_run = run;
+  const auto progress = std::make_shared<CliProgress>(true);
+  bsdf_run.options.run = cli_run_control(0, progress);  // its progress bar; Ctrl-C stops it between validations
+  const bool partial = !usage_errors_of([&] { return run_bsdf_section(bsdf_run, batch, bsdf_references, observer); });
+  progress->finish();
+  return report.finish(batch.finish(partial, references, &bsdf_references), json);
 }
 
 int report_merged_single(const ValidationRun& run, const ValidationPart& merged, const std::string& json) {

@@ -69,7 +69,7 @@ int run_walk_validation(const WalkValidationArgs& a) {
   const Vec3<double> wi(std::sin(t) * std::cos(p), std::sin(t) * std::sin(p), std::cos(t));
   WalkValidationReport r;
   try {
-    r = validate_dump_against_walk(dump, SmithMicrosurface{WalkNdf::ggx, ax, ay}, material, wi, o);
+    r = validate_dump_against_walk(dump, SmithMicrosurface{NdfKind::ggx, ax, ay}, material, wi, o);
   } catch (const SampleFileError& e) {
     throw UsageError(e.what());
   } catch (const InsufficientData& e) {

@@ -33,7 +33,7 @@ ScatterOptions bench_options(int material, int threads, std::uint64_t paths) {
   return o;
 }
 
-const SmithMicrosurface kSurface{WalkNdf::ggx, 0.5, 0.5, HeightDistribution::uniform};
+const SmithMicrosurface kSurface{NdfKind::ggx, 0.5, 0.5, HeightDistribution::uniform};
 
 void BM_WalkPaths(benchmark::State& state) {
   const ScatterOptions o = bench_options(int(state.range(0)), int(state.range(1)), 64 * kPathsPerBlock);

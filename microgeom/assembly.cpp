@@ -54,19 +54,11 @@ void radix_sort_by_high32(std::vector<std::uint64_t>& keys, std::vector<std::uin
 }
 }  // namespace detail
 
-std::string_view to_string(ReferenceNdf r) { return r == ReferenceNdf::ggx ? "ggx" : "beckmann"; }
-
 std::string_view to_string(NdfMatch m) { return m == NdfMatch::radial ? "radial" : "joint"; }
 
 std::optional<NdfMatch> ndf_match_from_string(std::string_view name) {
   for (const NdfMatch m : {NdfMatch::radial, NdfMatch::joint})
     if (to_string(m) == name) return m;
-  return std::nullopt;
-}
-
-std::optional<ReferenceNdf> reference_ndf_from_string(std::string_view name) {
-  for (const ReferenceNdf r : {ReferenceNdf::ggx, ReferenceNdf::beckmann})
-    if (to_string(r) == name) return r;
   return std::nullopt;
 }
 
@@ -76,25 +68,25 @@ const std::vector<AssemblyInfo>& assembly_registry() {
        "Smith-like random assembly: a Gaussian random field whose triangle slopes are rank-matched to the GGX "
        "ellipsoid's slope law and re-integrated (iterated), so facet slopes are GGX and heights are as "
        "little tied to facet normals as a stationary single-scale field allows.",
-       ReferenceNdf::ggx},
+       NdfKind::ggx},
       {"beckmann",
        "Gaussian control surface: spectral synthesis with a Gaussian spectrum exp(-|k|^2 l^2/4), rescaled to "
        "slope second moment alpha^2/2 per axis (Beckmann NDF), the case with published ray-traced results.",
-       ReferenceNdf::beckmann},
+       NdfKind::beckmann},
       {"mixture",
        "Gaussian scale mixture: Beckmann patches 8 correlation lengths wide, each with roughness "
        "alpha/sqrt(E), E ~ Exp(1), then slope-matched to exact GGX: same NDF, but rough and smooth regions "
        "are spatially separated so masking follows a blend of Beckmann-Smith laws.",
-       ReferenceNdf::ggx, AssemblyShaping::roughness_patches},
+       NdfKind::ggx, AssemblyShaping::roughness_patches},
       {"sorted",
        "Facets sorted by height: a Gaussian field h0 mapped through a monotone G with slope factor "
        "G'(h0) = 1/sqrt(E), E = -log(1 - Phi(h0/sd)) ~ Exp(1), so slopes are exactly GGX pointwise and the "
        "steep facets sit low (in pits), then slope-matched.",
-       ReferenceNdf::ggx, AssemblyShaping::sorted_by_height},
+       NdfKind::ggx, AssemblyShaping::sorted_by_height},
       {"spikes",
        "The sorted surface upside down (same seed, heights negated): the same NDF with the steep facets "
        "sitting high, on spikes that mask their surroundings.",
-       ReferenceNdf::ggx, AssemblyShaping::sorted_by_height, true},
+       NdfKind::ggx, AssemblyShaping::sorted_by_height, true},
   };
   return registry;
 }
@@ -104,6 +96,8 @@ const AssemblyInfo* find_assembly(std::string_view name) {
     if (a.name == name) return &a;
   return nullptr;
 }
+
+std::string_view plain_assembly(NdfKind ndf) { return ndf == NdfKind::ggx ? "smith" : "beckmann"; }
 
 std::string assembly_names(std::string_view separator) {
   std::string names;
@@ -147,7 +141,7 @@ double min_checked_corr_cells(int resolution) {
 
 void check_supported_range(const AssemblyParams& p) {
   const AssemblyInfo* info = find_assembly(p.assembly);
-  const bool ggx = info && info->reference == ReferenceNdf::ggx;
+  const bool ggx = info && info->reference == NdfKind::ggx;
   if (ggx && p.resolution < kMinGgxCheckedResolution)
     throw OutsideSupportedRange(fmt::format(
         "{} at resolution {} cannot meet its NDF check: use resolution >= {} (the beckmann control works from 16)",
@@ -358,7 +352,7 @@ std::vector<double> reintegrate(Spectral& fft, const std::vector<float>& tx, con
 // With reference = beckmann (NdfMatch::joint only) the radius quantile is sqrt(-log(1 - q)) instead.
 void match_ggx_marginal(const std::vector<float>& ux, const std::vector<float>& uy, std::vector<float>& mx,
                         std::vector<float>& my, std::vector<std::uint64_t>& keys, std::vector<std::uint64_t>& scratch,
-                        ReferenceNdf reference = ReferenceNdf::ggx) {
+                        NdfKind reference = NdfKind::ggx) {
   const std::size_t n = ux.size();
   keys.resize(n);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& range) {
@@ -374,7 +368,7 @@ void match_ggx_marginal(const std::vector<float>& ux, const std::vector<float>& 
     for (std::size_t rank = range.begin(); rank != range.end(); ++rank) {
       const double q = double(rank + 1) / double(n + 1);
       mx[std::uint32_t(keys[rank])] =
-          float(reference == ReferenceNdf::ggx ? std::sqrt(q / (1.0 - q)) : std::sqrt(-std::log1p(-q)));
+          float(reference == NdfKind::ggx ? std::sqrt(q / (1.0 - q)) : std::sqrt(-std::log1p(-q)));
     }
   });
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& range) {
@@ -428,7 +422,7 @@ void stop_if_cancelled(const BuildCancel& cancelled) {
 // stratified target of the reference law (ndf_match.h).
 struct SlopeTargets {
   NdfMatch mode = NdfMatch::radial;
-  ReferenceNdf reference = ReferenceNdf::ggx;
+  NdfKind reference = NdfKind::ggx;
   int radial_from = -1;  // the iteration from which the radius alone is matched (-1: never switch)
   std::vector<std::uint64_t> keys, scratch;
   std::vector<std::uint16_t> stratum;
@@ -469,7 +463,7 @@ std::vector<double> match_slopes(Spectral& fft, std::vector<double> h, double ax
 
 // NdfMatch::joint: joint iterations, then the binned refinement of the vertex heights.
 std::vector<double> match_jointly(Spectral& fft, std::vector<double> h, double ax, double ay, int iterations,
-                                  ReferenceNdf reference, BuildReport& report, const BuildProgress& progress,
+                                  NdfKind reference, BuildReport& report, const BuildProgress& progress,
                                   const BuildCancel& cancelled) {
   {
     SlopeTargets targets;
@@ -610,7 +604,7 @@ std::vector<double> assembly_heights(const AssemblyInfo& info, const AssemblyPar
     sort_slopes_by_height(h, n, ax, ay);
     stop_if_cancelled(cancelled);
   }
-  if (info.reference == ReferenceNdf::beckmann) {
+  if (info.reference == NdfKind::beckmann) {
     rescale_to_beckmann(h, n, ax, ay);
     report.iterations = 0;
     if (p.ndf_match == NdfMatch::radial) return h;

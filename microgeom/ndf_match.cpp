@@ -28,9 +28,9 @@ double radius_of_z(double z) {
 
 }  // namespace
 
-double reference_radius_partial_mean(ReferenceNdf ref, double r) {
+double reference_radius_partial_mean(NdfKind ref, double r) {
   if (!(r > 0)) return 0.0;
-  if (ref == ReferenceNdf::ggx) {
+  if (ref == NdfKind::ggx) {
     if (std::isinf(r)) return std::numbers::pi / 2;
     return std::atan(r) - r / (1.0 + r * r);
   }
@@ -52,7 +52,7 @@ int LobeNdfBins::bin_of(double ux, double uy) const {
   return row * cols() + col;
 }
 
-std::vector<double> LobeNdfBins::probabilities(ReferenceNdf ref) const {
+std::vector<double> LobeNdfBins::probabilities(NdfKind ref) const {
   std::vector<double> p(static_cast<std::size_t>(size()));
   for (int row = 0; row < rows_; ++row) {
     const double z_hi = 1.0 - double(row) / rows_, z_lo = row + 1 == rows_ ? 0.0 : 1.0 - double(row + 1) / rows_;
@@ -62,7 +62,7 @@ std::vector<double> LobeNdfBins::probabilities(ReferenceNdf ref) const {
   return p;
 }
 
-std::vector<double> LobeNdfBins::row_mean_radius(ReferenceNdf ref) const {
+std::vector<double> LobeNdfBins::row_mean_radius(NdfKind ref) const {
   std::vector<double> mean(std::size_t(rows_), 0.0);
   for (int row = 0; row < rows_; ++row) {
     const double z_hi = 1.0 - double(row) / rows_, z_lo = row + 1 == rows_ ? 0.0 : 1.0 - double(row + 1) / rows_;
@@ -74,7 +74,7 @@ std::vector<double> LobeNdfBins::row_mean_radius(ReferenceNdf ref) const {
   return mean;
 }
 
-std::vector<std::array<double, 2>> LobeNdfBins::first_moments(ReferenceNdf ref) const {
+std::vector<std::array<double, 2>> LobeNdfBins::first_moments(NdfKind ref) const {
   std::vector<std::array<double, 2>> m(static_cast<std::size_t>(size()));
   const std::vector<double> p = probabilities(ref), rbar = row_mean_radius(ref);
   const double dphi = kTwoPi / cols();
@@ -122,7 +122,7 @@ void assign_angles(const std::vector<float>& ux, const std::vector<float>& uy, s
 }
 
 // Sorts by radius; within each stratum (in radius order) the reference quantile of the rank (into mx).
-void assign_radii(const std::vector<float>& ux, const std::vector<float>& uy, ReferenceNdf ref,
+void assign_radii(const std::vector<float>& ux, const std::vector<float>& uy, NdfKind ref,
                   std::vector<float>& mx, std::vector<std::uint64_t>& keys, std::vector<std::uint64_t>& scratch,
                   const std::vector<std::uint16_t>& stratum, int strata) {
   const std::size_t n = ux.size();
@@ -141,7 +141,7 @@ void assign_radii(const std::vector<float>& ux, const std::vector<float>& uy, Re
 
 }  // namespace
 
-void match_joint_target(const std::vector<float>& ux, const std::vector<float>& uy, ReferenceNdf ref,
+void match_joint_target(const std::vector<float>& ux, const std::vector<float>& uy, NdfKind ref,
                         std::vector<float>& mx, std::vector<float>& my, std::vector<std::uint64_t>& keys,
                         std::vector<std::uint64_t>& scratch, std::vector<std::uint16_t>& stratum) {
   const std::size_t n = ux.size();
@@ -162,7 +162,7 @@ void match_joint_target(const std::vector<float>& ux, const std::vector<float>& 
 
 // ---- the NDF error in lobe bins ------------------------------------------------------------------------------
 
-LobeNdfError lobe_ndf_error(const std::vector<float>& ux, const std::vector<float>& uy, ReferenceNdf ref, int rows) {
+LobeNdfError lobe_ndf_error(const std::vector<float>& ux, const std::vector<float>& uy, NdfKind ref, int rows) {
   const LobeNdfBins bins(rows);
   LobeNdfError e;
   e.rows = rows;

@@ -35,7 +35,7 @@ public:
     const int row = std::clamp(int(std::floor((1.0 - z) / (2.0 / rows_))), 0, rows_ - 1);
     return row * cols() + column(std::atan2(-sy, -sx));
   }
-  std::vector<double> probabilities(ReferenceNdf ref) const {
+  std::vector<double> probabilities(NdfKind ref) const {
     std::vector<double> p(static_cast<std::size_t>(size()), 0.0);
     const int nodes = 64 * cols();
     for (int k = 0; k < nodes; ++k) {
@@ -64,15 +64,15 @@ private:
 };
 
 // 1 - F(r) of the reference radius law, accurate in the tail.
-double radius_survival(ReferenceNdf ref, double r) {
-  return ref == ReferenceNdf::ggx ? 1.0 / (1.0 + r * r) : std::exp(-r * r);
+double radius_survival(NdfKind ref, double r) {
+  return ref == NdfKind::ggx ? 1.0 / (1.0 + r * r) : std::exp(-r * r);
 }
 
 // Counts and first moments of the triangles in the lobe bins, counts in the radius bins, their reference
 // values, and the discrepancy (see ndf_match.h).
 class BinnedNdfObjective {
 public:
-  BinnedNdfObjective(ReferenceNdf ref, const NdfRefineOptions& o, double triangles, double ax, double ay)
+  BinnedNdfObjective(NdfKind ref, const NdfRefineOptions& o, double triangles, double ax, double ay)
       : ref_(ref), lobe_(o.rows), sphere_(o.rows % 2 == 1 ? o.rows : o.rows + 1, ax, ay),
         radius_bins_(std::max(1, o.radius_bins)) {
     tail_bins_ = std::max(1, int(std::floor(4.0 * std::log2(triangles / (32.0 * radius_bins_)))));
@@ -147,7 +147,7 @@ public:
 private:
   double tail_edge(int s) const { return std::exp2(-s / 4.0) / radius_bins_; }
 
-  ReferenceNdf ref_;
+  NdfKind ref_;
   LobeNdfBins lobe_;
   SphereNdfBins sphere_;
   int radius_bins_, tail_bins_ = 1;
@@ -228,7 +228,7 @@ bool try_vertex(PeriodicField& field, BinnedNdfObjective& f, int i, int j, doubl
 
 }  // namespace
 
-NdfRefineReport refine_binned_ndf(std::vector<double>& h, int n, double ax, double ay, ReferenceNdf ref,
+NdfRefineReport refine_binned_ndf(std::vector<double>& h, int n, double ax, double ay, NdfKind ref,
                                   const NdfRefineOptions& options, const BuildCancel& cancelled) {
   PeriodicField field(h, n, ax, ay);
   BinnedNdfObjective objective(ref, options, 2.0 * n * n, ax, ay);

@@ -13,16 +13,16 @@
 
 namespace microgeom {
 
-double reference_radius_cdf(ReferenceNdf ref, double r) {
+double reference_radius_cdf(NdfKind ref, double r) {
   if (!(r > 0)) return 0.0;
-  if (ref == ReferenceNdf::ggx) return std::isinf(r) ? 1.0 : r * r / (1.0 + r * r);
+  if (ref == NdfKind::ggx) return std::isinf(r) ? 1.0 : r * r / (1.0 + r * r);
   return -std::expm1(-r * r);
 }
 
-double reference_radius_quantile(ReferenceNdf ref, double q) {
+double reference_radius_quantile(NdfKind ref, double q) {
   if (!(q > 0)) return 0.0;
   if (q >= 1) return std::numeric_limits<double>::infinity();
-  if (ref == ReferenceNdf::ggx) return std::sqrt(q / (1.0 - q));
+  if (ref == NdfKind::ggx) return std::sqrt(q / (1.0 - q));
   return std::sqrt(-std::log1p(-q));
 }
 
@@ -31,7 +31,7 @@ double effective_patches(int resolution, double corr_cells) {
   return std::pow(resolution / cells, 2.0);
 }
 
-NdfTolerance tolerance_for(ReferenceNdf ref, int resolution, double corr_cells) {
+NdfTolerance tolerance_for(NdfKind ref, int resolution, double corr_cells) {
   // A single tile of a random field is a sample of about n_eff = (N/l)^2 independent patches: a histogram
   // fraction p fluctuates with relative sd ~ sqrt((1 - p) / (p n_eff)) even when the ensemble law is exact.
   // The GGX assemblies force the radius law on every tile (slope matching), so only the angular bins carry
@@ -41,7 +41,7 @@ NdfTolerance tolerance_for(ReferenceNdf ref, int resolution, double corr_cells) 
   NdfTolerance t;
   const double n_eff = effective_patches(resolution, corr_cells);
   t.angular_bin = std::max(t.angular_bin, kAngularNoiseFactor * std::sqrt(kAngularBins / n_eff));
-  if (ref == ReferenceNdf::beckmann) {
+  if (ref == NdfKind::beckmann) {
     t.quantile = std::max(t.quantile, kBeckmannQuantileNoiseFactor / std::sqrt(n_eff));
     t.radius_bin = std::max(t.radius_bin, kBeckmannRadiusNoiseFactor * std::sqrt(kRadiusBins / n_eff));
   }
@@ -150,7 +150,7 @@ TriangleSamples triangle_samples(const Heightfield& field) {
 // normal quantile gives 0.67448975019608182, one ulp above).
 void fit_roughness(SurfaceStats& st, const TriangleSamples& t, const StatsOptions& opt) {
   const double med_x = median_abs(t.sx), med_y = median_abs(t.sy);
-  const double fit = opt.reference == ReferenceNdf::ggx ? std::sqrt(3.0) : std::sqrt(2.0) / 0.6744897501960817;
+  const double fit = opt.reference == NdfKind::ggx ? std::sqrt(3.0) : std::sqrt(2.0) / 0.6744897501960817;
   st.fitted_alpha_x = fit * med_x;
   st.fitted_alpha_y = fit * med_y;
   st.alpha_fitted = !(opt.alpha_x && opt.alpha_y);
@@ -179,7 +179,7 @@ struct NdfCounts {
   std::array<double, kAngularBins> angular{};
 };
 
-NdfCounts ndf_counts(const TriangleSamples& t, double ax, double ay, ReferenceNdf reference, std::vector<float>& radius) {
+NdfCounts ndf_counts(const TriangleSamples& t, double ax, double ay, NdfKind reference, std::vector<float>& radius) {
   const std::size_t tris = t.sx.size();
   radius.resize(tris);
   const std::size_t chunk = 1 << 16, chunks = (tris + chunk - 1) / chunk;

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # microsim set-up: installs exactly the Debian packages the project needs (skipping those already
 # present) and builds in Release into ./build. Safe to run again.
-#   scripts/setup.sh            install + build
-#   scripts/setup.sh --deps     install only
+#   scripts/setup.sh                      install + build everything (the tests and benchmarks too)
+#   scripts/setup.sh --target T [T...]    install + build only the targets named (scripts/run.sh: microsim)
+#   scripts/setup.sh --deps               install only
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 
@@ -15,7 +16,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   clang libclang-rt-14-dev   # the fuzzing gate (scripts/fuzz.sh): libFuzzer
   python3-numpy              # scripts/hostile_inputs.py (/usr/bin/python3)
-  chromium                   # the experiment report's real-browser test (tests/test_report_browser_cli.cpp)
+  chromium                   # the experiment report's real-browser test (tests/apps/test_report_browser_cli.cpp)
   libopenmpi-dev openmpi-bin # MPI (optional in CMake): `mpirun -n P microsim run` (docs/guide/experiments-and-clusters.md)
   pybind11-dev python3-pybind11 python3-dev python3-pytest   # the Python module (src/python) and its tests
 )
@@ -36,5 +37,11 @@ fi
 
 [[ "${1:-}" == "--deps" ]] && exit 0
 
+targets=()
+if [[ "${1:-}" == "--target" ]]; then
+  shift
+  (($#)) || { echo "setup.sh: --target needs at least one target (microsim, microsim_tests, ...)" >&2; exit 2; }
+  targets=(--target "$@")
+fi
 cmake -S "$here" -B "$here/build" -DCMAKE_BUILD_TYPE=Release
-cmake --build "$here/build" -j"$(nproc)"
+cmake --build "$here/build" -j"$(nproc)" "${targets[@]}"

@@ -23,6 +23,8 @@
 
 #include "microgeom/heightfield.h"
 
+#include "core/ndf_kind.h"
+
 #include <cstdint>
 #include <functional>
 #include <optional>
@@ -33,10 +35,8 @@
 
 namespace microgeom {
 
-enum class ReferenceNdf { ggx, beckmann };
-std::string_view to_string(ReferenceNdf r);
-// The NDF of that name ("ggx", "beckmann"); nullopt for any other text.
-std::optional<ReferenceNdf> reference_ndf_from_string(std::string_view name);
+// The NDF a surface is built to have: the one NDF type of every module (core/ndf_kind.h).
+using microsim::NdfKind;
 
 // How the slopes are matched to the reference NDF (docs/reference/surfaces.md, section 8):
 // - radial: the slope radii are rank-matched to the reference radius law, the angles kept (the angular law
@@ -65,12 +65,14 @@ enum class AssemblyShaping {
 struct AssemblyInfo {
   std::string name;
   std::string summary;    // one sentence, for --help and the docs
-  ReferenceNdf reference;  // the NDF the surface is built to have (and is checked against)
+  NdfKind reference;      // the NDF the surface is built to have (and is checked against)
   AssemblyShaping shaping = AssemblyShaping::none;
   bool upside_down = false;  // heights negated at the end
 };
 const std::vector<AssemblyInfo>& assembly_registry();
 const AssemblyInfo* find_assembly(std::string_view name);
+// The plain assembly of an NDF (no shaping, not upside down): "smith" for GGX, "beckmann" for Beckmann.
+std::string_view plain_assembly(NdfKind ndf);
 // The names of the registry, in its order, joined by `separator`.
 std::string assembly_names(std::string_view separator);
 

@@ -50,12 +50,12 @@ public:
   int bin_of(double ux, double uy) const;
   // Reference probability of every bin (a row's probability F(r(z_lo)) - F(r(z_hi)), r(z) = sqrt(1/z^2 - 1),
   // F the radius CDF, split evenly among its sectors).
-  std::vector<double> probabilities(ReferenceNdf ref) const;
+  std::vector<double> probabilities(NdfKind ref) const;
   // E[u 1{u in bin}] of every bin under the reference law: the row's integral of r dF times the sector's
   // mean of -(cos phi, sin phi).
-  std::vector<std::array<double, 2>> first_moments(ReferenceNdf ref) const;
+  std::vector<std::array<double, 2>> first_moments(NdfKind ref) const;
   // E[r | row] of the reference law (0 when the row has no mass).
-  std::vector<double> row_mean_radius(ReferenceNdf ref) const;
+  std::vector<double> row_mean_radius(NdfKind ref) const;
 
 private:
   int rows_;
@@ -63,7 +63,7 @@ private:
 
 // Integral of r dF(r) from 0 to R for the reference radius law (GGX: atan R - R / (1 + R^2);
 // Beckmann: sqrt(pi)/2 erf R - R exp(-R^2)); R = infinity allowed.
-double reference_radius_partial_mean(ReferenceNdf ref, double radius);
+double reference_radius_partial_mean(NdfKind ref, double radius);
 
 // ---- the joint target ----------------------------------------------------------------------------------------
 // Angle strata of the joint target (a power of two: n = 2 N^2 triangles is a multiple of it for N >= 16).
@@ -75,7 +75,7 @@ inline constexpr int kJointAngleStrata = 64;
 // quantiles of their rank within the stratum, q = (rank + 1) / (n / S + 1). The result is a stratified
 // sample of the reference law: uniform angle, the reference radius law in every angle stratum. Ties are
 // broken by index (deterministic). `keys`, `scratch`, `stratum` are work buffers.
-void match_joint_target(const std::vector<float>& ux, const std::vector<float>& uy, ReferenceNdf ref,
+void match_joint_target(const std::vector<float>& ux, const std::vector<float>& uy, NdfKind ref,
                         std::vector<float>& mx, std::vector<float>& my, std::vector<std::uint64_t>& keys,
                         std::vector<std::uint64_t>& scratch, std::vector<std::uint16_t>& stratum);
 
@@ -101,7 +101,7 @@ struct NdfRefineReport {
 // radius; the sphere bins depend on (ax, ay): ndf_refine.cpp, SphereNdfBins); stops after max_sweeps sweeps or when a sweep moves fewer than 1e-4 of the vertices. Sequential:
 // the result does not depend on the thread count. `cancelled` is polled between sweeps (throws
 // BuildCancelled).
-NdfRefineReport refine_binned_ndf(std::vector<double>& h, int n, double ax, double ay, ReferenceNdf ref,
+NdfRefineReport refine_binned_ndf(std::vector<double>& h, int n, double ax, double ay, NdfKind ref,
                                   const NdfRefineOptions& options, const BuildCancel& cancelled = {});
 
 // ---- the NDF error in lobe bins ------------------------------------------------------------------------------
@@ -118,7 +118,7 @@ struct LobeNdfError {
   double resolving_rays = 0;
 };
 // From the normalised triangle slopes.
-LobeNdfError lobe_ndf_error(const std::vector<float>& ux, const std::vector<float>& uy, ReferenceNdf ref,
+LobeNdfError lobe_ndf_error(const std::vector<float>& ux, const std::vector<float>& uy, NdfKind ref,
                             int rows = kDefaultLobeRows);
 
 }  // namespace microgeom

@@ -21,8 +21,8 @@
 
 namespace microgeom {
 
-double reference_radius_cdf(ReferenceNdf ref, double radius);
-double reference_radius_quantile(ReferenceNdf ref, double q);
+double reference_radius_cdf(NdfKind ref, double radius);
+double reference_radius_quantile(NdfKind ref, double q);
 
 // Histogram layout: 40 radius bins of equal reference probability; 4 rings (radius quartiles) x 8
 // angle sectors = 32 (radius, angle) bins of equal reference probability.
@@ -48,10 +48,10 @@ inline constexpr double kBeckmannRadiusNoiseFactor = 3.0;
 // of a Gaussian start field, exact only in expectation), and all bounds of the Beckmann control (a
 // Gaussian field whose slope law is exact pointwise but whose histogram fluctuates): max(fixed bound,
 // factor x sqrt(bins / n_eff)) (quantiles: factor / sqrt(n_eff)).
-NdfTolerance tolerance_for(ReferenceNdf ref, int resolution, double corr_cells);
+NdfTolerance tolerance_for(NdfKind ref, int resolution, double corr_cells);
 
 struct StatsOptions {
-  ReferenceNdf reference = ReferenceNdf::ggx;
+  NdfKind reference = NdfKind::ggx;
   // Normalising roughness; unset -> fitted from the slopes (GGX: alpha = sqrt(3) median |s| per axis;
   // Beckmann: alpha = sqrt(2) median |s| / 0.67449).
   std::optional<double> alpha_x, alpha_y;
@@ -68,7 +68,7 @@ struct BinRow {
 
 struct SurfaceStats {
   std::size_t triangles = 0;
-  ReferenceNdf reference = ReferenceNdf::ggx;
+  NdfKind reference = NdfKind::ggx;
   double alpha_x = 0, alpha_y = 0;  // normalisation used
   bool alpha_fitted = false;
   double fitted_alpha_x = 0, fitted_alpha_y = 0;  // from the median |slope| per axis, for the reference

@@ -25,7 +25,7 @@ public:
   }
   // A term in [0, 2^40] as the nearest multiple of 2^-64 (ties to even), in units of 2^-64: the value of
   // nearbyint(ldexp(term, 64)) under the default rounding, from the double's bits (an order of magnitude
-  // faster than that and its conversion to __int128; tests/test_block_runner.cpp compares the two).
+  // faster than that and its conversion to __int128; tests/core/test_block_runner.cpp compares the two).
   static __int128 to_fixed(double term) {
     const std::uint64_t bits = std::bit_cast<std::uint64_t>(term);
     const int biased_exponent = int(bits >> 52);

@@ -23,11 +23,11 @@ SurfaceDecision plan_assembly_tile(const std::string& assembly, SizeRequest size
                                    std::uint64_t seed) {
   SurfaceDecision out;
   const microgeom::AssemblyInfo& info = *microgeom::find_assembly(assembly);  // the spec checked the name
-  const bool ggx = info.reference == microgeom::ReferenceNdf::ggx;
+  const bool ggx = info.reference == NdfKind::ggx;
   SurfacePlan& p = out.plan;
   p.kind = "assembly";
   p.name = assembly;
-  p.ndf = std::string(microgeom::to_string(info.reference));
+  p.ndf = to_string(info.reference);
   p.seed = seed;
   size.min_resolution = ggx ? microgeom::kMinGgxCheckedResolution : kMinSurfaceResolution;
   const SurfaceSize chosen = choose_surface_size(builtin_trade_table(), size);

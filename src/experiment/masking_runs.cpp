@@ -58,7 +58,7 @@ json masking_g2_json(const Direction& light, const G2Result& g) {
 }  // namespace
 
 AnalyticSmith analytic_smith(const SpecMaterial& m, std::pair<double, double> alpha) {
-  return AnalyticSmith(m.ndf == WalkNdf::ggx ? AnalyticNdf::ggx : AnalyticNdf::beckmann, alpha.first, alpha.second);
+  return AnalyticSmith(m.ndf, alpha.first, alpha.second);
 }
 
 json analytic_masking_json(const SpecQuantity& q, const SpecMaterial& m, const Decision& d) {

@@ -17,7 +17,7 @@ microgeom::AssemblyParams masking_assembly_params(const SpecQuantity& q, const S
                                                   std::pair<double, double> alpha, std::uint64_t seed) {
   microgeom::AssemblyParams p;
   p.assembly = q.surface.kind == SurfaceChoice::Kind::assembly ? q.surface.name
-                                                               : (m.ndf == WalkNdf::ggx ? "smith" : "beckmann");
+                                                               : std::string(microgeom::plain_assembly(m.ndf));
   p.alpha_x = alpha.first;
   p.alpha_y = alpha.second;
   p.resolution = q.resolution;
@@ -28,7 +28,7 @@ microgeom::AssemblyParams masking_assembly_params(const SpecQuantity& q, const S
 
 double masking_corr_cells(const std::string& assembly, int resolution) {
   const microgeom::AssemblyInfo* info = microgeom::find_assembly(assembly);
-  if (info == nullptr || info->reference != microgeom::ReferenceNdf::ggx) return microgeom::default_corr_cells(resolution);
+  if (info == nullptr || info->reference != NdfKind::ggx) return microgeom::default_corr_cells(resolution);
   return std::clamp(double(resolution) / kMaskingMinTiles, kMaskingMinCorrCells, kMaskingMaxCorrCells);
 }
 
@@ -49,7 +49,7 @@ SurfaceKey masking_surface_key(const SpecQuantity& q, const SpecMaterial& m, std
   const microgeom::AssemblyParams p = masking_assembly_params(q, m, alpha, seed);
   SurfaceKey key;
   key.assembly = p.assembly;
-  key.ndf = m.ndf == WalkNdf::ggx ? "ggx" : "beckmann";
+  key.ndf = to_string(m.ndf);
   key.alpha_x = p.alpha_x;
   key.alpha_y = p.alpha_y;
   key.resolution = p.resolution;

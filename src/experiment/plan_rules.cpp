@@ -65,7 +65,7 @@ ModelChoice masking_choice(const SpecQuantity& q, const SpecMaterial& m) {
                         "assembly (built to {}) is built per alpha at {}^2 with a correlation length of N/64 cells "
                         "(4 to 16: 64 correlation lengths per tile, masking_surface.h), and traced in rounds to the "
                         "target standard error",
-                        m.ndf == WalkNdf::ggx ? "smith" : "beckmann", ndf, q.resolution)};
+                        microgeom::plain_assembly(m.ndf), ndf, q.resolution)};
   return {Model::analytic,
           fmt::format("G1 and G2 of the Smith model have closed forms: G1 = 1 / (1 + Lambda(v)) (Heitz 2014, eq. 43), "
                       "height-correlated G2 = 1 / (1 + Lambda(v) + Lambda(l)) (eq. 99; separable G1 G1, eq. 98, "

@@ -234,8 +234,9 @@ SpecMaterial read_material(const Table& t) {
   m.name = t.string("name");
   if (m.name.empty()) t.fail("name", "must not be empty");
   const std::string ndf = t.string("ndf", "ggx");
-  if (ndf != "ggx" && ndf != "beckmann") t.fail("ndf", fmt::format("{} is not an NDF (ggx, beckmann)", quote_excerpt(ndf)));
-  m.ndf = ndf == "ggx" ? WalkNdf::ggx : WalkNdf::beckmann;
+  const std::optional<NdfKind> kind = ndf_kind_from_string(ndf);
+  if (!kind) t.fail("ndf", fmt::format("{} is not an NDF (ggx, beckmann)", quote_excerpt(ndf)));
+  m.ndf = *kind;
   m.alphas = material_alphas(t);
   m.facet = facet_material(t);
   m.line = t.tree().line_of(t.path(""));
@@ -482,10 +483,9 @@ void check_masking_surface(const Table& t, SpecQuantity& q, const SpecMaterial& 
     t.fail("surface", fmt::format("a heightmap is one surface: material {} must have one alpha (it has {})",
                                   quote_excerpt(m.name), m.alphas.size()));
   if (q.surface.kind != SurfaceChoice::Kind::assembly) return;
-  const microgeom::ReferenceNdf wanted = m.ndf == WalkNdf::ggx ? microgeom::ReferenceNdf::ggx : microgeom::ReferenceNdf::beckmann;
-  if (microgeom::find_assembly(q.surface.name)->reference != wanted)
+  if (microgeom::find_assembly(q.surface.name)->reference != m.ndf)
     t.fail("surface", fmt::format("assembly {} is built to {}, material {} is {}", q.surface.name,
-                                  microgeom::to_string(microgeom::find_assembly(q.surface.name)->reference),
+                                  to_string(microgeom::find_assembly(q.surface.name)->reference),
                                   quote_excerpt(m.name), to_string(m.ndf)));
 }
 
@@ -511,7 +511,7 @@ void read_kind_options(const Table& t, SpecQuantity& q, const SpecMaterial& m, c
   if (q.kind == QuantityKind::vndf || q.kind == QuantityKind::validation) {
     q.rows = int(t.integer("rows", 31, 3, kMaxBinningRows));
     if (q.rows % 2 == 0) t.fail("rows", fmt::format("{} must be odd", q.rows));
-    if (m.ndf != WalkNdf::ggx) t.fail("material", fmt::format("material {}: {} is for GGX (the ellipsoid oracle, the zoo)", quote_excerpt(m.name), to_string(q.kind)));
+    if (m.ndf != NdfKind::ggx) t.fail("material", fmt::format("material {}: {} is for GGX (the ellipsoid oracle, the zoo)", quote_excerpt(m.name), to_string(q.kind)));
   }
   if (q.kind == QuantityKind::validation) {
     if (t.has("sampler") == t.has("dump"))

@@ -29,9 +29,9 @@
 // (quantity[2].target_tv) and the line. Library code: parses and checks, never prints.
 #pragma once
 
+#include "core/ndf_kind.h"
 #include "microfacet/bsdf_convention.h"
 #include "microfacet/material.h"
-#include "scatter/smith_walk.h"
 
 #include <cstdint>
 #include <filesystem>
@@ -65,7 +65,7 @@ std::string to_string(Orders orders);  // "single", "all"
 
 struct SpecMaterial {
   std::string name;
-  WalkNdf ndf = WalkNdf::ggx;
+  NdfKind ndf = NdfKind::ggx;
   std::vector<std::pair<double, double>> alphas;  // (alpha_x, alpha_y), in the spec's order
   Material facet = Material::mirror();
   int line = 0;

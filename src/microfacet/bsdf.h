@@ -94,7 +94,7 @@ T conductor_brdf(const Ndf<T>& ggx, std::complex<T> eta, const Vec3<T>& wi, cons
 // C1(h) = c, sits at C1 = 1 - c. With c distributed as (1 + Lambda_i) c^Lambda_i (the visible point seen
 // from wi), the probability that wo escapes on the other side is E[(1 - c)^Lambda_o], and with the G1 of
 // the visible normals G2_t = B(1 + Lambda_i, 1 + Lambda_o) (Euler's beta function; derived here, and what
-// order 1 of the Smith random walk produces, tests/test_smith_walk.cpp). Symmetric in (i, o). It is not the
+// order 1 of the Smith random walk produces, tests/scatter/test_smith_walk.cpp). Symmetric in (i, o). It is not the
 // reflection form 1 / (1 + Lambda_i + Lambda_o) (Heitz 2014 eq. 99, ggx.G2, where both ends are on one side,
 // E[c^Lambda_o]), which dielectric_bsdf below uses for both lobes: the two agree when either Lambda is 0 and
 // differ at grazing angles (B(2, 2) = 1/6 against 1/3 for Lambda_i = Lambda_o = 1).

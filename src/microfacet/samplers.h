@@ -14,6 +14,7 @@
 #pragma once
 
 #include "microfacet/ggx.h"
+#include "microfacet/sample_domain.h"
 
 #include <optional>
 #include <span>
@@ -68,11 +69,6 @@ template <class T> T bounded2023_reflection_pdf(const GGX<T>& ggx, const Vec3<T>
 template <class T> T bounded2023_k(const GGX<T>& ggx, const Vec3<T>& wi);
 
 // ---- the registry: samplers by name, for the validator and the command line ----------------------------
-
-enum class SampleDomain {
-  microfacet_normal,    // samples are microfacet normals m; analytic reference: D_v(wi, m)
-  reflected_direction,  // samples are reflected directions wo; reference: the pdf over wo
-};
 
 // Which density a sampler claims (its claimed_pdf): samplers that claim the same one share a reference.
 enum class ClaimedPdf {

@@ -101,7 +101,7 @@ template <class T> T d_minus_sin_cos(T d, T s, T c) {
 // halley_iterate, which keeps the iterate bracketed. g returns (g - target, g', g''). A Halley step leaves
 // an error of the order of the cube of the one before, so once a step is below 2^(1 - 2 digits / 5) of the
 // iterate the error left is below 2^(3 - 6 digits / 5), under an ulp: the iteration stops there (Boost's
-// rule tests the last step). Measured (tests/test_root_solvers.cpp): within 2 ulps over the whole range.
+// rule tests the last step). Measured (tests/microfacet/test_root_solvers.cpp): within 2 ulps over the whole range.
 template <class T, class G> T halley_root(G&& g, T guess, T lo, T hi) {
   std::uintmax_t iterations = 40;
   return boost::math::tools::halley_iterate(g, guess, lo, hi, std::numeric_limits<T>::digits * 2 / 5, iterations);

@@ -20,6 +20,8 @@ namespace py = pybind11;
 
 // Registers validate(), ValidationResult, sample() and sampler_names() (validate_binding.cpp).
 void bind_validation(py::module_& m);
+// Registers albedo_table() and stability() (tables_binding.cpp).
+void bind_tables(py::module_& m);
 // Registers check_bsdf() (battery_binding.cpp).
 void bind_battery(py::module_& m);
 

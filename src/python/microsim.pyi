@@ -60,6 +60,19 @@ def sample(name: str, wi: Directions, alpha: Alpha, u: npt.ArrayLike,
 
 def sampler_names() -> list[str]: ...
 
+def validate_all(*, samples: int = 200000, seed: int = 1, precision: str = "double", rows: int = 31,
+                 significance: float = 0.01, threads: int = 0, progress: Progress = None) -> dict[str, Any]:
+    """`microsim validate --all`: the dict its --json writes (verdict, summary, results), plus exit_code."""
+
+def albedo_table(*, model: str = "analytic", ndf: str = "ggx", material: str = "mirror", inside: bool = False,
+                 alphas: Optional[Sequence[float]] = None, mus: int = 16, tolerance: float = 1e-8,
+                 paths: int = 1000000, seed: int = 1, max_order: int = 100, resolution: int = 512, threads: int = 0,
+                 progress: Progress = None) -> dict[str, Any]:
+    """`microsim albedo`: the dict its --json writes."""
+
+def stability(*, threads: int = 0, progress: Progress = None) -> dict[str, Any]:
+    """`microsim stability`: the dict its --json writes (violations: rows over their bound)."""
+
 def D(m: Directions, alpha: Alpha) -> np.ndarray:
     """GGX normal distribution D(m) (Walter et al. 2007, eq. 33)."""
 def Lambda(w: Directions, alpha: Alpha) -> np.ndarray:

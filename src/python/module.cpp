@@ -310,7 +310,7 @@ py::dict smith_walk(const py::handle& alpha, double theta, double phi, const std
   const GGX<double> ggx = ggx_of(alpha);
   surface.alpha_x = ggx.alpha_x();
   surface.alpha_y = ggx.alpha_y();
-  surface.ndf = parse_walk_ndf("ndf", ndf);
+  surface.ndf = parse_ndf_kind("ndf", ndf);
   surface.heights = parse_height_distribution("heights", heights);
   check_smith_microsurface(surface);
   const ScatterOptions o = scatter_options(theta, phi, material, rays, seed, max_order, rows);
@@ -324,11 +324,11 @@ py::dict analytic_scatter(const py::handle& alpha, double theta, double phi, con
                           const std::string& ndf, int rows, int threads, const py::object& progress) {
   const GGX<double> ggx = ggx_of(alpha);
   const ScatterOptions o = scatter_options(theta, phi, material, 1, 1, 1, rows);
-  const WalkNdf kind = parse_walk_ndf("ndf", ndf);
+  const NdfKind kind = parse_ndf_kind("ndf", ndf);
   ScatterExpectation e;
   run_interruptible([&](RunControl run) {
     run.threads = threads;
-    e = kind == WalkNdf::beckmann
+    e = kind == NdfKind::beckmann
             ? analytic_single_scattering(Beckmann<double>(ggx.alpha_x(), ggx.alpha_y()), o.wi, o.material, rows, run)
             : analytic_single_scattering(ggx, o.wi, o.material, rows, run);
   }, progress);
@@ -435,6 +435,7 @@ PYBIND11_MODULE(microsim, m) {
   py::register_exception_translator(&translate_errors);
   bind_analytic(m);
   bind_validation(m);
+  bind_tables(m);
   bind_battery(m);
   bind_heightfield(m);
   m.def("trace_vndf", &trace_vndf, R"(Traces the GGX ellipsoid (the exact VNDF oracle, `microsim trace vndf`).

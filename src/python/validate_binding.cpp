@@ -2,6 +2,7 @@
 // vectorised functions, and the run of long calls (GIL released, progress, Ctrl-C). See binding.h.
 #include "python/binding.h"
 
+#include "measure/validate_all.h"
 #include "microfacet/material.h"
 #include "microfacet/roughness.h"
 #include "stats/binning.h"
@@ -553,6 +554,37 @@ py::array_t<double, py::array::c_style | py::array::forcecast> directions_of(con
   return py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(checked_array(a, what, 3, false));
 }
 
+// `validate --all`: the zoo over its grid, then the BSDF samplers over theirs, and the batch's verdict; the
+// run built as the command line builds it (validation_run in apps/cmd_validate.cpp).
+py::object validate_all_with_keywords(std::uint64_t samples, std::uint64_t seed, const std::string& precision, int rows,
+                                      double significance, int threads, const py::object& progress) {
+  ValidationRun run;
+  run.batch = true;
+  run.seed = seed;
+  run.family_significance = significance;
+  run.options = validation_options(rows, significance, seed);
+  if (precision != "double" && precision != "float") throw py::value_error("precision: 'double' or 'float', got '" + precision + "'");
+  run.options.precision = precision == "float" ? Precision::float32 : Precision::float64;
+  run.options.samples = samples;
+  run.cases = zoo_cases(seed);
+  run.options.significance = sidak_significance(significance, int(run.cases.size()));
+  require_samples_for_any_test(samples);
+  if (threads < 0) throw py::value_error("threads must be >= 0 (0: all cores), got " + std::to_string(threads));
+  std::optional<ZooResult> result;
+  auto to_python = [](const ZooResult& r) {
+    py::object out = json_to_python(to_json(r));
+    out["exit_code"] = exit_code(r);
+    return out;
+  };
+  run_interruptible([&](const RunControl& control) {
+    ValidationRun r = run;
+    r.options.run = control;
+    r.options.run.threads = threads;
+    result = validate_all(r);
+  }, progress, [&] { return result ? to_python(*result) : py::object(py::none()); });
+  return to_python(*result);
+}
+
 void bind_validation(py::module_& m) {
   using namespace pybind11::literals;
   bind_result(m);
@@ -603,6 +635,17 @@ u: (N, 2) uniforms in [0, 1); precision: 'double' or 'float' (the sampler's floa
 Returns (directions (N, 3), pdfs (N,)), float64; rows where the sampler returns nothing are NaN.)",
         "name"_a, "wi"_a, "alpha"_a, "u"_a, "precision"_a = "double");
   m.def("sampler_names", &sampler_names, "The names of the samplers of the zoo.");
+  m.def("validate_all", &validate_all_with_keywords, R"(Validates the whole zoo over the standard grid (what `microsim validate --all` does).
+
+samples: per validation (the command line's default 200000); seed, precision ('double' or 'float', as
+--float), rows, significance (the family-wise level over the batch, Sidak) as the command line's options;
+threads: 0 for all cores; progress: optional callable progress(stage, done, total).
+Returns the dict `validate --all --json` writes: "verdict" ('pass', 'fail'), "summary" (a row per sampler:
+passed, total, min and max p-value, expectation_met), "results" (a row per validation with its p-value and
+passed), the run's parameters, and "exit_code" (the command line's: 0 pass, 1 fail). KeyboardInterrupt on
+Ctrl-C carries the validations done as `partial_result`.)",
+        py::kw_only(), "samples"_a = 200'000, "seed"_a = 1, "precision"_a = "double", "rows"_a = 31,
+        "significance"_a = 0.01, "threads"_a = 0, "progress"_a = py::none());
 }
 
 }  // namespace microsim::python

@@ -37,7 +37,7 @@ namespace {
 
 microgeom::AssemblyParams surface_params(const AlbedoTableRequest& r, double alpha) {
   microgeom::AssemblyParams p;
-  p.assembly = r.ndf == WalkNdf::ggx ? "smith" : "beckmann";
+  p.assembly = microgeom::plain_assembly(r.ndf);
   p.alpha_x = p.alpha_y = alpha;
   p.resolution = r.resolution;
   p.seed = r.seed;
@@ -162,7 +162,7 @@ void append_row(AlbedoTable& table, double alpha, const RowCells& row, const MuG
 std::vector<Estimate> analytic_cell(const AlbedoTableRequest& r, double alpha, double mu) {
   const Vec3<double> wi = albedo_view(mu, r.inside);
   const SingleScatteringAlbedo a =
-      r.ndf == WalkNdf::ggx ? single_scattering_albedo(GGX<double>(alpha), r.material, 0, wi, r.tolerance)
+      r.ndf == NdfKind::ggx ? single_scattering_albedo(GGX<double>(alpha), r.material, 0, wi, r.tolerance)
                             : single_scattering_albedo(Beckmann<double>(alpha), r.material, 0, wi, r.tolerance);
   if (!r.material.transmits()) return {a.total()};
   return {a.total(), a.reflected, a.transmitted};

@@ -75,7 +75,7 @@ inline constexpr double kMaxAlbedoAlpha = 2.0;
 
 struct AlbedoTableRequest {
   AlbedoModel model = AlbedoModel::analytic;
-  WalkNdf ndf = WalkNdf::ggx;
+  NdfKind ndf = NdfKind::ggx;
   Material material = Material::mirror();  // mirror or dielectric
   bool inside = false;                     // light from inside the dielectric (wi.z < 0)
   std::vector<double> alphas{0.1, 0.25, 0.5, 0.75, 1.0};  // isotropic; increasing, in [kMinAlbedoAlpha, kMaxAlbedoAlpha]

@@ -21,15 +21,8 @@
 
 namespace microsim {
 
-std::string to_string(WalkNdf ndf) { return ndf == WalkNdf::ggx ? "ggx" : "beckmann"; }
 std::string to_string(HeightDistribution heights) {
   return heights == HeightDistribution::uniform ? "uniform" : "gaussian";
-}
-
-WalkNdf parse_walk_ndf(std::string_view what, std::string_view text) {
-  if (text == "ggx") return WalkNdf::ggx;
-  if (text == "beckmann") return WalkNdf::beckmann;
-  throw ParseError(fmt::format("{} {}: unknown distribution (expected ggx or beckmann)", what, quote_excerpt(text)));
 }
 
 HeightDistribution parse_height_distribution(std::string_view what, std::string_view text) {
@@ -223,7 +216,7 @@ std::string walk_measurement(const SmithMicrosurface& s, const ScatterOptions& o
 
 // Calls f(ndf) with the surface's distribution as GGX<double> or Beckmann<double>.
 template <class F> decltype(auto) with_ndf(const SmithMicrosurface& s, F&& f) {
-  if (s.ndf == WalkNdf::beckmann) return f(Beckmann<double>(s.alpha_x, s.alpha_y));
+  if (s.ndf == NdfKind::beckmann) return f(Beckmann<double>(s.alpha_x, s.alpha_y));
   return f(GGX<double>(s.alpha_x, s.alpha_y));
 }
 

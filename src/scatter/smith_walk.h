@@ -32,6 +32,7 @@
 #pragma once
 
 #include "core/math.h"
+#include "core/ndf_kind.h"
 #include "scatter/scatter_setup.h"
 #include "stats/scatter_histogram.h"
 
@@ -43,20 +44,17 @@
 
 namespace microsim {
 
-enum class WalkNdf { ggx, beckmann };
 enum class HeightDistribution { uniform, gaussian };
 
 // The Smith microsurface of a walk.
 struct SmithMicrosurface {
-  WalkNdf ndf = WalkNdf::ggx;
+  NdfKind ndf = NdfKind::ggx;
   double alpha_x = 0.5, alpha_y = 0.5;  // each in [kMinAlpha, kMaxSupportedAlpha] (microfacet/roughness.h)
   HeightDistribution heights = HeightDistribution::uniform;
 };
 
-std::string to_string(WalkNdf ndf);                   // "ggx", "beckmann"
-std::string to_string(HeightDistribution heights);    // "uniform", "gaussian"
-// Parse "ggx" / "beckmann" and "uniform" / "gaussian"; ParseError naming `what` and quoting the text.
-WalkNdf parse_walk_ndf(std::string_view what, std::string_view text);
+std::string to_string(HeightDistribution heights);  // "uniform", "gaussian"
+// Parse "uniform" / "gaussian"; ParseError naming `what` and quoting the text (the NDF: parse_ndf_kind).
 HeightDistribution parse_height_distribution(std::string_view what, std::string_view text);
 // "ggx alpha=0.5,0.5 heights=uniform": the canonical description (part of a run's measurement string).
 std::string describe(const SmithMicrosurface& surface);

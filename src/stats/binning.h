@@ -31,7 +31,7 @@
 #pragma once
 
 #include "microfacet/ggx.h"
-#include "microfacet/samplers.h"
+#include "microfacet/sample_domain.h"
 
 #include <nlohmann/json_fwd.hpp>
 

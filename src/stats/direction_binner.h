@@ -26,7 +26,7 @@
 // Pass 1 is written once, with Google Highway (portable SIMD): the widest instruction set the CPU has
 // is chosen at run time (AVX-512, AVX2 + FMA, SSE4, SSSE3 on x86; NEON, SVE on Arm; ...). A batch's
 // last n mod (vector width) directions, and every direction in bin_floats_scalar(), go through the plain
-// scalar loop: the reference of the vector code (tests/test_direction_binner.cpp compares them).
+// scalar loop: the reference of the vector code (tests/stats/test_direction_binner.cpp compares them).
 #pragma once
 
 #include "stats/binning.h"

@@ -171,7 +171,7 @@ public:
   // (a valley seen from above, a ridge from below), the lift along the start facet's normal can cross the
   // neighbouring facet's plane into the solid (outside) or out of it (inside): a ray from there misses the
   // facet it may immediately meet, and meets the surface from the wrong side later (about 5e-7 of the
-  // paths of a rough dielectric, tests/test_surface_scatter.cpp). The vertical move keeps the origin on
+  // paths of a rough dielectric, tests/scatter/test_surface_scatter.cpp). The vertical move keeps the origin on
   // its side; inside a facet (the lift's vertical extent is surface_offset() / m_z there) it never acts.
   // `up`: the triangle's unit upward normal (field().triangle_normal).
   Vec3<double> surface_origin(const Vec3<double>& p, std::uint32_t triangle, const Vec3<double>& up,

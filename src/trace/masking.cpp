@@ -32,7 +32,7 @@ struct HeightfieldBlockTally {
 };
 
 // Traces block `block`: ray origins uniform over the tile from CounterRng(seed, block), along -wi.
-// Bins by FastDirectionBinner, which gives exactly DirectionBinning::bin_of (tests/test_direction_binner.cpp)
+// Bins by FastDirectionBinner, which gives exactly DirectionBinning::bin_of (tests/stats/test_direction_binner.cpp)
 // at a fraction of its cost.
 HeightfieldBlockTally trace_heightfield_block(const HeightfieldScene& scene, const Vec3<double>& wi,
                                               std::span<const DirectionBinning> binnings,

@@ -15,11 +15,9 @@
 
 namespace microsim {
 
-std::string to_string(AnalyticNdf ndf) { return ndf == AnalyticNdf::ggx ? "ggx" : "beckmann"; }
-
 // ---- analytic --------------------------------------------------------------------------------------------
 
-AnalyticSmith::AnalyticSmith(AnalyticNdf ndf, double alpha_x, double alpha_y)
+AnalyticSmith::AnalyticSmith(NdfKind ndf, double alpha_x, double alpha_y)
     : ndf_(ndf), ax_(std::max(alpha_x, kMinAlpha)), ay_(std::max(alpha_y, kMinAlpha)) {
   if (!std::isfinite(alpha_x) || !std::isfinite(alpha_y) || !(alpha_x > 0) || !(alpha_y > 0)) {
     throw std::invalid_argument(fmt::format("Smith reference roughness ({}, {}) must be positive and finite", alpha_x, alpha_y));
@@ -29,7 +27,7 @@ AnalyticSmith::AnalyticSmith(AnalyticNdf ndf, double alpha_x, double alpha_y)
 std::string AnalyticSmith::describe() const { return fmt::format("{} alpha ({:.6g}, {:.6g})", to_string(ndf_), ax_, ay_); }
 
 double AnalyticSmith::D(const Vec3<double>& m) const {
-  if (ndf_ == AnalyticNdf::ggx) return GGX<double>(ax_, ay_).D(m);
+  if (ndf_ == NdfKind::ggx) return GGX<double>(ax_, ay_).D(m);
   if (!(m.z() > 0)) return 0.0;
   const Vec3<double> u = m.normalized();
   const double mz = u.z();
@@ -38,7 +36,7 @@ double AnalyticSmith::D(const Vec3<double>& m) const {
 }
 
 double AnalyticSmith::Lambda(const Vec3<double>& w) const {
-  if (ndf_ == AnalyticNdf::ggx) return GGX<double>(ax_, ay_).Lambda(w);
+  if (ndf_ == NdfKind::ggx) return GGX<double>(ax_, ay_).Lambda(w);
   const double z = std::abs(w.z());
   const double r2 = sqr(ax_ * w.x()) + sqr(ay_ * w.y());  // alpha(phi)^2 sin^2 theta (for unit w)
   if (r2 == 0) return 0.0;
@@ -64,7 +62,7 @@ double AnalyticSmith::G2(const Vec3<double>& wi, const Vec3<double>& wo) const {
 }
 
 double AnalyticSmith::vndf(const Vec3<double>& w, const Vec3<double>& m) const {
-  if (ndf_ == AnalyticNdf::ggx) return GGX<double>(ax_, ay_).visible_normal_pdf(w, m);
+  if (ndf_ == NdfKind::ggx) return GGX<double>(ax_, ay_).visible_normal_pdf(w, m);
   if (!(w.z() > 0)) return 0.0;
   const double wm = w.dot(m);
   if (!(wm > 0)) return 0.0;
@@ -85,10 +83,11 @@ AnalyticSmith stated_reference(const std::map<std::string, std::string>& md) {
     return *v;
   };
   const auto ref = md.find("reference_ndf");
-  if (ref != md.end() && ref->second != "ggx" && ref->second != "beckmann")
+  const std::optional<NdfKind> named = ref == md.end() ? NdfKind::ggx : ndf_kind_from_string(ref->second);
+  if (!named)
     throw std::invalid_argument(fmt::format("heightmap attribute microsim.reference_ndf = {} is neither 'ggx' nor "
                                             "'beckmann'", reader::quote_excerpt(ref->second)));
-  const AnalyticNdf ndf = (ref != md.end() && ref->second == "beckmann") ? AnalyticNdf::beckmann : AnalyticNdf::ggx;
+  const NdfKind ndf = *named;
   const double alpha_x = alpha("alpha_x"), alpha_y = alpha("alpha_y");
   return AnalyticSmith(ndf, alpha_x, alpha_y);
 }
@@ -113,7 +112,7 @@ AnalyticSmith fitted_reference(const microgeom::Heightfield& field) {
     return double(*mid);
   };
   const double alpha_x = std::sqrt(3.0) * median(sx), alpha_y = std::sqrt(3.0) * median(sy);
-  return AnalyticSmith(AnalyticNdf::ggx, std::max(alpha_x, kMinAlpha), std::max(alpha_y, kMinAlpha));
+  return AnalyticSmith(NdfKind::ggx, std::max(alpha_x, kMinAlpha), std::max(alpha_y, kMinAlpha));
 }
 
 }  // namespace

@@ -23,6 +23,7 @@
 // Sums over triangles are parallel (TBB) and deterministic: per fixed block of rows, then added in order.
 #pragma once
 
+#include "core/ndf_kind.h"
 #include "microgeom/heightfield.h"
 #include "stats/binning.h"
 #include "microfacet/ggx.h"
@@ -35,14 +36,11 @@
 
 namespace microsim {
 
-enum class AnalyticNdf { ggx, beckmann };
-std::string to_string(AnalyticNdf ndf);
-
 class AnalyticSmith {
 public:
-  AnalyticSmith(AnalyticNdf ndf, double alpha_x, double alpha_y);
+  AnalyticSmith(NdfKind ndf, double alpha_x, double alpha_y);
 
-  AnalyticNdf ndf() const { return ndf_; }
+  NdfKind ndf() const { return ndf_; }
   double alpha_x() const { return ax_; }
   double alpha_y() const { return ay_; }
   std::string describe() const;  // "ggx alpha (0.5, 0.5)"
@@ -60,7 +58,7 @@ public:
   double vndf(const Vec3<double>& w, const Vec3<double>& m) const;
 
 private:
-  AnalyticNdf ndf_;
+  NdfKind ndf_;
   double ax_, ay_;
 };
 

@@ -1,5 +1,5 @@
 // microsim: numerical stability of the sampler zoo and of the analytic Smith-GGX functions at the
-// extremes. One sweep, shared by tests/test_stability.cpp (which asserts the
+// extremes. One sweep, shared by tests/validate/test_stability.cpp (which asserts the
 // bounds) and `microsim stability` (which prints the table that docs/records/stability.md quotes).
 //
 // What is measured, per (subject, regime), as worst cases over the grid:

@@ -6,7 +6,7 @@
 // trace rank 0's tile, the one-process results again. Under mpirun a bad spec is one message and exit 2, and
 // a rejected validation exit 1 (rank 0 decides the code and the other ranks return it).
 // Built only with MPI and mpirun (CMakeLists.txt); the library-level tests of the split are
-// tests/test_experiment_split.cpp (ranks as threads, with the negative controls of a wrong combination).
+// tests/experiment/test_experiment_split.cpp (ranks as threads, with the negative controls of a wrong combination).
 #include "../run_directory_contents.h"
 
 #include <gtest/gtest.h>

@@ -84,10 +84,10 @@ TEST(SamplerTraits, StabilityBoundFollowsTheReturnedPdfTrait) {
 
 TEST(AssemblyTraits, NamesAndReferenceNdfsComeFromTheRegistry) {
   EXPECT_EQ(microgeom::assembly_names(","), "smith,beckmann,mixture,sorted,spikes");
-  EXPECT_EQ(microgeom::reference_ndf_from_string("ggx"), microgeom::ReferenceNdf::ggx);
-  EXPECT_EQ(microgeom::reference_ndf_from_string("beckmann"), microgeom::ReferenceNdf::beckmann);
-  EXPECT_FALSE(microgeom::reference_ndf_from_string("GGX").has_value());
-  EXPECT_FALSE(microgeom::reference_ndf_from_string("").has_value());
+  EXPECT_EQ(ndf_kind_from_string("ggx"), NdfKind::ggx);
+  EXPECT_EQ(ndf_kind_from_string("beckmann"), NdfKind::beckmann);
+  EXPECT_FALSE(ndf_kind_from_string("GGX").has_value());
+  EXPECT_FALSE(ndf_kind_from_string("").has_value());
 }
 
 // "spikes" is "sorted" turned upside down: the same recipe with the upside_down trait, height for height.

@@ -32,7 +32,7 @@ template <class F> double hemisphere(F f, int n = 400) {
 }
 
 TEST(AnalyticSmith, GgxMatchesTheGgxClass) {
-  const AnalyticSmith s(AnalyticNdf::ggx, 0.3, 0.7);
+  const AnalyticSmith s(NdfKind::ggx, 0.3, 0.7);
   const GGX<double> g(0.3, 0.7);
   for (double theta : {0.0, 20.0, 60.0, 85.0}) {
     const Vec3<double> w = direction_from_degrees(theta, 37.0), m = direction_from_degrees(theta / 3, 100.0);
@@ -48,7 +48,7 @@ TEST(AnalyticSmith, GgxMatchesTheGgxClass) {
 // quadrature, for an anisotropic roughness.
 TEST(AnalyticSmith, BeckmannNormalisationAndLambdaDefinition) {
   const double ax = 0.4, ay = 0.8;
-  const AnalyticSmith s(AnalyticNdf::beckmann, ax, ay);
+  const AnalyticSmith s(NdfKind::beckmann, ax, ay);
   EXPECT_NEAR(hemisphere([&](const Vec3<double>& m) { return s.D(m) * m.z(); }), 1.0, 1e-5);
   for (double theta : {30.0, 70.0, 85.0}) {
     const double phi = 25.0;
@@ -128,7 +128,7 @@ TEST(EmpiricalSmith, SmithAssemblyLambdaCloseToGgx) {
   std::string source;
   const AnalyticSmith a = analytic_reference(field, &source);
   EXPECT_EQ(source, "metadata");
-  EXPECT_EQ(a.ndf(), AnalyticNdf::ggx);
+  EXPECT_EQ(a.ndf(), NdfKind::ggx);
   for (double theta : {30.0, 60.0, 75.0, 85.0}) {
     const Vec3<double> w = direction_from_degrees(theta, 30.0);
     EXPECT_NEAR(e.G1(w) / a.G1(w), 1.0, 0.01) << theta;

@@ -12,33 +12,33 @@
 using namespace microgeom;
 
 TEST(SurfaceStats, ReferenceRadiusLawsAreConsistent) {
-  for (ReferenceNdf ref : {ReferenceNdf::ggx, ReferenceNdf::beckmann})
+  for (NdfKind ref : {NdfKind::ggx, NdfKind::beckmann})
     for (double q : {1e-4, 0.01, 0.25, 0.5, 0.9, 0.999, 0.999999})
       EXPECT_NEAR(reference_radius_cdf(ref, reference_radius_quantile(ref, q)), q, 1e-12);
-  EXPECT_DOUBLE_EQ(reference_radius_quantile(ReferenceNdf::ggx, 0.5), 1.0);  // median slope = alpha
-  EXPECT_NEAR(reference_radius_quantile(ReferenceNdf::beckmann, 1 - std::exp(-1.0)), 1.0, 1e-12);
-  EXPECT_EQ(reference_radius_cdf(ReferenceNdf::ggx, 0.0), 0.0);
-  EXPECT_EQ(reference_radius_cdf(ReferenceNdf::ggx, -1.0), 0.0);
-  EXPECT_EQ(reference_radius_quantile(ReferenceNdf::ggx, 0.0), 0.0);
-  EXPECT_TRUE(std::isinf(reference_radius_quantile(ReferenceNdf::ggx, 1.0)));
+  EXPECT_DOUBLE_EQ(reference_radius_quantile(NdfKind::ggx, 0.5), 1.0);  // median slope = alpha
+  EXPECT_NEAR(reference_radius_quantile(NdfKind::beckmann, 1 - std::exp(-1.0)), 1.0, 1e-12);
+  EXPECT_EQ(reference_radius_cdf(NdfKind::ggx, 0.0), 0.0);
+  EXPECT_EQ(reference_radius_cdf(NdfKind::ggx, -1.0), 0.0);
+  EXPECT_EQ(reference_radius_quantile(NdfKind::ggx, 0.0), 0.0);
+  EXPECT_TRUE(std::isinf(reference_radius_quantile(NdfKind::ggx, 1.0)));
   // The GGX radius law is that of P22 (microsim::GGX::slope_pdf): d/dR of the CDF = 2 pi R P22(R).
   const microsim::GGX<double> ggx(1.0);
   for (double r : {0.1, 0.7, 1.0, 3.0, 20.0}) {
     const double h = 1e-6 * r;
-    const double pdf = (reference_radius_cdf(ReferenceNdf::ggx, r + h) - reference_radius_cdf(ReferenceNdf::ggx, r - h)) / (2 * h);
+    const double pdf = (reference_radius_cdf(NdfKind::ggx, r + h) - reference_radius_cdf(NdfKind::ggx, r - h)) / (2 * h);
     EXPECT_NEAR(pdf, 2 * M_PI * r * ggx.slope_pdf(r, 0.0), 1e-6 * pdf);
   }
 }
 
 TEST(SurfaceStats, ToleranceWidensWithFewerPatchesOnlyWhereStated) {
   const NdfTolerance fixed;
-  const NdfTolerance big = tolerance_for(ReferenceNdf::ggx, 4096, 16);
+  const NdfTolerance big = tolerance_for(NdfKind::ggx, 4096, 16);
   EXPECT_EQ(big.quantile, fixed.quantile);
   EXPECT_EQ(big.radius_bin, fixed.radius_bin);
   EXPECT_NEAR(big.angular_bin, std::max(fixed.angular_bin, kAngularNoiseFactor * std::sqrt(kAngularBins / 65536.0)), 1e-15);
-  const NdfTolerance small = tolerance_for(ReferenceNdf::ggx, 256, 16);
+  const NdfTolerance small = tolerance_for(NdfKind::ggx, 256, 16);
   EXPECT_GT(small.angular_bin, big.angular_bin);
-  const NdfTolerance beck = tolerance_for(ReferenceNdf::beckmann, 1024, 16);
+  const NdfTolerance beck = tolerance_for(NdfKind::beckmann, 1024, 16);
   EXPECT_NEAR(beck.quantile, kBeckmannQuantileNoiseFactor / 64.0, 1e-15);
   EXPECT_GT(beck.radius_bin, fixed.radius_bin);
 }

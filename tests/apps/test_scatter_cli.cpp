@@ -55,7 +55,7 @@ TEST_F(ScatterCli, SmithWalkWritesTheLibraryHistogram) {
   o.paths = 20000;
   o.rows = 4;
   o.seed = 9;
-  const ScatterHistogram expected = smith_walk_scatter({WalkNdf::ggx, 0.5, 0.5}, o);
+  const ScatterHistogram expected = smith_walk_scatter({NdfKind::ggx, 0.5, 0.5}, o);
   const ScatterFile f = read_scatter_exr(dir / "w.exr");
   ASSERT_EQ(f.kind, ScatterFileKind::histogram);
   EXPECT_EQ(f.histogram, expected);

@@ -96,7 +96,7 @@ TEST(RangeEdges, LibraryRuleEdgesMeetTheNdfCheckOverSeeds) {
     for (std::uint64_t seed : {1u, 2u, 3u}) {
       AssemblyParams p;
       p.assembly = info.name;
-      p.resolution = info.reference == ReferenceNdf::ggx ? kMinGgxCheckedResolution : 16;
+      p.resolution = info.reference == NdfKind::ggx ? kMinGgxCheckedResolution : 16;
       p.alpha_x = 0.5;
       p.alpha_y = 0.5 * kMaxCheckedAnisotropy;
       p.seed = seed;
@@ -112,9 +112,9 @@ TEST(RangeEdges, LibraryRuleEdgesMeetTheNdfCheckOverSeeds) {
     }
     AssemblyParams outside;
     outside.assembly = info.name;
-    outside.resolution = info.reference == ReferenceNdf::ggx ? kMinGgxCheckedResolution / 2 : 16;
+    outside.resolution = info.reference == NdfKind::ggx ? kMinGgxCheckedResolution / 2 : 16;
     outside.alpha_x = 0.5;
-    outside.alpha_y = info.reference == ReferenceNdf::ggx ? 0.5 : 0.5 * kMaxCheckedAnisotropy * 1.01;
+    outside.alpha_y = info.reference == NdfKind::ggx ? 0.5 : 0.5 * kMaxCheckedAnisotropy * 1.01;
     EXPECT_THROW(check_supported_range(outside), OutsideSupportedRange) << info.name;
   }
   AssemblyParams l2;

@@ -26,7 +26,7 @@ std::uint64_t write_walk_dump(const fs::path& path, double theta, detail::WalkFa
   o.material = Material::dielectric(1.5);
   o.paths = 200'000;
   o.seed = seed;
-  const WalkSamples s = detail::smith_walk_samples(SmithMicrosurface{WalkNdf::ggx, 1.0, 1.0}, o, fault);
+  const WalkSamples s = detail::smith_walk_samples(SmithMicrosurface{NdfKind::ggx, 1.0, 1.0}, o, fault);
   write_npy_table(path, s.rows, 3 + std::size_t(s.channels), true);
   return s.dropped;
 }

@@ -23,7 +23,7 @@ AssemblyParams params(const std::string& name, int n = 128, double ax = 0.3, dou
   return p;
 }
 
-SurfaceStats stats_of(const Heightfield& f, const AssemblyParams& p, std::optional<ReferenceNdf> ref = {},
+SurfaceStats stats_of(const Heightfield& f, const AssemblyParams& p, std::optional<NdfKind> ref = {},
                       double alpha_factor = 1.0) {
   const AssemblyInfo* info = find_assembly(p.assembly);
   StatsOptions o;
@@ -55,7 +55,7 @@ TEST(Assembly, RegistryNamesAreUniqueAndDescribed) {
   }
   for (const char* n : {"smith", "beckmann", "mixture", "sorted", "spikes"}) EXPECT_TRUE(names.count(n)) << n;
   EXPECT_EQ(find_assembly("nope"), nullptr);
-  EXPECT_EQ(find_assembly("beckmann")->reference, ReferenceNdf::beckmann);
+  EXPECT_EQ(find_assembly("beckmann")->reference, NdfKind::beckmann);
 }
 
 TEST(Assembly, ValidationNamesTheBadValue) {
@@ -118,7 +118,7 @@ TEST(Assembly, EveryAssemblyMeetsItsNdfTolerance) {
       const Heightfield f = build_assembly(p, &report);
       const SurfaceStats st = stats_of(f, p);
       EXPECT_TRUE(st.ndf_within_tolerance) << info.name << " alpha " << ax << "," << ay << ": " << st.ndf_verdict;
-      if (info.reference == ReferenceNdf::ggx) {
+      if (info.reference == NdfKind::ggx) {
         // The slope matching converges: the re-integrated slopes are their own rank-matched version to 1e-2.
         ASSERT_FALSE(report.residuals.empty());
         EXPECT_LT(report.residuals.back(), 1e-2) << info.name;
@@ -131,13 +131,13 @@ TEST(Assembly, EveryAssemblyMeetsItsNdfTolerance) {
 TEST(Assembly, NdfCheckRejectsWrongReferencesAndRoughness) {
   const auto ggx = params("smith", 256);
   const Heightfield g = build_assembly(ggx);
-  EXPECT_FALSE(stats_of(g, ggx, ReferenceNdf::beckmann).ndf_within_tolerance);
+  EXPECT_FALSE(stats_of(g, ggx, NdfKind::beckmann).ndf_within_tolerance);
   EXPECT_FALSE(stats_of(g, ggx, {}, 1.05).ndf_within_tolerance);  // 5% off in alpha
   auto p = params("beckmann", 512);
   p.corr_cells = 4;  // 128 correlation lengths per tile: a tight Beckmann tolerance
   const Heightfield b = build_assembly(p);
   EXPECT_TRUE(stats_of(b, p).ndf_within_tolerance) << stats_of(b, p).ndf_verdict;
-  EXPECT_FALSE(stats_of(b, p, ReferenceNdf::ggx).ndf_within_tolerance);
+  EXPECT_FALSE(stats_of(b, p, NdfKind::ggx).ndf_within_tolerance);
   EXPECT_FALSE(stats_of(b, p, {}, 1.1).ndf_within_tolerance);
   // Anisotropy: checked with the axes swapped, the surface fails.
   auto an = params("smith", 256, 0.15, 0.6);
@@ -219,9 +219,9 @@ TEST(Assembly, RadixSortMatchesAStableSortByTheUpperHalf) {
   }
   auto expected = keys;
   std::sort(expected.begin(), expected.end());  // (value, index): the stable order
-  detail::radix_sort_by_high32(keys, scratch);
+  microgeom::detail::radix_sort_by_high32(keys, scratch);
   EXPECT_EQ(keys, expected);
   std::vector<std::uint64_t> empty;
-  detail::radix_sort_by_high32(empty, scratch);
+  microgeom::detail::radix_sort_by_high32(empty, scratch);
   EXPECT_TRUE(empty.empty());
 }

@@ -159,14 +159,14 @@ TEST(AnalyticScatter, ASampledMeasurementPassesAndAnotherRoughnessIsRejected) {
 // from outside and from inside (its refraction lobe with the Smith microsurface's own transmission_G2).
 TEST(AnalyticScatter, TheSmithWalksOrderOneIsTheAnalyticExpectation) {
   struct Case {
-    WalkNdf ndf;
+    NdfKind ndf;
     double alpha, theta;
     Material material;
   };
-  const std::vector<Case> cases{{WalkNdf::ggx, 0.6, 0.8, Material::mirror()},
-                                {WalkNdf::beckmann, 0.4, 1.0, Material::conductor({{0.2, 3.9}})},
-                                {WalkNdf::ggx, 0.5, 1.2, Material::dielectric(1.5)},
-                                {WalkNdf::ggx, 0.5, kPi<double> - 0.7, Material::dielectric(1.5)}};
+  const std::vector<Case> cases{{NdfKind::ggx, 0.6, 0.8, Material::mirror()},
+                                {NdfKind::beckmann, 0.4, 1.0, Material::conductor({{0.2, 3.9}})},
+                                {NdfKind::ggx, 0.5, 1.2, Material::dielectric(1.5)},
+                                {NdfKind::ggx, 0.5, kPi<double> - 0.7, Material::dielectric(1.5)}};
   for (const Case& c : cases) {
     ScatterOptions o;
     o.wi = direction(c.theta, 0.4);
@@ -177,7 +177,7 @@ TEST(AnalyticScatter, TheSmithWalksOrderOneIsTheAnalyticExpectation) {
     ScatterFile walk, expected;
     walk.histogram = smith_walk_scatter({c.ndf, c.alpha, c.alpha, HeightDistribution::uniform}, o);
     expected.kind = ScatterFileKind::expectation;
-    expected.expectation = c.ndf == WalkNdf::ggx ? analytic_single_scattering(GGX<double>(c.alpha), o.wi, o.material, o.rows)
+    expected.expectation = c.ndf == NdfKind::ggx ? analytic_single_scattering(GGX<double>(c.alpha), o.wi, o.material, o.rows)
                                                  : analytic_single_scattering(Beckmann<double>(c.alpha), o.wi, o.material, o.rows);
     const std::vector<LobeComparison> r = compare_scatter_files(walk, "walk", expected, "analytic", {});
     ASSERT_EQ(r.size(), 1u);

@@ -76,7 +76,7 @@ bool conserves(const EnergyCheck& e) {
 
 TEST(SmithWalkFurnace, MirrorAndWhiteLambertianReflectEverything) {
   const std::vector<SmithMicrosurface> surfaces = {
-      {WalkNdf::ggx, 0.5, 0.5}, {WalkNdf::ggx, 1.0, 1.0}, {WalkNdf::ggx, 0.2, 0.9}, {WalkNdf::beckmann, 0.7, 0.7}};
+      {NdfKind::ggx, 0.5, 0.5}, {NdfKind::ggx, 1.0, 1.0}, {NdfKind::ggx, 0.2, 0.9}, {NdfKind::beckmann, 0.7, 0.7}};
   for (const SmithMicrosurface& s : surfaces) {
     for (double theta : {0.0, 60.0, 85.0}) {
       for (const Material& m : {Material::mirror(), Material::lambertian(1.0)}) {
@@ -92,16 +92,16 @@ TEST(SmithWalkFurnace, MirrorAndWhiteLambertianReflectEverything) {
 }
 
 TEST(SmithWalkFurnace, NegativeControlAConductorLosesEnergy) {
-  const ScatterHistogram h = smith_walk_scatter({WalkNdf::ggx, 0.5, 0.5}, walk_options(from_degrees(60), kGold, 50000));
+  const ScatterHistogram h = smith_walk_scatter({NdfKind::ggx, 0.5, 0.5}, walk_options(from_degrees(60), kGold, 50000));
   for (int c = 0; c < 3; ++c) EXPECT_FALSE(conserves(energy(h, c))) << c;
   const ScatterHistogram grey =
-      smith_walk_scatter({WalkNdf::ggx, 0.5, 0.5}, walk_options(from_degrees(60), Material::lambertian(0.95), 50000));
+      smith_walk_scatter({NdfKind::ggx, 0.5, 0.5}, walk_options(from_degrees(60), Material::lambertian(0.95), 50000));
   EXPECT_FALSE(conserves(energy(grey)));
 }
 
 TEST(SmithWalkEnergy, DielectricConservesFromOutsideAndInside) {
-  for (const SmithMicrosurface& s : {SmithMicrosurface{WalkNdf::ggx, 0.5, 0.5}, SmithMicrosurface{WalkNdf::beckmann, 0.5, 0.5},
-                                     SmithMicrosurface{WalkNdf::ggx, 0.3, 1.0}}) {
+  for (const SmithMicrosurface& s : {SmithMicrosurface{NdfKind::ggx, 0.5, 0.5}, SmithMicrosurface{NdfKind::beckmann, 0.5, 0.5},
+                                     SmithMicrosurface{NdfKind::ggx, 0.3, 1.0}}) {
     for (double theta : {0.0, 45.0, 80.0, 100.0, 135.0, 175.0}) {  // > 90: light from inside the solid
       const ScatterHistogram h = smith_walk_scatter(s, walk_options(from_degrees(theta, 10), Material::dielectric(1.5), 50000));
       const EnergyCheck e = energy(h);
@@ -111,7 +111,7 @@ TEST(SmithWalkEnergy, DielectricConservesFromOutsideAndInside) {
     }
   }
   // The same check on an absorbing interface fails (negative control).
-  const ScatterHistogram h = smith_walk_scatter({WalkNdf::ggx, 0.5, 0.5}, walk_options(from_degrees(45), kGold, 50000));
+  const ScatterHistogram h = smith_walk_scatter({NdfKind::ggx, 0.5, 0.5}, walk_options(from_degrees(45), kGold, 50000));
   EXPECT_FALSE(conserves(energy(h)));
 }
 
@@ -225,7 +225,7 @@ void expect_order1_matches(const std::vector<Order1Case>& cases) {
   const double level = sidak_significance(0.01, tests);
   for (const Order1Case& c : cases) {
     for (int ch = 0; ch < c.material.channels(); ++ch) {
-      const double p = c.surface.ndf == WalkNdf::ggx
+      const double p = c.surface.ndf == NdfKind::ggx
                            ? order1_p_value(c, 200000, analytic(GGX<double>(c.surface.alpha_x, c.surface.alpha_y), c, ch), ch)
                            : order1_p_value(c, 200000, analytic(Beckmann<double>(c.surface.alpha_x, c.surface.alpha_y), c, ch), ch);
       EXPECT_GE(p, level) << describe(c.surface) << " " << c.material.describe() << " theta " << c.theta << " channel " << ch;
@@ -234,28 +234,28 @@ void expect_order1_matches(const std::vector<Order1Case>& cases) {
 }
 
 TEST(SmithWalkOrder1, GgxMirrorAndConductorEqualTheAnalyticBrdf) {
-  expect_order1_matches({{{WalkNdf::ggx, 0.5, 0.5}, Material::mirror(), 60, 0},
-                         {{WalkNdf::ggx, 0.3, 0.8}, Material::mirror(), 70, 30},
-                         {{WalkNdf::ggx, 0.5, 0.5}, kGold, 30, 0}});
+  expect_order1_matches({{{NdfKind::ggx, 0.5, 0.5}, Material::mirror(), 60, 0},
+                         {{NdfKind::ggx, 0.3, 0.8}, Material::mirror(), 70, 30},
+                         {{NdfKind::ggx, 0.5, 0.5}, kGold, 30, 0}});
 }
 
 // From outside, and from inside below and beyond the critical angle (41.8 deg).
 TEST(SmithWalkOrder1, GgxDielectricEqualsTheAnalyticBsdfFromBothSides) {
-  expect_order1_matches({{{WalkNdf::ggx, 0.5, 0.5}, Material::dielectric(1.5), 45, 0},
-                         {{WalkNdf::ggx, 0.5, 0.5}, Material::dielectric(1.5), 150, 0},
-                         {{WalkNdf::ggx, 0.3, 0.3}, Material::dielectric(1.5), 105, 40}});
+  expect_order1_matches({{{NdfKind::ggx, 0.5, 0.5}, Material::dielectric(1.5), 45, 0},
+                         {{NdfKind::ggx, 0.5, 0.5}, Material::dielectric(1.5), 150, 0},
+                         {{NdfKind::ggx, 0.3, 0.3}, Material::dielectric(1.5), 105, 40}});
 }
 
 TEST(SmithWalkOrder1, BeckmannEqualsTheAnalyticBsdf) {
-  expect_order1_matches({{{WalkNdf::beckmann, 0.5, 0.5}, Material::mirror(), 70, 0},
-                         {{WalkNdf::beckmann, 0.3, 0.7}, Material::mirror(), 65, 40},
-                         {{WalkNdf::beckmann, 0.4, 0.4}, Material::dielectric(1.5), 140, 0}});
+  expect_order1_matches({{{NdfKind::beckmann, 0.5, 0.5}, Material::mirror(), 70, 0},
+                         {{NdfKind::beckmann, 0.3, 0.7}, Material::mirror(), 65, 40},
+                         {{NdfKind::beckmann, 0.4, 0.4}, Material::dielectric(1.5), 140, 0}});
 }
 
 // The refraction lobe of dielectric_bsdf uses the reflection form of the height-correlated G2; the Smith
 // microsurface's own is transmission_G2 (bsdf.h). At grazing angles the walk tells them apart.
 TEST(SmithWalkOrder1, TheReflectionFormOfG2DoesNotDescribeTransmission) {
-  const Order1Case c{{WalkNdf::ggx, 0.3, 0.3}, Material::dielectric(1.5), 105, 40};
+  const Order1Case c{{NdfKind::ggx, 0.3, 0.3}, Material::dielectric(1.5), 105, 40};
   const GGX<double> g(0.3);
   const Vec3<double> wi = from_degrees(c.theta, c.phi);
   const auto reflection_form = [&] {
@@ -269,7 +269,7 @@ TEST(SmithWalkOrder1, TheReflectionFormOfG2DoesNotDescribeTransmission) {
 // Negative controls: the same test rejects the separable G2, a wrong alpha, a wrong eta, and GGX for a
 // Beckmann walk.
 TEST(SmithWalkOrder1, NegativeControlsAreRejected) {
-  const Order1Case mirror{{WalkNdf::ggx, 0.5, 0.5}, Material::mirror(), 60, 0};
+  const Order1Case mirror{{NdfKind::ggx, 0.5, 0.5}, Material::mirror(), 60, 0};
   const GGX<double> g(0.5);
   const Vec3<double> wi = from_degrees(60);
   const auto separable = [&] {
@@ -282,11 +282,11 @@ TEST(SmithWalkOrder1, NegativeControlsAreRejected) {
   };
   EXPECT_LT(order1_p_value(mirror, 200000, separable), 1e-3);
   EXPECT_LT(order1_p_value(mirror, 200000, analytic(GGX<double>(0.55), mirror)), 1e-3);
-  const Order1Case inside{{WalkNdf::ggx, 0.5, 0.5}, Material::dielectric(1.5), 150, 0};
+  const Order1Case inside{{NdfKind::ggx, 0.5, 0.5}, Material::dielectric(1.5), 150, 0};
   EXPECT_LT(order1_p_value(inside, 200000, [&] {
               return single_scattering(g, Material::dielectric(1.4), from_degrees(150), 0);
             }), 1e-3);
-  const Order1Case beckmann{{WalkNdf::beckmann, 0.5, 0.5}, Material::mirror(), 70, 0};
+  const Order1Case beckmann{{NdfKind::beckmann, 0.5, 0.5}, Material::mirror(), 70, 0};
   EXPECT_LT(order1_p_value(beckmann, 200000, analytic(GGX<double>(0.5), beckmann)), 1e-3);
 }
 
@@ -300,7 +300,7 @@ TEST(SmithWalkOrder1, ReproducesThePublishedSingleScatteringAlbedos) {
   for (const Published& p : {Published{1, 1, 0.307}, Published{1, 0.5, 0.451}, Published{0.5, 1, 0.688},
                              Published{0.5, 0.5, 0.698}}) {
     const Vec3<double> wi(std::sqrt(1 - p.mu * p.mu), 0, p.mu);
-    const ScatterHistogram h = smith_walk_scatter({WalkNdf::ggx, p.alpha, p.alpha}, walk_options(wi, Material::mirror(), 400000));
+    const ScatterHistogram h = smith_walk_scatter({NdfKind::ggx, p.alpha, p.alpha}, walk_options(wi, Material::mirror(), 400000));
     const Estimate e1 = h.albedo(0, 0);
     EXPECT_NEAR(e1.value, p.albedo, 5e-4 + 4 * e1.standard_error) << "alpha " << p.alpha << " mu " << p.mu;
     // Negative control: the other alpha's published value is far outside.
@@ -380,7 +380,7 @@ double side_change_p_value(const ScatterHistogram& h, const SideAlbedos& ref) {
 }
 
 TEST(SmithWalkSideChange, PerOrderReflectionAndTransmissionMatchAGlobalFrameWalk) {
-  const SmithMicrosurface s{WalkNdf::ggx, 0.5, 0.5};
+  const SmithMicrosurface s{NdfKind::ggx, 0.5, 0.5};
   const GGX<double> g(0.5);
   const double level = sidak_significance(0.01, 4);
   for (double theta : {80.0, 100.0, 125.0, 170.0}) {  // grazing from outside; from inside: grazing, beyond
@@ -396,7 +396,7 @@ TEST(SmithWalkSideChange, PerOrderReflectionAndTransmissionMatchAGlobalFrameWalk
 // Negative control: the walk that keeps its height when it refracts (oracle.md section 6) still conserves
 // R + T = 1 but is rejected by the same comparison at grazing angles.
 TEST(SmithWalkSideChange, KeepingTheHeightOnRefractionIsRejected) {
-  const SmithMicrosurface s{WalkNdf::ggx, 0.5, 0.5};
+  const SmithMicrosurface s{NdfKind::ggx, 0.5, 0.5};
   const GGX<double> g(0.5);
   for (double theta : {80.0, 100.0}) {
     const Vec3<double> wi = from_degrees(theta, 20);
@@ -459,7 +459,7 @@ double eval_against_walk_p(const SmithMicrosurface& s, const ScatterOptions& o, 
 }
 
 TEST(SmithWalkEval, MatchesTheBinnedWalkPerOrderAndInTotal) {
-  const SmithMicrosurface s{WalkNdf::ggx, 0.5, 0.5};
+  const SmithMicrosurface s{NdfKind::ggx, 0.5, 0.5};
   // rows 4 per hemisphere: 8 rows x 16 columns; bins 0..63 reflect, 64..127 transmit.
   const ScatterOptions mirror = walk_options(from_degrees(60, 0), Material::mirror(), 400000, 5, 4);
   const ScatterOptions glass = walk_options(from_degrees(130, 0), Material::dielectric(1.5), 400000, 5, 4);
@@ -473,18 +473,18 @@ TEST(SmithWalkEval, MatchesTheBinnedWalkPerOrderAndInTotal) {
 }
 
 TEST(SmithWalkEval, NegativeControlsAreRejected) {
-  const SmithMicrosurface s{WalkNdf::ggx, 0.5, 0.5};
+  const SmithMicrosurface s{NdfKind::ggx, 0.5, 0.5};
   const ScatterOptions mirror = walk_options(from_degrees(60, 0), Material::mirror(), 400000, 5, 4);
   const std::vector<int> reflected_bins = {8, 24, 25, 40, 56, 7, 16};
-  EXPECT_LT(eval_against_walk_p(s, mirror, reflected_bins, 1, SmithMicrosurface{WalkNdf::ggx, 0.6, 0.6}), 1e-4);
-  EXPECT_LT(eval_against_walk_p(s, mirror, reflected_bins, -1, SmithMicrosurface{WalkNdf::beckmann, 0.5, 0.5}), 1e-4);
+  EXPECT_LT(eval_against_walk_p(s, mirror, reflected_bins, 1, SmithMicrosurface{NdfKind::ggx, 0.6, 0.6}), 1e-4);
+  EXPECT_LT(eval_against_walk_p(s, mirror, reflected_bins, -1, SmithMicrosurface{NdfKind::beckmann, 0.5, 0.5}), 1e-4);
 }
 
 // Order 1 of eval is the analytic single-scattering BSDF at a point (no binning): the next-event estimate's
 // expectation over the first meeting height is the height-correlated G2.
 TEST(SmithWalkEval, OrderOneIsTheAnalyticBsdfAtAPoint) {
   const GGX<double> g(0.5);
-  const SmithMicrosurface s{WalkNdf::ggx, 0.5, 0.5};
+  const SmithMicrosurface s{NdfKind::ggx, 0.5, 0.5};
   struct Pair {
     Material m;
     double ti, to, po;
@@ -505,7 +505,7 @@ TEST(SmithWalkEval, OrderOneIsTheAnalyticBsdfAtAPoint) {
 // reciprocal too, measured, while its BTDF at 80 -> 100 deg is 9 times too large at GGX alpha 1 (7.14
 // against 0.79); the global-frame walk above is what rejects it.)
 TEST(SmithWalkEval, IsReciprocalWithTheEtaSquaredFactor) {
-  const SmithMicrosurface s{WalkNdf::ggx, 0.5, 0.5};
+  const SmithMicrosurface s{NdfKind::ggx, 0.5, 0.5};
   const double eta = 1.5;
   struct Pair {
     double ti, pi, to, po;
@@ -526,7 +526,7 @@ TEST(SmithWalkEval, IsReciprocalWithTheEtaSquaredFactor) {
 // ---- the engine: shards, threads, cancellation; the height distribution drops out ------------------------
 
 TEST(SmithWalkEngine, ShardsMergeIntoTheWholeRunBitForBit) {
-  const SmithMicrosurface s{WalkNdf::ggx, 0.4, 0.6};
+  const SmithMicrosurface s{NdfKind::ggx, 0.4, 0.6};
   ScatterOptions o = walk_options(from_degrees(100, 30), Material::dielectric(1.5), 11 * kPathsPerBlock + 123, 9);
   const ScatterHistogram whole = smith_walk_scatter(s, o);
   ASSERT_EQ(whole.provenance.total_blocks, 12u);
@@ -546,7 +546,7 @@ TEST(SmithWalkEngine, ShardsMergeIntoTheWholeRunBitForBit) {
 }
 
 TEST(SmithWalkEngine, ThreadCountDoesNotChangeTheResult) {
-  const SmithMicrosurface s{WalkNdf::beckmann, 0.5, 0.5};
+  const SmithMicrosurface s{NdfKind::beckmann, 0.5, 0.5};
   ScatterOptions o = walk_options(from_degrees(50), kGold, 5 * kPathsPerBlock, 2);
   o.run.threads = 1;
   const ScatterHistogram one = smith_walk_scatter(s, o);
@@ -555,7 +555,7 @@ TEST(SmithWalkEngine, ThreadCountDoesNotChangeTheResult) {
 }
 
 TEST(SmithWalkEngine, CancelledRunIsTheRunOfItsCompletedBlocks) {
-  const SmithMicrosurface s{WalkNdf::ggx, 0.5, 0.5};
+  const SmithMicrosurface s{NdfKind::ggx, 0.5, 0.5};
   ScatterOptions o = walk_options(from_degrees(40), Material::mirror(), 600 * kPathsPerBlock, 4);
   CancelToken token;
   std::atomic<int> reports{0};
@@ -581,8 +581,8 @@ TEST(SmithWalkEngine, CancelledRunIsTheRunOfItsCompletedBlocks) {
 TEST(SmithWalkEngine, UniformAndGaussianHeightsAgree) {
   for (const Material& m : {Material::mirror(), Material::dielectric(1.5)}) {
     const Vec3<double> wi = from_degrees(m.transmits() ? 110.0 : 75.0, 0);
-    const ScatterHistogram u = smith_walk_scatter({WalkNdf::ggx, 0.5, 0.5, HeightDistribution::uniform}, walk_options(wi, m, 100000, 6));
-    const ScatterHistogram gs = smith_walk_scatter({WalkNdf::ggx, 0.5, 0.5, HeightDistribution::gaussian}, walk_options(wi, m, 100000, 8));
+    const ScatterHistogram u = smith_walk_scatter({NdfKind::ggx, 0.5, 0.5, HeightDistribution::uniform}, walk_options(wi, m, 100000, 6));
+    const ScatterHistogram gs = smith_walk_scatter({NdfKind::ggx, 0.5, 0.5, HeightDistribution::gaussian}, walk_options(wi, m, 100000, 8));
     for (int k = 0; k < kScatterOrderBins; ++k) {
       for (const ScatterSide side : {ScatterSide::reflected, ScatterSide::transmitted}) {
         const Estimate a = u.albedo(0, k, side), b = gs.albedo(0, k, side);
@@ -593,8 +593,8 @@ TEST(SmithWalkEngine, UniformAndGaussianHeightsAgree) {
 }
 
 TEST(SmithWalkEngine, RejectsBadInputNamingIt) {
-  const SmithMicrosurface s{WalkNdf::ggx, 0.5, 0.5};
-  EXPECT_THROW(smith_walk_scatter({WalkNdf::ggx, 0.0, 0.5}, walk_options(from_degrees(30), Material::mirror(), 10)),
+  const SmithMicrosurface s{NdfKind::ggx, 0.5, 0.5};
+  EXPECT_THROW(smith_walk_scatter({NdfKind::ggx, 0.0, 0.5}, walk_options(from_degrees(30), Material::mirror(), 10)),
                std::invalid_argument);
   EXPECT_THROW(smith_walk_scatter(s, walk_options(from_degrees(120), Material::mirror(), 10)), std::invalid_argument);
   ScatterOptions o = walk_options(from_degrees(30), Material::mirror(), 10);
@@ -602,8 +602,8 @@ TEST(SmithWalkEngine, RejectsBadInputNamingIt) {
   EXPECT_THROW(smith_walk_scatter(s, o), std::invalid_argument);
   EXPECT_THROW(smith_walk_eval(s, walk_options(from_degrees(30), Material::mirror(), 10), Vec3<double>(1, 0, 0)),
                std::invalid_argument);
-  EXPECT_EQ(parse_walk_ndf("--ndf", "beckmann"), WalkNdf::beckmann);
-  EXPECT_THROW(parse_walk_ndf("--ndf", "phong"), std::invalid_argument);
+  EXPECT_EQ(parse_ndf_kind("--ndf", "beckmann"), NdfKind::beckmann);
+  EXPECT_THROW(parse_ndf_kind("--ndf", "phong"), std::invalid_argument);
   EXPECT_EQ(parse_height_distribution("--heights", "gaussian"), HeightDistribution::gaussian);
   EXPECT_EQ(describe(s), "ggx alpha=0.5,0.5 heights=uniform");
 }
@@ -612,7 +612,7 @@ TEST(SmithWalkEngine, RejectsBadInputNamingIt) {
 TEST(SmithWalkEngine, PathsAtTheOrderCapAreReportedUnfinished) {
   ScatterOptions o = walk_options(from_degrees(80), Material::mirror(), 50000, 12);
   o.max_order = 1;
-  const ScatterHistogram h = smith_walk_scatter({WalkNdf::ggx, 1.0, 1.0}, o);
+  const ScatterHistogram h = smith_walk_scatter({NdfKind::ggx, 1.0, 1.0}, o);
   const Estimate e1 = h.albedo(0, 0), unfinished = h.unfinished(0);
   EXPECT_GT(unfinished.value, 0.2);
   EXPECT_NEAR(e1.value + unfinished.value, 1.0, 1e-12);

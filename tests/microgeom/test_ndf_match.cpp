@@ -79,13 +79,13 @@ TEST(NdfMatch, LobeBinProbabilitiesMatchTheCubatureOfTheAnalyticVndf) {
   const std::vector<double> cubature = binning.integrate([&](const microsim::Vec3<double>& m) {
     return ggx.D(m) * std::max(0.0, m.z());  // the VNDF seen from +z: D(m) <m, z>
   });
-  const std::vector<double> p = LobeNdfBins(rows).probabilities(ReferenceNdf::ggx);
+  const std::vector<double> p = LobeNdfBins(rows).probabilities(NdfKind::ggx);
   ASSERT_EQ(p.size(), cubature.size());
   for (std::size_t b = 0; b < p.size(); ++b) EXPECT_NEAR(p[b], cubature[b], 1e-6) << b;
   EXPECT_NEAR(std::accumulate(p.begin(), p.end(), 0.0), 1.0, 1e-12);
-  const std::vector<double> pb = LobeNdfBins(rows).probabilities(ReferenceNdf::beckmann);
+  const std::vector<double> pb = LobeNdfBins(rows).probabilities(NdfKind::beckmann);
   EXPECT_NEAR(std::accumulate(pb.begin(), pb.end(), 0.0), 1.0, 1e-12);
-  EXPECT_NEAR(reference_radius_partial_mean(ReferenceNdf::ggx, INFINITY), std::acos(0.0), 1e-15);  // E[r] = pi/2
+  EXPECT_NEAR(reference_radius_partial_mean(NdfKind::ggx, INFINITY), std::acos(0.0), 1e-15);  // E[r] = pi/2
 }
 
 // A joint tile meets the lobe bins far below the noise of as many independent triangles (< 1/4 of it); the

@@ -1,0 +1,65 @@
+# The ctest labels of the test suite, by test name (`ctest -L LABEL` runs only those tests, `-LE LABEL`
+# leaves them out):
+#   sanitize-skip  left out by the sanitizer gate (scripts/sanitize.sh -LE sanitize-skip, .ci/run): the slowest
+#                  statistical tests and the shard/merge bit-identity tests, whose code paths faster tests
+#                  run many times under the sanitizers too (docs/reliability.md names them);
+#   slow           those, and the hostile-input battery and the Python tests (a minute or more each);
+#   mpi            the mpirun tests (tests/mpi, microsim_mpi_tests);
+#   browser        the experiment report rendered by a real browser (chromium).
+# Used twice: CMakeLists.txt labels the tests it names at configure time (microsim_label_tests), and ctest
+# labels the tests GoogleTest discovers at build time (labels_discovered.cmake.in, a TEST_INCLUDE_FILES
+# script run after the discovered tests are added).
+
+# sanitize-skip: a test whose name (Suite.Test, with the instantiation prefix and parameter of a TEST_P)
+# matches one of these regular expressions anywhere.
+set(MICROSIM_SANITIZE_SKIP
+  [=[QuadricExactAtTheCornersOfItsRange]=]
+  [=[SamplersAgainstOracle]=]
+  [=[CubatureSecondPass\.Bounded2023]=]
+  [=[CorrectSamplerGrid]=]
+  [=[Bounded2023AtGrazingTinyAlpha]=]
+  [=[VndfBinSums]=]
+  [=[ExactQuadricMatchesAnalyticVndf]=]
+  [=[ShardMerge\.MergedShards]=]
+  [=[MaskingShardMerge\.MergedShards]=]
+  [=[AnalyticScatter\.BinsAreIndependentQuadraturesOverTheirBounds]=]
+  [=[AlbedoAnalytic\.MatchesTheBinnedCubatureOverOutgoingDirections]=]
+  [=[ValidationTallies\.AnyGroupingOfBlocksIsTheSingleRun]=]
+  [=[BsdfSamplers\.(CorrectSamplers|EachNegativeControl|EveryNegativeControl|ABugWithout|EachTransportModes)]=]
+  [=[DirectionBinner\.VectorPathEqualsScalarReferenceAndBinOf]=]
+  [=[AnalyticScatter\.DielectricsLoseEnergy]=]
+  [=[StabilitySweep\.CoversEverySamplerAndFunction]=]
+  [=[StabilityBound\.FollowsTheFunctionsTrait]=]
+  [=[ExperimentCli\.InterruptedThenResumed]=]
+  [=[ExperimentResume\.AnInterruptedWalkOfPerOrderLobes]=]
+  [=[AnalyticScatter\.SampledMeasurementsPassAtTheStatedLevel]=]
+  [=[SmithWalkEval\.MatchesTheBinnedWalkPerOrderAndInTotal]=]
+  [=[AlbedoAnalytic\.ErrorEstimateCoversTheErrorMade]=]
+  [=[SamplerTraits\.ACopyUnderAnotherName]=]
+  [=[BsdfWeights\.ACorrectConductorSampler]=]
+  [=[ExperimentCli\.RunMeetsTheTargetsAndAnotherSeedAgrees]=]
+  [=[ExperimentHonesty\.FourTimesThePlannedCost]=]
+  [=[ExperimentAnalyticScattering\.IsTheWalksOrderOne]=]
+  [=[ExperimentShardCli\.TwoAndThreeShards]=]
+  [=[ExperimentSplit\.TwoAndThreeRanks]=]
+  [=[ExperimentSplitHeightfield\.RanksAndShards]=]
+  [=[ExperimentSplitAlbedo\.OnTiles]=]
+)
+list(JOIN MICROSIM_SANITIZE_SKIP "|" MICROSIM_SANITIZE_SKIP_REGEX)
+set(MICROSIM_BROWSER_REGEX [=[^ReportBrowser\.]=])
+
+# Sets the labels of each test named (slow, sanitize-skip, browser by name; `extra`: labels for all of them).
+function(microsim_label_tests extra)
+  foreach(test IN LISTS ARGN)
+    set(labels ${extra})
+    if(test MATCHES "${MICROSIM_SANITIZE_SKIP_REGEX}")
+      list(APPEND labels slow sanitize-skip)
+    endif()
+    if(test MATCHES "${MICROSIM_BROWSER_REGEX}")
+      list(APPEND labels browser)
+    endif()
+    if(labels)
+      set_tests_properties("${test}" PROPERTIES LABELS "${labels}")
+    endif()
+  endforeach()
+endfunction()
