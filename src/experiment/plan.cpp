@@ -3,6 +3,7 @@
 #include "core/wall_clock.h"
 #include "experiment/masking_runs.h"
 #include "experiment/measures.h"
+#include "experiment/measurement.h"
 #include "experiment/plan.h"
 #include "experiment/split_rounds.h"
 #include "experiment/surface_albedo.h"
@@ -243,7 +244,7 @@ struct QuarteredPilot {
   ScatterHistogram quarter, whole;
 };
 QuarteredPilot run_quartered_pilot(const ScatterPaths& walk, const ScatterOptions& request) {
-  const std::uint64_t blocks = (request.paths + kPathsPerBlock - 1) / kPathsPerBlock;
+  const std::uint64_t blocks = BlockPlan{request.paths, kPathsPerBlock}.blocks();
   if (blocks < 2) {
     ScatterHistogram whole = walk(request);
     return {whole, whole};
@@ -475,8 +476,10 @@ void plan_heightfield_view(const ExperimentSpec& spec, const SpecQuantity& q, co
   d.runnable = true;
 }
 
-void plan_views(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& cache,
-                std::vector<Decision>& out) {
+}  // namespace
+
+void plan_view_quantity(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& cache,
+                        std::vector<Decision>& out) {
   const SpecQuantity& q = spec.quantities[index];
   const SpecMaterial& m = spec.material(q.material);
   for (const auto& alpha : m.alphas)
@@ -501,7 +504,10 @@ void plan_views(const ExperimentSpec& spec, std::size_t index, const PlanOptions
     }
 }
 
-}  // namespace
+void plan_albedo_quantity(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& cache,
+                          std::vector<Decision>& out) {
+  out.push_back(plan_albedo(spec, index, o, cache));
+}
 
 ExperimentPlan plan_experiment(const ExperimentSpec& spec, const PlanOptions& options) {
   ExperimentPlan plan;
@@ -510,12 +516,7 @@ ExperimentPlan plan_experiment(const ExperimentSpec& spec, const PlanOptions& op
   const auto start = std::chrono::steady_clock::now();
   for (std::size_t i = 0; i < spec.quantities.size(); ++i) {
     if (options.run.cancelled()) throw Cancelled("plan");
-    if (spec.quantities[i].kind == QuantityKind::albedo)
-      plan.decisions.push_back(plan_albedo(spec, i, options, surfaces));
-    else if (spec.quantities[i].kind == QuantityKind::masking)
-      plan_masking(spec, i, options, surfaces, plan.decisions);
-    else
-      plan_views(spec, i, options, surfaces, plan.decisions);
+    quantity_planner(spec.quantities[i].kind)(spec, i, options, surfaces, plan.decisions);
   }
   plan.pilot_seconds = seconds_since(start);
   for (const Decision& d : plan.decisions) plan.predicted_seconds += d.predicted_seconds;

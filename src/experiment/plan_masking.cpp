@@ -37,7 +37,7 @@ void plan_heightfield_masking(const SpecQuantity& q, const microgeom::Heightfiel
   d.pilot_seconds = seconds_since(start);
   d.pilot_units = pilot.samples();
   const std::uint64_t n = units_for_standard_error(d.pilot_units, d.pilot_error, q.target);
-  d.units = (n + kSamplesPerBlock - 1) / kSamplesPerBlock * kSamplesPerBlock;
+  d.units = BlockPlan{n, kSamplesPerBlock}.blocks() * kSamplesPerBlock;
   d.unit = "samples";
   d.count_reason = fmt::format("pilot of {} surface points: largest standard error of {} {:.2e} ~ 1/sqrt(n); "
                                "n = {} x ({:.2e} / {})^2, in whole blocks of {}",
