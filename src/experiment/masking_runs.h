@@ -106,11 +106,4 @@ double masking_worst_standard_error(const SpecQuantity& quantity, const MaskingR
 // "monte_carlo_error"}; empty when no quantity has several.
 nlohmann::json masking_realisation_means(const std::vector<MeasurementResult>& measurements);
 
-// The planner's decisions of masking quantity `index` (plan_masking.cpp), appended to `out`: one per alpha
-// and view; a heightfield decision's count from a pilot of kMaskingPilotBlocks blocks on its surface (built
-// once per alpha for the pilots). Throws Cancelled.
-void plan_masking(const ExperimentSpec& spec, std::size_t index, const PlanOptions& options, SurfaceCache& surfaces,
-                  std::vector<Decision>& out);
-
-
 }  // namespace microsim::experiment

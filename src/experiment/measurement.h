@@ -75,9 +75,18 @@ protected:
 using PlanQuantity = void (*)(const ExperimentSpec& spec, std::size_t quantity, const PlanOptions& options,
                               SurfaceCache& surfaces, std::vector<Decision>& out);
 void plan_albedo_quantity(const ExperimentSpec&, std::size_t, const PlanOptions&, SurfaceCache&, std::vector<Decision>&);
-void plan_view_quantity(const ExperimentSpec&, std::size_t, const PlanOptions&, SurfaceCache&, std::vector<Decision>&);
-void plan_masking(const ExperimentSpec&, std::size_t, const PlanOptions&, SurfaceCache&, std::vector<Decision>&);
+void plan_vndf_quantity(const ExperimentSpec&, std::size_t, const PlanOptions&, SurfaceCache&, std::vector<Decision>&);
+void plan_scattering_quantity(const ExperimentSpec&, std::size_t, const PlanOptions&, SurfaceCache&, std::vector<Decision>&);
+void plan_validation_quantity(const ExperimentSpec&, std::size_t, const PlanOptions&, SurfaceCache&, std::vector<Decision>&);
+void plan_masking_quantity(const ExperimentSpec&, std::size_t, const PlanOptions&, SurfaceCache&, std::vector<Decision>&);
 PlanQuantity quantity_planner(QuantityKind kind);  // measurement_registry.cpp
+// Each kind's choice of model (plan_rules.cpp; choose_model asks the registry for the quantity's).
+using ModelRule = ModelChoice (*)(const SpecQuantity& quantity, const SpecMaterial& material);
+ModelChoice vndf_model(const SpecQuantity&, const SpecMaterial&);
+ModelChoice validation_model(const SpecQuantity&, const SpecMaterial&);
+ModelChoice albedo_or_scattering_model(const SpecQuantity&, const SpecMaterial&);
+ModelChoice masking_model(const SpecQuantity&, const SpecMaterial&);
+ModelRule kind_model_rule(QuantityKind kind);  // measurement_registry.cpp
 
 // Each kind's file: its implementation of a decision (the decision's model chooses among its variants).
 std::unique_ptr<Measurement> make_vndf_measurement(const ExperimentSpec& spec, const Decision& decision);
@@ -85,6 +94,11 @@ std::unique_ptr<Measurement> make_scattering_measurement(const ExperimentSpec& s
 std::unique_ptr<Measurement> make_albedo_measurement(const ExperimentSpec& spec, const Decision& decision);
 std::unique_ptr<Measurement> make_validation_measurement(const ExperimentSpec& spec, const Decision& decision);
 std::unique_ptr<Measurement> make_masking_measurement(const ExperimentSpec& spec, const Decision& decision);
+
+// The part of a round of rays traced on a decision's tile (measurement_vndf.cpp): a VNDF's on a tile, and
+// the reference rays of a validation against a tile.
+std::string tile_vndf_part(const ExperimentSpec& spec, const Decision& decision, const RoundTask& task,
+                           const BlockRange& mine, const RunControl& run, SurfaceCache& surfaces);
 
 // The one place that chooses a kind (measurement_registry.cpp). `spec` and `decision` must outlive it.
 std::unique_ptr<Measurement> make_measurement(const ExperimentSpec& spec, const Decision& decision);

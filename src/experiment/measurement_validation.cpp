@@ -4,6 +4,7 @@
 // a dump's samples against the density it claims (validate_sample_file, streamed, on the root); either against
 // the visible normals traced on a tile (its rays split like a VNDF's, the samples compared on the root).
 // Cancelled: nothing is kept (the validator has no partial result), it runs again on resumption.
+#include "experiment/plan_kinds.h"
 #include "experiment/heightfield_measures.h"
 #include "experiment/measurement.h"
 #include "experiment/measures.h"
@@ -170,26 +171,12 @@ public:
   }
   std::string part(const RoundTask& task, const BlockRange& mine, const RunControl& run,
                    SurfaceCache& surfaces) const override {
-    const microgeom::Heightfield* field = nullptr;
-    try {
-      field = &decision_surface(decision_, surfaces, run);
-    } catch (const Cancelled&) {
-      return cancelled_part(mine);
-    }
-    VndfRequest request = vndf_request(spec_, decision_, task.units, task.seed, run);
-    request.blocks = mine;
-    const HeightfieldVndf m = trace_heightfield_vndf(surfaces.scene_for(*field), *field, surface_label(decision_.surface), request);
-    return vndf_part(m.trace, m.diagnostics);
+    return tile_vndf_part(spec_, decision_, task, mine, run, surfaces);
   }
   void run(const RoundContext& c, MeasurementResult& m) const override {
-    m.partial = false;
-    const microgeom::Heightfield* field = nullptr;
-    try {
-      field = &decision_surface(decision_, c.surfaces, c.options.run);
-    } catch (const Cancelled&) {
-      m.partial = true;
-      return;
-    }
+    const microgeom::Heightfield* field = decision_surface_or_null(decision_, c.surfaces, c.options.run);
+    m.partial = field == nullptr;  // its build cancelled
+    if (field == nullptr) return;
     const SceneOf scene = [&c, field]() -> const HeightfieldScene& { return c.surfaces.scene_for(*field); };
     compare(c, scene, *field, m);
   }
@@ -227,7 +214,123 @@ private:
   }
 };
 
+
+// ---- its plan ----------------------------------------------------------------------------------------------
+
+// A dump's rows, read from the file (every row checked: a file that cannot be read as samples is bad input
+// naming the spec's key, before anything runs). A second pass over the file, the run's being the first to test.
+std::uint64_t dump_rows(const SpecQuantity& q, const RunControl& run) {
+  try {
+    DirectionSampleReader reader{std::filesystem::path(q.dump)};
+    std::vector<Vec3<double>> block(kSampleFileBlock);
+    while (reader.read(block) > 0)
+      if (run.cancelled()) throw Cancelled("plan: reading a dump");
+    return reader.rows_read();
+  } catch (const SampleFileError& e) {
+    throw dump_error(q, e);
+  }
+}
+
+// The time of a drawn validation: its reference's cubature (paid once), then the samples at the rate of a
+// pilot of kChunkBlocks blocks of them (as many as the validator runs at once: every thread busy).
+void time_validation(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
+  const SamplerInfo& sampler = *find_sampler(q.sampler);  // the spec names a zoo sampler (spec.cpp)
+  const auto start = std::chrono::steady_clock::now();
+  const auto reference = claimed_reference(sampler, GGX<double>(d.alpha.first, d.alpha.second),
+                                           direction_from_degrees(d.view.theta_deg, d.view.phi_deg), q.rows);
+  const auto drawn = std::chrono::steady_clock::now();
+  const std::uint64_t pilot = std::min<std::uint64_t>(d.units, kChunkBlocks * kSampleBlock);
+  tally_drawn_samples(sampler, *reference,
+                      validation_request(q, pilot, derived_seed(plan_seed(spec, o), kValidationPilot, d.quantity), o.run));
+  const double reference_seconds = std::chrono::duration<double>(drawn - start).count();
+  const double tally_seconds = seconds_since(drawn);
+  d.pilot_units = pilot;
+  d.pilot_seconds = reference_seconds + tally_seconds;
+  d.predicted_seconds = reference_seconds + predicted_seconds(d.units, pilot, tally_seconds);
+}
+
+// A dump against its analytic reference: every row is tested, so the count is the file's rows and the TV they
+// detect follows from it; detect_tv, when the spec gives one, is a target those rows meet or not.
+void plan_dump_validation(const SpecQuantity& q, const PlanOptions& o, Decision& d) {
+  const ValidationTests tests = validation_tests(q.rows, q.significance);
+  d.units = dump_rows(q, o.run);
+  d.unit = "samples";
+  const double detected = detectable_tv(d.units, tests.dof, tests.level, q.power);
+  d.count_reason = fmt::format("the dump's {} rows (read from {}), all tested: they detect any deviation of TV {:.3g} "
+                               "with power {} at level {:.3g} per binning (Sidak of {}), df {} (noncentrality >= 4 N "
+                               "TV^2)", d.units, std::filesystem::path(q.dump).filename().string(), detected, q.power,
+                               tests.level, q.significance, tests.dof);
+  if (q.target > 0) {
+    const std::uint64_t needed = validation_samples(q.target, tests.dof, tests.level, q.power);
+    d.count_reason += fmt::format("; detect_tv {} needs {} rows: {}", q.target, needed,
+                                  d.units >= needed ? "the dump has them" : "the dump has fewer (target not met)");
+  } else {
+    d.count_reason += "; no detect_tv asked: the rows fix the TV detected";
+  }
+  d.runnable = true;
+}
+
+void plan_validation_view(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
+  if (!q.dump.empty()) return plan_dump_validation(q, o, d);
+  const ValidationTests tests = validation_tests(q.rows, q.significance);
+  d.units = validation_samples(q.target, tests.dof, tests.level, q.power);
+  d.unit = "samples";
+  d.count_reason = fmt::format("chi-square power: df {}, level {:.3g} per binning (Sidak of {}), power {} against any "
+                               "deviation of TV {} (noncentrality >= 4 N TV^2)", tests.dof, tests.level, q.significance,
+                               q.power, q.target);
+  time_validation(spec, q, o, d);
+  d.runnable = true;
+}
+
+// Why a validation cannot be made against a tile's traced visible normals ("" when it can): the reference is
+// D_v of the tile, so the samples must claim D_v (a zoo sampler of visible normals; a dump with pdf vndf).
+std::string surface_validation_refusal(const SpecQuantity& q) {
+  if (!q.dump.empty())
+    return q.dump_pdf == "vndf" ? "" : fmt::format("a dump of pdf {} against a surface: the traced reference is the tile's "
+                                                   "visible normals (pdf vndf only)", q.dump_pdf);
+  const SamplerInfo& sampler = *find_sampler(q.sampler);  // the spec names a zoo sampler (spec.cpp)
+  if (sampler.domain == SampleDomain::microfacet_normal && sampler.claims == ClaimedPdf::visible_normals) return "";
+  return fmt::format("sampler {} does not claim the visible normals: the traced reference is the tile's visible "
+                     "normals", sampler.name);
+}
+
+// A validation against the tile's traced visible normals (validate/compare.h: the two-sample chi-square in
+// each binning of the traced histogram, Sidak-combined). A two-sample test of n samples against n rays has the
+// noncentrality of a one-sample test of n / 2: twice the analytic validator's samples, and as many rays (at
+// least twice the two-sample minimum of a pilot's proportions). The tile's bias is at most kBiasShare of the
+// deviation to detect (its size rule), so a correct sampler is rejected little more often than the level says.
+void plan_heightfield_validation(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o,
+                                 const microgeom::Heightfield& field, SurfaceCache& cache, Decision& d) {
+  const ValidationTests tests = validation_tests(q.rows, q.significance);
+  const auto start = std::chrono::steady_clock::now();
+  const HeightfieldVndf pilot = trace_heightfield_vndf(
+      cache.scene_for(field), field, surface_label(d.surface),
+      vndf_request(spec, d, o.pilot_rays, derived_seed(plan_seed(spec, o), kVndfPilot, d.quantity), o.run));
+  if (pilot.trace.partial) throw Cancelled("plan: validation pilot on the tile");
+  const std::uint64_t minimum = 2 * trace_minimum_samples(pilot.histogram);
+  d.units = std::max(2 * validation_samples(q.target, tests.dof, tests.level, q.power), minimum);
+  d.unit = "samples";
+  d.count_reason = fmt::format("two-sample chi-square against as many rays traced on the tile: power {} at level {:.3g} "
+                               "per binning (Sidak of {}), df {}, against any deviation of TV {}: twice the one-sample "
+                               "count (noncentrality >= 4 (n/2) TV^2), at least twice the two-sample minimum of the "
+                               "pilot's proportions ({})",
+                               q.power, tests.level, q.significance, tests.dof, q.target, minimum);
+  if (!q.dump.empty())
+    d.count_reason += fmt::format("; the dump's {} rows (read from {}) are all tested, against the planned rays",
+                                  dump_rows(q, o.run), std::filesystem::path(q.dump).filename().string());
+  d.pilot_units = o.pilot_rays;
+  d.pilot_seconds = seconds_since(start);
+  d.pilot_error = 0;
+  // The tracing scales with the rays (the samples' draws are cheaper and not timed).
+  d.predicted_seconds = predicted_seconds(d.units, d.pilot_units, pilot.trace.seconds);
+}
+
 }  // namespace
+
+void plan_validation_quantity(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& cache,
+                              std::vector<Decision>& out) {
+  plan_views(spec, index, o, cache, {plan_validation_view, plan_heightfield_validation, surface_validation_refusal}, out);
+}
 
 std::unique_ptr<Measurement> make_validation_measurement(const ExperimentSpec& spec, const Decision& decision) {
   if (decision.model.model == Model::heightfield) return std::make_unique<TileValidation>(spec, decision);

@@ -3,6 +3,7 @@
 // ellipsoid oracle (Heitz 2018: a convex GGX ellipsoid's visible normals are D_v) or on an explicit tile
 // (built once through the SurfaceCache). A cancelled round keeps its completed blocks (a shorter run of its
 // seed), and a resumed run traces on from its first missing block: the counts of the uninterrupted run.
+#include "experiment/plan_kinds.h"
 #include "experiment/heightfield_measures.h"
 #include "experiment/measurement.h"
 #include "experiment/measures.h"
@@ -102,26 +103,12 @@ public:
   using VndfMeasurement::VndfMeasurement;
   std::string part(const RoundTask& task, const BlockRange& mine, const RunControl& run,
                    SurfaceCache& surfaces) const override {
-    const microgeom::Heightfield* field = nullptr;
-    try {
-      field = &decision_surface(decision_, surfaces, run);
-    } catch (const Cancelled&) {
-      return cancelled_part(mine);  // its build cancelled: a part cancelled before its first block
-    }
-    VndfRequest request = vndf_request(spec_, decision_, task.units, task.seed, run);
-    request.blocks = mine;
-    const HeightfieldVndf m = trace_heightfield_vndf(surfaces.scene_for(*field), *field, surface_label(decision_.surface), request);
-    return vndf_part(m.trace, m.diagnostics);
+    return tile_vndf_part(spec_, decision_, task, mine, run, surfaces);
   }
   void run(const RoundContext& c, MeasurementResult& m) const override {
-    m.partial = false;
-    const microgeom::Heightfield* field = nullptr;
-    try {
-      field = &decision_surface(decision_, c.surfaces, c.options.run);
-    } catch (const Cancelled&) {
-      m.partial = true;
-      return;
-    }
+    const microgeom::Heightfield* field = decision_surface_or_null(decision_, c.surfaces, c.options.run);
+    m.partial = field == nullptr;  // its build cancelled
+    if (field == nullptr) return;
     // The scene is built when the root's own part begins: after the round was sent, while the ranks build theirs.
     const SceneOf scene = [&c, field]() -> const HeightfieldScene& { return c.surfaces.scene_for(*field); };
     run_histogram_rounds(c, m, kMaxRays, [&](const RoundStart& start) { return round(c, scene, *field, start, m); });
@@ -148,7 +135,70 @@ private:
   }
 };
 
+
+// ---- its plan ----------------------------------------------------------------------------------------------
+
+// A VNDF's rays from its pilot (on the ellipsoid, or `on` a tile): the TV noise floor ~ 1/sqrt(n) brought to
+// kNoiseShare of the target. The tracing scales with the rays; what the pilot spent besides tracing (the
+// scene, the reference's cubature, the empirical Smith tables) is paid once.
+void count_vndf_rays(const SpecQuantity& q, const PlanOptions& o, double pilot_floor, double trace_seconds,
+                     std::string_view on, Decision& d) {
+  d.pilot_units = o.pilot_rays;
+  d.pilot_error = pilot_floor;
+  d.units = units_for_standard_error(o.pilot_rays, d.pilot_error, kNoiseShare * q.target);
+  d.unit = "rays";
+  d.count_reason = fmt::format("pilot of {} rays{}: TV noise floor {:.2e} ~ 1/sqrt(n); resolving TV {} needs a floor "
+                               "<= {} x {} (rows {})", o.pilot_rays, on, d.pilot_error, q.target, kNoiseShare, q.target, q.rows);
+  const double overhead = std::max(0.0, d.pilot_seconds - trace_seconds);
+  d.predicted_seconds = overhead + predicted_seconds(d.units, d.pilot_units, trace_seconds);
+}
+
+void plan_vndf_view(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
+  const EllipsoidTarget target(d.alpha.first, d.alpha.second, -1);
+  VndfRequest r;
+  r.theta_deg = d.view.theta_deg;
+  r.phi_deg = d.view.phi_deg;
+  r.rays = o.pilot_rays;
+  r.seed = derived_seed(plan_seed(spec, o), kVndfPilot, d.quantity);
+  r.rows = q.rows;
+  r.run = o.run;
+  const auto start = std::chrono::steady_clock::now();
+  const EllipsoidVndf m = measure_ellipsoid_vndf(target, r);
+  if (m.trace.partial) throw Cancelled("plan: vndf pilot");
+  d.pilot_seconds = seconds_since(start);
+  count_vndf_rays(q, o, vndf_noise_floor(m), m.trace.seconds, "", d);
+  d.runnable = true;
+}
+
+// The VNDF traced on the tile: a pilot of pilot_rays rays gives the noise floor (~ 1/sqrt(n)) and the rate.
+void plan_heightfield_vndf(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o,
+                           const microgeom::Heightfield& field, SurfaceCache& cache, Decision& d) {
+  const auto start = std::chrono::steady_clock::now();
+  HeightfieldVndf traced = trace_heightfield_vndf(
+      cache.scene_for(field), field, surface_label(d.surface),  // the scene kept: the run's rounds may use it
+      vndf_request(spec, d, o.pilot_rays, derived_seed(plan_seed(spec, o), kVndfPilot, d.quantity), o.run));
+  if (traced.trace.partial) throw Cancelled("plan: vndf pilot");
+  const HeightfieldVndf m = analyse_heightfield_vndf(std::move(traced.histogram), traced.trace.unbinned, field);
+  d.pilot_seconds = seconds_since(start);
+  count_vndf_rays(q, o, heightfield_noise_floor(m), traced.trace.seconds, " on the tile", d);
+}
+
 }  // namespace
+
+void plan_vndf_quantity(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& cache,
+                        std::vector<Decision>& out) {
+  plan_views(spec, index, o, cache, {plan_vndf_view, plan_heightfield_vndf}, out);
+}
+
+std::string tile_vndf_part(const ExperimentSpec& spec, const Decision& decision, const RoundTask& task,
+                           const BlockRange& mine, const RunControl& run, SurfaceCache& surfaces) {
+  const microgeom::Heightfield* field = decision_surface_or_null(decision, surfaces, run);
+  if (field == nullptr) return cancelled_part(mine);  // its build cancelled: a part cancelled before its first block
+  VndfRequest request = vndf_request(spec, decision, task.units, task.seed, run);
+  request.blocks = mine;
+  const HeightfieldVndf m = trace_heightfield_vndf(surfaces.scene_for(*field), *field, surface_label(decision.surface), request);
+  return vndf_part(m.trace, m.diagnostics);
+}
 
 std::unique_ptr<Measurement> make_vndf_measurement(const ExperimentSpec& spec, const Decision& decision) {
   if (decision.model.model == Model::heightfield) return std::make_unique<HeightfieldVndfMeasurement>(spec, decision);
