@@ -117,8 +117,10 @@ public:
   }
 };
 
-// A dump: every sample of the file against the density it claims. A file that cannot be read, or holds too few
-// samples, is bad input (std::invalid_argument naming the spec key). Not shared: the root reads the file.
+// A dump: every sample of the file against the density it claims, its weights against its material's BSDF in
+// its convention (validate_dump_as_given, streamed; light from inside a dielectric mirrored). A file that
+// cannot be read, or holds too few samples, is bad input (std::invalid_argument naming the spec key). Not
+// shared: the root reads the file.
 class DumpValidation final : public ValidationMeasurement {
 public:
   using ValidationMeasurement::ValidationMeasurement;
@@ -134,16 +136,17 @@ public:
   bool shared() const override { return false; }
   void run(const RoundContext& c, MeasurementResult& m) const override {
     const SpecQuantity& q = quantity_;
-    const ValidationOptions v = validation_request(q, 0, 0, c.options.run);
+    ValidationOptions v = validation_request(q, 0, 0, c.options.run);
+    const DumpClaims claims = dump_claims(q, material());
+    if (SampleColumns::parse(q.dump_columns).channels() > 0) v.bsdf = claims.bsdf;  // the weight test
+    v.convention = q.convention;
+    if (q.dump_dropped > 0) v.dropped_below_horizon = q.dump_dropped;
     m.rounds.clear();
     m.partial = false;
     const auto clock = std::chrono::steady_clock::now();
-    const ClaimedDensity density = claimed_density(parse_file_pdf(q.dump_pdf), ggx(), view());
-    const auto reference = q.above_horizon ? above_horizon_reference(density, ggx(), view(), q.rows)
-                                           : density_reference(density, ggx(), view(), q.rows);
     try {
-      DirectionSampleReader reader{std::filesystem::path(q.dump)};
-      ValidationReport r = validate_sample_file(reader, density.domain, ggx(), view(), v, reference);
+      DirectionSampleReader reader = open_dump(q);
+      ValidationReport r = validate_dump_as_given(reader, claims, ggx(), view(), v, q.dump_frame == "z-up");
       r.sampler = q.dump;
       record(r, decision_.units, seconds_since(clock), m);
     } catch (const Cancelled&) {
@@ -197,7 +200,7 @@ private:
       if (q.dump.empty()) {
         r = compare_sampler_to_trace(*find_sampler(q.sampler), ggx(), view(), v, traced.histogram);
       } else {
-        DirectionSampleReader reader{std::filesystem::path(q.dump)};
+        DirectionSampleReader reader = open_dump(q);
         r = compare_sample_file_to_trace(reader, q.dump, ggx(), view(), v, traced.histogram);
       }
       record(r, n, seconds_since(clock), m);
@@ -221,9 +224,11 @@ private:
 // naming the spec's key, before anything runs). A second pass over the file, the run's being the first to test.
 std::uint64_t dump_rows(const SpecQuantity& q, const RunControl& run) {
   try {
-    DirectionSampleReader reader{std::filesystem::path(q.dump)};
+    DirectionSampleReader reader = open_dump(q);
     std::vector<Vec3<double>> block(kSampleFileBlock);
-    while (reader.read(block) > 0)
+    std::vector<double> pdfs(reader.columns().has_pdf() ? block.size() : 0);
+    std::vector<double> weights(block.size() * std::size_t(reader.columns().channels()));
+    while (reader.read(block, pdfs, weights) > 0)
       if (run.cancelled()) throw Cancelled("plan: reading a dump");
     return reader.rows_read();
   } catch (const SampleFileError& e) {
@@ -285,9 +290,13 @@ void plan_validation_view(const ExperimentSpec& spec, const SpecQuantity& q, con
 // Why a validation cannot be made against a tile's traced visible normals ("" when it can): the reference is
 // D_v of the tile, so the samples must claim D_v (a zoo sampler of visible normals; a dump with pdf vndf).
 std::string surface_validation_refusal(const SpecQuantity& q) {
+  if (!q.dump.empty() && q.dump_pdf != "vndf")
+    return fmt::format("a dump of pdf {} against a surface: the traced reference is the tile's visible normals (pdf "
+                       "vndf only)", q.dump_pdf);
   if (!q.dump.empty())
-    return q.dump_pdf == "vndf" ? "" : fmt::format("a dump of pdf {} against a surface: the traced reference is the tile's "
-                                                   "visible normals (pdf vndf only)", q.dump_pdf);
+    return SampleColumns::parse(q.dump_columns).channels() == 0 ? "" : "a dump with weights against a surface: the "
+                                                                       "traced reference is the tile's visible normals "
+                                                                       "(their weights are tested analytically)";
   const SamplerInfo& sampler = *find_sampler(q.sampler);  // the spec names a zoo sampler (spec.cpp)
   if (sampler.domain == SampleDomain::microfacet_normal && sampler.claims == ClaimedPdf::visible_normals) return "";
   return fmt::format("sampler {} does not claim the visible normals: the traced reference is the tile's visible "

@@ -14,6 +14,7 @@
 #include <chrono>
 #include <optional>
 #include <stdexcept>
+#include <type_traits>
 
 namespace microsim::experiment {
 namespace {
@@ -57,21 +58,25 @@ Request with_blocks(Request request, const std::optional<BlockRange>& blocks) {
   return request;
 }
 
-// The shape of every split VNDF and scattering round. Stored parts (a merge of shard jobs): `measure` of no
-// block (the binnings and attributes) and every part combined from the first; alone: `measure` of the whole
-// round; with ranks: the task broadcast, rank 0's shard measured, every rank's part gathered and combined from
-// the second (`combine(own, parts, first)`).
-template <class Result>
+// The shape of every split round. Stored parts (a merge of shard jobs): `measure` of no block (the binnings and
+// attributes) and every part combined from the first; alone: `measure` of the whole round (`Own` as the result,
+// else combined with no part); with ranks: the task broadcast, rank 0's shard measured, every rank's part
+// (`encode(own, its blocks)`) gathered and combined from the second (`combine(own, parts, first)`).
+template <class Own, class Result = Own>
 Result split_round(const RoundSplit& split, const RoundTask& task,
-                   const std::function<Result(const std::optional<BlockRange>&)>& measure,
-                   const std::function<std::string(const Result&)>& encode,
-                   const std::function<Result(Result, const std::vector<std::string>&, int)>& combine) {
+                   const std::type_identity_t<std::function<Own(const std::optional<BlockRange>&)>>& measure,
+                   const std::type_identity_t<std::function<std::string(const Own&, const BlockRange&)>>& encode,
+                   const std::type_identity_t<std::function<Result(Own, const std::vector<std::string>&, int)>>& combine) {
   if (const std::vector<std::string>* stored = stored_parts(split.stored, task))
     return combine(measure(BlockRange{task.blocks.begin, task.blocks.begin}), *stored, 0);
-  if (split.ranks == nullptr || split.ranks->size() == 1) return measure(std::nullopt);
+  if (split.ranks == nullptr || split.ranks->size() == 1) {
+    if constexpr (std::is_same_v<Own, Result>) return measure(std::nullopt);
+    else return combine(measure(std::nullopt), {}, 0);
+  }
   split.ranks->broadcast(task_message(task));
-  Result own = measure(rank_blocks(task.blocks, 0, split.ranks->size()));
-  const std::vector<std::string> parts = split.ranks->gather(encode(own));
+  const BlockRange mine = rank_blocks(task.blocks, 0, split.ranks->size());
+  Own own = measure(mine);
+  const std::vector<std::string> parts = split.ranks->gather(encode(own, mine));
   check_part_count(parts, split.ranks->size());
   return combine(std::move(own), parts, 1);
 }
@@ -85,7 +90,7 @@ EllipsoidVndf split_vndf_round(const RoundSplit& split, std::size_t measurement,
   return split_round<EllipsoidVndf>(
       split, {measurement, request.rays, request.seed, round},
       [&](const std::optional<BlockRange>& blocks) { return measure_ellipsoid_vndf(target, with_blocks(request, blocks)); },
-      [](const EllipsoidVndf& own) { return vndf_part(own.trace, {}); },
+      [](const EllipsoidVndf& own, const BlockRange&) { return vndf_part(own.trace, {}); },
       [&](EllipsoidVndf own, const std::vector<std::string>& parts, int first) {
         return combine_vndf_parts(std::move(own), parts, round, first, seconds_since(start));
       });
@@ -101,7 +106,7 @@ HeightfieldVndf split_heightfield_vndf_round(const RoundSplit& split, std::size_
       [&](const std::optional<BlockRange>& blocks) {
         return trace_heightfield_vndf(scene(), field, label, with_blocks(request, blocks));
       },
-      [](const HeightfieldVndf& own) { return vndf_part(own.trace, own.diagnostics); },
+      [](const HeightfieldVndf& own, const BlockRange&) { return vndf_part(own.trace, own.diagnostics); },
       [&](HeightfieldVndf own, const std::vector<std::string>& parts, int first) {
         return combine_heightfield_parts(std::move(own), parts, round, first, seconds_since(start));
       });
@@ -113,7 +118,7 @@ ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measur
   return split_round<ScatterHistogram>(
       split, {measurement, options.paths, options.seed, round},
       [&](const std::optional<BlockRange>& blocks) { return paths(with_blocks(options, blocks)); },
-      [](const ScatterHistogram& own) { return scatter_part(own); },
+      [](const ScatterHistogram& own, const BlockRange&) { return scatter_part(own); },
       [&](ScatterHistogram own, const std::vector<std::string>& parts, int first) {
         return combine_scatter_parts(std::move(own), parts, round, first);
       });
@@ -122,16 +127,14 @@ ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measur
 std::optional<std::vector<SurfaceMasking>> split_masking_round(const RoundSplit& split, std::size_t measurement,
                                                                const HeightfieldMasking& h, std::uint64_t surface_seed,
                                                                const BlockRange& blocks, const RunControl& run) {
-  const RoundTask task{measurement, kMaskingRunSamples, h.seed(), blocks, surface_seed};
-  if (const std::vector<std::string>* stored = stored_parts(split.stored, task))
-    return combine_masking_parts(h.measure_round({blocks.begin, blocks.begin}, run), *stored, blocks, 0);
-  if (split.ranks == nullptr || split.ranks->size() == 1) return h.measure_round(blocks, run);
-  split.ranks->broadcast(task_message(task));
-  const BlockRange mine = rank_blocks(blocks, 0, split.ranks->size());
-  std::optional<std::vector<SurfaceMasking>> own = h.measure_round(mine, run);
-  const std::vector<std::string> parts = split.ranks->gather(masking_round_part(mine, own));
-  check_part_count(parts, split.ranks->size());
-  return combine_masking_parts(std::move(own), parts, blocks, 1);
+  using Sums = std::optional<std::vector<SurfaceMasking>>;
+  return split_round<Sums>(
+      split, {measurement, kMaskingRunSamples, h.seed(), blocks, surface_seed},
+      [&](const std::optional<BlockRange>& mine) { return h.measure_round(mine ? *mine : blocks, run); },
+      [](const Sums& own, const BlockRange& mine) { return masking_round_part(mine, own); },
+      [&](Sums own, const std::vector<std::string>& parts, int first) {
+        return combine_masking_parts(std::move(own), parts, blocks, first);
+      });
 }
 
 AlbedoTable split_albedo_round(const RoundSplit& split, std::size_t measurement, const AlbedoTableRequest& request,
@@ -139,19 +142,18 @@ AlbedoTable split_albedo_round(const RoundSplit& split, std::size_t measurement,
   const auto start = std::chrono::steady_clock::now();
   const BlockRange round{0, request.alphas.size() * std::uint64_t(request.mus)};
   const RoundTask task{measurement, request.paths, request.seed, round};
-  if (const std::vector<std::string>* stored = stored_parts(split.stored, task))
-    return combine_albedo_parts(request, {}, *stored, round, 0, seconds_since(start));
-  if (split.ranks == nullptr || split.ranks->size() == 1) {
-    const std::optional<AlbedoCells> all = cells(request, round);
-    return all ? albedo_table_from_cells(request, *all, seconds_since(start)) : cancelled_albedo_table(request);
-  }
-  split.ranks->broadcast(task_message(task));
-  const BlockRange mine = rank_blocks(round, 0, split.ranks->size());
-  const std::optional<AlbedoCells> own = cells(request, mine);
-  const std::vector<std::string> parts = split.ranks->gather(albedo_part(mine, own));
-  check_part_count(parts, split.ranks->size());
-  if (!own) return cancelled_albedo_table(request);
-  return combine_albedo_parts(request, *own, parts, round, 1, seconds_since(start));
+  const bool stored = stored_parts(split.stored, task) != nullptr;  // its start: no cell (no tile acquired)
+  using Cells = std::optional<AlbedoCells>;
+  return split_round<Cells, AlbedoTable>(
+      split, task,
+      [&](const std::optional<BlockRange>& mine) -> Cells {
+        return stored ? Cells(AlbedoCells{}) : cells(request, mine ? *mine : round);
+      },
+      [](const Cells& own, const BlockRange& mine) { return albedo_part(mine, own); },
+      [&](Cells own, const std::vector<std::string>& parts, int first) {
+        if (!own) return cancelled_albedo_table(request);
+        return combine_albedo_parts(request, std::move(*own), parts, round, first, seconds_since(start));
+      });
 }
 
 AlbedoCellsOf albedo_cells_of(const Decision& decision, SurfaceCache& surfaces) {
@@ -170,9 +172,8 @@ ValidationReport split_validation(const RoundSplit& split, std::size_t measureme
                                   const GGX<double>& ggx, const Vec3<double>& wi, const ValidationOptions& options) {
   const BlockRange round{0, BlockPlan{options.samples, kSampleBlock}.blocks()};
   const RoundTask task{measurement, options.samples, options.seed, round};
-  const std::vector<std::string>* stored = stored_parts(split.stored, task);
   const bool ranks = split.ranks != nullptr && split.ranks->size() > 1;
-  if (stored == nullptr && !ranks) return validate_sampler(sampler, ggx, wi, options);
+  if (stored_parts(split.stored, task) == nullptr && !ranks) return validate_sampler(sampler, ggx, wi, options);
   const auto start = std::chrono::steady_clock::now();
   require_samples_for_any_test(options.samples);  // before the cubature, as validate_sampler
   const auto reference = claimed_reference(sampler, ggx, wi, options.rows);
@@ -180,17 +181,14 @@ ValidationReport split_validation(const RoundSplit& split, std::size_t measureme
   // The cells of the tallies: those of a tally of no sample.
   const std::optional<battery::Tally> none = own_tally(sampler, *reference, options, BlockRange{0, 0});
   if (!none) throw Cancelled("validation");
-  battery::Tally tally;
-  if (stored != nullptr) {
-    tally = merged_validation_tally(std::nullopt, tally_cells(*none), *stored, round, 0);
-  } else {
-    split.ranks->broadcast(task_message(task));
-    const BlockRange mine = rank_blocks(round, 0, split.ranks->size());
-    const std::optional<battery::Tally> own = own_tally(sampler, *reference, options, mine);
-    const std::vector<std::string> parts = split.ranks->gather(validation_part(mine, own));
-    check_part_count(parts, split.ranks->size());
-    tally = merged_validation_tally(own, tally_cells(*none), parts, round, 1);
-  }
+  using Tally = std::optional<battery::Tally>;
+  const battery::Tally tally = split_round<Tally, battery::Tally>(
+      split, task,  // never alone here (validate_sampler above): `mine` is always a block range
+      [&](const std::optional<BlockRange>& mine) { return own_tally(sampler, *reference, options, *mine); },
+      [](const Tally& own, const BlockRange& mine) { return validation_part(mine, own); },
+      [&](Tally own, const std::vector<std::string>& parts, int first) {
+        return merged_validation_tally(own, tally_cells(*none), parts, round, first);
+      });
   ValidationReport r = report_drawn_samples(sampler, *reference, tally, options);
   r.seconds = seconds_since(start);
   return r;
