@@ -3,7 +3,8 @@
 // block range run by a thread, an MPI rank or a job-array shard alike: split_rounds.h adds the parts in block
 // order), its rounds against its target, and its values for results.json and resumption. The driver
 // (run_experiment) owns the order of the measurements, resumption, cancellation, the ranks and the shards.
-// make_measurement (measurement_registry.cpp) is the only place that chooses a kind's implementation.
+// The table of measurement_registry.cpp is the only place that chooses by kind: its model rule, its planner,
+// its Measurement (make_measurement) and its report section.
 #pragma once
 
 #include "experiment/run.h"

@@ -106,7 +106,7 @@ private:
 
 // ---- its plan: one decision per alpha and view ---------------------------------------------------------------
 
-enum : std::uint64_t { kMaskingPilotSeed = 32 };  // derived_seed purposes of plan.cpp are below 32
+enum : std::uint64_t { kMaskingPilotSeed = 32 };  // derived_seed purposes of plan_kinds.h are below 32
 
 Decision masking_decision(const SpecQuantity& q, const SpecMaterial& m, std::size_t index,
                           std::pair<double, double> alpha, const Direction& v) {

@@ -162,7 +162,7 @@ private:
   double detected(std::uint64_t samples) const override { return dump_detected_tv(quantity_, samples); }
 };
 
-// Against the tile's traced visible normals (plan.cpp plan_heightfield_validation): the planned rays traced in
+// Against the tile's traced visible normals (plan_heightfield_validation below): the planned rays traced in
 // one round of round seed 1 (split like a VNDF's), then the sampler's samples (drawn as validate_sampler draws
 // them, from round seed 0) or the dump's against them on the root (validate/compare.h).
 class TileValidation final : public ValidationMeasurement {

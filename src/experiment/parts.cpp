@@ -227,7 +227,7 @@ HeightfieldVndf combine_heightfield_parts(HeightfieldVndf own, const std::vector
 
 // ---- scattering parts -------------------------------------------------------------------------------------
 
-// Every exact sum of a scattering histogram, in one order (that of run.cpp's add_scatter_round).
+// Every exact sum of a scattering histogram, in one order (ScatterHistogram::add_sums's arguments).
 std::string scatter_part(const ScatterHistogram& h) {
   Words w;
   put_header(w, h.provenance.blocks, h.partial);
