@@ -2,6 +2,7 @@
 #include "experiment/heightfield_measures.h"
 
 #include "core/parse.h"
+#include "core/run_control.h"
 #include "microgeom/assembly.h"
 
 #include <fmt/core.h>
@@ -138,6 +139,14 @@ const microgeom::Heightfield& decision_surface(const Decision& decision, Surface
                                             "plan's {} (changed since the plan, or another file on this node)",
                                             p.name, digest, p.hash));
   return cache.heightmap(p.name);
+}
+
+const microgeom::Heightfield* decision_surface_or_null(const Decision& decision, SurfaceCache& cache, const RunControl& run) {
+  try {
+    return &decision_surface(decision, cache, run);
+  } catch (const Cancelled&) {
+    return nullptr;
+  }
 }
 
 std::string surface_label(const SurfacePlan& plan) {

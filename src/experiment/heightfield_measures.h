@@ -37,6 +37,8 @@ SurfaceKey surface_key(const SurfacePlan& plan, const std::pair<double, double>&
 // The surface of a heightfield decision: built (or read back) through the cache, or the user's heightmap.
 // Throws Cancelled when the build is cancelled.
 const microgeom::Heightfield& decision_surface(const Decision& decision, SurfaceCache& cache, const RunControl& run);
+// The same, or null when the build was cancelled.
+const microgeom::Heightfield* decision_surface_or_null(const Decision& decision, SurfaceCache& cache, const RunControl& run);
 
 // What names the surface in a histogram's attributes: the heightmap's path, or "assembly smith <hash>".
 std::string surface_label(const SurfacePlan& plan);

@@ -106,19 +106,4 @@ double masking_worst_standard_error(const SpecQuantity& quantity, const MaskingR
 // "monte_carlo_error"}; empty when no quantity has several.
 nlohmann::json masking_realisation_means(const std::vector<MeasurementResult>& measurements);
 
-// The planner's decisions of masking quantity `index` (plan_masking.cpp), appended to `out`: one per alpha
-// and view; a heightfield decision's count from a pilot of kMaskingPilotBlocks blocks on its surface (built
-// once per alpha for the pilots). Throws Cancelled.
-void plan_masking(const ExperimentSpec& spec, std::size_t index, const PlanOptions& options, SurfaceCache& surfaces,
-                  std::vector<Decision>& out);
-
-// Runs (or continues: m holds an interrupted run's completed rounds) masking decision `index` of the plan
-// (run_masking.cpp): analytic, the closed forms once; heightfield, the surface of `seed` (the run's)
-// acquired, then rounds of blocks of `sample_seed`, the first of `first_units` samples, each next of
-// next_round_units, until the largest standard error is at most the target or `max_rounds` rounds ran; each
-// round split over options.ranks, or its stored parts (split_rounds.h). A cancelled round is dropped
-// (m.partial; the completed rounds are kept in m.values' parts).
-void run_masking(const ExperimentSpec& spec, std::size_t index, std::uint64_t seed, std::uint64_t sample_seed,
-                 std::uint64_t first_units, const RunOptions& options, SurfaceCache& surfaces, MeasurementResult& m);
-
 }  // namespace microsim::experiment

@@ -9,7 +9,7 @@
 namespace microsim::experiment {
 
 std::uint64_t masking_surface_seed(std::uint64_t run_seed, int realisation) {
-  constexpr std::uint64_t kRealisationPurpose = 33;  // derived_seed purposes: plan.cpp's below 32, the pilots' 32
+  constexpr std::uint64_t kRealisationPurpose = 33;  // derived_seed purposes: plan_kinds.h's below 32, the masking pilot's 32
   return realisation == 0 ? run_seed : derived_seed(run_seed, kRealisationPurpose, std::uint64_t(realisation));
 }
 

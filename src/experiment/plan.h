@@ -1,4 +1,4 @@
-// experiment: the planner (issue 12): for each measurement of a spec, one decision with its reason.
+// experiment: the planner: for each measurement of a spec, one decision with its reason.
 //
 //   model     the cheapest sufficient one (choose_model):
 //               vndf        the analytic D_v is exact for the Smith model, but a measured histogram is wanted:

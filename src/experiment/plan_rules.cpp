@@ -1,5 +1,5 @@
 // experiment: the planner's decision rules, as pure functions (plan.h).
-#include "experiment/plan.h"
+#include "experiment/measurement.h"
 
 #include "core/random.h"
 
@@ -97,21 +97,24 @@ double needed_noncentrality(int dof, double significance, double power) {
 
 }  // namespace
 
-ModelChoice choose_model(const SpecQuantity& q, const SpecMaterial& m) {
-  if (q.kind == QuantityKind::masking) return masking_choice(q, m);
+ModelChoice choose_model(const SpecQuantity& q, const SpecMaterial& m) { return kind_model_rule(q.kind)(q, m); }
+
+ModelChoice vndf_model(const SpecQuantity& q, const SpecMaterial&) {
   if (q.surface.kind != SurfaceChoice::Kind::automatic) return explicit_surface_choice(q);
-  switch (q.kind) {
-    case QuantityKind::vndf:
-      return {Model::ellipsoid_oracle, "a measured VNDF histogram: the exact ellipsoid oracle (Heitz 2018: the "
-                                       "visible normals of the convex GGX ellipsoid are D_v exactly; only Monte "
-                                       "Carlo noise, no heightfield bias)"};
-    case QuantityKind::validation: return validation_choice(q);
-    case QuantityKind::albedo:
-    case QuantityKind::scattering: return albedo_or_scattering_choice(q, m);
-    case QuantityKind::masking: return masking_choice(q, m);
-  }
-  return {};
+  return {Model::ellipsoid_oracle, "a measured VNDF histogram: the exact ellipsoid oracle (Heitz 2018: the visible "
+                                   "normals of the convex GGX ellipsoid are D_v exactly; only Monte Carlo noise, no "
+                                   "heightfield bias)"};
 }
+
+ModelChoice validation_model(const SpecQuantity& q, const SpecMaterial&) {
+  return q.surface.kind != SurfaceChoice::Kind::automatic ? explicit_surface_choice(q) : validation_choice(q);
+}
+
+ModelChoice albedo_or_scattering_model(const SpecQuantity& q, const SpecMaterial& m) {
+  return q.surface.kind != SurfaceChoice::Kind::automatic ? explicit_surface_choice(q) : albedo_or_scattering_choice(q, m);
+}
+
+ModelChoice masking_model(const SpecQuantity& q, const SpecMaterial& m) { return masking_choice(q, m); }
 
 std::uint64_t units_for_standard_error(std::uint64_t pilot_units, double pilot_se, double target_se) {
   if (!(target_se > 0)) throw std::invalid_argument(fmt::format("target standard error {} must be > 0", target_se));

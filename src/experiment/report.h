@@ -1,4 +1,4 @@
-// experiment: the report of a run, DIR/index.html (issue 12): one self-contained page, readable offline in
+// experiment: the report of a run, DIR/index.html: one self-contained page, readable offline in
 // any browser without JavaScript (inline CSS and SVG figures, no external resource), with
 //   the status (complete or partial, every target met or not), the command, version, seed and spec digest
 //   that reproduce it; the plan (every decision, its reason, the pilot and predicted time); the results

@@ -1,33 +1,14 @@
 // experiment: carrying out a plan (`microsim run`): every runnable decision in rounds until its target is met,
-// a sequential stop on the estimate's own error (never a fixed count):
-//   albedo, smith-walk  rounds of albedo tables, each from its own seed (derived_seed), pooled cell by cell
-//                       (pool_rounds); after each round the worst relative SE of the quantities the target
-//                       applies to (measures.h, albedo_target_applies) decides: met, or a next round of next_round_units paths per cell;
-//   albedo, analytic    the quadrature at the planned tolerance; if an error estimate still exceeds the
-//                       target, again 100 times tighter (the result replaces the last);
-//   vndf                rounds of ellipsoid-oracle rays, each from its own seed, their exact counts summed; the
-//                       TV the sum resolves (resolved_tv: its noise floor over kNoiseShare) decides against the
-//                       spec's target_tv;
-//   scattering, walk    rounds of Smith walks, their exact sums added; the TV resolved by the largest per-order
-//                       noise floor of the orders the plan targeted decides (measures.h, targeted_order_bins);
-//   heightfield         (vndf, scattering on an explicit tile) the tile through the SurfaceCache (built once,
-//                       or read back from DIR/surfaces), then rounds as above: rays traced on the tile
-//                       (measure_heightfield_vndf), or paths on its Embree scene (scatter_on_surface), split
-//                       over the ranks (split_rounds.h); a validation against the tile: its planned rays in
-//                       one round (split likewise), then the samples against them on the root;
-//   scattering, analytic  the order-1 lobe by cubature, once (measures.h, analytic_scatter_lobe); its error
-//                       estimate over the albedo is the achieved error (the whole target: no noise);
-//   validation          one validate_sampler run of the planned samples (the power rule needs no rounds).
+// a sequential stop on the estimate's own error (never a fixed count). Each kind's rounds are its Measurement's
+// (measurement.h; one file per kind, measurement_registry.cpp chooses it); this driver runs them in plan order.
 // At most kMaxRounds rounds: a target not met then is reported as such (met = false), never hidden.
-// Cancellation (run.cancel): the round in progress is dropped (a VNDF round keeps its completed blocks, the
-// block runner's prefix: a shorter run of that seed, recorded as a partial round), what the completed rounds
-// measured is kept and the results are marked partial. Same seed, same results, whatever the thread count
-// (each round is a block-runner call of its own seed; the round sizes follow from the results).
-// Resumption (RunOptions::resume, the results of an interrupted run of the same spec, plan and seed): a
-// finished measurement is kept as it is; a partial one continues: a VNDF measurement from its summed counts,
-// its partial round traced on from its first missing block (the same seed and blocks: the counts are those of
-// the uninterrupted run, bit for bit); a walk albedo from its completed rounds' tables (a round cut short is
-// run again whole: its completed rows are not kept); an analytic albedo again (deterministic, cheap). Never
+// Cancellation (run.cancel): the round in progress is dropped (a histogram's round keeps its completed blocks,
+// the block runner's prefix: a shorter run of that seed, recorded as a partial round), what the completed
+// rounds measured is kept and the results are marked partial. Same seed, same results, whatever the thread
+// count, ranks or shards (each round is a block-runner call of its own seed; the round sizes follow from the
+// results). Resumption (RunOptions::resume, an interrupted run of the same spec, plan and seed): a finished
+// measurement is kept as it is; a partial one continues as its kind says (a histogram from its sums, its
+// partial round traced on from its first missing block: the uninterrupted run's counts, bit for bit). Never
 // prints.
 #pragma once
 
@@ -112,10 +93,8 @@ struct RunOptions {
 
 ExperimentResults run_experiment(const ExperimentSpec& spec, const ExperimentPlan& plan, const RunOptions& options);
 
-// The first round of every measurement the ranks share (is_shared_by_ranks: VNDF, scattering, a walk albedo
-// table, heightfield masking, a drawn validation: its one round; a validation against a tile: its rays) as
-// run_experiment starts it afresh at `seed` (the run's:
-// options.seed, or the spec's): units, seed and blocks. What shard jobs run (shards.h).
+// The first round of every measurement the ranks share (Measurement::first_round) as run_experiment starts it
+// afresh at `seed` (the run's: options.seed, or the spec's): units, seed and blocks. What shard jobs run.
 std::vector<RoundTask> first_split_rounds(const ExperimentSpec& spec, const ExperimentPlan& plan, std::uint64_t seed);
 
 // Independent rounds of n_r units with means m_r and standard errors se_r pooled as one run of sum n_r units:

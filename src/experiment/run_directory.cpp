@@ -17,9 +17,10 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// The file of a measurement's histogram: vndf-K.exr, validation-K.exr.
-fs::path histogram_path(const fs::path& dir, const MeasurementResult& m, std::size_t index) {
-  return dir / fmt::format("{}-{}.exr", m.values.contains("validation") ? "validation" : "vndf", index);
+// A measurement's file: KIND-K.EXT (vndf-3.exr, validation-4.exr, scattering-5.exr, albedo-0.csv).
+fs::path measurement_file(const fs::path& dir, const ExperimentSpec& spec, const MeasurementResult& m, std::size_t index,
+                          const char* extension) {
+  return dir / fmt::format("{}-{}.{}", to_string(spec.quantities.at(m.decision.quantity).kind), index, extension);
 }
 
 nlohmann::json read_document(const fs::path& path) {
@@ -50,16 +51,14 @@ void check_same_run(const fs::path& dir, const nlohmann::json& doc, const Experi
                                             quote_excerpt(dir.string()), recorded, seed, recorded));
 }
 
-fs::path scatter_path(const fs::path& dir, std::size_t index) { return dir / fmt::format("scattering-{}.exr", index); }
-
 // The counts and sums of the measurements that have them, read back into the results.
-void read_histograms(const fs::path& dir, ExperimentResults& results) {
+void read_histograms(const fs::path& dir, const ExperimentSpec& spec, ExperimentResults& results) {
   for (std::size_t i = 0; i < results.measurements.size(); ++i) {
     MeasurementResult& m = results.measurements[i];
     if (!m.ran || m.rounds.empty() || !m.values.is_object()) continue;
     if (m.values.contains("scattering") || m.values.contains("analytic_scattering")) {
       try {
-        ScatterFile file = read_scatter_exr(scatter_path(dir, i));
+        ScatterFile file = read_scatter_exr(measurement_file(dir, spec, m, i, "exr"));
         m.scatter = std::move(file.histogram);
         m.expectation = std::move(file.expectation);
       } catch (const ScatterIoError& e) {
@@ -69,7 +68,7 @@ void read_histograms(const fs::path& dir, ExperimentResults& results) {
     }
     if (!m.values.contains("analysis") && !m.values.contains("validation")) continue;
     try {
-      m.histogram = read_histogram_exr(histogram_path(dir, m, i));
+      m.histogram = read_histogram_exr(measurement_file(dir, spec, m, i, "exr"));
     } catch (const HistogramIoError& e) {
       throw std::invalid_argument(fmt::format("cannot resume measurement {}: {}", i, e.what()));
     }
@@ -110,19 +109,19 @@ void write_run_directory(const fs::path& dir, const ExperimentSpec& spec, const 
   ReportScatters scatters;
   for (std::size_t i = 0; i < results.measurements.size(); ++i) {
     const MeasurementResult& m = results.measurements[i];
-    if (!m.csv.empty()) write_file_atomically(dir / fmt::format("albedo-{}.csv", i), m.csv);
+    if (!m.csv.empty()) write_file_atomically(measurement_file(dir, spec, m, i, "csv"), m.csv);
     if (m.scatter.paths() > 0) {
-      write_scatter_exr(scatter_path(dir, i), m.scatter, {{"measurement", m.decision.label}});
+      write_scatter_exr(measurement_file(dir, spec, m, i, "exr"), m.scatter, {{"measurement", m.decision.label}});
       scatters.emplace(i, ScatterFile{ScatterFileKind::histogram, m.scatter, {}, {}});
     }
     if (m.expectation.bins() > 0) {
-      write_scatter_exr(scatter_path(dir, i), m.expectation, {{"measurement", m.decision.label}});
+      write_scatter_exr(measurement_file(dir, spec, m, i, "exr"), m.expectation, {{"measurement", m.decision.label}});
       scatters.emplace(i, ScatterFile{ScatterFileKind::expectation, {}, m.expectation, {}});
     }
     if (m.histogram.binnings.empty()) continue;
     TracedHistogram h = m.histogram;
     h.partial = m.partial;
-    write_histogram_exr(histogram_path(dir, m, i), h);
+    write_histogram_exr(measurement_file(dir, spec, m, i, "exr"), h);
     histograms.emplace(i, std::move(h));
   }
   const nlohmann::json doc = run_document(spec, plan, results, identity);
@@ -145,7 +144,7 @@ std::optional<PreviousRun> load_previous_run(const fs::path& dir, const Experime
   PreviousRun previous;
   previous.plan = plan_from_json(doc.value("plan", nlohmann::json::object()), spec);
   previous.results = results_from_json(doc.value("results", nlohmann::json::object()), previous.plan);
-  read_histograms(dir, previous.results);
+  read_histograms(dir, spec, previous.results);
   return previous;
 }
 

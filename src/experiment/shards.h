@@ -4,18 +4,16 @@
 //
 // A round's size follows from the previous round's combined estimate (the sequential stop), so only the first
 // round of each measurement is known before any shard has run: its size is the plan's (the pilots draw from the
-// seed, so every shard plans the same) and its seed and blocks are run_experiment's (first_split_rounds). A
-// shard job runs block shard K of N of the first round of every measurement is_shared_by_ranks names (VNDF,
-// scattering, walk albedo, heightfield masking, and a drawn validation whole; on an explicit heightfield each
-// shard job builds the tile in memory, for its plan and its rounds; run_part: the exact tallies of
-// split_rounds.h) and writes them to PART (shard.json, part-I.bin);
-// nothing else. The merge
+// seed, so every shard plans the same) and its seed and blocks are run_experiment's (first_split_rounds:
+// Measurement::first_round of every measurement the ranks share). A shard job runs block shard K of N of those
+// first rounds (run_part: Measurement::part, the exact tallies of parts.h; on an explicit heightfield each shard
+// job builds the tile in memory) and writes them to PART (shard.json, part-I.bin); nothing else. The merge
 // checks the shards (one spec, seed, plan and N, each K once) and hands their parts to run_experiment
 // (RunOptions::stored), which combines each first round in shard order (the one-process round, bit for bit),
-// decides the stop on it, and runs any further round and the measurements that are not split (analytic tables
-// and lobes, dumps, analytic masking) itself: the merged run is the one-process run, bit for bit. What shards cannot do: the later
-// rounds (they depend on the combined first round) and the unsplit measurements; run the merge under mpirun
-// to split those rounds too.
+// decides the stop on it, and runs any further round and the measurements that are not shared (analytic tables
+// and lobes, dumps, analytic masking) itself: the merged run is the one-process run, bit for bit. What shards
+// cannot do: the later rounds (they depend on the combined first round) and the unshared measurements; run the
+// merge under mpirun to split those rounds too.
 #pragma once
 
 #include "experiment/plan.h"

@@ -1,4 +1,4 @@
-// experiment: the experiment spec (issue 12): what a scene needs, in the user's terms. A TOML file (toml++)
+// experiment: the experiment spec: what a scene needs, in the user's terms. A TOML file (toml++)
 // or the same structure in JSON (nlohmann-json):
 //
 //   name = "renderer-ggx-gold"          # optional; default: the file's stem

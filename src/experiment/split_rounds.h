@@ -1,39 +1,18 @@
-// experiment: the rounds of run_experiment split over ranks (ranks.h; `mpirun -n P microsim run`).
-//
-// A VNDF or scattering round is one seed and one range of blocks (core/block_runner.h). The root sends it to
-// every rank (a RoundTask), rank r runs its contiguous shard of the range (rank_blocks: shard r + 1 of P by
-// shard_range, so rank order is block order), the parts are gathered to the root and combined there in rank
-// order. The tallies are exact (VNDF: integer counts; scattering: ExactSum fixed point), so the combined round
-// is the one-process round bit for bit, as a merge of `--shard` parts is. A part cancelled part way ends the
-// round there: the parts of later ranks are dropped and the combined round is the completed prefix of the
-// range, marked partial (resumed like a one-process round). A part whose blocks are not its rank's shard (out
-// of order, missing, overlapping) is a bug: InternalError. The root alone decides the rounds' sizes and when
-// to stop, from the combined rounds; the other ranks only run what it sends (serve_rounds) until it stops.
-// The rounds on an explicit heightfield (a VNDF, per-order lobes, the reference rays of a validation against the
-// tile's traced visible normals) are split the same way: every rank traces
-// the same tile, which it takes from its SurfaceCache (the root's file in DIR/surfaces, which the plan wrote
-// before the ranks got it, or built from the same key: a build is a pure function of its key); a VNDF part
-// also carries the tracer's diagnostics (backfacing, edge grazes, leaked, unresolved), summed in rank order.
-// A drawn validation (a zoo sampler's) is split over ranks too: rank r tallies its shard of the samples'
-// blocks (tally_drawn_samples), the root merges the tallies in rank order (merge_tallies: counts added, the
-// blocks' checks reduced again from the first) and reports from them: validate_sampler's report, bit for bit
-// (validation_part.h). A validation cancelled on any rank is cancelled whole (it has no partial result).
-// A walk albedo table's round is split by cells (its "blocks" are the table's cells, row-major: each cell its
-// own walk from its own seed, scatter/albedo_table.h walk_albedo_cells; on explicit surfaces each rank traces
-// the tiles of the plan from its own SurfaceCache, surface_albedo.h): rank r computes its shard of the
-// cells, the root joins them in rank order (albedo_table_from_cells): albedo_table's table, bit for bit; a
-// part cancelled part way cancels the round (an albedo round cut short is run again whole).
-// A heightfield masking round (successive block ranges of one run) is split the same way: every rank measures
-// its shard of the blocks for every light on the same surface, the exact sums (MaskingSums) added in rank
-// order; a part cancelled part way drops the round (as in one process).
-// A validation against a tile shares only its rays: the samples (a zoo sampler's, drawn on the root, or a dump's)
-// are compared with the combined histogram on the root.
-// Analytic albedo tables, analytic lobes, analytic masking and dumps against an analytic pdf are not split: the
-// root runs them while the other ranks wait; a job array's shards (shards.h) split the first rounds of what
-// is_shared_by_ranks names.
+// experiment: the rounds of run_experiment split over ranks (ranks.h; `mpirun -n P microsim run`) or taken from
+// the stored parts of shard jobs (shards.h). A round is one seed and one range of blocks (core/block_runner.h).
+// The root sends it to every rank (a RoundTask), rank r runs its contiguous shard of the range (rank_blocks:
+// rank order is block order), the parts (parts.h: exact tallies) are gathered to the root and added there in
+// rank order: the one-process round, bit for bit. A part cancelled part way ends the round there (the completed
+// prefix, marked partial, resumed like a one-process round). The root alone decides the rounds' sizes and when
+// to stop; the other ranks only run what it sends (serve_rounds: Measurement::part) until it stops. On an
+// explicit heightfield every rank takes the same tile from its SurfaceCache (DIR/surfaces, or built from the
+// same key: a build is a pure function of its key). Which kinds share their rounds, and how, is each kind's
+// (measurement.h: Measurement::shared, first_round, part); a kind not shared runs on the root while the
+// other ranks wait.
 #pragma once
 
 #include "experiment/measures.h"
+#include "experiment/parts.h"
 #include "experiment/plan.h"
 #include "experiment/ranks.h"
 #include "experiment/spec.h"
@@ -54,15 +33,10 @@ namespace microsim::experiment {
 
 class HeightfieldMasking;  // masking_runs.h (which includes run.h, and run.h this header)
 
-// Whether a decision's rounds are split: a VNDF on the ellipsoid oracle, a scattering or an albedo table by
-// the Smith walk, a VNDF, a scattering, masking or an albedo table on explicit heightfields.
+// Whether a decision's rounds are block ranges split over ranks and shards (Measurement::split), and whether
+// the ranks share its work at all (Measurement::shared: also a validation's one round).
 bool is_split(const ExperimentSpec& spec, const Decision& decision);
-// Whether the ranks share a decision's work: is_split's, a drawn validation's against the analytic reference,
-// and the rays of a validation against a tile (a zoo sampler's or a dump's).
 bool is_shared_by_ranks(const ExperimentSpec& spec, const Decision& decision);
-
-// Rank `rank`'s shard of `round` (rank 0 .. ranks - 1): shard rank + 1 of `ranks`, offset to round.begin.
-BlockRange rank_blocks(const BlockRange& round, int rank, int ranks);
 
 // One round: a measurement's (its index in the plan), of `units` units of `seed`, over these blocks; a masking
 // round on a heightfield also names the run's seed, which its assembly is built from (0 otherwise).
@@ -129,10 +103,6 @@ ValidationReport split_validation(const RoundSplit& split, std::size_t measureme
 // heightfield's tile comes from `surfaces` (a build cancelled there: a part cancelled before its first block).
 std::string run_part(const ExperimentSpec& spec, const ExperimentPlan& plan, const RoundTask& task, int rank, int ranks,
                      const RunControl& run, SurfaceCache& surfaces);
-// Whether a part was cancelled part way (a prefix of its blocks).
-bool part_is_partial(const std::string& part);
-// Checks that a part holds rank `rank`'s shard of `round`, whole; InternalError naming what it holds.
-void check_whole_part(const std::string& part, const BlockRange& round, int rank, int ranks);
 
 // The root starts the other ranks with the plan (and the spec's digest, which theirs must match), and stops
 // them with the exit code they are to return (also before the plan: a run that stops early). No-ops alone.

@@ -15,7 +15,7 @@
 // tile's masking also differs, which the width rules keep below the spread of realisations they measured.
 // The target itself is the Monte Carlo error on these surfaces: the spread between realisations is not in it.
 //
-// The order cap: as the walk's (plan.cpp walk_order_cap), from a pilot on the roughest alpha's tile; single
+// The order cap: as the walk's (plan_kinds.h walk_order_cap), from a pilot on the roughest alpha's tile; single
 // scattering (orders = single) is capped at 1. The count: a pilot table of pilot_paths paths per cell.
 // A heightmap is one surface at one alpha: an albedo table on it is not planned (runnable false, says why).
 #pragma once

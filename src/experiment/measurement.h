@@ -1,0 +1,107 @@
+// experiment: one measurement kind behind one interface. A kind (vndf, scattering, albedo, validation, masking)
+// says what it needs planned (its decisions), the first round the ranks or shards share, a part of a round (a
+// block range run by a thread, an MPI rank or a job-array shard alike: split_rounds.h adds the parts in block
+// order), its rounds against its target, and its values for results.json and resumption. The driver
+// (run_experiment) owns the order of the measurements, resumption, cancellation, the ranks and the shards.
+// The table of measurement_registry.cpp is the only place that chooses by kind: its model rule, its planner,
+// its Measurement (make_measurement) and its report section.
+#pragma once
+
+#include "experiment/run.h"
+
+#include <functional>
+#include <memory>
+#include <string>
+
+namespace microsim::experiment {
+
+// What a kind's rounds get from the driver.
+struct RoundContext {
+  const ExperimentSpec& spec;
+  std::size_t index = 0;   // the decision's index in the plan (the ranks' and shards' name for it)
+  std::uint64_t seed = 0;  // the run's
+  const RunOptions& options;
+  SurfaceCache& surfaces;
+  RoundSplit split() const { return {options.ranks, options.stored}; }
+  std::uint64_t round_seed(int round) const;
+};
+
+// The stream seed of round `round` of decision `index` (every round its own stream).
+std::uint64_t round_seed(std::uint64_t seed, std::size_t index, int round);
+// A first round's units: the planned ones times the cost factor, at least 1.
+std::uint64_t first_units(const Decision& decision, double cost_factor);
+
+// The round to run next of a histogram's rounds: a partial round of a resumed run from its first missing block,
+// else a new round of at most `max_units` units.
+struct RoundStart {
+  std::uint64_t units = 0, first_block = 0, seed = 0, done = 0;  // done: units of the round already counted
+  // The blocks to run: from first_block to the round's end (nullopt: the whole round).
+  std::optional<BlockRange> blocks(std::uint64_t block_size) const;
+};
+// Rounds of at most `max_units` (each by `round`, false: nothing measured) until the target is met, the rounds
+// run out or a round is cut short (a resumed run's partial round first).
+void run_histogram_rounds(const RoundContext& context, MeasurementResult& m, std::uint64_t max_units,
+                          const std::function<bool(const RoundStart&)>& round);
+
+class Measurement {
+public:
+  Measurement(const ExperimentSpec& spec, const Decision& decision)
+      : spec_(spec), decision_(decision), quantity_(spec.quantities.at(decision.quantity)) {}
+  virtual ~Measurement() = default;
+  Measurement(const Measurement&) = delete;
+  Measurement& operator=(const Measurement&) = delete;
+
+  // What `achieved` is (results.json's error_measure), and the target in its unit.
+  virtual std::string error_measure() const = 0;
+  virtual double target() const { return quantity_.target; }
+  // Whether its rounds are block ranges split over ranks and shards, and whether the ranks share its work at all.
+  virtual bool split() const { return false; }
+  virtual bool shared() const { return split(); }
+  // The first round as the ranks share it at the run's seed (shared() only).
+  virtual RoundTask first_round(std::size_t index, std::uint64_t seed) const;
+  // The tallies of blocks `mine` of `task` in this process, in the split's encoding (shared() only).
+  virtual std::string part(const RoundTask& task, const BlockRange& mine, const RunControl& run,
+                           SurfaceCache& surfaces) const;
+  // Its rounds, from `m` as the driver gives it (afresh, or an interrupted run's to continue).
+  virtual void run(const RoundContext& context, MeasurementResult& m) const = 0;
+
+protected:
+  const SpecMaterial& material() const { return spec_.material(quantity_.material); }
+  const ExperimentSpec& spec_;
+  const Decision& decision_;
+  const SpecQuantity& quantity_;
+};
+
+// The decisions a quantity of the kind needs (its pilots run), appended to `out`.
+using PlanQuantity = void (*)(const ExperimentSpec& spec, std::size_t quantity, const PlanOptions& options,
+                              SurfaceCache& surfaces, std::vector<Decision>& out);
+void plan_albedo_quantity(const ExperimentSpec&, std::size_t, const PlanOptions&, SurfaceCache&, std::vector<Decision>&);
+void plan_vndf_quantity(const ExperimentSpec&, std::size_t, const PlanOptions&, SurfaceCache&, std::vector<Decision>&);
+void plan_scattering_quantity(const ExperimentSpec&, std::size_t, const PlanOptions&, SurfaceCache&, std::vector<Decision>&);
+void plan_validation_quantity(const ExperimentSpec&, std::size_t, const PlanOptions&, SurfaceCache&, std::vector<Decision>&);
+void plan_masking_quantity(const ExperimentSpec&, std::size_t, const PlanOptions&, SurfaceCache&, std::vector<Decision>&);
+PlanQuantity quantity_planner(QuantityKind kind);  // measurement_registry.cpp
+// Each kind's choice of model (plan_rules.cpp; choose_model asks the registry for the quantity's).
+using ModelRule = ModelChoice (*)(const SpecQuantity& quantity, const SpecMaterial& material);
+ModelChoice vndf_model(const SpecQuantity&, const SpecMaterial&);
+ModelChoice validation_model(const SpecQuantity&, const SpecMaterial&);
+ModelChoice albedo_or_scattering_model(const SpecQuantity&, const SpecMaterial&);
+ModelChoice masking_model(const SpecQuantity&, const SpecMaterial&);
+ModelRule kind_model_rule(QuantityKind kind);  // measurement_registry.cpp
+
+// Each kind's file: its implementation of a decision (the decision's model chooses among its variants).
+std::unique_ptr<Measurement> make_vndf_measurement(const ExperimentSpec& spec, const Decision& decision);
+std::unique_ptr<Measurement> make_scattering_measurement(const ExperimentSpec& spec, const Decision& decision);
+std::unique_ptr<Measurement> make_albedo_measurement(const ExperimentSpec& spec, const Decision& decision);
+std::unique_ptr<Measurement> make_validation_measurement(const ExperimentSpec& spec, const Decision& decision);
+std::unique_ptr<Measurement> make_masking_measurement(const ExperimentSpec& spec, const Decision& decision);
+
+// The part of a round of rays traced on a decision's tile (measurement_vndf.cpp): a VNDF's on a tile, and
+// the reference rays of a validation against a tile.
+std::string tile_vndf_part(const ExperimentSpec& spec, const Decision& decision, const RoundTask& task,
+                           const BlockRange& mine, const RunControl& run, SurfaceCache& surfaces);
+
+// The one place that chooses a kind (measurement_registry.cpp). `spec` and `decision` must outlive it.
+std::unique_ptr<Measurement> make_measurement(const ExperimentSpec& spec, const Decision& decision);
+
+}  // namespace microsim::experiment

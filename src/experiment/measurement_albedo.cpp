@@ -1,0 +1,256 @@
+// experiment: the albedo kind (measurement.h): a table E(alpha, mu). Sampled (the Smith walk, or paths on the
+// plan's tiles): rounds of tables, each from its own seed, pooled cell by cell (pool_rounds); the worst
+// relative SE of the quantities the target applies to (measures.h, albedo_target_applies) decides. A round's
+// blocks are the table's cells (row-major, each cell its own walk from its own seed): ranks and shards compute
+// shards of the cells, joined in order (albedo_table_from_cells). A round cut short is run again whole on
+// resumption (its completed rows are not kept). Analytic: the quadrature at the planned tolerance, again 100
+// times tighter while an error estimate exceeds the target (deterministic: resumed, run again).
+#include "experiment/plan_kinds.h"
+#include "experiment/measurement.h"
+#include "experiment/measures.h"
+#include "experiment/surface_albedo.h"
+
+#include "core/wall_clock.h"
+#include "scatter/albedo_table_io.h"
+
+#include <fmt/core.h>
+
+#include <chrono>
+
+namespace microsim::experiment {
+namespace {
+
+// The rounds' tables as one table of their summed paths per cell (pool_rounds per cell and per E_avg).
+AlbedoTable pool_tables(const std::vector<AlbedoTable>& tables, const std::vector<std::uint64_t>& units) {
+  AlbedoTable pooled = tables.back();
+  pooled.seconds = 0;
+  pooled.request.paths = 0;
+  for (std::size_t r = 0; r < tables.size(); ++r) {
+    pooled.seconds += tables[r].seconds;
+    pooled.request.paths += units[r];
+  }
+  for (std::size_t k = 0; k < pooled.quantities.size(); ++k) {
+    const auto pool_member = [&](auto member, std::size_t i) {
+      std::vector<Estimate> rounds;
+      for (const AlbedoTable& t : tables) rounds.push_back((t.quantities[k].*member)[i]);
+      return pool_rounds(rounds, units);
+    };
+    for (std::size_t i = 0; i < pooled.quantities[k].cells.size(); ++i)
+      pooled.quantities[k].cells[i] = pool_member(&AlbedoQuantity::cells, i);
+    for (std::size_t i = 0; i < pooled.quantities[k].average.size(); ++i)
+      pooled.quantities[k].average[i] = pool_member(&AlbedoQuantity::average, i);
+  }
+  return pooled;
+}
+
+void record_albedo(MeasurementResult& m, const AlbedoTable& table) {
+  m.values = albedo_table_json(table);
+  m.csv = albedo_table_csv(table);
+}
+
+class AlbedoMeasurement : public Measurement {
+public:
+  using Measurement::Measurement;
+  std::string error_measure() const override {
+    return fmt::format("the worst relative {} of {} over the cells and E_avg",
+                       decision_.model.model == Model::analytic ? "quadrature error estimate" : "standard error",
+                       albedo_target_text(quantity_));
+  }
+};
+
+// The walk's table, or on the decision's tiles (albedo_cells_of), in rounds until its target is met.
+class SampledAlbedo final : public AlbedoMeasurement {
+public:
+  using AlbedoMeasurement::AlbedoMeasurement;
+  bool split() const override { return true; }
+  RoundTask first_round(std::size_t index, std::uint64_t seed) const override {
+    return {index, first_units(decision_, 1), round_seed(seed, index, 0), BlockRange{0, albedo_round_cells(spec_, decision_)}};
+  }
+  std::string part(const RoundTask& task, const BlockRange& mine, const RunControl& run,
+                   SurfaceCache& surfaces) const override {
+    return albedo_part(mine, albedo_cells_of(decision_, surfaces)(
+                                 sampled_albedo_request(spec_, decision_, task.units, task.seed, run), mine));
+  }
+  void run(const RoundContext& c, MeasurementResult& m) const override {
+    const RunControl& run = c.options.run;
+    const AlbedoCellsOf cells = albedo_cells_of(decision_, c.surfaces);
+    std::vector<AlbedoTable> tables;  // resumed: the completed rounds' tables
+    std::vector<std::uint64_t> units;
+    for (std::size_t r = 0; r < m.round_tables.size(); ++r) {
+      const AlbedoTableRequest request = sampled_albedo_request(spec_, decision_, m.rounds[r].units, m.rounds[r].seed, run);
+      tables.push_back(albedo_table_from_json(m.round_tables[r], request));
+      units.push_back(m.rounds[r].units);
+    }
+    m.partial = false;
+    std::uint64_t n = tables.empty() ? first_units(decision_, c.options.cost_factor)
+                                     : next_round_units(m.units, m.achieved, m.target);
+    for (int r = int(tables.size()); r < c.options.max_rounds && n > 0; ++r) {
+      const std::uint64_t s = c.round_seed(r);
+      AlbedoTable t = split_albedo_round(c.split(), c.index, sampled_albedo_request(spec_, decision_, n, s, run), cells);
+      if (t.partial) {  // a round cut short is run again whole on resumption
+        m.partial = true;
+        break;
+      }
+      m.round_tables.push_back(albedo_table_json(t));
+      tables.push_back(std::move(t));
+      units.push_back(n);
+      const AlbedoTable pooled = pool_tables(tables, units);
+      m.achieved = worst_relative_error(pooled, quantity_);
+      m.rounds.push_back({n, n, 0, false, s, 0, tables.back().seconds, m.achieved});
+      m.units += n;
+      m.rays += n * pooled.alphas.size() * pooled.mus.size();
+      record_albedo(m, pooled);
+      n = next_round_units(m.units, m.achieved, m.target);
+    }
+    m.met = !tables.empty() && m.achieved <= m.target;
+  }
+};
+
+class AnalyticAlbedo final : public AlbedoMeasurement {
+public:
+  using AlbedoMeasurement::AlbedoMeasurement;
+  void run(const RoundContext& c, MeasurementResult& m) const override {
+    double tolerance = decision_.tolerance;
+    m.rounds.clear();  // resumed: deterministic and cheap, run again
+    m.partial = false;
+    for (int r = 0; r < c.options.max_rounds && !m.met && tolerance >= 1e-13; ++r, tolerance /= 100) {
+      const AlbedoTable t = albedo_table(albedo_request(spec_, quantity_, Model::analytic, 1, 0, tolerance, 1, c.options.run));
+      if (t.partial) {
+        m.partial = true;
+        break;
+      }
+      m.achieved = worst_relative_error(t, quantity_);
+      m.rounds.push_back({0, 0, 0, false, 0, tolerance, t.seconds, m.achieved});
+      m.met = m.achieved <= m.target;
+      record_albedo(m, t);
+    }
+  }
+};
+
+
+// ---- its plan ----------------------------------------------------------------------------------------------
+
+// The roughest row of an albedo table (paths stay longest on the roughest surface), every mu: the cell whose
+// unfinished weight (plus two standard errors) is the largest share of its E. `cells`: the walk's, or on tiles.
+CapPilot table_cap_pilot(AlbedoTableRequest row, const AlbedoCellsOf& cells) {
+  return [row, cells](int cap) {
+    AlbedoTableRequest r = row;
+    r.max_order = cap;
+    const AlbedoTable t = split_albedo_round({}, 0, r, cells);
+    if (t.partial) throw Cancelled("plan: order-cap pilot");
+    CapProbe worst{cap, 0, 0};
+    for (std::size_t m = 0; m < t.mus.size(); ++m) {
+      Estimate u = t.cell("unfinished", 0, m);
+      // None left among n paths: the 95% upper bound is 3 / n (the rule of three), i.e. "2 standard errors".
+      if (u.value == 0) u.standard_error = 1.5 / double(r.paths);
+      const double e = std::max(t.cell("E", 0, m).value, 1e-300);
+      if ((u.value + 2 * u.standard_error) / e > worst.unfinished + 2 * worst.unfinished_se)
+        worst = {cap, u.value / e, u.standard_error / e};
+    }
+    return worst;
+  };
+}
+
+void plan_analytic_albedo(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
+  // The quadrature's error estimate per cell, absolute: 1e-3 of the relative target keeps it below the target
+  // for every E >= 1e-3 (a GGX mirror's E1 is above 0.05 on the table's range).
+  d.tolerance = std::clamp(1e-3 * q.target, 1e-13, 1e-2);
+  d.count_reason = fmt::format("deterministic: quadrature to {:.0e} absolute per cell (1e-3 x target); rerun "
+                               "tighter if an error estimate exceeds the target", d.tolerance);
+  AlbedoTableRequest pilot = albedo_request(spec, q, Model::analytic, 1, 0, d.tolerance, 1, o.run);
+  const std::size_t rows = pilot.alphas.size();
+  pilot.alphas = {pilot.alphas.front()};
+  const AlbedoTable t = albedo_table(pilot);
+  if (t.partial) throw Cancelled("plan: albedo pilot");
+  d.pilot_units = 1;
+  d.pilot_seconds = t.seconds;
+  d.pilot_error = worst_relative_error(t, q);
+  d.predicted_seconds = t.seconds * double(rows);
+  d.unit = "";
+}
+
+// A sampled table (the walk's, or on the decision's tiles: `cells`): its order cap from the roughest row (1
+// for single scattering, which only an explicit surface samples), then a pilot table for the paths per cell.
+void plan_sampled_albedo(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, const AlbedoCellsOf& cells,
+                         Decision& d) {
+  const std::uint64_t seed = plan_seed(spec, o);
+  const std::uint64_t cap_paths =
+      std::max(o.cap_pilot_paths / std::uint64_t(q.mus), paths_to_bound_bias(kBiasShare * q.target));
+  if (q.orders == Orders::single) {
+    d.order_cap = 1;
+    d.cap_reason = "single scattering: the first bounce only";
+  } else {
+    AlbedoTableRequest row = sampled_albedo_request(spec, d, cap_paths, derived_seed(seed, kCapPilot, d.quantity), o.run);
+    row.alphas = {row.alphas.back()};  // increasing: the roughest
+    std::tie(d.order_cap, d.cap_reason) = walk_order_cap(
+        table_cap_pilot(row, cells), q.target, fmt::format("alpha {}, {} mus, {} paths per cell", row.alphas.front(), q.mus, row.paths));
+  }
+  const AlbedoTable t = split_albedo_round(
+      {}, 0, sampled_albedo_request(spec, d, o.pilot_paths, derived_seed(seed, kTablePilot, d.quantity), o.run), cells);
+  if (t.partial) throw Cancelled("plan: albedo pilot");
+  d.pilot_units = o.pilot_paths;
+  d.pilot_seconds = t.seconds;
+  d.pilot_error = worst_relative_error(t, q);
+  d.units = units_for_standard_error(o.pilot_paths, d.pilot_error, q.target);
+  d.unit = "paths per cell";
+  d.count_reason = fmt::format("pilot of {} paths per cell: worst relative SE of {} {:.2e}; n = {} x ({:.2e} / {:.0e})^2",
+                               o.pilot_paths, albedo_target_text(q), d.pilot_error, o.pilot_paths, d.pilot_error,
+                               q.target);
+  d.predicted_seconds = predicted_seconds(d.units, d.pilot_units, d.pilot_seconds);
+  d.runnable = true;
+}
+
+// An albedo table on explicit surfaces (surface_albedo.h): its tiles (the same size at every alpha) built
+// into `cache`, then as a walk's, the paths on the tiles.
+void plan_surface_albedo(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, SurfaceCache& cache,
+                         Decision& d) {
+  if (!take_surface(plan_albedo_surfaces(spec, q, plan_seed(spec, o), o.run), d)) return;
+  const auto start = std::chrono::steady_clock::now();
+  const std::size_t built = cache.builds();
+  double scene_seconds = 0;  // every tile's Embree scene: built again in each round (the cache keeps one at a time)
+  for (const auto& alpha : spec.material(q.material).alphas) {
+    const microgeom::Heightfield& field = cache.surface_for(surface_key(d.surface, {alpha.first, alpha.first}), o.run);
+    const auto scene_start = std::chrono::steady_clock::now();
+    cache.scene_for(field);
+    scene_seconds += seconds_since(scene_start);
+  }
+  d.surface.reason += fmt::format("; {} tiles ({} built during the plan, kept for the run; {:.3g} s with their scenes)",
+                                  spec.material(q.material).alphas.size(), cache.builds() - built, seconds_since(start));
+  plan_sampled_albedo(spec, q, o, albedo_cells_of(d, cache), d);
+  d.count_reason += " (the error on these tiles: the spread between realisations is not in it)";
+  // The pilot's time holds the scenes too: they are paid per round, the tracing per path.
+  d.predicted_seconds = scene_seconds + predicted_seconds(d.units, d.pilot_units, std::max(0.0, d.pilot_seconds - scene_seconds));
+}
+
+Decision plan_albedo(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& cache) {
+  const SpecQuantity& q = spec.quantities[index];
+  const SpecMaterial& m = spec.material(q.material);
+  Decision d;
+  d.quantity = index;
+  d.label = fmt::format("{} albedo {} ({} alphas x {} mus{})", q.key, m.name, m.alphas.size(), q.mus,
+                        q.inside ? ", inside" : "");
+  d.model = choose_model(q, m);
+  if (d.model.model == Model::analytic) {
+    plan_analytic_albedo(spec, q, o, d);
+    d.runnable = true;
+  } else if (d.model.model == Model::smith_walk) {
+    plan_sampled_albedo(spec, q, o, walk_albedo_cells, d);
+  } else {
+    plan_surface_albedo(spec, q, o, cache, d);
+  }
+  return d;
+}
+
+}  // namespace
+
+void plan_albedo_quantity(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& cache,
+                          std::vector<Decision>& out) {
+  out.push_back(plan_albedo(spec, index, o, cache));
+}
+
+std::unique_ptr<Measurement> make_albedo_measurement(const ExperimentSpec& spec, const Decision& decision) {
+  if (decision.model.model == Model::analytic) return std::make_unique<AnalyticAlbedo>(spec, decision);
+  return std::make_unique<SampledAlbedo>(spec, decision);
+}
+
+}  // namespace microsim::experiment

@@ -1,0 +1,208 @@
+// experiment: the VNDF kind (measurement.h): rounds of rays, each from its own seed, their exact counts summed;
+// the TV the sum resolves (resolved_tv: its noise floor over kNoiseShare) decides against target_tv. On the
+// ellipsoid oracle (Heitz 2018: a convex GGX ellipsoid's visible normals are D_v) or on an explicit tile
+// (built once through the SurfaceCache). A cancelled round keeps its completed blocks (a shorter run of its
+// seed), and a resumed run traces on from its first missing block: the counts of the uninterrupted run.
+#include "experiment/plan_kinds.h"
+#include "experiment/heightfield_measures.h"
+#include "experiment/measurement.h"
+#include "experiment/measures.h"
+
+#include "core/errors.h"
+#include "core/parse.h"
+#include "core/wall_clock.h"
+
+#include <fmt/core.h>
+
+#include <chrono>
+
+namespace microsim::experiment {
+namespace {
+
+// Adds a round's exact counts to the sum (the first round gives the binnings and attributes).
+void add_vndf_counts(TracedHistogram& sum, std::vector<std::uint64_t>& unbinned, const TracedHistogram& round,
+                     const std::vector<std::uint64_t>& round_unbinned) {
+  if (sum.binnings.empty()) {
+    sum = round;
+    unbinned = round_unbinned;
+    return;
+  }
+  for (std::size_t k = 0; k < sum.counts.size(); ++k)
+    for (std::size_t i = 0; i < sum.counts[k].size(); ++i) sum.counts[k][i] += round.counts[k][i];
+  for (std::size_t k = 0; k < unbinned.size(); ++k) unbinned[k] += round_unbinned[k];
+  sum.rays += round.rays;
+  sum.hits += round.hits;
+}
+
+// A round's bookkeeping once its rays are added and the sum analysed (`achieved` set).
+void record_vndf_round(MeasurementResult& m, const RoundStart& start, const TraceResult& trace, std::uint64_t rays,
+                       double seconds) {
+  m.units += rays;
+  m.rays += rays;
+  m.rounds.push_back({start.done + rays, start.units, trace.blocks.end, trace.partial, start.seed, 0, seconds, m.achieved});
+}
+
+class VndfMeasurement : public Measurement {
+public:
+  using Measurement::Measurement;
+  std::string error_measure() const override {
+    return fmt::format("the TV the histogram resolves: its TV noise floor (expected TV of an exact sampler, largest "
+                       "binning) over {}", kNoiseShare);
+  }
+  bool split() const override { return true; }
+  RoundTask first_round(std::size_t index, std::uint64_t seed) const override {
+    const std::uint64_t units = std::min(first_units(decision_, 1), kMaxRays);  // capped as the rounds cap them
+    return {index, units, round_seed(seed, index, 0), BlockRange{0, BlockPlan{units, kRaysPerBlock}.blocks()}};
+  }
+};
+
+// On the ellipsoid oracle.
+class EllipsoidVndfMeasurement final : public VndfMeasurement {
+public:
+  using VndfMeasurement::VndfMeasurement;
+  std::string part(const RoundTask& task, const BlockRange& mine, const RunControl& run, SurfaceCache&) const override {
+    VndfRequest request = vndf_request(spec_, decision_, task.units, task.seed, run);
+    request.blocks = mine;
+    return vndf_part(measure_ellipsoid_vndf(target(decision_), request).trace, {});
+  }
+  void run(const RoundContext& c, MeasurementResult& m) const override {
+    run_histogram_rounds(c, m, kMaxRays, [&](const RoundStart& start) { return round(c, start, m); });
+  }
+
+private:
+  static EllipsoidTarget target(const Decision& d) { return EllipsoidTarget(d.alpha.first, d.alpha.second, -1); }
+  // One round (or the rest of one): traced, added to the sum, the sum analysed and recorded.
+  bool round(const RoundContext& c, const RoundStart& start, MeasurementResult& m) const {
+    VndfRequest req = vndf_request(spec_, decision_, start.units, start.seed, c.options.run);
+    if (const auto blocks = start.blocks(kRaysPerBlock)) req.blocks = *blocks;
+    const auto clock = std::chrono::steady_clock::now();
+    const EllipsoidVndf r = split_vndf_round(c.split(), c.index, target(decision_), req);
+    m.partial = r.trace.partial;  // cancelled: its completed blocks are a shorter run of that seed, kept
+    if (r.histogram.rays == 0) return false;
+    const bool fresh = m.histogram.binnings.empty();
+    add_vndf_counts(m.histogram, m.unbinned, r.histogram, r.trace.unbinned);
+    // A whole first round: its own analysis is the sum's (the reference's cubature is not paid twice).
+    const EllipsoidVndf analysed = fresh && !r.trace.partial ? r : analyse_ellipsoid_vndf(m.histogram, m.unbinned);
+    m.achieved = resolved_tv(vndf_noise_floor(analysed));
+    record_vndf_round(m, start, r.trace, r.histogram.rays, seconds_since(clock));
+    m.values = {{"analysis", to_json(analysed.analysis)},
+                {"rays", analysed.histogram.rays},
+                {"hits", analysed.histogram.hits},
+                {"expected_hit_fraction", r.expected_hit_fraction},
+                {"total_variation", vndf_total_variation(analysed)},
+                {"noise_floor_tv", vndf_noise_floor(analysed)},
+                {"unbinned", m.unbinned}};
+    m.histogram = analysed.histogram;
+    return true;
+  }
+};
+
+// On an explicit tile: every rank traces the same tile (its SurfaceCache's).
+class HeightfieldVndfMeasurement final : public VndfMeasurement {
+public:
+  using VndfMeasurement::VndfMeasurement;
+  std::string part(const RoundTask& task, const BlockRange& mine, const RunControl& run,
+                   SurfaceCache& surfaces) const override {
+    return tile_vndf_part(spec_, decision_, task, mine, run, surfaces);
+  }
+  void run(const RoundContext& c, MeasurementResult& m) const override {
+    const microgeom::Heightfield* field = decision_surface_or_null(decision_, c.surfaces, c.options.run);
+    m.partial = field == nullptr;  // its build cancelled
+    if (field == nullptr) return;
+    // The scene is built when the root's own part begins: after the round was sent, while the ranks build theirs.
+    const SceneOf scene = [&c, field]() -> const HeightfieldScene& { return c.surfaces.scene_for(*field); };
+    run_histogram_rounds(c, m, kMaxRays, [&](const RoundStart& start) { return round(c, scene, *field, start, m); });
+  }
+
+private:
+  bool round(const RoundContext& c, const SceneOf& scene, const microgeom::Heightfield& field, const RoundStart& start,
+             MeasurementResult& m) const {
+    VndfRequest req = vndf_request(spec_, decision_, start.units, start.seed, c.options.run);
+    if (const auto blocks = start.blocks(kRaysPerBlock)) req.blocks = *blocks;
+    const auto clock = std::chrono::steady_clock::now();
+    const HeightfieldVndf r =
+        split_heightfield_vndf_round(c.split(), c.index, scene, field, surface_label(decision_.surface), req);
+    m.partial = r.trace.partial;
+    if (r.histogram.rays == 0) return false;
+    if (!m.histogram.binnings.empty()) add_heightfield_diagnostics(m.histogram, r.histogram);  // the analysis reads them
+    add_vndf_counts(m.histogram, m.unbinned, r.histogram, r.trace.unbinned);
+    const HeightfieldVndf analysed = analyse_heightfield_vndf(m.histogram, m.unbinned, field);  // the sum so far
+    m.achieved = resolved_tv(heightfield_noise_floor(analysed));
+    record_vndf_round(m, start, r.trace, r.histogram.rays, seconds_since(clock));
+    m.values = heightfield_vndf_values(analysed, m.unbinned, decision_.surface);
+    m.histogram = analysed.histogram;
+    return true;
+  }
+};
+
+
+// ---- its plan ----------------------------------------------------------------------------------------------
+
+// A VNDF's rays from its pilot (on the ellipsoid, or `on` a tile): the TV noise floor ~ 1/sqrt(n) brought to
+// kNoiseShare of the target. The tracing scales with the rays; what the pilot spent besides tracing (the
+// scene, the reference's cubature, the empirical Smith tables) is paid once.
+void count_vndf_rays(const SpecQuantity& q, const PlanOptions& o, double pilot_floor, double trace_seconds,
+                     std::string_view on, Decision& d) {
+  d.pilot_units = o.pilot_rays;
+  d.pilot_error = pilot_floor;
+  d.units = units_for_standard_error(o.pilot_rays, d.pilot_error, kNoiseShare * q.target);
+  d.unit = "rays";
+  d.count_reason = fmt::format("pilot of {} rays{}: TV noise floor {:.2e} ~ 1/sqrt(n); resolving TV {} needs a floor "
+                               "<= {} x {} (rows {})", o.pilot_rays, on, d.pilot_error, q.target, kNoiseShare, q.target, q.rows);
+  const double overhead = std::max(0.0, d.pilot_seconds - trace_seconds);
+  d.predicted_seconds = overhead + predicted_seconds(d.units, d.pilot_units, trace_seconds);
+}
+
+void plan_vndf_view(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
+  const EllipsoidTarget target(d.alpha.first, d.alpha.second, -1);
+  VndfRequest r;
+  r.theta_deg = d.view.theta_deg;
+  r.phi_deg = d.view.phi_deg;
+  r.rays = o.pilot_rays;
+  r.seed = derived_seed(plan_seed(spec, o), kVndfPilot, d.quantity);
+  r.rows = q.rows;
+  r.run = o.run;
+  const auto start = std::chrono::steady_clock::now();
+  const EllipsoidVndf m = measure_ellipsoid_vndf(target, r);
+  if (m.trace.partial) throw Cancelled("plan: vndf pilot");
+  d.pilot_seconds = seconds_since(start);
+  count_vndf_rays(q, o, vndf_noise_floor(m), m.trace.seconds, "", d);
+  d.runnable = true;
+}
+
+// The VNDF traced on the tile: a pilot of pilot_rays rays gives the noise floor (~ 1/sqrt(n)) and the rate.
+void plan_heightfield_vndf(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o,
+                           const microgeom::Heightfield& field, SurfaceCache& cache, Decision& d) {
+  const auto start = std::chrono::steady_clock::now();
+  HeightfieldVndf traced = trace_heightfield_vndf(
+      cache.scene_for(field), field, surface_label(d.surface),  // the scene kept: the run's rounds may use it
+      vndf_request(spec, d, o.pilot_rays, derived_seed(plan_seed(spec, o), kVndfPilot, d.quantity), o.run));
+  if (traced.trace.partial) throw Cancelled("plan: vndf pilot");
+  const HeightfieldVndf m = analyse_heightfield_vndf(std::move(traced.histogram), traced.trace.unbinned, field);
+  d.pilot_seconds = seconds_since(start);
+  count_vndf_rays(q, o, heightfield_noise_floor(m), traced.trace.seconds, " on the tile", d);
+}
+
+}  // namespace
+
+void plan_vndf_quantity(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& cache,
+                        std::vector<Decision>& out) {
+  plan_views(spec, index, o, cache, {plan_vndf_view, plan_heightfield_vndf}, out);
+}
+
+std::string tile_vndf_part(const ExperimentSpec& spec, const Decision& decision, const RoundTask& task,
+                           const BlockRange& mine, const RunControl& run, SurfaceCache& surfaces) {
+  const microgeom::Heightfield* field = decision_surface_or_null(decision, surfaces, run);
+  if (field == nullptr) return cancelled_part(mine);  // its build cancelled: a part cancelled before its first block
+  VndfRequest request = vndf_request(spec, decision, task.units, task.seed, run);
+  request.blocks = mine;
+  const HeightfieldVndf m = trace_heightfield_vndf(surfaces.scene_for(*field), *field, surface_label(decision.surface), request);
+  return vndf_part(m.trace, m.diagnostics);
+}
+
+std::unique_ptr<Measurement> make_vndf_measurement(const ExperimentSpec& spec, const Decision& decision) {
+  if (decision.model.model == Model::heightfield) return std::make_unique<HeightfieldVndfMeasurement>(spec, decision);
+  return std::make_unique<EllipsoidVndfMeasurement>(spec, decision);
+}
+
+}  // namespace microsim::experiment

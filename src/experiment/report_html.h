@@ -1,0 +1,71 @@
+// experiment: the report's HTML pieces shared by the page (report.cpp) and the kinds' sections
+// (report_sections.cpp), and each kind's section of a measurement's values, chosen through the registry
+// (measurement_registry.cpp: kind_report). Internal to the module.
+#pragma once
+
+#include "experiment/report.h"
+#include "stats/svg_parts.h"
+
+#include <fmt/format.h>
+
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace microsim::experiment::html {
+
+using nlohmann::json;
+inline std::string esc(const std::string& s) { return svg::escape(s); }
+
+inline std::string text_of(const json& v) {
+  if (v.is_string()) return v.get<std::string>();
+  if (v.is_number()) return report_number(v);
+  if (v.is_boolean()) return v.get<bool>() ? "yes" : "no";
+  return v.is_null() ? "-" : v.dump();
+}
+
+// The member `key` of `j`, or std::invalid_argument naming it.
+inline const json& member(const json& j, const char* key) {
+  if (!j.is_object() || !j.contains(key))
+    throw std::invalid_argument(fmt::format("experiment_report_html: the document has no '{}'", key));
+  return j.at(key);
+}
+
+inline std::string row(const std::vector<std::string>& cells, const char* tag = "td") {
+  std::string out = "<tr>";
+  for (const std::string& c : cells) out += fmt::format("<{0}>{1}</{0}>", tag, c);
+  return out + "</tr>\n";
+}
+
+// A table; an empty header: none.
+inline std::string table(const std::vector<std::string>& header, const std::string& body) {
+  std::vector<std::string> escaped;
+  for (const std::string& h : header) escaped.push_back(esc(h));
+  const std::string head = header.empty() ? "" : "<thead>" + row(escaped, "th") + "</thead>\n";
+  return "<table>\n" + head + "<tbody>\n" + body + "</tbody></table>\n";
+}
+
+}  // namespace microsim::experiment::html
+
+namespace microsim::experiment {
+
+// A kind's section of one measurement's values (`index` names its files, `label` titles its figures); "" when
+// its values hold nothing to show (a measurement interrupted before its first round).
+using KindReport = std::string (*)(const nlohmann::json& values, std::size_t index, const ReportHistograms& histograms,
+                                   const ReportScatters& scatters, const std::string& label);
+std::string albedo_report(const nlohmann::json&, std::size_t, const ReportHistograms&, const ReportScatters&,
+                          const std::string&);
+std::string vndf_report(const nlohmann::json&, std::size_t, const ReportHistograms&, const ReportScatters&,
+                        const std::string&);
+std::string scattering_report(const nlohmann::json&, std::size_t, const ReportHistograms&, const ReportScatters&,
+                              const std::string&);
+std::string validation_report(const nlohmann::json&, std::size_t, const ReportHistograms&, const ReportScatters&,
+                              const std::string&);
+std::string masking_report(const nlohmann::json&, std::size_t, const ReportHistograms&, const ReportScatters&,
+                           const std::string&);
+// The kind's section (its name as results.json's decisions give it), or null for a kind not in the registry.
+KindReport kind_report(const std::string& kind);
+// G1(v) against theta_v per masking quantity, alpha and view phi, from the measurements that measured G1.
+std::string masking_curves_section(const nlohmann::json& decisions, const nlohmann::json& measurements);
+
+}  // namespace microsim::experiment
