@@ -1,5 +1,5 @@
 """Builds the `microsim` extension with the project's CMake (target microsim_python) and installs it with
-its type stub: `pip install --no-build-isolation .` (docs/python.md). The CMake build folder is
+its type stub: `pip install --no-build-isolation .` (docs/guide/python.md). The CMake build folder is
 $MICROSIM_BUILD_DIR, else build/ of the source tree (an existing build is reused, only the module is built)."""
 import os
 import pathlib

@@ -7,9 +7,13 @@
 // "Chi-square tests for comparing weighted histograms", NIM A 614, 287). The verdict holds every test at the
 // family-wise level --level (Sidak). Too little data for a test is an error, never a pass.
 //
+// Two or three files of `microsim trace vndf` (traced direction histograms) are compared binning by binning
+// instead (compare_traced.h): the visible normals of two assemblies of one NDF, say.
+//
 // Exit codes: 0 every test passed, 1 a test rejected, 2 bad usage or input, or too little data (nothing
 // written), 130 interrupted during --analytic (nothing written).
 #include "command.h"
+#include "compare_traced.h"
 #include "number_options.h"
 #include "progress_bar.h"
 
@@ -17,6 +21,7 @@
 #include "core/strict_parse.h"
 #include "microfacet/material.h"
 #include "microfacet/roughness.h"
+#include "microgeom/exr_io.h"
 #include "scatter/analytic_scatter.h"
 #include "stats/scatter_compare.h"
 #include "stats/scatter_figure.h"
@@ -27,6 +32,7 @@
 #include <cmath>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -36,7 +42,7 @@ namespace {
 struct CompareArgs {
   std::vector<std::string> files;
   bool analytic = false;
-  std::string json, svg, orders = "1,2,3,4,5+,total";
+  std::string json, svg, orders;  // empty: every order (scatter files)
   double level = 0.01;
   int threads = 0;
 };
@@ -64,13 +70,29 @@ std::vector<int> parse_orders(const std::string& text) {
   return orders;
 }
 
-ScatterFile read_input(const std::string& path) {
+// A file of `microsim scatter` or `microsim trace vndf`, told apart by its format attribute.
+struct AnyInput {
+  std::optional<ScatterFile> scatter;
+  std::optional<TracedHistogram> traced;
+};
+
+AnyInput read_any_input(const std::string& path) {
   if (!std::filesystem::exists(path)) throw UsageError(fmt::format("'{}': no such file", path));
   try {
-    return read_scatter_exr(path);
-  } catch (const ScatterIoError& e) {
+    const microgeom::ExrImage image = microgeom::read_exr(path);
+    if (is_traced_histogram_image(image)) return {std::nullopt, histogram_from_exr(image, path)};
+    return {scatter_from_exr(image, path), std::nullopt};
+  } catch (const std::runtime_error& e) {  // not an EXR, not a microsim file, a malformed one: bad input
     throw UsageError(e.what());
   }
+}
+
+ScatterFile read_input(const std::string& path) {
+  AnyInput in = read_any_input(path);
+  if (!in.scatter)
+    throw UsageError(fmt::format("'{}' is a traced histogram (microsim trace vndf) among scatter files: compare files "
+                                 "of one kind", path));
+  return std::move(*in.scatter);
 }
 
 const std::string& note(const Input& in, const char* key) {
@@ -260,6 +282,27 @@ std::string figure(const std::vector<Input>& in, const std::vector<PairCompariso
   return scatter_figure_svg("compare-scattering", subtitle, b, rows);
 }
 
+// The inputs when the first file is a traced histogram (all must be, 2 or 3 of them), else nullopt.
+std::optional<std::vector<TracedInput>> traced_inputs(const CompareArgs& a) {
+  AnyInput first = read_any_input(a.files.front());
+  if (!first.traced) return std::nullopt;
+  if (a.analytic || !a.orders.empty())
+    throw UsageError(fmt::format("{} applies to scatter files; '{}' is a traced histogram (microsim trace vndf: compare "
+                                 "it with `microsim validate --against`, or with another traced histogram)",
+                                 a.analytic ? "--analytic" : "--orders", a.files.front()));
+  if (a.files.size() < 2 || a.files.size() > 3)
+    throw UsageError(fmt::format("compare-scattering compares 2 or 3 traced histograms, got {}", a.files.size()));
+  std::vector<TracedInput> inputs{{a.files.front(), std::move(*first.traced)}};
+  for (std::size_t i = 1; i < a.files.size(); ++i) {
+    AnyInput in = read_any_input(a.files[i]);
+    if (!in.traced)
+      throw UsageError(fmt::format("'{}' is a scatter file among traced histograms (microsim trace vndf): compare files "
+                                   "of one kind", a.files[i]));
+    inputs.push_back({a.files[i], std::move(*in.traced)});
+  }
+  return inputs;
+}
+
 int run_compare(const CompareArgs& a) {
   std::vector<PathOption> files;
   for (const std::string& f : a.files) files.push_back({"input", f});
@@ -269,7 +312,8 @@ int run_compare(const CompareArgs& a) {
     throw UsageError(fmt::format("--svg '{}': must be an .svg file", a.svg));
   check_output("--json", a.json);
   check_output("--svg", a.svg);
-  const std::vector<int> orders = parse_orders(a.orders);
+  if (const auto traced = traced_inputs(a)) return compare_traced_inputs(*traced, a.level, a.json, a.svg);
+  const std::vector<int> orders = parse_orders(a.orders.empty() ? "1,2,3,4,5+,total" : a.orders);
   std::vector<Input> inputs;
   try {
     inputs = read_inputs(a);
@@ -291,13 +335,17 @@ CommandRegistration compare_scattering_registration{"compare-scattering", [](CLI
       "compare-scattering",
       "Compare two or three scattering results (scatter EXR files: explicit surface, Smith walk, analytic single "
       "scattering) order by order: total-variation distance of the shapes, albedo difference with its error, and the "
-      "weighted chi-square homogeneity test (Gagunashvili 2010). Exit 0 passed, 1 rejected, 2 bad input or too little "
-      "data (nothing written).");
-  sub->add_option("files", args->files, "scatter EXR files (2 or 3; 1 or 2 with --analytic)")->required();
+      "weighted chi-square homogeneity test (Gagunashvili 2010). Two or three traced histograms of `microsim trace vndf` "
+      "(two assemblies of one NDF, say) are compared binning by binning the same way (the fraction of rays that hit in "
+      "place of the albedo). Exit 0 passed, 1 rejected, 2 bad input or too little data (nothing written).");
+  sub->add_option("files", args->files,
+                  "scatter EXR files (2 or 3; 1 or 2 with --analytic), or 2 or 3 traced histograms (trace vndf --out)")
+      ->required();
   sub->add_flag("--analytic", args->analytic,
                 "add the analytic single scattering of the first file's configuration (its notes: ndf, alpha, theta, "
                 "phi, material)");
-  sub->add_option("--orders", args->orders, "orders to compare: a list of 1, 2, 3, 4, 5+, total")->capture_default_str();
+  sub->add_option("--orders", args->orders, "scatter files: orders to compare, a list of 1, 2, 3, 4, 5+, total")
+      ->default_str("1,2,3,4,5+,total");
   add_number_option(sub, "--level", args->level, real(), "family-wise significance level of the verdict")->default_str("0.01");
   add_number_option(sub, "--threads", args->threads, integer(0, kMaxThreads),
                     at_most("threads of the --analytic cubature (0: all cores)", kMaxThreads))

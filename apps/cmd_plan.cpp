@@ -53,7 +53,7 @@ CommandRegistration plan_registration{"plan", [](CLI::App& app) {
   auto args = std::make_shared<PlanArgs>();
   auto* sub = app.add_subcommand(
       "plan",
-      "The plan of an experiment spec (TOML, or JSON; docs/experiments.md): per measurement the cheapest sufficient "
+      "The plan of an experiment spec (TOML, or JSON; docs/reference/experiments.md): per measurement the cheapest sufficient "
       "model and its reason, the walk's order cap, the ray or path count from a short pilot's variance and the "
       "predicted time. Runs only the pilots. Exit 0 planned, 2 bad spec (key and line named), 130 interrupted.");
   sub->add_option("SPEC", args->spec, "the experiment spec (.toml, or .json)")->required();

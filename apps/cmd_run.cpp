@@ -176,7 +176,7 @@ int run_experiment_command(const RunArgs& a, experiment::Ranks& ranks, bool& pla
   return code;
 }
 
-// ---- under an MPI launcher (apps/mpi_ranks.h; docs/cluster.md) ----------------------------------------------
+// ---- under an MPI launcher (apps/mpi_ranks.h; docs/guide/experiments-and-clusters.md) ----------------------------------------------
 
 // Rank 0: the run; an error before the plan went out stops the other ranks with its exit code, after it
 // aborts the job (MPI_Abort with the code: the other ranks may be inside a round).
@@ -212,7 +212,7 @@ int refuse_without_mpi(const LaunchedRank& launched) {
     fmt::print(stderr,
                "microsim: error: run: started by an MPI launcher ({}={}) but MPI is not compiled in (CMake found no MPI, "
                "or MICROSIM_MPI=OFF): refusing to run the whole experiment in every process; run it without mpirun, "
-               "or split it with --shard K/N (docs/cluster.md)\n",
+               "or split it with --shard K/N (docs/guide/experiments-and-clusters.md)\n",
                launched.variable, launched.rank);
   return kExitUsage;
 }
@@ -271,7 +271,7 @@ CommandRegistration run_registration{"run", [](CLI::App& app) {
   auto args = std::make_shared<RunArgs>();
   auto* sub = app.add_subcommand(
       "run",
-      "Carry out an experiment spec (docs/experiments.md): plan it (pilots), then run each measurement in rounds "
+      "Carry out an experiment spec (docs/reference/experiments.md): plan it (pilots), then run each measurement in rounds "
       "until its target accuracy is met, and write DIR/results.json (decisions, reasons, achieved accuracy, cost, "
       "command, version), the report DIR/index.html, DIR/albedo-K.csv, DIR/vndf-K.exr, DIR/scattering-K.exr and "
       "DIR/validation-K.exr. Run again with the same seed, it resumes an interrupted run. Runs albedo (analytic, "
@@ -285,13 +285,13 @@ CommandRegistration run_registration{"run", [](CLI::App& app) {
           std::string(mpi_compiled_in()
                           ? "MPI is compiled in: under mpirun or srun every VNDF and scattering round and every "
                             "validation of a zoo sampler is split over the "
-                            "ranks, bit for bit the one-process results (docs/cluster.md)."
-                          : "MPI is not compiled in: a run under mpirun or srun is refused (docs/cluster.md)."));
+                            "ranks, bit for bit the one-process results (docs/guide/experiments-and-clusters.md)."
+                          : "MPI is not compiled in: a run under mpirun or srun is refused (docs/guide/experiments-and-clusters.md)."));
   sub->add_option("SPEC", args->spec, "the experiment spec (.toml, or .json)")->required();
   sub->add_option("--out", args->out, "the results directory (created; empty, or holding this spec's run at this seed: resumed)")->required();
   sub->add_option("--shard", args->shard,
                   "K/N: run block shard K of N of the first round of every VNDF and scattering measurement (a job "
-                  "array without MPI) into --out PART (new or empty); then --merge (docs/cluster.md)");
+                  "array without MPI) into --out PART (new or empty); then --merge (docs/guide/experiments-and-clusters.md)");
   sub->add_option("--merge", args->merge,
                   "PART...: the N shard directories of one job: their first rounds combined (bit for bit the "
                   "one-process rounds), the sequential stop decided on them, further rounds and the other "

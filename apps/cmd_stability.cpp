@@ -1,6 +1,6 @@
 // microsim stability: the numerical-stability sweep of the sampler zoo and the analytic functions at the
 // extremes (alpha, anisotropy, grazing and below-horizon views, u at the ends of [0, 1), non-finite
-// input). Prints a markdown table on stdout (docs/stability.md quotes it); exit 0 when every row is
+// input). Prints a markdown table on stdout (docs/records/stability.md quotes it); exit 0 when every row is
 // within its bound, 1 when some row exceeds it, 2 on bad usage, 130 interrupted (nothing written). With
 // --shard K/N only blocks K of N of the sweep (its views, then the non-finite inputs) are swept and --json
 // holds the part that `microsim merge` joins with the others into the whole sweep.
@@ -83,7 +83,7 @@ ma::CommandRegistration stability_registration{"stability", [](CLI::App& app) {
       "Numerical stability at the extremes: every sampler (float and double) and every analytic Smith-GGX "
       "function over alpha 1e-4..10, anisotropy 1:1000, theta 0..180 deg (exactly 90 and below the horizon), "
       "u at the ends of [0,1) and non-finite input. Prints the worst-case table (markdown) on stdout; exit 0 "
-      "when every row is within its stated bound (docs/stability.md), 1 otherwise (--shard: 0 when the part is "
+      "when every row is within its stated bound (docs/reference/stability.md), 1 otherwise (--shard: 0 when the part is "
       "written).");
   sub->add_option("--json", opts->json_path, "also write the table (with worst configurations and bounds) as JSON");
   ma::add_number_option(sub, "--random-u", opts->random_u, ma::integer(0, 1000000),

@@ -87,7 +87,7 @@ void stage_json(StagedOutputs& outputs, const std::string& path, const nlohmann:
 using microsim::app::interrupted_nothing_written;
 
 // ---- option parsing -----------------------------------------------------------------------------------
-// "AX" or "AX,AY" in the supported range (microsim/parse.h); the assembly's own range is checked after.
+// "AX" or "AX,AY" in the supported range (src/core/parse.h); the assembly's own range is checked after.
 std::pair<double, double> surface_alpha(const std::string& text) {
   try {
     return microsim::parse_alpha("--alpha", text);
@@ -567,7 +567,7 @@ void add_build_command(CLI::App* group) {
       "(an error if it misses the stated tolerance) and write it as an EXR heightmap.");
   build->footer("Assemblies (all reproducible from --seed, isotropic or anisotropic):" + assembly_help() +
                 "\nAnisotropy stretches the spectra: the surface is the affine image of an isotropic one."
-                "\nSupported range (where a build meets its NDF check; docs/surfaces.md): N >= 256 for the GGX "
+                "\nSupported range (where a build meets its NDF check; docs/reference/surfaces.md): N >= 256 for the GGX "
                 "assemblies (beckmann: N >= 16), max/min alpha <= 4, --corr-cells in [min(8, max(N >= 256 ? 4 : 2, "
                 "N/128)), N/16] (beckmann: up to N/8); outside it the build is refused (exit 2) unless --unsupported.");
   build->add_option("--assembly", b->assembly,
@@ -588,7 +588,7 @@ void add_build_command(CLI::App* group) {
                     "slope-matching iterations, 0..100 (default 8)");
   build->add_option("--ndf-match", b->ndf_match,
                     "radial (default: slope radii rank-matched, angles kept) or joint (the (radius, angle) law "
-                    "matched, then the lobe bins of trace vndf refined; docs/surfaces.md section 8)");
+                    "matched, then the lobe bins of trace vndf refined; docs/reference/surfaces.md section 8)");
   build->add_option("--out", b->out, "heightmap EXR (channel 'height', attributes microsim.*)")->required();
   build->add_option("--mesh", b->mesh, "also write the mesh (.ply or .obj) through OpenMesh");
   add_number_option(build, "--mesh-crop", b->mesh_crop, ma::integer(0, std::numeric_limits<int>::max()),

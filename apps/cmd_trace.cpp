@@ -1,6 +1,6 @@
 // microsim trace vndf: the exact VNDF oracle. Traces a parallel beam onto the GGX ellipsoid (exact
 // quadric, or the mesh of a tessellation level), histograms the first-hit normals in the validator's
-// sphere and lobe bins, writes the histogram as an EXR (src/microsim/histogram_io.h) and reports the
+// sphere and lobe bins, writes the histogram as an EXR (src/stats/histogram_io.h) and reports the
 // distance to the analytic D_v (total variation and chi-square goodness of fit).
 //
 // Exit codes: 0 done (the fit is reported, not judged: a coarse mesh is expected to be biased),

@@ -283,7 +283,7 @@ void add_surface_options(CLI::App* sub, MaskingArgs& a) {
 
 // The options of the table (--table).
 void add_table_options(CLI::App* sub, MaskingArgs& a) {
-  sub->add_flag("--table", a.table, "build the assemblies and print the masking table (docs/masking.md)");
+  sub->add_flag("--table", a.table, "build the assemblies and print the masking table (docs/reference/masking.md)");
   sub->add_option("--assemblies", a.assemblies, "table: assemblies")->capture_default_str();
   sub->add_option("--alphas", a.alphas, "table: roughnesses")->capture_default_str();
   sub->add_option("--thetas", a.thetas, "table: view angles (deg)")->capture_default_str();
@@ -328,7 +328,7 @@ CommandRegistration trace_masking_registration{"trace masking", [](CLI::App& app
       "(grazing .. facing v), G1(v | h) in height bins, and G2 in the mirror configuration (l = reflect(v, m)) "
       "and for a light --theta-l/--phi-l; every estimate with its standard error, beside Smith's predictions "
       "with the analytic NDF and with the surface's own measured NDF. --vndf-rays also traces the VNDF. "
-      "--table builds the assemblies and prints the masking table of docs/masking.md. Exit 0 done, 1 leak test "
+      "--table builds the assemblies and prints the masking table of docs/records/masking-table.md. Exit 0 done, 1 leak test "
       "failed, 2 bad input, 130 interrupted.");
   add_surface_options(sub, *args);
   add_table_options(sub, *args);

@@ -3,7 +3,7 @@
 // rendered by validate_report.h (shared with `microsim merge`). With --shard K/N only block range K of N of
 // every validation's samples is drawn and --json holds the partial result (measure/validation.h).
 // Exit codes: 0 pass (a shard: written), 1 rejected, 2 bad usage or bad input, 130 interrupted.
-// See docs/validation.md.
+// See docs/reference/validator.md.
 #include "command.h"
 #include "number_options.h"
 #include "microfacet/roughness.h"
@@ -306,28 +306,28 @@ void check_shard(const Args& a) {
 // --from FILE against the density it claims (dump_validation.h), light from inside a dielectric as its mirror
 // image; the report keeps the view as given.
 microsim::ValidationReport validate_file(const Args& a, const microsim::GGX<double>& ggx, const microsim::Vec3<double>& view,
-                                         microsim::ValidationOptions o) {
+                                         const microsim::ValidationOptions& o) {
   using namespace microsim;
   DirectionSampleReader samples = open_samples_or_usage_error(a);
-  ViewFromOutside v;
+  const DumpClaims claims{file_pdf(a), bsdf_of(a), a.above_horizon};
   try {
-    v = seen_from_outside(view, bsdf_of(a));
+    (void)seen_from_outside(view, claims.bsdf);
   } catch (const std::invalid_argument& e) {
     throw UsageError(fmt::format("--theta {:g}: {}", *a.theta, e.what()));
   }
-  samples.set_mirrored(v.mirrored);
-  if (o.bsdf) o.bsdf = v.bsdf;
-  std::shared_ptr<const ReferenceDistribution> reference;
-  try {
-    reference = dump_reference({file_pdf(a), v.bsdf, a.above_horizon}, ggx, v.wi, o.rows);
-  } catch (const std::invalid_argument& e) {
-    throw UsageError(fmt::format("--above-horizon: {}", e.what()));
-  }
   // A frame given explicitly is not second-guessed.
-  ValidationReport report =
-      usage_errors_of([&] { return validate_dump(samples, reference, ggx, v.wi, o, a.frame.empty()); }, a.from);
+  ValidationReport report = usage_errors_of(
+      [&] {
+        try {
+          return validate_dump_as_given(samples, claims, ggx, view, o, a.frame.empty());
+        } catch (const InsufficientData&) {
+          throw;
+        } catch (const std::invalid_argument& e) {  // the claims' reference (dump_reference)
+          throw UsageError(fmt::format("--above-horizon: {}", e.what()));
+        }
+      },
+      a.from);
   report.sampler = a.from;
-  report.wi = view;
   return report;
 }
 
@@ -517,7 +517,7 @@ microsim::app::CommandRegistration validate_registration{"validate", [](CLI::App
                     "dielectric's refractions above it; tested against the fraction the pdf loses)");
   sub->add_flag("--all", args->all, "validate the whole zoo over the standard grid (Sidak-corrected over the batch)");
   sub->add_option("--alpha", args->alpha,
-                  "roughness AX or AX,AY, each in [1e-4, 10], anisotropy at most 1:1000 (docs/conventions.md)");
+                  "roughness AX or AX,AY, each in [1e-4, 10], anisotropy at most 1:1000 (docs/reference/conventions.md)");
   using microsim::app::add_number_option;
   add_number_option(sub, "--theta", args->theta, microsim::app::real(), "view zenith angle in degrees, [0, 90); with --from and --bsdf dielectric also (90, 180): light from "
                     "inside the dielectric (the view below the surface)");

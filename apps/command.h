@@ -68,7 +68,7 @@ struct UsageError : std::runtime_error {
 };
 
 // Called by every command before any work: refuses (UsageError, exit 2, nothing written) an output that is
-// the same file as an input or as another output (microsim/output_paths.h). Empty paths are not given.
+// the same file as an input or as another output (src/core/output_paths.h). Empty paths are not given.
 void check_distinct_outputs(const std::vector<microsim::PathOption>& inputs,
                             const std::vector<microsim::PathOption>& outputs);
 

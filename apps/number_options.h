@@ -1,4 +1,4 @@
-// microsim: numeric command-line options, all read by the one number parser (src/microsim/parse.h).
+// microsim: numeric command-line options, all read by the one number parser (src/core/parse.h).
 //
 // CLI11 never converts a number itself (it clamps or wraps some out-of-range integers): each numeric
 // option is bound to its text, and a callback parses that text when the command line is read and stores

@@ -1,9 +1,9 @@
-// Benchmarks of the periodic heightfield tracer (src/microsim/heightfield_trace.h): scene build time and
+// Benchmarks of the periodic heightfield tracer (src/trace/heightfield_trace.h): scene build time and
 // Embree memory per texel, primary (VNDF) rays and shadow rays per second for both Embree geometry kinds,
 // and the raw rtcIntersect1 rate on the same scene and rays (one unclipped call per ray, no wrapping):
 // the cost of the periodic segment loop. Surfaces: the `smith` assembly, alpha 0.5, seed 1, default
 // correlation length, built once per resolution (build time is measured separately by
-// `microsim surface build`, see docs/heightfield-trade.md). Single-threaded loops: the rates are per core.
+// `microsim surface build`, see docs/records/heightfield-trade.md). Single-threaded loops: the rates are per core.
 //
 // The whole `trace vndf` pipeline on a 1024^2 heightfield against raw rtcIntersect1 (the same segments)
 // is in bench_trace (BM_HeightfieldPipeline, BM_HeightfieldRaw), beside the quadric's.

@@ -7,11 +7,11 @@
 // Configurations: "iso" = alpha 0.3, theta 60, phi 30 (the example); "grazing" = alpha
 // (0.05, 0.5), theta 85, phi 30. A reference row, naive-heitz2018, evaluates Heitz 2018 the textbook way
 // (cos/sin of 2 pi u, sqrt(1 - p1^2 - p2^2)): it is not in the zoo; it shows what the numerically careful
-// formulation of docs/stability.md costs.
+// formulation of docs/reference/stability.md costs.
 //
 // After the benchmarks a markdown table is printed (CPU time per sample, which on a shared machine is
 // steadier than wall-clock time; the best of --benchmark_repetitions; ratios within one run).
-// docs/benchmarks.md quotes it.
+// docs/records/benchmarks.md quotes it.
 //   build-*/bench_samplers --benchmark_min_time=0.2 --benchmark_repetitions=3
 #include "core/random.h"
 #include "microfacet/samplers.h"

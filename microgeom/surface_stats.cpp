@@ -36,7 +36,7 @@ NdfTolerance tolerance_for(ReferenceNdf ref, int resolution, double corr_cells) 
   // fraction p fluctuates with relative sd ~ sqrt((1 - p) / (p n_eff)) even when the ensemble law is exact.
   // The GGX assemblies force the radius law on every tile (slope matching), so only the angular bins carry
   // this noise; the Beckmann control forces nothing but the second moment, so all its bounds carry it.
-  // The constants are calibrated over seeds and resolutions (docs/surfaces.md, section 3): 2-3.3 x the
+  // The constants are calibrated over seeds and resolutions (docs/reference/surfaces.md, section 3): 2-3.3 x the
   // largest ratio error / sqrt(1/(p n_eff)) observed.
   NdfTolerance t;
   const double n_eff = effective_patches(resolution, corr_cells);

@@ -1,5 +1,5 @@
 #!/bin/bash
-# The energy-compensation tables of docs/scattering.md ("Energy-compensation tables"), written to
+# The energy-compensation tables of docs/guide/scattering-and-energy-tables.md ("Energy-compensation tables"), written to
 # docs/data/albedo-*.{exr,csv}: GGX, alphas 0.1 0.25 0.5 0.75 1, 16 Gauss-Legendre mus; the mirror from the
 # analytic single scattering, the Smith random walk (4e6 paths per cell) and the explicit smith surface
 # (1024^2, 1e6 paths per cell); the dielectric of eta 1.5 from outside and from inside, analytic and walk

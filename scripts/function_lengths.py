@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""microsim: the length of every C++ function definition (issue 9: "functions at most about 80 lines").
+"""microsim: the length of every C++ function definition (the project rule: functions at most about 80 lines).
 
 Finds the function definitions (free functions, methods defined in or out of their class, constructors,
 destructors, operators, and lambdas bound to a name at namespace or class scope) in the .cpp and .h files

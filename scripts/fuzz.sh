@@ -1,5 +1,5 @@
 #!/bin/bash
-# microsim: the fuzzing gate (docs/reliability.md). Configures and builds the libFuzzer targets of
+# microsim: the fuzzing gate (docs/records/reliability.md). Configures and builds the libFuzzer targets of
 # tests/fuzz with clang (ASan + UBSan, build folder build-fuzz), then runs each for SECONDS seconds from its
 # seed corpus in tests/fuzz/corpus/<target> (new inputs go to a scratch corpus, the repository is not
 # touched), MICROSIM_FUZZ_JOBS (default 2) at a time, and prints executions per target. Exit 1 on any

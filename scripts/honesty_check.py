@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""The planner's honesty check (issue 12): does a run at FACTOR times the planned cost move the results by more
+"""The planner's honesty check: does a run at FACTOR times the planned cost move the results by more
 than the stated target?
 
   scripts/honesty_check.py SPEC --planned DIR --out DIR4 [--factor 4] [--seed S] [--binary B] [--json OUT]

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""microsim: the hostile-input battery of docs/reliability.md.
+"""microsim: the hostile-input battery of docs/records/reliability.md.
 
 Runs the `microsim` binary on several hundred bad inputs (every numeric flag of every command, broken
 .npy/text sample files, broken heightmap and histogram EXRs, output paths that collide with inputs or
@@ -103,7 +103,7 @@ def set_data_window(w, h):
     return edit
 
 
-# Bad experiment specs (docs/experiments.md): name -> (TOML text, the key the message must name). Each is
+# Bad experiment specs (docs/reference/experiments.md): name -> (TOML text, the key the message must name). Each is
 # tried with `plan` and `run --out out` (nothing may be run or created).
 SPEC_MATERIAL = '[[material]]\nname = "m"\nalpha = 0.3\ntype = "mirror"\n'
 SPEC_VNDF = '[[quantity]]\nkind = "vndf"\nmaterial = "m"\ntheta = [30]\ntarget_tv = 0.05\n'
@@ -144,7 +144,7 @@ def make_fixtures(binary, fixtures):
     w = lambda name, data: open(os.path.join(fixtures, name), "wb").write(data)
     write_spec_fixtures(w)
     # A finished experiment run (seed 1) and a run directory whose results.json is broken: a rerun resumes
-    # only the same spec at the same seed (docs/experiments.md).
+    # only the same spec at the same seed (docs/reference/experiments.md).
     w("run_spec.toml", (SPEC_MATERIAL + '[[quantity]]\nkind = "albedo"\nmaterial = "m"\nmus = 2\n'
                         'target_relative_error = 0.01\n').encode())
     run("run", "run_spec.toml", "--out", "run_done", "--seed", "1")
@@ -448,7 +448,7 @@ USAGE = [
     ("scatter --model walk --alpha 0.3 --theta 30 --out o.exr", "walk"),
     ("scatter --alpha 0.3 --theta 30 --out o.exr", "--model"),
     ("compare-scattering hist.exr", "hist.exr"),
-    # an experiment in the shards of a job array (docs/cluster.md): bad K/N, a merge of what is not a shard
+    # an experiment in the shards of a job array (docs/guide/experiments-and-clusters.md): bad K/N, a merge of what is not a shard
     ("run run_spec.toml --out p --shard 0/2", "--shard"),
     ("run run_spec.toml --out p --shard 3/2", "--shard"),
     ("run run_spec.toml --out p --shard 1/0", "--shard"),

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# microsim: regenerates the measurements of docs/heightfield-trade.md (the speed/accuracy trade of the
-# heightfield surface) and the masking table of docs/masking.md. Every number comes from the CLI:
+# microsim: regenerates the measurements of docs/records/heightfield-trade.md (the speed/accuracy trade of the
+# heightfield surface) and the masking table of docs/records/masking-table.md. Every number comes from the CLI:
 #   microsim trace masking --table   (builds the surfaces in memory, traces VNDF and masking per view)
 #   microsim surface build           (build time and peak RSS per resolution)
 #   microsim trace masking --surface (tracing a stored 4096^2 tile: peak RSS, rays per second)
@@ -21,11 +21,11 @@ trade() {  # name res corr
     --samples 1000000 --vndf-rays 2000000 --markdown "$out/$1.md" --json "$out/$1.json" > /dev/null 2> "$out/$1.log"
 }
 
-# The masking table (docs/masking.md): 5 assemblies x alpha {0.1, 0.5, 1} x theta {30, 60, 75, 85}, three
+# The masking table (docs/reference/masking.md): 5 assemblies x alpha {0.1, 0.5, 1} x theta {30, 60, 75, 85}, three
 # realisations (seeds 1, 2, 3) per cell, 5e5 surface points and 1e6 VNDF rays per view and realisation.
 has table && tm "$B" trace masking --table --res 1024 --seeds 1,2,3 --samples 500000 --vndf-rays 1000000 \
   --markdown "$out/table-1024-seeds123.md" --json "$out/table-1024-seeds123.json" > /dev/null 2> "$out/table-1024-seeds123.log"
-# The same for `smith` with the NDF matched bin by bin (docs/masking.md 6.3, `--ndf-match joint`).
+# The same for `smith` with the NDF matched bin by bin (docs/records/masking-table.md 6.3, `--ndf-match joint`).
 has joint && tm "$B" trace masking --table --assemblies smith --ndf-match joint --res 1024 --seeds 1,2,3 --samples 500000 \
   --vndf-rays 1000000 --markdown "$out/table-joint-1024-seeds123.md" --json "$out/table-joint-1024-seeds123.json" \
   > /dev/null 2> "$out/table-joint-1024-seeds123.log"
@@ -57,7 +57,7 @@ if has big; then
       --geometry "$g" --json "$out/big-4096-$g.json" > "$out/big-4096-$g.txt" 2> "$out/big-4096-$g.log"
   done
 fi
-# Back-facing first hits (convex-edge grazes, docs/heightfield-trade.md section 1): the VNDF diagnostics of
+# Back-facing first hits (convex-edge grazes, docs/records/heightfield-trade.md section 1): the VNDF diagnostics of
 # `trace vndf --surface` (back-facing hits left, grazes passed over) at the steepest views.
 if has backface; then
   "$B" surface build --assembly smith --alpha 1 --res 1024 --seed 1 --out "$out/smith-a1-1024.exr" > /dev/null 2>&1

@@ -34,7 +34,7 @@ cmake --build "$build" -j"$(nproc)"
 # detect_leaks stays on (the default); UBSan prints a stack for each report. Stack use after return (fake
 # stack frames for every call; off by default in GCC's ASan) made the gate's tests about 1.5 times slower
 # (SmithWalkEval.MatchesTheBinnedWalkPerOrderAndInTotal 16.9 s with it, 11.7 s without): CI leaves it off
-# to stay in its time budget; MICROSIM_SANITIZE_STACK_AFTER_RETURN=1 turns it on (docs/reliability.md:
+# to stay in its time budget; MICROSIM_SANITIZE_STACK_AFTER_RETURN=1 turns it on (docs/records/reliability.md:
 # the whole gate passed with it on 2026-12-03).
 after_return=0
 [[ "${MICROSIM_SANITIZE_STACK_AFTER_RETURN:-0}" == 1 ]] && after_return=1

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""microsim: the measured scattering table of docs/scattering.md (issue 10).
+"""microsim: the measured scattering table of docs/records/scattering.md.
 
 For every configuration (assembly, alpha, theta, material) it runs, with the microsim command line:
   - `scatter --surface`: every bounce traced on an explicit heightfield of the assembly;
@@ -10,7 +10,7 @@ and writes one Markdown table (albedo per order, explicit vs walk, TV per order,
 scattering loses and each model recovers) plus a CSV with every number and its standard error.
 
 Run from the repository (after scripts/setup.sh):
-  /usr/bin/python3 scripts/scattering_table.py [--rays N] [--res N] [--quick] [--out docs/scattering-table.md]
+  /usr/bin/python3 scripts/scattering_table.py [--rays N] [--res N] [--quick] [--out docs/records/scattering-table.md]
 Surfaces and runs go to a work folder (default build/scattering-table), reused when a file is already there
 for the same parameters (the file names carry them).
 """
@@ -154,7 +154,10 @@ def table(head, rows, cells):
 
 def markdown(rows, args, seconds):
     key = ["assembly", "alpha", "theta", "material"]
-    lines = ["Albedo per bounce order (E1, E2, orders 3 and up) and in total, explicit surface against the Smith walk, "
+    lines = ["# The measured scattering table", "",
+             f"_Recorded {time.strftime('%Y-%m-%d')}. Regenerate: `/usr/bin/python3 scripts/scattering_table.py` "
+             "(writes this page and docs/data/scattering-table.csv)._", "",
+             "Albedo per bounce order (E1, E2, orders 3 and up) and in total, explicit surface against the Smith walk, "
              "beside the analytic single scattering:", ""]
     lines += table(key + ["E1 analytic", "E1 explicit", "E1 walk", "E2 explicit", "E2 walk", "E3+ explicit", "E3+ walk",
                           "E explicit", "E walk"], rows,
@@ -197,7 +200,7 @@ def main():
     p.add_argument("--res", type=int, default=1024)
     p.add_argument("--rows", type=int, default=8)
     p.add_argument("--work", default="build/scattering-table")
-    p.add_argument("--out", default="docs/scattering-table.md")
+    p.add_argument("--out", default="docs/records/scattering-table.md")
     p.add_argument("--csv", default="docs/data/scattering-table.csv")
     p.add_argument("--quick", action="store_true", help="a few configurations only (a smoke run)")
     args = p.parse_args()

@@ -16,7 +16,7 @@ packages=(
   clang libclang-rt-14-dev   # the fuzzing gate (scripts/fuzz.sh): libFuzzer
   python3-numpy              # scripts/hostile_inputs.py (/usr/bin/python3)
   chromium                   # the experiment report's real-browser test (tests/test_report_browser_cli.cpp)
-  libopenmpi-dev openmpi-bin # MPI (optional in CMake): `mpirun -n P microsim run` (docs/cluster.md)
+  libopenmpi-dev openmpi-bin # MPI (optional in CMake): `mpirun -n P microsim run` (docs/guide/experiments-and-clusters.md)
   pybind11-dev python3-pybind11 python3-dev python3-pytest   # the Python module (src/python) and its tests
 )
 

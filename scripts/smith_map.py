@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Where Smith holds (issue 14): for each assembly (and NDF matching), roughness alpha and view angle
+"""Where Smith holds: for each assembly (and NDF matching), roughness alpha and view angle
 theta, the number of rays at which a traced VNDF becomes distinguishable from Smith's VNDF, with the
 surface's own NDF and with the analytic NDF.
 
@@ -121,7 +121,7 @@ def fmt_rays(r):
 
 
 def markdown(cells, alphas, thetas):
-    """One table (as in docs/surfaces.md 8.3): a row per (assembly, match, alpha), a column per theta,
+    """One table (as in docs/records/surfaces.md 8.3): a row per (assembly, match, alpha), a column per theta,
     each cell 'own NDF / analytic NDF', '-' where not measured."""
     keys = sorted({(c["assembly"], c["match"]) for c in cells}, key=lambda k: (k[0], k[1] != "radial", k[1]))
     lines = ["| assembly, match | alpha | " + " | ".join(f"theta {t:g}" for t in thetas) + " |",

@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """Why `validate --against HIST.exr` rejects a correct sampler in the sphere bins of a traced heightfield
-(issue 14, docs/surfaces.md 8.1): per row of the sphere binning, the tile's triangles against GGX's
+(docs/records/surfaces.md 8.1): per row of the sphere binning, the tile's triangles against GGX's
 expected count, the own-NDF Smith VNDF mass against the analytic one (the NDF part) and the traced mass
 against the own-NDF one (the masking part); then a Monte Carlo of validate's two-sample sphere-bin test
 (the statistic and pooling rule of src/stats/chi2.cpp, two_sample_homogeneity) with the sampler drawn from

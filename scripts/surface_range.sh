@@ -3,7 +3,7 @@
 # (and a few anisotropic pairs) over a few seeds, built with --unsupported (the supported-range rule is
 # bypassed so that the measurement covers the whole documented grid) and judged by the build's exit code
 # (0: the NDF check passed; 2 with "misses its ... NDF": it failed). Prints one TSV line per build on
-# stdout and the pass/fail table (markdown) at the end; docs/surfaces.md, "Supported range", is its output.
+# stdout and the pass/fail table (markdown) at the end; docs/reference/surfaces.md, "Supported range", is its output.
 #
 #   scripts/surface_range.sh [BINARY]            (default build/microsim)
 #   ASSEMBLIES="smith beckmann" RESOLUTIONS="16 32" ALPHAS="0.5" SEEDS="1 2 3" scripts/surface_range.sh

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""The power of an experiment's planned validation, measured (docs/experiments.md, "Power of a validation").
+"""The power of an experiment's planned validation, measured (docs/records/experiments.md, "Its power, measured").
 
 The planner (src/experiment/plan.h, validation_samples) asks for N = lambda / (4 d^2) samples so that ANY
 deviation of total variation d in a binning is detected with the asked power: a deviation q of a

@@ -131,7 +131,7 @@ inline std::map<std::string, std::string> snapshot_files(const fs::path& dir) {
   return files;
 }
 
-// One row of a bad-input table (issue 8): the command's arguments, the exit code it must give and a piece
+// One row of a bad-input table: the command's arguments, the exit code it must give and a piece
 // of text its stderr must contain (the bad value, named). The command runs in a scratch directory that
 // `prepare` fills with the inputs it needs; afterwards no file there may have been created or changed.
 struct BadInputCase {

@@ -1,5 +1,5 @@
 // `microsim albedo` end to end: a small table of each model is written (EXR, CSV, JSON) and agrees with the
-// library; the bad-input table (issue 10): each case exits 2 naming the bad value and writes nothing.
+// library; the bad-input table: each case exits 2 naming the bad value and writes nothing.
 #include "cli_helpers.h"
 
 #include "microgeom/exr_io.h"

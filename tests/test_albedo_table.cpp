@@ -117,7 +117,7 @@ TEST(AlbedoAnalytic, BeckmannMatchesTheBinnedCubatureAndIsNotGgx) {
 }
 
 // The error estimate is realistic: a loose tolerance's result is within 3 times its stated error of a tight
-// one (the estimate is Kronrod - Gauss, not a bound: docs/scattering.md measured it exceeded by at most 2.4 times
+// one (the estimate is Kronrod - Gauss, not a bound: docs/records/scattering.md measured it exceeded by at most 2.4 times
 // over 177 cells x 2 sides), and a tight run's error is small. Negative control: the loose run's error is not
 // zero, so the comparison can fail.
 TEST(AlbedoAnalytic, ErrorEstimateCoversTheErrorMade) {
@@ -136,7 +136,7 @@ TEST(AlbedoAnalytic, ErrorEstimateCoversTheErrorMade) {
     }
 }
 
-// The calibration behind the figures of albedo_table.h and docs/scattering.md (about 25 s, so disabled:
+// The calibration behind the figures of albedo_table.h and docs/guide/scattering-and-energy-tables.md (about 25 s, so disabled:
 // run with --gtest_also_run_disabled_tests --gtest_filter='*Calibration*'): per tolerance, the error made
 // (against tolerance 1e-12) over the stated error, on GGX, alpha 0.02..1.5, mu 0.03..0.97, mirror and
 // dielectric 1.5 from both sides. Fails when the estimate is exceeded more than 3 times or more than 3 times over.
@@ -287,7 +287,7 @@ TEST(AlbedoWalk, CancelKeepsTheCompleteRowsMarkedPartial) {
 
 // A mirror heightfield reflects everything (what is not lost), and its order 1 is near Smith's (a loose
 // physical bound: the 256^2 tile is one realisation, not the Smith microsurface; its order 1 is measured
-// 0.02-0.04 above Smith's at alpha 0.5, docs/scattering.md).
+// 0.02-0.04 above Smith's at alpha 0.5, docs/guide/scattering-and-energy-tables.md).
 TEST(AlbedoSurface, MirrorFurnaceAndOrderOneNearSmith) {
   AlbedoTableRequest r;
   r.model = AlbedoModel::surface;

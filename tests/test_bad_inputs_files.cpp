@@ -1,4 +1,4 @@
-// Bad-input table (issue 8) for the file readers, end to end: broken histogram EXRs given to `plot` and
+// Bad-input table for the file readers, end to end: broken histogram EXRs given to `plot` and
 // `validate --against`, an EXR whose header claims 46340 x 46340 pixels given to `surface stats`,
 // `trace vndf --surface` and `trace masking --surface`, heightmap attributes that are not numbers, an .npy
 // header without its newline, a text file with a 10 MB token or binary bytes to `validate --from`. Each

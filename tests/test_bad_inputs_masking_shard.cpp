@@ -1,4 +1,4 @@
-// Bad-input table (issue 8 rules) for `trace masking --shard K/N` and the merge of masking parts: a shard
+// Bad-input table for `trace masking --shard K/N` and the merge of masking parts: a shard
 // with --vndf-rays or --table (the alternative, trace vndf --surface S --shard K/N, is named), without
 // --json, or malformed; a masking part whose provenance or exact sums are damaged. Each must exit 2 naming
 // the bad value, and write nothing.

@@ -1,7 +1,7 @@
-// Issue 8, the numbers given on the command line (defects 2, 3, 5, 6): every numeric option of every
+// The numbers given on the command line: every numeric option of every
 // command that takes numbers (validate, trace vndf, trace masking, surface build/stats/import, stability,
 // albedo)
-// goes through the one parser (src/microsim/parse.h). Each row: exit 2, stderr names the bad value (a
+// goes through the one parser (src/core/parse.h). Each row: exit 2, stderr names the bad value (a
 // short, escaped excerpt of it), and no file in the scratch directory is created or changed. `plot`
 // takes no numbers on its command line.
 #include "cli_helpers.h"
@@ -77,7 +77,7 @@ std::vector<BadInputCase> numbers_cases() {
   const auto surface = [](const fs::path& dir) { flat_surface(dir); };
   const std::string max_rays = "an integer in [1, 1000000000000 (1e12)]";
   return {
-      // ---- defect 2: --rows, one bound (kMaxBinningRows = 501) for validate and trace ----
+      // ---- --rows, one bound (kMaxBinningRows = 501) for validate and trace ----
       {"ValidateRows46341", kValidateLine.with("--rows", "46341"), 2, "--rows '46341': too large: an integer in [3, 501]"},
       {"ValidateRows1048577", kValidateLine.with("--rows", "1048577"), 2, "'1048577': too large: an integer in [3, 501]"},
       {"ValidateRows2147483647", kValidateLine.with("--rows", "2147483647"), 2, "'2147483647': too large"},
@@ -91,7 +91,7 @@ std::vector<BadInputCase> numbers_cases() {
       {"TraceRows46341", kTraceLine.with("--rows", "46341"), 2, "--rows '46341': too large: an integer in [1, 501]"},
       {"TraceRowsEven", kTraceLine.with("--rows", "2"), 2, "'2': must be odd"},
       {"TraceHeightfieldRows", kTraceSurfaceLine.with("--rows", "2147483647"), 2, "'2147483647': too large", surface},
-      // ---- defect 3: counts have documented maxima (1e12), no clamping, no hang ----
+      // ---- counts have documented maxima (1e12), no clamping, no hang ----
       {"TraceRaysHuge", kTraceLine.with("--rays", "99999999999999999999"), 2,
        "--rays '99999999999999999999': too large: " + max_rays},
       {"TraceRaysAboveMax", kTraceLine.with("--rays", "1000000000001"), 2, "'1000000000001': too large"},
@@ -110,7 +110,7 @@ std::vector<BadInputCase> numbers_cases() {
       {"MaskingVndfRaysHuge", kMaskingLine.with("--vndf-rays", "1e13"), 2, "--vndf-rays '1e13': too large", surface},
       {"MaskingVndfRaysNegative", kMaskingLine.with("--vndf-rays", "-1"), 2, "--vndf-rays '-1': negative", surface},
       {"TableVndfRaysHuge", kTableLine.with("--vndf-rays", "18446744073709551616"), 2, "'18446744073709551616': too large"},
-      // ---- defect 5: seeds, lists, the supported alpha ----
+      // ---- seeds, lists, the supported alpha ----
       {"ValidateSeedMinusOne", kValidateLine.with("--seed", "-1"), 2, "--seed '-1': negative"},
       {"ValidateSeedNegativeZero", kValidateLine.with("--seed", "-0"), 2, "--seed '-0': negative"},
       {"ValidateSeed2To64", kValidateLine.with("--seed", "18446744073709551616"), 2,
@@ -231,7 +231,7 @@ TEST_P(BadNumbers, ExitTwoNamingTheValueNothingWritten) { microsim::test::expect
 INSTANTIATE_TEST_SUITE_P(Cli, BadNumbers, ::testing::ValuesIn(numbers_cases()),
                          [](const ::testing::TestParamInfo<BadInputCase>& info) { return info.param.name; });
 
-// A long token is quoted as a short excerpt with its length (defect 6): a command line takes at most
+// A long token is quoted as a short excerpt with its length: a command line takes at most
 // 128 KiB per argument, so 100000 digits stand for the 10 MB token of the issue (the parser's own test
 // quotes 10 MB).
 TEST(BadNumbersCli, LongTokenIsQuotedAsAShortExcerpt) {
@@ -246,7 +246,7 @@ TEST(BadNumbersCli, LongTokenIsQuotedAsAShortExcerpt) {
   fs::remove_all(dir);
 }
 
-// The maxima are documented where the options are (defect 3): each command's --help states them.
+// The maxima are documented where the options are: each command's --help states them.
 TEST(BadNumbersCli, HelpStatesTheMaxima) {
   const fs::path dir = microsim::test::scratch_dir("bad_numbers", "help");
   struct Help {

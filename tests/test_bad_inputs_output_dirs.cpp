@@ -1,4 +1,4 @@
-// Bad-input table (issue 8 rules): an output that cannot be created (a directory, or in a directory that does
+// Bad-input table: an output that cannot be created (a directory, or in a directory that does
 // not exist) is refused before any work by the one check of core/output_paths.h (check_writable), with the
 // option and the path named, by every command alike: plot and validate had a check of their own that saw
 // only a missing directory, so a validation ran to its end before its --json or --plot failed to be written.

@@ -1,8 +1,8 @@
-// Issue 8, defect 4 (data loss): an output that is the same file as an input, or two outputs of one command
+// Data loss: an output that is the same file as an input, or two outputs of one command
 // on the same file, are refused before any work (exit 2, both options and the path named, nothing
 // written, the input unchanged). "The same file" by filesystem identity: the same spelling, another
 // spelling (./sub/../in.txt, an absolute path), a hard link, a symbolic link. Plus the same-file rules
-// themselves (microsim/output_paths.h) and the atomic writer's temporaries (microgeom/atomic_file.h).
+// themselves (src/core/output_paths.h) and the atomic writer's temporaries (microgeom/atomic_file.h).
 #include "cli_helpers.h"
 
 #include "microgeom/assembly.h"

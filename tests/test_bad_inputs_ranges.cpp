@@ -1,4 +1,4 @@
-// Issue 8, defects 9 and 10: the supported ranges of the surface builder and of the traced quadric.
+// The supported ranges of the surface builder and of the traced quadric.
 // Outside them the command refuses before any work (exit 2, the message names the bad value and what
 // would work, nothing written); at their edges it works (the build meets its own NDF check).
 #include "cli_helpers.h"
@@ -17,14 +17,14 @@ using microsim::test::BadInputCase;
 
 std::vector<BadInputCase> range_cases() {
   std::vector<BadInputCase> cases;
-  // Too few texels for the GGX assemblies' fixed 3% bounds (defect 10: --res 64 failed its own check).
+  // Too few texels for the GGX assemblies' fixed 3% bounds (--res 64 failed its own check).
   for (const char* a : {"smith", "mixture", "sorted", "spikes"})
     for (int n : {16, 64, 128})
       cases.push_back({std::string(a) + "_res" + std::to_string(n),
                        "surface build --quiet --assembly " + std::string(a) + " --alpha 0.5 --res " +
                            std::to_string(n) + " --out s.exr --json s.json",
                        2, "resolution " + std::to_string(n) + " cannot meet its NDF check: use resolution >= 256"});
-  // Anisotropy beyond 1:4 (defect 10: alpha 0.005,2 failed for every assembly at 64 and 256); the message
+  // Anisotropy beyond 1:4 (alpha 0.005,2 failed for every assembly at 64 and 256); the message
   // suggests a supported pair keeping the rougher axis.
   for (const char* a : {"smith", "beckmann", "mixture", "sorted", "spikes"}) {
     cases.push_back({std::string(a) + "_alpha_0_005_2", "surface build --assembly " + std::string(a) +

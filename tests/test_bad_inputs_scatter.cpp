@@ -1,4 +1,4 @@
-// Bad-input table (issue 10) for `scatter`, `compare-scattering` and `merge` of scatter parts: an unknown
+// Bad-input table for `scatter`, `compare-scattering` and `merge` of scatter parts: an unknown
 // material, eta <= 0 or not finite, k < 0, an order cap < 1, a file that is not a scatter histogram, and
 // the options' own rules. Each must exit 2 with stderr naming the bad value, and write nothing.
 #include "cli_helpers.h"

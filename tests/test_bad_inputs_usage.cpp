@@ -1,4 +1,4 @@
-// Bad-input table (issue 8): usage mistakes that are not numbers, files or output paths. Each must exit 2
+// Bad-input table: usage mistakes that are not numbers, files or output paths. Each must exit 2
 // with a message that names the word at fault, writing nothing.
 #include "cli_helpers.h"
 

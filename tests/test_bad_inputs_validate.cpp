@@ -1,4 +1,4 @@
-// Bad-input table of `microsim validate` (issue 8): too few samples for any test is not a pass (defect
+// Bad-input table of `microsim validate`: too few samples for any test is not a pass (defect
 // 7). Each case must exit 2, say on stderr how many samples were given and that more are needed, and
 // write nothing (no --json, no --plot).
 #include "cli_helpers.h"

@@ -1,4 +1,4 @@
-// Bad-input table (issue 8 rules) for `validate --shard K/N`, `stability --shard K/N` and the merge of their
+// Bad-input table for `validate --shard K/N`, `stability --shard K/N` and the merge of their
 // parts: a shard of what is not drawn (--from) or would be traced whole by every shard (--against
 // ellipsoid), without --json, with --plot or --failures-only, or malformed; a part whose provenance or exact
 // tallies are damaged. Each must exit 2 naming the bad value, and write nothing.

@@ -1,4 +1,4 @@
-// Tests of the Fresnel terms and the single-scattering Smith-GGX BRDFs / BSDF (microsim/bsdf.h):
+// Tests of the Fresnel terms and the single-scattering Smith-GGX BRDFs / BSDF (src/microfacet/bsdf.h):
 // Fresnel against independent textbook evaluations (gold from a standard table), reciprocity from both
 // sides, and energy: exact albedo identities by numerical integration, white-furnace bounds, and a
 // smooth-limit check of the rough dielectric.

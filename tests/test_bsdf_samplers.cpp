@@ -77,7 +77,7 @@ TEST(BsdfSamplers, EachNegativeControlIsRejectedByTheWeightTest) {
   }
 }
 
-// Issue 11: every negative control at every view of the --all grid where its bug has an effect 1e6 samples
+// Every negative control at every view of the --all grid where its bug has an effect 1e6 samples
 // can see (bug_has_effect) is rejected by a weight test (albedo or flux per bin) at 1e6 samples: its p below
 // the Bonferroni share of the validation's level (0.01 over its statistical tests), whatever the directions.
 TEST(BsdfSamplers, EveryNegativeControlIsRejectedByTheWeightTestOnTheWholeAllGrid) {

@@ -1,6 +1,7 @@
 // Tests of `microsim validate` as a user runs it: exit codes 0 (pass) / 1 (rejected) / 2 (bad usage or
 // input), the JSON keys, --from with sample files, and nothing written on bad input.
 #include "cli_helpers.h"
+#include "sample_dumps.h"
 #include "core/random.h"
 #include "validate/sample_io.h"
 #include "microfacet/bsdf_samplers.h"
@@ -297,6 +298,23 @@ TEST(CliValidate, FrameMistakesGetAHintAndYUpDumpsPassWithFrameYUp) {
   }
 }
 
+// A theta given in radians (1.2 for 68.75 deg) is read in degrees: the rejection says what was probably meant;
+// the same dump at its view passes, and a rejection at an ordinary view gets no such hint.
+TEST(CliValidate, AThetaThatLooksLikeRadiansGetsAHint) {
+  const fs::path dir = scratch_dir();
+  const fs::path dump = dir / "vndf.npy";
+  write_npy(dump, samples_of("heitz2018", 0.5, 1.2 * 180 / kPi<double>, 100000), false);
+  const CliRun r = run("--from '" + dump.string() + "' --alpha 0.5 --theta 1.2");
+  EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
+  EXPECT_NE(r.out.find("if 1.2 was meant in radians, give --theta 68.75"), std::string::npos) << r.out;
+  const CliRun ok = run("--from '" + dump.string() + "' --alpha 0.5 --theta 68.7549354");
+  EXPECT_EQ(ok.exit_code, 0) << ok.out << ok.err;
+  EXPECT_EQ(ok.out.find("radians"), std::string::npos) << ok.out;
+  const CliRun other = run("--from '" + dump.string() + "' --alpha 0.5 --theta 40");
+  EXPECT_EQ(other.exit_code, 1) << other.out;
+  EXPECT_EQ(other.out.find("radians"), std::string::npos) << other.out;
+}
+
 // A renderer-style dump with the pdf its sampler returned: --columns x,y,z,pdf turns on the returned-pdf
 // check and the E[weight] test; a pdf 5% too high is rejected by them, though the directions are right.
 TEST(CliValidate, DumpsWithAPdfColumnGetTheReturnedPdfCheck) {
@@ -376,20 +394,7 @@ TEST(CliValidate, DielectricDumpsAreTestedWithPdfBsdf) {
   const GGX<double> ggx(0.3, 0.3);
   const Vec3<double> wi = direction_from_degrees(50.0, 0.0);
   const auto dump = [&](const char* name, const fs::path& path) {
-    const BsdfSamplerInfo* s = find_bsdf_sampler(name);
-    std::ofstream out(path);
-    long long lost = 0;
-    for (int i = 0; i < 50000; ++i) {
-      CounterRng rng(7, std::uint64_t(i));
-      const Vec3<double> u(rng.uniform(), rng.uniform(), rng.uniform());
-      const auto r = s->sample(ggx, std::complex<double>(1.5), wi, u);
-      if (!r) {  // a lost sample (a reflection below the horizon, a refraction back up): renderers emit nothing
-        ++lost;
-        continue;
-      }
-      out << fmt::format("{:.17g} {:.17g} {:.17g} {:.17g} {:.17g}\n", r->wo.x(), r->wo.y(), r->wo.z(), r->pdf, r->weight);
-    }
-    return lost;
+    return microsim::test::write_bsdf_dump(path, name, ggx, std::complex<double>(1.5), wi, 50000);
   };
   const long long lost = dump("dielectric_vndf", dir / "glass.txt");
   ASSERT_GT(lost, 400) << "the view must lose samples for the conditioning to matter";

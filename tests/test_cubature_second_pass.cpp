@@ -1,4 +1,4 @@
-// Issue 8, defect 9, the cubature's share: at alpha 1e-4 seen at 89.99 deg the reflected lobe of
+// The cubature at the edge of the supported range: at alpha 1e-4 seen at 89.99 deg the reflected lobe of
 // bounded2023 is, in sphere coordinates, a wedge ending at wo = -wi (1e-4 long, alpha |wi + wo| wide).
 // The first pass of the sphere-bin cubature missed 2e-5 of its mass near the tip (error estimate 1.5e-3),
 // so the remainder cell expected 20 of 1e6 samples where a correct sampler puts none, and the sphere

@@ -300,7 +300,7 @@ TEST(ExperimentMasking, ConditionalMaskingRunsToItsTargetInRounds) {
   EXPECT_EQ(mk["conditional"]["by_normal"].size(), 4u);
   EXPECT_EQ(mk["conditional"]["by_height"].size(), 4u);
   EXPECT_NEAR(mk["leak_ratio"]["value"].get<double>(), 1.0, 5 * mk["leak_ratio"]["standard_error"].get<double>() + 1e-9);
-  // G1 against Smith with the surface's own NDF: equal in expectation (docs/masking.md section 1).
+  // G1 against Smith with the surface's own NDF: equal in expectation (docs/reference/masking.md section 1).
   EXPECT_LT(std::abs(mk["g1"]["difference_own_ndf"]["value"].get<double>()), 5 * mk["g1"]["standard_error"].get<double>());
   for (const nlohmann::json& b : mk["conditional"]["by_normal"]) EXPECT_LE(b["standard_error"].get<double>(), 0.004);
   // The report shows the values, the conditional tables and their figures against Smith.
@@ -313,7 +313,7 @@ TEST(ExperimentMasking, ConditionalMaskingRunsToItsTargetInRounds) {
 
 // The width rule (masking_surface.h): GGX assemblies get l = N/64 cells in [4, 16]; others the builder's default.
 // Measured: on the default 256^2 tile (64 l) G1 at alpha 0.5, theta 60 is within 0.01 of Smith's analytic
-// value (0.0053 at seed 6, SE 0.001; docs/experiments.md: 0.0002-0.0014 at alpha 0.3 and (0.2, 0.6)), and
+// value (0.0053 at seed 6, SE 0.001; docs/records/experiments.md: 0.0002-0.0014 at alpha 0.3 and (0.2, 0.6)), and
 // the same tile size at the builder's default l = 16 cells (16 l), measured the same way, is at least twice
 // as far (0.0215: its NDF error). Seeds 7 and 8 gave -0.0015 / -0.0001 (64 l) against +0.0077 / +0.0023
 // (16 l): the 16 l tiles sit above Smith by 0.011 on average over the three, the 64 l ones by 0.001.

@@ -4,7 +4,7 @@
 //     to JSON and read back as an interrupted run leaves it, then resumed: the same values as the
 //     uninterrupted run of that seed, bit for bit (timings aside); a resumed run with another plan's counts
 //     differs (negative control: the comparison can fail);
-//   - the honesty check (issue 12): a VNDF at 4x the planned cost, another seed, is within the target TV of
+//   - the honesty check: a VNDF at 4x the planned cost, another seed, is within the target TV of
 //     the planned run; at 1/16 of the planned cost it is not (the check can fail).
 #include "experiment/plan.h"
 #include "experiment/run.h"

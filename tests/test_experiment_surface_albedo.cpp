@@ -1,4 +1,4 @@
-// An albedo table on explicit surfaces in experiments (issue 12; src/experiment/surface_albedo.h):
+// An albedo table on explicit surfaces in experiments (src/experiment/surface_albedo.h):
 //   - the size rule: the target turned into an absolute bias at the table's smallest albedo picks the trade
 //     table's tile (every alpha the same size, 64 correlation lengths wide); a target no tile meets, or a
 //     heightmap (one alpha), is not runnable, says why and builds nothing;

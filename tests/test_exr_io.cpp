@@ -124,7 +124,7 @@ TEST(ExrIo, ReadingGarbageOrMissingFilesThrowsNamingThePath) {
   fs::remove_all(dir);
 }
 
-// Regression (issue 8, defect 1): add_channel returned a reference into a vector that the next
+// Regression: add_channel returned a reference into a vector that the next
 // add_channel reallocated, so every multi-channel writer wrote through freed memory. The reference to the
 // first channel must still name the stored channel after many more are added.
 TEST(ExrIo, AddChannelReferencesSurviveLaterChannels) {

@@ -1,4 +1,4 @@
-// Issue 8, defect 8 (interruption), end to end: Ctrl-C (SIGINT) sent to a running `microsim` mid-run.
+// Interruption, end to end: Ctrl-C (SIGINT) sent to a running `microsim` mid-run.
 // Interrupted is exit 130 everywhere, with what was done written and marked partial (JSON "partial": true,
 // a PARTIAL line in markdown and on stdout), or nothing written and a note on stderr.
 //

@@ -1,4 +1,4 @@
-// Tests of the heightfield estimators (src/microsim/masking.h): the leak test on every assembly up to
+// Tests of the heightfield estimators (src/trace/masking.h): the leak test on every assembly up to
 // 85 degrees (and its negative controls: a tracer that does not wrap, one that self-hits), determinism
 // across thread counts, calibration of the standard errors, exact identities, and the traced VNDF against
 // the empirical-NDF Smith VNDF at normal incidence (where a heightfield masks nothing).

@@ -1,4 +1,4 @@
-// Tests of the z-up frame helpers (microsim/math.h): trig at the poles and the horizon, spherical
+// Tests of the z-up frame helpers (src/core/math.h): trig at the poles and the horizon, spherical
 // round trips, the orthonormal basis (including the n.z -> -1 branch), reflect, and the guards.
 #include "core/math.h"
 

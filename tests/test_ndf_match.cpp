@@ -1,4 +1,4 @@
-// Tests of the joint NDF matching (microgeom/ndf_match.h, issue 14): the lobe bins agree with trace vndf's
+// Tests of the joint NDF matching (microgeom/ndf_match.h): the lobe bins agree with trace vndf's
 // (stats/binning.h), their reference probabilities with the cubature of the analytic VNDF seen from the
 // normal, and a `--ndf-match joint` tile meets the reference law bin by bin far below the noise of as many
 // independent triangles, where the radial construction (the negative control) does not; reproducible
@@ -92,7 +92,7 @@ TEST(NdfMatch, LobeBinProbabilitiesMatchTheCubatureOfTheAnalyticVndf) {
 // radial tile of the same seed (negative control) is above that noise. Both meet the NDF check, and the
 // joint tile keeps the height-slope coupling near the radial one: Spearman(|h|, s) was measured larger by up
 // to 0.067 at N = 256 (smith seed 1: 0.283 against 0.216) and by -0.004..+0.025 at N = 1024 (seeds 1-3), so
-// the bound here is +0.08 (docs/surfaces.md, section 8).
+// the bound here is +0.08 (docs/reference/surfaces.md, section 8).
 TEST(NdfMatch, JointTileMeetsTheLobeBinsWhereTheRadialOneDoesNot) {
   for (const char* name : {"smith", "beckmann", "sorted"}) {
     const AssemblyParams pj = joint_params(name, NdfMatch::joint), pr = joint_params(name, NdfMatch::radial);

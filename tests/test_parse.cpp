@@ -1,4 +1,4 @@
-// The one number parser (src/microsim/parse.h): reals, integers, lists, ranges, the supported alpha, and
+// The one number parser (src/core/parse.h): reals, integers, lists, ranges, the supported alpha, and
 // the messages (option named, bad token quoted as a short escaped excerpt).
 #include "core/parse.h"
 #include "microfacet/roughness.h"

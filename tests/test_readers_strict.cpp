@@ -1,4 +1,4 @@
-// Strict readers (issue 8): attribute parsing (microsim/strict_parse.h), the histogram EXR reader's
+// Strict readers: attribute parsing (src/core/strict_parse.h), the histogram EXR reader's
 // validation of every attribute and channel, the EXR reader's size checks before allocating, heightmap
 // and analytic-reference attributes, and short escaped excerpts of bad input in every message.
 #include "microgeom/exr_io.h"

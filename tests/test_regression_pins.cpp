@@ -1,4 +1,4 @@
-// Regression pins (issue 9): seeded outputs of the command line, recorded from the build before the engine
+// Regression pins: seeded outputs of the command line, recorded from the build before the engine
 // was rewritten, must stay bit-identical: every number of the JSON reports (p-values, statistics, hits,
 // masking estimates and their standard errors) compared exactly, and every channel of the histogram and
 // heightmap EXRs compared by a 64-bit FNV-1a digest of its float bits.

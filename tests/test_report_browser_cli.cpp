@@ -1,4 +1,4 @@
-// The report in a real browser (issue 12): `microsim run` on a tiny spec (seconds), then headless Chromium
+// The report in a real browser: `microsim run` on a tiny spec (seconds), then headless Chromium
 // renders DIR/index.html from the file system with the network off: a screenshot of non-trivial size is
 // produced, and the rendered page's text (--dump-dom) holds the measured values of results.json as the
 // report prints them (experiment/report.h report_number). Negative control: a blank page's DOM does not.

@@ -1,4 +1,4 @@
-// Tests of the sample file reader/writers (microsim/sample_io.h): round trips, every accepted text and
+// Tests of the sample file reader/writers (src/validate/sample_io.h): round trips, every accepted text and
 // NPY variant, and every error path (each message must name the file and the line or row).
 #include "validate/sample_io.h"
 

@@ -1,4 +1,4 @@
-// End to end (issue 10): `microsim scatter --model smith-walk` and `microsim scatter --surface SURF.exr`
+// End to end: `microsim scatter --model smith-walk` and `microsim scatter --surface SURF.exr`
 // write exactly the histogram of the library call with the same options (the CLI adds nothing to the
 // measurement), shards merge into the single run bit for bit, the JSON says what each geometric hemisphere
 // holds (for light from inside a dielectric the upper one is the transmitted light), a traced mirror

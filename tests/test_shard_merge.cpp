@@ -1,4 +1,4 @@
-// Shard and merge (issue 9): a run split with --shard K/N and joined by `microsim merge` is the single run,
+// Shard and merge: a run split with --shard K/N and joined by `microsim merge` is the single run,
 // bit for bit (every histogram channel, every non-timing JSON number), on the exact quadric, the meshed
 // ellipsoid and a heightfield; parts with a gap, an overlap, another seed or other binnings are refused
 // (exit 2) with the ranges or the difference named, and nothing is written.

@@ -1,4 +1,4 @@
-// Shard and merge for trace masking (issue 9): a run split with --shard K/N and joined by `microsim merge`
+// Shard and merge for trace masking: a run split with --shard K/N and joined by `microsim merge`
 // is the single run, bit for bit (every non-timing JSON number, and the table), for 3 and 5 shards in any
 // order and thread count on two assemblies; in the library, the exact sums of any grouping of blocks are
 // the single run's, with both samplings. Parts with a gap, an overlap, another seed, another view or

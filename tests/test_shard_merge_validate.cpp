@@ -1,4 +1,4 @@
-// Shard and merge for validate and stability (issue 9): a run split with --shard K/N and joined by
+// Shard and merge for validate and stability: a run split with --shard K/N and joined by
 // `microsim merge` is the single run, bit for bit (every non-timing JSON number: p-values, statistics,
 // counts, worst cases; and the table on stdout), for one validation against its claimed pdf (double and
 // float, normals and reflected directions, a rejected negative control), against a traced histogram, for

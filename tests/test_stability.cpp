@@ -1,6 +1,6 @@
-// Numerical stability at the extremes (issue 2 section 5): the sweep of microsim/stability.h over the
-// whole grid must stay within its stated bounds (docs/stability.md), the sweep must catch samplers that
-// are broken in the ways it claims to detect, the conventions of docs/conventions.md hold exactly, and
+// Numerical stability at the extremes: the sweep of src/validate/stability.h over the
+// whole grid must stay within its stated bounds (docs/reference/stability.md), the sweep must catch samplers that
+// are broken in the ways it claims to detect, the conventions of docs/reference/conventions.md hold exactly, and
 // the reformulated samplers agree with their own long-double evaluation where the claimed pdf is too
 // ill-conditioned to check them.
 #include "validate/stability.h"
@@ -199,7 +199,7 @@ TEST(StabilitySweep, CatchesBrokenSamplers) {
   EXPECT_NE(off.find("cond claimed"), std::string::npos) << off;
 }
 
-// ---- conventions (docs/conventions.md) -----------------------------------------------------------------
+// ---- conventions (docs/reference/conventions.md) -----------------------------------------------------------------
 
 namespace {
 const Vec2<double> kCornerUs[] = {{0, 0}, {0, 0.5}, {0.5, 0}, {0.5, 0.5}, {1 - 0x1p-53, 0.25}, {0.75, 1 - 0x1p-53},

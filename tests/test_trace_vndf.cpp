@@ -293,7 +293,7 @@ TEST(FastDirectionBinner, EqualsBinOf) {
   }
 }
 
-// ---- the quadric's supported range (issue 8, defect 9) ---------------------------------------------------
+// ---- the quadric's supported range ---------------------------------------------------
 
 namespace {
 // The corners of the supported range (quadric.h): alpha 1e-4 and 10 per axis, anisotropy 1:1000 both ways.
@@ -306,7 +306,7 @@ constexpr int kRangeConfigs = 6 * 4;
 // (phi = 30 deg), 400k rays each (fixed seed 88), sphere and lobe bins. Significance: family-wise 0.01
 // over the 24 configurations (each Sidak-combined p must exceed sidak_significance(0.01, 24) = 4.2e-4),
 // and TV within 25% of its Monte Carlo floor in both binnings (as ExactQuadricMatchesAnalyticVndf).
-// Measured with 4e6 rays, seed 1, 31 rows: smallest combined p 0.17 (docs/validation.md).
+// Measured with 4e6 rays, seed 1, 31 rows: smallest combined p 0.17 (docs/reference/validator.md).
 TEST(TraceVndf, QuadricExactAtTheCornersOfItsRange) {
   const double per_config = sidak_significance(0.01, kRangeConfigs);
   for (const Config& c : kRangeCorners) {

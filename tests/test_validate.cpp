@@ -285,7 +285,7 @@ TEST(Validate, JsonCarriesTheVerdictAndSubTests) {
     EXPECT_TRUE(j["tests"].contains(key)) << key;
 }
 
-// ---- reflected directions as renderers emit them (issue 11, point 1) -------------------------------------
+// ---- reflected directions as renderers emit them -------------------------------------
 
 namespace {
 

@@ -1,6 +1,6 @@
-// Issue 8, the validator's share: too few samples is never a pass (defect 7), the returned-pdf check at
-// alpha 1e-4, theta 89.99 deg (defect 9), and validations that stream their samples in bounded memory
-// with results bit-identical to the former in-memory implementation (defect 11). Fixed seeds.
+// The validator hardened: too few samples is never a pass, the returned-pdf check at
+// alpha 1e-4, theta 89.99 deg, and validations that stream their samples in bounded memory
+// with results bit-identical to the former in-memory implementation. Fixed seeds.
 #include "cli_helpers.h"
 #include "stats/chi2.h"
 #include "validate/compare.h"
@@ -36,7 +36,7 @@ fs::path scratch() {
 
 }  // namespace
 
-// ---- defect 7: how many samples a test needs ------------------------------------------------------------
+// ---- how many samples a test needs ------------------------------------------------------------
 
 TEST(MinimumSamples, IsExactlyWherePoolingLeavesTwoCells) {
   // n p_max >= 5 and n (1 - p_max) >= 5.
@@ -99,7 +99,7 @@ TEST(MinimumSamples, TooFewSamplesFromElsewhereThrow) {
   EXPECT_THROW(compare_sampler_to_trace(sampler("heitz2018"), ggx, wi, o, tiny), InsufficientData);
 }
 
-// ---- defect 9: the returned pdf of bounded2023 at alpha 1e-4, theta 89.99 deg ---------------------------
+// ---- the returned pdf of bounded2023 at alpha 1e-4, theta 89.99 deg ---------------------------
 
 namespace {
 // bounded2023 with a pdf 1e-4 (relative) too high: the negative control of the returned-pdf check.
@@ -135,7 +135,7 @@ TEST(ReturnedPdf, Bounded2023AtGrazingTinyAlphaPassesAndAWrongPdfIsCaught) {
   EXPECT_FALSE(bad.passed);
 }
 
-// ---- defect 11: streaming, bit-identical, bounded memory ---------------------------------------------
+// ---- streaming, bit-identical, bounded memory ---------------------------------------------
 
 namespace {
 const GGX<double> kGgx03(0.3);

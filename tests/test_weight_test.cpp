@@ -1,4 +1,4 @@
-// The weight test of a BSDF sampler's dump (validate/weight_test.h; issue 11, point 4): a conductor
+// The weight test of a BSDF sampler's dump (validate/weight_test.h): a conductor
 // sampler's reflections with the weight f cos / pdf pass against the BSDF; the same directions with the
 // weights of the bugs renderers really had are rejected, at level 0.01 (Sidak over the validation's tests).
 #include "core/random.h"

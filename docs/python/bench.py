@@ -1,4 +1,4 @@
-"""Speed of microsim.validate against the command line on the same 1e6 samples (docs/python.md, "Speed").
+"""Speed of microsim.validate against the command line on the same 1e6 samples (docs/records/python-speed.md).
 Alternating runs: `microsim validate --from s.npy` (the whole process) and microsim.validate(np.load(s.npy))
 (the call and the load) in this process; the reports' tests must be identical.
   PYTHONPATH=build/python /usr/bin/python3 docs/python/bench.py build/microsim [RUNS]"""

@@ -1,4 +1,4 @@
-"""The worked example of docs/python.md: a sampler written in numpy validated, a broken variant rejected,
+"""The worked example of docs/guide/python.md: a sampler written in numpy validated, a broken variant rejected,
 and the traced VNDF against D_v. Run: PYTHONPATH=build/python /usr/bin/python3 docs/python/example.py"""
 import numpy as np
 

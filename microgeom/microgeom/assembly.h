@@ -38,7 +38,7 @@ std::string_view to_string(ReferenceNdf r);
 // The NDF of that name ("ggx", "beckmann"); nullopt for any other text.
 std::optional<ReferenceNdf> reference_ndf_from_string(std::string_view name);
 
-// How the slopes are matched to the reference NDF (issue 14; docs/surfaces.md, section 8):
+// How the slopes are matched to the reference NDF (docs/reference/surfaces.md, section 8):
 // - radial: the slope radii are rank-matched to the reference radius law, the angles kept (the angular law
 //   is that of the start field: exact only in expectation);
 // - joint: the first half of the iterations match the joint (radius, angle) law to a stratified slope set
@@ -103,7 +103,7 @@ void validate(const AssemblyParams& params);
 // ---- the supported range: where a build meets its own NDF check ------------------------------------------
 // validate() states what can be built at all; the supported range is the part of it where the built tile
 // meets its NDF check (surface_stats.h, tolerance_for) with a margin, measured over seeds by
-// scripts/surface_range.sh (docs/surfaces.md, "Supported range", has the tables). Outside it a build
+// scripts/surface_range.sh (docs/reference/surfaces.md, "Supported range", has the tables). Outside it a build
 // fails its own check, or passes by luck of the seed, so `surface build` refuses it before any work.
 // Isotropic alpha does not enter: the construction works in normalised slope space, and alpha in
 // [0.005, 2] gives identical verdicts.

@@ -1,7 +1,7 @@
-// microgeom: a heightfield's NDF bin by bin (issue 14). The radial slope matching of assembly.h makes the
+// microgeom: a heightfield's NDF bin by bin. The radial slope matching of assembly.h makes the
 // slope-radius law exact, but a tile's angular law is that of its random start field: exact only in
 // expectation, with the sampling noise of the (N / l)^2 independent patches of the tile, which a traced
-// VNDF resolves at a few million rays (docs/surfaces.md, section 8). This header holds
+// VNDF resolves at a few million rays (docs/reference/surfaces.md, section 8). This header holds
 // - the lobe bins of `trace vndf` (stats/binning.h, DirectionBinning::lobe) in normalised slope space,
 //   with the exact reference probability and first moment of each bin;
 // - the joint (radius, angle) target of the slope matching: a stratified slope set of the reference law;

@@ -38,7 +38,7 @@ struct NdfTolerance {
 
 // n_eff = (N / l)^2: the number of independent patches of a random field on the tile.
 double effective_patches(int resolution, double corr_cells);
-// Noise factors of tolerance_for (calibrated over seeds; see docs/surfaces.md).
+// Noise factors of tolerance_for (calibrated over seeds; see docs/reference/surfaces.md).
 inline constexpr double kAngularNoiseFactor = 5.0;
 inline constexpr double kBeckmannQuantileNoiseFactor = 8.0;
 inline constexpr double kBeckmannRadiusNoiseFactor = 3.0;

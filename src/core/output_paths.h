@@ -1,5 +1,5 @@
 // microsim: the checks of a command's outputs, made before any work. check_output_paths: the outputs lose
-// no file (issue 8, defect 4): an output must not be one of the inputs (writing it would destroy the
+// no file: an output must not be one of the inputs (writing it would destroy the
 // input) and no two outputs may be the same file (one would silently replace the other). check_writable:
 // each output can be created (its directory exists and is writable, it is not a directory), so that a bad
 // output fails before a long run, not after it.

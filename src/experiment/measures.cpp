@@ -97,6 +97,18 @@ std::invalid_argument dump_error(const SpecQuantity& quantity, const std::except
   return std::invalid_argument(fmt::format("{}.dump: {}", quantity.key, e.what()));
 }
 
+DirectionSampleReader open_dump(const SpecQuantity& quantity) {
+  DirectionSampleReader reader{std::filesystem::path(quantity.dump), SampleColumns::parse(quantity.dump_columns)};
+  reader.set_frame(quantity.dump_frame == "y-up" ? SampleFrame::y_up : SampleFrame::z_up);
+  return reader;
+}
+
+DumpClaims dump_claims(const SpecQuantity& quantity, const SpecMaterial& material) {
+  const bool bsdf = quantity.dump_pdf == "bsdf" || SampleColumns::parse(quantity.dump_columns).channels() > 0;
+  return {parse_file_pdf(quantity.dump_pdf), bsdf ? std::optional<Material>(material.facet) : std::nullopt,
+          quantity.above_horizon};
+}
+
 ScatterExpectation analytic_scatter_lobe(const SpecMaterial& material, const Decision& decision, const RunControl& run) {
   const Vec3<double> wi = direction_from_degrees(decision.view.theta_deg, decision.view.phi_deg);
   const auto [ax, ay] = decision.alpha;

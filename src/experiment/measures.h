@@ -8,6 +8,8 @@
 #include "scatter/albedo_table.h"
 #include "scatter/smith_walk.h"
 #include "stats/scatter_expectation.h"
+#include "validate/dump_validation.h"
+#include "validate/sample_io.h"
 #include "validate/validate.h"
 
 #include <nlohmann/json.hpp>
@@ -52,6 +54,10 @@ ValidationOptions validation_request(const SpecQuantity& quantity, std::uint64_t
 
 // Bad input in a validation's dump (a file that is not samples, too few of them), naming the spec key.
 std::invalid_argument dump_error(const SpecQuantity& quantity, const std::exception& e);
+// A dump opened with its columns and frame (SampleFileError when it cannot be read as they say).
+DirectionSampleReader open_dump(const SpecQuantity& quantity);
+// What a dump claims: its density, its material's BSDF when it holds a BSDF's samples or weights, kept only.
+DumpClaims dump_claims(const SpecQuantity& quantity, const SpecMaterial& material);
 
 // ---- the analytic order-1 lobe (orders = "single") -----------------------------------------------------------
 

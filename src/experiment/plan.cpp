@@ -325,9 +325,11 @@ void plan_scattering_view(const ExperimentSpec& spec, const SpecQuantity& q, con
 // naming the spec's key, before anything runs). A second pass over the file, the run's being the first to test.
 std::uint64_t dump_rows(const SpecQuantity& q, const RunControl& run) {
   try {
-    DirectionSampleReader reader{std::filesystem::path(q.dump)};
+    DirectionSampleReader reader = open_dump(q);
     std::vector<Vec3<double>> block(kSampleFileBlock);
-    while (reader.read(block) > 0)
+    std::vector<double> pdfs(reader.columns().has_pdf() ? block.size() : 0);
+    std::vector<double> weights(block.size() * std::size_t(reader.columns().channels()));
+    while (reader.read(block, pdfs, weights) > 0)
       if (run.cancelled()) throw Cancelled("plan: reading a dump");
     return reader.rows_read();
   } catch (const SampleFileError& e) {
@@ -404,9 +406,13 @@ void plan_heightfield_vndf(const ExperimentSpec& spec, const SpecQuantity& q, co
 // Why a validation cannot be made against a tile's traced visible normals ("" when it can): the reference is
 // D_v of the tile, so the samples must claim D_v (a zoo sampler of visible normals; a dump with pdf vndf).
 std::string surface_validation_refusal(const SpecQuantity& q) {
+  if (!q.dump.empty() && q.dump_pdf != "vndf")
+    return fmt::format("a dump of pdf {} against a surface: the traced reference is the tile's visible normals (pdf "
+                       "vndf only)", q.dump_pdf);
   if (!q.dump.empty())
-    return q.dump_pdf == "vndf" ? "" : fmt::format("a dump of pdf {} against a surface: the traced reference is the tile's "
-                                                   "visible normals (pdf vndf only)", q.dump_pdf);
+    return SampleColumns::parse(q.dump_columns).channels() == 0 ? "" : "a dump with weights against a surface: the "
+                                                                       "traced reference is the tile's visible normals "
+                                                                       "(their weights are tested analytically)";
   const SamplerInfo& sampler = *find_sampler(q.sampler);  // the spec names a zoo sampler (spec.cpp)
   if (sampler.domain == SampleDomain::microfacet_normal && sampler.claims == ClaimedPdf::visible_normals) return "";
   return fmt::format("sampler {} does not claim the visible normals: the traced reference is the tile's visible "

@@ -79,10 +79,11 @@ ModelChoice validation_choice(const SpecQuantity& q) {
     return {Model::analytic_validator, "a zoo sampler against the pdf it claims: the analytic reference by "
                                        "cubature (no tracing needed to know D_v)"};
   return {Model::analytic_validator,
-          fmt::format("a renderer's dump ({}) against the density it claims (pdf {}{}): its rows are read, not drawn; "
+          fmt::format("a renderer's dump ({}) against the density it claims (pdf {}{}{}): its rows are read, not drawn; "
                       "the analytic reference by cubature (no tracing needed)",
                       std::filesystem::path(q.dump).filename().string(), q.dump_pdf,
-                      q.above_horizon ? ", only the reflections above the horizon" : "")};
+                      q.above_horizon ? ", only the reflections above the horizon" : "",
+                      q.dump_columns == "x,y,z" ? "" : fmt::format(", columns {}", q.dump_columns))};
 }
 
 // The noncentrality at which a chi-square test of `dof` at `significance` rejects with probability `power`:

@@ -341,7 +341,7 @@ void run_heightfield_validation(const ExperimentSpec& spec, std::uint64_t seed, 
     if (q.dump.empty()) {
       r = compare_sampler_to_trace(*find_sampler(q.sampler), ggx, wi, v, traced.histogram);
     } else {
-      DirectionSampleReader reader{std::filesystem::path(q.dump)};
+      DirectionSampleReader reader = open_dump(q);
       r = compare_sample_file_to_trace(reader, q.dump, ggx, wi, v, traced.histogram);
     }
     record_validation(r, q, n, seconds_since(clock), m);
@@ -469,22 +469,24 @@ void record_validation(const ValidationReport& r, const SpecQuantity& q, std::ui
   m.met = m.achieved <= m.target * (1 + 1e-12);
 }
 
-// A dump: every sample of the file against the density it claims (validate_sample_file, streamed). A file
-// that cannot be read, or holds too few samples, is bad input (std::invalid_argument naming the file).
-void run_dump_validation(const SpecQuantity& q, const RunOptions& o, MeasurementResult& m) {
+// A dump: every sample of the file against the density it claims, its weights against its material's BSDF in
+// its convention (validate_dump_as_given, streamed; light from inside a dielectric mirrored). A file that
+// cannot be read, or holds too few samples, is bad input (std::invalid_argument naming the file).
+void run_dump_validation(const SpecQuantity& q, const SpecMaterial& material, const RunOptions& o, MeasurementResult& m) {
   const Decision& d = m.decision;
   const GGX<double> ggx(d.alpha.first, d.alpha.second);
-  const Vec3<double> wi = direction_from_degrees(d.view.theta_deg, d.view.phi_deg);
-  const ValidationOptions v = validation_request(q, 0, 0, o.run);
+  const Vec3<double> view = direction_from_degrees(d.view.theta_deg, d.view.phi_deg);
+  ValidationOptions v = validation_request(q, 0, 0, o.run);
+  const DumpClaims claims = dump_claims(q, material);
+  if (SampleColumns::parse(q.dump_columns).channels() > 0) v.bsdf = claims.bsdf;  // the weight test
+  v.convention = q.convention;
+  if (q.dump_dropped > 0) v.dropped_below_horizon = q.dump_dropped;
   m.rounds.clear();
   m.partial = false;
   const auto clock = std::chrono::steady_clock::now();
-  const ClaimedDensity density = claimed_density(parse_file_pdf(q.dump_pdf), ggx, wi);
-  const auto reference = q.above_horizon ? above_horizon_reference(density, ggx, wi, q.rows)
-                                         : density_reference(density, ggx, wi, q.rows);
   try {
-    DirectionSampleReader reader{std::filesystem::path(q.dump)};
-    ValidationReport r = validate_sample_file(reader, density.domain, ggx, wi, v, reference);
+    DirectionSampleReader reader = open_dump(q);
+    ValidationReport r = validate_dump_as_given(reader, claims, ggx, view, v, q.dump_frame == "z-up");
     r.sampler = q.dump;
     record_validation(r, q, d.units, seconds_since(clock), m);
   } catch (const Cancelled&) {
@@ -502,7 +504,7 @@ void run_validation(const ExperimentSpec& spec, std::uint64_t seed, std::size_t 
                     MeasurementResult& m) {
   const Decision& d = m.decision;
   const SpecQuantity& q = spec.quantities[d.quantity];
-  if (!q.dump.empty()) return run_dump_validation(q, o, m);
+  if (!q.dump.empty()) return run_dump_validation(q, spec.material(q.material), o, m);
   const SamplerInfo* sampler = find_sampler(q.sampler);
   if (sampler == nullptr) throw std::invalid_argument(fmt::format("{}.sampler: unknown sampler '{}'", q.key, q.sampler));
   const ValidationOptions v = validation_request(q, first_units(d, o), round_seed(seed, index, 0), o.run);

@@ -266,7 +266,7 @@ std::vector<std::string> quantity_keys(QuantityKind kind) {
     case QuantityKind::scattering: add({"orders", "target_tv", "theta", "theta_range", "phi"}); break;
     case QuantityKind::validation:
       add({"sampler", "dump", "pdf", "above_horizon", "detect_tv", "power", "significance", "theta", "theta_range", "phi",
-           "rows"});
+           "rows", "columns", "frame", "dropped", "transport", "masking"});
       break;
     case QuantityKind::masking:
       add({"what", "target_standard_error", "theta", "theta_range", "phi", "light_theta", "light_phi", "bins", "resolution",
@@ -363,14 +363,45 @@ void check_albedo_material(const Table& t, const SpecMaterial& m, bool inside) {
 }
 
 void read_zoo_sampler(const Table& t, SpecQuantity& q) {
-  for (const char* key : {"pdf", "above_horizon"})
+  for (const char* key : {"pdf", "above_horizon", "columns", "frame", "dropped", "transport", "masking"})
     if (t.has(key)) t.fail(key, fmt::format("{} applies to a dump (a zoo sampler's density is its own)", key));
   q.sampler = t.string("sampler");
   if (find_sampler(q.sampler) == nullptr)
     t.fail("sampler", fmt::format("{} is not a sampler of the zoo ({})", quote_excerpt(q.sampler), fmt::join(sampler_names(), ", ")));
 }
 
-// A dump was sampled at one alpha and one view; its density is one the validator knows without a BSDF.
+// A dump's BSDF is its material's facet (pdf bsdf, or weight columns): a mirror, a conductor or a dielectric.
+bool dump_has_bsdf(const SpecQuantity& q) {
+  return q.dump_pdf == "bsdf" || SampleColumns::parse(q.dump_columns).channels() > 0;
+}
+
+// What a dump holds besides its directions: columns, frame, and for a BSDF's samples its weights' convention.
+void read_dump_layout(const Table& t, SpecQuantity& q, const SpecMaterial& m) {
+  q.dump_columns = t.string("columns", "x,y,z");
+  try {
+    (void)SampleColumns::parse(q.dump_columns);
+  } catch (const std::invalid_argument& e) {
+    t.fail("columns", e.what());
+  }
+  q.dump_frame = t.string("frame", "z-up");
+  if (q.dump_frame != "z-up" && q.dump_frame != "y-up")
+    t.fail("frame", fmt::format("{} is not a frame (z-up, y-up)", quote_excerpt(q.dump_frame)));
+  const bool bsdf = dump_has_bsdf(q);
+  if (bsdf && m.facet.kind() == MaterialKind::lambertian)
+    t.fail("material", fmt::format("material {}: a BSDF dump's material is a mirror, a conductor or a dielectric",
+                                   quote_excerpt(m.name)));
+  for (const char* key : {"transport", "masking"})
+    if (t.has(key) && !bsdf) t.fail(key, fmt::format("{} is the convention of a BSDF's weights: give pdf = \"bsdf\" or "
+                                                     "weight columns", key));
+  try {
+    if (t.has("transport")) q.convention.transport = parse_transport_mode("transport", t.string("transport"));
+    if (t.has("masking")) q.convention.masking = parse_masking_form("masking", t.string("masking"));
+  } catch (const std::invalid_argument& e) {
+    t.fail(t.has("transport") ? "transport" : "masking", e.what());
+  }
+}
+
+// A dump was sampled at one alpha and one view; its density is one the validator knows, or its material's BSDF.
 void read_dump(const Table& t, SpecQuantity& q, const SpecMaterial& m, const std::filesystem::path& spec_dir) {
   const std::string name = t.string("dump");
   const std::filesystem::path path = spec_file_path(name, spec_dir);
@@ -380,16 +411,21 @@ void read_dump(const Table& t, SpecQuantity& q, const SpecMaterial& m, const std
                                "view(s))", quote_excerpt(m.name), m.alphas.size(), q.directions.size()));
   q.dump = path.string();
   q.dump_pdf = t.string("pdf", "vndf");
-  if (q.dump_pdf == "bsdf") t.fail("pdf", "bsdf needs the BSDF's parameters: `microsim validate --from FILE --pdf bsdf`");
   FilePdf pdf = FilePdf::vndf;
   try {
     pdf = parse_file_pdf(q.dump_pdf);
   } catch (const std::invalid_argument& e) {
     t.fail("pdf", e.what());
   }
+  read_dump_layout(t, q, m);
+  if (q.directions.front().theta_deg > 90 && !(dump_has_bsdf(q) && m.facet.transmits()))
+    t.fail("theta", "a view below the surface is light from inside a dielectric: its dump needs pdf = \"bsdf\" (or "
+                    "weight columns) and a dielectric material");
   q.above_horizon = t.boolean("above_horizon", false);
   if (q.above_horizon && !claims_reflected_directions(pdf))
     t.fail("above_horizon", fmt::format("pdf {} is a density of normals (none is below the horizon)", q.dump_pdf));
+  if (t.has("dropped") && !q.above_horizon) t.fail("dropped", "dropped applies with above_horizon = true only");
+  q.dump_dropped = std::uint64_t(t.integer("dropped", 0, 0, std::int64_t(1) << 53));
 }
 
 // ---- masking ----------------------------------------------------------------------------------------------
@@ -463,7 +499,9 @@ void read_masking(const Table& t, SpecQuantity& q, const SpecMaterial& m) {
 
 void read_kind_options(const Table& t, SpecQuantity& q, const SpecMaterial& m, const std::filesystem::path& spec_dir) {
   const bool view_kind = q.kind != QuantityKind::albedo;
-  if (view_kind) q.directions = quantity_directions(t, q.kind == QuantityKind::scattering && m.facet.transmits());
+  const bool inside_ok = (q.kind == QuantityKind::scattering || (q.kind == QuantityKind::validation && t.has("dump"))) &&
+                         m.facet.transmits();
+  if (view_kind) q.directions = quantity_directions(t, inside_ok);
   if (q.kind == QuantityKind::albedo || q.kind == QuantityKind::scattering) q.orders = quantity_orders(t);
   if (q.kind == QuantityKind::albedo) {
     q.mus = int(t.integer("mus", 16, kMinAlbedoMus, kMaxAlbedoMus));
@@ -573,6 +611,18 @@ std::string to_string(const MaskingWhat& what) {
   return fmt::format("{}", fmt::join(names, ", "));
 }
 
+namespace {
+// A dump's keys; those beyond the first three only when not their defaults (the digests of earlier specs hold).
+nlohmann::json dump_canonical(const SpecQuantity& q) {
+  nlohmann::json j{{"dump", q.dump}, {"pdf", q.dump_pdf}, {"above_horizon", q.above_horizon}};
+  if (q.dump_columns != "x,y,z") j["columns"] = q.dump_columns;
+  if (q.dump_frame != "z-up") j["frame"] = q.dump_frame;
+  if (q.dump_dropped != 0) j["dropped"] = q.dump_dropped;
+  if (q.convention != BsdfConvention{}) j["convention"] = describe(q.convention);
+  return j;
+}
+}  // namespace
+
 std::string canonical_spec(const ExperimentSpec& spec) {
   nlohmann::json j;
   j["name"] = spec.name;
@@ -587,7 +637,7 @@ std::string canonical_spec(const ExperimentSpec& spec) {
                                {"mus", q.mus}, {"inside", q.inside}, {"rows", q.rows}, {"sampler", q.sampler},
                                {"power", q.power}, {"significance", q.significance}});
     if (!q.dump.empty())  // the path names the dump: a file replaced under the same path is not detected
-      j["quantities"].back().update({{"dump", q.dump}, {"pdf", q.dump_pdf}, {"above_horizon", q.above_horizon}});
+      j["quantities"].back().update(dump_canonical(q));
     if (q.kind == QuantityKind::masking) j["quantities"].back().update(masking_canonical(q));
   }
   return j.dump();

@@ -29,6 +29,7 @@
 // (quantity[2].target_tv) and the line. Library code: parses and checks, never prints.
 #pragma once
 
+#include "microfacet/bsdf_convention.h"
 #include "microfacet/material.h"
 #include "scatter/smith_walk.h"
 
@@ -113,8 +114,12 @@ struct SpecQuantity {
   int rows = 31;         // vndf, validation: rows of the validator's binnings
   std::string sampler;   // validation: a zoo sampler's name (drawn), or
   std::string dump;      // validation: a sample file (.npy or text; a relative path is the spec folder's)
-  std::string dump_pdf = "vndf";  // validation of a dump: the density it claims (FilePdf: vndf, ndf, bounded, reflection)
+  std::string dump_pdf = "vndf";  // validation of a dump: the density it claims (FilePdf; bsdf: the material's BSDF)
   bool above_horizon = false;     // validation of a dump of reflections: only those above the horizon kept
+  std::string dump_columns = "x,y,z";  // validation of a dump: what its columns hold (SampleColumns::parse)
+  std::string dump_frame = "z-up";     // validation of a dump: the frame of its rows (z-up or y-up)
+  std::uint64_t dump_dropped = 0;      // validation of a dump above the horizon: the samples its renderer dropped
+  BsdfConvention convention;           // validation of a dump of a BSDF: its weights' transport mode and masking form
   double power = 0.9, significance = 0.01;  // validation
   MaskingWhat masking;                      // masking: what is measured
   std::vector<Direction> lights;            // masking with g2: the lights, every one with every view

@@ -1,4 +1,4 @@
-// measure: the masking table of `microsim trace masking --table` (docs/masking.md), as a library call.
+// measure: the masking table of `microsim trace masking --table` (docs/reference/masking.md), as a library call.
 // For every assembly, roughness and seed it builds a surface (microgeom/assembly.h) and, for every view,
 // traces the VNDF (lobe bins, against Smith with the analytic and the surface's own NDF) and measures the
 // masking in the specular pair configuration (l = v mirrored through the mean normal). A cancelled run

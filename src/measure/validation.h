@@ -31,7 +31,7 @@ struct ValidationCase {
   Vec3<double> wi() const { return direction_from_degrees(theta_deg, phi_deg); }
 };
 
-// The --all grid (issue 2, section 4): views at these zenith angles, for each roughness (isotropic ones
+// The --all grid: views at these zenith angles, for each roughness (isotropic ones
 // seen from phi = 0, anisotropic pairs from phi = 30 degrees so that both axes matter).
 inline constexpr double kZooThetas[] = {0, 30, 60, 80, 89};
 struct ZooRoughness {

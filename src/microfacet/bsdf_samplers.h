@@ -1,4 +1,4 @@
-// microsim: BSDF samplers as renderers write them (issue 11, point 4). sample(wi, u) returns the outgoing
+// microsim: BSDF samplers as renderers write them. sample(wi, u) returns the outgoing
 // direction wo, the pdf the sampler claims for it and the weight f(wi, wo) |wo.z| / pdf a renderer
 // multiplies its throughput by: a pure function of three uniforms, nullopt when the sample is lost (a
 // reflection below the horizon, a refraction back up). The zoo holds the correct VNDF-based samplers of

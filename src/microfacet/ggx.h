@@ -23,7 +23,7 @@
 namespace microsim {
 
 inline constexpr double kMinAlpha = 1e-4;
-// The supported roughness of every command and of the traced quadric (docs/conventions.md): each axis in
+// The supported roughness of every command and of the traced quadric (docs/reference/conventions.md): each axis in
 // [kMinAlpha, kMaxSupportedAlpha] and max/min <= kMaxSupportedAnisotropy. The stability sweep covers
 // exactly this box, and the quadric was measured exact at its corners (quadric.h).
 inline constexpr double kMaxSupportedAlpha = 10;

@@ -10,7 +10,7 @@ namespace {
 void check_alpha_value(std::string_view what, std::string_view shown, double a) {
   const Interval supported{kMinAlpha, kMaxSupportedAlpha};
   if (!supported.contains(a))
-    throw ParseError(fmt::format("{} {}: outside the supported roughness range {} (docs/conventions.md)", what, shown,
+    throw ParseError(fmt::format("{} {}: outside the supported roughness range {} (docs/reference/conventions.md)", what, shown,
                                  supported.to_string()));
 }
 
@@ -18,7 +18,7 @@ void check_anisotropy(std::string_view what, double ax, double ay) {
   // Relative slack of a few ulps: 1e-4 and 0.1 (= 1e-4 * 1000 rounded) are the documented 1:1000.
   const double ratio = std::max(ax, ay) / std::min(ax, ay);
   if (ratio > kMaxSupportedAnisotropy * (1 + 1e-12))
-    throw ParseError(fmt::format("{} {:g},{:g}: anisotropy 1:{:.4g} beyond the supported 1:{:g} (docs/conventions.md)",
+    throw ParseError(fmt::format("{} {:g},{:g}: anisotropy 1:{:.4g} beyond the supported 1:{:g} (docs/reference/conventions.md)",
                                  what, ax, ay, ratio, kMaxSupportedAnisotropy));
 }
 }  // namespace

@@ -1,4 +1,4 @@
-// microfacet: the supported roughness of the Smith-GGX model (docs/conventions.md), one rule every command
+// microfacet: the supported roughness of the Smith-GGX model (docs/reference/conventions.md), one rule every command
 // and reader applies: alpha in [kMinAlpha, kMaxSupportedAlpha] per axis (ggx.h) and anisotropy
 // max/min <= kMaxSupportedAnisotropy. Parsed with the number rules of core/parse.h.
 #pragma once

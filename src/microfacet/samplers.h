@@ -2,7 +2,7 @@
 // and the pdf it claims for it, computed from its own intermediate quantities (so that the validator can
 // compare the returned pdf with the analytic one); nullopt when there is nothing to sample.
 //
-// Conventions (shared by all samplers, documented in README and docs/conventions.md):
+// Conventions (shared by all samplers, documented in README and docs/reference/conventions.md):
 // - wi is the unit view direction, pointing away from the surface, z-up.
 // - Views below the horizon (wi.z < 0) see the microsurface from its back side: a sampler returns the
 //   sample for -wi, negated (normals in the lower hemisphere), as a dielectric BSDF needs. The claimed

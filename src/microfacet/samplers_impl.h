@@ -2,7 +2,7 @@
 // float and double versions inline into benchmarks). Written from the papers' mathematics; the step
 // comments follow the papers.
 //
-// Numerical care (docs/stability.md, docs/conventions.md): each sampler computes the quantities that
+// Numerical care (docs/reference/stability.md, docs/reference/conventions.md): each sampler computes the quantities that
 // vanish at the edges of its domain (1 - u, 1 - Vh.z, the distance to the edge of the disk or cap, the
 // horizontal part of Vh + c) from factored forms that do not cancel, so that float stays close to
 // double at grazing views, at alpha down to 1e-4 and for u at the ends of [0, 1). Angles 2 pi u are

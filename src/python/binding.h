@@ -1,6 +1,6 @@
 // python: the `microsim` Python module (pybind11), a thin layer over the library: each function parses and
 // checks its Python arguments, calls the library function the command line calls, and converts the result
-// to numpy arrays and Python objects (docs/python.md). Two translation units: validate_binding.cpp (the
+// to numpy arrays and Python objects (docs/guide/python.md). Two translation units: validate_binding.cpp (the
 // validation, the samplers, the run of long calls) and module.cpp (the module, the analytic functions,
 // tracing, surfaces, masking, scattering).
 #pragma once

@@ -1,4 +1,4 @@
-"""microsim: a microsurface ray-tracing oracle for Smith-GGX microfacet models, from numpy (docs/python.md).
+"""microsim: a microsurface ray-tracing oracle for Smith-GGX microfacet models, from numpy (docs/guide/python.md).
 
 Type stub of the compiled module (src/python/*.cpp) for editors and type checkers."""
 import os

@@ -1,6 +1,6 @@
 // python: the `microsim` module: exception translation, the analytic GGX functions on arrays, the traced
 // VNDF oracle with its bin geometry, heightfield surfaces (building, loading, tracing, masking) and the
-// scattering models (see binding.h, docs/python.md).
+// scattering models (see binding.h, docs/guide/python.md).
 #include "python/binding.h"
 
 #include "core/errors.h"
@@ -431,7 +431,7 @@ meets its own NDF check (--unsupported turns it off on the command line).)");
 PYBIND11_MODULE(microsim, m) {
   using namespace microsim::python;
   using namespace pybind11::literals;
-  m.doc() = "microsim: a microsurface ray-tracing oracle for Smith-GGX microfacet models, from numpy (docs/python.md).";
+  m.doc() = "microsim: a microsurface ray-tracing oracle for Smith-GGX microfacet models, from numpy (docs/guide/python.md).";
   py::register_exception_translator(&translate_errors);
   bind_analytic(m);
   bind_validation(m);

@@ -1,4 +1,4 @@
-// scatter: energy-compensation reference tables (issue 10): the directional albedo E(mu, alpha) of a rough
+// scatter: energy-compensation reference tables: the directional albedo E(mu, alpha) of a rough
 // mirror or dielectric and its hemispherical average
 //   E_avg(alpha) = 2 integral_0^1 E(mu) mu dmu,
 // the two tables of Kulla & Conty 2017 ("Revisiting Physically Based Shading at Imageworks", SIGGRAPH
@@ -30,14 +30,14 @@
 // Gauss| over the outer rule's final intervals plus the outer integral of the inner estimates. It is an
 // estimate, not a bound: against a tolerance-1e-12 run (GGX, alpha 0.02..1.5, mu 0.03..0.97, mirror and
 // dielectric 1.5 from both sides, 177 values per tolerance) it was exceeded once per tolerance, by at
-// most 2.4 times (1e-4, 1e-6, 1e-8; docs/scattering.md).
+// most 2.4 times (1e-4, 1e-6, 1e-8; docs/guide/scattering-and-energy-tables.md).
 //
 // The mu grid: the Gauss-Legendre nodes of [0, 1] (mus of them, increasing), so that
 //   E_avg = 2 sum_j w_j mu_j E(mu_j)
 // is exact for E mu a polynomial of degree 2 mus - 1. Its error: sampled models, the cells are independent
 // (cell (a, m) draws from its own seed, albedo_cell_seed), so SE(E_avg) = 2 sqrt(sum_j (w_j mu_j SE_j)^2);
 // analytic, the cells' error estimates add: 2 sum_j w_j mu_j err_j. Neither includes the mu rule's own
-// error (docs/scattering.md measures it: the 16-node table's E_avg against 64 nodes).
+// error (docs/records/scattering.md measures it: the 16-node table's E_avg against 64 nodes).
 //
 // Engine: rows (alphas) are filled in order; the analytic cells of a row run in parallel (run.threads),
 // a sampled cell runs its paths on the block runner. Cell results depend only on (request, cell): the

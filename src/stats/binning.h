@@ -79,7 +79,7 @@ struct IntegrationOptions {
   // integrated piecewise between the roots (TOMS 748, Alefeld, Potra & Shi 1995), so the jump no longer
   // costs refinement.
   std::vector<std::function<double(const Vec3<double>&)>> breaks;
-  // Second pass, for lobes the first one cannot resolve (issue 8, defect 9: alpha 1e-4 seen at 89.99 deg,
+  // Second pass, for lobes the first one cannot resolve (alpha 1e-4 seen at 89.99 deg,
   // reflected directions, where the lobe is a wedge 1e-4 long and alpha |wi + wo| wide ending at -wi).
   // When the per-bin error estimates add up to more than second_pass_total_error, every bin that missed
   // its tolerance is integrated again with focus + second_pass_focus, and after the budget above with

@@ -92,7 +92,7 @@ ChiSquareResult two_sample_homogeneity(std::span<const double> counts_a, std::sp
 ChiSquareResult weighted_homogeneity(std::span<const double> w1, std::span<const double> s1, std::span<const double> w2,
                                      std::span<const double> s2, const ChiSquareOptions& options = {});
 
-// Too few samples for a test to be able to reject: never a pass (issue 8, defect 7). `given` samples were
+// Too few samples for a test to be able to reject: never a pass. `given` samples were
 // supplied, `needed` are required by the rule of the test (see goodness_of_fit_minimum_samples).
 struct InsufficientData : std::invalid_argument {
   InsufficientData(const std::string& what, std::uint64_t given_samples, std::uint64_t needed_samples)

@@ -263,4 +263,9 @@ TracedHistogram read_histogram_exr(const std::filesystem::path& path) {
   return histogram_from_exr(read_exr_or<HistogramIoError>(path), path.string());
 }
 
+bool is_traced_histogram_image(const microgeom::ExrImage& image) {
+  const auto it = image.attributes.find("format");
+  return it != image.attributes.end() && it->second == kFormat;
+}
+
 }  // namespace microsim

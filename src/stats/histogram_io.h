@@ -63,5 +63,7 @@ void write_histogram_exr(const std::filesystem::path& path, const TracedHistogra
 TracedHistogram read_histogram_exr(const std::filesystem::path& path);
 // The same checks on an image already read (the fuzz target's entry point); `name` names it in messages.
 TracedHistogram histogram_from_exr(const microgeom::ExrImage& image, const std::string& name);
+// Whether an image says it is a traced histogram (its format attribute), before any other check.
+bool is_traced_histogram_image(const microgeom::ExrImage& image);
 
 }  // namespace microsim

@@ -413,7 +413,7 @@ template <bool kOcclusionOnly, bool kRecord>
       }
       // A first hit the wrong way means that in float the ray passed within about one ulp of a convex
       // edge, over the facet it nearly runs along, and Embree's float t of that nearly parallel facet
-      // ordered the two the wrong way round (docs/heightfield-trade.md, section 1). The ray is taken to
+      // ordered the two the wrong way round (docs/records/heightfield-trade.md, section 1). The ray is taken to
       // pass over the edge: it continues from the hit, skipping that facet.
       if (w.pass_grazes && crosses_wrong_way(rh.hit, w.df, w.side) && out.edge_grazes < kMaxEdgeGrazes) {
         ++out.edge_grazes;

@@ -43,7 +43,7 @@
 // the coordinates of a convex edge between a facet it nearly runs along (entering, at a grazing angle)
 // and a steeper facet beyond (leaving) can be reported on the leaving facet: Embree is watertight, but
 // its float distance to the nearly parallel facet is off by more than the two hits' separation. Measured
-// (docs/heightfield-trade.md): ~6e-7 per primary ray at alpha 1, 85 deg, N = 1024, every case within
+// (docs/records/heightfield-trade.md): ~6e-7 per primary ray at alpha 1, 85 deg, N = 1024, every case within
 // 0.1-2.5 ulp(1) of an edge. For a ray that starts above the surface at its (x, y) (a primary ray, or a
 // point lifted off its start facet; not one traced as outside but started inside the solid, which
 // legitimately leaves it first; for RaySide::inside, a ray that starts below the surface at its (x, y)),
@@ -62,7 +62,7 @@
 // - grid: RTC_GEOMETRY_TYPE_GRID, one (N+3)^2 vertex grid (Embree's compact grid BVH). Embree splits a grid
 //   quad along the diagonal v1-v3; the grid's u axis runs along -x so that this is the heightfield's
 //   diagonal (i, j)-(i+1, j+1). The hit triangle is recovered from the grid's (u, v) hit coordinates.
-// docs/heightfield-trade.md measures both (memory, build time, rays per second).
+// docs/records/heightfield-trade.md measures both (memory, build time, rays per second).
 // - pyramid: no Embree at all; trace/heightfield_pyramid.h walks the cells over a min-max
 //   height pyramid and intersects the same two triangles per cell exactly (double, watertight by shared
 //   edge heights). The same lift and start-triangle skip; the segment loop, the overlap strip and the

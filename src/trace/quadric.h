@@ -18,8 +18,8 @@ namespace microsim {
 
 // The roughness over which the traced quadric is a verified oracle for D_v: alpha in
 // [kMinAlpha, kQuadricMaxAlpha] = [1e-4, 10] per axis and anisotropy max/min <= kQuadricMaxAnisotropy
-// = 1000 (the supported range of the command line, docs/conventions.md). Why these bounds:
-// - Measured (tests/test_trace_vndf.cpp, TraceVndf.QuadricExactAtTheCornersOfItsRange; docs/oracle.md,
+// = 1000 (the supported range of the command line, docs/reference/conventions.md). Why these bounds:
+// - Measured (tests/test_trace_vndf.cpp, TraceVndf.QuadricExactAtTheCornersOfItsRange; docs/reference/oracle.md,
 //   "The quadric at the corners of its range"): at the corners (1e-4, 1e-4), (1e-4, 0.1), (0.1, 1e-4),
 //   (10, 10), (0.01, 10), (10, 0.01), theta 0/60/85/89, 4e6 rays, the traced histogram is
 //   indistinguishable from D_v in both binnings (smallest Sidak-combined p 0.17) and its TV sits at the

@@ -126,7 +126,7 @@ double relative_difference(double a, double b) {
 // Largest relative change of the claimed pdf when the stored vector w moves by its rounding `step`:
 // rotated by `step` radians along either tangent direction, or its length scaled by 1 +- step. How much
 // of a pdf mismatch the rounding of w alone can explain.
-// The length matters (issue 8, defect 9): the claimed pdf of a reflected direction recovers the half
+// The length matters: the claimed pdf of a reflected direction recovers the half
 // vector from wi + wo, unnormalised, and for nearly opposite grazing directions (alpha 1e-4, theta
 // 89.99 deg: |wi + wo| ~ 1e-7) its tangential component is a difference of two numbers near 1 that is
 // ~1e-11: a length of wi or wo off 1 by one ulp (their rounding) moves m by ~1e-5 relative and D by

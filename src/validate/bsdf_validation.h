@@ -1,5 +1,5 @@
 // validate: a BSDF sampler of the zoo (microfacet/bsdf_samplers.h) validated as a renderer's sample()
-// would be (issue 11, point 4): its outgoing directions against the pdf it claims (chi-square in sphere and
+// would be: its outgoing directions against the pdf it claims (chi-square in sphere and
 // lobe bins, the returned pdf at each sample, the pdf's integral), and its weights against the analytic
 // single-scattering BSDF (weight_test.h: the albedo and the flux per sphere bin), in one report.
 // Sample i draws three uniforms from CounterRng(seed, i): the same samples whatever the thread count.

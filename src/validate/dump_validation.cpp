@@ -4,6 +4,8 @@
 
 #include <fmt/core.h>
 
+#include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 namespace microsim {
@@ -46,6 +48,17 @@ std::string dropped_samples_hint(const ValidationReport& r, const ReferenceDistr
                      "dump that drops the samples its sampler loses? Test it with --above-horizon "
                      "(above_horizon=True) and --dropped N (dropped=N), the count it dropped",
                      100 * lost, expected, r.failed_samples);
+}
+
+// A rejected dump whose view is within 1.6 deg of the normal: a theta given in radians (at most pi / 2) where
+// degrees are read? The number the user gave is the view's angle in degrees.
+std::string radians_hint(const Vec3<double>& wi) {
+  const double degrees = std::acos(std::clamp(std::abs(wi.z()), 0.0, 1.0)) * 180 / kPi<double>;
+  if (!(degrees >= 0.05 && degrees < 1.6)) return "";
+  const double meant = degrees * 180 / kPi<double>;  // v radians in degrees
+  return fmt::format("the view is {:.4g} deg from the normal: theta is read in degrees; if {:.4g} was meant in "
+                     "radians, give --theta {:.4g} (Python: theta={:.4g})",
+                     degrees, degrees, meant, meant);
 }
 
 // What the report must say whatever the verdict: what a dump without some column could not show.
@@ -97,7 +110,19 @@ ValidationReport validate_dump(const DirectionSampleReader& samples, std::shared
   if (r.passed) return r;
   if (diagnose_frame && looks_like_a_frame_mistake(r)) r.hints.push_back(frame_hint(r, samples, reference, options));
   if (std::string hint = dropped_samples_hint(r, *reference); !hint.empty()) r.hints.push_back(std::move(hint));
+  if (std::string hint = radians_hint(wi); !hint.empty()) r.hints.push_back(std::move(hint));
   return r;
+}
+
+ValidationReport validate_dump_as_given(DirectionSampleReader& samples, const DumpClaims& claims, const GGX<double>& ggx,
+                                        const Vec3<double>& view, ValidationOptions options, bool diagnose_frame) {
+  const ViewFromOutside v = seen_from_outside(view, claims.bsdf);
+  samples.set_mirrored(v.mirrored);
+  if (options.bsdf) options.bsdf = v.bsdf;
+  const auto reference = dump_reference({claims.pdf, v.bsdf, claims.kept_only}, ggx, v.wi, options.rows);
+  ValidationReport report = validate_dump(samples, reference, ggx, v.wi, options, diagnose_frame);
+  report.wi = view;
+  return report;
 }
 
 }  // namespace microsim

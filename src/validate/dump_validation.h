@@ -48,4 +48,12 @@ ValidationReport validate_dump(const DirectionSampleReader& samples, std::shared
                                const GGX<double>& ggx, const Vec3<double>& wi, const ValidationOptions& options,
                                bool diagnose_frame);
 
+// A dump's whole validation from the view as the user gave it: a view below the surface (light from inside a
+// dielectric) is mirrored (seen_from_outside, the samples' reader set_mirrored), options.bsdf (the weight test,
+// when set) is the BSDF so seen, the reference is dump_reference of the claims, and the report keeps the view
+// as given. std::invalid_argument for claims that do not fit (a view below the surface without a dielectric,
+// kept_only with a density of normals).
+ValidationReport validate_dump_as_given(DirectionSampleReader& samples, const DumpClaims& claims, const GGX<double>& ggx,
+                                        const Vec3<double>& view, ValidationOptions options, bool diagnose_frame);
+
 }  // namespace microsim

@@ -1,4 +1,4 @@
-// microsim: NPY and text files of sampled directions (see microsim/sample_io.h).
+// microsim: NPY and text files of sampled directions (see src/validate/sample_io.h).
 //
 // The NPY format is tiny and specified at numpy.org (numpy.lib.format): the magic "\x93NUMPY", a major
 // and minor version byte, a little-endian header length (uint16 for version 1.0, uint32 for 2.0 and

@@ -1,7 +1,7 @@
 // microsim: reading and writing files of sampled directions, for `microsim validate --from FILE` (samples
 // produced by a GLSL/HLSL/CUDA sampler elsewhere) and for dumping microsim's own samples.
 //
-// Formats (docs/analytic.md, "Sample files"):
+// Formats (docs/reference/file-formats.md, "Sample files"):
 // - NPY (NumPy format versions 1.0, 2.0 and 3.0; https://numpy.org/doc/stable/reference/generated/
 //   numpy.lib.format.html): dtype '<f4' or '<f8' (little-endian float32/float64), shape (N, 3), in C order
 //   (row by row) or Fortran order (fortran_order True: column by column, as np.save writes a transposed or

@@ -1,5 +1,5 @@
 // microsim: the numerical-stability sweep of the sampler zoo and the analytic Smith-GGX functions
-// (see microsim/stability.h for what is measured and docs/stability.md for the table and its bounds).
+// (see src/validate/stability.h for what is measured and docs/reference/stability.md for the table and its bounds).
 #include "validate/stability.h"
 
 #include "microfacet/bsdf.h"
@@ -627,7 +627,7 @@ void sampler_bound(const StabilityMetrics& row, StabilityBound& b) {
   const bool extreme_view = extreme_view_regime(row.regime);
   // Float against double at the same inputs. A few float ulps where nothing is extreme; a 1:1000
   // stretch or a grazing view amplifies absolute rounding errors of the hemisphere configuration
-  // (section "bounds" of docs/stability.md).
+  // (section "bounds" of docs/reference/stability.md).
   b.angle_float_double = 2e-6;
   b.rel_float_double = 5e-6;
   if (row.regime == R::anisotropic) {
@@ -666,7 +666,7 @@ void function_bound(const StabilityMetrics& row, StabilityBound& b) {
 StabilityBound stability_bound(const StabilityMetrics& row) {
   StabilityBound b;
   b.norm_double = 1e-15;  // a few ulps: every sampler normalises its result last
-  b.norm_float = 1e-6;    // issue 2 section 5
+  b.norm_float = 1e-6;    // a few float ulps: 1e-6 is about 8 ulps of 1.0f
   if (row.regime == StabilityRegime::non_finite_input) {
     b.require_empty = row.is_sampler;  // non-finite or zero view, non-finite u: nullopt
   } else if (row.is_sampler && row.negative_control) {

@@ -1,6 +1,6 @@
 // microsim: numerical stability of the sampler zoo and of the analytic Smith-GGX functions at the
-// extremes (issue 2, section 5). One sweep, shared by tests/test_stability.cpp (which asserts the
-// bounds) and `microsim stability` (which prints the table that docs/stability.md quotes).
+// extremes. One sweep, shared by tests/test_stability.cpp (which asserts the
+// bounds) and `microsim stability` (which prints the table that docs/records/stability.md quotes).
 //
 // What is measured, per (subject, regime), as worst cases over the grid:
 // - subjects: every sampler of sampler_registry() (float and double) and the analytic functions of
@@ -51,7 +51,7 @@ struct StabilityGrid {
   int random_u_per_view = 48;      // plus this many random u per view, from CounterRng(seed, view index)
   std::uint64_t seed = 20240611;
 
-  // The grid of issue 2 section 5: alpha in {1e-4, 1e-3, 0.01, 0.1, 0.5, 1, 2, 10}, anisotropy 1:1000 both
+  // The extreme grid: alpha in {1e-4, 1e-3, 0.01, 0.1, 0.5, 1, 2, 10}, anisotropy 1:1000 both
   // ways (and 1:10), theta in {0, 0.001, 45, 80, 89, 89.9, 89.99, 89.999, 90, 95, 120, 179.9, 180},
   // phi in {0, 45, 90, 137}, u in {0, 0.5, 1 - 2^-24, 1 - 2^-53}^2 plus random u.
   static StabilityGrid standard();
@@ -72,7 +72,7 @@ inline constexpr int kStabilityRegimeCount = 9;
 const char* stability_regime_name(StabilityRegime r);
 
 // What limits an analytic function's float accuracy beyond its conditioning at the input: the trait that
-// loosens its row's bound (stability_bound; docs/stability.md), set where the function is listed.
+// loosens its row's bound (stability_bound; docs/reference/stability.md), set where the function is listed.
 enum class FloatAccuracyCaveat {
   none,
   // A generalised half vector -(wi + eta wo) that cancels at grazing incidence (dielectric transmission):
@@ -116,7 +116,7 @@ struct StabilityMetrics {
   std::string worst_angle_config, worst_rel_config, worst_cond_config, worst_claimed_config;
 };
 
-// The bounds that the tests assert, per (subject, regime); docs/stability.md explains each. Unverifiable
+// The bounds that the tests assert, per (subject, regime); docs/reference/stability.md explains each. Unverifiable
 // samples and zero flips may be allowed at u on the ends of [0, 1) (rim samples), never inside: a bound
 // that does not depend on how many random u the grid adds.
 struct StabilityBound {

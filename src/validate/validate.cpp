@@ -1,4 +1,4 @@
-// microsim: the statistical validator of direction samplers (validate.h, docs/validation.md).
+// microsim: the statistical validator of direction samplers (validate.h, docs/reference/validator.md).
 #include "validate/validate.h"
 
 #include "validate/weight_test.h"
@@ -156,7 +156,7 @@ std::shared_ptr<const ReferenceDistribution> prepare_reference(DirectionFunction
   // where the half vector reaches the horizon, wo.z = -wi.z.
   sphere_options.z_breaks = {0.0};
   if (domain == SampleDomain::reflected_direction) sphere_options.z_breaks.push_back(-ref.wi.z());
-  // A lobe too narrow for the first pass (issue 8, defect 9: bounded2023 at alpha 1e-4, theta 89.99 deg
+  // A lobe too narrow for the first pass (bounded2023 at alpha 1e-4, theta 89.99 deg
   // left 2e-5 of its mass, 20 of 1e6 samples, in the remainder cell, with an error estimate of 1.5e-3):
   // when the bins' error estimates add up to more than the pdf-integral check can tolerate, the bins
   // that missed their tolerance are integrated again with focus graded toward -wi and directed splits.

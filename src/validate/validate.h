@@ -1,4 +1,4 @@
-// microsim: the statistical validator of direction samplers (issue 2, section 4; docs/validation.md).
+// microsim: the statistical validator of direction samplers (docs/reference/validator.md).
 //
 // One validation draws N samples (or takes them from a file) for one configuration (alpha, view wi)
 // and runs, in one report:
@@ -51,7 +51,7 @@ enum class Precision { float32, float64 };
 
 // Default relative pdf tolerances (returned vs analytic pdf, per sample, |a - b| / max(a, b)): double
 // samplers agree to ~1e-12; float samplers lose up to ~1e-4 at alpha = 1e-3 where D varies by
-// 4 theta dtheta / alpha^2 across a float ULP of the direction (see docs/validation.md).
+// 4 theta dtheta / alpha^2 across a float ULP of the direction (see docs/reference/validator.md).
 inline constexpr double kPdfToleranceDouble = 1e-6;
 inline constexpr double kPdfToleranceFloat = 1e-2;
 

@@ -1,4 +1,4 @@
-// validate: the weights of a BSDF sampler, tested against the BSDF (issue 11, point 4).
+// validate: the weights of a BSDF sampler, tested against the BSDF.
 //
 // A renderer's sample() returns a direction wo with the weight w = f(wi, wo) cos(wo) / pdf(wo). Whatever
 // pdf drew wo, E[w 1_B(wo)] = the integral over B of f(wi, wo) cos(wo) dwo (the estimator is unbiased), so

@@ -9,7 +9,7 @@
 
 namespace microsim::fuzz {
 
-// Error messages quote at most a short excerpt of the input (issue 8): a longer one is a finding.
+// Error messages quote at most a short excerpt of the input: a longer one is a finding.
 inline constexpr std::size_t kMaxMessageBytes = 1000;
 
 // The EXR targets decode at most this much float data per input: the reader's own limit

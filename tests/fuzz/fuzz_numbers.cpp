@@ -1,7 +1,7 @@
-// libFuzzer target: the number parsers. The command-line parser (microsim/parse.h: reals, integers,
+// libFuzzer target: the number parsers. The command-line parser (src/core/parse.h: reals, integers,
 // lists, the supported alpha) must either return a finite value inside the asked range or throw
 // ParseError with a short, printable message; the strict attribute parsing of file readers
-// (microsim/strict_parse.h) must round-trip what it accepts.
+// (src/core/strict_parse.h) must round-trip what it accepts.
 #include "fuzz_common.h"
 #include "core/parse.h"
 #include "microfacet/roughness.h"
