@@ -15,6 +15,7 @@
 //   trace_triangles, trace_grid    Embree
 //   trace_pyramid                  the min-max pyramid walk (trace/heightfield_pyramid.h)
 //   trace_pyramid_morton           the same, Morton order
+//   trace_pyramid_lockstep         the same rays, each block's traced 4 in lockstep (trace_batch)
 // After the benchmarks: one table, ns/ray per option per resolution, and each option's rate against raw_high;
 // also how many of the rays the pyramid and Embree's triangles hit on a different triangle.
 //
@@ -38,6 +39,7 @@
 #include <map>
 #include <memory>
 #include <numeric>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -54,7 +56,7 @@ constexpr int kLargest = 4096;  // from this resolution on, only raw_high*, trac
 
 const char* const kOptions[] = {"raw_high",        "raw_high_morton", "raw_medium",    "raw_low",
                                 "raw_compact",     "raw_grid",        "trace_triangles", "trace_grid",
-                                "trace_pyramid",   "trace_pyramid_morton"};
+                                "trace_pyramid",   "trace_pyramid_morton", "trace_pyramid_lockstep"};
 constexpr int kOptionCount = int(sizeof(kOptions) / sizeof(kOptions[0]));
 
 struct Segment {
@@ -213,6 +215,18 @@ std::uint64_t trace_all(const HeightfieldScene& scene, const Fixture& f, bool mo
   return hits;
 }
 
+std::uint64_t trace_lockstep(const HeightfieldScene& scene, const Fixture& f) {
+  std::vector<HeightfieldHit> out(kRaysPerBlock);
+  std::uint64_t hits = 0;
+  for (std::size_t first = 0; first < f.origins.size(); first += kRaysPerBlock) {
+    const std::size_t n = std::min<std::size_t>(kRaysPerBlock, f.origins.size() - first);
+    scene.trace_batch(std::span<const Vec3<double>>(f.origins.data() + first, n), f.dir,
+                      std::span<HeightfieldHit>(out.data(), n));
+    for (std::size_t i = 0; i < n; ++i) hits += out[i].is_hit();
+  }
+  return hits;
+}
+
 std::uint64_t run_option(const Fixture& f, const std::string& option) {
   const Vec3<float> d = f.dir.cast<float>();
   const RTCScene triangles = f.scenes.at(HeightfieldGeometry::triangles)->embree_scene().handle();
@@ -222,6 +236,7 @@ std::uint64_t run_option(const Fixture& f, const std::string& option) {
   if (option.rfind("raw_", 0) == 0) return replay(f.raw.at(option)->scene, f.segments, d);
   if (option == "trace_triangles") return trace_all(*f.scenes.at(HeightfieldGeometry::triangles), f, false);
   if (option == "trace_grid") return trace_all(*f.scenes.at(HeightfieldGeometry::grid), f, false);
+  if (option == "trace_pyramid_lockstep") return trace_lockstep(*f.scenes.at(HeightfieldGeometry::pyramid), f);
   return trace_all(*f.scenes.at(HeightfieldGeometry::pyramid), f, option == "trace_pyramid_morton");
 }
 

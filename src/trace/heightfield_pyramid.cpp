@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <span>
 
 namespace microsim {
 
@@ -212,12 +213,23 @@ HeightfieldHit PyramidTracer::trace_vertical(const Vec3<double>& origin, const V
   return out;
 }
 
-HeightfieldHit PyramidTracer::trace(const Vec3<double>& origin, const Vec3<double>& dir,
-                                    std::optional<std::uint32_t> skip_triangle) const {
-  if (dir.x() == 0 && dir.y() == 0) return trace_vertical(origin, dir, skip_triangle);
-  HeightfieldHit out;
-  out.segments = 1;
+// One ray's walk and its level, for tracing several in lockstep.
+struct PyramidTracer::Lane {
   Walk w;
+  int k = 0;
+  HeightfieldHit out;
+};
+
+// Sets up the walk of a ray; returns true if it is done already (a vertical ray).
+bool PyramidTracer::start(Lane& lane, const Vec3<double>& origin, const Vec3<double>& dir,
+                          std::optional<std::uint32_t> skip_triangle) const {
+  lane = Lane{};
+  if (dir.x() == 0 && dir.y() == 0) {
+    lane.out = trace_vertical(origin, dir, skip_triangle);
+    return true;
+  }
+  lane.out.segments = 1;
+  Walk& w = lane.w;
   w.ox = wrap_into(origin.x(), tile_) * inv_cell_, w.oy = wrap_into(origin.y(), tile_) * inv_cell_, w.oz = origin.z();
   w.dx = dir.x() * inv_cell_, w.dy = dir.y() * inv_cell_, w.dz = dir.z();
   w.sx = w.dx > 0 ? 1 : (w.dx < 0 ? -1 : 0), w.sy = w.dy > 0 ? 1 : (w.dy < 0 ? -1 : 0);
@@ -225,49 +237,83 @@ HeightfieldHit PyramidTracer::trace(const Vec3<double>& origin, const Vec3<doubl
   w.ci = std::min(int(w.ox), n_ - 1), w.cj = std::min(int(w.oy), n_ - 1);
   w.ui0 = w.ci, w.uj0 = w.cj;
   if (skip_triangle) w.skip = field_.triangle_index(*skip_triangle);
-  const int top = pyramid_.top_level();
-  for (int k = top;;) {
-    const double z = w.oz + w.t * w.dz;
-    if (w.dz >= 0 && z > escape_height_) {
-      out.outcome = RayOutcome::escaped;
-      return out;
+  lane.k = pyramid_.top_level();
+  return false;
+}
+
+// One step of the walk: a node passed or entered, or a cell tested. Returns true when the ray is done
+// (lane.out holds its result).
+bool PyramidTracer::step(Lane& lane) const {
+  Walk& w = lane.w;
+  int& k = lane.k;
+  const double z = w.oz + w.t * w.dz;
+  if (w.dz >= 0 && z > escape_height_) return lane.out.outcome = RayOutcome::escaped, true;
+  if (w.dz <= 0 && z < floor_height_) return lane.out.outcome = RayOutcome::leaked, true;
+  const int ax = (w.ci >> k) << k, ay = (w.cj >> k) << k;
+  const int bx = std::min(n_, ax + (1 << k)), by = std::min(n_, ay + (1 << k));
+  const double tx = w.sx > 0 ? (bx - w.ox) * w.idx : (w.sx < 0 ? (ax - w.ox) * w.idx : kUnbounded);
+  const double ty = w.sy > 0 ? (by - w.oy) * w.idy : (w.sy < 0 ? (ay - w.oy) * w.idy : kUnbounded);
+  const double t1 = std::max(std::min(tx, ty), w.t);
+  if (k > 0) {
+    const auto& mm = pyramid_.node(k, w.ci >> k, w.cj >> k);
+    const double z1 = w.oz + t1 * w.dz;
+    if (!(std::min(z, z1) > mm[1] + margin_ || std::max(z, z1) < mm[0] - margin_)) {
+      --k;
+      return false;
     }
-    if (w.dz <= 0 && z < floor_height_) {
-      out.outcome = RayOutcome::leaked;
-      return out;
+    const int pi = w.ci >> (k + 1), pj = w.cj >> (k + 1);  // nothing in the node: pass it
+    advance(w, ax, bx, ay, by, tx, ty);
+    w.g_known = false;
+    if (k < pyramid_.top_level() && (pi != w.ci >> (k + 1) || pj != w.cj >> (k + 1))) ++k;  // left the parent
+  } else {
+    const int i1 = w.ci + 1 == n_ ? 0 : w.ci + 1, j1 = w.cj + 1 == n_ ? 0 : w.cj + 1;
+    Leaf c{field_.height_unchecked(w.ci, w.cj), field_.height_unchecked(i1, w.cj), field_.height_unchecked(w.ci, j1),
+           field_.height_unchecked(i1, j1), t1, (tx <= ty ? 1 : 0) | (ty <= tx ? 2 : 0)};
+    if (test_cell(w, c, lane.out)) {
+      lane.out.segments = int(std::min<long>(w.wraps + 1, kMaxSegments));
+      return true;
     }
-    const int ax = (w.ci >> k) << k, ay = (w.cj >> k) << k;
-    const int bx = std::min(n_, ax + (1 << k)), by = std::min(n_, ay + (1 << k));
-    const double tx = w.sx > 0 ? (bx - w.ox) * w.idx : (w.sx < 0 ? (ax - w.ox) * w.idx : kUnbounded);
-    const double ty = w.sy > 0 ? (by - w.oy) * w.idy : (w.sy < 0 ? (ay - w.oy) * w.idy : kUnbounded);
-    const double t1 = std::max(std::min(tx, ty), w.t);
-    if (k > 0) {
-      const auto& mm = pyramid_.node(k, w.ci >> k, w.cj >> k);
-      const double z1 = w.oz + t1 * w.dz;
-      if (std::min(z, z1) > mm[1] + margin_ || std::max(z, z1) < mm[0] - margin_) {  // nothing in the node
-        const int pi = w.ci >> (k + 1), pj = w.cj >> (k + 1);
-        advance(w, ax, bx, ay, by, tx, ty);
-        w.g_known = false;
-        if (k < top && (pi != w.ci >> (k + 1) || pj != w.cj >> (k + 1))) ++k;  // left the parent: try the next one
-      } else {
-        --k;
-      }
-    } else {
-      const int i1 = w.ci + 1 == n_ ? 0 : w.ci + 1, j1 = w.cj + 1 == n_ ? 0 : w.cj + 1;
-      Leaf c{field_.height_unchecked(w.ci, w.cj), field_.height_unchecked(i1, w.cj), field_.height_unchecked(w.ci, j1),
-             field_.height_unchecked(i1, j1), t1, (tx <= ty ? 1 : 0) | (ty <= tx ? 2 : 0)};
-      if (test_cell(w, c, out)) {
-        out.segments = int(std::min<long>(w.wraps + 1, kMaxSegments));
-        return out;
-      }
-      const int pi = w.ci >> 1, pj = w.cj >> 1;
-      advance(w, ax, bx, ay, by, tx, ty);
-      if (pi != w.ci >> 1 || pj != w.cj >> 1) k = 1;  // left the 2 x 2 node: try the next one
+    const int pi = w.ci >> 1, pj = w.cj >> 1;
+    advance(w, ax, bx, ay, by, tx, ty);
+    if (pi != w.ci >> 1 || pj != w.cj >> 1) k = 1;  // left the 2 x 2 node: try the next one
+  }
+  if (w.wraps < kMaxSegments) return false;
+  lane.out.outcome = RayOutcome::unresolved;
+  lane.out.segments = kMaxSegments;
+  return true;
+}
+
+HeightfieldHit PyramidTracer::trace(const Vec3<double>& origin, const Vec3<double>& dir,
+                                    std::optional<std::uint32_t> skip_triangle) const {
+  Lane lane;
+  if (!start(lane, origin, dir, skip_triangle))
+    while (!step(lane)) {
     }
-    if (w.wraps >= kMaxSegments) {
-      out.outcome = RayOutcome::unresolved;
-      out.segments = kMaxSegments;
-      return out;
+  return lane.out;
+}
+
+void PyramidTracer::trace_batch(std::span<const Vec3<double>> origins, const Vec3<double>& dir,
+                                std::span<HeightfieldHit> out) const {
+  std::array<Lane, kLanes> lanes;
+  std::array<std::size_t, kLanes> ray{};
+  std::size_t next = 0;
+  int live = 0;
+  // Fills lane l with the next ray that is not done at once; false if none is left.
+  const auto refill = [&](int l) {
+    while (next < origins.size()) {
+      const std::size_t i = next++;
+      if (!start(lanes[std::size_t(l)], origins[i], dir, std::nullopt)) return ray[std::size_t(l)] = i, true;
+      out[i] = lanes[std::size_t(l)].out;
+    }
+    return false;
+  };
+  std::array<bool, kLanes> active{};
+  for (int l = 0; l < kLanes; ++l) live += (active[std::size_t(l)] = refill(l));
+  while (live > 0) {
+    for (int l = 0; l < kLanes; ++l) {
+      if (!active[std::size_t(l)] || !step(lanes[std::size_t(l)])) continue;
+      out[ray[std::size_t(l)]] = lanes[std::size_t(l)].out;
+      if (!(active[std::size_t(l)] = refill(l))) --live;
     }
   }
 }

@@ -14,7 +14,8 @@
 // whole tile when it leaves through an edge, so cell indices never need a modulo) and a level: the ray's
 // part inside the current node lies entirely above its maximum or below its minimum (by a relative 1e-9
 // margin, far beyond the rounding of the heights interpolated below) -> the node is passed and the walk
-// goes up a level; otherwise down a level, and at level 0 the cell's two triangles are tested.
+// goes up a level if it left the node's parent (else it tries the parent's next child); otherwise down a
+// level, and at level 0 the cell's two triangles are tested.
 //
 // Exact and watertight. Along the ray's path over the plane, g(t) = z(t) - surface height is continuous
 // and piecewise linear, linear over each triangle's part of a cell. The walk evaluates g at the path's
@@ -44,6 +45,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <optional>
+#include <span>
 #include <vector>
 
 namespace microsim {
@@ -83,6 +85,13 @@ public:
   HeightfieldHit trace(const Vec3<double>& origin, const Vec3<double>& dir,
                        std::optional<std::uint32_t> skip_triangle) const;
 
+  // trace() of the rays origins[i] along dir (no skip) into out[i], kLanes walks in lockstep: one step of
+  // each in turn, so that their memory reads could overlap (a walk's next node depends on its last read).
+  // Every ray's result is trace()'s. Measured slower than one ray after the other (bench_tracers,
+  // trace_pyramid_lockstep): kept for that benchmark, not used by the pipelines.
+  static constexpr int kLanes = 4;
+  void trace_batch(std::span<const Vec3<double>> origins, const Vec3<double>& dir, std::span<HeightfieldHit> out) const;
+
   const HeightPyramid& pyramid() const { return pyramid_; }
   // Bytes the tracer allocated (the pyramid; the heights are the field's).
   std::size_t bytes() const { return pyramid_.bytes(); }
@@ -90,6 +99,10 @@ public:
 private:
   struct Walk;
   struct Leaf;
+  struct Lane;
+  bool start(Lane& lane, const Vec3<double>& origin, const Vec3<double>& dir,
+             std::optional<std::uint32_t> skip_triangle) const;
+  bool step(Lane& lane) const;
   bool test_cell(Walk& w, Leaf& leaf, HeightfieldHit& out) const;
   void advance(Walk& w, int ax, int bx, int ay, int by, double tx, double ty) const;
   HeightfieldHit trace_vertical(const Vec3<double>& origin, const Vec3<double>& dir,

@@ -479,6 +479,12 @@ HeightfieldHit HeightfieldScene::trace(const Vec3<double>& origin, const Vec3<do
   return trace_impl<false>(origin, dir, skip_triangle, side, false);
 }
 
+void HeightfieldScene::trace_batch(std::span<const Vec3<double>> origins, const Vec3<double>& dir,
+                                   std::span<HeightfieldHit> out) const {
+  if (pyramid_) return pyramid_->trace_batch(origins, dir, out);
+  for (std::size_t i = 0; i < origins.size(); ++i) out[i] = trace(origins[i], dir);
+}
+
 HeightfieldHit HeightfieldScene::trace_from_surface(const Vec3<double>& p, const Vec3<double>& dir,
                                                     std::uint32_t triangle, const Vec3<double>& up, RaySide side) const {
   if (pyramid_) return pyramid_->trace(surface_origin(p, triangle, up, side), dir, triangle);
