@@ -237,7 +237,9 @@ bool PyramidTracer::start(Lane& lane, const Vec3<double>& origin, const Vec3<dou
   w.ci = std::min(int(w.ox), n_ - 1), w.cj = std::min(int(w.oy), n_ - 1);
   w.ui0 = w.ci, w.uj0 = w.cj;
   if (skip_triangle) w.skip = field_.triangle_index(*skip_triangle);
-  lane.k = pyramid_.top_level();
+  // A ray leaving the surface starts among the cells it is likely to hit: at level 0, going up as it
+  // leaves nodes; a ray from above the surface starts at the top.
+  lane.k = skip_triangle ? 0 : pyramid_.top_level();
   return false;
 }
 
