@@ -5,6 +5,7 @@
 // Exit codes: 0 pass (a shard: written), 1 rejected, 2 bad usage or bad input, 130 interrupted.
 // See docs/reference/validator.md.
 #include "command.h"
+#include "validate_walk.h"
 #include "number_options.h"
 #include "microfacet/roughness.h"
 
@@ -61,6 +62,9 @@ struct Args {
   std::optional<long long> rays;   // with --against ellipsoid
   std::string plot;                // a figure of the binned counts (SVG), single validations only
   std::string shard;               // "K/N": draw only block range K of N of the samples (a partial result)
+  std::string model;               // "smith-walk": --from against the Smith random walk (validate_walk.h)
+  std::string material;            // with --model smith-walk
+  std::optional<long long> paths;  // with --model smith-walk: the walk's paths
 };
 
 constexpr long long kAllDefaultSamples = 200'000;
@@ -434,7 +438,26 @@ void check_file_options(const Args& a) {
   sample_frame(a);  // an unknown frame is exit 2 here, before any work
 }
 
+// --from DUMP --model smith-walk: the options that apply, then the walk's validation.
+int run_model(const Args& a) {
+  if (a.model != "smith-walk") throw UsageError(fmt::format("--model {}: the model is smith-walk", a.model));
+  if (a.from.empty()) throw UsageError("--model smith-walk validates a dump: give --from FILE");
+  for (const auto& [given, name] : {std::pair{!a.sampler.empty() || a.all, "--sampler/--all"}, {!a.against.empty(), "--against"},
+                                    {!a.bsdf.empty(), "--bsdf (give --material)"}, {!a.pdf.empty() || a.reflected, "--pdf/--reflected"},
+                                    {a.above_horizon, "--above-horizon"}, {!a.plot.empty(), "--plot"}, {!a.shard.empty(), "--shard"},
+                                    {!a.transport.empty() || !a.masking.empty(), "--transport/--masking"}})
+    if (given) throw UsageError(fmt::format("{} does not apply to --model smith-walk", name));
+  if (!a.theta) throw UsageError("--model smith-walk needs --theta");
+  microsim::app::WalkValidationArgs w{a.from, a.columns, a.frame, a.material, a.alpha, a.json, *a.theta, a.phi,
+                                      a.significance, a.paths, a.dropped, a.seed};
+  return microsim::app::run_walk_validation(w);
+}
+
 int run(const Args& a) {
+  if (!a.model.empty() || !a.material.empty() || a.paths) {
+    if (a.model.empty()) throw UsageError("--material and --paths apply to --model smith-walk");
+    return run_model(a);
+  }
   microsim::app::check_distinct_outputs({{"--from", a.from}, {"--against", a.against == "ellipsoid" ? "" : a.against}},
                                         {{"--json", a.json}, {"--plot", a.plot}});
   const int modes = int(!a.sampler.empty()) + int(!a.from.empty()) + int(a.all);
@@ -547,6 +570,14 @@ microsim::app::CommandRegistration validate_registration{"validate", [](CLI::App
                   "write their exact counts to --json PART.json; `microsim merge` joins the N parts, computes the "
                   "expected counts (the cubature, which shards skip) and reports the single run, bit for bit. Not for "
                   "--from (given samples) or --against ellipsoid (shard its trace instead)");
+  sub->add_option("--model", args->model,
+                  "with --from: validate against a model's multiple scattering instead: smith-walk (the random walk of "
+                  "Heitz et al. 2016; rows x,y,z,weight per channel, as --columns says): the lobe's shape and the "
+                  "reflected and transmitted albedos against the walk's");
+  sub->add_option("--material", args->material,
+                  "with --model smith-walk: the facet material (mirror, conductor:ETA,K, dielectric:ETA)");
+  add_number_option(sub, "--paths", args->paths, microsim::app::whole(1, microsim::kMaxSamples),
+                    "with --model smith-walk: the walk's paths (default 2000000)");
   microsim::app::on_selected(sub, [args] { return run(*args); });
 }};
 

@@ -125,4 +125,27 @@ TEST_F(ExperimentShardCli, AMergeOfARejectedValidationExits1AsTheOneProcessRunDo
   fs::remove_all(dir_);
 }
 
+// A validation of one block (at most 65536 samples) split over 3 shards: two of them run no block and their
+// parts add nothing; the merge is the one-process run.
+TEST_F(ExperimentShardCli, ShardsOfNoBlockMergeAsTheOneProcessRun) {
+  std::ofstream(dir_ / "small.toml") << "name = \"small\"\nseed = 2\n[[material]]\nname = \"m\"\nalpha = 0.3\n"
+                                        "type = \"mirror\"\n[[quantity]]\nkind = \"validation\"\nmaterial = \"m\"\n"
+                                        "sampler = \"heitz2018\"\ntheta = [40]\nrows = 7\ndetect_tv = 0.05\n";
+  const auto alone = run_cli(dir_ / "a", "run ../small.toml --out out --threads 1");
+  ASSERT_EQ(alone.exit_code, 0) << alone.err;
+  std::string parts;
+  for (const char* k : {"1", "2", "3"}) {
+    const auto part = run_cli(dir_, std::string("run small.toml --threads 1 --out s-") + k + " --shard " + k + "/3");
+    ASSERT_EQ(part.exit_code, 0) << part.err;
+    parts += std::string(" ../s-") + k;
+  }
+  fs::create_directory(dir_ / "m");
+  const auto merged = run_cli(dir_ / "m", "run ../small.toml --out out --threads 1 --merge" + parts);
+  ASSERT_EQ(merged.exit_code, 0) << merged.err;
+  EXPECT_EQ(run_directory_contents(dir_ / "m" / "out"), run_directory_contents(dir_ / "a" / "out"));
+  const auto doc = nlohmann::json::parse(microsim::test::slurp(dir_ / "m" / "out" / "results.json"));
+  EXPECT_LE(doc["results"]["measurements"][0]["rounds"][0]["units"].get<std::uint64_t>(), 65536u) << "one block";
+  fs::remove_all(dir_);
+}
+
 }  // namespace

@@ -234,6 +234,7 @@ struct WalkEnd {
   enum Kind : int { escaped, unfinished, lost } kind;
   int order;  // facet events
   int bin;    // escaped: the bin, or -1 for a direction the binning cannot place
+  Vec3<double> direction = Vec3<double>::Zero();  // escaped: the outgoing direction (global)
 };
 
 struct BlockEnds {
@@ -250,8 +251,9 @@ void walk_path(const Microsurface<Ndf>& surface, const ScatterOptions& o, const 
   for (;;) {
     const std::optional<double> h = surface.next_height(p.w, p.h, rng.uniform());
     if (!h) {
-      const std::optional<int> bin = bins.bin_of(global_direction(p, p.w));
-      end = {WalkEnd::escaped, p.events, bin ? *bin : -1};
+      const Vec3<double> out_direction = global_direction(p, p.w);
+      const std::optional<int> bin = bins.bin_of(out_direction);
+      end = {WalkEnd::escaped, p.events, bin ? *bin : -1, out_direction};
       break;
     }
     if (p.events == o.max_order) {
@@ -309,6 +311,34 @@ ScatterHistogram run_walk(const Ndf& ndf, const SmithMicrosurface& s, const Scat
   result.provenance.blocks = status.done;
   result.partial = status.cancelled;
   return result;
+}
+
+// ---- the walk as a sampler -------------------------------------------------------------------------------
+
+template <class Ndf>
+WalkSamples run_samples(const Ndf& ndf, const SmithMicrosurface& s, const ScatterOptions& o, WalkFault fault) {
+  const Microsurface<Ndf> surface(ndf, o.material, s.heights, fault);
+  const DirectionBinning bins = DirectionBinning::hemispheres(o.rows);
+  const BlockPlan plan{o.paths, kPathsPerBlock};
+  WalkSamples out;
+  out.channels = o.material.channels();
+  for (std::uint64_t block = 0; block < plan.blocks(); ++block) {
+    if (o.run.cancelled()) throw Cancelled("the walk's samples");
+    CounterRng rng(o.seed, block);
+    BlockEnds ends;
+    for (std::uint64_t i = 0; i < plan.units_in(block); ++i) walk_path(surface, o, bins, rng, ends);
+    for (std::size_t i = 0; i < ends.ends.size(); ++i) {
+      if (ends.ends[i].kind != WalkEnd::escaped) {
+        ++out.dropped;
+        continue;
+      }
+      const Vec3<double>& d = ends.ends[i].direction;
+      out.rows.insert(out.rows.end(), {d.x(), d.y(), d.z()});
+      const auto w = ends.weights.begin() + std::ptrdiff_t(i) * out.channels;
+      out.rows.insert(out.rows.end(), w, w + out.channels);
+    }
+  }
+  return out;
 }
 
 // ---- the BSDF value by next-event estimation --------------------------------------------------------------
@@ -407,6 +437,11 @@ ScatterHistogram smith_walk_scatter(const SmithMicrosurface& surface, const Scat
   return with_ndf(surface, [&](const auto& ndf) { return run_walk(ndf, surface, options, fault); });
 }
 
+WalkSamples smith_walk_samples(const SmithMicrosurface& surface, const ScatterOptions& options, WalkFault fault) {
+  check_walk(surface, options);
+  return with_ndf(surface, [&](const auto& ndf) { return run_samples(ndf, surface, options, fault); });
+}
+
 SmithWalkEval smith_walk_eval(const SmithMicrosurface& surface, const ScatterOptions& options, const Vec3<double>& wo,
                               WalkFault fault) {
   check_walk(surface, options);
@@ -425,6 +460,10 @@ ScatterHistogram smith_walk_scatter(const SmithMicrosurface& surface, const Scat
 
 SmithWalkEval smith_walk_eval(const SmithMicrosurface& surface, const ScatterOptions& options, const Vec3<double>& wo) {
   return detail::smith_walk_eval(surface, options, wo, WalkFault::none);
+}
+
+WalkSamples smith_walk_samples(const SmithMicrosurface& surface, const ScatterOptions& options) {
+  return detail::smith_walk_samples(surface, options, WalkFault::none);
 }
 
 }  // namespace microsim

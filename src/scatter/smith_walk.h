@@ -90,6 +90,17 @@ struct SmithWalkEval {
 };
 SmithWalkEval smith_walk_eval(const SmithMicrosurface& surface, const ScatterOptions& options, const Vec3<double>& wo);
 
+// The walk as a renderer's sampler of a multiple-scattering BSDF (what `validate --model smith-walk` tests):
+// per path that leaves, its outgoing direction (global) then its weight per channel, a row of 3 + channels
+// values in `rows`; the paths at the order cap and the lost ones are `dropped` (renderers drop them). Uses
+// options' wi, material, paths, seed, max_order, rows, run (cancellation: Cancelled). One thread.
+struct WalkSamples {
+  std::vector<double> rows;
+  int channels = 1;
+  std::uint64_t dropped = 0;
+};
+WalkSamples smith_walk_samples(const SmithMicrosurface& surface, const ScatterOptions& options);
+
 namespace detail {
 // Deliberate defects, for the negative controls of the tests only.
 enum class WalkFault {
@@ -99,6 +110,7 @@ enum class WalkFault {
 ScatterHistogram smith_walk_scatter(const SmithMicrosurface& surface, const ScatterOptions& options, WalkFault fault);
 SmithWalkEval smith_walk_eval(const SmithMicrosurface& surface, const ScatterOptions& options, const Vec3<double>& wo,
                               WalkFault fault);
+WalkSamples smith_walk_samples(const SmithMicrosurface& surface, const ScatterOptions& options, WalkFault fault);
 }  // namespace detail
 
 }  // namespace microsim

@@ -845,9 +845,17 @@ std::vector<Vec3<double>> read_direction_samples(const std::filesystem::path& pa
 }
 
 void write_npy(const std::filesystem::path& path, std::span<const Vec3<double>> samples, bool as_float32) {
+  std::vector<double> values;
+  values.reserve(samples.size() * 3);
+  for (const Vec3<double>& w : samples) values.insert(values.end(), {w.x(), w.y(), w.z()});
+  write_npy_table(path, values, 3, as_float32);
+}
+
+void write_npy_table(const std::filesystem::path& path, std::span<const double> values, std::size_t columns, bool as_float32) {
   std::string header = "{'descr': '";
   header += as_float32 ? "<f4" : "<f8";
-  header += "', 'fortran_order': False, 'shape': (" + std::to_string(samples.size()) + ", 3), }";
+  header += "', 'fortran_order': False, 'shape': (" + std::to_string(values.size() / columns) + ", " +
+            std::to_string(columns) + "), }";
   // Pad with spaces so that magic + version + length + header (ending in '\n') is a multiple of 64.
   const std::size_t prefix = kNpyMagic.size() + 2 + 2;
   const std::size_t total = (prefix + header.size() + 1 + 63) / 64 * 64;
@@ -859,14 +867,12 @@ void write_npy(const std::filesystem::path& path, std::span<const Vec3<double>> 
   out.push_back('\x00');
   append_le(out, header.size(), 2);
   out += header;
-  out.reserve(out.size() + samples.size() * 3 * (as_float32 ? 4 : 8));
-  for (const Vec3<double>& w : samples) {
-    for (int c = 0; c < 3; ++c) {
-      if (as_float32)
-        append_le(out, std::bit_cast<std::uint32_t>(static_cast<float>(w[c])), 4);
-      else
-        append_le(out, std::bit_cast<std::uint64_t>(w[c]), 8);
-    }
+  out.reserve(out.size() + values.size() * (as_float32 ? 4 : 8));
+  for (const double v : values) {
+    if (as_float32)
+      append_le(out, std::bit_cast<std::uint32_t>(static_cast<float>(v)), 4);
+    else
+      append_le(out, std::bit_cast<std::uint64_t>(v), 8);
   }
   write_atomically(path, out);
 }

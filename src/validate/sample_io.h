@@ -177,6 +177,8 @@ std::vector<Vec3<double>> parse_direction_samples(std::string_view bytes, const 
 // Written to a temporary file in the same directory and renamed, so nothing is ever half-written.
 // Throws SampleFileError on an I/O error.
 void write_npy(const std::filesystem::path& path, std::span<const Vec3<double>> samples, bool as_float32);
+// A table of values.size() / columns rows, row-major, as an NPY (rows, columns) array; as write_npy.
+void write_npy_table(const std::filesystem::path& path, std::span<const double> values, std::size_t columns, bool as_float32);
 
 // Writes a text file: a '#' comment header, then one "x y z" line per sample with the shortest decimal
 // representation that reads back to the same double (exact round trip). Same temp-file-and-rename

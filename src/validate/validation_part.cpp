@@ -97,8 +97,13 @@ battery::Tally tally_from_json(const nlohmann::json& j, const std::vector<std::s
   return t;
 }
 
-battery::Tally merge_tallies(const std::vector<const battery::Tally*>& parts) {
-  if (parts.empty()) throw HistogramMergeError("nothing to merge");
+battery::Tally merge_tallies(const std::vector<const battery::Tally*>& all_parts) {
+  if (all_parts.empty()) throw HistogramMergeError("nothing to merge");
+  // A part of no block (a range split into more parts than it has blocks) adds nothing.
+  std::vector<const battery::Tally*> parts;
+  for (const battery::Tally* t : all_parts)
+    if (t->samples > 0 || !t->block_checks.empty()) parts.push_back(t);
+  if (parts.empty()) return *all_parts.front();
   battery::Tally merged = *parts.front();
   for (std::size_t i = 1; i < parts.size(); ++i) {
     const battery::Tally& t = *parts[i];
