@@ -52,6 +52,7 @@ struct ScatterArgs {
   std::uint64_t seed = 1;
   int threads = 0;
   std::string shard, out, json;
+  std::string geometry = to_string(kDefaultHeightfieldGeometry);  // --geometry: the heightfield's tracer (--surface)
   std::set<std::string> given;  // the options given on the command line
 };
 
@@ -133,7 +134,7 @@ void check_scatter_outputs(const ScatterArgs& a) {
 }
 
 int run_analytic(const ScatterArgs& a) {
-  refuse_options(a, {"--rays", "--seed", "--max-order", "--shard", "--heights", "--tile-size"},
+  refuse_options(a, {"--rays", "--seed", "--max-order", "--shard", "--heights", "--tile-size", "--geometry"},
                  "applies to the sampled models (--model smith-walk, --surface) only: --model analytic is the exact "
                  "single-scattering expectation");
   if (!a.given.count("--alpha")) throw UsageError("--alpha is required for --model analytic");
@@ -156,7 +157,7 @@ int run_analytic(const ScatterArgs& a) {
 }
 
 int run_walk(const ScatterArgs& a) {
-  refuse_options(a, {"--tile-size"}, "applies to --surface only");
+  refuse_options(a, {"--tile-size", "--geometry"}, "applies to --surface only");
   if (!a.given.count("--alpha")) throw UsageError("--alpha is required for --model smith-walk");
   SmithMicrosurface surface;
   const auto [ax, ay] = parse_alpha("--alpha", a.alpha);
@@ -192,6 +193,14 @@ std::pair<std::string, std::string> surface_ndf_and_alpha(const microgeom::Heigh
   return {get("reference_ndf"), ax.empty() || ay.empty() ? std::string() : ax + "," + ay};
 }
 
+HeightfieldGeometry scatter_geometry(const std::string& text) {
+  try {
+    return heightfield_geometry_from_string(text);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(fmt::format("--geometry: {}", e.what()));
+  }
+}
+
 int run_surface(const ScatterArgs& a) {
   refuse_options(a, {"--alpha", "--ndf", "--heights"},
                  "applies to --model only: a traced surface has its own facets (its file records its assembly)");
@@ -202,7 +211,7 @@ int run_surface(const ScatterArgs& a) {
   install_interrupt_handler();
   const auto progress = std::make_shared<CliProgress>(true);
   o.run = cli_run_control(a.threads, progress);
-  const HeightfieldScene scene(field);
+  const HeightfieldScene scene(field, scatter_geometry(a.geometry));
   fmt::print(stderr, "scatter: surface {} ({} x {}, tile {}), {}, theta {} phi {}, {} paths, order cap {}{}\n", a.surface,
              field.resolution(), field.resolution(), field.tile_size(), material.describe(), a.theta, a.phi, a.rays,
              a.max_order, a.shard.empty() ? "" : ", shard " + a.shard);
@@ -245,6 +254,8 @@ CommandRegistration scatter_registration{"scatter", [](CLI::App& app) {
   sub->add_option("--surface", args->surface, "an explicit heightfield (heightmap EXR) to trace");
   sub->add_option("--model", args->model, "analytic (single-scattering expectation) or smith-walk");
   add_number_option(sub, "--tile-size", args->tile_size, real(), "an imported heightmap's tile size (as trace masking)");
+  sub->add_option("--geometry", args->geometry, "--surface: its tracer: pyramid (exact walk over a min-max height "
+                  "pyramid), or Embree's triangles or grid (the same hits)")->capture_default_str();
   sub->add_option("--ndf", args->ndf, "ggx or beckmann (--model)")->capture_default_str();
   sub->add_option("--heights", args->heights, "the Smith walk's height distribution: uniform or gaussian (the result "
                   "does not depend on it)")->capture_default_str();

@@ -44,6 +44,7 @@ struct TraceVndfArgs {
   int threads = 0;
   int rows = 31;
   std::string out, json, mesh_out, shard;
+  std::string geometry = microsim::to_string(microsim::kDefaultHeightfieldGeometry);
   double tile_size = 0;
   bool alpha_given = false, tile_size_given = false, mesh_level_given = false;
 };
@@ -59,6 +60,11 @@ microsim::VndfRequest vndf_request(const TraceVndfArgs& a, const std::shared_ptr
   r.seed = a.seed;
   r.rows = a.rows;
   r.run = ms::cli_run_control(a.threads, progress);
+  try {
+    r.geometry = ms::heightfield_geometry_from_string(a.geometry);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(fmt::format("--geometry: {}", e.what()));
+  }
   if (!a.shard.empty()) {
     const ms::BlockPlan plan{r.rays, ms::kRaysPerBlock};
     const ms::ShardSpec s = ms::parse_shard("--shard", a.shard, plan.blocks());  // ParseError: exit 2
@@ -166,6 +172,10 @@ microsim::app::CommandRegistration trace_registration{"trace", [](CLI::App& app)
       "GGX roughness AX[,AY] of the ellipsoid (required for it), each in [1e-4, 10], anisotropy at most 1:1000");
   auto* tile_size = ma::add_number_option(sub, "--tile-size", args->tile_size, ma::real(),
                                            "heightfield only: tile size (default: from the file)");
+  auto* geometry = sub->add_option("--geometry", args->geometry,
+                                   "heightfield only: its tracer: pyramid (exact walk over a min-max height pyramid), or "
+                                   "Embree's triangles or grid (the same hits)")
+                       ->capture_default_str();
   ma::add_number_option(sub, "--theta", args->theta, ma::real(), "view polar angle in degrees, [0, 90)")->required();
   ma::add_number_option(sub, "--phi", args->phi, ma::real(), "view azimuth in degrees")->default_str("0");
   ma::add_number_option(sub, "--rays", args->rays, ma::whole(1, microsim::kMaxRays),
@@ -188,7 +198,9 @@ microsim::app::CommandRegistration trace_registration{"trace", [](CLI::App& app)
                   "trace only shard K of N of the run (K/N, 1-based: a contiguous range of its blocks of 4096 rays); "
                   "the histogram records its range, and `microsim merge` joins the N parts into the whole run, bit "
                   "for bit");
-  microsim::app::on_selected(sub, [args, alpha, tile_size, mesh_level] {
+  microsim::app::on_selected(sub, [args, alpha, tile_size, mesh_level, geometry] {
+    if (geometry->count() > 0 && args->surface == "ellipsoid")
+      throw UsageError("--geometry applies to heightfield surfaces only");
     args->alpha_given = alpha->count() > 0;
     args->tile_size_given = tile_size->count() > 0;
     args->mesh_level_given = mesh_level->count() > 0;

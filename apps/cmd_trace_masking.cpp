@@ -79,7 +79,7 @@ struct MaskingArgs {
   int threads = 0;
   int bins = 10;
   double grazing_share = 0.02;
-  std::string geometry = "triangles";
+  std::string geometry = to_string(kDefaultHeightfieldGeometry);
   std::string json;
   std::string shard;  // "K/N": only block range K of N (single surface)
   // table mode
@@ -276,7 +276,8 @@ void add_surface_options(CLI::App* sub, MaskingArgs& a) {
                     "share of the front-facing projected area in the fine near-grazing class of G1(v | m) "
                     "(the facets with the smallest <v, m>), in (0, 0.5)")
       ->default_str(fmt::format("{}", a.grazing_share));
-  sub->add_option("--geometry", a.geometry, "Embree geometry: triangles or grid")->capture_default_str();
+  sub->add_option("--geometry", a.geometry, "the heightfield's tracer: Embree's triangles or grid, or pyramid (exact walk "
+                  "over a min-max height pyramid; the same hits, no BVH)")->capture_default_str();
   sub->add_option("--json", a.json, "write the results as JSON");
 }
 

@@ -49,14 +49,15 @@ std::string g_surface_path;  // --surface=FILE.exr; empty: built in the process
 
 struct Surface {
   std::unique_ptr<microgeom::Heightfield> field;
-  std::unique_ptr<HeightfieldScene> scene;
+  std::unique_ptr<HeightfieldScene> scene, pyramid;  // Embree's triangles; the pyramid tracer
 };
 
 const Surface& surface() {
   static Surface s;
   if (s.scene) return s;
   s.field = bench::smith_surface_or_file(g_surface_path, 0.5);
-  s.scene = std::make_unique<HeightfieldScene>(*s.field);
+  s.scene = std::make_unique<HeightfieldScene>(*s.field, HeightfieldGeometry::triangles);
+  s.pyramid = std::make_unique<HeightfieldScene>(*s.field, HeightfieldGeometry::pyramid);
   return s;
 }
 
@@ -181,12 +182,29 @@ void BM_ScatterPipeline(benchmark::State& state) {
   set_counters(state, cpu0, r, k);
 }
 
+// The pipeline with the pyramid tracer (the same paths; a path may differ where a ray passes within float
+// rounding of an edge, tests/test_pyramid_trace.cpp): rates per ray of the Embree run's count.
+void BM_ScatterPipelinePyramid(benchmark::State& state) {
+  const int k = int(state.range(0)), threads = int(state.range(1));
+  const Recording& r = recording(k);
+  const ScatterOptions o = scatter_options(k, threads);
+  const double cpu0 = process_cpu_seconds();
+  for (auto _ : state) {
+    SurfaceScatterDiagnostics d;
+    const ScatterHistogram h = scatter_on_surface(*surface().pyramid, o, &d);
+    benchmark::DoNotOptimize(h.paths());
+    state.counters["traced_differs"] = double(d.traced) - double(r.traced);
+  }
+  set_counters(state, cpu0, r, k);
+}
+
 void timed(benchmark::internal::Benchmark* b) {
   b->ArgsProduct({{0, 1}, {1, 2}})->ArgNames({"material", "threads"})->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(0.5);
 }
 BENCHMARK(BM_ScatterRaw)->Apply(timed);
 BENCHMARK(BM_ScatterPaths)->Apply(timed);
 BENCHMARK(BM_ScatterPipeline)->Apply(timed);
+BENCHMARK(BM_ScatterPipelinePyramid)->Apply(timed);
 
 // Keeps every repetition's rate and CPU time per ray; prints the medians, pipeline against raw.
 class RatioReporter : public bench::RepetitionReporter {
@@ -194,8 +212,9 @@ public:
   void PrintRatios() const {
     fmt::print("\nexplicit multiple scattering vs raw rtcIntersect1, same rays (median of the repetitions), theta {} "
                "phi {}:\n| material | threads | raw Mrays/s | paths only Mrays/s | pipeline Mrays/s | pipeline / raw "
-               "(wall) | raw CPU ns/ray | paths only CPU ns/ray | pipeline CPU ns/ray | pipeline / raw (CPU) |\n"
-               "|---|---|---|---|---|---|---|---|---|---|\n",
+               "(wall) | raw CPU ns/ray | paths only CPU ns/ray | pipeline CPU ns/ray | pipeline / raw (CPU) | pyramid pipeline "
+               "CPU ns/ray | pyramid / raw (CPU) |\n"
+               "|---|---|---|---|---|---|---|---|---|---|---|---|\n",
                kTheta, kPhi);
     for (int k : {0, 1}) {
       for (int threads : {1, 2}) {
@@ -203,11 +222,12 @@ public:
         const double raw = median(rate_, "BM_ScatterRaw" + args), paths = median(rate_, "BM_ScatterPaths" + args),
                      pipe = median(rate_, "BM_ScatterPipeline" + args);
         const double raw_cpu = median(cpu_, "BM_ScatterRaw" + args), paths_cpu = median(cpu_, "BM_ScatterPaths" + args),
-                     pipe_cpu = median(cpu_, "BM_ScatterPipeline" + args);
+                     pipe_cpu = median(cpu_, "BM_ScatterPipeline" + args),
+                     pyr_cpu = median(cpu_, "BM_ScatterPipelinePyramid" + args);
         if (raw < 0 || pipe < 0) continue;
-        fmt::print("| {} | {} | {:.3f} | {:.3f} | {:.3f} | {:.1f}% | {:.0f} | {:.0f} | {:.0f} | {:.1f}% |\n", material_name(k),
-                   threads, raw * 1e-6, paths * 1e-6, pipe * 1e-6, 100.0 * pipe / raw, raw_cpu, paths_cpu, pipe_cpu,
-                   100.0 * raw_cpu / pipe_cpu);
+        fmt::print("| {} | {} | {:.3f} | {:.3f} | {:.3f} | {:.1f}% | {:.0f} | {:.0f} | {:.0f} | {:.1f}% | {:.0f} | {:.2f}x |\n",
+                   material_name(k), threads, raw * 1e-6, paths * 1e-6, pipe * 1e-6, 100.0 * pipe / raw, raw_cpu,
+                   paths_cpu, pipe_cpu, 100.0 * raw_cpu / pipe_cpu, pyr_cpu, raw_cpu / pyr_cpu);
       }
     }
   }

@@ -219,7 +219,7 @@ HeightfieldFixture& heightfield_fixture() {
   static HeightfieldFixture f;
   if (f.scene) return f;
   f.field = bench::smith_surface_or_file(g_surface_path, 0.3);  // `surface build --assembly smith --res 1024 --alpha 0.3`
-  f.scene = std::make_unique<HeightfieldScene>(*f.field);
+  f.scene = std::make_unique<HeightfieldScene>(*f.field, HeightfieldGeometry::triangles);
   const Vec3<double> wi = direction_from_degrees(kTheta, kPhi);
   const double tile = f.field->tile_size(), z0 = f.scene->start_height();
   embree::FlushDenormalsScope ftz;

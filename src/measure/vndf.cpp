@@ -236,7 +236,7 @@ HeightfieldVndf trace_heightfield_vndf(const HeightfieldScene& scene, const micr
 
 HeightfieldVndf measure_heightfield_vndf(const microgeom::Heightfield& field, const std::string& surface,
                                          const VndfRequest& req) {
-  const HeightfieldScene scene(field);
+  const HeightfieldScene scene(field, req.geometry);
   HeightfieldVndf traced = trace_heightfield_vndf(scene, field, surface, req);
   HeightfieldVndf m = analyse_heightfield_vndf(std::move(traced.histogram), traced.trace.unbinned, field);
   m.trace = std::move(traced.trace);

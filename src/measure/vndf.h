@@ -29,6 +29,8 @@ struct VndfRequest {
   std::uint64_t seed = 1;
   int rows = 31;                    // rows of the sphere and lobe binnings
   std::optional<BlockRange> blocks; // trace only these blocks of kRaysPerBlock rays (a shard)
+  // A heightfield's tracer: the pyramid walk, or Embree's triangles or grid (the same hits: heightfield_trace.h).
+  HeightfieldGeometry geometry = kDefaultHeightfieldGeometry;
   RunControl run;
 };
 

@@ -13,12 +13,16 @@
 
 namespace microsim {
 
-std::string to_string(HeightfieldGeometry g) { return g == HeightfieldGeometry::triangles ? "triangles" : "grid"; }
+std::string to_string(HeightfieldGeometry g) {
+  return g == HeightfieldGeometry::triangles ? "triangles" : (g == HeightfieldGeometry::grid ? "grid" : "pyramid");
+}
 
 HeightfieldGeometry heightfield_geometry_from_string(const std::string& s) {
   if (s == "triangles") return HeightfieldGeometry::triangles;
   if (s == "grid") return HeightfieldGeometry::grid;
-  throw std::invalid_argument(fmt::format("unknown heightfield geometry '{}' (expected 'triangles' or 'grid')", s));
+  if (s == "pyramid") return HeightfieldGeometry::pyramid;
+  throw std::invalid_argument(
+      fmt::format("unknown heightfield geometry '{}' (expected 'pyramid', 'triangles' or 'grid')", s));
 }
 
 namespace {
@@ -144,6 +148,11 @@ HeightfieldScene::HeightfieldScene(const microgeom::Heightfield& field, Heightfi
   }
   place_planes();
   const auto t0 = std::chrono::steady_clock::now();
+  if (geometry == HeightfieldGeometry::pyramid) {
+    pyramid_ = std::make_unique<PyramidTracer>(field, escape_height_, floor_height_);
+    build_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return;
+  }
   create_scene(quality);
   attach_heightfield_geometry();
   scene_->commit();
@@ -210,6 +219,11 @@ void HeightfieldScene::attach_heightfield_geometry() {
 }
 
 HeightfieldScene::~HeightfieldScene() = default;
+
+const embree::Scene& HeightfieldScene::embree_scene() const {
+  if (!scene_) throw std::logic_error("HeightfieldScene: the pyramid geometry has no Embree scene");
+  return *scene_;
+}
 
 unsigned int HeightfieldScene::embree_primitive(std::uint32_t triangle) const {
   const auto c = field_.triangle_index(triangle);
@@ -461,17 +475,26 @@ template <bool kOcclusionOnly, bool kRecord>
 
 HeightfieldHit HeightfieldScene::trace(const Vec3<double>& origin, const Vec3<double>& dir,
                                        std::optional<std::uint32_t> skip_triangle, RaySide side) const {
+  if (pyramid_) return pyramid_->trace(skip_triangle ? lifted(origin, *skip_triangle, side) : origin, dir, skip_triangle);
   return trace_impl<false>(origin, dir, skip_triangle, side, false);
+}
+
+void HeightfieldScene::trace_batch(std::span<const Vec3<double>> origins, const Vec3<double>& dir,
+                                   std::span<HeightfieldHit> out) const {
+  if (pyramid_) return pyramid_->trace_batch(origins, dir, out);
+  for (std::size_t i = 0; i < origins.size(); ++i) out[i] = trace(origins[i], dir);
 }
 
 HeightfieldHit HeightfieldScene::trace_from_surface(const Vec3<double>& p, const Vec3<double>& dir,
                                                     std::uint32_t triangle, const Vec3<double>& up, RaySide side) const {
+  if (pyramid_) return pyramid_->trace(surface_origin(p, triangle, up, side), dir, triangle);
   return trace_impl<false>(surface_origin(p, triangle, up, side), dir, triangle, side, true);
 }
 
 HeightfieldHit HeightfieldScene::trace_recording(const Vec3<double>& origin, const Vec3<double>& dir,
                                                  std::optional<std::uint32_t> skip_triangle, RaySide side,
                                                  std::vector<EmbreeCall>& calls) const {
+  if (pyramid_) throw std::logic_error("HeightfieldScene::trace_recording: the pyramid geometry makes no Embree calls");
   if (!skip_triangle) return trace_impl<false, true>(origin, dir, std::nullopt, side, false, &calls);
   const Vec3<double> o = surface_origin(origin, *skip_triangle, field_.triangle_normal(*skip_triangle), side);
   return trace_impl<false, true>(o, dir, skip_triangle, side, true, &calls);
@@ -479,7 +502,8 @@ HeightfieldHit HeightfieldScene::trace_recording(const Vec3<double>& origin, con
 
 bool HeightfieldScene::escapes(const Vec3<double>& origin, const Vec3<double>& dir,
                                std::optional<std::uint32_t> skip_triangle, RayOutcome* outcome) const {
-  const HeightfieldHit h = trace_impl<true>(origin, dir, skip_triangle, RaySide::outside, false);
+  const HeightfieldHit h = pyramid_ ? trace(origin, dir, skip_triangle)
+                                    : trace_impl<true>(origin, dir, skip_triangle, RaySide::outside, false);
   if (outcome) *outcome = h.outcome;
   return h.outcome == RayOutcome::escaped;
 }
