@@ -1,5 +1,5 @@
-// microgeom: assemblies of periodic heightfields with a prescribed NDF (see ../shared/design/oracle.md
-// sections 3-5). Each assembly is selected by name and is a pure function of its parameters and seed
+// microgeom: assemblies of periodic heightfields with a prescribed NDF (Heitz 2018:
+// GGX as the normal distribution of a truncated ellipsoid, its facets assembled in other ways). Each assembly is selected by name and is a pure function of its parameters and seed
 // (CounterRng streams; FFTW plans with FFTW_ESTIMATE; sorting with index tie-breaks): the same parameters
 // give the same heights whatever the thread count.
 //

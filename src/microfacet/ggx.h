@@ -1,6 +1,6 @@
 // microsim: the analytic anisotropic Smith-GGX microfacet model, templated on float and double.
 //
-// References (formulas written from these, see ../shared/design/oracle.md section 1):
+// References (formulas written from these):
 // - Walter, Marschner, Li, Torrance 2007, "Microfacet Models for Refraction through Rough Surfaces",
 //   EGSR: GGX D(m) (eq. 33), Smith G1 (eq. 34).
 // - Heitz 2014, "Understanding the Masking-Shadowing Function in Microfacet-Based BRDFs", JCGT 3(2):

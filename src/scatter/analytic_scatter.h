@@ -15,7 +15,7 @@
 // bin edge. Narrow lobes are found by focus points: the reflections (and refractions) of a lattice of
 // visible normals (Heitz 2018's sampler for GGX, the exact Beckmann sampler) about wi.
 // The sum over the bins is the single-scattering albedo E(wi); for a mirror GGX surface at alpha 1 it is
-// 0.307 at normal incidence and 0.451 at mu = 0.5 (published values, ../shared/design/oracle.md sec. 6;
+// 0.307 at normal incidence and 0.451 at mu = 0.5 (published values;
 // tests/scatter/test_analytic_scatter.cpp checks them and an independent quadrature).
 #pragma once
 

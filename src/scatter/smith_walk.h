@@ -1,6 +1,5 @@
 // scatter: the Smith model's own multiple scattering, as the random walk in height of Heitz, Hanika,
-// d'Eon, Dachsbacher 2016, "Multiple-Scattering Microfacet BSDFs with the Smith Model", SIGGRAPH
-// (../shared/design/oracle.md section 6).
+// d'Eon, Dachsbacher 2016, "Multiple-Scattering Microfacet BSDFs with the Smith Model", SIGGRAPH.
 //
 // The Smith microsurface is a random heightfield whose heights h have the distribution P1 (CDF C1) and
 // whose normals have the distribution D (GGX or Beckmann), with height and normal independent (Smith's

@@ -1,6 +1,5 @@
-// scatter: one light path on an explicit periodic heightfield, bounce by bounce (design note
-// ../shared/design/oracle.md, section 5: "follow bounces to escape for scattering, histogram per bounce
-// order"). scatter/surface_scatter.h runs many of them into a per-order histogram; this header is the
+// scatter: one light path on an explicit periodic heightfield, bounce by bounce, followed to
+// its escape and histogrammed by its order. scatter/surface_scatter.h runs many of them into a per-order histogram; this header is the
 // single path, for that loop, for tests that look at every event, and for benchmarks.
 //
 // A path starts at a uniform point (x, y) = L (u0, u1) of the tile and travels along -wi: from above the

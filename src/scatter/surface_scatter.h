@@ -1,5 +1,5 @@
 // scatter: multiple scattering on an explicit periodic heightfield, measured by tracing every bounce
-// (design note ../shared/design/oracle.md, sections 3 and 5, "explicit surfaces").
+// (Heitz 2018: the microsurface ray traced, bounce by bounce).
 //
 // options.paths paths (scatter/surface_path.h: uniform (x, y) over the tile, along -options.wi, from
 // above the surface, or from below it inside the solid for a dielectric lit from inside) are followed

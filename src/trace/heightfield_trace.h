@@ -1,5 +1,5 @@
 // microsim: ray tracing a periodic heightfield microsurface (microgeom::Heightfield) with Embree, and a
-// small double-precision reference tracer for tests (design note ../shared/design/oracle.md, section 5).
+// small double-precision reference tracer for tests.
 //
 // Periodic tracing. Embree holds ONE copy of the tile plus a one-cell overlap strip on every side: cells
 // -1 .. N in x and y, i.e. vertices -1 .. N+1 (heights wrapped), so the geometry covers

@@ -1,4 +1,4 @@
-// Analytic tests of Smith-GGX (src/microfacet/ggx.h), design note ../shared/design/oracle.md section 1:
+// Analytic tests of Smith-GGX (src/microfacet/ggx.h):
 // - the normalisation identities by numerical integration (to 1e-6; the measured errors are printed and
 //   recorded as test properties),
 // - G1 / Lambda / G2 relations, slope-space P22, symmetries and the back-side convention,

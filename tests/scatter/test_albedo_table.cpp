@@ -1,5 +1,5 @@
 // Energy-compensation tables (scatter/albedo_table.h): the analytic single-scattering albedo against the
-// published values (../shared/design/oracle.md sec. 6) and against an independent computation (the sum of
+// published values and against an independent computation (the sum of
 // the bins of analytic_single_scattering: cubature over wo, not over the visible normals), its error
 // estimate against the error it makes; the Gauss-Legendre grid; the Smith walk's furnace (mirror: every
 // path leaves, E = 1; dielectric: R + T = 1) and its order 1 against the analytic table (chi-square over

@@ -47,7 +47,7 @@ double binned_albedo(double alpha, double mu, int rows = 8) {
   return sum(analytic_single_scattering(GGX<double>(alpha), view_of_mu(mu), Material::mirror(), rows).order1[0]);
 }
 
-// Published values (../shared/design/oracle.md sec. 6), given to three decimals.
+// Published values, given to three decimals.
 TEST(AnalyticScatter, MirrorOrderOneIsThePublishedSingleScatteringAlbedo) {
   EXPECT_NEAR(binned_albedo(1.0, 1.0), 0.307, 6e-4);
   EXPECT_NEAR(binned_albedo(1.0, 0.5), 0.451, 6e-4);
