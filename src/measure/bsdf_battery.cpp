@@ -126,9 +126,56 @@ void check_view(const BsdfUnderTest& b, const Material& m, const GGX<double>& gg
   lines.push_back(consistency(b, wi, s, view));
 }
 
+// The index of refraction on the side of w: 1 above, eta below (a dielectric; 1 for an opaque BSDF).
+double index_at(const Material& m, const Vec3<double>& w) { return m.transmits() && w.z() < 0 ? m.eta() : 1.0; }
+
+// f(b, a) / f(a, b) by the reciprocity of the BSDF it claims to be: 1 for a reflection; for a refraction, in
+// importance transport n_a^2 / n_b^2, in radiance transport n_b^2 / n_a^2 (Veach 1997 sec. 5.2: f(a -> b) / n_b^2
+// = f(b -> a) / n_a^2; radiance evaluates the adjoint).
+double reciprocal_ratio(const Material& m, const BsdfConvention& c, const Vec3<double>& a, const Vec3<double>& b) {
+  const double na = index_at(m, a), nb = index_at(m, b);
+  if (na == nb) return 1.0;
+  return c.transport == TransportMode::importance ? (na * na) / (nb * nb) : (nb * nb) / (na * na);
+}
+
+// The BSDF's own reciprocity at the query pairs off the horizon where it is not negligible: eval at (wo, wi)
+// against eval at (wi, wo) times the ratio above, within 1e-3 relative (no reference needed: it holds for a
+// multiple-scattering BSDF too).
+BatteryLine reciprocity(const BsdfUnderTest& b, const Material& m, const std::vector<BsdfQuery>& q,
+                        const std::vector<double>& values) {
+  std::vector<Vec3<double>> wi, wo;
+  for (const BsdfQuery& x : q) wi.push_back(x.wo), wo.push_back(x.wi);
+  std::vector<double> swapped(values.size());
+  b.eval(wi, wo, swapped);
+  const std::size_t c = std::size_t(b.channels);
+  double largest = 0;
+  for (const double v : values) largest = std::max(largest, std::abs(v));
+  std::uint64_t checked = 0, bad = 0;
+  std::string first;
+  for (std::size_t i = 0; i < q.size(); ++i) {
+    const double ci = std::abs(q[i].wi.z()), co = std::abs(q[i].wo.z());
+    if (ci < 1e-3 || co < 1e-3) continue;
+    for (std::size_t k = 0; k < c; ++k) {
+      const double f_io = values[c * i + k] / co, f_oi = swapped[c * i + k] / ci;
+      if (std::max(std::abs(f_io), std::abs(f_oi)) < 1e-9 * largest) continue;
+      ++checked;
+      const double expected = f_io * reciprocal_ratio(m, b.convention, q[i].wi, q[i].wo);
+      if (std::abs(f_oi - expected) <= kConsistency * std::max(std::abs(f_oi), std::abs(expected))) continue;
+      if (bad++ == 0)
+        first = fmt::format("e.g. f(wo, wi) {:.6g} where reciprocity gives {:.6g}, wi ({:.3f}, {:.3f}, {:.3f}), wo ({:.3f}, "
+                            "{:.3f}, {:.3f})", f_oi, expected, q[i].wi.x(), q[i].wi.y(), q[i].wi.z(), q[i].wo.x(),
+                            q[i].wo.y(), q[i].wo.z());
+    }
+  }
+  return {"reciprocity", "bsdf-queries",
+          bad == 0 ? fmt::format("{} pairs: f(wo, wi) as reciprocity gives ({})", checked, describe(b.convention))
+                   : fmt::format("{} of {} pairs break reciprocity in {}; {}", bad, checked, describe(b.convention), first),
+          -1, bad == 0};
+}
+
 // eval() and pdf() at the query pairs.
 BatteryLine check_eval(const BsdfUnderTest& b, const Material& m, const GGX<double>& ggx, const BatteryOptions& o,
-                       EvalCheckReport& report) {
+                       EvalCheckReport& report, BatteryLine& reciprocity_line) {
   const std::vector<BsdfQuery> q = bsdf_queries(m, 256, o.seed, ggx);
   std::vector<Vec3<double>> wi, wo;
   for (const BsdfQuery& x : q) wi.push_back(x.wi), wo.push_back(x.wo);
@@ -140,6 +187,7 @@ BatteryLine check_eval(const BsdfUnderTest& b, const Material& m, const GGX<doub
   e.arithmetic = o.arithmetic;
   e.run = o.run;
   report = check_eval_values(q, values, pdfs, m, ggx, e, b.name);
+  reciprocity_line = reciprocity(b, m, q, values);
   std::string detail = fmt::format("{} pairs: {} values, {} pdfs outside their tolerance", q.size(), report.value_failures,
                                    report.pdf_failures);
   if (!report.passed && !report.worst.empty()) {
@@ -162,7 +210,9 @@ BatteryReport run_bsdf_battery(const BsdfUnderTest& bsdf, const Material& claime
   const double level = sidak_significance(options.level, int(thetas.size()));
   BatteryReport r;
   for (const double theta : thetas) check_view(bsdf, claimed, ggx, theta, options, level, r.lines);
-  r.lines.push_back(check_eval(bsdf, claimed, ggx, options, r.eval));
+  BatteryLine reciprocal;
+  r.lines.push_back(check_eval(bsdf, claimed, ggx, options, r.eval, reciprocal));
+  r.lines.push_back(std::move(reciprocal));
   r.passed = true;
   for (const BatteryLine& l : r.lines) r.passed = r.passed && l.passed;
   return r;

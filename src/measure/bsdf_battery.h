@@ -7,6 +7,8 @@
 //   - its consistency with itself: each sample's weight against eval / pdf at the sampled direction, and its
 //     returned pdf against pdf(), within 1e-3 relative;
 //   - its eval() and pdf() at the pairs of bsdf_queries, pointwise (validate/eval_check.h);
+//   - its eval()'s reciprocity at those pairs (a reflection's f(wo, wi) = f(wi, wo); a refraction's ratio the
+//     n^2 rule of its transport mode), within 1e-3 relative;
 //   - non-finite outputs: a failure.
 // The BSDF is called in batches (one view's wi repeated), from the calling thread.
 #pragma once

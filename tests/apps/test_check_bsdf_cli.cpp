@@ -1,7 +1,8 @@
 // End to end: `microsim check-bsdf --plugin` loads the worked plugin of examples/plugins/rough_ggx.c (a rough GGX
 // conductor and dielectric in the radiance convention, written from the math) and passes it whole (level 0.01,
 // fixed seed); the same plugin with a planted eval() bug (the radiance factor forgotten in eval only) is
-// rejected by the eval and consistency tests while its sampling tests still pass; bad plugins are exit 2.
+// rejected by the eval, consistency and reciprocity tests while its sampling tests still pass; bad plugins are
+// exit 2.
 #include "cli_helpers.h"
 
 #include <gtest/gtest.h>
@@ -27,7 +28,8 @@ TEST(CheckBsdfCli, TheWorkedPluginsPassWhole) {
     EXPECT_EQ(r.exit_code, 0) << claims << "\n" << r.out << r.err;
     const nlohmann::json j = nlohmann::json::parse(slurp(dir / "c.json"));
     EXPECT_EQ(j["verdict"], "pass");
-    EXPECT_GE(j["tests"].size(), 11u);  // sampling and consistency per view, and eval
+    EXPECT_GE(j["tests"].size(), 12u);  // sampling and consistency per view, eval and reciprocity
+    EXPECT_EQ(j["tests"].back()["test"], "reciprocity");
   }
   fs::remove_all(dir);
 }
@@ -40,7 +42,7 @@ TEST(CheckBsdfCli, APlantedEvalBugIsRejectedByTheEvalAndConsistencyTests) {
   for (const nlohmann::json& t : j["tests"]) {
     const std::string test = t["test"];
     if (test == "sampling") EXPECT_TRUE(t["passed"].get<bool>()) << t.dump();
-    if (test == "eval") EXPECT_FALSE(t["passed"].get<bool>()) << t.dump();
+    if (test == "eval" || test == "reciprocity") EXPECT_FALSE(t["passed"].get<bool>()) << t.dump();
     if (test == "consistency" && t["view"] == "60 deg") EXPECT_FALSE(t["passed"].get<bool>()) << t.dump();
   }
   // The conductor has no refraction: the bug does not touch it.
