@@ -183,26 +183,17 @@ void refuse_insufficient(const std::vector<Input>& in, const std::vector<PairCom
     throw UsageError("too little data to compare (leave these orders out with --orders, or measure more paths):" + list);
 }
 
-// The family: a chi-square and an albedo test per lobe comparison.
-struct Verdict {
+// The family: a chi-square and an albedo test per lobe comparison (comparison_family).
+struct Verdict : ComparisonFamily {
   double level = 0;
-  int tests = 0;
-  double per_test = 0;
-  bool rejected = false;
 };
 
 Verdict verdict(const std::vector<PairComparison>& pairs, double level) {
-  Verdict v;
-  v.level = level;
-  for (const PairComparison& p : pairs) v.tests += 2 * int(p.lobes.size());
-  v.per_test = sidak_significance(level, v.tests);
+  std::vector<const LobeComparison*> lobes;
   for (const PairComparison& p : pairs)
-    for (const LobeComparison& l : p.lobes) v.rejected = v.rejected || l.chi2->p_value < v.per_test || l.difference_p < v.per_test;
-  return v;
+    for (const LobeComparison& l : p.lobes) lobes.push_back(&l);
+  return {comparison_family(lobes, level), level};
 }
-
-nlohmann::json number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
-nlohmann::json estimate(const Estimate& e) { return {{"value", e.value}, {"standard_error", e.standard_error}}; }
 
 nlohmann::json input_json(const Input& in) {
   nlohmann::json j{{"label", in.label}, {"file", in.name}};
@@ -227,11 +218,11 @@ nlohmann::json lobe_json(const LobeComparison& l, const std::string& channel, co
   chi2["significance"] = v.per_test;
   return {{"channel", channel},
           {"order", scatter_order_name(l.order_bin)},
-          {"tv", number(l.tv)},
-          {"tv_noise_floor", number(l.tv_noise_floor)},
-          {"albedo_a", estimate(l.albedo_a)},
-          {"albedo_b", estimate(l.albedo_b)},
-          {"albedo_difference", estimate(l.difference)},
+          {"tv", json_number(l.tv)},
+          {"tv_noise_floor", json_number(l.tv_noise_floor)},
+          {"albedo_a", json_estimate(l.albedo_a)},
+          {"albedo_b", json_estimate(l.albedo_b)},
+          {"albedo_difference", json_estimate(l.difference)},
           {"albedo_difference_p", l.difference_p},
           {"albedo_rejected", l.difference_p < v.per_test},
           {"chi2", chi2}};

@@ -14,6 +14,10 @@
 #include <cmath>
 
 namespace microsim::app {
+
+nlohmann::json json_number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+nlohmann::json json_estimate(const Estimate& e) { return {{"value", e.value}, {"standard_error", e.standard_error}}; }
+
 namespace {
 
 struct Pair {
@@ -41,32 +45,22 @@ std::vector<Pair> compare_pairs(const std::vector<TracedInput>& in) {
 }
 
 // The family: a chi-square test of the shapes and a test of the hit fractions per comparison (Sidak).
-struct Family {
-  int tests = 0;
-  double per_test = 0;
-  bool rejected = false;
-};
+using Family = ComparisonFamily;
 
 Family family(const std::vector<Pair>& pairs, double level) {
-  Family f;
-  for (const Pair& p : pairs) f.tests += 2 * int(p.binnings.size());
-  f.per_test = sidak_significance(level, f.tests);
+  std::vector<const LobeComparison*> lobes;
   for (const Pair& p : pairs)
-    for (const TracedComparison& c : p.binnings)
-      f.rejected = f.rejected || c.lobe.chi2->p_value < f.per_test || c.lobe.difference_p < f.per_test;
-  return f;
+    for (const TracedComparison& c : p.binnings) lobes.push_back(&c.lobe);
+  return comparison_family(lobes, level);
 }
-
-nlohmann::json traced_number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
-nlohmann::json traced_estimate(const Estimate& e) { return {{"value", e.value}, {"standard_error", e.standard_error}}; }
 
 nlohmann::json comparison_json(const TracedComparison& c, const Family& f) {
   nlohmann::json chi2 = to_json(*c.lobe.chi2);
   chi2["rejected"] = c.lobe.chi2->p_value < f.per_test;
   chi2["significance"] = f.per_test;
-  return {{"binning", c.binning},         {"tv", traced_number(c.lobe.tv)},
-          {"tv_noise_floor", traced_number(c.lobe.tv_noise_floor)},
-          {"hit_fraction_a", traced_estimate(c.lobe.albedo_a)}, {"hit_fraction_b", traced_estimate(c.lobe.albedo_b)},
+  return {{"binning", c.binning},         {"tv", json_number(c.lobe.tv)},
+          {"tv_noise_floor", json_number(c.lobe.tv_noise_floor)},
+          {"hit_fraction_a", json_estimate(c.lobe.albedo_a)}, {"hit_fraction_b", json_estimate(c.lobe.albedo_b)},
           {"hit_fraction_difference_p", c.lobe.difference_p}, {"hit_fraction_rejected", c.lobe.difference_p < f.per_test},
           {"chi2", chi2}};
 }

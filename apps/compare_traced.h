@@ -3,7 +3,10 @@
 // the JSON and the figure of the scattering comparison.
 #pragma once
 
+#include "core/estimate.h"
 #include "stats/histogram_io.h"
+
+#include <nlohmann/json.hpp>
 
 #include <string>
 #include <utility>
@@ -15,6 +18,10 @@ struct TracedInput {
   std::string name;  // the file
   TracedHistogram histogram;
 };
+
+// A finite number, or null; an estimate as {value, standard_error} (the comparisons' JSON).
+nlohmann::json json_number(double v);
+nlohmann::json json_estimate(const Estimate& e);
 
 // Compares every pair, writes --json and --svg (when named), prints the table; returns the exit code (0
 // passed, 1 rejected). Too little data or no shared binning is a UsageError (nothing written).

@@ -49,11 +49,6 @@ ScatterHistogram dump_histogram(DirectionSampleReader& dump, const ScatterOption
   return h;
 }
 
-double two_sided_p(const Estimate& a, const Estimate& b) {
-  const double se = std::hypot(a.standard_error, b.standard_error), d = a.value - b.value;
-  return se > 0 ? std::erfc(std::abs(d) / se / std::sqrt(2.0)) : (d == 0 ? 1.0 : 0.0);
-}
-
 // One channel's three tests; the report keeps the channel whose smallest p is the smallest.
 WalkValidationReport channel_report(const ScatterHistogram& dump, const ScatterHistogram& walk, int c, bool from_inside) {
   WalkValidationReport r;
@@ -65,8 +60,8 @@ WalkValidationReport channel_report(const ScatterHistogram& dump, const ScatterH
   r.albedo_transmitted_dump = dump.albedo(c, kTotalOrder, other);
   r.albedo_transmitted_walk = walk.albedo(c, kTotalOrder, other);
   r.walk_unfinished = walk.unfinished(c);
-  r.p_reflected = two_sided_p(r.albedo_reflected_dump, r.albedo_reflected_walk);
-  r.p_transmitted = two_sided_p(r.albedo_transmitted_dump, r.albedo_transmitted_walk);
+  r.p_reflected = difference_p(r.albedo_reflected_dump, r.albedo_reflected_walk);
+  r.p_transmitted = difference_p(r.albedo_transmitted_dump, r.albedo_transmitted_walk);
   ScatterFile a, b;
   a.histogram = dump;
   b.histogram = walk;

@@ -77,6 +77,19 @@ std::optional<ScatterLobe> scatter_lobe(const ScatterFile& file, int channel, in
   return lobe;
 }
 
+double difference_p(const Estimate& a, const Estimate& b) {
+  const double se = std::hypot(a.standard_error, b.standard_error), d = a.value - b.value;
+  return se > 0 ? std::erfc(std::abs(d) / se / std::numbers::sqrt2) : (d == 0 ? 1.0 : 0.0);
+}
+
+ComparisonFamily comparison_family(const std::vector<const LobeComparison*>& lobes, double level) {
+  ComparisonFamily f;
+  f.tests = 2 * int(lobes.size());
+  f.per_test = sidak_significance(level, f.tests);
+  for (const LobeComparison* l : lobes) f.rejected = f.rejected || l->chi2->p_value < f.per_test || l->difference_p < f.per_test;
+  return f;
+}
+
 LobeComparison compare_lobes(const ScatterLobe& a, const ScatterLobe& b, const ChiSquareOptions& options) {
   if (a.mean.size() != b.mean.size())
     throw std::invalid_argument(fmt::format("compare_lobes: lobes of {} and {} bins", a.mean.size(), b.mean.size()));
@@ -84,9 +97,8 @@ LobeComparison compare_lobes(const ScatterLobe& a, const ScatterLobe& b, const C
   shape_distance(a, b, c);
   c.albedo_a = a.albedo;
   c.albedo_b = b.albedo;
-  const double se = std::hypot(a.albedo.standard_error, b.albedo.standard_error);
-  c.difference = {a.albedo.value - b.albedo.value, se};
-  c.difference_p = se > 0 ? std::erfc(std::abs(c.difference.value) / se / std::numbers::sqrt2) : (c.difference.value == 0 ? 1.0 : 0.0);
+  c.difference = {a.albedo.value - b.albedo.value, std::hypot(a.albedo.standard_error, b.albedo.standard_error)};
+  c.difference_p = difference_p(a.albedo, b.albedo);
   if (a.exact && b.exact) {
     c.insufficient = "both are exact expectations: there is nothing random to test";
   } else if (!(a.albedo.value > 0) || !(b.albedo.value > 0)) {

@@ -48,6 +48,19 @@ struct LobeComparison {
   std::string insufficient;             // why the homogeneity test could not run
 };
 
+// The two-sided p of the difference of two estimates, with both standard errors (normal); 1 or 0 for an exact
+// difference of zero or not.
+double difference_p(const Estimate& a, const Estimate& b);
+
+// The family of a comparison's tests: per lobe comparison, the chi-square of its shapes and its albedo difference,
+// each at the Sidak share of the family-wise `level`. Every comparison must have its chi-square test.
+struct ComparisonFamily {
+  int tests = 0;
+  double per_test = 0;
+  bool rejected = false;
+};
+ComparisonFamily comparison_family(const std::vector<const LobeComparison*>& lobes, double level);
+
 // Compares two lobes of the same binning (std::invalid_argument when their sizes differ).
 LobeComparison compare_lobes(const ScatterLobe& a, const ScatterLobe& b, const ChiSquareOptions& options);
 
