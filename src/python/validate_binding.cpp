@@ -342,19 +342,21 @@ struct Reference {
   bool diagnose_frame = true;  // no frame given: a rejection looking like a frame mistake is diagnosed
 };
 
-ValidationReport validate_reader(DirectionSampleReader& reader, const GGX<double>& ggx, const Vec3<double>& wi,
+// The samples against the traced oracle, or against what they claim from the view as given (validate_dump_as_given:
+// light from inside a dielectric mirrored, as `validate --from` does).
+ValidationReport validate_reader(DirectionSampleReader& reader, const GGX<double>& ggx, const Vec3<double>& view,
                                  const ValidationOptions& o, const Reference& r) {
   if (r.against) {
-    const TracedHistogram traced = oracle_of(*r.against, ggx, wi, o.rows, r.oracle_rays, r.seed, o.run);
-    return compare_sample_file_to_trace(reader, "samples", ggx, wi, o, traced);
+    const TracedHistogram traced = oracle_of(*r.against, ggx, view, o.rows, r.oracle_rays, r.seed, o.run);
+    return compare_sample_file_to_trace(reader, "samples", ggx, view, o, traced);
   }
-  std::shared_ptr<const ReferenceDistribution> reference;
   try {
-    reference = dump_reference({r.claimed, r.bsdf, r.above_horizon}, ggx, wi, o.rows);
-  } catch (const std::invalid_argument& e) {
+    return validate_dump_as_given(reader, {r.claimed, r.bsdf, r.above_horizon}, ggx, view, o, r.diagnose_frame);
+  } catch (const InsufficientData&) {
+    throw;
+  } catch (const std::invalid_argument& e) {  // the claims' reference (dump_reference)
     throw py::value_error(std::string("above_horizon: ") + e.what());
   }
-  return validate_dump(reader, reference, ggx, wi, o, r.diagnose_frame);
 }
 
 // What `against` excludes, as `validate --against` refuses it.
@@ -391,26 +393,23 @@ ValidationReport validate_array(const py::handle& samples, const py::handle& alp
   const FilePdf claimed = claimed_pdf_of(d.pdf, d.bsdf, d.against);
   DirectionSampleReader reader = samples_reader(samples, d.columns, pdfs, weights, d.frame.value_or("z-up"));
   const bool has_weights = reader.columns().channels() > 0;
-  ViewFromOutside v;
+  const std::optional<Material> material = bsdf_of(d.bsdf, claimed, has_weights);
   try {
-    v = seen_from_outside(view, bsdf_of(d.bsdf, claimed, has_weights));
+    (void)seen_from_outside(view, material);
   } catch (const std::invalid_argument& e) {
     throw py::value_error(std::string("theta: ") + e.what());
   }
-  const Vec3<double> wi = v.wi;
-  const std::optional<Material> material = v.bsdf;
   if (has_weights) o.bsdf = material;  // the weight test
   o.convention = convention_of(d.transport, d.masking, d.bsdf);
   if (d.above_horizon && !claims_reflected_directions(claimed))
     throw py::value_error("above_horizon applies to reflected directions: give pdf='reflection', 'bounded' or 'bsdf'");
   const Reference reference{claimed, material, d.above_horizon, d.against, d.oracle_rays, d.seed, !d.frame};
   check_against(reference, has_weights);
-  reader.set_mirrored(v.mirrored);
   ValidationReport report;
   run_interruptible(
       [&](const RunControl& run) {
         o.run = run;
-        report = validate_reader(reader, ggx, wi, o, reference);
+        report = validate_reader(reader, ggx, view, o, reference);
       },
       progress);
   report.sampler = "samples";
