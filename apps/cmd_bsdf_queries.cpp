@@ -2,6 +2,7 @@
 // `microsim check-eval` (validate/bsdf_queries.h): an NPY (N, 6) array, wi then wo per row, z-up.
 //
 // Exit codes: 0 written, 2 bad usage.
+#include "bsdf_options.h"
 #include "command.h"
 #include "number_options.h"
 
@@ -30,8 +31,7 @@ struct QueryArgs {
 int run_queries(const QueryArgs& a) {
   check_output("--out", a.out);
   if (std::filesystem::path(a.out).extension() != ".npy") throw UsageError(fmt::format("--out '{}': must be a .npy file", a.out));
-  const Material bsdf = parse_material("--bsdf", a.bsdf);
-  if (bsdf.kind() == MaterialKind::lambertian) throw UsageError("--bsdf: mirror, conductor:ETA,K or dielectric:ETA");
+  const Material bsdf = microfacet_bsdf_option(a.bsdf);
   std::optional<GGX<double>> ggx;
   if (!a.alpha.empty()) {
     const auto [ax, ay] = parse_alpha("--alpha", a.alpha);

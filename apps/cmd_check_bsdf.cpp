@@ -2,6 +2,7 @@
 // include/microsim/bsdf_plugin.h (dlopen), run through the battery of measure/bsdf_battery.h against the exact
 // single-scattering BSDF it claims (--bsdf, --alpha). Exit 0 every test passed, 1 one rejected, 2 bad usage or
 // a plugin that cannot be loaded, 130 interrupted.
+#include "bsdf_options.h"
 #include "command.h"
 #include "number_options.h"
 #include "progress_bar.h"
@@ -108,10 +109,8 @@ void print_table(const BatteryReport& r) {
 int run_check_bsdf(const CheckArgs& a) {
   check_distinct_outputs({{"--plugin", a.plugin}}, {{"--json", a.json}});
   check_output("--json", a.json);
-  if (a.arithmetic != "float32" && a.arithmetic != "float64")
-    throw UsageError(fmt::format("--arithmetic {}: float32 or float64", quote_excerpt(a.arithmetic)));
-  const Material m = parse_material("--bsdf", a.bsdf);
-  if (m.kind() == MaterialKind::lambertian) throw UsageError("--bsdf: mirror, conductor:ETA,K or dielectric:ETA");
+  const Precision arithmetic = arithmetic_option(a.arithmetic);
+  const Material m = microfacet_bsdf_option(a.bsdf);
   const auto [ax, ay] = parse_alpha("--alpha", a.alpha);
   const GGX<double> ggx(ax, ay);
   std::string params;
@@ -124,7 +123,7 @@ int run_check_bsdf(const CheckArgs& a) {
   o.samples = std::uint64_t(a.samples);
   o.seed = a.seed;
   o.level = a.level;
-  o.arithmetic = a.arithmetic == "float64" ? Precision::float64 : Precision::float32;
+  o.arithmetic = arithmetic;
   o.run = cli_run_control(0, nullptr);
   BatteryReport r;
   try {

@@ -4,6 +4,7 @@
 //
 // Exit codes: 0 every value within its tolerance, 1 a value or pdf outside (the worst named), 2 bad usage or
 // input, 130 interrupted (nothing written).
+#include "bsdf_options.h"
 #include "command.h"
 #include "number_options.h"
 #include "progress_bar.h"
@@ -35,18 +36,9 @@ EvalCheckOptions options_of(const EvalArgs& a) {
   }
   if (a.frame != "z-up" && a.frame != "y-up") throw UsageError(fmt::format("--frame {}: z-up or y-up", quote_excerpt(a.frame)));
   o.frame = a.frame == "y-up" ? SampleFrame::y_up : SampleFrame::z_up;
-  if (a.arithmetic != "float32" && a.arithmetic != "float64")
-    throw UsageError(fmt::format("--arithmetic {}: float32 or float64 (the renderer's)", quote_excerpt(a.arithmetic)));
-  o.arithmetic = a.arithmetic == "float32" ? Precision::float32 : Precision::float64;
+  o.arithmetic = arithmetic_option(a.arithmetic);
   o.worst = std::size_t(a.worst);
   return o;
-}
-
-Material bsdf_of(const EvalArgs& a) {
-  Material m = parse_material("--bsdf", a.bsdf);
-  if (m.kind() == MaterialKind::lambertian)
-    throw UsageError("--bsdf: the eval check compares with a microfacet BSDF: mirror, conductor:ETA,K or dielectric:ETA");
-  return m;
 }
 
 void print_report(const EvalCheckReport& r) {
@@ -70,7 +62,7 @@ int run_check_eval(const EvalArgs& a) {
   check_distinct_outputs({{"FILE", a.file}}, {{"--json", a.json}});
   check_output("--json", a.json);
   const auto [ax, ay] = parse_alpha("--alpha", a.alpha);
-  const Material bsdf = bsdf_of(a);
+  const Material bsdf = microfacet_bsdf_option(a.bsdf);
   EvalColumns columns;
   try {
     columns = EvalColumns::parse(a.columns);

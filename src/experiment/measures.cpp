@@ -104,8 +104,7 @@ DirectionSampleReader open_dump(const SpecQuantity& quantity) {
 }
 
 DumpClaims dump_claims(const SpecQuantity& quantity, const SpecMaterial& material) {
-  const bool bsdf = quantity.dump_pdf == "bsdf" || SampleColumns::parse(quantity.dump_columns).channels() > 0;
-  return {parse_file_pdf(quantity.dump_pdf), bsdf ? std::optional<Material>(material.facet) : std::nullopt,
+  return {parse_file_pdf(quantity.dump_pdf), dump_has_bsdf(quantity) ? std::optional<Material>(material.facet) : std::nullopt,
           quantity.above_horizon};
 }
 

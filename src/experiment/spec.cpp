@@ -371,11 +371,6 @@ void read_zoo_sampler(const Table& t, SpecQuantity& q) {
     t.fail("sampler", fmt::format("{} is not a sampler of the zoo ({})", quote_excerpt(q.sampler), fmt::join(sampler_names(), ", ")));
 }
 
-// A dump's BSDF is its material's facet (pdf bsdf, or weight columns): a mirror, a conductor or a dielectric.
-bool dump_has_bsdf(const SpecQuantity& q) {
-  return q.dump_pdf == "bsdf" || SampleColumns::parse(q.dump_columns).channels() > 0;
-}
-
 // What a dump holds besides its directions: columns, frame, and for a BSDF's samples its weights' convention.
 void read_dump_layout(const Table& t, SpecQuantity& q, const SpecMaterial& m) {
   q.dump_columns = t.string("columns", "x,y,z");
@@ -550,6 +545,10 @@ SpecQuantity read_quantity(const Table& t, const ExperimentSpec& spec, std::size
 }
 
 }  // namespace
+
+bool dump_has_bsdf(const SpecQuantity& q) {
+  return q.dump_pdf == "bsdf" || SampleColumns::parse(q.dump_columns).channels() > 0;
+}
 
 ExperimentSpec read_spec(const SpecTree& tree) {
   const Table top(tree, tree.root, "");

@@ -60,6 +60,11 @@ private:
 enum class QuantityKind { albedo, vndf, scattering, validation, masking };
 std::string to_string(QuantityKind kind);  // "albedo", "vndf", "scattering", "validation", "masking"
 
+struct SpecQuantity;
+// Whether a validation's dump holds a BSDF's samples (pdf bsdf) or weights (weight columns): its BSDF is then its
+// material's facet (a mirror, a conductor or a dielectric).
+bool dump_has_bsdf(const SpecQuantity& quantity);
+
 enum class Orders { single, all };  // order 1 only, or every order of multiple scattering
 std::string to_string(Orders orders);  // "single", "all"
 
