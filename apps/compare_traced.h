@@ -1,31 +1,19 @@
-// microsim compare-scattering on traced direction histograms (files of `microsim trace vndf`): the visible
-// normals of two or three runs compared binning by binning (stats/histogram_compare.h), with the verdict,
-// the JSON and the figure of the scattering comparison.
+// microsim compare-scattering: the table on stdout and the figure of a comparison (measure/compare_scattering.h
+// compares; this file renders).
 #pragma once
 
-#include "core/estimate.h"
-#include "stats/histogram_io.h"
-
-#include <nlohmann/json.hpp>
+#include "measure/compare_scattering.h"
 
 #include <string>
-#include <utility>
-#include <vector>
 
 namespace microsim::app {
 
-struct TracedInput {
-  std::string name;  // the file
-  TracedHistogram histogram;
-};
+void print_scatter_comparison(const ScatterComparison& c);
+void print_traced_comparison(const TracedComparisonSet& c);
 
-// A finite number, or null; an estimate as {value, standard_error} (the comparisons' JSON).
-nlohmann::json json_number(double v);
-nlohmann::json json_estimate(const Estimate& e);
-
-// Compares every pair, writes --json and --svg (when named), prints the table; returns the exit code (0
-// passed, 1 rejected). Too little data or no shared binning is a UsageError (nothing written).
-int compare_traced_inputs(const std::vector<TracedInput>& inputs, double level, const std::string& json,
-                          const std::string& svg);
+// The SVG figure of channel 0: one row per order (scatter files) or binning (traced histograms), the inputs'
+// lobes and every pair's shape residuals.
+std::string scatter_comparison_figure(const ScatterComparison& c);
+std::string traced_comparison_figure(const TracedComparisonSet& c);
 
 }  // namespace microsim::app

@@ -24,6 +24,8 @@ void bind_validation(py::module_& m);
 void bind_tables(py::module_& m);
 // Registers check_bsdf() (battery_binding.cpp).
 void bind_battery(py::module_& m);
+// Registers compare_scattering() (compare_binding.cpp).
+void bind_compare(py::module_& m);
 
 // Runs `work(run)` with the GIL released, on a worker thread, while the calling thread waits and, every
 // 50 ms and at the end, takes the GIL to pass the latest progress to `progress` (a Python callable

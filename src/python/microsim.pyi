@@ -150,3 +150,9 @@ def check_bsdf(sample: Callable[[np.ndarray, np.ndarray], Tuple[np.ndarray, np.n
                arithmetic: str = "float32") -> Dict[str, Any]:
     """The whole BSDF battery (`microsim check-bsdf`) on vectorised numpy callables: the report as a dict."""
     ...
+
+def compare_scattering(files: Sequence[str], *, analytic: bool = False, orders: Optional[str] = None,
+                       level: float = 0.01, threads: int = 0, progress: Progress = None) -> Dict[str, Any]:
+    """Two or three scatter files or traced histograms compared (`microsim compare-scattering`): its JSON as a
+    dict, with 'rejected' and 'passed'."""
+    ...
