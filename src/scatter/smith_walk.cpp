@@ -8,6 +8,7 @@
 #include "microfacet/ggx.h"
 #include "microfacet/roughness.h"
 #include "microfacet/upper_vndf.h"
+#include "stats/direction_binner.h"
 
 #include <boost/math/special_functions/erf.hpp>
 #include <fmt/core.h>
@@ -87,11 +88,13 @@ public:
 
   const Material& material() const { return material_; }
 
-  // G1(w, h) = C1(h)^Lambda(w) for upward w (sec. 3), 0 for downward or horizontal w.
-  double escape_probability(const Vec3<double>& w, double h) const {
+  // G1(w, h) = C1(h)^Lambda(w) for upward w (sec. 3), 0 for downward or horizontal w. lambda: Lambda(w),
+  // which the caller may have at hand (Lambda(-w) = Lambda(w)).
+  double escape_probability(const Vec3<double>& w, double h, double lambda) const {
     if (!(w.z() > 0)) return 0.0;
-    return std::pow(heights_.cdf(h), ndf_.Lambda(w));
+    return std::pow(heights_.cdf(h), lambda);
   }
+  double Lambda(const Vec3<double>& w) const { return ndf_.Lambda(w); }
 
   // The height of the next meeting of a ray leaving height h in w, or nullopt when it escapes; u uniform in
   // [0, 1). C1(h') = C1(h) U^(-1/Lambda) with U = 1 - u in (0, 1] (sec. 3); downward with
@@ -187,13 +190,14 @@ private:
   WalkFault fault_;
 };
 
-// The path of light arriving along -wi (wi global; from inside the solid when wi.z < 0).
-Path start_path(const Vec3<double>& wi) {
+// The path of light arriving along -wi (wi global; from inside the solid when wi.z < 0), with weight 1 in
+// each of its `channels` (the rest of the array is never read).
+Path start_path(const Vec3<double>& wi, int channels) {
   Path p;
   p.inside = wi.z() < 0;
   p.w = p.inside ? wi : Vec3<double>(-wi);  // the travel direction -wi, in the side's frame
   p.h = kInf;
-  p.weight.fill(1.0);
+  std::fill(p.weight.begin(), p.weight.begin() + channels, 1.0);
   return p;
 }
 
@@ -235,18 +239,18 @@ struct BlockEnds {
   std::vector<double> weights;  // channels per end
 };
 
-// Follows one path to its end (sec. 4).
+// Follows one path to its end (sec. 4). bins: the histogram's binning (FastDirectionBinner gives exactly
+// DirectionBinning::bin_of), or nullptr where the bin is not needed (the sampler's rows): then bin -1.
 template <class Ndf>
-void walk_path(const Microsurface<Ndf>& surface, const ScatterOptions& o, const DirectionBinning& bins, CounterRng& rng,
-               BlockEnds& out) {
-  Path p = start_path(o.wi);
+void walk_path(const Microsurface<Ndf>& surface, const ScatterOptions& o, const FastDirectionBinner* bins,
+               CounterRng& rng, BlockEnds& out) {
+  Path p = start_path(o.wi, surface.material().channels());
   WalkEnd end{WalkEnd::lost, 0, -1};
   for (;;) {
     const std::optional<double> h = surface.next_height(p.w, p.h, rng.uniform());
     if (!h) {
       const Vec3<double> out_direction = global_direction(p, p.w);
-      const std::optional<int> bin = bins.bin_of(out_direction);
-      end = {WalkEnd::escaped, p.events, bin ? *bin : -1, out_direction};
+      end = {WalkEnd::escaped, p.events, bins ? (*bins)(out_direction) : -1, out_direction};
       break;
     }
     if (p.events == o.max_order) {
@@ -286,7 +290,8 @@ template <class Ndf>
 ScatterHistogram run_walk(const Ndf& ndf, const SmithMicrosurface& s, const ScatterOptions& o, WalkFault fault) {
   ScatterHistogram result = empty_scatter_histogram(o, std::string(kSmithWalkProducer), walk_measurement(s, o));
   const Microsurface<Ndf> surface(ndf, o.material, s.heights, fault);
-  const DirectionBinning bins = DirectionBinning::hemispheres(o.rows);
+  const DirectionBinning binning = DirectionBinning::hemispheres(o.rows);
+  const FastDirectionBinner bins(binning);
   const BlockPlan plan{o.paths, kPathsPerBlock};
   const int channels = o.material.channels();
   const BlockRunStatus status = for_each_block(
@@ -297,7 +302,7 @@ ScatterHistogram run_walk(const Ndf& ndf, const SmithMicrosurface& s, const Scat
         const std::uint64_t n = plan.units_in(block);
         ends.ends.reserve(std::size_t(n));
         ends.weights.reserve(std::size_t(n) * std::size_t(channels));
-        for (std::uint64_t i = 0; i < n; ++i) walk_path(surface, o, bins, rng, ends);
+        for (std::uint64_t i = 0; i < n; ++i) walk_path(surface, o, &bins, rng, ends);
         return ends;
       },
       [&](BlockEnds&& ends, std::uint64_t block) { add_ends(result, ends, plan.units_in(block), channels); });
@@ -311,7 +316,6 @@ ScatterHistogram run_walk(const Ndf& ndf, const SmithMicrosurface& s, const Scat
 template <class Ndf>
 WalkSamples run_samples(const Ndf& ndf, const SmithMicrosurface& s, const ScatterOptions& o, WalkFault fault) {
   const Microsurface<Ndf> surface(ndf, o.material, s.heights, fault);
-  const DirectionBinning bins = DirectionBinning::hemispheres(o.rows);
   const BlockPlan plan{o.paths, kPathsPerBlock};
   WalkSamples out;
   out.channels = o.material.channels();
@@ -319,7 +323,7 @@ WalkSamples run_samples(const Ndf& ndf, const SmithMicrosurface& s, const Scatte
     if (o.run.cancelled()) throw Cancelled("the walk's samples");
     CounterRng rng(o.seed, block);
     BlockEnds ends;
-    for (std::uint64_t i = 0; i < plan.units_in(block); ++i) walk_path(surface, o, bins, rng, ends);
+    for (std::uint64_t i = 0; i < plan.units_in(block); ++i) walk_path(surface, o, nullptr, rng, ends);
     for (std::size_t i = 0; i < ends.ends.size(); ++i) {
       if (ends.ends[i].kind != WalkEnd::escaped) {
         ++out.dropped;
@@ -349,8 +353,9 @@ template <class Ndf>
 void eval_path(const Microsurface<Ndf>& surface, const ScatterOptions& o, const Vec3<double>& wo, CounterRng& rng,
                std::span<double> path) {
   const int channels = surface.material().channels();
-  Path p = start_path(o.wi);
+  Path p = start_path(o.wi, channels);
   Weights phase;
+  const double lambda_o = surface.Lambda(wo);  // the same for wo and -wo, on either side
   for (;;) {
     const std::optional<double> h = surface.next_height(p.w, p.h, rng.uniform());
     if (!h || p.events == o.max_order) return;
@@ -361,8 +366,8 @@ void eval_path(const Microsurface<Ndf>& surface, const ScatterOptions& o, const 
     // Next event: scatter toward wo (this side's frame) and leave from here (or from the other side).
     const Vec3<double> wo_side = global_direction(p, wo);
     const bool refracts = surface.phase(p, wo_side, *m, std::span<double>(phase.data(), std::size_t(channels)));
-    const double leave = refracts ? surface.escape_probability(Vec3<double>(-wo_side), surface.other_side_height(p.h))
-                                  : surface.escape_probability(wo_side, p.h);
+    const double leave = refracts ? surface.escape_probability(Vec3<double>(-wo_side), surface.other_side_height(p.h), lambda_o)
+                                  : surface.escape_probability(wo_side, p.h, lambda_o);
     const std::size_t order_bin = std::size_t(scatter_order_bin(p.events + 1));
     for (int c = 0; c < channels; ++c) {
       const double contribution = p.weight[std::size_t(c)] * phase[std::size_t(c)] * leave;
