@@ -4,7 +4,9 @@
 Runs BM_WalkPaths on 1 thread (mirror and dielectric) of each binary in turn, ROUNDS times, so that both
 see the same load of a shared machine, and prints per round and as medians the paths per CPU second
 (the process's CPU time: on a loaded machine the wall clock also counts the time others hold the core)
-and per wall-clock second, and the ratio NEW / OLD.
+and per wall-clock second, and the ratio NEW / OLD. When NEW was built with MICROSIM_HEITZ2016_DIR, its
+BM_Heitz2016Paths (the Heitz et al. 2016 supplemental code on the same configuration) runs in the same
+rounds and NEW / Heitz 2016 is printed too.
 
   scripts/bench_walk_side_by_side.py OLD/bench_walk NEW/bench_walk [--rounds 5] [--min-time 0.5]
 
@@ -22,11 +24,12 @@ PATHS_PER_ITERATION = 64 * 4096  # BM_WalkPaths: 64 blocks of kPathsPerBlock pat
 MATERIALS = {0: "mirror", 1: "dielectric 1.5"}
 
 
-def run_once(binary, min_time):
-    """{material: (paths per CPU second, paths per wall second)} of one run of BM_WalkPaths on 1 thread."""
-    out = subprocess.run([binary, "--benchmark_filter=BM_WalkPaths/material:[01]/threads:1",
-                          f"--benchmark_min_time={min_time}", "--benchmark_format=json"],
-                         check=True, capture_output=True, text=True).stdout
+def run_once(binary, min_time, heitz=False):
+    """{material: (paths per CPU second, paths per wall second)} of one run of BM_WalkPaths on 1 thread, or
+    with heitz of BM_Heitz2016Paths ({} when the binary was built without it)."""
+    name = "BM_Heitz2016Paths/material:[01]/" if heitz else "BM_WalkPaths/material:[01]/threads:1"
+    out = subprocess.run([binary, f"--benchmark_filter={name}", f"--benchmark_min_time={min_time}",
+                          "--benchmark_format=json"], check=True, capture_output=True, text=True).stdout
     rates = {}
     for b in json.loads(out)["benchmarks"]:
         material = int(b["name"].split("material:")[1].split("/")[0])
@@ -51,6 +54,10 @@ def main():
         # Alternate which binary goes first, so that neither always meets the same phase of the load.
         order = [("old", args.old), ("new", args.new)] if r % 2 == 0 else [("new", args.new), ("old", args.old)]
         got = {k: run_once(b, args.min_time) for k, b in order}
+        heitz = run_once(args.new, args.min_time, heitz=True)
+        for m in heitz:
+            cpu.setdefault((m, "heitz"), []).append(heitz[m][0])
+            wall.setdefault((m, "heitz"), []).append(heitz[m][1])
         for m, name in MATERIALS.items():
             for k in ("old", "new"):
                 cpu[(m, k)].append(got[k][m][0])
@@ -65,6 +72,13 @@ def main():
         med = lambda k, d: statistics.median(d[(m, k)]) / 1e6
         print(f"| {name} | {med('old', cpu):.2f} | {med('new', cpu):.2f} | {statistics.median(ratios[m]):.2f}x | "
               f"{min(ratios[m]):.2f}-{max(ratios[m]):.2f}x | {med('old', wall):.2f} | {med('new', wall):.2f} |")
+    if (0, "heitz") in cpu:
+        print("\nthe Heitz 2016 code in the same rounds (M paths per CPU s; new / Heitz per round):")
+        for m, name in MATERIALS.items():
+            per_round = [n / h for n, h in zip(cpu[(m, "new")], cpu[(m, "heitz")])]
+            print(f"| {name} | Heitz 2016 {statistics.median(cpu[(m, 'heitz')]) / 1e6:.2f} | new / Heitz "
+                  f"{statistics.median(per_round):.2f}x ({min(per_round):.2f}-{max(per_round):.2f}x) | old / Heitz "
+                  f"{statistics.median(o / h for o, h in zip(cpu[(m, 'old')], cpu[(m, 'heitz')])):.2f}x |")
     return 0
 
 
