@@ -11,6 +11,11 @@
 // BM_WalkOrder2/material:<0|1>: one run of 2^20 paths on 2 threads; counters: the order-2 albedo, its
 // relative standard error, the paths needed for 1% (paths * (rel SE / 0.01)^2, from the measured SE), and
 // the time they take at the measured rate.
+// BM_Heitz2016Paths/material:<0|1> (only when configured with MICROSIM_HEITZ2016_DIR, CMakeLists.txt): the
+// supplemental code of Heitz, Hanika, d'Eon, Dachsbacher 2016 on the same configuration, one thread, as a
+// reference point: its Microsurface::sample per path (float, std::mt19937, its conductor is the mirror F = 1,
+// no order cap), with no binning or reduction, so it times the walk alone.
+// scripts/bench_walk_side_by_side.py runs the BM_WalkPaths of two builds alternately (docs/records/walk-speed.md).
 //   build-*/bench_walk --benchmark_repetitions=3
 #include "scatter/smith_walk.h"
 
@@ -75,5 +80,43 @@ BENCHMARK(BM_WalkPaths)
     ->MeasureProcessCPUTime()
     ->MinTime(0.5);
 BENCHMARK(BM_WalkOrder2)->DenseRange(0, 1)->ArgName("material")->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(1);
+
+#ifdef MICROSIM_BENCH_HEITZ2016
+// Included last: the header brings glm's names into the global namespace.
+#include "MicrosurfaceScattering.h"
+
+namespace {
+
+void BM_Heitz2016Paths(benchmark::State& state) {
+  const bool mirror = state.range(0) == 0;
+  const float theta = float(60.0 * kPi<double> / 180.0);
+  const vec3 wi(std::sin(theta), 0.0f, std::cos(theta));
+  MicrosurfaceConductor conductor(true, false, 0.5f, 0.5f);
+  MicrosurfaceDielectric dielectric(true, false, 0.5f, 0.5f, 1.5f);
+  const Microsurface& surface = mirror ? static_cast<const Microsurface&>(conductor) : dielectric;
+  const std::uint64_t paths = 64 * kPathsPerBlock;
+  for (auto _ : state) {
+    float sum = 0;
+    for (std::uint64_t i = 0; i < paths; ++i) {
+      int order = 0;
+      sum += surface.sample(wi, order).z;
+    }
+    benchmark::DoNotOptimize(sum);
+  }
+  state.counters["paths_per_second"] =
+      benchmark::Counter(double(state.iterations()) * double(paths), benchmark::Counter::kIsRate);
+  state.SetLabel(mirror ? "Heitz 2016 code, GGX 0.5 mirror" : "Heitz 2016 code, GGX 0.5 dielectric 1.5");
+}
+
+}  // namespace
+
+BENCHMARK(BM_Heitz2016Paths)
+    ->DenseRange(0, 1)
+    ->ArgName("material")
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->MeasureProcessCPUTime()
+    ->MinTime(0.5);
+#endif
 
 BENCHMARK_MAIN();

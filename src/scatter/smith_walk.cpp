@@ -8,6 +8,7 @@
 #include "microfacet/ggx.h"
 #include "microfacet/roughness.h"
 #include "microfacet/upper_vndf.h"
+#include "stats/direction_binner.h"
 
 #include <boost/math/special_functions/erf.hpp>
 #include <fmt/core.h>
@@ -68,12 +69,26 @@ struct Heights {
   }
 };
 
+// The walk needs the heights only through C1 (every rule of sec. 3 is a rule on C1(h), and the side change
+// is C1 -> 1 - C1 by the symmetry), so for uniform heights the path keeps g = ln C1(h) instead of h: the
+// rules become
+//   escape upward iff ln U <= Lambda g (U <= C1^Lambda), then g' = g - ln U / Lambda;
+//   downward g' = g + ln U / (1 + Lambda);          side change g' = ln(1 - e^g);
+// one logarithm per meeting instead of one or two powers, the same decisions up to rounding. g is kept in
+// [ln DBL_MIN, ln(1 - 2^-53)] after a meeting, the range of C1 above. The Gaussian keeps the heights
+// themselves (through Heights): the check that the distribution drops out.
+inline constexpr double kLogCdfMin = -708.39641853226410622;    // ln DBL_MIN (below it: DBL_MIN's log)
+inline constexpr double kLogCdfMax = -1.1102230246251565e-16;  // ln(1 - 2^-53)
+
+// ln(1 - e^g) for g <= 0 without cancellation (Maechler 2012, "Accurately computing log(1 - exp(-|a|))").
+double log_one_minus_exp(double g) { return g > -0.6931471805599453 ? std::log(-std::expm1(g)) : std::log1p(-std::exp(g)); }
+
 // One path's state, in the frame of the side it is on: the global frame outside (above the dielectric, or
 // for every reflecting material), its point reflection v -> -v inside the dielectric's solid, where the
 // microsurface seen from below is again a heightfield above it with heights -h and the same normals.
 struct Path {
   Vec3<double> w;  // travel direction
-  double h;        // height of the last meeting (+inf before the first)
+  double h;        // the last meeting's height h (Gaussian) or ln C1(h) (uniform); Microsurface::start_height() before the first
   bool inside;
   int events = 0;  // facet events so far
   Weights weight;
@@ -83,22 +98,30 @@ struct Path {
 template <class Ndf> class Microsurface {
 public:
   Microsurface(const Ndf& ndf, const Material& material, HeightDistribution heights, WalkFault fault)
-      : ndf_(ndf), material_(material), heights_{heights}, fault_(fault) {}
+      : ndf_(ndf), material_(material), heights_{heights}, log_cdf_(heights == HeightDistribution::uniform), fault_(fault) {}
 
   const Material& material() const { return material_; }
 
-  // G1(w, h) = C1(h)^Lambda(w) for upward w (sec. 3), 0 for downward or horizontal w.
-  double escape_probability(const Vec3<double>& w, double h) const {
+  // The height state above the surface (h = +inf, C1 = 1).
+  double start_height() const { return log_cdf_ ? 0.0 : kInf; }
+
+  // G1(w, h) = C1(h)^Lambda(w) for upward w (sec. 3), 0 for downward or horizontal w. lambda: Lambda(w),
+  // which the caller may have at hand (Lambda(-w) = Lambda(w)).
+  double escape_probability(const Vec3<double>& w, double h, double lambda) const {
     if (!(w.z() > 0)) return 0.0;
-    return std::pow(heights_.cdf(h), ndf_.Lambda(w));
+    if (log_cdf_) return h == 0 ? 1.0 : std::exp(lambda * h);
+    return std::pow(heights_.cdf(h), lambda);
   }
+  double Lambda(const Vec3<double>& w) const { return ndf_.Lambda(w); }
 
   // The height of the next meeting of a ray leaving height h in w, or nullopt when it escapes; u uniform in
   // [0, 1). C1(h') = C1(h) U^(-1/Lambda) with U = 1 - u in (0, 1] (sec. 3); downward with
   // Lambda(w) = -1 - Lambda(-w). Lambda = 0 upward (no masking) always escapes; Lambda = inf (horizontal)
   // meets the surface at once (h' = h).
   std::optional<double> next_height(const Vec3<double>& w, double h, double u) const {
-    const double v = 1 - u, c = heights_.cdf(h), lambda = ndf_.Lambda(w);
+    const double v = 1 - u, lambda = ndf_.Lambda(w);
+    if (log_cdf_) return next_log_cdf(w, h, std::log(v), lambda);
+    const double c = heights_.cdf(h);
     double c_next;
     if (w.z() > 0) {
       if (v <= std::pow(c, lambda)) return std::nullopt;
@@ -114,8 +137,11 @@ public:
     return sample_upper_visible_normal(ndf_, Vec3<double>(-w), u);
   }
 
-  // The height a refraction leaves on the other side: -h in that side's frame.
-  double other_side_height(double h) const { return fault_ == WalkFault::keep_height_on_refraction ? h : -h; }
+  // The height a refraction leaves on the other side: -h in that side's frame (ln(1 - C1) for ln C1).
+  double other_side_height(double h) const {
+    if (fault_ == WalkFault::keep_height_on_refraction) return h;
+    return log_cdf_ ? std::clamp(log_one_minus_exp(h), kLogCdfMin, kLogCdfMax) : -h;
+  }
 
   // The facet event at normal m: weights, direction, side (sec. 5).
   void scatter(Path& p, const Vec3<double>& m, Vec2<double> u) const {
@@ -181,19 +207,34 @@ private:
     return (1 - fresnel_dielectric(im, eta)) * upper_visible_normal_pdf(ndf_, wi, m) * eta * eta * -om / denom;
   }
 
+  // next_height for g = ln C1(h), given ln U (<= 0): the rules above. At g = 0 (C1 = 1, only before the
+  // first meeting) an upward ray always escapes, as C1^Lambda = 1 says even for Lambda = inf.
+  std::optional<double> next_log_cdf(const Vec3<double>& w, double g, double log_u, double lambda) const {
+    double g_next;
+    if (w.z() > 0) {
+      if (g == 0 || log_u <= lambda * g) return std::nullopt;
+      g_next = g - log_u / lambda;
+    } else {
+      g_next = g + log_u / (1 + lambda);
+    }
+    return g_next == g ? g : std::clamp(g_next, kLogCdfMin, kLogCdfMax);
+  }
+
   Ndf ndf_;
   const Material& material_;
   Heights heights_;
+  bool log_cdf_;  // uniform heights: the path's h is ln C1(h)
   WalkFault fault_;
 };
 
-// The path of light arriving along -wi (wi global; from inside the solid when wi.z < 0).
-Path start_path(const Vec3<double>& wi) {
+// The path of light arriving along -wi (wi global; from inside the solid when wi.z < 0), with weight 1 in
+// each of its `channels` (the rest of the array is never read).
+Path start_path(const Vec3<double>& wi, int channels, double start_height) {
   Path p;
   p.inside = wi.z() < 0;
   p.w = p.inside ? wi : Vec3<double>(-wi);  // the travel direction -wi, in the side's frame
-  p.h = kInf;
-  p.weight.fill(1.0);
+  p.h = start_height;
+  std::fill(p.weight.begin(), p.weight.begin() + channels, 1.0);
   return p;
 }
 
@@ -235,18 +276,18 @@ struct BlockEnds {
   std::vector<double> weights;  // channels per end
 };
 
-// Follows one path to its end (sec. 4).
+// Follows one path to its end (sec. 4). bins: the histogram's binning (FastDirectionBinner gives exactly
+// DirectionBinning::bin_of), or nullptr where the bin is not needed (the sampler's rows): then bin -1.
 template <class Ndf>
-void walk_path(const Microsurface<Ndf>& surface, const ScatterOptions& o, const DirectionBinning& bins, CounterRng& rng,
-               BlockEnds& out) {
-  Path p = start_path(o.wi);
+void walk_path(const Microsurface<Ndf>& surface, const ScatterOptions& o, const FastDirectionBinner* bins,
+               CounterRng& rng, BlockEnds& out) {
+  Path p = start_path(o.wi, surface.material().channels(), surface.start_height());
   WalkEnd end{WalkEnd::lost, 0, -1};
   for (;;) {
     const std::optional<double> h = surface.next_height(p.w, p.h, rng.uniform());
     if (!h) {
       const Vec3<double> out_direction = global_direction(p, p.w);
-      const std::optional<int> bin = bins.bin_of(out_direction);
-      end = {WalkEnd::escaped, p.events, bin ? *bin : -1, out_direction};
+      end = {WalkEnd::escaped, p.events, bins ? (*bins)(out_direction) : -1, out_direction};
       break;
     }
     if (p.events == o.max_order) {
@@ -286,7 +327,8 @@ template <class Ndf>
 ScatterHistogram run_walk(const Ndf& ndf, const SmithMicrosurface& s, const ScatterOptions& o, WalkFault fault) {
   ScatterHistogram result = empty_scatter_histogram(o, std::string(kSmithWalkProducer), walk_measurement(s, o));
   const Microsurface<Ndf> surface(ndf, o.material, s.heights, fault);
-  const DirectionBinning bins = DirectionBinning::hemispheres(o.rows);
+  const DirectionBinning binning = DirectionBinning::hemispheres(o.rows);
+  const FastDirectionBinner bins(binning);
   const BlockPlan plan{o.paths, kPathsPerBlock};
   const int channels = o.material.channels();
   const BlockRunStatus status = for_each_block(
@@ -297,7 +339,7 @@ ScatterHistogram run_walk(const Ndf& ndf, const SmithMicrosurface& s, const Scat
         const std::uint64_t n = plan.units_in(block);
         ends.ends.reserve(std::size_t(n));
         ends.weights.reserve(std::size_t(n) * std::size_t(channels));
-        for (std::uint64_t i = 0; i < n; ++i) walk_path(surface, o, bins, rng, ends);
+        for (std::uint64_t i = 0; i < n; ++i) walk_path(surface, o, &bins, rng, ends);
         return ends;
       },
       [&](BlockEnds&& ends, std::uint64_t block) { add_ends(result, ends, plan.units_in(block), channels); });
@@ -311,7 +353,6 @@ ScatterHistogram run_walk(const Ndf& ndf, const SmithMicrosurface& s, const Scat
 template <class Ndf>
 WalkSamples run_samples(const Ndf& ndf, const SmithMicrosurface& s, const ScatterOptions& o, WalkFault fault) {
   const Microsurface<Ndf> surface(ndf, o.material, s.heights, fault);
-  const DirectionBinning bins = DirectionBinning::hemispheres(o.rows);
   const BlockPlan plan{o.paths, kPathsPerBlock};
   WalkSamples out;
   out.channels = o.material.channels();
@@ -319,7 +360,7 @@ WalkSamples run_samples(const Ndf& ndf, const SmithMicrosurface& s, const Scatte
     if (o.run.cancelled()) throw Cancelled("the walk's samples");
     CounterRng rng(o.seed, block);
     BlockEnds ends;
-    for (std::uint64_t i = 0; i < plan.units_in(block); ++i) walk_path(surface, o, bins, rng, ends);
+    for (std::uint64_t i = 0; i < plan.units_in(block); ++i) walk_path(surface, o, nullptr, rng, ends);
     for (std::size_t i = 0; i < ends.ends.size(); ++i) {
       if (ends.ends[i].kind != WalkEnd::escaped) {
         ++out.dropped;
@@ -349,8 +390,9 @@ template <class Ndf>
 void eval_path(const Microsurface<Ndf>& surface, const ScatterOptions& o, const Vec3<double>& wo, CounterRng& rng,
                std::span<double> path) {
   const int channels = surface.material().channels();
-  Path p = start_path(o.wi);
+  Path p = start_path(o.wi, channels, surface.start_height());
   Weights phase;
+  const double lambda_o = surface.Lambda(wo);  // the same for wo and -wo, on either side
   for (;;) {
     const std::optional<double> h = surface.next_height(p.w, p.h, rng.uniform());
     if (!h || p.events == o.max_order) return;
@@ -361,8 +403,8 @@ void eval_path(const Microsurface<Ndf>& surface, const ScatterOptions& o, const 
     // Next event: scatter toward wo (this side's frame) and leave from here (or from the other side).
     const Vec3<double> wo_side = global_direction(p, wo);
     const bool refracts = surface.phase(p, wo_side, *m, std::span<double>(phase.data(), std::size_t(channels)));
-    const double leave = refracts ? surface.escape_probability(Vec3<double>(-wo_side), surface.other_side_height(p.h))
-                                  : surface.escape_probability(wo_side, p.h);
+    const double leave = refracts ? surface.escape_probability(Vec3<double>(-wo_side), surface.other_side_height(p.h), lambda_o)
+                                  : surface.escape_probability(wo_side, p.h, lambda_o);
     const std::size_t order_bin = std::size_t(scatter_order_bin(p.events + 1));
     for (int c = 0; c < channels; ++c) {
       const double contribution = p.weight[std::size_t(c)] * phase[std::size_t(c)] * leave;

@@ -19,8 +19,9 @@
 //     from there, which in that side's frame (the point reflection v -> -v of this one) has heights -h and
 //     the same normal distribution; the direction becomes -wo, and eta is inverted (scatter_on_facet's
 //     `inside`) (sec. 5.2). Every piece of state follows the side change.
-// The height distribution drops out of every result (uniform on [-1, 1] is the default; the Gaussian is
-// kept as a check of that).
+// The height distribution drops out of every result (uniform on [-1, 1] is the default, followed through
+// ln C1(h), where each meeting costs one logarithm; the Gaussian follows the heights themselves, a check of
+// that).
 //
 // Output: smith_walk_scatter fills the per-order ScatterHistogram of scatter_setup.h (outgoing directions
 // in the global frame; the histogram's "reflected" bins are the upper hemisphere, so for light from inside
