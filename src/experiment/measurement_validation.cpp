@@ -95,7 +95,7 @@ public:
     if (sampler == nullptr) throw InternalError(fmt::format("a split validation of an unknown sampler '{}'", quantity_.sampler));
     const ValidationOptions options = validation_request(quantity_, task.units, task.seed, run);
     const auto bins = claimed_reference_bins(*sampler, ggx(), view(), quantity_.rows);
-    return validation_part(mine, own_tally(*sampler, *bins, options, mine));
+    return validation_part(task, mine, own_tally(*sampler, *bins, options, mine));
   }
   void run(const RoundContext& c, MeasurementResult& m) const override {
     const SamplerInfo* sampler = find_sampler(quantity_.sampler);
