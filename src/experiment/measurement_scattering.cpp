@@ -53,8 +53,7 @@ public:
   }
   bool split() const override { return true; }
   RoundTask first_round(std::size_t index, std::uint64_t seed) const override {
-    const std::uint64_t units = first_units(decision_, 1);
-    return {index, units, round_seed(seed, index, 0), BlockRange{0, BlockPlan{units, kPathsPerBlock}.blocks()}};
+    return first_round_task(index, seed, first_units(decision_, 1), kPathsPerBlock);
   }
 
 protected:

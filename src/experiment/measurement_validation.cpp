@@ -63,8 +63,7 @@ public:
   }
   bool shared() const override { return true; }
   RoundTask first_round(std::size_t index, std::uint64_t seed) const override {
-    const std::uint64_t units = first_units(decision_, 1);
-    return {index, units, round_seed(seed, index, 0), BlockRange{0, BlockPlan{units, kSampleBlock}.blocks()}};
+    return first_round_task(index, seed, first_units(decision_, 1), kSampleBlock);
   }
 
 protected:
@@ -169,8 +168,7 @@ class TileValidation final : public ValidationMeasurement {
 public:
   using ValidationMeasurement::ValidationMeasurement;
   RoundTask first_round(std::size_t index, std::uint64_t seed) const override {
-    const std::uint64_t units = first_units(decision_, 1);
-    return {index, units, round_seed(seed, index, 1), BlockRange{0, BlockPlan{units, kRaysPerBlock}.blocks()}};
+    return first_round_task(index, seed, first_units(decision_, 1), kRaysPerBlock, 1);
   }
   std::string part(const RoundTask& task, const BlockRange& mine, const RunControl& run,
                    SurfaceCache& surfaces) const override {

@@ -51,8 +51,8 @@ public:
   }
   bool split() const override { return true; }
   RoundTask first_round(std::size_t index, std::uint64_t seed) const override {
-    const std::uint64_t units = std::min(first_units(decision_, 1), kMaxRays);  // capped as the rounds cap them
-    return {index, units, round_seed(seed, index, 0), BlockRange{0, BlockPlan{units, kRaysPerBlock}.blocks()}};
+    // Capped as the rounds cap them.
+    return first_round_task(index, seed, std::min(first_units(decision_, 1), kMaxRays), kRaysPerBlock);
   }
 };
 

@@ -48,9 +48,8 @@ struct Part {
   json sums;  // null: cancelled before measuring anything
 };
 
-// Rank r's part of `task`: its provenance the round's (its parameters and blocks; the seed is recorded, not
-// compared: parts of another seed presented as this round's are its draws, as a rank's are), its blocks rank
-// r's shard (check_shard).
+// Rank r's part of `task`: its provenance the round's parameters and total blocks, its blocks rank r's shard
+// (check_shard). The seed is recorded for a reader, not compared: the parts are known by their round's task.
 Part read_part(const std::string& text, const RoundTask& task, int rank, int ranks) {
   Part part;
   try {
@@ -234,8 +233,8 @@ EllipsoidVndf combine_vndf_parts(EllipsoidVndf own, const std::vector<std::strin
   return combined;
 }
 
-HeightfieldVndf combine_heightfield_parts(HeightfieldVndf own, const std::vector<std::string>& parts,
-                                          const RoundTask& task, int first, double seconds) {
+HeightfieldVndf combine_vndf_parts(HeightfieldVndf own, const std::vector<std::string>& parts,
+                                   const RoundTask& task, int first, double seconds) {
   VndfSums sums = combine_vndf_sums({std::move(own.trace), own.diagnostics}, parts, task, first, seconds);
   HeightfieldVndf combined;
   combined.histogram = combined_histogram(std::move(own.histogram), sums);

@@ -42,8 +42,8 @@ std::string vndf_part(const RoundTask& task, const TraceResult& trace, const Hei
 std::string cancelled_part(const RoundTask& task, const BlockRange& mine);
 EllipsoidVndf combine_vndf_parts(EllipsoidVndf own, const std::vector<std::string>& parts, const RoundTask& task,
                                  int first, double seconds);
-HeightfieldVndf combine_heightfield_parts(HeightfieldVndf own, const std::vector<std::string>& parts,
-                                          const RoundTask& task, int first, double seconds);
+HeightfieldVndf combine_vndf_parts(HeightfieldVndf own, const std::vector<std::string>& parts,
+                                   const RoundTask& task, int first, double seconds);
 
 // Scattering: every exact sum of the histogram, added to the root's with ScatterHistogram::add_sums.
 std::string scatter_part(const RoundTask& task, const ScatterHistogram& histogram);

@@ -83,33 +83,35 @@ Result split_round(const RoundSplit& split, const RoundTask& task,
 
 }  // namespace
 
-EllipsoidVndf split_vndf_round(const RoundSplit& split, std::size_t measurement, const EllipsoidTarget& target,
-                               const VndfRequest& request) {
+namespace {
+HeightfieldVndfDiagnostics diagnostics_of(const EllipsoidVndf&) { return {}; }
+const HeightfieldVndfDiagnostics& diagnostics_of(const HeightfieldVndf& h) { return h.diagnostics; }
+
+// A VNDF round, the ellipsoid's or a tile's (`trace` of a request's blocks), split.
+template <class Vndf, class Trace>
+Vndf split_traced_round(const RoundSplit& split, std::size_t measurement, const VndfRequest& request, const Trace& trace) {
   const auto start = std::chrono::steady_clock::now();
   const RoundTask task{measurement, request.rays, request.seed, round_blocks(request.blocks, request.rays, kRaysPerBlock)};
-  return split_round<EllipsoidVndf>(
-      split, task,
-      [&](const std::optional<BlockRange>& blocks) { return measure_ellipsoid_vndf(target, with_blocks(request, blocks)); },
-      [&](const EllipsoidVndf& own, const BlockRange&) { return vndf_part(task, own.trace, {}); },
-      [&](EllipsoidVndf own, const std::vector<std::string>& parts, int first) {
+  return split_round<Vndf>(
+      split, task, [&](const std::optional<BlockRange>& blocks) { return trace(with_blocks(request, blocks)); },
+      [&](const Vndf& own, const BlockRange&) { return vndf_part(task, own.trace, diagnostics_of(own)); },
+      [&](Vndf own, const std::vector<std::string>& parts, int first) {
         return combine_vndf_parts(std::move(own), parts, task, first, seconds_since(start));
       });
+}
+}  // namespace
+
+EllipsoidVndf split_vndf_round(const RoundSplit& split, std::size_t measurement, const EllipsoidTarget& target,
+                               const VndfRequest& request) {
+  return split_traced_round<EllipsoidVndf>(split, measurement, request,
+                                           [&](const VndfRequest& r) { return measure_ellipsoid_vndf(target, r); });
 }
 
 HeightfieldVndf split_heightfield_vndf_round(const RoundSplit& split, std::size_t measurement, const SceneOf& scene,
                                              const microgeom::Heightfield& field, const std::string& label,
                                              const VndfRequest& request) {
-  const auto start = std::chrono::steady_clock::now();
-  const RoundTask task{measurement, request.rays, request.seed, round_blocks(request.blocks, request.rays, kRaysPerBlock)};
-  return split_round<HeightfieldVndf>(
-      split, task,
-      [&](const std::optional<BlockRange>& blocks) {
-        return trace_heightfield_vndf(scene(), field, label, with_blocks(request, blocks));
-      },
-      [&](const HeightfieldVndf& own, const BlockRange&) { return vndf_part(task, own.trace, own.diagnostics); },
-      [&](HeightfieldVndf own, const std::vector<std::string>& parts, int first) {
-        return combine_heightfield_parts(std::move(own), parts, task, first, seconds_since(start));
-      });
+  return split_traced_round<HeightfieldVndf>(
+      split, measurement, request, [&](const VndfRequest& r) { return trace_heightfield_vndf(scene(), field, label, r); });
 }
 
 ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measurement, const ScatterPaths& paths,
