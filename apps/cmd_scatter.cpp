@@ -1,10 +1,11 @@
 // microsim scatter: what light does on a microsurface, bounce by bounce, histogrammed per order
 // (1, 2, 3, 4, 5+) over the hemispheres binning (reflection above, transmission below) and written as a
 // scatter EXR (stats/scatter_io.h) with a JSON summary. Models:
-//   --model analytic     the single-scattering BSDF (GGX or Beckmann) binned by cubature (analytic_scatter.h): the
-//                        exact expectation of order 1, for compare-scattering
-//   --model smith-walk   the Smith random walk (Heitz et al. 2016; scatter/smith_walk.h), GGX or Beckmann
-//   --surface SURF.exr   an explicit heightfield, every bounce traced with Embree (scatter/surface_scatter.h)
+//   --model analytic     the single-scattering BSDF (GGX or Beckmann) binned by cubature: the exact expectation
+//                        of order 1, for compare-scattering
+//   --model smith-walk   the Smith random walk (Heitz et al. 2016), GGX or Beckmann
+//   --surface SURF.exr   an explicit heightfield, every bounce traced with Embree
+// each one call of measure/scatter.h, as an experiment's scattering quantity measures them.
 // The view: --theta in [0, 90) from above, (90, 180] from below (light inside a dielectric), --phi.
 //
 // Exit codes: 0 done, 2 bad usage or input (nothing written), 130 interrupted (a sampled run writes what it
@@ -14,12 +15,10 @@
 #include "progress_bar.h"
 #include "scatter_report.h"
 
+#include "measure/scatter.h"
 #include "microfacet/material.h"
 #include "microfacet/roughness.h"
-#include "scatter/analytic_scatter.h"
 #include "scatter/scatter_setup.h"
-#include "scatter/smith_walk.h"
-#include "scatter/surface_scatter.h"
 #include "surface_input.h"
 
 #include <fmt/core.h>
@@ -148,8 +147,7 @@ int run_analytic(const ScatterArgs& a) {
              a.ndf, ax, ay, material.describe(), a.theta, a.phi, a.rows);
   ScatterExpectation e;
   try {
-    e = scatter_ndf(a) == NdfKind::beckmann ? analytic_single_scattering(Beckmann<double>(ax, ay), o.wi, material, o.rows, run)
-                                            : analytic_single_scattering(GGX<double>(ax, ay), o.wi, material, o.rows, run);
+    e = measure_analytic_scatter(scatter_ndf(a), {ax, ay}, o.wi, material, o.rows, run);
   } catch (const Cancelled&) {
     return interrupted_nothing_written("scatter", "during the cubature");
   }
@@ -178,7 +176,7 @@ int run_walk(const ScatterArgs& a) {
   o.run = cli_run_control(a.threads, progress);
   fmt::print(stderr, "scatter: Smith random walk, {}, {}, theta {} phi {}, {} paths, order cap {}{}\n", describe(surface),
              material.describe(), a.theta, a.phi, a.rays, a.max_order, a.shard.empty() ? "" : ", shard " + a.shard);
-  const ScatterHistogram h = smith_walk_scatter(surface, o);
+  const ScatterHistogram h = smith_walk_paths(surface)(o);
   progress->finish();
   return report_scatter(h, scatter_notes(a, a.ndf, alpha_note(ax, ay), material), {a.out, a.json});
 }
@@ -216,7 +214,7 @@ int run_surface(const ScatterArgs& a) {
              field.resolution(), field.resolution(), field.tile_size(), material.describe(), a.theta, a.phi, a.rays,
              a.max_order, a.shard.empty() ? "" : ", shard " + a.shard);
   SurfaceScatterDiagnostics d;
-  const ScatterHistogram h = scatter_on_surface(scene, o, &d);
+  const ScatterHistogram h = surface_paths(scene, &d)(o);
   progress->finish();
   fmt::print(stderr, "scatter: {} bounces traced, {} convex-edge grazes passed, {} paths lost\n", d.facet_events,
              d.edge_grazes, d.lost());

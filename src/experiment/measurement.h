@@ -30,6 +30,9 @@ struct RoundContext {
 std::uint64_t round_seed(std::uint64_t seed, std::size_t index, int round);
 // A first round's units: the planned ones times the cost factor, at least 1.
 std::uint64_t first_units(const Decision& decision, double cost_factor);
+// A first round of decision `index`: `units` in blocks of `block_size` from block 0, of round seed `round`.
+RoundTask first_round_task(std::size_t index, std::uint64_t seed, std::uint64_t units, std::uint64_t block_size,
+                           int round = 0);
 
 // The round to run next of a histogram's rounds: a partial round of a resumed run from its first missing block,
 // else a new round of at most `max_units` units.

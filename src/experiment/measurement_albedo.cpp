@@ -68,8 +68,8 @@ public:
   }
   std::string part(const RoundTask& task, const BlockRange& mine, const RunControl& run,
                    SurfaceCache& surfaces) const override {
-    return albedo_part(mine, albedo_cells_of(decision_, surfaces)(
-                                 sampled_albedo_request(spec_, decision_, task.units, task.seed, run), mine));
+    return albedo_part(task, mine, albedo_cells_of(decision_, surfaces)(
+                                       sampled_albedo_request(spec_, decision_, task.units, task.seed, run), mine));
   }
   void run(const RoundContext& c, MeasurementResult& m) const override {
     const RunControl& run = c.options.run;

@@ -54,11 +54,11 @@ public:
     try {
       field = &acquire_masking_surface(quantity_, material(), decision_.alpha, task.surface_seed, surfaces, run);
     } catch (const Cancelled&) {
-      return masking_round_part(mine, std::nullopt);
+      return masking_round_part(task, mine, std::nullopt);
     }
     const HeightfieldMasking h(quantity_, decision_, *field,
                                masking_surface_text(quantity_, material(), decision_.alpha, task.surface_seed), task.seed);
-    return masking_round_part(mine, h.measure_round(mine, run));
+    return masking_round_part(task, mine, h.measure_round(mine, run));
   }
   void run(const RoundContext& c, MeasurementResult& m) const override {
     const std::uint64_t surface_seed = masking_surface_seed(c.seed, decision_.realisation);

@@ -10,7 +10,6 @@
 
 #include "core/errors.h"
 #include "core/wall_clock.h"
-#include "scatter/surface_scatter.h"
 #include "stats/scatter_compare.h"
 
 #include <fmt/core.h>
@@ -54,8 +53,7 @@ public:
   }
   bool split() const override { return true; }
   RoundTask first_round(std::size_t index, std::uint64_t seed) const override {
-    const std::uint64_t units = first_units(decision_, 1);
-    return {index, units, round_seed(seed, index, 0), BlockRange{0, BlockPlan{units, kPathsPerBlock}.blocks()}};
+    return first_round_task(index, seed, first_units(decision_, 1), kPathsPerBlock);
   }
 
 protected:
@@ -97,11 +95,10 @@ class WalkScattering final : public SampledScattering {
 public:
   using SampledScattering::SampledScattering;
   std::string part(const RoundTask& task, const BlockRange& mine, const RunControl& run, SurfaceCache&) const override {
-    return scatter_part(smith_walk_scatter(scatter_surface(material(), decision_), request(task, mine, run)));
+    return scatter_part(task, smith_walk_paths(scatter_surface(material(), decision_))(request(task, mine, run)));
   }
   void run(const RoundContext& c, MeasurementResult& m) const override {
-    const SmithMicrosurface surface = scatter_surface(material(), decision_);
-    run_paths(c, [&surface](const ScatterOptions& part) { return smith_walk_scatter(surface, part); }, m);
+    run_paths(c, smith_walk_paths(scatter_surface(material(), decision_)), m);
   }
 };
 
@@ -112,15 +109,15 @@ public:
   std::string part(const RoundTask& task, const BlockRange& mine, const RunControl& run,
                    SurfaceCache& surfaces) const override {
     const microgeom::Heightfield* field = decision_surface_or_null(decision_, surfaces, run);
-    if (field == nullptr) return cancelled_part(mine);  // its build cancelled: a part cancelled before its first block
-    return scatter_part(scatter_on_surface(surfaces.scene_for(*field), request(task, mine, run)));
+    if (field == nullptr) return cancelled_part(task, mine);  // its build cancelled: a part cancelled before its first block
+    return scatter_part(task, surface_paths(surfaces.scene_for(*field))(request(task, mine, run)));
   }
   void run(const RoundContext& c, MeasurementResult& m) const override {
     const microgeom::Heightfield* field = decision_surface_or_null(decision_, c.surfaces, c.options.run);
     m.partial = field == nullptr;  // its build cancelled
     if (field == nullptr) return;
     // The scene is built when the root's own part begins: after the round was sent, while the ranks build theirs.
-    run_paths(c, [&c, field](const ScatterOptions& part) { return scatter_on_surface(c.surfaces.scene_for(*field), part); }, m);
+    run_paths(c, [&c, field](const ScatterOptions& part) { return surface_paths(c.surfaces.scene_for(*field))(part); }, m);
   }
 };
 
@@ -260,8 +257,7 @@ void plan_walk_scattering(const ExperimentSpec& spec, const SpecQuantity& q, con
 void plan_scattering_view(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
   const SpecMaterial& m = spec.material(q.material);
   if (d.model.model == Model::analytic) return plan_analytic_scattering(m, q, o, d);
-  const SmithMicrosurface surface = scatter_surface(m, d);
-  plan_walk_scattering(spec, q, o, d, [surface](const ScatterOptions& r) { return smith_walk_scatter(surface, r); });
+  plan_walk_scattering(spec, q, o, d, smith_walk_paths(scatter_surface(m, d)));
 }
 
 // The per-order lobes on a tile: its scene built once (kept: the run's rounds on this tile use it).
@@ -270,7 +266,7 @@ void plan_heightfield_scattering(const ExperimentSpec& spec, const SpecQuantity&
   const auto scene_start = std::chrono::steady_clock::now();
   const HeightfieldScene& scene = cache.scene_for(field);
   const double scene_seconds = seconds_since(scene_start);
-  plan_walk_scattering(spec, q, o, d, [&scene](const ScatterOptions& r) { return scatter_on_surface(scene, r); });
+  plan_walk_scattering(spec, q, o, d, surface_paths(scene));
   d.predicted_seconds += scene_seconds;  // the run builds the tile's Embree scene once per measurement
 }
 

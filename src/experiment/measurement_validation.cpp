@@ -63,8 +63,7 @@ public:
   }
   bool shared() const override { return true; }
   RoundTask first_round(std::size_t index, std::uint64_t seed) const override {
-    const std::uint64_t units = first_units(decision_, 1);
-    return {index, units, round_seed(seed, index, 0), BlockRange{0, BlockPlan{units, kSampleBlock}.blocks()}};
+    return first_round_task(index, seed, first_units(decision_, 1), kSampleBlock);
   }
 
 protected:
@@ -95,7 +94,7 @@ public:
     if (sampler == nullptr) throw InternalError(fmt::format("a split validation of an unknown sampler '{}'", quantity_.sampler));
     const ValidationOptions options = validation_request(quantity_, task.units, task.seed, run);
     const auto bins = claimed_reference_bins(*sampler, ggx(), view(), quantity_.rows);
-    return validation_part(mine, own_tally(*sampler, *bins, options, mine));
+    return validation_part(task, mine, own_tally(*sampler, *bins, options, mine));
   }
   void run(const RoundContext& c, MeasurementResult& m) const override {
     const SamplerInfo* sampler = find_sampler(quantity_.sampler);
@@ -169,8 +168,7 @@ class TileValidation final : public ValidationMeasurement {
 public:
   using ValidationMeasurement::ValidationMeasurement;
   RoundTask first_round(std::size_t index, std::uint64_t seed) const override {
-    const std::uint64_t units = first_units(decision_, 1);
-    return {index, units, round_seed(seed, index, 1), BlockRange{0, BlockPlan{units, kRaysPerBlock}.blocks()}};
+    return first_round_task(index, seed, first_units(decision_, 1), kRaysPerBlock, 1);
   }
   std::string part(const RoundTask& task, const BlockRange& mine, const RunControl& run,
                    SurfaceCache& surfaces) const override {

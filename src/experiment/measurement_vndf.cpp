@@ -51,8 +51,8 @@ public:
   }
   bool split() const override { return true; }
   RoundTask first_round(std::size_t index, std::uint64_t seed) const override {
-    const std::uint64_t units = std::min(first_units(decision_, 1), kMaxRays);  // capped as the rounds cap them
-    return {index, units, round_seed(seed, index, 0), BlockRange{0, BlockPlan{units, kRaysPerBlock}.blocks()}};
+    // Capped as the rounds cap them.
+    return first_round_task(index, seed, std::min(first_units(decision_, 1), kMaxRays), kRaysPerBlock);
   }
 };
 
@@ -63,7 +63,7 @@ public:
   std::string part(const RoundTask& task, const BlockRange& mine, const RunControl& run, SurfaceCache&) const override {
     VndfRequest request = vndf_request(spec_, decision_, task.units, task.seed, run);
     request.blocks = mine;
-    return vndf_part(measure_ellipsoid_vndf(target(decision_), request).trace, {});
+    return vndf_part(task, measure_ellipsoid_vndf(target(decision_), request).trace, {});
   }
   void run(const RoundContext& c, MeasurementResult& m) const override {
     run_histogram_rounds(c, m, kMaxRays, [&](const RoundStart& start) { return round(c, start, m); });
@@ -193,11 +193,11 @@ void plan_vndf_quantity(const ExperimentSpec& spec, std::size_t index, const Pla
 std::string tile_vndf_part(const ExperimentSpec& spec, const Decision& decision, const RoundTask& task,
                            const BlockRange& mine, const RunControl& run, SurfaceCache& surfaces) {
   const microgeom::Heightfield* field = decision_surface_or_null(decision, surfaces, run);
-  if (field == nullptr) return cancelled_part(mine);  // its build cancelled: a part cancelled before its first block
+  if (field == nullptr) return cancelled_part(task, mine);  // its build cancelled: a part cancelled before its first block
   VndfRequest request = vndf_request(spec, decision, task.units, task.seed, run);
   request.blocks = mine;
   const HeightfieldVndf m = trace_heightfield_vndf(surfaces.scene_for(*field), *field, surface_label(decision.surface), request);
-  return vndf_part(m.trace, m.diagnostics);
+  return vndf_part(task, m.trace, m.diagnostics);
 }
 
 std::unique_ptr<Measurement> make_vndf_measurement(const ExperimentSpec& spec, const Decision& decision) {

@@ -109,11 +109,9 @@ DumpClaims dump_claims(const SpecQuantity& quantity, const SpecMaterial& materia
 }
 
 ScatterExpectation analytic_scatter_lobe(const SpecMaterial& material, const Decision& decision, const RunControl& run) {
-  const Vec3<double> wi = direction_from_degrees(decision.view.theta_deg, decision.view.phi_deg);
-  const auto [ax, ay] = decision.alpha;
-  if (material.ndf == NdfKind::beckmann)
-    return analytic_single_scattering(Beckmann<double>(ax, ay), wi, material.facet, kScatterRows, run);
-  return analytic_single_scattering(GGX<double>(ax, ay), wi, material.facet, kScatterRows, run);
+  return measure_analytic_scatter(material.ndf, decision.alpha,
+                                  direction_from_degrees(decision.view.theta_deg, decision.view.phi_deg), material.facet,
+                                  kScatterRows, run);
 }
 
 double expectation_albedo(const ScatterExpectation& lobe, const Direction& view) {

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "experiment/plan.h"
+#include "measure/scatter.h"
 #include "measure/vndf.h"
 #include "scatter/albedo_table.h"
 #include "scatter/smith_walk.h"
@@ -82,9 +83,6 @@ inline constexpr int kScatterRows = 8;
 // The walk of a scattering decision: its material's microsurface at the decision's alpha, and the options of
 // `paths` paths from the decision's view at its order cap (light from inside for theta > 90).
 SmithMicrosurface scatter_surface(const SpecMaterial& material, const Decision& decision);
-// The paths of a scattering pilot or round: the Smith walk (split over the ranks in a run) or the paths
-// traced on an explicit surface's scene.
-using ScatterPaths = std::function<ScatterHistogram(const ScatterOptions&)>;
 ScatterOptions scatter_request(const SpecMaterial& material, const Decision& decision, std::uint64_t paths,
                                std::uint64_t seed, const RunControl& run);
 

@@ -1,17 +1,22 @@
 // experiment: the parts of a split round (split_rounds.h): what one rank, thread or shard job measured of a
-// round's block range, as exact integers (counts, and ExactSum's two halves) in 64-bit words after a header
-// (its blocks, whether it was cancelled part way); a drawn validation's tally and a masking round's sums as
-// JSON text in such a part. The combine functions add the parts from `first` on (0: the parts of shard jobs
-// onto a measurement of no block; 1: the ranks' parts after the root's own, rank 0's) in block order: the
-// one-process round, bit for bit. A part that is not rank r's shard of the round (out of block order,
-// missing, overlapping) or is malformed is a bug: InternalError.
+// round's block range, in the JSON part form `microsim merge` reads (stats/part_json.h): the round's
+// provenance (producer "microsim run"; its measurement, units and surface seed as the parameters; its seed;
+// the blocks the part holds, a prefix of its shard when cancelled part way), whether it was, and the kind's
+// exact sums ("sums": integers, ExactSum's two halves, reals as their bits; absent when nothing was
+// measured). The combine functions add the parts from `first` on (0: the parts of shard jobs onto a
+// measurement of no block; 1: the ranks' parts after the root's own, rank 0's) in block order: the
+// one-process round, bit for bit. A part that is not rank r's shard of the round (another round, out of
+// block order, missing, overlapping) or is malformed is a bug: InternalError.
 #pragma once
 
+#include "core/block_runner.h"
 #include "measure/masking.h"
 #include "measure/vndf.h"
 #include "scatter/albedo_table.h"
 #include "stats/scatter_histogram.h"
 #include "validate/battery.h"
+
+#include <nlohmann/json.hpp>
 
 #include <optional>
 #include <string>
@@ -19,47 +24,61 @@
 
 namespace microsim::experiment {
 
-// VNDF: the counts and the tile tracer's diagnostics (0 on the ellipsoid).
-std::string vndf_part(const TraceResult& trace, const HeightfieldVndfDiagnostics& diagnostics);
-// A part cancelled before its first block with nothing measured (a tile's build cancelled on that rank).
-std::string cancelled_part(const BlockRange& mine);
-EllipsoidVndf combine_vndf_parts(EllipsoidVndf own, const std::vector<std::string>& parts, const BlockRange& round,
-                                 int first, double seconds);
-HeightfieldVndf combine_heightfield_parts(HeightfieldVndf own, const std::vector<std::string>& parts,
-                                          const BlockRange& round, int first, double seconds);
+// One round: a measurement's (its index in the plan), of `units` units of `seed`, over these blocks; a masking
+// round on a heightfield also names the run's seed, which its assembly is built from (0 otherwise).
+struct RoundTask {
+  std::size_t measurement = 0;
+  std::uint64_t units = 0, seed = 0;
+  BlockRange blocks;
+  std::uint64_t surface_seed = 0;
+  bool operator==(const RoundTask&) const = default;
+};
+nlohmann::json round_task_json(const RoundTask& task);
+RoundTask round_task_from_json(const nlohmann::json& task);  // throws nlohmann::json::exception
 
-// Scattering: every exact sum of the histogram (ScatterHistogram::add_sums order).
-std::string scatter_part(const ScatterHistogram& histogram);
-ScatterHistogram combine_scatter_parts(ScatterHistogram own, const std::vector<std::string>& parts, const BlockRange& round,
-                                       int first);
+// VNDF: the counts and the tile tracer's diagnostics (0 on the ellipsoid).
+std::string vndf_part(const RoundTask& task, const TraceResult& trace, const HeightfieldVndfDiagnostics& diagnostics);
+// A part cancelled before its first block with nothing measured (a tile's build cancelled on that rank).
+std::string cancelled_part(const RoundTask& task, const BlockRange& mine);
+EllipsoidVndf combine_vndf_parts(EllipsoidVndf own, const std::vector<std::string>& parts, const RoundTask& task,
+                                 int first, double seconds);
+HeightfieldVndf combine_vndf_parts(HeightfieldVndf own, const std::vector<std::string>& parts,
+                                   const RoundTask& task, int first, double seconds);
+
+// Scattering: every exact sum of the histogram, added to the root's with ScatterHistogram::add_sums.
+std::string scatter_part(const RoundTask& task, const ScatterHistogram& histogram);
+ScatterHistogram combine_scatter_parts(ScatterHistogram own, const std::vector<std::string>& parts,
+                                       const RoundTask& task, int first);
 
 // A walk albedo table: its cells' estimates as their bits (nullopt: cancelled, no cell).
-std::string albedo_part(const BlockRange& cells, const std::optional<AlbedoCells>& estimates);
+std::string albedo_part(const RoundTask& task, const BlockRange& cells, const std::optional<AlbedoCells>& estimates);
 AlbedoTable cancelled_albedo_table(const AlbedoTableRequest& request);  // a round cut short: no row
 // The parts after `cells` (rank 0's, or none): the whole table, or cancelled_albedo_table when a part was.
-AlbedoTable combine_albedo_parts(const AlbedoTableRequest& request, AlbedoCells cells, const std::vector<std::string>& parts,
-                                 const BlockRange& round, int first, double seconds);
+AlbedoTable combine_albedo_parts(const AlbedoTableRequest& request, AlbedoCells cells,
+                                 const std::vector<std::string>& parts, const RoundTask& task, int first,
+                                 double seconds);
 
-// A drawn validation: a rank's tally (nullopt: cancelled).
-std::string validation_part(const BlockRange& blocks, const std::optional<battery::Tally>& tally);
+// A drawn validation: a rank's tally (tally_json; nullopt: cancelled).
+std::string validation_part(const RoundTask& task, const BlockRange& blocks, const std::optional<battery::Tally>& tally);
 // This process's tally of `blocks`, nullopt when cancelled; the cells of a tally (counts per binning).
 std::optional<battery::Tally> own_tally(const SamplerInfo& sampler, const ReferenceDistribution& reference,
                                         ValidationOptions options, const BlockRange& blocks);
 std::vector<std::size_t> tally_cells(const battery::Tally& tally);
 // The tallies in rank order as one (merge_tallies); Cancelled when any part was cancelled.
 battery::Tally merged_validation_tally(const std::optional<battery::Tally>& own, const std::vector<std::size_t>& cells,
-                                       const std::vector<std::string>& parts, const BlockRange& round, int first);
+                                       const std::vector<std::string>& parts, const RoundTask& task, int first);
 
-// A heightfield masking round: every light's exact sums (nullopt: cancelled).
-std::string masking_round_part(const BlockRange& blocks, const std::optional<std::vector<SurfaceMasking>>& round);
+// A heightfield masking round: every light's exact sums (masking_part_json; nullopt: cancelled).
+std::string masking_round_part(const RoundTask& task, const BlockRange& blocks,
+                               const std::optional<std::vector<SurfaceMasking>>& round);
 std::optional<std::vector<SurfaceMasking>> combine_masking_parts(std::optional<std::vector<SurfaceMasking>> own,
                                                                  const std::vector<std::string>& parts,
-                                                                 const BlockRange& round, int first);
+                                                                 const RoundTask& task, int first);
 
 // Whether a part was cancelled part way (a prefix of its blocks).
 bool part_is_partial(const std::string& part);
-// Checks that a part holds rank `rank`'s shard of `round`, whole; InternalError naming what it holds.
-void check_whole_part(const std::string& part, const BlockRange& round, int rank, int ranks);
+// Checks that a part holds rank `rank`'s shard of `task`, whole; InternalError naming what it holds.
+void check_whole_part(const std::string& part, const RoundTask& task, int rank, int ranks);
 // Rank `rank`'s shard of `round` (rank 0 .. ranks - 1): shard rank + 1 of `ranks`, offset to round.begin.
 BlockRange rank_blocks(const BlockRange& round, int rank, int ranks);
 

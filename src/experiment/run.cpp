@@ -58,6 +58,11 @@ std::uint64_t first_units(const Decision& decision, double cost_factor) {
   return std::max<std::uint64_t>(1, std::uint64_t(std::ceil(double(decision.units) * cost_factor)));
 }
 
+RoundTask first_round_task(std::size_t index, std::uint64_t seed, std::uint64_t units, std::uint64_t block_size,
+                           int round) {
+  return {index, units, round_seed(seed, index, round), BlockRange{0, BlockPlan{units, block_size}.blocks()}};
+}
+
 std::optional<BlockRange> RoundStart::blocks(std::uint64_t block_size) const {
   if (first_block == 0) return std::nullopt;
   return BlockRange{first_block, BlockPlan{units, block_size}.blocks()};

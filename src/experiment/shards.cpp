@@ -71,7 +71,7 @@ ShardParts shard_from_json(const fs::path& dir, const nlohmann::json& doc) {
         part_digest(shard.parts.back()) != r.at("digest").get<std::string>())
       bad_shard(dir, fmt::format("{} is missing, or not what shard.json records (size, digest)", file.filename().string()));
     try {
-      check_whole_part(shard.parts.back(), shard.tasks.back().blocks, int(shard.k - 1), int(shard.n));
+      check_whole_part(shard.parts.back(), shard.tasks.back(), int(shard.k - 1), int(shard.n));
     } catch (const InternalError& e) {
       bad_shard(dir, e.what());
     }

@@ -83,44 +83,46 @@ Result split_round(const RoundSplit& split, const RoundTask& task,
 
 }  // namespace
 
+namespace {
+HeightfieldVndfDiagnostics diagnostics_of(const EllipsoidVndf&) { return {}; }
+const HeightfieldVndfDiagnostics& diagnostics_of(const HeightfieldVndf& h) { return h.diagnostics; }
+
+// A VNDF round, the ellipsoid's or a tile's (`trace` of a request's blocks), split.
+template <class Vndf, class Trace>
+Vndf split_traced_round(const RoundSplit& split, std::size_t measurement, const VndfRequest& request, const Trace& trace) {
+  const auto start = std::chrono::steady_clock::now();
+  const RoundTask task{measurement, request.rays, request.seed, round_blocks(request.blocks, request.rays, kRaysPerBlock)};
+  return split_round<Vndf>(
+      split, task, [&](const std::optional<BlockRange>& blocks) { return trace(with_blocks(request, blocks)); },
+      [&](const Vndf& own, const BlockRange&) { return vndf_part(task, own.trace, diagnostics_of(own)); },
+      [&](Vndf own, const std::vector<std::string>& parts, int first) {
+        return combine_vndf_parts(std::move(own), parts, task, first, seconds_since(start));
+      });
+}
+}  // namespace
+
 EllipsoidVndf split_vndf_round(const RoundSplit& split, std::size_t measurement, const EllipsoidTarget& target,
                                const VndfRequest& request) {
-  const auto start = std::chrono::steady_clock::now();
-  const BlockRange round = round_blocks(request.blocks, request.rays, kRaysPerBlock);
-  return split_round<EllipsoidVndf>(
-      split, {measurement, request.rays, request.seed, round},
-      [&](const std::optional<BlockRange>& blocks) { return measure_ellipsoid_vndf(target, with_blocks(request, blocks)); },
-      [](const EllipsoidVndf& own, const BlockRange&) { return vndf_part(own.trace, {}); },
-      [&](EllipsoidVndf own, const std::vector<std::string>& parts, int first) {
-        return combine_vndf_parts(std::move(own), parts, round, first, seconds_since(start));
-      });
+  return split_traced_round<EllipsoidVndf>(split, measurement, request,
+                                           [&](const VndfRequest& r) { return measure_ellipsoid_vndf(target, r); });
 }
 
 HeightfieldVndf split_heightfield_vndf_round(const RoundSplit& split, std::size_t measurement, const SceneOf& scene,
                                              const microgeom::Heightfield& field, const std::string& label,
                                              const VndfRequest& request) {
-  const auto start = std::chrono::steady_clock::now();
-  const BlockRange round = round_blocks(request.blocks, request.rays, kRaysPerBlock);
-  return split_round<HeightfieldVndf>(
-      split, {measurement, request.rays, request.seed, round},
-      [&](const std::optional<BlockRange>& blocks) {
-        return trace_heightfield_vndf(scene(), field, label, with_blocks(request, blocks));
-      },
-      [](const HeightfieldVndf& own, const BlockRange&) { return vndf_part(own.trace, own.diagnostics); },
-      [&](HeightfieldVndf own, const std::vector<std::string>& parts, int first) {
-        return combine_heightfield_parts(std::move(own), parts, round, first, seconds_since(start));
-      });
+  return split_traced_round<HeightfieldVndf>(
+      split, measurement, request, [&](const VndfRequest& r) { return trace_heightfield_vndf(scene(), field, label, r); });
 }
 
 ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measurement, const ScatterPaths& paths,
                                      const ScatterOptions& options) {
-  const BlockRange round = round_blocks(options.blocks, options.paths, kPathsPerBlock);
+  const RoundTask task{measurement, options.paths, options.seed, round_blocks(options.blocks, options.paths, kPathsPerBlock)};
   return split_round<ScatterHistogram>(
-      split, {measurement, options.paths, options.seed, round},
+      split, task,
       [&](const std::optional<BlockRange>& blocks) { return paths(with_blocks(options, blocks)); },
-      [](const ScatterHistogram& own, const BlockRange&) { return scatter_part(own); },
+      [&](const ScatterHistogram& own, const BlockRange&) { return scatter_part(task, own); },
       [&](ScatterHistogram own, const std::vector<std::string>& parts, int first) {
-        return combine_scatter_parts(std::move(own), parts, round, first);
+        return combine_scatter_parts(std::move(own), parts, task, first);
       });
 }
 
@@ -128,12 +130,13 @@ std::optional<std::vector<SurfaceMasking>> split_masking_round(const RoundSplit&
                                                                const HeightfieldMasking& h, std::uint64_t surface_seed,
                                                                const BlockRange& blocks, const RunControl& run) {
   using Sums = std::optional<std::vector<SurfaceMasking>>;
+  const RoundTask task{measurement, kMaskingRunSamples, h.seed(), blocks, surface_seed};
   return split_round<Sums>(
-      split, {measurement, kMaskingRunSamples, h.seed(), blocks, surface_seed},
+      split, task,
       [&](const std::optional<BlockRange>& mine) { return h.measure_round(mine ? *mine : blocks, run); },
-      [](const Sums& own, const BlockRange& mine) { return masking_round_part(mine, own); },
+      [&](const Sums& own, const BlockRange& mine) { return masking_round_part(task, mine, own); },
       [&](Sums own, const std::vector<std::string>& parts, int first) {
-        return combine_masking_parts(std::move(own), parts, blocks, first);
+        return combine_masking_parts(std::move(own), parts, task, first);
       });
 }
 
@@ -149,10 +152,10 @@ AlbedoTable split_albedo_round(const RoundSplit& split, std::size_t measurement,
       [&](const std::optional<BlockRange>& mine) -> Cells {
         return stored ? Cells(AlbedoCells{}) : cells(request, mine ? *mine : round);
       },
-      [](const Cells& own, const BlockRange& mine) { return albedo_part(mine, own); },
+      [&](const Cells& own, const BlockRange& mine) { return albedo_part(task, mine, own); },
       [&](Cells own, const std::vector<std::string>& parts, int first) {
         if (!own) return cancelled_albedo_table(request);
-        return combine_albedo_parts(request, std::move(*own), parts, round, first, seconds_since(start));
+        return combine_albedo_parts(request, std::move(*own), parts, task, first, seconds_since(start));
       });
 }
 
@@ -185,9 +188,9 @@ ValidationReport split_validation(const RoundSplit& split, std::size_t measureme
   const battery::Tally tally = split_round<Tally, battery::Tally>(
       split, task,  // never alone here (validate_sampler above): `mine` is always a block range
       [&](const std::optional<BlockRange>& mine) { return own_tally(sampler, *reference, options, *mine); },
-      [](const Tally& own, const BlockRange& mine) { return validation_part(mine, own); },
+      [&](const Tally& own, const BlockRange& mine) { return validation_part(task, mine, own); },
       [&](Tally own, const std::vector<std::string>& parts, int first) {
-        return merged_validation_tally(own, tally_cells(*none), parts, round, first);
+        return merged_validation_tally(own, tally_cells(*none), parts, task, first);
       });
   ValidationReport r = report_drawn_samples(sampler, *reference, tally, options);
   r.seconds = seconds_since(start);
@@ -209,20 +212,6 @@ std::string run_part(const ExperimentSpec& spec, const ExperimentPlan& plan, con
   const std::unique_ptr<Measurement> m = make_measurement(spec, plan.decisions[task.measurement]);
   if (!m->shared()) throw InternalError(fmt::format("a round of measurement {}, which is not split", task.measurement));
   return m->part(task, rank_blocks(task.blocks, rank, ranks), run, surfaces);
-}
-
-nlohmann::json round_task_json(const RoundTask& task) {
-  nlohmann::json j{{"measurement", task.measurement}, {"units", task.units}, {"seed", task.seed},
-                   {"blocks", {task.blocks.begin, task.blocks.end}}};
-  if (task.surface_seed != 0) j["surface_seed"] = task.surface_seed;
-  return j;
-}
-
-RoundTask round_task_from_json(const nlohmann::json& task) {
-  return {task.at("measurement").get<std::size_t>(), task.at("units").get<std::uint64_t>(),
-          task.at("seed").get<std::uint64_t>(),
-          BlockRange{task.at("blocks").at(0).get<std::uint64_t>(), task.at("blocks").at(1).get<std::uint64_t>()},
-          task.value("surface_seed", std::uint64_t(0))};
 }
 
 namespace {

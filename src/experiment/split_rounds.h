@@ -38,18 +38,6 @@ class HeightfieldMasking;  // masking_runs.h (which includes run.h, and run.h th
 bool is_split(const ExperimentSpec& spec, const Decision& decision);
 bool is_shared_by_ranks(const ExperimentSpec& spec, const Decision& decision);
 
-// One round: a measurement's (its index in the plan), of `units` units of `seed`, over these blocks; a masking
-// round on a heightfield also names the run's seed, which its assembly is built from (0 otherwise).
-struct RoundTask {
-  std::size_t measurement = 0;
-  std::uint64_t units = 0, seed = 0;
-  BlockRange blocks;
-  std::uint64_t surface_seed = 0;
-  bool operator==(const RoundTask&) const = default;
-};
-nlohmann::json round_task_json(const RoundTask& task);
-RoundTask round_task_from_json(const nlohmann::json& task);  // throws nlohmann::json::exception
-
 // Parts of rounds run elsewhere (shard jobs, shards.h): parts[t] holds task t's parts in shard order.
 struct StoredRounds {
   std::vector<RoundTask> tasks;

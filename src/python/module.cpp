@@ -5,6 +5,7 @@
 
 #include "core/errors.h"
 #include "measure/masking.h"
+#include "measure/scatter.h"
 #include "measure/vndf.h"
 #include "microfacet/beckmann.h"
 #include "microfacet/bsdf.h"
@@ -314,8 +315,7 @@ py::dict smith_walk(const py::handle& alpha, double theta, double phi, const std
   surface.heights = parse_height_distribution("heights", heights);
   check_smith_microsurface(surface);
   const ScatterOptions o = scatter_options(theta, phi, material, rays, seed, max_order, rows);
-  return run_scatter([&](const ScatterOptions& options) { return smith_walk_scatter(surface, options); }, o, threads,
-                     progress);
+  return run_scatter(smith_walk_paths(surface), o, threads, progress);
 }
 
 // `scatter --model analytic`: the single-scattering BSDF binned by cubature (the exact expectation of order 1),
@@ -328,9 +328,7 @@ py::dict analytic_scatter(const py::handle& alpha, double theta, double phi, con
   ScatterExpectation e;
   run_interruptible([&](RunControl run) {
     run.threads = threads;
-    e = kind == NdfKind::beckmann
-            ? analytic_single_scattering(Beckmann<double>(ggx.alpha_x(), ggx.alpha_y()), o.wi, o.material, rows, run)
-            : analytic_single_scattering(ggx, o.wi, o.material, rows, run);
+    e = measure_analytic_scatter(kind, {ggx.alpha_x(), ggx.alpha_y()}, o.wi, o.material, rows, run);
   }, progress);
   const DirectionBinning b = DirectionBinning::hemispheres(rows);
   py::array_t<double> order1({py::ssize_t(e.channels()), py::ssize_t(b.rows()), py::ssize_t(b.cols())});
@@ -344,8 +342,12 @@ py::dict scatter_surface(const microgeom::Heightfield& surface, double theta, do
                          std::uint64_t rays, std::uint64_t seed, int max_order, int rows, int threads,
                          const py::object& progress) {
   const ScatterOptions o = scatter_options(theta, phi, material, rays, seed, max_order, rows);
-  return run_scatter([&](const ScatterOptions& options) { return scatter_on_surface(surface, options); }, o, threads,
-                     progress);
+  return run_scatter(
+      [&](const ScatterOptions& options) {
+        const HeightfieldScene scene(surface);
+        return surface_paths(scene)(options);
+      },
+      o, threads, progress);
 }
 
 // ---- heightfields ------------------------------------------------------------------------------------------------
