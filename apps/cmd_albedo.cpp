@@ -1,5 +1,5 @@
 // microsim albedo: energy-compensation reference tables (Kulla & Conty 2017): the directional albedo
-// E(mu, alpha) and its hemispherical average E_avg(alpha) of a rough mirror or dielectric, from the analytic
+// E(mu, alpha) and its hemispherical average E_avg(alpha) of a rough mirror, conductor or dielectric, from the analytic
 // single scattering, the Smith random walk or the explicit `smith` heightfield (scatter/albedo_table.h),
 // written as an EXR (rows alpha, columns mu), a CSV and JSON (scatter/albedo_table_io.h); with --layout, the
 // table in a renderer's layout (scatter/albedo_layout.h), and with --grade TABLE --layout L, the grade of a
@@ -69,12 +69,12 @@ Material albedo_material(const AlbedoArgs& a) {
     throw UsageError(e.what());
   }
   // A conductor's table is not the mirror's scaled by a Fresnel average (F varies over the facets seen and
-  // with the order): it is not computed, and the mirror's table is the one to use.
-  if (m.kind() == MaterialKind::conductor)
-    throw UsageError(fmt::format("--material {}: conductor tables are not computed yet; use --material mirror (F = 1) "
-                                 "for the Kulla-Conty E(mu) of a conductor's microsurface", quote_excerpt(a.material)));
-  if (m.kind() != MaterialKind::mirror && m.kind() != MaterialKind::dielectric)
-    throw UsageError(fmt::format("--material {}: an albedo table is for mirror or dielectric:ETA", quote_excerpt(a.material)));
+  // with the order): each complex index is its own table.
+  if (m.kind() == MaterialKind::conductor && m.channels() != 1)
+    throw UsageError(fmt::format("--material {}: one conductor index per table (conductor:ETA,K)", quote_excerpt(a.material)));
+  if (m.kind() != MaterialKind::mirror && m.kind() != MaterialKind::dielectric && m.kind() != MaterialKind::conductor)
+    throw UsageError(fmt::format("--material {}: an albedo table is for mirror, conductor:ETA,K or dielectric:ETA",
+                                 quote_excerpt(a.material)));
   if (a.inside && !m.transmits())
     throw UsageError(fmt::format("--inside: light from inside needs a dielectric (--material {} is opaque)", m.describe()));
   return m;
@@ -194,7 +194,8 @@ int run_albedo(const AlbedoArgs& a) {
 void add_albedo_options(CLI::App* sub, AlbedoArgs& a) {
   sub->add_option("--model", a.model, "analytic (single scattering, by quadrature), smith-walk or surface (required "
                   "unless --layout or --grade)");
-  sub->add_option("--material", a.material, "mirror or dielectric:ETA")->capture_default_str();
+  sub->add_option("--material", a.material, "mirror, conductor:ETA,K (one index; its F_avg too) or dielectric:ETA")
+      ->capture_default_str();
   sub->add_flag("--inside", a.inside, "light from inside the dielectric (the table of 1/eta)");
   sub->add_option("--ndf", a.ndf, "ggx or beckmann (surface: the smith or beckmann assembly)")->capture_default_str();
   sub->add_option("--alphas", a.alphas,
@@ -240,7 +241,8 @@ CommandRegistration albedo_registration{"albedo", [](CLI::App& app) {
   auto* sub = app.add_subcommand(
       "albedo",
       "Energy-compensation tables (Kulla & Conty 2017): the directional albedo E(mu, alpha) and its hemispherical "
-      "average E_avg(alpha) = 2 int_0^1 E mu dmu of a rough mirror or dielectric (from outside, or --inside), with "
+      "average E_avg(alpha) = 2 int_0^1 E mu dmu of a rough mirror, conductor (and its F_avg) or dielectric (from "
+      "outside, or --inside), with "
       "errors: --model analytic (single scattering by quadrature), smith-walk (the Smith random walk, Heitz et al. "
       "2016: all orders and order 1) or surface (the explicit smith heightfield, traced). mu on Gauss-Legendre "
       "nodes. Writes an EXR, optionally CSV and JSON. --layout cycles|filament-dfg|enterprise-pbr|uniform: the GGX "

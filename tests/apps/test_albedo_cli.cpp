@@ -40,6 +40,19 @@ TEST(AlbedoCli, AnalyticTableIsWrittenAsExrCsvAndJson) {
   fs::remove_all(dir);
 }
 
+TEST(AlbedoCli, ConductorTableHoldsItsFresnelAverage) {
+  const fs::path dir = scratch_dir("albedo_cli", "conductor");
+  const auto r = run_cli(dir, "albedo --model analytic --material conductor:0.2,3.9 --alphas 0.5 --mus 4 --out c.exr "
+                              "--csv c.csv --json c.json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("F_avg = "), std::string::npos) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(slurp(dir / "c.json"));
+  EXPECT_GT(j["F_avg"].get<double>(), 0.9);
+  EXPECT_EQ(microgeom::read_exr(dir / "c.exr").attributes.count("F_avg"), 1u);
+  EXPECT_NE(slurp(dir / "c.csv").find("# F_avg "), std::string::npos);
+  fs::remove_all(dir);
+}
+
 TEST(AlbedoCli, SampledModelsWriteTheirQuantities) {
   const fs::path dir = scratch_dir("albedo_cli", "sampled");
   const auto walk = run_cli(dir, "albedo --model smith-walk --material dielectric:1.5 --inside --alphas 0.7 --mus 2 "
@@ -107,10 +120,10 @@ std::vector<BadInputCase> albedo_cli_cases() {
       {"model_unknown", "albedo --model walk --out o.exr", 2, "--model 'walk'"},
       {"model_missing", "albedo --out o.exr", 2, "--model"},
       {"material_unknown", kAlbedo + "--material gold", 2, "'gold': unknown material"},
-      {"material_conductor", kAlbedo + "--material conductor:0.2,3.9", 2,
-       "'conductor:0.2,3.9': conductor tables are not computed yet; use --material mirror (F = 1) for the Kulla-Conty "
-       "E(mu) of a conductor's microsurface"},
-      {"material_lambertian", kAlbedo + "--material lambertian", 2, "mirror or dielectric:ETA"},
+      {"material_conductor_channels", kAlbedo + "--material 'conductor:0.2,3.9;0.5,2.4'", 2,
+       "one conductor index per table"},
+      {"conductor_inside", kAlbedo + "--material conductor:0.2,3.9 --inside", 2, "--inside"},
+      {"material_lambertian", kAlbedo + "--material lambertian", 2, "mirror, conductor:ETA,K or dielectric:ETA"},
       {"eta_zero", kAlbedo + "--material dielectric:0", 2, "'0'"},
       {"eta_negative", kAlbedo + "--material dielectric:-1.5", 2, "'-1.5'"},
       {"eta_infinite", kAlbedo + "--material dielectric:inf", 2, "'inf'"},
