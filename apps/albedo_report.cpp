@@ -60,6 +60,7 @@ int report_albedo_table(const AlbedoTable& t, const AlbedoOutputs& o) {
   if (!o.json.empty()) write_file_atomically(o.json, albedo_table_json(t).dump(2) + "\n");
   fmt::print("albedo: {}, {} alphas x {} mus (Gauss-Legendre), errors: {}, {:.1f} s\n",
              describe_albedo_request(t.request), t.alphas.size(), t.mus.size(), t.error_kind(), t.seconds);
+  if (t.fresnel_average) fmt::print("F_avg = {:.9f} (the conductor's hemispherical Fresnel average)\n", *t.fresnel_average);
   print_averages(t);
   print_cells(t);
   if (!t.partial) return kExitOk;

@@ -1,10 +1,14 @@
 // microsim albedo: energy-compensation reference tables (Kulla & Conty 2017): the directional albedo
-// E(mu, alpha) and its hemispherical average E_avg(alpha) of a rough mirror or dielectric, from the analytic
+// E(mu, alpha) and its hemispherical average E_avg(alpha) of a rough mirror, conductor or dielectric, from the analytic
 // single scattering, the Smith random walk or the explicit `smith` heightfield (scatter/albedo_table.h),
-// written as an EXR (rows alpha, columns mu), a CSV and JSON (scatter/albedo_table_io.h).
+// written as an EXR (rows alpha, columns mu), a CSV and JSON (scatter/albedo_table_io.h); with --layout, the
+// table in a renderer's layout (scatter/albedo_layout.h), and with --grade TABLE --layout L, the grade of a
+// table a renderer ships (scatter/albedo_grade.h).
 //
-// Exit codes: 0 done, 2 bad usage or input (nothing written), 130 interrupted (the complete alphas written,
-// marked partial; none complete: nothing written).
+// Exit codes: 0 done (a grade: every node within the tolerance), 1 a graded node beyond the tolerance, 2 bad
+// usage or input (nothing written), 130 interrupted (the complete alphas written, marked partial; none
+// complete, or a layout or grade: nothing written).
+#include "albedo_layout_report.h"
 #include "albedo_report.h"
 #include "command.h"
 #include "number_options.h"
@@ -13,7 +17,9 @@
 #include "microfacet/material.h"
 #include "microgeom/assembly.h"
 #include "scatter/albedo_table.h"
+#include "scatter/albedo_layout.h"
 #include "scatter/albedo_table_io.h"
+#include "core/parse.h"
 
 #include <fmt/core.h>
 
@@ -24,6 +30,8 @@
 
 namespace microsim::app {
 namespace {
+
+constexpr double kDefaultGradeTolerance = 1e-4;
 
 struct AlbedoArgs {
   std::string model, material = "mirror", ndf = "ggx", alphas = "0.1,0.25,0.5,0.75,1";
@@ -36,6 +44,8 @@ struct AlbedoArgs {
   std::uint64_t seed = 1;
   int threads = 0;
   std::string out, csv, json;
+  std::string layout, grade, encoded, centres;  // --layout, --grade and their outputs
+  std::uint64_t table_samples = 0;
   std::set<std::string> given;  // the options given on the command line
 };
 
@@ -59,12 +69,12 @@ Material albedo_material(const AlbedoArgs& a) {
     throw UsageError(e.what());
   }
   // A conductor's table is not the mirror's scaled by a Fresnel average (F varies over the facets seen and
-  // with the order): it is not computed, and the mirror's table is the one to use.
-  if (m.kind() == MaterialKind::conductor)
-    throw UsageError(fmt::format("--material {}: conductor tables are not computed yet; use --material mirror (F = 1) "
-                                 "for the Kulla-Conty E(mu) of a conductor's microsurface", quote_excerpt(a.material)));
-  if (m.kind() != MaterialKind::mirror && m.kind() != MaterialKind::dielectric)
-    throw UsageError(fmt::format("--material {}: an albedo table is for mirror or dielectric:ETA", quote_excerpt(a.material)));
+  // with the order): each complex index is its own table.
+  if (m.kind() == MaterialKind::conductor && m.channels() != 1)
+    throw UsageError(fmt::format("--material {}: one conductor index per table (conductor:ETA,K)", quote_excerpt(a.material)));
+  if (m.kind() != MaterialKind::mirror && m.kind() != MaterialKind::dielectric && m.kind() != MaterialKind::conductor)
+    throw UsageError(fmt::format("--material {}: an albedo table is for mirror, conductor:ETA,K or dielectric:ETA",
+                                 quote_excerpt(a.material)));
   if (a.inside && !m.transmits())
     throw UsageError(fmt::format("--inside: light from inside needs a dielectric (--material {} is opaque)", m.describe()));
   return m;
@@ -118,7 +128,57 @@ AlbedoTableRequest albedo_request(const AlbedoArgs& a) {
   return r;
 }
 
+// A layout table or a grade takes only its own options: any other given is an error, not silently ignored.
+void check_only(const AlbedoArgs& a, const std::set<std::string>& allowed, const char* mode) {
+  for (const std::string& o : a.given)
+    if (!allowed.count(o)) throw UsageError(fmt::format("{} does not apply to {}", o, mode));
+}
+
+const AlbedoLayout& chosen_layout(const AlbedoArgs& a) {
+  try {
+    return find_albedo_layout("--layout", a.layout);
+  } catch (const ParseError& e) {
+    throw UsageError(e.what());
+  }
+}
+
+int run_layout(const AlbedoArgs& a) {
+  check_only(a, {"--layout", "--model", "--material", "--tolerance", "--threads", "--out", "--csv", "--json", "--encoded",
+                 "--centres"}, "--layout (a renderer's table: the analytic reference of a GGX mirror)");
+  if (a.given.count("--model") && a.model != "analytic")
+    throw UsageError(fmt::format("--model {}: a layout table holds the analytic reference (--model analytic)",
+                                 quote_excerpt(a.model)));
+  if (a.material != "mirror")
+    throw UsageError(fmt::format("--material {}: the renderers' layouts hold a GGX mirror's E (F = 1): --material mirror",
+                                 quote_excerpt(a.material)));
+  const AlbedoLayout& layout = chosen_layout(a);
+  if (a.out.empty()) throw UsageError("--layout needs --out T.exr");
+  check_albedo_outputs(a);
+  check_distinct_outputs({}, {{"--out", a.out}, {"--csv", a.csv}, {"--json", a.json}, {"--encoded", a.encoded},
+                              {"--centres", a.centres}});
+  check_output("--encoded", a.encoded);
+  check_output("--centres", a.centres);
+  return run_albedo_layout(layout, a.tolerance, a.threads, {a.out, a.csv, a.json, a.encoded, a.centres});
+}
+
+int run_grade(const AlbedoArgs& a) {
+  check_only(a, {"--grade", "--layout", "--tolerance", "--table-samples", "--threads", "--json"},
+             "--grade (the grade of a table in a layout)");
+  if (a.layout.empty()) throw UsageError("--grade needs --layout (the table's layout: " + albedo_layout_names() + ")");
+  const AlbedoLayout& layout = chosen_layout(a);
+  check_distinct_outputs({{"--grade", a.grade}}, {{"--json", a.json}});
+  check_output("--json", a.json);
+  const double tolerance = a.given.count("--tolerance") ? a.tolerance : kDefaultGradeTolerance;
+  return run_albedo_grade(layout, a.grade, tolerance, a.table_samples, a.threads, a.json);
+}
+
 int run_albedo(const AlbedoArgs& a) {
+  if (!a.grade.empty()) return run_grade(a);
+  if (!a.layout.empty()) return run_layout(a);
+  for (const char* o : {"--encoded", "--centres", "--table-samples"})
+    if (a.given.count(o)) throw UsageError(fmt::format("{} applies to --layout or --grade only", o));
+  if (a.model.empty()) throw UsageError("--model is required (analytic, smith-walk or surface), or --layout or --grade");
+  if (a.out.empty()) throw UsageError("--out is required");
   AlbedoTableRequest request = albedo_request(a);
   const auto progress = std::make_shared<CliProgress>(true);
   request.run = cli_run_control(a.threads, progress);
@@ -132,8 +192,10 @@ int run_albedo(const AlbedoArgs& a) {
 }
 
 void add_albedo_options(CLI::App* sub, AlbedoArgs& a) {
-  sub->add_option("--model", a.model, "analytic (single scattering, by quadrature), smith-walk or surface")->required();
-  sub->add_option("--material", a.material, "mirror or dielectric:ETA")->capture_default_str();
+  sub->add_option("--model", a.model, "analytic (single scattering, by quadrature), smith-walk or surface (required "
+                  "unless --layout or --grade)");
+  sub->add_option("--material", a.material, "mirror, conductor:ETA,K (one index; its F_avg too) or dielectric:ETA")
+      ->capture_default_str();
   sub->add_flag("--inside", a.inside, "light from inside the dielectric (the table of 1/eta)");
   sub->add_option("--ndf", a.ndf, "ggx or beckmann (surface: the smith or beckmann assembly)")->capture_default_str();
   sub->add_option("--alphas", a.alphas,
@@ -152,15 +214,26 @@ void add_albedo_options(CLI::App* sub, AlbedoArgs& a) {
                     "sampled models: order cap (the weight left is the `unfinished` quantity)")
       ->default_str(std::to_string(a.max_order));
   add_number_option(sub, "--tolerance", a.tolerance, real(Interval{1e-13, 1e-2}),
-                    "analytic: absolute error target of each cell's quadrature, in [1e-13, 1e-2]")
+                    "analytic and --layout: absolute error target of each cell's quadrature, in [1e-13, 1e-2]; "
+                    "--grade: the largest |table - reference| a node may have (default 1e-4)")
       ->default_str("1e-08");
   add_number_option(sub, "--seed", a.seed, whole(), "random seed (same seed, same table, whatever --threads)")
       ->default_str(std::to_string(a.seed));
   add_number_option(sub, "--threads", a.threads, integer(0, kMaxThreads), at_most("worker threads (0: all cores)", kMaxThreads))
       ->default_str(std::to_string(a.threads));
-  sub->add_option("--out", a.out, "the table as an EXR (rows alpha, columns mu)")->required();
+  sub->add_option("--out", a.out, "the table as an EXR (rows alpha, columns mu; --layout: the layout's grid)");
   sub->add_option("--csv", a.csv, "also write the table as CSV");
-  sub->add_option("--json", a.json, "also write the table as JSON");
+  sub->add_option("--json", a.json, "also write the table (--grade: the grade) as JSON");
+  sub->add_option("--layout", a.layout,
+                  "a renderer's layout of the GGX mirror's E(mu, alpha), analytic reference and error per node: " +
+                      albedo_layout_names());
+  sub->add_option("--encoded", a.encoded, "--layout: also write the values in the renderer's own encoding");
+  sub->add_option("--centres", a.centres, "--layout: also write the interpolation error at the cell centres (CSV)");
+  sub->add_option("--grade", a.grade,
+                  "grade a table in --layout L (.exr, or the .csv microsim writes) against the reference: exit 0 all "
+                  "nodes within --tolerance, 1 not");
+  add_number_option(sub, "--table-samples", a.table_samples, whole(1, kMaxRays),
+                    "--grade: the samples per node the table was built from (its noise is reported)");
 }
 
 CommandRegistration albedo_registration{"albedo", [](CLI::App& app) {
@@ -168,10 +241,13 @@ CommandRegistration albedo_registration{"albedo", [](CLI::App& app) {
   auto* sub = app.add_subcommand(
       "albedo",
       "Energy-compensation tables (Kulla & Conty 2017): the directional albedo E(mu, alpha) and its hemispherical "
-      "average E_avg(alpha) = 2 int_0^1 E mu dmu of a rough mirror or dielectric (from outside, or --inside), with "
+      "average E_avg(alpha) = 2 int_0^1 E mu dmu of a rough mirror, conductor (and its F_avg) or dielectric (from "
+      "outside, or --inside), with "
       "errors: --model analytic (single scattering by quadrature), smith-walk (the Smith random walk, Heitz et al. "
       "2016: all orders and order 1) or surface (the explicit smith heightfield, traced). mu on Gauss-Legendre "
-      "nodes. Writes an EXR, optionally CSV and JSON. Exit 0 done, 2 bad input (nothing written), 130 interrupted.");
+      "nodes. Writes an EXR, optionally CSV and JSON. --layout cycles|filament-dfg|enterprise-pbr|uniform: the GGX "
+      "mirror's table in a renderer's layout; --grade TABLE --layout L: grade a shipped table. Exit 0 done (grade: "
+      "passed), 1 a graded node beyond --tolerance, 2 bad input (nothing written), 130 interrupted.");
   add_albedo_options(sub, *args);
   on_selected(sub, [args, sub] {
     for (const CLI::Option* o : sub->get_options())

@@ -3,6 +3,7 @@
 
 #include "core/parse.h"
 #include "core/random.h"
+#include "microfacet/bsdf.h"
 #include "microgeom/assembly.h"
 #include "scatter/surface_scatter.h"
 
@@ -73,9 +74,12 @@ void check_sampling(const AlbedoTableRequest& r) {
 
 void check_albedo_request(const AlbedoTableRequest& r) {
   const MaterialKind kind = r.material.kind();
-  if (kind != MaterialKind::mirror && kind != MaterialKind::dielectric)
+  if (kind != MaterialKind::mirror && kind != MaterialKind::dielectric && kind != MaterialKind::conductor)
     throw std::invalid_argument(
-        fmt::format("albedo table: material {}: mirror or dielectric:ETA only", r.material.describe()));
+        fmt::format("albedo table: material {}: mirror, conductor:ETA,K or dielectric:ETA only", r.material.describe()));
+  if (kind == MaterialKind::conductor && r.material.channels() != 1)
+    throw std::invalid_argument(fmt::format("albedo table: material {}: one conductor channel per table (ETA,K), not {}",
+                                            r.material.describe(), r.material.channels()));
   if (r.inside && kind != MaterialKind::dielectric)
     throw std::invalid_argument("albedo table: light from inside needs a dielectric (a mirror is opaque)");
   check_alphas(r.alphas);
@@ -119,6 +123,16 @@ Estimate AlbedoTable::cell(std::string_view quantity, std::size_t alpha_index, s
   if (alpha_index >= alphas.size() || mu_index >= mus.size())
     throw std::out_of_range(fmt::format("albedo table: no cell ({}, {})", alpha_index, mu_index));
   return q->cells[alpha_index * mus.size() + mu_index];
+}
+
+double fresnel_average(const Material& material) {
+  if (material.kind() != MaterialKind::conductor)
+    throw std::invalid_argument(fmt::format("F_avg: material {} is not a conductor", material.describe()));
+  const MuGrid grid = gauss_legendre_mus(kFresnelAverageNodes);
+  double sum = 0;
+  for (std::size_t j = 0; j < grid.mus.size(); ++j)
+    sum += 2 * grid.weights[j] * grid.mus[j] * fresnel_conductor(grid.mus[j], material.ior(0));
+  return sum;
 }
 
 std::uint64_t albedo_cell_seed(std::uint64_t seed, std::size_t alpha_index, std::size_t mu_index) {
@@ -300,6 +314,7 @@ AlbedoTable empty_table(const AlbedoTableRequest& r, const MuGrid& grid) {
   AlbedoTable t;
   t.request = r;
   t.request.run = {};
+  if (r.material.kind() == MaterialKind::conductor) t.fresnel_average = fresnel_average(r.material);
   t.mus = grid.mus;
   t.mu_weights = grid.weights;
   for (const std::string& name : albedo_quantity_names(r.model, r.material)) t.quantities.push_back({name, {}, {}});

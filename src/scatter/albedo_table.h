@@ -1,5 +1,6 @@
 // scatter: energy-compensation reference tables: the directional albedo E(mu, alpha) of a rough
-// mirror or dielectric and its hemispherical average
+// mirror, conductor (one complex index per table, and its Fresnel average F_avg) or dielectric and its
+// hemispherical average
 //   E_avg(alpha) = 2 integral_0^1 E(mu) mu dmu,
 // the two tables of Kulla & Conty 2017 ("Revisiting Physically Based Shading at Imageworks", SIGGRAPH
 // course, sec. "Energy compensation": E(mu) and E_avg; for a dielectric, from outside and from inside, i.e.
@@ -76,7 +77,7 @@ inline constexpr double kMaxAlbedoAlpha = 2.0;
 struct AlbedoTableRequest {
   AlbedoModel model = AlbedoModel::analytic;
   NdfKind ndf = NdfKind::ggx;
-  Material material = Material::mirror();  // mirror or dielectric
+  Material material = Material::mirror();  // mirror, dielectric or a one-channel conductor
   bool inside = false;                     // light from inside the dielectric (wi.z < 0)
   std::vector<double> alphas{0.1, 0.25, 0.5, 0.75, 1.0};  // isotropic; increasing, in [kMinAlbedoAlpha, kMaxAlbedoAlpha]
   int mus = 16;                            // Gauss-Legendre nodes, in [kMinAlbedoMus, kMaxAlbedoMus]
@@ -90,7 +91,8 @@ struct AlbedoTableRequest {
   RunControl run;
 };
 
-// Throws std::invalid_argument naming the bad value: a material other than mirror or dielectric, inside on
+// Throws std::invalid_argument naming the bad value: a material other than mirror, dielectric or a conductor
+// of one channel (one complex index: a table per channel), inside on
 // a mirror, no alphas or alphas not increasing or out of range, mus out of range, tolerance out of range,
 // paths 0, max_order outside [1, kMaxOrderCap], a surface resolution outside microgeom's supported range.
 void check_albedo_request(const AlbedoTableRequest& request);
@@ -119,11 +121,19 @@ struct AlbedoTable {
   std::vector<double> row_seconds;      // wall time per completed row (a surface row includes its build)
   std::vector<double> build_seconds;    // surface: the build and scene of each completed row
   double seconds = 0;                   // the whole call
+  std::optional<double> fresnel_average;  // a conductor's F_avg (fresnel_average), for the Kulla-Conty Fresnel term
 
   std::string error_kind() const;  // "quadrature error estimate" or "standard error"
   const AlbedoQuantity* find(std::string_view name) const;  // nullptr if the table has no such quantity
   Estimate cell(std::string_view quantity, std::size_t alpha_index, std::size_t mu_index) const;  // throws out_of_range
 };
+
+// A conductor's hemispherical Fresnel average F_avg = 2 int_0^1 F(mu) mu dmu (Kulla & Conty 2017, the
+// Fresnel factor of the multiple-scattering term, F_avg^2 E_avg / (1 - F_avg (1 - E_avg))), of its channel 0,
+// by Gauss-Legendre quadrature on kFresnelAverageNodes nodes (F is smooth in mu: exact to rounding).
+// Throws std::invalid_argument for another material.
+inline constexpr int kFresnelAverageNodes = 64;
+double fresnel_average(const Material& material);
 
 // Gauss-Legendre nodes and weights on [0, 1] (n >= 1): nodes increasing, weights summing to 1; exact for
 // polynomials of degree 2n - 1 (Boost.Math legendre_p_zeros, weights 2 / ((1 - x^2) P_n'(x)^2) halved).

@@ -78,6 +78,7 @@ microgeom::ExrImage albedo_table_exr(const AlbedoTable& t) {
       {"quantities", quantity_names(t)}, {"partial", t.partial ? "true" : "false"},
       {"alphas_requested", joined(r.alphas)}});
   image.attributes.merge(model_parameters(r));
+  if (t.fresnel_average) image.attributes["F_avg"] = number(*t.fresnel_average);
   return image;
 }
 
@@ -96,6 +97,9 @@ std::string csv_comments(const AlbedoTable& t) {
   c += fmt::format("# columns: Q = E(mu, alpha), Q_error = its {}; Q_avg = E_avg(alpha) = 2 int_0^1 E mu dmu\n",
                    t.error_kind());
   c += fmt::format("# mu: {}\n", kMuRule);
+  if (t.fresnel_average)
+    c += fmt::format("# F_avg {} (the conductor's hemispherical Fresnel average, 2 int_0^1 F mu dmu)\n",
+                     number(*t.fresnel_average));
   if (t.partial)
     c += fmt::format("# PARTIAL: {} of {} alphas (interrupted)\n", t.alphas.size(), t.request.alphas.size());
   return c;
@@ -157,6 +161,7 @@ nlohmann::json albedo_table_json(const AlbedoTable& t) {
   if (r.model == AlbedoModel::analytic) j["tolerance"] = r.tolerance;
   else j.update({{"paths", r.paths}, {"seed", r.seed}, {"max_order", r.max_order}});
   if (r.model == AlbedoModel::surface) j["resolution"] = r.resolution;
+  if (t.fresnel_average) j["F_avg"] = *t.fresnel_average;
   j["quantity_names"] = nlohmann::json::array();
   for (const AlbedoQuantity& q : t.quantities) {
     j["quantity_names"].push_back(q.name);

@@ -7,6 +7,9 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
+#include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -37,6 +40,19 @@ TEST(AlbedoCli, AnalyticTableIsWrittenAsExrCsvAndJson) {
   fs::remove_all(dir);
 }
 
+TEST(AlbedoCli, ConductorTableHoldsItsFresnelAverage) {
+  const fs::path dir = scratch_dir("albedo_cli", "conductor");
+  const auto r = run_cli(dir, "albedo --model analytic --material conductor:0.2,3.9 --alphas 0.5 --mus 4 --out c.exr "
+                              "--csv c.csv --json c.json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("F_avg = "), std::string::npos) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(slurp(dir / "c.json"));
+  EXPECT_GT(j["F_avg"].get<double>(), 0.9);
+  EXPECT_EQ(microgeom::read_exr(dir / "c.exr").attributes.count("F_avg"), 1u);
+  EXPECT_NE(slurp(dir / "c.csv").find("# F_avg "), std::string::npos);
+  fs::remove_all(dir);
+}
+
 TEST(AlbedoCli, SampledModelsWriteTheirQuantities) {
   const fs::path dir = scratch_dir("albedo_cli", "sampled");
   const auto walk = run_cli(dir, "albedo --model smith-walk --material dielectric:1.5 --inside --alphas 0.7 --mus 2 "
@@ -51,17 +67,63 @@ TEST(AlbedoCli, SampledModelsWriteTheirQuantities) {
   fs::remove_all(dir);
 }
 
+// A layout table and its grade: the Cycles layout (at a coarse quadrature tolerance, to keep the test short)
+// is written as EXR, CSV, JSON and Cycles' own 6-decimal text; its CSV graded passes (exit 0), and the same
+// CSV with one node moved by 0.05 fails (exit 1) naming that node.
+TEST(AlbedoCli, LayoutTableIsWrittenAndItsGradePassesAndAPlantedErrorFails) {
+  const fs::path dir = scratch_dir("albedo_cli", "layout");
+  const auto r = run_cli(dir, "albedo --layout cycles --tolerance 1e-4 --out c.exr --csv c.csv --json c.json "
+                              "--encoded c.txt --centres centres.csv");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("interpolation error at cell centres"), std::string::npos) << r.out;
+  const microgeom::ExrImage image = microgeom::read_exr(dir / "c.exr");
+  EXPECT_EQ(image.width, 32);
+  EXPECT_EQ(image.height, 32);
+  EXPECT_EQ(image.attributes.at("kind"), "albedo layout table");
+  EXPECT_EQ(image.attributes.at("columns"), "roughness");
+  const std::string csv = slurp(dir / "c.csv");
+  EXPECT_EQ(csv.find("x,y,roughness,alpha,mu,E,E_error,E_encoded,E_avg,E_avg_error\n"), 0u) << csv.substr(0, 200);
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 1 + 5 + 1024);
+  const std::string text = slurp(dir / "c.txt");
+  EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 32);
+  const auto pass = run_cli(dir, "albedo --grade c.csv --layout cycles --tolerance 1e-2 --json g.json");
+  EXPECT_EQ(pass.exit_code, 0) << pass.out << pass.err;
+  EXPECT_NE(pass.out.find("PASS: 0 of 1024 nodes beyond the tolerance 0.01"), std::string::npos) << pass.out;
+  // The planted error: node x = 20 (roughness 20/31), y = 7 (mu 7/31) raised by 0.05.
+  std::string planted;
+  std::istringstream lines(csv);
+  for (std::string line; std::getline(lines, line);) {
+    if (line.rfind("20,7,", 0) == 0) {
+      std::vector<std::string> f;
+      std::istringstream fields(line);
+      for (std::string x; std::getline(fields, x, ',');) f.push_back(x);
+      f[5] = std::to_string(std::stod(f[5]) + 0.05);
+      line.clear();
+      for (std::size_t i = 0; i < f.size(); ++i) line += (i ? "," : "") + f[i];
+    }
+    planted += line + "\n";
+  }
+  std::ofstream(dir / "planted.csv") << planted;
+  const auto fail = run_cli(dir, "albedo --grade planted.csv --layout cycles --tolerance 1e-2");
+  EXPECT_EQ(fail.exit_code, 1) << fail.out << fail.err;
+  EXPECT_NE(fail.out.find("FAIL node (roughness 20, mu 7)"), std::string::npos) << fail.out;
+  EXPECT_NE(fail.out.find("FAIL: 1 of 1024 nodes"), std::string::npos) << fail.out;
+  fs::remove_all(dir);
+}
+
 const std::string kAlbedo = "albedo --model analytic --out o.exr ";
+
+void write_text(const fs::path& path, const std::string& text) { std::ofstream(path) << text; }
 
 std::vector<BadInputCase> albedo_cli_cases() {
   return {
       {"model_unknown", "albedo --model walk --out o.exr", 2, "--model 'walk'"},
       {"model_missing", "albedo --out o.exr", 2, "--model"},
       {"material_unknown", kAlbedo + "--material gold", 2, "'gold': unknown material"},
-      {"material_conductor", kAlbedo + "--material conductor:0.2,3.9", 2,
-       "'conductor:0.2,3.9': conductor tables are not computed yet; use --material mirror (F = 1) for the Kulla-Conty "
-       "E(mu) of a conductor's microsurface"},
-      {"material_lambertian", kAlbedo + "--material lambertian", 2, "mirror or dielectric:ETA"},
+      {"material_conductor_channels", kAlbedo + "--material 'conductor:0.2,3.9;0.5,2.4'", 2,
+       "one conductor index per table"},
+      {"conductor_inside", kAlbedo + "--material conductor:0.2,3.9 --inside", 2, "--inside"},
+      {"material_lambertian", kAlbedo + "--material lambertian", 2, "mirror, conductor:ETA,K or dielectric:ETA"},
       {"eta_zero", kAlbedo + "--material dielectric:0", 2, "'0'"},
       {"eta_negative", kAlbedo + "--material dielectric:-1.5", 2, "'-1.5'"},
       {"eta_infinite", kAlbedo + "--material dielectric:inf", 2, "'inf'"},
@@ -94,6 +156,34 @@ std::vector<BadInputCase> albedo_cli_cases() {
       {"csv_not_csv", kAlbedo + "--csv o.txt", 2, "--csv 'o.txt'"},
       {"json_is_out", kAlbedo + "--json o.exr", 2, "o.exr"},
       {"out_no_directory", "albedo --model analytic --out nodir/o.exr", 2, "nodir"},
+      {"layout_unknown", "albedo --layout unreal --out o.exr", 2, "--layout 'unreal': unknown layout"},
+      {"layout_no_out", "albedo --layout cycles", 2, "--layout needs --out"},
+      {"layout_walk", "albedo --layout cycles --model smith-walk --out o.exr", 2, "--model 'smith-walk'"},
+      {"layout_alphas", "albedo --layout cycles --alphas 0.5 --out o.exr", 2, "--alphas does not apply to --layout"},
+      {"layout_dielectric", "albedo --layout cycles --material dielectric:1.5 --out o.exr", 2, "--material mirror"},
+      {"layout_out_not_exr", "albedo --layout cycles --out o.png", 2, "--out 'o.png'"},
+      {"layout_encoded_is_out", "albedo --layout cycles --out o.exr --encoded o.exr", 2, "o.exr"},
+      {"encoded_without_layout", kAlbedo + "--encoded e.bin", 2, "--encoded applies to --layout"},
+      {"grade_no_layout", "albedo --grade t.csv", 2, "--grade needs --layout"},
+      {"grade_missing", "albedo --grade none.csv --layout cycles", 2, "cannot be read"},
+      {"grade_out", "albedo --grade t.csv --layout cycles --out o.exr", 2, "--out does not apply to --grade"},
+      {"grade_samples_zero", "albedo --grade t.csv --layout cycles --table-samples 0", 2, "--table-samples"},
+      {"grade_json_is_input", "albedo --grade t.csv --layout cycles --json t.csv", 2, "t.csv",
+       [](const fs::path& d) { write_text(d / "t.csv", "x,y,E\n0,0,1\n"); }},
+      {"grade_wrong_size", "albedo --grade t.csv --layout cycles", 2, "3 cells in the CSV; the cycles layout has 1024",
+       [](const fs::path& d) { write_text(d / "t.csv", "x,y,E\n0,0,1\n1,0,1\n2,0,1\n"); }},
+      {"grade_twice", "albedo --grade t.csv --layout cycles", 2, "cell (0, 0) given twice",
+       [](const fs::path& d) { write_text(d / "t.csv", "x,y,E\n0,0,1\n0,0,1\n"); }},
+      {"grade_no_column", "albedo --grade t.csv --layout cycles", 2, "no column 'E'",
+       [](const fs::path& d) { write_text(d / "t.csv", "x,y,value\n0,0,1\n"); }},
+      {"grade_nan", "albedo --grade t.csv --layout cycles", 2, "'nan'",
+       [](const fs::path& d) { write_text(d / "t.csv", "x,y,E\n0,0,nan\n"); }},
+      {"grade_outside_grid", "albedo --grade t.csv --layout cycles", 2, "'32'",
+       [](const fs::path& d) { write_text(d / "t.csv", "x,y,E\n32,0,1\n"); }},
+      {"grade_not_a_table", "albedo --grade t.txt --layout cycles", 2, "an .exr or a .csv table",
+       [](const fs::path& d) { write_text(d / "t.txt", "1\n"); }},
+      {"grade_not_exr", "albedo --grade t.exr --layout cycles", 2, "--grade 't.exr'",
+       [](const fs::path& d) { write_text(d / "t.exr", "not an exr"); }},
   };
 }
 

@@ -7,6 +7,8 @@
 // rejected); the explicit surface's furnace; determinism, cancellation and the request's checks.
 #include "scatter/albedo_table.h"
 
+#include "microfacet/bsdf.h"
+
 #include "core/parse.h"
 #include "scatter/albedo_table_io.h"
 #include "scatter/analytic_scatter.h"
@@ -307,6 +309,34 @@ TEST(AlbedoSurface, MirrorFurnaceAndOrderOneNearSmith) {
   ASSERT_EQ(t.build_seconds.size(), 1u);
 }
 
+// ---- conductors ----------------------------------------------------------------------------------------------
+
+// A conductor's table: F_avg against known values (k = 0 is a dielectric's external reflectance, whose
+// hemispherical average for eta 1.5 is the classic 0.0918; a large k reflects nearly all), and E1 between the
+// mirror's scaled by the least F over incidence and the mirror's.
+TEST(AlbedoConductor, FresnelAverageAndSingleScatteringOfAConductor) {
+  EXPECT_NEAR(fresnel_average(Material::conductor({{1.5, 0.0}})), 0.0918, 5e-4);
+  EXPECT_GT(fresnel_average(Material::conductor({{0.05, 100.0}})), 0.999);
+  EXPECT_THROW(fresnel_average(Material::mirror()), std::invalid_argument);
+  AlbedoTableRequest r;
+  r.material = Material::conductor({{0.2, 3.9}});  // about silver at 550 nm
+  r.alphas = {0.5, 1.0};
+  r.mus = 8;
+  const AlbedoTable t = albedo_table(r);
+  ASSERT_TRUE(t.fresnel_average.has_value());
+  EXPECT_NEAR(*t.fresnel_average, fresnel_average(r.material), 0.0);
+  r.material = Material::mirror();
+  const AlbedoTable mirror = albedo_table(r);
+  EXPECT_FALSE(mirror.fresnel_average.has_value());
+  double f0 = 1;  // the least F over incidence (a metal's F dips below F(0) toward grazing)
+  for (int i = 0; i <= 1000; ++i) f0 = std::min(f0, fresnel_conductor(i / 1000.0, std::complex<double>(0.2, 3.9)));
+  for (std::size_t k = 0; k < t.quantities[0].cells.size(); ++k) {
+    const double e = t.quantities[0].cells[k].value, m = mirror.quantities[0].cells[k].value;
+    EXPECT_LE(e, m + 1e-9) << k;
+    EXPECT_GE(e, f0 * m - 1e-9) << k;
+  }
+}
+
 // ---- the request ---------------------------------------------------------------------------------------------
 
 TEST(AlbedoRequest, RefusesWhatItCannotTabulate) {
@@ -320,7 +350,8 @@ TEST(AlbedoRequest, RefusesWhatItCannotTabulate) {
       EXPECT_NE(std::string(e.what()).find(text), std::string::npos) << e.what();
     }
   };
-  refused([](auto& r) { r.material = Material::conductor({{0.2, 3.9}}); }, "conductor");
+  refused([](auto& r) { r.material = Material::conductor({{0.2, 3.9}, {0.5, 2.4}}); }, "one conductor channel");
+  refused([](auto& r) { r.material = Material::conductor({{0.2, 3.9}}); r.inside = true; }, "inside");
   refused([](auto& r) { r.material = Material::lambertian(); }, "lambertian");
   refused([](auto& r) { r.inside = true; }, "inside");
   refused([](auto& r) { r.alphas = {}; }, "no alphas");

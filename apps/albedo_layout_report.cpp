@@ -1,0 +1,129 @@
+#include "albedo_layout_report.h"
+
+#include "command.h"
+#include "progress_bar.h"
+
+#include "core/atomic_file.h"
+#include "core/parse.h"
+#include "microfacet/ggx.h"
+#include "microgeom/exr_io.h"
+#include "scatter/albedo_grade.h"
+#include "scatter/albedo_layout_io.h"
+
+#include <fmt/core.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <sstream>
+
+namespace microsim::app {
+
+namespace {
+
+void print_interpolation(const char* what, const InterpolationError& e) {
+  fmt::print("{}: max |error| {:.3g} at alpha {:.4g}, mu {:.4g}; RMS {:.3g}\n", what, e.max_abs, e.worst_alpha,
+             e.worst_mu, e.rms);
+}
+
+void print_layout_table(const LayoutTable& t) {
+  fmt::print("albedo layout {}: {}\nsource: {}\nencoding: {}; reference tolerance {:g}; {:.1f} s\n", t.layout.name,
+             t.layout.summary, t.layout.source, to_string(t.layout.encoding), t.tolerance, t.seconds);
+  print_interpolation("interpolation error at cell centres (bilinear between nodes - reference)", t.interpolation);
+  std::size_t outside = 0;
+  for (const bool in : t.in_range) outside += !in;
+  if (outside > 0)
+    fmt::print("{} roughness node(s) of alpha below {:g}: the reference there is at alpha {:g} (microsim's GGX clamps "
+               "alpha), not graded, and the cells touching them are left out of the interpolation error\n", outside,
+               kMinAlpha, kMinAlpha);
+  if (t.average.empty()) return;
+  fmt::print("{:<12} {:<12} {:>24}\n", "roughness", "alpha", "E_avg");
+  for (std::size_t i = 0; i < t.alphas.size(); ++i)
+    fmt::print("{:<12.6g} {:<12.6g} {:>14.9f} +- {:.1g}\n", t.roughness[i], t.alphas[i], t.average[i].value,
+               t.average[i].standard_error);
+}
+
+std::string read_bytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw UsageError(fmt::format("--grade {}: cannot be read", quote_excerpt(path)));
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+std::vector<double> read_layout_values(const std::string& path, const AlbedoLayout& layout) {
+  const std::string ext = std::filesystem::path(path).extension().string();
+  try {
+    if (ext == ".exr") return layout_values_from_exr(microgeom::read_exr(path), layout);
+    if (ext == ".csv") return layout_values_from_csv(read_bytes(path), layout);
+  } catch (const UsageError&) {
+    throw;
+  } catch (const std::exception& e) {  // unreadable, or not a table of this layout
+    throw UsageError(fmt::format("--grade {}: {}", quote_excerpt(path), e.what()));
+  }
+  throw UsageError(fmt::format("--grade {}: an .exr or a .csv table", quote_excerpt(path)));
+}
+
+void print_grade(const AlbedoGrade& g) {
+  const CellGrade& w = g.cells[g.worst];
+  fmt::print("grade: {} layout, {} nodes against the analytic reference (quadrature tolerance {:g})\n", g.layout.name,
+             g.cells.size(), g.reference_tolerance);
+  fmt::print("max |table - reference| {:.3g} at node (roughness {}, mu {}) = (alpha {:.6g}, mu {:.6g}): table {:.9g}, "
+             "reference {:.9g}; RMS {:.3g}\n", g.max_abs, w.ri, w.mj, w.alpha, w.mu, w.value, w.reference.value, g.rms);
+  if (g.not_graded > 0)
+    fmt::print("not graded: {} nodes of alpha below {:g}, the reference's range (microsim's GGX clamps alpha there)\n",
+               g.not_graded, kMinAlpha);
+  fmt::print("beyond the encoding's quantisation ({}): {} of {} nodes\n", to_string(g.layout.encoding),
+             g.beyond_quantisation, g.cells.size());
+  if (g.table_samples > 0)
+    fmt::print("beyond the noise of {} samples per node ({:.2f} sigma: family level {:g}; weights in [0, 1]): {} of {} "
+               "nodes\n", g.table_samples, g.noise_z, kGradeNoiseLevel, g.beyond_noise, g.cells.size());
+  print_interpolation("the table's bilinear interpolation at cell centres - reference", g.table_interpolation);
+  print_interpolation("the layout's own (reference nodes) at cell centres", g.reference_interpolation);
+  for (const CellGrade& c : g.cells)
+    if (!c.within_tolerance)
+      fmt::print("FAIL node (roughness {}, mu {}) alpha {:.6g} mu {:.6g}: table {:.9g} reference {:.9g} difference {:.3g}\n",
+                 c.ri, c.mj, c.alpha, c.mu, c.value, c.reference.value, c.difference);
+  fmt::print("{}: {} of {} nodes beyond the tolerance {:g}\n", g.passed() ? "PASS" : "FAIL", g.failed, g.cells.size(),
+             g.tolerance);
+}
+
+}  // namespace
+
+int run_albedo_layout(const AlbedoLayout& layout, double tolerance, int threads, const LayoutOutputs& o) {
+  const auto progress = std::make_shared<CliProgress>(true);
+  install_interrupt_handler();
+  fmt::print(stderr, "albedo: layout {} ({} x {} nodes and the cell centres)\n", layout.name, layout_columns(layout),
+             layout_rows(layout));
+  const std::optional<LayoutTable> t = layout_table(layout, tolerance, cli_run_control(threads, progress));
+  progress->finish();
+  if (!t) return interrupted_nothing_written("albedo");
+  microgeom::write_exr(o.exr, layout_table_exr(*t));
+  if (!o.csv.empty()) write_file_atomically(o.csv, layout_table_csv(*t));
+  if (!o.encoded.empty()) write_file_atomically(o.encoded, layout_table_encoded(*t));
+  if (!o.centres.empty()) write_file_atomically(o.centres, layout_centres_csv(*t));
+  if (!o.json.empty()) write_file_atomically(o.json, layout_table_json(*t).dump(2) + "\n");
+  print_layout_table(*t);
+  return kExitOk;
+}
+
+int run_albedo_grade(const AlbedoLayout& layout, const std::string& table, double tolerance,
+                     std::uint64_t table_samples, int threads, const std::string& json) {
+  const std::vector<double> values = read_layout_values(table, layout);
+  for (std::size_t k = 0; k < values.size(); ++k)
+    if (!std::isfinite(values[k]))
+      throw UsageError(fmt::format("--grade {}: value {} is not finite", quote_excerpt(table), k));
+  const auto progress = std::make_shared<CliProgress>(true);
+  install_interrupt_handler();
+  const std::optional<AlbedoGrade> g =
+      grade_albedo_table(layout, values, tolerance, table_samples, cli_run_control(threads, progress));
+  progress->finish();
+  if (!g) return interrupted_nothing_written("albedo");
+  if (!json.empty()) write_file_atomically(json, albedo_grade_json(*g).dump(2) + "\n");
+  print_grade(*g);
+  return g->passed() ? kExitOk : kExitRejected;
+}
+
+}  // namespace microsim::app

@@ -1,0 +1,143 @@
+#include "scatter/albedo_grade.h"
+
+#include <boost/math/distributions/normal.hpp>
+#include <fmt/core.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <stdexcept>
+
+namespace microsim {
+
+namespace {
+
+void check_grade_input(const AlbedoLayout& layout, const std::vector<double>& values, double tolerance) {
+  const std::size_t n = std::size_t(layout.roughness.nodes) * std::size_t(layout.mu.nodes);
+  if (values.size() != n)
+    throw std::invalid_argument(
+        fmt::format("grade: {} values for the {} layout ({} x {} = {})", values.size(), layout.name,
+                    layout_columns(layout), layout_rows(layout), n));
+  for (std::size_t k = 0; k < n; ++k)
+    if (!std::isfinite(values[k])) throw std::invalid_argument(fmt::format("grade: value {} is not finite", k));
+  if (!(tolerance > 0) || !std::isfinite(tolerance))
+    throw std::invalid_argument(fmt::format("grade: tolerance {} must be positive", tolerance));
+}
+
+CellGrade grade_cell(const LayoutTable& t, std::size_t ri, std::size_t mj, double value, double tolerance,
+                     std::uint64_t samples, double z) {
+  CellGrade c;
+  c.ri = ri;
+  c.mj = mj;
+  c.alpha = t.alphas[ri];
+  c.mu = t.mus[mj];
+  c.value = value;
+  c.graded = t.in_range[ri];
+  c.reference = t.cells[ri * t.mus.size() + mj];
+  c.difference = value - c.reference.value;
+  c.quantisation = layout_quantisation(t.layout.encoding, value);
+  const double slack = c.quantisation + c.reference.standard_error;
+  c.within_quantisation = std::abs(c.difference) <= slack;
+  if (samples > 0) {
+    const double e = std::clamp(c.reference.value, 0.0, 1.0);
+    c.noise = z * std::sqrt(e * (1 - e) / double(samples));
+    c.within_noise = std::abs(c.difference) <= c.noise + slack;
+  }
+  c.within_tolerance = !c.graded || std::abs(c.difference) <= tolerance;
+  return c;
+}
+
+}  // namespace
+
+double grade_reference_tolerance(double tolerance) { return std::clamp(tolerance / 100, 1e-13, 1e-8); }
+
+AlbedoGrade grade_against(const LayoutTable& t, const std::vector<double>& values, double tolerance,
+                          std::uint64_t samples) {
+  check_grade_input(t.layout, values, tolerance);
+  AlbedoGrade g;
+  g.layout = t.layout;
+  g.tolerance = tolerance;
+  g.reference_tolerance = t.tolerance;
+  g.table_samples = samples;
+  const std::size_t nm = t.mus.size();
+  if (samples > 0) {
+    const double per_node = 1 - std::pow(1 - kGradeNoiseLevel, 1.0 / double(values.size()));
+    g.noise_z = boost::math::quantile(boost::math::complement(boost::math::normal(), per_node / 2));
+  }
+  std::vector<double> nodes(t.cells.size());
+  double sum = 0;
+  for (std::size_t ri = 0; ri < t.alphas.size(); ++ri)
+    for (std::size_t mj = 0; mj < nm; ++mj) {
+      nodes[ri * nm + mj] = values[layout_storage_index(t.layout, ri, mj)];
+      const CellGrade c = grade_cell(t, ri, mj, nodes[ri * nm + mj], tolerance, samples, g.noise_z);
+      g.cells.push_back(c);
+      if (!c.graded) {
+        ++g.not_graded;
+        continue;
+      }
+      sum += c.difference * c.difference;
+      if (std::abs(c.difference) > g.max_abs || !g.cells[g.worst].graded) {
+        g.max_abs = std::abs(c.difference);
+        g.worst = g.cells.size() - 1;
+      }
+      g.failed += !c.within_tolerance;
+      g.beyond_quantisation += !c.within_quantisation;
+      g.beyond_noise += samples > 0 && !c.within_noise;
+    }
+  const std::size_t graded = g.cells.size() - g.not_graded;
+  g.rms = graded == 0 ? 0.0 : std::sqrt(sum / double(graded));
+  g.table_interpolation = interpolation_error(t, nodes);
+  g.reference_interpolation = t.interpolation;
+  return g;
+}
+
+std::optional<AlbedoGrade> grade_albedo_table(const AlbedoLayout& layout, const std::vector<double>& values,
+                                              double tolerance, std::uint64_t samples, const RunControl& run) {
+  check_grade_input(layout, values, tolerance);
+  const std::optional<LayoutTable> t = layout_table(layout, grade_reference_tolerance(tolerance), run, false);
+  if (!t) return std::nullopt;
+  return grade_against(*t, values, tolerance, samples);
+}
+
+namespace {
+
+nlohmann::json interpolation_json(const InterpolationError& e) {
+  return {{"max_abs", e.max_abs}, {"rms", e.rms}, {"worst_alpha", e.worst_alpha}, {"worst_mu", e.worst_mu},
+          {"worst_roughness_index", e.worst_ri}, {"worst_mu_index", e.worst_mj}};
+}
+
+nlohmann::json cell_json(const CellGrade& c) {
+  return {{"roughness_index", c.ri}, {"mu_index", c.mj}, {"alpha", c.alpha}, {"mu", c.mu},
+          {"value", c.value}, {"reference", c.reference.value}, {"reference_error", c.reference.standard_error},
+          {"difference", c.difference}, {"quantisation", c.quantisation}, {"noise", c.noise},
+          {"within_quantisation", c.within_quantisation}, {"within_noise", c.within_noise},
+          {"within_tolerance", c.within_tolerance}, {"graded", c.graded}};
+}
+
+}  // namespace
+
+nlohmann::json albedo_grade_json(const AlbedoGrade& g) {
+  nlohmann::json cells = nlohmann::json::array();
+  for (const CellGrade& c : g.cells) cells.push_back(cell_json(c));
+  return {{"kind", "albedo table grade"},
+          {"layout", g.layout.name},
+          {"source", g.layout.source},
+          {"encoding", to_string(g.layout.encoding)},
+          {"tolerance", g.tolerance},
+          {"reference_tolerance", g.reference_tolerance},
+          {"table_samples", g.table_samples},
+          {"noise_z", g.noise_z},
+          {"noise_level", kGradeNoiseLevel},
+          {"passed", g.passed()},
+          {"max_abs", g.max_abs},
+          {"rms", g.rms},
+          {"worst", cell_json(g.cells[g.worst])},
+          {"failed", g.failed},
+          {"not_graded", g.not_graded},
+          {"beyond_quantisation", g.beyond_quantisation},
+          {"beyond_noise", g.beyond_noise},
+          {"table_interpolation", interpolation_json(g.table_interpolation)},
+          {"reference_interpolation", interpolation_json(g.reference_interpolation)},
+          {"cells", cells}};
+}
+
+}  // namespace microsim

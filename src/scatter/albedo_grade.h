@@ -1,0 +1,66 @@
+// scatter: the grade of an energy-compensation table a renderer ships, in one of the layouts of
+// scatter/albedo_layout.h: each node against the reference (the analytic single-scattering albedo, at a
+// quadrature tolerance a hundredth of the grade's and at most 1e-8), and the table's bilinear interpolation
+// at the cell centres against the reference there (what the table costs a renderer that reads it).
+//
+// Per node: difference = table - reference; within quantisation when |difference| <= the encoding's
+// rounding (layout_quantisation) + the reference's error estimate; within noise, for a table built from N
+// samples per cell (stated by the user), when |difference| <= z sqrt(E (1 - E) / N) + that rounding + the
+// reference's error, z the two-sided normal quantile of the Sidak level 1 - (1 - 1e-3)^(1 / nodes) (so that a
+// table of unbiased nodes has a node beyond its noise with probability at most about 1e-3): E (1 - E) bounds the variance of a per-sample weight in [0, 1] of mean E (the
+// Bhatia-Davis inequality), which a VNDF-sampled mirror's weight G1(wo) is; a table built by NDF sampling
+// has a larger variance (weights above 1), so its noise can exceed this bound. Passed: every graded node
+// within the tolerance the user gives (a node below the reference's alpha range is reported, not graded).
+// Never prints.
+#pragma once
+
+#include "core/run_control.h"
+#include "scatter/albedo_layout.h"
+
+#include <nlohmann/json_fwd.hpp>
+
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+namespace microsim {
+
+struct CellGrade {
+  std::size_t ri = 0, mj = 0;  // roughness and mu node
+  double alpha = 0, mu = 0;
+  double value = 0;            // the table's
+  Estimate reference;
+  double difference = 0, quantisation = 0, noise = 0;  // noise: 0 when no sample count is stated
+  bool graded = true;  // the node's alpha is in the reference's range (LayoutTable::in_range)
+  bool within_quantisation = false, within_noise = false, within_tolerance = false;
+};
+
+struct AlbedoGrade {
+  AlbedoLayout layout;
+  double tolerance = 0, reference_tolerance = 0;
+  double noise_z = 0;               // the noise check's quantile (0 when no sample count)
+  std::uint64_t table_samples = 0;  // 0: not stated
+  std::vector<CellGrade> cells;     // [ri * mus + mj]
+  double max_abs = 0, rms = 0;
+  std::size_t worst = 0;            // index into cells (graded nodes only, as max_abs and rms)
+  std::size_t failed = 0, beyond_quantisation = 0, beyond_noise = 0, not_graded = 0;
+  InterpolationError table_interpolation;      // the table's bilinear at cell centres vs the reference
+  InterpolationError reference_interpolation;  // the layout's own (the reference's nodes)
+  bool passed() const { return failed == 0; }
+};
+
+inline constexpr double kGradeNoiseLevel = 1e-3;  // the family level of the noise check
+
+// The grade of `values` (storage order of the layout: layout_storage_index) with tolerance `tolerance`
+// (> 0). std::invalid_argument for a wrong count, a non-finite value or tolerance; nullopt when cancelled.
+// The reference: layout_table at grade_reference_tolerance(tolerance), without E_avg.
+double grade_reference_tolerance(double tolerance);
+// The same against a reference computed once (layout_table of the layout, any tolerance).
+AlbedoGrade grade_against(const LayoutTable& reference, const std::vector<double>& values, double tolerance,
+                          std::uint64_t table_samples = 0);
+std::optional<AlbedoGrade> grade_albedo_table(const AlbedoLayout& layout, const std::vector<double>& values,
+                                              double tolerance, std::uint64_t table_samples = 0,
+                                              const RunControl& run = {});
+nlohmann::json albedo_grade_json(const AlbedoGrade& grade);
+
+}  // namespace microsim
