@@ -44,6 +44,7 @@ set(MICROSIM_SANITIZE_SKIP
   [=[ExperimentSplit\.TwoAndThreeRanks]=]
   [=[ExperimentSplitHeightfield\.RanksAndShards]=]
   [=[ExperimentSplitAlbedo\.OnTiles]=]
+  [=[BsdfBatteryWorked\.CorrectBsdfs]=]
 )
 list(JOIN MICROSIM_SANITIZE_SKIP "|" MICROSIM_SANITIZE_SKIP_REGEX)
 set(MICROSIM_BROWSER_REGEX [=[^ReportBrowser\.]=])
