@@ -50,6 +50,35 @@ TEST(CheckBsdfCli, APlantedEvalBugIsRejectedByTheEvalAndConsistencyTests) {
   fs::remove_all(dir);
 }
 
+// --html: one self-contained page (no external resource: the only URL is the SVG namespace) with the table and a
+// residual map per view and cell test; a rejected plugin's page says so. --reference none (a compensated BSDF's
+// claim: only the tests against itself) runs no sampling or eval test against a reference.
+TEST(CheckBsdfCli, TheHtmlReportIsSelfContainedWithTheResidualMaps) {
+  const fs::path dir = scratch_dir("check_bsdf", "html");
+  CliRun r = run_cli(dir, check(MICROSIM_PLUGIN_GOOD, kPluginGlass) + " --html r.html");
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  std::string page = slurp(dir / "r.html");
+  EXPECT_EQ(page.rfind("<!DOCTYPE html>", 0), 0u);
+  std::size_t svgs = 0, urls = 0;
+  for (std::size_t at = page.find("<svg"); at != std::string::npos; at = page.find("<svg", at + 1)) ++svgs;
+  for (std::size_t at = page.find("http"); at != std::string::npos; at = page.find("http", at + 1))
+    urls += page.compare(at, 26, "http://www.w3.org/2000/svg") != 0;
+  EXPECT_EQ(svgs, 14u);  // density and integral at 7 views
+  EXPECT_EQ(urls, 0u);
+  EXPECT_EQ(page.find(" src="), std::string::npos);
+  EXPECT_EQ(page.find("REJECTED"), std::string::npos);
+  r = run_cli(dir, check(MICROSIM_PLUGIN_EVAL_BUG, kPluginGlass) + " --html bug.html");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(slurp(dir / "bug.html").find("REJECTED"), std::string::npos);
+  r = run_cli(dir, check(MICROSIM_PLUGIN_GOOD, kPluginGlass) + " --reference none");
+  EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
+  for (const nlohmann::json& t : nlohmann::json::parse(slurp(dir / "c.json"))["tests"]) {
+    EXPECT_NE(t["test"], "sampling");
+    EXPECT_NE(t["test"], "eval");
+  }
+  fs::remove_all(dir);
+}
+
 TEST(CheckBsdfCli, BadPluginsAreExit2) {
   const fs::path dir = scratch_dir("check_bsdf", "usage");
   const std::pair<std::string, std::string> cases[] = {
@@ -58,6 +87,10 @@ TEST(CheckBsdfCli, BadPluginsAreExit2) {
       {std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_GOOD + " --param colour=red --bsdf mirror --alpha 0.3",
        "refused the parameters"},
       {std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_GOOD + " --bsdf lambertian --alpha 0.3", "--bsdf"},
+      {std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_GOOD + " --bsdf mirror --alpha 0.3 --reference walk",
+       "--reference"},
+      {std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_GOOD + " --bsdf mirror --alpha 0.3 --html " +
+       MICROSIM_PLUGIN_GOOD, "--html"},
   };
   for (const auto& [args, message] : cases) {
     const CliRun r = run_cli(dir, args);
