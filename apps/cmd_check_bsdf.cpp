@@ -3,6 +3,7 @@
 // single-scattering BSDF it claims (--bsdf, --alpha). Exit 0 every test passed, 1 one rejected, 2 bad usage or
 // a plugin that cannot be loaded, 130 interrupted.
 #include "bsdf_options.h"
+#include "check_bsdf_html.h"
 #include "command.h"
 #include "number_options.h"
 #include "progress_bar.h"
@@ -25,7 +26,7 @@ namespace microsim::app {
 namespace {
 
 struct CheckArgs {
-  std::string plugin, bsdf, alpha, json, arithmetic = "float32";
+  std::string plugin, bsdf, alpha, json, html, arithmetic = "float32", reference = "single-scattering";
   std::vector<std::string> params;
   long long samples = 200'000;
   unsigned long long seed = 1;
@@ -98,6 +99,8 @@ BsdfUnderTest under_test(const LoadedPlugin& p) {
   return b;
 }
 
+std::string plugin_name(const LoadedPlugin& p) { return p.api().name ? p.api().name : "plugin"; }
+
 void print_table(const BatteryReport& r) {
   fmt::print("{:<12} {:<13} {:>9} {:<9} {}\n", "test", "view", "p", "verdict", "detail");
   for (const BatteryLine& l : r.lines)
@@ -107,8 +110,11 @@ void print_table(const BatteryReport& r) {
 }
 
 int run_check_bsdf(const CheckArgs& a) {
-  check_distinct_outputs({{"--plugin", a.plugin}}, {{"--json", a.json}});
+  check_distinct_outputs({{"--plugin", a.plugin}}, {{"--json", a.json}, {"--html", a.html}});
   check_output("--json", a.json);
+  check_output("--html", a.html);
+  if (a.reference != "single-scattering" && a.reference != "none")
+    throw UsageError(fmt::format("--reference '{}': single-scattering or none", a.reference));
   const Precision arithmetic = arithmetic_option(a.arithmetic);
   const Material m = microfacet_bsdf_option(a.bsdf);
   const auto [ax, ay] = parse_alpha("--alpha", a.alpha);
@@ -124,6 +130,7 @@ int run_check_bsdf(const CheckArgs& a) {
   o.seed = a.seed;
   o.level = a.level;
   o.arithmetic = arithmetic;
+  o.reference = a.reference == "none" ? BatteryReference::none : BatteryReference::single_scattering;
   o.run = cli_run_control(0, nullptr);
   BatteryReport r;
   try {
@@ -136,6 +143,12 @@ int run_check_bsdf(const CheckArgs& a) {
     j.update({{"plugin", a.plugin}, {"bsdf", a.bsdf}, {"alpha", a.alpha}, {"level", a.level}});
     write_file_atomically(a.json, j.dump(2) + "\n");
   }
+  if (!a.html.empty())
+    write_file_atomically(a.html, battery_html(r, "microsim check-bsdf: " + plugin_name(plugin),
+                                               {"plugin: " + a.plugin + (params.empty() ? "" : " (" + params + ")"),
+                                                "claims: " + a.bsdf + ", GGX alpha " + a.alpha + ", reference " + a.reference,
+                                                fmt::format("{} samples per view, seed {}, level {} (Sidak over the "
+                                                            "statistical tests)", a.samples, a.seed, a.level)}));
   print_table(r);
   return r.passed ? kExitOk : kExitRejected;
 }
@@ -146,8 +159,10 @@ CommandRegistration check_bsdf_registration{"check-bsdf", [](CLI::App& app) {
       "check-bsdf",
       "Test a renderer's BSDF in process through the C plugin interface (include/microsim/bsdf_plugin.h) against the "
       "exact single-scattering BSDF it claims: its samples per view (directions, returned pdfs, weights), its eval() "
-      "and pdf() at the pairs of bsdf-queries, its weights against eval / pdf, non-finite values. Exit 0 passed, 1 "
-      "rejected, 2 bad usage or a plugin that cannot be loaded.");
+      "and pdf() at the pairs of bsdf-queries, its weights against eval / pdf, non-finite values; and against itself "
+      "per view: its directions against its pdf(), its weighted samples against the integral of its eval() per cell, "
+      "the white furnace (mean weight against the integral of eval cos). Exit 0 passed, 1 rejected, 2 bad usage or "
+      "a plugin that cannot be loaded.");
   sub->add_option("--plugin", a->plugin, "the shared library (.so) defining microsim_bsdf_plugin_entry")->required();
   sub->add_option("--param", a->params, "a key=value parameter passed to the plugin's create() (repeatable)");
   sub->add_option("--bsdf", a->bsdf, "the BSDF it claims: mirror, conductor:ETA,K or dielectric:ETA")->required();
@@ -157,7 +172,12 @@ CommandRegistration check_bsdf_registration{"check-bsdf", [](CLI::App& app) {
   add_number_option(sub, "--level", a->level, real(), "family-wise significance level (Sidak over the views)")->default_str("0.01");
   sub->add_option("--arithmetic", a->arithmetic, "the plugin's arithmetic for the eval tolerances: float32 or float64")
       ->capture_default_str();
+  sub->add_option("--reference", a->reference,
+                  "what its samples and eval() are checked against besides themselves: single-scattering (the exact "
+                  "BSDF of --bsdf) or none (a compensated BSDF: only the tests against itself)")
+      ->capture_default_str();
   sub->add_option("--json", a->json, "write the report as JSON");
+  sub->add_option("--html", a->html, "write the report as HTML (the table and the residual maps, inline SVG)");
   on_selected(sub, [a] { return run_check_bsdf(*a); });
 }};
 

@@ -45,6 +45,7 @@ set(MICROSIM_SANITIZE_SKIP
   [=[ExperimentSplitHeightfield\.RanksAndShards]=]
   [=[ExperimentSplitAlbedo\.OnTiles]=]
   [=[AlbedoGrade\.]=]
+  [=[BsdfBatteryWorked\.CorrectBsdfs]=]
 )
 list(JOIN MICROSIM_SANITIZE_SKIP "|" MICROSIM_SANITIZE_SKIP_REGEX)
 set(MICROSIM_BROWSER_REGEX [=[^ReportBrowser\.]=])

@@ -2,6 +2,7 @@
 #include "measure/bsdf_battery.h"
 
 #include "core/random.h"
+#include "measure/bsdf_self_check.h"
 #include "stats/chi2.h"
 #include "validate/bsdf_queries.h"
 #include "validate/dump_validation.h"
@@ -19,11 +20,7 @@ namespace {
 constexpr std::size_t kBatch = 65536;
 constexpr double kConsistency = 1e-3;  // relative
 
-struct Samples {
-  std::vector<Vec3<double>> wo;
-  std::vector<double> pdf, weight;  // weight: channels per row
-  std::uint64_t lost = 0, non_finite = 0;
-};
+using Samples = battery::ViewSamples;
 
 bool finite_row(const Vec3<double>& wo, double pdf, const double* weight, int channels) {
   bool ok = wo.allFinite() && std::isfinite(pdf);
@@ -34,6 +31,7 @@ bool finite_row(const Vec3<double>& wo, double pdf, const double* weight, int ch
 // n samples from wi: uniforms of sample i from CounterRng(seed, i), as the command line's dumps draw them.
 Samples draw(const BsdfUnderTest& b, const Vec3<double>& wi, const BatteryOptions& o) {
   Samples s;
+  s.drawn = o.samples;
   const std::size_t c = std::size_t(b.channels);
   for (std::uint64_t first = 0; first < o.samples; first += kBatch) {
     if (o.run.cancelled()) throw Cancelled("the BSDF's samples");
@@ -102,17 +100,15 @@ std::vector<double> view_thetas(const Material& m) {
   return v;
 }
 
-// The sampling validation of one view (at its Sidak share of the level), and the samples' consistency.
-void check_view(const BsdfUnderTest& b, const Material& m, const GGX<double>& ggx, double theta, const BatteryOptions& o,
-                double level, std::vector<BatteryLine>& lines) {
-  const std::string view = fmt::format("{:g} deg", theta);
-  const Vec3<double> wi = direction_from_degrees(theta, 0.0);
-  const Samples s = draw(b, wi, o);
-  if (s.non_finite > 0) lines.push_back({"finite", view, fmt::format("{} samples with a non-finite value", s.non_finite), -1, false});
-  if (s.wo.empty()) {
-    lines.push_back({"sampling", view, "every sample was lost", -1, false});
-    return;
-  }
+// The statistical tests of one view's samples under `o.reference`, each at `level`.
+int view_tests(const BsdfUnderTest& b, const BatteryOptions& o) {
+  return (o.reference != BatteryReference::none ? 1 : 0) + (b.pdf ? 1 : 0) + 2;
+}
+
+// The sampling validation against the exact single scattering (validate/dump_validation.h).
+BatteryLine sampling_against_exact(const BsdfUnderTest& b, const Material& m, const GGX<double>& ggx,
+                                   const Vec3<double>& wi, const Samples& s, const std::string& view,
+                                   const BatteryOptions& o, double level) {
   DirectionSampleReader reader = sample_reader(s, b.channels);
   ValidationOptions v;
   v.significance = level;
@@ -121,22 +117,32 @@ void check_view(const BsdfUnderTest& b, const Material& m, const GGX<double>& gg
   v.dropped_below_horizon = s.lost;
   v.run = o.run;
   const ValidationReport r = validate_dump_as_given(reader, {FilePdf::bsdf, m, true}, ggx, wi, v, false);
-  lines.push_back({"sampling", view, r.passed ? fmt::format("{} samples, {} lost", s.wo.size(), s.lost) : r.failures.front(),
-                   r.p_value, r.passed});
-  lines.push_back(consistency(b, wi, s, view));
+  return {"sampling", view, r.passed ? fmt::format("{} samples, {} lost", s.wo.size(), s.lost) : r.failures.front(),
+          r.p_value, r.passed};
 }
 
-// The index of refraction on the side of w: 1 above, eta below (a dielectric; 1 for an opaque BSDF).
-double index_at(const Material& m, const Vec3<double>& w) { return m.transmits() && w.z() < 0 ? m.eta() : 1.0; }
-
-// f(b, a) / f(a, b) by the reciprocity of the BSDF it claims to be: 1 for a reflection; for a refraction, in
-// importance transport n_a^2 / n_b^2, in radiance transport n_b^2 / n_a^2 (Veach 1997 sec. 5.2: f(a -> b) / n_b^2
-// = f(b -> a) / n_a^2; radiance evaluates the adjoint).
-double reciprocal_ratio(const Material& m, const BsdfConvention& c, const Vec3<double>& a, const Vec3<double>& b) {
-  const double na = index_at(m, a), nb = index_at(m, b);
-  if (na == nb) return 1.0;
-  return c.transport == TransportMode::importance ? (na * na) / (nb * nb) : (nb * nb) / (na * na);
+// One view: its sampling against the reference, its tests against itself, and (a deterministic eval() with a
+// pdf()) the samples' pointwise consistency.
+void check_view(const BsdfUnderTest& b, const Material& m, const GGX<double>& ggx, double theta, const BatteryOptions& o,
+                double level, BatteryReport& report) {
+  std::vector<BatteryLine>& lines = report.lines;
+  const std::string view = fmt::format("{:g} deg", theta);
+  const Vec3<double> wi = direction_from_degrees(theta, 0.0);
+  const Samples s = draw(b, wi, o);
+  if (s.non_finite > 0) lines.push_back({"finite", view, fmt::format("{} samples with a non-finite value", s.non_finite), -1, false});
+  if (s.wo.empty()) {
+    lines.push_back({"sampling", view, "every sample was lost", -1, false});
+    return;
+  }
+  if (o.reference == BatteryReference::single_scattering)
+    lines.push_back(sampling_against_exact(b, m, ggx, wi, s, view, o, level));
+  if (o.reference == BatteryReference::smith_walk)
+    lines.push_back(battery::sampling_against_walk(b, m, ggx, wi, s, view, level, o));
+  for (BatteryLine& l : battery::self_tests(b, wi, s, view, level, o, report.residuals)) lines.push_back(std::move(l));
+  if (!b.stochastic_eval && b.pdf) lines.push_back(consistency(b, wi, s, view));
 }
+
+using battery::reciprocal_ratio;
 
 // The BSDF's own reciprocity at the query pairs off the horizon where it is not negligible: eval at (wo, wi)
 // against eval at (wi, wo) times the ratio above, within 1e-3 relative (no reference needed: it holds for a
@@ -198,6 +204,23 @@ BatteryLine check_eval(const BsdfUnderTest& b, const Material& m, const GGX<doub
   return {"eval", "bsdf-queries", detail, -1, report.passed};
 }
 
+// The eval and reciprocity lines of a BSDF without an exact reference (or with a stochastic eval()).
+void check_eval_stochastic(const BsdfUnderTest& b, const Material& m, const GGX<double>& ggx, const BatteryOptions& o,
+                           double level, std::vector<BatteryLine>& lines) {
+  const std::vector<BsdfQuery> q = bsdf_queries(m, 256, o.seed, ggx);
+  const std::vector<BsdfQuery> pairs = battery::stochastic_pairs(q, o.stochastic_pairs);
+  if (o.reference == BatteryReference::smith_walk) lines.push_back(battery::eval_against_walk(b, m, ggx, pairs, level, o));
+  if (b.stochastic_eval) {
+    lines.push_back(battery::stochastic_reciprocity(b, m, pairs, level, o));
+    return;
+  }
+  std::vector<Vec3<double>> wi, wo;
+  for (const BsdfQuery& x : q) wi.push_back(x.wi), wo.push_back(x.wo);
+  std::vector<double> values(q.size() * std::size_t(b.channels));
+  b.eval(wi, wo, values);
+  lines.push_back(reciprocity(b, m, q, values));
+}
+
 }  // namespace
 
 BatteryReport run_bsdf_battery(const BsdfUnderTest& bsdf, const Material& claimed, const GGX<double>& ggx,
@@ -206,13 +229,22 @@ BatteryReport run_bsdf_battery(const BsdfUnderTest& bsdf, const Material& claime
   if (bsdf.channels != claimed.channels())
     throw std::invalid_argument(fmt::format("the BSDF has {} channel(s), the claimed {} has {}", bsdf.channels,
                                             claimed.describe(), claimed.channels()));
+  const bool exact = options.reference == BatteryReference::single_scattering;
+  if (exact && (bsdf.stochastic_eval || !bsdf.pdf))
+    throw std::invalid_argument("the exact single-scattering reference needs a deterministic eval() and a pdf()");
   const std::vector<double> thetas = view_thetas(claimed);
-  const double level = sidak_significance(options.level, int(thetas.size()));
+  const int statistical = int(thetas.size()) * view_tests(bsdf, options) +
+                          (options.reference == BatteryReference::smith_walk ? 1 : 0) + (bsdf.stochastic_eval ? 1 : 0);
+  const double level = sidak_significance(options.level, statistical);
   BatteryReport r;
-  for (const double theta : thetas) check_view(bsdf, claimed, ggx, theta, options, level, r.lines);
-  BatteryLine reciprocal;
-  r.lines.push_back(check_eval(bsdf, claimed, ggx, options, r.eval, reciprocal));
-  r.lines.push_back(std::move(reciprocal));
+  for (const double theta : thetas) check_view(bsdf, claimed, ggx, theta, options, level, r);
+  if (exact) {
+    BatteryLine reciprocal;
+    r.lines.push_back(check_eval(bsdf, claimed, ggx, options, r.eval, reciprocal));
+    r.lines.push_back(std::move(reciprocal));
+  } else {
+    check_eval_stochastic(bsdf, claimed, ggx, options, level, r.lines);
+  }
   r.passed = true;
   for (const BatteryLine& l : r.lines) r.passed = r.passed && l.passed;
   return r;

@@ -9,7 +9,16 @@
 //   - its eval() and pdf() at the pairs of bsdf_queries, pointwise (validate/eval_check.h);
 //   - its eval()'s reciprocity at those pairs (a reflection's f(wo, wi) = f(wi, wo); a refraction's ratio the
 //     n^2 rule of its transport mode), within 1e-3 relative;
-//   - non-finite outputs: a failure.
+//   - non-finite outputs: a failure;
+//   - per view, against itself (bsdf_self_check.h): its directions against its own pdf(), its weighted sample
+//     histogram against the integral of its eval() per cell, the white furnace (mean weight against the integral
+//     of eval cos) with error bars.
+// The reference it claims (BatteryReference): the exact single scattering of the material (the tests above), the
+// Smith walk's multiple scattering (its samples and its next-event eval instead of the exact ones), or none (a
+// compensated BSDF: only the tests against itself, which hold for any BSDF). A stochastic eval() (an unbiased
+// estimate, independent per call) is averaged over repeated calls where a test needs a value with its error,
+// and is not held to weight = eval / pdf pointwise.
+// The statistical tests share the family-wise level by Sidak's rule.
 // The BSDF is called in batches (one view's wi repeated), from the calling thread.
 #pragma once
 
@@ -41,14 +50,24 @@ struct BsdfUnderTest {
   // (wi, wo) (n) -> f(wi, wo) |cos wo| (channels n).
   std::function<void(std::span<const Vec3<double>> wi, std::span<const Vec3<double>> wo, std::span<double> value)> eval;
   // (wi, wo) (n) -> the density sample() draws wo with (n).
+  // Empty: the BSDF has no pdf() (a multiple-scattering sampler's density is not known in closed form).
   std::function<void(std::span<const Vec3<double>> wi, std::span<const Vec3<double>> wo, std::span<double> pdf)> pdf;
+  bool stochastic_eval = false;  // eval() an unbiased noisy estimate, independent from call to call
 };
+
+enum class BatteryReference { single_scattering, smith_walk, none };
 
 struct BatteryOptions {
   std::uint64_t samples = 200'000;  // per view
   std::uint64_t seed = 1;
   double level = 0.01;
   Precision arithmetic = Precision::float32;  // of the BSDF, for the eval tolerances
+  BatteryReference reference = BatteryReference::single_scattering;
+  int points_per_cell = 256;                 // eval() and pdf() points per cell of the integral tests (an even square)
+  int eval_repeats = 64;                     // calls per pair of a stochastic eval()
+  std::size_t stochastic_pairs = 48;         // query pairs of the stochastic eval and reciprocity tests
+  std::uint64_t reference_paths = 4096;      // the walk's paths per pair (its next-event eval)
+  int max_order = 100;                       // the walk's order cap (the reference's)
   RunControl run;
 };
 
@@ -58,8 +77,18 @@ struct BatteryLine {
   bool passed = true;
 };
 
+// The residual per cell of a cell test (bsdf_self_check.h) at one view: (a - lambda b) / sqrt(var a + lambda^2 var b),
+// a the samples' histogram, b the integral of eval() or pdf(), lambda = sum a / sum b; NaN where both are empty.
+// Cells row-major: rows of z (from -1 up), columns of phi.
+struct BatteryResiduals {
+  std::string test, view;
+  int rows = 0, cols = 0;
+  std::vector<double> z;
+};
+
 struct BatteryReport {
   std::vector<BatteryLine> lines;
+  std::vector<BatteryResiduals> residuals;
   EvalCheckReport eval;
   bool passed = false;
 };

@@ -5,9 +5,15 @@
 // exit 2.
 #include "cli_helpers.h"
 
+#include "core/random.h"
+#include "microfacet/bsdf.h"
+#include "microfacet/bsdf_samplers.h"
+
+#include <fmt/core.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <fstream>
 #include <string>
 
 namespace microsim::test {
@@ -50,6 +56,75 @@ TEST(CheckBsdfCli, APlantedEvalBugIsRejectedByTheEvalAndConsistencyTests) {
   fs::remove_all(dir);
 }
 
+// --html: one self-contained page (no external resource: the only URL is the SVG namespace) with the table and a
+// residual map per view and cell test; a rejected plugin's page says so. --reference none (a compensated BSDF's
+// claim: only the tests against itself) runs no sampling or eval test against a reference.
+TEST(CheckBsdfCli, TheHtmlReportIsSelfContainedWithTheResidualMaps) {
+  const fs::path dir = scratch_dir("check_bsdf", "html");
+  CliRun r = run_cli(dir, check(MICROSIM_PLUGIN_GOOD, kPluginGlass) + " --html r.html");
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  std::string page = slurp(dir / "r.html");
+  EXPECT_EQ(page.rfind("<!DOCTYPE html>", 0), 0u);
+  std::size_t svgs = 0, urls = 0;
+  for (std::size_t at = page.find("<svg"); at != std::string::npos; at = page.find("<svg", at + 1)) ++svgs;
+  for (std::size_t at = page.find("http"); at != std::string::npos; at = page.find("http", at + 1))
+    urls += page.compare(at, 26, "http://www.w3.org/2000/svg") != 0;
+  EXPECT_EQ(svgs, 14u);  // density and integral at 7 views
+  EXPECT_EQ(urls, 0u);
+  EXPECT_EQ(page.find(" src="), std::string::npos);
+  EXPECT_EQ(page.find("REJECTED"), std::string::npos);
+  r = run_cli(dir, check(MICROSIM_PLUGIN_EVAL_BUG, kPluginGlass) + " --html bug.html");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(slurp(dir / "bug.html").find("REJECTED"), std::string::npos);
+  r = run_cli(dir, check(MICROSIM_PLUGIN_GOOD, kPluginGlass) + " --reference none");
+  EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
+  for (const nlohmann::json& t : nlohmann::json::parse(slurp(dir / "c.json"))["tests"]) {
+    EXPECT_NE(t["test"], "sampling");
+    EXPECT_NE(t["test"], "eval");
+  }
+  fs::remove_all(dir);
+}
+
+// check-bsdf-files: the zoo's GGX conductor (alpha 0.3, eta 0.2 + 3.9i) sampled at 30 deg, its dump (x y z pdf
+// weight) and its eval file at the same rows: passes (fixed seed, level 0.01); its weights scaled by 1.01 are
+// rejected by the consistency test; an albedo of 1 claimed for it (it absorbs) by the furnace; rows that do not
+// match are exit 2.
+void write_conductor_files(const fs::path& dir, double weight_scale) {
+  const BsdfSamplerInfo* s = find_bsdf_sampler("conductor_vndf");
+  const GGX<double> ggx(0.3, 0.3);
+  const Vec3<double> wi = direction_from_degrees(30.0, 0.0);
+  std::ofstream d(dir / "d.txt"), e(dir / "e.txt");
+  for (std::uint64_t i = 0; i < 20000; ++i) {
+    CounterRng rng(3, i);
+    const double u0 = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
+    const BsdfSampleResult r = s->sample(ggx, kZooConductorIor, wi, {u0, u1, u2});
+    if (!r) continue;
+    const double f = conductor_brdf(ggx, kZooConductorIor, wi, r->wo) * r->wo.z();
+    d << fmt::format("{:.17g} {:.17g} {:.17g} {:.17g} {:.17g}\n", r->wo.x(), r->wo.y(), r->wo.z(), r->pdf, r->weight * weight_scale);
+    e << fmt::format("{:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g}\n", wi.x(), wi.y(), wi.z(), r->wo.x(),
+                     r->wo.y(), r->wo.z(), f, conductor_vndf_pdf(ggx, kZooConductorIor, wi, r->wo));
+  }
+}
+
+TEST(CheckBsdfCli, FilesOfOneBsdfAgainstEachOther) {
+  const fs::path dir = scratch_dir("check_bsdf", "files");
+  write_conductor_files(dir, 1.0);
+  CliRun r = run_cli(dir, "check-bsdf-files d.txt e.txt --theta 30 --json f.json");
+  EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_EQ(nlohmann::json::parse(slurp(dir / "f.json"))["verdict"], "pass");
+  r = run_cli(dir, "check-bsdf-files d.txt e.txt --theta 30 --albedo 1");
+  EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
+  EXPECT_NE(r.out.find("furnace"), std::string::npos);
+  r = run_cli(dir, "check-bsdf-files d.txt e.txt --theta 60");
+  EXPECT_EQ(r.exit_code, 2) << r.out << r.err;
+  EXPECT_NE(r.err.find("is not the view"), std::string::npos) << r.err;
+  write_conductor_files(dir, 1.01);
+  r = run_cli(dir, "check-bsdf-files d.txt e.txt --theta 30");
+  EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
+  EXPECT_NE(r.out.find("rows disagree"), std::string::npos) << r.out;
+  fs::remove_all(dir);
+}
+
 TEST(CheckBsdfCli, BadPluginsAreExit2) {
   const fs::path dir = scratch_dir("check_bsdf", "usage");
   const std::pair<std::string, std::string> cases[] = {
@@ -58,6 +133,10 @@ TEST(CheckBsdfCli, BadPluginsAreExit2) {
       {std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_GOOD + " --param colour=red --bsdf mirror --alpha 0.3",
        "refused the parameters"},
       {std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_GOOD + " --bsdf lambertian --alpha 0.3", "--bsdf"},
+      {std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_GOOD + " --bsdf mirror --alpha 0.3 --reference walk",
+       "--reference"},
+      {std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_GOOD + " --bsdf mirror --alpha 0.3 --html " +
+       MICROSIM_PLUGIN_GOOD, "--html"},
   };
   for (const auto& [args, message] : cases) {
     const CliRun r = run_cli(dir, args);

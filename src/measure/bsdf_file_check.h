@@ -1,0 +1,36 @@
+// measure: one BSDF's consistency with itself from files (`check-bsdf --dump D --eval E`): a sample dump from one
+// view (x, y, z, pdf, weight per channel; the frame and columns of validate/sample_io.h) and an eval file of the
+// same BSDF at the same rows (validate/eval_check.h's rows: wi = the view, wo = the dump's direction, f(wi, wo)
+// |cos wo| per channel, pdf(wo | wi)), with the battery's tests (bsdf_battery.h, bsdf_self_check.h):
+//   - consistency: each weight against eval / pdf and each dump pdf against the eval file's, 1e-3 relative;
+//   - furnace: the mean weight (lost samples weigh 0) with its standard error, against a claimed albedo when one
+//     is given (the white furnace: 1 for an energy-conserving BSDF).
+// Not tested from files: the sample histogram against the pdf (an estimate of the pdf's integral per cell from the
+// samples alone, E_q[1_cell / p] = the cell's solid angle, is biased in cells the sampler only partly reaches,
+// e.g. along the edge of a refraction's support); the battery in process integrates pdf() over each cell.
+#pragma once
+
+#include "measure/bsdf_battery.h"
+#include "validate/eval_check.h"
+#include "validate/sample_io.h"
+
+#include <filesystem>
+#include <optional>
+
+namespace microsim {
+
+struct BsdfFileCheckOptions {
+  SampleFrame frame = SampleFrame::z_up;
+  std::uint64_t lost = 0;  // samples the dump leaves out (lost below the horizon): they weigh 0
+  double level = 0.01;
+  std::optional<double> albedo;  // claimed
+  RunControl run;
+};
+
+// Throws SampleFileError for a file that cannot be read as its columns say or whose rows do not match (counts,
+// wi not the view, wo not the dump's direction), std::invalid_argument for bad options, Cancelled.
+BatteryReport check_bsdf_files(const std::filesystem::path& dump, const SampleColumns& dump_columns,
+                               const std::filesystem::path& eval, const EvalColumns& eval_columns,
+                               const Vec3<double>& wi, const BsdfFileCheckOptions& options);
+
+}  // namespace microsim

@@ -1,0 +1,58 @@
+// check-eval --model smith-walk (measure/walk_eval_check.h): an eval file of the Smith multiple-scattering glass
+// (GGX alpha 1, eta 1.5), its values the walk's own next-event estimate from 8 times the check's walks (its own
+// noise, not in the test, an eighth of the walk's variance), passes at level 0.01 (fixed seeds: the negative control); the same from the walk that keeps its height after a
+// refraction is rejected, its worst pair named first.
+#include "measure/bsdf_self_check.h"
+#include "measure/walk_eval_check.h"
+#include "scratch_dir.h"
+
+#include <fmt/core.h>
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+namespace microsim::test {
+namespace {
+
+std::filesystem::path eval_file(const std::filesystem::path& dir, const char* name, detail::WalkFault fault) {
+  const Material glass = Material::dielectric(1.5);
+  const GGX<double> ggx(1.0, 1.0);
+  SmithMicrosurface s;
+  s.alpha_x = s.alpha_y = 1.0;
+  const std::vector<BsdfQuery> pairs = battery::stochastic_pairs(bsdf_queries(glass, 64, 7, ggx), 30);
+  const std::filesystem::path path = dir / name;
+  std::ofstream out(path);
+  for (std::size_t i = 0; i < pairs.size(); ++i) {
+    ScatterOptions o;
+    o.wi = pairs[i].wi, o.material = glass, o.paths = 262144, o.seed = 1000 + i, o.run.threads = 2;
+    const double f = detail::smith_walk_eval(s, o, pairs[i].wo, fault).value(0).value * std::abs(pairs[i].wo.z());
+    out << fmt::format("{:.9g} {:.9g} {:.9g} {:.9g} {:.9g} {:.9g} {:.9g}\n", pairs[i].wi.x(), pairs[i].wi.y(),
+                       pairs[i].wi.z(), pairs[i].wo.x(), pairs[i].wo.y(), pairs[i].wo.z(), f);
+  }
+  return path;
+}
+
+TEST(WalkEvalCheck, TheWalksOwnValuesPassAndAStaleHeightIsRejected) {
+  const std::filesystem::path dir = scratch_dir("walk_eval_check", "file");
+  SmithMicrosurface s;
+  s.alpha_x = s.alpha_y = 1.0;
+  WalkEvalCheckOptions o;
+  o.paths = 32768;
+  o.convention.transport = TransportMode::importance;  // the walk's own
+  o.run.threads = 2;
+  const EvalColumns columns = EvalColumns::parse("wi,wo,value");
+  const WalkEvalCheckReport good =
+      check_eval_file_against_walk(eval_file(dir, "good.txt", detail::WalkFault::none), columns, Material::dielectric(1.5), s, o);
+  EXPECT_TRUE(good.passed) << to_json(good).dump(2);
+  EXPECT_EQ(good.rows, 30u);
+  const WalkEvalCheckReport bad = check_eval_file_against_walk(
+      eval_file(dir, "stale.txt", detail::WalkFault::keep_height_on_refraction), columns, Material::dielectric(1.5), s, o);
+  EXPECT_FALSE(bad.passed) << to_json(bad).dump(2);
+  ASSERT_FALSE(bad.worst.empty());
+  EXPECT_GT(std::abs(bad.worst.front().z), 3);
+  fmt::print("good: chi2 {:.1f} / {} (p {:.3g}); stale height: chi2 {:.1f} / {} (p {:.3g})\n", good.statistic, good.dof,
+             good.p_value, bad.statistic, bad.dof, bad.p_value);
+}
+
+}  // namespace
+}  // namespace microsim::test
