@@ -4,7 +4,6 @@
 // (src/stats/figure.h); or of a scattering result (`microsim scatter --out F.exr`): its lobes by order
 // (src/stats/scatter_figure.h).
 #include "command.h"
-#include "merge_scatter.h"
 
 #include "stats/figure.h"
 #include "core/atomic_file.h"
@@ -13,6 +12,7 @@
 #include "stats/scatter_figure.h"
 #include "stats/scatter_io.h"
 #include "core/parse.h"
+#include "measure/merge.h"
 
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
@@ -106,7 +106,7 @@ int run_plot(const PlotOptions& o) {
   if (fs::path(o.out).extension() != ".svg")
     throw UsageError(fmt::format("--out: '{}' must end in .svg (the figure is SVG)", o.out));
   microsim::app::check_output("--out", o.out);
-  if (microsim::app::is_scatter_part(o.histogram)) {
+  if (microsim::is_scatter_part(o.histogram)) {
     write_figure(o.out, scatter_file_figure(o.histogram));
     fmt::print("wrote {} (scattering lobes by order)\n", o.out);
     return microsim::app::kExitOk;

@@ -3,6 +3,7 @@
 #include "command.h"
 
 #include "core/atomic_file.h"
+#include "measure/scatter.h"
 #include "stats/scatter_compare.h"
 
 #include <fmt/core.h>
@@ -34,14 +35,6 @@ HemisphereLabels hemisphere_labels(UpperHemisphere u) {
   }
 }
 
-nlohmann::json hemispheres_json(UpperHemisphere u) {
-  switch (u) {
-    case UpperHemisphere::reflected: return {{"upper", "reflected"}, {"lower", "transmitted"}};
-    case UpperHemisphere::transmitted: return {{"upper", "transmitted"}, {"lower", "reflected"}};
-    default: return {{"upper", ""}, {"lower", ""}};
-  }
-}
-
 std::string scatter_estimate_text(const Estimate& e) { return fmt::format("{:.6f} +- {:.6f}", e.value, e.standard_error); }
 
 void print_histogram_table(const ScatterHistogram& h, const HemisphereLabels& l) {
@@ -61,9 +54,7 @@ void print_histogram_table(const ScatterHistogram& h, const HemisphereLabels& l)
 int report_scatter(const ScatterHistogram& h, const std::map<std::string, std::string>& notes, const ScatterOutputs& o) {
   write_scatter_exr(o.out, h, notes);
   const UpperHemisphere upper = upper_hemisphere(notes);
-  nlohmann::json j = scatter_summary_json(h);
-  j["hemispheres"] = hemispheres_json(upper);
-  j["notes"] = notes;
+  const nlohmann::json j = scatter_report_json(scatter_summary_json(h), notes);
   if (!o.json.empty()) write_file_atomically(o.json, j.dump(2) + "\n");
   fmt::print("{}: {} paths, blocks {} of {}{}\n", h.provenance.producer, h.paths(), h.provenance.blocks.to_string(),
              h.provenance.total_blocks, h.partial ? " (partial)" : "");
@@ -78,9 +69,7 @@ int report_scatter(const ScatterExpectation& e, const std::map<std::string, std:
   write_scatter_exr(o.out, e, notes);
   const UpperHemisphere upper = upper_hemisphere(notes);
   const HemisphereLabels labels = hemisphere_labels(upper);
-  nlohmann::json j = scatter_summary_json(e);
-  j["hemispheres"] = hemispheres_json(upper);
-  j["notes"] = notes;
+  const nlohmann::json j = scatter_report_json(scatter_summary_json(e), notes);
   if (!o.json.empty()) write_file_atomically(o.json, j.dump(2) + "\n");
   fmt::print("{}: single scattering, {}\n", e.producer, e.measurement);
   fmt::print("{:<8} {:<11} {:>12} {:>12} {:>12} {:>12}\n", "channel", "order", labels.upper, labels.lower, "total",

@@ -1,7 +1,6 @@
 #include "stability_report.h"
 
 #include "command.h"
-#include "merge_parts.h"
 
 #include "core/atomic_file.h"
 #include "validate/stability_part.h"
@@ -21,11 +20,8 @@ int report_stability(const StabilityTable& table, bool failures_only, const std:
   return violations == 0 ? kExitOk : kExitRejected;
 }
 
-int merge_stability(const std::vector<nlohmann::json>& parts, const std::vector<std::string>& paths,
-                    const std::string& json) {
-  const std::vector<StabilityTable> read = read_json_parts(parts, paths, read_stability_part);
-  const StabilityTable merged = merged_or_usage_error([&] { return merge_stability_parts(read); });
-  fmt::print(stderr, "merge: {} stability parts, {} evaluations, blocks {}\n", parts.size(), merged.total_evaluations(),
+int report_merged_stability(const StabilityTable& merged, std::size_t parts, const std::string& json) {
+  fmt::print(stderr, "merge: {} stability parts, {} evaluations, blocks {}\n", parts, merged.total_evaluations(),
              merged.blocks.to_string());
   return report_stability(merged, /*failures_only=*/false, json);
 }

@@ -16,9 +16,8 @@ namespace microsim::app {
 // `json` ("" for none); returns 0 when every row is within its bound, 1 otherwise.
 int report_stability(const StabilityTable& table, bool failures_only, const std::string& json);
 
-// `microsim merge` of stability parts (their JSON, read from `paths`). UsageError when the parts do not
-// make one sweep.
-int merge_stability(const std::vector<nlohmann::json>& parts, const std::vector<std::string>& paths,
-                    const std::string& json);
+// `microsim merge` of stability parts (merged by measure/merge.h from `parts` parts): reported as the
+// single sweep.
+int report_merged_stability(const StabilityTable& merged, std::size_t parts, const std::string& json);
 
 }  // namespace microsim::app

@@ -1,7 +1,6 @@
 #include "validate_report.h"
 
 #include "command.h"
-#include "merge_parts.h"
 #include "progress_bar.h"
 
 #include "core/atomic_file.h"
@@ -326,12 +325,14 @@ int report_merged_single(const ValidationRun& run, const ValidationPart& merged,
 
 }  // namespace
 
-int merge_validation(const std::vector<nlohmann::json>& parts, const std::vector<std::string>& paths,
-                     const std::string& json) {
-  const std::vector<ValidationPart> read = read_json_parts(parts, paths, read_validation_part);
-  const ValidationPart merged = merged_or_usage_error([&] { return merge_validation_parts(read); });
-  const ValidationRun run = merged_or_usage_error([&] { return validation_run_of(merged); });
-  fmt::print(stderr, "merge: {} validate parts, {} validation(s) of {} samples, blocks {}\n", parts.size(),
+int report_merged_validation(const ValidationPart& merged, std::size_t parts, const std::string& json) {
+  ValidationRun run;
+  try {
+    run = validation_run_of(merged);
+  } catch (const HistogramMergeError& e) {
+    throw UsageError(fmt::format("cannot merge: {}", e.what()));
+  }
+  fmt::print(stderr, "merge: {} validate parts, {} validation(s) of {} samples, blocks {}\n", parts,
              run.cases.size(), run.options.samples, merged.provenance.blocks.to_string());
   return run.batch ? report_merged_batch(run, merged, json) : report_merged_single(run, merged, json);
 }

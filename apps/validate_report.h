@@ -46,9 +46,9 @@ public:
 
 // ---- merge -------------------------------------------------------------------------------------------------
 
-// `microsim merge` of validate parts (their JSON, read from `paths`): the merged run's report, printed and
-// written to `json` exactly as the single run writes it. UsageError when the parts do not make one run.
-int merge_validation(const std::vector<nlohmann::json>& parts, const std::vector<std::string>& paths,
-                     const std::string& json);
+// `microsim merge` of validate parts (merged by measure/merge.h from `parts` parts): the merged run's
+// report, printed and written to `json` exactly as the single run writes it. UsageError when the parameters
+// describe no run.
+int report_merged_validation(const ValidationPart& merged, std::size_t parts, const std::string& json);
 
 }  // namespace microsim::app

@@ -12,32 +12,6 @@ namespace microsim::app {
 
 namespace {
 
-// The keys every VNDF report shares: the view, the run and its provenance.
-nlohmann::json run_json(const TracedHistogram& h, const TraceResult& r, const std::string& out) {
-  const Vec3<double> wi = vndf_view(h);
-  const GGX<double> ggx = histogram_ggx(h);
-  const VndfRunRecord run = vndf_run_record(h);
-  nlohmann::json j;
-  j["alpha"] = {ggx.alpha_x(), ggx.alpha_y()};
-  j["theta"] = run.theta_deg;
-  j["phi"] = run.phi_deg;
-  j["wi"] = {wi.x(), wi.y(), wi.z()};
-  j["rays_requested"] = run.rays_requested;
-  j["rays"] = r.rays;
-  j["hits"] = r.hits;
-  j["hit_fraction"] = r.rays ? double(r.hits) / double(r.rays) : 0.0;
-  j["seconds"] = r.seconds;
-  j["rays_per_second"] = r.rays_per_second();
-  j["seed"] = run.seed;
-  j["threads"] = run.threads;
-  j["rows"] = h.binnings.front().rows();
-  j["partial"] = r.partial;
-  j["output"] = out;
-  j["blocks"] = fmt::format("{},{}", run.blocks.begin, run.blocks.end);
-  j["total_blocks"] = run.total_blocks;
-  return j;
-}
-
 void write_outputs(const TracedHistogram& h, const nlohmann::json& j, const VndfOutputs& outputs) {
   write_histogram_exr(outputs.out, h);
   if (!outputs.json.empty()) write_file_atomically(outputs.json, j.dump(2) + "\n");
@@ -68,19 +42,7 @@ const char* partial_note(const TraceResult& r) { return r.partial ? "  PARTIAL (
 int report_ellipsoid_vndf(const EllipsoidVndf& m, const EllipsoidTarget& target, const VndfOutputs& outputs) {
   const TracedHistogram& h = m.histogram;
   const TraceResult& r = m.trace;
-  nlohmann::json j = run_json(h, r, outputs.out);
-  j["surface"] = "ellipsoid";
-  j["target"] = target.describe();
-  j["mesh_level"] = target.mesh_level();
-  j["triangles"] = target.triangle_count();
-  j["expected_hit_fraction"] = m.expected_hit_fraction;
-  j["cpu_seconds"] = r.cpu_seconds;
-  j["cpu_ns_per_ray"] = r.cpu_ns_per_ray();
-  const auto& lobe_fit = m.analysis.fits.back().binning == "lobe" ? m.analysis.fits.back() : m.analysis.fits.front();
-  j["total_variation"] = lobe_fit.total_variation;  // lobe bins resolve the lobe at every alpha
-  j["noise_floor_tv"] = lobe_fit.noise_floor_tv;
-  j["p_value"] = m.analysis.p_value;
-  j["analysis"] = to_json(m.analysis);
+  const nlohmann::json j = ellipsoid_vndf_json(m, target, outputs.out);
   write_outputs(h, j, outputs);
 
   const GGX<double> ggx = histogram_ggx(h);
@@ -103,7 +65,7 @@ int report_heightfield_vndf(const HeightfieldVndf& m, const microgeom::Heightfie
   const VndfRunRecord run = vndf_run_record(h);
   const std::string& surface = run.surface;
   const VndfComparison& lobe = m.comparisons.back();
-  nlohmann::json j = run_json(h, r, outputs.out);
+  nlohmann::json j = vndf_run_json(h, r, outputs.out);
   j["surface"] = surface_json(field, surface, analytic, m.reference_source);
   j["target"] = run.target;
   j["expected_hit_fraction"] = 1.0;  // every downward ray hits a heightfield

@@ -1,6 +1,8 @@
 // measure: the scattering measurement (scatter.h).
 #include "measure/scatter.h"
 
+#include <cstdlib>
+
 namespace microsim {
 
 ScatterExpectation measure_analytic_scatter(NdfKind ndf, std::pair<double, double> alpha, const Vec3<double>& wi,
@@ -16,6 +18,16 @@ ScatterPaths smith_walk_paths(const SmithMicrosurface& surface) {
 
 ScatterPaths surface_paths(const HeightfieldScene& scene, SurfaceScatterDiagnostics* diagnostics) {
   return [&scene, diagnostics](const ScatterOptions& options) { return scatter_on_surface(scene, options, diagnostics); };
+}
+
+nlohmann::json scatter_report_json(nlohmann::json summary, const std::map<std::string, std::string>& notes) {
+  const auto theta = notes.find("theta");
+  if (theta == notes.end()) summary["hemispheres"] = {{"upper", ""}, {"lower", ""}};
+  else if (std::strtod(theta->second.c_str(), nullptr) > 90)
+    summary["hemispheres"] = {{"upper", "transmitted"}, {"lower", "reflected"}};
+  else summary["hemispheres"] = {{"upper", "reflected"}, {"lower", "transmitted"}};
+  summary["notes"] = notes;
+  return summary;
 }
 
 }  // namespace microsim

@@ -12,7 +12,11 @@
 #include "scatter/smith_walk.h"
 #include "scatter/surface_scatter.h"
 
+#include <nlohmann/json.hpp>
+
 #include <functional>
+#include <map>
+#include <string>
 #include <utility>
 
 namespace microsim {
@@ -29,5 +33,10 @@ ScatterPaths smith_walk_paths(const SmithMicrosurface& surface);
 // Every bounce traced on `scene` (which must outlive the function); the tracer's diagnostics of a request
 // written to `*diagnostics` when it is given (and outlives the function).
 ScatterPaths surface_paths(const HeightfieldScene& scene, SurfaceScatterDiagnostics* diagnostics = nullptr);
+
+// The report of a scatter file (`scatter --json`, `merge --json`): its summary (scatter_summary_json), the
+// notes, and what each geometric hemisphere holds: light arriving from above (note theta < 90) is reflected
+// into the upper one, light from inside a dielectric (theta > 90) is transmitted into it; "" without theta.
+nlohmann::json scatter_report_json(nlohmann::json summary, const std::map<std::string, std::string>& notes);
 
 }  // namespace microsim

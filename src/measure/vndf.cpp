@@ -279,4 +279,46 @@ void add_heightfield_diagnostics(TracedHistogram& sum, const TracedHistogram& pa
     if (sum.attributes.count(key)) sum.attributes[key] = std::to_string(count_attribute(sum, key) + count_attribute(part, key));
 }
 
+nlohmann::json vndf_run_json(const TracedHistogram& h, const TraceResult& r, const std::string& out) {
+  const Vec3<double> wi = vndf_view(h);
+  const GGX<double> ggx = histogram_ggx(h);
+  const VndfRunRecord run = vndf_run_record(h);
+  nlohmann::json j;
+  j["alpha"] = {ggx.alpha_x(), ggx.alpha_y()};
+  j["theta"] = run.theta_deg;
+  j["phi"] = run.phi_deg;
+  j["wi"] = {wi.x(), wi.y(), wi.z()};
+  j["rays_requested"] = run.rays_requested;
+  j["rays"] = r.rays;
+  j["hits"] = r.hits;
+  j["hit_fraction"] = r.rays ? double(r.hits) / double(r.rays) : 0.0;
+  j["seconds"] = r.seconds;
+  j["rays_per_second"] = r.rays_per_second();
+  j["seed"] = run.seed;
+  j["threads"] = run.threads;
+  j["rows"] = h.binnings.front().rows();
+  j["partial"] = r.partial;
+  j["output"] = out;
+  j["blocks"] = fmt::format("{},{}", run.blocks.begin, run.blocks.end);
+  j["total_blocks"] = run.total_blocks;
+  return j;
+}
+
+nlohmann::json ellipsoid_vndf_json(const EllipsoidVndf& m, const EllipsoidTarget& target, const std::string& out) {
+  nlohmann::json j = vndf_run_json(m.histogram, m.trace, out);
+  j["surface"] = "ellipsoid";
+  j["target"] = target.describe();
+  j["mesh_level"] = target.mesh_level();
+  j["triangles"] = target.triangle_count();
+  j["expected_hit_fraction"] = m.expected_hit_fraction;
+  j["cpu_seconds"] = m.trace.cpu_seconds;
+  j["cpu_ns_per_ray"] = m.trace.cpu_ns_per_ray();
+  const auto& lobe_fit = m.analysis.fits.back().binning == "lobe" ? m.analysis.fits.back() : m.analysis.fits.front();
+  j["total_variation"] = lobe_fit.total_variation;  // lobe bins resolve the lobe at every alpha
+  j["noise_floor_tv"] = lobe_fit.noise_floor_tv;
+  j["p_value"] = m.analysis.p_value;
+  j["analysis"] = to_json(m.analysis);
+  return j;
+}
+
 }  // namespace microsim

@@ -16,6 +16,8 @@
 #include "trace/trace_vndf.h"
 #include "validate/compare.h"
 
+#include <nlohmann/json.hpp>
+
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -75,6 +77,12 @@ struct VndfRunRecord {
   int mesh_level = -1;            // the ellipsoid's tessellation level (-1: the exact quadric, or a heightfield)
 };
 VndfRunRecord vndf_run_record(const TracedHistogram& histogram);
+
+// The keys every VNDF report shares (`trace vndf --json`, `merge --json`): the view, the run, its
+// provenance; `out` the histogram file written.
+nlohmann::json vndf_run_json(const TracedHistogram& h, const TraceResult& r, const std::string& out);
+// The JSON report of an ellipsoid run: vndf_run_json and the target, the hit fraction, the analysis.
+nlohmann::json ellipsoid_vndf_json(const EllipsoidVndf& m, const EllipsoidTarget& target, const std::string& out);
 
 // ---- partial results -------------------------------------------------------------------------------------
 

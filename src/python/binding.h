@@ -26,6 +26,8 @@ void bind_tables(py::module_& m);
 void bind_battery(py::module_& m);
 // Registers compare_scattering() (compare_binding.cpp).
 void bind_compare(py::module_& m);
+// Registers merge() (merge_binding.cpp).
+void bind_merge(py::module_& m);
 
 // Runs `work(run)` with the GIL released, on a worker thread, while the calling thread waits and, every
 // 50 ms and at the end, takes the GIL to pass the latest progress to `progress` (a Python callable

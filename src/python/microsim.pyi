@@ -156,3 +156,10 @@ def compare_scattering(files: Sequence[str], *, analytic: bool = False, orders: 
     """Two or three scatter files or traced histograms compared (`microsim compare-scattering`): its JSON as a
     dict, with 'rejected' and 'passed'."""
     ...
+
+def merge(parts: Sequence[Union[str, "os.PathLike[str]"]], *, out: Optional[Union[str, "os.PathLike[str]"]] = None,
+          json: Optional[Union[str, "os.PathLike[str]"]] = None) -> Dict[str, Any]:
+    """The shards of one run (`trace vndf --shard` on the ellipsoid, `scatter --shard`, `stability --shard`)
+    joined bit for bit (`microsim merge`): the dict its --json writes; `out` the merged .exr histogram. Parts
+    of different runs or missing or repeated blocks raise ValueError naming them."""
+    ...

@@ -440,6 +440,7 @@ PYBIND11_MODULE(microsim, m) {
   bind_tables(m);
   bind_battery(m);
   bind_compare(m);
+  bind_merge(m);
   bind_heightfield(m);
   m.def("trace_vndf", &trace_vndf, R"(Traces the GGX ellipsoid (the exact VNDF oracle, `microsim trace vndf`).
 

@@ -1,0 +1,81 @@
+// measure: the merge of the partial results of one run into the whole run (`microsim merge`, Python
+// `merge`). A part is a file: the EXR histogram of `trace vndf --shard K/N`, the scatter EXR of
+// `scatter --shard K/N`, or the JSON part of `trace masking --shard`, `validate --shard` or
+// `stability --shard` (told apart by their provenance's producer, stats/part_json.h). The parts must come
+// from one run (every run attribute or parameter equal, same binnings, same seed) and together hold every
+// block exactly once; they are added in block order, so the merged result is the single run's bit for bit.
+//
+// The kinds are the table kPartKinds of merge.cpp, the one place that decides a part's kind and its merge.
+#pragma once
+
+#include "measure/masking.h"
+#include "measure/validation.h"
+#include "measure/vndf.h"
+#include "stats/histogram.h"
+#include "stats/scatter_histogram.h"
+#include "validate/stability.h"
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <variant>
+#include <vector>
+
+namespace microsim {
+
+// Parts that do not merge: a part that cannot be read ("part 'P': ..."), parts of another kind or of
+// different runs, blocks missing or repeated ("cannot merge: ...", the ranges named).
+struct MergeError : std::invalid_argument {
+  using std::invalid_argument::invalid_argument;
+};
+
+enum class PartKind { vndf, scatter, masking, validate, stability };
+
+// The producer that writes parts of the kind: "trace vndf", "scatter", "trace masking", "validate",
+// "stability".
+const char* part_kind_name(PartKind kind);
+
+// The kind of the parts, all of one kind (MergeError otherwise): a JSON part's by its provenance's producer
+// (every JSON part is read: a missing or unreadable one is named), an EXR part's by its format (a scatter
+// file, else a trace vndf histogram). Reads nothing of an EXR part but the first's header.
+PartKind merge_kind(const std::vector<std::string>& paths);
+
+struct MergedVndf {
+  TracedHistogram histogram;
+  std::vector<std::uint64_t> unbinned;  // rays outside the binning, per binning
+};
+
+struct MergedScatter {
+  ScatterHistogram histogram;
+  std::map<std::string, std::string> notes;  // the parts' notes (equal in every part)
+};
+
+// The whole run of the parts: the histogram (vndf, scatter) or the part (masking, validate, stability)
+// that the single run would have written.
+struct MergedRun {
+  PartKind kind = PartKind::vndf;
+  std::size_t parts = 0;
+  std::variant<MergedVndf, MergedScatter, MaskingPart, ValidationPart, StabilityTable> result;
+};
+
+// Reads the parts (any order) and merges them. Throws MergeError naming the offending part and the block
+// ranges missing or repeated.
+MergedRun merge_parts(const std::vector<std::string>& paths);
+// The same, the parts' kind already found by merge_kind (a front end checks its options in between).
+MergedRun merge_parts(PartKind kind, const std::vector<std::string>& paths);
+
+// A merged trace vndf run on the ellipsoid analysed as the single run is: its target rebuilt from the
+// histogram's attributes (roughness, tessellation), its D_v fits, its exact hit fraction.
+struct MergedEllipsoid {
+  std::unique_ptr<EllipsoidTarget> target;
+  EllipsoidVndf vndf;
+};
+// Throws HistogramMergeError when an attribute is missing or malformed.
+MergedEllipsoid analyse_merged_ellipsoid(MergedVndf merged);
+
+// Whether `path` is an EXR file of format microsim-scatter-1 (false for a missing or unreadable file).
+bool is_scatter_part(const std::string& path);
+
+}  // namespace microsim
