@@ -14,10 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cmath>
-#include <filesystem>
-#include <fstream>
 #include <memory>
-#include <sstream>
 
 namespace microsim::app {
 
@@ -45,25 +42,12 @@ void print_layout_table(const LayoutTable& t) {
                t.average[i].standard_error);
 }
 
-std::string read_bytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw UsageError(fmt::format("--grade {}: cannot be read", quote_excerpt(path)));
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-std::vector<double> read_layout_values(const std::string& path, const AlbedoLayout& layout) {
-  const std::string ext = std::filesystem::path(path).extension().string();
+std::vector<double> read_grade_values(const std::string& path, const AlbedoLayout& layout) {
   try {
-    if (ext == ".exr") return layout_values_from_exr(microgeom::read_exr(path), layout);
-    if (ext == ".csv") return layout_values_from_csv(read_bytes(path), layout);
-  } catch (const UsageError&) {
-    throw;
-  } catch (const std::exception& e) {  // unreadable, or not a table of this layout
+    return read_layout_values(path, layout);
+  } catch (const std::invalid_argument& e) {  // unreadable, or not a table of this layout
     throw UsageError(fmt::format("--grade {}: {}", quote_excerpt(path), e.what()));
   }
-  throw UsageError(fmt::format("--grade {}: an .exr or a .csv table", quote_excerpt(path)));
 }
 
 void print_grade(const AlbedoGrade& g) {
@@ -111,7 +95,7 @@ int run_albedo_layout(const AlbedoLayout& layout, double tolerance, int threads,
 
 int run_albedo_grade(const AlbedoLayout& layout, const std::string& table, double tolerance,
                      std::uint64_t table_samples, int threads, const std::string& json) {
-  const std::vector<double> values = read_layout_values(table, layout);
+  const std::vector<double> values = read_grade_values(table, layout);
   for (std::size_t k = 0; k < values.size(); ++k)
     if (!std::isfinite(values[k]))
       throw UsageError(fmt::format("--grade {}: value {} is not finite", quote_excerpt(table), k));

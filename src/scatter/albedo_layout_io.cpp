@@ -9,6 +9,8 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <map>
 #include <sstream>
 #include <stdexcept>
@@ -234,6 +236,25 @@ std::vector<double> layout_values_from_csv(std::string_view text, const AlbedoLa
   if (seen != w * h)
     throw std::invalid_argument(fmt::format("{} cells in the CSV; the {} layout has {}", seen, l.name, w * h));
   return values;
+}
+
+std::vector<double> read_layout_values(const std::string& path, const AlbedoLayout& layout) {
+  const std::string ext = std::filesystem::path(path).extension().string();
+  if (ext != ".exr" && ext != ".csv") throw std::invalid_argument("an .exr or a .csv table");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::invalid_argument("cannot be read");
+  if (ext == ".csv") {
+    std::ostringstream text;
+    text << in.rdbuf();
+    return layout_values_from_csv(text.str(), layout);
+  }
+  microgeom::ExrImage image;
+  try {
+    image = microgeom::read_exr(path);
+  } catch (const std::runtime_error& e) {  // not an EXR, or a damaged one
+    throw std::invalid_argument(e.what());
+  }
+  return layout_values_from_exr(image, layout);
 }
 
 }  // namespace microsim
