@@ -67,8 +67,13 @@ def validate_all(*, samples: int = 200000, seed: int = 1, precision: str = "doub
 def albedo_table(*, model: str = "analytic", ndf: str = "ggx", material: str = "mirror", inside: bool = False,
                  alphas: Optional[Sequence[float]] = None, mus: int = 16, tolerance: float = 1e-8,
                  paths: int = 1000000, seed: int = 1, max_order: int = 100, resolution: int = 512, threads: int = 0,
-                 progress: Progress = None) -> dict[str, Any]:
-    """`microsim albedo`: the dict its --json writes."""
+                 layout: Optional[str] = None, progress: Progress = None) -> dict[str, Any]:
+    """`microsim albedo` (`--layout L` when layout is given): the dict its --json writes."""
+
+def grade_albedo_table(path: Union[str, "os.PathLike[str]"], *, layout: str, ndf: str = "ggx", tolerance: float = 1e-4,
+                       table_samples: Optional[int] = None, threads: int = 0,
+                       progress: Progress = None) -> dict[str, Any]:
+    """`microsim albedo --grade PATH --layout L`: the dict its --json writes, plus exit_code (0 pass, 1 fail)."""
 
 def stability(*, threads: int = 0, progress: Progress = None) -> dict[str, Any]:
     """`microsim stability`: the dict its --json writes (violations: rows over their bound)."""

@@ -1,8 +1,12 @@
-// python: the tables the command line computes in one call: the energy tables of `microsim albedo` and the
-// stability sweep of `microsim stability`, each returned as the dict its --json writes.
+// python: the tables the command line computes in one call: the energy tables of `microsim albedo` (its own
+// layout, a renderer's layout with --layout, and the grade of a table with --grade) and the stability sweep of
+// `microsim stability`, each returned as the dict its --json writes.
 #include "python/binding.h"
 
 #include "microfacet/material.h"
+#include "scatter/albedo_grade.h"
+#include "scatter/albedo_layout.h"
+#include "scatter/albedo_layout_io.h"
 #include "scatter/albedo_table.h"
 #include "scatter/albedo_table_io.h"
 #include "validate/stability.h"
@@ -11,6 +15,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <optional>
 #include <string>
 #include <vector>
@@ -21,11 +26,70 @@ namespace {
 
 py::object json_object(const nlohmann::json& j) { return py::module_::import("json").attr("loads")(j.dump()); }
 
+struct AlbedoArguments {
+  std::string model, ndf, material;
+  bool inside = false;
+  std::optional<std::vector<double>> alphas;
+  int mus = 16;
+  double tolerance = 1e-8;
+  std::uint64_t paths = 0, seed = 0;
+  int max_order = 0, resolution = 0, threads = 0;
+};
+
+constexpr int kDefaultMus = 16, kDefaultResolution = 512;
+constexpr std::uint64_t kDefaultPaths = 1'000'000, kDefaultSeed = 1;
+
+const AlbedoLayout& layout_named(const std::string& name) {
+  try {
+    return find_albedo_layout("layout", name);
+  } catch (const std::invalid_argument& e) {  // ParseError: the names
+    throw py::value_error(e.what());
+  }
+}
+
+void check_threads(int threads) {
+  if (threads < 0) throw py::value_error("threads must be >= 0 (0: all cores), got " + std::to_string(threads));
+}
+
+// `microsim albedo --layout L`: the analytic reference of a GGX (or Beckmann) mirror in a renderer's layout. The arguments
+// the layout does not take are refused, as the command line refuses their options, when not at their defaults.
+py::object albedo_layout_of(const AlbedoLayout& layout, const AlbedoArguments& a, const py::object& progress) {
+  if (a.model != "analytic")
+    throw py::value_error("model '" + a.model + "': a layout table holds the analytic reference (model='analytic')");
+  if (a.material != "mirror")
+    throw py::value_error("material '" + a.material + "': the renderers' layouts hold a GGX mirror's E (F = 1): "
+                          "material='mirror'");
+  const auto refuse = [](bool given, const char* name) {
+    if (given) throw py::value_error(std::string(name) + " does not apply to layout (the layout fixes its nodes)");
+  };
+  refuse(a.inside, "inside");
+  refuse(a.alphas.has_value(), "alphas");
+  refuse(a.mus != kDefaultMus, "mus");
+  refuse(a.paths != kDefaultPaths, "paths");
+  refuse(a.seed != kDefaultSeed, "seed");
+  refuse(a.max_order != kDefaultMaxOrder, "max_order");
+  refuse(a.resolution != kDefaultResolution, "resolution");
+  if (!(a.tolerance >= 1e-13 && a.tolerance <= 1e-2))
+    throw py::value_error("tolerance must be in [1e-13, 1e-2], got " + std::to_string(a.tolerance));
+  const NdfKind ndf = parse_ndf_kind("ndf", a.ndf);  // ParseError: ValueError
+  std::optional<LayoutTable> table;
+  run_interruptible([&](const RunControl& run) {
+    RunControl r = run;
+    r.threads = a.threads;
+    table = layout_table(layout, a.tolerance, r, true, ndf);
+  }, progress);
+  return json_object(layout_table_json(*table));
+}
+
 // `microsim albedo`: E(mu, alpha) and its average per alpha; the request checked as the command line checks it.
 py::object albedo_table_of(const std::string& model, const std::string& ndf, const std::string& material, bool inside,
                            const std::optional<std::vector<double>>& alphas, int mus, double tolerance,
                            std::uint64_t paths, std::uint64_t seed, int max_order, int resolution, int threads,
-                           const py::object& progress) {
+                           const std::optional<std::string>& layout, const py::object& progress) {
+  check_threads(threads);
+  if (layout)
+    return albedo_layout_of(layout_named(*layout), {model, ndf, material, inside, alphas, mus, tolerance, paths, seed,
+                                                    max_order, resolution, threads}, progress);
   AlbedoTableRequest r;
   r.model = parse_albedo_model("model", model);
   r.ndf = parse_ndf_kind("ndf", ndf);
@@ -38,7 +102,6 @@ py::object albedo_table_of(const std::string& model, const std::string& ndf, con
   r.seed = seed;
   r.max_order = max_order;
   r.resolution = resolution;
-  if (threads < 0) throw py::value_error("threads must be >= 0 (0: all cores), got " + std::to_string(threads));
   check_albedo_request(r);  // std::invalid_argument: ValueError
   std::optional<AlbedoTable> table;
   run_interruptible([&](const RunControl& run) {
@@ -50,10 +113,41 @@ py::object albedo_table_of(const std::string& model, const std::string& ndf, con
   return json_object(albedo_table_json(*table));
 }
 
+// `microsim albedo --grade TABLE --layout L`: the dict its --json writes, plus "exit_code" (0 every graded node
+// within the tolerance, 1 not). A file that cannot be read or is not a table in the layout: ValueError.
+py::object grade_albedo_table_of(const py::object& path, const std::string& layout, const std::string& ndf,
+                                 double tolerance,
+                                 std::optional<std::uint64_t> table_samples, int threads, const py::object& progress) {
+  check_threads(threads);
+  const AlbedoLayout& l = layout_named(layout);
+  const NdfKind kind = parse_ndf_kind("ndf", ndf);
+  if (!(tolerance >= 1e-13 && tolerance <= 1e-2))
+    throw py::value_error("tolerance must be in [1e-13, 1e-2], got " + std::to_string(tolerance));
+  if (table_samples && *table_samples < 1) throw py::value_error("table_samples must be >= 1 (None: not stated)");
+  const std::string file = py::module_::import("os").attr("fsdecode")(path).cast<std::string>();
+  std::vector<double> values;
+  try {
+    values = read_layout_values(file, l);
+  } catch (const std::invalid_argument& e) {
+    throw py::value_error(file + ": " + e.what());
+  }
+  for (std::size_t k = 0; k < values.size(); ++k)
+    if (!std::isfinite(values[k])) throw py::value_error(file + ": value " + std::to_string(k) + " is not finite");
+  std::optional<AlbedoGrade> grade;
+  run_interruptible([&](const RunControl& run) {
+    RunControl r = run;
+    r.threads = threads;
+    grade = grade_albedo_table(l, values, tolerance, table_samples.value_or(0), r, kind);
+  }, progress);
+  py::object out = json_object(albedo_grade_json(*grade));
+  out["exit_code"] = grade->passed() ? 0 : 1;
+  return out;
+}
+
 // `microsim stability`: the whole sweep of the zoo and the analytic functions (its "violations": the rows
 // over their bound; the command line exits 1 when it is not 0).
 py::object stability_of(int threads, const py::object& progress) {
-  if (threads < 0) throw py::value_error("threads must be >= 0 (0: all cores), got " + std::to_string(threads));
+  check_threads(threads);
   std::optional<StabilityTable> table;
   run_interruptible([&](const RunControl& run) {
     StabilityRun s;
@@ -70,12 +164,22 @@ void bind_tables(py::module_& m) {
   using namespace pybind11::literals;
   m.def("albedo_table", &albedo_table_of, py::kw_only(), "model"_a = "analytic", "ndf"_a = "ggx", "material"_a = "mirror",
         "inside"_a = false, "alphas"_a = py::none(), "mus"_a = 16, "tolerance"_a = 1e-8, "paths"_a = 1'000'000,
-        "seed"_a = 1, "max_order"_a = kDefaultMaxOrder, "resolution"_a = 512, "threads"_a = 0, "progress"_a = py::none(),
+        "seed"_a = 1, "max_order"_a = kDefaultMaxOrder, "resolution"_a = 512, "threads"_a = 0, "layout"_a = py::none(), "progress"_a = py::none(),
         R"(The energy table of `microsim albedo`: E(mu, alpha) at Gauss-Legendre mus and its hemispherical average.
 
 model: 'analytic' (single scattering by quadrature, to `tolerance`), 'smith-walk' or 'surface' (sampled with
 `paths` per cell); ndf: 'ggx' or 'beckmann'; material: 'mirror' or 'dielectric:ETA' (inside: light from inside);
-alphas: increasing, in [0.005, 2] (default 0.1, 0.25, 0.5, 0.75, 1). Returns the dict `albedo --json` writes.)");
+alphas: increasing, in [0.005, 2] (default 0.1, 0.25, 0.5, 0.75, 1). Returns the dict `albedo --json` writes.
+layout: 'cycles', 'filament-dfg', 'enterprise-pbr' or 'uniform' (`albedo --layout`): the analytic E of a GGX
+mirror (ndf='beckmann': a Beckmann mirror) at the layout's nodes with its errors, E_avg where the renderer ships
+it and the layout's interpolation error at cell centres (the layout fixes the nodes: only ndf, tolerance and
+threads apply).)");
+  m.def("grade_albedo_table", &grade_albedo_table_of, "path"_a, py::kw_only(), "layout"_a, "ndf"_a = "ggx", "tolerance"_a = 1e-4,
+        "table_samples"_a = py::none(), "threads"_a = 0, "progress"_a = py::none(),
+        R"(The grade of a table in a renderer's layout (`microsim albedo --grade PATH --layout L`): path an .exr or the
+.csv microsim writes; each node against the analytic reference (of a GGX mirror, or ndf='beckmann'), within the encoding's quantisation, within the
+noise of table_samples samples per node (when stated), and within tolerance. Returns the dict `--json` writes
+("passed", "failed", "max_abs", "rms", "cells"...) plus "exit_code" (the command line's: 0 pass, 1 fail).)");
   m.def("stability", &stability_of, py::kw_only(), "threads"_a = 0, "progress"_a = py::none(),
         R"(The stability sweep of `microsim stability`: every sampler (float and double) and analytic function at the
 extremes. Returns the dict `stability --json` writes ("violations": the rows over their bound; 0 passes).)");

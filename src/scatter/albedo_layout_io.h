@@ -45,5 +45,8 @@ nlohmann::json layout_table_json(const LayoutTable& table);
 // channel, a cell missing or given twice, a number that does not parse).
 std::vector<double> layout_values_from_exr(const microgeom::ExrImage& image, const AlbedoLayout& layout);
 std::vector<double> layout_values_from_csv(std::string_view text, const AlbedoLayout& layout);
+// The values of the table file at `path`, by its extension: .exr or .csv, as above. std::invalid_argument
+// when it cannot be read, has another extension or is not a table in `layout` (the message without the path).
+std::vector<double> read_layout_values(const std::string& path, const AlbedoLayout& layout);
 
 }  // namespace microsim

@@ -1,5 +1,6 @@
-"""microsim.albedo_table() and microsim.stability(): the dicts `microsim albedo --json` and
-`microsim stability --json` write, computed from Python (times left out: they differ run to run)."""
+"""microsim.albedo_table() (also in a renderer's layout), microsim.grade_albedo_table() and microsim.stability():
+the dicts `microsim albedo --json` (with --layout, --grade) and `microsim stability --json` write, computed from
+Python (times left out: they differ run to run), and the grade's exit code."""
 import json
 
 import pytest
@@ -38,3 +39,87 @@ def test_stability_is_the_clis(tmp_path):
     py = microsim.stability()
     assert without_times(py) == without_times(cli)
     assert p.returncode == (0 if py["violations"] == 0 else 1)
+
+
+# --layout and --grade: a small tolerance keeps the uniform layout's 32 x 32 nodes and cell centres quick.
+LAYOUT_TOLERANCE = "1e-6"
+
+
+@pytest.fixture(scope="module")
+def uniform_layout(tmp_path_factory):
+    """The CLI's uniform layout table: its JSON, and its CSV as a correct table to grade."""
+    d = tmp_path_factory.mktemp("layout")
+    run_cli("albedo", "--layout", "uniform", "--tolerance", LAYOUT_TOLERANCE, "--out", d / "t.exr",
+            "--csv", d / "t.csv", "--json", d / "t.json")
+    return d, json.loads((d / "t.json").read_text())
+
+
+def test_albedo_layout_is_the_clis(uniform_layout):
+    _, cli = uniform_layout
+    py = microsim.albedo_table(layout="uniform", tolerance=float(LAYOUT_TOLERANCE))
+    assert without_times(py) == without_times(cli)
+    assert py["layout"] == "uniform" and len(py["E"]["value"]) == 32 and len(py["E"]["error"][0]) == 32
+
+
+def test_albedo_layout_refuses_what_the_cli_refuses():
+    for bad in ({"model": "smith-walk"}, {"material": "dielectric:1.5"}, {"alphas": [0.5]}, {"mus": 4},
+                {"ndf": "phong"}, {"seed": 2}):
+        with pytest.raises(ValueError):
+            microsim.albedo_table(layout="cycles", **bad)
+    with pytest.raises(ValueError, match="cycles"):
+        microsim.albedo_table(layout="unreal")  # the error lists the layouts
+
+
+def grade_both(tmp_path, table, *options):
+    """The CLI's grade (its JSON and exit code) and grade_albedo_table's, of the same file."""
+    p = run_cli("albedo", "--grade", table, "--layout", "uniform", *options, "--json", tmp_path / "g.json")
+    cli = json.loads((tmp_path / "g.json").read_text())
+    kwargs = {"tolerance": 1e-4}
+    if "--table-samples" in options:
+        kwargs["table_samples"] = int(options[options.index("--table-samples") + 1])
+    return p.returncode, cli, microsim.grade_albedo_table(table, layout="uniform", **kwargs)
+
+
+def test_grade_passes_the_correct_table(uniform_layout, tmp_path):
+    d, _ = uniform_layout
+    code, cli, py = grade_both(tmp_path, d / "t.csv", "--tolerance", "1e-4", "--table-samples", "1000000")
+    assert code == 0 and py["exit_code"] == 0 and py["passed"] and py["failed"] == 0
+    assert {k: v for k, v in py.items() if k != "exit_code"} == cli
+
+
+def test_grade_flags_a_planted_error(uniform_layout, tmp_path):
+    d, _ = uniform_layout
+    lines = (d / "t.csv").read_text().splitlines()
+    header = next(line for line in lines if not line.startswith("#")).split(",")
+    column = header.index("E")
+    rows = [i for i, line in enumerate(lines) if not line.startswith("#") and line.split(",")[0] == "17"]
+    planted = rows[9]  # node x 17, one row: a cell in the interior
+    fields = lines[planted].split(",")
+    fields[column] = repr(float(fields[column]) + 1e-3)
+    lines[planted] = ",".join(fields)
+    (tmp_path / "planted.csv").write_text("\n".join(lines) + "\n")
+    code, cli, py = grade_both(tmp_path, tmp_path / "planted.csv", "--tolerance", "1e-4")
+    assert code == 1 and py["exit_code"] == 1 and not py["passed"] and py["failed"] == 1
+    assert py["max_abs"] == pytest.approx(1e-3, rel=1e-2)
+    assert {k: v for k, v in py.items() if k != "exit_code"} == cli
+
+
+def test_grade_refuses_what_the_cli_refuses(tmp_path):
+    with pytest.raises(ValueError, match="cannot be read"):
+        microsim.grade_albedo_table(tmp_path / "none.csv", layout="uniform")
+    (tmp_path / "t.txt").write_text("1\n")
+    with pytest.raises(ValueError, match="an .exr or a .csv"):
+        microsim.grade_albedo_table(tmp_path / "t.txt", layout="uniform")
+    with pytest.raises(ValueError):
+        microsim.grade_albedo_table(tmp_path / "t.txt", layout="uniform", table_samples=0)
+
+
+def test_grade_against_beckmann_is_the_clis(uniform_layout, tmp_path):
+    """The GGX table graded as a Beckmann mirror's (ndf, --ndf beckmann) fails, from Python as from the CLI."""
+    d, _ = uniform_layout
+    p = run_cli("albedo", "--grade", d / "t.csv", "--layout", "uniform", "--ndf", "beckmann", "--tolerance", "1e-3",
+                "--json", tmp_path / "g.json")
+    cli = json.loads((tmp_path / "g.json").read_text())
+    py = microsim.grade_albedo_table(d / "t.csv", layout="uniform", ndf="beckmann", tolerance=1e-3)
+    assert p.returncode == 1 and py["exit_code"] == 1 and py["ndf"] == "beckmann" and py["failed"] > 0
+    assert {k: v for k, v in py.items() if k != "exit_code"} == cli
