@@ -26,9 +26,8 @@ void print_interpolation(const char* what, const InterpolationError& e) {
 }
 
 void print_layout_table(const LayoutTable& t) {
-  fmt::print("albedo layout {} ({} mirror): {}\nsource: {}\nencoding: {}; reference tolerance {:g}; {:.1f} s\n",
-             t.layout.name, to_string(t.ndf), t.layout.summary, t.layout.source, to_string(t.layout.encoding),
-             t.tolerance, t.seconds);
+  fmt::print("albedo layout {}: {}\nsource: {}\nencoding: {}; reference tolerance {:g}; {:.1f} s\n", t.layout.name,
+             t.layout.summary, t.layout.source, to_string(t.layout.encoding), t.tolerance, t.seconds);
   print_interpolation("interpolation error at cell centres (bilinear between nodes - reference)", t.interpolation);
   std::size_t outside = 0;
   for (const bool in : t.in_range) outside += !in;
@@ -53,8 +52,8 @@ std::vector<double> read_grade_values(const std::string& path, const AlbedoLayou
 
 void print_grade(const AlbedoGrade& g) {
   const CellGrade& w = g.cells[g.worst];
-  fmt::print("grade: {} layout, {} nodes against the analytic reference of a {} mirror (quadrature tolerance {:g})\n",
-             g.layout.name, g.cells.size(), to_string(g.ndf), g.reference_tolerance);
+  fmt::print("grade: {} layout, {} nodes against the analytic reference (quadrature tolerance {:g})\n", g.layout.name,
+             g.cells.size(), g.reference_tolerance);
   fmt::print("max |table - reference| {:.3g} at node (roughness {}, mu {}) = (alpha {:.6g}, mu {:.6g}): table {:.9g}, "
              "reference {:.9g}; RMS {:.3g}\n", g.max_abs, w.ri, w.mj, w.alpha, w.mu, w.value, w.reference.value, g.rms);
   if (g.not_graded > 0)
@@ -77,12 +76,12 @@ void print_grade(const AlbedoGrade& g) {
 
 }  // namespace
 
-int run_albedo_layout(const AlbedoLayout& layout, NdfKind ndf, double tolerance, int threads, const LayoutOutputs& o) {
+int run_albedo_layout(const AlbedoLayout& layout, double tolerance, int threads, const LayoutOutputs& o) {
   const auto progress = std::make_shared<CliProgress>(true);
   install_interrupt_handler();
   fmt::print(stderr, "albedo: layout {} ({} x {} nodes and the cell centres)\n", layout.name, layout_columns(layout),
              layout_rows(layout));
-  const std::optional<LayoutTable> t = layout_table(layout, tolerance, cli_run_control(threads, progress), true, ndf);
+  const std::optional<LayoutTable> t = layout_table(layout, tolerance, cli_run_control(threads, progress));
   progress->finish();
   if (!t) return interrupted_nothing_written("albedo");
   microgeom::write_exr(o.exr, layout_table_exr(*t));
@@ -94,7 +93,7 @@ int run_albedo_layout(const AlbedoLayout& layout, NdfKind ndf, double tolerance,
   return kExitOk;
 }
 
-int run_albedo_grade(const AlbedoLayout& layout, NdfKind ndf, const std::string& table, double tolerance,
+int run_albedo_grade(const AlbedoLayout& layout, const std::string& table, double tolerance,
                      std::uint64_t table_samples, int threads, const std::string& json) {
   const std::vector<double> values = read_grade_values(table, layout);
   for (std::size_t k = 0; k < values.size(); ++k)
@@ -103,7 +102,7 @@ int run_albedo_grade(const AlbedoLayout& layout, NdfKind ndf, const std::string&
   const auto progress = std::make_shared<CliProgress>(true);
   install_interrupt_handler();
   const std::optional<AlbedoGrade> g =
-      grade_albedo_table(layout, values, tolerance, table_samples, cli_run_control(threads, progress), ndf);
+      grade_albedo_table(layout, values, tolerance, table_samples, cli_run_control(threads, progress));
   progress->finish();
   if (!g) return interrupted_nothing_written("albedo");
   if (!json.empty()) write_file_atomically(json, albedo_grade_json(*g).dump(2) + "\n");

@@ -1,7 +1,6 @@
 // microsim CLI: `microsim albedo --layout L` (a table in a renderer's layout: scatter/albedo_layout.h,
 // written with scatter/albedo_layout_io.h, each file atomically) and `microsim albedo --grade TABLE
-// --layout L` (scatter/albedo_grade.h: exit 0 every node within the tolerance, 1 a node beyond it); each of a
-// GGX mirror's table, or with --ndf beckmann a Beckmann mirror's.
+// --layout L` (scatter/albedo_grade.h: exit 0 every node within the tolerance, 1 a node beyond it).
 #pragma once
 
 #include "scatter/albedo_layout.h"
@@ -17,12 +16,12 @@ struct LayoutOutputs {
 
 // Computes and writes the layout's table; prints its summary (E_avg, the interpolation error). Returns
 // kExitOk, or kExitInterrupted with nothing written.
-int run_albedo_layout(const AlbedoLayout& layout, NdfKind ndf, double tolerance, int threads, const LayoutOutputs& outputs);
+int run_albedo_layout(const AlbedoLayout& layout, double tolerance, int threads, const LayoutOutputs& outputs);
 
 // Reads `table` (.exr, or the .csv microsim writes for a layout; UsageError when unreadable or not in the
 // layout), grades it and prints the result; `json`: also the whole grade. Returns kExitOk when every node is
 // within `tolerance`, kExitRejected otherwise, kExitInterrupted (nothing written) when cancelled.
-int run_albedo_grade(const AlbedoLayout& layout, NdfKind ndf, const std::string& table, double tolerance,
+int run_albedo_grade(const AlbedoLayout& layout, const std::string& table, double tolerance,
                      std::uint64_t table_samples, int threads, const std::string& json);
 
 }  // namespace microsim::app

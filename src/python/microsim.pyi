@@ -70,7 +70,7 @@ def albedo_table(*, model: str = "analytic", ndf: str = "ggx", material: str = "
                  layout: Optional[str] = None, progress: Progress = None) -> dict[str, Any]:
     """`microsim albedo` (`--layout L` when layout is given): the dict its --json writes."""
 
-def grade_albedo_table(path: Union[str, "os.PathLike[str]"], *, layout: str, ndf: str = "ggx", tolerance: float = 1e-4,
+def grade_albedo_table(path: Union[str, "os.PathLike[str]"], *, layout: str, tolerance: float = 1e-4,
                        table_samples: Optional[int] = None, threads: int = 0,
                        progress: Progress = None) -> dict[str, Any]:
     """`microsim albedo --grade PATH --layout L`: the dict its --json writes, plus exit_code (0 pass, 1 fail)."""

@@ -51,7 +51,7 @@ void check_threads(int threads) {
   if (threads < 0) throw py::value_error("threads must be >= 0 (0: all cores), got " + std::to_string(threads));
 }
 
-// `microsim albedo --layout L`: the analytic reference of a GGX (or Beckmann) mirror in a renderer's layout. The arguments
+// `microsim albedo --layout L`: the analytic reference of a GGX mirror in a renderer's layout. The arguments
 // the layout does not take are refused, as the command line refuses their options, when not at their defaults.
 py::object albedo_layout_of(const AlbedoLayout& layout, const AlbedoArguments& a, const py::object& progress) {
   if (a.model != "analytic")
@@ -62,6 +62,7 @@ py::object albedo_layout_of(const AlbedoLayout& layout, const AlbedoArguments& a
   const auto refuse = [](bool given, const char* name) {
     if (given) throw py::value_error(std::string(name) + " does not apply to layout (the layout fixes its nodes)");
   };
+  refuse(a.ndf != "ggx", "ndf");
   refuse(a.inside, "inside");
   refuse(a.alphas.has_value(), "alphas");
   refuse(a.mus != kDefaultMus, "mus");
@@ -71,12 +72,11 @@ py::object albedo_layout_of(const AlbedoLayout& layout, const AlbedoArguments& a
   refuse(a.resolution != kDefaultResolution, "resolution");
   if (!(a.tolerance >= 1e-13 && a.tolerance <= 1e-2))
     throw py::value_error("tolerance must be in [1e-13, 1e-2], got " + std::to_string(a.tolerance));
-  const NdfKind ndf = parse_ndf_kind("ndf", a.ndf);  // ParseError: ValueError
   std::optional<LayoutTable> table;
   run_interruptible([&](const RunControl& run) {
     RunControl r = run;
     r.threads = a.threads;
-    table = layout_table(layout, a.tolerance, r, true, ndf);
+    table = layout_table(layout, a.tolerance, r);
   }, progress);
   return json_object(layout_table_json(*table));
 }
@@ -115,12 +115,10 @@ py::object albedo_table_of(const std::string& model, const std::string& ndf, con
 
 // `microsim albedo --grade TABLE --layout L`: the dict its --json writes, plus "exit_code" (0 every graded node
 // within the tolerance, 1 not). A file that cannot be read or is not a table in the layout: ValueError.
-py::object grade_albedo_table_of(const py::object& path, const std::string& layout, const std::string& ndf,
-                                 double tolerance,
+py::object grade_albedo_table_of(const py::object& path, const std::string& layout, double tolerance,
                                  std::optional<std::uint64_t> table_samples, int threads, const py::object& progress) {
   check_threads(threads);
   const AlbedoLayout& l = layout_named(layout);
-  const NdfKind kind = parse_ndf_kind("ndf", ndf);
   if (!(tolerance >= 1e-13 && tolerance <= 1e-2))
     throw py::value_error("tolerance must be in [1e-13, 1e-2], got " + std::to_string(tolerance));
   if (table_samples && *table_samples < 1) throw py::value_error("table_samples must be >= 1 (None: not stated)");
@@ -137,7 +135,7 @@ py::object grade_albedo_table_of(const py::object& path, const std::string& layo
   run_interruptible([&](const RunControl& run) {
     RunControl r = run;
     r.threads = threads;
-    grade = grade_albedo_table(l, values, tolerance, table_samples.value_or(0), r, kind);
+    grade = grade_albedo_table(l, values, tolerance, table_samples.value_or(0), r);
   }, progress);
   py::object out = json_object(albedo_grade_json(*grade));
   out["exit_code"] = grade->passed() ? 0 : 1;
@@ -171,13 +169,12 @@ model: 'analytic' (single scattering by quadrature, to `tolerance`), 'smith-walk
 `paths` per cell); ndf: 'ggx' or 'beckmann'; material: 'mirror' or 'dielectric:ETA' (inside: light from inside);
 alphas: increasing, in [0.005, 2] (default 0.1, 0.25, 0.5, 0.75, 1). Returns the dict `albedo --json` writes.
 layout: 'cycles', 'filament-dfg', 'enterprise-pbr' or 'uniform' (`albedo --layout`): the analytic E of a GGX
-mirror (ndf='beckmann': a Beckmann mirror) at the layout's nodes with its errors, E_avg where the renderer ships
-it and the layout's interpolation error at cell centres (the layout fixes the nodes: only ndf, tolerance and
-threads apply).)");
-  m.def("grade_albedo_table", &grade_albedo_table_of, "path"_a, py::kw_only(), "layout"_a, "ndf"_a = "ggx", "tolerance"_a = 1e-4,
+mirror at the layout's nodes with its errors, E_avg where the renderer ships it and the layout's interpolation
+error at cell centres (the layout fixes the nodes: only tolerance and threads apply).)");
+  m.def("grade_albedo_table", &grade_albedo_table_of, "path"_a, py::kw_only(), "layout"_a, "tolerance"_a = 1e-4,
         "table_samples"_a = py::none(), "threads"_a = 0, "progress"_a = py::none(),
         R"(The grade of a table in a renderer's layout (`microsim albedo --grade PATH --layout L`): path an .exr or the
-.csv microsim writes; each node against the analytic reference (of a GGX mirror, or ndf='beckmann'), within the encoding's quantisation, within the
+.csv microsim writes; each node against the analytic reference, within the encoding's quantisation, within the
 noise of table_samples samples per node (when stated), and within tolerance. Returns the dict `--json` writes
 ("passed", "failed", "max_abs", "rms", "cells"...) plus "exit_code" (the command line's: 0 pass, 1 fail).)");
   m.def("stability", &stability_of, py::kw_only(), "threads"_a = 0, "progress"_a = py::none(),

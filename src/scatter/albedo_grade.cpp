@@ -55,7 +55,6 @@ AlbedoGrade grade_against(const LayoutTable& t, const std::vector<double>& value
   check_grade_input(t.layout, values, tolerance);
   AlbedoGrade g;
   g.layout = t.layout;
-  g.ndf = t.ndf;
   g.tolerance = tolerance;
   g.reference_tolerance = t.tolerance;
   g.table_samples = samples;
@@ -92,10 +91,9 @@ AlbedoGrade grade_against(const LayoutTable& t, const std::vector<double>& value
 }
 
 std::optional<AlbedoGrade> grade_albedo_table(const AlbedoLayout& layout, const std::vector<double>& values,
-                                              double tolerance, std::uint64_t samples, const RunControl& run,
-                                              NdfKind ndf) {
+                                              double tolerance, std::uint64_t samples, const RunControl& run) {
   check_grade_input(layout, values, tolerance);
-  const std::optional<LayoutTable> t = layout_table(layout, grade_reference_tolerance(tolerance), run, false, ndf);
+  const std::optional<LayoutTable> t = layout_table(layout, grade_reference_tolerance(tolerance), run, false);
   if (!t) return std::nullopt;
   return grade_against(*t, values, tolerance, samples);
 }
@@ -122,7 +120,6 @@ nlohmann::json albedo_grade_json(const AlbedoGrade& g) {
   for (const CellGrade& c : g.cells) cells.push_back(cell_json(c));
   return {{"kind", "albedo table grade"},
           {"layout", g.layout.name},
-          {"ndf", to_string(g.ndf)},
           {"source", g.layout.source},
           {"encoding", to_string(g.layout.encoding)},
           {"tolerance", g.tolerance},

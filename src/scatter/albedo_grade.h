@@ -37,7 +37,6 @@ struct CellGrade {
 
 struct AlbedoGrade {
   AlbedoLayout layout;
-  NdfKind ndf = NdfKind::ggx;       // the reference mirror's distribution
   double tolerance = 0, reference_tolerance = 0;
   double noise_z = 0;               // the noise check's quantile (0 when no sample count)
   std::uint64_t table_samples = 0;  // 0: not stated
@@ -59,10 +58,9 @@ double grade_reference_tolerance(double tolerance);
 // The same against a reference computed once (layout_table of the layout, any tolerance).
 AlbedoGrade grade_against(const LayoutTable& reference, const std::vector<double>& values, double tolerance,
                           std::uint64_t table_samples = 0);
-// ndf: the distribution the table is of (the reference is that mirror's).
 std::optional<AlbedoGrade> grade_albedo_table(const AlbedoLayout& layout, const std::vector<double>& values,
                                               double tolerance, std::uint64_t table_samples = 0,
-                                              const RunControl& run = {}, NdfKind ndf = NdfKind::ggx);
+                                              const RunControl& run = {});
 nlohmann::json albedo_grade_json(const AlbedoGrade& grade);
 
 }  // namespace microsim

@@ -179,11 +179,9 @@ double layout_quantisation(LayoutEncoding e, double v) {
   return 0;
 }
 
-Estimate mirror_albedo_reference(double alpha, double mu, double tolerance, NdfKind ndf) {
-  const Vec3<double> view = albedo_view(mu, false);
-  if (ndf == NdfKind::beckmann)
-    return single_scattering_albedo(Beckmann<double>(alpha, alpha), Material::mirror(), 0, view, tolerance).total();
-  return single_scattering_albedo(GGX<double>(alpha), Material::mirror(), 0, view, tolerance).total();
+Estimate mirror_albedo_reference(double alpha, double mu, double tolerance) {
+  return single_scattering_albedo(GGX<double>(alpha), Material::mirror(), 0, albedo_view(mu, false), tolerance)
+      .total();
 }
 
 namespace {
@@ -228,7 +226,7 @@ bool fill_averages(LayoutTable& t, const RunControl& run, std::atomic<std::uint6
   const std::size_t n = grid.mus.size();
   std::vector<Estimate> e(t.alphas.size() * n);
   if (!parallel_cells(e.size(), run, done, total, [&](std::size_t k) {
-        e[k] = mirror_albedo_reference(t.alphas[k / n], grid.mus[k % n], t.tolerance, t.ndf);
+        e[k] = mirror_albedo_reference(t.alphas[k / n], grid.mus[k % n], t.tolerance);
       }))
     return false;
   for (std::size_t i = 0; i < t.alphas.size(); ++i) {
@@ -246,25 +244,24 @@ bool fill_averages(LayoutTable& t, const RunControl& run, std::atomic<std::uint6
 }  // namespace
 
 std::optional<LayoutTable> layout_table(const AlbedoLayout& layout, double tolerance, const RunControl& run,
-                                        bool averages, NdfKind ndf) {
+                                        bool averages) {
   if (!(tolerance >= 1e-13 && tolerance <= 1e-2))
     throw std::invalid_argument(fmt::format("layout table: tolerance {} outside [1e-13, 1e-2]", tolerance));
   const auto start = std::chrono::steady_clock::now();
   LayoutTable t = empty_layout_table(layout, tolerance);
-  t.ndf = ndf;
   const std::size_t nr = t.alphas.size(), nm = t.mus.size(), cr = nr - 1, cm = nm - 1;
   const std::uint64_t total = nr * nm + cr * cm + (layout.has_average && averages ? nr * kAverageNodes : 0);
   std::atomic<std::uint64_t> done{0};
   t.cells.resize(nr * nm);
   if (!parallel_cells(t.cells.size(), run, done, total, [&](std::size_t k) {
-        t.cells[k] = mirror_albedo_reference(t.alphas[k / nm], t.mus[k % nm], tolerance, ndf);
+        t.cells[k] = mirror_albedo_reference(t.alphas[k / nm], t.mus[k % nm], tolerance);
       }))
     return std::nullopt;
   t.centres.resize(cr * cm);
   if (!parallel_cells(t.centres.size(), run, done, total, [&](std::size_t k) {
         const double r = layout_coordinate(layout.roughness, double(k / cm) + 0.5);
         const double mu = layout_coordinate(layout.mu, double(k % cm) + 0.5);
-        t.centres[k] = mirror_albedo_reference(layout_alpha(layout, r), mu, tolerance, ndf);
+        t.centres[k] = mirror_albedo_reference(layout_alpha(layout, r), mu, tolerance);
       }))
     return std::nullopt;
   if (layout.has_average && averages && !fill_averages(t, run, done, total)) return std::nullopt;

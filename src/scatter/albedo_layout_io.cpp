@@ -62,8 +62,7 @@ microgeom::ExrImage layout_table_exr(const LayoutTable& t) {
     error.data[k] = float(e.standard_error);
     encoded.data[k] = float(encode_layout_value(t.layout.encoding, e.value));
   });
-  image.attributes = {{"kind", kAlbedoLayoutKind}, {"layout", t.layout.name}, {"ndf", to_string(t.ndf)},
-                      {"source", t.layout.source},
+  image.attributes = {{"kind", kAlbedoLayoutKind}, {"layout", t.layout.name}, {"source", t.layout.source},
                       {"quantity", t.layout.quantity}, {"encoding", to_string(t.layout.encoding)},
                       {"columns", column_axis(t.layout)}, {"rows", row_axis(t.layout)},
                       {"roughness_axis", roughness_name(t.layout)}, {"roughness", layout_joined(t.roughness)},
@@ -86,13 +85,13 @@ std::string layout_table_csv(const LayoutTable& t) {
   s += fmt::format("# microsim albedo layout {}: {}\n# source: {}\n", t.layout.name, t.layout.summary, t.layout.source);
   s += fmt::format("# x: {} index, y: {} index; roughness = {}; encoding {}\n", column_axis(t.layout),
                    row_axis(t.layout), roughness_name(t.layout), to_string(t.layout.encoding));
-  s += fmt::format("# E: analytic single scattering of a {} mirror (F = 1), E_error its quadrature error estimate "
-                   "(tolerance {})\n", t.ndf == NdfKind::ggx ? "GGX" : "Beckmann", layout_number(t.tolerance));
+  s += fmt::format("# E: analytic single scattering of a GGX mirror (F = 1), E_error its quadrature error estimate "
+                   "(tolerance {})\n", layout_number(t.tolerance));
   std::size_t outside = 0;
   for (const bool in : t.in_range) outside += !in;
   if (outside > 0)
     s += fmt::format("# the first {} roughness node(s) have alpha below 1e-4: E there is the reference at alpha 1e-4 "
-                     "(microsim's {} clamps alpha)\n", outside, t.ndf == NdfKind::ggx ? "GGX" : "Beckmann");
+                     "(microsim's GGX clamps alpha)\n", outside);
   for_storage(t, [&](std::size_t ri, std::size_t mj, std::size_t k) {
     const Estimate& e = t.cells[ri * t.mus.size() + mj];
     const std::size_t x = k % std::size_t(layout_columns(t.layout)), y = k / std::size_t(layout_columns(t.layout));
@@ -147,8 +146,7 @@ std::string layout_centres_csv(const LayoutTable& t) {
 }
 
 nlohmann::json layout_table_json(const LayoutTable& t) {
-  nlohmann::json j{{"kind", kAlbedoLayoutKind}, {"layout", t.layout.name}, {"ndf", to_string(t.ndf)},
-                   {"summary", t.layout.summary},
+  nlohmann::json j{{"kind", kAlbedoLayoutKind}, {"layout", t.layout.name}, {"summary", t.layout.summary},
                    {"source", t.layout.source}, {"quantity", t.layout.quantity},
                    {"encoding", to_string(t.layout.encoding)}, {"columns", column_axis(t.layout)},
                    {"rows", row_axis(t.layout)}, {"roughness_axis", roughness_name(t.layout)},

@@ -111,22 +111,6 @@ TEST(AlbedoCli, LayoutTableIsWrittenAndItsGradePassesAndAPlantedErrorFails) {
   fs::remove_all(dir);
 }
 
-// --ndf beckmann with --layout and --grade: the table says it holds a Beckmann mirror's E, and graded against
-// the Beckmann reference it passes, against GGX's (the default) it fails.
-TEST(AlbedoCli, ABeckmannLayoutTableIsGradedAgainstTheBeckmannReference) {
-  const fs::path dir = scratch_dir("albedo_cli", "beckmann");
-  const auto r = run_cli(dir, "albedo --layout uniform --ndf beckmann --tolerance 1e-5 --out b.exr --json b.json");
-  ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_NE(r.out.find("(beckmann mirror)"), std::string::npos) << r.out;
-  EXPECT_EQ(microgeom::read_exr(dir / "b.exr").attributes.at("ndf"), "beckmann");
-  EXPECT_EQ(nlohmann::json::parse(slurp(dir / "b.json")).at("ndf"), "beckmann");
-  const auto pass = run_cli(dir, "albedo --grade b.exr --layout uniform --ndf beckmann --tolerance 1e-3");
-  EXPECT_EQ(pass.exit_code, 0) << pass.out << pass.err;
-  const auto fail = run_cli(dir, "albedo --grade b.exr --layout uniform --tolerance 1e-3");
-  EXPECT_EQ(fail.exit_code, 1) << fail.out << fail.err;
-  fs::remove_all(dir);
-}
-
 const std::string kAlbedo = "albedo --model analytic --out o.exr ";
 
 void write_text(const fs::path& path, const std::string& text) { std::ofstream(path) << text; }
@@ -181,7 +165,6 @@ std::vector<BadInputCase> albedo_cli_cases() {
       {"layout_encoded_is_out", "albedo --layout cycles --out o.exr --encoded o.exr", 2, "o.exr"},
       {"encoded_without_layout", kAlbedo + "--encoded e.bin", 2, "--encoded applies to --layout"},
       {"grade_no_layout", "albedo --grade t.csv", 2, "--grade needs --layout"},
-      {"layout_ndf_unknown", "albedo --layout cycles --ndf phong --out o.exr", 2, "--ndf 'phong'"},
       {"grade_missing", "albedo --grade none.csv --layout cycles", 2, "cannot be read"},
       {"grade_out", "albedo --grade t.csv --layout cycles --out o.exr", 2, "--out does not apply to --grade"},
       {"grade_samples_zero", "albedo --grade t.csv --layout cycles --table-samples 0", 2, "--table-samples"},
