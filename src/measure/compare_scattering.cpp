@@ -92,14 +92,15 @@ ScatterInput analytic_scatter_input(const ScatterInput& first, const RunControl&
   return in;
 }
 
-std::vector<ScatterInput> scatter_inputs(const CompareScatteringRequest& r, const RunControl& run) {
-  std::vector<ScatterInput> inputs;
-  for (const std::string& f : r.files) {
-    ComparedFile in = read_compared_file(f);
+// The inputs when the first file (read already) is a scatter file.
+std::vector<ScatterInput> scatter_inputs(const CompareScatteringRequest& r, ScatterFile first, const RunControl& run) {
+  std::vector<ScatterInput> inputs{{r.files.front(), "", std::move(first)}};
+  for (std::size_t i = 1; i < r.files.size(); ++i) {
+    ComparedFile in = read_compared_file(r.files[i]);
     if (!in.scatter)
       throw invalid_argument(fmt::format("'{}' is a traced histogram (microsim trace vndf) among scatter files: compare "
-                                         "files of one kind", f));
-    inputs.push_back({f, "", std::move(*in.scatter)});
+                                         "files of one kind", r.files[i]));
+    inputs.push_back({r.files[i], "", std::move(*in.scatter)});
   }
   if (r.analytic) {
     if (inputs.front().file.kind != ScatterFileKind::histogram)
@@ -273,7 +274,7 @@ CompareScatteringResult compare_scattering_files(const CompareScatteringRequest&
   ScatterComparison c;
   c.orders = parse_scatter_orders(r.orders.empty() ? "1,2,3,4,5+,total" : r.orders);
   c.level = r.level;
-  c.inputs = scatter_inputs(r, run);
+  c.inputs = scatter_inputs(r, std::move(*first.scatter), run);
   compare_scatter_pairs(c);
   return {std::move(c), std::nullopt};
 }
