@@ -163,8 +163,10 @@ def compare_scattering(files: Sequence[str], *, analytic: bool = False, orders: 
     ...
 
 def merge(parts: Sequence[Union[str, "os.PathLike[str]"]], *, out: Optional[Union[str, "os.PathLike[str]"]] = None,
-          json: Optional[Union[str, "os.PathLike[str]"]] = None) -> Dict[str, Any]:
-    """The shards of one run (`trace vndf --shard` on the ellipsoid, `scatter --shard`, `stability --shard`)
-    joined bit for bit (`microsim merge`): the dict its --json writes; `out` the merged .exr histogram. Parts
-    of different runs or missing or repeated blocks raise ValueError naming them."""
+          json: Optional[Union[str, "os.PathLike[str]"]] = None,
+          surface: Optional[Union[str, "os.PathLike[str]"]] = None, progress: Progress = None) -> Dict[str, Any]:
+    """The JSON parts of one run (`trace vndf --shard` on the ellipsoid or a heightfield, `scatter --shard`,
+    `trace masking --shard`, `validate --shard`, `stability --shard`) joined bit for bit (`microsim merge`):
+    the dict its --json writes; `out` the merged .exr histogram; `surface` the heightmap of heightfield parts.
+    Parts of different runs, missing or repeated blocks, or an EXR part raise ValueError naming them."""
     ...
