@@ -1,7 +1,10 @@
 // End to end: `microsim check-bsdf --plugin` loads the worked plugin of examples/plugins/rough_ggx.c (a rough GGX
-// conductor and dielectric in the radiance convention, written from the math) and passes it whole (level 0.01,
-// fixed seed); the same plugin with a planted eval() bug (the radiance factor forgotten in eval only) is
-// rejected by the eval, consistency and reciprocity tests while its sampling tests still pass; bad plugins are
+// conductor, anisotropic, and dielectric in the radiance convention, written from the math) and passes it whole
+// (level 0.01, fixed seed; the anisotropic one at views off the axes too); the same plugin with a planted eval()
+// bug (the radiance factor forgotten in eval only; built against the header of ABI version 1, so that an old
+// plugin is seen to load) is rejected by the eval, consistency and reciprocity tests while its sampling tests
+// still pass; the anisotropic plugin with its roughnesses swapped is rejected; the Smith multiple-scattering
+// plugin (examples/plugins/smith_walk.c, ABI 2, stochastic eval, no pdf) passes against the walk; bad plugins are
 // exit 2.
 #include "cli_helpers.h"
 
@@ -14,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include <fstream>
+#include <set>
 #include <string>
 
 namespace microsim::test {
@@ -24,8 +28,8 @@ std::string check(const char* plugin, const std::string& claims) {
 }
 
 const std::string kPluginGlass = "--param kind=dielectric --param alpha=0.3 --param eta=1.5 --bsdf dielectric:1.5 --alpha 0.3";
-const std::string kPluginGold = "--param kind=conductor --param alpha=0.3 --param eta=0.2 --param k=3.9 --bsdf conductor:0.2,3.9 "
-                          "--alpha 0.3";
+const std::string kPluginGold = "--param kind=conductor --param alpha_x=0.2 --param alpha_y=0.4 --param eta=0.2 --param k=3.9 "
+                                "--bsdf conductor:0.2,3.9 --alpha 0.2,0.4";
 
 TEST(CheckBsdfCli, TheWorkedPluginsPassWhole) {
   const fs::path dir = scratch_dir("check_bsdf", "good");
@@ -36,6 +40,9 @@ TEST(CheckBsdfCli, TheWorkedPluginsPassWhole) {
     EXPECT_EQ(j["verdict"], "pass");
     EXPECT_GE(j["tests"].size(), 12u);  // sampling and consistency per view, eval and reciprocity
     EXPECT_EQ(j["tests"].back()["test"], "reciprocity");
+    std::set<std::string> views;
+    for (const nlohmann::json& t : j["tests"]) views.insert(t["view"].get<std::string>());
+    EXPECT_EQ(views.count("60 deg phi 30"), claims == kPluginGold ? 1u : 0u) << claims;
   }
   fs::remove_all(dir);
 }
@@ -53,6 +60,30 @@ TEST(CheckBsdfCli, APlantedEvalBugIsRejectedByTheEvalAndConsistencyTests) {
   }
   // The conductor has no refraction: the bug does not touch it.
   EXPECT_EQ(run_cli(dir, check(MICROSIM_PLUGIN_EVAL_BUG, kPluginGold)).exit_code, 0);
+  // The anisotropic conductor with alpha_x and alpha_y swapped against its claim: rejected by its samples at a
+  // view on the axis and one turned off it (a small budget: two views).
+  const CliRun swapped = run_cli(dir, std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_GOOD +
+                                          " --param kind=conductor --param alpha_x=0.4 --param alpha_y=0.2 --param eta=0.2"
+                                          " --param k=3.9 --bsdf conductor:0.2,3.9 --alpha 0.2,0.4 --samples 20000"
+                                          " --view 60 --view 60,30 --json s.json");
+  EXPECT_EQ(swapped.exit_code, 1) << swapped.out << swapped.err;
+  for (const nlohmann::json& t : nlohmann::json::parse(slurp(dir / "s.json"))["tests"])
+    if (t["test"] == "sampling" || t["test"] == "eval") EXPECT_FALSE(t["passed"].get<bool>()) << t.dump();
+  fs::remove_all(dir);
+}
+
+// The Smith multiple-scattering GGX mirror of examples/plugins/smith_walk.c (ABI 2: a stochastic eval() by the
+// next-event estimator of Heitz et al. 2016, no pdf()) against the Smith walk of microsim: passes its samples,
+// its eval() (averaged over repeated calls) and its reciprocity (two views, a small budget).
+TEST(CheckBsdfCli, TheSmithWalkPluginPassesAgainstTheWalk) {
+  const fs::path dir = scratch_dir("check_bsdf", "walk");
+  const CliRun r = run_cli(dir, std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_SMITH_WALK +
+                                    " --param alpha=0.8 --param eta=0 --bsdf mirror --alpha 0.8 --reference smith-walk"
+                                    " --samples 20000 --view 0 --view 60 --json w.json");
+  EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
+  std::set<std::string> tests;
+  for (const nlohmann::json& t : nlohmann::json::parse(slurp(dir / "w.json"))["tests"]) tests.insert(t["test"].get<std::string>());
+  EXPECT_EQ(tests, (std::set<std::string>{"sampling", "integral", "furnace", "eval", "reciprocity"}));
   fs::remove_all(dir);
 }
 
@@ -137,6 +168,12 @@ TEST(CheckBsdfCli, BadPluginsAreExit2) {
        "--reference"},
       {std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_GOOD + " --bsdf mirror --alpha 0.3 --html " +
        MICROSIM_PLUGIN_GOOD, "--html"},
+      {std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_SMITH_WALK + " --bsdf mirror --alpha 0.3",
+       "needs a deterministic eval"},
+      {std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_GOOD + " --bsdf mirror --alpha 0.3 --view 120",
+       "from inside"},
+      {std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_GOOD + " --bsdf mirror --alpha 0.3 --view 10,20,30",
+       "--view"},
   };
   for (const auto& [args, message] : cases) {
     const CliRun r = run_cli(dir, args);
