@@ -2,7 +2,9 @@
  * the GGX conductor with every order of scattering on the Smith microsurface, by the stochastic evaluation of
  * Heitz et al. 2016 ("Multiple-Scattering Microfacet BSDFs with the Smith Model"), written from the math.
  * Parameters: alpha=A (or alpha_x=AX alpha_y=AY), eta=ETA k=K (the conductor's complex index; eta=0: a perfect
- * mirror, F = 1), paths=N (walks averaged per eval() call, default 4), seed=S (eval()'s random state).
+ * mirror, F = 1), paths=N (walks averaged per eval() call, default 4), seed=S (eval()'s random state);
+ * eval_orders=K, a planted bug: eval() sums the first K orders only (an eval that is not the integral its sampler
+ * implies, as Cycles' mf_eval was not mf_sample's).
  *
  * The microsurface: GGX slopes (Heitz 2014 eq. 85-86) on uncorrelated heights, uniform on [-1, 1] (Heitz 2016
  * sec. 3: the result does not depend on the height distribution), C1(h) = (h + 1) / 2 its CDF. A ray at height
@@ -33,7 +35,7 @@ enum { kMaxOrder = 100 };
 
 typedef struct {
   double ax, ay, eta, k;
-  int paths;
+  int paths, eval_orders;
   uint64_t state; /* eval()'s generator */
 } walk_bsdf;
 
@@ -125,7 +127,7 @@ static double walk(const walk_bsdf* b, const double wi[3], const double* wo, dou
       return energy;
     }
     const double v[3] = {-d[0], -d[1], -d[2]};
-    if (wo) *estimate += energy * phase_and_leave(b, v, wo, h);
+    if (wo && order < b->eval_orders) *estimate += energy * phase_and_leave(b, v, wo, h);
     double m[3];
     visible_normal(b, v, s, m);
     const double vm = dot3(v, m);
@@ -137,7 +139,7 @@ static double walk(const walk_bsdf* b, const double wi[3], const double* wo, dou
 
 static void* create(const char* params) {
   walk_bsdf* b = calloc(1, sizeof *b);
-  b->ax = b->ay = 0.5, b->paths = 4, b->state = 1;
+  b->ax = b->ay = 0.5, b->paths = 4, b->eval_orders = kMaxOrder, b->state = 1;
   char buffer[512];
   strncpy(buffer, params ? params : "", sizeof buffer - 1);
   for (char* item = strtok(buffer, " "); item; item = strtok(NULL, " ")) {
@@ -151,9 +153,10 @@ static void* create(const char* params) {
     else if (!strcmp(item, "k")) b->k = atof(value);
     else if (!strcmp(item, "paths")) b->paths = atoi(value);
     else if (!strcmp(item, "seed")) b->state = strtoull(value, NULL, 10);
+    else if (!strcmp(item, "eval_orders")) b->eval_orders = atoi(value);
     else goto bad;
   }
-  if (b->ax > 0 && b->ay > 0 && b->eta >= 0 && b->paths > 0) return b;
+  if (b->ax > 0 && b->ay > 0 && b->eta >= 0 && b->paths > 0 && b->eval_orders > 0) return b;
 bad:
   free(b);
   return NULL;

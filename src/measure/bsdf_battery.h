@@ -114,6 +114,8 @@ struct BatteryReport {
 BatteryReport run_bsdf_battery(const BsdfUnderTest& bsdf, const Material& claimed, const GGX<double>& ggx,
                                const BatteryOptions& options);
 
+// verdict, tests (one per line) and eval (the pointwise eval check's report; null when it did not run: no exact
+// reference).
 nlohmann::json to_json(const BatteryReport& report);
 
 }  // namespace microsim
