@@ -76,7 +76,8 @@ TEST(CheckBsdfCli, APlantedEvalBugIsRejectedByTheEvalAndConsistencyTests) {
 
 // The Smith multiple-scattering GGX mirror of examples/plugins/smith_walk.c (ABI 2: a stochastic eval() by the
 // next-event estimator of Heitz et al. 2016, no pdf()) against the Smith walk of microsim: passes its samples,
-// its eval() (averaged over repeated calls) and its reciprocity (two views, a small budget).
+// its eval() (averaged over repeated calls) and its reciprocity (two views, a small budget); its planted eval
+// bug is rejected.
 TEST(CheckBsdfCli, TheSmithWalkPluginPassesAgainstTheWalk) {
   const fs::path dir = scratch_dir("check_bsdf", "walk");
   const CliRun r = run_cli(dir, std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_SMITH_WALK +
@@ -88,6 +89,17 @@ TEST(CheckBsdfCli, TheSmithWalkPluginPassesAgainstTheWalk) {
   for (const nlohmann::json& t : j["tests"]) tests.insert(t["test"].get<std::string>());
   EXPECT_TRUE(j["eval"].is_null());  // the exact eval check: not run against the walk
   EXPECT_EQ(tests, (std::set<std::string>{"sampling", "integral", "furnace", "eval", "reciprocity"}));
+  // The negative control: its eval() summing orders 1 and 2 only (a planted bug of the plugin's) is rejected by
+  // the eval test against the walk and the furnace, while its samples pass.
+  const CliRun bug = run_cli(dir, std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_SMITH_WALK +
+                                      " --param alpha=0.8 --param eta=0 --param eval_orders=2 --bsdf mirror --alpha 0.8"
+                                      " --reference smith-walk --samples 20000 --view 0 --view 60 --json b.json");
+  EXPECT_EQ(bug.exit_code, 1) << bug.out << bug.err;
+  const nlohmann::json b = nlohmann::json::parse(slurp(dir / "b.json"));
+  for (const nlohmann::json& t : b["tests"]) {
+    if (t["test"] == "sampling") EXPECT_TRUE(t["passed"].get<bool>()) << t.dump();
+    if (t["test"] == "eval" || t["test"] == "furnace") EXPECT_FALSE(t["passed"].get<bool>()) << t.dump();
+  }
   fs::remove_all(dir);
 }
 
