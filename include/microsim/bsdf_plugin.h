@@ -7,8 +7,9 @@
  * Values are per channel: `channels` of them, at most MICROSIM_BSDF_MAX_CHANNELS.
  *   create(params):   a BSDF for "key=value key=value" parameters (the --param options); NULL on a bad one.
  *   sample(self, wi, u, wo, pdf, weight): draws wo from the three uniforms u; writes the pdf of wo (per unit
- *                     solid angle) and weight = f(wi, wo) |cos wo| / pdf per channel; returns 0 for a lost
- *                     sample (nothing written), 1 otherwise.
+ *                     solid angle; 0 when it is not known, pdf NULL) and weight = f(wi, wo) |cos wo| / pdf per
+ *                     channel (the path throughput the sample carries); returns 0 for a lost sample (nothing
+ *                     written), 1 otherwise.
  *   eval(self, wi, wo, value): value = f(wi, wo) |cos wo| per channel, 0 where the BSDF is 0.
  *   pdf(self, wi, wo): the density sample() draws wo with, given wi; NULL (ABI 2) when it is not known in
  *                     closed form (a multiple-scattering sampler): the tests that need it are not run.

@@ -4,8 +4,8 @@
 // bug (the radiance factor forgotten in eval only; built against the header of ABI version 1, so that an old
 // plugin is seen to load) is rejected by the eval, consistency and reciprocity tests while its sampling tests
 // still pass; the anisotropic plugin with its roughnesses swapped is rejected; the Smith multiple-scattering
-// plugin (examples/plugins/smith_walk.c, ABI 2, stochastic eval, no pdf) passes against the walk; bad plugins are
-// exit 2.
+// plugin (examples/plugins/smith_walk.c, ABI 2, stochastic eval, no pdf) passes against the walk and the
+// Kulla-Conty plugin against itself, and their planted bugs are rejected; bad plugins are exit 2.
 #include "cli_helpers.h"
 
 #include "core/random.h"
@@ -100,6 +100,22 @@ TEST(CheckBsdfCli, TheSmithWalkPluginPassesAgainstTheWalk) {
     if (t["test"] == "sampling") EXPECT_TRUE(t["passed"].get<bool>()) << t.dump();
     if (t["test"] == "eval" || t["test"] == "furnace") EXPECT_FALSE(t["passed"].get<bool>()) << t.dump();
   }
+  fs::remove_all(dir);
+}
+
+// The Kulla-Conty compensated GGX mirror of examples/plugins/kulla_conty.c claims no exact reference: with
+// --reference none it passes the tests against itself; its planted non-reciprocal lobe ((1 - E(mu_i))^2) keeps its
+// energy and its sampling consistent and is rejected by reciprocity alone (one view, a small budget).
+TEST(CheckBsdfCli, TheKullaContyPluginPassesAgainstItselfAndItsNonReciprocalLobeIsRejected) {
+  const fs::path dir = scratch_dir("check_bsdf", "kulla_conty");
+  const std::string args = std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_KULLA_CONTY +
+                           " --param alpha=0.5 --bsdf mirror --alpha 0.5 --reference none --samples 20000 --view 60 --json k.json";
+  CliRun r = run_cli(dir, args);
+  EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
+  r = run_cli(dir, args + " --param bug=non-reciprocal");
+  EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
+  const nlohmann::json j = nlohmann::json::parse(slurp(dir / "k.json"));
+  for (const nlohmann::json& t : j["tests"]) EXPECT_EQ(t["passed"].get<bool>(), t["test"] != "reciprocity") << t.dump();
   fs::remove_all(dir);
 }
 
