@@ -149,11 +149,16 @@ def build_surface(assembly: str = "smith", alpha: Alpha = 0.5, *, resolution: in
     """Builds a periodic heightfield microsurface (`microsim surface build`): same heights for the same seed."""
 
 def check_bsdf(sample: Callable[[np.ndarray, np.ndarray], Tuple[np.ndarray, np.ndarray, np.ndarray]],
-               eval: Callable[[np.ndarray, np.ndarray], np.ndarray], pdf: Callable[[np.ndarray, np.ndarray], np.ndarray], *,
+               eval: Callable[[np.ndarray, np.ndarray], np.ndarray],
+               pdf: Optional[Callable[[np.ndarray, np.ndarray], np.ndarray]] = None, *,
                bsdf: str, alpha: Alpha, channels: int = 1, transport: str = "radiance",
                masking: str = "height-correlated", samples: int = 200000, seed: int = 1, level: float = 0.01,
-               arithmetic: str = "float32") -> Dict[str, Any]:
-    """The whole BSDF battery (`microsim check-bsdf`) on vectorised numpy callables: the report as a dict."""
+               arithmetic: str = "float32", reference: str = "single-scattering",
+               views: Optional[Sequence[Union[float, Tuple[float, float]]]] = None, stochastic_eval: bool = False,
+               html: Optional[Union[str, "os.PathLike[str]"]] = None) -> Dict[str, Any]:
+    """The whole BSDF battery (`microsim check-bsdf`) on vectorised numpy callables, with its options (reference
+    'single-scattering', 'smith-walk' or 'none'; views THETA or (THETA, PHI) in degrees; html a report path): the
+    report as a dict (check-bsdf's JSON, with 'passed')."""
     ...
 
 def compare_scattering(files: Sequence[str], *, analytic: bool = False, orders: Optional[str] = None,
