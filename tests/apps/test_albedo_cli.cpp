@@ -73,7 +73,7 @@ TEST(AlbedoCli, SampledModelsWriteTheirQuantities) {
 // moved by 0.05 fails (exit 1) naming that node.
 TEST(AlbedoCli, LayoutTableIsWrittenAndItsGradePassesAndAPlantedErrorFails) {
   const fs::path dir = scratch_dir("albedo_cli", "layout");
-  const auto r = run_cli(dir, "albedo --layout cycles --tolerance 1e-4 --out c.exr --csv c.csv --json c.json "
+  const auto r = run_cli(dir, "albedo --layout cycles --tolerance 1e-2 --out c.exr --csv c.csv --json c.json "
                               "--encoded c.txt --centres centres.csv");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("interpolation error at cell centres"), std::string::npos) << r.out;
@@ -87,12 +87,12 @@ TEST(AlbedoCli, LayoutTableIsWrittenAndItsGradePassesAndAPlantedErrorFails) {
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 1 + 5 + 1024);
   const std::string text = slurp(dir / "c.txt");
   EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 32);
-  const auto u = run_cli(dir, "albedo --layout uniform --tolerance 1e-4 --out u.exr --csv u.csv");
+  const auto u = run_cli(dir, "albedo --layout uniform --tolerance 1e-3 --out u.exr --csv u.csv");
   ASSERT_EQ(u.exit_code, 0) << u.err;
   const auto pass = run_cli(dir, "albedo --grade u.csv --layout uniform --tolerance 1e-2 --json g.json");
   EXPECT_EQ(pass.exit_code, 0) << pass.out << pass.err;
   EXPECT_NE(pass.out.find("PASS: 0 of 1024 nodes beyond the tolerance 0.01"), std::string::npos) << pass.out;
-  EXPECT_NE(pass.out.find("quadrature tolerance 7.6e-07"), std::string::npos) << pass.out;
+  EXPECT_NE(pass.out.find("quadrature tolerance 7.62951e-07"), std::string::npos) << pass.out;
   EXPECT_NEAR(nlohmann::json::parse(slurp(dir / "g.json"))["reference_tolerance"].get<double>(), 0.05 / 65535, 1e-12);
   // The planted error: node x = 20 (mu (20 + 0.5) / 32), y = 7 (alpha (7 + 0.5) / 32) raised by 0.05.
   std::string planted;
