@@ -6,6 +6,7 @@
 // Heitz 2014 eq. 99 for both lobes, as Cycles evaluates it), written here; and two limits with closed forms:
 // at ior -> 1 (Cycles' first index node) the refraction does not bend, so E_T = E[G2 / G1] = (1 + Lambda) /
 // (1 + 2 Lambda) and E_R = 0, from both sides; on a near-smooth surface at normal incidence E_R = F0 = t^4.
+// The published tables read back the same way, three nodes of each against the independent quadrature.
 #include "scatter/albedo_glass_layout.h"
 
 #include "microfacet/ggx.h"
@@ -16,6 +17,8 @@
 
 #include <array>
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <numbers>
 #include <sstream>
 #include <string>
@@ -183,6 +186,26 @@ TEST(AlbedoGlassLayout, TableReadAsCyclesReadsItMatchesAnIndependentQuadratureAn
       const double f0 = std::pow(t->index_coordinates[z], 4);
       EXPECT_NEAR(t->cells[t->index(0, 2, z)].reflected.value, f0, z == 2 && inverse ? 1e-5 : 1e-6) << z;
       EXPECT_NEAR(t->cells[t->index(0, 2, z)].total().value, 1, 1e-6) << z;
+    }
+  }
+}
+
+// The published tables (docs/data/layout-cycles-glass{,-inv}.txt, scripts/glass_tables.py) read as Cycles
+// reads its own: 16 slices of 16 x 16, node (x, y, z) at r = x / 15, mu = y / 15, ior of t = z / 15.
+TEST(AlbedoGlassLayout, PublishedTablesReadAsCyclesReadsThem) {
+  const std::filesystem::path data = std::filesystem::path(MICROSIM_TEST_DATA) / ".." / ".." / "docs" / "data";
+  for (const bool inverse : {false, true}) {
+    std::ifstream in(data / (inverse ? "layout-cycles-glass-inv.txt" : "layout-cycles-glass.txt"));
+    std::ostringstream text;
+    text << in.rdbuf();
+    const auto table = read_cycles_text(text.str());
+    ASSERT_EQ(table.size(), 16u);
+    for (const auto& slice : table) ASSERT_EQ(slice.size(), 16u);
+    for (const auto& [x, y, z] : {std::array{10, 8, 5}, std::array{15, 12, 9}, std::array{6, 4, 12}}) {
+      const double r = x / 15.0, mu = y / 15.0, t = z / 15.0, ior = (1 + t * t) / (1 - t * t);
+      const Lobes e = independent_glass(r * r, mu, inverse ? 1 / ior : ior);
+      EXPECT_NEAR(table[std::size_t(z)][std::size_t(y)][std::size_t(x)], e.reflected + e.transmitted, 5e-6)
+          << x << " " << y << " " << z << (inverse ? " inside" : "");
     }
   }
 }
