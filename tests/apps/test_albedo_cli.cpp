@@ -113,6 +113,13 @@ TEST(AlbedoCli, LayoutTableIsWrittenAndItsGradePassesAndAPlantedErrorFails) {
   EXPECT_EQ(fail.exit_code, 1) << fail.out << fail.err;
   EXPECT_NE(fail.out.find("FAIL node (roughness 7, mu 20)"), std::string::npos) << fail.out;
   EXPECT_NE(fail.out.find("FAIL: 1 of 1024 nodes"), std::string::npos) << fail.out;
+  // The anisotropic mirror's table: one line per (alpha_x, alpha_y, mu, phi), E_avg printed.
+  const auto aniso = run_cli(dir, "albedo --model analytic --alphas 0.5 --alphas-y 0.25,1 --mus 2 --phis 2 --csv a.csv");
+  ASSERT_EQ(aniso.exit_code, 0) << aniso.err;
+  EXPECT_NE(aniso.out.find("E_avg (rows alpha_x, columns alpha_y)"), std::string::npos) << aniso.out;
+  const std::string a = slurp(dir / "a.csv");
+  EXPECT_NE(a.find("alpha_x,alpha_y,mu,phi,E,E_error,E_avg,E_avg_error\n"), std::string::npos);
+  EXPECT_EQ(std::count(a.begin(), a.end(), '\n'), 2 + 1 + 2 * 2 * 2);
   fs::remove_all(dir);
 }
 
@@ -168,6 +175,10 @@ std::vector<BadInputCase> albedo_cli_cases() {
       {"layout_dielectric", "albedo --layout cycles --material dielectric:1.5 --out o.exr", 2, "--material mirror"},
       {"layout_out_not_exr", "albedo --layout cycles --out o.png", 2, "--out 'o.png'"},
       {"layout_encoded_is_out", "albedo --layout cycles --out o.exr --encoded o.exr", 2, "o.exr"},
+      {"anisotropic_no_csv", "albedo --model analytic --alphas-y 0.5 --out o.exr", 2, "--out does not apply"},
+      {"anisotropic_walk", "albedo --model smith-walk --alphas-y 0.5 --csv a.csv", 2, "--model analytic"},
+      {"anisotropic_alpha_y", "albedo --model analytic --alphas-y 3 --csv a.csv", 2, "'3'"},
+      {"phis_alone", kAlbedo + "--phis 4", 2, "--phis applies to --alphas-y only"},
       {"glass_layout_out", "albedo --layout cycles-glass --out o.exr --csv g.csv", 2, "--out does not apply"},
       {"glass_layout_no_output", "albedo --layout cycles-glass-inv", 2, "needs --csv or --encoded"},
       {"glass_layout_material", "albedo --layout cycles-glass --material dielectric:1.5 --csv g.csv", 2,
