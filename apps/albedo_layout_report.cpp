@@ -13,6 +13,7 @@
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 
@@ -52,8 +53,9 @@ std::vector<double> read_grade_values(const std::string& path, const AlbedoLayou
 
 void print_grade(const AlbedoGrade& g) {
   const CellGrade& w = g.cells[g.worst];
-  fmt::print("grade: {} layout, {} nodes against the analytic reference (quadrature tolerance {:g})\n", g.layout.name,
-             g.cells.size(), g.reference_tolerance);
+  fmt::print("grade: {} layout, {} nodes against the analytic reference (quadrature tolerance {:g}: the smaller of the "
+             "tolerance / 100 and a tenth of the encoding's rounding step)\n", g.layout.name, g.cells.size(),
+             g.reference_tolerance);
   fmt::print("max |table - reference| {:.3g} at node (roughness {}, mu {}) = (alpha {:.6g}, mu {:.6g}): table {:.9g}, "
              "reference {:.9g}; RMS {:.3g}\n", g.max_abs, w.ri, w.mj, w.alpha, w.mu, w.value, w.reference.value, g.rms);
   if (g.not_graded > 0)
@@ -90,6 +92,30 @@ int run_albedo_layout(const AlbedoLayout& layout, double tolerance, int threads,
   if (!o.centres.empty()) write_file_atomically(o.centres, layout_centres_csv(*t));
   if (!o.json.empty()) write_file_atomically(o.json, layout_table_json(*t).dump(2) + "\n");
   print_layout_table(*t);
+  return kExitOk;
+}
+
+int run_albedo_glass_layout(const GlassLayout& layout, double tolerance, int threads, const std::string& csv,
+                            const std::string& encoded) {
+  const auto progress = std::make_shared<CliProgress>(true);
+  install_interrupt_handler();
+  fmt::print(stderr, "albedo: layout {} ({} x {} x {} nodes and E_avg)\n", layout.name, layout.roughness_nodes,
+             layout.mu_nodes, layout.index_nodes);
+  const std::optional<GlassLayoutTable> t = glass_layout_table(layout, tolerance, cli_run_control(threads, progress));
+  progress->finish();
+  if (!t) return interrupted_nothing_written("albedo");
+  if (!csv.empty()) write_file_atomically(csv, glass_layout_csv(*t));
+  if (!encoded.empty()) write_file_atomically(encoded, glass_layout_encoded(*t));
+  fmt::print("albedo layout {}: {}\nsource: {}\nreference tolerance {:g}; {:.1f} s\n", layout.name, layout.summary,
+             layout.source, t->tolerance, t->seconds);
+  double worst = 0;
+  for (const SingleScatteringAlbedo& c : t->cells) worst = std::max(worst, c.total().standard_error);
+  fmt::print("largest error estimate of a node: {:.3g}\n", worst);
+  const std::size_t nx = t->alphas.size();
+  for (const std::size_t z : {std::size_t(0), t->iors.size() / 2, t->iors.size() - 1})
+    fmt::print("E_avg at ior {:.6g}{}: {:.6f} (alpha {:g}) .. {:.6f} (alpha {:g})\n", t->iors[z],
+               layout.inverse ? " (from inside)" : "", t->average[z * nx + 1].value, t->alphas[1],
+               t->average[z * nx + nx - 1].value, t->alphas[nx - 1]);
   return kExitOk;
 }
 

@@ -3,6 +3,7 @@
 // --layout L` (scatter/albedo_grade.h: exit 0 every node within the tolerance, 1 a node beyond it).
 #pragma once
 
+#include "scatter/albedo_glass_layout.h"
 #include "scatter/albedo_layout.h"
 
 #include <cstdint>
@@ -17,6 +18,11 @@ struct LayoutOutputs {
 // Computes and writes the layout's table; prints its summary (E_avg, the interpolation error). Returns
 // kExitOk, or kExitInterrupted with nothing written.
 int run_albedo_layout(const AlbedoLayout& layout, double tolerance, int threads, const LayoutOutputs& outputs);
+
+// Computes a glass layout's table (scatter/albedo_glass_layout.h) and writes its CSV and encoded text ("" for
+// none); prints E_avg's corners and the largest error estimate. kExitOk, or kExitInterrupted (nothing written).
+int run_albedo_glass_layout(const GlassLayout& layout, double tolerance, int threads, const std::string& csv,
+                            const std::string& encoded);
 
 // Reads `table` (.exr, or the .csv microsim writes for a layout; UsageError when unreadable or not in the
 // layout), grades it and prints the result; `json`: also the whole grade. Returns kExitOk when every node is

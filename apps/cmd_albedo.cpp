@@ -16,15 +16,19 @@
 
 #include "microfacet/material.h"
 #include "microgeom/assembly.h"
+#include "scatter/albedo_anisotropic.h"
+#include "scatter/albedo_glass_layout.h"
 #include "scatter/albedo_table.h"
 #include "scatter/albedo_layout.h"
 #include "scatter/albedo_table_io.h"
+#include "core/atomic_file.h"
 #include "core/parse.h"
 
 #include <fmt/core.h>
 
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <set>
 #include <string>
 
@@ -45,6 +49,8 @@ struct AlbedoArgs {
   int threads = 0;
   std::string out, csv, json;
   std::string layout, grade, encoded, centres;  // --layout, --grade and their outputs
+  std::string alphas_y;                         // anisotropic: the alpha_y axis (--alphas is alpha_x)
+  int phis = 8;
   std::uint64_t table_samples = 0;
   std::set<std::string> given;  // the options given on the command line
 };
@@ -142,7 +148,22 @@ const AlbedoLayout& chosen_layout(const AlbedoArgs& a) {
   }
 }
 
+// A dielectric over Cycles' index axis (scatter/albedo_glass_layout.h): CSV and the encoded text, no EXR.
+int run_glass_layout(const AlbedoArgs& a, const GlassLayout& layout) {
+  check_only(a, {"--layout", "--model", "--tolerance", "--threads", "--csv", "--encoded"},
+             "a glass --layout (the analytic reference of a GGX dielectric at the layout's indices)");
+  if (a.given.count("--model") && a.model != "analytic")
+    throw UsageError(fmt::format("--model {}: a layout table holds the analytic reference (--model analytic)",
+                                 quote_excerpt(a.model)));
+  if (a.csv.empty() && a.encoded.empty()) throw UsageError(fmt::format("--layout {} needs --csv or --encoded", layout.name));
+  check_distinct_outputs({}, {{"--csv", a.csv}, {"--encoded", a.encoded}});
+  check_output("--csv", a.csv);
+  check_output("--encoded", a.encoded);
+  return run_albedo_glass_layout(layout, a.tolerance, a.threads, a.csv, a.encoded);
+}
+
 int run_layout(const AlbedoArgs& a) {
+  if (const GlassLayout* glass = find_glass_layout(a.layout)) return run_glass_layout(a, *glass);
   check_only(a, {"--layout", "--model", "--material", "--tolerance", "--threads", "--out", "--csv", "--json", "--encoded",
                  "--centres"}, "--layout (a renderer's table: the analytic reference of a GGX mirror)");
   if (a.given.count("--model") && a.model != "analytic")
@@ -172,8 +193,52 @@ int run_grade(const AlbedoArgs& a) {
   return run_albedo_grade(layout, a.grade, tolerance, a.table_samples, a.threads, a.json);
 }
 
+void print_anisotropic(const AnisotropicAlbedoTable& t) {
+  fmt::print("anisotropic GGX mirror (F = 1), analytic single scattering: {} x {} roughnesses, {} mus x {} phis; "
+             "{:.1f} s\nE_avg (rows alpha_x, columns alpha_y):\n{:>10}", t.alphas_x.size(), t.alphas_y.size(),
+             t.mus.size(), t.phis.size(), t.seconds, "");
+  for (const double ay : t.alphas_y) fmt::print(" {:>10g}", ay);
+  fmt::print("\n");
+  for (std::size_t ix = 0; ix < t.alphas_x.size(); ++ix) {
+    fmt::print("{:>10g}", t.alphas_x[ix]);
+    for (std::size_t iy = 0; iy < t.alphas_y.size(); ++iy)
+      fmt::print(" {:>10.6f}", t.average[ix * t.alphas_y.size() + iy].value);
+    fmt::print("\n");
+  }
+}
+
+// --alphas-y: the anisotropic mirror's table (scatter/albedo_anisotropic.h), CSV only.
+int run_anisotropic(const AlbedoArgs& a) {
+  check_only(a, {"--model", "--alphas", "--alphas-y", "--phis", "--mus", "--tolerance", "--threads", "--csv"},
+             "--alphas-y (the anisotropic GGX mirror's table)");
+  if (a.model != "analytic") throw UsageError("--alphas-y needs --model analytic");
+  if (a.csv.empty()) throw UsageError("--alphas-y needs --csv T.csv");
+  check_output("--csv", a.csv);
+  AnisotropicAlbedoRequest r;
+  try {
+    r.alphas_x = albedo_alphas(a);
+    r.alphas_y = parse_double_list("--alphas-y", a.alphas_y, Interval{kMinAlbedoAlpha, kMaxAlbedoAlpha});
+  } catch (const ParseError& e) {
+    throw UsageError(e.what());
+  }
+  r.mus = a.mus;
+  r.phis = a.phis;
+  r.tolerance = a.tolerance;
+  const auto progress = std::make_shared<CliProgress>(true);
+  r.run = cli_run_control(a.threads, progress);
+  install_interrupt_handler();
+  const std::optional<AnisotropicAlbedoTable> t = anisotropic_albedo_table(r);
+  progress->finish();
+  if (!t) return interrupted_nothing_written("albedo");
+  write_file_atomically(a.csv, anisotropic_albedo_csv(*t));
+  print_anisotropic(*t);
+  return kExitOk;
+}
+
 int run_albedo(const AlbedoArgs& a) {
   if (!a.grade.empty()) return run_grade(a);
+  if (a.given.count("--alphas-y")) return run_anisotropic(a);
+  if (a.given.count("--phis")) throw UsageError("--phis applies to --alphas-y only");
   if (!a.layout.empty()) return run_layout(a);
   for (const char* o : {"--encoded", "--centres", "--table-samples"})
     if (a.given.count(o)) throw UsageError(fmt::format("{} applies to --layout or --grade only", o));
@@ -226,7 +291,13 @@ void add_albedo_options(CLI::App* sub, AlbedoArgs& a) {
   sub->add_option("--json", a.json, "also write the table (--grade: the grade) as JSON");
   sub->add_option("--layout", a.layout,
                   "a renderer's layout of the GGX mirror's E(mu, alpha), analytic reference and error per node: " +
-                      albedo_layout_names());
+                      albedo_layout_names() + "; of a GGX dielectric's E = E_R + E_T over Cycles' index axis (--csv, "
+                      "--encoded): " + glass_layout_names());
+  sub->add_option("--alphas-y", a.alphas_y,
+                  "analytic mirror: an anisotropic table, E(mu, phi) per (alpha_x in --alphas, alpha_y in this list), "
+                  "and E_avg (--csv)");
+  add_number_option(sub, "--phis", a.phis, integer(1, 64),
+                    "--alphas-y: Gauss-Legendre nodes in phi over [0, pi/2], 1..64")->default_str(std::to_string(a.phis));
   sub->add_option("--encoded", a.encoded, "--layout: also write the values in the renderer's own encoding");
   sub->add_option("--centres", a.centres, "--layout: also write the interpolation error at the cell centres (CSV)");
   sub->add_option("--grade", a.grade,
@@ -246,7 +317,9 @@ CommandRegistration albedo_registration{"albedo", [](CLI::App& app) {
       "errors: --model analytic (single scattering by quadrature), smith-walk (the Smith random walk, Heitz et al. "
       "2016: all orders and order 1) or surface (the explicit smith heightfield, traced). mu on Gauss-Legendre "
       "nodes. Writes an EXR, optionally CSV and JSON. --layout cycles|filament-dfg|enterprise-pbr|uniform: the GGX "
-      "mirror's table in a renderer's layout; --grade TABLE --layout L: grade a shipped table. Exit 0 done (grade: "
+      "mirror's table in a renderer's layout; --layout cycles-glass|cycles-glass-inv: a GGX dielectric's over Cycles' "
+      "index axis; --alphas-y: the anisotropic mirror's E(mu, phi) and E_avg; --grade TABLE --layout L: grade a "
+      "shipped table. Exit 0 done (grade: "
       "passed), 1 a graded node beyond --tolerance, 2 bad input (nothing written), 130 interrupted.");
   add_albedo_options(sub, *args);
   on_selected(sub, [args, sub] {

@@ -4,6 +4,7 @@
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -48,7 +49,10 @@ CellGrade grade_cell(const LayoutTable& t, std::size_t ri, std::size_t mj, doubl
 
 }  // namespace
 
-double grade_reference_tolerance(double tolerance) { return std::clamp(tolerance / 100, 1e-13, 1e-8); }
+double grade_reference_tolerance(const AlbedoLayout& layout, double tolerance) {
+  const double step = layout_quantisation(layout.encoding, 0.5);
+  return std::clamp(std::min(tolerance / 100, step / 10), 1e-13, 1e-6);
+}
 
 AlbedoGrade grade_against(const LayoutTable& t, const std::vector<double>& values, double tolerance,
                           std::uint64_t samples) {
@@ -93,7 +97,7 @@ AlbedoGrade grade_against(const LayoutTable& t, const std::vector<double>& value
 std::optional<AlbedoGrade> grade_albedo_table(const AlbedoLayout& layout, const std::vector<double>& values,
                                               double tolerance, std::uint64_t samples, const RunControl& run) {
   check_grade_input(layout, values, tolerance);
-  const std::optional<LayoutTable> t = layout_table(layout, grade_reference_tolerance(tolerance), run, false);
+  const std::optional<LayoutTable> t = layout_table(layout, grade_reference_tolerance(layout, tolerance), run, false);
   if (!t) return std::nullopt;
   return grade_against(*t, values, tolerance, samples);
 }

@@ -1,6 +1,6 @@
 // scatter: the grade of an energy-compensation table a renderer ships, in one of the layouts of
-// scatter/albedo_layout.h: each node against the reference (the analytic single-scattering albedo, at a
-// quadrature tolerance a hundredth of the grade's and at most 1e-8), and the table's bilinear interpolation
+// scatter/albedo_layout.h: each node against the reference (the analytic single-scattering albedo, at the
+// quadrature tolerance the grade needs: grade_reference_tolerance), and the table's bilinear interpolation
 // at the cell centres against the reference there (what the table costs a renderer that reads it).
 //
 // Per node: difference = table - reference; within quantisation when |difference| <= the encoding's
@@ -53,8 +53,13 @@ inline constexpr double kGradeNoiseLevel = 1e-3;  // the family level of the noi
 
 // The grade of `values` (storage order of the layout: layout_storage_index) with tolerance `tolerance`
 // (> 0). std::invalid_argument for a wrong count, a non-finite value or tolerance; nullopt when cancelled.
-// The reference: layout_table at grade_reference_tolerance(tolerance), without E_avg.
-double grade_reference_tolerance(double tolerance);
+// The reference: layout_table at grade_reference_tolerance(layout, tolerance), without E_avg: a hundredth of
+// the grade's tolerance and a tenth of the encoding's rounding step (layout_quantisation at E = 1/2, the
+// step of every albedo in [1/2, 1); the 6-decimal text's 5.3e-7, float32's 3e-8, half's 2.4e-4, unorm16's
+// 7.6e-6), whichever is smaller, clamped to [1e-13, 1e-6]: the reference's own error then stays well below
+// both the difference the user grades and the rounding the quantisation check allows. (No finer: the
+// quadrature's cost grows as its tolerance shrinks, and a finer reference changes no verdict.)
+double grade_reference_tolerance(const AlbedoLayout& layout, double tolerance);
 // The same against a reference computed once (layout_table of the layout, any tolerance).
 AlbedoGrade grade_against(const LayoutTable& reference, const std::vector<double>& values, double tolerance,
                           std::uint64_t table_samples = 0);

@@ -2,6 +2,7 @@
 // Gauss-Kronrod over the visible-normal sampler's unit square) and the Gauss-Legendre mu grid.
 #include "scatter/albedo_table.h"
 
+#include "microfacet/bsdf.h"
 #include "microfacet/samplers.h"
 #include "scatter/analytic_scatter.h"
 
@@ -132,7 +133,7 @@ constexpr std::size_t kMaxOuterIntervals = 512;
 // side (a reflection that dives below the macrosurface, a refraction that comes back, carry nothing).
 template <class Ndf>
 Values<2> lobe_densities(const Ndf& ndf, const Material& material, int channel, const Vec3<double>& wi,
-                         const Vec2<double>& u) {
+                         const Vec2<double>& u, RefractionMasking masking) {
   const SampleResult<double> s = sample_visible_normal(ndf, wi, u);
   if (!s || !(s->pdf > 0) || !std::isfinite(s->pdf)) return {0.0, 0.0};
   const Vec3<double>& m = s->direction;
@@ -147,7 +148,10 @@ Values<2> lobe_densities(const Ndf& ndf, const Material& material, int channel, 
   if (!refract(wi, m, eta_o / eta_i, wt) || !(wt.z() * wi.z() < 0)) return d;
   const double om = wt.dot(m);
   const double jacobian = sqr(eta_i * im + eta_o * om) / (sqr(eta_o) * std::abs(om));
-  if (std::isfinite(jacobian)) d[1] = single_scattering_flux(ndf, material, channel, wi, wt) * jacobian / s->pdf;
+  const double flux = masking == RefractionMasking::smith_microsurface
+                          ? single_scattering_flux(ndf, material, channel, wi, wt)
+                          : dielectric_bsdf(ndf, material.eta(), wi, wt) * std::abs(wt.z());
+  if (std::isfinite(jacobian)) d[1] = flux * jacobian / s->pdf;
   return d;
 }
 
@@ -302,11 +306,11 @@ Integral<K> piecewise_integral(const F& f, const std::vector<double>& cuts, doub
 // inner error estimates, so that the total error is the outer estimate plus their integral.
 template <class Ndf>
 SingleScatteringAlbedo albedo_of(const Ndf& ndf, const Material& material, int channel, const Vec3<double>& wi,
-                                 double tolerance) {
+                                 double tolerance, RefractionMasking masking) {
   check_view(material, wi, tolerance);
   long long inner_evaluations = 0;
   const auto outer = [&](double u1) -> Values<4> {
-    const auto density = [&](double u2) { return lobe_densities(ndf, material, channel, wi, Vec2<double>(u1, u2)); };
+    const auto density = [&](double u2) { return lobe_densities(ndf, material, channel, wi, Vec2<double>(u1, u2), masking); };
     const Integral<2> in =
         piecewise_integral<2, 2>(density, line_cuts(ndf, material, wi, u1), tolerance / 2, kMaxInnerIntervals);
     inner_evaluations += in.evaluations;
@@ -327,12 +331,13 @@ Estimate SingleScatteringAlbedo::total() const {
 }
 
 SingleScatteringAlbedo single_scattering_albedo(const GGX<double>& ggx, const Material& material, int channel,
-                                                const Vec3<double>& wi, double tolerance) {
-  return albedo_of(ggx, material, channel, wi, tolerance);
+                                                const Vec3<double>& wi, double tolerance, RefractionMasking masking) {
+  return albedo_of(ggx, material, channel, wi, tolerance, masking);
 }
 SingleScatteringAlbedo single_scattering_albedo(const Beckmann<double>& beckmann, const Material& material,
-                                                int channel, const Vec3<double>& wi, double tolerance) {
-  return albedo_of(beckmann, material, channel, wi, tolerance);
+                                                int channel, const Vec3<double>& wi, double tolerance,
+                                                RefractionMasking masking) {
+  return albedo_of(beckmann, material, channel, wi, tolerance, masking);
 }
 
 MuGrid gauss_legendre_mus(int n) {

@@ -153,15 +153,22 @@ Vec3<double> albedo_view(double mu, bool inside);
 // (a dielectric's other side), each with its quadrature error estimate (in standard_error), for light along
 // -wi (unit, off the horizon; wi.z < 0 only for a dielectric). material: mirror, conductor (channel) or
 // dielectric. `tolerance`: the absolute error target of each side.
+// The masking of a dielectric's refraction lobe: the Smith microsurface's own (transmission_G2,
+// microfacet/bsdf.h: what order 1 of the Smith walk is, and this module's tables), or Walter et al. 2007's
+// reflection form 1 / (1 + Lambda_i + Lambda_o) for both lobes, which renderers evaluate (dielectric_bsdf;
+// Blender Cycles' bsdf_microfacet_eval and so its rough-glass tables).
+enum class RefractionMasking { smith_microsurface, height_correlated };
 struct SingleScatteringAlbedo {
   Estimate reflected, transmitted;
   long long evaluations = 0;  // integrand evaluations
   Estimate total() const;     // reflected + transmitted, errors added
 };
-SingleScatteringAlbedo single_scattering_albedo(const GGX<double>& ggx, const Material& material, int channel,
-                                                const Vec3<double>& wi, double tolerance);
-SingleScatteringAlbedo single_scattering_albedo(const Beckmann<double>& beckmann, const Material& material,
-                                                int channel, const Vec3<double>& wi, double tolerance);
+SingleScatteringAlbedo single_scattering_albedo(
+    const GGX<double>& ggx, const Material& material, int channel, const Vec3<double>& wi, double tolerance,
+    RefractionMasking masking = RefractionMasking::smith_microsurface);
+SingleScatteringAlbedo single_scattering_albedo(
+    const Beckmann<double>& beckmann, const Material& material, int channel, const Vec3<double>& wi,
+    double tolerance, RefractionMasking masking = RefractionMasking::smith_microsurface);
 
 // Called after each completed row (on the calling thread) with the table so far and the row's index.
 using AlbedoRowCallback = std::function<void(const AlbedoTable& so_far, std::size_t row)>;

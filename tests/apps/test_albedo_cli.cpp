@@ -68,11 +68,12 @@ TEST(AlbedoCli, SampledModelsWriteTheirQuantities) {
 }
 
 // A layout table and its grade: the Cycles layout (at a coarse quadrature tolerance, to keep the test short)
-// is written as EXR, CSV, JSON and Cycles' own 6-decimal text; its CSV graded passes (exit 0), and the same
-// CSV with one node moved by 0.05 fails (exit 1) naming that node.
+// is written as EXR, CSV, JSON and Cycles' own 6-decimal text; the grade on the uniform layout (normalised uint16: the reference the grade needs is a tenth of its rounding, 7.6e-7, where
+// Cycles' 6 decimals need 5.3e-8): its table's CSV graded passes (exit 0), and the same CSV with one node
+// moved by 0.05 fails (exit 1) naming that node.
 TEST(AlbedoCli, LayoutTableIsWrittenAndItsGradePassesAndAPlantedErrorFails) {
   const fs::path dir = scratch_dir("albedo_cli", "layout");
-  const auto r = run_cli(dir, "albedo --layout cycles --tolerance 1e-4 --out c.exr --csv c.csv --json c.json "
+  const auto r = run_cli(dir, "albedo --layout cycles --tolerance 1e-2 --out c.exr --csv c.csv --json c.json "
                               "--encoded c.txt --centres centres.csv");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("interpolation error at cell centres"), std::string::npos) << r.out;
@@ -86,12 +87,16 @@ TEST(AlbedoCli, LayoutTableIsWrittenAndItsGradePassesAndAPlantedErrorFails) {
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 1 + 5 + 1024);
   const std::string text = slurp(dir / "c.txt");
   EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 32);
-  const auto pass = run_cli(dir, "albedo --grade c.csv --layout cycles --tolerance 1e-2 --json g.json");
+  const auto u = run_cli(dir, "albedo --layout uniform --tolerance 1e-3 --out u.exr --csv u.csv");
+  ASSERT_EQ(u.exit_code, 0) << u.err;
+  const auto pass = run_cli(dir, "albedo --grade u.csv --layout uniform --tolerance 1e-2 --json g.json");
   EXPECT_EQ(pass.exit_code, 0) << pass.out << pass.err;
   EXPECT_NE(pass.out.find("PASS: 0 of 1024 nodes beyond the tolerance 0.01"), std::string::npos) << pass.out;
-  // The planted error: node x = 20 (roughness 20/31), y = 7 (mu 7/31) raised by 0.05.
+  EXPECT_NE(pass.out.find("quadrature tolerance 7.62951e-07"), std::string::npos) << pass.out;
+  EXPECT_NEAR(nlohmann::json::parse(slurp(dir / "g.json"))["reference_tolerance"].get<double>(), 0.05 / 65535, 1e-12);
+  // The planted error: node x = 20 (mu (20 + 0.5) / 32), y = 7 (alpha (7 + 0.5) / 32) raised by 0.05.
   std::string planted;
-  std::istringstream lines(csv);
+  std::istringstream lines(slurp(dir / "u.csv"));
   for (std::string line; std::getline(lines, line);) {
     if (line.rfind("20,7,", 0) == 0) {
       std::vector<std::string> f;
@@ -104,10 +109,17 @@ TEST(AlbedoCli, LayoutTableIsWrittenAndItsGradePassesAndAPlantedErrorFails) {
     planted += line + "\n";
   }
   std::ofstream(dir / "planted.csv") << planted;
-  const auto fail = run_cli(dir, "albedo --grade planted.csv --layout cycles --tolerance 1e-2");
+  const auto fail = run_cli(dir, "albedo --grade planted.csv --layout uniform --tolerance 1e-2");
   EXPECT_EQ(fail.exit_code, 1) << fail.out << fail.err;
-  EXPECT_NE(fail.out.find("FAIL node (roughness 20, mu 7)"), std::string::npos) << fail.out;
+  EXPECT_NE(fail.out.find("FAIL node (roughness 7, mu 20)"), std::string::npos) << fail.out;
   EXPECT_NE(fail.out.find("FAIL: 1 of 1024 nodes"), std::string::npos) << fail.out;
+  // The anisotropic mirror's table: one line per (alpha_x, alpha_y, mu, phi), E_avg printed.
+  const auto aniso = run_cli(dir, "albedo --model analytic --alphas 0.5 --alphas-y 0.25,1 --mus 2 --phis 2 --csv a.csv");
+  ASSERT_EQ(aniso.exit_code, 0) << aniso.err;
+  EXPECT_NE(aniso.out.find("E_avg (rows alpha_x, columns alpha_y)"), std::string::npos) << aniso.out;
+  const std::string a = slurp(dir / "a.csv");
+  EXPECT_NE(a.find("alpha_x,alpha_y,mu,phi,E,E_error,E_avg,E_avg_error\n"), std::string::npos);
+  EXPECT_EQ(std::count(a.begin(), a.end(), '\n'), 2 + 1 + 2 * 2 * 2);
   fs::remove_all(dir);
 }
 
@@ -163,6 +175,14 @@ std::vector<BadInputCase> albedo_cli_cases() {
       {"layout_dielectric", "albedo --layout cycles --material dielectric:1.5 --out o.exr", 2, "--material mirror"},
       {"layout_out_not_exr", "albedo --layout cycles --out o.png", 2, "--out 'o.png'"},
       {"layout_encoded_is_out", "albedo --layout cycles --out o.exr --encoded o.exr", 2, "o.exr"},
+      {"anisotropic_no_csv", "albedo --model analytic --alphas-y 0.5 --out o.exr", 2, "--out does not apply"},
+      {"anisotropic_walk", "albedo --model smith-walk --alphas-y 0.5 --csv a.csv", 2, "--model analytic"},
+      {"anisotropic_alpha_y", "albedo --model analytic --alphas-y 3 --csv a.csv", 2, "'3'"},
+      {"phis_alone", kAlbedo + "--phis 4", 2, "--phis applies to --alphas-y only"},
+      {"glass_layout_out", "albedo --layout cycles-glass --out o.exr --csv g.csv", 2, "--out does not apply"},
+      {"glass_layout_no_output", "albedo --layout cycles-glass-inv", 2, "needs --csv or --encoded"},
+      {"glass_layout_material", "albedo --layout cycles-glass --material dielectric:1.5 --csv g.csv", 2,
+       "--material does not apply"},
       {"encoded_without_layout", kAlbedo + "--encoded e.bin", 2, "--encoded applies to --layout"},
       {"grade_no_layout", "albedo --grade t.csv", 2, "--grade needs --layout"},
       {"grade_missing", "albedo --grade none.csv --layout cycles", 2, "cannot be read"},

@@ -175,10 +175,12 @@ std::vector<double> sampled_table(const AlbedoLayout& l, int samples, std::uint6
   return values;
 }
 
-// The Cycles layout's reference (quadrature tolerance 1e-7, a fifth of Cycles' 6-decimal rounding), computed
-// once per process.
+// The Cycles layout's reference, computed once per process at quadrature tolerance 1e-5: the grades below
+// compare tables made from it (its own nodes rounded, one node moved by 1e-3) or sampled with noise of 1e-2
+// and fp16 rounding of 2.4e-4, so what they check does not depend on its accuracy beyond that (its error
+// estimate is part of each node's slack).
 const LayoutTable& cycles_reference() {
-  static const LayoutTable t = *layout_table(find_albedo_layout("--layout", "cycles"), 1e-7, {}, false);
+  static const LayoutTable t = *layout_table(find_albedo_layout("--layout", "cycles"), 1e-5, {}, false);
   return t;
 }
 

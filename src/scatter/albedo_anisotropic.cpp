@@ -1,0 +1,116 @@
+#include "scatter/albedo_anisotropic.h"
+
+#include "core/wall_clock.h"
+#include "microfacet/ggx.h"
+#include "microfacet/material.h"
+#include "scatter/albedo_table.h"
+
+#include <fmt/core.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+
+namespace microsim {
+
+namespace {
+
+void check_anisotropic_alphas(const char* what, const std::vector<double>& alphas) {
+  if (alphas.empty()) throw std::invalid_argument(fmt::format("anisotropic albedo: no {}", what));
+  for (const double a : alphas)
+    if (!(a >= kMinAlbedoAlpha && a <= kMaxAlbedoAlpha))
+      throw std::invalid_argument(
+          fmt::format("anisotropic albedo: {} {} outside [{}, {}]", what, a, kMinAlbedoAlpha, kMaxAlbedoAlpha));
+}
+
+void check_anisotropic_request(const AnisotropicAlbedoRequest& r) {
+  check_anisotropic_alphas("alpha_x", r.alphas_x);
+  check_anisotropic_alphas("alpha_y", r.alphas_y);
+  if (r.mus < kMinAlbedoMus || r.mus > kMaxAlbedoMus)
+    throw std::invalid_argument(fmt::format("anisotropic albedo: {} mus outside [{}, {}]", r.mus, kMinAlbedoMus, kMaxAlbedoMus));
+  if (r.phis < 1 || r.phis > 64)
+    throw std::invalid_argument(fmt::format("anisotropic albedo: {} phis outside [1, 64]", r.phis));
+  if (!(r.tolerance >= 1e-13 && r.tolerance <= 1e-2))
+    throw std::invalid_argument(fmt::format("anisotropic albedo: tolerance {} outside [1e-13, 1e-2]", r.tolerance));
+}
+
+AnisotropicAlbedoTable empty_anisotropic_table(const AnisotropicAlbedoRequest& r) {
+  AnisotropicAlbedoTable t;
+  t.alphas_x = r.alphas_x;
+  t.alphas_y = r.alphas_y;
+  t.tolerance = r.tolerance;
+  const MuGrid mu = gauss_legendre_mus(r.mus), phi = gauss_legendre_mus(r.phis);
+  t.mus = mu.mus;
+  t.mu_weights = mu.weights;
+  for (const double p : phi.mus) t.phis.push_back(p * std::numbers::pi / 2);
+  t.phi_weights = phi.weights;
+  return t;
+}
+
+}  // namespace
+
+Estimate anisotropic_mirror_albedo(double ax, double ay, double mu, double phi, double tolerance) {
+  const double s = std::sqrt(std::max(0.0, 1 - mu * mu));
+  const Vec3<double> wi(s * std::cos(phi), s * std::sin(phi), mu);
+  return single_scattering_albedo(GGX<double>(ax, ay), Material::mirror(), 0, wi, tolerance).total();
+}
+
+std::optional<AnisotropicAlbedoTable> anisotropic_albedo_table(const AnisotropicAlbedoRequest& r) {
+  check_anisotropic_request(r);
+  const auto start = std::chrono::steady_clock::now();
+  AnisotropicAlbedoTable t = empty_anisotropic_table(r);
+  const std::size_t ny = t.alphas_y.size(), nm = t.mus.size(), np = t.phis.size();
+  t.cells.resize(t.alphas_x.size() * ny * nm * np);
+  std::atomic<std::uint64_t> done{0};
+  std::atomic<bool> cancelled{false};
+  tbb::task_arena arena(r.run.threads > 0 ? r.run.threads : tbb::task_arena::automatic);
+  arena.execute([&] {
+    tbb::parallel_for(std::size_t(0), t.cells.size(), [&](std::size_t c) {
+      if (cancelled || r.run.cancelled()) {
+        cancelled = true;
+        return;
+      }
+      const std::size_t k = c % np, j = (c / np) % nm, iy = (c / (np * nm)) % ny, ix = c / (np * nm * ny);
+      t.cells[c] = anisotropic_mirror_albedo(t.alphas_x[ix], t.alphas_y[iy], t.mus[j], t.phis[k], r.tolerance);
+      r.run.report("anisotropic albedo table", done.fetch_add(1) + 1, t.cells.size());
+    });
+  });
+  if (cancelled || r.run.cancelled()) return std::nullopt;
+  for (std::size_t ixy = 0; ixy < t.alphas_x.size() * ny; ++ixy) {
+    Estimate avg;
+    for (std::size_t j = 0; j < nm; ++j)
+      for (std::size_t k = 0; k < np; ++k) {
+        const double w = 2 * t.mu_weights[j] * t.mus[j] * t.phi_weights[k];
+        avg.value += w * t.cells[(ixy * nm + j) * np + k].value;
+        avg.standard_error += w * t.cells[(ixy * nm + j) * np + k].standard_error;
+      }
+    t.average.push_back(avg);
+  }
+  t.seconds = seconds_since(start);
+  return t;
+}
+
+std::string anisotropic_albedo_csv(const AnisotropicAlbedoTable& t) {
+  std::string s = fmt::format("# microsim anisotropic albedo table: GGX mirror (F = 1), analytic single scattering\n"
+                              "# phi from the alpha_x axis; Gauss-Legendre nodes in mu on [0, 1] and phi on [0, pi/2]; "
+                              "quadrature tolerance {:g}\n",
+                              t.tolerance);
+  s += "alpha_x,alpha_y,mu,phi,E,E_error,E_avg,E_avg_error\n";
+  for (std::size_t ix = 0; ix < t.alphas_x.size(); ++ix)
+    for (std::size_t iy = 0; iy < t.alphas_y.size(); ++iy)
+      for (std::size_t j = 0; j < t.mus.size(); ++j)
+        for (std::size_t k = 0; k < t.phis.size(); ++k) {
+          const Estimate& e = t.cells[t.index(ix, iy, j, k)];
+          const Estimate& a = t.average[ix * t.alphas_y.size() + iy];
+          s += fmt::format("{:.9g},{:.9g},{:.17g},{:.17g},{:.12g},{:.3g},{:.12g},{:.3g}\n", t.alphas_x[ix],
+                           t.alphas_y[iy], t.mus[j], t.phis[k], e.value, e.standard_error, a.value, a.standard_error);
+        }
+  return s;
+}
+
+}  // namespace microsim

@@ -1,0 +1,96 @@
+// The anisotropic GGX mirror's E(mu, phi; alpha_x, alpha_y) and E_avg (scatter/albedo_anisotropic.h):
+// alpha_x = alpha_y is the isotropic table (every phi the same, E_avg as the isotropic one and the published
+// Kulla & Conty 2017 values at alpha 1: E(mu = 1) 0.307, E_avg 0.409); swapping the roughnesses is a rotation
+// by pi / 2 (E(mu, phi; ax, ay) = E(mu, pi / 2 - phi; ay, ax), with the phi nodes symmetric about pi / 4);
+// at normal incidence E does not depend on phi; anisotropy between the two isotropic tables' values.
+#include "scatter/albedo_anisotropic.h"
+
+#include "scatter/albedo_layout.h"
+#include "scatter/albedo_table.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+namespace microsim {
+namespace {
+
+TEST(AlbedoAnisotropic, EqualRoughnessesAreTheIsotropicTableAndItsPublishedValues) {
+  AnisotropicAlbedoRequest r;
+  r.alphas_x = {0.5, 1.0};
+  r.alphas_y = {1.0};
+  r.mus = 12;
+  r.phis = 2;
+  r.tolerance = 1e-9;
+  const std::optional<AnisotropicAlbedoTable> t = anisotropic_albedo_table(r);
+  ASSERT_TRUE(t.has_value());
+  ASSERT_EQ(t->cells.size(), 2u * 12 * 2);
+  for (std::size_t j = 0; j < 12; ++j) {
+    const double iso = mirror_albedo_reference(1.0, t->mus[j], 1e-10).value;
+    for (std::size_t k = 0; k < 2; ++k) EXPECT_NEAR(t->cells[t->index(1, 0, j, k)].value, iso, 3e-9) << j << " " << k;
+  }
+  // E_avg at alpha 1 on the same 12 mu nodes, from the isotropic reference; and the published value.
+  const MuGrid g = gauss_legendre_mus(12);
+  double iso_avg = 0;
+  for (std::size_t j = 0; j < 12; ++j) iso_avg += 2 * g.weights[j] * g.mus[j] * mirror_albedo_reference(1.0, g.mus[j], 1e-10).value;
+  EXPECT_NEAR(t->average[1].value, iso_avg, 1e-8);
+  EXPECT_NEAR(t->average[1].value, 0.409, 5e-4);
+  for (const double phi : {0.0, 0.7, 2.0}) EXPECT_NEAR(anisotropic_mirror_albedo(1, 1, 1, phi, 1e-9).value, 0.307, 5e-4);
+  // (0.5, 1): between the isotropic 0.5 and 1 tables' E_avg.
+  const double avg_half = t->average[0].value;
+  AnisotropicAlbedoRequest half = r;
+  half.alphas_x = {0.5};
+  half.alphas_y = {0.5};
+  half.phis = 1;
+  const double iso_half = anisotropic_albedo_table(half)->average[0].value;
+  EXPECT_GT(avg_half, t->average[1].value);
+  EXPECT_LT(avg_half, iso_half);
+}
+
+TEST(AlbedoAnisotropic, SwappingTheRoughnessesRotatesTheViewByAQuarterTurn) {
+  AnisotropicAlbedoRequest r;
+  r.alphas_x = {0.2, 0.8};
+  r.alphas_y = {0.2, 0.8};
+  r.mus = 4;
+  r.phis = 4;
+  r.tolerance = 1e-9;
+  const std::optional<AnisotropicAlbedoTable> t = anisotropic_albedo_table(r);
+  ASSERT_TRUE(t.has_value());
+  for (std::size_t k = 0; k < 4; ++k) EXPECT_NEAR(t->phis[k] + t->phis[3 - k], std::numbers::pi / 2, 1e-14);
+  for (std::size_t j = 0; j < 4; ++j)
+    for (std::size_t k = 0; k < 4; ++k)
+      EXPECT_NEAR(t->cells[t->index(0, 1, j, k)].value, t->cells[t->index(1, 0, j, 3 - k)].value, 4e-9) << j << " " << k;
+  EXPECT_NEAR(t->average[1].value, t->average[2].value, 1e-8);
+  // Near normal incidence E hardly depends on phi (exactly at mu = 1: the view has no azimuth).
+  AnisotropicAlbedoRequest normal = r;
+  normal.alphas_x = {0.8};
+  normal.alphas_y = {0.2};
+  normal.mus = 2;
+  normal.phis = 4;
+  const std::optional<AnisotropicAlbedoTable> n = anisotropic_albedo_table(normal);
+  ASSERT_TRUE(n.has_value());
+  const double spread = std::abs(n->cells[n->index(0, 0, 1, 0)].value - n->cells[n->index(0, 0, 1, 3)].value);
+  const double spread_low = std::abs(n->cells[n->index(0, 0, 0, 0)].value - n->cells[n->index(0, 0, 0, 3)].value);
+  EXPECT_LT(spread, spread_low);
+}
+
+TEST(AlbedoAnisotropicInput, RefusesRoughnessesNodesAndTolerancesOutOfRange) {
+  AnisotropicAlbedoRequest r;
+  r.alphas_x = {};
+  EXPECT_THROW(anisotropic_albedo_table(r), std::invalid_argument);
+  r.alphas_x = {0.001};
+  EXPECT_THROW(anisotropic_albedo_table(r), std::invalid_argument);
+  r.alphas_x = {0.5};
+  r.phis = 0;
+  EXPECT_THROW(anisotropic_albedo_table(r), std::invalid_argument);
+  r.phis = 2;
+  r.mus = 1;
+  EXPECT_THROW(anisotropic_albedo_table(r), std::invalid_argument);
+  r.mus = 2;
+  r.tolerance = 0.5;
+  EXPECT_THROW(anisotropic_albedo_table(r), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace microsim
