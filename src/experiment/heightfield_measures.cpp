@@ -153,18 +153,6 @@ std::string surface_label(const SurfacePlan& plan) {
   return plan.kind == "heightmap" ? plan.name : fmt::format("assembly {} {}", plan.name, plan.hash);
 }
 
-double heightfield_noise_floor(const HeightfieldVndf& measurement) {
-  double worst = 0;
-  for (const VndfComparison& c : measurement.comparisons) worst = std::max(worst, c.tv_noise);
-  return worst;
-}
-
-double heightfield_total_variation(const HeightfieldVndf& measurement) {
-  double worst = 0;
-  for (const VndfComparison& c : measurement.comparisons) worst = std::max(worst, c.tv_analytic);
-  return worst;
-}
-
 nlohmann::json heightfield_vndf_values(const HeightfieldVndf& m, const std::vector<std::uint64_t>& unbinned,
                                        const SurfacePlan& plan) {
   nlohmann::json fits = nlohmann::json::array();

@@ -3,9 +3,9 @@
 // for a heightmap), the surface itself (through the SurfaceCache), and the VNDF measured on it.
 #pragma once
 
-#include "experiment/heightfield_trade.h"
+#include "measure/heightfield_trade.h"
 #include "experiment/plan.h"
-#include "experiment/surface_cache.h"
+#include "measure/surface_cache.h"
 #include "measure/vndf.h"
 
 #include <nlohmann/json.hpp>
@@ -42,10 +42,6 @@ const microgeom::Heightfield* decision_surface_or_null(const Decision& decision,
 
 // What names the surface in a histogram's attributes: the heightmap's path, or "assembly smith <hash>".
 std::string surface_label(const SurfacePlan& plan);
-
-// The largest TV noise floor over the binnings of a heightfield's VNDF; the largest TV to the analytic D_v.
-double heightfield_noise_floor(const HeightfieldVndf& measurement);
-double heightfield_total_variation(const HeightfieldVndf& measurement);
 
 // The values of a heightfield VNDF, in the shape the report and a resumed run read: an "analysis" member of
 // per-binning fits as the ellipsoid's (TV to Smith's D_v with the analytic NDF, its noise floor and

@@ -20,7 +20,7 @@
 
 #include "experiment/plan.h"
 #include "experiment/run.h"
-#include "experiment/surface_cache.h"
+#include "measure/surface_cache.h"
 #include "measure/masking.h"
 
 #include <nlohmann/json.hpp>

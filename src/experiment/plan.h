@@ -23,19 +23,20 @@
 
 #include "core/run_control.h"
 #include "experiment/spec.h"
+#include "measure/heightfield_trade.h"
 
 #include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
 
+namespace microsim {
+class SurfaceCache;  // measure/surface_cache.h
+}  // namespace microsim
+
 namespace microsim::experiment {
 
-class SurfaceCache;  // surface_cache.h
-
-// The share of a target that a truncation bias may take (the order cap): the total error is then at most
-// sqrt(1 + 1/16) = 1.03 times the statistical target.
-inline constexpr double kBiasShare = 0.25;
+// kBiasShare (measure/heightfield_trade.h): the share of a target a truncation bias (the order cap) or a tile's bias may take.
 // A histogram resolves a TV distance d when its own noise floor (the expected TV of an exact sampler of that
 // many counts, validate/compare.h noise_floor_tv) is at most kNoiseShare d: a true deviation d then stands
 // out at twice the noise.

@@ -16,7 +16,7 @@
 #include "experiment/plan.h"
 #include "experiment/ranks.h"
 #include "experiment/spec.h"
-#include "experiment/surface_cache.h"
+#include "measure/surface_cache.h"
 #include "measure/masking.h"
 #include "measure/vndf.h"
 #include "scatter/albedo_table.h"
