@@ -1,5 +1,5 @@
 // experiment: the masking kind (measurement.h): Smith's closed forms (analytic: exact, once), or G1, G2 and the
-// conditional G1 measured on an explicit surface (masking_runs.h HeightfieldMasking) in rounds of successive
+// conditional G1 measured on an explicit surface (measure/masking_runs.h MaskingRuns) in rounds of successive
 // block ranges of one run until the target standard error is met. The ranks and shards measure shards of a
 // round's blocks for every light on the same surface (the run's seed), their exact sums (MaskingSums) added in
 // order; a part cancelled part way drops the round, as in one process.
@@ -192,6 +192,82 @@ std::unique_ptr<Measurement> make_masking_measurement(const ExperimentSpec& spec
   if (decision.model.model == Model::analytic) return std::make_unique<AnalyticMasking>(spec, decision);
   return std::make_unique<SurfaceMaskingMeasurement>(spec, decision);
 }
+
+// ---- its view, and the means over realisations ----------------------------------------------------------------
+
+MaskingView masking_view(const SpecQuantity& q, const Decision& d) {
+  MaskingView v{d.view.theta_deg, d.view.phi_deg, {}, q.masking.g1, q.masking.g2, q.masking.conditional, q.bins};
+  for (const Direction& l : q.lights) v.lights.emplace_back(l.theta_deg, l.phi_deg);
+  return v;
+}
+
+nlohmann::json analytic_masking_json(const SpecQuantity& q, const SpecMaterial& m, const Decision& d) {
+  return microsim::analytic_masking_json(masking_view(q, d), m.ndf, d.alpha);
+}
+
+namespace {
+
+// The mean of one value over realisations ({"value", "standard_error"} each).
+nlohmann::json realisation_mean(const std::vector<const nlohmann::json*>& values) {
+  const double k = double(values.size());
+  double sum = 0, mc = 0;
+  for (const nlohmann::json* v : values) {
+    sum += v->at("value").get<double>();
+    mc += std::pow(v->at("standard_error").get<double>(), 2);
+  }
+  const double mean = sum / k;
+  double spread = 0;
+  for (const nlohmann::json* v : values) spread += std::pow(v->at("value").get<double>() - mean, 2);
+  return {{"mean", mean}, {"standard_error", std::sqrt(spread / (k - 1) / k)}, {"monte_carlo_error", std::sqrt(mc) / k}};
+}
+
+// The same member of every realisation's masking values, by a path of keys and indices.
+nlohmann::json mean_of(const std::vector<const nlohmann::json*>& maskings, const nlohmann::json::json_pointer& where) {
+  std::vector<const nlohmann::json*> values;
+  for (const nlohmann::json* mk : maskings) values.push_back(&mk->at(where));
+  return realisation_mean(values);
+}
+
+nlohmann::json group_means(const std::string& label, const std::vector<const nlohmann::json*>& maskings) {
+  using ptr = nlohmann::json::json_pointer;
+  const nlohmann::json& first = *maskings.front();
+  nlohmann::json out{{"label", label}, {"realisations", maskings.size()}, {"g1", mean_of(maskings, ptr("/g1"))}};
+  if (first.contains("g2")) {
+    out["g2"] = nlohmann::json::array();
+    for (std::size_t l = 0; l < first["g2"].size(); ++l) {
+      nlohmann::json g2 = mean_of(maskings, ptr(fmt::format("/g2/{}", l)));
+      g2["light"] = first["g2"][l]["light"];
+      out["g2"].push_back(g2);
+    }
+  }
+  if (first.contains("conditional"))
+    for (const char* binning : {"by_normal", "by_height"}) {
+      out["conditional"][binning] = nlohmann::json::array();
+      for (std::size_t b = 0; b < first["conditional"][binning].size(); ++b)
+        out["conditional"][binning].push_back(mean_of(maskings, ptr(fmt::format("/conditional/{}/{}", binning, b))));
+    }
+  return out;
+}
+
+}  // namespace
+
+nlohmann::json masking_realisation_means(const std::vector<MeasurementResult>& measurements) {
+  std::map<std::string, std::vector<const nlohmann::json*>> groups;  // by label without " realisation k"
+  std::vector<std::string> order;
+  for (const MeasurementResult& m : measurements) {
+    const Decision& d = m.decision;
+    if (!m.ran || m.partial || d.model.model != Model::heightfield || !m.values.contains("masking")) continue;
+    const std::string label = d.label.substr(0, d.label.rfind(" realisation "));
+    if (label.size() == d.label.size()) continue;  // one realisation
+    if (groups[label].empty()) order.push_back(label);
+    groups[label].push_back(&m.values.at("masking"));
+  }
+  nlohmann::json out = nlohmann::json::array();
+  for (const std::string& label : order)
+    if (groups[label].size() >= 2) out.push_back(group_means(label, groups[label]));
+  return out;
+}
+
 
 // ---- its model --------------------------------------------------------------------------------------------------
 
