@@ -18,9 +18,35 @@
 #include <fmt/core.h>
 
 #include <chrono>
+#include <cmath>
+#include <limits>
 
 namespace microsim::experiment {
 namespace {
+
+// Whether a target applies to a quantity of an albedo table: orders single, the single-scattering albedos (E1,
+// E1_R, E1_T); all orders, every albedo the table holds, not the unfinished or lost weight. The worst relative
+// error (error / value) over the cells and E_avg it applies to; infinite for a value 0 with an error.
+bool albedo_target_applies(const SpecQuantity& quantity, std::string_view table_quantity) {
+  return table_quantity.starts_with(quantity.orders == Orders::single ? "E1" : "E");
+}
+
+std::string albedo_target_text(const SpecQuantity& quantity) { return quantity.orders == Orders::single ? "E1*" : "E*"; }
+
+double albedo_relative_error(const Estimate& e) {
+  if (e.standard_error == 0) return 0;
+  return e.value != 0 ? e.standard_error / std::abs(e.value) : std::numeric_limits<double>::infinity();
+}
+
+double worst_relative_error(const AlbedoTable& table, const SpecQuantity& quantity) {
+  double worst = 0;
+  for (const AlbedoQuantity& q : table.quantities) {
+    if (!albedo_target_applies(quantity, q.name)) continue;
+    for (const Estimate& e : q.cells) worst = std::max(worst, albedo_relative_error(e));
+    for (const Estimate& e : q.average) worst = std::max(worst, albedo_relative_error(e));
+  }
+  return worst;
+}
 
 // The rounds' tables as one table of their summed paths per cell (pool_rounds per cell and per E_avg).
 AlbedoTable pool_tables(const std::vector<AlbedoTable>& tables, const std::vector<std::uint64_t>& units) {

@@ -25,6 +25,35 @@
 namespace microsim::experiment {
 namespace {
 
+// The validator's options of a validation quantity: `samples` drawn from `seed` (0, 0 for a dump, whose samples
+// are given) at the quantity's rows and level, the same for the root and every rank of a split one.
+ValidationOptions validation_request(const SpecQuantity& quantity, std::uint64_t samples, std::uint64_t seed,
+                                     const RunControl& run) {
+  ValidationOptions v;
+  v.samples = samples;
+  v.seed = seed;
+  v.rows = quantity.rows;
+  v.significance = quantity.significance;
+  v.run = run;
+  return v;
+}
+
+// Bad input in a validation's dump (a file that is not samples, too few of them), naming the spec key.
+std::invalid_argument dump_error(const SpecQuantity& quantity, const std::exception& e) {
+  return std::invalid_argument(fmt::format("{}.dump: {}", quantity.key, e.what()));
+}
+
+DirectionSampleReader open_dump(const SpecQuantity& quantity) {
+  DirectionSampleReader reader{std::filesystem::path(quantity.dump), SampleColumns::parse(quantity.dump_columns)};
+  reader.set_frame(quantity.dump_frame == "y-up" ? SampleFrame::y_up : SampleFrame::z_up);
+  return reader;
+}
+
+DumpClaims dump_claims(const SpecQuantity& quantity, const SpecMaterial& material) {
+  return {parse_file_pdf(quantity.dump_pdf), dump_has_bsdf(quantity) ? std::optional<Material>(material.facet) : std::nullopt,
+          quantity.above_horizon};
+}
+
 // The validator's binned counts as a histogram (counts, and the claimed pdf's bin probabilities): what the
 // report draws and validation-K.exr keeps.
 TracedHistogram validation_histogram(const ValidationReport& r, const Decision& d) {
