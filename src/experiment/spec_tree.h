@@ -3,6 +3,7 @@
 // JSON text. spec.cpp reads an ExperimentSpec from it; spec_toml.cpp and spec_json.cpp build it.
 #pragma once
 
+#include "core/parse.h"
 #include "experiment/spec.h"
 
 #include <fmt/format.h>

@@ -17,6 +17,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
@@ -81,5 +82,21 @@ SurfaceSize choose_surface_size(const TradeTable& table, const SizeRequest& requ
 // row used in `reason`; nullopt when the tile is narrower than every row of its matching.
 std::optional<SurfaceSize> predicted_bias(const TradeTable& table, int resolution, double corr_cells,
                                           const std::string& ndf_match, double anisotropy);
+
+// The explicit tile of a heightfield measurement: which one and why (the size rule above; surface_cache.h for
+// where a built one is kept).
+struct SurfacePlan {
+  std::string kind;          // "assembly" or "heightmap"; "" when the model is not a heightfield
+  std::string name;          // the assembly's name, or the heightmap's path
+  std::string ndf;           // the surface's reference NDF ("ggx", "beckmann")
+  int resolution = 0;        // N
+  double corr_cells = 0;     // l; a heightmap without the attribute: 0 (unknown)
+  std::string ndf_match;     // "radial" or "joint"
+  std::uint64_t seed = 0;    // assembly: the build's seed (the run's)
+  double bias = -1;          // the bias (TV) the trade table predicts; -1: beyond the table (unknown)
+  std::string hash;          // assembly: its cache key's hash (DIR/surfaces/<hash>.exr); heightmap: its heights'
+                             // digest (heights_digest: a rank or a resumed run refuses another file)
+  std::string reason;
+};
 
 }  // namespace microsim
