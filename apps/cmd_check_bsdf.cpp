@@ -1,9 +1,9 @@
 // microsim check-bsdf --plugin LIB.so: a renderer's BSDF, loaded in process through the C interface of
-// include/microsim/bsdf_plugin.h (dlopen), run through the battery of measure/bsdf_battery.h against the exact
-// single-scattering BSDF it claims (--bsdf, --alpha). Exit 0 every test passed, 1 one rejected, 2 bad usage or
-// a plugin that cannot be loaded, 130 interrupted.
+// include/microsim/bsdf_plugin.h (dlopen; ABI 1 or 2), run through the battery of measure/bsdf_battery.h against
+// the BSDF it claims (--bsdf, --alpha; --reference: its exact single scattering, the Smith walk's multiple
+// scattering, or none). Exit 0 every test passed, 1 one rejected, 2 bad usage or a plugin that cannot be loaded,
+// 130 interrupted.
 #include "bsdf_options.h"
-#include "check_bsdf_html.h"
 #include "command.h"
 #include "number_options.h"
 #include "progress_bar.h"
@@ -12,6 +12,7 @@
 #include "core/atomic_file.h"
 #include "microfacet/roughness.h"
 #include "measure/bsdf_battery.h"
+#include "measure/bsdf_battery_html.h"
 
 #include <dlfcn.h>
 #include <fmt/core.h>
@@ -27,7 +28,7 @@ namespace {
 
 struct CheckArgs {
   std::string plugin, bsdf, alpha, json, html, arithmetic = "float32", reference = "single-scattering";
-  std::vector<std::string> params;
+  std::vector<std::string> params, views;
   long long samples = 200'000;
   unsigned long long seed = 1;
   double level = 0.01;
@@ -42,10 +43,12 @@ public:
     const auto entry = reinterpret_cast<microsim_bsdf_plugin_entry_fn>(dlsym(library_, "microsim_bsdf_plugin_entry"));
     if (!entry) throw UsageError(fmt::format("--plugin '{}': no microsim_bsdf_plugin_entry", path));
     api_ = entry();
-    if (!api_ || api_->abi_version != MICROSIM_BSDF_PLUGIN_ABI)
-      throw UsageError(fmt::format("--plugin '{}': not of ABI version {}", path, MICROSIM_BSDF_PLUGIN_ABI));
+    if (!api_ || api_->abi_version < 1 || api_->abi_version > MICROSIM_BSDF_PLUGIN_ABI)
+      throw UsageError(fmt::format("--plugin '{}': not of ABI version 1 to {}", path, MICROSIM_BSDF_PLUGIN_ABI));
     if (api_->channels < 1 || api_->channels > MICROSIM_BSDF_MAX_CHANNELS)
       throw UsageError(fmt::format("--plugin '{}': {} channels", path, api_->channels));
+    if (!api_->create || !api_->destroy || !api_->sample || !api_->eval || (!api_->pdf && api_->abi_version < 2))
+      throw UsageError(fmt::format("--plugin '{}': a function pointer is NULL", path));
     self_ = api_->create(params.c_str());
     if (!self_) throw UsageError(fmt::format("--plugin '{}': create(\"{}\") refused the parameters", path, params));
   }
@@ -56,6 +59,8 @@ public:
   LoadedPlugin(const LoadedPlugin&) = delete;
   LoadedPlugin& operator=(const LoadedPlugin&) = delete;
   const microsim_bsdf_plugin& api() const { return *api_; }
+  // The flags of ABI 2; a version-1 plugin's struct ends before them.
+  int flags() const { return api_->abi_version >= 2 ? api_->flags : 0; }
   void* self() const { return self_; }
 
 private:
@@ -71,6 +76,7 @@ BsdfUnderTest under_test(const LoadedPlugin& p) {
   b.channels = p.api().channels;
   b.convention = {p.api().transport == 1 ? TransportMode::importance : TransportMode::radiance,
                   p.api().masking == 1 ? MaskingForm::separable : MaskingForm::height_correlated};
+  b.stochastic_eval = (p.flags() & MICROSIM_BSDF_STOCHASTIC_EVAL) != 0;
   const auto raw = [](const Vec3<double>& v, double out[3]) { out[0] = v.x(), out[1] = v.y(), out[2] = v.z(); };
   const std::size_t c = std::size_t(b.channels);
   b.sample = [&p, raw, c](std::span<const Vec3<double>> wi, std::span<const double> u, std::span<Vec3<double>> wo,
@@ -89,6 +95,7 @@ BsdfUnderTest under_test(const LoadedPlugin& p) {
       p.api().eval(p.self(), in, out, &value[c * i]);
     }
   };
+  if (!p.api().pdf) return b;  // no closed-form density
   b.pdf = [&p, raw](std::span<const Vec3<double>> wi, std::span<const Vec3<double>> wo, std::span<double> pdf) {
     for (std::size_t i = 0; i < wi.size(); ++i) {
       double in[3], out[3];
@@ -109,12 +116,39 @@ void print_table(const BatteryReport& r) {
   fmt::print("{}\n", r.passed ? "passed" : "REJECTED");
 }
 
+// --view THETA[,PHI] (degrees), repeatable; none: the default grid.
+std::vector<BatteryView> view_options(const std::vector<std::string>& texts) {
+  std::vector<BatteryView> views;
+  for (const std::string& t : texts) {
+    const std::vector<double> v = parse_double_list("--view", t, {}, 2);
+    views.push_back({v[0], v.size() == 2 ? v[1] : 0.0});
+  }
+  return views;
+}
+
+// The plugin against what the BSDF claims; a combination the battery cannot run is a UsageError.
+void check_claims(const LoadedPlugin& plugin, const BatteryOptions& o, const std::string& bsdf, int channels) {
+  if (plugin.api().channels != channels)
+    throw UsageError(fmt::format("--plugin has {} channel(s), --bsdf {} has {}", plugin.api().channels, bsdf, channels));
+  const bool stochastic = (plugin.flags() & MICROSIM_BSDF_STOCHASTIC_EVAL) != 0;
+  if (o.reference == BatteryReference::single_scattering && (stochastic || !plugin.api().pdf))
+    throw UsageError("--reference single-scattering needs a deterministic eval() and a pdf(): the plugin declares a "
+                     "stochastic eval or has no pdf (--reference smith-walk or none)");
+}
+
+BatteryReference reference_option(const std::string& text) {
+  if (text == "single-scattering") return BatteryReference::single_scattering;
+  if (text == "smith-walk") return BatteryReference::smith_walk;
+  if (text == "none") return BatteryReference::none;
+  throw UsageError(fmt::format("--reference '{}': single-scattering, smith-walk or none", text));
+}
+
 int run_check_bsdf(const CheckArgs& a) {
   check_distinct_outputs({{"--plugin", a.plugin}}, {{"--json", a.json}, {"--html", a.html}});
   check_output("--json", a.json);
   check_output("--html", a.html);
-  if (a.reference != "single-scattering" && a.reference != "none")
-    throw UsageError(fmt::format("--reference '{}': single-scattering or none", a.reference));
+  const BatteryReference reference = reference_option(a.reference);
+  const std::vector<BatteryView> views = view_options(a.views);
   const Precision arithmetic = arithmetic_option(a.arithmetic);
   const Material m = microfacet_bsdf_option(a.bsdf);
   const auto [ax, ay] = parse_alpha("--alpha", a.alpha);
@@ -122,15 +156,15 @@ int run_check_bsdf(const CheckArgs& a) {
   std::string params;
   for (const std::string& p : a.params) params += (params.empty() ? "" : " ") + p;
   const LoadedPlugin plugin(a.plugin, params);
-  if (plugin.api().channels != m.channels())
-    throw UsageError(fmt::format("--plugin has {} channel(s), --bsdf {} has {}", plugin.api().channels, a.bsdf, m.channels()));
-  install_interrupt_handler();
   BatteryOptions o;
   o.samples = std::uint64_t(a.samples);
   o.seed = a.seed;
   o.level = a.level;
   o.arithmetic = arithmetic;
-  o.reference = a.reference == "none" ? BatteryReference::none : BatteryReference::single_scattering;
+  o.reference = reference;
+  o.views = views;
+  check_claims(plugin, o, a.bsdf, m.channels());
+  install_interrupt_handler();
   o.run = cli_run_control(0, nullptr);
   BatteryReport r;
   try {
@@ -158,11 +192,12 @@ CommandRegistration check_bsdf_registration{"check-bsdf", [](CLI::App& app) {
   auto* sub = app.add_subcommand(
       "check-bsdf",
       "Test a renderer's BSDF in process through the C plugin interface (include/microsim/bsdf_plugin.h) against the "
-      "exact single-scattering BSDF it claims: its samples per view (directions, returned pdfs, weights), its eval() "
-      "and pdf() at the pairs of bsdf-queries, its weights against eval / pdf, non-finite values; and against itself "
-      "per view: its directions against its pdf(), its weighted samples against the integral of its eval() per cell, "
-      "the white furnace (mean weight against the integral of eval cos). Exit 0 passed, 1 rejected, 2 bad usage or "
-      "a plugin that cannot be loaded.");
+      "BSDF it claims (by default the exact single scattering): its samples per view (directions, returned pdfs, "
+      "weights), its eval() and pdf() at the pairs of bsdf-queries, its weights against eval / pdf, non-finite "
+      "values; and against itself per view: its directions against its pdf(), its weighted samples against the "
+      "integral of its eval() per cell, the white furnace (mean weight against the integral of eval cos). The views: "
+      "theta 0, 30, 60, 80, 89.9 deg (120, 150 from inside a dielectric), and for an anisotropic --alpha theta 60, 80 "
+      "(120) at phi 30 and 60 too. Exit 0 passed, 1 rejected, 2 bad usage or a plugin that cannot be loaded.");
   sub->add_option("--plugin", a->plugin, "the shared library (.so) defining microsim_bsdf_plugin_entry")->required();
   sub->add_option("--param", a->params, "a key=value parameter passed to the plugin's create() (repeatable)");
   sub->add_option("--bsdf", a->bsdf, "the BSDF it claims: mirror, conductor:ETA,K or dielectric:ETA")->required();
@@ -174,8 +209,11 @@ CommandRegistration check_bsdf_registration{"check-bsdf", [](CLI::App& app) {
       ->capture_default_str();
   sub->add_option("--reference", a->reference,
                   "what its samples and eval() are checked against besides themselves: single-scattering (the exact "
-                  "BSDF of --bsdf) or none (a compensated BSDF: only the tests against itself)")
+                  "BSDF of --bsdf), smith-walk (the Smith random walk's multiple scattering: its samples, and its "
+                  "next-event eval at query pairs) or none (a compensated BSDF: only the tests against itself)")
       ->capture_default_str();
+  sub->add_option("--view", a->views,
+                  "a view THETA[,PHI] in degrees (over 90: from inside a dielectric), repeatable; replaces the default grid");
   sub->add_option("--json", a->json, "write the report as JSON");
   sub->add_option("--html", a->html, "write the report as HTML (the table and the residual maps, inline SVG)");
   on_selected(sub, [a] { return run_check_bsdf(*a); });

@@ -1,11 +1,10 @@
-// microsim merge: joins the partial results of one run (`trace vndf --shard K/N` histograms, EXR;
-// `trace masking --surface S --shard K/N`, `validate ... --shard K/N` and `stability --shard K/N` reports,
-// JSON, told apart by their provenance's producer; `scatter --shard K/N` scatter files, EXR; or runs cancelled
-// part way) into the whole run. Reading, checking and adding the parts is the library's (measure/merge.h);
+// microsim merge: joins the partial results of one run (the JSON parts of `trace vndf --shard K/N`,
+// `scatter --shard K/N`, `trace masking --surface S --shard K/N`, `validate ... --shard K/N` and
+// `stability --shard K/N`, told apart by their provenance's producer) into the whole run. Reading, checking and adding the parts is the library's (measure/merge.h);
 // this front end checks the options each kind takes and reports the merged run as the single run does.
 // The parts must come from the same run (every run attribute or parameter equal, same binnings, same seed)
 // and together hold every block exactly once; the merged result, its analysis, JSON and table are those
-// of the single run, bit for bit (counts are exact integers, masking sums exact fixed-point sums).
+// of the single run, bit for bit (counts are exact integers, sums exact fixed-point sums).
 //
 // Exit codes: 0 merged (1: the merged run rejects, as the single run would), 2 bad usage or input (parts
 // of different runs, blocks missing or repeated: the ranges are named; nothing written).
@@ -130,17 +129,14 @@ CommandRegistration merge_registration{"merge", [](CLI::App& app) {
   auto args = std::make_shared<MergeArgs>();
   auto* sub = app.add_subcommand(
       "merge",
-      "Join the partial results of one run (`microsim trace vndf --shard K/N` histograms; `microsim trace masking "
-      "--surface S --shard K/N`, `microsim validate ... --shard K/N` or `microsim stability --shard K/N` JSON parts; "
-      "`microsim scatter --shard K/N` scatter files; or a run interrupted part way) into the whole run: the same histogram EXR or JSON report, and the same "
+      "Join the partial results of one run (the JSON parts of `microsim trace vndf --shard K/N`, `microsim scatter "
+      "--shard K/N`, `microsim trace masking --surface S --shard K/N`, `microsim validate ... --shard K/N` or "
+      "`microsim stability --shard K/N`) into the whole run: the same histogram EXR or JSON report, and the same "
       "table, as the single run, bit for bit. The parts must be of one run and "
       "hold every block exactly once (missing or repeated block ranges are named). Exit 0 merged (trace masking: "
       "1 if the merged leak test failed; validate, stability: 1 if the merged run rejects, as the single run), 2 bad "
-      "input (nothing written).");
-  sub->add_option("parts", args->parts,
-                  "partial results of one run, in any order: histograms (EXR) or JSON parts (trace masking, validate, "
-                  "stability)")
-      ->required();
+      "input (nothing written; an EXR part of an earlier version: re-run its shard).");
+  sub->add_option("parts", args->parts, "partial results of one run (JSON), in any order")->required();
   sub->add_option("--out", args->out, "trace vndf, scatter: the merged histogram EXR to write (required)");
   sub->add_option("--json", args->json,
                   "write the JSON report (trace vndf: also; trace masking: the merged report; validate, stability: "

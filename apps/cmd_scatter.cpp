@@ -1,6 +1,7 @@
 // microsim scatter: what light does on a microsurface, bounce by bounce, histogrammed per order
 // (1, 2, 3, 4, 5+) over the hemispheres binning (reflection above, transmission below) and written as a
-// scatter EXR (stats/scatter_io.h) with a JSON summary. Models:
+// scatter EXR (stats/scatter_io.h; with --shard K/N the part as JSON, stats/scatter_merge.h) with a JSON
+// summary. Models:
 //   --model analytic     the single-scattering BSDF (GGX or Beckmann) binned by cubature: the exact expectation
 //                        of order 1, for compare-scattering
 //   --model smith-walk   the Smith random walk (Heitz et al. 2016), GGX or Beckmann
@@ -125,9 +126,13 @@ void refuse_options(const ScatterArgs& a, std::initializer_list<const char*> opt
     if (a.given.count(option)) throw UsageError(fmt::format("{} {}", option, why));
 }
 
+// --out: the scatter EXR; with --shard, the part (JSON, stats/scatter_merge.h) that `microsim merge` joins.
 void check_scatter_outputs(const ScatterArgs& a) {
-  if (std::filesystem::path(a.out).extension() != ".exr")
-    throw UsageError(fmt::format("--out '{}': must be an .exr file", a.out));
+  const std::string ext = std::filesystem::path(a.out).extension().string();
+  if (a.shard.empty() && ext != ".exr") throw UsageError(fmt::format("--out '{}': must be an .exr file", a.out));
+  if (!a.shard.empty() && ext != ".json")
+    throw UsageError(fmt::format("--out '{}': with --shard {} it is the part for `microsim merge`, a JSON file "
+                                 "(--out PART.json)", a.out, a.shard));
   check_output("--out", a.out);
   check_output("--json", a.json);
 }
@@ -178,7 +183,7 @@ int run_walk(const ScatterArgs& a) {
              material.describe(), a.theta, a.phi, a.rays, a.max_order, a.shard.empty() ? "" : ", shard " + a.shard);
   const ScatterHistogram h = smith_walk_paths(surface)(o);
   progress->finish();
-  return report_scatter(h, scatter_notes(a, a.ndf, alpha_note(ax, ay), material), {a.out, a.json});
+  return report_scatter(h, scatter_notes(a, a.ndf, alpha_note(ax, ay), material), {a.out, a.json, !a.shard.empty()});
 }
 
 // The NDF and roughness a surface file records (assembly metadata), for the notes; "" when it records none.
@@ -223,7 +228,7 @@ int run_surface(const ScatterArgs& a) {
   notes["surface"] = a.surface;
   for (const char* key : {"assembly", "seed"})
     if (field.metadata.count(key)) notes[std::string("surface_") + key] = field.metadata.at(key);
-  return report_scatter(h, notes, {a.out, a.json});
+  return report_scatter(h, notes, {a.out, a.json, !a.shard.empty()});
 }
 
 int run_scatter(const ScatterArgs& a) {
@@ -279,7 +284,9 @@ CommandRegistration scatter_registration{"scatter", [](CLI::App& app) {
   add_number_option(sub, "--threads", args->threads, integer(0, kMaxThreads),
                     at_most("worker threads (0: all cores)", kMaxThreads))
       ->default_str(std::to_string(args->threads));
-  sub->add_option("--shard", args->shard, "run only shard K of N (K/N, 1-based); `microsim merge` joins the parts");
+  sub->add_option("--shard", args->shard,
+                  "run only shard K of N (K/N, 1-based) and write its part, --out PART.json (exact sums); `microsim "
+                  "merge` joins the parts");
   sub->add_option("--out", args->out, "scatter EXR to write")->required();
   sub->add_option("--json", args->json, "also write the JSON summary");
   on_selected(sub, [args, sub] {

@@ -1,7 +1,8 @@
 // microsim trace vndf: the exact VNDF oracle. Traces a parallel beam onto the GGX ellipsoid (exact
 // quadric, or the mesh of a tessellation level), histograms the first-hit normals in the validator's
-// sphere and lobe bins, writes the histogram as an EXR (src/stats/histogram_io.h) and reports the
-// distance to the analytic D_v (total variation and chi-square goodness of fit).
+// sphere and lobe bins, writes the histogram as an EXR (src/stats/histogram_io.h; with --shard K/N the
+// part as JSON, measure/vndf.h) and reports the distance to the analytic D_v (total variation and
+// chi-square goodness of fit).
 //
 // Exit codes: 0 done (the fit is reported, not judged: a coarse mesh is expected to be biased),
 // 2 bad usage or input (nothing written), 130 interrupted by Ctrl-C (what was measured is written,
@@ -73,6 +74,16 @@ microsim::VndfRequest vndf_request(const TraceVndfArgs& a, const std::shared_ptr
   return r;
 }
 
+// --out: the histogram EXR; with --shard, the part (JSON, measure/vndf.h) that `microsim merge` joins.
+void check_out(const TraceVndfArgs& a) {
+  const std::string ext = std::filesystem::path(a.out).extension().string();
+  if (a.shard.empty() && ext != ".exr") throw UsageError(fmt::format("--out '{}': must be an .exr file", a.out));
+  if (!a.shard.empty() && ext != ".json")
+    throw UsageError(fmt::format("--out '{}': with --shard {} it is the part for `microsim merge`, a JSON file "
+                                 "(--out PART.json)", a.out, a.shard));
+  microsim::app::check_output("--out", a.out);
+}
+
 void warn_if_partial(const microsim::TraceResult& r, const microsim::VndfRequest& request) {
   if (!r.partial) return;
   const std::uint64_t wanted = microsim::BlockPlan{request.rays, microsim::kRaysPerBlock}.units_in(
@@ -89,8 +100,7 @@ int run_trace_vndf_heightfield(const TraceVndfArgs& a) {
   namespace app = microsim::app;
   app::check_theta("--theta", a.theta);
   if (!std::isfinite(a.phi)) throw UsageError(fmt::format("--phi {}: must be finite", a.phi));
-  if (std::filesystem::path(a.out).extension() != ".exr") throw UsageError(fmt::format("--out '{}': must be an .exr file", a.out));
-  app::check_output("--out", a.out);
+  check_out(a);
   app::check_output("--json", a.json);
   const microgeom::Heightfield field =
       app::load_surface(a.surface, a.tile_size_given ? std::optional<double>(a.tile_size) : std::nullopt);
@@ -103,7 +113,7 @@ int run_trace_vndf_heightfield(const TraceVndfArgs& a) {
   const ms::HeightfieldVndf m = ms::measure_heightfield_vndf(field, a.surface, request);
   progress->finish();
   warn_if_partial(m.trace, request);
-  return app::report_heightfield_vndf(m, field, {a.out, a.json});
+  return app::report_heightfield_vndf(m, field, {a.out, a.json, !a.shard.empty()});
 }
 
 int run_trace_vndf(const TraceVndfArgs& a) {
@@ -131,8 +141,7 @@ int run_trace_vndf(const TraceVndfArgs& a) {
     for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
     if (ext != ".ply" && ext != ".obj") throw UsageError(fmt::format("--mesh-out '{}': use a .ply or .obj file", a.mesh_out));
   }
-  if (std::filesystem::path(a.out).extension() != ".exr") throw UsageError(fmt::format("--out '{}': must be an .exr file", a.out));
-  microsim::app::check_output("--out", a.out);
+  check_out(a);
   microsim::app::check_output("--json", a.json);
   microsim::app::check_output("--mesh-out", a.mesh_out);
 
@@ -147,7 +156,7 @@ int run_trace_vndf(const TraceVndfArgs& a) {
   const ms::EllipsoidVndf m = ms::measure_ellipsoid_vndf(target, request);
   progress->finish();
   warn_if_partial(m.trace, request);
-  return microsim::app::report_ellipsoid_vndf(m, target, {a.out, a.json});
+  return microsim::app::report_ellipsoid_vndf(m, target, {a.out, a.json, !a.shard.empty()});
 }
 
 microsim::app::CommandRegistration trace_registration{"trace", [](CLI::App& app) {
@@ -191,13 +200,13 @@ microsim::app::CommandRegistration trace_registration{"trace", [](CLI::App& app)
                          fmt::format("rows of the sphere and lobe binnings (odd, 1..{}; cols = 2 rows)",
                                      microsim::kMaxBinningRows))
       ->default_str(std::to_string(args->rows));
-  sub->add_option("--out", args->out, "histogram EXR to write")->required();
+  sub->add_option("--out", args->out, "histogram EXR to write (with --shard: the part, PART.json)")->required();
   sub->add_option("--json", args->json, "also write a JSON summary");
   sub->add_option("--mesh-out", args->mesh_out, "write the traced mesh (.ply or .obj; needs --mesh-level)");
   sub->add_option("--shard", args->shard,
                   "trace only shard K of N of the run (K/N, 1-based: a contiguous range of its blocks of 4096 rays); "
-                  "the histogram records its range, and `microsim merge` joins the N parts into the whole run, bit "
-                  "for bit");
+                  "--out PART.json is the part (its range, exact counts), and `microsim merge` joins the N parts into "
+                  "the whole run, bit for bit");
   microsim::app::on_selected(sub, [args, alpha, tile_size, mesh_level, geometry] {
     if (geometry->count() > 0 && args->surface == "ellipsoid")
       throw UsageError("--geometry applies to heightfield surfaces only");

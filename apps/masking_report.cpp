@@ -1,7 +1,6 @@
 #include "masking_report.h"
 
 #include "command.h"
-#include "surface_input.h"
 
 #include "core/atomic_file.h"
 
@@ -12,11 +11,6 @@
 #include <cmath>
 
 namespace microsim::app {
-
-bool leak_failed(const MaskingResult& r) {
-  if (r.leaked > 0) return true;
-  return std::abs(r.leak_ratio.value - 1.0) > kLeakSigmas * r.leak_ratio.standard_error;
-}
 
 std::string pm(const Estimate& e, int digits) { return fmt::format("{:.{}f} ± {:.{}f}", e.value, digits, e.standard_error, digits); }
 
@@ -78,19 +72,6 @@ void print_masking(const MaskingResult& r, const AnalyticSmith& analytic) {
   print_conditional_bins(r);
 }
 
-nlohmann::json vndf_json(const MaskingVndf& v) {
-  nlohmann::json jv;
-  jv["rays"] = v.trace.rays;
-  jv["hits"] = v.trace.hits;
-  jv["backfacing"] = v.diagnostics.backfacing;
-  jv["edge_grazes"] = v.diagnostics.edge_grazes;
-  jv["leaked"] = v.diagnostics.leaked;
-  jv["rays_per_second"] = v.trace.rays_per_second();
-  jv["partial"] = v.trace.partial;
-  for (const auto& c : v.comparisons) jv["comparisons"].push_back(to_json(c));
-  return jv;
-}
-
 void print_vndf(const MaskingVndf& v) {
   fmt::print("\nVNDF: {} rays along -v, {} front-facing first hits, {:.3f} Mrays/s\n", v.trace.rays, v.trace.hits,
              v.trace.rays_per_second() * 1e-6);
@@ -101,37 +82,14 @@ void print_vndf(const MaskingVndf& v) {
                c.tv_empirical, c.tv_noise, c.p_value_analytic, c.p_value_empirical);
 }
 
-// Ctrl-C before the VNDF trace skips it: the run is partial too.
-bool is_partial(const SurfaceMasking& m) {
-  return m.result.partial || (m.vndf && m.vndf->trace.partial) || (m.request.vndf_rays > 0 && !m.vndf);
-}
-
-nlohmann::json report_json(const SurfaceMasking& m, const MaskingSurface& surface) {
-  const MaskingRequest& q = m.request;
-  nlohmann::json j = masking_part_json(m);  // provenance and sums
-  j["surface"] = surface_json(surface.field, surface.path, surface.analytic, surface.reference_source);
-  j["geometry"] = to_string(surface.geometry);
-  if (surface.scene) {
-    j["build_seconds"] = surface.scene->build_seconds();
-    j["embree_peak_bytes"] = surface.scene->embree_peak_bytes();
-  }
-  j["theta"] = q.theta_deg;
-  j["phi"] = q.phi_deg;
-  if (q.theta_l_deg) j["theta_l"] = *q.theta_l_deg, j["phi_l"] = q.phi_l_deg;
-  j["seed"] = q.seed;
-  j["threads"] = q.run.threads;
-  j["masking"] = to_json(m.result);
-  j["leak_test"] = {{"sigmas", kLeakSigmas}, {"failed", leak_failed(m.result)}};
-  if (m.vndf) j["vndf"] = vndf_json(*m.vndf);
-  j["peak_rss_mib"] = peak_rss_mib();
-  j["partial"] = is_partial(m);
-  return j;
-}
-
 }  // namespace
 
 int report_surface_masking(const SurfaceMasking& m, const MaskingSurface& surface, const MaskingOutputs& outputs) {
-  if (!outputs.json.empty()) write_file_atomically(outputs.json, report_json(m, surface).dump(2) + "\n");
+  if (!outputs.json.empty()) {
+    nlohmann::json j = surface_masking_json(m, surface);
+    j["peak_rss_mib"] = peak_rss_mib();
+    write_file_atomically(outputs.json, j.dump(2) + "\n");
+  }
   const microgeom::Heightfield& field = surface.field;
   const Provenance& p = m.provenance;
   fmt::print("trace masking  {}  ({} x {}, tile {:.6g})  theta {}  phi {}  seed {}{}\n", surface.path, field.resolution(),
@@ -143,7 +101,7 @@ int report_surface_masking(const SurfaceMasking& m, const MaskingSurface& surfac
   fmt::print("peak RSS {:.1f} MiB\n", peak_rss_mib());
   const bool failed = leak_failed(m.result);
   fmt::print("leak test ({} SE): {}\n", kLeakSigmas, failed ? "FAILED" : "passed");
-  if (is_partial(m)) return interrupted_partial_written("trace masking", {outputs.json});
+  if (masking_is_partial(m)) return interrupted_partial_written("trace masking", {outputs.json});
   return failed ? kExitRejected : kExitOk;
 }
 

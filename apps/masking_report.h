@@ -10,13 +10,7 @@
 
 namespace microsim::app {
 
-// The leak test's threshold in standard errors: at 4 SE a correct tracer fails with probability 6e-5
-// per view (normal tails).
-inline constexpr double kLeakSigmas = 4.0;
-
-// The leak test failed: a ray leaked through the surface, or E[w V] / cos(theta_v) is more than
-// kLeakSigmas standard errors from 1.
-bool leak_failed(const MaskingResult& r);
+// (The leak test, kLeakSigmas and leak_failed, and the JSON report are measure/masking.h's.)
 // "value ± se" with `digits` decimals.
 std::string pm(const Estimate& e, int digits = 4);
 // Ctrl-C: what was measured has been written, marked partial; says so on stderr. Returns exit code 130.
@@ -26,7 +20,7 @@ struct MaskingOutputs {
   std::string json;  // the JSON report ("" for none)
 };
 
-// Writes the JSON report and prints the table. Returns the exit code: 130 when partial (cancelled, or the
+// Writes the JSON report (surface_masking_json and the peak memory) and prints the table. Returns the exit code: 130 when partial (cancelled, or the
 // VNDF requested but not traced), 1 when the leak test failed, else 0.
 int report_surface_masking(const SurfaceMasking& m, const MaskingSurface& surface, const MaskingOutputs& outputs);
 

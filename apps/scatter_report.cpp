@@ -4,6 +4,7 @@
 
 #include "core/atomic_file.h"
 #include "measure/scatter.h"
+#include "stats/scatter_merge.h"
 #include "stats/scatter_compare.h"
 
 #include <fmt/core.h>
@@ -52,7 +53,8 @@ void print_histogram_table(const ScatterHistogram& h, const HemisphereLabels& l)
 }  // namespace
 
 int report_scatter(const ScatterHistogram& h, const std::map<std::string, std::string>& notes, const ScatterOutputs& o) {
-  write_scatter_exr(o.out, h, notes);
+  if (o.part) write_file_atomically(o.out, scatter_part_json(h, notes).dump() + "\n");
+  else write_scatter_exr(o.out, h, notes);
   const UpperHemisphere upper = upper_hemisphere(notes);
   const nlohmann::json j = scatter_report_json(scatter_summary_json(h), notes);
   if (!o.json.empty()) write_file_atomically(o.json, j.dump(2) + "\n");

@@ -11,11 +11,12 @@
 namespace microsim::app {
 
 struct ScatterOutputs {
-  std::string out;   // scatter EXR
-  std::string json;  // JSON summary ("" for none)
+  std::string out;    // scatter EXR, or the part (JSON) when `part`
+  std::string json;   // JSON summary ("" for none)
+  bool part = false;  // a shard: `out` is its part for `microsim merge` (stats/scatter_merge.h)
 };
 
-// Writes the EXR (with `notes`) and the JSON, prints the table; returns kExitOk, or kExitInterrupted when
+// Writes the EXR (with `notes`; a shard: its part) and the JSON, prints the table; returns kExitOk, or kExitInterrupted when
 // the histogram is partial.
 int report_scatter(const ScatterHistogram& histogram, const std::map<std::string, std::string>& notes,
                    const ScatterOutputs& outputs);

@@ -28,19 +28,4 @@ microgeom::Heightfield load_surface(const std::string& path, std::optional<doubl
   }
 }
 
-nlohmann::json surface_json(const microgeom::Heightfield& field, const std::string& path, const AnalyticSmith& analytic,
-                            const std::string& source) {
-  nlohmann::json j;
-  j["path"] = path;
-  j["resolution"] = field.resolution();
-  j["tile_size"] = field.tile_size();
-  j["min_height"] = field.min_height();
-  j["max_height"] = field.max_height();
-  j["metadata"] = field.metadata;
-  j["analytic_reference"] = {{"ndf", to_string(analytic.ndf())},
-                             {"alpha", {analytic.alpha_x(), analytic.alpha_y()}},
-                             {"source", source}};
-  return j;
-}
-
 }  // namespace microsim::app

@@ -1,5 +1,6 @@
 // microsim CLI: the inputs shared by the commands that read a heightfield (trace masking, trace vndf
-// --surface, merge): checks that turn bad input into usage errors (exit 2), and the surface's JSON record.
+// --surface, merge): checks that turn bad input into usage errors (exit 2). (The surface's JSON record is
+// measure/vndf.h surface_json.)
 #pragma once
 
 #include "command.h"
@@ -20,8 +21,5 @@ void check_theta(const std::string& option, double theta);
 // std::bad_alloc.
 microgeom::Heightfield load_surface(const std::string& path, std::optional<double> tile_size,
                                     const std::string& option = "--surface");
-// The surface as reports record it: path, resolution, tile, heights, metadata, analytic reference.
-nlohmann::json surface_json(const microgeom::Heightfield& field, const std::string& path, const AnalyticSmith& analytic,
-                            const std::string& source);
 
 }  // namespace microsim::app

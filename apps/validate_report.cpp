@@ -13,6 +13,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <memory>
+#include <optional>
 
 namespace microsim::app {
 
@@ -257,74 +259,6 @@ int ZooReport::finish(const ZooResult& result, const std::string& json) const {
 
 // ---- merge -------------------------------------------------------------------------------------------------
 
-namespace {
-
-// Too few samples for the tests is bad input, as in the single run.
-template <class F> auto usage_errors_of(F&& validation) {
-  try {
-    return validation();
-  } catch (const InsufficientData& e) {
-    throw UsageError(e.what());
-  }
-}
-
-}  // namespace
-
-namespace {
-
-int report_merged_batch(const ValidationRun& run, const ValidationPart& merged, const std::string& json) {
-  const ZooReport report(run);
-  const ZooObserver observer = report.observer();
-  ZooBatch batch(run);
-  ZooReferences references;
-  for (std::size_t i = 0; i < run.cases.size(); ++i) {
-    const ValidationCase& c = run.cases[i];
-    ValidationOptions o = run.options;
-    o.seed = c.seed;
-    const auto ref = references.get(c, o.rows);
-    ValidationReport r = usage_errors_of([&] {
-      require_samples(o.samples, *ref);
-      return report_drawn_samples(*c.sampler, *ref, merged.tallies[i], o);
-    });
-    r.seconds = merged.seconds[i];
-    observer.row(batch.add(c, std::move(r)));
-  }
-  BsdfZooReferences bsdf_references;
-  ValidationRun bsdf_run = run;
-  const auto progress = std::make_shared<CliProgress>(true);
-  bsdf_run.options.run = cli_run_control(0, progress);  // its progress bar; Ctrl-C stops it between validations
-  const bool partial = !usage_errors_of([&] { return run_bsdf_section(bsdf_run, batch, bsdf_references, observer); });
-  progress->finish();
-  return report.finish(batch.finish(partial, references, &bsdf_references), json);
-}
-
-int report_merged_single(const ValidationRun& run, const ValidationPart& merged, const std::string& json) {
-  const ValidationCase& c = run.cases.front();
-  ValidationOptions o = run.options;
-  o.seed = c.seed;
-  const std::string source = sampler_source(*c.sampler);
-  if (run.against.empty()) {
-    const auto ref = claimed_reference(*c.sampler, c.ggx(), c.wi(), o.rows);
-    ValidationReport r = usage_errors_of([&] {
-      require_samples(o.samples, *ref);
-      return report_drawn_samples(*c.sampler, *ref, merged.tallies.front(), o);
-    });
-    r.seconds = merged.seconds.front();
-    return report_validation(r, source, {json, ""});
-  }
-  const TracedHistogram traced = read_oracle_histogram("the parts' --against", run.against);
-  if (traced_histogram_digest(traced) != merged.parameters.value("against_digest", ""))
-    throw UsageError(fmt::format("cannot merge: '{}' is not the traced histogram the parts were compared with (its counts "
-                                 "differ)", run.against));
-  ValidationReport r = usage_errors_of(
-      [&] { return report_drawn_samples_against_trace(*c.sampler, c.ggx(), c.wi(), merged.tallies.front(), o, traced); });
-  r.seconds = merged.seconds.front();
-  return report_validation(r, oracle_source(source, histogram_oracle(run.against, traced)), {json, ""},
-                           {{"against", run.against}, {"oracle_rays", traced.rays}, {"oracle_hits", traced.hits}});
-}
-
-}  // namespace
-
 int report_merged_validation(const ValidationPart& merged, std::size_t parts, const std::string& json) {
   ValidationRun run;
   try {
@@ -334,7 +268,25 @@ int report_merged_validation(const ValidationPart& merged, std::size_t parts, co
   }
   fmt::print(stderr, "merge: {} validate parts, {} validation(s) of {} samples, blocks {}\n", parts,
              run.cases.size(), run.options.samples, merged.provenance.blocks.to_string());
-  return run.batch ? report_merged_batch(run, merged, json) : report_merged_single(run, merged, json);
+  const std::optional<ZooReport> zoo = run.batch ? std::optional<ZooReport>(std::in_place, run) : std::nullopt;
+  const auto progress = std::make_shared<CliProgress>(true);  // the batch's BSDF section; Ctrl-C stops it
+  MergedValidation m;
+  try {
+    m = analyse_merged_validation(merged, cli_run_control(0, progress), zoo ? zoo->observer() : ZooObserver{});
+  } catch (const HistogramMergeError& e) {
+    throw UsageError(fmt::format("cannot merge: {}", e.what()));
+  } catch (const HistogramIoError& e) {
+    throw UsageError(fmt::format("the parts' --against: {}", e.what()));
+  } catch (const InsufficientData& e) {
+    throw UsageError(e.what());  // too few samples for the tests: bad input, as in the single run
+  }
+  progress->finish();
+  if (m.batch) return zoo->finish(*m.batch, json);
+  const std::string source = sampler_source(*m.run.cases.front().sampler);
+  if (!m.traced) return report_validation(*m.report, source, {json, ""});
+  if (m.traced->partial) fmt::print(stderr, "validate: note: '{}' is a partial (interrupted) trace\n", m.run.against);
+  return report_validation(*m.report, oracle_source(source, histogram_oracle(m.run.against, *m.traced)), {json, ""},
+                           merged_validation_json(m));
 }
 
 }  // namespace microsim::app

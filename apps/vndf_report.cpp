@@ -13,7 +13,8 @@ namespace microsim::app {
 namespace {
 
 void write_outputs(const TracedHistogram& h, const nlohmann::json& j, const VndfOutputs& outputs) {
-  write_histogram_exr(outputs.out, h);
+  if (outputs.part) write_file_atomically(outputs.out, vndf_part_json(h).dump() + "\n");
+  else write_histogram_exr(outputs.out, h);
   if (!outputs.json.empty()) write_file_atomically(outputs.json, j.dump(2) + "\n");
 }
 
@@ -64,20 +65,7 @@ int report_heightfield_vndf(const HeightfieldVndf& m, const microgeom::Heightfie
   const AnalyticSmith analytic = analytic_reference(field);
   const VndfRunRecord run = vndf_run_record(h);
   const std::string& surface = run.surface;
-  const VndfComparison& lobe = m.comparisons.back();
-  nlohmann::json j = vndf_run_json(h, r, outputs.out);
-  j["surface"] = surface_json(field, surface, analytic, m.reference_source);
-  j["target"] = run.target;
-  j["expected_hit_fraction"] = 1.0;  // every downward ray hits a heightfield
-  j["backfacing_hits"] = m.diagnostics.backfacing;
-  j["edge_grazes"] = m.diagnostics.edge_grazes;
-  j["leaked_rays"] = m.diagnostics.leaked;
-  j["total_variation"] = lobe.tv_analytic;
-  j["total_variation_own_ndf"] = lobe.tv_empirical;
-  j["noise_floor_tv"] = lobe.tv_noise;
-  j["p_value"] = lobe.p_value_analytic;
-  j["p_value_own_ndf"] = lobe.p_value_empirical;
-  for (const auto& c : m.comparisons) j["comparisons"].push_back(to_json(c));
+  const nlohmann::json j = heightfield_vndf_json(m, field, outputs.out);
   write_outputs(h, j, outputs);
 
   fmt::print("trace vndf  heightfield {}  theta {}  phi {}  reference {} ({})\n", surface, run.theta_deg, run.phi_deg,

@@ -1,7 +1,8 @@
 /* A renderer's rough GGX BSDF wrapped for `microsim check-bsdf --plugin` (include/microsim/bsdf_plugin.h): a
  * conductor (kind=conductor eta=ETA k=K) or a dielectric (kind=dielectric eta=ETA, the index inside over
- * outside) of roughness alpha=A, radiance transport, height-correlated masking, written from the math:
- *   D (Walter et al. 2007 eq. 33), Lambda and G2 = 1 / (1 + Lambda_i + Lambda_o) (Heitz 2014 eq. 86, 99),
+ * outside) of roughness alpha=A (or alpha_x=AX alpha_y=AY, anisotropic along the frame's axes), radiance
+ * transport, height-correlated masking, written from the math:
+ *   the anisotropic D (Heitz 2014 eq. 85), Lambda and G2 = 1 / (1 + Lambda_i + Lambda_o) (Heitz 2014 eq. 86, 99),
  *   visible-normal sampling (Heitz 2018: the view stretched to the hemisphere configuration, a point of the
  *   projected hemisphere, the normal unstretched), reflection or refraction chosen with probability F,
  *   f of eq. 20 and 21 (the refraction divided by eta^2 in radiance mode), the half-vector Jacobians of eq. 14
@@ -16,7 +17,7 @@
 
 typedef struct {
   int dielectric;
-  double alpha, eta, k;
+  double ax, ay, eta, k;
 } ggx_bsdf;
 
 static double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
@@ -28,12 +29,12 @@ static void normalize3(double v[3]) {
 
 static double ggx_d(const ggx_bsdf* b, const double m[3]) {
   if (m[2] <= 0) return 0;
-  const double a2 = b->alpha * b->alpha, e = (m[0] * m[0] + m[1] * m[1]) / a2 + m[2] * m[2];
-  return 1 / (M_PI * a2 * e * e);
+  const double x = m[0] / b->ax, y = m[1] / b->ay, e = x * x + y * y + m[2] * m[2];
+  return 1 / (M_PI * b->ax * b->ay * e * e);
 }
 
 static double ggx_lambda(const ggx_bsdf* b, const double w[3]) {
-  const double t2 = b->alpha * b->alpha * (w[0] * w[0] + w[1] * w[1]) / (w[2] * w[2]);
+  const double x = b->ax * w[0], y = b->ay * w[1], t2 = (x * x + y * y) / (w[2] * w[2]);
   return (-1 + sqrt(1 + t2)) / 2;
 }
 
@@ -56,7 +57,7 @@ static double fresnel_conductor(double c, double eta, double k) {
 
 /* A visible normal of the view w (w[2] > 0) from two uniforms. */
 static void sample_visible_normal(const ggx_bsdf* b, const double w[3], double u1, double u2, double m[3]) {
-  double v[3] = {b->alpha * w[0], b->alpha * w[1], w[2]};
+  double v[3] = {b->ax * w[0], b->ay * w[1], w[2]};
   normalize3(v);
   const double len2 = v[0] * v[0] + v[1] * v[1];
   double t1[3] = {1, 0, 0};
@@ -66,7 +67,7 @@ static void sample_visible_normal(const ggx_bsdf* b, const double w[3], double u
   const double p1 = r * cos(phi), p2 = (1 - s) * sqrt(1 - p1 * p1) + s * r * sin(phi);
   const double p3 = sqrt(fmax(0, 1 - p1 * p1 - p2 * p2));
   for (int i = 0; i < 3; ++i) m[i] = p1 * t1[i] + p2 * t2[i] + p3 * v[i];
-  m[0] *= b->alpha, m[1] *= b->alpha, m[2] = fmax(0, m[2]);
+  m[0] *= b->ax, m[1] *= b->ay, m[2] = fmax(0, m[2]);
   normalize3(m);
 }
 
@@ -113,7 +114,7 @@ static void evaluate(const ggx_bsdf* b, const double wi[3], const double wo[3], 
 
 static void* create(const char* params) {
   ggx_bsdf* b = calloc(1, sizeof *b);
-  b->alpha = 0.3, b->eta = 1.5;
+  b->ax = b->ay = 0.3, b->eta = 1.5;
   char buffer[512];
   strncpy(buffer, params ? params : "", sizeof buffer - 1);
   for (char* item = strtok(buffer, " "); item; item = strtok(NULL, " ")) {
@@ -121,12 +122,14 @@ static void* create(const char* params) {
     if (!value) goto bad;
     *value++ = '\0';
     if (!strcmp(item, "kind")) b->dielectric = !strcmp(value, "dielectric");
-    else if (!strcmp(item, "alpha")) b->alpha = atof(value);
+    else if (!strcmp(item, "alpha")) b->ax = b->ay = atof(value);
+    else if (!strcmp(item, "alpha_x")) b->ax = atof(value);
+    else if (!strcmp(item, "alpha_y")) b->ay = atof(value);
     else if (!strcmp(item, "eta")) b->eta = atof(value);
     else if (!strcmp(item, "k")) b->k = atof(value);
     else goto bad;
   }
-  if (b->alpha > 0 && b->eta > 0) return b;
+  if (b->ax > 0 && b->ay > 0 && b->eta > 0) return b;
 bad:
   free(b);
   return NULL;
@@ -180,6 +183,10 @@ static double pdf(void* self, const double wi[3], const double wo[3]) {
 }
 
 static const microsim_bsdf_plugin plugin = {MICROSIM_BSDF_PLUGIN_ABI, "rough GGX (conductor or dielectric)", 1, 0, 0, 0,
-                                            create, destroy, sample, eval, pdf};
+                                            create, destroy, sample, eval, pdf
+#if MICROSIM_BSDF_PLUGIN_ABI >= 2
+                                            , 0 /* flags: eval() deterministic */
+#endif
+};
 
 const microsim_bsdf_plugin* microsim_bsdf_plugin_entry(void) { return &plugin; }

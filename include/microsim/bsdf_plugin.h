@@ -7,13 +7,25 @@
  * Values are per channel: `channels` of them, at most MICROSIM_BSDF_MAX_CHANNELS.
  *   create(params):   a BSDF for "key=value key=value" parameters (the --param options); NULL on a bad one.
  *   sample(self, wi, u, wo, pdf, weight): draws wo from the three uniforms u; writes the pdf of wo (per unit
- *                     solid angle) and weight = f(wi, wo) |cos wo| / pdf per channel; returns 0 for a lost
- *                     sample (nothing written), 1 otherwise.
+ *                     solid angle; 0 when it is not known, pdf NULL) and weight = f(wi, wo) |cos wo| / pdf per
+ *                     channel (the path throughput the sample carries); returns 0 for a lost sample (nothing
+ *                     written), 1 otherwise.
  *   eval(self, wi, wo, value): value = f(wi, wo) |cos wo| per channel, 0 where the BSDF is 0.
- *   pdf(self, wi, wo): the density sample() draws wo with, given wi.
+ *   pdf(self, wi, wo): the density sample() draws wo with, given wi; NULL (ABI 2) when it is not known in
+ *                     closed form (a multiple-scattering sampler): the tests that need it are not run.
  *   destroy(self).
  * `transport`: 0 radiance (camera paths: a refraction's f holds (n_given / n_sampled)^2), 1 importance.
- * `masking`: 0 height-correlated G2 (pbrt-v4), 1 separable G1 G1 (Mitsuba 3). */
+ * `masking`: 0 height-correlated G2 (pbrt-v4), 1 separable G1 G1 (Mitsuba 3).
+ * `flags` (ABI 2; read only when abi_version >= 2):
+ *   MICROSIM_BSDF_STOCHASTIC_EVAL: eval() returns an unbiased random estimate of f |cos wo|, independent from call
+ *     to call (the stochastic evaluation of a multiple-scattering BSDF, Heitz et al. 2016 sec. 6). The battery
+ *     then averages repeated calls at each query pair (the eval and reciprocity tests, by a chi-square with the
+ *     calls' standard error), keeps the noise in the cell integrals' variance (the integral and furnace tests),
+ *     does not hold the samples' weights to eval / pdf pointwise, and does not compare eval() with an exact
+ *     single-scattering BSDF (use `--reference smith-walk` or `none`). eval() is called from one thread; its
+ *     random state is the plugin's (seed it in create() for a run that repeats).
+ * Versions: ABI 1 is this struct without `flags` (and pdf required); a plugin built against the version-1 header
+ * sets abi_version 1 and still loads: the fields after `pdf` are read only from a plugin of version 2 or more. */
 #ifndef MICROSIM_BSDF_PLUGIN_H
 #define MICROSIM_BSDF_PLUGIN_H
 
@@ -21,11 +33,12 @@
 extern "C" {
 #endif
 
-#define MICROSIM_BSDF_PLUGIN_ABI 1
+#define MICROSIM_BSDF_PLUGIN_ABI 2
 #define MICROSIM_BSDF_MAX_CHANNELS 8
+#define MICROSIM_BSDF_STOCHASTIC_EVAL 1 /* a bit of `flags` */
 
 typedef struct microsim_bsdf_plugin {
-  int abi_version; /* MICROSIM_BSDF_PLUGIN_ABI */
+  int abi_version; /* MICROSIM_BSDF_PLUGIN_ABI (1 or 2) */
   const char* name;
   int channels;
   int transport; /* 0 radiance, 1 importance */
@@ -36,6 +49,7 @@ typedef struct microsim_bsdf_plugin {
   int (*sample)(void* self, const double wi[3], const double u[3], double wo[3], double* pdf, double* weight);
   void (*eval)(void* self, const double wi[3], const double wo[3], double* value);
   double (*pdf)(void* self, const double wi[3], const double wo[3]);
+  int flags; /* ABI 2: MICROSIM_BSDF_STOCHASTIC_EVAL or 0 */
 } microsim_bsdf_plugin;
 
 typedef const microsim_bsdf_plugin* (*microsim_bsdf_plugin_entry_fn)(void);

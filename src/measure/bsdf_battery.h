@@ -1,6 +1,7 @@
 // measure: the whole battery a renderer's BSDF runs in process (`microsim check-bsdf`, Python
 // `microsim.check_bsdf`), against the exact single-scattering BSDF it claims:
-//   - per view (0, 30, 60, 80 and 89.9 deg; 120 and 150 deg from inside a dielectric): its samples' directions
+//   - per view (battery_views: 0, 30, 60, 80 and 89.9 deg; 120 and 150 deg from inside a dielectric; for an
+//     anisotropic roughness views turned off the axes too): its samples' directions
 //     against its sampling density, their returned pdfs, and their weights against the BSDF in its convention
 //     (validate/dump_validation.h; the lost samples dropped and counted as a renderer drops them), at the
 //     family-wise level Sidak-shared over the views;
@@ -57,6 +58,19 @@ struct BsdfUnderTest {
 
 enum class BatteryReference { single_scattering, smith_walk, none };
 
+// A view: wi at polar angle theta from the normal (over 90: from inside) and azimuth phi from the x axis, degrees.
+struct BatteryView {
+  double theta = 0, phi = 0;
+};
+
+// The default grid: theta 0, 30, 60, 80, 89.9 (and 120, 150 from inside a dielectric) at phi 0; for an anisotropic
+// roughness (alpha_x != alpha_y) also theta 60 and 80 (120 from inside) at phi 30 and 60: a lobe whose
+// anisotropy axes do not stay where the roughness puts them when the view turns (the BSDF rotating the view to
+// phi 0 and not the roughness with it) is the same BSDF as the right one at phi 0 and 90.
+std::vector<BatteryView> battery_views(const Material& m, const GGX<double>& ggx);
+// "60 deg" at phi 0, else "60 deg phi 30".
+std::string view_label(const BatteryView& v);
+
 struct BatteryOptions {
   std::uint64_t samples = 200'000;  // per view
   std::uint64_t seed = 1;
@@ -68,6 +82,7 @@ struct BatteryOptions {
   std::size_t stochastic_pairs = 48;         // query pairs of the stochastic eval and reciprocity tests
   std::uint64_t reference_paths = 4096;      // the walk's paths per pair (its next-event eval)
   int max_order = 100;                       // the walk's order cap (the reference's)
+  std::vector<BatteryView> views;            // empty: battery_views()
   RunControl run;
 };
 
@@ -93,11 +108,14 @@ struct BatteryReport {
   bool passed = false;
 };
 
-// Throws std::invalid_argument when the BSDF's channels are not the material's (or a Lambertian material),
+// Throws std::invalid_argument when the BSDF's channels are not the material's (or a Lambertian material), on a
+// view at 90 deg or out of [0, 180] (from inside, theta > 90, only for a dielectric),
 // Cancelled.
 BatteryReport run_bsdf_battery(const BsdfUnderTest& bsdf, const Material& claimed, const GGX<double>& ggx,
                                const BatteryOptions& options);
 
+// verdict, tests (one per line) and eval (the pointwise eval check's report; null when it did not run: no exact
+// reference).
 nlohmann::json to_json(const BatteryReport& report);
 
 }  // namespace microsim

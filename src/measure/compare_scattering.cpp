@@ -1,5 +1,6 @@
 // measure: compare-scattering as a library call (compare_scattering.h).
 #include "measure/compare_scattering.h"
+#include "stats/json_values.h"
 
 #include "core/errors.h"
 #include "core/math.h"
@@ -26,8 +27,6 @@ using std::invalid_argument;
 
 std::string input_label(std::size_t i) { return std::string(1, char('A' + i)); }
 
-nlohmann::json finite_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
-nlohmann::json estimate_json(const Estimate& e) { return {{"value", e.value}, {"standard_error", e.standard_error}}; }
 
 // A file of `microsim scatter` or of `microsim trace vndf`, told apart by its format attribute.
 struct ComparedFile {

@@ -1,11 +1,13 @@
 #include "measure/masking.h"
 
 #include "core/strict_parse.h"
+#include "measure/vndf.h"
 #include "stats/part_json.h"
 
 #include <fmt/core.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <stdexcept>
 
@@ -315,6 +317,53 @@ MaskingOptions masking_options(const MaskingRequest& r) {
   o.grazing_share = r.grazing_share;
   if (r.theta_l_deg) o.light = direction_from_degrees(*r.theta_l_deg, r.phi_l_deg);
   return o;
+}
+
+// ---- the report ----------------------------------------------------------------------------------------------
+
+bool leak_failed(const MaskingResult& r) {
+  if (r.leaked > 0) return true;
+  return std::abs(r.leak_ratio.value - 1.0) > kLeakSigmas * r.leak_ratio.standard_error;
+}
+
+bool masking_is_partial(const SurfaceMasking& m) {
+  return m.result.partial || (m.vndf && m.vndf->trace.partial) || (m.request.vndf_rays > 0 && !m.vndf);
+}
+
+namespace {
+nlohmann::json masking_vndf_json(const MaskingVndf& v) {
+  nlohmann::json jv;
+  jv["rays"] = v.trace.rays;
+  jv["hits"] = v.trace.hits;
+  jv["backfacing"] = v.diagnostics.backfacing;
+  jv["edge_grazes"] = v.diagnostics.edge_grazes;
+  jv["leaked"] = v.diagnostics.leaked;
+  jv["rays_per_second"] = v.trace.rays_per_second();
+  jv["partial"] = v.trace.partial;
+  for (const auto& c : v.comparisons) jv["comparisons"].push_back(to_json(c));
+  return jv;
+}
+}  // namespace
+
+nlohmann::json surface_masking_json(const SurfaceMasking& m, const MaskingSurface& surface) {
+  const MaskingRequest& q = m.request;
+  nlohmann::json j = masking_part_json(m);  // provenance and sums
+  j["surface"] = surface_json(surface.field, surface.path, surface.analytic, surface.reference_source);
+  j["geometry"] = to_string(surface.geometry);
+  if (surface.scene) {
+    j["build_seconds"] = surface.scene->build_seconds();
+    j["embree_peak_bytes"] = surface.scene->embree_peak_bytes();
+  }
+  j["theta"] = q.theta_deg;
+  j["phi"] = q.phi_deg;
+  if (q.theta_l_deg) j["theta_l"] = *q.theta_l_deg, j["phi_l"] = q.phi_l_deg;
+  j["seed"] = q.seed;
+  j["threads"] = q.run.threads;
+  j["masking"] = to_json(m.result);
+  j["leak_test"] = {{"sigmas", kLeakSigmas}, {"failed", leak_failed(m.result)}};
+  if (m.vndf) j["vndf"] = masking_vndf_json(*m.vndf);
+  j["partial"] = masking_is_partial(m);
+  return j;
 }
 
 }  // namespace microsim

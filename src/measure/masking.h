@@ -80,6 +80,19 @@ SurfaceMasking measure_masking(const MaskingSurface& surface, const MaskingReque
 // of a heightfield is sharded by `trace vndf --surface S --shard K/N`) or the surface has no scene.
 MaskingVndf measure_masking_vndf(const MaskingSurface& surface, const MaskingRequest& request);
 
+// The leak test's threshold in standard errors: at 4 SE a correct tracer fails with probability 6e-5
+// per view (normal tails).
+inline constexpr double kLeakSigmas = 4.0;
+// The leak test failed: a ray leaked through the surface, or E[w V] / cos(theta_v) is more than
+// kLeakSigmas standard errors from 1.
+bool leak_failed(const MaskingResult& r);
+// Cancelled, or the VNDF requested but not traced (Ctrl-C before its trace): the run is partial.
+bool masking_is_partial(const SurfaceMasking& m);
+// The JSON report of a run (`trace masking --surface S --json`, and the merge of its parts): its part
+// (masking_part_json), the surface, the view, the masking results, the leak test, the VNDF when traced.
+// The command adds the peak memory (what measures the machine).
+nlohmann::json surface_masking_json(const SurfaceMasking& m, const MaskingSurface& surface);
+
 // ---- partial results ---------------------------------------------------------------------------------------
 
 // What a masking report carries for a merge: {"provenance": {"producer": "trace masking", "parameters":

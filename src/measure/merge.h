@@ -1,9 +1,9 @@
 // measure: the merge of the partial results of one run into the whole run (`microsim merge`, Python
-// `merge`). A part is a file: the EXR histogram of `trace vndf --shard K/N`, the scatter EXR of
-// `scatter --shard K/N`, or the JSON part of `trace masking --shard`, `validate --shard` or
-// `stability --shard` (told apart by their provenance's producer, stats/part_json.h). The parts must come
-// from one run (every run attribute or parameter equal, same binnings, same seed) and together hold every
-// block exactly once; they are added in block order, so the merged result is the single run's bit for bit.
+// `merge`). A part is a JSON file with provenance and exact sums (stats/part_json.h), written by
+// `trace vndf --shard K/N`, `scatter --shard K/N`, `trace masking --shard`, `validate --shard` or
+// `stability --shard`, its kind told by its provenance's producer. The parts must come from one run (every
+// run attribute or parameter equal, same binnings, same seed) and together hold every block exactly once;
+// they are added in block order, so the merged result is the single run's bit for bit.
 //
 // The kinds are the table kPartKinds of merge.cpp, the one place that decides a part's kind and its merge.
 #pragma once
@@ -25,8 +25,9 @@
 
 namespace microsim {
 
-// Parts that do not merge: a part that cannot be read ("part 'P': ..."), parts of another kind or of
-// different runs, blocks missing or repeated ("cannot merge: ...", the ranges named).
+// Parts that do not merge: a part that cannot be read ("part 'P': ..."; an EXR file, the part form of
+// earlier versions, is named as such), parts of another kind or of different runs, blocks missing or
+// repeated ("cannot merge: ...", the ranges named).
 struct MergeError : std::invalid_argument {
   using std::invalid_argument::invalid_argument;
 };
@@ -37,9 +38,8 @@ enum class PartKind { vndf, scatter, masking, validate, stability };
 // "stability".
 const char* part_kind_name(PartKind kind);
 
-// The kind of the parts, all of one kind (MergeError otherwise): a JSON part's by its provenance's producer
-// (every JSON part is read: a missing or unreadable one is named), an EXR part's by its format (a scatter
-// file, else a trace vndf histogram). Reads nothing of an EXR part but the first's header.
+// The kind of the parts, all of one kind (MergeError otherwise), by their provenance's producer (every part
+// is read: a missing or unreadable one is named).
 PartKind merge_kind(const std::vector<std::string>& paths);
 
 struct MergedVndf {
@@ -75,7 +75,8 @@ struct MergedEllipsoid {
 // Throws HistogramMergeError when an attribute is missing or malformed.
 MergedEllipsoid analyse_merged_ellipsoid(MergedVndf merged);
 
-// Whether `path` is an EXR file of format microsim-scatter-1 (false for a missing or unreadable file).
+// Whether `path` is an EXR file of format microsim-scatter-1 (false for a missing or unreadable file): a
+// scattering result, not a part.
 bool is_scatter_part(const std::string& path);
 
 }  // namespace microsim

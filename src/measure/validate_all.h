@@ -6,6 +6,7 @@
 #pragma once
 
 #include "measure/validation.h"
+#include "stats/histogram_io.h"
 
 #include <nlohmann/json.hpp>
 
@@ -14,6 +15,7 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -136,5 +138,25 @@ ZooResult validate_all(const ValidationRun& run, const ZooObserver& observer = {
 nlohmann::json to_json(const ZooResult& result);
 // The command line's exit code of a result: 0 pass, 1 fail, 130 interrupted.
 int exit_code(const ZooResult& result);
+
+// ---- the merge of a validate run's parts ------------------------------------------------------------------------
+
+// The merged parts of a validate run (measure/merge.h) analysed as the single run is: one validation's
+// report, against its claimed pdf or against the traced histogram its parameters name (run.against, which
+// must hold the counts the parts were compared with), or the batch's result with its BSDF section run here
+// (it is not sharded; `control` reports its progress and cancels it, `observer` sees each row).
+struct MergedValidation {
+  ValidationRun run;
+  std::optional<ValidationReport> report;  // one validation
+  std::optional<TracedHistogram> traced;   // its oracle, when against a traced histogram
+  std::optional<ZooResult> batch;          // --all
+};
+// Throws HistogramMergeError (parameters that describe no run, a histogram other than the parts'),
+// HistogramIoError (the histogram unreadable) and InsufficientData (too few samples for the tests).
+MergedValidation analyse_merged_validation(const ValidationPart& merged, const RunControl& control,
+                                           const ZooObserver& observer = {});
+// What `validate --json` writes for it: the report (against a histogram: its path, rays and hits too), or
+// the batch's (to_json).
+nlohmann::json merged_validation_json(const MergedValidation& m);
 
 }  // namespace microsim

@@ -1,6 +1,7 @@
 #include "measure/vndf.h"
 
 #include "core/strict_parse.h"
+#include "stats/part_json.h"
 
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
@@ -274,6 +275,105 @@ TracedHistogram merge_vndf_parts(const std::vector<TracedHistogram>& parts, std:
   return merged;
 }
 
+// ---- the part as JSON -------------------------------------------------------------------------------------------
+
+namespace {
+// The attributes the part's provenance records apart (its seed and blocks) and so leaves out of the others.
+bool is_provenance_attribute(const std::string& key) { return key == "seed" || key == "blocks" || key == "total_blocks"; }
+}  // namespace
+
+nlohmann::json vndf_part_json(const TracedHistogram& h) {
+  nlohmann::json parameters = nlohmann::json::object(), own = nlohmann::json::object();
+  for (const auto& [key, value] : h.attributes)
+    if (!is_provenance_attribute(key)) (is_per_part(key) ? own : parameters)[key] = value;
+  nlohmann::json binnings = nlohmann::json::array();
+  for (const DirectionBinning& b : h.binnings) binnings.push_back(b.describe());
+  Provenance p = vndf_provenance(h);
+  p.producer = kVndfPartProducer;
+  return {{"provenance", provenance_json(p, parameters)}, {"rays", h.rays}, {"hits", h.hits}, {"partial", h.partial},
+          {"binnings", binnings}, {"counts", h.counts}, {"attributes", own}};
+}
+
+namespace {
+
+// A binning of a part: sphere or lobe (a lobe's roughness positive, its view finite), rebuilt.
+DirectionBinning read_part_binning(const PartReader& r, const nlohmann::json& d, const std::string& where) {
+  const std::string kind = d.is_object() && d.contains("kind") && d["kind"].is_string() ? d["kind"].get<std::string>() : "";
+  if (kind != "sphere" && kind != "lobe") r.malformed(where, "is not the description of a sphere or lobe binning");
+  const auto finite = [&](const char* key, std::size_t n) {
+    if (!d.contains(key) || !d[key].is_array() || d[key].size() != n) return false;
+    for (const nlohmann::json& v : d[key])
+      if (!v.is_number() || !std::isfinite(v.get<double>())) return false;
+    return true;
+  };
+  if (kind == "lobe" && (!finite("alpha", 2) || !(d["alpha"][0].get<double>() > 0 && d["alpha"][1].get<double>() > 0) ||
+                         !finite("wi", 3) || !d.contains("domain") || !d["domain"].is_string()))
+    r.malformed(where, "needs alpha (2 positive numbers), wi (3 finite numbers) and domain");
+  try {
+    return DirectionBinning::from_description(d);
+  } catch (const std::invalid_argument& e) {
+    r.malformed(where, std::string(e.what()).substr(0, 200));
+  }
+}
+
+// Member `key` of a part: an object of string values, added to `attributes`.
+void read_attributes(const PartReader& r, const nlohmann::json& j, const std::string& where,
+                     std::map<std::string, std::string>& attributes) {
+  if (!j.is_object()) r.malformed(where, "is not an object");
+  for (auto it = j.begin(); it != j.end(); ++it) {
+    if (!it.value().is_string() || is_provenance_attribute(it.key()))
+      r.malformed(where + "/" + it.key(), "is not an attribute (a string, not seed or blocks)");
+    attributes[it.key()] = it.value().get<std::string>();
+  }
+}
+
+// The binnings and their counts: one of each kind at most, all of the same rows, counts adding up to at
+// most the hits.
+void read_part_counts(const PartReader& r, const nlohmann::json& report, TracedHistogram& h) {
+  const nlohmann::json& binnings = r.member(report, "binnings", "");
+  if (!binnings.is_array() || binnings.empty() || binnings.size() > 2) r.malformed("binnings", "is not an array of 1 or 2");
+  const nlohmann::json& counts = r.array(report, "counts", binnings.size(), "");
+  for (std::size_t k = 0; k < binnings.size(); ++k) {
+    DirectionBinning b = read_part_binning(r, binnings[k], fmt::format("binnings/{}", k));
+    if (h.find(b.kind()) >= 0 || (k > 0 && b.rows() != h.binnings.front().rows()))
+      r.malformed("binnings", "holds a binning twice, or binnings of different rows");
+    const nlohmann::json& bins = counts[k];
+    const std::string where = fmt::format("counts/{}", k);
+    if (!bins.is_array() || bins.size() != std::size_t(b.size()))
+      r.malformed(where, fmt::format("is not an array of {} counts", b.size()));
+    std::vector<std::uint64_t> c;
+    std::uint64_t total = 0;
+    for (const nlohmann::json& v : bins) {
+      if (!v.is_number_unsigned()) r.malformed(where, "holds a value that is not a count");
+      c.push_back(v.get<std::uint64_t>());
+      if (c.back() > h.hits - total) r.malformed(where, "adds up to more than the hits");
+      total += c.back();
+    }
+    h.binnings.push_back(std::move(b));
+    h.counts.push_back(c);
+  }
+}
+
+}  // namespace
+
+TracedHistogram read_vndf_part(const nlohmann::json& report) {
+  const PartReader r(kVndfPartProducer);
+  nlohmann::json parameters;
+  const Provenance p = r.provenance(report, parameters);
+  TracedHistogram h;
+  h.rays = r.count(report, "rays", "");
+  h.hits = r.count(report, "hits", "");
+  if (h.hits > h.rays) r.malformed("hits", "is more than rays");
+  h.partial = r.flag(report, "partial", "");
+  read_part_counts(r, report, h);
+  read_attributes(r, parameters, "provenance/parameters", h.attributes);
+  read_attributes(r, r.member(report, "attributes", ""), "attributes", h.attributes);
+  h.attributes["seed"] = std::to_string(p.seed);
+  h.attributes["total_blocks"] = std::to_string(p.total_blocks);
+  h.attributes["blocks"] = fmt::format("{},{}", p.blocks.begin, p.blocks.end);
+  return h;
+}
+
 void add_heightfield_diagnostics(TracedHistogram& sum, const TracedHistogram& part) {
   for (const char* key : {"backfacing", "edge_grazes", "leaked", "unresolved"})
     if (sum.attributes.count(key)) sum.attributes[key] = std::to_string(count_attribute(sum, key) + count_attribute(part, key));
@@ -301,6 +401,41 @@ nlohmann::json vndf_run_json(const TracedHistogram& h, const TraceResult& r, con
   j["output"] = out;
   j["blocks"] = fmt::format("{},{}", run.blocks.begin, run.blocks.end);
   j["total_blocks"] = run.total_blocks;
+  return j;
+}
+
+nlohmann::json surface_json(const microgeom::Heightfield& field, const std::string& path, const AnalyticSmith& analytic,
+                            const std::string& source) {
+  nlohmann::json j;
+  j["path"] = path;
+  j["resolution"] = field.resolution();
+  j["tile_size"] = field.tile_size();
+  j["min_height"] = field.min_height();
+  j["max_height"] = field.max_height();
+  j["metadata"] = field.metadata;
+  j["analytic_reference"] = {{"ndf", to_string(analytic.ndf())},
+                             {"alpha", {analytic.alpha_x(), analytic.alpha_y()}},
+                             {"source", source}};
+  return j;
+}
+
+nlohmann::json heightfield_vndf_json(const HeightfieldVndf& m, const microgeom::Heightfield& field, const std::string& out) {
+  const TracedHistogram& h = m.histogram;
+  const VndfRunRecord run = vndf_run_record(h);
+  const VndfComparison& lobe = m.comparisons.back();
+  nlohmann::json j = vndf_run_json(h, m.trace, out);
+  j["surface"] = surface_json(field, run.surface, analytic_reference(field), m.reference_source);
+  j["target"] = run.target;
+  j["expected_hit_fraction"] = 1.0;  // every downward ray hits a heightfield
+  j["backfacing_hits"] = m.diagnostics.backfacing;
+  j["edge_grazes"] = m.diagnostics.edge_grazes;
+  j["leaked_rays"] = m.diagnostics.leaked;
+  j["total_variation"] = lobe.tv_analytic;
+  j["total_variation_own_ndf"] = lobe.tv_empirical;
+  j["noise_floor_tv"] = lobe.tv_noise;
+  j["p_value"] = lobe.p_value_analytic;
+  j["p_value_own_ndf"] = lobe.p_value_empirical;
+  for (const auto& c : m.comparisons) j["comparisons"].push_back(to_json(c));
   return j;
 }
 

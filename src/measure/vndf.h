@@ -90,11 +90,29 @@ nlohmann::json vndf_run_json(const TracedHistogram& h, const TraceResult& r, con
 // The JSON report of an ellipsoid run: vndf_run_json and the target, the hit fraction, the analysis.
 nlohmann::json ellipsoid_vndf_json(const EllipsoidVndf& m, const EllipsoidTarget& target, const std::string& out);
 
+// A heightfield as reports record it: path, resolution, tile, heights, metadata, analytic reference
+// (`source`: "metadata" or "fitted").
+nlohmann::json surface_json(const microgeom::Heightfield& field, const std::string& path, const AnalyticSmith& analytic,
+                            const std::string& source);
+// The JSON report of a heightfield run (`trace vndf --surface S --json`): vndf_run_json, the surface, the
+// tracer's diagnostics, the comparisons with Smith's D_v (the lobe bins' as the headline keys).
+nlohmann::json heightfield_vndf_json(const HeightfieldVndf& m, const microgeom::Heightfield& field, const std::string& out);
+
 // ---- partial results -------------------------------------------------------------------------------------
 
 // The provenance a trace vndf histogram records: seed, block range, blocks of the run (attributes
 // "seed", "blocks" = "B,E", "total_blocks", "block_size", "unbinned" = per binning).
 Provenance vndf_provenance(const TracedHistogram& histogram);
+
+// The part of `trace vndf --shard K/N` as JSON (stats/part_json.h): {"provenance": {"producer": "trace vndf",
+// "parameters": the attributes that define the run (strings; not the seed and blocks), "seed", "blocks",
+// "total_blocks"}, "rays", "hits", "partial", "binnings": [descriptions], "counts": [per binning, per bin],
+// "attributes": the attributes of this part alone (threads, unbinned, ...)}. Counts are integers: exact.
+inline constexpr const char* kVndfPartProducer = "trace vndf";
+nlohmann::json vndf_part_json(const TracedHistogram& histogram);
+// The histogram a part holds, its attributes as the histogram written had them (no probabilities). Throws
+// HistogramMergeError naming what is missing or malformed ("not a trace vndf part: WHERE ...").
+TracedHistogram read_vndf_part(const nlohmann::json& report);
 
 // The parts of one run merged: counts, rays, hits and unbinned summed, the block ranges joined. Throws
 // HistogramMergeError naming the problem: parts of different runs (the first attribute that differs),

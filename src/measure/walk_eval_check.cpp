@@ -1,5 +1,6 @@
 // An eval file against the Smith walk's next-event estimate (walk_eval_check.h).
 #include "measure/walk_eval_check.h"
+#include "stats/json_values.h"
 
 #include <boost/math/distributions/chi_squared.hpp>
 
@@ -87,9 +88,9 @@ nlohmann::json to_json(const WalkEvalCheckReport& r) {
   for (const WalkEvalPair& p : r.worst)
     worst.push_back({{"row", p.row}, {"channel", p.channel}, {"wi", {p.wi.x(), p.wi.y(), p.wi.z()}},
                      {"wo", {p.wo.x(), p.wo.y(), p.wo.z()}}, {"given", p.given}, {"walk", p.walk.value},
-                     {"walk_standard_error", p.walk.standard_error}, {"z", std::isfinite(p.z) ? nlohmann::json(p.z) : nlohmann::json(nullptr)}});
+                     {"walk_standard_error", p.walk.standard_error}, {"z", finite_or_null(p.z)}});
   return {{"file", r.file}, {"storage", r.storage}, {"rows", r.rows}, {"skipped", r.skipped},
-          {"chi2", std::isfinite(r.statistic) ? nlohmann::json(r.statistic) : nlohmann::json(nullptr)}, {"dof", r.dof},
+          {"chi2", finite_or_null(r.statistic)}, {"dof", r.dof},
           {"p", r.p_value}, {"verdict", r.passed ? "pass" : "fail"}, {"worst", worst}};
 }
 

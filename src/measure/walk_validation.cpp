@@ -1,5 +1,6 @@
 // A renderer's multiple-scattering BSDF against the Smith random walk (walk_validation.h).
 #include "measure/walk_validation.h"
+#include "stats/json_values.h"
 
 #include "scatter/scatter_setup.h"
 #include "stats/scatter_compare.h"
@@ -118,7 +119,6 @@ WalkValidationReport validate_dump_against_walk(DirectionSampleReader& dump, con
 }
 
 nlohmann::json to_json(const WalkValidationReport& r) {
-  const auto e = [](const Estimate& x) { return nlohmann::json{{"value", x.value}, {"standard_error", x.standard_error}}; };
   nlohmann::json j{{"verdict", r.passed ? "pass" : "fail"},
                    {"model", "smith-walk"},
                    {"rows", r.rows},
@@ -126,10 +126,10 @@ nlohmann::json to_json(const WalkValidationReport& r) {
                    {"channel", r.channel},
                    {"tv", r.tv},
                    {"tv_noise_floor", r.tv_noise_floor},
-                   {"albedo_reflected", {{"dump", e(r.albedo_reflected_dump)}, {"walk", e(r.albedo_reflected_walk)}, {"p", r.p_reflected}}},
+                   {"albedo_reflected", {{"dump", estimate_json(r.albedo_reflected_dump)}, {"walk", estimate_json(r.albedo_reflected_walk)}, {"p", r.p_reflected}}},
                    {"albedo_transmitted",
-                    {{"dump", e(r.albedo_transmitted_dump)}, {"walk", e(r.albedo_transmitted_walk)}, {"p", r.p_transmitted}}},
-                   {"walk_unfinished", e(r.walk_unfinished)},
+                    {{"dump", estimate_json(r.albedo_transmitted_dump)}, {"walk", estimate_json(r.albedo_transmitted_walk)}, {"p", r.p_transmitted}}},
+                   {"walk_unfinished", estimate_json(r.walk_unfinished)},
                    {"tests", r.tests},
                    {"per_test_significance", r.per_test_significance},
                    {"p_value", r.p_value},

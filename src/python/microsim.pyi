@@ -149,11 +149,16 @@ def build_surface(assembly: str = "smith", alpha: Alpha = 0.5, *, resolution: in
     """Builds a periodic heightfield microsurface (`microsim surface build`): same heights for the same seed."""
 
 def check_bsdf(sample: Callable[[np.ndarray, np.ndarray], Tuple[np.ndarray, np.ndarray, np.ndarray]],
-               eval: Callable[[np.ndarray, np.ndarray], np.ndarray], pdf: Callable[[np.ndarray, np.ndarray], np.ndarray], *,
+               eval: Callable[[np.ndarray, np.ndarray], np.ndarray],
+               pdf: Optional[Callable[[np.ndarray, np.ndarray], np.ndarray]] = None, *,
                bsdf: str, alpha: Alpha, channels: int = 1, transport: str = "radiance",
                masking: str = "height-correlated", samples: int = 200000, seed: int = 1, level: float = 0.01,
-               arithmetic: str = "float32") -> Dict[str, Any]:
-    """The whole BSDF battery (`microsim check-bsdf`) on vectorised numpy callables: the report as a dict."""
+               arithmetic: str = "float32", reference: str = "single-scattering",
+               views: Optional[Sequence[Union[float, Tuple[float, float]]]] = None, stochastic_eval: bool = False,
+               html: Optional[Union[str, "os.PathLike[str]"]] = None) -> Dict[str, Any]:
+    """The whole BSDF battery (`microsim check-bsdf`) on vectorised numpy callables, with its options (reference
+    'single-scattering', 'smith-walk' or 'none'; views THETA or (THETA, PHI) in degrees; html a report path): the
+    report as a dict (check-bsdf's JSON, with 'passed')."""
     ...
 
 def compare_scattering(files: Sequence[str], *, analytic: bool = False, orders: Optional[str] = None,
@@ -163,8 +168,10 @@ def compare_scattering(files: Sequence[str], *, analytic: bool = False, orders: 
     ...
 
 def merge(parts: Sequence[Union[str, "os.PathLike[str]"]], *, out: Optional[Union[str, "os.PathLike[str]"]] = None,
-          json: Optional[Union[str, "os.PathLike[str]"]] = None) -> Dict[str, Any]:
-    """The shards of one run (`trace vndf --shard` on the ellipsoid, `scatter --shard`, `stability --shard`)
-    joined bit for bit (`microsim merge`): the dict its --json writes; `out` the merged .exr histogram. Parts
-    of different runs or missing or repeated blocks raise ValueError naming them."""
+          json: Optional[Union[str, "os.PathLike[str]"]] = None,
+          surface: Optional[Union[str, "os.PathLike[str]"]] = None, progress: Progress = None) -> Dict[str, Any]:
+    """The JSON parts of one run (`trace vndf --shard` on the ellipsoid or a heightfield, `scatter --shard`,
+    `trace masking --shard`, `validate --shard`, `stability --shard`) joined bit for bit (`microsim merge`):
+    the dict its --json writes; `out` the merged .exr histogram; `surface` the heightmap of heightfield parts.
+    Parts of different runs, missing or repeated blocks, or an EXR part raise ValueError naming them."""
     ...

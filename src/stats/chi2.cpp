@@ -1,5 +1,6 @@
 // microsim: chi-square goodness-of-fit and homogeneity tests with pooling of sparse cells (chi2.h).
 #include "stats/chi2.h"
+#include "stats/json_values.h"
 
 #include <boost/math/distributions/chi_squared.hpp>
 #include <boost/math/tools/minima.hpp>
@@ -388,10 +389,9 @@ KolmogorovResult ks_test_uniform(std::span<const double> values) {
 }
 
 nlohmann::json to_json(const ChiSquareResult& r) {
-  auto num = [](double v) -> nlohmann::json { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
   nlohmann::json j;
   j["test"] = r.test;
-  j["statistic"] = num(r.statistic);
+  j["statistic"] = finite_or_null(r.statistic);
   j["dof"] = r.dof;
   j["p_value"] = r.p_value;
   j["significance"] = r.significance;
@@ -403,7 +403,7 @@ nlohmann::json to_json(const ChiSquareResult& r) {
   nlohmann::json worst = nlohmann::json::array();
   for (const CellReport& c : r.worst_cells)
     worst.push_back({{"bin", c.bin}, {"location", c.location}, {"observed", c.observed}, {"expected", c.expected},
-                     {"contribution", num(c.contribution)}});
+                     {"contribution", finite_or_null(c.contribution)}});
   j["worst_cells"] = worst;
   return j;
 }

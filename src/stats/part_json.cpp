@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <bit>
 #include <numeric>
+#include <utility>
 
 namespace microsim {
 
@@ -26,6 +27,8 @@ std::string producer_of(const nlohmann::json& report) {
 }
 
 std::string exact_real_json(double x) { return fmt::format("{:016x}", std::bit_cast<std::uint64_t>(x)); }
+
+nlohmann::json exact_sum_json(const ExactSum& s) { return {s.high_bits(), s.low_bits()}; }
 
 namespace {
 // The path of member `key` of the member at `where` ("" for the report itself).
@@ -85,6 +88,15 @@ const nlohmann::json& PartReader::array(const nlohmann::json& j, const char* key
   return a;
 }
 
+ExactSum PartReader::exact_sum(const nlohmann::json& v, const std::string& where) const {
+  const bool ok = v.is_array() && v.size() == 2 && v[0].is_number_unsigned() && v[1].is_number_unsigned() &&
+                  (v[0].get<std::uint64_t>() >> 63) == 0;
+  if (!ok)
+    malformed(where, fmt::format("= {} is not an exact sum ([HIGH, LOW]: two counts, HIGH below 2^63)",
+                                 reader::quote_excerpt(v.dump())));
+  return ExactSum::from_bits(v[0].get<std::uint64_t>(), v[1].get<std::uint64_t>());
+}
+
 Provenance PartReader::provenance(const nlohmann::json& report, nlohmann::json& parameters) const {
   if (producer_of(report) != producer_) malformed("provenance/producer", fmt::format("is not \"{}\"", producer_));
   const nlohmann::json& prov = report["provenance"];
@@ -103,6 +115,70 @@ Provenance PartReader::provenance(const nlohmann::json& report, nlohmann::json& 
                                                reader::quote_excerpt(blocks.dump()), p.total_blocks));
   p.blocks = {blocks[0].get<std::uint64_t>(), blocks[1].get<std::uint64_t>()};
   return p;
+}
+
+// ---- scattering sums ------------------------------------------------------------------------------------------
+
+namespace {
+nlohmann::json sum_pair(const ExactSum& w, const ExactSum& w2) { return {exact_sum_json(w), exact_sum_json(w2)}; }
+}  // namespace
+
+nlohmann::json scatter_sums_json(const ScatterHistogram& h) {
+  nlohmann::json channels = nlohmann::json::array();
+  for (int c = 0; c < h.channels(); ++c) {
+    nlohmann::json orders = nlohmann::json::array();
+    for (int k = 0; k < kScatterOrderBins; ++k) {
+      const Histogram& lobe = h.histogram(c, k);
+      nlohmann::json w = nlohmann::json::array(), w2 = nlohmann::json::array();
+      for (std::size_t b = 0; b < lobe.size(); ++b) {
+        w.push_back(exact_sum_json(lobe.exact_weight(b)));
+        w2.push_back(exact_sum_json(lobe.exact_weight_squared(b)));
+      }
+      orders.push_back({{"w", std::move(w)}, {"w2", std::move(w2)},
+                        {"unbinned", sum_pair(lobe.exact_unbinned_weight(), lobe.exact_unbinned_weight_squared())}});
+    }
+    channels.push_back({{"orders", std::move(orders)},
+                        {"unfinished", sum_pair(h.exact_unfinished(c, false), h.exact_unfinished(c, true))},
+                        {"lost", sum_pair(h.exact_lost(c, false), h.exact_lost(c, true))}});
+  }
+  return {{"paths", h.paths()}, {"channels", std::move(channels)}};
+}
+
+namespace {
+// Member `key` of `j`: [w, w2], two exact sums.
+std::pair<ExactSum, ExactSum> read_sum_pair(const PartReader& r, const nlohmann::json& j, const char* key,
+                                            const std::string& where) {
+  const nlohmann::json& pair = r.array(j, key, 2, where);
+  const std::string at = where + "/" + key;
+  return {r.exact_sum(pair[0], at + "/0"), r.exact_sum(pair[1], at + "/1")};
+}
+
+void add_order_sums(ScatterHistogram& sum, int c, int k, const nlohmann::json& lobe, const PartReader& r,
+                    const std::string& where) {
+  const nlohmann::json& w = r.array(lobe, "w", sum.bins(), where);
+  const nlohmann::json& w2 = r.array(lobe, "w2", sum.bins(), where);
+  for (std::size_t b = 0; b < sum.bins(); ++b)
+    sum.add_sums(c, k, b, r.exact_sum(w[b], fmt::format("{}/w/{}", where, b)),
+                 r.exact_sum(w2[b], fmt::format("{}/w2/{}", where, b)));
+  const auto [uw, uw2] = read_sum_pair(r, lobe, "unbinned", where);
+  sum.add_unbinned_sums(c, k, uw, uw2);
+}
+}  // namespace
+
+void add_scatter_sums(ScatterHistogram& sum, const nlohmann::json& sums, const PartReader& r, const std::string& where) {
+  const nlohmann::json& channels = r.array(sums, "channels", std::size_t(sum.channels()), where);
+  for (int c = 0; c < sum.channels(); ++c) {
+    const std::string at = fmt::format("{}/channels/{}", where, c);
+    const nlohmann::json& channel = channels[std::size_t(c)];
+    const nlohmann::json& orders = r.array(channel, "orders", kScatterOrderBins, at);
+    for (int k = 0; k < kScatterOrderBins; ++k)
+      add_order_sums(sum, c, k, orders[std::size_t(k)], r, fmt::format("{}/orders/{}", at, k));
+    const auto [fw, fw2] = read_sum_pair(r, channel, "unfinished", at);
+    sum.add_unfinished_sums(c, fw, fw2);
+    const auto [lw, lw2] = read_sum_pair(r, channel, "lost", at);
+    sum.add_lost_sums(c, lw, lw2);
+  }
+  sum.add_launched(r.count(sums, "paths", where));
 }
 
 namespace {

@@ -1,6 +1,6 @@
-// stats: a partial result as JSON, the form in which `microsim merge` receives the parts of a run that
-// writes JSON (trace masking, validate, stability): its provenance, the run's parameters, and numbers
-// that round-trip exactly.
+// stats: a partial result as JSON, the one form in which `microsim merge` receives the parts of a run
+// (trace vndf, scatter, trace masking, validate, stability; the experiment's ranks and shards too): its
+// provenance, the run's parameters, and numbers that round-trip exactly.
 //
 //   {"provenance": {"producer": "...", "parameters": {...}, "seed": S, "blocks": [B, E], "total_blocks": T},
 //    ... the producer's own members ...}
@@ -8,10 +8,12 @@
 // The parameters are everything that defines the run but the seed and the blocks; parts of one run have
 // equal parameters (compared member by member, so a message names the first that differs). A real that
 // must round-trip bit for bit (a sum, a mean, a worst case that may be infinite) is written as the 16 hex
-// digits of its IEEE-754 bits (exact_real_json); JSON numbers are for what a reader may want to read.
+// digits of its IEEE-754 bits (exact_real_json); an exact sum (core/exact_sum.h) as its two 64-bit halves
+// (exact_sum_json); counts are JSON integers. JSON numbers otherwise are for what a reader may want to read.
 #pragma once
 
 #include "stats/histogram.h"
+#include "stats/scatter_histogram.h"
 
 #include <nlohmann/json.hpp>
 
@@ -30,6 +32,9 @@ std::string producer_of(const nlohmann::json& report);
 // The 16 hex digits of the bits of x: exact for every double (infinities, NaN, -0 included).
 std::string exact_real_json(double x);
 
+// An exact sum as [HIGH, LOW], the two 64-bit halves of its 128-bit fixed-point value: exact.
+nlohmann::json exact_sum_json(const ExactSum& s);
+
 // Reads the members of a part of one producer. Every error is a HistogramMergeError that reads
 // "not a PRODUCER part: WHERE/KEY is missing" (or "... is not a count", ...), WHERE the member's path.
 class PartReader {
@@ -46,6 +51,8 @@ public:
   double exact_real(const nlohmann::json& j, const char* key, const std::string& where) const;
   // An array member of exactly `size` elements.
   const nlohmann::json& array(const nlohmann::json& j, const char* key, std::size_t size, const std::string& where) const;
+  // exact_sum_json's form: [HIGH, LOW], two counts, HIGH below 2^63 (a sum of non-negative terms).
+  ExactSum exact_sum(const nlohmann::json& v, const std::string& where) const;
 
   // The provenance of a part: producer (must be this reader's), parameters (an object), seed, blocks
   // (a range within total_blocks). provenance.measurement = parameters.dump().
@@ -57,6 +64,16 @@ private:
           bool (nlohmann::json::*is_t)() const noexcept, const char* what) const;
   std::string producer_;
 };
+
+// The exact sums of a scattering histogram: {"paths": N, "channels": [per channel {"orders": [per order bin
+// {"w": [per bin], "w2": [per bin], "unbinned": [w, w2]}], "unfinished": [w, w2], "lost": [w, w2]}]}, every
+// sum in exact_sum_json's form.
+nlohmann::json scatter_sums_json(const ScatterHistogram& histogram);
+// Adds sums of that form (member `where` of a part read by `reader`) to `sum`, a histogram of their binning
+// and channels: the histogram they were written from when `sum` was empty. HistogramMergeError names a
+// member missing or malformed, or sizes other than sum's.
+void add_scatter_sums(ScatterHistogram& sum, const nlohmann::json& sums, const PartReader& reader,
+                      const std::string& where);
 
 // Throws HistogramMergeError unless part `name` has the first part's parameters: "NAME is not part of the
 // same run: KEY is 'VALUE' there, 'VALUE' in the first part" for the first parameter that differs.

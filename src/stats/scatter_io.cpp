@@ -1,5 +1,6 @@
 // Scatter histograms and expectations in EXR files, and their JSON summaries (scatter_io.h).
 #include "stats/scatter_io.h"
+#include "stats/json_values.h"
 
 #include "core/strict_parse.h"
 #include "microfacet/material.h"
@@ -477,8 +478,6 @@ nlohmann::json binning_json(const std::string& id) {
   nlohmann::json j = nlohmann::json::parse(id, nullptr, false);
   return j.is_discarded() ? nlohmann::json(id) : j;
 }
-
-nlohmann::json estimate_json(const Estimate& e) { return {{"value", e.value}, {"standard_error", e.standard_error}}; }
 
 nlohmann::json sides_json(const ScatterHistogram& h, int c, int order_bin) {
   return {{"upper", estimate_json(h.albedo(c, order_bin, ScatterSide::reflected))},

@@ -1,5 +1,6 @@
 // A renderer's eval() and pdf() against the exact single-scattering BSDF, pointwise (eval_check.h).
 #include "validate/eval_check.h"
+#include "stats/json_values.h"
 
 #include "microfacet/bsdf.h"
 
@@ -324,15 +325,14 @@ EvalCheckReport check_eval_values(std::span<const BsdfQuery> pairs, std::span<co
 
 namespace {
 nlohmann::json mismatch_json(const EvalMismatch& m) {
-  const auto finite = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
   return {{"row", m.row},
           {"wi", {m.wi.x(), m.wi.y(), m.wi.z()}},
           {"wo", {m.wo.x(), m.wo.y(), m.wo.z()}},
           {"quantity", m.quantity},
-          {"given", finite(m.given)},
+          {"given", finite_or_null(m.given)},
           {"reference", m.reference},
           {"tolerance", m.tolerance},
-          {"excess", finite(m.excess())}};
+          {"excess", finite_or_null(m.excess())}};
 }
 }  // namespace
 

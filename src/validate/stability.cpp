@@ -1,6 +1,7 @@
 // microsim: the numerical-stability sweep of the sampler zoo and the analytic Smith-GGX functions
 // (see src/validate/stability.h for what is measured and docs/reference/stability.md for the table and its bounds).
 #include "validate/stability.h"
+#include "stats/json_values.h"
 
 #include "microfacet/bsdf.h"
 #include "core/block_runner.h"
@@ -752,8 +753,6 @@ std::string stability_table_markdown(const StabilityTable& table) {
 }
 
 namespace {
-
-nlohmann::json finite_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
 nlohmann::json bound_json(const StabilityBound& b) {
   return {{"norm_double", finite_or_null(b.norm_double)},

@@ -1,5 +1,6 @@
 // microsim: the statistical validator of direction samplers (validate.h, docs/reference/validator.md).
 #include "validate/validate.h"
+#include "stats/json_values.h"
 
 #include "validate/weight_test.h"
 
@@ -427,7 +428,6 @@ std::optional<FrameHint> diagnose_sample_frame(const DirectionSampleReader& samp
 std::string to_string(Precision precision) { return precision == Precision::float32 ? "float" : "double"; }
 
 nlohmann::json to_json(const SubTest& t) {
-  auto num = [](double v) -> nlohmann::json { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
   nlohmann::json j;
   j["name"] = t.name;
   j["applicable"] = t.applicable;
@@ -435,18 +435,17 @@ nlohmann::json to_json(const SubTest& t) {
   j["passed"] = t.passed;
   if (t.statistical) j["p_value"] = t.p_value;
   // A test that did not run has no value (null, not a 0 that reads as a measurement).
-  j["value"] = t.applicable ? num(t.value) : nlohmann::json(nullptr);
-  j["tolerance"] = t.applicable ? num(t.tolerance) : nlohmann::json(nullptr);
+  j["value"] = t.applicable ? finite_or_null(t.value) : nlohmann::json(nullptr);
+  j["tolerance"] = t.applicable ? finite_or_null(t.tolerance) : nlohmann::json(nullptr);
   j["detail"] = t.detail;
   return j;
 }
 
 nlohmann::json to_json(const ValidationReport& r) {
-  auto num = [](double v) -> nlohmann::json { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
   nlohmann::json j;
   j["verdict"] = r.passed ? "pass" : "fail";
   j["p_value"] = r.p_value;
-  j["statistic"] = num(r.statistic);
+  j["statistic"] = finite_or_null(r.statistic);
   j["dof"] = r.dof;
   j["samples"] = r.samples;
   j["seed"] = r.seeded ? nlohmann::json(r.seed) : nlohmann::json(nullptr);  // null: nothing random was drawn

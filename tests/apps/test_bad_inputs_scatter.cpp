@@ -6,6 +6,7 @@
 
 #include "microgeom/exr_io.h"
 #include "stats/scatter_io.h"
+#include "stats/scatter_merge.h"
 
 #include <gtest/gtest.h>
 
@@ -29,14 +30,14 @@ const fs::path& analytic_fixture() {
   return path;
 }
 
-// DIR gets the analytic fixture as a.exr, a small measured run as p.exr, a heightmap as hf.exr, a text file
+// DIR gets the analytic fixture as a.exr, a small measured run's part as p.json, a heightmap as hf.exr, a text file
 // as text.exr and a copy of the fixture with one attribute replaced as bad.exr.
 void prepare_files(const fs::path& dir) {
   fs::copy_file(analytic_fixture(), dir / "a.exr");
   microsim::ScatterOptions o;
   o.paths = 1000;
   o.rows = 2;
-  microsim::write_scatter_exr(dir / "p.exr", microsim::test::synthetic_scatter(o, 0.5));
+  std::ofstream(dir / "p.json") << microsim::scatter_part_json(microsim::test::synthetic_scatter(o, 0.5), {}).dump();
   microgeom::ExrImage heightmap;
   heightmap.width = heightmap.height = 4;
   heightmap.add_channel("height");
@@ -115,9 +116,10 @@ std::vector<BadInputCase> scatter_cases() {
       {"compare_svg_extension", "compare-scattering a.exr a.exr --svg f.png", 2, "--svg 'f.png'", prepare_files},
       {"compare_json_is_input", "compare-scattering a.exr hf.exr --json a.exr", 2, "a.exr", prepare_files},
       // merge of scatter parts
-      {"merge_expectation", "merge a.exr --out m.exr", 2, "is an expectation", prepare_files},
-      {"merge_with_heightmap", "merge p.exr hf.exr --out m.exr", 2, "'hf.exr' is not a scatter file", prepare_files},
-      {"merge_no_out", "merge a.exr", 2, "--out MERGED.exr is required", prepare_files},
+      {"merge_scatter_file", "merge a.exr --out m.exr", 2, "'a.exr' is an EXR file: parts are JSON now", prepare_files},
+      {"merge_with_heightmap", "merge p.json hf.exr --out m.exr", 2, "'hf.exr' is an EXR file", prepare_files},
+      {"merge_text", "merge p.json text.exr --out m.exr", 2, "'text.exr'", prepare_files},
+      {"merge_no_out", "merge p.json", 2, "--out MERGED.exr is required", prepare_files},
   };
 }
 

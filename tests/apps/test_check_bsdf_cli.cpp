@@ -1,8 +1,11 @@
 // End to end: `microsim check-bsdf --plugin` loads the worked plugin of examples/plugins/rough_ggx.c (a rough GGX
-// conductor and dielectric in the radiance convention, written from the math) and passes it whole (level 0.01,
-// fixed seed); the same plugin with a planted eval() bug (the radiance factor forgotten in eval only) is
-// rejected by the eval, consistency and reciprocity tests while its sampling tests still pass; bad plugins are
-// exit 2.
+// conductor, anisotropic, and dielectric in the radiance convention, written from the math) and passes it whole
+// (level 0.01, fixed seed; the anisotropic one at views off the axes too); the same plugin with a planted eval()
+// bug (the radiance factor forgotten in eval only; built against the header of ABI version 1, so that an old
+// plugin is seen to load) is rejected by the eval, consistency and reciprocity tests while its sampling tests
+// still pass; the anisotropic plugin with its roughnesses swapped is rejected; the Smith multiple-scattering
+// plugin (examples/plugins/smith_walk.c, ABI 2, stochastic eval, no pdf) passes against the walk and the
+// Kulla-Conty plugin against itself, and their planted bugs are rejected; bad plugins are exit 2.
 #include "cli_helpers.h"
 
 #include "core/random.h"
@@ -14,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include <fstream>
+#include <set>
 #include <string>
 
 namespace microsim::test {
@@ -24,8 +28,8 @@ std::string check(const char* plugin, const std::string& claims) {
 }
 
 const std::string kPluginGlass = "--param kind=dielectric --param alpha=0.3 --param eta=1.5 --bsdf dielectric:1.5 --alpha 0.3";
-const std::string kPluginGold = "--param kind=conductor --param alpha=0.3 --param eta=0.2 --param k=3.9 --bsdf conductor:0.2,3.9 "
-                          "--alpha 0.3";
+const std::string kPluginGold = "--param kind=conductor --param alpha_x=0.2 --param alpha_y=0.4 --param eta=0.2 --param k=3.9 "
+                                "--bsdf conductor:0.2,3.9 --alpha 0.2,0.4";
 
 TEST(CheckBsdfCli, TheWorkedPluginsPassWhole) {
   const fs::path dir = scratch_dir("check_bsdf", "good");
@@ -36,6 +40,9 @@ TEST(CheckBsdfCli, TheWorkedPluginsPassWhole) {
     EXPECT_EQ(j["verdict"], "pass");
     EXPECT_GE(j["tests"].size(), 12u);  // sampling and consistency per view, eval and reciprocity
     EXPECT_EQ(j["tests"].back()["test"], "reciprocity");
+    std::set<std::string> views;
+    for (const nlohmann::json& t : j["tests"]) views.insert(t["view"].get<std::string>());
+    EXPECT_EQ(views.count("60 deg phi 30"), claims == kPluginGold ? 1u : 0u) << claims;
   }
   fs::remove_all(dir);
 }
@@ -51,8 +58,67 @@ TEST(CheckBsdfCli, APlantedEvalBugIsRejectedByTheEvalAndConsistencyTests) {
     if (test == "eval" || test == "reciprocity") EXPECT_FALSE(t["passed"].get<bool>()) << t.dump();
     if (test == "consistency" && t["view"] == "60 deg") EXPECT_FALSE(t["passed"].get<bool>()) << t.dump();
   }
-  // The conductor has no refraction: the bug does not touch it.
-  EXPECT_EQ(run_cli(dir, check(MICROSIM_PLUGIN_EVAL_BUG, kPluginGold)).exit_code, 0);
+  // The conductor has no refraction: the bug does not touch it (isotropic: the turned views cost time and add
+  // nothing here).
+  const std::string isotropic_gold = "--param kind=conductor --param alpha=0.3 --param eta=0.2 --param k=3.9 --bsdf "
+                                     "conductor:0.2,3.9 --alpha 0.3";
+  EXPECT_EQ(run_cli(dir, check(MICROSIM_PLUGIN_EVAL_BUG, isotropic_gold)).exit_code, 0);
+  // The anisotropic conductor with alpha_x and alpha_y swapped against its claim: rejected by its samples at a
+  // view on the axis and one turned off it (a small budget: two views).
+  const CliRun swapped = run_cli(dir, std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_GOOD +
+                                          " --param kind=conductor --param alpha_x=0.4 --param alpha_y=0.2 --param eta=0.2"
+                                          " --param k=3.9 --bsdf conductor:0.2,3.9 --alpha 0.2,0.4 --samples 20000"
+                                          " --view 60 --view 60,30 --json s.json");
+  EXPECT_EQ(swapped.exit_code, 1) << swapped.out << swapped.err;
+  const nlohmann::json s = nlohmann::json::parse(slurp(dir / "s.json"));
+  for (const nlohmann::json& t : s["tests"]) {
+    if (t["test"] == "sampling" || t["test"] == "eval") EXPECT_FALSE(t["passed"].get<bool>()) << t.dump();
+  }
+  fs::remove_all(dir);
+}
+
+// The Smith multiple-scattering GGX mirror of examples/plugins/smith_walk.c (ABI 2: a stochastic eval() by the
+// next-event estimator of Heitz et al. 2016, no pdf()) against the Smith walk of microsim: passes its samples,
+// its eval() (averaged over repeated calls) and its reciprocity (two views, a small budget); its planted eval
+// bug is rejected.
+TEST(CheckBsdfCli, TheSmithWalkPluginPassesAgainstTheWalk) {
+  const fs::path dir = scratch_dir("check_bsdf", "walk");
+  const CliRun r = run_cli(dir, std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_SMITH_WALK +
+                                    " --param alpha=0.8 --param eta=0 --bsdf mirror --alpha 0.8 --reference smith-walk"
+                                    " --samples 20000 --view 0 --view 60 --json w.json");
+  EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
+  std::set<std::string> tests;
+  const nlohmann::json j = nlohmann::json::parse(slurp(dir / "w.json"));
+  for (const nlohmann::json& t : j["tests"]) tests.insert(t["test"].get<std::string>());
+  EXPECT_TRUE(j["eval"].is_null());  // the exact eval check: not run against the walk
+  EXPECT_EQ(tests, (std::set<std::string>{"sampling", "integral", "furnace", "eval", "reciprocity"}));
+  // The negative control: its eval() summing orders 1 and 2 only (a planted bug of the plugin's) is rejected by
+  // the eval test against the walk and the furnace, while its samples pass.
+  const CliRun bug = run_cli(dir, std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_SMITH_WALK +
+                                      " --param alpha=0.8 --param eta=0 --param eval_orders=2 --bsdf mirror --alpha 0.8"
+                                      " --reference smith-walk --samples 20000 --view 0 --view 60 --json b.json");
+  EXPECT_EQ(bug.exit_code, 1) << bug.out << bug.err;
+  const nlohmann::json b = nlohmann::json::parse(slurp(dir / "b.json"));
+  for (const nlohmann::json& t : b["tests"]) {
+    if (t["test"] == "sampling") EXPECT_TRUE(t["passed"].get<bool>()) << t.dump();
+    if (t["test"] == "eval" || t["test"] == "furnace") EXPECT_FALSE(t["passed"].get<bool>()) << t.dump();
+  }
+  fs::remove_all(dir);
+}
+
+// The Kulla-Conty compensated GGX mirror of examples/plugins/kulla_conty.c claims no exact reference: with
+// --reference none it passes the tests against itself; its planted non-reciprocal lobe ((1 - E(mu_i))^2) keeps its
+// energy and its sampling consistent and is rejected by reciprocity alone (one view, a small budget).
+TEST(CheckBsdfCli, TheKullaContyPluginPassesAgainstItselfAndItsNonReciprocalLobeIsRejected) {
+  const fs::path dir = scratch_dir("check_bsdf", "kulla_conty");
+  const std::string args = std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_KULLA_CONTY +
+                           " --param alpha=0.5 --bsdf mirror --alpha 0.5 --reference none --samples 20000 --view 60 --json k.json";
+  CliRun r = run_cli(dir, args);
+  EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
+  r = run_cli(dir, args + " --param bug=non-reciprocal");
+  EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
+  const nlohmann::json j = nlohmann::json::parse(slurp(dir / "k.json"));
+  for (const nlohmann::json& t : j["tests"]) EXPECT_EQ(t["passed"].get<bool>(), t["test"] != "reciprocity") << t.dump();
   fs::remove_all(dir);
 }
 
@@ -78,7 +144,8 @@ TEST(CheckBsdfCli, TheHtmlReportIsSelfContainedWithTheResidualMaps) {
   EXPECT_NE(slurp(dir / "bug.html").find("REJECTED"), std::string::npos);
   r = run_cli(dir, check(MICROSIM_PLUGIN_GOOD, kPluginGlass) + " --reference none");
   EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
-  for (const nlohmann::json& t : nlohmann::json::parse(slurp(dir / "c.json"))["tests"]) {
+  const nlohmann::json none = nlohmann::json::parse(slurp(dir / "c.json"));  // kept alive over the loop
+  for (const nlohmann::json& t : none["tests"]) {
     EXPECT_NE(t["test"], "sampling");
     EXPECT_NE(t["test"], "eval");
   }
@@ -137,6 +204,12 @@ TEST(CheckBsdfCli, BadPluginsAreExit2) {
        "--reference"},
       {std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_GOOD + " --bsdf mirror --alpha 0.3 --html " +
        MICROSIM_PLUGIN_GOOD, "--html"},
+      {std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_SMITH_WALK + " --bsdf mirror --alpha 0.3",
+       "needs a deterministic eval"},
+      {std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_GOOD + " --bsdf mirror --alpha 0.3 --view 120",
+       "from inside"},
+      {std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_GOOD + " --bsdf mirror --alpha 0.3 --view 10,20,30",
+       "--view"},
   };
   for (const auto& [args, message] : cases) {
     const CliRun r = run_cli(dir, args);

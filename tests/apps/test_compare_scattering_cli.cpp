@@ -6,12 +6,14 @@
 #include "scatter_samples.h"
 
 #include "stats/scatter_io.h"
+#include "stats/scatter_merge.h"
 
 #include <fmt/core.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
 #include <cmath>
+#include <fstream>
 #include <map>
 #include <string>
 
@@ -39,6 +41,11 @@ ScatterOptions run_options(std::uint64_t seed, std::uint64_t paths = 150000) {
 
 void write_run(const fs::path& path, std::uint64_t seed, double alpha, std::uint64_t paths = 150000) {
   write_scatter_exr(path, synthetic_scatter(run_options(seed, paths), alpha), notes(alpha));
+}
+
+// A shard's part as `scatter --shard K/N --out PART.json` writes it.
+void write_part(const fs::path& path, const ScatterHistogram& h, const std::map<std::string, std::string>& notes) {
+  std::ofstream(path) << scatter_part_json(h, notes).dump() << "\n";
 }
 
 class CompareScatteringCli : public ::testing::Test {
@@ -132,8 +139,8 @@ TEST_F(CompareScatteringCli, MergedShardsAreTheSingleRunBitForBit) {
   std::string parts;
   for (int k = 3; k >= 1; --k) {
     o.blocks = shard_range(whole.provenance.total_blocks, std::uint64_t(k), 3);
-    const std::string part = fmt::format("p{}.exr", k);  // (not "p" + to_string: GCC 12 -Wrestrict false positive)
-    write_scatter_exr(dir / part, synthetic_scatter(o, 0.5), notes(0.5));
+    const std::string part = fmt::format("p{}.json", k);  // (not "p" + to_string: GCC 12 -Wrestrict false positive)
+    write_part(dir / part, synthetic_scatter(o, 0.5), notes(0.5));
     parts += " " + part;
   }
   const CliRun r = run_cli(dir, "merge" + parts + " --out merged.exr --json merged.json");
@@ -147,12 +154,13 @@ TEST_F(CompareScatteringCli, MergedShardsAreTheSingleRunBitForBit) {
   EXPECT_EQ(merged, scatter_summary_json(whole));
 
   for (const auto& [args, message] : std::vector<std::pair<std::string, std::string>>{
-           {"merge p1.exr p3.exr --out m.exr", "missing"},
-           {"merge p1.exr p2.exr p3.exr p2.exr --out m.exr", "more than one part"},
-           {"merge p1.exr m1.exr --out m.exr", "not parts of one run"}}) {
+           {"merge p1.json p3.json --out m.exr", "missing"},
+           {"merge p1.json p2.json p3.json p2.json --out m.exr", "more than one part"},
+           {"merge p1.json m1.json --out m.exr", "not parts of one run"}}) {
     BadInputCase c{"merge", args, 2, message};
+    write_part(dir / "m1.json", synthetic_scatter(run_options(1), 0.5), notes(0.5));
     c.prepare = [&](const fs::path& d) {
-      for (const char* f : {"p1.exr", "p2.exr", "p3.exr", "m1.exr"}) fs::copy_file(dir / f, d / f);
+      for (const char* f : {"p1.json", "p2.json", "p3.json", "m1.json"}) fs::copy_file(dir / f, d / f);
     };
     expect_bad_input(c, "compare_scattering_merge");
   }

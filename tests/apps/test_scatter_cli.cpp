@@ -86,10 +86,10 @@ TEST_F(ScatterCli, WalkShardsMergeIntoTheSingleRun) {
                           "--rays 30000 --rows 3 --seed 4 ";  // 8 blocks of 4096 paths
   ASSERT_EQ(run_cli(dir, run + "--out whole.exr").exit_code, 0);
   for (int k = 1; k <= 3; ++k) {
-    const CliRun r = run_cli(dir, run + "--shard " + std::to_string(k) + "/3 --out p" + std::to_string(k) + ".exr");
+    const CliRun r = run_cli(dir, run + "--shard " + std::to_string(k) + "/3 --out p" + std::to_string(k) + ".json");
     ASSERT_EQ(r.exit_code, 0) << r.err;
   }
-  const CliRun m = run_cli(dir, "merge p3.exr p1.exr p2.exr --out merged.exr");
+  const CliRun m = run_cli(dir, "merge p3.json p1.json p2.json --out merged.exr");
   ASSERT_EQ(m.exit_code, 0) << m.err;
   const ScatterFile whole = read_scatter_exr(dir / "whole.exr"), merged = read_scatter_exr(dir / "merged.exr");
   EXPECT_EQ(merged.histogram, whole.histogram);

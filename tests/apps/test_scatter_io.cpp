@@ -1,5 +1,6 @@
 // Scatter files (stats/scatter_io.h): a histogram or an expectation written and read back is == the one
-// written (the exact sums' bits), the merge of shards read from files is the single run bit for bit, and
+// written (the exact sums' bits), so is a shard's JSON part, the merge of shards read from parts is the single
+// run bit for bit, and
 // the strict reader refuses every malformed attribute and channel with a message naming it.
 #include "stats/scatter_io.h"
 #include "stats/scatter_merge.h"
@@ -90,11 +91,25 @@ TEST(ScatterIo, MergeOfShardsReadFromFilesIsTheSingleRun) {
   std::vector<ScatterHistogram> parts;
   for (int k = 3; k >= 1; --k) {  // any order
     o.blocks = shard_range(whole.provenance.total_blocks, std::uint64_t(k), 3);
-    const fs::path p = dir / fmt::format("part{}.exr", k);
-    write_scatter_exr(p, test::synthetic_scatter(o, 0.3));
-    parts.push_back(read_scatter_exr(p).histogram);
+    const fs::path p = dir / fmt::format("part{}.json", k);  // as `scatter --shard K/N --out PART.json` writes it
+    const ScatterHistogram shard = test::synthetic_scatter(o, 0.3);
+    std::ofstream(p) << scatter_part_json(shard, {{"model", "synthetic"}}).dump();
+    std::ifstream in(p);
+    const ScatterPart read = read_scatter_part(nlohmann::json::parse(in));
+    EXPECT_TRUE(read.histogram == shard);
+    EXPECT_EQ(read.notes.at("model"), "synthetic");
+    parts.push_back(read.histogram);
   }
   EXPECT_TRUE(merge_scatter_parts(parts) == whole);
+  // A malformed part is named by the member that is wrong.
+  nlohmann::json bad = scatter_part_json(parts[0], {});
+  bad["sums"]["channels"][0]["orders"][1]["w"][2] = {-1, 0};
+  try {
+    read_scatter_part(bad);
+    ADD_FAILURE() << "a negative sum was read";
+  } catch (const HistogramMergeError& e) {
+    EXPECT_NE(std::string(e.what()).find("not a scatter part: sums/channels/0/orders/1/w/2"), std::string::npos) << e.what();
+  }
   // A gap and an overlap are named.
   try {
     merge_scatter_parts({parts[0], parts[2]});

@@ -36,9 +36,9 @@ TEST_P(ShardMerge, MergedShardsAreTheSingleRunBitForBit) {
   for (int k = c.shards; k >= 1; --k) {  // any order
     const std::string part = "part" + std::to_string(k);
     const CliRun r = run_cli(dir, c.trace + " --threads " + std::to_string(1 + k % 2) + " --shard " + std::to_string(k) +
-                                      "/" + std::to_string(c.shards) + " --out " + part + ".exr");
+                                      "/" + std::to_string(c.shards) + " --out " + part + ".json");
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    parts += " " + part + ".exr";
+    parts += " " + part + ".json";
   }
   const CliRun merged = run_cli(dir, "merge" + parts + " --out merged.exr --json merged.json");
   ASSERT_EQ(merged.exit_code, 0) << merged.err;
@@ -67,9 +67,11 @@ protected:
     copy_fixture_files(shared_fixture_dir("merge_errors", [](const fs::path& d) {
       const std::string run = "trace vndf --alpha 0.3 --theta 40 --rays 200000 --seed 7";
       for (int k = 1; k <= 3; ++k)
-        ASSERT_EQ(run_cli(d, run + " --shard " + std::to_string(k) + "/3 --out p" + std::to_string(k) + ".exr").exit_code, 0);
-      ASSERT_EQ(run_cli(d, "trace vndf --alpha 0.3 --theta 40 --rays 200000 --seed 8 --shard 2/3 --out seed8.exr").exit_code, 0);
-      ASSERT_EQ(run_cli(d, run + " --rows 15 --shard 2/3 --out rows15.exr").exit_code, 0);
+        ASSERT_EQ(run_cli(d, run + " --shard " + std::to_string(k) + "/3 --out p" + std::to_string(k) + ".json").exit_code, 0);
+      ASSERT_EQ(run_cli(d, "trace vndf --alpha 0.3 --theta 40 --rays 200000 --seed 8 --shard 2/3 --out seed8.json").exit_code, 0);
+      ASSERT_EQ(run_cli(d, run + " --rows 15 --shard 2/3 --out rows15.json").exit_code, 0);
+      // A histogram of the single run: the part form of earlier versions.
+      ASSERT_EQ(run_cli(d, "trace vndf --alpha 0.3 --theta 40 --rays 5000 --seed 7 --out old.exr").exit_code, 0);
     }), *dir_);
   }
   static void TearDownTestSuite() {
@@ -87,23 +89,27 @@ protected:
 };
 fs::path* MergeErrors::dir_ = nullptr;
 
-TEST_F(MergeErrors, AGapIsNamed) { expect_refused("p1.exr p3.exr", "blocks [16, 32) of [0, 49) are missing"); }
-TEST_F(MergeErrors, AMissingEndIsNamed) { expect_refused("p1.exr p2.exr", "blocks [32, 49) of [0, 49) are missing"); }
-TEST_F(MergeErrors, AnOverlapIsNamed) { expect_refused("p1.exr p2.exr p2.exr p3.exr", "blocks [16, 32) are in more than one part"); }
-TEST_F(MergeErrors, AnotherSeedIsRefused) { expect_refused("p1.exr seed8.exr p3.exr", "attribute seed"); }
-TEST_F(MergeErrors, OtherBinningsAreRefused) { expect_refused("p1.exr rows15.exr p3.exr", "not part of the same run"); }
+TEST_F(MergeErrors, AGapIsNamed) { expect_refused("p1.json p3.json", "blocks [16, 32) of [0, 49) are missing"); }
+TEST_F(MergeErrors, AMissingEndIsNamed) { expect_refused("p1.json p2.json", "blocks [32, 49) of [0, 49) are missing"); }
+TEST_F(MergeErrors, AnOverlapIsNamed) { expect_refused("p1.json p2.json p2.json p3.json", "blocks [16, 32) are in more than one part"); }
+TEST_F(MergeErrors, AnotherSeedIsRefused) { expect_refused("p1.json seed8.json p3.json", "attribute seed"); }
+TEST_F(MergeErrors, OtherBinningsAreRefused) { expect_refused("p1.json rows15.json p3.json", "not part of the same run"); }
+TEST_F(MergeErrors, AnExrPartSaysPartsAreJson) {
+  expect_refused("old.exr", "part 'old.exr' is an EXR file: parts are JSON now");
+  expect_refused("p1.json old.exr", "re-run the shard");
+}
 TEST_F(MergeErrors, AnOutputThatIsAPartIsRefused) {
   const auto before = snapshot_files(*dir_);
-  const CliRun r = run_cli(*dir_, "merge p1.exr p2.exr p3.exr --out p2.exr");
+  const CliRun r = run_cli(*dir_, "merge p1.json p2.json p3.json --out p2.json");
   EXPECT_EQ(r.exit_code, 2) << r.err;
   EXPECT_TRUE(snapshot_files(*dir_) == before);
 }
 TEST_F(MergeErrors, ABadShardIsBadUsage) {
   for (const char* shard : {"0/3", "4/3", "3", "1/0", "a/b", "1/100"}) {
-    const CliRun r = run_cli(*dir_, std::string("trace vndf --alpha 0.3 --theta 40 --rays 200000 --shard ") + shard + " --out x.exr");
+    const CliRun r = run_cli(*dir_, std::string("trace vndf --alpha 0.3 --theta 40 --rays 200000 --shard ") + shard + " --out x.json");
     EXPECT_EQ(r.exit_code, 2) << shard << ": " << r.err;
     EXPECT_NE(r.err.find("--shard"), std::string::npos) << r.err;
-    EXPECT_FALSE(fs::exists(*dir_ / "x.exr"));
+    EXPECT_FALSE(fs::exists(*dir_ / "x.json"));
   }
 }
 

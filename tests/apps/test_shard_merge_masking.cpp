@@ -166,7 +166,7 @@ protected:
                                "--json theta50.json").exit_code, 0);
       ASSERT_EQ(run_cli(d, "trace masking --surface t.exr --theta 60 --theta-l 40 --samples 100000 --seed 7 --shard 2/3 "
                                "--json other_surface.json").exit_code, 0);
-      ASSERT_EQ(run_cli(d, "trace vndf --surface s.exr --theta 60 --rays 30000 --seed 7 --shard 2/3 --out v.exr --json v.json").exit_code, 0);
+      ASSERT_EQ(run_cli(d, "trace vndf --surface s.exr --theta 60 --rays 30000 --seed 7 --shard 2/3 --out vpart.json --json v.json").exit_code, 0);
     }), dir());
   }
 };
@@ -193,8 +193,8 @@ TEST_F(MaskingMergeErrors, ASurfaceOtherThanTheTracedOneIsRefused) {
   expect_refused("p1.json p2.json p3.json --surface t.exr --json m.json", "is not the one the parts were traced on");
 }
 TEST_F(MaskingMergeErrors, AVndfHistogramIsAnotherKind) {
-  expect_refused("p1.json v.exr p3.json --json m.json", "parts of one run are of one kind");
-  expect_refused("v.exr p1.json --out m.exr", "parts of one run are of one kind");
+  expect_refused("p1.json vpart.json p3.json --json m.json", "parts of one run are of one kind");
+  expect_refused("vpart.json p1.json --out m.exr", "parts of one run are of one kind");
 }
 TEST_F(MaskingMergeErrors, AVndfReportIsNotAMaskingPart) {
   expect_refused("p1.json v.json p3.json --json m.json", "part 'v.json': not a trace masking report");

@@ -177,7 +177,7 @@ protected:
       ASSERT_EQ(run_cli(d, run + " --alpha 0.3 --seed 8 --shard 2/3 --json seed8.json").exit_code, 0);
       ASSERT_EQ(run_cli(d, run + " --alpha 0.4 --seed 7 --shard 2/3 --json alpha04.json").exit_code, 0);
       ASSERT_EQ(run_cli(d, "stability --random-u 2 --shard 1/2 --json s1.json").exit_code, 0);
-      ASSERT_EQ(run_cli(d, "trace vndf --alpha 0.3 --theta 30 --rays 20000 --out v.exr --json v.json").exit_code, 0);
+      ASSERT_EQ(run_cli(d, "trace vndf --alpha 0.3 --theta 30 --rays 20000 --shard 1/1 --out vpart.json --json v.json").exit_code, 0);
       // A part whose tally was edited: a count that is not a count.
       json bad = json::parse(slurp(d / "p2.json"));
       bad["tallies"][0]["counts"][1][3] = -1;
@@ -203,7 +203,7 @@ TEST_F(ValidateMergeErrors, AnotherRoughnessIsRefused) {
 }
 TEST_F(ValidateMergeErrors, AStabilityPartIsAnotherKind) {
   expect_refused("p1.json s1.json p3.json", "part 's1.json': not a validate report");
-  expect_refused("p1.json v.exr p3.json", "parts of one run are of one kind");
+  expect_refused("p1.json vpart.json p3.json", "parts of one run are of one kind");
 }
 TEST_F(ValidateMergeErrors, AReportIsNotAPart) {
   expect_refused("v.json p1.json", "part 'v.json': not a partial result");

@@ -25,6 +25,8 @@ std::string to_string(PlantedBug bug) {
     case PlantedBug::eval_not_sampler_integral: return "eval orders 1-2 only";
     case PlantedBug::eval_scale: return "eval scaled";
     case PlantedBug::weight_scale: return "weight scaled";
+    case PlantedBug::swapped_alphas: return "alpha_x and alpha_y swapped";
+    case PlantedBug::unrotated_anisotropy: return "view turned to phi 0, roughness not";
   }
   return "?";
 }
@@ -32,6 +34,11 @@ std::string to_string(PlantedBug bug) {
 namespace {
 
 Vec3<double> mirrored(const Vec3<double>& w) { return {w.x(), w.y(), -w.z()}; }
+
+Vec3<double> turned(const Vec3<double>& w, double phi) {
+  const double c = std::cos(phi), s = std::sin(phi);
+  return {c * w.x() - s * w.y(), s * w.x() + c * w.y(), w.z()};
+}
 
 // Per row: f, and the zoo's sampler and pdf, for a view on either side (from inside: mirrored, 1 / eta).
 struct Exact {
@@ -50,7 +57,25 @@ struct Exact {
     if (!material.transmits()) return conductor_brdf(ggx, sampler_index(material), wi, wo, convention.masking) * std::abs(wo.z());
     return dielectric_bsdf_as(ggx, material.eta(), wi, wo, convention) * std::abs(wo.z());
   }
+  // The azimuth the unrotated_anisotropy bug turns the pair by (0 otherwise).
+  double turn(const Vec3<double>& wi) const {
+    return bug == PlantedBug::unrotated_anisotropy ? -std::atan2(wi.y(), wi.x()) : 0.0;
+  }
   double eval(const Vec3<double>& wi, const Vec3<double>& wo) const {
+    const double t = turn(wi);
+    return t == 0 ? eval_as_given(wi, wo) : eval_as_given(turned(wi, t), turned(wo, t));
+  }
+  double pdf(const Vec3<double>& wi, const Vec3<double>& wo) const {
+    const double t = turn(wi);
+    return t == 0 ? pdf_as_given(wi, wo) : pdf_as_given(turned(wi, t), turned(wo, t));
+  }
+  BsdfSampleResult sample(const Vec3<double>& wi, const Vec3<double>& u) const {
+    const double t = turn(wi);
+    BsdfSampleResult s = sample_as_given(t == 0 ? wi : turned(wi, t), u);
+    if (s && t != 0) s->wo = turned(s->wo, -t);
+    return s;
+  }
+  double eval_as_given(const Vec3<double>& wi, const Vec3<double>& wo) const {
     double v = f_cos(wi, wo);
     const double ni = wi.z() < 0 ? material.eta() : 1, no = wo.z() < 0 ? material.eta() : 1;
     if (bug == PlantedBug::eta2_in_transmission && wi.z() * wo.z() < 0) v *= (no * no) / (ni * ni);
@@ -59,12 +84,12 @@ struct Exact {
     if (bug == PlantedBug::eval_scale) v *= 1 + scale;
     return v;
   }
-  double pdf(const Vec3<double>& wi, const Vec3<double>& wo) const {
+  double pdf_as_given(const Vec3<double>& wi, const Vec3<double>& wo) const {
     const bool inside = wi.z() < 0;
     const Vec3<double> a = inside ? mirrored(wi) : wi, b = inside ? mirrored(wo) : wo;
     return sampler->claimed_pdf(ggx, eta_for(wi), a, b);
   }
-  BsdfSampleResult sample(const Vec3<double>& wi, const Vec3<double>& u) const {
+  BsdfSampleResult sample_as_given(const Vec3<double>& wi, const Vec3<double>& u) const {
     const bool inside = wi.z() < 0;
     BsdfSampleResult s = sampler->sample(ggx, eta_for(wi), inside ? mirrored(wi) : wi, u);
     if (s && inside) s->wo = mirrored(s->wo);
@@ -101,6 +126,14 @@ WorkedBsdf exact_conductor(double alpha, PlantedBug bug, double scale) {
   const char* sampler = bug == PlantedBug::weight_not_eval_over_pdf ? "cond_no_g1_wo" : "conductor_vndf";
   auto e = std::make_shared<const Exact>(Exact{GGX<double>(alpha, alpha), m, {}, find_bsdf_sampler(sampler), bug, scale});
   return {from_exact(e, "conductor"), m, e->ggx, BatteryReference::single_scattering};
+}
+
+WorkedBsdf anisotropic_conductor(double alpha_x, double alpha_y, PlantedBug bug) {
+  const Material m = Material::conductor({kZooConductorIor});
+  const GGX<double> claimed(alpha_x, alpha_y);
+  const GGX<double> used = bug == PlantedBug::swapped_alphas ? GGX<double>(alpha_y, alpha_x) : claimed;
+  auto e = std::make_shared<const Exact>(Exact{used, m, {}, find_bsdf_sampler("conductor_vndf"), bug, 0});
+  return {from_exact(e, "anisotropic conductor"), m, claimed, BatteryReference::single_scattering};
 }
 
 WorkedBsdf exact_dielectric(double alpha, TransportMode mode, PlantedBug bug, double scale) {

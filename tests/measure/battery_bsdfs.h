@@ -2,7 +2,8 @@
 // each with the bugs renderers planted in theirs:
 //   - the exact single-scattering conductor and dielectric (microfacet/bsdf.h: Walter et al. 2007 eq. 20-21, the
 //     zoo's VNDF samplers of microfacet/bsdf_samplers.h) in either transport mode, a view from inside mirrored
-//     to the zoo's view from above with 1 / eta;
+//     to the zoo's view from above with 1 / eta; the conductor anisotropic too, with the bugs of a renderer that
+//     swaps the roughnesses, or that turns the view to phi 0 (the isotropic shortcut) and not the roughness;
 //   - the Smith multiple-scattering dielectric by the stochastic evaluation of Heitz et al. 2016: sample() the
 //     random walk (scatter/smith_walk.h smith_walk_samples), eval() its next-event estimator (smith_walk_eval,
 //     a few paths per call: unbiased and noisy), no pdf();
@@ -29,6 +30,8 @@ enum class PlantedBug {
   eval_not_sampler_integral,// the walk's eval() of orders 1 and 2 only
   eval_scale,               // eval() times (1 + scale) (the power sweep)
   weight_scale,             // sample()'s weight times (1 + scale) (the power sweep)
+  swapped_alphas,           // anisotropic: alpha_x and alpha_y swapped
+  unrotated_anisotropy,     // anisotropic: wi turned to phi 0 (wo with it) and the roughness not turned
 };
 std::string to_string(PlantedBug bug);
 
@@ -40,6 +43,8 @@ struct WorkedBsdf {
 };
 
 WorkedBsdf exact_conductor(double alpha, PlantedBug bug = PlantedBug::none, double scale = 0);
+// An anisotropic GGX conductor (alpha_x, alpha_y).
+WorkedBsdf anisotropic_conductor(double alpha_x, double alpha_y, PlantedBug bug = PlantedBug::none);
 WorkedBsdf exact_dielectric(double alpha, TransportMode mode, PlantedBug bug = PlantedBug::none, double scale = 0);
 // paths_per_eval: the walks of each eval() call.
 WorkedBsdf walk_dielectric(double alpha, PlantedBug bug = PlantedBug::none, int paths_per_eval = 4);

@@ -1,7 +1,7 @@
 // Tests of the merge as a library call (src/measure/merge.h): the shards of one ellipsoid VNDF run, written
-// as `trace vndf --shard` writes them, merge in any order into the single run's counts; the kind is found
-// from the files; a missing or repeated block range and parts of two kinds are MergeErrors naming them
-// (negative controls), and nothing but the parts is read.
+// as `trace vndf --shard` writes them (JSON parts), merge in any order into the single run's counts; the
+// kind is found from the files; a missing or repeated block range, parts of two kinds and an EXR part (the
+// form of earlier versions) are MergeErrors naming them (negative controls).
 #include "measure/merge.h"
 
 #include "measure/vndf.h"
@@ -47,8 +47,8 @@ TEST(Merge, VndfShardsInAnyOrderAreTheSingleRun) {
   const std::vector<BlockRange> ranges{{0, 1}, {1, total / 2}, {total / 2, total}};
   std::vector<std::string> parts;
   for (const BlockRange& b : ranges) {
-    parts.push_back((dir / ("p" + std::to_string(b.begin) + ".exr")).string());
-    write_histogram_exr(parts.back(), run(target, b).histogram);
+    parts.push_back((dir / ("p" + std::to_string(b.begin) + ".json")).string());
+    std::ofstream(parts.back()) << vndf_part_json(run(target, b).histogram).dump();
   }
   EXPECT_EQ(merge_kind(parts), PartKind::vndf);
   EXPECT_STREQ(part_kind_name(PartKind::vndf), "trace vndf");
@@ -70,8 +70,12 @@ TEST(Merge, VndfShardsInAnyOrderAreTheSingleRun) {
   const std::string json = (dir / "q.json").string();
   std::ofstream(json) << "{}";
   EXPECT_NE(message_of({parts[0], json}).find("part '" + json + "'"), std::string::npos) << message_of({parts[0], json});
-  const std::string absent = (dir / "absent.exr").string();
+  const std::string absent = (dir / "absent.json").string();
   EXPECT_EQ(message_of({parts[0], absent}), "part '" + absent + "': no such file");
+  const std::string exr = (dir / "old.exr").string();
+  write_histogram_exr(exr, single.histogram);
+  EXPECT_NE(message_of({parts[0], exr}).find("is an EXR file: parts are JSON now"), std::string::npos)
+      << message_of({parts[0], exr});
 }
 
 }  // namespace

@@ -19,7 +19,7 @@ std::filesystem::path eval_file(const std::filesystem::path& dir, const char* na
   const GGX<double> ggx(1.0, 1.0);
   SmithMicrosurface s;
   s.alpha_x = s.alpha_y = 1.0;
-  const std::vector<BsdfQuery> pairs = battery::stochastic_pairs(bsdf_queries(glass, 64, 7, ggx), 30);
+  const std::vector<BsdfQuery> pairs = battery::stochastic_pairs(bsdf_queries(glass, 64, 7, ggx), 16);
   const std::filesystem::path path = dir / name;
   std::ofstream out(path);
   for (std::size_t i = 0; i < pairs.size(); ++i) {
@@ -44,7 +44,7 @@ TEST(WalkEvalCheck, TheWalksOwnValuesPassAndAStaleHeightIsRejected) {
   const WalkEvalCheckReport good =
       check_eval_file_against_walk(eval_file(dir, "good.txt", detail::WalkFault::none), columns, Material::dielectric(1.5), s, o);
   EXPECT_TRUE(good.passed) << to_json(good).dump(2);
-  EXPECT_EQ(good.rows, 30u);
+  EXPECT_EQ(good.rows, 16u);
   const WalkEvalCheckReport bad = check_eval_file_against_walk(
       eval_file(dir, "stale.txt", detail::WalkFault::keep_height_on_refraction), columns, Material::dielectric(1.5), s, o);
   EXPECT_FALSE(bad.passed) << to_json(bad).dump(2);

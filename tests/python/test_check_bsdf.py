@@ -78,3 +78,45 @@ def test_bad_arguments_raise():
         microsim.check_bsdf(sample, evaluate, pdf, bsdf="dielectric:1.5", alpha=0.3, transport="flux")
     with pytest.raises(ValueError):
         microsim.check_bsdf(sample, evaluate, lambda wi, wo: np.zeros(3), bsdf="dielectric:1.5", alpha=0.3, samples=1000)
+
+
+def test_the_command_line_options_views_reference_and_html(tmp_path):
+    """check-bsdf's options from Python: views (THETA or (THETA, PHI)), reference 'none' (only the tests against
+    itself: no sampling or eval line), an HTML report; the planted eval bug is still rejected by consistency."""
+    sample, evaluate, pdf = glass()
+    page = tmp_path / "r.html"
+    r = microsim.check_bsdf(sample, evaluate, pdf, bsdf=f"dielectric:{ETA}", alpha=ALPHA, samples=20_000,
+                            arithmetic="float64", views=[60, (120, 30)], reference="none", html=page)
+    assert r["passed"], [t for t in r["tests"] if not t["passed"]]
+    assert {t["view"] for t in r["tests"]} == {"60 deg", "120 deg phi 30", "bsdf-queries"}
+    assert not {"sampling", "eval"} & {t["test"] for t in r["tests"]}
+    assert (r["bsdf"], r["level"]) == (f"dielectric:{ETA}", 0.01)
+    assert page.read_text().startswith("<!DOCTYPE html>")
+    sample, evaluate, pdf = glass(eval_bug="eta2_twice")
+    r = microsim.check_bsdf(sample, evaluate, pdf, bsdf=f"dielectric:{ETA}", alpha=ALPHA, samples=20_000,
+                            arithmetic="float64", views=[60], reference="none")
+    assert not r["passed"]
+    assert ("consistency", "60 deg") in {(t["test"], t["view"]) for t in r["tests"] if not t["passed"]}
+
+
+def test_a_stochastic_eval_is_averaged_when_declared():
+    """An eval() that returns 4/3 of the value with probability 3/4, else 0 (unbiased, noisy), and no pdf: passes
+    with stochastic_eval=True (reciprocity by a chi-square over repeated calls, the cell integrals with its noise);
+    the same eval not declared stochastic is held to reciprocity pointwise and rejected. Without a pdf, the exact
+    reference is refused."""
+    sample, evaluate, _ = glass()
+    rng = np.random.default_rng(5)
+
+    def noisy(wi, wo):
+        return evaluate(wi, wo) * (4 / 3) * (rng.random(len(wi)) < 0.75)
+
+    kwargs = dict(bsdf=f"dielectric:{ETA}", alpha=ALPHA, samples=20_000, arithmetic="float64", views=[30],
+                  reference="none")
+    r = microsim.check_bsdf(sample, noisy, None, stochastic_eval=True, **kwargs)
+    assert r["passed"], [t for t in r["tests"] if not t["passed"]]
+    assert {t["test"] for t in r["tests"]} == {"integral", "furnace", "reciprocity"}
+    r = microsim.check_bsdf(sample, noisy, None, **kwargs)
+    assert not r["passed"]
+    assert [t["test"] for t in r["tests"] if not t["passed"]] == ["reciprocity"]
+    with pytest.raises(ValueError):
+        microsim.check_bsdf(sample, noisy, None, stochastic_eval=True, bsdf=f"dielectric:{ETA}", alpha=ALPHA)

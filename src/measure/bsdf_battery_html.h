@@ -1,5 +1,5 @@
-// The HTML report of `check-bsdf --html`: the battery's table and, per view, the residual maps of its cell tests
-// (inline SVG; no external resource).
+// measure: the HTML report of the BSDF battery (`check-bsdf --html`, Python `check_bsdf(html=...)`): its table
+// and, per view, the residual maps of its cell tests (inline SVG; no external resource).
 #pragma once
 
 #include "measure/bsdf_battery.h"
@@ -7,9 +7,9 @@
 #include <string>
 #include <vector>
 
-namespace microsim::app {
+namespace microsim {
 
 // title: the page's heading; facts: lines shown under it (the plugin, the claims, the options).
 std::string battery_html(const BatteryReport& report, const std::string& title, const std::vector<std::string>& facts);
 
-}  // namespace microsim::app
+}  // namespace microsim

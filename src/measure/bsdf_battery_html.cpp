@@ -1,5 +1,5 @@
-// The HTML report of check-bsdf (check_bsdf_html.h).
-#include "check_bsdf_html.h"
+// The HTML report of the BSDF battery (bsdf_battery_html.h).
+#include "measure/bsdf_battery_html.h"
 
 #include "stats/svg_parts.h"
 
@@ -8,7 +8,7 @@
 #include <algorithm>
 #include <cmath>
 
-namespace microsim::app {
+namespace microsim {
 namespace {
 
 constexpr const char* kStyle = R"(<style>
@@ -72,4 +72,4 @@ std::string battery_html(const BatteryReport& report, const std::string& title, 
   return page + "</body>\n</html>\n";
 }
 
-}  // namespace microsim::app
+}  // namespace microsim
