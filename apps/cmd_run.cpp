@@ -27,7 +27,7 @@
 #include "experiment/spec.h"
 #include "experiment/shards.h"
 #include "experiment/split_rounds.h"
-#include "experiment/surface_cache.h"
+#include "measure/surface_cache.h"
 #include "experiment/verdict.h"
 
 #include <fmt/core.h>
@@ -133,7 +133,7 @@ int run_experiment_command(const RunArgs& a, experiment::Ranks& ranks, bool& pla
   plan_options.seed = a.seed;
   plan_options.run = cli_run_control(a.threads, progress);
   // Explicit surfaces: built once, in DIR/surfaces (a dry run keeps them in memory: nothing written).
-  experiment::SurfaceCache surfaces(a.dry_run ? fs::path{} : fs::path(a.out) / "surfaces");
+  SurfaceCache surfaces(a.dry_run ? fs::path{} : fs::path(a.out) / "surfaces");
   plan_options.surfaces = &surfaces;
   install_interrupt_handler();
   experiment::StoredRounds stored;
@@ -199,7 +199,7 @@ int run_as_root(const RunArgs& a, MpiSession& mpi) {
 int serve_as_rank(const RunArgs& a, MpiSession& mpi) {
   try {
     RunControl run = cli_run_control(a.threads, nullptr);
-    experiment::SurfaceCache surfaces(fs::path(a.out) / "surfaces", experiment::CacheFiles::read_only);
+    SurfaceCache surfaces(fs::path(a.out) / "surfaces", CacheFiles::read_only);
     return experiment::serve_rounds(mpi.ranks(), [&] { return experiment::load_spec(a.spec); }, run, surfaces);
   } catch (...) {
     mpi.abort(report_error(std::current_exception(), fmt::format("microsim run (rank {})", mpi.ranks().rank())));
@@ -233,7 +233,7 @@ int run_one_shard(const RunArgs& a) {
   experiment::PlanOptions plan_options;
   plan_options.seed = a.seed;
   plan_options.run = cli_run_control(a.threads, progress);
-  experiment::SurfaceCache surfaces;  // explicit surfaces in memory: built once, for the plan and the rounds
+  SurfaceCache surfaces;  // explicit surfaces in memory: built once, for the plan and the rounds
   plan_options.surfaces = &surfaces;
   install_interrupt_handler();
   fmt::print(stderr, "run: {}: planning (pilots)\n", spec.name);

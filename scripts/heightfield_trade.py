@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """Regenerates docs/data/heightfield-trade.json: the planner's heightfield trade table (
-src/experiment/heightfield_trade.h, docs/reference/experiments.md "An explicit heightfield").
+src/measure/heightfield_trade.h, docs/reference/experiments.md "An explicit heightfield").
 
 For each NDF matching (radial, joint) and resolution N (default l = min(16, N/16) cells per correlation
 length), `microsim surface build --assembly smith --alpha 0.5 --seed 1 --json` builds a tile and measures

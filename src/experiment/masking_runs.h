@@ -1,109 +1,38 @@
-// experiment: the library calls behind a masking decision (kind = "masking"; plan.h, run.h):
-//   analytic     Smith's closed forms on the material's NDF (GGX or Beckmann, anisotropic alpha pairs):
-//                  G1(v) = 1 / (1 + Lambda(v))                      (Heitz 2014, JCGT 3(2), eq. 43, the
-//                                                                   Smith masking of a front-facing m)
-//                  G2(v, l) = 1 / (1 + Lambda(v) + Lambda(l))        (eq. 99, height-correlated, reflection)
-//                  G1(v) G1(l)                                       (eq. 98, separable: reported beside it)
-//                with Lambda of GGX (eq. 86) or Beckmann (Walter et al. 2007 eq. 27), from AnalyticSmith
-//                (trace/smith_prediction.h). Exact: no noise, no surface;
-//   heightfield  trace/masking.h's estimators on an explicit surface (masking_surface.h), by measure_masking
-//                (measure/masking.h) over successive block ranges [0, b1), [b1, b2), ... of ONE seed: a
-//                round adds the blocks the count rule asks for, and the pooled estimate is that of the
-//                prefix [0, b) of one run (its exact sums added: the same bits however the rounds split
-//                it). Per light one measure_masking call (the same points; the pair G2 is the light's);
-//                G1 and the conditional bins from the first. Beside each value: Smith's prediction with
-//                the analytic NDF (the surface's metadata) and with the surface's own NDF, and the
-//                measured-minus-Smith difference with its standard error (Smith's value is exact).
-// The target of a masking quantity is the absolute standard error of every value measured: G1, each G2,
-// and each conditional G1(v | bin) (bins of <v, m> and of height). Never prints.
+// experiment: a masking decision's view as measure/masking_runs.h measures it (kind = "masking": Smith's closed
+// forms, or its explicit surface traced in rounds), and the means over a quantity's realisations.
 #pragma once
 
 #include "experiment/plan.h"
 #include "experiment/run.h"
-#include "experiment/surface_cache.h"
-#include "measure/masking.h"
+#include "measure/masking_runs.h"
 
 #include <nlohmann/json.hpp>
 
-#include <functional>
-#include <memory>
-#include <optional>
 #include <string>
 #include <vector>
 
 namespace microsim::experiment {
 
-// The samples of a masking round are drawn in blocks of kSamplesPerBlock (trace/masking.h) from one run of
-// this many samples: any prefix of its blocks is a run of its own.
-inline constexpr std::uint64_t kMaskingRunSamples = kSamplesPerBlock << 28;
-// Blocks of a masking pilot (planned counts; the pilot's samples are not in the results).
-inline constexpr std::uint64_t kMaskingPilotBlocks = 16;
-
-// Smith's analytic NDF of a material at an alpha (GGX or Beckmann).
-AnalyticSmith analytic_smith(const SpecMaterial& material, std::pair<double, double> alpha);
-
-// The analytic values of a masking decision: {"masking": {"model": "analytic", "ndf", "alpha", "view",
-// "lambda", "g1": {...}, "g2": [{"light", "value", "separable", ...}]}}, every standard error 0.
+// What a masking decision measures of its view: its quantity's `what`, lights and bins.
+MaskingView masking_view(const SpecQuantity& quantity, const Decision& decision);
+// Smith's closed forms of a decision: analytic_masking_json of its view on its material's NDF at its alpha.
 nlohmann::json analytic_masking_json(const SpecQuantity& quantity, const SpecMaterial& material, const Decision& decision);
 
-// A round's measurement of some blocks for every light (one SurfaceMasking per light, in call order, its
-// sums exact): this process's (HeightfieldMasking::measure_round) or the ranks' combined (split_rounds.h).
-// nullopt: cancelled (nothing of the round is kept).
-using MaskingRound = std::function<std::optional<std::vector<SurfaceMasking>>(const BlockRange& blocks)>;
-
-// The heightfield measurement of one decision: its surface (`field`, which must outlive it: the surface
-// cache's), its scene, and the exact sums of the blocks
-// [0, blocks_done()) of `seed` per light (one when the quantity has no G2).
-class HeightfieldMasking {
+// The traced measurement of a decision's view on `field` (the surface cache's, which outlives it).
+class HeightfieldMasking : public MaskingRuns {
 public:
   HeightfieldMasking(const SpecQuantity& quantity, const Decision& decision, const microgeom::Heightfield& field,
-                     std::string surface_text, std::uint64_t seed);
-  HeightfieldMasking(const HeightfieldMasking&) = delete;
-  HeightfieldMasking& operator=(const HeightfieldMasking&) = delete;
-
-  // Samples blocks [blocks_done(), end) for every light (by `round`; empty: measure_round here) and adds them.
-  // False (nothing added) when cancelled.
-  bool add_blocks(std::uint64_t end, const RunControl& run, const MaskingRound& round = {});
-  // This process's measurement of `blocks` for every light; nullopt when cancelled.
-  std::optional<std::vector<SurfaceMasking>> measure_round(const BlockRange& blocks, const RunControl& run) const;
-  std::uint64_t seed() const { return seed_; }
-  std::uint64_t blocks_done() const { return blocks_done_; }
-  std::uint64_t samples() const { return blocks_done_ * kSamplesPerBlock; }
-  std::uint64_t rays() const { return rays_; }
-  double seconds() const { return seconds_; }
-  // The estimates of blocks [0, blocks_done()) per light. Needs blocks_done() > 0.
-  std::vector<MaskingResult> results() const;
-  // The largest standard error of the values the quantity asks for (G1, G2 per light, conditional bins).
-  double worst_standard_error() const;
-  // {"masking": {...}} with the values, Smith's predictions, the differences, and "parts": the exact sums
-  // per light (masking_part_json), from which restore() continues.
-  nlohmann::json values_json() const;
-  // The sums of values_json()'s "parts" (a resumed run). Throws std::invalid_argument when they are not this
-  // measurement's (lights, seed, blocks).
-  void restore(const nlohmann::json& values);
-
-private:
-  MaskingRequest request(std::size_t light, const BlockRange& blocks, const RunControl& run) const;
-  const SpecQuantity& quantity_;
-  Decision decision_;
-  const microgeom::Heightfield& field_;  // the surface cache's (surface_cache.h), which outlives the measurement
-  std::string surface_text_;
-  std::unique_ptr<MaskingSurface> surface_;
-  std::uint64_t seed_ = 0, blocks_done_ = 0, rays_ = 0;
-  double seconds_ = 0;
-  std::vector<SurfaceMasking> parts_;  // per light: the run's parameters and provenance, the summed sums
+                     std::string surface_text, std::uint64_t seed)
+      : MaskingRuns(masking_view(quantity, decision), field, std::move(surface_text), seed) {}
 };
-
-// The largest standard error of the wanted values of one result (G1, the pair G2, the conditional bins).
-double masking_worst_standard_error(const SpecQuantity& quantity, const MaskingResult& result);
 
 // Masking over several realisations (a quantity's `realisations` > 1): per quantity, alpha and view whose
 // realisations ran whole (at least two; met or not, so that none is selected by its values), every measured
 // value's mean over them with its standard error from their spread (sample standard deviation / sqrt(K): the
 // realisations are independent surfaces, so it holds both the spread between surfaces and each one's Monte
-// Carlo error) and the Monte Carlo part alone (the root mean square of their standard errors / sqrt(K)). An array of {"label", "realisations", "g1", "g2": [...],
-// "conditional": {"by_normal": [...], "by_height": [...]}}, each value {"mean", "standard_error",
-// "monte_carlo_error"}; empty when no quantity has several.
+// Carlo error) and the Monte Carlo part alone (the root mean square of their standard errors / sqrt(K)). An
+// array of {"label", "realisations", "g1", "g2": [...], "conditional": {"by_normal": [...], "by_height": [...]}},
+// each value {"mean", "standard_error", "monte_carlo_error"}; empty when no quantity has several.
 nlohmann::json masking_realisation_means(const std::vector<MeasurementResult>& measurements);
 
 }  // namespace microsim::experiment

@@ -5,7 +5,7 @@
 
 #include "core/run_control.h"
 #include "experiment/spec.h"
-#include "experiment/surface_cache.h"
+#include "measure/surface_cache.h"
 #include "microgeom/assembly.h"
 #include "microgeom/heightfield.h"
 

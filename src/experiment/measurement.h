@@ -3,11 +3,12 @@
 // block range run by a thread, an MPI rank or a job-array shard alike: split_rounds.h adds the parts in block
 // order), its rounds against its target, and its values for results.json and resumption. The driver
 // (run_experiment) owns the order of the measurements, resumption, cancellation, the ranks and the shards.
-// The table of measurement_registry.cpp is the only place that chooses by kind: its model rule, its planner,
-// its Measurement (make_measurement) and its report section.
+// The table of measurement_registry.cpp is the only place that chooses by kind: its name, its spec keys, its
+// model rule, its planner, its Measurement (make_measurement) and its report section.
 #pragma once
 
 #include "experiment/run.h"
+#include "experiment/spec_tree.h"
 
 #include <functional>
 #include <memory>
@@ -84,12 +85,17 @@ void plan_scattering_quantity(const ExperimentSpec&, std::size_t, const PlanOpti
 void plan_validation_quantity(const ExperimentSpec&, std::size_t, const PlanOptions&, SurfaceCache&, std::vector<Decision>&);
 void plan_masking_quantity(const ExperimentSpec&, std::size_t, const PlanOptions&, SurfaceCache&, std::vector<Decision>&);
 PlanQuantity quantity_planner(QuantityKind kind);  // measurement_registry.cpp
-// Each kind's choice of model (plan_rules.cpp; choose_model asks the registry for the quantity's).
+// Each kind's choice of model (in its file; choose_model asks the registry for the quantity's), and what they
+// share (plan_rules.cpp): a surface named in the spec is measured on it; Smith's model has single scattering in
+// closed form and every order in the random walk (`note` appended to the reason).
 using ModelRule = ModelChoice (*)(const SpecQuantity& quantity, const SpecMaterial& material);
+ModelChoice albedo_model(const SpecQuantity&, const SpecMaterial&);
 ModelChoice vndf_model(const SpecQuantity&, const SpecMaterial&);
+ModelChoice scattering_model(const SpecQuantity&, const SpecMaterial&);
 ModelChoice validation_model(const SpecQuantity&, const SpecMaterial&);
-ModelChoice albedo_or_scattering_model(const SpecQuantity&, const SpecMaterial&);
 ModelChoice masking_model(const SpecQuantity&, const SpecMaterial&);
+ModelChoice explicit_surface_choice(const SpecQuantity& quantity);
+ModelChoice smith_orders_choice(const SpecQuantity& quantity, const std::string& note);
 ModelRule kind_model_rule(QuantityKind kind);  // measurement_registry.cpp
 
 // Each kind's file: its implementation of a decision (the decision's model chooses among its variants).
@@ -98,6 +104,9 @@ std::unique_ptr<Measurement> make_scattering_measurement(const ExperimentSpec& s
 std::unique_ptr<Measurement> make_albedo_measurement(const ExperimentSpec& spec, const Decision& decision);
 std::unique_ptr<Measurement> make_validation_measurement(const ExperimentSpec& spec, const Decision& decision);
 std::unique_ptr<Measurement> make_masking_measurement(const ExperimentSpec& spec, const Decision& decision);
+
+// Each kind's spec keys and their reader (spec_tree.h KindSpec), in its file.
+extern const KindSpec albedo_spec, vndf_spec, scattering_spec, validation_spec, masking_spec;
 
 // The part of a round of rays traced on a decision's tile (measurement_vndf.cpp): a VNDF's on a tile, and
 // the reference rays of a validation against a tile.

@@ -7,6 +7,8 @@
 // times tighter while an error estimate exceeds the target (deterministic: resumed, run again).
 #include "experiment/plan_kinds.h"
 #include "experiment/measurement.h"
+#include "stats/curve_figure.h"
+#include "experiment/report_html.h"
 #include "experiment/measures.h"
 #include "experiment/surface_albedo.h"
 
@@ -16,9 +18,35 @@
 #include <fmt/core.h>
 
 #include <chrono>
+#include <cmath>
+#include <limits>
 
 namespace microsim::experiment {
 namespace {
+
+// Whether a target applies to a quantity of an albedo table: orders single, the single-scattering albedos (E1,
+// E1_R, E1_T); all orders, every albedo the table holds, not the unfinished or lost weight. The worst relative
+// error (error / value) over the cells and E_avg it applies to; infinite for a value 0 with an error.
+bool albedo_target_applies(const SpecQuantity& quantity, std::string_view table_quantity) {
+  return table_quantity.starts_with(quantity.orders == Orders::single ? "E1" : "E");
+}
+
+std::string albedo_target_text(const SpecQuantity& quantity) { return quantity.orders == Orders::single ? "E1*" : "E*"; }
+
+double albedo_relative_error(const Estimate& e) {
+  if (e.standard_error == 0) return 0;
+  return e.value != 0 ? e.standard_error / std::abs(e.value) : std::numeric_limits<double>::infinity();
+}
+
+double worst_relative_error(const AlbedoTable& table, const SpecQuantity& quantity) {
+  double worst = 0;
+  for (const AlbedoQuantity& q : table.quantities) {
+    if (!albedo_target_applies(quantity, q.name)) continue;
+    for (const Estimate& e : q.cells) worst = std::max(worst, albedo_relative_error(e));
+    for (const Estimate& e : q.average) worst = std::max(worst, albedo_relative_error(e));
+  }
+  return worst;
+}
 
 // The rounds' tables as one table of their summed paths per cell (pool_rounds per cell and per E_avg).
 AlbedoTable pool_tables(const std::vector<AlbedoTable>& tables, const std::vector<std::uint64_t>& units) {
@@ -251,6 +279,104 @@ void plan_albedo_quantity(const ExperimentSpec& spec, std::size_t index, const P
 std::unique_ptr<Measurement> make_albedo_measurement(const ExperimentSpec& spec, const Decision& decision) {
   if (decision.model.model == Model::analytic) return std::make_unique<AnalyticAlbedo>(spec, decision);
   return std::make_unique<SampledAlbedo>(spec, decision);
+}
+
+// ---- its model --------------------------------------------------------------------------------------------------
+
+ModelChoice albedo_model(const SpecQuantity& q, const SpecMaterial& m) {
+  if (q.surface.kind != SurfaceChoice::Kind::automatic) return explicit_surface_choice(q);
+  return smith_orders_choice(q, m.facet.kind() == MaterialKind::conductor
+                                    ? "; a conductor's table is the mirror's (Kulla & Conty 2017: E(mu) for F = 1, the "
+                                      "Fresnel enters through F_avg)"
+                                    : "");
+}
+
+// ---- its spec keys ---------------------------------------------------------------------------------------------
+
+namespace {
+
+void check_albedo_material(const SpecTable& t, const SpecMaterial& m, bool inside) {
+  for (std::size_t i = 0; i < m.alphas.size(); ++i) {
+    const auto [ax, ay] = m.alphas[i];
+    if (ax != ay) t.fail("material", fmt::format("material {}: an albedo table is isotropic (alpha pair {}, {})", quote_excerpt(m.name), ax, ay));
+    if (ax < kMinAlbedoAlpha || ax > kMaxAlbedoAlpha)
+      t.fail("material", fmt::format("material {}: alpha {} outside an albedo table's [{}, {}]", quote_excerpt(m.name), ax,
+                                     kMinAlbedoAlpha, kMaxAlbedoAlpha));
+    if (i > 0 && !(ax > m.alphas[i - 1].first))
+      t.fail("material", fmt::format("material {}: an albedo table's alphas must increase ({} after {})", quote_excerpt(m.name), ax,
+                                     m.alphas[i - 1].first));
+  }
+  if (inside && !m.facet.transmits()) t.fail("inside", fmt::format("light from inside needs a dielectric ({} is opaque)", quote_excerpt(m.name)));
+}
+
+void read_albedo_spec(const SpecTable& t, SpecQuantity& q, const SpecMaterial& m, const std::filesystem::path&) {
+  q.target = read_target(t, "target_relative_error", 0.5, "a relative error below 0.5");
+  q.orders = read_orders(t);
+  q.mus = int(t.integer("mus", 16, kMinAlbedoMus, kMaxAlbedoMus));
+  q.inside = t.boolean("inside", false);
+  check_albedo_material(t, m, q.inside);
+}
+
+}  // namespace
+
+const KindSpec albedo_spec{"orders target_relative_error mus inside", read_albedo_spec};
+
+// ---- its report section (report_html.h) -----------------------------------------------------------------------
+
+namespace html {
+namespace {
+
+// The rows of one albedo quantity: E(mu) +- error per alpha, then E_avg +- error.
+std::string albedo_quantity_table(const json& values, const json& q) {
+  std::vector<std::string> header{"alpha"};
+  for (const json& mu : member(values, "mus")) header.push_back("mu " + report_number(mu));
+  header.push_back("E_avg");
+  std::string body;
+  const json& alphas = member(values, "alphas");
+  for (std::size_t a = 0; a < alphas.size(); ++a) {
+    std::vector<std::string> cells{report_number(alphas[a])};
+    for (std::size_t k = 0; k < member(q, "value")[a].size(); ++k)
+      cells.push_back(report_number(q["value"][a][k]) + " &plusmn; " + report_number(member(q, "error")[a][k]));
+    cells.push_back("<b>" + report_number(member(q, "average")[a]) + "</b> &plusmn; " +
+                    report_number(member(q, "average_error")[a]));
+    body += row(cells);
+  }
+  return table(header, body);
+}
+
+std::string albedo_quantity_figure(const json& values, const std::string& name, const json& q) {
+  std::vector<Curve> curves;
+  const json& alphas = member(values, "alphas");
+  for (std::size_t a = 0; a < alphas.size(); ++a)
+    curves.push_back({"alpha " + report_number(alphas[a]), member(values, "mus").get<std::vector<double>>(),
+                      member(q, "value")[a].get<std::vector<double>>(), member(q, "error")[a].get<std::vector<double>>()});
+  if (curves.empty()) return "";
+  const std::string subtitle = fmt::format("{} ({}), error bars: {}", text_of(member(values, "model")),
+                                           text_of(member(values, "material")), text_of(member(values, "error")));
+  return "<figure>" + curve_figure_svg(name + "(mu) per alpha", subtitle, {"mu = cos theta_i", name}, curves) +
+         "</figure>\n";
+}
+
+std::string albedo_values(const json& values) {
+  std::string out = fmt::format("<p>{} {}, {} side; error: {}.</p>\n", esc(text_of(member(values, "model"))),
+                                esc(text_of(member(values, "material"))), esc(text_of(member(values, "side"))),
+                                esc(text_of(member(values, "error"))));
+  for (const json& name : member(values, "quantity_names")) {
+    const std::string n = name.get<std::string>();
+    const json& q = member(member(values, "quantities"), n.c_str());
+    out += fmt::format("<h4>{}</h4>\n", esc(n)) + albedo_quantity_table(values, q);
+    if (n != "unfinished" && n != "lost") out += albedo_quantity_figure(values, n, q);
+  }
+  return out;
+}
+
+}  // namespace
+}  // namespace html
+
+std::string albedo_report(const nlohmann::json& values, std::size_t index, const ReportHistograms&, const ReportScatters&,
+                          const std::string&) {
+  if (!values.contains("quantity_names")) return "";
+  return html::albedo_values(values) + fmt::format("<p>Table: <a href=\"albedo-{0}.csv\">albedo-{0}.csv</a>.</p>\n", index);
 }
 
 }  // namespace microsim::experiment

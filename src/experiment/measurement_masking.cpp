@@ -1,11 +1,14 @@
 // experiment: the masking kind (measurement.h): Smith's closed forms (analytic: exact, once), or G1, G2 and the
-// conditional G1 measured on an explicit surface (masking_runs.h HeightfieldMasking) in rounds of successive
+// conditional G1 measured on an explicit surface (measure/masking_runs.h MaskingRuns) in rounds of successive
 // block ranges of one run until the target standard error is met. The ranks and shards measure shards of a
 // round's blocks for every light on the same surface (the run's seed), their exact sums (MaskingSums) added in
 // order; a part cancelled part way drops the round, as in one process.
 #include "experiment/masking_runs.h"
 #include "experiment/masking_surface.h"
 #include "experiment/measurement.h"
+#include "stats/curve_figure.h"
+#include "experiment/report_html.h"
+#include "microgeom/assembly.h"
 
 #include "core/wall_clock.h"
 
@@ -188,6 +191,325 @@ void plan_masking_quantity(const ExperimentSpec& spec, std::size_t index, const 
 std::unique_ptr<Measurement> make_masking_measurement(const ExperimentSpec& spec, const Decision& decision) {
   if (decision.model.model == Model::analytic) return std::make_unique<AnalyticMasking>(spec, decision);
   return std::make_unique<SurfaceMaskingMeasurement>(spec, decision);
+}
+
+// ---- its view, and the means over realisations ----------------------------------------------------------------
+
+MaskingView masking_view(const SpecQuantity& q, const Decision& d) {
+  MaskingView v{d.view.theta_deg, d.view.phi_deg, {}, q.masking.g1, q.masking.g2, q.masking.conditional, q.bins};
+  for (const Direction& l : q.lights) v.lights.emplace_back(l.theta_deg, l.phi_deg);
+  return v;
+}
+
+nlohmann::json analytic_masking_json(const SpecQuantity& q, const SpecMaterial& m, const Decision& d) {
+  return microsim::analytic_masking_json(masking_view(q, d), m.ndf, d.alpha);
+}
+
+namespace {
+
+// The mean of one value over realisations ({"value", "standard_error"} each).
+nlohmann::json realisation_mean(const std::vector<const nlohmann::json*>& values) {
+  const double k = double(values.size());
+  double sum = 0, mc = 0;
+  for (const nlohmann::json* v : values) {
+    sum += v->at("value").get<double>();
+    mc += std::pow(v->at("standard_error").get<double>(), 2);
+  }
+  const double mean = sum / k;
+  double spread = 0;
+  for (const nlohmann::json* v : values) spread += std::pow(v->at("value").get<double>() - mean, 2);
+  return {{"mean", mean}, {"standard_error", std::sqrt(spread / (k - 1) / k)}, {"monte_carlo_error", std::sqrt(mc) / k}};
+}
+
+// The same member of every realisation's masking values, by a path of keys and indices.
+nlohmann::json mean_of(const std::vector<const nlohmann::json*>& maskings, const nlohmann::json::json_pointer& where) {
+  std::vector<const nlohmann::json*> values;
+  for (const nlohmann::json* mk : maskings) values.push_back(&mk->at(where));
+  return realisation_mean(values);
+}
+
+nlohmann::json group_means(const std::string& label, const std::vector<const nlohmann::json*>& maskings) {
+  using ptr = nlohmann::json::json_pointer;
+  const nlohmann::json& first = *maskings.front();
+  nlohmann::json out{{"label", label}, {"realisations", maskings.size()}, {"g1", mean_of(maskings, ptr("/g1"))}};
+  if (first.contains("g2")) {
+    out["g2"] = nlohmann::json::array();
+    for (std::size_t l = 0; l < first["g2"].size(); ++l) {
+      nlohmann::json g2 = mean_of(maskings, ptr(fmt::format("/g2/{}", l)));
+      g2["light"] = first["g2"][l]["light"];
+      out["g2"].push_back(g2);
+    }
+  }
+  if (first.contains("conditional"))
+    for (const char* binning : {"by_normal", "by_height"}) {
+      out["conditional"][binning] = nlohmann::json::array();
+      for (std::size_t b = 0; b < first["conditional"][binning].size(); ++b)
+        out["conditional"][binning].push_back(mean_of(maskings, ptr(fmt::format("/conditional/{}/{}", binning, b))));
+    }
+  return out;
+}
+
+}  // namespace
+
+nlohmann::json masking_realisation_means(const std::vector<MeasurementResult>& measurements) {
+  std::map<std::string, std::vector<const nlohmann::json*>> groups;  // by label without " realisation k"
+  std::vector<std::string> order;
+  for (const MeasurementResult& m : measurements) {
+    const Decision& d = m.decision;
+    if (!m.ran || m.partial || d.model.model != Model::heightfield || !m.values.contains("masking")) continue;
+    const std::string label = d.label.substr(0, d.label.rfind(" realisation "));
+    if (label.size() == d.label.size()) continue;  // one realisation
+    if (groups[label].empty()) order.push_back(label);
+    groups[label].push_back(&m.values.at("masking"));
+  }
+  nlohmann::json out = nlohmann::json::array();
+  for (const std::string& label : order)
+    if (groups[label].size() >= 2) out.push_back(group_means(label, groups[label]));
+  return out;
+}
+
+
+// ---- its model --------------------------------------------------------------------------------------------------
+
+// Masking: Smith's closed forms unless the quantity needs a surface (conditional masking: Smith assumes
+// masking independent of the facet and of height, so only an explicit surface has it) or names one.
+ModelChoice masking_model(const SpecQuantity& q, const SpecMaterial& m) {
+  const std::string ndf = to_string(m.ndf);
+  if (q.surface.kind != SurfaceChoice::Kind::automatic)
+    return {Model::heightfield,
+            fmt::format("the spec names a surface ({} {}): its own masking is measured by tracing it (measure_masking), "
+                        "in rounds to the target standard error, beside Smith's prediction with the analytic NDF "
+                        "and with the surface's own NDF",
+                        q.surface.kind == SurfaceChoice::Kind::assembly ? "assembly" : "heightmap", q.surface.name)};
+  if (q.masking.conditional)
+    return {Model::heightfield,
+            fmt::format("conditional masking (G1 given <v, m> or height) is not in the Smith model, which assumes "
+                        "masking independent of both: it needs an explicit surface; none is named, so the {} "
+                        "assembly (built to {}) is built per alpha at {}^2 with a correlation length of N/64 cells "
+                        "(4 to 16: 64 correlation lengths per tile, masking_surface.h), and traced in rounds to the "
+                        "target standard error",
+                        microgeom::plain_assembly(m.ndf), ndf, q.resolution)};
+  return {Model::analytic,
+          fmt::format("G1 and G2 of the Smith model have closed forms: G1 = 1 / (1 + Lambda(v)) (Heitz 2014, eq. 43), "
+                      "height-correlated G2 = 1 / (1 + Lambda(v) + Lambda(l)) (eq. 99; separable G1 G1, eq. 98, "
+                      "beside it) with the {} Lambda: exact, no noise, no surface to build",
+                      ndf)};
+}
+
+// ---- its spec keys ---------------------------------------------------------------------------------------------
+
+namespace {
+
+// `what`: one name or a list of g1, g2, conditional (default g1), each at most once.
+MaskingWhat masking_what(const SpecTable& t) {
+  if (!t.has("what")) return {true, false, false};
+  const SpecJson& v = t.at("what");
+  if (v.is_array() && v.empty()) t.fail("what", "must not be empty");
+  MaskingWhat w;
+  for (const SpecJson& item : v.is_array() ? v : SpecJson::array({v})) {
+    if (!item.is_string()) t.fail("what", "a list of g1, g2, conditional");
+    const std::string name = item.get<std::string>();
+    bool* flag = name == "g1" ? &w.g1 : name == "g2" ? &w.g2 : name == "conditional" ? &w.conditional : nullptr;
+    if (flag == nullptr) t.fail("what", fmt::format("{} is not a masking quantity (g1, g2, conditional)", quote_excerpt(name)));
+    if (*flag) t.fail("what", fmt::format("{} is listed twice", name));
+    *flag = true;
+  }
+  return w;
+}
+
+// G2's lights: light_theta (required with g2, in [0, 90)) x light_phi (default [0]); refused without g2.
+std::vector<Direction> masking_lights(const SpecTable& t, bool g2) {
+  for (const char* key : {"light_theta", "light_phi"})
+    if (!g2 && t.has(key)) t.fail(key, "lights apply to g2 (what = [\"g2\", ...])");
+  if (!g2) return {};
+  if (!t.has("light_theta")) t.fail("light_theta", "g2 needs its lights: light_theta = [...] (degrees; light_phi default [0])");
+  std::vector<Direction> out;
+  for (double theta : t.numbers("light_theta")) {
+    if (!(theta >= 0 && theta < 90))
+      t.fail("light_theta", fmt::format("theta {} deg is at or below the horizon or not an angle (a light takes [0, 90))", theta));
+    for (double phi : t.has("light_phi") ? t.numbers("light_phi") : std::vector<double>{0.0}) out.push_back({theta, phi});
+  }
+  return out;
+}
+
+// The surface of a masking quantity: a built one (an assembly, or conditional masking on auto) takes a
+// resolution; a heightmap is one surface (one alpha); an assembly is built to the material's NDF.
+void check_masking_surface(const SpecTable& t, SpecQuantity& q, const SpecMaterial& m) {
+  const bool built = q.surface.kind == SurfaceChoice::Kind::assembly ||
+                     (q.surface.kind == SurfaceChoice::Kind::automatic && q.masking.conditional);
+  if (t.has("resolution") && !built)
+    t.fail("resolution", q.surface.kind == SurfaceChoice::Kind::heightmap
+                             ? "a heightmap has its own resolution"
+                             : "the analytic Smith model has no surface (resolution applies to an assembly or to conditional masking)");
+  q.resolution = int(t.integer("resolution", kDefaultMaskingResolution, kMinMaskingResolution, kMaxMaskingResolution));
+  if ((q.resolution & (q.resolution - 1)) != 0) t.fail("resolution", fmt::format("{} must be a power of two", q.resolution));
+  if (t.has("realisations") && !built)
+    t.fail("realisations", q.surface.kind == SurfaceChoice::Kind::heightmap
+                               ? "a heightmap is one realisation"
+                               : "the analytic Smith model has no surface (realisations apply to an assembly or to conditional masking)");
+  q.realisations = int(t.integer("realisations", 1, 1, kMaxMaskingRealisations));
+  if (q.surface.kind == SurfaceChoice::Kind::heightmap && m.alphas.size() != 1)
+    t.fail("surface", fmt::format("a heightmap is one surface: material {} must have one alpha (it has {})",
+                                  quote_excerpt(m.name), m.alphas.size()));
+  if (q.surface.kind != SurfaceChoice::Kind::assembly) return;
+  if (microgeom::find_assembly(q.surface.name)->reference != m.ndf)
+    t.fail("surface", fmt::format("assembly {} is built to {}, material {} is {}", q.surface.name,
+                                  to_string(microgeom::find_assembly(q.surface.name)->reference),
+                                  quote_excerpt(m.name), to_string(m.ndf)));
+}
+
+void read_masking(const SpecTable& t, SpecQuantity& q, const SpecMaterial& m) {
+  q.masking = masking_what(t);
+  q.lights = masking_lights(t, q.masking.g2);
+  if (t.has("bins") && !q.masking.conditional) t.fail("bins", "bins apply to conditional masking");
+  q.bins = int(t.integer("bins", 10, 2, 100));
+  check_masking_surface(t, q, m);
+}
+
+void read_masking_spec(const SpecTable& t, SpecQuantity& q, const SpecMaterial& m, const std::filesystem::path&) {
+  q.target = read_target(t, "target_standard_error", 0.5, "a standard error of a masking probability below 0.5");
+  q.directions = read_directions(t, false);
+  read_masking(t, q, m);
+}
+
+}  // namespace
+
+const KindSpec masking_spec{"what target_standard_error theta theta_range phi light_theta light_phi bins resolution "
+                            "realisations", read_masking_spec};
+
+// ---- its report section (report_html.h) -----------------------------------------------------------------------
+
+namespace html {
+namespace {
+
+// A member's text, or "-" when absent.
+std::string optional_number(const json& j, const char* key) { return j.contains(key) ? report_number(j[key]) : "-"; }
+
+std::string difference_text(const json& j, const char* key) {
+  return j.contains(key) ? estimate_text(j[key]) : "-";
+}
+
+// One row of a masking table: the value +- its standard error beside Smith's predictions and the differences.
+std::vector<std::string> masking_row(const std::string& name, const json& v) {
+  return {esc(name), estimate_text(v), optional_number(v, "smith_analytic"), optional_number(v, "smith_own_ndf"),
+          difference_text(v, "difference"), difference_text(v, "difference_own_ndf")};
+}
+
+const std::vector<std::string> kMaskingHeader{"quantity", "value", "Smith (analytic NDF)", "Smith (own NDF)",
+                                              "value - Smith (analytic)", "value - Smith (own NDF)"};
+
+std::string light_text(const json& l) {
+  return fmt::format("l = (theta {}, phi {})", report_number(member(l, "theta_deg")), report_number(member(l, "phi_deg")));
+}
+
+// Measured values with error bars against Smith's predictions (analytic NDF, own NDF) along x.
+std::string masking_curves_figure(const std::string& title, const std::string& subtitle, const CurveAxes& axes,
+                                  const std::vector<double>& x, const std::vector<const json*>& points) {
+  Curve measured{"measured", x, {}, {}}, analytic{"Smith, analytic NDF", x, {}, {}}, own{"Smith, own NDF", x, {}, {}};
+  for (const json* p : points) {
+    measured.y.push_back(member(*p, "value").get<double>());
+    measured.error.push_back(member(*p, "standard_error").get<double>());
+    analytic.y.push_back(p->value("smith_analytic", std::nan("")));
+    own.y.push_back(p->value("smith_own_ndf", std::nan("")));
+  }
+  const bool traced = std::any_of(own.y.begin(), own.y.end(), [](double y) { return std::isfinite(y); });
+  if (!traced) analytic.label = "Smith's closed form (exact)";  // the analytic model: nothing measured
+  std::vector<Curve> curves{analytic};
+  if (traced) curves = {measured, analytic, own};
+  return "<figure>" + curve_figure_svg(title, subtitle, axes, curves) + "</figure>\n";
+}
+
+std::string masking_bins_section(const json& bins, const std::string& what, const std::string& label) {
+  std::string body;
+  std::vector<double> x;
+  std::vector<const json*> points;
+  for (std::size_t i = 0; i < bins.size(); ++i) {
+    const json& b = bins[i];
+    std::vector<std::string> cells = masking_row(fmt::format("bin {}: [{}, {}]", i, report_number(member(b, "lo")),
+                                                             report_number(member(b, "hi"))), b);
+    cells.insert(cells.begin() + 1, {report_number(member(b, "share")), text_of(member(b, "samples"))});
+    body += row(cells);
+    x.push_back(0.5 * (member(b, "lo").get<double>() + member(b, "hi").get<double>()));
+    points.push_back(&b);
+  }
+  std::vector<std::string> header = kMaskingHeader;
+  header[0] = "bin of " + what;
+  header.insert(header.begin() + 1, {"share", "samples"});
+  std::string out = fmt::format("<h4>G1(v | {})</h4>\n", esc(what)) + table(header, body);
+  if (!points.empty())
+    out += masking_curves_figure(label + ": G1(v | " + what + ")", "error bars: one standard error", {what, "G1(v | bin)"}, x, points);
+  return out;
+}
+
+std::string masking_g2_figure(const json& g2, const std::string& label) {
+  std::vector<double> x;
+  std::vector<const json*> points;
+  for (const json& g : g2) {
+    x.push_back(member(member(g, "light"), "theta_deg").get<double>());
+    points.push_back(&g);
+  }
+  if (points.size() < 2) return "";
+  return masking_curves_figure(label + ": G2(v, l)", "against the light's theta (every light phi on one axis); error bars: one standard error",
+                               {"theta_l (deg)", "G2(v, l)"}, x, points);
+}
+
+std::string masking_values(const json& values, const std::string& label) {
+  const json& mk = member(values, "masking");
+  const bool traced = text_of(member(mk, "model")) == "heightfield";
+  std::string out = traced ? fmt::format("<p>Traced on {} (Smith's analytic NDF: {}): {} surface points, {} shadow rays; "
+                                         "leak ratio {} (must be 1).</p>\n",
+                                         esc(text_of(member(mk, "surface"))), esc(text_of(member(mk, "reference"))),
+                                         text_of(member(mk, "samples")), text_of(member(mk, "rays")),
+                                         estimate_text(member(mk, "leak_ratio")))
+                           : fmt::format("<p>Smith's closed forms ({} NDF): Lambda(v) = {}; exact (standard error 0).</p>\n",
+                                         esc(text_of(member(mk, "ndf"))), report_number(member(mk, "lambda")));
+  std::string body;
+  if (mk.contains("g1")) body += row(masking_row("G1(v)", mk["g1"]));
+  if (mk.contains("g2"))
+    for (const json& g : mk["g2"]) body += row(masking_row("G2(v, l), " + light_text(member(g, "light")), g));
+  if (!body.empty()) out += table(kMaskingHeader, body);
+  if (mk.contains("g2")) out += masking_g2_figure(mk["g2"], label);
+  if (mk.contains("conditional")) {
+    out += masking_bins_section(member(mk["conditional"], "by_normal"), "<v, m>", label);
+    out += masking_bins_section(member(mk["conditional"], "by_height"), "height", label);
+  }
+  return out;
+}
+
+// G1(v) against theta_v per masking quantity, alpha and view phi (the masking curves against Smith), from
+// the measurements that ran and measured G1; a curve needs two views.
+std::string masking_curves_section_html(const json& decisions, const json& measurements) {
+  std::map<std::string, std::pair<std::vector<double>, std::vector<const json*>>> curves;
+  for (std::size_t i = 0; i < measurements.size() && i < decisions.size(); ++i) {
+    const json& d = decisions[i];
+    const json& values = member(measurements[i], "values");
+    if (text_of(member(d, "kind")) != "masking" || !values.is_object() || !values.contains("masking") ||
+        !values["masking"].contains("g1"))
+      continue;
+    const std::string key = fmt::format("{} alpha ({}, {}), phi_v {}", text_of(member(d, "quantity")),
+                                        report_number(member(d, "alpha")[0]), report_number(member(d, "alpha")[1]),
+                                        report_number(member(member(d, "view"), "phi_deg")));
+    curves[key].first.push_back(member(member(d, "view"), "theta_deg").get<double>());
+    curves[key].second.push_back(&values["masking"]["g1"]);
+  }
+  std::string out;
+  for (const auto& [key, points] : curves)
+    if (points.first.size() >= 2)
+      out += masking_curves_figure("G1(v): " + key, "measured against Smith (analytic model: the closed form); error bars: one standard error",
+                                   {"theta_v (deg)", "G1(v)"}, points.first, points.second);
+  return out.empty() ? "" : "<h2>Masking curves</h2>\n" + out;
+}
+
+}  // namespace
+}  // namespace html
+
+std::string masking_report(const nlohmann::json& values, std::size_t, const ReportHistograms&, const ReportScatters&,
+                           const std::string& label) {
+  return values.contains("masking") ? html::masking_values(values, label) : "";
+}
+
+std::string masking_curves_section(const nlohmann::json& decisions, const nlohmann::json& measurements) {
+  return html::masking_curves_section_html(decisions, measurements);
 }
 
 }  // namespace microsim::experiment

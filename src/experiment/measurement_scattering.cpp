@@ -6,6 +6,8 @@
 #include "experiment/plan_kinds.h"
 #include "experiment/heightfield_measures.h"
 #include "experiment/measurement.h"
+#include "stats/scatter_figure.h"
+#include "experiment/report_html.h"
 #include "experiment/measures.h"
 
 #include "core/errors.h"
@@ -20,6 +22,30 @@
 
 namespace microsim::experiment {
 namespace {
+
+// The channel-0 order-1 albedo of an expectation: all of it, or what leaves on one side of the surface
+// (reflected: the hemisphere of the light's own side). The cubature's summed error estimate over the albedo
+// (analytic_lobe_error) bounds, to first order, the TV between the computed normalised lobe and the exact one
+// (TV = 1/2 sum |p_i - q_i| <= sum |error_i| / W): 0 for an exact lobe, infinite for albedo 0 with an error.
+double expectation_albedo(const ScatterExpectation& lobe, const Direction& view, ScatterSide side) {
+  // Reflected light leaves into the hemisphere it came from: the upper one for light from above.
+  const bool upper = (view.theta_deg < 90) == (side == ScatterSide::reflected);
+  double sum = 0;
+  for (std::size_t b = 0; b < lobe.bins(); ++b)
+    if (lobe.reflection_bins[b] == upper) sum += lobe.order1[0][b];
+  return sum;
+}
+
+double expectation_albedo(const ScatterExpectation& lobe, const Direction& view) {
+  return expectation_albedo(lobe, view, ScatterSide::reflected) + expectation_albedo(lobe, view, ScatterSide::transmitted);
+}
+
+double analytic_lobe_error(const ScatterExpectation& lobe, const Direction& view) {
+  const double error = lobe.error_estimate.empty() ? 0 : lobe.error_estimate[0];
+  if (error == 0) return 0;
+  const double albedo = expectation_albedo(lobe, view);
+  return albedo > 0 ? error / albedo : std::numeric_limits<double>::infinity();
+}
 
 nlohmann::json scatter_estimate_json(const Estimate& e) {
   return {{"value", e.value}, {"standard_error", e.standard_error}};
@@ -281,6 +307,98 @@ std::unique_ptr<Measurement> make_scattering_measurement(const ExperimentSpec& s
   if (decision.model.model == Model::analytic) return std::make_unique<AnalyticScattering>(spec, decision);
   if (decision.model.model == Model::heightfield) return std::make_unique<HeightfieldScattering>(spec, decision);
   return std::make_unique<WalkScattering>(spec, decision);
+}
+
+// ---- its model --------------------------------------------------------------------------------------------------
+
+ModelChoice scattering_model(const SpecQuantity& q, const SpecMaterial&) {
+  return q.surface.kind != SurfaceChoice::Kind::automatic ? explicit_surface_choice(q) : smith_orders_choice(q, "");
+}
+
+// ---- its spec keys ---------------------------------------------------------------------------------------------
+
+namespace {
+// Light from inside a dielectric (theta in (90, 180]) is scattered too.
+void read_scattering_spec(const SpecTable& t, SpecQuantity& q, const SpecMaterial& m, const std::filesystem::path&) {
+  q.target = read_target(t, "target_tv", 1, "a TV distance is below 1");
+  q.directions = read_directions(t, m.facet.transmits());
+  q.orders = read_orders(t);
+}
+}  // namespace
+
+const KindSpec scattering_spec{"orders target_tv theta theta_range phi", read_scattering_spec};
+
+// ---- its report section (report_html.h) -----------------------------------------------------------------------
+
+namespace html {
+namespace {
+
+// Lobes in the hemispheres binning of `rows` rows per hemisphere, as a figure of the page.
+std::string lobes_figure(const std::string& label, const std::string& subtitle, int rows,
+                         const std::vector<ScatterFigureRow>& figure_rows) {
+  return "<figure>" + scatter_figure_svg(label, subtitle, DirectionBinning::hemispheres(rows), figure_rows) + "</figure>\n";
+}
+
+std::string scatter_figure(const ScatterHistogram& h, const std::string& label, int rows) {
+  std::vector<ScatterFigureRow> figure_rows;
+  const double n = double(std::max<std::uint64_t>(h.paths(), 1));
+  for (int k = 0; k < kScatterOrderBins; ++k) {
+    const Histogram& lobe = h.histogram(0, k);
+    std::vector<double> values;
+    for (std::size_t b = 0; b < lobe.size(); ++b) values.push_back(lobe.weight(b) / n);
+    figure_rows.push_back({scatter_order_name(k), {{"Smith walk", values}}, {}});
+  }
+  const std::string subtitle = fmt::format("{} paths; weight per launched path per bin", h.paths());
+  return lobes_figure(label, subtitle, rows, figure_rows);
+}
+
+std::string expectation_figure(const ScatterExpectation& lobe, const std::string& label, int rows) {
+  const std::vector<ScatterFigureRow> figure_rows{{"order 1", {{"analytic", lobe.order1.at(0)}}, {}}};
+  const std::string subtitle = "the single-scattering expectation by cubature; weight per launched path per bin";
+  return lobes_figure(label, subtitle, rows, figure_rows);
+}
+
+std::string scattering_values(const json& values, const ReportScatters& scatters, std::size_t index,
+                              const std::string& label) {
+  const json& s = member(values, "scattering");
+  std::string out = fmt::format("<p>{} paths; albedo {}, left on the surface at the cap {}.</p>\n",
+                                text_of(member(s, "paths")), estimate_text(member(s, "albedo")),
+                                estimate_text(member(s, "unfinished")));
+  std::string body;
+  for (const json& o : member(s, "orders"))
+    body += row({esc(text_of(member(o, "order"))), estimate_text(member(o, "albedo")), estimate_text(member(o, "reflected")),
+                 estimate_text(member(o, "transmitted")), report_number(member(o, "noise_floor_tv")),
+                 member(o, "targeted").get<bool>() ? "yes" : "no (below the target's share)"});
+  out += table({"order", "albedo", "reflected", "transmitted", "lobe TV noise floor", "targeted"}, body);
+  const auto h = scatters.find(index);
+  if (h != scatters.end() && h->second.kind == ScatterFileKind::histogram)
+    out += scatter_figure(h->second.histogram, label, member(s, "rows_per_hemisphere").get<int>());
+  return out + fmt::format("<p>Walk sums: <a href=\"scattering-{0}.exr\">scattering-{0}.exr</a>.</p>\n", index);
+}
+
+std::string analytic_scattering_values(const json& values, const ReportScatters& scatters, std::size_t index,
+                                       const std::string& label) {
+  const json& s = member(values, "analytic_scattering");
+  std::string out = fmt::format("<p>Order 1 by cubature (no rays): albedo {}, reflected {}, transmitted {}; error "
+                                "estimate {} ({} of the albedo).</p>\n",
+                                report_number(member(member(s, "albedo"), "value")),
+                                report_number(member(member(s, "reflected"), "value")),
+                                report_number(member(member(s, "transmitted"), "value")),
+                                report_number(member(s, "error_estimate")), report_number(member(s, "relative_error")));
+  const auto h = scatters.find(index);
+  if (h != scatters.end() && h->second.kind == ScatterFileKind::expectation)
+    out += expectation_figure(h->second.expectation, label, member(s, "rows_per_hemisphere").get<int>());
+  return out + fmt::format("<p>Lobe: <a href=\"scattering-{0}.exr\">scattering-{0}.exr</a>.</p>\n", index);
+}
+
+}  // namespace
+}  // namespace html
+
+std::string scattering_report(const nlohmann::json& values, std::size_t index, const ReportHistograms&,
+                              const ReportScatters& scatters, const std::string& label) {
+  if (values.contains("scattering")) return html::scattering_values(values, scatters, index, label);
+  if (values.contains("analytic_scattering")) return html::analytic_scattering_values(values, scatters, index, label);
+  return "";
 }
 
 }  // namespace microsim::experiment

@@ -7,6 +7,8 @@
 #include "experiment/plan_kinds.h"
 #include "experiment/heightfield_measures.h"
 #include "experiment/measurement.h"
+#include "experiment/report_html.h"
+#include "microfacet/samplers.h"
 #include "experiment/measures.h"
 
 #include "core/errors.h"
@@ -22,6 +24,35 @@
 
 namespace microsim::experiment {
 namespace {
+
+// The validator's options of a validation quantity: `samples` drawn from `seed` (0, 0 for a dump, whose samples
+// are given) at the quantity's rows and level, the same for the root and every rank of a split one.
+ValidationOptions validation_request(const SpecQuantity& quantity, std::uint64_t samples, std::uint64_t seed,
+                                     const RunControl& run) {
+  ValidationOptions v;
+  v.samples = samples;
+  v.seed = seed;
+  v.rows = quantity.rows;
+  v.significance = quantity.significance;
+  v.run = run;
+  return v;
+}
+
+// Bad input in a validation's dump (a file that is not samples, too few of them), naming the spec key.
+std::invalid_argument dump_error(const SpecQuantity& quantity, const std::exception& e) {
+  return std::invalid_argument(fmt::format("{}.dump: {}", quantity.key, e.what()));
+}
+
+DirectionSampleReader open_dump(const SpecQuantity& quantity) {
+  DirectionSampleReader reader{std::filesystem::path(quantity.dump), SampleColumns::parse(quantity.dump_columns)};
+  reader.set_frame(quantity.dump_frame == "y-up" ? SampleFrame::y_up : SampleFrame::z_up);
+  return reader;
+}
+
+DumpClaims dump_claims(const SpecQuantity& quantity, const SpecMaterial& material) {
+  return {parse_file_pdf(quantity.dump_pdf), dump_has_bsdf(quantity) ? std::optional<Material>(material.facet) : std::nullopt,
+          quantity.above_horizon};
+}
 
 // The validator's binned counts as a histogram (counts, and the claimed pdf's bin probabilities): what the
 // report draws and validation-K.exr keeps.
@@ -343,6 +374,155 @@ std::unique_ptr<Measurement> make_validation_measurement(const ExperimentSpec& s
   if (decision.model.model == Model::heightfield) return std::make_unique<TileValidation>(spec, decision);
   if (!spec.quantities.at(decision.quantity).dump.empty()) return std::make_unique<DumpValidation>(spec, decision);
   return std::make_unique<DrawnValidation>(spec, decision);
+}
+
+// ---- its model --------------------------------------------------------------------------------------------------
+
+namespace {
+// A validation against its analytic reference: a zoo sampler's samples are drawn, a renderer's dump is read.
+ModelChoice validation_choice(const SpecQuantity& q) {
+  if (q.dump.empty())
+    return {Model::analytic_validator, "a zoo sampler against the pdf it claims: the analytic reference by "
+                                       "cubature (no tracing needed to know D_v)"};
+  return {Model::analytic_validator,
+          fmt::format("a renderer's dump ({}) against the density it claims (pdf {}{}{}): its rows are read, not drawn; "
+                      "the analytic reference by cubature (no tracing needed)",
+                      std::filesystem::path(q.dump).filename().string(), q.dump_pdf,
+                      q.above_horizon ? ", only the reflections above the horizon" : "",
+                      q.dump_columns == "x,y,z" ? "" : fmt::format(", columns {}", q.dump_columns))};
+}
+
+}  // namespace
+
+ModelChoice validation_model(const SpecQuantity& q, const SpecMaterial&) {
+  return q.surface.kind != SurfaceChoice::Kind::automatic ? explicit_surface_choice(q) : validation_choice(q);
+}
+
+// ---- its spec keys ---------------------------------------------------------------------------------------------
+
+namespace {
+
+void read_zoo_sampler(const SpecTable& t, SpecQuantity& q) {
+  for (const char* key : {"pdf", "above_horizon", "columns", "frame", "dropped", "transport", "masking"})
+    if (t.has(key)) t.fail(key, fmt::format("{} applies to a dump (a zoo sampler's density is its own)", key));
+  q.sampler = t.string("sampler");
+  if (find_sampler(q.sampler) == nullptr)
+    t.fail("sampler", fmt::format("{} is not a sampler of the zoo ({})", quote_excerpt(q.sampler), fmt::join(sampler_names(), ", ")));
+}
+
+// What a dump holds besides its directions: columns, frame, and for a BSDF's samples its weights' convention.
+void read_dump_layout(const SpecTable& t, SpecQuantity& q, const SpecMaterial& m) {
+  q.dump_columns = t.string("columns", "x,y,z");
+  try {
+    (void)SampleColumns::parse(q.dump_columns);
+  } catch (const std::invalid_argument& e) {
+    t.fail("columns", e.what());
+  }
+  q.dump_frame = t.string("frame", "z-up");
+  if (q.dump_frame != "z-up" && q.dump_frame != "y-up")
+    t.fail("frame", fmt::format("{} is not a frame (z-up, y-up)", quote_excerpt(q.dump_frame)));
+  const bool bsdf = dump_has_bsdf(q);
+  if (bsdf && m.facet.kind() == MaterialKind::lambertian)
+    t.fail("material", fmt::format("material {}: a BSDF dump's material is a mirror, a conductor or a dielectric",
+                                   quote_excerpt(m.name)));
+  for (const char* key : {"transport", "masking"})
+    if (t.has(key) && !bsdf) t.fail(key, fmt::format("{} is the convention of a BSDF's weights: give pdf = \"bsdf\" or "
+                                                     "weight columns", key));
+  try {
+    if (t.has("transport")) q.convention.transport = parse_transport_mode("transport", t.string("transport"));
+    if (t.has("masking")) q.convention.masking = parse_masking_form("masking", t.string("masking"));
+  } catch (const std::invalid_argument& e) {
+    t.fail(t.has("transport") ? "transport" : "masking", e.what());
+  }
+}
+
+// A dump was sampled at one alpha and one view; its density is one the validator knows, or its material's BSDF.
+void read_dump(const SpecTable& t, SpecQuantity& q, const SpecMaterial& m, const std::filesystem::path& spec_dir) {
+  const std::string name = t.string("dump");
+  const std::filesystem::path path = spec_file_path(name, spec_dir);
+  if (!std::filesystem::is_regular_file(path)) t.fail("dump", fmt::format("no sample file {}", quote_excerpt(path.string())));
+  if (m.alphas.size() != 1 || q.directions.size() != 1)
+    t.fail("dump", fmt::format("a dump is sampled at one alpha and one view (material {} has {} alpha(s), the quantity {} "
+                               "view(s))", quote_excerpt(m.name), m.alphas.size(), q.directions.size()));
+  q.dump = path.string();
+  q.dump_pdf = t.string("pdf", "vndf");
+  FilePdf pdf = FilePdf::vndf;
+  try {
+    pdf = parse_file_pdf(q.dump_pdf);
+  } catch (const std::invalid_argument& e) {
+    t.fail("pdf", e.what());
+  }
+  read_dump_layout(t, q, m);
+  if (q.directions.front().theta_deg > 90 && !(dump_has_bsdf(q) && m.facet.transmits()))
+    t.fail("theta", "a view below the surface is light from inside a dielectric: its dump needs pdf = \"bsdf\" (or "
+                    "weight columns) and a dielectric material");
+  q.above_horizon = t.boolean("above_horizon", false);
+  if (q.above_horizon && !claims_reflected_directions(pdf))
+    t.fail("above_horizon", fmt::format("pdf {} is a density of normals (none is below the horizon)", q.dump_pdf));
+  if (t.has("dropped") && !q.above_horizon) t.fail("dropped", "dropped applies with above_horizon = true only");
+  q.dump_dropped = std::uint64_t(t.integer("dropped", 0, 0, std::int64_t(1) << 53));
+}
+
+// A dump validated against its analytic reference needs no detect_tv: its rows are given, and they fix the TV
+// detected (the plan states it). Against a surface it does: the tile is sized from it.
+void read_validation_spec(const SpecTable& t, SpecQuantity& q, const SpecMaterial& m,
+                          const std::filesystem::path& spec_dir) {
+  const bool rows_fix_it = t.has("dump") && !t.has("detect_tv") && q.surface.kind == SurfaceChoice::Kind::automatic;
+  q.target = rows_fix_it ? 0.0 : read_target(t, "detect_tv", 1, "a TV distance is below 1");
+  q.directions = read_directions(t, t.has("dump") && m.facet.transmits());
+  read_validator_rows(t, q, m);
+  if (t.has("sampler") == t.has("dump"))
+    t.fail("sampler", "give exactly one of sampler (a zoo sampler, drawn) and dump (a file of samples)");
+  if (t.has("dump")) read_dump(t, q, m, spec_dir);
+  else read_zoo_sampler(t, q);
+  q.power = t.number("power", 0.9);
+  q.significance = t.number("significance", 0.01);
+  if (!(q.power > 0 && q.power < 1)) t.fail("power", fmt::format("{} must be in (0, 1)", q.power));
+  if (!(q.significance > 0 && q.significance < 0.5)) t.fail("significance", fmt::format("{} must be in (0, 0.5)", q.significance));
+}
+
+}  // namespace
+
+const KindSpec validation_spec{"sampler dump pdf above_horizon detect_tv power significance theta theta_range phi rows "
+                               "columns frame dropped transport masking", read_validation_spec};
+
+// ---- its report section (report_html.h) -----------------------------------------------------------------------
+
+namespace html {
+namespace {
+
+std::string validation_tests_table(const json& v) {
+  std::string body;
+  for (const auto& [name, t] : member(v, "tests").items()) {
+    std::vector<std::string> cells{esc(name)};
+    for (const char* key : {"statistic", "dof", "p_value"}) cells.push_back(t.contains(key) ? report_number(t[key]) : "-");
+    if (t.contains("rejected")) cells.push_back(text_of(t["rejected"]));
+    else cells.push_back(t.contains("passed") ? (t["passed"].get<bool>() ? "no" : "yes") : "-");
+    body += row(cells);
+  }
+  return table({"test", "statistic", "dof", "p", "rejected"}, body);
+}
+
+std::string validation_values(const json& values, const ReportHistograms& histograms, std::size_t index,
+                              const std::string& label) {
+  const json& v = member(values, "validation");
+  std::string out = fmt::format("<p>Sampler <b>{}</b>, {} samples: verdict <b>{}</b> (p {}, level {}).</p>\n",
+                                esc(text_of(member(v, "sampler"))), text_of(member(v, "samples")),
+                                esc(text_of(member(v, "verdict"))), report_number(member(v, "p_value")),
+                                report_number(member(v, "significance")));
+  for (const json& f : member(v, "failures")) out += "<p class=\"notmet\">" + esc(text_of(f)) + "</p>\n";
+  out += validation_tests_table(v);
+  const auto h = histograms.find(index);
+  if (h != histograms.end()) out += histogram_figure(h->second, label, "claimed pdf");
+  return out + fmt::format("<p>Counts: <a href=\"validation-{0}.exr\">validation-{0}.exr</a>.</p>\n", index);
+}
+
+}  // namespace
+}  // namespace html
+
+std::string validation_report(const nlohmann::json& values, std::size_t index, const ReportHistograms& histograms,
+                              const ReportScatters&, const std::string& label) {
+  return values.contains("validation") ? html::validation_values(values, histograms, index, label) : "";
 }
 
 }  // namespace microsim::experiment

@@ -6,6 +6,7 @@
 #include "experiment/plan_kinds.h"
 #include "experiment/heightfield_measures.h"
 #include "experiment/measurement.h"
+#include "experiment/report_html.h"
 #include "experiment/measures.h"
 
 #include "core/errors.h"
@@ -203,6 +204,75 @@ std::string tile_vndf_part(const ExperimentSpec& spec, const Decision& decision,
 std::unique_ptr<Measurement> make_vndf_measurement(const ExperimentSpec& spec, const Decision& decision) {
   if (decision.model.model == Model::heightfield) return std::make_unique<HeightfieldVndfMeasurement>(spec, decision);
   return std::make_unique<EllipsoidVndfMeasurement>(spec, decision);
+}
+
+// ---- its model --------------------------------------------------------------------------------------------------
+
+ModelChoice vndf_model(const SpecQuantity& q, const SpecMaterial&) {
+  if (q.surface.kind != SurfaceChoice::Kind::automatic) return explicit_surface_choice(q);
+  return {Model::ellipsoid_oracle, "a measured VNDF histogram: the exact ellipsoid oracle (Heitz 2018: the visible "
+                                   "normals of the convex GGX ellipsoid are D_v exactly; only Monte Carlo noise, no "
+                                   "heightfield bias)"};
+}
+
+// ---- its spec keys ---------------------------------------------------------------------------------------------
+
+namespace {
+void read_vndf_spec(const SpecTable& t, SpecQuantity& q, const SpecMaterial& m, const std::filesystem::path&) {
+  q.target = read_target(t, "target_tv", 1, "a TV distance is below 1");
+  q.directions = read_directions(t, false);
+  read_validator_rows(t, q, m);
+}
+}  // namespace
+
+const KindSpec vndf_spec{"target_tv theta theta_range phi rows", read_vndf_spec};
+
+// ---- its report section (report_html.h) -----------------------------------------------------------------------
+
+namespace html {
+namespace {
+
+std::string vndf_fit_table(const json& values) {
+  std::string body;
+  for (const json& fit : member(member(values, "analysis"), "binnings")) {
+    std::vector<std::string> cells{esc(text_of(member(fit, "binning")))};
+    for (const char* key : {"total_variation", "noise_floor_tv"}) cells.push_back(report_number(member(fit, key)));
+    const json& chi2 = fit.contains("chi2") ? fit["chi2"] : json::object();
+    for (const char* key : {"statistic", "dof", "p_value"})
+      cells.push_back(chi2.contains(key) ? report_number(chi2[key]) : "-");
+    body += row(cells);
+  }
+  return table({"binning", "TV vs analytic D_v", "noise floor TV", "chi-square", "dof", "p"}, body);
+}
+
+std::string vndf_values(const json& values, const ReportHistograms& histograms, std::size_t index,
+                        const std::string& label) {
+  std::string out = fmt::format("<p>{} rays, {} hits (expected hit fraction {}); measured TV against the analytic "
+                                "D_v {}, noise floor {}.</p>\n",
+                                text_of(member(values, "rays")), text_of(member(values, "hits")),
+                                report_number(member(values, "expected_hit_fraction")),
+                                report_number(member(values, "total_variation")),
+                                report_number(member(values, "noise_floor_tv")));
+  out += vndf_fit_table(values);
+  if (values.contains("heightfield")) {
+    const json& f = values["heightfield"];
+    out += fmt::format("<p>On the tile ({}): TV to Smith with the tile's own NDF {} (its masking, without the NDF's "
+                       "bias); back-facing first hits {}, convex-edge grazes passed over {}, leaked {}, unresolved {}.</p>\n",
+                       esc(text_of(member(f, "surface"))), report_number(member(f, "tv_own_ndf")),
+                       text_of(member(f, "backfacing")), text_of(member(f, "edge_grazes")), text_of(member(f, "leaked")),
+                       text_of(member(f, "unresolved")));
+  }
+  const auto h = histograms.find(index);
+  if (h != histograms.end()) out += histogram_figure(h->second, label, "analytic D_v");
+  return out + fmt::format("<p>Histogram: <a href=\"vndf-{0}.exr\">vndf-{0}.exr</a>.</p>\n", index);
+}
+
+}  // namespace
+}  // namespace html
+
+std::string vndf_report(const nlohmann::json& values, std::size_t index, const ReportHistograms& histograms, const ReportScatters&,
+                        const std::string& label) {
+  return values.contains("analysis") ? html::vndf_values(values, histograms, index, label) : "";
 }
 
 }  // namespace microsim::experiment

@@ -82,99 +82,10 @@ ScatterOptions scatter_request(const SpecMaterial& material, const Decision& dec
   return o;
 }
 
-ValidationOptions validation_request(const SpecQuantity& quantity, std::uint64_t samples, std::uint64_t seed,
-                                     const RunControl& run) {
-  ValidationOptions v;
-  v.samples = samples;
-  v.seed = seed;
-  v.rows = quantity.rows;
-  v.significance = quantity.significance;
-  v.run = run;
-  return v;
-}
-
-std::invalid_argument dump_error(const SpecQuantity& quantity, const std::exception& e) {
-  return std::invalid_argument(fmt::format("{}.dump: {}", quantity.key, e.what()));
-}
-
-DirectionSampleReader open_dump(const SpecQuantity& quantity) {
-  DirectionSampleReader reader{std::filesystem::path(quantity.dump), SampleColumns::parse(quantity.dump_columns)};
-  reader.set_frame(quantity.dump_frame == "y-up" ? SampleFrame::y_up : SampleFrame::z_up);
-  return reader;
-}
-
-DumpClaims dump_claims(const SpecQuantity& quantity, const SpecMaterial& material) {
-  return {parse_file_pdf(quantity.dump_pdf), dump_has_bsdf(quantity) ? std::optional<Material>(material.facet) : std::nullopt,
-          quantity.above_horizon};
-}
-
 ScatterExpectation analytic_scatter_lobe(const SpecMaterial& material, const Decision& decision, const RunControl& run) {
   return measure_analytic_scatter(material.ndf, decision.alpha,
                                   direction_from_degrees(decision.view.theta_deg, decision.view.phi_deg), material.facet,
                                   kScatterRows, run);
-}
-
-double expectation_albedo(const ScatterExpectation& lobe, const Direction& view) {
-  return expectation_albedo(lobe, view, ScatterSide::reflected) + expectation_albedo(lobe, view, ScatterSide::transmitted);
-}
-
-double expectation_albedo(const ScatterExpectation& lobe, const Direction& view, ScatterSide side) {
-  // Reflected light leaves into the hemisphere it came from: the upper one for light from above.
-  const bool upper = (view.theta_deg < 90) == (side == ScatterSide::reflected);
-  double sum = 0;
-  for (std::size_t b = 0; b < lobe.bins(); ++b)
-    if (lobe.reflection_bins[b] == upper) sum += lobe.order1[0][b];
-  return sum;
-}
-
-double analytic_lobe_error(const ScatterExpectation& lobe, const Direction& view) {
-  const double error = lobe.error_estimate.empty() ? 0 : lobe.error_estimate[0];
-  if (error == 0) return 0;
-  const double albedo = expectation_albedo(lobe, view);
-  return albedo > 0 ? error / albedo : std::numeric_limits<double>::infinity();
-}
-
-double scatter_order_floor(const ScatterHistogram& h, int order_bin) {
-  const Histogram& lobe = h.histogram(0, order_bin);
-  double total = 0, spread = 0;
-  const double n = double(std::max<std::uint64_t>(h.paths(), 1));
-  for (std::size_t i = 0; i < lobe.size(); ++i) {
-    total += lobe.weight(i);
-    spread += std::sqrt(std::max(0.0, lobe.weight_squared(i) - lobe.weight(i) * lobe.weight(i) / n));
-  }
-  if (!(total > 0)) return 0;
-  return 0.5 * std::sqrt(2 / kPi<double>) * spread / total;
-}
-
-std::vector<int> targeted_order_bins(const ScatterHistogram& h, double target) {
-  const double all = h.albedo(0, -1).value;
-  std::vector<int> out;
-  if (!(all > 0)) return out;
-  for (int k = 0; k < kScatterOrderBins; ++k) {
-    const Estimate order = h.albedo(0, k);
-    if (order.value > 0 && order.value + kShareMargin * order.standard_error >= target * all) out.push_back(k);
-  }
-  return out;
-}
-
-double scatter_noise_floor(const ScatterHistogram& h, const std::vector<int>& order_bins) {
-  double worst = 0;
-  for (int k : order_bins) worst = std::max(worst, scatter_order_floor(h, k));
-  return worst;
-}
-
-double extrapolated_scatter_floor(const ScatterHistogram& quarter, const ScatterHistogram& whole,
-                                  const std::vector<int>& order_bins) {
-  const double root_ratio = std::sqrt(double(std::max<std::uint64_t>(quarter.paths(), 1)) /
-                                      double(std::max<std::uint64_t>(whole.paths(), 1)));
-  double worst = 0;
-  for (int k : order_bins) {
-    const double at_whole = scatter_order_floor(whole, k);
-    // In units of the whole pilot's floor: C(n/4) / sqrt(n) = floor(n/4) sqrt(n/4) / sqrt(n).
-    const double at_quarter = scatter_order_floor(quarter, k) * root_ratio;
-    worst = std::max(worst, std::max(at_whole, 2 * at_whole - at_quarter));
-  }
-  return worst;
 }
 
 AlbedoTable albedo_table_from_json(const nlohmann::json& j, const AlbedoTableRequest& request) {
@@ -196,12 +107,6 @@ AlbedoTable albedo_table_from_json(const nlohmann::json& j, const AlbedoTableReq
   return t;
 }
 
-bool albedo_target_applies(const SpecQuantity& quantity, std::string_view table_quantity) {
-  return table_quantity.starts_with(quantity.orders == Orders::single ? "E1" : "E");
-}
-
-std::string albedo_target_text(const SpecQuantity& quantity) { return quantity.orders == Orders::single ? "E1*" : "E*"; }
-
 AlbedoTableRequest albedo_request(const ExperimentSpec& spec, const SpecQuantity& quantity, Model model,
                                   std::uint64_t paths, int max_order, double tolerance, std::uint64_t seed,
                                   const RunControl& run) {
@@ -222,35 +127,6 @@ AlbedoTableRequest albedo_request(const ExperimentSpec& spec, const SpecQuantity
   if (max_order > 0) r.max_order = max_order;
   r.run = run;
   return r;
-}
-
-namespace {
-double relative_error(const Estimate& e) {
-  if (e.standard_error == 0) return 0;
-  return e.value != 0 ? e.standard_error / std::abs(e.value) : std::numeric_limits<double>::infinity();
-}
-}  // namespace
-
-double worst_relative_error(const AlbedoTable& table, const SpecQuantity& quantity) {
-  double worst = 0;
-  for (const AlbedoQuantity& q : table.quantities) {
-    if (!albedo_target_applies(quantity, q.name)) continue;
-    for (const Estimate& e : q.cells) worst = std::max(worst, relative_error(e));
-    for (const Estimate& e : q.average) worst = std::max(worst, relative_error(e));
-  }
-  return worst;
-}
-
-double vndf_noise_floor(const EllipsoidVndf& measurement) {
-  double worst = 0;
-  for (const TraceFit& f : measurement.analysis.fits) worst = std::max(worst, f.noise_floor_tv);
-  return worst;
-}
-
-double vndf_total_variation(const EllipsoidVndf& measurement) {
-  double worst = 0;
-  for (const TraceFit& f : measurement.analysis.fits) worst = std::max(worst, f.total_variation);
-  return worst;
 }
 
 }  // namespace microsim::experiment

@@ -24,12 +24,6 @@ namespace microsim::experiment {
 // for F = 1), mirror and dielectric their own.
 Material albedo_table_material(const SpecMaterial& material);
 
-// Whether a target applies to a quantity of an albedo table: orders single, the single-scattering albedos
-// (E1, E1_R, E1_T); all orders, every albedo the table holds (E, E_R, E_T and the walk's E1s), not the
-// unfinished or lost weight.
-bool albedo_target_applies(const SpecQuantity& quantity, std::string_view table_quantity);
-std::string albedo_target_text(const SpecQuantity& quantity);  // "E1*" or "E*"
-
 // The request of an albedo quantity (model: the decision's; analytic: tolerance; walk: paths, cap, seed).
 AlbedoTableRequest albedo_request(const ExperimentSpec& spec, const SpecQuantity& quantity, Model model,
                                   std::uint64_t paths, int max_order, double tolerance, std::uint64_t seed,
@@ -44,37 +38,12 @@ AlbedoTable albedo_table_from_json(const nlohmann::json& table, const AlbedoTabl
 VndfRequest vndf_request(const ExperimentSpec& spec, const Decision& decision, std::uint64_t rays, std::uint64_t seed,
                          const RunControl& run);
 
-// The largest relative error (error / value) over the cells and E_avg of the quantities of a table the target
-// applies to; an infinite one when a value is 0 with a non-zero error.
-double worst_relative_error(const AlbedoTable& table, const SpecQuantity& quantity);
-
-// The validator's options of a validation quantity: `samples` drawn from `seed` (0, 0 for a dump, whose
-// samples are given) at the quantity's rows and level. The same for the root and every rank of a split one.
-ValidationOptions validation_request(const SpecQuantity& quantity, std::uint64_t samples, std::uint64_t seed,
-                                     const RunControl& run);
-
-// Bad input in a validation's dump (a file that is not samples, too few of them), naming the spec key.
-std::invalid_argument dump_error(const SpecQuantity& quantity, const std::exception& e);
-// A dump opened with its columns and frame (SampleFileError when it cannot be read as they say).
-DirectionSampleReader open_dump(const SpecQuantity& quantity);
-// What a dump claims: its density, its material's BSDF when it holds a BSDF's samples or weights, kept only.
-DumpClaims dump_claims(const SpecQuantity& quantity, const SpecMaterial& material);
-
 // ---- the analytic order-1 lobe (orders = "single") -----------------------------------------------------------
 
 // The order-1 lobe of a scattering decision: the single-scattering expectation of its material at its alpha
 // and view (light from inside for theta > 90), binned like the walk's lobes (kScatterRows rows per
 // hemisphere) by the cubature of scatter/analytic_scatter.h. Deterministic; Cancelled when run.cancel is set.
 ScatterExpectation analytic_scatter_lobe(const SpecMaterial& material, const Decision& decision, const RunControl& run);
-// The channel-0 order-1 albedo of an expectation: all of it, or what leaves on one side of the surface
-// (reflected: the hemisphere of the light's own side).
-double expectation_albedo(const ScatterExpectation& lobe, const Direction& view);
-double expectation_albedo(const ScatterExpectation& lobe, const Direction& view, ScatterSide side);
-// The cubature's summed error estimate (channel 0) over the albedo: to first order a bound on the TV between
-// the computed normalised lobe and the exact one (TV = 1/2 sum |p_i - q_i| <= sum |error_i| / W). 0 for an
-// exact lobe; infinite when the albedo is 0 with a non-zero error.
-double analytic_lobe_error(const ScatterExpectation& lobe, const Direction& view);
-
 // ---- per-order scattering (the Smith walk) ------------------------------------------------------------------
 
 // Rows per hemisphere of a scattering measurement's hemispheres binning (stats/binning.h).
@@ -85,32 +54,5 @@ inline constexpr int kScatterRows = 8;
 SmithMicrosurface scatter_surface(const SpecMaterial& material, const Decision& decision);
 ScatterOptions scatter_request(const SpecMaterial& material, const Decision& decision, std::uint64_t paths,
                                std::uint64_t seed, const RunControl& run);
-
-// The expected TV between an order bin's normalised lobe (channel 0) and its mean: each bin's share
-// p_i = w_i / W has a standard error ~ sqrt(w2_i - w_i^2 / n) / W, an error of that size has a mean absolute
-// value sqrt(2 / pi) times it, and TV = 1/2 sum |error| (the normalisation's covariance neglected). Falls
-// as 1/sqrt(n). 0 for an order bin without weight.
-double scatter_order_floor(const ScatterHistogram& histogram, int order_bin);
-// The order bins a per-order TV target applies to, as the plan decides them from its pilot: those that may
-// carry at least `target` of the escaped albedo (channel 0): their share plus kShareMargin of its standard
-// errors. A lighter order moves the whole lobe by less than the target whatever its shape. The plan fixes
-// the set (Decision::targeted_orders) and the run resolves those orders: judged again on each round's
-// estimate, an order whose share is near the target entered and left the set with the noise of its share
-// (left out by the pilot, in after a small first round: a second round sized for it, 50 times the paths).
-inline constexpr double kShareMargin = 2.0;
-std::vector<int> targeted_order_bins(const ScatterHistogram& histogram, double target);
-// The largest floor over the given order bins.
-double scatter_noise_floor(const ScatterHistogram& histogram, const std::vector<int>& order_bins);
-// The largest floor over the given order bins that `whole`'s paths would have on the
-// 1/sqrt(n) law a long run follows, extrapolated from a pilot (`whole`) and the pilot's first quarter of
-// blocks (`quarter`). sqrt(n) floor(n) rises toward its limit C as sparse bins fill (a bin with few hits:
-// E sqrt(w2) < sqrt(E w2)), about as C (1 - b / sqrt(n)): C = 2 C(n) - C(n / 4), never below C(n).
-double extrapolated_scatter_floor(const ScatterHistogram& quarter, const ScatterHistogram& whole,
-                                  const std::vector<int>& order_bins);
-
-// The largest TV noise floor over the binnings of a VNDF measurement (validate/compare.h noise_floor_tv).
-double vndf_noise_floor(const EllipsoidVndf& measurement);
-// The largest measured TV against the analytic D_v over its binnings.
-double vndf_total_variation(const EllipsoidVndf& measurement);
 
 }  // namespace microsim::experiment

@@ -8,7 +8,7 @@
 #include "experiment/plan_kinds.h"
 #include "experiment/split_rounds.h"
 #include "experiment/surface_albedo.h"
-#include "experiment/surface_cache.h"
+#include "measure/surface_cache.h"
 
 #include "validate/compare.h"
 #include "validate/sample_io.h"

@@ -23,19 +23,21 @@
 
 #include "core/run_control.h"
 #include "experiment/spec.h"
+#include "measure/heightfield_trade.h"
 
 #include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
 
+namespace microsim {
+class SurfaceCache;  // measure/surface_cache.h
+}  // namespace microsim
+
 namespace microsim::experiment {
 
-class SurfaceCache;  // surface_cache.h
-
-// The share of a target that a truncation bias may take (the order cap): the total error is then at most
-// sqrt(1 + 1/16) = 1.03 times the statistical target.
-inline constexpr double kBiasShare = 0.25;
+// The share of a target a truncation bias (the order cap) or a tile's bias may take (measure/heightfield_trade.h).
+using microsim::kBiasShare;
 // A histogram resolves a TV distance d when its own noise floor (the expected TV of an exact sampler of that
 // many counts, validate/compare.h noise_floor_tv) is at most kNoiseShare d: a true deviation d then stands
 // out at twice the noise.
@@ -99,22 +101,6 @@ ValidationTests validation_tests(int rows, double significance);
 // Seconds for `units` at the pilot's rate (pilot_units in pilot_seconds); 0 when the pilot measured nothing.
 double predicted_seconds(std::uint64_t units, std::uint64_t pilot_units, double pilot_seconds);
 
-// The explicit surface of a heightfield decision: which tile and why (heightfield_trade.h for the size rule;
-// surface_cache.h for where a built one is kept).
-struct SurfacePlan {
-  std::string kind;          // "assembly" or "heightmap"; "" when the model is not a heightfield
-  std::string name;          // the assembly's name, or the heightmap's path
-  std::string ndf;           // the surface's reference NDF ("ggx", "beckmann")
-  int resolution = 0;        // N
-  double corr_cells = 0;     // l; a heightmap without the attribute: 0 (unknown)
-  std::string ndf_match;     // "radial" or "joint"
-  std::uint64_t seed = 0;    // assembly: the build's seed (the run's)
-  double bias = -1;          // the bias (TV) the trade table predicts; -1: beyond the table (unknown)
-  std::string hash;          // assembly: its cache key's hash (DIR/surfaces/<hash>.exr); heightmap: its heights'
-                             // digest (heights_digest: a rank or a resumed run refuses another file)
-  std::string reason;
-};
-
 // One measurement: a quantity at one alpha and view (vndf, scattering, validation) or a quantity's whole
 // table (albedo).
 struct Decision {
@@ -136,7 +122,7 @@ struct Decision {
   double pilot_error = 0;    // the pilot's achieved error, in the target's unit
   bool runnable = false;     // `microsim run` carries it out in this version
   std::string not_runnable;  // why not, when not
-  SurfacePlan surface;       // Model::heightfield: the tile
+  SurfacePlan surface;       // Model::heightfield: the tile (measure/heightfield_trade.h)
   int realisation = 0;       // masking on a built surface: which realisation (masking_surface_seed)
 };
 

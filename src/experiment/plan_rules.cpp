@@ -27,65 +27,6 @@ std::string to_string(Model model) {
 
 namespace {
 
-ModelChoice explicit_surface_choice(const SpecQuantity& q) {
-  const std::string what = q.surface.kind == SurfaceChoice::Kind::assembly ? "assembly " + q.surface.name
-                                                                            : "heightmap " + q.surface.name;
-  return {Model::heightfield, fmt::format("the spec names a surface ({}): its own effects (conditional masking, "
-                                          "its multiple scattering, the assembly's correlations) are only in the "
-                                          "explicit heightfield",
-                                          what)};
-}
-
-ModelChoice albedo_or_scattering_choice(const SpecQuantity& q, const SpecMaterial& m) {
-  const std::string fresnel =
-      q.kind == QuantityKind::albedo && m.facet.kind() == MaterialKind::conductor
-          ? "; a conductor's table is the mirror's (Kulla & Conty 2017: E(mu) for F = 1, the Fresnel enters through F_avg)"
-          : "";
-  if (q.orders == Orders::single)
-    return {Model::analytic, "single scattering on the Smith microsurface has a closed form (Walter et al. 2007 with "
-                             "Smith masking): integrated by quadrature, no noise, no explicit surface needed" + fresnel};
-  return {Model::smith_walk, "multiple scattering in the Smith model: the Smith random walk (Heitz et al. 2016) is "
-                             "that model exactly, with no surface to build or trace" + fresnel};
-}
-
-// Masking: Smith's closed forms unless the quantity needs a surface (conditional masking: Smith assumes
-// masking independent of the facet and of height, so only an explicit surface has it) or names one.
-ModelChoice masking_choice(const SpecQuantity& q, const SpecMaterial& m) {
-  const std::string ndf = to_string(m.ndf);
-  if (q.surface.kind != SurfaceChoice::Kind::automatic)
-    return {Model::heightfield,
-            fmt::format("the spec names a surface ({} {}): its own masking is measured by tracing it (measure_masking), "
-                        "in rounds to the target standard error, beside Smith's prediction with the analytic NDF "
-                        "and with the surface's own NDF",
-                        q.surface.kind == SurfaceChoice::Kind::assembly ? "assembly" : "heightmap", q.surface.name)};
-  if (q.masking.conditional)
-    return {Model::heightfield,
-            fmt::format("conditional masking (G1 given <v, m> or height) is not in the Smith model, which assumes "
-                        "masking independent of both: it needs an explicit surface; none is named, so the {} "
-                        "assembly (built to {}) is built per alpha at {}^2 with a correlation length of N/64 cells "
-                        "(4 to 16: 64 correlation lengths per tile, masking_surface.h), and traced in rounds to the "
-                        "target standard error",
-                        microgeom::plain_assembly(m.ndf), ndf, q.resolution)};
-  return {Model::analytic,
-          fmt::format("G1 and G2 of the Smith model have closed forms: G1 = 1 / (1 + Lambda(v)) (Heitz 2014, eq. 43), "
-                      "height-correlated G2 = 1 / (1 + Lambda(v) + Lambda(l)) (eq. 99; separable G1 G1, eq. 98, "
-                      "beside it) with the {} Lambda: exact, no noise, no surface to build",
-                      ndf)};
-}
-
-// A validation against its analytic reference: a zoo sampler's samples are drawn, a renderer's dump is read.
-ModelChoice validation_choice(const SpecQuantity& q) {
-  if (q.dump.empty())
-    return {Model::analytic_validator, "a zoo sampler against the pdf it claims: the analytic reference by "
-                                       "cubature (no tracing needed to know D_v)"};
-  return {Model::analytic_validator,
-          fmt::format("a renderer's dump ({}) against the density it claims (pdf {}{}{}): its rows are read, not drawn; "
-                      "the analytic reference by cubature (no tracing needed)",
-                      std::filesystem::path(q.dump).filename().string(), q.dump_pdf,
-                      q.above_horizon ? ", only the reflections above the horizon" : "",
-                      q.dump_columns == "x,y,z" ? "" : fmt::format(", columns {}", q.dump_columns))};
-}
-
 // The noncentrality at which a chi-square test of `dof` at `significance` rejects with probability `power`:
 // the noncentral chi-square (Boost.Math) whose miss probability at the critical value is 1 - power.
 double needed_noncentrality(int dof, double significance, double power) {
@@ -99,22 +40,23 @@ double needed_noncentrality(int dof, double significance, double power) {
 
 ModelChoice choose_model(const SpecQuantity& q, const SpecMaterial& m) { return kind_model_rule(q.kind)(q, m); }
 
-ModelChoice vndf_model(const SpecQuantity& q, const SpecMaterial&) {
-  if (q.surface.kind != SurfaceChoice::Kind::automatic) return explicit_surface_choice(q);
-  return {Model::ellipsoid_oracle, "a measured VNDF histogram: the exact ellipsoid oracle (Heitz 2018: the visible "
-                                   "normals of the convex GGX ellipsoid are D_v exactly; only Monte Carlo noise, no "
-                                   "heightfield bias)"};
+ModelChoice explicit_surface_choice(const SpecQuantity& q) {
+  const std::string what = q.surface.kind == SurfaceChoice::Kind::assembly ? "assembly " + q.surface.name
+                                                                            : "heightmap " + q.surface.name;
+  return {Model::heightfield, fmt::format("the spec names a surface ({}): its own effects (conditional masking, "
+                                          "its multiple scattering, the assembly's correlations) are only in the "
+                                          "explicit heightfield",
+                                          what)};
 }
 
-ModelChoice validation_model(const SpecQuantity& q, const SpecMaterial&) {
-  return q.surface.kind != SurfaceChoice::Kind::automatic ? explicit_surface_choice(q) : validation_choice(q);
+ModelChoice smith_orders_choice(const SpecQuantity& q, const std::string& note) {
+  if (q.orders == Orders::single)
+    return {Model::analytic, "single scattering on the Smith microsurface has a closed form (Walter et al. 2007 with "
+                             "Smith masking): integrated by quadrature, no noise, no explicit surface needed" + note};
+  return {Model::smith_walk, "multiple scattering in the Smith model: the Smith random walk (Heitz et al. 2016) is "
+                             "that model exactly, with no surface to build or trace" + note};
 }
 
-ModelChoice albedo_or_scattering_model(const SpecQuantity& q, const SpecMaterial& m) {
-  return q.surface.kind != SurfaceChoice::Kind::automatic ? explicit_surface_choice(q) : albedo_or_scattering_choice(q, m);
-}
-
-ModelChoice masking_model(const SpecQuantity& q, const SpecMaterial& m) { return masking_choice(q, m); }
 
 std::uint64_t units_for_standard_error(std::uint64_t pilot_units, double pilot_se, double target_se) {
   if (!(target_se > 0)) throw std::invalid_argument(fmt::format("target standard error {} must be > 0", target_se));

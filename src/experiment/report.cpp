@@ -275,4 +275,26 @@ std::string experiment_report_html(const nlohmann::json& document, const ReportH
   return page + "</body>\n</html>\n";
 }
 
+namespace html {
+
+std::string histogram_figure(const TracedHistogram& h, const std::string& label, const std::string& expected) {
+  std::vector<BinnedComparison> comparisons;
+  for (std::size_t k = 0; k < h.binnings.size(); ++k) {
+    if (k >= h.probability.size() || h.probability[k].size() != std::size_t(h.binnings[k].size())) continue;
+    BinnedComparison c{h.binnings[k], std::vector<double>(h.counts[k].begin(), h.counts[k].end()), h.probability[k],
+                       expected};
+    for (double& e : c.expected) e *= double(h.hits);
+    comparisons.push_back(std::move(c));
+  }
+  if (comparisons.empty()) return "";
+  const std::string subtitle = fmt::format("{} counted of {}{}", h.hits, h.rays, h.partial ? " (PARTIAL)" : "");
+  return "<figure>" + histogram_figure_svg(label, subtitle, comparisons) + "</figure>\n";
+}
+
+std::string estimate_text(const json& e) {
+  return report_number(member(e, "value")) + " &plusmn; " + report_number(member(e, "standard_error"));
+}
+
+}  // namespace html
+
 }  // namespace microsim::experiment

@@ -1,5 +1,5 @@
-// experiment: the report's HTML pieces shared by the page (report.cpp) and the kinds' sections
-// (report_sections.cpp), and each kind's section of a measurement's values, chosen through the registry
+// experiment: the report's HTML pieces shared by the page (report.cpp) and the kinds' sections (each in its
+// measurement_*.cpp), and each kind's section of a measurement's values, chosen through the registry
 // (measurement_registry.cpp: kind_report). Internal to the module.
 #pragma once
 
@@ -44,6 +44,11 @@ inline std::string table(const std::vector<std::string>& header, const std::stri
   const std::string head = header.empty() ? "" : "<thead>" + row(escaped, "th") + "</thead>\n";
   return "<table>\n" + head + "<tbody>\n" + body + "</tbody></table>\n";
 }
+
+// A traced histogram's counts against what its probabilities expect (stats/figure.h), as a figure of the page;
+// "" without probabilities. An estimate's value &plusmn; standard error. (report.cpp)
+std::string histogram_figure(const TracedHistogram& h, const std::string& label, const std::string& expected);
+std::string estimate_text(const json& e);
 
 }  // namespace microsim::experiment::html
 

@@ -3,7 +3,7 @@
 
 #include "core/errors.h"
 #include "core/wall_clock.h"
-#include "experiment/masking_runs.h"
+#include "measure/masking_runs.h"
 #include "experiment/measurement.h"
 #include "experiment/surface_albedo.h"
 #include "validate/validation_part.h"
@@ -127,7 +127,7 @@ ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measur
 }
 
 std::optional<std::vector<SurfaceMasking>> split_masking_round(const RoundSplit& split, std::size_t measurement,
-                                                               const HeightfieldMasking& h, std::uint64_t surface_seed,
+                                                               const MaskingRuns& h, std::uint64_t surface_seed,
                                                                const BlockRange& blocks, const RunControl& run) {
   using Sums = std::optional<std::vector<SurfaceMasking>>;
   const RoundTask task{measurement, kMaskingRunSamples, h.seed(), blocks, surface_seed};

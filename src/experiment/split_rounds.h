@@ -16,8 +16,9 @@
 #include "experiment/plan.h"
 #include "experiment/ranks.h"
 #include "experiment/spec.h"
-#include "experiment/surface_cache.h"
+#include "measure/surface_cache.h"
 #include "measure/masking.h"
+#include "measure/masking_runs.h"
 #include "measure/vndf.h"
 #include "scatter/albedo_table.h"
 #include "scatter/smith_walk.h"
@@ -31,7 +32,6 @@
 
 namespace microsim::experiment {
 
-class HeightfieldMasking;  // masking_runs.h (which includes run.h, and run.h this header)
 
 // Whether a decision's rounds are block ranges split over ranks and shards (Measurement::split), and whether
 // the ranks share its work at all (Measurement::shared: also a validation's one round).
@@ -69,7 +69,7 @@ ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measur
 // (the surface of `surface_seed`, the run's, from its own cache), the sums added in rank order: h's own
 // measure_round, bit for bit. nullopt when any part was cancelled (the round is dropped, as in one process).
 std::optional<std::vector<SurfaceMasking>> split_masking_round(const RoundSplit& split, std::size_t measurement,
-                                                               const HeightfieldMasking& h, std::uint64_t surface_seed,
+                                                               const MaskingRuns& h, std::uint64_t surface_seed,
                                                                const BlockRange& blocks, const RunControl& run);
 // The cells of a sampled albedo request: walk_albedo_cells (a walk), or its tiles' (surface_albedo.h).
 using AlbedoCellsOf = std::function<std::optional<AlbedoCells>(const AlbedoTableRequest& request, const BlockRange& cells)>;

@@ -3,7 +3,7 @@
 
 #include "core/wall_clock.h"
 #include "experiment/heightfield_measures.h"
-#include "experiment/heightfield_trade.h"
+#include "measure/heightfield_trade.h"
 #include "experiment/measures.h"
 #include "scatter/surface_scatter.h"
 

@@ -22,7 +22,7 @@
 
 #include "experiment/heightfield_measures.h"
 #include "experiment/plan.h"
-#include "experiment/surface_cache.h"
+#include "measure/surface_cache.h"
 #include "scatter/albedo_table.h"
 
 #include <optional>

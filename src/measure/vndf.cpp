@@ -456,4 +456,28 @@ nlohmann::json ellipsoid_vndf_json(const EllipsoidVndf& m, const EllipsoidTarget
   return j;
 }
 
+double vndf_noise_floor(const EllipsoidVndf& m) {
+  double worst = 0;
+  for (const TraceFit& f : m.analysis.fits) worst = std::max(worst, f.noise_floor_tv);
+  return worst;
+}
+
+double vndf_total_variation(const EllipsoidVndf& m) {
+  double worst = 0;
+  for (const TraceFit& f : m.analysis.fits) worst = std::max(worst, f.total_variation);
+  return worst;
+}
+
+double heightfield_noise_floor(const HeightfieldVndf& m) {
+  double worst = 0;
+  for (const VndfComparison& c : m.comparisons) worst = std::max(worst, c.tv_noise);
+  return worst;
+}
+
+double heightfield_total_variation(const HeightfieldVndf& m) {
+  double worst = 0;
+  for (const VndfComparison& c : m.comparisons) worst = std::max(worst, c.tv_analytic);
+  return worst;
+}
+
 }  // namespace microsim

@@ -53,6 +53,12 @@ struct HeightfieldVndf {
   std::vector<VndfComparison> comparisons;  // per binning
   std::string reference_source;             // "metadata" or "fitted"
 };
+// The largest TV noise floor (validate/compare.h noise_floor_tv) and the largest TV to the analytic D_v over a
+// measurement's binnings.
+double vndf_noise_floor(const EllipsoidVndf& measurement);
+double vndf_total_variation(const EllipsoidVndf& measurement);
+double heightfield_noise_floor(const HeightfieldVndf& measurement);
+double heightfield_total_variation(const HeightfieldVndf& measurement);
 // `surface` names the heightmap in the attributes (its path).
 HeightfieldVndf measure_heightfield_vndf(const microgeom::Heightfield& field, const std::string& surface,
                                          const VndfRequest& request);

@@ -10,11 +10,11 @@
 //     chi-square, level 0.001), and not with a trace of the alpha 0.6 tile (negative control); per-order
 //     scattering on the tile.
 #include "experiment/heightfield_measures.h"
-#include "experiment/heightfield_trade.h"
+#include "measure/heightfield_trade.h"
 #include "experiment/plan.h"
 #include "experiment/run.h"
 #include "experiment/run_directory.h"
-#include "experiment/surface_cache.h"
+#include "measure/surface_cache.h"
 #include "measure/vndf.h"
 #include "microgeom/exr_io.h"
 #include "scratch_dir.h"

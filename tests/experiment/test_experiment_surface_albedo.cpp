@@ -15,7 +15,7 @@
 #include "experiment/plan.h"
 #include "experiment/run.h"
 #include "experiment/surface_albedo.h"
-#include "experiment/surface_cache.h"
+#include "measure/surface_cache.h"
 #include "scatter/albedo_table.h"
 #include "core/random.h"
 #include "microfacet/samplers.h"

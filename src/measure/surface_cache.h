@@ -1,4 +1,4 @@
-// experiment: explicit surfaces shared between measurements, built once. A surface is keyed by
+// measure: explicit surfaces shared between measurements, built once. A surface is keyed by
 // the parameters that determine it (assembly, its reference NDF, alpha pair, resolution N, correlation length
 // l, NDF matching, seed, and the builder's version: microgeom's build is a pure function of them, see
 // microgeom/assembly.h); its cache file is DIR/surfaces/<hash>.exr, hash = FNV-1a (core/fnv1a.h) of the
@@ -26,7 +26,7 @@
 #include <string>
 #include <vector>
 
-namespace microsim::experiment {
+namespace microsim {
 
 // Bumped whenever microgeom's assembly build changes what it produces for the same parameters.
 inline constexpr int kSurfaceBuilderVersion = 1;
@@ -92,4 +92,4 @@ private:
   std::vector<std::string> events_;
 };
 
-}  // namespace microsim::experiment
+}  // namespace microsim

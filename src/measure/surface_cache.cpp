@@ -1,5 +1,5 @@
-// experiment: explicit surfaces built once and cached on disk (surface_cache.h).
-#include "experiment/surface_cache.h"
+// measure: explicit surfaces built once and cached on disk (surface_cache.h).
+#include "measure/surface_cache.h"
 
 #include "core/fnv1a.h"
 
@@ -10,10 +10,10 @@
 
 #include <stdexcept>
 
-namespace microsim::experiment {
+namespace microsim {
 namespace {
 
-std::string g17(double x) { return fmt::format("{:.17g}", x); }
+std::string key_number(double x) { return fmt::format("{:.17g}", x); }
 
 std::string metadata_or(const microgeom::Heightfield& field, const std::string& key) {
   const auto it = field.metadata.find(key);
@@ -35,7 +35,7 @@ std::string mismatch(const microgeom::Heightfield& field, const SurfaceKey& key)
 
 std::string canonical_surface_key(const SurfaceKey& k) {
   return fmt::format("assembly={};ndf={};alpha={},{};resolution={};corr_cells={};ndf_match={};seed={};builder={}",
-                     k.assembly, k.ndf, g17(k.alpha_x), g17(k.alpha_y), k.resolution, g17(k.corr_cells), k.ndf_match,
+                     k.assembly, k.ndf, key_number(k.alpha_x), key_number(k.alpha_y), k.resolution, key_number(k.corr_cells), k.ndf_match,
                      k.seed, k.builder_version);
 }
 
@@ -138,4 +138,4 @@ microgeom::Heightfield SurfaceCache::build(const SurfaceKey& key, const RunContr
   return field;
 }
 
-}  // namespace microsim::experiment
+}  // namespace microsim

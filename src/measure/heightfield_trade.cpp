@@ -1,7 +1,5 @@
-// experiment: the heightfield trade table and the surface size rule (heightfield_trade.h).
-#include "experiment/heightfield_trade.h"
-
-#include "experiment/plan.h"
+// measure: the heightfield trade table and the surface size rule (heightfield_trade.h).
+#include "measure/heightfield_trade.h"
 
 #include <fmt/core.h>
 
@@ -9,7 +7,7 @@
 #include <cmath>
 #include <stdexcept>
 
-namespace microsim::experiment {
+namespace microsim {
 
 extern const char* const kHeightfieldTradeJson;  // generated from docs/data/heightfield-trade.json (CMake)
 
@@ -140,4 +138,4 @@ std::optional<SurfaceSize> predicted_bias(const TradeTable& table, int resolutio
                                  anisotropy_text(anisotropy), table.source)};
 }
 
-}  // namespace microsim::experiment
+}  // namespace microsim
