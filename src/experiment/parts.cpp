@@ -49,7 +49,7 @@ struct Part {
 };
 
 // Rank r's part of `task`: its provenance the round's parameters and total blocks, its blocks rank r's shard
-// (check_shard). The seed is recorded for a reader, not compared: the parts are known by their round's task.
+// (check_shard), its seed the round's: a part of another seed's round is malformed, never added.
 Part read_part(const std::string& text, const RoundTask& task, int rank, int ranks) {
   Part part;
   try {
@@ -59,6 +59,8 @@ Part read_part(const std::string& text, const RoundTask& task, int rank, int ran
     const Provenance p = reader.provenance(j, parameters);
     if (p.total_blocks != task.blocks.end || parameters != round_parameters(task))
       malformed(rank, fmt::format("a part of another round ({}, blocks to {})", parameters.dump(), p.total_blocks));
+    if (p.seed != task.seed)
+      malformed(rank, fmt::format("a part of seed {}, not the round's {}", p.seed, task.seed));
     part = {p.blocks, reader.flag(j, "partial", ""), j.value("sums", json())};
   } catch (const json::exception& e) {
     malformed(rank, e.what());

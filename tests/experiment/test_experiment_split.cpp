@@ -17,7 +17,7 @@
 //     negative controls: a rank tracing another tile (another seed) moves the counts, parts swapped are an
 //     InternalError, a rank whose tile build is cancelled cuts the round where its shard begins;
 //   - a validation against a heightmap's traced visible normals: its reference rays over 2 and 3 ranks and 3
-//     shards give the one-process report; parts swapped: an InternalError; another seed's rays move it; a
+//     shards give the one-process report; parts swapped: an InternalError; another seed's parts: an InternalError; a
 //     cancelled rank cancels it;
 //   - masking on a heightfield (G1, G2 for two lights, conditional bins), its rounds over 2 and 3 ranks and its
 //     first round over 3 shards: the one-process sums and values; parts swapped: an InternalError; a cancelled
@@ -630,8 +630,8 @@ TEST(ExperimentSplitTileValidation, RanksAndShardsTraceTheOneProcessReferenceRay
   }
   StoredRounds stored = merge_shards(three_shards(spec, plan), {"1", "2", "3"});
   EXPECT_TRUE(validation_measured(run_stored(spec, plan, stored)).dump() == expected) << "3 shards";
-  // Negative controls: parts out of rank order are an InternalError; rays of another seed move the report; a
-  // cancelled rank cancels the validation (nothing kept).
+  // Negative controls: parts out of rank order, or of another seed's rounds, are an InternalError (never a
+  // result); a cancelled rank cancels the validation (nothing kept).
   std::swap(stored.parts[0][0], stored.parts[0][1]);
   EXPECT_THROW(run_stored(spec, plan, stored), InternalError);
   ExperimentSpec reseeded = spec;
@@ -639,7 +639,7 @@ TEST(ExperimentSplitTileValidation, RanksAndShardsTraceTheOneProcessReferenceRay
   StoredRounds other = merge_shards(three_shards(reseeded, plan), {"1", "2", "3"});
   ASSERT_NE(other.tasks, tasks);
   other.tasks = tasks;  // another seed's rays presented as this run's
-  EXPECT_FALSE(validation_measured(run_stored(spec, plan, other)).dump() == expected);
+  EXPECT_THROW(run_stored(spec, plan, other), InternalError);
   const SplitRun cut = run_split(spec, plan, 3, {}, 2);
   ASSERT_TRUE(cut.results.partial);
   EXPECT_TRUE(cut.results.measurements.at(0).partial);
