@@ -46,6 +46,8 @@ set(MICROSIM_SANITIZE_SKIP
   [=[ExperimentSplitAlbedo\.OnTiles]=]
   [=[AlbedoGrade\.]=]
   [=[BsdfBatteryWorked\.CorrectBsdfs]=]
+  [=[AlbedoCliGrade\.]=]
+  [=[CheckBsdfCli\.(TheWorkedPluginsPassWhole|APlantedEvalBugIsRejected)]=]
 )
 list(JOIN MICROSIM_SANITIZE_SKIP "|" MICROSIM_SANITIZE_SKIP_REGEX)
 set(MICROSIM_BROWSER_REGEX [=[^ReportBrowser\.]=])
