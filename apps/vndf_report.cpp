@@ -38,6 +38,13 @@ void print_comparisons(const std::vector<VndfComparison>& comparisons) {
 
 const char* partial_note(const TraceResult& r) { return r.partial ? "  PARTIAL (interrupted)" : ""; }
 
+// The run's speed; a merged histogram has none (its parts were timed apart), said so rather than zeros.
+std::string speed_text(const TraceResult& r, bool cpu) {
+  if (r.seconds <= 0 && r.rays > 0) return "time not measured (merged parts)";
+  return fmt::format("{:.2f} s  {:.3f} Mrays/s", r.seconds, r.rays_per_second() * 1e-6) +
+         (cpu ? fmt::format("  {:.1f} CPU ns/ray", r.cpu_ns_per_ray()) : "");
+}
+
 }  // namespace
 
 int report_ellipsoid_vndf(const EllipsoidVndf& m, const EllipsoidTarget& target, const VndfOutputs& outputs) {
@@ -50,10 +57,8 @@ int report_ellipsoid_vndf(const EllipsoidVndf& m, const EllipsoidTarget& target,
   const VndfRunRecord run = vndf_run_record(h);
   fmt::print("trace vndf  ellipsoid alpha ({}, {})  theta {}  phi {}  {}\n", ggx.alpha_x(), ggx.alpha_y(),
              run.theta_deg, run.phi_deg, target.describe());
-  fmt::print("rays {}  hits {}  hit fraction {:.6f} (exact ellipsoid: {:.6f})  {:.2f} s  {:.3f} Mrays/s  "
-             "{:.1f} CPU ns/ray{}\n",
-             r.rays, r.hits, r.rays ? double(r.hits) / double(r.rays) : 0.0, m.expected_hit_fraction, r.seconds,
-             r.rays_per_second() * 1e-6, r.cpu_ns_per_ray(), partial_note(r));
+  fmt::print("rays {}  hits {}  hit fraction {:.6f} (exact ellipsoid: {:.6f})  {}{}\n", r.rays, r.hits,
+             r.rays ? double(r.hits) / double(r.rays) : 0.0, m.expected_hit_fraction, speed_text(r, true), partial_note(r));
   print_fits(m.analysis);
   fmt::print("wrote {}{}\n", outputs.out, outputs.json.empty() ? "" : " and " + outputs.json);
   return r.partial ? kExitInterrupted : kExitOk;
@@ -70,9 +75,9 @@ int report_heightfield_vndf(const HeightfieldVndf& m, const microgeom::Heightfie
 
   fmt::print("trace vndf  heightfield {}  theta {}  phi {}  reference {} ({})\n", surface, run.theta_deg, run.phi_deg,
              analytic.describe(), m.reference_source);
-  fmt::print("rays {}  front-facing first hits {}  back-facing {}  convex-edge grazes passed over {}  leaked {}  {:.2f} s  "
-             "{:.3f} Mrays/s{}\n", r.rays, r.hits, m.diagnostics.backfacing, m.diagnostics.edge_grazes, m.diagnostics.leaked,
-             r.seconds, r.rays_per_second() * 1e-6, partial_note(r));
+  fmt::print("rays {}  front-facing first hits {}  back-facing {}  convex-edge grazes passed over {}  leaked {}  {}{}\n",
+             r.rays, r.hits, m.diagnostics.backfacing, m.diagnostics.edge_grazes, m.diagnostics.leaked,
+             speed_text(r, false), partial_note(r));
   print_comparisons(m.comparisons);
   fmt::print("wrote {}{}\n", outputs.out, outputs.json.empty() ? "" : " and " + outputs.json);
   return r.partial ? kExitInterrupted : kExitOk;
