@@ -4,10 +4,9 @@
 #include "microfacet/ggx.h"
 #include "microfacet/material.h"
 #include "scatter/albedo_table.h"
+#include "scatter/parallel_cells.h"
 
 #include <fmt/core.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <atomic>
@@ -67,20 +66,11 @@ std::optional<AnisotropicAlbedoTable> anisotropic_albedo_table(const Anisotropic
   const std::size_t ny = t.alphas_y.size(), nm = t.mus.size(), np = t.phis.size();
   t.cells.resize(t.alphas_x.size() * ny * nm * np);
   std::atomic<std::uint64_t> done{0};
-  std::atomic<bool> cancelled{false};
-  tbb::task_arena arena(r.run.threads > 0 ? r.run.threads : tbb::task_arena::automatic);
-  arena.execute([&] {
-    tbb::parallel_for(std::size_t(0), t.cells.size(), [&](std::size_t c) {
-      if (cancelled || r.run.cancelled()) {
-        cancelled = true;
-        return;
-      }
-      const std::size_t k = c % np, j = (c / np) % nm, iy = (c / (np * nm)) % ny, ix = c / (np * nm * ny);
-      t.cells[c] = anisotropic_mirror_albedo(t.alphas_x[ix], t.alphas_y[iy], t.mus[j], t.phis[k], r.tolerance);
-      r.run.report("anisotropic albedo table", done.fetch_add(1) + 1, t.cells.size());
-    });
-  });
-  if (cancelled || r.run.cancelled()) return std::nullopt;
+  if (!parallel_cells(t.cells.size(), r.run, "anisotropic albedo table", done, t.cells.size(), [&](std::size_t c) {
+        const std::size_t k = c % np, j = (c / np) % nm, iy = (c / (np * nm)) % ny, ix = c / (np * nm * ny);
+        t.cells[c] = anisotropic_mirror_albedo(t.alphas_x[ix], t.alphas_y[iy], t.mus[j], t.phis[k], r.tolerance);
+      }))
+    return std::nullopt;
   for (std::size_t ixy = 0; ixy < t.alphas_x.size() * ny; ++ixy) {
     Estimate avg;
     for (std::size_t j = 0; j < nm; ++j)

@@ -1,11 +1,10 @@
 #include "scatter/albedo_glass_layout.h"
+#include "scatter/parallel_cells.h"
 
 #include "core/wall_clock.h"
 #include "microfacet/ggx.h"
 
 #include <fmt/core.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <atomic>
@@ -35,24 +34,6 @@ GlassLayout cycles_glass(bool inverse) {
 }
 
 constexpr int kGlassAverageNodes = 32;  // Gauss-Legendre nodes of E_avg's mu integral
-
-template <class F>
-bool parallel_glass_nodes(std::size_t count, const RunControl& run, std::atomic<std::uint64_t>& done, std::uint64_t total,
-                    const F& f) {
-  std::atomic<bool> cancelled{false};
-  tbb::task_arena arena(run.threads > 0 ? run.threads : tbb::task_arena::automatic);
-  arena.execute([&] {
-    tbb::parallel_for(std::size_t(0), count, [&](std::size_t k) {
-      if (cancelled || run.cancelled()) {
-        cancelled = true;
-        return;
-      }
-      f(k);
-      run.report("glass layout table", done.fetch_add(1) + 1, total);
-    });
-  });
-  return !(cancelled || run.cancelled());
-}
 
 // Cycles computes in float, where its first index node (ior 1 + 2e-8) is 1 exactly: the interface is then
 // invisible, no reflection and no bending (wo = -wi for every facet), so every visible normal's weight is
@@ -91,7 +72,7 @@ bool fill_glass_averages(GlassLayoutTable& t, const RunControl& run, std::atomic
   const MuGrid grid = gauss_legendre_mus(kGlassAverageNodes);
   const std::size_t n = grid.mus.size(), nx = t.alphas.size();
   std::vector<Estimate> e(t.iors.size() * nx * n);
-  if (!parallel_glass_nodes(e.size(), run, done, total, [&](std::size_t k) {
+  if (!parallel_cells(e.size(), run, "glass layout table", done, total, [&](std::size_t k) {
         const std::size_t z = k / (nx * n), x = (k / n) % nx;
         e[k] = glass_reference(t.alphas[x], grid.mus[k % n], t.iors[z], t.layout.inverse, t.tolerance).total();
       }))
@@ -143,7 +124,7 @@ std::optional<GlassLayoutTable> glass_layout_table(const GlassLayout& layout, do
   const std::uint64_t total = nx * ny * nz + (averages ? nx * nz * kGlassAverageNodes : 0);
   std::atomic<std::uint64_t> done{0};
   t.cells.resize(nx * ny * nz);
-  if (!parallel_glass_nodes(t.cells.size(), run, done, total, [&](std::size_t k) {
+  if (!parallel_cells(t.cells.size(), run, "glass layout table", done, total, [&](std::size_t k) {
         const std::size_t x = k % nx, y = (k / nx) % ny, z = k / (nx * ny);
         t.cells[k] = glass_reference(t.alphas[x], t.mus[y], t.iors[z], layout.inverse, tolerance);
       }))

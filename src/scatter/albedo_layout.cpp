@@ -1,4 +1,5 @@
 #include "scatter/albedo_layout.h"
+#include "scatter/parallel_cells.h"
 
 #include "core/parse.h"
 #include "core/wall_clock.h"
@@ -6,8 +7,6 @@
 #include "scatter/albedo_table.h"
 
 #include <fmt/core.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include <atomic>
 #include <bit>
@@ -188,25 +187,6 @@ namespace {
 
 constexpr int kAverageNodes = 32;  // Gauss-Legendre nodes of E_avg's mu integral
 
-// Evaluates f(k) for k in [0, count) in parallel; false when cancelled.
-template <class F>
-bool parallel_cells(std::size_t count, const RunControl& run, std::atomic<std::uint64_t>& done, std::uint64_t total,
-                    const F& f) {
-  std::atomic<bool> cancelled{false};
-  tbb::task_arena arena(run.threads > 0 ? run.threads : tbb::task_arena::automatic);
-  arena.execute([&] {
-    tbb::parallel_for(std::size_t(0), count, [&](std::size_t k) {
-      if (cancelled || run.cancelled()) {
-        cancelled = true;
-        return;
-      }
-      f(k);
-      run.report("layout table", done.fetch_add(1) + 1, total);
-    });
-  });
-  return !(cancelled || run.cancelled());
-}
-
 LayoutTable empty_layout_table(const AlbedoLayout& layout, double tolerance) {
   LayoutTable t;
   t.layout = layout;
@@ -225,7 +205,7 @@ bool fill_averages(LayoutTable& t, const RunControl& run, std::atomic<std::uint6
   const MuGrid grid = gauss_legendre_mus(kAverageNodes);
   const std::size_t n = grid.mus.size();
   std::vector<Estimate> e(t.alphas.size() * n);
-  if (!parallel_cells(e.size(), run, done, total, [&](std::size_t k) {
+  if (!parallel_cells(e.size(), run, "layout table", done, total, [&](std::size_t k) {
         e[k] = mirror_albedo_reference(t.alphas[k / n], grid.mus[k % n], t.tolerance);
       }))
     return false;
@@ -253,12 +233,12 @@ std::optional<LayoutTable> layout_table(const AlbedoLayout& layout, double toler
   const std::uint64_t total = nr * nm + cr * cm + (layout.has_average && averages ? nr * kAverageNodes : 0);
   std::atomic<std::uint64_t> done{0};
   t.cells.resize(nr * nm);
-  if (!parallel_cells(t.cells.size(), run, done, total, [&](std::size_t k) {
+  if (!parallel_cells(t.cells.size(), run, "layout table", done, total, [&](std::size_t k) {
         t.cells[k] = mirror_albedo_reference(t.alphas[k / nm], t.mus[k % nm], tolerance);
       }))
     return std::nullopt;
   t.centres.resize(cr * cm);
-  if (!parallel_cells(t.centres.size(), run, done, total, [&](std::size_t k) {
+  if (!parallel_cells(t.centres.size(), run, "layout table", done, total, [&](std::size_t k) {
         const double r = layout_coordinate(layout.roughness, double(k / cm) + 0.5);
         const double mu = layout_coordinate(layout.mu, double(k % cm) + 0.5);
         t.centres[k] = mirror_albedo_reference(layout_alpha(layout, r), mu, tolerance);
