@@ -89,6 +89,9 @@ void print_tests(const ValidationReport& r) {
     if (c.name == "bsdf_albedo") print_check("weights: BSDF albedo", c, fmt::format("{:.6g}", c.value), fmt_p(c.p_value));
     if (c.name == "bsdf_bins")
       print_check("weights: BSDF flux per bin", c, fmt::format("z {:.2f}", c.value), fmt_p(c.p_value));
+    if (c.name == "reference_bias")
+      print_check("reference bias (P reject exact)", c, fmt::format("{:.3g}", c.value),
+                  fmt::format("<= {:.3g}", c.tolerance));
   }
   fmt::print("  {:<34} {:>14} {:>7} {:>11}  {}\n", "samples outside the domain", r.outside_domain, "", "0",
              pass_fail(r.check("domain").passed));

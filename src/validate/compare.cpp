@@ -7,6 +7,8 @@
 #include "validate/sample_io.h"
 #include "core/strict_parse.h"
 
+#include <boost/math/distributions/chi_squared.hpp>
+#include <boost/math/distributions/non_central_chi_squared.hpp>
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 #include <tbb/blocked_range.h>
@@ -15,6 +17,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <limits>
 #include <cmath>
 #include <numeric>
 #include <optional>
@@ -147,6 +150,79 @@ TracedHistogram trace_vndf_histogram(const GGX<double>& ggx, const Vec3<double>&
   return h;
 }
 
+// ---- a traced reference's own departure from D_v ---------------------------------------------------------
+
+namespace {
+
+constexpr double kExcessMargin = 3.09;  // null standard deviations of X^2 taken off its excess (one-sided 0.1%)
+
+// The probability that the binnings' Sidak-combined two-sample tests reject an exact sampler of `samples`.
+double false_rejection(const ReferenceBias& b, std::uint64_t hits, double samples, double per_test) {
+  double keep = 1;
+  for (std::size_t k = 0; k < b.excess.size(); ++k) {
+    if (b.excess[k] <= 0 || b.dof[k] < 1) continue;
+    const double lambda = b.excess[k] * samples / (samples + double(hits));
+    if (!(lambda < 1e7)) return 1;  // an impossible trace (X^2 infinite) or far beyond any critical value
+    const double critical =
+        boost::math::quantile(boost::math::complement(boost::math::chi_squared(b.dof[k]), per_test));
+    keep *= boost::math::cdf(boost::math::non_central_chi_squared(b.dof[k], lambda), critical);
+  }
+  return 1 - keep;
+}
+
+// The largest sample count whose false rejection stays within the bound (bisection in log S).
+std::uint64_t max_samples_within(const ReferenceBias& b, std::uint64_t hits, double per_test) {
+  constexpr double kAny = 1e15;
+  if (false_rejection(b, hits, kAny, per_test) <= b.bound) return std::numeric_limits<std::uint64_t>::max();
+  double lo = 1, hi = kAny;
+  for (int i = 0; i < 200 && hi / lo > 1.0001; ++i) {
+    const double mid = std::sqrt(lo * hi);
+    (false_rejection(b, hits, mid, per_test) <= b.bound ? lo : hi) = mid;
+  }
+  return std::uint64_t(lo);
+}
+
+}  // namespace
+
+std::string ReferenceBias::describe() const {
+  const std::string most = max_samples == std::numeric_limits<std::uint64_t>::max()
+                               ? std::string("any number of samples")
+                               : fmt::format("at most {} samples", max_samples);
+  std::string excess_text;
+  for (std::size_t k = 0; k < binnings.size(); ++k)
+    excess_text += fmt::format("{}{} {:.1f} (dof {})", k ? ", " : "", binnings[k], excess[k], dof[k]);
+  const bool nil = std::all_of(excess.begin(), excess.end(), [](double e) { return e <= 0; });
+  if (nil)
+    return fmt::format("the traced reference is D_v within its noise (its chi-square excess beyond the noise: {}): "
+                       "it serves {}", excess_text, most);
+  return fmt::format("the traced reference departs from D_v (its chi-square excess beyond the noise: {}): an exact "
+                     "sampler of {} samples would be rejected with probability {:.3g} (bound {:.3g}, twice the "
+                     "level); it serves {}",
+                     excess_text, samples, false_rejection, bound, most);
+}
+
+BiasedReference::BiasedReference(ReferenceBias b)
+    : std::invalid_argument(b.describe() + ": compare fewer samples, or trace a larger tile or more exact surface"),
+      bias(std::move(b)) {}
+
+ReferenceBias reference_bias(const TracedHistogram& traced, std::uint64_t samples, double significance) {
+  TracedHistogram h = traced;
+  const TraceAnalysis fit = analyse_against_vndf(h, histogram_ggx(traced), histogram_wi(traced), {}, significance);
+  ReferenceBias b;
+  b.samples = samples;
+  b.bound = 2 * significance;
+  for (const TraceFit& f : fit.fits) {
+    const double d = f.chi2.dof;
+    b.binnings.push_back(f.binning);
+    b.dof.push_back(f.chi2.dof);
+    b.excess.push_back(std::max(0.0, f.chi2.statistic - d - kExcessMargin * std::sqrt(2 * d)));
+  }
+  const double per_test = sidak_significance(significance, int(b.excess.size()));
+  b.false_rejection = false_rejection(b, traced.hits, double(samples), per_test);
+  b.max_samples = max_samples_within(b, traced.hits, per_test);
+  return b;
+}
+
 // ---- sampler vs traced histogram -------------------------------------------------------------------------
 
 namespace {
@@ -240,16 +316,35 @@ battery::Expectations oracle_expectations(const TracedHistogram& traced) {
   return e;
 }
 
+// The reference's bias at `samples` (reference_bias), or BiasedReference when it is not usable.
+ReferenceBias require_usable_reference(const TracedHistogram& traced, std::uint64_t samples, double significance) {
+  ReferenceBias bias = reference_bias(traced, samples, significance);
+  if (!bias.usable()) throw BiasedReference(std::move(bias));
+  return bias;
+}
+
+// The report's statement of a usable reference's bias (a hard check: an unusable one never reaches a report).
+SubTest reference_bias_check(const ReferenceBias& bias) {
+  SubTest t;
+  t.name = "reference_bias";
+  t.label = "reference bias";
+  t.value = bias.false_rejection;
+  t.tolerance = bias.bound;
+  t.passed = bias.usable();
+  t.detail = bias.describe();
+  return t;
+}
+
 // The report of the samples' counts against the oracle's: the two-sample tests and the domain check
 // (the checks against a claimed pdf do not apply).
 ValidationReport oracle_report(const battery::SampleSource& source, const battery::Tally& tally,
                                const battery::Expectations& expectations, const GGX<double>& ggx,
-                               const Vec3<double>& wi, const ValidationOptions& options) {
+                               const Vec3<double>& wi, const ValidationOptions& options, const ReferenceBias& bias) {
   using namespace battery;
   ValidationReport r = report_header(source, SampleDomain::microfacet_normal, ggx, wi.normalized(), tally, options);
   add_binned_tests(r, expectations, tally, options);
   const std::string not_here = "not applicable: comparison with the traced oracle (two-sample test only)";
-  r.checks = {domain_check(r, tally, options), not_applicable("pdf_integral", not_here),
+  r.checks = {domain_check(r, tally, options), reference_bias_check(bias), not_applicable("pdf_integral", not_here),
               not_applicable("returned_pdf", not_here), not_applicable("weight_mean", not_here)};
   decide(r);
   return r;
@@ -264,7 +359,8 @@ ValidationReport compare_source(const battery::SampleSource& source, const GGX<d
   const battery::Expectations expectations = oracle_expectations(traced);
   const battery::Tally tally = battery::tally_samples(source, battery::binnings_of(expectations), options);
   require(tally.samples);
-  ValidationReport r = oracle_report(source, tally, expectations, ggx, wi, options);
+  const ReferenceBias bias = require_usable_reference(traced, tally.samples, options.significance);
+  ValidationReport r = oracle_report(source, tally, expectations, ggx, wi, options, bias);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return r;
 }
@@ -308,6 +404,7 @@ battery::Tally tally_drawn_samples_for_trace(const SamplerInfo& sampler, const G
                                              const ValidationOptions& options, const TracedHistogram& traced) {
   check_sampler_for_trace(sampler, ggx, wi, traced);
   require_trace_samples(options.samples, traced);
+  require_usable_reference(traced, options.samples, options.significance);  // before any sample is drawn
   std::vector<const DirectionBinning*> binnings;
   for (const DirectionBinning& b : traced.binnings) binnings.push_back(&b);
   return battery::tally_samples(battery::drawn_samples(sampler, ggx, wi, options), binnings, options);
@@ -317,7 +414,7 @@ ValidationReport report_drawn_samples_against_trace(const SamplerInfo& sampler, 
                                                     const Vec3<double>& wi, const battery::Tally& tally,
                                                     const ValidationOptions& options, const TracedHistogram& traced) {
   return oracle_report(battery::drawn_samples(sampler, ggx, wi, options), tally, oracle_expectations(traced), ggx, wi,
-                       options);
+                       options, require_usable_reference(traced, tally.samples, options.significance));
 }
 
 namespace {

@@ -74,6 +74,38 @@ void record_ellipsoid_target(TracedHistogram& histogram, const EllipsoidTarget& 
 TracedHistogram trace_vndf_histogram(const GGX<double>& ggx, const Vec3<double>& wi, const OracleTraceOptions& options,
                                      TraceResult* raw = nullptr);
 
+// ---- a traced reference's own departure from D_v ---------------------------------------------------------
+
+// A traced histogram stands for D_v only as far as its surface is exactly GGX with Smith's masking: a finite
+// tile holds few facets in the NDF's tail, a meshed ellipsoid is faceted, and a heightfield's masking is not
+// exactly Smith's. The two-sample test then rejects even an exact sampler once the samples resolve that
+// difference, and the verdict would be the reference's, not the sampler's. Estimated from the trace's own
+// Pearson fit to D_v (X^2 with d degrees of freedom at H hits): E[X^2] - d = H sum_i (t_i - q_i)^2 / q_i, so
+// at S samples the two-sample statistic is non-central chi-square with lambda(S) = (X^2 - d) S / (S + H)
+// (the limiting power of Pearson's test: Mitra 1958, "On the limiting power function of the frequency
+// chi-square test", Ann. Math. Statist. 29). The estimate is taken low: X^2 - d less 3.09 of its null standard deviations sqrt(2 d) (an exact
+// oracle is flagged in 0.1% of its traces), and at most the observed excess.
+struct ReferenceBias {
+  std::vector<std::string> binnings;  // per binning of the histogram:
+  std::vector<double> excess;         // max(0, X^2 - d - 3.09 sqrt(2 d)) of the trace against D_v
+  std::vector<int> dof;
+  std::uint64_t samples = 0;          // the comparison's sample count
+  double false_rejection = 0;         // probability that it rejects an exact sampler at `samples`
+  double bound = 0;                   // what a usable reference may cost: twice the family-wise level
+  std::uint64_t max_samples = 0;      // the largest sample count within the bound (UINT64_MAX: any)
+  bool usable() const { return false_rejection <= bound; }
+  std::string describe() const;       // one sentence: the false-rejection probability, the bound, max_samples
+};
+// The bias of `traced` (its alpha and wi: histogram_ggx/histogram_wi) for a comparison with `samples` samples
+// at the family-wise level `significance` (Sidak over the histogram's binnings, as the comparison combines them).
+ReferenceBias reference_bias(const TracedHistogram& traced, std::uint64_t samples, double significance);
+// Thrown by the comparisons below (before any sample is drawn, or once a file's samples are counted) when the
+// reference is not usable at that sample count: no verdict about the sampler can be given.
+struct BiasedReference : std::invalid_argument {
+  explicit BiasedReference(ReferenceBias b);
+  ReferenceBias bias;
+};
+
 // ---- sampler vs traced histogram -------------------------------------------------------------------------
 
 // The view and roughness a histogram was traced for (from its attributes "alpha" and "wi"); throws
@@ -94,6 +126,8 @@ ValidationReport compare_samples_to_trace(std::span<const Vec3<double>> samples,
 ValidationReport compare_sample_file_to_trace(DirectionSampleReader& reader, std::string source, const GGX<double>& ggx,
                                               const Vec3<double>& wi, const ValidationOptions& options,
                                               const TracedHistogram& traced);
+// A reference too biased for the sample count throws BiasedReference; the report's check "reference_bias"
+// states the bias of a usable one.
 // Too few samples (or oracle hits) throw InsufficientData (chi2.h) before any sample is drawn (after the
 // file is read): the two-sample tests need, on each side, goodness_of_fit_minimum_samples of the
 // oracle's proportions (with its remainder cell): trace_minimum_samples.

@@ -9,6 +9,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
+#include <limits>
+
 using namespace microsim;
 
 namespace {
@@ -77,4 +80,43 @@ TEST(TraceCompare, SamplesFromFileAndConfigurationChecks) {
                std::invalid_argument);
   // Samplers of reflected directions cannot be compared with normals.
   EXPECT_THROW(compare_sampler_to_trace(*find_sampler("bounded2023"), ggx, wi, o, traced), std::invalid_argument);
+}
+
+// A traced reference is a ground truth only as far as it is D_v: one that departs from it (here an exact
+// trace of alpha 0.32 labelled alpha 0.3, as a finite tile's missing tail or a faceted mesh departs) rejects
+// even an exact sampler once the samples resolve the difference. The comparison refuses such sample counts
+// before drawing (BiasedReference), names the largest count the reference serves, and at that count the
+// exact sampler passes while the negative control is still rejected. An exact trace serves any count.
+TEST(TraceCompare, AReferenceThatDepartsFromDvIsRefusedWhereItWouldRejectAnExactSampler) {
+  const GGX<double> ggx(0.3, 0.3);
+  const Vec3<double> wi = direction_from_degrees(60.0, 0.0);
+  OracleTraceOptions t;
+  t.rays = 400'000;
+  t.rows = 15;
+  const TracedHistogram exact = trace_vndf_histogram(ggx, wi, t);
+  const ReferenceBias fine = reference_bias(exact, 1'000'000, 0.01);
+  EXPECT_TRUE(fine.usable()) << fine.describe();
+  EXPECT_EQ(fine.max_samples, std::numeric_limits<std::uint64_t>::max()) << fine.describe();
+
+  TracedHistogram off = trace_vndf_histogram(GGX<double>(0.31, 0.31), wi, t);
+  off.attributes["alpha"] = "0.3,0.3";
+  const ReferenceBias biased = reference_bias(off, 1'000'000, 0.01);
+  std::printf("%s\n", biased.describe().c_str());
+  ASSERT_FALSE(biased.usable());
+  ASSERT_GT(biased.max_samples, 2'000u);
+  ASSERT_LT(biased.max_samples, 1'000'000u);
+  ValidationOptions o;  // 1e6 samples
+  const SamplerInfo& heitz = *find_sampler("heitz2018");
+  try {
+    compare_sampler_to_trace(heitz, ggx, wi, o, off);
+    ADD_FAILURE() << "an unusable reference gave a verdict";
+  } catch (const BiasedReference& e) {
+    EXPECT_NE(std::string(e.what()).find(std::to_string(biased.max_samples)), std::string::npos) << e.what();
+  }
+  o.samples = biased.max_samples;
+  const ValidationReport pass = compare_sampler_to_trace(heitz, ggx, wi, o, off);
+  EXPECT_TRUE(pass.passed) << pass.p_value;
+  EXPECT_TRUE(pass.check("reference_bias").passed);
+  EXPECT_LE(pass.check("reference_bias").value, 0.02);
+  EXPECT_FALSE(compare_sampler_to_trace(*find_sampler("heitz2018-talk"), ggx, wi, o, off).passed);
 }
