@@ -237,12 +237,22 @@ private:
           fmt::format("{} rays traced on {}", traced.histogram.hits, surface_label(decision_.surface));
     } catch (const Cancelled&) {
       m.partial = true;
+    } catch (const BiasedReference& e) {
+      record_no_verdict(e, n, fmt::format("{} rays traced on {}", traced.histogram.hits, surface_label(decision_.surface)), m);
     } catch (const SampleFileError& e) {
       rethrow_dump_error(e);
     } catch (const InsufficientData& e) {
       if (q.dump.empty()) throw;
       rethrow_dump_error(e);
     }
+  }
+  // The tile's trace is not D_v at this sample count (compare.h reference_bias): no verdict, target not met.
+  void record_no_verdict(const BiasedReference& e, std::uint64_t samples, const std::string& reference,
+                         MeasurementResult& m) const {
+    const SpecQuantity& q = quantity_;
+    m.values = {{"validation", {{"verdict", "none"}, {"sampler", q.dump.empty() ? q.sampler : q.dump},
+                                {"samples", samples}, {"no_verdict", e.what()}, {"reference", reference}}}};
+    m.met = false;
   }
 };
 
@@ -506,6 +516,9 @@ std::string validation_tests_table(const json& v) {
 std::string validation_values(const json& values, const ReportHistograms& histograms, std::size_t index,
                               const std::string& label) {
   const json& v = member(values, "validation");
+  if (v.contains("no_verdict"))
+    return fmt::format("<p class=\"notmet\">No verdict ({} against {}): {}.</p>\n", esc(text_of(member(v, "sampler"))),
+                       esc(text_of(member(v, "reference"))), esc(text_of(member(v, "no_verdict"))));
   std::string out = fmt::format("<p>Sampler <b>{}</b>, {} samples: verdict <b>{}</b> (p {}, level {}).</p>\n",
                                 esc(text_of(member(v, "sampler"))), text_of(member(v, "samples")),
                                 esc(text_of(member(v, "verdict"))), report_number(member(v, "p_value")),

@@ -14,10 +14,12 @@ std::string to_string(Verdict verdict) {
 }
 
 // A validation's values hold the validator's report (validate.h to_json), whose verdict is "pass" or "fail";
-// a validation cut short holds none (it runs again when resumed).
+// a validation cut short holds none (it runs again when resumed), and one whose traced reference could not
+// serve its sample count holds "none" (compare.h reference_bias): neither was tested.
 bool validation_tested(const MeasurementResult& m) {
   return m.ran && !m.partial && m.values.is_object() && m.values.contains("validation") &&
-         m.values.at("validation").is_object() && m.values.at("validation").contains("verdict");
+         m.values.at("validation").is_object() && m.values.at("validation").contains("verdict") &&
+         m.values.at("validation").at("verdict") != "none";
 }
 
 bool validation_rejected(const MeasurementResult& m) {

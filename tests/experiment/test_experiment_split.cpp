@@ -28,6 +28,7 @@
 #include "experiment/run.h"
 #include "experiment/shards.h"
 #include "experiment/split_rounds.h"
+#include "experiment/verdict.h"
 #include "microgeom/assembly.h"
 #include "scratch_dir.h"
 #include "small_pilots.h"
@@ -613,10 +614,15 @@ TEST(ExperimentSplitTileValidation, RanksAndShardsTraceTheOneProcessReferenceRay
   EXPECT_GE(tasks[0].blocks.size(), 3u) << "a block of rays per rank";
   EXPECT_NE(tasks[0].blocks.size() % 3, 0u) << "an uneven split over 3 ranks";
   // The report (this radial 256^2 tile's NDF is far from GGX at TV 0.03: the plan marks its bias ABOVE, and
-  // the correct sampler is rejected against it; what is tested here is that every split gives that report).
+  // its trace cannot serve the samples as D_v: no verdict, where the correct sampler was once rejected against
+  // it; what is tested here is that every split gives that report).
   const ExperimentResults alone = run_in_one_process(spec, plan);
   const MeasurementResult& m = alone.measurements.at(0);
   ASSERT_TRUE(m.ran);
+  EXPECT_EQ(m.values.at("validation").at("verdict"), "none");
+  EXPECT_NE(m.values.at("validation").at("no_verdict").get<std::string>().find("departs from D_v"), std::string::npos);
+  EXPECT_FALSE(m.met);
+  EXPECT_EQ(run_verdict(alone).verdict, Verdict::none);
   const std::string reference = m.values.at("validation").at("reference").get<std::string>();
   EXPECT_NE(reference.find(fmt::format("{} rays traced on", d.units)), std::string::npos) << reference;
   const std::string expected = validation_measured(alone).dump();
