@@ -8,8 +8,6 @@
 // BM_WalkPaths/material:<0 mirror|1 dielectric>/threads:<1|2>: wall-clock time of 64 blocks (262144 paths);
 // counter paths_per_second (wall clock); the CPU column is the process's CPU time (all threads), so that on a
 // shared machine paths / CPU time gives the rate per busy core.
-// BM_WalkLanes/material:<0|1>/lanes:<n>: BM_WalkPaths on 1 thread with n paths in flight per block
-// (smith_walk.h's detail::smith_walk_scatter; the same result for every n): what the interleaving gains.
 // BM_WalkOrder2/material:<0|1>: one run of 2^20 paths on 2 threads; counters: the order-2 albedo, its
 // relative standard error, the paths needed for 1% (paths * (rel SE / 0.01)^2, from the measured SE), and
 // the time they take at the measured rate.
@@ -53,18 +51,6 @@ void BM_WalkPaths(benchmark::State& state) {
   state.SetLabel(state.range(0) == 0 ? "GGX 0.5 mirror" : "GGX 0.5 dielectric 1.5");
 }
 
-void BM_WalkLanes(benchmark::State& state) {
-  const ScatterOptions o = bench_options(int(state.range(0)), 1, 64 * kPathsPerBlock);
-  const int lanes = int(state.range(1));
-  for (auto _ : state) {
-    const ScatterHistogram h = detail::smith_walk_scatter(kSurface, o, detail::WalkFault::none, lanes);
-    benchmark::DoNotOptimize(h.paths());
-  }
-  state.counters["paths_per_second"] =
-      benchmark::Counter(double(state.iterations()) * double(o.paths), benchmark::Counter::kIsRate);
-  state.SetLabel(state.range(0) == 0 ? "GGX 0.5 mirror" : "GGX 0.5 dielectric 1.5");
-}
-
 void BM_WalkOrder2(benchmark::State& state) {
   const ScatterOptions o = bench_options(int(state.range(0)), 2, std::uint64_t(1) << 20);
   double seconds = 0;
@@ -89,13 +75,6 @@ void BM_WalkOrder2(benchmark::State& state) {
 BENCHMARK(BM_WalkPaths)
     ->ArgsProduct({{0, 1}, {1, 2}})
     ->ArgNames({"material", "threads"})
-    ->Unit(benchmark::kMillisecond)
-    ->UseRealTime()
-    ->MeasureProcessCPUTime()
-    ->MinTime(0.5);
-BENCHMARK(BM_WalkLanes)
-    ->ArgsProduct({{0, 1}, {1, 2, 4, 8, 16, 32}})
-    ->ArgNames({"material", "lanes"})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
     ->MeasureProcessCPUTime()

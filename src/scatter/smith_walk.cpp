@@ -227,37 +227,6 @@ private:
   WalkFault fault_;
 };
 
-// Each path draws from a stream of its own: path j of block b from CounterRng(seed, b) at counter j 2^32
-// (a path draws at most 1 + 5 kMaxOrderCap < 2^32 numbers), so its numbers do not depend on how many the
-// paths before it drew. A result stays a function of (seed, blocks), and a material may skip the numbers
-// its facet event does not use (facet_numbers).
-constexpr int kPathCounterShift = 32;
-static_assert(1 + 5 * std::uint64_t(kMaxOrderCap) < (std::uint64_t(1) << kPathCounterShift));
-static_assert(kPathsPerBlock <= (std::uint64_t(1) << (64 - kPathCounterShift)));
-
-CounterRng path_rng(std::uint64_t seed, std::uint64_t block, std::uint64_t path_in_block) {
-  CounterRng rng(seed, block);
-  rng.seek(path_in_block << kPathCounterShift);
-  return rng;
-}
-
-// The uniform numbers a facet event of `material` reads (scatter_on_facet): none for a mirror or a
-// conductor, the Fresnel choice for a dielectric, two for a Lambertian's cosine direction.
-int facet_numbers(const Material& material) {
-  switch (material.kind()) {
-    case MaterialKind::dielectric: return 1;
-    case MaterialKind::lambertian: return 2;
-    default: return 0;
-  }
-}
-
-// The facet event's numbers, only as many as the material reads (the rest are 0 and unread).
-Vec2<double> facet_uniforms(int count, CounterRng& rng) {
-  const double uf = count > 0 ? rng.uniform() : 0.0;
-  const double vf = count > 1 ? rng.uniform() : 0.0;
-  return {uf, vf};
-}
-
 // The path of light arriving along -wi (wi global; from inside the solid when wi.z < 0), with weight 1 in
 // each of its `channels` (the rest of the array is never read).
 Path start_path(const Vec3<double>& wi, int channels, double start_height) {
@@ -307,76 +276,33 @@ struct BlockEnds {
   std::vector<double> weights;  // channels per end
 };
 
-// One meeting of path p with the surface (sec. 4): its next height, then the facet it meets and the facet
-// event. True when the path ended instead (escaped, at the order cap, or lost), with its end in `end`.
-// bins: the histogram's binning (FastDirectionBinner gives exactly DirectionBinning::bin_of), or nullptr
-// where the bin is not needed (the sampler's rows): then bin -1. facets: facet_numbers(material).
+// Follows one path to its end (sec. 4). bins: the histogram's binning (FastDirectionBinner gives exactly
+// DirectionBinning::bin_of), or nullptr where the bin is not needed (the sampler's rows): then bin -1.
 template <class Ndf>
-bool walk_step(const Microsurface<Ndf>& surface, const ScatterOptions& o, const FastDirectionBinner* bins, int facets,
-               CounterRng& rng, Path& p, WalkEnd& end) {
-  const std::optional<double> h = surface.next_height(p.w, p.h, rng.uniform());
-  if (!h) {
-    const Vec3<double> out_direction = global_direction(p, p.w);
-    end = {WalkEnd::escaped, p.events, bins ? (*bins)(out_direction) : -1, out_direction};
-    return true;
-  }
-  if (p.events == o.max_order) {
-    end = {WalkEnd::unfinished, p.events, -1};
-    return true;
-  }
-  p.h = *h;
-  const double un = rng.uniform(), vn = rng.uniform();
-  const std::optional<Vec3<double>> m = surface.normal(p.w, {un, vn});
-  if (!m) {  // no microfacet faces the ray: cannot happen for a ray that met the surface; kept as lost
-    end = {WalkEnd::lost, 0, -1};
-    return true;
-  }
-  surface.scatter(p, *m, facet_uniforms(facets, rng));
-  return false;
-}
-
-// The paths of a block, `lanes` at a time: each lane follows one path, the lanes take one meeting each in
-// turn, and a lane whose path ended starts the block's next path. The paths are independent (a stream
-// each), so the interleaving changes no number: lanes = 1 is the plain path-after-path walk, and more lanes
-// give the processor independent chains of arithmetic to overlap (the walk of one path is a chain of
-// dependent square roots, divisions and logarithms). Ends and weights are stored in path order.
-template <class Ndf>
-void walk_block(const Microsurface<Ndf>& surface, const ScatterOptions& o, const FastDirectionBinner* bins,
-                std::uint64_t block, std::uint64_t paths, int lanes, BlockEnds& out) {
-  const int channels = surface.material().channels(), facets = facet_numbers(surface.material());
-  out.ends.assign(std::size_t(paths), WalkEnd{WalkEnd::lost, 0, -1});
-  out.weights.assign(std::size_t(paths) * std::size_t(channels), 0.0);
-  struct Lane {
-    Path p;
-    CounterRng rng;
-    std::uint64_t path;
-  };
-  std::vector<Lane> lane;
-  lane.reserve(std::size_t(lanes));
-  std::uint64_t next = 0;
-  const auto start = [&] {
-    const Lane l{start_path(o.wi, channels, surface.start_height()), path_rng(o.seed, block, next), next};
-    ++next;
-    return l;
-  };
-  while (lane.size() < std::size_t(lanes) && next < paths) lane.push_back(start());
-  while (!lane.empty()) {
-    for (std::size_t k = 0; k < lane.size();) {
-      Lane& l = lane[k];
-      if (!walk_step(surface, o, bins, facets, l.rng, l.p, out.ends[std::size_t(l.path)])) {
-        ++k;
-        continue;
-      }
-      std::copy_n(l.p.weight.begin(), channels, out.weights.begin() + std::ptrdiff_t(l.path) * channels);
-      if (next < paths) {
-        l = start();
-        ++k;
-      } else {
-        l = lane.back();  // the last lane takes this slot and walks next
-        lane.pop_back();
-      }
+void walk_path(const Microsurface<Ndf>& surface, const ScatterOptions& o, const FastDirectionBinner* bins,
+               CounterRng& rng, BlockEnds& out) {
+  Path p = start_path(o.wi, surface.material().channels(), surface.start_height());
+  WalkEnd end{WalkEnd::lost, 0, -1};
+  for (;;) {
+    const std::optional<double> h = surface.next_height(p.w, p.h, rng.uniform());
+    if (!h) {
+      const Vec3<double> out_direction = global_direction(p, p.w);
+      end = {WalkEnd::escaped, p.events, bins ? (*bins)(out_direction) : -1, out_direction};
+      break;
     }
+    if (p.events == o.max_order) {
+      end = {WalkEnd::unfinished, p.events, -1};
+      break;
+    }
+    p.h = *h;
+    const double un = rng.uniform(), vn = rng.uniform();
+    const std::optional<Vec3<double>> m = surface.normal(p.w, {un, vn});
+    if (!m) break;  // no microfacet faces the ray: cannot happen for a ray that met the surface; kept as lost
+    const double uf = rng.uniform(), vf = rng.uniform();
+    surface.scatter(p, *m, {uf, vf});
   }
+  out.ends.push_back(end);
+  out.weights.insert(out.weights.end(), p.weight.begin(), p.weight.begin() + surface.material().channels());
 }
 
 void add_ends(ScatterHistogram& h, const BlockEnds& block, std::uint64_t paths, int channels) {
@@ -398,8 +324,7 @@ void add_ends(ScatterHistogram& h, const BlockEnds& block, std::uint64_t paths, 
 std::uint64_t walk_blocks_in_flight(int channels) { return channels > 4 ? std::uint64_t(std::max(16, 1024 / channels)) : 0; }
 
 template <class Ndf>
-ScatterHistogram run_walk(const Ndf& ndf, const SmithMicrosurface& s, const ScatterOptions& o, WalkFault fault,
-                          int lanes) {
+ScatterHistogram run_walk(const Ndf& ndf, const SmithMicrosurface& s, const ScatterOptions& o, WalkFault fault) {
   ScatterHistogram result = empty_scatter_histogram(o, std::string(kSmithWalkProducer), walk_measurement(s, o));
   const Microsurface<Ndf> surface(ndf, o.material, s.heights, fault);
   const DirectionBinning binning = DirectionBinning::hemispheres(o.rows);
@@ -409,8 +334,12 @@ ScatterHistogram run_walk(const Ndf& ndf, const SmithMicrosurface& s, const Scat
   const BlockRunStatus status = for_each_block(
       result.provenance.blocks, o.run, {"smith walk", plan, walk_blocks_in_flight(channels)},
       [&](std::uint64_t block) {
+        CounterRng rng(o.seed, block);
         BlockEnds ends;
-        walk_block(surface, o, &bins, block, plan.units_in(block), lanes, ends);
+        const std::uint64_t n = plan.units_in(block);
+        ends.ends.reserve(std::size_t(n));
+        ends.weights.reserve(std::size_t(n) * std::size_t(channels));
+        for (std::uint64_t i = 0; i < n; ++i) walk_path(surface, o, &bins, rng, ends);
         return ends;
       },
       [&](BlockEnds&& ends, std::uint64_t block) { add_ends(result, ends, plan.units_in(block), channels); });
@@ -429,8 +358,9 @@ WalkSamples run_samples(const Ndf& ndf, const SmithMicrosurface& s, const Scatte
   out.channels = o.material.channels();
   for (std::uint64_t block = 0; block < plan.blocks(); ++block) {
     if (o.run.cancelled()) throw Cancelled("the walk's samples");
+    CounterRng rng(o.seed, block);
     BlockEnds ends;
-    walk_block(surface, o, nullptr, block, plan.units_in(block), detail::kWalkLanes, ends);
+    for (std::uint64_t i = 0; i < plan.units_in(block); ++i) walk_path(surface, o, nullptr, rng, ends);
     for (std::size_t i = 0; i < ends.ends.size(); ++i) {
       if (ends.ends[i].kind != WalkEnd::escaped) {
         ++out.dropped;
@@ -481,7 +411,8 @@ void eval_path(const Microsurface<Ndf>& surface, const ScatterOptions& o, const 
       path[std::size_t(c) * kEvalSlots + order_bin] += contribution;
       path[std::size_t(c) * kEvalSlots + kScatterOrderBins] += contribution;
     }
-    surface.scatter(p, *m, facet_uniforms(facet_numbers(surface.material()), rng));
+    const double uf = rng.uniform(), vf = rng.uniform();
+    surface.scatter(p, *m, {uf, vf});
   }
 }
 
@@ -495,11 +426,11 @@ SmithWalkEval run_eval(const Ndf& ndf, const SmithMicrosurface& s, const Scatter
   const BlockRunStatus status = for_each_block(
       selected_blocks(plan, o.blocks), o.run, {"smith walk eval", plan},
       [&](std::uint64_t block) {
+        CounterRng rng(o.seed, block);
         EvalSums sums{std::vector<double>(slots, 0.0), std::vector<double>(slots, 0.0)};
         std::vector<double> path(slots);
         for (std::uint64_t i = 0; i < plan.units_in(block); ++i) {
           std::fill(path.begin(), path.end(), 0.0);
-          CounterRng rng = path_rng(o.seed, block, i);
           eval_path(surface, o, wo, rng, path);
           for (std::size_t k = 0; k < slots; ++k) {
             sums.sum[k] += path[k];
@@ -537,14 +468,8 @@ SmithWalkEval run_eval(const Ndf& ndf, const SmithMicrosurface& s, const Scatter
 namespace detail {
 
 ScatterHistogram smith_walk_scatter(const SmithMicrosurface& surface, const ScatterOptions& options, WalkFault fault) {
-  return smith_walk_scatter(surface, options, fault, kWalkLanes);
-}
-
-ScatterHistogram smith_walk_scatter(const SmithMicrosurface& surface, const ScatterOptions& options, WalkFault fault,
-                                    int lanes) {
   check_walk(surface, options);
-  if (lanes < 1) throw std::invalid_argument(fmt::format("smith walk: {} lanes (expected at least 1)", lanes));
-  return with_ndf(surface, [&](const auto& ndf) { return run_walk(ndf, surface, options, fault, lanes); });
+  return with_ndf(surface, [&](const auto& ndf) { return run_walk(ndf, surface, options, fault); });
 }
 
 WalkSamples smith_walk_samples(const SmithMicrosurface& surface, const ScatterOptions& options, WalkFault fault) {

@@ -26,10 +26,9 @@
 // Output: smith_walk_scatter fills the per-order ScatterHistogram of scatter_setup.h (outgoing directions
 // in the global frame; the histogram's "reflected" bins are the upper hemisphere, so for light from inside
 // they hold what the dielectric transmits), with the unfinished weight at the order cap; smith_walk_eval estimates the BSDF value f(wi, wo) per order by next-event estimation (sec. 6).
-// Both run on the block runner: path j of block b draws from CounterRng(seed, b) from counter j 2^32 on (a
-// stream per path, drawing only the numbers its facet events read), so a result depends only on
-// (seed, blocks), shards merge into the whole run bit for bit (ScatterHistogram::merge), and a cancelled
-// run returns the completed prefix of its blocks, marked partial. Neither prints.
+// Both run on the block runner: block b draws from CounterRng(seed, b), so a result depends only on
+// (seed, blocks), shards merge into the whole run bit for bit (ScatterHistogram::merge), and a cancelled run
+// returns the completed prefix of its blocks, marked partial. Neither prints.
 #pragma once
 
 #include "core/math.h"
@@ -107,11 +106,6 @@ enum class WalkFault {
   keep_height_on_refraction,  // oracle.md section 6: R and T go wrong while R + T = 1 still holds
 };
 ScatterHistogram smith_walk_scatter(const SmithMicrosurface& surface, const ScatterOptions& options, WalkFault fault);
-// The walk with `lanes` paths in flight per block (>= 1; the default kWalkLanes): the same result for every
-// lane count, lanes = 1 being the plain path-after-path walk (the reference the tests compare with).
-inline constexpr int kWalkLanes = 8;
-ScatterHistogram smith_walk_scatter(const SmithMicrosurface& surface, const ScatterOptions& options, WalkFault fault,
-                                    int lanes);
 SmithWalkEval smith_walk_eval(const SmithMicrosurface& surface, const ScatterOptions& options, const Vec3<double>& wo,
                               WalkFault fault);
 WalkSamples smith_walk_samples(const SmithMicrosurface& surface, const ScatterOptions& options, WalkFault fault);
