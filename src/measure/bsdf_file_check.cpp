@@ -2,11 +2,13 @@
 #include "measure/bsdf_file_check.h"
 
 #include "measure/bsdf_self_check.h"
+#include "stats/chi2.h"
 #include "stats/scatter_compare.h"
 
 #include <fmt/core.h>
 
 #include <cmath>
+#include <numbers>
 
 namespace microsim {
 
@@ -53,6 +55,12 @@ FileRows read_rows(const std::filesystem::path& dump, const SampleColumns& dc, c
   return f;
 }
 
+double channel_mean(const double* v, int channels) {
+  double s = 0;
+  for (int k = 0; k < channels; ++k) s += v[k];
+  return s / channels;
+}
+
 BatteryLine file_consistency(const FileRows& f, int c) {
   std::uint64_t bad = 0;
   std::string first;
@@ -87,6 +95,55 @@ BatteryLine file_furnace(const FileRows& f, int c, const BsdfFileCheckOptions& o
           p, p >= level};
 }
 
+// How far w lies outside cell c of sphere_cell's partition (in z, and in phi times sin theta): 0 inside.
+double outside_cell(const Vec3<double>& w, int c) {
+  const int iz = c / battery::kCellsPhi, ip = c % battery::kCellsPhi;
+  const double z_lo = -1 + 2.0 * iz / battery::kCellsZ, z_hi = -1 + 2.0 * (iz + 1) / battery::kCellsZ;
+  const double dz = std::max({0.0, z_lo - w.z(), w.z() - z_hi});
+  const double width = 2 * std::numbers::pi / battery::kCellsPhi, middle = (ip + 0.5) * width;
+  const double d = std::remainder(std::atan2(w.y(), w.x()) - middle, 2 * std::numbers::pi);
+  return std::max(dz, std::max(0.0, std::abs(d) - width / 2) * std::hypot(w.x(), w.y()));
+}
+
+// The cells file: per row the channel mean of its values and its pdf (empty without a pdf column), checked to be
+// the view's cell points (rows a multiple of kCells, an even count per cell, wi the view, each block's wo in its
+// cell within what storage rounding moves a direction).
+struct CellFile {
+  std::vector<double> value, pdf;
+  std::uint64_t non_finite = 0;  // points whose eval() or pdf() is not finite
+};
+CellFile read_cells(const std::filesystem::path& path, const EvalColumns& ec, int c, const Vec3<double>& view,
+                    const BsdfFileCheckOptions& o) {
+  DirectionSampleReader wi_r(path, ec.wi_columns(c)), wo_r(path, ec.wo_columns(c));
+  for (DirectionSampleReader* r : {&wi_r, &wo_r}) r->set_frame(o.frame);
+  std::vector<Vec3<double>> wi(kSampleFileBlock), wo(kSampleFileBlock), all_wo;
+  std::vector<double> pdf(kSampleFileBlock), v(kSampleFileBlock * std::size_t(c));
+  CellFile f;
+  for (std::size_t n; (n = wi_r.read(wi, pdf, v)) > 0;) {
+    if (o.run.cancelled()) throw Cancelled("the file check");
+    wo_r.read(std::span(wo.data(), n));
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!((wi[i] - view).norm() <= 1e-4))
+        throw SampleFileError(fmt::format("{}: row {} (0-based): wi is not the view", path.string(), all_wo.size()));
+      all_wo.push_back(wo[i]);
+      const double x = channel_mean(&v[i * std::size_t(c)], c);
+      const bool finite = std::isfinite(x) && (!ec.has_pdf() || std::isfinite(pdf[i]));
+      f.non_finite += !finite;  // counted, and 0 in the integrals
+      f.value.push_back(finite ? x : 0);
+      if (ec.has_pdf()) f.pdf.push_back(finite ? pdf[i] : 0);
+    }
+  }
+  const std::size_t per = all_wo.size() / battery::kCells;
+  if (all_wo.size() % battery::kCells != 0 || per < 2 || per % 2 != 0)
+    throw SampleFileError(fmt::format("{}: {} rows, not {} cells of an even number of points (bsdf-queries --cells "
+                                      "writes them)", path.string(), all_wo.size(), battery::kCells));
+  for (std::size_t i = 0; i < all_wo.size(); ++i)
+    if (!(outside_cell(all_wo[i], int(i / per)) <= 1e-4))
+      throw SampleFileError(fmt::format("{}: row {} (0-based): wo is not in cell {} (the file is not the view's cell "
+                                        "points, in order, as bsdf-queries --cells writes them)", path.string(), i, i / per));
+  return f;
+}
+
 }  // namespace
 
 BatteryReport check_bsdf_files(const std::filesystem::path& dump, const SampleColumns& dump_columns,
@@ -95,9 +152,20 @@ BatteryReport check_bsdf_files(const std::filesystem::path& dump, const SampleCo
   const FileRows f = read_rows(dump, dump_columns, eval, eval_columns, wi, options);
   if (f.s.wo.empty()) throw SampleFileError(dump.string() + ": no rows");
   const int c = dump_columns.channels();
+  const bool cells = !options.cells.empty();
+  const int statistical = (options.albedo ? 1 : 0) + (cells ? (eval_columns.has_pdf() ? 3 : 2) : 0);
+  const double level = sidak_significance(options.level, std::max(1, statistical));
   BatteryReport r;
   r.lines.push_back(file_consistency(f, c));
-  r.lines.push_back(file_furnace(f, c, options, options.level));
+  if (cells) {
+    const CellFile g = read_cells(options.cells, eval_columns, c, wi, options);
+    if (g.non_finite > 0)
+      r.lines.push_back({"finite", "files", fmt::format("{} of {} cell points have a non-finite eval or pdf (0 in the "
+                                                        "integrals)", g.non_finite, g.value.size()), -1, false});
+    for (BatteryLine& l : battery::cell_tests(f.s, c, g.value, g.pdf, "files", level, r.residuals))
+      r.lines.push_back(std::move(l));
+  }
+  if (options.albedo || !cells) r.lines.push_back(file_furnace(f, c, options, level));
   r.passed = true;
   for (const BatteryLine& l : r.lines) r.passed = r.passed && l.passed;
   return r;

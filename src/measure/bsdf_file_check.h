@@ -5,9 +5,14 @@
 //   - consistency: each weight against eval / pdf and each dump pdf against the eval file's, 1e-3 relative;
 //   - furnace: the mean weight (lost samples weigh 0) with its standard error, against a claimed albedo when one
 //     is given (the white furnace: 1 for an energy-conserving BSDF).
-// Not tested from files: the sample histogram against the pdf (an estimate of the pdf's integral per cell from the
-// samples alone, E_q[1_cell / p] = the cell's solid angle, is biased in cells the sampler only partly reaches,
-// e.g. along the edge of a refraction's support); the battery in process integrates pdf() over each cell.
+// With a third file, the BSDF's eval() and pdf() at the view's cell points (bsdf_self_check.h cell_points, written
+// by `bsdf-queries --cells` for the renderer to fill in, in the eval file's columns), the battery's cell tests
+// too (bsdf_self_check.h cell_tests): density (the dump's directions per cell against the integral of pdf() over
+// the cell), integral (the weighted sample histogram against the integral of eval() per cell), furnace (the mean
+// weight against the integral of eval cos, both with errors). The pdf is integrated over each cell from the
+// file, not estimated from the samples: an estimate from the samples alone, E_q[1_cell / p] = the cell's solid
+// angle, is biased in cells the sampler only partly reaches (along the edge of a refraction's support).
+// The statistical tests share `level` by Sidak's rule.
 #pragma once
 
 #include "measure/bsdf_battery.h"
@@ -24,11 +29,15 @@ struct BsdfFileCheckOptions {
   std::uint64_t lost = 0;  // samples the dump leaves out (lost below the horizon): they weigh 0
   double level = 0.01;
   std::optional<double> albedo;  // claimed
+  // The eval file at the view's cell points (in the eval file's columns, the pdf column for the density test);
+  // empty: no cell tests.
+  std::filesystem::path cells;
   RunControl run;
 };
 
 // Throws SampleFileError for a file that cannot be read as its columns say or whose rows do not match (counts,
-// wi not the view, wo not the dump's direction), std::invalid_argument for bad options, Cancelled.
+// wi not the view, wo not the dump's direction, the cells file's wo not in their cells), std::invalid_argument
+// for bad options, Cancelled.
 BatteryReport check_bsdf_files(const std::filesystem::path& dump, const SampleColumns& dump_columns,
                                const std::filesystem::path& eval, const EvalColumns& eval_columns,
                                const Vec3<double>& wi, const BsdfFileCheckOptions& options);

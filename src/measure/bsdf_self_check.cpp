@@ -29,25 +29,6 @@ struct CellIntegrals {
   }
 };
 
-// The jittered points of every cell, cell after cell (points_per_cell of each, n x n strata).
-std::vector<Vec3<double>> cell_points(int points_per_cell, std::uint64_t seed) {
-  const int n = std::max(2, 2 * int(std::lround(std::sqrt(double(points_per_cell)) / 2)));
-  std::vector<Vec3<double>> w;
-  w.reserve(std::size_t(kCells * n * n));
-  for (int c = 0; c < kCells; ++c) {
-    CounterRng rng(seed ^ 0x5e1fc4ecull, std::uint64_t(c));
-    const int iz = c / kCellsPhi, ip = c % kCellsPhi;
-    for (int a = 0; a < n; ++a)
-      for (int b = 0; b < n; ++b) {
-        const double z = -1 + 2 * (iz + (a + rng.uniform()) / n) / kCellsZ;
-        const double phi = 2 * std::numbers::pi * (ip + (b + rng.uniform()) / n) / kCellsPhi;
-        const double r = std::sqrt(std::max(0.0, 1 - z * z));
-        w.emplace_back(r * std::cos(phi), r * std::sin(phi), z);
-      }
-  }
-  return w;
-}
-
 // values: one per point (cells in order, the strata of a cell in pairs of neighbours); each cell's integral and
 // its variance by collapsed strata: with one point per stratum, the variance of the mean of M points is
 // estimated as sum over the pairs of (f_a - f_b)^2 / M^2 (an overestimate by the strata's differences in mean).
@@ -231,6 +212,26 @@ double index_at(const Material& m, const Vec3<double>& w) { return m.transmits()
 
 }  // namespace
 
+int cell_strata(int points_per_cell) { return std::max(2, 2 * int(std::lround(std::sqrt(double(points_per_cell)) / 2))); }
+
+std::vector<Vec3<double>> cell_points(int points_per_cell, std::uint64_t seed) {
+  const int n = cell_strata(points_per_cell);
+  std::vector<Vec3<double>> w;
+  w.reserve(std::size_t(kCells * n * n));
+  for (int c = 0; c < kCells; ++c) {
+    CounterRng rng(seed ^ 0x5e1fc4ecull, std::uint64_t(c));
+    const int iz = c / kCellsPhi, ip = c % kCellsPhi;
+    for (int a = 0; a < n; ++a)
+      for (int b = 0; b < n; ++b) {
+        const double z = -1 + 2 * (iz + (a + rng.uniform()) / n) / kCellsZ;
+        const double phi = 2 * std::numbers::pi * (ip + (b + rng.uniform()) / n) / kCellsPhi;
+        const double r = std::sqrt(std::max(0.0, 1 - z * z));
+        w.emplace_back(r * std::cos(phi), r * std::sin(phi), z);
+      }
+  }
+  return w;
+}
+
 int sphere_cell(const Vec3<double>& w) {
   const int iz = std::clamp(int((w.z() + 1) / 2 * kCellsZ), 0, kCellsZ - 1);
   double phi = std::atan2(w.y(), w.x());
@@ -245,15 +246,21 @@ std::vector<BatteryLine> self_tests(const BsdfUnderTest& b, const Vec3<double>& 
   const std::vector<Vec3<double>> points = cell_points(o.points_per_cell, o.seed + std::uint64_t(sphere_cell(wi)));
   std::vector<double> value, pdf;
   eval_points(b, wi, points, value, pdf);
+  return cell_tests(s, b.channels, value, pdf, view, level, residuals);
+}
+
+std::vector<BatteryLine> cell_tests(const ViewSamples& s, int channels, const std::vector<double>& value,
+                                    const std::vector<double>& pdf, const std::string& view, double level,
+                                    std::vector<BatteryResiduals>& residuals) {
   const CellIntegrals eval_cells = integrate(value);
   std::vector<BatteryLine> lines;
-  if (b.pdf) lines.push_back(density_line(s, integrate(pdf), view, level, residuals));
+  if (!pdf.empty()) lines.push_back(density_line(s, integrate(pdf), view, level, residuals));
   std::vector<double> w, var;
-  weighted_cells(s, b.channels, w, var);
+  weighted_cells(s, channels, w, var);
   residuals.push_back(residual_map("integral", view, w, var, eval_cells.value, eval_cells.variance));
   lines.push_back(shape_line("integral", view, "weighted samples against the integral of eval() per cell", w, var,
                              eval_cells.value, eval_cells.variance, level));
-  const Estimate mean = mean_weight(s, b.channels), integral = eval_cells.total();
+  const Estimate mean = mean_weight(s, channels), integral = eval_cells.total();
   const double p = difference_p(mean, integral);
   lines.push_back({"furnace", view,
                    fmt::format("mean weight {:.5f} +- {:.5f}, integral of eval cos {:.5f} +- {:.5f}", mean.value,

@@ -41,10 +41,24 @@ struct ViewSamples {
 inline constexpr int kCellsZ = 16, kCellsPhi = 16, kCells = kCellsZ * kCellsPhi;
 int sphere_cell(const Vec3<double>& w);
 
+// The points the cell integrals evaluate eval() and pdf() at: cell after cell in sphere_cell's order, in each an
+// n x n grid of strata (n = cell_strata(points_per_cell): the even number nearest sqrt(points_per_cell), at least 2),
+// z-major, one point jittered in each (CounterRng(seed ^ constant, cell)); neighbouring strata in pairs, as the
+// variance by collapsed strata wants them.
+int cell_strata(int points_per_cell);
+std::vector<Vec3<double>> cell_points(int points_per_cell, std::uint64_t seed);
+
 // density (when b has a pdf()), integral and furnace of one view, each at `level`.
 // Their residual maps go to `residuals`.
 std::vector<BatteryLine> self_tests(const BsdfUnderTest& b, const Vec3<double>& wi, const ViewSamples& s,
                                     const std::string& view, double level, const BatteryOptions& o,
+                                    std::vector<BatteryResiduals>& residuals);
+
+// The same tests from eval() and pdf() already known at a view's cell points (a file the renderer filled in):
+// value the channel mean of eval() at each point, pdf() at each (empty: no density test); the points kCells
+// blocks of equal size, cell after cell, an even number of points per cell, neighbouring strata in pairs.
+std::vector<BatteryLine> cell_tests(const ViewSamples& s, int channels, const std::vector<double>& value,
+                                    const std::vector<double>& pdf, const std::string& view, double level,
                                     std::vector<BatteryResiduals>& residuals);
 
 // The BSDF's samples against the Smith walk's samples from wi (the walk of the claimed material on ggx's Smith

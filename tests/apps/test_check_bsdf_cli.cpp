@@ -11,6 +11,7 @@
 #include "core/random.h"
 #include "microfacet/bsdf.h"
 #include "microfacet/bsdf_samplers.h"
+#include "validate/sample_io.h"
 
 #include <fmt/core.h>
 #include <gtest/gtest.h>
@@ -153,32 +154,63 @@ TEST(CheckBsdfCli, TheHtmlReportIsSelfContainedWithTheResidualMaps) {
 }
 
 // check-bsdf-files: the zoo's GGX conductor (alpha 0.3, eta 0.2 + 3.9i) sampled at 30 deg, its dump (x y z pdf
-// weight) and its eval file at the same rows: passes (fixed seed, level 0.01); its weights scaled by 1.01 are
-// rejected by the consistency test; an albedo of 1 claimed for it (it absorbs) by the furnace; rows that do not
-// match are exit 2.
-void write_conductor_files(const fs::path& dir, double weight_scale) {
+// weight) and its eval file at the same rows: passes (fixed seed, level 0.01), with the cell tests too when its
+// eval file at the cell points of `bsdf-queries --cells` is given; its weights scaled by 1.01 are rejected by the
+// consistency test; an albedo of 1 claimed for it (it absorbs) by the furnace; rows that do not match, or a cells
+// file that is not the cell points, are exit 2. Returns the samples lost below the horizon (not in the dump).
+std::uint64_t write_conductor_files(const fs::path& dir, double weight_scale) {
   const BsdfSamplerInfo* s = find_bsdf_sampler("conductor_vndf");
   const GGX<double> ggx(0.3, 0.3);
   const Vec3<double> wi = direction_from_degrees(30.0, 0.0);
   std::ofstream d(dir / "d.txt"), e(dir / "e.txt");
+  std::uint64_t lost = 0;
   for (std::uint64_t i = 0; i < 20000; ++i) {
     CounterRng rng(3, i);
     const double u0 = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
     const BsdfSampleResult r = s->sample(ggx, kZooConductorIor, wi, {u0, u1, u2});
-    if (!r) continue;
+    if (!r && ++lost) continue;
     const double f = conductor_brdf(ggx, kZooConductorIor, wi, r->wo) * r->wo.z();
     d << fmt::format("{:.17g} {:.17g} {:.17g} {:.17g} {:.17g}\n", r->wo.x(), r->wo.y(), r->wo.z(), r->pdf, r->weight * weight_scale);
     e << fmt::format("{:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g}\n", wi.x(), wi.y(), wi.z(), r->wo.x(),
                      r->wo.y(), r->wo.z(), f, conductor_vndf_pdf(ggx, kZooConductorIor, wi, r->wo));
   }
+  return lost;
+}
+
+// The conductor's eval file at the cell points `bsdf-queries --cells` wrote to q.npy, as c.txt.
+void fill_in_cells(const fs::path& dir) {
+  const GGX<double> ggx(0.3, 0.3);
+  DirectionSampleReader wi_r(dir / "q.npy", SampleColumns::parse("x,y,z,-,-,-")),
+      wo_r(dir / "q.npy", SampleColumns::parse("-,-,-,x,y,z"));
+  std::vector<Vec3<double>> wi(kSampleFileBlock), wo(kSampleFileBlock);
+  std::ofstream c(dir / "c.txt");
+  for (std::size_t n; (n = wi_r.read(wi)) > 0;) {
+    wo_r.read(std::span(wo.data(), n));
+    for (std::size_t i = 0; i < n; ++i)
+      c << fmt::format("{:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g}\n", wi[i].x(), wi[i].y(), wi[i].z(),
+                       wo[i].x(), wo[i].y(), wo[i].z(), conductor_brdf(ggx, kZooConductorIor, wi[i], wo[i]) * std::abs(wo[i].z()),
+                       conductor_vndf_pdf(ggx, kZooConductorIor, wi[i], wo[i]));
+  }
 }
 
 TEST(CheckBsdfCli, FilesOfOneBsdfAgainstEachOther) {
   const fs::path dir = scratch_dir("check_bsdf", "files");
-  write_conductor_files(dir, 1.0);
+  const std::uint64_t lost = write_conductor_files(dir, 1.0);
   CliRun r = run_cli(dir, "check-bsdf-files d.txt e.txt --theta 30 --json f.json");
   EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
   EXPECT_EQ(nlohmann::json::parse(slurp(dir / "f.json"))["verdict"], "pass");
+  r = run_cli(dir, "bsdf-queries --cells --theta 30 --points-per-cell 16 --out q.npy");
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  fill_in_cells(dir);
+  r = run_cli(dir, fmt::format("check-bsdf-files d.txt e.txt --theta 30 --lost {} --cells c.txt --json f.json", lost));
+  EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
+  std::set<std::string> tests;
+  const nlohmann::json report = nlohmann::json::parse(slurp(dir / "f.json"));
+  for (const auto& t : report["tests"]) tests.insert(t["test"].get<std::string>());
+  EXPECT_EQ(tests, (std::set<std::string>{"consistency", "density", "integral", "furnace"}));
+  r = run_cli(dir, "check-bsdf-files d.txt e.txt --theta 30 --cells e.txt");
+  EXPECT_EQ(r.exit_code, 2) << r.out << r.err;
+  EXPECT_NE(r.err.find("bsdf-queries --cells"), std::string::npos) << r.err;
   r = run_cli(dir, "check-bsdf-files d.txt e.txt --theta 30 --albedo 1");
   EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
   EXPECT_NE(r.out.find("furnace"), std::string::npos);

@@ -152,6 +152,7 @@ struct Walk {
   detail::WalkFault fault;
   PlantedBug bug;
   int paths_per_eval;
+  double scale = 0;  // eval_scale, weight_scale: 1 + scale
   std::shared_ptr<std::uint64_t> calls = std::make_shared<std::uint64_t>(0);
 
   ScatterOptions options(const Vec3<double>& wi, std::uint64_t paths, std::uint64_t seed) const {
@@ -163,19 +164,20 @@ struct Walk {
     if (wo.z() == 0 || wi.z() == 0) return 0;
     const SmithWalkEval e = detail::smith_walk_eval(surface, options(wi, std::uint64_t(paths_per_eval), ++*calls), wo, fault);
     const double f = bug == PlantedBug::eval_not_sampler_integral ? e.value(0, 0).value + e.value(0, 1).value : e.value(0).value;
-    return f * std::abs(wo.z());
+    return f * std::abs(wo.z()) * (bug == PlantedBug::eval_scale ? 1 + scale : 1);
   }
 };
 
 }  // namespace
 
-WorkedBsdf walk_dielectric(double alpha, PlantedBug bug, int paths_per_eval) {
+WorkedBsdf walk_dielectric(double alpha, PlantedBug bug, int paths_per_eval, double scale) {
   auto w = std::make_shared<Walk>();
   w->surface.alpha_x = w->surface.alpha_y = alpha;
   w->material = Material::dielectric(kZooDielectricEta);
   w->fault = bug == PlantedBug::stale_height ? detail::WalkFault::keep_height_on_refraction : detail::WalkFault::none;
   w->bug = bug;
   w->paths_per_eval = paths_per_eval;
+  w->scale = scale;
   BsdfUnderTest b;
   b.name = "Smith multiple-scattering dielectric (Heitz et al. 2016)";
   b.convention = {TransportMode::importance, MaskingForm::height_correlated};
@@ -190,7 +192,7 @@ WorkedBsdf walk_dielectric(double alpha, PlantedBug bug, int paths_per_eval) {
       kept[i] = i < leaving;
       if (i >= leaving) continue;
       wo[i] = {s.rows[row * i], s.rows[row * i + 1], s.rows[row * i + 2]};
-      pdf[i] = 0, weight[i] = s.rows[row * i + 3];
+      pdf[i] = 0, weight[i] = s.rows[row * i + 3] * (w->bug == PlantedBug::weight_scale ? 1 + w->scale : 1);
     }
   };
   b.eval = [w](std::span<const Vec3<double>> wi, std::span<const Vec3<double>> wo, std::span<double> v) {

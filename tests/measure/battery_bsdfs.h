@@ -46,8 +46,8 @@ WorkedBsdf exact_conductor(double alpha, PlantedBug bug = PlantedBug::none, doub
 // An anisotropic GGX conductor (alpha_x, alpha_y).
 WorkedBsdf anisotropic_conductor(double alpha_x, double alpha_y, PlantedBug bug = PlantedBug::none);
 WorkedBsdf exact_dielectric(double alpha, TransportMode mode, PlantedBug bug = PlantedBug::none, double scale = 0);
-// paths_per_eval: the walks of each eval() call.
-WorkedBsdf walk_dielectric(double alpha, PlantedBug bug = PlantedBug::none, int paths_per_eval = 4);
+// paths_per_eval: the walks of each eval() call; scale: of eval_scale and weight_scale.
+WorkedBsdf walk_dielectric(double alpha, PlantedBug bug = PlantedBug::none, int paths_per_eval = 4, double scale = 0);
 WorkedBsdf kulla_conty_mirror(double alpha, PlantedBug bug = PlantedBug::none);
 
 }  // namespace microsim::test

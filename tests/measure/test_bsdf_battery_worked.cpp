@@ -170,5 +170,61 @@ TEST(BsdfBatteryWorked, DISABLED_AnisotropicPowerSweep) {
   fmt::print("{}", table);
 }
 
+// The detection rate at the default budget (200000 samples per view, float32 tolerances, level 0.01, the default
+// grid), over battery seeds 1-3: the exact dielectric (radiance, alpha 0.3) against the exact reference and
+// against none, and the Smith multiple-scattering dielectric (alpha 1, Heitz et al. 2016 stochastic evaluation)
+// against the walk, with its eval() or its sample()'s weight scaled by 1 + e; e = 0 is the negative control.
+// Per row: how many seeds reject, and how often each test rejects. A measurement (docs/records/bsdf-battery.md):
+// run with --gtest_also_run_disabled_tests (the dielectric's rows DISABLED_DetectionRate, the walk's
+// DISABLED_WalkDetectionRate).
+std::string detection_rows(const std::string& bsdf, WorkedBsdf (*make)(PlantedBug, double), BatteryReference ref,
+                           std::initializer_list<double> errors) {
+  constexpr int kSeeds = 3;
+  std::string table;
+  for (const PlantedBug bug : {PlantedBug::eval_scale, PlantedBug::weight_scale})
+    for (const double e : errors) {
+      if (e == 0 && bug != PlantedBug::eval_scale) continue;  // the one negative control
+      int rejected = 0;
+      std::map<std::string, int> by;
+      for (int seed = 1; seed <= kSeeds; ++seed) {
+        const WorkedBsdf w = make(bug, e);
+        BatteryOptions o;
+        o.reference = ref;
+        o.seed = std::uint64_t(seed);
+        const BatteryReport r = run_bsdf_battery(w.bsdf, w.claimed, w.ggx, o);
+        rejected += !r.passed;
+        for (const auto& [test, verdict] : verdicts(r)) by[test] += verdict == "REJECTED";
+        if (e == 0)  // the negative control's rejections, in full
+          for (const BatteryLine& l : r.lines)
+            if (!l.passed) fmt::print(stderr, "  seed {} {} {}: {}\n", seed, l.test, l.view, l.detail);
+      }
+      std::string tests;
+      for (const auto& [test, n] : by)
+        if (n > 0) tests += fmt::format("{}{} {}/{}", tests.empty() ? "" : ", ", test, n, kSeeds);
+      const std::string row = fmt::format(
+          "| {} | {} | {} | {:g} | {}/{} | {} |\n", bsdf,
+          ref == BatteryReference::none ? "none" : ref == BatteryReference::smith_walk ? "smith-walk" : "single scattering",
+          e == 0 ? "none" : to_string(bug), e, rejected, kSeeds, tests.empty() ? "-" : tests);
+      fmt::print(stderr, "{}", row);  // progress: the table is printed whole at the end
+      table += row;
+    }
+  return table;
+}
+
+WorkedBsdf scaled_glass(PlantedBug b, double e) { return exact_dielectric(0.3, TransportMode::radiance, b, e); }
+WorkedBsdf scaled_walk(PlantedBug b, double e) { return walk_dielectric(1.0, b, 4, e); }
+const char* const kRateHeader = "| BSDF | reference | planted | e | seeds rejecting | rejected by (seeds) |\n|---|---|---|---|---|---|\n";
+
+TEST(BsdfBatteryWorked, DISABLED_DetectionRate) {
+  std::string table = kRateHeader;
+  for (const BatteryReference ref : {BatteryReference::single_scattering, BatteryReference::none})
+    table += detection_rows("dielectric", scaled_glass, ref, {0, 3e-4, 1e-3, 3e-3, 1e-2});
+  fmt::print("{}", table);
+}
+
+TEST(BsdfBatteryWorked, DISABLED_WalkDetectionRate) {
+  fmt::print("{}{}", kRateHeader, detection_rows("Smith walk", scaled_walk, BatteryReference::smith_walk, {0, 3e-3, 1e-2, 3e-2, 1e-1}));
+}
+
 }  // namespace
 }  // namespace microsim::test
