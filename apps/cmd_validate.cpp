@@ -542,7 +542,10 @@ microsim::app::CommandRegistration validate_registration{"validate", [](CLI::App
   sub->add_option("--json", args->json, "write the results as JSON to PATH (atomically)");
   sub->add_option("--against", args->against,
                   "compare with the traced oracle instead of the analytic pdf (two-sample chi-square): 'ellipsoid' "
-                  "(traced now) or a histogram HIST.exr from `microsim trace vndf`");
+                  "(traced now) or a histogram HIST.exr from `microsim trace vndf`; refused (exit 2) when the histogram departs "
+                  "from D_v (a tile's NDF tail and masking, a meshed ellipsoid) by more than the samples can afford: "
+                  "an exact sampler would be rejected more than twice as often as the level (the largest count it "
+                  "serves is named)");
   add_number_option(sub, "--rays", args->rays, microsim::app::whole(1, microsim::kMaxRays),
                     microsim::app::at_most("rays traced for --against ellipsoid (default 4000000)",
                                            microsim::kMaxRays));
