@@ -13,6 +13,7 @@
 #include "core/errors.h"
 #include "core/wall_clock.h"
 #include "stats/scatter_compare.h"
+#include "stats/scatter_io.h"
 
 #include <fmt/core.h>
 
@@ -69,6 +70,13 @@ nlohmann::json scatter_values(const ScatterHistogram& h, const std::vector<int>&
                           {"rows_per_hemisphere", kScatterRows}}}};
 }
 
+// The walk's sums or the lobe, from the EXR run_directory.cpp wrote.
+void read_scatter_back(const std::filesystem::path& exr, MeasurementResult& m) {
+  ScatterFile file = read_scatter_exr(exr);
+  m.scatter = std::move(file.histogram);
+  m.expectation = std::move(file.expectation);
+}
+
 // Per-order lobes of sampled paths: the walk's or a tile's (paths_on).
 class SampledScattering : public Measurement {
 public:
@@ -80,6 +88,9 @@ public:
   bool split() const override { return true; }
   RoundTask first_round(std::size_t index, std::uint64_t seed) const override {
     return first_round_task(index, seed, first_units(decision_, 1), kPathsPerBlock);
+  }
+  void read_back(const std::filesystem::path& exr, MeasurementResult& m) const override {
+    if (m.values.contains("scattering")) read_scatter_back(exr, m);
   }
 
 protected:
@@ -153,6 +164,9 @@ public:
   using Measurement::Measurement;
   std::string error_measure() const override {
     return "the cubature's summed error estimate over the order-1 albedo (to first order a bound on the lobe's TV error)";
+  }
+  void read_back(const std::filesystem::path& exr, MeasurementResult& m) const override {
+    if (m.values.contains("analytic_scattering")) read_scatter_back(exr, m);
   }
   void run(const RoundContext& c, MeasurementResult& m) const override {
     m.rounds.clear();

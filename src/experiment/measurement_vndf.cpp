@@ -35,14 +35,6 @@ void add_vndf_counts(TracedHistogram& sum, std::vector<std::uint64_t>& unbinned,
   sum.hits += round.hits;
 }
 
-// A round's bookkeeping once its rays are added and the sum analysed (`achieved` set).
-void record_vndf_round(MeasurementResult& m, const RoundStart& start, const TraceResult& trace, std::uint64_t rays,
-                       double seconds) {
-  m.units += rays;
-  m.rays += rays;
-  m.rounds.push_back({start.done + rays, start.units, trace.blocks.end, trace.partial, start.seed, 0, seconds, m.achieved});
-}
-
 class VndfMeasurement : public Measurement {
 public:
   using Measurement::Measurement;
@@ -54,6 +46,31 @@ public:
   RoundTask first_round(std::size_t index, std::uint64_t seed) const override {
     // Capped as the rounds cap them.
     return first_round_task(index, seed, std::min(first_units(decision_, 1), kMaxRays), kRaysPerBlock);
+  }
+  void read_back(const std::filesystem::path& exr, MeasurementResult& m) const override {
+    if (m.values.contains("analysis")) m.histogram = read_histogram_exr(exr);  // the summed counts
+  }
+
+protected:
+  // One round (or the rest of one): `trace` of its request, its counts added to the sum, the sum analysed
+  // (`analyse(round, fresh)` sets achieved, values and the histogram) and the round recorded.
+  template <class Trace, class Analyse>
+  bool round(const RoundContext& c, const RoundStart& start, MeasurementResult& m, const Trace& trace,
+             const Analyse& analyse) const {
+    VndfRequest req = vndf_request(spec_, decision_, start.units, start.seed, c.options.run);
+    if (const auto blocks = start.blocks(kRaysPerBlock)) req.blocks = *blocks;
+    const auto clock = std::chrono::steady_clock::now();
+    const auto r = trace(req);
+    m.partial = r.trace.partial;  // cancelled: its completed blocks are a shorter run of that seed, kept
+    if (r.histogram.rays == 0) return false;
+    const bool fresh = m.histogram.binnings.empty();
+    add_vndf_counts(m.histogram, m.unbinned, r.histogram, r.trace.unbinned);
+    analyse(r, fresh);
+    m.units += r.histogram.rays;
+    m.rays += r.histogram.rays;
+    m.rounds.push_back({start.done + r.histogram.rays, start.units, r.trace.blocks.end, r.trace.partial, start.seed, 0,
+                        seconds_since(clock), m.achieved});
+    return true;
   }
 };
 
@@ -67,25 +84,18 @@ public:
     return vndf_part(task, measure_ellipsoid_vndf(target(decision_), request).trace, {});
   }
   void run(const RoundContext& c, MeasurementResult& m) const override {
-    run_histogram_rounds(c, m, kMaxRays, [&](const RoundStart& start) { return round(c, start, m); });
+    const auto trace = [&](const VndfRequest& req) { return split_vndf_round(c.split(), c.index, target(decision_), req); };
+    run_histogram_rounds(c, m, kMaxRays, [&](const RoundStart& start) {
+      return round(c, start, m, trace, [&](const EllipsoidVndf& r, bool fresh) { analyse(r, fresh, m); });
+    });
   }
 
 private:
   static EllipsoidTarget target(const Decision& d) { return EllipsoidTarget(d.alpha.first, d.alpha.second, -1); }
-  // One round (or the rest of one): traced, added to the sum, the sum analysed and recorded.
-  bool round(const RoundContext& c, const RoundStart& start, MeasurementResult& m) const {
-    VndfRequest req = vndf_request(spec_, decision_, start.units, start.seed, c.options.run);
-    if (const auto blocks = start.blocks(kRaysPerBlock)) req.blocks = *blocks;
-    const auto clock = std::chrono::steady_clock::now();
-    const EllipsoidVndf r = split_vndf_round(c.split(), c.index, target(decision_), req);
-    m.partial = r.trace.partial;  // cancelled: its completed blocks are a shorter run of that seed, kept
-    if (r.histogram.rays == 0) return false;
-    const bool fresh = m.histogram.binnings.empty();
-    add_vndf_counts(m.histogram, m.unbinned, r.histogram, r.trace.unbinned);
-    // A whole first round: its own analysis is the sum's (the reference's cubature is not paid twice).
+  // The sum analysed; a whole first round's own analysis is the sum's (the reference's cubature not paid twice).
+  static void analyse(const EllipsoidVndf& r, bool fresh, MeasurementResult& m) {
     const EllipsoidVndf analysed = fresh && !r.trace.partial ? r : analyse_ellipsoid_vndf(m.histogram, m.unbinned);
     m.achieved = resolved_tv(vndf_noise_floor(analysed));
-    record_vndf_round(m, start, r.trace, r.histogram.rays, seconds_since(clock));
     m.values = {{"analysis", to_json(analysed.analysis)},
                 {"rays", analysed.histogram.rays},
                 {"hits", analysed.histogram.hits},
@@ -94,7 +104,6 @@ private:
                 {"noise_floor_tv", vndf_noise_floor(analysed)},
                 {"unbinned", m.unbinned}};
     m.histogram = analysed.histogram;
-    return true;
   }
 };
 
@@ -112,27 +121,20 @@ public:
     if (field == nullptr) return;
     // The scene is built when the root's own part begins: after the round was sent, while the ranks build theirs.
     const SceneOf scene = [&c, field]() -> const HeightfieldScene& { return c.surfaces.scene_for(*field); };
-    run_histogram_rounds(c, m, kMaxRays, [&](const RoundStart& start) { return round(c, scene, *field, start, m); });
-  }
-
-private:
-  bool round(const RoundContext& c, const SceneOf& scene, const microgeom::Heightfield& field, const RoundStart& start,
-             MeasurementResult& m) const {
-    VndfRequest req = vndf_request(spec_, decision_, start.units, start.seed, c.options.run);
-    if (const auto blocks = start.blocks(kRaysPerBlock)) req.blocks = *blocks;
-    const auto clock = std::chrono::steady_clock::now();
-    const HeightfieldVndf r =
-        split_heightfield_vndf_round(c.split(), c.index, scene, field, surface_label(decision_.surface), req);
-    m.partial = r.trace.partial;
-    if (r.histogram.rays == 0) return false;
-    if (!m.histogram.binnings.empty()) add_heightfield_diagnostics(m.histogram, r.histogram);  // the analysis reads them
-    add_vndf_counts(m.histogram, m.unbinned, r.histogram, r.trace.unbinned);
-    const HeightfieldVndf analysed = analyse_heightfield_vndf(m.histogram, m.unbinned, field);  // the sum so far
-    m.achieved = resolved_tv(heightfield_noise_floor(analysed));
-    record_vndf_round(m, start, r.trace, r.histogram.rays, seconds_since(clock));
-    m.values = heightfield_vndf_values(analysed, m.unbinned, decision_.surface);
-    m.histogram = analysed.histogram;
-    return true;
+    const auto trace = [&](const VndfRequest& req) {
+      HeightfieldVndf r = split_heightfield_vndf_round(c.split(), c.index, scene, *field, surface_label(decision_.surface), req);
+      if (r.histogram.rays > 0 && !m.histogram.binnings.empty())
+        add_heightfield_diagnostics(m.histogram, r.histogram);  // the analysis reads them
+      return r;
+    };
+    run_histogram_rounds(c, m, kMaxRays, [&](const RoundStart& start) {
+      return round(c, start, m, trace, [&](const HeightfieldVndf&, bool) {
+        const HeightfieldVndf analysed = analyse_heightfield_vndf(m.histogram, m.unbinned, *field);  // the sum so far
+        m.achieved = resolved_tv(heightfield_noise_floor(analysed));
+        m.values = heightfield_vndf_values(analysed, m.unbinned, decision_.surface);
+        m.histogram = analysed.histogram;
+      });
+    });
   }
 };
 
@@ -188,7 +190,7 @@ void plan_heightfield_vndf(const ExperimentSpec& spec, const SpecQuantity& q, co
 
 void plan_vndf_quantity(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& cache,
                         std::vector<Decision>& out) {
-  plan_views(spec, index, o, cache, {plan_vndf_view, plan_heightfield_vndf}, out);
+  plan_views(spec, index, o, cache, {plan_vndf_view, plan_heightfield_vndf, nullptr, false}, out);
 }
 
 std::string tile_vndf_part(const ExperimentSpec& spec, const Decision& decision, const RoundTask& task,

@@ -21,13 +21,16 @@ json round_parameters(const RoundTask& task) {
   return {{"measurement", task.measurement}, {"units", task.units}, {"surface_seed", task.surface_seed}};
 }
 
-// A part of `task` holding `blocks`, cancelled part way or not, with the kind's sums (null: nothing measured).
+}  // namespace
+
 std::string round_part(const RoundTask& task, const BlockRange& blocks, bool partial, json sums) {
   const Provenance provenance{kProducer, "", task.seed, task.blocks.end, blocks};
   json part{{"provenance", provenance_json(provenance, round_parameters(task))}, {"partial", partial}};
   if (!sums.is_null()) part["sums"] = std::move(sums);
   return part.dump();
 }
+
+namespace {
 
 [[noreturn]] void malformed(int rank, const std::string& what) {
   throw InternalError(fmt::format("the part of rank {} of a split round is malformed: {}", rank, what));
@@ -71,11 +74,9 @@ Part read_part(const std::string& text, const RoundTask& task, int rank, int ran
   return part;
 }
 
-// Gives the sums of the parts from `first` on, in rank order, to add(sums, blocks, rank) (a part cancelled
-// before measuring anything has none) until a part cancelled part way; whether every part was whole. Sums
-// that are not the kind's (a member missing, sizes that differ from the root's) are a malformed part.
-template <class Add>
-bool add_parts(const std::vector<std::string>& parts, const RoundTask& task, int first, Add&& add) {
+}  // namespace
+
+bool add_parts(const std::vector<std::string>& parts, const RoundTask& task, int first, const AddPart& add) {
   const int ranks = int(parts.size());  // checked: one part per rank
   for (int r = first; r < ranks; ++r) {
     const Part part = read_part(parts[std::size_t(r)], task, r, ranks);
@@ -93,24 +94,19 @@ bool add_parts(const std::vector<std::string>& parts, const RoundTask& task, int
   return true;
 }
 
-// Checks the measurement the parts are added to: the root's own part (first = 1: rank 0's shard), or nothing
-// yet (first = 0, the parts of shard jobs: no block at all, at the round's start).
 void check_start(const BlockRange& own, bool partial, const BlockRange& round, int first, int ranks) {
   if (first == 1) return check_shard(own, partial, round, 0, ranks);
   if (own != BlockRange{round.begin, round.begin} || partial)
     throw InternalError(fmt::format("a round's start holds blocks {}", own.to_string()));
 }
 
+namespace {
+
 // Adds counts of the same size element by element.
 void add_counts(std::vector<std::uint64_t>& to, const json& from) {
   if (!from.is_array() || from.size() != to.size())
     throw std::invalid_argument(fmt::format("{} counts where the root has {}", from.size(), to.size()));
   for (std::size_t k = 0; k < to.size(); ++k) to[k] += from[k].get<std::uint64_t>();
-}
-
-json exact_json(const ExactSum& s) { return {s.high_bits(), s.low_bits()}; }
-ExactSum exact_from_json(const json& j) {
-  return ExactSum::from_bits(j.at(0).get<std::uint64_t>(), j.at(1).get<std::uint64_t>());
 }
 }  // namespace
 
@@ -247,55 +243,17 @@ HeightfieldVndf combine_vndf_parts(HeightfieldVndf own, const std::vector<std::s
 
 // ---- scattering parts -------------------------------------------------------------------------------------
 
-// Per channel: each order bin's lobe ("w", "w2" per bin, "unbinned": [w, w2]), "unfinished" and "lost" [w, w2].
+// Every exact sum of the histogram (stats/part_json.h scatter_sums_json).
 std::string scatter_part(const RoundTask& task, const ScatterHistogram& h) {
-  json channels = json::array();
-  for (int c = 0; c < h.channels(); ++c) {
-    json lobes = json::array();
-    for (int k = 0; k < kScatterOrderBins; ++k) {
-      const Histogram& lobe = h.histogram(c, k);
-      json w = json::array(), w2 = json::array();
-      for (std::size_t b = 0; b < lobe.size(); ++b) {
-        w.push_back(exact_json(lobe.exact_weight(b)));
-        w2.push_back(exact_json(lobe.exact_weight_squared(b)));
-      }
-      lobes.push_back({{"w", w}, {"w2", w2},
-                       {"unbinned", {exact_json(lobe.exact_unbinned_weight()), exact_json(lobe.exact_unbinned_weight_squared())}}});
-    }
-    channels.push_back({{"orders", lobes},
-                        {"unfinished", {exact_json(h.exact_unfinished(c, false)), exact_json(h.exact_unfinished(c, true))}},
-                        {"lost", {exact_json(h.exact_lost(c, false)), exact_json(h.exact_lost(c, true))}}});
-  }
-  return round_part(task, h.provenance.blocks, h.partial, {{"paths", h.paths()}, {"channels", channels}});
+  return round_part(task, h.provenance.blocks, h.partial, scatter_sums_json(h));
 }
-
-namespace {
-void add_scatter_sums(ScatterHistogram& sum, const json& s) {
-  const json& channels = s.at("channels");
-  if (channels.size() != std::size_t(sum.channels())) throw std::invalid_argument("its channels differ from the root's");
-  for (int c = 0; c < sum.channels(); ++c) {
-    const json& channel = channels[std::size_t(c)];
-    for (int k = 0; k < kScatterOrderBins; ++k) {
-      const json& lobe = channel.at("orders").at(std::size_t(k));
-      if (lobe.at("w").size() != sum.bins() || lobe.at("w2").size() != sum.bins())
-        throw std::invalid_argument("its bins differ from the root's");
-      for (std::size_t b = 0; b < sum.bins(); ++b)
-        sum.add_sums(c, k, b, exact_from_json(lobe.at("w").at(b)), exact_from_json(lobe.at("w2").at(b)));
-      sum.add_unbinned_sums(c, k, exact_from_json(lobe.at("unbinned").at(0)), exact_from_json(lobe.at("unbinned").at(1)));
-    }
-    sum.add_unfinished_sums(c, exact_from_json(channel.at("unfinished").at(0)), exact_from_json(channel.at("unfinished").at(1)));
-    sum.add_lost_sums(c, exact_from_json(channel.at("lost").at(0)), exact_from_json(channel.at("lost").at(1)));
-  }
-  sum.add_launched(s.at("paths").get<std::uint64_t>());
-}
-}  // namespace
 
 // The parts (from `first` on, as combine_vndf_parts) added to `own` in rank order: the one-process round.
 ScatterHistogram combine_scatter_parts(ScatterHistogram own, const std::vector<std::string>& parts,
                                        const RoundTask& task, int first) {
   check_start(own.provenance.blocks, own.partial, task.blocks, first, int(parts.size()));
   const auto add = [&](const json& s, const BlockRange& blocks, int) {
-    add_scatter_sums(own, s);
+    add_scatter_sums(own, s, PartReader("scattering part"), "sums");
     own.provenance.blocks.end = blocks.end;
   };
   if (!own.partial && !add_parts(parts, task, first, add)) own.partial = true;

@@ -18,6 +18,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -35,6 +36,19 @@ struct RoundTask {
 };
 nlohmann::json round_task_json(const RoundTask& task);
 RoundTask round_task_from_json(const nlohmann::json& task);  // throws nlohmann::json::exception
+
+// What every kind's parts share. A part of `task` holding `blocks`, cancelled part way or not, with the kind's
+// sums (null: nothing measured).
+std::string round_part(const RoundTask& task, const BlockRange& blocks, bool partial, nlohmann::json sums);
+// Gives the sums of the parts from `first` on, in rank order, to add(sums, blocks, rank) (a part cancelled
+// before measuring anything has none) until a part cancelled part way; whether every part was whole. Sums
+// that are not the kind's (add throws nlohmann::json::exception, HistogramMergeError, std::invalid_argument)
+// are a malformed part.
+using AddPart = std::function<void(const nlohmann::json& sums, const BlockRange& blocks, int rank)>;
+bool add_parts(const std::vector<std::string>& parts, const RoundTask& task, int first, const AddPart& add);
+// Checks the measurement the parts are added to: the root's own part (first = 1: rank 0's shard), or nothing
+// yet (first = 0, the parts of shard jobs: no block at all, at the round's start).
+void check_start(const BlockRange& own, bool partial, const BlockRange& round, int first, int ranks);
 
 // VNDF: the counts and the tile tracer's diagnostics (0 on the ellipsoid).
 std::string vndf_part(const RoundTask& task, const TraceResult& trace, const HeightfieldVndfDiagnostics& diagnostics);

@@ -86,6 +86,8 @@ std::string Measurement::part(const RoundTask& task, const BlockRange&, const Ru
   throw InternalError(fmt::format("a round of measurement {}, which is not split", task.measurement));
 }
 
+void Measurement::read_back(const std::filesystem::path&, MeasurementResult&) const {}
+
 bool is_split(const ExperimentSpec& spec, const Decision& decision) { return make_measurement(spec, decision)->split(); }
 
 bool is_shared_by_ranks(const ExperimentSpec& spec, const Decision& decision) {

@@ -57,8 +57,17 @@ private:
   int line_ = 0;
 };
 
-enum class QuantityKind { albedo, vndf, scattering, validation, masking };
-std::string to_string(QuantityKind kind);  // "albedo", "vndf", "scattering", "validation", "masking"
+// A quantity's measurement kind, by the name the spec gives it. What a kind is (its keys, model, plan, rounds,
+// values, files, report) is its registry entry's alone (measurement_registry.cpp kKinds, found by this name):
+// a kind is added there and in its own file, never here. The built-in kinds' names are spelled out below.
+struct QuantityKind {
+  std::string_view name = "albedo";  // the registry's (static storage)
+  bool operator==(const QuantityKind&) const = default;
+  static const QuantityKind albedo, vndf, scattering, validation, masking;
+};
+inline constexpr QuantityKind QuantityKind::albedo{"albedo"}, QuantityKind::vndf{"vndf"},
+    QuantityKind::scattering{"scattering"}, QuantityKind::validation{"validation"}, QuantityKind::masking{"masking"};
+inline std::string to_string(QuantityKind kind) { return std::string(kind.name); }
 
 struct SpecQuantity;
 // Whether a validation's dump holds a BSDF's samples (pdf bsdf) or weights (weight columns): its BSDF is then its

@@ -23,16 +23,6 @@ namespace {
 
 std::string stop_message(int exit_code) { return nlohmann::json{{"stop", exit_code}}.dump(); }
 
-std::string task_message(const RoundTask& task) { return nlohmann::json{{"round", round_task_json(task)}}.dump(); }
-
-// The stored parts of this round (a merge of shard jobs), or null.
-const std::vector<std::string>* stored_parts(const StoredRounds* stored, const RoundTask& task) {
-  if (stored == nullptr) return nullptr;
-  for (std::size_t t = 0; t < stored->tasks.size(); ++t)
-    if (stored->tasks[t] == task) return &stored->parts[t];
-  return nullptr;
-}
-
 nlohmann::json parse_message(const std::string& text) {
   try {
     return nlohmann::json::parse(text);
@@ -45,12 +35,6 @@ BlockRange round_blocks(const std::optional<BlockRange>& selected, std::uint64_t
   return selected ? *selected : BlockRange{0, BlockPlan{units, block_size}.blocks()};
 }
 
-// The gathered parts, one per rank (else a bug: InternalError).
-void check_part_count(const std::vector<std::string>& parts, int ranks) {
-  if (parts.size() != std::size_t(ranks))
-    throw InternalError(fmt::format("a split round gathered {} parts from {} ranks", parts.size(), ranks));
-}
-
 // A request with its blocks replaced (a rank's shard, or none of a stored round), or as it is (nullopt).
 template <class Request>
 Request with_blocks(Request request, const std::optional<BlockRange>& blocks) {
@@ -58,30 +42,21 @@ Request with_blocks(Request request, const std::optional<BlockRange>& blocks) {
   return request;
 }
 
-// The shape of every split round. Stored parts (a merge of shard jobs): `measure` of no block (the binnings and
-// attributes) and every part combined from the first; alone: `measure` of the whole round (`Own` as the result,
-// else combined with no part); with ranks: the task broadcast, rank 0's shard measured, every rank's part
-// (`encode(own, its blocks)`) gathered and combined from the second (`combine(own, parts, first)`).
-template <class Own, class Result = Own>
-Result split_round(const RoundSplit& split, const RoundTask& task,
-                   const std::type_identity_t<std::function<Own(const std::optional<BlockRange>&)>>& measure,
-                   const std::type_identity_t<std::function<std::string(const Own&, const BlockRange&)>>& encode,
-                   const std::type_identity_t<std::function<Result(Own, const std::vector<std::string>&, int)>>& combine) {
-  if (const std::vector<std::string>* stored = stored_parts(split.stored, task))
-    return combine(measure(BlockRange{task.blocks.begin, task.blocks.begin}), *stored, 0);
-  if (split.ranks == nullptr || split.ranks->size() == 1) {
-    if constexpr (std::is_same_v<Own, Result>) return measure(std::nullopt);
-    else return combine(measure(std::nullopt), {}, 0);
-  }
-  split.ranks->broadcast(task_message(task));
-  const BlockRange mine = rank_blocks(task.blocks, 0, split.ranks->size());
-  Own own = measure(mine);
-  const std::vector<std::string> parts = split.ranks->gather(encode(own, mine));
-  check_part_count(parts, split.ranks->size());
-  return combine(std::move(own), parts, 1);
+}  // namespace
+
+std::string task_message(const RoundTask& task) { return nlohmann::json{{"round", round_task_json(task)}}.dump(); }
+
+const std::vector<std::string>* stored_parts(const StoredRounds* stored, const RoundTask& task) {
+  if (stored == nullptr) return nullptr;
+  for (std::size_t t = 0; t < stored->tasks.size(); ++t)
+    if (stored->tasks[t] == task) return &stored->parts[t];
+  return nullptr;
 }
 
-}  // namespace
+void check_part_count(const std::vector<std::string>& parts, int ranks) {
+  if (parts.size() != std::size_t(ranks))
+    throw InternalError(fmt::format("a split round gathered {} parts from {} ranks", parts.size(), ranks));
+}
 
 namespace {
 HeightfieldVndfDiagnostics diagnostics_of(const EllipsoidVndf&) { return {}; }

@@ -27,6 +27,8 @@
 #include <nlohmann/json.hpp>
 
 #include <functional>
+#include <optional>
+#include <type_traits>
 #include <string>
 #include <vector>
 
@@ -50,6 +52,35 @@ struct RoundSplit {
   Ranks* ranks = nullptr;
   const StoredRounds* stored = nullptr;
 };
+
+// What split_round needs of the split: the stored parts of `task` (a merge of shard jobs), or null; the
+// message that sends a task to the ranks; a check that the gathered parts are one per rank (else InternalError).
+const std::vector<std::string>* stored_parts(const StoredRounds* stored, const RoundTask& task);
+std::string task_message(const RoundTask& task);
+void check_part_count(const std::vector<std::string>& parts, int ranks);
+
+// The shape of every split round. Stored parts (a merge of shard jobs): `measure` of no block (the binnings and
+// attributes) and every part combined from the first; alone: `measure` of the whole round (`Own` as the result,
+// else combined with no part); with ranks: the task broadcast, rank 0's shard measured, every rank's part
+// (`encode(own, its blocks)`) gathered and combined from the second (`combine(own, parts, first)`).
+template <class Own, class Result = Own>
+Result split_round(const RoundSplit& split, const RoundTask& task,
+                   const std::type_identity_t<std::function<Own(const std::optional<BlockRange>&)>>& measure,
+                   const std::type_identity_t<std::function<std::string(const Own&, const BlockRange&)>>& encode,
+                   const std::type_identity_t<std::function<Result(Own, const std::vector<std::string>&, int)>>& combine) {
+  if (const std::vector<std::string>* stored = stored_parts(split.stored, task))
+    return combine(measure(BlockRange{task.blocks.begin, task.blocks.begin}), *stored, 0);
+  if (split.ranks == nullptr || split.ranks->size() == 1) {
+    if constexpr (std::is_same_v<Own, Result>) return measure(std::nullopt);
+    else return combine(measure(std::nullopt), {}, 0);
+  }
+  split.ranks->broadcast(task_message(task));
+  const BlockRange mine = rank_blocks(task.blocks, 0, split.ranks->size());
+  Own own = measure(mine);
+  const std::vector<std::string> parts = split.ranks->gather(encode(own, mine));
+  check_part_count(parts, split.ranks->size());
+  return combine(std::move(own), parts, 1);
+}
 
 // The root's side: measure_ellipsoid_vndf, trace_heightfield_vndf on `scene()` (`field`'s; `label` names the
 // tile: surface_label; the round's counts and diagnostics, not analysed: the caller analyses its sum) and

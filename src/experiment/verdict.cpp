@@ -13,15 +13,23 @@ std::string to_string(Verdict verdict) {
   return "none";
 }
 
-// A validation's values hold the validator's report (validate.h to_json), whose verdict is "pass" or "fail";
-// a validation cut short holds none (it runs again when resumed).
-bool validation_tested(const MeasurementResult& m) {
-  return m.ran && !m.partial && m.values.is_object() && m.values.contains("validation") &&
-         m.values.at("validation").is_object() && m.values.at("validation").contains("verdict");
+namespace {
+// The report of the test a measurement ran, whatever its kind: the member of its values that holds a verdict
+// ("pass" or "fail": a validator's report, validate.h to_json); null when none (a measurement that tests
+// nothing, or a test cut short: it runs again when resumed).
+const nlohmann::json* test_report(const MeasurementResult& m) {
+  if (!m.ran || m.partial || !m.values.is_object()) return nullptr;
+  for (const nlohmann::json& member : m.values)
+    if (member.is_object() && member.contains("verdict")) return &member;
+  return nullptr;
 }
+}  // namespace
+
+bool validation_tested(const MeasurementResult& m) { return test_report(m) != nullptr; }
 
 bool validation_rejected(const MeasurementResult& m) {
-  return validation_tested(m) && m.values.at("validation").at("verdict") == "fail";
+  const nlohmann::json* report = test_report(m);
+  return report != nullptr && report->at("verdict") == "fail";
 }
 
 RunVerdict run_verdict(const ExperimentResults& results) {
