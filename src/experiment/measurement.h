@@ -43,6 +43,9 @@ struct RoundStart {
   // The blocks to run: from first_block to the round's end (nullopt: the whole round).
   std::optional<BlockRange> blocks(std::uint64_t block_size) const;
 };
+// A measurement of one pass, not resumed (an interrupted one runs again whole): its rounds cleared, `pass` run
+// (it records its round); a Cancelled from it leaves `m` partial.
+void run_once(MeasurementResult& m, const std::function<void()>& pass);
 // Rounds of at most `max_units` (each by `round`, false: nothing measured) until the target is met, the rounds
 // run out or a round is cut short (a resumed run's partial round first).
 void run_histogram_rounds(const RoundContext& context, MeasurementResult& m, std::uint64_t max_units,
@@ -134,5 +137,8 @@ std::unique_ptr<Measurement> make_measurement(const ExperimentSpec& spec, const 
 bool kind_has_views(QuantityKind kind);
 void add_kind_summaries(const std::vector<MeasurementResult>& measurements, nlohmann::json& results);
 std::string kind_summary_sections(const nlohmann::json& document, bool before);
+// The report of the test a measurement's values hold, whatever its kind (the registry names each testing kind's
+// member of its values; its "verdict" is "pass" or "fail"), or null.
+const nlohmann::json* kind_test_report(const nlohmann::json& values);
 
 }  // namespace microsim::experiment

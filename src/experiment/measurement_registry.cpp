@@ -19,14 +19,15 @@ struct KindEntry {
   std::unique_ptr<Measurement> (*make)(const ExperimentSpec&, const Decision&);
   KindReport report;            // its section of a measurement in the report (its file)
   const KindSummary* summary;   // what it adds to the whole run (null: nothing)
+  const char* test;             // the member of its values that reports its test's verdict (null: tests nothing)
 };
 
 constexpr KindEntry kKinds[] = {
-    {"albedo", &albedo_spec, false, albedo_model, plan_albedo_quantity, make_albedo_measurement, albedo_report, nullptr},
-    {"vndf", &vndf_spec, true, vndf_model, plan_vndf_quantity, make_vndf_measurement, vndf_report, nullptr},
-    {"scattering", &scattering_spec, true, scattering_model, plan_scattering_quantity, make_scattering_measurement, scattering_report, nullptr},
-    {"validation", &validation_spec, true, validation_model, plan_validation_quantity, make_validation_measurement, validation_report, nullptr},
-    {"masking", &masking_spec, true, masking_model, plan_masking_quantity, make_masking_measurement, masking_report, &masking_summary},
+    {"albedo", &albedo_spec, false, albedo_model, plan_albedo_quantity, make_albedo_measurement, albedo_report, nullptr, nullptr},
+    {"vndf", &vndf_spec, true, vndf_model, plan_vndf_quantity, make_vndf_measurement, vndf_report, nullptr, nullptr},
+    {"scattering", &scattering_spec, true, scattering_model, plan_scattering_quantity, make_scattering_measurement, scattering_report, nullptr, nullptr},
+    {"validation", &validation_spec, true, validation_model, plan_validation_quantity, make_validation_measurement, validation_report, nullptr, "validation"},
+    {"masking", &masking_spec, true, masking_model, plan_masking_quantity, make_masking_measurement, masking_report, &masking_summary, nullptr},
 };
 
 const KindEntry* find_kind(std::string_view name) {
@@ -72,6 +73,14 @@ std::string kind_summary_sections(const nlohmann::json& document, bool before) {
   for (const KindEntry& e : kKinds)
     if (e.summary != nullptr) out += (before ? e.summary->before : e.summary->after)(document);
   return out;
+}
+
+const nlohmann::json* kind_test_report(const nlohmann::json& values) {
+  if (!values.is_object()) return nullptr;
+  for (const KindEntry& e : kKinds)
+    if (e.test != nullptr && values.contains(e.test) && values.at(e.test).is_object() && values.at(e.test).contains("verdict"))
+      return &values.at(e.test);
+  return nullptr;
 }
 
 ModelRule kind_model_rule(QuantityKind kind) { return kind_entry(kind).model; }

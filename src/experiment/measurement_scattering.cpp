@@ -169,19 +169,14 @@ public:
     if (m.values.contains("analytic_scattering")) read_scatter_back(exr, m);
   }
   void run(const RoundContext& c, MeasurementResult& m) const override {
-    m.rounds.clear();
-    m.partial = false;
-    const auto clock = std::chrono::steady_clock::now();
-    try {
+    run_once(m, [&] {
+      const auto clock = std::chrono::steady_clock::now();
       m.expectation = analytic_scatter_lobe(material(), decision_, c.options.run);
-    } catch (const Cancelled&) {
-      m.partial = true;
-      return;
-    }
-    m.achieved = analytic_lobe_error(m.expectation, decision_.view);
-    m.rounds.push_back({0, 0, 0, false, 0, 0, seconds_since(clock), m.achieved});
-    m.met = m.achieved <= m.target;
-    m.values = values(m.expectation, m.achieved);
+      m.achieved = analytic_lobe_error(m.expectation, decision_.view);
+      m.rounds.push_back({0, 0, 0, false, 0, 0, seconds_since(clock), m.achieved});
+      m.met = m.achieved <= m.target;
+      m.values = values(m.expectation, m.achieved);
+    });
   }
 
 private:

@@ -136,17 +136,11 @@ public:
       throw std::invalid_argument(fmt::format("{}.sampler: unknown sampler '{}'", quantity_.key, quantity_.sampler));
     const ValidationOptions v =
         validation_request(quantity_, first_units(decision_, c.options.cost_factor), c.round_seed(0), c.options.run);
-    m.rounds.clear();
-    m.partial = false;
-    const auto clock = std::chrono::steady_clock::now();
-    ValidationReport r;
-    try {
-      r = split_validation(c.split(), c.index, *sampler, ggx(), view(), v);
-    } catch (const Cancelled&) {
-      m.partial = true;
-      return;
-    }
-    record(r, r.samples, seconds_since(clock), m);
+    run_once(m, [&] {
+      const auto clock = std::chrono::steady_clock::now();
+      const ValidationReport r = split_validation(c.split(), c.index, *sampler, ggx(), view(), v);
+      record(r, r.samples, seconds_since(clock), m);
+    });
   }
 };
 
@@ -174,21 +168,19 @@ public:
     if (SampleColumns::parse(q.dump_columns).channels() > 0) v.bsdf = claims.bsdf;  // the weight test
     v.convention = q.convention;
     if (q.dump_dropped > 0) v.dropped_below_horizon = q.dump_dropped;
-    m.rounds.clear();
-    m.partial = false;
-    const auto clock = std::chrono::steady_clock::now();
-    try {
-      DirectionSampleReader reader = open_dump(q);
-      ValidationReport r = validate_dump_as_given(reader, claims, ggx(), view(), v, q.dump_frame == "z-up");
-      r.sampler = q.dump;
-      record(r, decision_.units, seconds_since(clock), m);
-    } catch (const Cancelled&) {
-      m.partial = true;
-    } catch (const SampleFileError& e) {
-      rethrow_dump_error(e);
-    } catch (const InsufficientData& e) {
-      rethrow_dump_error(e);
-    }
+    run_once(m, [&] {
+      const auto clock = std::chrono::steady_clock::now();
+      try {
+        DirectionSampleReader reader = open_dump(q);
+        ValidationReport r = validate_dump_as_given(reader, claims, ggx(), view(), v, q.dump_frame == "z-up");
+        r.sampler = q.dump;
+        record(r, decision_.units, seconds_since(clock), m);
+      } catch (const SampleFileError& e) {
+        rethrow_dump_error(e);
+      } catch (const InsufficientData& e) {
+        rethrow_dump_error(e);
+      }
+    });
   }
 
 private:

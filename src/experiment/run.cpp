@@ -68,6 +68,16 @@ std::optional<BlockRange> RoundStart::blocks(std::uint64_t block_size) const {
   return BlockRange{first_block, BlockPlan{units, block_size}.blocks()};
 }
 
+void run_once(MeasurementResult& m, const std::function<void()>& pass) {
+  m.rounds.clear();
+  m.partial = false;
+  try {
+    pass();
+  } catch (const Cancelled&) {
+    m.partial = true;
+  }
+}
+
 void run_histogram_rounds(const RoundContext& c, MeasurementResult& m, std::uint64_t max_units,
                           const std::function<bool(const RoundStart&)>& round) {
   m.partial = false;

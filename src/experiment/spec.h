@@ -33,6 +33,8 @@
 #include "microfacet/bsdf_convention.h"
 #include "microfacet/material.h"
 
+#include <nlohmann/json.hpp>
+
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -140,6 +142,9 @@ struct SpecQuantity {
   int bins = 10;                            // masking, conditional: bins of <v, m> and of height
   int resolution = kDefaultMaskingResolution;  // masking on a surface built per alpha
   int realisations = 1;  // masking on a built surface: independent surfaces (seeds), each measured to the target
+  // A kind's own settings beyond the members above (its reader fills them; the spec's digest holds them): a new
+  // kind's keys need no member here.
+  nlohmann::json settings = nlohmann::json::object();
 };
 
 struct ExperimentSpec {

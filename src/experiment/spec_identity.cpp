@@ -33,6 +33,7 @@ std::string canonical_spec(const ExperimentSpec& spec) {
                                {"mus", q.mus}, {"inside", q.inside}, {"rows", q.rows}, {"sampler", q.sampler},
                                {"power", q.power}, {"significance", q.significance}});
     if (const auto kind_canonical = kind_spec(q.kind).canonical) j["quantities"].back().update(kind_canonical(q));
+    if (!q.settings.empty()) j["quantities"].back()["settings"] = q.settings;  // none: the digests of earlier specs
   }
   return j.dump();
 }

@@ -1,5 +1,6 @@
 // experiment: the verdict of a run (verdict.h).
 #include "experiment/verdict.h"
+#include "experiment/measurement.h"
 
 namespace microsim::experiment {
 
@@ -14,14 +15,10 @@ std::string to_string(Verdict verdict) {
 }
 
 namespace {
-// The report of the test a measurement ran, whatever its kind: the member of its values that holds a verdict
-// ("pass" or "fail": a validator's report, validate.h to_json); null when none (a measurement that tests
-// nothing, or a test cut short: it runs again when resumed).
+// The report of the test a measurement ran to its end (the registry's kind_test_report), or null: it tests
+// nothing, or its test was cut short (it runs again when resumed).
 const nlohmann::json* test_report(const MeasurementResult& m) {
-  if (!m.ran || m.partial || !m.values.is_object()) return nullptr;
-  for (const nlohmann::json& member : m.values)
-    if (member.is_object() && member.contains("verdict")) return &member;
-  return nullptr;
+  return m.ran && !m.partial ? kind_test_report(m.values) : nullptr;
 }
 }  // namespace
 

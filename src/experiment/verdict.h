@@ -31,8 +31,8 @@ struct RunVerdict {
   std::size_t tested = 0;             // the validations whose test ran to its end (passed or rejected)
 };
 
-// Whether a measurement's test ran to its end (a member of its values is a report with a "verdict": a
-// validation's, whatever the kind); and whether that test rejected.
+// Whether a measurement's test ran to its end (its values hold its kind's test report, measurement.h
+// kind_test_report: a validation's); and whether that test rejected.
 bool validation_tested(const MeasurementResult& m);
 bool validation_rejected(const MeasurementResult& m);
 
