@@ -13,6 +13,7 @@
 #include "core/errors.h"
 #include "core/wall_clock.h"
 #include "stats/scatter_compare.h"
+#include "stats/part_json.h"
 #include "stats/scatter_io.h"
 
 #include <fmt/core.h>
@@ -22,6 +23,44 @@
 #include <limits>
 
 namespace microsim::experiment {
+// ---- its parts and split rounds (parts.h, split_rounds.h) ----------------------------------------------------
+
+namespace {
+
+using nlohmann::json;
+
+// Every exact sum of the histogram (stats/part_json.h scatter_sums_json).
+std::string scatter_part(const RoundTask& task, const ScatterHistogram& h) {
+  return round_part(task, h.provenance.blocks, h.partial, scatter_sums_json(h));
+}
+
+// The parts (from `first` on, as combine_vndf_parts) added to `own` in rank order: the one-process round.
+ScatterHistogram combine_scatter_parts(ScatterHistogram own, const std::vector<std::string>& parts,
+                                       const RoundTask& task, int first) {
+  check_start(own.provenance.blocks, own.partial, task.blocks, first, int(parts.size()));
+  const auto add = [&](const json& s, const BlockRange& blocks, int) {
+    add_scatter_sums(own, s, PartReader("scattering part"), "sums");
+    own.provenance.blocks.end = blocks.end;
+  };
+  if (!own.partial && !add_parts(parts, task, first, add)) own.partial = true;
+  return own;
+}
+
+// A scattering round (`paths`: the Smith walk's, or a tile's; run_part runs the same on the other ranks), split.
+ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measurement, const ScatterPaths& paths,
+                                     const ScatterOptions& options) {
+  const RoundTask task{measurement, options.paths, options.seed, round_blocks(options.blocks, options.paths, kPathsPerBlock)};
+  return split_round<ScatterHistogram>(
+      split, task,
+      [&](const std::optional<BlockRange>& blocks) { return paths(with_blocks(options, blocks)); },
+      [&](const ScatterHistogram& own, const BlockRange&) { return scatter_part(task, own); },
+      [&](ScatterHistogram own, const std::vector<std::string>& parts, int first) {
+        return combine_scatter_parts(std::move(own), parts, task, first);
+      });
+}
+
+}  // namespace
+
 namespace {
 
 // The channel-0 order-1 albedo of an expectation: all of it, or what leaves on one side of the surface

@@ -31,17 +31,6 @@ nlohmann::json parse_message(const std::string& text) {
   }
 }
 
-BlockRange round_blocks(const std::optional<BlockRange>& selected, std::uint64_t units, std::uint64_t block_size) {
-  return selected ? *selected : BlockRange{0, BlockPlan{units, block_size}.blocks()};
-}
-
-// A request with its blocks replaced (a rank's shard, or none of a stored round), or as it is (nullopt).
-template <class Request>
-Request with_blocks(Request request, const std::optional<BlockRange>& blocks) {
-  if (blocks) request.blocks = *blocks;
-  return request;
-}
-
 }  // namespace
 
 std::string task_message(const RoundTask& task) { return nlohmann::json{{"round", round_task_json(task)}}.dump(); }
@@ -58,49 +47,6 @@ void check_part_count(const std::vector<std::string>& parts, int ranks) {
     throw InternalError(fmt::format("a split round gathered {} parts from {} ranks", parts.size(), ranks));
 }
 
-namespace {
-HeightfieldVndfDiagnostics diagnostics_of(const EllipsoidVndf&) { return {}; }
-const HeightfieldVndfDiagnostics& diagnostics_of(const HeightfieldVndf& h) { return h.diagnostics; }
-
-// A VNDF round, the ellipsoid's or a tile's (`trace` of a request's blocks), split.
-template <class Vndf, class Trace>
-Vndf split_traced_round(const RoundSplit& split, std::size_t measurement, const VndfRequest& request, const Trace& trace) {
-  const auto start = std::chrono::steady_clock::now();
-  const RoundTask task{measurement, request.rays, request.seed, round_blocks(request.blocks, request.rays, kRaysPerBlock)};
-  return split_round<Vndf>(
-      split, task, [&](const std::optional<BlockRange>& blocks) { return trace(with_blocks(request, blocks)); },
-      [&](const Vndf& own, const BlockRange&) { return vndf_part(task, own.trace, diagnostics_of(own)); },
-      [&](Vndf own, const std::vector<std::string>& parts, int first) {
-        return combine_vndf_parts(std::move(own), parts, task, first, seconds_since(start));
-      });
-}
-}  // namespace
-
-EllipsoidVndf split_vndf_round(const RoundSplit& split, std::size_t measurement, const EllipsoidTarget& target,
-                               const VndfRequest& request) {
-  return split_traced_round<EllipsoidVndf>(split, measurement, request,
-                                           [&](const VndfRequest& r) { return measure_ellipsoid_vndf(target, r); });
-}
-
-HeightfieldVndf split_heightfield_vndf_round(const RoundSplit& split, std::size_t measurement, const SceneOf& scene,
-                                             const microgeom::Heightfield& field, const std::string& label,
-                                             const VndfRequest& request) {
-  return split_traced_round<HeightfieldVndf>(
-      split, measurement, request, [&](const VndfRequest& r) { return trace_heightfield_vndf(scene(), field, label, r); });
-}
-
-ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measurement, const ScatterPaths& paths,
-                                     const ScatterOptions& options) {
-  const RoundTask task{measurement, options.paths, options.seed, round_blocks(options.blocks, options.paths, kPathsPerBlock)};
-  return split_round<ScatterHistogram>(
-      split, task,
-      [&](const std::optional<BlockRange>& blocks) { return paths(with_blocks(options, blocks)); },
-      [&](const ScatterHistogram& own, const BlockRange&) { return scatter_part(task, own); },
-      [&](ScatterHistogram own, const std::vector<std::string>& parts, int first) {
-        return combine_scatter_parts(std::move(own), parts, task, first);
-      });
-}
-
 std::optional<std::vector<SurfaceMasking>> split_masking_round(const RoundSplit& split, std::size_t measurement,
                                                                const MaskingRuns& h, std::uint64_t surface_seed,
                                                                const BlockRange& blocks, const RunControl& run) {
@@ -113,37 +59,6 @@ std::optional<std::vector<SurfaceMasking>> split_masking_round(const RoundSplit&
       [&](Sums own, const std::vector<std::string>& parts, int first) {
         return combine_masking_parts(std::move(own), parts, task, first);
       });
-}
-
-AlbedoTable split_albedo_round(const RoundSplit& split, std::size_t measurement, const AlbedoTableRequest& request,
-                               const AlbedoCellsOf& cells) {
-  const auto start = std::chrono::steady_clock::now();
-  const BlockRange round{0, request.alphas.size() * std::uint64_t(request.mus)};
-  const RoundTask task{measurement, request.paths, request.seed, round};
-  const bool stored = stored_parts(split.stored, task) != nullptr;  // its start: no cell (no tile acquired)
-  using Cells = std::optional<AlbedoCells>;
-  return split_round<Cells, AlbedoTable>(
-      split, task,
-      [&](const std::optional<BlockRange>& mine) -> Cells {
-        return stored ? Cells(AlbedoCells{}) : cells(request, mine ? *mine : round);
-      },
-      [&](const Cells& own, const BlockRange& mine) { return albedo_part(task, mine, own); },
-      [&](Cells own, const std::vector<std::string>& parts, int first) {
-        if (!own) return cancelled_albedo_table(request);
-        return combine_albedo_parts(request, std::move(*own), parts, task, first, seconds_since(start));
-      });
-}
-
-AlbedoCellsOf albedo_cells_of(const Decision& decision, SurfaceCache& surfaces) {
-  if (decision.model.model != Model::heightfield) return walk_albedo_cells;
-  return [plan = decision.surface, &surfaces](const AlbedoTableRequest& request, const BlockRange& cells) {
-    return surface_albedo_cells_of(request, cells, plan, surfaces);
-  };
-}
-
-std::uint64_t albedo_round_cells(const ExperimentSpec& spec, const Decision& decision) {
-  const SpecQuantity& q = spec.quantities[decision.quantity];
-  return spec.material(q.material).alphas.size() * std::uint64_t(q.mus);
 }
 
 ValidationReport split_validation(const RoundSplit& split, std::size_t measurement, const SamplerInfo& sampler,
