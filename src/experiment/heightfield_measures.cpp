@@ -7,7 +7,8 @@
 
 namespace microsim::experiment {
 
-SurfaceDecision plan_surface(const SpecQuantity& q, const Decision& d, std::uint64_t seed, SurfaceCache& cache) {
+SurfaceDecision plan_surface(const SpecQuantity& q, const Decision& d, std::uint64_t seed, SurfaceCache& cache,
+                             bool sees_heights) {
   if (q.surface.kind == SurfaceChoice::Kind::heightmap) {
     try {
       return plan_heightmap_tile(q.surface.name, q.target, alpha_anisotropy(d.alpha), cache);
@@ -15,9 +16,8 @@ SurfaceDecision plan_surface(const SpecQuantity& q, const Decision& d, std::uint
       throw std::invalid_argument(fmt::format("{}.surface: {}", q.key, e.what()));
     }
   }
-  // Every quantity but the visible normals (a VNDF, a validation against them) sees the tile's heights: a wide tile.
-  const bool normals = q.kind == QuantityKind::vndf || q.kind == QuantityKind::validation;
-  return plan_assembly_tile(q.surface.name, {q.target, alpha_anisotropy(d.alpha), d.view.theta_deg, !normals}, d.alpha, seed);
+  return plan_assembly_tile(q.surface.name, {q.target, alpha_anisotropy(d.alpha), d.view.theta_deg, sees_heights}, d.alpha,
+                            seed);
 }
 
 const microgeom::Heightfield& decision_surface(const Decision& decision, SurfaceCache& cache, const RunControl& run) {

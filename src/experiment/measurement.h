@@ -10,6 +10,7 @@
 #include "experiment/run.h"
 #include "experiment/spec_tree.h"
 
+#include <filesystem>
 #include <functional>
 #include <memory>
 #include <string>
@@ -42,6 +43,9 @@ struct RoundStart {
   // The blocks to run: from first_block to the round's end (nullopt: the whole round).
   std::optional<BlockRange> blocks(std::uint64_t block_size) const;
 };
+// A measurement of one pass, not resumed (an interrupted one runs again whole): its rounds cleared, `pass` run
+// (it records its round); a Cancelled from it leaves `m` partial.
+void run_once(MeasurementResult& m, const std::function<void()>& pass);
 // Rounds of at most `max_units` (each by `round`, false: nothing measured) until the target is met, the rounds
 // run out or a round is cut short (a resumed run's partial round first).
 void run_histogram_rounds(const RoundContext& context, MeasurementResult& m, std::uint64_t max_units,
@@ -68,6 +72,10 @@ public:
                            SurfaceCache& surfaces) const;
   // Its rounds, from `m` as the driver gives it (afresh, or an interrupted run's to continue).
   virtual void run(const RoundContext& context, MeasurementResult& m) const = 0;
+  // What a resumed run continues from that results.json does not hold: read back from the run directory's
+  // `exr` (KIND-K.exr, which run_directory.cpp wrote from m's histogram or scattering sums) into `m`, whose
+  // values are the interrupted run's. Throws HistogramIoError or ScatterIoError. Nothing by default.
+  virtual void read_back(const std::filesystem::path& exr, MeasurementResult& m) const;
 
 protected:
   const SpecMaterial& material() const { return spec_.material(quantity_.material); }
@@ -113,7 +121,24 @@ extern const KindSpec albedo_spec, vndf_spec, scattering_spec, validation_spec, 
 std::string tile_vndf_part(const ExperimentSpec& spec, const Decision& decision, const RoundTask& task,
                            const BlockRange& mine, const RunControl& run, SurfaceCache& surfaces);
 
-// The one place that chooses a kind (measurement_registry.cpp). `spec` and `decision` must outlive it.
+// What a kind adds to the whole run (a registry entry's; masking's over realisations): members of
+// results.json's "results" derived from every measurement (not read back), and sections of the report (from
+// results.json's document) before and after the measurements' own.
+struct KindSummary {
+  void (*results)(const std::vector<MeasurementResult>& measurements, nlohmann::json& results);
+  std::string (*before)(const nlohmann::json& document);
+  std::string (*after)(const nlohmann::json& document);
+};
+extern const KindSummary masking_summary;
+
+// The registry (measurement_registry.cpp), the one place that chooses by kind. make_measurement: `spec` and
+// `decision` must outlive it. kind_has_views: its decisions are per alpha and view. The summaries: every kind's.
 std::unique_ptr<Measurement> make_measurement(const ExperimentSpec& spec, const Decision& decision);
+bool kind_has_views(QuantityKind kind);
+void add_kind_summaries(const std::vector<MeasurementResult>& measurements, nlohmann::json& results);
+std::string kind_summary_sections(const nlohmann::json& document, bool before);
+// The report of the test a measurement's values hold, whatever its kind (the registry names each testing kind's
+// member of its values; its "verdict" is "pass" or "fail"), or null.
+const nlohmann::json* kind_test_report(const nlohmann::json& values);
 
 }  // namespace microsim::experiment

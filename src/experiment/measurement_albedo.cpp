@@ -14,6 +14,7 @@
 
 #include "core/wall_clock.h"
 #include "scatter/albedo_table_io.h"
+#include "stats/part_json.h"
 
 #include <fmt/core.h>
 
@@ -22,6 +23,89 @@
 #include <limits>
 
 namespace microsim::experiment {
+// ---- its parts and split rounds (parts.h, split_rounds.h) ----------------------------------------------------
+
+namespace {
+
+using nlohmann::json;
+
+// The cells of a sampled albedo request: walk_albedo_cells (a walk), or its tiles' (surface_albedo.h).
+using AlbedoCellsOf = std::function<std::optional<AlbedoCells>(const AlbedoTableRequest& request, const BlockRange& cells)>;
+
+// Per cell, its estimates [value, standard error] as their bits (exact_real_json).
+std::string albedo_part(const RoundTask& task, const BlockRange& cells, const std::optional<AlbedoCells>& estimates) {
+  if (!estimates) return cancelled_part(task, cells);
+  json out = json::array();
+  for (const std::vector<Estimate>& cell : *estimates) {
+    json values = json::array();
+    for (const Estimate& e : cell) values.push_back({exact_real_json(e.value), exact_real_json(e.standard_error)});
+    out.push_back(values);
+  }
+  return round_part(task, cells, false, out);
+}
+
+// A round cut short: no row (it is run again whole on resumption).
+AlbedoTable cancelled_albedo_table(const AlbedoTableRequest& request) {
+  AlbedoTable cancelled;
+  cancelled.request = request;
+  cancelled.partial = true;
+  return cancelled;
+}
+
+// The parts from `first` on, in rank order, after `cells` (rank 0's, or none): the whole table, or a partial
+// one (no row) when a part was cancelled.
+AlbedoTable combine_albedo_parts(const AlbedoTableRequest& request, AlbedoCells cells,
+                                 const std::vector<std::string>& parts, const RoundTask& task, int first,
+                                 double seconds) {
+  const PartReader reader("albedo part");
+  const bool complete = add_parts(parts, task, first, [&](const json& s, const BlockRange& blocks, int) {
+    if (s.size() != blocks.size()) throw std::invalid_argument("not one estimate list per cell");
+    for (const json& values : s) {
+      std::vector<Estimate>& cell = cells.emplace_back();
+      for (const json& e : values) cell.push_back({reader.exact_real(e.at(0), "cell"), reader.exact_real(e.at(1), "cell")});
+    }
+  });
+  return complete ? albedo_table_from_cells(request, cells, seconds) : cancelled_albedo_table(request);
+}
+
+// The table of a sampled request (a walk's, or on tiles) from `cells`, its cells split: albedo_table's, bit for
+// bit; partial (no row) when a part was cancelled.
+AlbedoTable split_albedo_round(const RoundSplit& split, std::size_t measurement, const AlbedoTableRequest& request,
+                               const AlbedoCellsOf& cells) {
+  const auto start = std::chrono::steady_clock::now();
+  const BlockRange round{0, request.alphas.size() * std::uint64_t(request.mus)};
+  const RoundTask task{measurement, request.paths, request.seed, round};
+  const bool stored = stored_parts(split.stored, task) != nullptr;  // its start: no cell (no tile acquired)
+  using Cells = std::optional<AlbedoCells>;
+  return split_round<Cells, AlbedoTable>(
+      split, task,
+      [&](const std::optional<BlockRange>& mine) -> Cells {
+        return stored ? Cells(AlbedoCells{}) : cells(request, mine ? *mine : round);
+      },
+      [&](const Cells& own, const BlockRange& mine) { return albedo_part(task, mine, own); },
+      [&](Cells own, const std::vector<std::string>& parts, int first) {
+        if (!own) return cancelled_albedo_table(request);
+        return combine_albedo_parts(request, std::move(*own), parts, task, first, seconds_since(start));
+      });
+}
+
+// The cells of an albedo decision's requests: the walk's, or those on the tiles of its surface plan, from
+// `surfaces` (which must outlive the function).
+AlbedoCellsOf albedo_cells_of(const Decision& decision, SurfaceCache& surfaces) {
+  if (decision.model.model != Model::heightfield) return walk_albedo_cells;
+  return [plan = decision.surface, &surfaces](const AlbedoTableRequest& request, const BlockRange& cells) {
+    return surface_albedo_cells_of(request, cells, plan, surfaces);
+  };
+}
+
+// The cells of a sampled albedo table's round: alphas x mus (its blocks, for the split and the shards).
+std::uint64_t albedo_round_cells(const ExperimentSpec& spec, const Decision& decision) {
+  const SpecQuantity& q = spec.quantities[decision.quantity];
+  return spec.material(q.material).alphas.size() * std::uint64_t(q.mus);
+}
+
+}  // namespace
+
 namespace {
 
 // Whether a target applies to a quantity of an albedo table: orders single, the single-scattering albedos (E1,

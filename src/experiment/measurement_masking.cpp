@@ -25,13 +25,13 @@ public:
   using Measurement::Measurement;
   std::string error_measure() const override { return "none: Smith's closed forms are exact"; }
   void run(const RoundContext&, MeasurementResult& m) const override {
-    const auto clock = std::chrono::steady_clock::now();
-    m.rounds.clear();
-    m.partial = false;
-    m.values = analytic_masking_json(quantity_, material(), decision_);
-    m.achieved = 0;
-    m.rounds.push_back({0, 0, 0, false, 0, 0, seconds_since(clock), 0});
-    m.met = true;
+    run_once(m, [&] {
+      const auto clock = std::chrono::steady_clock::now();
+      m.values = analytic_masking_json(quantity_, material(), decision_);
+      m.achieved = 0;
+      m.rounds.push_back({0, 0, 0, false, 0, 0, seconds_since(clock), 0});
+      m.met = true;
+    });
   }
 };
 
@@ -249,8 +249,13 @@ nlohmann::json group_means(const std::string& label, const std::vector<const nlo
   return out;
 }
 
-}  // namespace
-
+// Masking over several realisations (a quantity's `realisations` > 1): per quantity, alpha and view whose
+// realisations ran whole (at least two; met or not, so that none is selected by its values), every measured
+// value's mean over them with its standard error from their spread (sample standard deviation / sqrt(K): the
+// realisations are independent surfaces, so it holds both the spread between surfaces and each one's Monte
+// Carlo error) and the Monte Carlo part alone (the root mean square of their standard errors / sqrt(K)). An
+// array of {"label", "realisations", "g1", "g2": [...], "conditional": {"by_normal": [...], "by_height": [...]}},
+// each value {"mean", "standard_error", "monte_carlo_error"}; empty when no quantity has several.
 nlohmann::json masking_realisation_means(const std::vector<MeasurementResult>& measurements) {
   std::map<std::string, std::vector<const nlohmann::json*>> groups;  // by label without " realisation k"
   std::vector<std::string> order;
@@ -267,6 +272,8 @@ nlohmann::json masking_realisation_means(const std::vector<MeasurementResult>& m
     if (groups[label].size() >= 2) out.push_back(group_means(label, groups[label]));
   return out;
 }
+
+}  // namespace
 
 
 // ---- its model --------------------------------------------------------------------------------------------------
@@ -372,10 +379,18 @@ void read_masking_spec(const SpecTable& t, SpecQuantity& q, const SpecMaterial& 
   read_masking(t, q, m);
 }
 
+nlohmann::json masking_canonical(const SpecQuantity& q) {
+  nlohmann::json lights = nlohmann::json::array();
+  for (const Direction& l : q.lights) lights.push_back({l.theta_deg, l.phi_deg});
+  nlohmann::json j{{"what", to_string(q.masking)}, {"lights", lights}, {"bins", q.bins}, {"resolution", q.resolution}};
+  if (q.realisations > 1) j["realisations"] = q.realisations;  // one realisation: the digest of earlier versions
+  return j;
+}
+
 }  // namespace
 
 const KindSpec masking_spec{"what target_standard_error theta theta_range phi light_theta light_phi bins resolution "
-                            "realisations", read_masking_spec};
+                            "realisations", read_masking_spec, masking_canonical};
 
 // ---- its report section (report_html.h) -----------------------------------------------------------------------
 
@@ -478,7 +493,9 @@ std::string masking_values(const json& values, const std::string& label) {
 
 // G1(v) against theta_v per masking quantity, alpha and view phi (the masking curves against Smith), from
 // the measurements that ran and measured G1; a curve needs two views.
-std::string masking_curves_section_html(const json& decisions, const json& measurements) {
+std::string masking_curves_section_html(const json& document) {
+  const json& decisions = member(member(document, "plan"), "decisions");
+  const json& measurements = member(member(document, "results"), "measurements");
   std::map<std::string, std::pair<std::vector<double>, std::vector<const json*>>> curves;
   for (std::size_t i = 0; i < measurements.size() && i < decisions.size(); ++i) {
     const json& d = decisions[i];
@@ -500,6 +517,31 @@ std::string masking_curves_section_html(const json& decisions, const json& measu
   return out.empty() ? "" : "<h2>Masking curves</h2>\n" + out;
 }
 
+// Masking over several realisations (results.masking_realisations): per group, each value's mean, its standard
+// error from the spread of the realisations and the Monte Carlo part alone.
+std::string realisations_section_html(const json& document) {
+  const json& results = member(document, "results");
+  if (!results.contains("masking_realisations")) return "";
+  std::string out = "<h2>Masking over realisations</h2>\n<p>Each value's mean over independent surfaces, its standard "
+                    "error from their spread (surface-to-surface and Monte Carlo), and the Monte Carlo part alone.</p>\n";
+  const auto value_row = [](const std::string& name, const json& v) {
+    return row({esc(name), report_number(member(v, "mean")), report_number(member(v, "standard_error")),
+                report_number(member(v, "monte_carlo_error"))});
+  };
+  for (const json& g : results["masking_realisations"]) {
+    std::string body = value_row("G1", member(g, "g1"));
+    if (g.contains("g2"))
+      for (const json& v : g["g2"]) body += value_row("G2, light " + member(v, "light").dump(), v);
+    if (g.contains("conditional"))
+      for (const char* binning : {"by_normal", "by_height"})
+        for (std::size_t b = 0; b < g["conditional"][binning].size(); ++b)
+          body += value_row(fmt::format("G1 {} bin {}", binning, b + 1), g["conditional"][binning][b]);
+    out += fmt::format("<h3>{} ({} realisations)</h3>\n", esc(text_of(member(g, "label"))), text_of(member(g, "realisations")));
+    out += table({"value", "mean", "standard error (spread)", "Monte Carlo part"}, body);
+  }
+  return out;
+}
+
 }  // namespace
 }  // namespace html
 
@@ -508,8 +550,13 @@ std::string masking_report(const nlohmann::json& values, std::size_t, const Repo
   return values.contains("masking") ? html::masking_values(values, label) : "";
 }
 
-std::string masking_curves_section(const nlohmann::json& decisions, const nlohmann::json& measurements) {
-  return html::masking_curves_section_html(decisions, measurements);
+namespace {
+void add_realisation_means(const std::vector<MeasurementResult>& measurements, nlohmann::json& results) {
+  const nlohmann::json means = masking_realisation_means(measurements);
+  if (!means.empty()) results["masking_realisations"] = means;
 }
+}  // namespace
+
+const KindSummary masking_summary{add_realisation_means, html::masking_curves_section_html, html::realisations_section_html};
 
 }  // namespace microsim::experiment

@@ -11,36 +11,40 @@ namespace microsim::experiment {
 namespace {
 
 struct KindEntry {
-  QuantityKind kind;
-  const char* name;      // the spec's `kind`
-  const KindSpec* spec;  // its keys and their reader (its file)
-  ModelRule model;      // its cheapest sufficient model
+  const char* name;      // the spec's `kind` (QuantityKind::name)
+  const KindSpec* spec;  // its keys, their reader and its canonical keys (its file)
+  bool views;            // its decisions are per alpha and view (results.json's decisions record both)
+  ModelRule model;       // its cheapest sufficient model
   PlanQuantity plan;
   std::unique_ptr<Measurement> (*make)(const ExperimentSpec&, const Decision&);
-  KindReport report;  // its section of the report (its file)
+  KindReport report;            // its section of a measurement in the report (its file)
+  const KindSummary* summary;   // what it adds to the whole run (null: nothing)
+  const char* test;             // the member of its values that reports its test's verdict (null: tests nothing)
 };
 
 constexpr KindEntry kKinds[] = {
-    {QuantityKind::albedo, "albedo", &albedo_spec, albedo_model, plan_albedo_quantity, make_albedo_measurement, albedo_report},
-    {QuantityKind::vndf, "vndf", &vndf_spec, vndf_model, plan_vndf_quantity, make_vndf_measurement, vndf_report},
-    {QuantityKind::scattering, "scattering", &scattering_spec, scattering_model, plan_scattering_quantity, make_scattering_measurement, scattering_report},
-    {QuantityKind::validation, "validation", &validation_spec, validation_model, plan_validation_quantity, make_validation_measurement, validation_report},
-    {QuantityKind::masking, "masking", &masking_spec, masking_model, plan_masking_quantity, make_masking_measurement, masking_report},
+    {"albedo", &albedo_spec, false, albedo_model, plan_albedo_quantity, make_albedo_measurement, albedo_report, nullptr, nullptr},
+    {"vndf", &vndf_spec, true, vndf_model, plan_vndf_quantity, make_vndf_measurement, vndf_report, nullptr, nullptr},
+    {"scattering", &scattering_spec, true, scattering_model, plan_scattering_quantity, make_scattering_measurement, scattering_report, nullptr, nullptr},
+    {"validation", &validation_spec, true, validation_model, plan_validation_quantity, make_validation_measurement, validation_report, nullptr, "validation"},
+    {"masking", &masking_spec, true, masking_model, plan_masking_quantity, make_masking_measurement, masking_report, &masking_summary, nullptr},
 };
 
-const KindEntry& kind_entry(QuantityKind kind) {
+const KindEntry* find_kind(std::string_view name) {
   for (const KindEntry& e : kKinds)
-    if (e.kind == kind) return e;
-  throw InternalError(fmt::format("no measurement kind {} in the registry", int(kind)));
+    if (e.name == name) return &e;
+  return nullptr;
+}
+
+const KindEntry& kind_entry(QuantityKind kind) {
+  if (const KindEntry* e = find_kind(kind.name)) return *e;
+  throw InternalError(fmt::format("no measurement kind {} in the registry", kind.name));
 }
 
 }  // namespace
 
-std::string to_string(QuantityKind kind) { return kind_entry(kind).name; }
-
 std::optional<QuantityKind> kind_named(std::string_view name) {
-  for (const KindEntry& e : kKinds)
-    if (e.name == name) return e.kind;
+  if (const KindEntry* e = find_kind(name)) return QuantityKind{e->name};
   return std::nullopt;
 }
 
@@ -52,9 +56,31 @@ std::string kind_names() {
 
 const KindSpec& kind_spec(QuantityKind kind) { return *kind_entry(kind).spec; }
 
+bool kind_has_views(QuantityKind kind) { return kind_entry(kind).views; }
+
 KindReport kind_report(const std::string& kind) {
-  const std::optional<QuantityKind> k = kind_named(kind);
-  return k ? kind_entry(*k).report : nullptr;
+  const KindEntry* e = find_kind(kind);
+  return e ? e->report : nullptr;
+}
+
+void add_kind_summaries(const std::vector<MeasurementResult>& measurements, nlohmann::json& results) {
+  for (const KindEntry& e : kKinds)
+    if (e.summary != nullptr) e.summary->results(measurements, results);
+}
+
+std::string kind_summary_sections(const nlohmann::json& document, bool before) {
+  std::string out;
+  for (const KindEntry& e : kKinds)
+    if (e.summary != nullptr) out += (before ? e.summary->before : e.summary->after)(document);
+  return out;
+}
+
+const nlohmann::json* kind_test_report(const nlohmann::json& values) {
+  if (!values.is_object()) return nullptr;
+  for (const KindEntry& e : kKinds)
+    if (e.test != nullptr && values.contains(e.test) && values.at(e.test).is_object() && values.at(e.test).contains("verdict"))
+      return &values.at(e.test);
+  return nullptr;
 }
 
 ModelRule kind_model_rule(QuantityKind kind) { return kind_entry(kind).model; }

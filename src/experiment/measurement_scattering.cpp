@@ -13,6 +13,8 @@
 #include "core/errors.h"
 #include "core/wall_clock.h"
 #include "stats/scatter_compare.h"
+#include "stats/part_json.h"
+#include "stats/scatter_io.h"
 
 #include <fmt/core.h>
 
@@ -21,6 +23,44 @@
 #include <limits>
 
 namespace microsim::experiment {
+// ---- its parts and split rounds (parts.h, split_rounds.h) ----------------------------------------------------
+
+namespace {
+
+using nlohmann::json;
+
+// Every exact sum of the histogram (stats/part_json.h scatter_sums_json).
+std::string scatter_part(const RoundTask& task, const ScatterHistogram& h) {
+  return round_part(task, h.provenance.blocks, h.partial, scatter_sums_json(h));
+}
+
+// The parts (from `first` on, as combine_vndf_parts) added to `own` in rank order: the one-process round.
+ScatterHistogram combine_scatter_parts(ScatterHistogram own, const std::vector<std::string>& parts,
+                                       const RoundTask& task, int first) {
+  check_start(own.provenance.blocks, own.partial, task.blocks, first, int(parts.size()));
+  const auto add = [&](const json& s, const BlockRange& blocks, int) {
+    add_scatter_sums(own, s, PartReader("scattering part"), "sums");
+    own.provenance.blocks.end = blocks.end;
+  };
+  if (!own.partial && !add_parts(parts, task, first, add)) own.partial = true;
+  return own;
+}
+
+// A scattering round (`paths`: the Smith walk's, or a tile's; run_part runs the same on the other ranks), split.
+ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measurement, const ScatterPaths& paths,
+                                     const ScatterOptions& options) {
+  const RoundTask task{measurement, options.paths, options.seed, round_blocks(options.blocks, options.paths, kPathsPerBlock)};
+  return split_round<ScatterHistogram>(
+      split, task,
+      [&](const std::optional<BlockRange>& blocks) { return paths(with_blocks(options, blocks)); },
+      [&](const ScatterHistogram& own, const BlockRange&) { return scatter_part(task, own); },
+      [&](ScatterHistogram own, const std::vector<std::string>& parts, int first) {
+        return combine_scatter_parts(std::move(own), parts, task, first);
+      });
+}
+
+}  // namespace
+
 namespace {
 
 // The channel-0 order-1 albedo of an expectation: all of it, or what leaves on one side of the surface
@@ -69,6 +109,13 @@ nlohmann::json scatter_values(const ScatterHistogram& h, const std::vector<int>&
                           {"rows_per_hemisphere", kScatterRows}}}};
 }
 
+// The walk's sums or the lobe, from the EXR run_directory.cpp wrote.
+void read_scatter_back(const std::filesystem::path& exr, MeasurementResult& m) {
+  ScatterFile file = read_scatter_exr(exr);
+  m.scatter = std::move(file.histogram);
+  m.expectation = std::move(file.expectation);
+}
+
 // Per-order lobes of sampled paths: the walk's or a tile's (paths_on).
 class SampledScattering : public Measurement {
 public:
@@ -80,6 +127,9 @@ public:
   bool split() const override { return true; }
   RoundTask first_round(std::size_t index, std::uint64_t seed) const override {
     return first_round_task(index, seed, first_units(decision_, 1), kPathsPerBlock);
+  }
+  void read_back(const std::filesystem::path& exr, MeasurementResult& m) const override {
+    if (m.values.contains("scattering")) read_scatter_back(exr, m);
   }
 
 protected:
@@ -154,20 +204,18 @@ public:
   std::string error_measure() const override {
     return "the cubature's summed error estimate over the order-1 albedo (to first order a bound on the lobe's TV error)";
   }
+  void read_back(const std::filesystem::path& exr, MeasurementResult& m) const override {
+    if (m.values.contains("analytic_scattering")) read_scatter_back(exr, m);
+  }
   void run(const RoundContext& c, MeasurementResult& m) const override {
-    m.rounds.clear();
-    m.partial = false;
-    const auto clock = std::chrono::steady_clock::now();
-    try {
+    run_once(m, [&] {
+      const auto clock = std::chrono::steady_clock::now();
       m.expectation = analytic_scatter_lobe(material(), decision_, c.options.run);
-    } catch (const Cancelled&) {
-      m.partial = true;
-      return;
-    }
-    m.achieved = analytic_lobe_error(m.expectation, decision_.view);
-    m.rounds.push_back({0, 0, 0, false, 0, 0, seconds_since(clock), m.achieved});
-    m.met = m.achieved <= m.target;
-    m.values = values(m.expectation, m.achieved);
+      m.achieved = analytic_lobe_error(m.expectation, decision_.view);
+      m.rounds.push_back({0, 0, 0, false, 0, 0, seconds_since(clock), m.achieved});
+      m.met = m.achieved <= m.target;
+      m.values = values(m.expectation, m.achieved);
+    });
   }
 
 private:

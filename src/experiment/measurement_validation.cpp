@@ -96,6 +96,9 @@ public:
   RoundTask first_round(std::size_t index, std::uint64_t seed) const override {
     return first_round_task(index, seed, first_units(decision_, 1), kSampleBlock);
   }
+  void read_back(const std::filesystem::path& exr, MeasurementResult& m) const override {
+    if (m.values.contains("validation")) m.histogram = read_histogram_exr(exr);  // the report's counts
+  }
 
 protected:
   Vec3<double> view() const { return direction_from_degrees(decision_.view.theta_deg, decision_.view.phi_deg); }
@@ -133,17 +136,11 @@ public:
       throw std::invalid_argument(fmt::format("{}.sampler: unknown sampler '{}'", quantity_.key, quantity_.sampler));
     const ValidationOptions v =
         validation_request(quantity_, first_units(decision_, c.options.cost_factor), c.round_seed(0), c.options.run);
-    m.rounds.clear();
-    m.partial = false;
-    const auto clock = std::chrono::steady_clock::now();
-    ValidationReport r;
-    try {
-      r = split_validation(c.split(), c.index, *sampler, ggx(), view(), v);
-    } catch (const Cancelled&) {
-      m.partial = true;
-      return;
-    }
-    record(r, r.samples, seconds_since(clock), m);
+    run_once(m, [&] {
+      const auto clock = std::chrono::steady_clock::now();
+      const ValidationReport r = split_validation(c.split(), c.index, *sampler, ggx(), view(), v);
+      record(r, r.samples, seconds_since(clock), m);
+    });
   }
 };
 
@@ -171,21 +168,19 @@ public:
     if (SampleColumns::parse(q.dump_columns).channels() > 0) v.bsdf = claims.bsdf;  // the weight test
     v.convention = q.convention;
     if (q.dump_dropped > 0) v.dropped_below_horizon = q.dump_dropped;
-    m.rounds.clear();
-    m.partial = false;
-    const auto clock = std::chrono::steady_clock::now();
-    try {
-      DirectionSampleReader reader = open_dump(q);
-      ValidationReport r = validate_dump_as_given(reader, claims, ggx(), view(), v, q.dump_frame == "z-up");
-      r.sampler = q.dump;
-      record(r, decision_.units, seconds_since(clock), m);
-    } catch (const Cancelled&) {
-      m.partial = true;
-    } catch (const SampleFileError& e) {
-      rethrow_dump_error(e);
-    } catch (const InsufficientData& e) {
-      rethrow_dump_error(e);
-    }
+    run_once(m, [&] {
+      const auto clock = std::chrono::steady_clock::now();
+      try {
+        DirectionSampleReader reader = open_dump(q);
+        ValidationReport r = validate_dump_as_given(reader, claims, ggx(), view(), v, q.dump_frame == "z-up");
+        r.sampler = q.dump;
+        record(r, decision_.units, seconds_since(clock), m);
+      } catch (const SampleFileError& e) {
+        rethrow_dump_error(e);
+      } catch (const InsufficientData& e) {
+        rethrow_dump_error(e);
+      }
+    });
   }
 
 private:
@@ -377,7 +372,7 @@ void plan_heightfield_validation(const ExperimentSpec& spec, const SpecQuantity&
 
 void plan_validation_quantity(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& cache,
                               std::vector<Decision>& out) {
-  plan_views(spec, index, o, cache, {plan_validation_view, plan_heightfield_validation, surface_validation_refusal}, out);
+  plan_views(spec, index, o, cache, {plan_validation_view, plan_heightfield_validation, surface_validation_refusal, false}, out);
 }
 
 std::unique_ptr<Measurement> make_validation_measurement(const ExperimentSpec& spec, const Decision& decision) {
@@ -493,8 +488,22 @@ void read_validation_spec(const SpecTable& t, SpecQuantity& q, const SpecMateria
 
 }  // namespace
 
+namespace {
+// A dump's keys (the path names the dump: a file replaced under the same path is not detected); those beyond
+// the first three only when not their defaults (the digests of earlier specs hold).
+nlohmann::json validation_canonical(const SpecQuantity& q) {
+  if (q.dump.empty()) return nlohmann::json::object();
+  nlohmann::json j{{"dump", q.dump}, {"pdf", q.dump_pdf}, {"above_horizon", q.above_horizon}};
+  if (q.dump_columns != "x,y,z") j["columns"] = q.dump_columns;
+  if (q.dump_frame != "z-up") j["frame"] = q.dump_frame;
+  if (q.dump_dropped != 0) j["dropped"] = q.dump_dropped;
+  if (q.convention != BsdfConvention{}) j["convention"] = describe(q.convention);
+  return j;
+}
+}  // namespace
+
 const KindSpec validation_spec{"sampler dump pdf above_horizon detect_tv power significance theta theta_range phi rows "
-                               "columns frame dropped transport masking", read_validation_spec};
+                               "columns frame dropped transport masking", read_validation_spec, validation_canonical};
 
 // ---- its report section (report_html.h) -----------------------------------------------------------------------
 

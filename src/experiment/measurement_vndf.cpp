@@ -12,12 +12,156 @@
 #include "core/errors.h"
 #include "core/parse.h"
 #include "core/wall_clock.h"
+#include "stats/part_json.h"
 
 #include <fmt/core.h>
 
 #include <chrono>
 
 namespace microsim::experiment {
+// ---- its parts and split rounds (parts.h, split_rounds.h) ----------------------------------------------------
+
+namespace {
+
+using nlohmann::json;
+
+// Adds counts of the same size element by element.
+void add_counts(std::vector<std::uint64_t>& to, const json& from) {
+  if (!from.is_array() || from.size() != to.size())
+    throw std::invalid_argument(fmt::format("{} counts where the root has {}", from.size(), to.size()));
+  for (std::size_t k = 0; k < to.size(); ++k) to[k] += from[k].get<std::uint64_t>();
+}
+
+// ---- VNDF parts -------------------------------------------------------------------------------------------
+
+namespace {
+// The traced sums of a VNDF round: counts and the heightfield tracer's diagnostics (0 on the ellipsoid).
+struct VndfSums {
+  TraceResult trace;
+  HeightfieldVndfDiagnostics diagnostics;
+};
+
+std::vector<std::uint64_t*> diagnostic_counts(HeightfieldVndfDiagnostics& d) {
+  return {&d.backfacing, &d.edge_grazes, &d.leaked, &d.unresolved};
+}
+}  // namespace
+
+std::string vndf_part(const RoundTask& task, const TraceResult& trace, const HeightfieldVndfDiagnostics& diagnostics) {
+  HeightfieldVndfDiagnostics d = diagnostics;
+  json diagnostic = json::array();
+  for (const std::uint64_t* count : diagnostic_counts(d)) diagnostic.push_back(*count);
+  return round_part(task, trace.blocks, trace.partial,
+                    {{"rays", trace.rays}, {"hits", trace.hits}, {"counts", trace.counts},
+                     {"unbinned", trace.unbinned}, {"diagnostics", diagnostic}});
+}
+
+namespace {
+std::string joined_counts(const std::vector<std::uint64_t>& v) {
+  std::string s;
+  for (std::size_t k = 0; k < v.size(); ++k) {
+    if (k > 0) s += ',';
+    s += std::to_string(v[k]);
+  }
+  return s;
+}
+
+// The parts (from `first` on; the root's own is rank 0's) added to `own` in rank order: the one-process round's
+// sums, timed `seconds`.
+VndfSums combine_vndf_sums(VndfSums own, const std::vector<std::string>& parts, const RoundTask& task, int first,
+                           double seconds) {
+  TraceResult& t = own.trace;
+  check_start(t.blocks, t.partial, task.blocks, first, int(parts.size()));
+  const auto add = [&](const json& s, const BlockRange& blocks, int) {
+    t.rays += s.at("rays").get<std::uint64_t>();
+    t.hits += s.at("hits").get<std::uint64_t>();
+    if (s.at("counts").size() != t.counts.size()) throw std::invalid_argument("its binnings differ from the root's");
+    for (std::size_t b = 0; b < t.counts.size(); ++b) add_counts(t.counts[b], s["counts"][b]);
+    add_counts(t.unbinned, s.at("unbinned"));
+    const std::vector<std::uint64_t*> d = diagnostic_counts(own.diagnostics);
+    if (s.at("diagnostics").size() != d.size()) throw std::invalid_argument("not the tracer's diagnostics");
+    for (std::size_t k = 0; k < d.size(); ++k) *d[k] += s["diagnostics"][k].get<std::uint64_t>();
+    t.blocks.end = blocks.end;
+  };
+  if (!t.partial && !add_parts(parts, task, first, add)) t.partial = true;
+  t.seconds = seconds;
+  return own;
+}
+
+// The root's histogram (binnings, run attributes) holding the combined sums: the counts, and the per-part
+// attributes (blocks, unbinned, rate; a tile's diagnostics) those of the whole.
+TracedHistogram combined_histogram(TracedHistogram h, const VndfSums& sums) {
+  const TraceResult& t = sums.trace;
+  h.counts = t.counts;
+  h.rays = t.rays;
+  h.hits = t.hits;
+  h.partial = t.partial;
+  h.attributes["blocks"] = fmt::format("{},{}", t.blocks.begin, t.blocks.end);
+  h.attributes["unbinned"] = joined_counts(t.unbinned);
+  h.attributes["rays_per_second"] = fmt::format("{:.17g}", t.rays_per_second());
+  if (h.attributes.count("backfacing")) {
+    const HeightfieldVndfDiagnostics& d = sums.diagnostics;
+    h.attributes["backfacing"] = std::to_string(d.backfacing);
+    h.attributes["edge_grazes"] = std::to_string(d.edge_grazes);
+    h.attributes["leaked"] = std::to_string(d.leaked);
+    h.attributes["unresolved"] = std::to_string(d.unresolved);
+  }
+  return h;
+}
+}  // namespace
+
+EllipsoidVndf combine_vndf_parts(EllipsoidVndf own, const std::vector<std::string>& parts, const RoundTask& task,
+                                 int first, double seconds) {
+  VndfSums sums = combine_vndf_sums({std::move(own.trace), {}}, parts, task, first, seconds);
+  EllipsoidVndf combined = analyse_ellipsoid_vndf(combined_histogram(std::move(own.histogram), sums), sums.trace.unbinned);
+  combined.trace = std::move(sums.trace);
+  combined.expected_hit_fraction = own.expected_hit_fraction;
+  return combined;
+}
+
+HeightfieldVndf combine_vndf_parts(HeightfieldVndf own, const std::vector<std::string>& parts,
+                                   const RoundTask& task, int first, double seconds) {
+  VndfSums sums = combine_vndf_sums({std::move(own.trace), own.diagnostics}, parts, task, first, seconds);
+  HeightfieldVndf combined;
+  combined.histogram = combined_histogram(std::move(own.histogram), sums);
+  combined.trace = std::move(sums.trace);
+  combined.diagnostics = sums.diagnostics;
+  return combined;
+}
+
+namespace {
+HeightfieldVndfDiagnostics diagnostics_of(const EllipsoidVndf&) { return {}; }
+const HeightfieldVndfDiagnostics& diagnostics_of(const HeightfieldVndf& h) { return h.diagnostics; }
+
+// A VNDF round, the ellipsoid's or a tile's (`trace` of a request's blocks), split.
+template <class Vndf, class Trace>
+Vndf split_traced_round(const RoundSplit& split, std::size_t measurement, const VndfRequest& request, const Trace& trace) {
+  const auto start = std::chrono::steady_clock::now();
+  const RoundTask task{measurement, request.rays, request.seed, round_blocks(request.blocks, request.rays, kRaysPerBlock)};
+  return split_round<Vndf>(
+      split, task, [&](const std::optional<BlockRange>& blocks) { return trace(with_blocks(request, blocks)); },
+      [&](const Vndf& own, const BlockRange&) { return vndf_part(task, own.trace, diagnostics_of(own)); },
+      [&](Vndf own, const std::vector<std::string>& parts, int first) {
+        return combine_vndf_parts(std::move(own), parts, task, first, seconds_since(start));
+      });
+}
+}  // namespace
+
+// An ellipsoid's VNDF round, split: the round's counts, not analysed (the caller analyses its sum).
+EllipsoidVndf split_vndf_round(const RoundSplit& split, std::size_t measurement, const EllipsoidTarget& target,
+                               const VndfRequest& request) {
+  return split_traced_round<EllipsoidVndf>(split, measurement, request,
+                                           [&](const VndfRequest& r) { return measure_ellipsoid_vndf(target, r); });
+}
+
+}  // namespace
+
+HeightfieldVndf split_heightfield_vndf_round(const RoundSplit& split, std::size_t measurement, const SceneOf& scene,
+                                             const microgeom::Heightfield& field, const std::string& label,
+                                             const VndfRequest& request) {
+  return split_traced_round<HeightfieldVndf>(
+      split, measurement, request, [&](const VndfRequest& r) { return trace_heightfield_vndf(scene(), field, label, r); });
+}
+
 namespace {
 
 // Adds a round's exact counts to the sum (the first round gives the binnings and attributes).
@@ -35,14 +179,6 @@ void add_vndf_counts(TracedHistogram& sum, std::vector<std::uint64_t>& unbinned,
   sum.hits += round.hits;
 }
 
-// A round's bookkeeping once its rays are added and the sum analysed (`achieved` set).
-void record_vndf_round(MeasurementResult& m, const RoundStart& start, const TraceResult& trace, std::uint64_t rays,
-                       double seconds) {
-  m.units += rays;
-  m.rays += rays;
-  m.rounds.push_back({start.done + rays, start.units, trace.blocks.end, trace.partial, start.seed, 0, seconds, m.achieved});
-}
-
 class VndfMeasurement : public Measurement {
 public:
   using Measurement::Measurement;
@@ -54,6 +190,31 @@ public:
   RoundTask first_round(std::size_t index, std::uint64_t seed) const override {
     // Capped as the rounds cap them.
     return first_round_task(index, seed, std::min(first_units(decision_, 1), kMaxRays), kRaysPerBlock);
+  }
+  void read_back(const std::filesystem::path& exr, MeasurementResult& m) const override {
+    if (m.values.contains("analysis")) m.histogram = read_histogram_exr(exr);  // the summed counts
+  }
+
+protected:
+  // One round (or the rest of one): `trace` of its request, its counts added to the sum, the sum analysed
+  // (`analyse(round, fresh)` sets achieved, values and the histogram) and the round recorded.
+  template <class Trace, class Analyse>
+  bool round(const RoundContext& c, const RoundStart& start, MeasurementResult& m, const Trace& trace,
+             const Analyse& analyse) const {
+    VndfRequest req = vndf_request(spec_, decision_, start.units, start.seed, c.options.run);
+    if (const auto blocks = start.blocks(kRaysPerBlock)) req.blocks = *blocks;
+    const auto clock = std::chrono::steady_clock::now();
+    const auto r = trace(req);
+    m.partial = r.trace.partial;  // cancelled: its completed blocks are a shorter run of that seed, kept
+    if (r.histogram.rays == 0) return false;
+    const bool fresh = m.histogram.binnings.empty();
+    add_vndf_counts(m.histogram, m.unbinned, r.histogram, r.trace.unbinned);
+    analyse(r, fresh);
+    m.units += r.histogram.rays;
+    m.rays += r.histogram.rays;
+    m.rounds.push_back({start.done + r.histogram.rays, start.units, r.trace.blocks.end, r.trace.partial, start.seed, 0,
+                        seconds_since(clock), m.achieved});
+    return true;
   }
 };
 
@@ -67,25 +228,18 @@ public:
     return vndf_part(task, measure_ellipsoid_vndf(target(decision_), request).trace, {});
   }
   void run(const RoundContext& c, MeasurementResult& m) const override {
-    run_histogram_rounds(c, m, kMaxRays, [&](const RoundStart& start) { return round(c, start, m); });
+    const auto trace = [&](const VndfRequest& req) { return split_vndf_round(c.split(), c.index, target(decision_), req); };
+    run_histogram_rounds(c, m, kMaxRays, [&](const RoundStart& start) {
+      return round(c, start, m, trace, [&](const EllipsoidVndf& r, bool fresh) { analyse(r, fresh, m); });
+    });
   }
 
 private:
   static EllipsoidTarget target(const Decision& d) { return EllipsoidTarget(d.alpha.first, d.alpha.second, -1); }
-  // One round (or the rest of one): traced, added to the sum, the sum analysed and recorded.
-  bool round(const RoundContext& c, const RoundStart& start, MeasurementResult& m) const {
-    VndfRequest req = vndf_request(spec_, decision_, start.units, start.seed, c.options.run);
-    if (const auto blocks = start.blocks(kRaysPerBlock)) req.blocks = *blocks;
-    const auto clock = std::chrono::steady_clock::now();
-    const EllipsoidVndf r = split_vndf_round(c.split(), c.index, target(decision_), req);
-    m.partial = r.trace.partial;  // cancelled: its completed blocks are a shorter run of that seed, kept
-    if (r.histogram.rays == 0) return false;
-    const bool fresh = m.histogram.binnings.empty();
-    add_vndf_counts(m.histogram, m.unbinned, r.histogram, r.trace.unbinned);
-    // A whole first round: its own analysis is the sum's (the reference's cubature is not paid twice).
+  // The sum analysed; a whole first round's own analysis is the sum's (the reference's cubature not paid twice).
+  static void analyse(const EllipsoidVndf& r, bool fresh, MeasurementResult& m) {
     const EllipsoidVndf analysed = fresh && !r.trace.partial ? r : analyse_ellipsoid_vndf(m.histogram, m.unbinned);
     m.achieved = resolved_tv(vndf_noise_floor(analysed));
-    record_vndf_round(m, start, r.trace, r.histogram.rays, seconds_since(clock));
     m.values = {{"analysis", to_json(analysed.analysis)},
                 {"rays", analysed.histogram.rays},
                 {"hits", analysed.histogram.hits},
@@ -94,7 +248,6 @@ private:
                 {"noise_floor_tv", vndf_noise_floor(analysed)},
                 {"unbinned", m.unbinned}};
     m.histogram = analysed.histogram;
-    return true;
   }
 };
 
@@ -112,27 +265,20 @@ public:
     if (field == nullptr) return;
     // The scene is built when the root's own part begins: after the round was sent, while the ranks build theirs.
     const SceneOf scene = [&c, field]() -> const HeightfieldScene& { return c.surfaces.scene_for(*field); };
-    run_histogram_rounds(c, m, kMaxRays, [&](const RoundStart& start) { return round(c, scene, *field, start, m); });
-  }
-
-private:
-  bool round(const RoundContext& c, const SceneOf& scene, const microgeom::Heightfield& field, const RoundStart& start,
-             MeasurementResult& m) const {
-    VndfRequest req = vndf_request(spec_, decision_, start.units, start.seed, c.options.run);
-    if (const auto blocks = start.blocks(kRaysPerBlock)) req.blocks = *blocks;
-    const auto clock = std::chrono::steady_clock::now();
-    const HeightfieldVndf r =
-        split_heightfield_vndf_round(c.split(), c.index, scene, field, surface_label(decision_.surface), req);
-    m.partial = r.trace.partial;
-    if (r.histogram.rays == 0) return false;
-    if (!m.histogram.binnings.empty()) add_heightfield_diagnostics(m.histogram, r.histogram);  // the analysis reads them
-    add_vndf_counts(m.histogram, m.unbinned, r.histogram, r.trace.unbinned);
-    const HeightfieldVndf analysed = analyse_heightfield_vndf(m.histogram, m.unbinned, field);  // the sum so far
-    m.achieved = resolved_tv(heightfield_noise_floor(analysed));
-    record_vndf_round(m, start, r.trace, r.histogram.rays, seconds_since(clock));
-    m.values = heightfield_vndf_values(analysed, m.unbinned, decision_.surface);
-    m.histogram = analysed.histogram;
-    return true;
+    const auto trace = [&](const VndfRequest& req) {
+      HeightfieldVndf r = split_heightfield_vndf_round(c.split(), c.index, scene, *field, surface_label(decision_.surface), req);
+      if (r.histogram.rays > 0 && !m.histogram.binnings.empty())
+        add_heightfield_diagnostics(m.histogram, r.histogram);  // the analysis reads them
+      return r;
+    };
+    run_histogram_rounds(c, m, kMaxRays, [&](const RoundStart& start) {
+      return round(c, start, m, trace, [&](const HeightfieldVndf&, bool) {
+        const HeightfieldVndf analysed = analyse_heightfield_vndf(m.histogram, m.unbinned, *field);  // the sum so far
+        m.achieved = resolved_tv(heightfield_noise_floor(analysed));
+        m.values = heightfield_vndf_values(analysed, m.unbinned, decision_.surface);
+        m.histogram = analysed.histogram;
+      });
+    });
   }
 };
 
@@ -188,7 +334,7 @@ void plan_heightfield_vndf(const ExperimentSpec& spec, const SpecQuantity& q, co
 
 void plan_vndf_quantity(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& cache,
                         std::vector<Decision>& out) {
-  plan_views(spec, index, o, cache, {plan_vndf_view, plan_heightfield_vndf}, out);
+  plan_views(spec, index, o, cache, {plan_vndf_view, plan_heightfield_vndf, nullptr, false}, out);
 }
 
 std::string tile_vndf_part(const ExperimentSpec& spec, const Decision& decision, const RoundTask& task,

@@ -21,13 +21,16 @@ json round_parameters(const RoundTask& task) {
   return {{"measurement", task.measurement}, {"units", task.units}, {"surface_seed", task.surface_seed}};
 }
 
-// A part of `task` holding `blocks`, cancelled part way or not, with the kind's sums (null: nothing measured).
+}  // namespace
+
 std::string round_part(const RoundTask& task, const BlockRange& blocks, bool partial, json sums) {
   const Provenance provenance{kProducer, "", task.seed, task.blocks.end, blocks};
   json part{{"provenance", provenance_json(provenance, round_parameters(task))}, {"partial", partial}};
   if (!sums.is_null()) part["sums"] = std::move(sums);
   return part.dump();
 }
+
+namespace {
 
 [[noreturn]] void malformed(int rank, const std::string& what) {
   throw InternalError(fmt::format("the part of rank {} of a split round is malformed: {}", rank, what));
@@ -71,11 +74,9 @@ Part read_part(const std::string& text, const RoundTask& task, int rank, int ran
   return part;
 }
 
-// Gives the sums of the parts from `first` on, in rank order, to add(sums, blocks, rank) (a part cancelled
-// before measuring anything has none) until a part cancelled part way; whether every part was whole. Sums
-// that are not the kind's (a member missing, sizes that differ from the root's) are a malformed part.
-template <class Add>
-bool add_parts(const std::vector<std::string>& parts, const RoundTask& task, int first, Add&& add) {
+}  // namespace
+
+bool add_parts(const std::vector<std::string>& parts, const RoundTask& task, int first, const AddPart& add) {
   const int ranks = int(parts.size());  // checked: one part per rank
   for (int r = first; r < ranks; ++r) {
     const Part part = read_part(parts[std::size_t(r)], task, r, ranks);
@@ -93,26 +94,11 @@ bool add_parts(const std::vector<std::string>& parts, const RoundTask& task, int
   return true;
 }
 
-// Checks the measurement the parts are added to: the root's own part (first = 1: rank 0's shard), or nothing
-// yet (first = 0, the parts of shard jobs: no block at all, at the round's start).
 void check_start(const BlockRange& own, bool partial, const BlockRange& round, int first, int ranks) {
   if (first == 1) return check_shard(own, partial, round, 0, ranks);
   if (own != BlockRange{round.begin, round.begin} || partial)
     throw InternalError(fmt::format("a round's start holds blocks {}", own.to_string()));
 }
-
-// Adds counts of the same size element by element.
-void add_counts(std::vector<std::uint64_t>& to, const json& from) {
-  if (!from.is_array() || from.size() != to.size())
-    throw std::invalid_argument(fmt::format("{} counts where the root has {}", from.size(), to.size()));
-  for (std::size_t k = 0; k < to.size(); ++k) to[k] += from[k].get<std::uint64_t>();
-}
-
-json exact_json(const ExactSum& s) { return {s.high_bits(), s.low_bits()}; }
-ExactSum exact_from_json(const json& j) {
-  return ExactSum::from_bits(j.at(0).get<std::uint64_t>(), j.at(1).get<std::uint64_t>());
-}
-}  // namespace
 
 BlockRange rank_blocks(const BlockRange& round, int rank, int ranks) {
   const BlockRange shard = shard_range(round.size(), std::uint64_t(rank) + 1, std::uint64_t(ranks));
@@ -147,197 +133,6 @@ RoundTask round_task_from_json(const json& task) {
           task.at("seed").get<std::uint64_t>(),
           BlockRange{task.at("blocks").at(0).get<std::uint64_t>(), task.at("blocks").at(1).get<std::uint64_t>()},
           task.value("surface_seed", std::uint64_t(0))};
-}
-
-// ---- VNDF parts -------------------------------------------------------------------------------------------
-
-namespace {
-// The traced sums of a VNDF round: counts and the heightfield tracer's diagnostics (0 on the ellipsoid).
-struct VndfSums {
-  TraceResult trace;
-  HeightfieldVndfDiagnostics diagnostics;
-};
-
-std::vector<std::uint64_t*> diagnostic_counts(HeightfieldVndfDiagnostics& d) {
-  return {&d.backfacing, &d.edge_grazes, &d.leaked, &d.unresolved};
-}
-}  // namespace
-
-std::string vndf_part(const RoundTask& task, const TraceResult& trace, const HeightfieldVndfDiagnostics& diagnostics) {
-  HeightfieldVndfDiagnostics d = diagnostics;
-  json diagnostic = json::array();
-  for (const std::uint64_t* count : diagnostic_counts(d)) diagnostic.push_back(*count);
-  return round_part(task, trace.blocks, trace.partial,
-                    {{"rays", trace.rays}, {"hits", trace.hits}, {"counts", trace.counts},
-                     {"unbinned", trace.unbinned}, {"diagnostics", diagnostic}});
-}
-
-namespace {
-std::string joined_counts(const std::vector<std::uint64_t>& v) {
-  std::string s;
-  for (std::size_t k = 0; k < v.size(); ++k) {
-    if (k > 0) s += ',';
-    s += std::to_string(v[k]);
-  }
-  return s;
-}
-
-// The parts (from `first` on; the root's own is rank 0's) added to `own` in rank order: the one-process round's
-// sums, timed `seconds`.
-VndfSums combine_vndf_sums(VndfSums own, const std::vector<std::string>& parts, const RoundTask& task, int first,
-                           double seconds) {
-  TraceResult& t = own.trace;
-  check_start(t.blocks, t.partial, task.blocks, first, int(parts.size()));
-  const auto add = [&](const json& s, const BlockRange& blocks, int) {
-    t.rays += s.at("rays").get<std::uint64_t>();
-    t.hits += s.at("hits").get<std::uint64_t>();
-    if (s.at("counts").size() != t.counts.size()) throw std::invalid_argument("its binnings differ from the root's");
-    for (std::size_t b = 0; b < t.counts.size(); ++b) add_counts(t.counts[b], s["counts"][b]);
-    add_counts(t.unbinned, s.at("unbinned"));
-    const std::vector<std::uint64_t*> d = diagnostic_counts(own.diagnostics);
-    if (s.at("diagnostics").size() != d.size()) throw std::invalid_argument("not the tracer's diagnostics");
-    for (std::size_t k = 0; k < d.size(); ++k) *d[k] += s["diagnostics"][k].get<std::uint64_t>();
-    t.blocks.end = blocks.end;
-  };
-  if (!t.partial && !add_parts(parts, task, first, add)) t.partial = true;
-  t.seconds = seconds;
-  return own;
-}
-
-// The root's histogram (binnings, run attributes) holding the combined sums: the counts, and the per-part
-// attributes (blocks, unbinned, rate; a tile's diagnostics) those of the whole.
-TracedHistogram combined_histogram(TracedHistogram h, const VndfSums& sums) {
-  const TraceResult& t = sums.trace;
-  h.counts = t.counts;
-  h.rays = t.rays;
-  h.hits = t.hits;
-  h.partial = t.partial;
-  h.attributes["blocks"] = fmt::format("{},{}", t.blocks.begin, t.blocks.end);
-  h.attributes["unbinned"] = joined_counts(t.unbinned);
-  h.attributes["rays_per_second"] = fmt::format("{:.17g}", t.rays_per_second());
-  if (h.attributes.count("backfacing")) {
-    const HeightfieldVndfDiagnostics& d = sums.diagnostics;
-    h.attributes["backfacing"] = std::to_string(d.backfacing);
-    h.attributes["edge_grazes"] = std::to_string(d.edge_grazes);
-    h.attributes["leaked"] = std::to_string(d.leaked);
-    h.attributes["unresolved"] = std::to_string(d.unresolved);
-  }
-  return h;
-}
-}  // namespace
-
-EllipsoidVndf combine_vndf_parts(EllipsoidVndf own, const std::vector<std::string>& parts, const RoundTask& task,
-                                 int first, double seconds) {
-  VndfSums sums = combine_vndf_sums({std::move(own.trace), {}}, parts, task, first, seconds);
-  EllipsoidVndf combined = analyse_ellipsoid_vndf(combined_histogram(std::move(own.histogram), sums), sums.trace.unbinned);
-  combined.trace = std::move(sums.trace);
-  combined.expected_hit_fraction = own.expected_hit_fraction;
-  return combined;
-}
-
-HeightfieldVndf combine_vndf_parts(HeightfieldVndf own, const std::vector<std::string>& parts,
-                                   const RoundTask& task, int first, double seconds) {
-  VndfSums sums = combine_vndf_sums({std::move(own.trace), own.diagnostics}, parts, task, first, seconds);
-  HeightfieldVndf combined;
-  combined.histogram = combined_histogram(std::move(own.histogram), sums);
-  combined.trace = std::move(sums.trace);
-  combined.diagnostics = sums.diagnostics;
-  return combined;
-}
-
-// ---- scattering parts -------------------------------------------------------------------------------------
-
-// Per channel: each order bin's lobe ("w", "w2" per bin, "unbinned": [w, w2]), "unfinished" and "lost" [w, w2].
-std::string scatter_part(const RoundTask& task, const ScatterHistogram& h) {
-  json channels = json::array();
-  for (int c = 0; c < h.channels(); ++c) {
-    json lobes = json::array();
-    for (int k = 0; k < kScatterOrderBins; ++k) {
-      const Histogram& lobe = h.histogram(c, k);
-      json w = json::array(), w2 = json::array();
-      for (std::size_t b = 0; b < lobe.size(); ++b) {
-        w.push_back(exact_json(lobe.exact_weight(b)));
-        w2.push_back(exact_json(lobe.exact_weight_squared(b)));
-      }
-      lobes.push_back({{"w", w}, {"w2", w2},
-                       {"unbinned", {exact_json(lobe.exact_unbinned_weight()), exact_json(lobe.exact_unbinned_weight_squared())}}});
-    }
-    channels.push_back({{"orders", lobes},
-                        {"unfinished", {exact_json(h.exact_unfinished(c, false)), exact_json(h.exact_unfinished(c, true))}},
-                        {"lost", {exact_json(h.exact_lost(c, false)), exact_json(h.exact_lost(c, true))}}});
-  }
-  return round_part(task, h.provenance.blocks, h.partial, {{"paths", h.paths()}, {"channels", channels}});
-}
-
-namespace {
-void add_scatter_sums(ScatterHistogram& sum, const json& s) {
-  const json& channels = s.at("channels");
-  if (channels.size() != std::size_t(sum.channels())) throw std::invalid_argument("its channels differ from the root's");
-  for (int c = 0; c < sum.channels(); ++c) {
-    const json& channel = channels[std::size_t(c)];
-    for (int k = 0; k < kScatterOrderBins; ++k) {
-      const json& lobe = channel.at("orders").at(std::size_t(k));
-      if (lobe.at("w").size() != sum.bins() || lobe.at("w2").size() != sum.bins())
-        throw std::invalid_argument("its bins differ from the root's");
-      for (std::size_t b = 0; b < sum.bins(); ++b)
-        sum.add_sums(c, k, b, exact_from_json(lobe.at("w").at(b)), exact_from_json(lobe.at("w2").at(b)));
-      sum.add_unbinned_sums(c, k, exact_from_json(lobe.at("unbinned").at(0)), exact_from_json(lobe.at("unbinned").at(1)));
-    }
-    sum.add_unfinished_sums(c, exact_from_json(channel.at("unfinished").at(0)), exact_from_json(channel.at("unfinished").at(1)));
-    sum.add_lost_sums(c, exact_from_json(channel.at("lost").at(0)), exact_from_json(channel.at("lost").at(1)));
-  }
-  sum.add_launched(s.at("paths").get<std::uint64_t>());
-}
-}  // namespace
-
-// The parts (from `first` on, as combine_vndf_parts) added to `own` in rank order: the one-process round.
-ScatterHistogram combine_scatter_parts(ScatterHistogram own, const std::vector<std::string>& parts,
-                                       const RoundTask& task, int first) {
-  check_start(own.provenance.blocks, own.partial, task.blocks, first, int(parts.size()));
-  const auto add = [&](const json& s, const BlockRange& blocks, int) {
-    add_scatter_sums(own, s);
-    own.provenance.blocks.end = blocks.end;
-  };
-  if (!own.partial && !add_parts(parts, task, first, add)) own.partial = true;
-  return own;
-}
-
-// ---- walk albedo parts (a shard of a table's cells) -----------------------------------------------------------
-
-// Per cell, its estimates [value, standard error] as their bits (exact_real_json).
-std::string albedo_part(const RoundTask& task, const BlockRange& cells, const std::optional<AlbedoCells>& estimates) {
-  if (!estimates) return cancelled_part(task, cells);
-  json out = json::array();
-  for (const std::vector<Estimate>& cell : *estimates) {
-    json values = json::array();
-    for (const Estimate& e : cell) values.push_back({exact_real_json(e.value), exact_real_json(e.standard_error)});
-    out.push_back(values);
-  }
-  return round_part(task, cells, false, out);
-}
-
-// A round cut short: no row (it is run again whole on resumption).
-AlbedoTable cancelled_albedo_table(const AlbedoTableRequest& request) {
-  AlbedoTable cancelled;
-  cancelled.request = request;
-  cancelled.partial = true;
-  return cancelled;
-}
-
-// The parts from `first` on, in rank order, after `cells` (rank 0's, or none): the whole table, or a partial
-// one (no row) when a part was cancelled.
-AlbedoTable combine_albedo_parts(const AlbedoTableRequest& request, AlbedoCells cells,
-                                 const std::vector<std::string>& parts, const RoundTask& task, int first,
-                                 double seconds) {
-  const PartReader reader("albedo part");
-  const bool complete = add_parts(parts, task, first, [&](const json& s, const BlockRange& blocks, int) {
-    if (s.size() != blocks.size()) throw std::invalid_argument("not one estimate list per cell");
-    for (const json& values : s) {
-      std::vector<Estimate>& cell = cells.emplace_back();
-      for (const json& e : values) cell.push_back({reader.exact_real(e.at(0), "cell"), reader.exact_real(e.at(1), "cell")});
-    }
-  });
-  return complete ? albedo_table_from_cells(request, cells, seconds) : cancelled_albedo_table(request);
 }
 
 // ---- validation parts (a drawn validation's tally) ---------------------------------------------------------

@@ -18,6 +18,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -36,27 +37,21 @@ struct RoundTask {
 nlohmann::json round_task_json(const RoundTask& task);
 RoundTask round_task_from_json(const nlohmann::json& task);  // throws nlohmann::json::exception
 
-// VNDF: the counts and the tile tracer's diagnostics (0 on the ellipsoid).
-std::string vndf_part(const RoundTask& task, const TraceResult& trace, const HeightfieldVndfDiagnostics& diagnostics);
+// What every kind's parts share. A part of `task` holding `blocks`, cancelled part way or not, with the kind's
+// sums (null: nothing measured).
+std::string round_part(const RoundTask& task, const BlockRange& blocks, bool partial, nlohmann::json sums);
+// Gives the sums of the parts from `first` on, in rank order, to add(sums, blocks, rank) (a part cancelled
+// before measuring anything has none) until a part cancelled part way; whether every part was whole. Sums
+// that are not the kind's (add throws nlohmann::json::exception, HistogramMergeError, std::invalid_argument)
+// are a malformed part.
+using AddPart = std::function<void(const nlohmann::json& sums, const BlockRange& blocks, int rank)>;
+bool add_parts(const std::vector<std::string>& parts, const RoundTask& task, int first, const AddPart& add);
+// Checks the measurement the parts are added to: the root's own part (first = 1: rank 0's shard), or nothing
+// yet (first = 0, the parts of shard jobs: no block at all, at the round's start).
+void check_start(const BlockRange& own, bool partial, const BlockRange& round, int first, int ranks);
+
 // A part cancelled before its first block with nothing measured (a tile's build cancelled on that rank).
 std::string cancelled_part(const RoundTask& task, const BlockRange& mine);
-EllipsoidVndf combine_vndf_parts(EllipsoidVndf own, const std::vector<std::string>& parts, const RoundTask& task,
-                                 int first, double seconds);
-HeightfieldVndf combine_vndf_parts(HeightfieldVndf own, const std::vector<std::string>& parts,
-                                   const RoundTask& task, int first, double seconds);
-
-// Scattering: every exact sum of the histogram, added to the root's with ScatterHistogram::add_sums.
-std::string scatter_part(const RoundTask& task, const ScatterHistogram& histogram);
-ScatterHistogram combine_scatter_parts(ScatterHistogram own, const std::vector<std::string>& parts,
-                                       const RoundTask& task, int first);
-
-// A walk albedo table: its cells' estimates as their bits (nullopt: cancelled, no cell).
-std::string albedo_part(const RoundTask& task, const BlockRange& cells, const std::optional<AlbedoCells>& estimates);
-AlbedoTable cancelled_albedo_table(const AlbedoTableRequest& request);  // a round cut short: no row
-// The parts after `cells` (rank 0's, or none): the whole table, or cancelled_albedo_table when a part was.
-AlbedoTable combine_albedo_parts(const AlbedoTableRequest& request, AlbedoCells cells,
-                                 const std::vector<std::string>& parts, const RoundTask& task, int first,
-                                 double seconds);
 
 // A drawn validation: a rank's tally (tally_json; nullopt: cancelled).
 std::string validation_part(const RoundTask& task, const BlockRange& blocks, const std::optional<battery::Tally>& tally);

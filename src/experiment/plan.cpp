@@ -77,7 +77,7 @@ void plan_heightfield_view(const ExperimentSpec& spec, const SpecQuantity& q, co
     d.not_runnable = kind.refusal(q);
     if (!d.not_runnable.empty()) return;
   }
-  if (!take_surface(plan_surface(q, d, plan_seed(spec, o), cache), d)) return;
+  if (!take_surface(plan_surface(q, d, plan_seed(spec, o), cache, kind.sees_heights), d)) return;
   const auto start = std::chrono::steady_clock::now();
   const std::size_t built = cache.builds();
   const microgeom::Heightfield& field = decision_surface(d, cache, o.run);

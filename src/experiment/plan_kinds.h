@@ -37,6 +37,7 @@ struct ViewPlanners {
   void (*tile)(const ExperimentSpec&, const SpecQuantity&, const PlanOptions&, const microgeom::Heightfield&, SurfaceCache&,
                Decision&);
   std::string (*refusal)(const SpecQuantity&) = nullptr;
+  bool sees_heights = true;  // false: it sees a tile's visible normals only (plan_surface)
 };
 // One decision per alpha and view of quantity `index`, each planned by the kind's planners.
 void plan_views(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& cache,

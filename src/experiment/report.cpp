@@ -1,5 +1,6 @@
 // experiment: the report page of a run (report.h).
 #include "experiment/report.h"
+#include "experiment/measurement.h"
 #include "experiment/report_html.h"
 
 #include "stats/curve_figure.h"
@@ -216,7 +217,7 @@ std::string measurement_section(const json& d, const json& m, std::size_t index,
 std::string measurements_sections(const json& doc, const ReportHistograms& histograms, const ReportScatters& scatters) {
   const json& decisions = member(member(doc, "plan"), "decisions");
   const json& measurements = member(member(doc, "results"), "measurements");
-  std::string out = masking_curves_section(decisions, measurements) + "<h2>Measurements</h2>\n";
+  std::string out = kind_summary_sections(doc, true) + "<h2>Measurements</h2>\n";
   for (std::size_t i = 0; i < measurements.size() && i < decisions.size(); ++i)
     out += measurement_section(decisions[i], measurements[i], i, histograms, scatters,
                                is_rejected(doc, member(measurements[i], "measurement")));
@@ -236,31 +237,6 @@ std::string report_number(const nlohmann::json& value) {
   return value.is_number() ? report_number(value.get<double>()) : "-";
 }
 
-// Masking over several realisations (results.masking_realisations): per group, each value's mean, its standard
-// error from the spread of the realisations and the Monte Carlo part alone.
-std::string realisations_section(const json& document) {
-  const json& results = member(document, "results");
-  if (!results.contains("masking_realisations")) return "";
-  std::string out = "<h2>Masking over realisations</h2>\n<p>Each value's mean over independent surfaces, its standard "
-                    "error from their spread (surface-to-surface and Monte Carlo), and the Monte Carlo part alone.</p>\n";
-  const auto value_row = [](const std::string& name, const json& v) {
-    return row({esc(name), report_number(member(v, "mean")), report_number(member(v, "standard_error")),
-                report_number(member(v, "monte_carlo_error"))});
-  };
-  for (const json& g : results["masking_realisations"]) {
-    std::string body = value_row("G1", member(g, "g1"));
-    if (g.contains("g2"))
-      for (const json& v : g["g2"]) body += value_row("G2, light " + member(v, "light").dump(), v);
-    if (g.contains("conditional"))
-      for (const char* binning : {"by_normal", "by_height"})
-        for (std::size_t b = 0; b < g["conditional"][binning].size(); ++b)
-          body += value_row(fmt::format("G1 {} bin {}", binning, b + 1), g["conditional"][binning][b]);
-    out += fmt::format("<h3>{} ({} realisations)</h3>\n", esc(text_of(member(g, "label"))), text_of(member(g, "realisations")));
-    out += table({"value", "mean", "standard error (spread)", "Monte Carlo part"}, body);
-  }
-  return out;
-}
-
 std::string experiment_report_html(const nlohmann::json& document, const ReportHistograms& histograms,
                                    const ReportScatters& scatters) {
   std::string page = "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n";
@@ -268,7 +244,7 @@ std::string experiment_report_html(const nlohmann::json& document, const ReportH
   page += kStyle;
   page += "</head>\n<body>\n";
   page += verdict_headline(document) + status_section(document) + plan_section(document) + results_section(document);
-  page += measurements_sections(document, histograms, scatters) + realisations_section(document);
+  page += measurements_sections(document, histograms, scatters) + kind_summary_sections(document, false);
   page += "<h2>Files</h2>\n<p><a href=\"results.json\">results.json</a>: everything on this page as data.</p>\n";
   page += "<h2>The spec (canonical)</h2>\n<pre>" +
           esc(member(member(document, "spec"), "canonical").dump(2)) + "</pre>\n";

@@ -70,7 +70,5 @@ std::string masking_report(const nlohmann::json&, std::size_t, const ReportHisto
                            const std::string&);
 // The kind's section (its name as results.json's decisions give it), or null for a kind not in the registry.
 KindReport kind_report(const std::string& kind);
-// G1(v) against theta_v per masking quantity, alpha and view phi, from the measurements that measured G1.
-std::string masking_curves_section(const nlohmann::json& decisions, const nlohmann::json& measurements);
 
 }  // namespace microsim::experiment

@@ -3,7 +3,7 @@
 // JSON key <-> member, used both to write and to read; on reading every member is checked, a missing or
 // malformed one named.
 #include "experiment/run.h"
-#include "experiment/masking_runs.h"
+#include "experiment/measurement.h"
 #include "experiment/verdict.h"
 
 #include <fmt/core.h>
@@ -99,7 +99,7 @@ json decision_json(const Decision& d, const ExperimentSpec& spec) {
   json j = {{"quantity", q.key}, {"kind", to_string(q.kind)}, {"material", q.material}, {"target", q.target}};
   write_fields(d, kDecision, j);
   write_fields(d, kPilot, j["pilot"]);
-  if (q.kind != QuantityKind::albedo) {
+  if (kind_has_views(q.kind)) {
     j["alpha"] = {d.alpha.first, d.alpha.second};
     j["view"] = {{"theta_deg", d.view.theta_deg}, {"phi_deg", d.view.phi_deg}};
   }
@@ -126,10 +126,7 @@ Decision decision_from_json(const json& j, const ExperimentSpec& spec, const std
   if (j.contains("view"))
     d.view = {get<double>(j["view"], "theta_deg", where + ".view"), get<double>(j["view"], "phi_deg", where + ".view")};
   d.tolerance = j.contains("tolerance") ? get<double>(j, "tolerance", where) : 0.0;
-  // Sampled per-order lobes (the walk's, a tile's) resolve the orders their plan targeted (a plan of an earlier
-  // version has none).
-  if (d.runnable && spec.quantities[d.quantity].kind == QuantityKind::scattering && d.model.model != Model::analytic)
-    d.targeted_orders = get<std::vector<int>>(j, "targeted_orders", where);
+  if (j.contains("targeted_orders")) d.targeted_orders = get<std::vector<int>>(j, "targeted_orders", where);
   if (j.contains("not_runnable")) d.not_runnable = get<std::string>(j, "not_runnable", where);
   if (j.contains("surface")) read_fields(d.surface, kSurfacePlan, j["surface"], where + ".surface");
   if (j.contains("realisation")) d.realisation = get<int>(j, "realisation", where);
@@ -181,8 +178,7 @@ nlohmann::json results_json(const ExperimentResults& results) {
            {"all_targets_met", all_targets_met(results)},
            {"seconds", results.seconds}};
   out.update(verdict_json(run_verdict(results)));  // derived: not read back (a resumed run derives it again)
-  const json means = masking_realisation_means(results.measurements);
-  if (!means.empty()) out["masking_realisations"] = means;  // derived: not read back
+  add_kind_summaries(results.measurements, out);  // derived: not read back
   return out;
 }
 

@@ -68,6 +68,16 @@ std::optional<BlockRange> RoundStart::blocks(std::uint64_t block_size) const {
   return BlockRange{first_block, BlockPlan{units, block_size}.blocks()};
 }
 
+void run_once(MeasurementResult& m, const std::function<void()>& pass) {
+  m.rounds.clear();
+  m.partial = false;
+  try {
+    pass();
+  } catch (const Cancelled&) {
+    m.partial = true;
+  }
+}
+
 void run_histogram_rounds(const RoundContext& c, MeasurementResult& m, std::uint64_t max_units,
                           const std::function<bool(const RoundStart&)>& round) {
   m.partial = false;
@@ -85,6 +95,8 @@ RoundTask Measurement::first_round(std::size_t index, std::uint64_t) const {
 std::string Measurement::part(const RoundTask& task, const BlockRange&, const RunControl&, SurfaceCache&) const {
   throw InternalError(fmt::format("a round of measurement {}, which is not split", task.measurement));
 }
+
+void Measurement::read_back(const std::filesystem::path&, MeasurementResult&) const {}
 
 bool is_split(const ExperimentSpec& spec, const Decision& decision) { return make_measurement(spec, decision)->split(); }
 

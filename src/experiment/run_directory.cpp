@@ -3,6 +3,7 @@
 
 #include "core/atomic_file.h"
 #include "core/parse.h"
+#include "experiment/measurement.h"
 #include "experiment/report.h"
 #include "stats/histogram_io.h"
 #include "stats/scatter_io.h"
@@ -51,25 +52,16 @@ void check_same_run(const fs::path& dir, const nlohmann::json& doc, const Experi
                                             quote_excerpt(dir.string()), recorded, seed, recorded));
 }
 
-// The counts and sums of the measurements that have them, read back into the results.
+// The counts and sums of the measurements that have them, read back into the results (each kind's read_back).
 void read_histograms(const fs::path& dir, const ExperimentSpec& spec, ExperimentResults& results) {
   for (std::size_t i = 0; i < results.measurements.size(); ++i) {
     MeasurementResult& m = results.measurements[i];
     if (!m.ran || m.rounds.empty() || !m.values.is_object()) continue;
-    if (m.values.contains("scattering") || m.values.contains("analytic_scattering")) {
-      try {
-        ScatterFile file = read_scatter_exr(measurement_file(dir, spec, m, i, "exr"));
-        m.scatter = std::move(file.histogram);
-        m.expectation = std::move(file.expectation);
-      } catch (const ScatterIoError& e) {
-        throw std::invalid_argument(fmt::format("cannot resume measurement {}: {}", i, e.what()));
-      }
-      continue;
-    }
-    if (!m.values.contains("analysis") && !m.values.contains("validation")) continue;
     try {
-      m.histogram = read_histogram_exr(measurement_file(dir, spec, m, i, "exr"));
+      make_measurement(spec, m.decision)->read_back(measurement_file(dir, spec, m, i, "exr"), m);
     } catch (const HistogramIoError& e) {
+      throw std::invalid_argument(fmt::format("cannot resume measurement {}: {}", i, e.what()));
+    } catch (const ScatterIoError& e) {
       throw std::invalid_argument(fmt::format("cannot resume measurement {}: {}", i, e.what()));
     }
   }

@@ -214,7 +214,8 @@ SpecQuantity read_quantity(const Table& t, const ExperimentSpec& spec, std::size
   std::vector<std::string> keys{"kind", "material", "surface"};
   std::istringstream more(kind.keys);
   for (std::string key; more >> key;) keys.push_back(key);
-  t.only_keys(keys, fmt::format("a{} {} quantity", q.kind == QuantityKind::albedo ? "n" : "", to_string(q.kind)));
+  const bool vowel = std::string_view("aeiou").find(q.kind.name.front()) != std::string_view::npos;
+  t.only_keys(keys, fmt::format("a{} {} quantity", vowel ? "n" : "", to_string(q.kind)));
   q.material = t.string("material");
   const auto m = std::find_if(spec.materials.begin(), spec.materials.end(), [&](const auto& x) { return x.name == q.material; });
   if (m == spec.materials.end()) t.fail("material", fmt::format("no material named {}", quote_excerpt(q.material)));

@@ -33,6 +33,8 @@
 #include "microfacet/bsdf_convention.h"
 #include "microfacet/material.h"
 
+#include <nlohmann/json.hpp>
+
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -57,8 +59,17 @@ private:
   int line_ = 0;
 };
 
-enum class QuantityKind { albedo, vndf, scattering, validation, masking };
-std::string to_string(QuantityKind kind);  // "albedo", "vndf", "scattering", "validation", "masking"
+// A quantity's measurement kind, by the name the spec gives it. What a kind is (its keys, model, plan, rounds,
+// values, files, report) is its registry entry's alone (measurement_registry.cpp kKinds, found by this name):
+// a kind is added there and in its own file, never here. The built-in kinds' names are spelled out below.
+struct QuantityKind {
+  std::string_view name = "albedo";  // the registry's (static storage)
+  bool operator==(const QuantityKind&) const = default;
+  static const QuantityKind albedo, vndf, scattering, validation, masking;
+};
+inline constexpr QuantityKind QuantityKind::albedo{"albedo"}, QuantityKind::vndf{"vndf"},
+    QuantityKind::scattering{"scattering"}, QuantityKind::validation{"validation"}, QuantityKind::masking{"masking"};
+inline std::string to_string(QuantityKind kind) { return std::string(kind.name); }
 
 struct SpecQuantity;
 // Whether a validation's dump holds a BSDF's samples (pdf bsdf) or weights (weight columns): its BSDF is then its
@@ -131,6 +142,9 @@ struct SpecQuantity {
   int bins = 10;                            // masking, conditional: bins of <v, m> and of height
   int resolution = kDefaultMaskingResolution;  // masking on a surface built per alpha
   int realisations = 1;  // masking on a built surface: independent surfaces (seeds), each measured to the target
+  // A kind's own settings beyond the members above (its reader fills them; the spec's digest holds them): a new
+  // kind's keys need no member here.
+  nlohmann::json settings = nlohmann::json::object();
 };
 
 struct ExperimentSpec {

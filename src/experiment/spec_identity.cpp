@@ -1,5 +1,5 @@
 // experiment: the spec's identity (spec.h): its canonical description and digest, and the masking `what` text.
-#include "experiment/spec.h"
+#include "experiment/spec_tree.h"
 
 #include "core/fnv1a.h"
 
@@ -11,16 +11,6 @@
 
 namespace microsim::experiment {
 
-namespace {
-nlohmann::json masking_canonical(const SpecQuantity& q) {
-  nlohmann::json lights = nlohmann::json::array();
-  for (const Direction& l : q.lights) lights.push_back({l.theta_deg, l.phi_deg});
-  nlohmann::json j{{"what", to_string(q.masking)}, {"lights", lights}, {"bins", q.bins}, {"resolution", q.resolution}};
-  if (q.realisations > 1) j["realisations"] = q.realisations;  // one realisation: the digest of earlier versions
-  return j;
-}
-}  // namespace
-
 std::string to_string(const MaskingWhat& what) {
   std::vector<std::string> names;
   if (what.g1) names.push_back("g1");
@@ -28,18 +18,6 @@ std::string to_string(const MaskingWhat& what) {
   if (what.conditional) names.push_back("conditional");
   return fmt::format("{}", fmt::join(names, ", "));
 }
-
-namespace {
-// A dump's keys; those beyond the first three only when not their defaults (the digests of earlier specs hold).
-nlohmann::json dump_canonical(const SpecQuantity& q) {
-  nlohmann::json j{{"dump", q.dump}, {"pdf", q.dump_pdf}, {"above_horizon", q.above_horizon}};
-  if (q.dump_columns != "x,y,z") j["columns"] = q.dump_columns;
-  if (q.dump_frame != "z-up") j["frame"] = q.dump_frame;
-  if (q.dump_dropped != 0) j["dropped"] = q.dump_dropped;
-  if (q.convention != BsdfConvention{}) j["convention"] = describe(q.convention);
-  return j;
-}
-}  // namespace
 
 std::string canonical_spec(const ExperimentSpec& spec) {
   nlohmann::json j;
@@ -54,9 +32,8 @@ std::string canonical_spec(const ExperimentSpec& spec) {
                                {"target", q.target}, {"directions", d}, {"surface", q.surface.name},
                                {"mus", q.mus}, {"inside", q.inside}, {"rows", q.rows}, {"sampler", q.sampler},
                                {"power", q.power}, {"significance", q.significance}});
-    if (!q.dump.empty())  // the path names the dump: a file replaced under the same path is not detected
-      j["quantities"].back().update(dump_canonical(q));
-    if (q.kind == QuantityKind::masking) j["quantities"].back().update(masking_canonical(q));
+    if (const auto kind_canonical = kind_spec(q.kind).canonical) j["quantities"].back().update(kind_canonical(q));
+    if (!q.settings.empty()) j["quantities"].back()["settings"] = q.settings;  // none: the digests of earlier specs
   }
   return j.dump();
 }

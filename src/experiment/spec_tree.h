@@ -126,6 +126,8 @@ using ReadKindSpec = void (*)(const SpecTable& t, SpecQuantity& q, const SpecMat
 struct KindSpec {
   const char* keys;  // its keys besides kind, material and surface, space-separated
   ReadKindSpec read;
+  // Its members of the spec's canonical description (canonical_spec) beyond every quantity's; null: none.
+  nlohmann::json (*canonical)(const SpecQuantity& q) = nullptr;
 };
 const KindSpec& kind_spec(QuantityKind kind);                   // measurement_registry.cpp
 std::optional<QuantityKind> kind_named(std::string_view name);  // measurement_registry.cpp

@@ -23,16 +23,6 @@ namespace {
 
 std::string stop_message(int exit_code) { return nlohmann::json{{"stop", exit_code}}.dump(); }
 
-std::string task_message(const RoundTask& task) { return nlohmann::json{{"round", round_task_json(task)}}.dump(); }
-
-// The stored parts of this round (a merge of shard jobs), or null.
-const std::vector<std::string>* stored_parts(const StoredRounds* stored, const RoundTask& task) {
-  if (stored == nullptr) return nullptr;
-  for (std::size_t t = 0; t < stored->tasks.size(); ++t)
-    if (stored->tasks[t] == task) return &stored->parts[t];
-  return nullptr;
-}
-
 nlohmann::json parse_message(const std::string& text) {
   try {
     return nlohmann::json::parse(text);
@@ -41,89 +31,20 @@ nlohmann::json parse_message(const std::string& text) {
   }
 }
 
-BlockRange round_blocks(const std::optional<BlockRange>& selected, std::uint64_t units, std::uint64_t block_size) {
-  return selected ? *selected : BlockRange{0, BlockPlan{units, block_size}.blocks()};
+}  // namespace
+
+std::string task_message(const RoundTask& task) { return nlohmann::json{{"round", round_task_json(task)}}.dump(); }
+
+const std::vector<std::string>* stored_parts(const StoredRounds* stored, const RoundTask& task) {
+  if (stored == nullptr) return nullptr;
+  for (std::size_t t = 0; t < stored->tasks.size(); ++t)
+    if (stored->tasks[t] == task) return &stored->parts[t];
+  return nullptr;
 }
 
-// The gathered parts, one per rank (else a bug: InternalError).
 void check_part_count(const std::vector<std::string>& parts, int ranks) {
   if (parts.size() != std::size_t(ranks))
     throw InternalError(fmt::format("a split round gathered {} parts from {} ranks", parts.size(), ranks));
-}
-
-// A request with its blocks replaced (a rank's shard, or none of a stored round), or as it is (nullopt).
-template <class Request>
-Request with_blocks(Request request, const std::optional<BlockRange>& blocks) {
-  if (blocks) request.blocks = *blocks;
-  return request;
-}
-
-// The shape of every split round. Stored parts (a merge of shard jobs): `measure` of no block (the binnings and
-// attributes) and every part combined from the first; alone: `measure` of the whole round (`Own` as the result,
-// else combined with no part); with ranks: the task broadcast, rank 0's shard measured, every rank's part
-// (`encode(own, its blocks)`) gathered and combined from the second (`combine(own, parts, first)`).
-template <class Own, class Result = Own>
-Result split_round(const RoundSplit& split, const RoundTask& task,
-                   const std::type_identity_t<std::function<Own(const std::optional<BlockRange>&)>>& measure,
-                   const std::type_identity_t<std::function<std::string(const Own&, const BlockRange&)>>& encode,
-                   const std::type_identity_t<std::function<Result(Own, const std::vector<std::string>&, int)>>& combine) {
-  if (const std::vector<std::string>* stored = stored_parts(split.stored, task))
-    return combine(measure(BlockRange{task.blocks.begin, task.blocks.begin}), *stored, 0);
-  if (split.ranks == nullptr || split.ranks->size() == 1) {
-    if constexpr (std::is_same_v<Own, Result>) return measure(std::nullopt);
-    else return combine(measure(std::nullopt), {}, 0);
-  }
-  split.ranks->broadcast(task_message(task));
-  const BlockRange mine = rank_blocks(task.blocks, 0, split.ranks->size());
-  Own own = measure(mine);
-  const std::vector<std::string> parts = split.ranks->gather(encode(own, mine));
-  check_part_count(parts, split.ranks->size());
-  return combine(std::move(own), parts, 1);
-}
-
-}  // namespace
-
-namespace {
-HeightfieldVndfDiagnostics diagnostics_of(const EllipsoidVndf&) { return {}; }
-const HeightfieldVndfDiagnostics& diagnostics_of(const HeightfieldVndf& h) { return h.diagnostics; }
-
-// A VNDF round, the ellipsoid's or a tile's (`trace` of a request's blocks), split.
-template <class Vndf, class Trace>
-Vndf split_traced_round(const RoundSplit& split, std::size_t measurement, const VndfRequest& request, const Trace& trace) {
-  const auto start = std::chrono::steady_clock::now();
-  const RoundTask task{measurement, request.rays, request.seed, round_blocks(request.blocks, request.rays, kRaysPerBlock)};
-  return split_round<Vndf>(
-      split, task, [&](const std::optional<BlockRange>& blocks) { return trace(with_blocks(request, blocks)); },
-      [&](const Vndf& own, const BlockRange&) { return vndf_part(task, own.trace, diagnostics_of(own)); },
-      [&](Vndf own, const std::vector<std::string>& parts, int first) {
-        return combine_vndf_parts(std::move(own), parts, task, first, seconds_since(start));
-      });
-}
-}  // namespace
-
-EllipsoidVndf split_vndf_round(const RoundSplit& split, std::size_t measurement, const EllipsoidTarget& target,
-                               const VndfRequest& request) {
-  return split_traced_round<EllipsoidVndf>(split, measurement, request,
-                                           [&](const VndfRequest& r) { return measure_ellipsoid_vndf(target, r); });
-}
-
-HeightfieldVndf split_heightfield_vndf_round(const RoundSplit& split, std::size_t measurement, const SceneOf& scene,
-                                             const microgeom::Heightfield& field, const std::string& label,
-                                             const VndfRequest& request) {
-  return split_traced_round<HeightfieldVndf>(
-      split, measurement, request, [&](const VndfRequest& r) { return trace_heightfield_vndf(scene(), field, label, r); });
-}
-
-ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measurement, const ScatterPaths& paths,
-                                     const ScatterOptions& options) {
-  const RoundTask task{measurement, options.paths, options.seed, round_blocks(options.blocks, options.paths, kPathsPerBlock)};
-  return split_round<ScatterHistogram>(
-      split, task,
-      [&](const std::optional<BlockRange>& blocks) { return paths(with_blocks(options, blocks)); },
-      [&](const ScatterHistogram& own, const BlockRange&) { return scatter_part(task, own); },
-      [&](ScatterHistogram own, const std::vector<std::string>& parts, int first) {
-        return combine_scatter_parts(std::move(own), parts, task, first);
-      });
 }
 
 std::optional<std::vector<SurfaceMasking>> split_masking_round(const RoundSplit& split, std::size_t measurement,
@@ -138,37 +59,6 @@ std::optional<std::vector<SurfaceMasking>> split_masking_round(const RoundSplit&
       [&](Sums own, const std::vector<std::string>& parts, int first) {
         return combine_masking_parts(std::move(own), parts, task, first);
       });
-}
-
-AlbedoTable split_albedo_round(const RoundSplit& split, std::size_t measurement, const AlbedoTableRequest& request,
-                               const AlbedoCellsOf& cells) {
-  const auto start = std::chrono::steady_clock::now();
-  const BlockRange round{0, request.alphas.size() * std::uint64_t(request.mus)};
-  const RoundTask task{measurement, request.paths, request.seed, round};
-  const bool stored = stored_parts(split.stored, task) != nullptr;  // its start: no cell (no tile acquired)
-  using Cells = std::optional<AlbedoCells>;
-  return split_round<Cells, AlbedoTable>(
-      split, task,
-      [&](const std::optional<BlockRange>& mine) -> Cells {
-        return stored ? Cells(AlbedoCells{}) : cells(request, mine ? *mine : round);
-      },
-      [&](const Cells& own, const BlockRange& mine) { return albedo_part(task, mine, own); },
-      [&](Cells own, const std::vector<std::string>& parts, int first) {
-        if (!own) return cancelled_albedo_table(request);
-        return combine_albedo_parts(request, std::move(*own), parts, task, first, seconds_since(start));
-      });
-}
-
-AlbedoCellsOf albedo_cells_of(const Decision& decision, SurfaceCache& surfaces) {
-  if (decision.model.model != Model::heightfield) return walk_albedo_cells;
-  return [plan = decision.surface, &surfaces](const AlbedoTableRequest& request, const BlockRange& cells) {
-    return surface_albedo_cells_of(request, cells, plan, surfaces);
-  };
-}
-
-std::uint64_t albedo_round_cells(const ExperimentSpec& spec, const Decision& decision) {
-  const SpecQuantity& q = spec.quantities[decision.quantity];
-  return spec.material(q.material).alphas.size() * std::uint64_t(q.mus);
 }
 
 ValidationReport split_validation(const RoundSplit& split, std::size_t measurement, const SamplerInfo& sampler,

@@ -27,6 +27,8 @@
 #include <nlohmann/json.hpp>
 
 #include <functional>
+#include <optional>
+#include <type_traits>
 #include <string>
 #include <vector>
 
@@ -51,37 +53,61 @@ struct RoundSplit {
   const StoredRounds* stored = nullptr;
 };
 
-// The root's side: measure_ellipsoid_vndf, trace_heightfield_vndf on `scene()` (`field`'s; `label` names the
-// tile: surface_label; the round's counts and diagnostics, not analysed: the caller analyses its sum) and
-// the paths of a scattering round (the Smith walk, or paths on a tile: run_part runs the same on the other
-// ranks), split. `measurement` is the decision's index in the plan the other ranks received (send_plan).
-EllipsoidVndf split_vndf_round(const RoundSplit& split, std::size_t measurement, const EllipsoidTarget& target,
-                               const VndfRequest& request);
-// `scene` gives `field`'s scene (SurfaceCache::scene_for); the root asks for it after sending the round, so
-// that the ranks build theirs at the same time.
+// A round's blocks: those selected, else every block of `units` in blocks of `block_size`; a request with its
+// blocks replaced (a rank's shard, or none of a stored round), or as it is (nullopt).
+inline BlockRange round_blocks(const std::optional<BlockRange>& selected, std::uint64_t units, std::uint64_t block_size) {
+  return selected ? *selected : BlockRange{0, BlockPlan{units, block_size}.blocks()};
+}
+template <class Request>
+Request with_blocks(Request request, const std::optional<BlockRange>& blocks) {
+  if (blocks) request.blocks = *blocks;
+  return request;
+}
+
+// What split_round needs of the split: the stored parts of `task` (a merge of shard jobs), or null; the
+// message that sends a task to the ranks; a check that the gathered parts are one per rank (else InternalError).
+const std::vector<std::string>* stored_parts(const StoredRounds* stored, const RoundTask& task);
+std::string task_message(const RoundTask& task);
+void check_part_count(const std::vector<std::string>& parts, int ranks);
+
+// The shape of every split round. Stored parts (a merge of shard jobs): `measure` of no block (the binnings and
+// attributes) and every part combined from the first; alone: `measure` of the whole round (`Own` as the result,
+// else combined with no part); with ranks: the task broadcast, rank 0's shard measured, every rank's part
+// (`encode(own, its blocks)`) gathered and combined from the second (`combine(own, parts, first)`).
+template <class Own, class Result = Own>
+Result split_round(const RoundSplit& split, const RoundTask& task,
+                   const std::type_identity_t<std::function<Own(const std::optional<BlockRange>&)>>& measure,
+                   const std::type_identity_t<std::function<std::string(const Own&, const BlockRange&)>>& encode,
+                   const std::type_identity_t<std::function<Result(Own, const std::vector<std::string>&, int)>>& combine) {
+  if (const std::vector<std::string>* stored = stored_parts(split.stored, task))
+    return combine(measure(BlockRange{task.blocks.begin, task.blocks.begin}), *stored, 0);
+  if (split.ranks == nullptr || split.ranks->size() == 1) {
+    if constexpr (std::is_same_v<Own, Result>) return measure(std::nullopt);
+    else return combine(measure(std::nullopt), {}, 0);
+  }
+  split.ranks->broadcast(task_message(task));
+  const BlockRange mine = rank_blocks(task.blocks, 0, split.ranks->size());
+  Own own = measure(mine);
+  const std::vector<std::string> parts = split.ranks->gather(encode(own, mine));
+  check_part_count(parts, split.ranks->size());
+  return combine(std::move(own), parts, 1);
+}
+
+// A tile's VNDF round (trace_heightfield_vndf on `scene()`, `field`'s; `label` names the tile: surface_label),
+// split (measurement_vndf.cpp): the round's counts and diagnostics, not analysed (the caller analyses its sum).
+// `measurement` is the decision's index in the plan the other ranks received (send_plan). `scene` gives
+// `field`'s scene (SurfaceCache::scene_for); the root asks for it after sending the round, so that the ranks
+// build theirs at the same time.
 using SceneOf = std::function<const HeightfieldScene&()>;
 HeightfieldVndf split_heightfield_vndf_round(const RoundSplit& split, std::size_t measurement, const SceneOf& scene,
                                              const microgeom::Heightfield& field, const std::string& label,
                                              const VndfRequest& request);
-ScatterHistogram split_scatter_round(const RoundSplit& split, std::size_t measurement, const ScatterPaths& paths,
-                                     const ScatterOptions& options);
 // A heightfield masking round (blocks `blocks` of h's run, every light), split: each rank measures its shard
 // (the surface of `surface_seed`, the run's, from its own cache), the sums added in rank order: h's own
 // measure_round, bit for bit. nullopt when any part was cancelled (the round is dropped, as in one process).
 std::optional<std::vector<SurfaceMasking>> split_masking_round(const RoundSplit& split, std::size_t measurement,
                                                                const MaskingRuns& h, std::uint64_t surface_seed,
                                                                const BlockRange& blocks, const RunControl& run);
-// The cells of a sampled albedo request: walk_albedo_cells (a walk), or its tiles' (surface_albedo.h).
-using AlbedoCellsOf = std::function<std::optional<AlbedoCells>(const AlbedoTableRequest& request, const BlockRange& cells)>;
-AlbedoTable split_albedo_round(const RoundSplit& split, std::size_t measurement, const AlbedoTableRequest& request,
-                               const AlbedoCellsOf& cells);
-// ^ the table of a sampled request (a walk's, or on tiles) from `cells`, its cells split (`measurement` as
-// above): albedo_table's, bit for bit; partial (no row) when a part was cancelled.
-// The cells of an albedo decision's requests: the walk's, or those on the tiles of its surface plan, from
-// `surfaces` (which must outlive the function).
-AlbedoCellsOf albedo_cells_of(const Decision& decision, SurfaceCache& surfaces);
-// The cells of a sampled albedo table's round: alphas x mus (its blocks, for the split and the shards).
-std::uint64_t albedo_round_cells(const ExperimentSpec& spec, const Decision& decision);
 // validate_sampler over the ranks (split.ranks; alone without them). Throws Cancelled when any rank's part
 // was cancelled (after every rank has answered), InsufficientData as validate_sampler.
 ValidationReport split_validation(const RoundSplit& split, std::size_t measurement, const SamplerInfo& sampler,

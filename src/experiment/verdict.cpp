@@ -1,5 +1,6 @@
 // experiment: the verdict of a run (verdict.h).
 #include "experiment/verdict.h"
+#include "experiment/measurement.h"
 
 namespace microsim::experiment {
 
@@ -13,17 +14,21 @@ std::string to_string(Verdict verdict) {
   return "none";
 }
 
-// A validation's values hold the validator's report (validate.h to_json), whose verdict is "pass" or "fail";
-// a validation cut short holds none (it runs again when resumed), and one whose traced reference could not
-// serve its sample count holds "none" (compare.h reference_bias): neither was tested.
-bool validation_tested(const MeasurementResult& m) {
-  return m.ran && !m.partial && m.values.is_object() && m.values.contains("validation") &&
-         m.values.at("validation").is_object() && m.values.at("validation").contains("verdict") &&
-         m.values.at("validation").at("verdict") != "none";
+namespace {
+// The report of the test a measurement ran to its end (the registry's kind_test_report), or null: it tests
+// nothing, its test was cut short (it runs again when resumed), or its traced reference could not serve its
+// sample count (verdict "none", compare.h reference_bias).
+const nlohmann::json* test_report(const MeasurementResult& m) {
+  const nlohmann::json* report = m.ran && !m.partial ? kind_test_report(m.values) : nullptr;
+  return report != nullptr && report->at("verdict") != "none" ? report : nullptr;
 }
+}  // namespace
+
+bool validation_tested(const MeasurementResult& m) { return test_report(m) != nullptr; }
 
 bool validation_rejected(const MeasurementResult& m) {
-  return validation_tested(m) && m.values.at("validation").at("verdict") == "fail";
+  const nlohmann::json* report = test_report(m);
+  return report != nullptr && report->at("verdict") == "fail";
 }
 
 RunVerdict run_verdict(const ExperimentResults& results) {

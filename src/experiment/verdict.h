@@ -31,7 +31,8 @@ struct RunVerdict {
   std::size_t tested = 0;             // the validations whose test ran to its end (passed or rejected)
 };
 
-// Whether a measurement is a validation whose test ran to its end; and whether that test rejected.
+// Whether a measurement's test ran to its end (its values hold its kind's test report, measurement.h
+// kind_test_report: a validation's); and whether that test rejected.
 bool validation_tested(const MeasurementResult& m);
 bool validation_rejected(const MeasurementResult& m);
 
