@@ -50,6 +50,28 @@ set(MICROSIM_SANITIZE_SKIP
   [=[CheckBsdfCli\.(TheWorkedPluginsPassWhole|APlantedEvalBugIsRejected)]=]
 )
 list(JOIN MICROSIM_SANITIZE_SKIP "|" MICROSIM_SANITIZE_SKIP_REGEX)
+
+# COST (ctest runs the costliest first): the tests of 10 s or more in Release or under the sanitizers. ctest
+# learns each test's time after a run, but CI runs on a clean clone, where without it these would start
+# wherever they are declared and the last of them would run alone on one core at the end.
+set(MICROSIM_HEAVY
+  [=[BsdfSamplers\.EveryNegativeControl]=]
+  [=[BsdfBatteryWorked\.CorrectBsdfs]=]
+  [=[ValidateAllShardMerge\.]=]
+  [=[AlbedoCli\.Layout]=]
+  [=[RunMpi\.]=]
+  [=[CheckBsdfCli\.]=]
+  [=[CliValidate\.DielectricDumps]=]
+  [=[ExperimentShardCli\.AMissing]=]
+  [=[ExperimentCli\.(ASpecValidatesBsdfDumps|AnInterruptedRun)]=]
+  [=[WalkEvalCheck\.]=]
+  [=[WalkValidationCli\.]=]
+  [=[ExperimentSplit\.]=]
+  [=[ExperimentResume\.AnInterruptedVndfRound]=]
+  [=[BsdfSamplers\.EachTransportModes]=]
+  [=[SamplersAgainstOracle]=]
+)
+list(JOIN MICROSIM_HEAVY "|" MICROSIM_HEAVY_REGEX)
 set(MICROSIM_BROWSER_REGEX [=[^ReportBrowser\.]=])
 
 # Sets the labels of each test named (slow, sanitize-skip, browser by name; `extra`: labels for all of them).
@@ -64,6 +86,9 @@ function(microsim_label_tests extra)
     endif()
     if(labels)
       set_tests_properties("${test}" PROPERTIES LABELS "${labels}")
+    endif()
+    if(test MATCHES "${MICROSIM_HEAVY_REGEX}")
+      set_tests_properties("${test}" PROPERTIES COST 100)
     endif()
   endforeach()
 endfunction()
