@@ -2,6 +2,7 @@
 // (GGX alpha 1, eta 1.5), its values the walk's own next-event estimate from 8 times the check's walks (its own
 // noise, not in the test, an eighth of the walk's variance), passes at level 0.01 (fixed seeds: the negative control); the same from the walk that keeps its height after a
 // refraction is rejected, its worst pair named first.
+#include "battery_bsdfs.h"
 #include "measure/bsdf_self_check.h"
 #include "measure/walk_eval_check.h"
 #include "scatter/smith_walk.h"
@@ -84,6 +85,41 @@ TEST(WalkEvalCheck, DISABLED_ReciprocityAtAGrazingPair) {
       fmt::print("  order bin {}: {:.6g} +- {:.2g} and {:.6g} +- {:.2g}\n", k + 1, f.value(0, k).value,
                  f.value(0, k).standard_error, g.value(0, k).value, g.value(0, k).standard_error);
   }
+}
+
+}  // namespace
+}  // namespace microsim::test
+
+namespace microsim::test {
+namespace {
+
+// The battery's stochastic reciprocity test (measure/bsdf_self_check.h) at its 48 query pairs of the glass and that
+// grazing pair both ways, level 0.01: the correct walk (eval() 4 walks per call, 64 calls per pair at stage 1;
+// query seed 3) passes, its stage 1 rejecting (the heavy tail) and its stage 2 (64 times the fresh calls, the
+// standard errors pooled over the pairs) not; the same walk with eval() times 1 + 2 cos^2(wi), not reciprocal, is
+// rejected by both stages (query seed 1: the negative control).
+TEST(WalkEvalCheck, AStochasticEvalsReciprocityAtAGrazingPairPassesInTwoStages) {
+  const Material glass = Material::dielectric(1.5);
+  const Vec3<double> a = Vec3<double>(0.696, 0.696, 0.174).normalized(), b = Vec3<double>(0.322, -0.112, 0.940).normalized();
+  const auto pairs = [&](std::uint64_t seed) {
+    std::vector<BsdfQuery> p = battery::stochastic_pairs(bsdf_queries(glass, 256, seed, GGX<double>(1.0, 1.0)), 48);
+    p.push_back({a, b}), p.push_back({b, a});
+    return p;
+  };
+  const WorkedBsdf right = walk_dielectric(1.0);
+  const BatteryLine pass = battery::stochastic_reciprocity(right.bsdf, glass, pairs(3), 0.01, BatteryOptions{});
+  EXPECT_TRUE(pass.passed) << pass.detail;
+  EXPECT_NE(pass.detail.find("stage 1 rejected"), std::string::npos) << pass.detail;
+  WorkedBsdf tilted = walk_dielectric(1.0);
+  tilted.bsdf.eval = [e = tilted.bsdf.eval](std::span<const Vec3<double>> wi, std::span<const Vec3<double>> wo,
+                                            std::span<double> v) {
+    e(wi, wo, v);
+    for (std::size_t i = 0; i < wi.size(); ++i) v[i] *= 1 + 2 * wi[i].z() * wi[i].z();
+  };
+  const BatteryLine fail = battery::stochastic_reciprocity(tilted.bsdf, glass, pairs(1), 0.01, BatteryOptions{});
+  EXPECT_FALSE(fail.passed) << fail.detail;
+  EXPECT_NE(fail.detail.find("stage 2"), std::string::npos) << fail.detail;
+  fmt::print("right: {}\ntilted: {}\n", pass.detail, fail.detail);
 }
 
 }  // namespace
