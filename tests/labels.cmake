@@ -48,6 +48,7 @@ set(MICROSIM_SANITIZE_SKIP
   [=[BsdfBatteryWorked\.CorrectBsdfs]=]
   [=[AlbedoCliGrade\.]=]
   [=[CheckBsdfCli\.(TheWorkedPluginsPassWhole|APlantedEvalBugIsRejected)]=]
+  [=[WalkEvalCheck\.AStochasticEvalsReciprocityAtAGrazingPair]=]
 )
 list(JOIN MICROSIM_SANITIZE_SKIP "|" MICROSIM_SANITIZE_SKIP_REGEX)
 

@@ -22,7 +22,11 @@
  *     then averages repeated calls at each query pair (the eval and reciprocity tests, by a chi-square with the
  *     calls' standard error), keeps the noise in the cell integrals' variance (the integral and furnace tests),
  *     does not hold the samples' weights to eval / pdf pointwise, and does not compare eval() with an exact
- *     single-scattering BSDF (use `--reference smith-walk` or `none`). eval() is called from one thread; its
+ *     single-scattering BSDF (use `--reference smith-walk` or `none`). A test of such an eval() that rejects
+ *     (integral, eval, reciprocity) runs again on fresh calls, 64 times as many per pair (4 times the points per
+ *     cell) with standard errors pooled over the pairs, and rejects only if that second stage rejects too (a
+ *     heavy-tailed estimate's error from its own few hundred calls is too small): every call must be a fresh
+ *     estimate. eval() is called from one thread; its
  *     random state is the plugin's (seed it in create() for a run that repeats).
  * Versions: ABI 1 is this struct without `flags` (and pdf required); a plugin built against the version-1 header
  * sets abi_version 1 and still loads: the fields after `pdf` are read only from a plugin of version 2 or more. */

@@ -19,6 +19,54 @@ namespace {
 
 constexpr double kCellSolidAngle = 4 * std::numbers::pi / kCells;
 
+// The second stage of a stochastic eval()'s tests. A stochastic eval() may be heavy-tailed (the Smith walk's
+// next-event estimate, Heitz et al. 2016 sec. 6: rare high orders and rare high vertices carry much of the value,
+// so that the sample kurtosis of its calls grows with their number), and then the standard error of a pair
+// estimated from its own calls is mostly too small while their mean is mostly too low, at a few hundred calls
+// and at thousands alike: a correct BSDF fails a chi-square. So a pair test of a stochastic eval() that rejects
+// runs again on fresh, independent calls (kRecheckCalls times as many per pair), each pair's standard error at
+// least (a) the first stage's scaled to the larger count (an independent estimate of its variance per call) and
+// (b) |mean| times the largest relative standard deviation per call seen at any pair in either stage (pooled over
+// the pairs: the tail a pair's own calls missed, another pair's met), and rejects only if the second stage
+// rejects too. Rejecting needs the second stage to reject on its own calls, so the level of the whole is at most
+// the second stage's. The integral test's second stage: fresh cell points, kRecheckPoints times as many.
+constexpr int kRecheckCalls = 64, kRecheckReferenceWalks = 4, kRecheckPoints = 4;
+
+// The largest relative standard deviation per call, se sqrt(calls) / |value|, over the estimates with a trusted
+// standard error and a value other than 0.
+double largest_cv(const std::vector<Estimate>& e, int calls) {
+  double cv = 0;
+  for (const Estimate& x : e)
+    if (x.value != 0 && std::isfinite(x.standard_error)) cv = std::max(cv, x.standard_error * std::sqrt(double(calls)) / std::abs(x.value));
+  return cv;
+}
+
+// Each trusted standard error at least |value| cv / sqrt(calls).
+std::vector<Estimate> pooled(std::vector<Estimate> e, double cv, int calls) {
+  for (Estimate& x : e)
+    if (std::isfinite(x.standard_error)) x.standard_error = std::max(x.standard_error, std::abs(x.value) * cv / std::sqrt(double(calls)));
+  return e;
+}
+
+// fresh's estimates, each standard error at least pilot's times sqrt(ratio) (ratio: pilot's calls over fresh's);
+// an untrusted (NaN) standard error stays untrusted.
+std::vector<Estimate> floored(std::vector<Estimate> fresh, const std::vector<Estimate>& pilot, double ratio) {
+  for (std::size_t i = 0; i < fresh.size() && i < pilot.size(); ++i) {
+    const double floor = pilot[i].standard_error * std::sqrt(ratio);
+    if (std::isfinite(floor) && floor > fresh[i].standard_error) fresh[i].standard_error = floor;
+  }
+  return fresh;
+}
+
+// The line of a two-stage test: the second stage's verdict, both details, p the larger (a valid p of "both reject").
+BatteryLine two_stage(const BatteryLine& first, const BatteryLine& second, int factor, const char* what) {
+  BatteryLine l = second;
+  l.detail = fmt::format("stage 1 rejected ({}; p {:.3g}); stage 2 on fresh {}, {} times as many: {}", first.detail,
+                         first.p, what, factor, second.detail);
+  l.p = std::max(first.p, second.p);
+  return l;
+}
+
 // Per cell: the mean of a quantity's points times the cell's solid angle, and that mean's variance.
 struct CellIntegrals {
   std::vector<double> value = std::vector<double>(kCells), variance = std::vector<double>(kCells);
@@ -49,7 +97,7 @@ CellIntegrals integrate(const std::vector<double>& values) {
 
 // The channel mean of eval() and pdf() at the points from wi.
 void eval_points(const BsdfUnderTest& b, const Vec3<double>& wi, const std::vector<Vec3<double>>& w,
-                 std::vector<double>& value, std::vector<double>& pdf) {
+                 std::vector<double>& value, std::vector<double>& pdf, bool with_pdf = true) {
   const std::size_t n = w.size(), c = std::size_t(b.channels);
   std::vector<Vec3<double>> in(n, wi);
   std::vector<double> v(n * c);
@@ -57,7 +105,7 @@ void eval_points(const BsdfUnderTest& b, const Vec3<double>& wi, const std::vect
   value.assign(n, 0);
   for (std::size_t i = 0; i < n; ++i)
     for (std::size_t k = 0; k < c; ++k) value[i] += v[c * i + k] / double(c);
-  if (b.pdf) {
+  if (b.pdf && with_pdf) {
     pdf.assign(n, 0);
     b.pdf(in, w, pdf);
   }
@@ -210,6 +258,77 @@ SmithMicrosurface walk_surface(const GGX<double>& ggx) {
 
 double index_at(const Material& m, const Vec3<double>& w) { return m.transmits() && w.z() < 0 ? m.eta() : 1.0; }
 
+// The walk's next-event estimate at each pair (paths walks, seed + i for pair i), as the BSDF's eval(): f |cos wo|
+// in the BSDF's transport mode, the channel mean, with its standard error.
+std::vector<Estimate> walk_reference(const Material& m, const GGX<double>& ggx, const std::vector<BsdfQuery>& pairs,
+                                     const BsdfConvention& convention, std::uint64_t paths, std::uint64_t seed,
+                                     const BatteryOptions& o) {
+  std::vector<Estimate> reference;
+  for (std::size_t i = 0; i < pairs.size(); ++i) {
+    if (o.run.cancelled()) throw Cancelled("the walk's eval");
+    const SmithWalkEval e = smith_walk_eval(walk_surface(ggx), walk_options(m, pairs[i].wi, paths, seed + i, o), pairs[i].wo);
+    // The walk's f is in importance transport; radiance holds (n_wi / n_wo)^2 more.
+    const double n = index_at(m, pairs[i].wi) / index_at(m, pairs[i].wo);
+    const double scale = std::abs(pairs[i].wo.z()) * (convention.transport == TransportMode::radiance ? n * n : 1.0);
+    double v = 0, var = 0;
+    for (int c = 0; c < m.channels(); ++c) {
+      const Estimate x = e.value(c);
+      v += x.value * scale / m.channels(), var += std::pow(x.standard_error * scale / m.channels(), 2);
+    }
+    reference.push_back({v, std::sqrt(var)});
+  }
+  return reference;
+}
+
+BatteryLine eval_stage(const std::vector<BsdfQuery>& pairs, const std::vector<Estimate>& given,
+                       const std::vector<Estimate>& reference, double level) {
+  PairChi2 chi;
+  for (std::size_t i = 0; i < pairs.size(); ++i) add_pair(chi, i, given[i], reference[i]);
+  return pair_line("eval", chi, pairs, given.empty() ? Estimate{} : given[chi.worst],
+                   reference.empty() ? Estimate{} : reference[chi.worst], "eval() against the walk's next-event eval",
+                   level);
+}
+
+BatteryLine reciprocity_stage(const BsdfUnderTest& b, const Material& m, const std::vector<BsdfQuery>& pairs,
+                              const std::vector<Estimate>& forward, const std::vector<Estimate>& backward, double level) {
+  PairChi2 chi;
+  std::vector<Estimate> a, e;
+  for (std::size_t i = 0; i < pairs.size(); ++i) {
+    const double ci = std::abs(pairs[i].wi.z()), co = std::abs(pairs[i].wo.z());
+    const double ratio = reciprocal_ratio(m, b.convention, pairs[i].wi, pairs[i].wo);
+    a.push_back({backward[i].value / ci, backward[i].standard_error / ci});
+    e.push_back({forward[i].value / co * ratio, forward[i].standard_error / co * ratio});
+    add_pair(chi, i, a.back(), e.back());
+  }
+  return pair_line("reciprocity", chi, pairs, a.empty() ? Estimate{} : a[chi.worst], e.empty() ? Estimate{} : e[chi.worst],
+                   "f(wo, wi) against reciprocity's f(wi, wo)", level);
+}
+
+// A stochastic eval()'s integral test that rejected, again on fresh cell points (kRecheckPoints times as many, another
+// seed: fresh calls), each cell's variance at least the first stage's scaled to the larger count; the line and the
+// view's integral residual map become the second stage's.
+void recheck_integral(const BsdfUnderTest& b, const Vec3<double>& wi, const ViewSamples& s, const std::string& view,
+                      double level, const BatteryOptions& o, const std::vector<double>& first_values,
+                      std::vector<BatteryLine>& lines, std::vector<BatteryResiduals>& residuals) {
+  const auto line = std::find_if(lines.begin(), lines.end(), [](const BatteryLine& l) { return l.test == "integral"; });
+  if (line == lines.end() || line->passed) return;
+  const std::vector<Vec3<double>> points =
+      cell_points(o.points_per_cell * kRecheckPoints, ~(o.seed + std::uint64_t(sphere_cell(wi))));
+  std::vector<double> value, unused;
+  eval_points(b, wi, points, value, unused, false);
+  const CellIntegrals first = integrate(first_values);
+  CellIntegrals second = integrate(value);
+  const double ratio = double(first_values.size()) / double(value.size());
+  for (std::size_t c = 0; c < kCells; ++c) second.variance[c] = std::max(second.variance[c], first.variance[c] * ratio);
+  std::vector<double> w, var;
+  weighted_cells(s, b.channels, w, var);
+  for (BatteryResiduals& r : residuals)
+    if (r.test == "integral" && r.view == view) r = residual_map("integral", view, w, var, second.value, second.variance);
+  *line = two_stage(*line, shape_line("integral", view, "weighted samples against the integral of eval() per cell", w, var,
+                                      second.value, second.variance, level),
+                    kRecheckPoints, "cell points");
+}
+
 }  // namespace
 
 int cell_strata(int points_per_cell) { return std::max(2, 2 * int(std::lround(std::sqrt(double(points_per_cell)) / 2))); }
@@ -246,7 +365,9 @@ std::vector<BatteryLine> self_tests(const BsdfUnderTest& b, const Vec3<double>& 
   const std::vector<Vec3<double>> points = cell_points(o.points_per_cell, o.seed + std::uint64_t(sphere_cell(wi)));
   std::vector<double> value, pdf;
   eval_points(b, wi, points, value, pdf);
-  return cell_tests(s, b.channels, value, pdf, view, level, residuals);
+  std::vector<BatteryLine> lines = cell_tests(s, b.channels, value, pdf, view, level, residuals);
+  if (b.stochastic_eval) recheck_integral(b, wi, s, view, level, o, value, lines, residuals);
+  return lines;
 }
 
 std::vector<BatteryLine> cell_tests(const ViewSamples& s, int channels, const std::vector<double>& value,
@@ -305,44 +426,41 @@ std::vector<BsdfQuery> stochastic_pairs(const std::vector<BsdfQuery>& q, std::si
 
 BatteryLine eval_against_walk(const BsdfUnderTest& b, const Material& m, const GGX<double>& ggx,
                               const std::vector<BsdfQuery>& pairs, double level, const BatteryOptions& o) {
-  const std::vector<Estimate> given = repeated_eval(b, pairs, false, b.stochastic_eval ? o.eval_repeats : 2);
-  PairChi2 chi;
-  std::vector<Estimate> reference;
-  for (std::size_t i = 0; i < pairs.size(); ++i) {
-    if (o.run.cancelled()) throw Cancelled("the walk's eval");
-    const SmithWalkEval e = smith_walk_eval(walk_surface(ggx), walk_options(m, pairs[i].wi, o.reference_paths, o.seed + i, o),
-                                            pairs[i].wo);
-    // The walk's f is in importance transport; radiance holds (n_wi / n_wo)^2 more.
-    const double n = index_at(m, pairs[i].wi) / index_at(m, pairs[i].wo);
-    const double scale = std::abs(pairs[i].wo.z()) * (b.convention.transport == TransportMode::radiance ? n * n : 1.0);
-    double v = 0, var = 0;
-    for (int c = 0; c < m.channels(); ++c) {
-      const Estimate x = e.value(c);
-      v += x.value * scale / m.channels(), var += std::pow(x.standard_error * scale / m.channels(), 2);
-    }
-    reference.push_back({v, std::sqrt(var)});
-    add_pair(chi, i, given[i], reference.back());
-  }
-  return pair_line("eval", chi, pairs, given.empty() ? Estimate{} : given[chi.worst],
-                   reference.empty() ? Estimate{} : reference[chi.worst], "eval() against the walk's next-event eval",
-                   level);
+  const int r1 = b.stochastic_eval ? std::max(2, o.eval_repeats) : 2;
+  const std::vector<Estimate> given = repeated_eval(b, pairs, false, r1);
+  const std::vector<Estimate> reference = walk_reference(m, ggx, pairs, b.convention, o.reference_paths, o.seed, o);
+  const BatteryLine first = eval_stage(pairs, given, reference, level);
+  if (first.passed || !b.stochastic_eval) return first;
+  // Stage 2: fresh calls of the BSDF, kRecheckCalls times as many, and fresh walks of the reference (another seed).
+  const int r2 = r1 * kRecheckCalls;
+  const double ratio = double(r1) / double(r2);
+  const std::vector<Estimate> given2 = floored(repeated_eval(b, pairs, false, r2), given, ratio);
+  const std::uint64_t paths = o.reference_paths * kRecheckReferenceWalks;
+  const std::vector<Estimate> reference2 = floored(walk_reference(m, ggx, pairs, b.convention, paths, ~o.seed, o), reference,
+                                                   1.0 / kRecheckReferenceWalks);
+  const double cv = std::max(largest_cv(given, r1), largest_cv(given2, r2));
+  const double cv_walk = std::max(largest_cv(reference, int(o.reference_paths)), largest_cv(reference2, int(paths)));
+  BatteryLine second = eval_stage(pairs, pooled(given2, cv, r2), pooled(reference2, cv_walk, int(paths)), level);
+  second.detail += fmt::format("; relative standard deviation per call (per walk of the reference) pooled over the "
+                               "pairs {:.3g} ({:.3g})", cv, cv_walk);
+  return two_stage(first, second, kRecheckCalls, "calls (and 4 times the reference's walks)");
 }
 
 BatteryLine stochastic_reciprocity(const BsdfUnderTest& b, const Material& m, const std::vector<BsdfQuery>& pairs,
                                    double level, const BatteryOptions& o) {
-  const std::vector<Estimate> forward = repeated_eval(b, pairs, false, o.eval_repeats);
-  const std::vector<Estimate> backward = repeated_eval(b, pairs, true, o.eval_repeats);
-  PairChi2 chi;
-  std::vector<Estimate> a, e;
-  for (std::size_t i = 0; i < pairs.size(); ++i) {
-    const double ci = std::abs(pairs[i].wi.z()), co = std::abs(pairs[i].wo.z());
-    const double ratio = reciprocal_ratio(m, b.convention, pairs[i].wi, pairs[i].wo);
-    a.push_back({backward[i].value / ci, backward[i].standard_error / ci});
-    e.push_back({forward[i].value / co * ratio, forward[i].standard_error / co * ratio});
-    add_pair(chi, i, a.back(), e.back());
-  }
-  return pair_line("reciprocity", chi, pairs, a.empty() ? Estimate{} : a[chi.worst], e.empty() ? Estimate{} : e[chi.worst],
-                   "f(wo, wi) against reciprocity's f(wi, wo)", level);
+  const int r1 = std::max(2, o.eval_repeats);
+  const std::vector<Estimate> forward = repeated_eval(b, pairs, false, r1), backward = repeated_eval(b, pairs, true, r1);
+  const BatteryLine first = reciprocity_stage(b, m, pairs, forward, backward, level);
+  if (first.passed || !b.stochastic_eval) return first;
+  const int r2 = r1 * kRecheckCalls;
+  const double ratio = double(r1) / double(r2);
+  const std::vector<Estimate> forward2 = floored(repeated_eval(b, pairs, false, r2), forward, ratio);
+  const std::vector<Estimate> backward2 = floored(repeated_eval(b, pairs, true, r2), backward, ratio);
+  const double cv = std::max({largest_cv(forward, r1), largest_cv(backward, r1), largest_cv(forward2, r2),
+                              largest_cv(backward2, r2)});
+  BatteryLine second = reciprocity_stage(b, m, pairs, pooled(forward2, cv, r2), pooled(backward2, cv, r2), level);
+  second.detail += fmt::format("; relative standard deviation per call pooled over the pairs {:.3g}", cv);
+  return two_stage(first, second, kRecheckCalls, "calls");
 }
 
 double reciprocal_ratio(const Material& m, const BsdfConvention& c, const Vec3<double>& a, const Vec3<double>& b) {

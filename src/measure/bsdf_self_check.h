@@ -18,6 +18,13 @@
 //   - eval against the walk's next-event estimate at query pairs, by a chi-square over pairs with both
 //     standard errors (the BSDF's from repeated calls);
 //   - reciprocity of a stochastic eval by the same chi-square.
+// A test of a stochastic eval() (integral, eval, reciprocity) that rejects is run again on fresh calls, and rejects
+// only if this second stage rejects too: a heavy-tailed estimate (the Smith walk's) gets from its own few hundred
+// calls a standard error too small and a mean mostly too low. The pair tests' second stage: 64 times the calls per
+// pair (4 times the reference's walks), each standard error at least the first stage's scaled to the larger count
+// and at least |mean| times the largest relative standard deviation per call over all pairs (a robust upper
+// bound: the tail one pair's calls missed, another's met); the integral test's: 4 times the points per cell, each
+// cell's variance at least the first stage's scaled. The second stage tests on data of its own: the level holds.
 // Weights and values of several channels are averaged over the channels.
 #pragma once
 

@@ -10,6 +10,7 @@
 #include <fmt/core.h>
 #include <gtest/gtest.h>
 
+#include <cstdlib>
 #include <map>
 #include <set>
 #include <stdexcept>
@@ -224,6 +225,29 @@ TEST(BsdfBatteryWorked, DISABLED_DetectionRate) {
 
 TEST(BsdfBatteryWorked, DISABLED_WalkDetectionRate) {
   fmt::print("{}{}", kRateHeader, detection_rows("Smith walk", scaled_walk, BatteryReference::smith_walk, {0, 3e-3, 1e-2, 3e-2, 1e-1}));
+}
+
+// The negative control of the walk's rows over more seeds (1-10; MICROSIM_WALK_SEEDS=N for 1-N), every test's
+// line of the two-stage tests printed (stage 1's rejection and stage 2's verdict): the correct Smith glass (eta
+// 1.5, alpha 1) at the default budget. A measurement (docs/records/bsdf-battery.md): run with
+// --gtest_also_run_disabled_tests.
+TEST(BsdfBatteryWorked, DISABLED_WalkNegativeControlSeeds) {
+  const char* env = std::getenv("MICROSIM_WALK_SEEDS");
+  const int seeds = env ? std::atoi(env) : 10;
+  int rejected = 0;
+  for (int seed = 1; seed <= seeds; ++seed) {
+    const WorkedBsdf w = walk_dielectric(1.0);
+    BatteryOptions o;
+    o.reference = BatteryReference::smith_walk;
+    o.seed = std::uint64_t(seed);
+    const BatteryReport r = run_bsdf_battery(w.bsdf, w.claimed, w.ggx, o);
+    rejected += !r.passed;
+    fmt::print("seed {}: {}\n", seed, r.passed ? "pass" : "REJECTED");
+    for (const BatteryLine& l : r.lines)
+      if (!l.passed || l.detail.find("stage 2") != std::string::npos)
+        fmt::print("  {} {} {}: {}\n", l.passed ? "pass" : "REJECTED", l.test, l.view, l.detail);
+  }
+  fmt::print("the correct walk rejected at {} of {} seeds\n", rejected, seeds);
 }
 
 }  // namespace

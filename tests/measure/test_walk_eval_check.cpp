@@ -2,6 +2,7 @@
 // (GGX alpha 1, eta 1.5), its values the walk's own next-event estimate from 8 times the check's walks (its own
 // noise, not in the test, an eighth of the walk's variance), passes at level 0.01 (fixed seeds: the negative control); the same from the walk that keeps its height after a
 // refraction is rejected, its worst pair named first.
+#include "battery_bsdfs.h"
 #include "measure/bsdf_self_check.h"
 #include "measure/walk_eval_check.h"
 #include "scatter/smith_walk.h"
@@ -84,6 +85,104 @@ TEST(WalkEvalCheck, DISABLED_ReciprocityAtAGrazingPair) {
       fmt::print("  order bin {}: {:.6g} +- {:.2g} and {:.6g} +- {:.2g}\n", k + 1, f.value(0, k).value,
                  f.value(0, k).standard_error, g.value(0, k).value, g.value(0, k).standard_error);
   }
+}
+
+}  // namespace
+}  // namespace microsim::test
+
+namespace microsim::test {
+namespace {
+
+// The battery's stochastic reciprocity test (measure/bsdf_self_check.h) at its 48 query pairs of the glass and that
+// grazing pair both ways, level 0.01: the correct walk (eval() 4 walks per call, 64 calls per pair at stage 1;
+// query seed 3) passes, its stage 1 rejecting (the heavy tail) and its stage 2 (64 times the fresh calls, the
+// standard errors pooled over the pairs) not; the same walk with eval() times 1 + 2 cos^2(wi), not reciprocal, is
+// rejected by both stages (query seed 1: the negative control).
+TEST(WalkEvalCheck, AStochasticEvalsReciprocityAtAGrazingPairPassesInTwoStages) {
+  const Material glass = Material::dielectric(1.5);
+  const Vec3<double> a = Vec3<double>(0.696, 0.696, 0.174).normalized(), b = Vec3<double>(0.322, -0.112, 0.940).normalized();
+  const auto pairs = [&](std::uint64_t seed) {
+    std::vector<BsdfQuery> p = battery::stochastic_pairs(bsdf_queries(glass, 256, seed, GGX<double>(1.0, 1.0)), 48);
+    p.push_back({a, b}), p.push_back({b, a});
+    return p;
+  };
+  const WorkedBsdf right = walk_dielectric(1.0);
+  const BatteryLine pass = battery::stochastic_reciprocity(right.bsdf, glass, pairs(3), 0.01, BatteryOptions{});
+  EXPECT_TRUE(pass.passed) << pass.detail;
+  EXPECT_NE(pass.detail.find("stage 1 rejected"), std::string::npos) << pass.detail;
+  WorkedBsdf tilted = walk_dielectric(1.0);
+  tilted.bsdf.eval = [e = tilted.bsdf.eval](std::span<const Vec3<double>> wi, std::span<const Vec3<double>> wo,
+                                            std::span<double> v) {
+    e(wi, wo, v);
+    for (std::size_t i = 0; i < wi.size(); ++i) v[i] *= 1 + 2 * wi[i].z() * wi[i].z();
+  };
+  const BatteryLine fail = battery::stochastic_reciprocity(tilted.bsdf, glass, pairs(1), 0.01, BatteryOptions{});
+  EXPECT_FALSE(fail.passed) << fail.detail;
+  EXPECT_NE(fail.detail.find("stage 2"), std::string::npos) << fail.detail;
+  fmt::print("right: {}\ntilted: {}\n", pass.detail, fail.detail);
+}
+
+}  // namespace
+}  // namespace microsim::test
+
+namespace microsim::test {
+namespace {
+
+// The power of the stochastic reciprocity test on the walk glass at its default budget (48 query pairs, 64 calls
+// of 4 walks per pair and direction, level 0.01): eval() times 1 + k cos^2(wi) (not reciprocal: a pair's two
+// directions off by up to a factor 1 + k), query seeds 1-5; per k how many seeds reject at stage 1 and at both.
+// A measurement (docs/records/bsdf-battery.md): run with --gtest_also_run_disabled_tests.
+TEST(WalkEvalCheck, DISABLED_StochasticReciprocityPower) {
+  const Material glass = Material::dielectric(1.5);
+  for (const double k : {0.0, 0.1, 0.3, 1.0, 2.0, 4.0}) {
+    int first = 0, both = 0;
+    for (std::uint64_t seed = 1; seed <= 5; ++seed) {
+      WorkedBsdf w = walk_dielectric(1.0);
+      w.bsdf.eval = [e = w.bsdf.eval, k](std::span<const Vec3<double>> wi, std::span<const Vec3<double>> wo, std::span<double> v) {
+        e(wi, wo, v);
+        for (std::size_t i = 0; i < wi.size(); ++i) v[i] *= 1 + k * wi[i].z() * wi[i].z();
+      };
+      const std::vector<BsdfQuery> pairs = battery::stochastic_pairs(bsdf_queries(glass, 256, seed, GGX<double>(1.0, 1.0)), 48);
+      const BatteryLine l = battery::stochastic_reciprocity(w.bsdf, glass, pairs, 0.01, BatteryOptions{});
+      first += l.detail.find("stage 1 rejected") != std::string::npos;
+      both += !l.passed;
+    }
+    fmt::print("| {:g} | {}/5 | {}/5 |\n", k, first, both);
+  }
+}
+
+}  // namespace
+}  // namespace microsim::test
+
+namespace microsim::test {
+namespace {
+
+// The calls of the walk glass's eval() (4 walks each) toward and from the grazing directions of the reciprocity
+// test's worst pairs and at a pair off the horizon (wi 30 deg, wo 54 deg), 64 and 1024 calls, 6 times each: mean,
+// standard error, sample kurtosis, the largest call's share of the sum. A measurement (docs/records/bsdf-battery.md:
+// why the pair tests' second stage pools the relative standard deviation over the pairs): run with
+// --gtest_also_run_disabled_tests.
+TEST(WalkEvalCheck, DISABLED_TheEvalsTailAtTheWorstPairs) {
+  const Vec3<double> a = Vec3<double>(0.696, 0.696, 0.174).normalized(), b = Vec3<double>(0.322, -0.112, 0.940).normalized();
+  const Vec3<double> c = Vec3<double>(0.985, 0, 0.174).normalized(), d = Vec3<double>(0.104, 0.607, 0.788).normalized();
+  const Vec3<double> e = Vec3<double>(0.5, 0, 0.866).normalized(), f = Vec3<double>(-0.561, 0.585, 0.585).normalized();
+  for (const int n : {64, 1024})
+    for (const auto& [x, y, name] : {std::tuple{b, a, "toward grazing a"}, {a, b, "from grazing a"}, {d, c, "toward grazing c"},
+                                     {c, d, "from grazing c"}, {e, f, "wi 30 deg, wo 54 deg"}, {f, e, "wi 54 deg, wo 30 deg"}}) {
+      const WorkedBsdf w = walk_dielectric(1.0);
+      for (int rep = 0; rep < 6; ++rep) {
+        std::vector<Vec3<double>> wi(static_cast<std::size_t>(n), x), wo(static_cast<std::size_t>(n), y);
+        std::vector<double> v(static_cast<std::size_t>(n));
+        w.bsdf.eval(wi, wo, v);
+        double s1 = 0, s2 = 0, s4 = 0, largest = 0, sum = 0;
+        for (const double t : v) s1 += t, sum += std::abs(t), largest = std::max(largest, std::abs(t));
+        const double m = s1 / n;
+        for (const double t : v) s2 += (t - m) * (t - m), s4 += std::pow(t - m, 4);
+        const double var = s2 / n, kurtosis = var > 0 ? s4 / n / (var * var) : 0;
+        fmt::print("{}, {} calls: mean {:.5g} +- {:.2g}, kurtosis {:.1f}, largest call's share {:.3f}\n", name, n, m,
+                   std::sqrt(var / (n - 1)), kurtosis, sum > 0 ? largest / sum : 0);
+      }
+    }
 }
 
 }  // namespace
