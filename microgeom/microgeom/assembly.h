@@ -179,6 +179,8 @@ namespace detail {
 // (value bits << 32 | index) and given in index order thus end up sorted by (value, index). `scratch` is
 // resized to keys.size(). O(n); used for the ranks of the slope matching and of the statistics.
 void radix_sort_by_high32(std::vector<std::uint64_t>& keys, std::vector<std::uint64_t>& scratch);
+// The same on n keys at `keys`, with n keys of scratch space at `scratch` (the result in `keys`).
+void radix_sort_by_high32(std::uint64_t* keys, std::uint64_t* scratch, std::size_t n);
 }  // namespace detail
 
 }  // namespace microgeom
