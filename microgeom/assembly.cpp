@@ -16,9 +16,11 @@
 #include <cmath>
 #include <complex>
 #include <cstring>
+#include <memory>
 #include <mutex>
 #include <numbers>
 #include <stdexcept>
+#include <type_traits>
 
 namespace microgeom {
 
@@ -26,7 +28,7 @@ namespace detail {
 void radix_sort_by_high32(std::uint64_t* keys, std::uint64_t* scratch, std::size_t n) {
   // 8-bit digits: measured ~30% faster than 11-bit ones on 2M-33M keys (fewer concurrent write streams).
   constexpr int kBits = 8, kBuckets = 1 << kBits, kChunks = 32, kPasses = 32 / kBits;
-  static_assert(kPasses % 2 == 0, "an even number of passes leaves the result in keys");
+  std::uint64_t* const result = keys;
   std::vector<std::array<std::size_t, kBuckets>> offsets(kChunks);
   auto chunk_begin = [&](int c) { return n * std::size_t(c) / kChunks; };
   for (int pass = 0; pass < kPasses; ++pass) {
@@ -38,12 +40,17 @@ void radix_sort_by_high32(std::uint64_t* keys, std::uint64_t* scratch, std::size
     });
     // Exclusive prefix over (bucket, chunk): chunk c's items of bucket b follow those of chunks < c.
     std::size_t running = 0;
-    for (int b = 0; b < kBuckets; ++b)
+    bool one_digit = false;  // every key has the same digit: the pass would not move anything
+    for (int b = 0; b < kBuckets; ++b) {
+      const std::size_t bucket_begin = running;
       for (int c = 0; c < kChunks; ++c) {
         const std::size_t count = offsets[c][b];
         offsets[c][b] = running;
         running += count;
       }
+      one_digit = one_digit || running - bucket_begin == n;
+    }
+    if (one_digit) continue;
     tbb::parallel_for(0, kChunks, [&](int c) {
       auto& next = offsets[c];
       for (std::size_t k = chunk_begin(c); k < chunk_begin(c + 1); ++k)
@@ -51,6 +58,10 @@ void radix_sort_by_high32(std::uint64_t* keys, std::uint64_t* scratch, std::size
     });
     std::swap(keys, scratch);
   }
+  if (keys != result)
+    tbb::parallel_for(0, kChunks, [&](int c) {
+      std::copy(keys + chunk_begin(c), keys + chunk_begin(c + 1), result + chunk_begin(c));
+    });
 }
 
 void radix_sort_by_high32(std::vector<std::uint64_t>& keys, std::vector<std::uint64_t>& scratch) {
@@ -338,7 +349,9 @@ struct RadialTargets {
   HeightSlopes slope;
   const std::uint32_t* radius;
   std::array<float, 2> operator()(const double* row, const double* next, int i, int t, std::size_t k) const {
-    const auto u = slope(row, next, i, t, k);
+    return of_slope(slope(row, next, i, t, k), k);
+  }
+  std::array<float, 2> of_slope(std::array<float, 2> u, std::size_t k) const {
     const double target = std::bit_cast<float>(radius[k]);
     const double r = std::sqrt(double(u[0]) * u[0] + double(u[1]) * u[1]);
     if (r > 0) return {float(target * u[0] / r), float(target * u[1] / r)};
@@ -352,7 +365,11 @@ struct RadialTargets {
 // a field then a spectrum during a re-integration (the FFT's spectrum array). With the heights they are
 // the whole memory of the radial matching: 24 bytes per texel.
 struct MatchBuffers {
-  explicit MatchBuffers(Spectral& fft) : fft(fft), aux_(fftw_alloc_real(fft.buffer_doubles())) {
+  // The heights, if given, are moved into the FFT's real array (and freed) before aux is allocated.
+  explicit MatchBuffers(Spectral& fft, std::vector<double> h = {}) : fft(fft) {
+    std::copy(h.begin(), h.end(), heights());
+    std::vector<double>().swap(h);
+    aux_ = fftw_alloc_real(fft.buffer_doubles());
     if (!aux_) throw std::bad_alloc();
   }
   ~MatchBuffers() { fftw_free(aux_); }
@@ -364,7 +381,7 @@ struct MatchBuffers {
   Spectral& fft;
 
 private:
-  double* aux_;
+  double* aux_ = nullptr;
 };
 
 // Gx (the average of the two targets sharing each horizontal edge, physical slope in cell units) into
@@ -441,14 +458,6 @@ template <class Targets> void reintegrate(MatchBuffers& buf, const Targets& targ
   fft.inverse(gy, buf.heights());
 }
 
-// Re-integration of targets held in arrays; returns the heights.
-std::vector<double> reintegrate(Spectral& fft, const std::vector<float>& tx, const std::vector<float>& ty, double ax,
-                                double ay) {
-  MatchBuffers buf(fft);
-  reintegrate(buf, StoredSlopes{tx.data(), ty.data()}, ax, ay);
-  return std::vector<double>(buf.heights(), buf.heights() + std::size_t(fft.n()) * fft.n());
-}
-
 // One marginal-matching step: the target radius of every triangle (into radius[k], float bits) = the
 // GGX (alpha = 1) quantile of the rank of its normalised slope radius, P(r < R) = R^2 / (1 + R^2) =>
 // R = sqrt(q / (1 - q)), q = rank / (n + 1) (ranks from 1, ties broken by triangle id); the target slope
@@ -501,7 +510,9 @@ double slope_residual(const double* h, int n, const Slopes& slope, const Targets
       for (int t = 0; t < 2; ++t) {
         const std::size_t k = 2 * (std::size_t(j) * n + i) + std::size_t(t);
         const auto u = slope(row, next, i, t, k);
-        const auto m = target(row, next, i, t, k);
+        std::array<float, 2> m;
+        if constexpr (std::is_same_v<Targets, RadialTargets>) m = target.of_slope(u, k);  // the same slope
+        else m = target(row, next, i, t, k);
         const double dx = double(u[0]) - m[0], dy = double(u[1]) - m[1];
         d += std::sqrt(dx * dx + dy * dy);
         s += std::sqrt(double(m[0]) * m[0] + double(m[1]) * m[1]);
@@ -575,9 +586,8 @@ std::vector<double> match_slopes(Spectral& fft, std::vector<double> h, double ax
                                  SlopeTargets& targets, BuildReport& report, const BuildProgress& progress,
                                  double progress_from, double progress_to, const BuildCancel& cancelled) {
   const std::size_t texels = h.size();
-  MatchBuffers buf(fft);
-  std::copy(h.begin(), h.end(), buf.heights());
-  std::vector<double>().swap(h);
+  auto buffers = std::make_unique<MatchBuffers>(fft, std::move(h));
+  MatchBuffers& buf = *buffers;
   for (int it = 0; it < iterations; ++it) {
     if (progress)
       progress(fmt::format("slope matching {}/{}", it + 1, iterations),
@@ -592,7 +602,8 @@ std::vector<double> match_slopes(Spectral& fft, std::vector<double> h, double ax
   stop_if_cancelled(cancelled);
   if (iterations > 0) report.residuals.push_back(targets.match(buf, ax, ay, true));  // of the final field
   targets.release();
-  return std::vector<double>(buf.heights(), buf.heights() + texels);
+  buffers.reset();  // aux freed before the heights are copied out
+  return std::vector<double>(fft.real_data(), fft.real_data() + texels);
 }
 
 // NdfMatch::joint: joint iterations, then the binned refinement of the vertex heights.
@@ -681,9 +692,22 @@ void sort_slopes_by_height(std::vector<double>& h, int n, double ax, double ay) 
   });
 }
 
+// The mixture's targets: the field's slopes (cell units) times the factor of their patch, normalised.
+struct PatchScaledSlopes {
+  int n, patches;
+  double ax, ay;
+  const double* scale;
+  std::array<float, 2> operator()(const double* row, const double* next, int i, int t, std::size_t k) const {
+    const auto u = cell_slope(row, next, n, i, t, 1.0, 1.0);
+    const int j = int(k / 2 / std::size_t(n));
+    const double s = scale[std::size_t(j * patches / n) * patches + std::size_t(i * patches / n)];
+    return {float(u[0] * s / ax), float(u[1] * s / ay)};
+  }
+};
+
 // Gaussian scale mixture: patches of 8 l cells (K x K patches of equal size); patch q scales the field's
 // slopes by 1/sqrt(E_q), E_q ~ Exp(1) from CounterRng(seed, kStreamPatches | q); then re-integrate.
-std::vector<double> mix_roughness_patches(Spectral& fft, const std::vector<double>& h, const AssemblyParams& p, double l,
+std::vector<double> mix_roughness_patches(Spectral& fft, std::vector<double> h, const AssemblyParams& p, double l,
                                           BuildReport& report) {
   const int n = p.resolution;
   const double ax = p.alpha_x, ay = p.alpha_y;
@@ -697,20 +721,11 @@ std::vector<double> mix_roughness_patches(Spectral& fft, const std::vector<doubl
     const double e = std::max(1e-6, -std::log1p(-rng.uniform()));
     scale[q] = 1.0 / std::sqrt(e);
   }
-  const std::size_t tris = 2 * std::size_t(n) * n;
-  std::vector<float> ux(tris), uy(tris);
-  triangle_slopes(h.data(), n, 1.0, 1.0, ux, uy);
-  parallel_rows(n, [&](int j) {
-    for (int i = 0; i < n; ++i) {
-      const double s = scale[std::size_t(j * patches / n) * patches + std::size_t(i * patches / n)];
-      for (int t = 0; t < 2; ++t) {
-        const std::size_t k = 2 * (std::size_t(j) * n + i) + t;
-        ux[k] = float(ux[k] * s / ax);
-        uy[k] = float(uy[k] * s / ay);
-      }
-    }
-  });
-  return reintegrate(fft, ux, uy, ax, ay);
+  {
+    MatchBuffers buf(fft, std::move(h));
+    reintegrate(buf, PatchScaledSlopes{n, patches, ax, ay, scale.data()}, ax, ay);
+  }
+  return std::vector<double>(fft.real_data(), fft.real_data() + std::size_t(n) * n);
 }
 
 // Slopes of a Gaussian field are Gaussian; one scale factor sets E[(sx/ax)^2 + (sy/ay)^2] = 1, i.e.
@@ -732,7 +747,7 @@ std::vector<double> assembly_heights(const AssemblyInfo& info, const AssemblyPar
   Spectral fft(n);
   std::vector<double> h = gaussian_field(fft, p.seed, lx, ly);
   stop_if_cancelled(cancelled);
-  if (info.shaping == AssemblyShaping::roughness_patches) h = mix_roughness_patches(fft, h, p, l, report);
+  if (info.shaping == AssemblyShaping::roughness_patches) h = mix_roughness_patches(fft, std::move(h), p, l, report);
   if (info.shaping == AssemblyShaping::sorted_by_height) {
     sort_slopes_by_height(h, n, ax, ay);
     stop_if_cancelled(cancelled);

@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <limits>
 #include <bit>
 #include <cmath>
@@ -334,13 +335,25 @@ void height_moments(SurfaceStats& st, const Heightfield& field) {
   st.height_excess_kurtosis = c2 > 0 ? c4 / (c2 * c2) - 3.0 : 0.0;
 }
 
-// Ranks 0..n-1 of the values (ties broken by index) into `rank`.
+// Ranks 0..n-1 of the values (ties broken by index) into `rank`, which first holds the values' ordered
+// bits: a ranked entry is marked in a bitmap (one bit per triangle) and read as 0xffffffff, above every
+// finite value's bits, so the later blocks of visit_in_rank_order skip it.
 template <class Value> void ranks_of(std::size_t tris, const Value& value_of, std::vector<std::uint32_t>& rank) {
   rank.resize(tris);
-  in_rank_order(tris, [&](std::size_t k) { return ordered_bits(value_of(k)); },
+  parallel_chunks(tris, [&](std::size_t b, std::size_t e) {
+    for (std::size_t k = b; k < e; ++k) rank[k] = ordered_bits(value_of(k));
+  });
+  std::vector<std::uint64_t> ranked((tris + 63) / 64, 0);
+  auto is_ranked = [&](std::size_t k) { return (ranked[k / 64] >> (k % 64)) & 1u; };
+  in_rank_order(tris, [&](std::size_t k) { return is_ranked(k) ? 0xffffffffu : rank[k]; },
                 [&](std::size_t first, const std::uint64_t* keys, std::size_t count) {
                   parallel_chunks(count, [&](std::size_t b, std::size_t e) {
-                    for (std::size_t s = b; s < e; ++s) rank[std::uint32_t(keys[s])] = std::uint32_t(first + s);
+                    for (std::size_t s = b; s < e; ++s) {
+                      const std::uint32_t k = std::uint32_t(keys[s]);
+                      rank[k] = std::uint32_t(first + s);
+                      std::atomic_ref<std::uint64_t>(ranked[k / 64]).fetch_or(std::uint64_t(1) << (k % 64),
+                                                                               std::memory_order_relaxed);
+                    }
                   });
                 });
 }
