@@ -163,30 +163,16 @@ void match_joint_target(const std::vector<float>& ux, const std::vector<float>& 
 // ---- the NDF error in lobe bins ------------------------------------------------------------------------------
 
 LobeNdfError lobe_ndf_error(const std::vector<float>& ux, const std::vector<float>& uy, NdfKind ref, int rows) {
-  return lobe_ndf_error(ux.size(), [&](std::size_t k) { return std::array<float, 2>{ux[k], uy[k]}; }, ref, rows);
-}
-
-LobeNdfError lobe_ndf_error(std::size_t triangles, const std::function<std::array<float, 2>(std::size_t)>& slope_of,
-                            NdfKind ref, int rows) {
   const LobeNdfBins bins(rows);
   LobeNdfError e;
   e.rows = rows;
   e.bins = bins.size();
-  e.triangles = triangles;
-  if (triangles == 0) return e;
-  constexpr int kChunks = 32;  // integer counts: the sum does not depend on the split
-  std::vector<std::vector<std::uint64_t>> chunk_counts(kChunks, std::vector<std::uint64_t>(std::size_t(bins.size()), 0));
-  tbb::parallel_for(0, kChunks, [&](int c) {
-    for (std::size_t k = triangles * std::size_t(c) / kChunks; k < triangles * std::size_t(c + 1) / kChunks; ++k) {
-      const auto u = slope_of(k);
-      ++chunk_counts[std::size_t(c)][std::size_t(bins.bin_of(u[0], u[1]))];
-    }
-  });
+  e.triangles = ux.size();
+  if (ux.empty()) return e;
   std::vector<std::uint64_t> counts(std::size_t(bins.size()), 0);
-  for (const auto& cc : chunk_counts)
-    for (std::size_t b = 0; b < counts.size(); ++b) counts[b] += cc[b];
+  for (std::size_t k = 0; k < ux.size(); ++k) ++counts[std::size_t(bins.bin_of(ux[k], uy[k]))];
   const std::vector<double> p = bins.probabilities(ref);
-  const double n = double(triangles);
+  const double n = double(ux.size());
   double tv = 0, noise = 0;
   for (std::size_t b = 0; b < p.size(); ++b) {
     tv += std::abs(double(counts[b]) / n - p[b]);

@@ -24,7 +24,6 @@
 #include <array>
 #include <bit>
 #include <cstdint>
-#include <functional>
 #include <numbers>
 #include <vector>
 
@@ -121,8 +120,5 @@ struct LobeNdfError {
 // From the normalised triangle slopes.
 LobeNdfError lobe_ndf_error(const std::vector<float>& ux, const std::vector<float>& uy, NdfKind ref,
                             int rows = kDefaultLobeRows);
-// The same from slope_of(k), k in [0, triangles) (computed on demand instead of stored).
-LobeNdfError lobe_ndf_error(std::size_t triangles, const std::function<std::array<float, 2>(std::size_t)>& slope_of,
-                            NdfKind ref, int rows = kDefaultLobeRows);
 
 }  // namespace microgeom
