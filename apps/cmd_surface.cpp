@@ -576,7 +576,7 @@ void add_build_command(CLI::App* group) {
   build->add_option("--alpha", b->alpha, "GGX/Beckmann roughness AX or AX,AY, each in [0.005, 2]")->required();
   add_number_option(build, "--res", b->resolution,
                     ma::power_of_two(microgeom::kMinAssemblyResolution, microgeom::kMaxAssemblyResolution),
-                    "vertices per side N (a power of two, 16..8192; 8192 needs ~6.7 GiB)")
+                    "vertices per side N (a power of two, 16..8192; 8192 needs ~2 GiB)")
       ->required();
   add_number_option(build, "--seed", b->seed, ma::whole(), "random seed (default 1)");
   const double inf = std::numeric_limits<double>::infinity();

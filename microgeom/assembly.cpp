@@ -1,6 +1,7 @@
 #include "microgeom/assembly.h"
 
 #include "microgeom/ndf_match.h"
+#include "microgeom/rank_order.h"
 
 #include "core/random.h"
 
@@ -15,18 +16,19 @@
 #include <cmath>
 #include <complex>
 #include <cstring>
+#include <memory>
 #include <mutex>
 #include <numbers>
 #include <stdexcept>
+#include <type_traits>
 
 namespace microgeom {
 
 namespace detail {
-void radix_sort_by_high32(std::vector<std::uint64_t>& keys, std::vector<std::uint64_t>& scratch) {
-  const std::size_t n = keys.size();
-  scratch.resize(n);
+void radix_sort_by_high32(std::uint64_t* keys, std::uint64_t* scratch, std::size_t n) {
   // 8-bit digits: measured ~30% faster than 11-bit ones on 2M-33M keys (fewer concurrent write streams).
   constexpr int kBits = 8, kBuckets = 1 << kBits, kChunks = 32, kPasses = 32 / kBits;
+  std::uint64_t* const result = keys;
   std::vector<std::array<std::size_t, kBuckets>> offsets(kChunks);
   auto chunk_begin = [&](int c) { return n * std::size_t(c) / kChunks; };
   for (int pass = 0; pass < kPasses; ++pass) {
@@ -38,19 +40,33 @@ void radix_sort_by_high32(std::vector<std::uint64_t>& keys, std::vector<std::uin
     });
     // Exclusive prefix over (bucket, chunk): chunk c's items of bucket b follow those of chunks < c.
     std::size_t running = 0;
-    for (int b = 0; b < kBuckets; ++b)
+    bool one_digit = false;  // every key has the same digit: the pass would not move anything
+    for (int b = 0; b < kBuckets; ++b) {
+      const std::size_t bucket_begin = running;
       for (int c = 0; c < kChunks; ++c) {
         const std::size_t count = offsets[c][b];
         offsets[c][b] = running;
         running += count;
       }
+      one_digit = one_digit || running - bucket_begin == n;
+    }
+    if (one_digit) continue;
     tbb::parallel_for(0, kChunks, [&](int c) {
       auto& next = offsets[c];
       for (std::size_t k = chunk_begin(c); k < chunk_begin(c + 1); ++k)
         scratch[next[(keys[k] >> shift) & (kBuckets - 1)]++] = keys[k];
     });
-    keys.swap(scratch);
+    std::swap(keys, scratch);
   }
+  if (keys != result)
+    tbb::parallel_for(0, kChunks, [&](int c) {
+      std::copy(keys + chunk_begin(c), keys + chunk_begin(c + 1), result + chunk_begin(c));
+    });
+}
+
+void radix_sort_by_high32(std::vector<std::uint64_t>& keys, std::vector<std::uint64_t>& scratch) {
+  scratch.resize(keys.size());
+  radix_sort_by_high32(keys.data(), scratch.data(), keys.size());
 }
 }  // namespace detail
 
@@ -177,7 +193,7 @@ std::mutex& fftw_planner_mutex() {
 class Spectral {
 public:
   explicit Spectral(int n) : n_(n), nh_(n / 2 + 1) {
-    real_ = fftw_alloc_real(std::size_t(n) * n);
+    real_ = fftw_alloc_real(buffer_doubles());
     spec_ = fftw_alloc_complex(std::size_t(n) * nh_);
     if (!real_ || !spec_) {
       fftw_free(real_);
@@ -200,6 +216,11 @@ public:
 
   int n() const { return n_; }
   int nh() const { return nh_; }
+  // Both arrays hold N (N/2 + 1) complex numbers = N (N + 2) doubles, so either can hold a field or a
+  // spectrum (the plans run on any arrays of that size and alignment: FFTW's new-array execute).
+  std::size_t buffer_doubles() const { return std::size_t(n_) * std::size_t(2 * nh_); }
+  double* real_data() { return real_; }
+  double* spec_data() { return reinterpret_cast<double*>(spec_); }
   double& real(int i, int j) { return real_[std::size_t(j) * n_ + i]; }
   std::complex<double>* spectrum() { return reinterpret_cast<std::complex<double>*>(spec_); }
   std::complex<double>& spec(int fx, int fy) { return spectrum()[std::size_t(fy) * nh_ + fx]; }
@@ -208,11 +229,16 @@ public:
 
   void forward() { fftw_execute(forward_); }
   // Inverse transform, normalised (FFTW's c2r is unnormalised); destroys the spectrum.
-  void inverse() {
-    fftw_execute(inverse_);
+  void inverse() { inverse(spectrum(), real_); }
+  // The same plans on other arrays of buffer_doubles() from fftw_alloc (out of place, like the plans).
+  void forward(double* in, std::complex<double>* out) {
+    fftw_execute_dft_r2c(forward_, in, reinterpret_cast<fftw_complex*>(out));
+  }
+  void inverse(std::complex<double>* in, double* out) {
+    fftw_execute_dft_c2r(inverse_, reinterpret_cast<fftw_complex*>(in), out);
     const double s = 1.0 / (double(n_) * n_);
     tbb::parallel_for(std::size_t(0), std::size_t(n_), [&](std::size_t j) {
-      double* row = real_ + j * n_;
+      double* row = out + j * n_;
       for (int i = 0; i < n_; ++i) row[i] *= s;
     });
   }
@@ -277,20 +303,122 @@ std::vector<double> gaussian_field(Spectral& fft, std::uint64_t seed, double lx,
   return h;
 }
 
-// Triangle slopes of a grid field (cell units), normalised by (ax, ay): see heightfield.h for the split.
-void triangle_slopes(const std::vector<double>& h, int n, double ax, double ay, std::vector<float>& ux,
-                     std::vector<float>& uy) {
+// Normalised slope of triangle t of the cell (i, row) from the heights of the row and of the next row
+// (cell units, divided by (ax, ay), rounded to float): see heightfield.h for the split.
+std::array<float, 2> cell_slope(const double* row, const double* next, int n, int i, int t, double ax, double ay) {
+  const int i1 = i + 1 == n ? 0 : i + 1;
+  const double h00 = row[i], h10 = row[i1], h01 = next[i], h11 = next[i1];
+  if (t == 0) return {float((h10 - h00) / ax), float((h11 - h10) / ay)};
+  return {float((h11 - h01) / ax), float((h01 - h00) / ay)};
+}
+
+// Triangle slopes of a grid field (cell units), normalised by (ax, ay), into arrays (triangle id order).
+void triangle_slopes(const double* h, int n, double ax, double ay, std::vector<float>& ux, std::vector<float>& uy) {
   parallel_rows(n, [&](int j) {
-    const int j1 = j + 1 == n ? 0 : j + 1;
+    const double* row = h + std::size_t(j) * n;
+    const double* next = h + std::size_t(j + 1 == n ? 0 : j + 1) * n;
+    for (int i = 0; i < n; ++i)
+      for (int t = 0; t < 2; ++t) {
+        const auto u = cell_slope(row, next, n, i, t, ax, ay);
+        const std::size_t k = 2 * (std::size_t(j) * n + i) + std::size_t(t);
+        ux[k] = u[0];
+        uy[k] = u[1];
+      }
+  });
+}
+
+// Per-triangle slopes or targets (normalised, float) as functions of (row, next row, i, t, triangle id):
+// from arrays, or computed from the heights and a stored target radius, so the radial matching keeps no
+// slope arrays (4 floats per triangle) in memory.
+struct StoredSlopes {
+  const float *x, *y;
+  std::array<float, 2> operator()(const double*, const double*, int, int, std::size_t k) const { return {x[k], y[k]}; }
+};
+
+struct HeightSlopes {
+  int n;
+  double ax, ay;
+  std::array<float, 2> operator()(const double* row, const double* next, int i, int t, std::size_t) const {
+    return cell_slope(row, next, n, i, t, ax, ay);
+  }
+};
+
+// The target of the radial matching: the slope's direction with the radius of its rank (radius[k], float
+// bits); zero slopes keep angle 0.
+struct RadialTargets {
+  HeightSlopes slope;
+  const std::uint32_t* radius;
+  std::array<float, 2> operator()(const double* row, const double* next, int i, int t, std::size_t k) const {
+    return of_slope(slope(row, next, i, t, k), k);
+  }
+  std::array<float, 2> of_slope(std::array<float, 2> u, std::size_t k) const {
+    const double target = std::bit_cast<float>(radius[k]);
+    const double r = std::sqrt(double(u[0]) * u[0] + double(u[1]) * u[1]);
+    if (r > 0) return {float(target * u[0] / r), float(target * u[1] / r)};
+    return {float(target), 0.0f};
+  }
+};
+
+// The three buffers of the slope matching, each N (N + 2) doubles: a real N x N field or an N x (N/2 + 1)
+// half spectrum. heights: the field (the FFT's real array); aux: the target radius per triangle (float
+// bits) during a matching, a spectrum during a re-integration; work: the sort buffer during a matching,
+// a field then a spectrum during a re-integration (the FFT's spectrum array). With the heights they are
+// the whole memory of the radial matching: 24 bytes per texel.
+struct MatchBuffers {
+  // The heights, if given, are moved into the FFT's real array (and freed) before aux is allocated.
+  explicit MatchBuffers(Spectral& fft, std::vector<double> h = {}) : fft(fft) {
+    std::copy(h.begin(), h.end(), heights());
+    std::vector<double>().swap(h);
+    aux_ = fftw_alloc_real(fft.buffer_doubles());
+    if (!aux_) throw std::bad_alloc();
+  }
+  ~MatchBuffers() { fftw_free(aux_); }
+  MatchBuffers(const MatchBuffers&) = delete;
+  MatchBuffers& operator=(const MatchBuffers&) = delete;
+  double* heights() { return fft.real_data(); }
+  double* aux() { return aux_; }
+  double* work() { return fft.spec_data(); }
+  Spectral& fft;
+
+private:
+  double* aux_ = nullptr;
+};
+
+// Gx (the average of the two targets sharing each horizontal edge, physical slope in cell units) into
+// `out`: t0 of cell (i, j) and t1 of cell (i, j - 1).
+template <class Targets> void edge_targets_x(const double* h, int n, double ax, const Targets& target, double* out) {
+  parallel_rows(n, [&](int j) {
+    const int jm = j == 0 ? n - 1 : j - 1, j1 = j + 1 == n ? 0 : j + 1;
+    const double *prev = h + std::size_t(jm) * n, *row = h + std::size_t(j) * n, *next = h + std::size_t(j1) * n;
     for (int i = 0; i < n; ++i) {
-      const int i1 = i + 1 == n ? 0 : i + 1;
-      const double h00 = h[std::size_t(j) * n + i], h10 = h[std::size_t(j) * n + i1],
-                   h01 = h[std::size_t(j1) * n + i], h11 = h[std::size_t(j1) * n + i1];
-      const std::size_t t0 = 2 * (std::size_t(j) * n + i), t1 = t0 + 1;
-      ux[t0] = float((h10 - h00) / ax);
-      uy[t0] = float((h11 - h10) / ay);
-      ux[t1] = float((h11 - h01) / ax);
-      uy[t1] = float((h01 - h00) / ay);
+      const float a = target(row, next, i, 0, 2 * (std::size_t(j) * n + i))[0];
+      const float b = target(prev, row, i, 1, 2 * (std::size_t(jm) * n + i) + 1)[0];
+      out[std::size_t(j) * n + i] = 0.5 * ax * (double(a) + double(b));
+    }
+  });
+}
+
+// Gy (t1 of cell (i, j) and t0 of cell (i - 1, j)) over the heights, in place: a row's Gy needs the
+// heights of that row and the next, so each block of rows runs in order, its next block's first row saved.
+template <class Targets> void edge_targets_y_in_place(double* h, int n, double ay, const Targets& target) {
+  const int blocks = std::min(n, 64);
+  auto first_row = [&](int b) { return n * b / blocks; };
+  std::vector<double> saved(std::size_t(blocks) * n);
+  for (int b = 0; b < blocks; ++b)
+    std::copy_n(h + std::size_t(first_row(b)) * n, n, saved.data() + std::size_t(b) * n);
+  tbb::parallel_for(0, blocks, [&](int b) {
+    std::vector<double> out(static_cast<std::size_t>(n));
+    std::vector<float> t0(static_cast<std::size_t>(n));
+    for (int j = first_row(b); j < first_row(b + 1); ++j) {
+      double* row = h + std::size_t(j) * n;
+      const double* next = j + 1 < first_row(b + 1) ? row + n : saved.data() + std::size_t((b + 1) % blocks) * n;
+      for (int i = 0; i < n; ++i) t0[std::size_t(i)] = target(row, next, i, 0, 2 * (std::size_t(j) * n + i))[1];
+      for (int i = 0; i < n; ++i) {
+        const int im = i == 0 ? n - 1 : i - 1;
+        const float a = target(row, next, i, 1, 2 * (std::size_t(j) * n + i) + 1)[1];
+        out[std::size_t(i)] = 0.5 * ay * (double(a) + double(t0[std::size_t(im)]));
+      }
+      std::copy(out.begin(), out.end(), row);
     }
   });
 }
@@ -303,100 +431,92 @@ void triangle_slopes(const std::vector<double>& h, int n, double ax, double ay, 
 // the two targets; with forward differences Dx <-> (e^{2 pi i fx/N} - 1) H in Fourier space the normal
 // equations decouple per frequency:
 //   H = (conj(dx) Gx / ax^2 + conj(dy) Gy / ay^2) / (|dx|^2 / ax^2 + |dy|^2 / ay^2),  H(0) = 0.
-std::vector<double> reintegrate(Spectral& fft, const std::vector<float>& tx, const std::vector<float>& ty,
-                                double ax, double ay, std::vector<std::complex<double>>& gx_spec) {
+// The targets may read the heights and the aux buffer; the new heights replace the old ones.
+template <class Targets> void reintegrate(MatchBuffers& buf, const Targets& target, double ax, double ay) {
+  Spectral& fft = buf.fft;
   const int n = fft.n(), nh = fft.nh();
-  // Gx (physical slope, cell units) -> spectrum, saved in gx_spec.
-  parallel_rows(n, [&](int j) {
-    const int jm = j == 0 ? n - 1 : j - 1;
-    for (int i = 0; i < n; ++i)
-      fft.real(i, j) = 0.5 * ax * (double(tx[2 * (std::size_t(j) * n + i)]) +
-                                   double(tx[2 * (std::size_t(jm) * n + i) + 1]));
-  });
-  fft.forward();
-  gx_spec.resize(std::size_t(n) * nh);
-  std::memcpy(static_cast<void*>(gx_spec.data()), fft.spectrum(), gx_spec.size() * sizeof(gx_spec[0]));
-  parallel_rows(n, [&](int j) {
-    for (int i = 0; i < n; ++i) {
-      const int im = i == 0 ? n - 1 : i - 1;
-      fft.real(i, j) = 0.5 * ay * (double(ty[2 * (std::size_t(j) * n + i) + 1]) +
-                                   double(ty[2 * (std::size_t(j) * n + im)]));
-    }
-  });
-  fft.forward();
+  edge_targets_x(buf.heights(), n, ax, target, buf.work());
+  edge_targets_y_in_place(buf.heights(), n, ay, target);
+  auto* gx = reinterpret_cast<std::complex<double>*>(buf.aux());
+  auto* gy = reinterpret_cast<std::complex<double>*>(buf.work());
+  fft.forward(buf.work(), gx);
+  fft.forward(buf.heights(), gy);
   const double w = 2.0 * std::numbers::pi / n, wx = 1.0 / (ax * ax), wy = 1.0 / (ay * ay);
   parallel_rows(n, [&](int fy) {
     const std::complex<double> dy = std::polar(1.0, w * fy) - 1.0;
     for (int fx = 0; fx < nh; ++fx) {
       const std::complex<double> dx = std::polar(1.0, w * fx) - 1.0;
       const double denom = std::norm(dx) * wx + std::norm(dy) * wy;
-      std::complex<double>& out = fft.spec(fx, fy);
+      std::complex<double>& out = gy[std::size_t(fy) * nh + fx];
       if (denom <= 0) {  // only the mean (fx = fy = 0): heights are defined up to a constant
         out = 0;
         continue;
       }
-      out = (std::conj(dx) * gx_spec[std::size_t(fy) * nh + fx] * wx + std::conj(dy) * out * wy) / denom;
+      out = (std::conj(dx) * gx[std::size_t(fy) * nh + fx] * wx + std::conj(dy) * out * wy) / denom;
     }
   });
-  fft.inverse();
-  std::vector<double> h(std::size_t(n) * n);
-  parallel_rows(n, [&](int j) {
-    for (int i = 0; i < n; ++i) h[std::size_t(j) * n + i] = fft.real(i, j);
-  });
-  return h;
+  fft.inverse(gy, buf.heights());
 }
 
-// One marginal-matching step: (mx, my) = the normalised slopes (ux, uy) with each radius replaced by the
-// GGX (alpha = 1) quantile of its rank, P(r < R) = R^2 / (1 + R^2) => R = sqrt(q / (1 - q)),
-// q = rank / (n + 1) (ranks from 1), keeping the angle. Zero slopes keep angle 0 (atan2(0, 0) = 0).
-// With reference = beckmann (NdfMatch::joint only) the radius quantile is sqrt(-log(1 - q)) instead.
-void match_ggx_marginal(const std::vector<float>& ux, const std::vector<float>& uy, std::vector<float>& mx,
-                        std::vector<float>& my, std::vector<std::uint64_t>& keys, std::vector<std::uint64_t>& scratch,
-                        NdfKind reference = NdfKind::ggx) {
-  const std::size_t n = ux.size();
-  keys.resize(n);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& range) {
-    for (std::size_t k = range.begin(); k != range.end(); ++k) {
-      const float r = std::sqrt(ux[k] * ux[k] + uy[k] * uy[k]);  // >= +0
-      keys[k] = sort_key(r, std::uint32_t(k));
-    }
-  });
-  detail::radix_sort_by_high32(keys, scratch);
-  // In rank order: one scattered write of the target radius (mx doubles as its store), then a sequential
-  // pass; keeps the random memory traffic to one float per triangle.
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& range) {
-    for (std::size_t rank = range.begin(); rank != range.end(); ++rank) {
-      const double q = double(rank + 1) / double(n + 1);
-      mx[std::uint32_t(keys[rank])] =
-          float(reference == NdfKind::ggx ? std::sqrt(q / (1.0 - q)) : std::sqrt(-std::log1p(-q)));
-    }
-  });
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& range) {
-    for (std::size_t k = range.begin(); k != range.end(); ++k) {
-      const double radius = mx[k];
-      const double r = std::sqrt(double(ux[k]) * ux[k] + double(uy[k]) * uy[k]);
-      if (r > 0) {
-        mx[k] = float(radius * ux[k] / r);
-        my[k] = float(radius * uy[k] / r);
-      } else {
-        mx[k] = float(radius);
-        my[k] = 0.0f;
+// One marginal-matching step: the target radius of every triangle (into radius[k], float bits) = the
+// GGX (alpha = 1) quantile of the rank of its normalised slope radius, P(r < R) = R^2 / (1 + R^2) =>
+// R = sqrt(q / (1 - q)), q = rank / (n + 1) (ranks from 1, ties broken by triangle id); the target slope
+// keeps the direction (RadialTargets). With reference = beckmann (NdfMatch::joint only) the radius
+// quantile is sqrt(-log(1 - q)) instead. The ranks come from detail::visit_in_rank_order with the work
+// buffer as its sort buffer; a ranked triangle's entry holds its target with the top bit set meanwhile.
+void match_radial(MatchBuffers& buf, double ax, double ay, NdfKind reference) {
+  const int n = buf.fft.n();
+  const std::size_t tris = 2 * std::size_t(n) * n;
+  auto* radius = reinterpret_cast<std::uint32_t*>(buf.aux());
+  const double* h = buf.heights();
+  parallel_rows(n, [&](int j) {
+    const double* row = h + std::size_t(j) * n;
+    const double* next = h + std::size_t(j + 1 == n ? 0 : j + 1) * n;
+    for (int i = 0; i < n; ++i)
+      for (int t = 0; t < 2; ++t) {
+        const auto u = cell_slope(row, next, n, i, t, ax, ay);
+        const float r = std::sqrt(u[0] * u[0] + u[1] * u[1]);  // >= +0
+        radius[2 * (std::size_t(j) * n + i) + std::size_t(t)] = std::bit_cast<std::uint32_t>(r);
       }
-    }
+  });
+  constexpr std::uint32_t kRanked = 0x80000000u;
+  auto* sort_buffer = reinterpret_cast<std::uint64_t*>(buf.work());
+  detail::visit_in_rank_order(
+      tris, [&](std::size_t k) { return radius[k]; }, sort_buffer, buf.fft.buffer_doubles(),
+      [&](std::size_t first, const std::uint64_t* keys, std::size_t count) {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count), [&](const tbb::blocked_range<std::size_t>& r) {
+          for (std::size_t s = r.begin(); s != r.end(); ++s) {
+            const double q = double(first + s + 1) / double(tris + 1);
+            const float target =
+                float(reference == NdfKind::ggx ? std::sqrt(q / (1.0 - q)) : std::sqrt(-std::log1p(-q)));
+            radius[std::uint32_t(keys[s])] = std::bit_cast<std::uint32_t>(target) | kRanked;
+          }
+        });
+      });
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tris), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t k = r.begin(); k != r.end(); ++k) radius[k] &= ~kRanked;
   });
 }
 
 // mean |u - t| / mean |t| over triangles (deterministic: per-row partial sums added in order).
-double slope_residual(const std::vector<float>& ux, const std::vector<float>& uy, const std::vector<float>& tx,
-                      const std::vector<float>& ty, int n) {
+template <class Slopes, class Targets>
+double slope_residual(const double* h, int n, const Slopes& slope, const Targets& target) {
   std::vector<double> diff(n), norm(n);
   parallel_rows(n, [&](int j) {
+    const double* row = h + std::size_t(j) * n;
+    const double* next = h + std::size_t(j + 1 == n ? 0 : j + 1) * n;
     double d = 0, s = 0;
-    for (std::size_t k = 2 * std::size_t(j) * n; k < 2 * (std::size_t(j) + 1) * n; ++k) {
-      const double dx = double(ux[k]) - tx[k], dy = double(uy[k]) - ty[k];
-      d += std::sqrt(dx * dx + dy * dy);
-      s += std::sqrt(double(tx[k]) * tx[k] + double(ty[k]) * ty[k]);
-    }
+    for (int i = 0; i < n; ++i)
+      for (int t = 0; t < 2; ++t) {
+        const std::size_t k = 2 * (std::size_t(j) * n + i) + std::size_t(t);
+        const auto u = slope(row, next, i, t, k);
+        std::array<float, 2> m;
+        if constexpr (std::is_same_v<Targets, RadialTargets>) m = target.of_slope(u, k);  // the same slope
+        else m = target(row, next, i, t, k);
+        const double dx = double(u[0]) - m[0], dy = double(u[1]) - m[1];
+        d += std::sqrt(dx * dx + dy * dy);
+        s += std::sqrt(double(m[0]) * m[0] + double(m[1]) * m[1]);
+      }
     diff[j] = d;
     norm[j] = s;
   });
@@ -408,57 +528,82 @@ double slope_residual(const std::vector<float>& ux, const std::vector<float>& uy
   return s > 0 ? d / s : 0.0;
 }
 
-// Iterated slope-marginal matching starting from h (cell units); returns the final re-integrated field.
-// Alternating projections onto the GGX radius marginal (non-linear) and onto gradient fields (linear,
-// least squares); the residual typically falls below 1e-3 within 8 iterations (BuildReport::residuals).
-// Only the radius is matched: matching the angle as well was measured to stall the iteration at a ~5%
-// residual, and the angular law of the re-integrated field relaxes back to that of the start field anyway.
 // Throws BuildCancelled if the caller asked to stop.
 void stop_if_cancelled(const BuildCancel& cancelled) {
   if (cancelled && cancelled()) throw BuildCancelled("surface build cancelled");
 }
 
 // The slope targets of one iteration: the radius rank-matched to GGX (angles kept), or the joint
-// stratified target of the reference law (ndf_match.h).
+// stratified target of the reference law (ndf_match.h, on slope arrays). match() returns the residual
+// mean |u - t| / mean |t| when asked; reintegrate() then replaces the heights.
 struct SlopeTargets {
   NdfMatch mode = NdfMatch::radial;
   NdfKind reference = NdfKind::ggx;
   int radial_from = -1;  // the iteration from which the radius alone is matched (-1: never switch)
+  std::vector<float> ux, uy, mx, my;
   std::vector<std::uint64_t> keys, scratch;
   std::vector<std::uint16_t> stratum;
-  void match(const std::vector<float>& ux, const std::vector<float>& uy, std::vector<float>& mx,
-             std::vector<float>& my) {
-    if (mode == NdfMatch::joint) match_joint_target(ux, uy, reference, mx, my, keys, scratch, stratum);
-    else match_ggx_marginal(ux, uy, mx, my, keys, scratch, reference);
+
+  double match(MatchBuffers& buf, double ax, double ay, bool residual) {
+    const int n = buf.fft.n();
+    const HeightSlopes slopes{n, ax, ay};
+    if (mode == NdfMatch::radial) {
+      release();
+      match_radial(buf, ax, ay, reference);
+      const RadialTargets targets{slopes, reinterpret_cast<const std::uint32_t*>(buf.aux())};
+      return residual ? slope_residual(buf.heights(), n, slopes, targets) : 0.0;
+    }
+    const std::size_t tris = 2 * std::size_t(n) * n;
+    ux.resize(tris), uy.resize(tris), mx.resize(tris), my.resize(tris);
+    triangle_slopes(buf.heights(), n, ax, ay, ux, uy);
+    match_joint_target(ux, uy, reference, mx, my, keys, scratch, stratum);
+    return residual ? slope_residual(buf.heights(), n, StoredSlopes{ux.data(), uy.data()},
+                                     StoredSlopes{mx.data(), my.data()})
+                    : 0.0;
+  }
+  void reintegrate(MatchBuffers& buf, double ax, double ay) const {
+    if (mode == NdfMatch::radial)
+      microgeom::reintegrate(buf, RadialTargets{{buf.fft.n(), ax, ay}, reinterpret_cast<const std::uint32_t*>(buf.aux())},
+                             ax, ay);
+    else
+      microgeom::reintegrate(buf, StoredSlopes{mx.data(), my.data()}, ax, ay);
+  }
+  void release() {
+    for (auto* v : {&ux, &uy, &mx, &my}) std::vector<float>().swap(*v);
+    std::vector<std::uint64_t>().swap(keys);
+    std::vector<std::uint64_t>().swap(scratch);
+    std::vector<std::uint16_t>().swap(stratum);
   }
 };
 
+// Iterated slope-marginal matching starting from h (cell units); returns the final re-integrated field.
+// Alternating projections onto the GGX radius marginal (non-linear) and onto gradient fields (linear,
+// least squares); the residual typically falls below 1e-3 within 8 iterations (BuildReport::residuals).
+// Only the radius is matched: matching the angle as well was measured to stall the iteration at a ~5%
+// residual, and the angular law of the re-integrated field relaxes back to that of the start field anyway.
+// Throws BuildCancelled if the caller asked to stop.
 std::vector<double> match_slopes(Spectral& fft, std::vector<double> h, double ax, double ay, int iterations,
                                  SlopeTargets& targets, BuildReport& report, const BuildProgress& progress,
                                  double progress_from, double progress_to, const BuildCancel& cancelled) {
-  const int n = fft.n();
-  const std::size_t tris = 2 * std::size_t(n) * n;
-  std::vector<float> ux(tris), uy(tris), mx(tris), my(tris);
-  std::vector<std::complex<double>> gx_spec;
+  const std::size_t texels = h.size();
+  auto buffers = std::make_unique<MatchBuffers>(fft, std::move(h));
+  MatchBuffers& buf = *buffers;
   for (int it = 0; it < iterations; ++it) {
     if (progress)
       progress(fmt::format("slope matching {}/{}", it + 1, iterations),
                progress_from + (progress_to - progress_from) * it / iterations);
     stop_if_cancelled(cancelled);
-    triangle_slopes(h, n, ax, ay, ux, uy);
     if (it == targets.radial_from) targets.mode = NdfMatch::radial;
-    targets.match(ux, uy, mx, my);
-    if (it > 0) report.residuals.push_back(slope_residual(ux, uy, mx, my, n));
+    const double residual = targets.match(buf, ax, ay, it > 0);
+    if (it > 0) report.residuals.push_back(residual);
     stop_if_cancelled(cancelled);
-    h = reintegrate(fft, mx, my, ax, ay, gx_spec);
+    targets.reintegrate(buf, ax, ay);
   }
   stop_if_cancelled(cancelled);
-  if (iterations > 0) {  // the residual of the final field
-    triangle_slopes(h, n, ax, ay, ux, uy);
-    targets.match(ux, uy, mx, my);
-    report.residuals.push_back(slope_residual(ux, uy, mx, my, n));
-  }
-  return h;
+  if (iterations > 0) report.residuals.push_back(targets.match(buf, ax, ay, true));  // of the final field
+  targets.release();
+  buffers.reset();  // aux freed before the heights are copied out
+  return std::vector<double>(fft.real_data(), fft.real_data() + texels);
 }
 
 // NdfMatch::joint: joint iterations, then the binned refinement of the vertex heights.
@@ -547,9 +692,22 @@ void sort_slopes_by_height(std::vector<double>& h, int n, double ax, double ay) 
   });
 }
 
+// The mixture's targets: the field's slopes (cell units) times the factor of their patch, normalised.
+struct PatchScaledSlopes {
+  int n, patches;
+  double ax, ay;
+  const double* scale;
+  std::array<float, 2> operator()(const double* row, const double* next, int i, int t, std::size_t k) const {
+    const auto u = cell_slope(row, next, n, i, t, 1.0, 1.0);
+    const int j = int(k / 2 / std::size_t(n));
+    const double s = scale[std::size_t(j * patches / n) * patches + std::size_t(i * patches / n)];
+    return {float(u[0] * s / ax), float(u[1] * s / ay)};
+  }
+};
+
 // Gaussian scale mixture: patches of 8 l cells (K x K patches of equal size); patch q scales the field's
 // slopes by 1/sqrt(E_q), E_q ~ Exp(1) from CounterRng(seed, kStreamPatches | q); then re-integrate.
-std::vector<double> mix_roughness_patches(Spectral& fft, const std::vector<double>& h, const AssemblyParams& p, double l,
+std::vector<double> mix_roughness_patches(Spectral& fft, std::vector<double> h, const AssemblyParams& p, double l,
                                           BuildReport& report) {
   const int n = p.resolution;
   const double ax = p.alpha_x, ay = p.alpha_y;
@@ -563,21 +721,11 @@ std::vector<double> mix_roughness_patches(Spectral& fft, const std::vector<doubl
     const double e = std::max(1e-6, -std::log1p(-rng.uniform()));
     scale[q] = 1.0 / std::sqrt(e);
   }
-  const std::size_t tris = 2 * std::size_t(n) * n;
-  std::vector<float> ux(tris), uy(tris);
-  triangle_slopes(h, n, 1.0, 1.0, ux, uy);
-  parallel_rows(n, [&](int j) {
-    for (int i = 0; i < n; ++i) {
-      const double s = scale[std::size_t(j * patches / n) * patches + std::size_t(i * patches / n)];
-      for (int t = 0; t < 2; ++t) {
-        const std::size_t k = 2 * (std::size_t(j) * n + i) + t;
-        ux[k] = float(ux[k] * s / ax);
-        uy[k] = float(uy[k] * s / ay);
-      }
-    }
-  });
-  std::vector<std::complex<double>> gx_spec;
-  return reintegrate(fft, ux, uy, ax, ay, gx_spec);
+  {
+    MatchBuffers buf(fft, std::move(h));
+    reintegrate(buf, PatchScaledSlopes{n, patches, ax, ay, scale.data()}, ax, ay);
+  }
+  return std::vector<double>(fft.real_data(), fft.real_data() + std::size_t(n) * n);
 }
 
 // Slopes of a Gaussian field are Gaussian; one scale factor sets E[(sx/ax)^2 + (sy/ay)^2] = 1, i.e.
@@ -599,7 +747,7 @@ std::vector<double> assembly_heights(const AssemblyInfo& info, const AssemblyPar
   Spectral fft(n);
   std::vector<double> h = gaussian_field(fft, p.seed, lx, ly);
   stop_if_cancelled(cancelled);
-  if (info.shaping == AssemblyShaping::roughness_patches) h = mix_roughness_patches(fft, h, p, l, report);
+  if (info.shaping == AssemblyShaping::roughness_patches) h = mix_roughness_patches(fft, std::move(h), p, l, report);
   if (info.shaping == AssemblyShaping::sorted_by_height) {
     sort_slopes_by_height(h, n, ax, ay);
     stop_if_cancelled(cancelled);

@@ -79,7 +79,7 @@ std::string assembly_names(std::string_view separator);
 inline constexpr double kMinAssemblyAlpha = 0.005;
 inline constexpr double kMaxAssemblyAlpha = 2.0;
 inline constexpr int kMinAssemblyResolution = 16;
-inline constexpr int kMaxAssemblyResolution = 8192;  // ~6.7 GiB at the peak (105 bytes per texel)
+inline constexpr int kMaxAssemblyResolution = 8192;  // ~2 GiB at the peak (radial; build_assembly)
 
 struct AssemblyParams {
   std::string assembly = "smith";
@@ -168,17 +168,22 @@ struct BuildCancelled : std::runtime_error {
 };
 
 // Builds the surface (heights in the unit of tile_size, mean 0). Metadata: assembly, alpha, seed,
-// corr_cells, iterations, reference, ndf_match. Validates first. Memory: about 80 bytes per texel at the peak.
+// corr_cells, iterations, reference, ndf_match. Validates first. Memory at the peak: 24 bytes per texel with
+// NdfMatch::radial (three buffers of N (N + 2) doubles, the heights in one; slopes and targets are computed
+// from them, ranks sorted in blocks), about 90 with NdfMatch::joint (its slope, key and stratum arrays).
 // Throws BuildCancelled when `cancelled` asks to stop.
 Heightfield build_assembly(const AssemblyParams& params, BuildReport* report = nullptr,
                            const BuildProgress& progress = {}, const BuildCancel& cancelled = {});
 
 namespace detail {
 // Sorts 64-bit keys by their upper 32 bits, stably (an LSD radix sort, 4 passes of 8 bits, parallel over
-// a fixed number of chunks, so the result does not depend on the thread count). Keys packed as
+// a fixed number of chunks, so the result does not depend on the thread count; a pass whose digit is the
+// same for every key is skipped). Keys packed as
 // (value bits << 32 | index) and given in index order thus end up sorted by (value, index). `scratch` is
 // resized to keys.size(). O(n); used for the ranks of the slope matching and of the statistics.
 void radix_sort_by_high32(std::vector<std::uint64_t>& keys, std::vector<std::uint64_t>& scratch);
+// The same on n keys at `keys`, with n keys of scratch space at `scratch` (the result in `keys`).
+void radix_sort_by_high32(std::uint64_t* keys, std::uint64_t* scratch, std::size_t n);
 }  // namespace detail
 
 }  // namespace microgeom
