@@ -93,10 +93,11 @@ std::string to_string(HeightfieldGeometry g);
 // "triangles", "grid" or "pyramid"; throws std::invalid_argument otherwise.
 HeightfieldGeometry heightfield_geometry_from_string(const std::string& s);
 // The geometry of every heightfield scene not given one (trace vndf, scatter and trace masking --geometry,
-// albedo tables, experiments). Embree's triangles: the pyramid gives the same hits except on rays within
-// float rounding of an edge (tests/test_pyramid_trace.cpp), 2 of the 200000 rays of the `heightfield`
-// regression pin among them, so making it the default re-records that pin.
-inline constexpr HeightfieldGeometry kDefaultHeightfieldGeometry = HeightfieldGeometry::triangles;
+// albedo tables, experiments): the pyramid, exact in double and watertight, with no BVH (its memory is near
+// the heights', so the largest tiles trace) and faster than Embree's BVH on large tiles
+// (docs/records/heightfield-tracers.md). Embree's triangles stay selectable; the two give the same hits except
+// on rays within Embree's float rounding of an edge (tests/test_pyramid_trace.cpp).
+inline constexpr HeightfieldGeometry kDefaultHeightfieldGeometry = HeightfieldGeometry::pyramid;
 
 inline constexpr int kMaxSegments = 1 << 20;  // per ray; beyond, the ray is reported unresolved
 inline constexpr int kMaxEdgeGrazes = 8;       // per ray; beyond, the exiting hit is returned as it is
