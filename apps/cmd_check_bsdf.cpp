@@ -1,20 +1,19 @@
 // microsim check-bsdf --plugin LIB.so: a renderer's BSDF, loaded in process through the C interface of
-// include/microsim/bsdf_plugin.h (dlopen; ABI 1 or 2), run through the battery of measure/bsdf_battery.h against
-// the BSDF it claims (--bsdf, --alpha; --reference: its exact single scattering, the Smith walk's multiple
-// scattering, or none). Exit 0 every test passed, 1 one rejected, 2 bad usage or a plugin that cannot be loaded,
-// 130 interrupted.
+// include/microsim/bsdf_plugin.h (measure/bsdf_plugin_loader.h: dlopen; ABI 1 or 2), run through the battery of
+// measure/bsdf_battery.h against the BSDF it claims (--bsdf, --alpha; --reference: its exact single scattering,
+// the Smith walk's multiple scattering, or none). Exit 0 every test passed, 1 one rejected, 2 bad usage or a
+// plugin that cannot be loaded, 130 interrupted.
 #include "bsdf_options.h"
 #include "command.h"
 #include "number_options.h"
 #include "progress_bar.h"
 
-#include "microsim/bsdf_plugin.h"
 #include "core/atomic_file.h"
 #include "microfacet/roughness.h"
 #include "measure/bsdf_battery.h"
 #include "measure/bsdf_battery_html.h"
+#include "measure/bsdf_plugin_loader.h"
 
-#include <dlfcn.h>
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
@@ -34,79 +33,14 @@ struct CheckArgs {
   double level = 0.01;
 };
 
-// The loaded library and one BSDF it created; both released in reverse order.
-class LoadedPlugin {
-public:
-  LoadedPlugin(const std::string& path, const std::string& params) {
-    library_ = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
-    if (!library_) throw UsageError(fmt::format("--plugin '{}': {}", path, dlerror()));
-    const auto entry = reinterpret_cast<microsim_bsdf_plugin_entry_fn>(dlsym(library_, "microsim_bsdf_plugin_entry"));
-    if (!entry) throw UsageError(fmt::format("--plugin '{}': no microsim_bsdf_plugin_entry", path));
-    api_ = entry();
-    if (!api_ || api_->abi_version < 1 || api_->abi_version > MICROSIM_BSDF_PLUGIN_ABI)
-      throw UsageError(fmt::format("--plugin '{}': not of ABI version 1 to {}", path, MICROSIM_BSDF_PLUGIN_ABI));
-    if (api_->channels < 1 || api_->channels > MICROSIM_BSDF_MAX_CHANNELS)
-      throw UsageError(fmt::format("--plugin '{}': {} channels", path, api_->channels));
-    if (!api_->create || !api_->destroy || !api_->sample || !api_->eval || (!api_->pdf && api_->abi_version < 2))
-      throw UsageError(fmt::format("--plugin '{}': a function pointer is NULL", path));
-    self_ = api_->create(params.c_str());
-    if (!self_) throw UsageError(fmt::format("--plugin '{}': create(\"{}\") refused the parameters", path, params));
+// The plugin, a load failure as bad usage naming --plugin.
+std::unique_ptr<BsdfPlugin> load_plugin(const std::string& path, const std::string& params) {
+  try {
+    return std::make_unique<BsdfPlugin>(path, params);
+  } catch (const PluginLoadError& e) {
+    throw UsageError(fmt::format("--plugin '{}': {}", e.path(), e.problem()));
   }
-  ~LoadedPlugin() {
-    if (self_) api_->destroy(self_);
-    if (library_) dlclose(library_);
-  }
-  LoadedPlugin(const LoadedPlugin&) = delete;
-  LoadedPlugin& operator=(const LoadedPlugin&) = delete;
-  const microsim_bsdf_plugin& api() const { return *api_; }
-  // The flags of ABI 2; a version-1 plugin's struct ends before them.
-  int flags() const { return api_->abi_version >= 2 ? api_->flags : 0; }
-  void* self() const { return self_; }
-
-private:
-  void* library_ = nullptr;
-  const microsim_bsdf_plugin* api_ = nullptr;
-  void* self_ = nullptr;
-};
-
-// The plugin as a BSDF under test: each row one call.
-BsdfUnderTest under_test(const LoadedPlugin& p) {
-  BsdfUnderTest b;
-  b.name = p.api().name ? p.api().name : "plugin";
-  b.channels = p.api().channels;
-  b.convention = {p.api().transport == 1 ? TransportMode::importance : TransportMode::radiance,
-                  p.api().masking == 1 ? MaskingForm::separable : MaskingForm::height_correlated};
-  b.stochastic_eval = (p.flags() & MICROSIM_BSDF_STOCHASTIC_EVAL) != 0;
-  const auto raw = [](const Vec3<double>& v, double out[3]) { out[0] = v.x(), out[1] = v.y(), out[2] = v.z(); };
-  const std::size_t c = std::size_t(b.channels);
-  b.sample = [&p, raw, c](std::span<const Vec3<double>> wi, std::span<const double> u, std::span<Vec3<double>> wo,
-                          std::span<double> pdf, std::span<double> weight, std::span<unsigned char> kept) {
-    for (std::size_t i = 0; i < wi.size(); ++i) {
-      double in[3], out[3] = {0, 0, 0};
-      raw(wi[i], in);
-      kept[i] = (unsigned char)(p.api().sample(p.self(), in, &u[3 * i], out, &pdf[i], &weight[c * i]) != 0);
-      wo[i] = Vec3<double>(out[0], out[1], out[2]);
-    }
-  };
-  b.eval = [&p, raw, c](std::span<const Vec3<double>> wi, std::span<const Vec3<double>> wo, std::span<double> value) {
-    for (std::size_t i = 0; i < wi.size(); ++i) {
-      double in[3], out[3];
-      raw(wi[i], in), raw(wo[i], out);
-      p.api().eval(p.self(), in, out, &value[c * i]);
-    }
-  };
-  if (!p.api().pdf) return b;  // no closed-form density
-  b.pdf = [&p, raw](std::span<const Vec3<double>> wi, std::span<const Vec3<double>> wo, std::span<double> pdf) {
-    for (std::size_t i = 0; i < wi.size(); ++i) {
-      double in[3], out[3];
-      raw(wi[i], in), raw(wo[i], out);
-      pdf[i] = p.api().pdf(p.self(), in, out);
-    }
-  };
-  return b;
 }
-
-std::string plugin_name(const LoadedPlugin& p) { return p.api().name ? p.api().name : "plugin"; }
 
 void print_table(const BatteryReport& r) {
   fmt::print("{:<12} {:<13} {:>9} {:<9} {}\n", "test", "view", "p", "verdict", "detail");
@@ -127,11 +61,10 @@ std::vector<BatteryView> view_options(const std::vector<std::string>& texts) {
 }
 
 // The plugin against what the BSDF claims; a combination the battery cannot run is a UsageError.
-void check_claims(const LoadedPlugin& plugin, const BatteryOptions& o, const std::string& bsdf, int channels) {
-  if (plugin.api().channels != channels)
-    throw UsageError(fmt::format("--plugin has {} channel(s), --bsdf {} has {}", plugin.api().channels, bsdf, channels));
-  const bool stochastic = (plugin.flags() & MICROSIM_BSDF_STOCHASTIC_EVAL) != 0;
-  if (o.reference == BatteryReference::single_scattering && (stochastic || !plugin.api().pdf))
+void check_claims(const BsdfPlugin& plugin, const BatteryOptions& o, const std::string& bsdf, int channels) {
+  if (plugin.channels() != channels)
+    throw UsageError(fmt::format("--plugin has {} channel(s), --bsdf {} has {}", plugin.channels(), bsdf, channels));
+  if (o.reference == BatteryReference::single_scattering && (plugin.stochastic_eval() || !plugin.has_pdf()))
     throw UsageError("--reference single-scattering needs a deterministic eval() and a pdf(): the plugin declares a "
                      "stochastic eval or has no pdf (--reference smith-walk or none)");
 }
@@ -155,7 +88,8 @@ int run_check_bsdf(const CheckArgs& a) {
   const GGX<double> ggx(ax, ay);
   std::string params;
   for (const std::string& p : a.params) params += (params.empty() ? "" : " ") + p;
-  const LoadedPlugin plugin(a.plugin, params);
+  const std::unique_ptr<BsdfPlugin> loaded = load_plugin(a.plugin, params);
+  const BsdfPlugin& plugin = *loaded;
   BatteryOptions o;
   o.samples = std::uint64_t(a.samples);
   o.seed = a.seed;
@@ -168,7 +102,7 @@ int run_check_bsdf(const CheckArgs& a) {
   o.run = cli_run_control(0, nullptr);
   BatteryReport r;
   try {
-    r = run_bsdf_battery(under_test(plugin), m, ggx, o);
+    r = run_bsdf_battery(plugin.under_test(), m, ggx, o);
   } catch (const Cancelled&) {
     return interrupted_nothing_written("check-bsdf");
   }
@@ -178,7 +112,7 @@ int run_check_bsdf(const CheckArgs& a) {
     write_file_atomically(a.json, j.dump(2) + "\n");
   }
   if (!a.html.empty())
-    write_file_atomically(a.html, battery_html(r, "microsim check-bsdf: " + plugin_name(plugin),
+    write_file_atomically(a.html, battery_html(r, "microsim check-bsdf: " + plugin.name(),
                                                {"plugin: " + a.plugin + (params.empty() ? "" : " (" + params + ")"),
                                                 "claims: " + a.bsdf + ", GGX alpha " + a.alpha + ", reference " + a.reference,
                                                 fmt::format("{} samples per view, seed {}, level {} (Sidak over the "

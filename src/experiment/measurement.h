@@ -1,4 +1,4 @@
-// experiment: one measurement kind behind one interface. A kind (vndf, scattering, albedo, validation, masking)
+// experiment: one measurement kind behind one interface. A kind (vndf, scattering, albedo, validation, masking, bsdf)
 // says what it needs planned (its decisions), the first round the ranks or shards share, a part of a round (a
 // block range run by a thread, an MPI rank or a job-array shard alike: split_rounds.h adds the parts in block
 // order), its rounds against its target, and its values for results.json and resumption. The driver
@@ -92,6 +92,7 @@ void plan_vndf_quantity(const ExperimentSpec&, std::size_t, const PlanOptions&, 
 void plan_scattering_quantity(const ExperimentSpec&, std::size_t, const PlanOptions&, SurfaceCache&, std::vector<Decision>&);
 void plan_validation_quantity(const ExperimentSpec&, std::size_t, const PlanOptions&, SurfaceCache&, std::vector<Decision>&);
 void plan_masking_quantity(const ExperimentSpec&, std::size_t, const PlanOptions&, SurfaceCache&, std::vector<Decision>&);
+void plan_bsdf_quantity(const ExperimentSpec&, std::size_t, const PlanOptions&, SurfaceCache&, std::vector<Decision>&);
 PlanQuantity quantity_planner(QuantityKind kind);  // measurement_registry.cpp
 // Each kind's choice of model (in its file; choose_model asks the registry for the quantity's), and what they
 // share (plan_rules.cpp): a surface named in the spec is measured on it; Smith's model has single scattering in
@@ -102,6 +103,7 @@ ModelChoice vndf_model(const SpecQuantity&, const SpecMaterial&);
 ModelChoice scattering_model(const SpecQuantity&, const SpecMaterial&);
 ModelChoice validation_model(const SpecQuantity&, const SpecMaterial&);
 ModelChoice masking_model(const SpecQuantity&, const SpecMaterial&);
+ModelChoice bsdf_model(const SpecQuantity&, const SpecMaterial&);
 ModelChoice explicit_surface_choice(const SpecQuantity& quantity);
 ModelChoice smith_orders_choice(const SpecQuantity& quantity, const std::string& note);
 ModelRule kind_model_rule(QuantityKind kind);  // measurement_registry.cpp
@@ -112,9 +114,10 @@ std::unique_ptr<Measurement> make_scattering_measurement(const ExperimentSpec& s
 std::unique_ptr<Measurement> make_albedo_measurement(const ExperimentSpec& spec, const Decision& decision);
 std::unique_ptr<Measurement> make_validation_measurement(const ExperimentSpec& spec, const Decision& decision);
 std::unique_ptr<Measurement> make_masking_measurement(const ExperimentSpec& spec, const Decision& decision);
+std::unique_ptr<Measurement> make_bsdf_measurement(const ExperimentSpec& spec, const Decision& decision);
 
 // Each kind's spec keys and their reader (spec_tree.h KindSpec), in its file.
-extern const KindSpec albedo_spec, vndf_spec, scattering_spec, validation_spec, masking_spec;
+extern const KindSpec albedo_spec, vndf_spec, scattering_spec, validation_spec, masking_spec, bsdf_spec;
 
 // The part of a round of rays traced on a decision's tile (measurement_vndf.cpp): a VNDF's on a tile, and
 // the reference rays of a validation against a tile.

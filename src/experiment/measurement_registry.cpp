@@ -28,6 +28,7 @@ constexpr KindEntry kKinds[] = {
     {"scattering", &scattering_spec, true, scattering_model, plan_scattering_quantity, make_scattering_measurement, scattering_report, nullptr, nullptr},
     {"validation", &validation_spec, true, validation_model, plan_validation_quantity, make_validation_measurement, validation_report, nullptr, "validation"},
     {"masking", &masking_spec, true, masking_model, plan_masking_quantity, make_masking_measurement, masking_report, &masking_summary, nullptr},
+    {"bsdf", &bsdf_spec, false, bsdf_model, plan_bsdf_quantity, make_bsdf_measurement, bsdf_report, nullptr, "battery"},
 };
 
 const KindEntry* find_kind(std::string_view name) {

@@ -68,6 +68,8 @@ std::string validation_report(const nlohmann::json&, std::size_t, const ReportHi
                               const std::string&);
 std::string masking_report(const nlohmann::json&, std::size_t, const ReportHistograms&, const ReportScatters&,
                            const std::string&);
+std::string bsdf_report(const nlohmann::json&, std::size_t, const ReportHistograms&, const ReportScatters&,
+                        const std::string&);
 // The kind's section (its name as results.json's decisions give it), or null for a kind not in the registry.
 KindReport kind_report(const std::string& kind);
 

@@ -4,7 +4,7 @@
 // or written), and the results directory of another spec refused. The run's verdict (experiment/verdict.h):
 // a rejected dump (the talk listing's samples) exits 1, named in results.json, on stdout and in the report's
 // headline, and again when the finished or interrupted directory is resumed; a passing dump exits 0 (verdict
-// pass), a run without a test has the verdict none.
+// pass), a run without a test has the verdict none; a BSDF plugin's rejected battery fails the run as well.
 #include "cli_helpers.h"
 #include "sample_dumps.h"
 
@@ -337,6 +337,34 @@ TEST(ExperimentCli, ARejectedDumpFailsTheRunNamedEverywhereAndAgainWhenRerun) {
   EXPECT_NE(again.err.find("resuming: 3 of 3 measurements done"), std::string::npos) << again.err;
   EXPECT_EQ(verdict_of(results_of(dir / "out")), verdict_of(doc));
   EXPECT_NE(again.out.find("Verdict: FAIL (rejected: " + talk + ")"), std::string::npos) << again.out;
+  fs::remove_all(dir);
+}
+
+// A bsdf quantity (a renderer's BSDF plugin through the battery of check-bsdf): the worked plugin with its planted
+// eval() bug fails the run (exit 1), its battery's table in the report; a spec naming no plugin file is exit 2.
+std::string bsdf_spec(const std::string& plugin) {
+  return "[[material]]\nname = \"glass\"\nalpha = 0.3\ntype = \"dielectric\"\neta = 1.5\n\n[[quantity]]\n"
+         "kind = \"bsdf\"\nmaterial = \"glass\"\nplugin = \"" + plugin + "\"\n"
+         "params = { kind = \"dielectric\", alpha = 0.3, eta = 1.5 }\nviews = [60]\nsamples = 20000\n";
+}
+
+TEST(ExperimentCli, ARejectedBsdfPluginFailsTheRunAndAMissingOneIsABadSpec) {
+  const fs::path dir = scratch_dir("experiment", "bsdf");
+  write(dir / "bug.toml", bsdf_spec(MICROSIM_PLUGIN_EVAL_BUG));
+  const auto run = run_cli(dir, "run bug.toml --out out");
+  EXPECT_EQ(run.exit_code, 1) << run.out << run.err;
+  const nlohmann::json r = results_of(dir / "out")["results"];
+  EXPECT_EQ(r["measurements"][0]["values"]["battery"]["verdict"], "fail");
+  EXPECT_EQ(r["verdict"], "fail");
+  EXPECT_EQ(r["tested"], 1);
+  const std::string page = slurp(dir / "out" / "index.html");
+  EXPECT_NE(page.find("<th>test</th><th>view</th><th>p</th><th>verdict</th>"), std::string::npos);
+  EXPECT_NE(page.find("<td>reciprocity</td>"), std::string::npos);
+  write(dir / "missing.toml", bsdf_spec("no-such-plugin.so"));
+  const auto missing = run_cli(dir, "run missing.toml --out missing");
+  EXPECT_EQ(missing.exit_code, 2) << missing.err;
+  EXPECT_NE(missing.err.find("missing.toml:10: quantity[0].plugin"), std::string::npos) << missing.err;
+  EXPECT_FALSE(fs::exists(dir / "missing"));
   fs::remove_all(dir);
 }
 
