@@ -55,9 +55,15 @@ TEST(CheckBsdfCli, APlantedEvalBugIsRejectedByTheEvalAndConsistencyTests) {
   const nlohmann::json j = nlohmann::json::parse(slurp(dir / "c.json"));
   for (const nlohmann::json& t : j["tests"]) {
     const std::string test = t["test"];
-    if (test == "sampling") EXPECT_TRUE(t["passed"].get<bool>()) << t.dump();
-    if (test == "eval" || test == "reciprocity") EXPECT_FALSE(t["passed"].get<bool>()) << t.dump();
-    if (test == "consistency" && t["view"] == "60 deg") EXPECT_FALSE(t["passed"].get<bool>()) << t.dump();
+    if (test == "sampling") {
+      EXPECT_TRUE(t["passed"].get<bool>()) << t.dump();
+    }
+    if (test == "eval" || test == "reciprocity") {
+      EXPECT_FALSE(t["passed"].get<bool>()) << t.dump();
+    }
+    if (test == "consistency" && t["view"] == "60 deg") {
+      EXPECT_FALSE(t["passed"].get<bool>()) << t.dump();
+    }
   }
   // The conductor has no refraction: the bug does not touch it (isotropic: the turned views cost time and add
   // nothing here).
@@ -73,7 +79,9 @@ TEST(CheckBsdfCli, APlantedEvalBugIsRejectedByTheEvalAndConsistencyTests) {
   EXPECT_EQ(swapped.exit_code, 1) << swapped.out << swapped.err;
   const nlohmann::json s = nlohmann::json::parse(slurp(dir / "s.json"));
   for (const nlohmann::json& t : s["tests"]) {
-    if (t["test"] == "sampling" || t["test"] == "eval") EXPECT_FALSE(t["passed"].get<bool>()) << t.dump();
+    if (t["test"] == "sampling" || t["test"] == "eval") {
+      EXPECT_FALSE(t["passed"].get<bool>()) << t.dump();
+    }
   }
   fs::remove_all(dir);
 }
@@ -101,8 +109,12 @@ TEST(CheckBsdfCli, TheSmithWalkPluginPassesAgainstTheWalk) {
   EXPECT_EQ(bug.exit_code, 1) << bug.out << bug.err;
   const nlohmann::json b = nlohmann::json::parse(slurp(dir / "b.json"));
   for (const nlohmann::json& t : b["tests"]) {
-    if (t["test"] == "sampling") EXPECT_TRUE(t["passed"].get<bool>()) << t.dump();
-    if (t["test"] == "eval" || t["test"] == "furnace") EXPECT_FALSE(t["passed"].get<bool>()) << t.dump();
+    if (t["test"] == "sampling") {
+      EXPECT_TRUE(t["passed"].get<bool>()) << t.dump();
+    }
+    if (t["test"] == "eval" || t["test"] == "furnace") {
+      EXPECT_FALSE(t["passed"].get<bool>()) << t.dump();
+    }
   }
   fs::remove_all(dir);
 }
