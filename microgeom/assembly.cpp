@@ -312,18 +312,23 @@ std::array<float, 2> cell_slope(const double* row, const double* next, int n, in
   return {float((h11 - h01) / ax), float((h01 - h00) / ay)};
 }
 
-// Triangle slopes of a grid field (cell units), normalised by (ax, ay), into arrays (triangle id order).
-void triangle_slopes(const double* h, int n, double ax, double ay, std::vector<float>& ux, std::vector<float>& uy) {
+// f(k, u) for every triangle k of a grid field (cell units, rows in parallel) with its slope u normalised by
+// (ax, ay) (cell_slope).
+template <class F>
+void for_each_triangle_slope(const double* h, int n, double ax, double ay, F&& f) {
   parallel_rows(n, [&](int j) {
     const double* row = h + std::size_t(j) * n;
     const double* next = h + std::size_t(j + 1 == n ? 0 : j + 1) * n;
     for (int i = 0; i < n; ++i)
-      for (int t = 0; t < 2; ++t) {
-        const auto u = cell_slope(row, next, n, i, t, ax, ay);
-        const std::size_t k = 2 * (std::size_t(j) * n + i) + std::size_t(t);
-        ux[k] = u[0];
-        uy[k] = u[1];
-      }
+      for (int t = 0; t < 2; ++t) f(2 * (std::size_t(j) * n + i) + std::size_t(t), cell_slope(row, next, n, i, t, ax, ay));
+  });
+}
+
+// Triangle slopes of a grid field (cell units), normalised by (ax, ay), into arrays (triangle id order).
+void triangle_slopes(const double* h, int n, double ax, double ay, std::vector<float>& ux, std::vector<float>& uy) {
+  for_each_triangle_slope(h, n, ax, ay, [&](std::size_t k, const std::array<float, 2>& u) {
+    ux[k] = u[0];
+    uy[k] = u[1];
   });
 }
 
@@ -468,16 +473,9 @@ void match_radial(MatchBuffers& buf, double ax, double ay, NdfKind reference) {
   const int n = buf.fft.n();
   const std::size_t tris = 2 * std::size_t(n) * n;
   auto* radius = reinterpret_cast<std::uint32_t*>(buf.aux());
-  const double* h = buf.heights();
-  parallel_rows(n, [&](int j) {
-    const double* row = h + std::size_t(j) * n;
-    const double* next = h + std::size_t(j + 1 == n ? 0 : j + 1) * n;
-    for (int i = 0; i < n; ++i)
-      for (int t = 0; t < 2; ++t) {
-        const auto u = cell_slope(row, next, n, i, t, ax, ay);
-        const float r = std::sqrt(u[0] * u[0] + u[1] * u[1]);  // >= +0
-        radius[2 * (std::size_t(j) * n + i) + std::size_t(t)] = std::bit_cast<std::uint32_t>(r);
-      }
+  for_each_triangle_slope(buf.heights(), n, ax, ay, [&](std::size_t k, const std::array<float, 2>& u) {
+    const float r = std::sqrt(u[0] * u[0] + u[1] * u[1]);  // >= +0
+    radius[k] = std::bit_cast<std::uint32_t>(r);
   });
   constexpr std::uint32_t kRanked = 0x80000000u;
   auto* sort_buffer = reinterpret_cast<std::uint64_t*>(buf.work());
