@@ -392,11 +392,26 @@ void check_sampler_for_trace(const SamplerInfo& sampler, const GGX<double>& ggx,
 }
 }  // namespace
 
+namespace {
+// The sampler's options.samples tallied in the traced histogram's binnings (no check).
+battery::Tally tally_drawn(const SamplerInfo& sampler, const GGX<double>& ggx, const Vec3<double>& wi,
+                           const ValidationOptions& options, const TracedHistogram& traced) {
+  std::vector<const DirectionBinning*> binnings;
+  for (const DirectionBinning& b : traced.binnings) binnings.push_back(&b);
+  return battery::tally_samples(battery::drawn_samples(sampler, ggx, wi, options), binnings, options);
+}
+}  // namespace
+
+// The reference's bias computed once (its fit to D_v is a cubature), before any sample is drawn.
 ValidationReport compare_sampler_to_trace(const SamplerInfo& sampler, const GGX<double>& ggx, const Vec3<double>& wi,
                                           const ValidationOptions& options, const TracedHistogram& traced) {
   const auto start = std::chrono::steady_clock::now();
-  const battery::Tally tally = tally_drawn_samples_for_trace(sampler, ggx, wi, options, traced);
-  ValidationReport r = report_drawn_samples_against_trace(sampler, ggx, wi, tally, options, traced);
+  check_sampler_for_trace(sampler, ggx, wi, traced);
+  require_trace_samples(options.samples, traced);
+  const ReferenceBias bias = require_usable_reference(traced, options.samples, options.significance);
+  const battery::Tally tally = tally_drawn(sampler, ggx, wi, options, traced);
+  ValidationReport r = oracle_report(battery::drawn_samples(sampler, ggx, wi, options), tally,
+                                     oracle_expectations(traced), ggx, wi, options, bias);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return r;
 }
@@ -406,9 +421,7 @@ battery::Tally tally_drawn_samples_for_trace(const SamplerInfo& sampler, const G
   check_sampler_for_trace(sampler, ggx, wi, traced);
   require_trace_samples(options.samples, traced);
   require_usable_reference(traced, options.samples, options.significance);  // before any sample is drawn
-  std::vector<const DirectionBinning*> binnings;
-  for (const DirectionBinning& b : traced.binnings) binnings.push_back(&b);
-  return battery::tally_samples(battery::drawn_samples(sampler, ggx, wi, options), binnings, options);
+  return tally_drawn(sampler, ggx, wi, options, traced);
 }
 
 ValidationReport report_drawn_samples_against_trace(const SamplerInfo& sampler, const GGX<double>& ggx,
