@@ -3,10 +3,11 @@
 // block range run by a thread, an MPI rank or a job-array shard alike: split_rounds.h adds the parts in block
 // order), its rounds against its target, and its values for results.json and resumption. The driver
 // (run_experiment) owns the order of the measurements, resumption, cancellation, the ranks and the shards.
-// The table of measurement_registry.cpp is the only place that chooses by kind: its name, its spec keys, its
-// model rule, its planner, its Measurement (make_measurement) and its report section.
+// A kind's MeasurementKind (below) holds the rest: its name, its spec keys, its model rule, its planner, its
+// Measurement (make_measurement) and its report section; the registry's table is the only place that lists them.
 #pragma once
 
+#include "experiment/report.h"
 #include "experiment/run.h"
 #include "experiment/spec_tree.h"
 
@@ -87,57 +88,56 @@ protected:
 // The decisions a quantity of the kind needs (its pilots run), appended to `out`.
 using PlanQuantity = void (*)(const ExperimentSpec& spec, std::size_t quantity, const PlanOptions& options,
                               SurfaceCache& surfaces, std::vector<Decision>& out);
-void plan_albedo_quantity(const ExperimentSpec&, std::size_t, const PlanOptions&, SurfaceCache&, std::vector<Decision>&);
-void plan_vndf_quantity(const ExperimentSpec&, std::size_t, const PlanOptions&, SurfaceCache&, std::vector<Decision>&);
-void plan_scattering_quantity(const ExperimentSpec&, std::size_t, const PlanOptions&, SurfaceCache&, std::vector<Decision>&);
-void plan_validation_quantity(const ExperimentSpec&, std::size_t, const PlanOptions&, SurfaceCache&, std::vector<Decision>&);
-void plan_masking_quantity(const ExperimentSpec&, std::size_t, const PlanOptions&, SurfaceCache&, std::vector<Decision>&);
-void plan_bsdf_quantity(const ExperimentSpec&, std::size_t, const PlanOptions&, SurfaceCache&, std::vector<Decision>&);
-PlanQuantity quantity_planner(QuantityKind kind);  // measurement_registry.cpp
-// Each kind's choice of model (in its file; choose_model asks the registry for the quantity's), and what they
-// share (plan_rules.cpp): a surface named in the spec is measured on it; Smith's model has single scattering in
+// A kind's choice of model (choose_model asks the registry for the quantity's), and what the kinds share
+// (plan_rules.cpp): a surface named in the spec is measured on it; Smith's model has single scattering in
 // closed form and every order in the random walk (`note` appended to the reason).
 using ModelRule = ModelChoice (*)(const SpecQuantity& quantity, const SpecMaterial& material);
-ModelChoice albedo_model(const SpecQuantity&, const SpecMaterial&);
-ModelChoice vndf_model(const SpecQuantity&, const SpecMaterial&);
-ModelChoice scattering_model(const SpecQuantity&, const SpecMaterial&);
-ModelChoice validation_model(const SpecQuantity&, const SpecMaterial&);
-ModelChoice masking_model(const SpecQuantity&, const SpecMaterial&);
-ModelChoice bsdf_model(const SpecQuantity&, const SpecMaterial&);
 ModelChoice explicit_surface_choice(const SpecQuantity& quantity);
 ModelChoice smith_orders_choice(const SpecQuantity& quantity, const std::string& note);
-ModelRule kind_model_rule(QuantityKind kind);  // measurement_registry.cpp
-
-// Each kind's file: its implementation of a decision (the decision's model chooses among its variants).
-std::unique_ptr<Measurement> make_vndf_measurement(const ExperimentSpec& spec, const Decision& decision);
-std::unique_ptr<Measurement> make_scattering_measurement(const ExperimentSpec& spec, const Decision& decision);
-std::unique_ptr<Measurement> make_albedo_measurement(const ExperimentSpec& spec, const Decision& decision);
-std::unique_ptr<Measurement> make_validation_measurement(const ExperimentSpec& spec, const Decision& decision);
-std::unique_ptr<Measurement> make_masking_measurement(const ExperimentSpec& spec, const Decision& decision);
-std::unique_ptr<Measurement> make_bsdf_measurement(const ExperimentSpec& spec, const Decision& decision);
-
-// Each kind's spec keys and their reader (spec_tree.h KindSpec), in its file.
-extern const KindSpec albedo_spec, vndf_spec, scattering_spec, validation_spec, masking_spec, bsdf_spec;
+// A kind's implementation of a decision (the decision's model chooses among its variants).
+using MakeMeasurement = std::unique_ptr<Measurement> (*)(const ExperimentSpec& spec, const Decision& decision);
+// A kind's section of one measurement's values in the report (`index` names its files, `label` titles its
+// figures); "" when its values hold nothing to show (a measurement interrupted before its first round).
+using KindReport = std::string (*)(const nlohmann::json& values, std::size_t index, const ReportHistograms& histograms,
+                                   const ReportScatters& scatters, const std::string& label);
 
 // The part of a round of rays traced on a decision's tile (measurement_vndf.cpp): a VNDF's on a tile, and
 // the reference rays of a validation against a tile.
 std::string tile_vndf_part(const ExperimentSpec& spec, const Decision& decision, const RoundTask& task,
                            const BlockRange& mine, const RunControl& run, SurfaceCache& surfaces);
 
-// What a kind adds to the whole run (a registry entry's; masking's over realisations): members of
-// results.json's "results" derived from every measurement (not read back), and sections of the report (from
-// results.json's document) before and after the measurements' own.
+// What a kind adds to the whole run (masking's over realisations): members of results.json's "results" derived
+// from every measurement (not read back), and sections of the report (from results.json's document) before and
+// after the measurements' own.
 struct KindSummary {
   void (*results)(const std::vector<MeasurementResult>& measurements, nlohmann::json& results);
   std::string (*before)(const nlohmann::json& document);
   std::string (*after)(const nlohmann::json& document);
 };
-extern const KindSummary masking_summary;
 
-// The registry (measurement_registry.cpp), the one place that chooses by kind. make_measurement: `spec` and
-// `decision` must outlive it. kind_has_views: its decisions are per alpha and view. The summaries: every kind's.
+// A measurement kind: all that differs by kind, defined in the kind's own file (measurement_K.cpp, as
+// `extern const MeasurementKind K_kind`) and listed once in the registry (measurement_registry.cpp), the only
+// place that chooses by kind. A new kind is its file and its line there.
+struct MeasurementKind {
+  const char* name;         // the spec's `kind` (QuantityKind::name)
+  const KindSpec* spec;     // its keys, their reader and its canonical keys
+  bool views;               // its decisions are per alpha and view (results.json's decisions record both)
+  ModelRule model;          // its cheapest sufficient model
+  PlanQuantity plan;        // its decisions
+  MakeMeasurement make;     // its Measurement of a decision
+  KindReport report;        // its section of a measurement in the report
+  const KindSummary* summary = nullptr;  // what it adds to the whole run (null: nothing)
+  const char* test = nullptr;            // the member of its values that reports its test's verdict (null: none)
+};
+
+// The registry's answers (measurement_registry.cpp). make_measurement: `spec` and `decision` must outlive it.
+// kind_has_views: its decisions are per alpha and view. The summaries: every kind's. kind_report: the kind's
+// report section (its name as results.json's decisions give it), or null for a kind not in the registry.
 std::unique_ptr<Measurement> make_measurement(const ExperimentSpec& spec, const Decision& decision);
+PlanQuantity quantity_planner(QuantityKind kind);
+ModelRule kind_model_rule(QuantityKind kind);
 bool kind_has_views(QuantityKind kind);
+KindReport kind_report(const std::string& kind);
 void add_kind_summaries(const std::vector<MeasurementResult>& measurements, nlohmann::json& results);
 std::string kind_summary_sections(const nlohmann::json& document, bool before);
 // The report of the test a measurement's values hold, whatever its kind (the registry names each testing kind's

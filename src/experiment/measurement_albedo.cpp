@@ -355,19 +355,19 @@ Decision plan_albedo(const ExperimentSpec& spec, std::size_t index, const PlanOp
 
 }  // namespace
 
-void plan_albedo_quantity(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& cache,
-                          std::vector<Decision>& out) {
+static void plan_albedo_quantity(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& cache,
+                                 std::vector<Decision>& out) {
   out.push_back(plan_albedo(spec, index, o, cache));
 }
 
-std::unique_ptr<Measurement> make_albedo_measurement(const ExperimentSpec& spec, const Decision& decision) {
+static std::unique_ptr<Measurement> make_albedo_measurement(const ExperimentSpec& spec, const Decision& decision) {
   if (decision.model.model == Model::analytic) return std::make_unique<AnalyticAlbedo>(spec, decision);
   return std::make_unique<SampledAlbedo>(spec, decision);
 }
 
 // ---- its model --------------------------------------------------------------------------------------------------
 
-ModelChoice albedo_model(const SpecQuantity& q, const SpecMaterial& m) {
+static ModelChoice albedo_model(const SpecQuantity& q, const SpecMaterial& m) {
   if (q.surface.kind != SurfaceChoice::Kind::automatic) return explicit_surface_choice(q);
   return smith_orders_choice(q, m.facet.kind() == MaterialKind::conductor
                                     ? "; a conductor's table is the mirror's (Kulla & Conty 2017: E(mu) for F = 1, the "
@@ -457,10 +457,15 @@ std::string albedo_values(const json& values) {
 }  // namespace
 }  // namespace html
 
-std::string albedo_report(const nlohmann::json& values, std::size_t index, const ReportHistograms&, const ReportScatters&,
-                          const std::string&) {
+static std::string albedo_report(const nlohmann::json& values, std::size_t index, const ReportHistograms&, const ReportScatters&,
+                                 const std::string&) {
   if (!values.contains("quantity_names")) return "";
   return html::albedo_values(values) + fmt::format("<p>Table: <a href=\"albedo-{0}.csv\">albedo-{0}.csv</a>.</p>\n", index);
 }
+
+// ---- its entry in the registry (measurement_registry.cpp) -------------------------------------------------
+
+extern const MeasurementKind albedo_kind{"albedo", &albedo_spec, false, albedo_model, plan_albedo_quantity,
+                                         make_albedo_measurement, albedo_report, nullptr, nullptr};
 
 }  // namespace microsim::experiment

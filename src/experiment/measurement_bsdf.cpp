@@ -104,7 +104,7 @@ std::string bsdf_alpha_text(const std::pair<double, double>& a) {
 }
 }  // namespace
 
-ModelChoice bsdf_model(const SpecQuantity& q, const SpecMaterial& m) {
+static ModelChoice bsdf_model(const SpecQuantity& q, const SpecMaterial& m) {
   const std::string what = fmt::format("a renderer's BSDF (plugin {}) claiming {} at GGX alpha {}",
                                        std::filesystem::path(q.settings.at("plugin").get<std::string>()).filename().string(),
                                        m.facet.describe(), bsdf_alpha_text(m.alphas.front()));
@@ -201,7 +201,7 @@ private:
 
 }  // namespace
 
-std::unique_ptr<Measurement> make_bsdf_measurement(const ExperimentSpec& spec, const Decision& decision) {
+static std::unique_ptr<Measurement> make_bsdf_measurement(const ExperimentSpec& spec, const Decision& decision) {
   return std::make_unique<BsdfBatteryMeasurement>(spec, decision);
 }
 
@@ -209,8 +209,8 @@ std::unique_ptr<Measurement> make_bsdf_measurement(const ExperimentSpec& spec, c
 
 // One decision: the plugin loaded (bad input before anything runs: it does not load, or not against its
 // claims), no pilot (the battery's budget is the spec's).
-void plan_bsdf_quantity(const ExperimentSpec& spec, std::size_t index, const PlanOptions&, SurfaceCache&,
-                        std::vector<Decision>& out) {
+static void plan_bsdf_quantity(const ExperimentSpec& spec, std::size_t index, const PlanOptions&, SurfaceCache&,
+                               std::vector<Decision>& out) {
   const SpecQuantity& q = spec.quantities[index];
   const SpecMaterial& m = spec.material(q.material);
   const std::unique_ptr<BsdfPlugin> plugin = load_quantity_plugin(q, m);
@@ -236,8 +236,8 @@ void plan_bsdf_quantity(const ExperimentSpec& spec, std::size_t index, const Pla
 
 // ---- its report section (report_html.h) -----------------------------------------------------------------------
 
-std::string bsdf_report(const nlohmann::json& values, std::size_t, const ReportHistograms&, const ReportScatters&,
-                        const std::string&) {
+static std::string bsdf_report(const nlohmann::json& values, std::size_t, const ReportHistograms&, const ReportScatters&,
+                               const std::string&) {
   if (!values.contains("battery")) return "";
   using namespace html;
   const json& b = member(values, "battery");
@@ -253,5 +253,10 @@ std::string bsdf_report(const nlohmann::json& values, std::size_t, const ReportH
                      text_of(member(b, "samples")), esc(text_of(member(b, "verdict"))), text_of(member(b, "level"))) +
          table({"test", "view", "p", "verdict", "detail"}, body);
 }
+
+// ---- its entry in the registry (measurement_registry.cpp) -------------------------------------------------
+
+extern const MeasurementKind bsdf_kind{"bsdf", &bsdf_spec, false, bsdf_model, plan_bsdf_quantity,
+                                       make_bsdf_measurement, bsdf_report, nullptr, "battery"};
 
 }  // namespace microsim::experiment

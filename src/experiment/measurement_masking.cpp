@@ -182,13 +182,13 @@ void plan_alpha(const ExperimentSpec& spec, std::size_t index, std::pair<double,
 
 }  // namespace
 
-void plan_masking_quantity(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& surfaces,
+static void plan_masking_quantity(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& surfaces,
                   std::vector<Decision>& out) {
   for (const auto& alpha : spec.material(spec.quantities[index].material).alphas)
     plan_alpha(spec, index, alpha, o, surfaces, out);
 }
 
-std::unique_ptr<Measurement> make_masking_measurement(const ExperimentSpec& spec, const Decision& decision) {
+static std::unique_ptr<Measurement> make_masking_measurement(const ExperimentSpec& spec, const Decision& decision) {
   if (decision.model.model == Model::analytic) return std::make_unique<AnalyticMasking>(spec, decision);
   return std::make_unique<SurfaceMaskingMeasurement>(spec, decision);
 }
@@ -280,7 +280,7 @@ nlohmann::json masking_realisation_means(const std::vector<MeasurementResult>& m
 
 // Masking: Smith's closed forms unless the quantity needs a surface (conditional masking: Smith assumes
 // masking independent of the facet and of height, so only an explicit surface has it) or names one.
-ModelChoice masking_model(const SpecQuantity& q, const SpecMaterial& m) {
+static ModelChoice masking_model(const SpecQuantity& q, const SpecMaterial& m) {
   const std::string ndf = to_string(m.ndf);
   if (q.surface.kind != SurfaceChoice::Kind::automatic)
     return {Model::heightfield,
@@ -545,8 +545,8 @@ std::string realisations_section_html(const json& document) {
 }  // namespace
 }  // namespace html
 
-std::string masking_report(const nlohmann::json& values, std::size_t, const ReportHistograms&, const ReportScatters&,
-                           const std::string& label) {
+static std::string masking_report(const nlohmann::json& values, std::size_t, const ReportHistograms&, const ReportScatters&,
+                                  const std::string& label) {
   return values.contains("masking") ? html::masking_values(values, label) : "";
 }
 
@@ -558,5 +558,10 @@ void add_realisation_means(const std::vector<MeasurementResult>& measurements, n
 }  // namespace
 
 const KindSummary masking_summary{add_realisation_means, html::masking_curves_section_html, html::realisations_section_html};
+
+// ---- its entry in the registry (measurement_registry.cpp) -------------------------------------------------
+
+extern const MeasurementKind masking_kind{"masking", &masking_spec, true, masking_model, plan_masking_quantity,
+                                          make_masking_measurement, masking_report, &masking_summary, nullptr};
 
 }  // namespace microsim::experiment

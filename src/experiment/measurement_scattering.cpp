@@ -346,12 +346,12 @@ void plan_heightfield_scattering(const ExperimentSpec& spec, const SpecQuantity&
 
 }  // namespace
 
-void plan_scattering_quantity(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& cache,
-                              std::vector<Decision>& out) {
+static void plan_scattering_quantity(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& cache,
+                                     std::vector<Decision>& out) {
   plan_views(spec, index, o, cache, {plan_scattering_view, plan_heightfield_scattering}, out);
 }
 
-std::unique_ptr<Measurement> make_scattering_measurement(const ExperimentSpec& spec, const Decision& decision) {
+static std::unique_ptr<Measurement> make_scattering_measurement(const ExperimentSpec& spec, const Decision& decision) {
   if (decision.model.model == Model::analytic) return std::make_unique<AnalyticScattering>(spec, decision);
   if (decision.model.model == Model::heightfield) return std::make_unique<HeightfieldScattering>(spec, decision);
   return std::make_unique<WalkScattering>(spec, decision);
@@ -359,7 +359,7 @@ std::unique_ptr<Measurement> make_scattering_measurement(const ExperimentSpec& s
 
 // ---- its model --------------------------------------------------------------------------------------------------
 
-ModelChoice scattering_model(const SpecQuantity& q, const SpecMaterial&) {
+static ModelChoice scattering_model(const SpecQuantity& q, const SpecMaterial&) {
   return q.surface.kind != SurfaceChoice::Kind::automatic ? explicit_surface_choice(q) : smith_orders_choice(q, "");
 }
 
@@ -442,11 +442,17 @@ std::string analytic_scattering_values(const json& values, const ReportScatters&
 }  // namespace
 }  // namespace html
 
-std::string scattering_report(const nlohmann::json& values, std::size_t index, const ReportHistograms&,
-                              const ReportScatters& scatters, const std::string& label) {
+static std::string scattering_report(const nlohmann::json& values, std::size_t index, const ReportHistograms&,
+                                     const ReportScatters& scatters, const std::string& label) {
   if (values.contains("scattering")) return html::scattering_values(values, scatters, index, label);
   if (values.contains("analytic_scattering")) return html::analytic_scattering_values(values, scatters, index, label);
   return "";
 }
+
+// ---- its entry in the registry (measurement_registry.cpp) -------------------------------------------------
+
+extern const MeasurementKind scattering_kind{"scattering", &scattering_spec, true, scattering_model,
+                                             plan_scattering_quantity, make_scattering_measurement, scattering_report,
+                                             nullptr, nullptr};
 
 }  // namespace microsim::experiment

@@ -370,12 +370,12 @@ void plan_heightfield_validation(const ExperimentSpec& spec, const SpecQuantity&
 
 }  // namespace
 
-void plan_validation_quantity(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& cache,
-                              std::vector<Decision>& out) {
+static void plan_validation_quantity(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& cache,
+                                     std::vector<Decision>& out) {
   plan_views(spec, index, o, cache, {plan_validation_view, plan_heightfield_validation, surface_validation_refusal, false}, out);
 }
 
-std::unique_ptr<Measurement> make_validation_measurement(const ExperimentSpec& spec, const Decision& decision) {
+static std::unique_ptr<Measurement> make_validation_measurement(const ExperimentSpec& spec, const Decision& decision) {
   if (decision.model.model == Model::heightfield) return std::make_unique<TileValidation>(spec, decision);
   if (!spec.quantities.at(decision.quantity).dump.empty()) return std::make_unique<DumpValidation>(spec, decision);
   return std::make_unique<DrawnValidation>(spec, decision);
@@ -399,7 +399,7 @@ ModelChoice validation_choice(const SpecQuantity& q) {
 
 }  // namespace
 
-ModelChoice validation_model(const SpecQuantity& q, const SpecMaterial&) {
+static ModelChoice validation_model(const SpecQuantity& q, const SpecMaterial&) {
   return q.surface.kind != SurfaceChoice::Kind::automatic ? explicit_surface_choice(q) : validation_choice(q);
 }
 
@@ -542,9 +542,15 @@ std::string validation_values(const json& values, const ReportHistograms& histog
 }  // namespace
 }  // namespace html
 
-std::string validation_report(const nlohmann::json& values, std::size_t index, const ReportHistograms& histograms,
-                              const ReportScatters&, const std::string& label) {
+static std::string validation_report(const nlohmann::json& values, std::size_t index, const ReportHistograms& histograms,
+                                     const ReportScatters&, const std::string& label) {
   return values.contains("validation") ? html::validation_values(values, histograms, index, label) : "";
 }
+
+// ---- its entry in the registry (measurement_registry.cpp) -------------------------------------------------
+
+extern const MeasurementKind validation_kind{"validation", &validation_spec, true, validation_model,
+                                             plan_validation_quantity, make_validation_measurement, validation_report,
+                                             nullptr, "validation"};
 
 }  // namespace microsim::experiment

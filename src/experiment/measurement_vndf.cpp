@@ -332,8 +332,8 @@ void plan_heightfield_vndf(const ExperimentSpec& spec, const SpecQuantity& q, co
 
 }  // namespace
 
-void plan_vndf_quantity(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& cache,
-                        std::vector<Decision>& out) {
+static void plan_vndf_quantity(const ExperimentSpec& spec, std::size_t index, const PlanOptions& o, SurfaceCache& cache,
+                               std::vector<Decision>& out) {
   plan_views(spec, index, o, cache, {plan_vndf_view, plan_heightfield_vndf, nullptr, false}, out);
 }
 
@@ -347,14 +347,14 @@ std::string tile_vndf_part(const ExperimentSpec& spec, const Decision& decision,
   return vndf_part(task, m.trace, m.diagnostics);
 }
 
-std::unique_ptr<Measurement> make_vndf_measurement(const ExperimentSpec& spec, const Decision& decision) {
+static std::unique_ptr<Measurement> make_vndf_measurement(const ExperimentSpec& spec, const Decision& decision) {
   if (decision.model.model == Model::heightfield) return std::make_unique<HeightfieldVndfMeasurement>(spec, decision);
   return std::make_unique<EllipsoidVndfMeasurement>(spec, decision);
 }
 
 // ---- its model --------------------------------------------------------------------------------------------------
 
-ModelChoice vndf_model(const SpecQuantity& q, const SpecMaterial&) {
+static ModelChoice vndf_model(const SpecQuantity& q, const SpecMaterial&) {
   if (q.surface.kind != SurfaceChoice::Kind::automatic) return explicit_surface_choice(q);
   return {Model::ellipsoid_oracle, "a measured VNDF histogram: the exact ellipsoid oracle (Heitz 2018: the visible "
                                    "normals of the convex GGX ellipsoid are D_v exactly; only Monte Carlo noise, no "
@@ -416,9 +416,14 @@ std::string vndf_values(const json& values, const ReportHistograms& histograms, 
 }  // namespace
 }  // namespace html
 
-std::string vndf_report(const nlohmann::json& values, std::size_t index, const ReportHistograms& histograms, const ReportScatters&,
-                        const std::string& label) {
+static std::string vndf_report(const nlohmann::json& values, std::size_t index, const ReportHistograms& histograms, const ReportScatters&,
+                               const std::string& label) {
   return values.contains("analysis") ? html::vndf_values(values, histograms, index, label) : "";
 }
+
+// ---- its entry in the registry (measurement_registry.cpp) -------------------------------------------------
+
+extern const MeasurementKind vndf_kind{"vndf", &vndf_spec, true, vndf_model, plan_vndf_quantity,
+                                       make_vndf_measurement, vndf_report, nullptr, nullptr};
 
 }  // namespace microsim::experiment

@@ -1,6 +1,5 @@
 // experiment: the report's HTML pieces shared by the page (report.cpp) and the kinds' sections (each in its
-// measurement_*.cpp), and each kind's section of a measurement's values, chosen through the registry
-// (measurement_registry.cpp: kind_report). Internal to the module.
+// measurement_*.cpp, chosen through the registry: measurement.h kind_report). Internal to the module.
 #pragma once
 
 #include "experiment/report.h"
@@ -51,26 +50,3 @@ std::string histogram_figure(const TracedHistogram& h, const std::string& label,
 std::string estimate_text(const json& e);
 
 }  // namespace microsim::experiment::html
-
-namespace microsim::experiment {
-
-// A kind's section of one measurement's values (`index` names its files, `label` titles its figures); "" when
-// its values hold nothing to show (a measurement interrupted before its first round).
-using KindReport = std::string (*)(const nlohmann::json& values, std::size_t index, const ReportHistograms& histograms,
-                                   const ReportScatters& scatters, const std::string& label);
-std::string albedo_report(const nlohmann::json&, std::size_t, const ReportHistograms&, const ReportScatters&,
-                          const std::string&);
-std::string vndf_report(const nlohmann::json&, std::size_t, const ReportHistograms&, const ReportScatters&,
-                        const std::string&);
-std::string scattering_report(const nlohmann::json&, std::size_t, const ReportHistograms&, const ReportScatters&,
-                              const std::string&);
-std::string validation_report(const nlohmann::json&, std::size_t, const ReportHistograms&, const ReportScatters&,
-                              const std::string&);
-std::string masking_report(const nlohmann::json&, std::size_t, const ReportHistograms&, const ReportScatters&,
-                           const std::string&);
-std::string bsdf_report(const nlohmann::json&, std::size_t, const ReportHistograms&, const ReportScatters&,
-                        const std::string&);
-// The kind's section (its name as results.json's decisions give it), or null for a kind not in the registry.
-KindReport kind_report(const std::string& kind);
-
-}  // namespace microsim::experiment
