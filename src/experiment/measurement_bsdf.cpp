@@ -381,12 +381,14 @@ Decision plan_bsdf_files(const SpecQuantity& q, const SpecMaterial& m, std::size
   d.units = quantity_dump_rows(q, o.run);
   d.unit = "samples";
   const bool cells = s.at("cells") != "";
+  const bool albedo = !s.at("albedo").is_null();
   d.count_reason = fmt::format("the dump's {} rows (read from {}) and the eval file's at the same rows, all checked as "
                                "check-bsdf-files checks them at theta {} phi {}: each weight against eval / pdf, the "
-                               "furnace{}{}, the statistical tests Sidak-combined at level {}", d.units, dump,
-                               s.at("theta").get<double>(), s.at("phi").get<double>(),
-                               s.at("albedo").is_null() ? "" : " against the claimed albedo",
-                               cells ? "; the cells: density, integral and furnace per cell" : "", q.significance);
+                               "furnace{}{}{}", d.units, dump, s.at("theta").get<double>(), s.at("phi").get<double>(),
+                               albedo ? " against the claimed albedo" : " (reported: no albedo claimed)",
+                               cells ? "; the cells: density, integral and furnace per cell" : "",
+                               albedo || cells ? fmt::format(", the statistical tests Sidak-combined at level {}",
+                                                             q.significance) : std::string());
   d.runnable = true;
   return d;
 }
