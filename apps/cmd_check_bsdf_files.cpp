@@ -43,12 +43,13 @@ int run_check_bsdf_files(const FilesArgs& a) {
   }
   BsdfFileCheckOptions o;
   o.frame = a.frame == "y-up" ? SampleFrame::y_up : SampleFrame::z_up;
-  o.lost = a.lost, o.level = a.level, o.albedo = a.albedo, o.cells = a.cells;
+  o.lost = a.lost, o.level = a.level, o.albedo = a.albedo, o.cells = std::filesystem::path(a.cells);
   install_interrupt_handler();
   o.run = cli_run_control(1, nullptr);
   BatteryReport r;
   try {
-    r = check_bsdf_files(a.dump, dump_columns, a.eval, eval_columns, direction_from_degrees(a.theta, a.phi), o);
+    r = check_bsdf_files(std::filesystem::path(a.dump), dump_columns, std::filesystem::path(a.eval), eval_columns,
+                         direction_from_degrees(a.theta, a.phi), o);
   } catch (const SampleFileError& e) {
     throw UsageError(e.what());
   } catch (const std::invalid_argument& e) {

@@ -1,15 +1,18 @@
 // experiment: the bsdf kind (measurement.h): a renderer's BSDF, loaded in process from a plugin
 // (include/microsim/bsdf_plugin.h, measure/bsdf_plugin_loader.h), run once through the whole battery of
 // `microsim check-bsdf` (measure/bsdf_battery.h) against what it claims: its quantity's material (mirror,
-// conductor, dielectric) and that material's one GGX alpha. One decision, no rounds: the battery's budget is the
-// spec's samples per view; its verdict is the result (the run's verdict and exit code take it, as a rejected
-// validation's). Not shared by ranks (the root loads the plugin). Cancelled: nothing kept, it runs again on
-// resumption.
+// conductor, dielectric) and that material's one GGX alpha. Or the same BSDF given as files (the files form: a
+// sample dump of one view and its eval file at the same rows, optionally the eval file at the view's cell points),
+// checked against itself as `microsim check-bsdf-files` checks them (measure/bsdf_file_check.h). One decision, no
+// rounds: the battery's budget is the spec's samples per view (the files': their rows); its verdict is the result
+// (the run's verdict and exit code take it, as a rejected validation's). Not shared by ranks (the root loads the
+// plugin, reads the files). Cancelled: nothing kept, it runs again on resumption.
 #include "experiment/measurement.h"
 #include "experiment/report_html.h"
 
 #include "core/wall_clock.h"
 #include "measure/bsdf_battery.h"
+#include "measure/bsdf_file_check.h"
 #include "measure/bsdf_plugin_loader.h"
 
 #include <fmt/core.h>
@@ -17,6 +20,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <map>
 
 namespace microsim::experiment {
@@ -70,31 +74,109 @@ std::string read_choice(const SpecTable& t, const char* key, const std::string& 
   return value;
 }
 
-// Its claims are its material's (one alpha: the plugin is created once, with its params); its settings go into
-// SpecQuantity::settings (and the spec's digest).
-void read_bsdf_spec(const SpecTable& t, SpecQuantity& q, const SpecMaterial& m, const std::filesystem::path& spec_dir) {
-  if (q.surface.kind != SurfaceChoice::Kind::automatic)
-    t.fail("surface", "a plugin's BSDF is tested against the BSDF it claims, not on a surface");
-  if (m.ndf != NdfKind::ggx) t.fail("material", fmt::format("material {}: the battery's claims are GGX", quote_excerpt(m.name)));
-  if (m.alphas.size() != 1)
-    t.fail("material", fmt::format("material {} has {} alphas: a plugin is created once and claims one",
-                                   quote_excerpt(m.name), m.alphas.size()));
+// The keys of each form (significance is both's): a plugin's, and the files' (check-bsdf-files' inputs).
+const std::vector<std::string> kPluginKeys{"plugin", "params", "views", "samples", "reference", "arithmetic"};
+const std::vector<std::string> kFileKeys{"dump", "eval", "cells", "columns", "eval_columns", "frame", "lost", "albedo",
+                                         "theta", "phi"};
+
+// A file named under `key` (relative to the spec's folder), which must exist.
+std::string read_existing_file(const SpecTable& t, const char* key, const std::filesystem::path& spec_dir) {
+  const std::filesystem::path path = spec_file_path(t.string(key), spec_dir);
+  if (!std::filesystem::is_regular_file(path)) t.fail(key, fmt::format("no {} file {}", key, quote_excerpt(path.string())));
+  return path.string();
+}
+
+// The files' columns as check-bsdf-files reads them: the dump's x, y, z, pdf and a weight per channel, the eval
+// file's wi, wo, value (a channel each) and pdf.
+void read_file_columns(const SpecTable& t, nlohmann::json& settings) {
+  const std::string columns = t.string("columns", "x,y,z,pdf,weight"), eval = t.string("eval_columns", "wi,wo,value,pdf");
+  std::string problem;
+  try {
+    const SampleColumns c = SampleColumns::parse(columns);
+    if (!c.has_pdf() || c.channels() < 1) problem = "the dump needs x, y, z, pdf and a weight per channel";
+  } catch (const std::invalid_argument& e) {
+    problem = e.what();
+  }
+  if (!problem.empty()) t.fail("columns", fmt::format("{}: {}", quote_excerpt(columns), problem));
+  try {
+    if (!EvalColumns::parse(eval).has_pdf()) problem = "the eval file needs wi, wo, value and pdf";
+  } catch (const std::invalid_argument& e) {
+    problem = e.what();
+  }
+  if (!problem.empty()) t.fail("eval_columns", fmt::format("{}: {}", quote_excerpt(eval), problem));
+  settings["columns"] = columns;
+  settings["eval_columns"] = eval;
+}
+
+// The files form: a sample dump of one view (theta, phi) and its eval file at the same rows, the eval file at the
+// view's cell points (cells, optional), their columns and frame, the samples the dump left out (lost) and the
+// albedo the BSDF claims (optional), as check-bsdf-files takes them.
+nlohmann::json read_bsdf_files(const SpecTable& t, const SpecMaterial& m, const std::filesystem::path& spec_dir) {
+  nlohmann::json s{{"dump", read_existing_file(t, "dump", spec_dir)}, {"eval", read_existing_file(t, "eval", spec_dir)},
+                   {"cells", t.has("cells") ? read_existing_file(t, "cells", spec_dir) : std::string()}};
+  read_file_columns(t, s);
+  s["frame"] = read_choice(t, "frame", "z-up", {"z-up", "y-up"});
+  const double theta = t.number("theta"), phi = t.number("phi", 0.0);
+  if (!(theta >= 0 && theta <= 180) || theta == 90) t.fail("theta", fmt::format("{}: in [0, 180] and not 90 deg", theta));
+  if (theta > 90 && !m.facet.transmits()) t.fail("theta", fmt::format("{}: from inside, only a dielectric", theta));
+  s["theta"] = theta;
+  s["phi"] = phi;
+  s["lost"] = t.integer("lost", 0, 0, std::numeric_limits<std::int64_t>::max());
+  s["albedo"] = nullptr;
+  if (t.has("albedo")) {
+    const double albedo = t.number("albedo");
+    if (!(albedo >= 0 && albedo <= 10)) t.fail("albedo", fmt::format("{} must be in [0, 10]", albedo));
+    s["albedo"] = albedo;
+  }
+  return s;
+}
+
+// The plugin form: its file, create()'s params and the battery's options.
+nlohmann::json read_bsdf_plugin(const SpecTable& t, const SpecMaterial& m, const std::filesystem::path& spec_dir) {
   const std::filesystem::path plugin = spec_file_path(t.string("plugin"), spec_dir);
   if (!std::filesystem::is_regular_file(plugin)) t.fail("plugin", fmt::format("no plugin file {}", quote_excerpt(plugin.string())));
+  return {{"plugin", plugin.string()},
+          {"params", read_plugin_params(t)},
+          {"views", read_battery_views(t, m)},
+          {"samples", t.integer("samples", 200'000, 1000, 100'000'000)},
+          {"reference", read_choice(t, "reference", "single-scattering", {"single-scattering", "smith-walk", "none"})},
+          {"arithmetic", read_choice(t, "arithmetic", "float32", {"float32", "float64"})}};
+}
+
+// A plugin or files (dump and eval), not both: each form's keys refused in the other.
+bool read_files_form(const SpecTable& t) {
+  const bool files = t.has("dump") || t.has("eval");
+  if (files && t.has("plugin")) t.fail(t.has("dump") ? "dump" : "eval", "a plugin or files (dump and eval), not both");
+  if (!files && !t.has("plugin")) t.fail("plugin", "missing (required): a plugin, or files (dump and eval)");
+  for (const std::string& key : files ? kPluginKeys : kFileKeys)
+    if (t.has(key))
+      t.fail(key, files ? fmt::format("a plugin's key ({}), not of the files form (dump and eval)", fmt::join(kPluginKeys, ", "))
+                        : fmt::format("a key of the files form ({}), not of a plugin's", fmt::join(kFileKeys, ", ")));
+  return files;
+}
+
+// Its claims are its material's (one alpha: the plugin is created once, with its params; files are of one BSDF);
+// its settings go into SpecQuantity::settings (and the spec's digest).
+void read_bsdf_spec(const SpecTable& t, SpecQuantity& q, const SpecMaterial& m, const std::filesystem::path& spec_dir) {
+  if (q.surface.kind != SurfaceChoice::Kind::automatic)
+    t.fail("surface", "a renderer's BSDF is tested against itself and the BSDF it claims, not on a surface");
+  if (m.ndf != NdfKind::ggx) t.fail("material", fmt::format("material {}: the battery's claims are GGX", quote_excerpt(m.name)));
+  if (m.alphas.size() != 1)
+    t.fail("material", fmt::format("material {} has {} alphas: a renderer's BSDF under test claims one",
+                                   quote_excerpt(m.name), m.alphas.size()));
+  const bool files = read_files_form(t);
   q.significance = t.number("significance", 0.01);
   if (!(q.significance > 0 && q.significance < 0.5)) t.fail("significance", fmt::format("{} must be in (0, 0.5)", q.significance));
-  q.settings = {{"plugin", plugin.string()},
-                {"params", read_plugin_params(t)},
-                {"views", read_battery_views(t, m)},
-                {"samples", t.integer("samples", 200'000, 1000, 100'000'000)},
-                {"significance", q.significance},
-                {"reference", read_choice(t, "reference", "single-scattering", {"single-scattering", "smith-walk", "none"})},
-                {"arithmetic", read_choice(t, "arithmetic", "float32", {"float32", "float64"})}};
+  q.settings = files ? read_bsdf_files(t, m, spec_dir) : read_bsdf_plugin(t, m, spec_dir);
+  q.settings["significance"] = q.significance;
 }
+
+bool files_form(const SpecQuantity& q) { return q.settings.contains("dump"); }
 
 }  // namespace
 
-const KindSpec bsdf_spec{"plugin params views samples significance reference arithmetic", read_bsdf_spec, nullptr};
+const KindSpec bsdf_spec{"plugin params views samples significance reference arithmetic dump eval cells columns "
+                         "eval_columns frame lost albedo theta phi", read_bsdf_spec, nullptr};
 
 // ---- its model ---------------------------------------------------------------------------------------------------
 
@@ -105,6 +187,14 @@ std::string bsdf_alpha_text(const std::pair<double, double>& a) {
 }  // namespace
 
 static ModelChoice bsdf_model(const SpecQuantity& q, const SpecMaterial& m) {
+  if (files_form(q))
+    return {Model::analytic,
+            fmt::format("a renderer's BSDF as files ({}, {}) claiming {} at GGX alpha {}: against itself, as "
+                        "check-bsdf-files checks them (each weight against eval / pdf, the white furnace{}), once",
+                        std::filesystem::path(q.settings.at("dump").get<std::string>()).filename().string(),
+                        std::filesystem::path(q.settings.at("eval").get<std::string>()).filename().string(),
+                        m.facet.describe(), bsdf_alpha_text(m.alphas.front()),
+                        q.settings.at("cells") == "" ? "" : "; the cells: the density and the integral of eval per cell")};
   const std::string what = fmt::format("a renderer's BSDF (plugin {}) claiming {} at GGX alpha {}",
                                        std::filesystem::path(q.settings.at("plugin").get<std::string>()).filename().string(),
                                        m.facet.describe(), bsdf_alpha_text(m.alphas.front()));
@@ -160,6 +250,75 @@ std::unique_ptr<BsdfPlugin> load_quantity_plugin(const SpecQuantity& q, const Sp
   return plugin;
 }
 
+// The files of a files-form quantity checked as check-bsdf-files checks them; a file whose rows do not match is bad
+// input naming the spec's key of the file the message names (the dump's by default).
+BatteryReport check_quantity_files(const SpecQuantity& q, const RunControl& run) {
+  const nlohmann::json& s = q.settings;
+  BsdfFileCheckOptions o;
+  o.frame = s.at("frame") == "y-up" ? SampleFrame::y_up : SampleFrame::z_up;
+  o.lost = s.at("lost").get<std::uint64_t>();
+  o.level = q.significance;
+  if (!s.at("albedo").is_null()) o.albedo = s.at("albedo").get<double>();
+  o.cells = std::filesystem::path(s.at("cells").get<std::string>());
+  o.run = run;
+  try {
+    return check_bsdf_files(std::filesystem::path(s.at("dump").get<std::string>()),
+                            SampleColumns::parse(s.at("columns").get<std::string>()),
+                            std::filesystem::path(s.at("eval").get<std::string>()),
+                            EvalColumns::parse(s.at("eval_columns").get<std::string>()),
+                            direction_from_degrees(s.at("theta").get<double>(), s.at("phi").get<double>()), o);
+  } catch (const SampleFileError& e) {
+    const std::string what = e.what();
+    std::string key = "dump";
+    for (const char* k : {"eval", "cells"})
+      if (s.at(k) != "" && what.rfind(s.at(k).get<std::string>(), 0) == 0) key = k;
+    throw std::invalid_argument(fmt::format("{}.{}: {}", q.key, key, what));
+  }
+}
+
+// The rows of a files-form quantity's dump (read through: bad input naming `.dump` before anything runs).
+std::uint64_t quantity_dump_rows(const SpecQuantity& q, const RunControl& run) {
+  try {
+    DirectionSampleReader reader(std::filesystem::path(q.settings.at("dump").get<std::string>()),
+                                 SampleColumns::parse(q.settings.at("columns").get<std::string>()));
+    std::vector<Vec3<double>> block(kSampleFileBlock);
+    std::vector<double> pdfs(block.size()), weights(block.size() * std::size_t(reader.columns().channels()));
+    while (reader.read(block, pdfs, weights) > 0)
+      if (run.cancelled()) throw Cancelled("plan: reading a dump");
+    return reader.rows_read();
+  } catch (const SampleFileError& e) {
+    throw std::invalid_argument(fmt::format("{}.dump: {}", q.key, e.what()));
+  }
+}
+
+// A files-form quantity: the files' battery once, its report as `check-bsdf-files --json` writes it (with the
+// material's claims) under "battery".
+class BsdfFilesMeasurement final : public Measurement {
+public:
+  using Measurement::Measurement;
+  std::string error_measure() const override {
+    return "none: the files are checked once, every row; their battery's verdict is the result";
+  }
+  double target() const override { return 0; }
+  void run(const RoundContext& c, MeasurementResult& m) const override {
+    run_once(m, [&] {
+      const auto clock = std::chrono::steady_clock::now();
+      const BatteryReport r = check_quantity_files(quantity_, c.options.run);
+      const nlohmann::json& s = quantity_.settings;
+      nlohmann::json j = to_json(r);
+      j.update({{"dump", s.at("dump")}, {"eval", s.at("eval")}, {"theta", s.at("theta")}, {"phi", s.at("phi")},
+                {"level", quantity_.significance}});
+      if (s.at("cells") != "") j["cells"] = s.at("cells");
+      j.update({{"bsdf", material().facet.describe()}, {"alpha", bsdf_alpha_text(decision_.alpha)}});
+      m.values = {{"battery", std::move(j)}};
+      m.units = m.rays = decision_.units;
+      m.rounds.push_back({m.units, m.units, 0, false, 0, 0, seconds_since(clock), 0});
+      m.achieved = 0;
+      m.met = true;  // every row checked: its verdict is the result
+    });
+  }
+};
+
 class BsdfBatteryMeasurement final : public Measurement {
 public:
   using Measurement::Measurement;
@@ -202,17 +361,50 @@ private:
 }  // namespace
 
 static std::unique_ptr<Measurement> make_bsdf_measurement(const ExperimentSpec& spec, const Decision& decision) {
+  if (files_form(spec.quantities.at(decision.quantity))) return std::make_unique<BsdfFilesMeasurement>(spec, decision);
   return std::make_unique<BsdfBatteryMeasurement>(spec, decision);
 }
 
 // ---- its plan ----------------------------------------------------------------------------------------------
 
+namespace {
+
+// The files form's decision: every row of the dump (read through: bad input before anything runs).
+Decision plan_bsdf_files(const SpecQuantity& q, const SpecMaterial& m, std::size_t index, const PlanOptions& o) {
+  const nlohmann::json& s = q.settings;
+  const std::string dump = std::filesystem::path(s.at("dump").get<std::string>()).filename().string();
+  Decision d;
+  d.quantity = index;
+  d.alpha = m.alphas.front();
+  d.label = fmt::format("{} bsdf {} files {}", q.key, m.name, dump);
+  d.model = choose_model(q, m);
+  d.units = quantity_dump_rows(q, o.run);
+  d.unit = "samples";
+  const bool cells = s.at("cells") != "";
+  const bool albedo = !s.at("albedo").is_null();
+  d.count_reason = fmt::format("the dump's {} rows (read from {}) and the eval file's at the same rows, all checked as "
+                               "check-bsdf-files checks them at theta {} phi {}: each weight against eval / pdf, the "
+                               "furnace{}{}{}", d.units, dump, s.at("theta").get<double>(), s.at("phi").get<double>(),
+                               albedo ? " against the claimed albedo" : " (reported: no albedo claimed)",
+                               cells ? "; the cells: density, integral and furnace per cell" : "",
+                               albedo || cells ? fmt::format(", the statistical tests Sidak-combined at level {}",
+                                                             q.significance) : std::string());
+  d.runnable = true;
+  return d;
+}
+
+}  // namespace
+
 // One decision: the plugin loaded (bad input before anything runs: it does not load, or not against its
-// claims), no pilot (the battery's budget is the spec's).
-static void plan_bsdf_quantity(const ExperimentSpec& spec, std::size_t index, const PlanOptions&, SurfaceCache&,
-                               std::vector<Decision>& out) {
+// claims), no pilot (the battery's budget is the spec's); or the files' rows counted.
+static void plan_bsdf_quantity(const ExperimentSpec& spec, std::size_t index, const PlanOptions& options,
+                               SurfaceCache&, std::vector<Decision>& out) {
   const SpecQuantity& q = spec.quantities[index];
   const SpecMaterial& m = spec.material(q.material);
+  if (files_form(q)) {
+    out.push_back(plan_bsdf_files(q, m, index, options));
+    return;
+  }
   const std::unique_ptr<BsdfPlugin> plugin = load_quantity_plugin(q, m);
   Decision d;
   d.quantity = index;
@@ -242,16 +434,25 @@ static std::string bsdf_report(const nlohmann::json& values, std::size_t, const 
   using namespace html;
   const json& b = member(values, "battery");
   std::string body;
+  std::string head;
+  if (b.contains("dump"))
+    head = fmt::format("<p>Files <b>{}</b> and <b>{}</b>{} of a BSDF claiming {} at alpha {}, view theta {} phi {}, "
+                       "checked against themselves (check-bsdf-files): verdict <b>{}</b> (level {}).</p>\n",
+                       esc(text_of(member(b, "dump"))), esc(text_of(member(b, "eval"))),
+                       b.contains("cells") ? ", cells <b>" + esc(text_of(member(b, "cells"))) + "</b>" : "",
+                       esc(text_of(member(b, "bsdf"))), esc(text_of(member(b, "alpha"))), text_of(member(b, "theta")),
+                       text_of(member(b, "phi")), esc(text_of(member(b, "verdict"))), text_of(member(b, "level")));
+  else
+    head = fmt::format("<p>Plugin <b>{}</b> ({}) claiming {} at alpha {}, reference {}: {} samples per view, verdict "
+                       "<b>{}</b> (level {}).</p>\n",
+                       esc(text_of(member(b, "name"))), esc(text_of(member(b, "plugin"))), esc(text_of(member(b, "bsdf"))),
+                       esc(text_of(member(b, "alpha"))), esc(text_of(member(b, "reference"))),
+                       text_of(member(b, "samples")), esc(text_of(member(b, "verdict"))), text_of(member(b, "level")));
   for (const json& t : member(b, "tests"))
     body += row({esc(text_of(member(t, "test"))), esc(text_of(member(t, "view"))), text_of(member(t, "p")),
                  member(t, "passed").get<bool>() ? "pass" : "<span class=\"notmet\">rejected</span>",
                  esc(text_of(member(t, "detail")))});
-  return fmt::format("<p>Plugin <b>{}</b> ({}) claiming {} at alpha {}, reference {}: {} samples per view, verdict "
-                     "<b>{}</b> (level {}).</p>\n",
-                     esc(text_of(member(b, "name"))), esc(text_of(member(b, "plugin"))), esc(text_of(member(b, "bsdf"))),
-                     esc(text_of(member(b, "alpha"))), esc(text_of(member(b, "reference"))),
-                     text_of(member(b, "samples")), esc(text_of(member(b, "verdict"))), text_of(member(b, "level"))) +
-         table({"test", "view", "p", "verdict", "detail"}, body);
+  return head + table({"test", "view", "p", "verdict", "detail"}, body);
 }
 
 // ---- its entry in the registry (measurement_registry.cpp) -------------------------------------------------

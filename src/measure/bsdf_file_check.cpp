@@ -21,12 +21,12 @@ struct FileRows {
   std::vector<double> eval_value, eval_pdf;  // per row: channels values, one pdf
 };
 
-FileRows read_rows(const std::filesystem::path& dump, const SampleColumns& dc, const std::filesystem::path& eval,
-                   const EvalColumns& ec, const Vec3<double>& view, const BsdfFileCheckOptions& o) {
+FileRows read_rows(const BsdfRows& dump, const SampleColumns& dc, const BsdfRows& eval, const EvalColumns& ec,
+                   const Vec3<double>& view, const BsdfFileCheckOptions& o) {
   const int c = dc.channels();
   if (!dc.has_pdf() || c < 1) throw std::invalid_argument("--columns: the dump needs x, y, z, pdf and a weight per channel");
   if (!ec.has_pdf()) throw std::invalid_argument("--eval-columns: the eval file needs wi, wo, value and pdf");
-  DirectionSampleReader d(dump, dc), wi_r(eval, ec.wi_columns(c)), wo_r(eval, ec.wo_columns(c));
+  DirectionSampleReader d = dump.open(dc), wi_r = eval.open(ec.wi_columns(c)), wo_r = eval.open(ec.wo_columns(c));
   for (DirectionSampleReader* r : {&d, &wi_r, &wo_r}) r->set_frame(o.frame);
   FileRows f;
   std::vector<Vec3<double>> wo(kSampleFileBlock), ewi(kSampleFileBlock), ewo(kSampleFileBlock);
@@ -36,11 +36,11 @@ FileRows read_rows(const std::filesystem::path& dump, const SampleColumns& dc, c
     if (o.run.cancelled()) throw Cancelled("the file check");
     if (wi_r.read(std::span(ewi.data(), n), std::span(epdf.data(), n), std::span(ev.data(), n * std::size_t(c))) != n ||
         wo_r.read(std::span(ewo.data(), n)) != n)
-      throw SampleFileError(fmt::format("{}: fewer rows than the dump {}", eval.string(), dump.string()));
+      throw SampleFileError(fmt::format("{}: fewer rows than the dump {}", eval.name(), dump.name()));
     for (std::size_t i = 0; i < n; ++i) {
       const std::uint64_t row = f.s.wo.size();
       if ((ewi[i] - view).norm() > 1e-4 || (ewo[i] - wo[i]).norm() > 1e-4)
-        throw SampleFileError(fmt::format("{}: row {} (0-based) is not the view and the dump's direction", eval.string(), row));
+        throw SampleFileError(fmt::format("{}: row {} (0-based) is not the view and the dump's direction", eval.name(), row));
       f.s.wo.push_back(wo[i]);
       f.s.pdf.push_back(pdf[i]);
       f.eval_pdf.push_back(epdf[i]);
@@ -49,7 +49,7 @@ FileRows read_rows(const std::filesystem::path& dump, const SampleColumns& dc, c
     }
   }
   if (wi_r.read(std::span(ewi.data(), 1), std::span(epdf.data(), 1), std::span(ev.data(), std::size_t(c))) != 0)
-    throw SampleFileError(fmt::format("{}: more rows than the dump {}", eval.string(), dump.string()));
+    throw SampleFileError(fmt::format("{}: more rows than the dump {}", eval.name(), dump.name()));
   f.s.lost = o.lost;
   f.s.drawn = f.s.wo.size() + o.lost;
   return f;
@@ -112,9 +112,9 @@ struct CellFile {
   std::vector<double> value, pdf;
   std::uint64_t non_finite = 0;  // points whose eval() or pdf() is not finite
 };
-CellFile read_cells(const std::filesystem::path& path, const EvalColumns& ec, int c, const Vec3<double>& view,
+CellFile read_cells(const BsdfRows& rows, const EvalColumns& ec, int c, const Vec3<double>& view,
                     const BsdfFileCheckOptions& o) {
-  DirectionSampleReader wi_r(path, ec.wi_columns(c)), wo_r(path, ec.wo_columns(c));
+  DirectionSampleReader wi_r = rows.open(ec.wi_columns(c)), wo_r = rows.open(ec.wo_columns(c));
   for (DirectionSampleReader* r : {&wi_r, &wo_r}) r->set_frame(o.frame);
   std::vector<Vec3<double>> wi(kSampleFileBlock), wo(kSampleFileBlock), all_wo;
   std::vector<double> pdf(kSampleFileBlock), v(kSampleFileBlock * std::size_t(c));
@@ -124,7 +124,7 @@ CellFile read_cells(const std::filesystem::path& path, const EvalColumns& ec, in
     wo_r.read(std::span(wo.data(), n));
     for (std::size_t i = 0; i < n; ++i) {
       if (!((wi[i] - view).norm() <= 1e-4))
-        throw SampleFileError(fmt::format("{}: row {} (0-based): wi is not the view", path.string(), all_wo.size()));
+        throw SampleFileError(fmt::format("{}: row {} (0-based): wi is not the view", rows.name(), all_wo.size()));
       all_wo.push_back(wo[i]);
       const double x = channel_mean(&v[i * std::size_t(c)], c);
       const bool finite = std::isfinite(x) && (!ec.has_pdf() || std::isfinite(pdf[i]));
@@ -136,21 +136,24 @@ CellFile read_cells(const std::filesystem::path& path, const EvalColumns& ec, in
   const std::size_t per = all_wo.size() / battery::kCells;
   if (all_wo.size() % battery::kCells != 0 || per < 2 || per % 2 != 0)
     throw SampleFileError(fmt::format("{}: {} rows, not {} cells of an even number of points (bsdf-queries --cells "
-                                      "writes them)", path.string(), all_wo.size(), battery::kCells));
+                                      "writes them)", rows.name(), all_wo.size(), battery::kCells));
   for (std::size_t i = 0; i < all_wo.size(); ++i)
     if (!(outside_cell(all_wo[i], int(i / per)) <= 1e-4))
       throw SampleFileError(fmt::format("{}: row {} (0-based): wo is not in cell {} (the file is not the view's cell "
-                                        "points, in order, as bsdf-queries --cells writes them)", path.string(), i, i / per));
+                                        "points, in order, as bsdf-queries --cells writes them)", rows.name(), i, i / per));
   return f;
 }
 
 }  // namespace
 
-BatteryReport check_bsdf_files(const std::filesystem::path& dump, const SampleColumns& dump_columns,
-                               const std::filesystem::path& eval, const EvalColumns& eval_columns,
-                               const Vec3<double>& wi, const BsdfFileCheckOptions& options) {
+DirectionSampleReader BsdfRows::open(const SampleColumns& columns) const {
+  return array ? DirectionSampleReader(*array, columns) : DirectionSampleReader(path, columns);
+}
+
+BatteryReport check_bsdf_files(const BsdfRows& dump, const SampleColumns& dump_columns, const BsdfRows& eval,
+                               const EvalColumns& eval_columns, const Vec3<double>& wi, const BsdfFileCheckOptions& options) {
   const FileRows f = read_rows(dump, dump_columns, eval, eval_columns, wi, options);
-  if (f.s.wo.empty()) throw SampleFileError(dump.string() + ": no rows");
+  if (f.s.wo.empty()) throw SampleFileError(dump.name() + ": no rows");
   const int c = dump_columns.channels();
   const bool cells = !options.cells.empty();
   const int statistical = (options.albedo ? 1 : 0) + (cells ? (eval_columns.has_pdf() ? 3 : 2) : 0);

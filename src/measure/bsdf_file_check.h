@@ -24,6 +24,20 @@
 
 namespace microsim {
 
+// Rows of a file (NPY or text, as sample_io.h reads it) or in memory (a SampleArray holding every column the
+// columns' spec names, '-' ones included; its name stands for a path in messages: the Python binding's arrays).
+// Empty: none.
+struct BsdfRows {
+  std::filesystem::path path;
+  std::optional<SampleArray> array;
+  BsdfRows() = default;
+  BsdfRows(std::filesystem::path file) : path(std::move(file)) {}  // NOLINT(google-explicit-constructor): a path
+  explicit BsdfRows(SampleArray rows) : array(std::move(rows)) {}
+  bool empty() const { return !array && path.empty(); }
+  std::string name() const { return array ? array->name : path.string(); }
+  DirectionSampleReader open(const SampleColumns& columns) const;
+};
+
 struct BsdfFileCheckOptions {
   SampleFrame frame = SampleFrame::z_up;
   std::uint64_t lost = 0;  // samples the dump leaves out (lost below the horizon): they weigh 0
@@ -31,15 +45,15 @@ struct BsdfFileCheckOptions {
   std::optional<double> albedo;  // claimed
   // The eval file at the view's cell points (in the eval file's columns, the pdf column for the density test);
   // empty: no cell tests.
-  std::filesystem::path cells;
+  BsdfRows cells;
   RunControl run;
 };
 
-// Throws SampleFileError for a file that cannot be read as its columns say or whose rows do not match (counts,
-// wi not the view, wo not the dump's direction, the cells file's wo not in their cells), std::invalid_argument
+// Throws SampleFileError for a file (or array) that cannot be read as its columns say or whose rows do not match
+// (counts, wi not the view, wo not the dump's direction, the cells file's wo not in their cells), std::invalid_argument
 // for bad options, Cancelled.
-BatteryReport check_bsdf_files(const std::filesystem::path& dump, const SampleColumns& dump_columns,
-                               const std::filesystem::path& eval, const EvalColumns& eval_columns,
+BatteryReport check_bsdf_files(const BsdfRows& dump, const SampleColumns& dump_columns, const BsdfRows& eval,
+                               const EvalColumns& eval_columns,
                                const Vec3<double>& wi, const BsdfFileCheckOptions& options);
 
 }  // namespace microsim

@@ -1,16 +1,23 @@
 // python: microsim.check_bsdf, the battery of measure/bsdf_battery.h on a BSDF given as vectorised numpy
 // callables (what `microsim check-bsdf --plugin` runs on a C plugin). The callables run on the calling thread
 // with the GIL held; Python's signal handlers run between batches (Ctrl-C: KeyboardInterrupt).
+// microsim.check_bsdf_files, one BSDF's consistency with itself from a sample dump and an eval file
+// (measure/bsdf_file_check.h, what `microsim check-bsdf-files` runs), on files or on arrays holding their rows,
+// with the GIL released on a worker thread (run_interruptible).
 #include "binding.h"
 
 #include "core/atomic_file.h"
 #include "measure/bsdf_battery.h"
 #include "measure/bsdf_battery_html.h"
+#include "measure/bsdf_file_check.h"
 #include "microfacet/material.h"
 
 #include <pybind11/stl.h>
 
 #include <fmt/core.h>
+
+#include <cmath>
+#include <optional>
 
 namespace microsim::python {
 
@@ -151,10 +158,126 @@ py::object check_bsdf(const py::function& sample, const py::function& eval, cons
   return py::module_::import("json").attr("loads")(j.dump());
 }
 
+
+// ---- check_bsdf_files --------------------------------------------------------------------------------------------
+
+// The keyword options of check_bsdf_files, as `check-bsdf-files` takes them.
+struct PyFilesArgs {
+  std::string columns, eval_columns, frame;
+  py::object cells, albedo;
+  double theta = 0, phi = 0, level = 0.01;
+  std::uint64_t lost = 0;
+};
+
+// The rows of argument `what`: a path (str or os.PathLike) of a file, or a float32/float64 array (N, columns)
+// holding the rows such a file would (read in place while `keep` holds it).
+BsdfRows rows_of(const py::handle& value, const char* what, int columns, std::vector<py::array>& keep) {
+  if (py::isinstance<py::str>(value) || py::hasattr(value, "__fspath__"))
+    return BsdfRows(std::filesystem::path(py::module_::import("os").attr("fsdecode")(value).cast<std::string>()));
+  const py::array a = checked_array(value, what, columns, true);
+  SampleArray rows;
+  rows.name = std::string("the array ") + what;
+  rows.rows = std::uint64_t(a.shape(0));
+  for (int c = 0; c < columns; ++c) rows.columns.push_back(column_of(a, c));
+  keep.push_back(a);
+  return BsdfRows(std::move(rows));
+}
+
+// What the report names rows by: the file's path, or "array (N, K)".
+std::string rows_name(const BsdfRows& rows) {
+  return rows.array ? fmt::format("array ({}, {})", rows.array->rows, rows.array->columns.size()) : rows.path.string();
+}
+
+// The options, checked as the command line checks them (ValueError naming the argument and its value).
+BsdfFileCheckOptions files_options(const PyFilesArgs& a) {
+  if (!(a.theta >= 0 && a.theta <= 180))
+    throw py::value_error(fmt::format("theta {}: must be in [0, 180] degrees", a.theta));
+  if (!std::isfinite(a.phi)) throw py::value_error(fmt::format("phi {}: must be finite", a.phi));
+  if (!(a.level > 0 && a.level < 1)) throw py::value_error(fmt::format("level {}: must be in (0, 1)", a.level));
+  if (a.frame != "z-up" && a.frame != "y-up")
+    throw py::value_error(fmt::format("frame '{}': 'z-up' or 'y-up'", a.frame));
+  BsdfFileCheckOptions o;
+  o.frame = a.frame == "y-up" ? SampleFrame::y_up : SampleFrame::z_up;
+  o.lost = a.lost;
+  o.level = a.level;
+  if (!a.albedo.is_none()) {
+    o.albedo = a.albedo.cast<double>();
+    if (!(*o.albedo >= 0 && *o.albedo <= 10))
+      throw py::value_error(fmt::format("albedo {}: must be in [0, 10]", *o.albedo));
+  }
+  return o;
+}
+
+py::object check_bsdf_files(const py::handle& dump, const py::handle& eval, const PyFilesArgs& a) {
+  SampleColumns dc;
+  EvalColumns ec;
+  try {
+    dc = SampleColumns::parse(a.columns);
+  } catch (const std::invalid_argument& e) {
+    throw py::value_error(fmt::format("columns '{}': {}", a.columns, e.what()));
+  }
+  if (!dc.has_pdf() || dc.channels() < 1)
+    throw py::value_error(fmt::format("columns '{}': the dump needs x, y, z, pdf and a weight per channel", a.columns));
+  try {
+    ec = EvalColumns::parse(a.eval_columns);
+  } catch (const std::invalid_argument& e) {
+    throw py::value_error(fmt::format("eval_columns: {}", e.what()));
+  }
+  if (!ec.has_pdf())
+    throw py::value_error(fmt::format("eval_columns '{}': the eval file needs wi, wo, value and pdf", a.eval_columns));
+  BsdfFileCheckOptions o = files_options(a);
+  std::vector<py::array> keep;  // the arrays read in place, alive until the check returns
+  const int eval_width = ec.wi_columns(dc.channels()).count;
+  const BsdfRows d = rows_of(dump, "dump", dc.count, keep), e = rows_of(eval, "eval", eval_width, keep);
+  if (!a.cells.is_none()) o.cells = rows_of(a.cells, "cells", eval_width, keep);
+  const Vec3<double> wi = direction_from_degrees(a.theta, a.phi);
+  std::optional<BatteryReport> r;
+  run_interruptible([&](const RunControl& run) {
+    BsdfFileCheckOptions with_run = o;
+    with_run.run = run;
+    r = microsim::check_bsdf_files(d, dc, e, ec, wi, with_run);
+  }, py::none());
+  nlohmann::json j = to_json(*r);  // as `check-bsdf-files --json` writes it, and "passed"
+  j.update({{"dump", rows_name(d)}, {"eval", rows_name(e)}, {"theta", a.theta}, {"phi", a.phi},
+            {"level", a.level}, {"passed", r->passed}});
+  if (!a.cells.is_none()) j["cells"] = rows_name(o.cells);
+  return py::module_::import("json").attr("loads")(j.dump());
+}
+
+void bind_files(py::module_& m) {
+  using namespace pybind11::literals;
+  m.def(
+      "check_bsdf_files",
+      [](const py::handle& dump, const py::handle& eval, double theta, double phi, const py::object& cells,
+         const std::string& columns, const std::string& eval_columns, const std::string& frame, std::uint64_t lost,
+         const py::object& albedo, double level) {
+        return check_bsdf_files(dump, eval, {columns, eval_columns, frame, cells, albedo, theta, phi, level, lost});
+      },
+      R"doc(One BSDF's consistency with itself from files (what `microsim check-bsdf-files` runs): a sample dump of
+one view and an eval file of the same BSDF at the same rows.
+dump: the path (str or os.PathLike) of a sample dump (.npy or text, as `validate --from` reads it), or a float32 /
+  float64 array (N, K) of its rows; `columns` names its K columns (default x,y,z,pdf,weight: a weight per channel).
+eval: the path of the eval file at the dump's rows (wi = the view, wo = the dump's direction, f(wi, wo) |cos wo|
+  per channel, pdf(wo | wi)), or an array of its rows; `eval_columns` names them (default wi,wo,value,pdf).
+theta, phi: the view in degrees (theta > 90: from inside). cells: the eval file (or array) at the view's cell
+points, as `bsdf-queries --cells` writes them (adds the density, integral and furnace cell tests). frame: 'z-up' or
+'y-up' (every file). lost: samples the dump leaves out (they weigh 0 in the furnace). albedo: the albedo the BSDF
+claims at this view (1: energy conserving). level: family-wise (Sidak over the statistical tests).
+Each weight is tested against eval / pdf and each pdf against the eval file's (1e-3 relative), and the white furnace.
+Returns the report as a dict (the JSON of `check-bsdf-files --json`): "verdict" ("pass" or "fail"), "passed",
+"tests" (test, view, p, passed, detail), "dump", "eval", "theta", "phi", "level" (and "cells"); an array stands as
+"array (N, K)" for its path. Rows that do not match (counts, wi not the view, wo not the dump's direction) raise
+ValueError, as the command line exits 2.)doc",
+      "dump"_a, "eval"_a, py::kw_only(), "theta"_a, "phi"_a = 0.0, "cells"_a = py::none(),
+      "columns"_a = "x,y,z,pdf,weight", "eval_columns"_a = "wi,wo,value,pdf", "frame"_a = "z-up", "lost"_a = 0,
+      "albedo"_a = py::none(), "level"_a = 0.01);
+}
+
 }  // namespace
 
 void bind_battery(py::module_& m) {
   using namespace pybind11::literals;
+  bind_files(m);
   m.def(
       "check_bsdf",
       [](const py::function& sample, const py::function& eval, const py::object& pdf, const std::string& bsdf,

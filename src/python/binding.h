@@ -7,6 +7,7 @@
 
 #include "core/run_control.h"
 #include "microfacet/ggx.h"
+#include "validate/sample_io.h"
 
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
@@ -49,5 +50,12 @@ Vec3<double> view_of(double theta_deg, double phi_deg);
 // An array of directions (N, 3), float64, C-contiguous (a copy only when the input is not already that):
 // for the analytic functions and samplers. ValueError naming `what` for another shape or a non-real dtype.
 py::array_t<double, py::array::c_style | py::array::forcecast> directions_of(const py::handle& array, const char* what);
+
+// The array of argument `what`, with a real dtype (float32/float64 when `exact_float`, which also demands a
+// numpy array: read in place, never converted), and `columns` columns (0: 1-D; -1: 1-D or any columns); ValueError
+// naming `what` otherwise (validate_binding.cpp).
+py::array checked_array(const py::handle& object, const char* what, int columns, bool exact_float);
+// Column `column` of a checked array (1-D: its only one), read in place by a DirectionSampleReader.
+SampleArrayColumn column_of(const py::array& a, int column);
 
 }  // namespace microsim::python

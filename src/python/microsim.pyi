@@ -161,6 +161,15 @@ def check_bsdf(sample: Callable[[np.ndarray, np.ndarray], Tuple[np.ndarray, np.n
     report as a dict (check-bsdf's JSON, with 'passed')."""
     ...
 
+def check_bsdf_files(dump: Union[str, "os.PathLike[str]", np.ndarray], eval: Union[str, "os.PathLike[str]", np.ndarray],
+                     *, theta: float, phi: float = 0.0,
+                     cells: Optional[Union[str, "os.PathLike[str]", np.ndarray]] = None,
+                     columns: str = "x,y,z,pdf,weight", eval_columns: str = "wi,wo,value,pdf", frame: str = "z-up",
+                     lost: int = 0, albedo: Optional[float] = None, level: float = 0.01) -> Dict[str, Any]:
+    """One BSDF's consistency with itself from a sample dump and its eval file at the same rows, paths or arrays
+    (N, K) of their rows (`microsim check-bsdf-files`): the report as a dict (its JSON, with 'passed')."""
+    ...
+
 def compare_scattering(files: Sequence[str], *, analytic: bool = False, orders: Optional[str] = None,
                        level: float = 0.01, threads: int = 0, progress: Progress = None) -> Dict[str, Any]:
     """Two or three scatter files or traced histograms compared (`microsim compare-scattering`): its JSON as a

@@ -167,8 +167,8 @@ std::string shape_text(const py::array& a) {
   return s + (a.ndim() == 1 ? ",)" : ")");
 }
 
-// The array of argument `what`, with a real dtype (float32/float64 when `exact_float`, which also demands a
-// numpy array: read in place, never converted), and `columns` columns (0: 1-D; -1: 1-D or any columns).
+}  // namespace
+
 py::array checked_array(const py::handle& object, const char* what, int columns, bool exact_float) {
   if (!py::isinstance<py::array>(object) && exact_float)
     throw py::value_error(std::string(what) + ": expected a numpy array, got " + py::repr(py::type::of(object)).cast<std::string>());
@@ -199,6 +199,8 @@ SampleArrayColumn column_of(const py::array& a, int column) {
   const auto* base = static_cast<const char*>(a.data());
   return {base + (a.ndim() == 2 ? column * a.strides(1) : 0), a.strides(0), a.itemsize() == 4};
 }
+
+namespace {
 
 SampleFrame frame_of(const std::string& frame) {
   if (frame == "z-up") return SampleFrame::z_up;

@@ -7,6 +7,7 @@
 // plugin (examples/plugins/smith_walk.c, ABI 2, stochastic eval, no pdf) passes against the walk and the
 // Kulla-Conty plugin against itself, and their planted bugs are rejected; bad plugins are exit 2.
 #include "cli_helpers.h"
+#include "sample_dumps.h"
 
 #include "core/random.h"
 #include "microfacet/bsdf.h"
@@ -171,22 +172,7 @@ TEST(CheckBsdfCli, TheHtmlReportIsSelfContainedWithTheResidualMaps) {
 // consistency test; an albedo of 1 claimed for it (it absorbs) by the furnace; rows that do not match, or a cells
 // file that is not the cell points, are exit 2. Returns the samples lost below the horizon (not in the dump).
 std::uint64_t write_conductor_files(const fs::path& dir, double weight_scale) {
-  const BsdfSamplerInfo* s = find_bsdf_sampler("conductor_vndf");
-  const GGX<double> ggx(0.3, 0.3);
-  const Vec3<double> wi = direction_from_degrees(30.0, 0.0);
-  std::ofstream d(dir / "d.txt"), e(dir / "e.txt");
-  std::uint64_t lost = 0;
-  for (std::uint64_t i = 0; i < 20000; ++i) {
-    CounterRng rng(3, i);
-    const double u0 = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform();
-    const BsdfSampleResult r = s->sample(ggx, kZooConductorIor, wi, {u0, u1, u2});
-    if (!r && ++lost) continue;
-    const double f = conductor_brdf(ggx, kZooConductorIor, wi, r->wo) * r->wo.z();
-    d << fmt::format("{:.17g} {:.17g} {:.17g} {:.17g} {:.17g}\n", r->wo.x(), r->wo.y(), r->wo.z(), r->pdf, r->weight * weight_scale);
-    e << fmt::format("{:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g}\n", wi.x(), wi.y(), wi.z(), r->wo.x(),
-                     r->wo.y(), r->wo.z(), f, conductor_vndf_pdf(ggx, kZooConductorIor, wi, r->wo));
-  }
-  return lost;
+  return write_conductor_bsdf_files(dir / "d.txt", dir / "e.txt", weight_scale);
 }
 
 // The conductor's eval file at the cell points `bsdf-queries --cells` wrote to q.npy, as c.txt.

@@ -164,10 +164,10 @@ TEST(BsdfFileCheck, ACellsFileThatIsNotTheCellPointsIsRefused) {
   std::vector<double> t;
   for (auto w = battery::cell_points(4, 1); const Vec3<double>& p : std::vector(w.rbegin(), w.rend()))
     t.insert(t.end(), {wi.x(), wi.y(), wi.z(), p.x(), p.y(), p.z(), 1.0, 1.0});
-  write_npy_table(o.cells, t, 8, true);
+  write_npy_table(o.cells.path, t, 8, true);
   EXPECT_THROW(run(), SampleFileError);
   t.resize(t.size() - 8 * 2);
-  write_npy_table(o.cells, t, 8, true);
+  write_npy_table(o.cells.path, t, 8, true);
   EXPECT_THROW(run(), SampleFileError);
   std::filesystem::remove_all(dir);
 }
