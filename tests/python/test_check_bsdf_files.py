@@ -99,6 +99,21 @@ def test_the_same_verdict_from_python_the_command_line_and_a_run(tmp_path, eval_
         assert ("consistency", False) in {(t["test"], t["passed"]) for t in files["tests"]}
 
 
+@pytest.mark.parametrize("eval_bug", [None, "eta2_twice"])
+def test_float32_and_fortran_order_arrays_and_files_give_the_same_verdict(tmp_path, eval_bug):
+    """A renderer's float32 rows, in any layout numpy writes (Fortran order here), as arrays and as .npy files."""
+    dump, evals, cells, lost = write_files(tmp_path, eval_bug)
+    f32 = [np.asfortranarray(a.astype(np.float32)) for a in (dump, evals, cells)]
+    for name, rows in zip(("d32.npy", "e32.npy", "c32.npy"), f32):
+        np.save(tmp_path / name, rows)
+    arrays = microsim.check_bsdf_files(*f32[:2], theta=THETA, lost=lost, cells=f32[2])
+    files = microsim.check_bsdf_files(tmp_path / "d32.npy", tmp_path / "e32.npy", theta=THETA, lost=lost,
+                                      cells=tmp_path / "c32.npy")
+    assert arrays["verdict"] == files["verdict"] == ("pass" if eval_bug is None else "fail")
+    if eval_bug is not None:
+        assert ("consistency", False) in {(t["test"], t["passed"]) for t in arrays["tests"]}
+
+
 def test_bad_arguments_and_rows_that_do_not_match_raise_naming_them(tmp_path):
     dump, evals, _, _ = write_files(tmp_path)
     with pytest.raises(ValueError, match="theta 200"):
