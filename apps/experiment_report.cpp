@@ -29,7 +29,11 @@ std::string summary_line(const experiment::ExperimentResults& results) {
   switch (v.verdict) {
     case experiment::Verdict::fail: verdict = fmt::format("FAIL (rejected: {})", fmt::join(v.rejected, ", ")); break;
     case experiment::Verdict::pass: verdict = fmt::format("pass ({} test(s), none rejected)", v.tested); break;
-    case experiment::Verdict::none: verdict = "none (no statistical test in this run)"; break;
+    case experiment::Verdict::none:
+      verdict = v.untested.empty() ? "none (no statistical test in this run)"
+                                   : fmt::format("none ({} test(s) ran, none rejected; no verdict from: {})", v.tested,
+                                                 fmt::join(v.untested, ", "));
+      break;
     case experiment::Verdict::incomplete: verdict = "incomplete (interrupted; none rejected so far)"; break;
   }
   return fmt::format("All targets met: {}. Verdict: {}", experiment::all_targets_met(results) ? "yes" : "no", verdict);

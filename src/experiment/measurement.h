@@ -143,5 +143,7 @@ std::string kind_summary_sections(const nlohmann::json& document, bool before);
 // The report of the test a measurement's values hold, whatever its kind (the registry names each testing kind's
 // member of its values; its "verdict" is "pass" or "fail"), or null.
 const nlohmann::json* kind_test_report(const nlohmann::json& values);
+// Whether a kind tests something (a validation, a BSDF's battery): its quantities ask for a verdict.
+bool kind_tests(QuantityKind kind);
 
 }  // namespace microsim::experiment

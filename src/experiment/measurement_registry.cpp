@@ -71,6 +71,8 @@ const nlohmann::json* kind_test_report(const nlohmann::json& values) {
   return nullptr;
 }
 
+bool kind_tests(QuantityKind kind) { return kind_entry(kind).test != nullptr; }
+
 ModelRule kind_model_rule(QuantityKind kind) { return kind_entry(kind).model; }
 
 PlanQuantity quantity_planner(QuantityKind kind) { return kind_entry(kind).plan; }

@@ -118,7 +118,9 @@ ExperimentPlan plan_experiment(const ExperimentSpec& spec, const PlanOptions& op
   const auto start = std::chrono::steady_clock::now();
   for (std::size_t i = 0; i < spec.quantities.size(); ++i) {
     if (options.run.cancelled()) throw Cancelled("plan");
+    const std::size_t first = plan.decisions.size();
     quantity_planner(spec.quantities[i].kind)(spec, i, options, surfaces, plan.decisions);
+    for (std::size_t k = first; k < plan.decisions.size(); ++k) plan.decisions[k].tests = kind_tests(spec.quantities[i].kind);
   }
   plan.pilot_seconds = seconds_since(start);
   for (const Decision& d : plan.decisions) plan.predicted_seconds += d.predicted_seconds;

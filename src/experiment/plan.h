@@ -120,6 +120,7 @@ struct Decision {
   std::uint64_t pilot_units = 0;
   double pilot_seconds = 0;
   double pilot_error = 0;    // the pilot's achieved error, in the target's unit
+  bool tests = false;        // its kind tests something (measurement.h kind_tests): the run's verdict needs it
   bool runnable = false;     // `microsim run` carries it out in this version
   std::string not_runnable;  // why not, when not
   SurfacePlan surface;       // Model::heightfield: the tile (measure/heightfield_trade.h)

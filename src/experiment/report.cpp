@@ -74,6 +74,11 @@ std::string verdict_headline(const json& doc) {
     text = fmt::format("Verdict: pass. None of the {} statistical tests rejected.", tested);
   else if (verdict == "incomplete")
     text = "Verdict: incomplete. The run was interrupted before every measurement ran; no test rejected so far.";
+  else if (results.contains("untested") && !results["untested"].empty())
+    text = fmt::format("Verdict: none. {} statistical test(s) ran and none rejected, but {} could not give a verdict "
+                       "(see their sections): {}. A test that did not run is not a pass.",
+                       tested, results["untested"].size(),
+                       esc(fmt::format("{}", fmt::join(results["untested"].get<std::vector<std::string>>(), ", "))));
   else
     text = "Verdict: none. No statistical test in this run (its measurements test nothing): nothing could reject.";
   return fmt::format("<p id=\"verdict\" class=\"verdict {}\">{}</p>\n", esc(verdict), text);

@@ -120,6 +120,7 @@ std::size_t quantity_index(const ExperimentSpec& spec, const std::string& key, c
 Decision decision_from_json(const json& j, const ExperimentSpec& spec, const std::string& where) {
   Decision d;
   d.quantity = quantity_index(spec, get<std::string>(j, "quantity", where), where);
+  d.tests = kind_tests(spec.quantities[d.quantity].kind);
   read_fields(d, kDecision, j, where);
   read_fields(d, kPilot, at(j, "pilot", where), where + ".pilot");
   if (j.contains("alpha")) d.alpha = get<std::pair<double, double>>(j, "alpha", where);

@@ -36,11 +36,12 @@ RunVerdict run_verdict(const ExperimentResults& results) {
   for (const MeasurementResult& m : results.measurements) {
     v.tested += validation_tested(m) ? 1 : 0;
     if (validation_rejected(m)) v.rejected.push_back(m.decision.label);
+    if (m.decision.tests && !m.partial && !validation_tested(m)) v.untested.push_back(m.decision.label);
   }
-  v.verdict = !v.rejected.empty() ? Verdict::fail
-              : results.partial   ? Verdict::incomplete
-              : v.tested > 0      ? Verdict::pass
-                                  : Verdict::none;
+  v.verdict = !v.rejected.empty()                   ? Verdict::fail
+              : results.partial                     ? Verdict::incomplete
+              : v.tested > 0 && v.untested.empty() ? Verdict::pass
+                                                    : Verdict::none;
   return v;
 }
 
@@ -51,7 +52,8 @@ bool all_targets_met(const ExperimentResults& results) {
 }
 
 nlohmann::json verdict_json(const RunVerdict& verdict) {
-  return {{"verdict", to_string(verdict.verdict)}, {"rejected", verdict.rejected}, {"tested", verdict.tested}};
+  return {{"verdict", to_string(verdict.verdict)}, {"rejected", verdict.rejected}, {"tested", verdict.tested},
+          {"untested", verdict.untested}};
 }
 
 }  // namespace microsim::experiment

@@ -5,8 +5,10 @@
 // validation that met its target and rejected is a failure of the run, never a success:
 //   fail        at least one validation rejected (final: a finished measurement is kept when the run resumes);
 //   incomplete  the run was interrupted before every measurement ran, and none rejected so far;
-//   pass        every measurement ran, at least one validation's test ran, none rejected;
-//   none        every measurement ran and no statistical test ran (no validation, or none runnable).
+//   pass        every measurement ran and every validation's test ran to its end, none rejected;
+//   none        every measurement ran, none rejected, and not every validation tested: the spec asks for no
+//               test, or a validation could not give a verdict (not runnable, or its traced reference could not
+//               serve its sample count: `untested` names them). A test that did not run is never a pass.
 // A validation the plan could not run (not runnable) tests nothing: the plan and the report say why.
 // Derived from the results alone (the validations' values), so a resumed run gives the same verdict. This is
 // the one place that decides it: results.json (results_json), the report and the command's exit code read it.
@@ -29,6 +31,7 @@ struct RunVerdict {
   Verdict verdict = Verdict::none;
   std::vector<std::string> rejected;  // the labels of the validations that rejected, in plan order
   std::size_t tested = 0;             // the validations whose test ran to its end (passed or rejected)
+  std::vector<std::string> untested;  // the labels of the validations that ran but could not test, in plan order
 };
 
 // Whether a measurement's test ran to its end (its values hold its kind's test report, measurement.h
@@ -42,7 +45,8 @@ RunVerdict run_verdict(const ExperimentResults& results);
 // all_targets_met). Says nothing of what the tests found: a rejected validation may have met its target.
 bool all_targets_met(const ExperimentResults& results);
 
-// results.json's members of the verdict: "verdict", "rejected" (labels) and "tested" (a count).
+// results.json's members of the verdict: "verdict", "rejected" (labels), "tested" (a count) and "untested"
+// (labels).
 nlohmann::json verdict_json(const RunVerdict& verdict);
 
 }  // namespace microsim::experiment

@@ -173,6 +173,31 @@ TEST(ExperimentVerdict, TheValidationsAloneDecideItAndThePageShowsItFirst) {
     if (!m.values.contains("validation")) untested.measurements.push_back(m);
   EXPECT_EQ(run_verdict(untested).verdict, Verdict::none);
   EXPECT_EQ(run_verdict(untested).tested, 0u);
+  EXPECT_TRUE(run_verdict(untested).untested.empty());
+  // One validation passed and the other gave no verdict (its traced reference could not serve its samples) or
+  // was not runnable: a test that did not run is not a pass, and the run names it.
+  for (const bool runnable : {true, false}) {
+    ExperimentResults half = run.results;
+    MeasurementResult& m = half.measurements[k];
+    ASSERT_TRUE(m.decision.tests);
+    if (runnable) {
+      m.values["validation"] = {{"verdict", "none"}, {"sampler", "heitz2018"}, {"samples", 4000},
+                                {"no_verdict", "the reference serves 1000 samples"}, {"reference", "rays on a tile"}};
+    } else {
+      m.ran = false;
+      m.values = nlohmann::json::object();
+    }
+    const RunVerdict v = run_verdict(half);
+    EXPECT_EQ(v.verdict, Verdict::none) << runnable;
+    EXPECT_EQ(v.tested, 1u);
+    EXPECT_EQ(v.untested, std::vector<std::string>{m.decision.label});
+    const nlohmann::json d = run_document(run.spec, run.plan, half, id);
+    EXPECT_EQ(d["results"]["verdict"], "none");
+    EXPECT_EQ(d["results"]["untested"], nlohmann::json::array({m.decision.label}));
+    const std::string p = experiment_report_html(d, {});
+    EXPECT_TRUE(headline_first(p, "none"));
+    EXPECT_NE(p.find("could not give a verdict"), std::string::npos);
+  }
 }
 
 TEST(ExperimentReport, CurveFigureChecksItsInput) {
