@@ -30,6 +30,9 @@ void print_layout_table(const LayoutTable& t) {
   fmt::print("albedo layout {}: {}\nsource: {}\nencoding: {}; reference tolerance {:g}; {:.1f} s\n", t.layout.name,
              t.layout.summary, t.layout.source, to_string(t.layout.encoding), t.tolerance, t.seconds);
   print_interpolation("interpolation error at cell centres (bilinear between nodes - reference)", t.interpolation);
+  if (t.layout.has_grazing())
+    print_interpolation(fmt::format("{} (the grazing channel): interpolation error at cell centres",
+                                    t.layout.grazing_quantity).c_str(), t.grazing_interpolation);
   std::size_t outside = 0;
   for (const bool in : t.in_range) outside += !in;
   if (outside > 0)
@@ -43,9 +46,9 @@ void print_layout_table(const LayoutTable& t) {
                t.average[i].standard_error);
 }
 
-std::vector<double> read_grade_values(const std::string& path, const AlbedoLayout& layout) {
+LayoutValues read_grade_values(const std::string& path, const AlbedoLayout& layout) {
   try {
-    return read_layout_values(path, layout);
+    return read_layout_channels(path, layout);
   } catch (const std::invalid_argument& e) {  // unreadable, or not a table of this layout
     throw UsageError(fmt::format("--grade {}: {}", quote_excerpt(path), e.what()));
   }
@@ -53,9 +56,9 @@ std::vector<double> read_grade_values(const std::string& path, const AlbedoLayou
 
 void print_grade(const AlbedoGrade& g) {
   const CellGrade& w = g.cells[g.worst];
-  fmt::print("grade: {} layout, {} nodes against the analytic reference (quadrature tolerance {:g}: the smaller of the "
-             "tolerance / 100 and a tenth of the encoding's rounding step)\n", g.layout.name, g.cells.size(),
-             g.reference_tolerance);
+  fmt::print("grade: {} layout, {} ({} nodes) against the analytic reference (quadrature tolerance {:g}: the smaller "
+             "of the tolerance / 100 and a tenth of the encoding's rounding step)\n", g.layout.name, g.quantity,
+             g.cells.size(), g.reference_tolerance);
   fmt::print("max |table - reference| {:.3g} at node (roughness {}, mu {}) = (alpha {:.6g}, mu {:.6g}): table {:.9g}, "
              "reference {:.9g}; RMS {:.3g}\n", g.max_abs, w.ri, w.mj, w.alpha, w.mu, w.value, w.reference.value, g.rms);
   if (g.not_graded > 0)
@@ -72,8 +75,8 @@ void print_grade(const AlbedoGrade& g) {
     if (!c.within_tolerance)
       fmt::print("FAIL node (roughness {}, mu {}) alpha {:.6g} mu {:.6g}: table {:.9g} reference {:.9g} difference {:.3g}\n",
                  c.ri, c.mj, c.alpha, c.mu, c.value, c.reference.value, c.difference);
-  fmt::print("{}: {} of {} nodes beyond the tolerance {:g}\n", g.passed() ? "PASS" : "FAIL", g.failed, g.cells.size(),
-             g.tolerance);
+  fmt::print("{}: {} of {} nodes beyond the tolerance {:g} ({})\n", g.passed() ? "PASS" : "FAIL", g.failed,
+             g.cells.size(), g.tolerance, g.quantity);
 }
 
 }  // namespace
@@ -121,19 +124,28 @@ int run_albedo_glass_layout(const GlassLayout& layout, double tolerance, int thr
 
 int run_albedo_grade(const AlbedoLayout& layout, const std::string& table, double tolerance,
                      std::uint64_t table_samples, int threads, const std::string& json) {
-  const std::vector<double> values = read_grade_values(table, layout);
-  for (std::size_t k = 0; k < values.size(); ++k)
-    if (!std::isfinite(values[k]))
-      throw UsageError(fmt::format("--grade {}: value {} is not finite", quote_excerpt(table), k));
+  const LayoutValues v = read_grade_values(table, layout);
+  for (const std::vector<double>* channel : {&v.values, &v.grazing})
+    for (std::size_t k = 0; k < channel->size(); ++k)
+      if (!std::isfinite((*channel)[k]))
+        throw UsageError(fmt::format("--grade {}: value {} is not finite", quote_excerpt(table), k));
   const auto progress = std::make_shared<CliProgress>(true);
   install_interrupt_handler();
-  const std::optional<AlbedoGrade> g =
-      grade_albedo_table(layout, values, tolerance, table_samples, cli_run_control(threads, progress));
+  const std::optional<std::vector<AlbedoGrade>> g =
+      grade_albedo_channels(layout, v.values, v.grazing, tolerance, table_samples, cli_run_control(threads, progress));
   progress->finish();
   if (!g) return interrupted_nothing_written("albedo");
-  if (!json.empty()) write_file_atomically(json, albedo_grade_json(*g).dump(2) + "\n");
-  print_grade(*g);
-  return g->passed() ? kExitOk : kExitRejected;
+  nlohmann::json out = albedo_grade_json(g->front());
+  if (g->size() > 1) out["grazing"] = albedo_grade_json(g->back());
+  if (!json.empty()) write_file_atomically(json, out.dump(2) + "\n");
+  bool passed = true;
+  for (const AlbedoGrade& grade : *g) {
+    print_grade(grade);
+    passed = passed && grade.passed();
+  }
+  if (layout.has_grazing() && v.grazing.empty())
+    fmt::print("the table has no {} channel: {} graded alone\n", layout.grazing_quantity, layout.quantity);
+  return passed ? kExitOk : kExitRejected;
 }
 
 }  // namespace microsim::app

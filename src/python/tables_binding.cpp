@@ -123,22 +123,27 @@ py::object grade_albedo_table_of(const py::object& path, const std::string& layo
     throw py::value_error("tolerance must be in [1e-13, 1e-2], got " + std::to_string(tolerance));
   if (table_samples && *table_samples < 1) throw py::value_error("table_samples must be >= 1 (None: not stated)");
   const std::string file = py::module_::import("os").attr("fsdecode")(path).cast<std::string>();
-  std::vector<double> values;
+  LayoutValues v;
   try {
-    values = read_layout_values(file, l);
+    v = read_layout_channels(file, l);
   } catch (const std::invalid_argument& e) {
     throw py::value_error(file + ": " + e.what());
   }
-  for (std::size_t k = 0; k < values.size(); ++k)
-    if (!std::isfinite(values[k])) throw py::value_error(file + ": value " + std::to_string(k) + " is not finite");
-  std::optional<AlbedoGrade> grade;
+  for (const std::vector<double>* channel : {&v.values, &v.grazing})
+    for (std::size_t k = 0; k < channel->size(); ++k)
+      if (!std::isfinite((*channel)[k])) throw py::value_error(file + ": value " + std::to_string(k) + " is not finite");
+  std::optional<std::vector<AlbedoGrade>> grades;
   run_interruptible([&](const RunControl& run) {
     RunControl r = run;
     r.threads = threads;
-    grade = grade_albedo_table(l, values, tolerance, table_samples.value_or(0), r);
+    grades = grade_albedo_channels(l, v.values, v.grazing, tolerance, table_samples.value_or(0), r);
   }, progress);
-  py::object out = json_object(albedo_grade_json(*grade));
-  out["exit_code"] = grade->passed() ? 0 : 1;
+  nlohmann::json j = albedo_grade_json(grades->front());
+  if (grades->size() > 1) j["grazing"] = albedo_grade_json(grades->back());
+  py::object out = json_object(j);
+  bool passed = true;
+  for (const AlbedoGrade& g : *grades) passed = passed && g.passed();
+  out["exit_code"] = passed ? 0 : 1;
   return out;
 }
 
