@@ -7,6 +7,7 @@
 #include "core/parse.h"
 #include "microfacet/ggx.h"
 #include "microgeom/exr_io.h"
+#include "scatter/albedo_glass_grade.h"
 #include "scatter/albedo_grade.h"
 #include "scatter/albedo_layout_io.h"
 
@@ -79,7 +80,51 @@ void print_grade(const AlbedoGrade& g) {
              g.cells.size(), g.tolerance, g.quantity);
 }
 
+void print_glass_grade(const GlassGrade& g) {
+  const GlassCellGrade& w = g.cells[g.worst];
+  fmt::print("grade: {} layout ({}), {} nodes against the analytic reference (quadrature tolerance {:g}: the smaller "
+             "of the tolerance / 100 and a tenth of the 6-decimal rounding step)\n", g.layout.name, g.layout.quantity,
+             g.cells.size(), g.reference_tolerance);
+  fmt::print("max |table - reference| {:.3g} at node (x {}, y {}, z {}) = (alpha {:.6g}, mu {:.6g}, ior {:.6g}): "
+             "table {:.9g}, reference {:.9g}; RMS {:.3g}\n", g.max_abs, w.x, w.y, w.z, w.alpha, w.mu, w.ior, w.value,
+             w.reference.value, g.rms);
+  if (g.not_graded > 0)
+    fmt::print("not graded: {} nodes of alpha below {:g}, the reference's range\n", g.not_graded, kMinAlpha);
+  fmt::print("beyond Cycles' 6-decimal rounding: {} of {} nodes\n", g.beyond_quantisation, g.cells.size());
+  if (g.table_samples > 0)
+    fmt::print("beyond the noise of {} samples per node ({:.2f} sigma: family level {:g}; weights in [0, 1]): {} of {} "
+               "nodes\n", g.table_samples, g.noise_z, kGradeNoiseLevel, g.beyond_noise, g.cells.size());
+  for (const GlassCellGrade& c : g.cells)
+    if (!c.within_tolerance)
+      fmt::print("FAIL node (x {}, y {}, z {}) alpha {:.6g} mu {:.6g} ior {:.6g}: table {:.9g} reference {:.9g} "
+                 "difference {:.3g}\n", c.x, c.y, c.z, c.alpha, c.mu, c.ior, c.value, c.reference.value, c.difference);
+  fmt::print("{}: {} of {} nodes beyond the tolerance {:g} ({})\n", g.passed() ? "PASS" : "FAIL", g.failed,
+             g.cells.size(), g.tolerance, g.layout.quantity);
+}
+
 }  // namespace
+
+int run_albedo_glass_grade(const GlassLayout& layout, const std::string& table, double tolerance,
+                           std::uint64_t table_samples, int threads, const std::string& json) {
+  std::vector<double> values;
+  try {
+    values = read_glass_values(table, layout);
+  } catch (const std::invalid_argument& e) {  // unreadable, or not a table of this layout
+    throw UsageError(fmt::format("--grade {}: {}", quote_excerpt(table), e.what()));
+  }
+  for (std::size_t k = 0; k < values.size(); ++k)
+    if (!std::isfinite(values[k]))
+      throw UsageError(fmt::format("--grade {}: value {} is not finite", quote_excerpt(table), k));
+  const auto progress = std::make_shared<CliProgress>(true);
+  install_interrupt_handler();
+  const std::optional<GlassGrade> g =
+      grade_glass_table(layout, values, tolerance, table_samples, cli_run_control(threads, progress));
+  progress->finish();
+  if (!g) return interrupted_nothing_written("albedo");
+  if (!json.empty()) write_file_atomically(json, glass_grade_json(*g).dump(2) + "\n");
+  print_glass_grade(*g);
+  return g->passed() ? kExitOk : kExitRejected;
+}
 
 int run_albedo_layout(const AlbedoLayout& layout, double tolerance, int threads, const LayoutOutputs& o) {
   const auto progress = std::make_shared<CliProgress>(true);

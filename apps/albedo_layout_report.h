@@ -30,4 +30,10 @@ int run_albedo_glass_layout(const GlassLayout& layout, double tolerance, int thr
 int run_albedo_grade(const AlbedoLayout& layout, const std::string& table, double tolerance,
                      std::uint64_t table_samples, int threads, const std::string& json);
 
+// Reads `table` (a glass layout's .csv as microsim writes it, or the .txt of values as Cycles prints them;
+// UsageError when unreadable or not in the layout), grades it (scatter/albedo_glass_grade.h) and prints the
+// result; exit codes as run_albedo_grade.
+int run_albedo_glass_grade(const GlassLayout& layout, const std::string& table, double tolerance,
+                           std::uint64_t table_samples, int threads, const std::string& json);
+
 }  // namespace microsim::app

@@ -185,12 +185,16 @@ int run_layout(const AlbedoArgs& a) {
 int run_grade(const AlbedoArgs& a) {
   check_only(a, {"--grade", "--layout", "--tolerance", "--table-samples", "--threads", "--json"},
              "--grade (the grade of a table in a layout)");
-  if (a.layout.empty()) throw UsageError("--grade needs --layout (the table's layout: " + albedo_layout_names() + ")");
-  const AlbedoLayout& layout = chosen_layout(a);
+  if (a.layout.empty())
+    throw UsageError("--grade needs --layout (the table's layout: " + albedo_layout_names() + ", " +
+                     glass_layout_names() + ")");
+  const GlassLayout* glass = find_glass_layout(a.layout);
+  const AlbedoLayout* layout = glass == nullptr ? &chosen_layout(a) : nullptr;
   check_distinct_outputs({{"--grade", a.grade}}, {{"--json", a.json}});
   check_output("--json", a.json);
   const double tolerance = a.given.count("--tolerance") ? a.tolerance : kDefaultGradeTolerance;
-  return run_albedo_grade(layout, a.grade, tolerance, a.table_samples, a.threads, a.json);
+  if (glass != nullptr) return run_albedo_glass_grade(*glass, a.grade, tolerance, a.table_samples, a.threads, a.json);
+  return run_albedo_grade(*layout, a.grade, tolerance, a.table_samples, a.threads, a.json);
 }
 
 void print_anisotropic(const AnisotropicAlbedoTable& t) {
@@ -301,8 +305,9 @@ void add_albedo_options(CLI::App* sub, AlbedoArgs& a) {
   sub->add_option("--encoded", a.encoded, "--layout: also write the values in the renderer's own encoding");
   sub->add_option("--centres", a.centres, "--layout: also write the interpolation error at the cell centres (CSV)");
   sub->add_option("--grade", a.grade,
-                  "grade a table in --layout L (.exr, or the .csv microsim writes) against the reference: exit 0 all "
-                  "nodes within --tolerance, 1 not");
+                  "grade a table in --layout L (.exr, or the .csv microsim writes; a glass layout: the .csv, or the "
+                  ".txt of values as Cycles prints them) against the reference: exit 0 all nodes within --tolerance, 1 "
+                  "not");
   add_number_option(sub, "--table-samples", a.table_samples, whole(1, kMaxRays),
                     "--grade: the samples per node the table was built from (its noise is reported)");
 }

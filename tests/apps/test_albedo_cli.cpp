@@ -211,6 +211,17 @@ std::vector<BadInputCase> albedo_cli_cases() {
        [](const fs::path& d) { write_text(d / "t.txt", "1\n"); }},
       {"grade_not_exr", "albedo --grade t.exr --layout cycles", 2, "--grade 't.exr'",
        [](const fs::path& d) { write_text(d / "t.exr", "not an exr"); }},
+      {"glass_grade_wrong_size", "albedo --grade g.csv --layout cycles-glass", 2,
+       "2 nodes in the CSV; the cycles-glass layout has 4096",
+       [](const fs::path& d) { write_text(d / "g.csv", "# a comment\nx,y,z,E\n0,0,0,0.5\n1,0,0,0.5\n"); }},
+      {"glass_grade_text_count", "albedo --grade g.txt --layout cycles-glass-inv", 2,
+       "3 values in the text; the cycles-glass-inv layout has 4096",
+       [](const fs::path& d) { write_text(d / "g.txt", "0.5, 0.5,\n\n0.5\n"); }},
+      {"glass_grade_no_z", "albedo --grade g.csv --layout cycles-glass", 2, "no column 'z'",
+       [](const fs::path& d) { write_text(d / "g.csv", "x,y,E\n0,0,0.5\n"); }},
+      {"glass_grade_exr", "albedo --grade g.exr --layout cycles-glass", 2, "a .csv or a .txt",
+       [](const fs::path& d) { write_text(d / "g.exr", "x"); }},
+      {"glass_grade_out", "albedo --grade g.csv --layout cycles-glass --csv o.csv", 2, "--csv does not apply to --grade"},
   };
 }
 
