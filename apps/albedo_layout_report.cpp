@@ -143,8 +143,7 @@ int run_albedo_layout(const AlbedoLayout& layout, double tolerance, int threads,
   return kExitOk;
 }
 
-int run_albedo_glass_layout(const GlassLayout& layout, double tolerance, int threads, const std::string& csv,
-                            const std::string& encoded) {
+int run_albedo_glass_layout(const GlassLayout& layout, double tolerance, int threads, const GlassOutputs& o) {
   const auto progress = std::make_shared<CliProgress>(true);
   install_interrupt_handler();
   fmt::print(stderr, "albedo: layout {} ({} x {} x {} nodes and E_avg)\n", layout.name, layout.roughness_nodes,
@@ -152,8 +151,9 @@ int run_albedo_glass_layout(const GlassLayout& layout, double tolerance, int thr
   const std::optional<GlassLayoutTable> t = glass_layout_table(layout, tolerance, cli_run_control(threads, progress));
   progress->finish();
   if (!t) return interrupted_nothing_written("albedo");
-  if (!csv.empty()) write_file_atomically(csv, glass_layout_csv(*t));
-  if (!encoded.empty()) write_file_atomically(encoded, glass_layout_encoded(*t));
+  if (!o.csv.empty()) write_file_atomically(o.csv, glass_layout_csv(*t));
+  if (!o.encoded.empty()) write_file_atomically(o.encoded, glass_layout_encoded(*t));
+  if (!o.json.empty()) write_file_atomically(o.json, glass_layout_json(*t).dump(2) + "\n");
   fmt::print("albedo layout {}: {}\nsource: {}\nreference tolerance {:g}; {:.1f} s\n", layout.name, layout.summary,
              layout.source, t->tolerance, t->seconds);
   double worst = 0;

@@ -148,18 +148,20 @@ const AlbedoLayout& chosen_layout(const AlbedoArgs& a) {
   }
 }
 
-// A dielectric over Cycles' index axis (scatter/albedo_glass_layout.h): CSV and the encoded text, no EXR.
+// A dielectric over Cycles' index axis (scatter/albedo_glass_layout.h): CSV, the encoded text and JSON, no EXR.
 int run_glass_layout(const AlbedoArgs& a, const GlassLayout& layout) {
-  check_only(a, {"--layout", "--model", "--tolerance", "--threads", "--csv", "--encoded"},
+  check_only(a, {"--layout", "--model", "--tolerance", "--threads", "--csv", "--encoded", "--json"},
              "a glass --layout (the analytic reference of a GGX dielectric at the layout's indices)");
   if (a.given.count("--model") && a.model != "analytic")
     throw UsageError(fmt::format("--model {}: a layout table holds the analytic reference (--model analytic)",
                                  quote_excerpt(a.model)));
-  if (a.csv.empty() && a.encoded.empty()) throw UsageError(fmt::format("--layout {} needs --csv or --encoded", layout.name));
-  check_distinct_outputs({}, {{"--csv", a.csv}, {"--encoded", a.encoded}});
+  if (a.csv.empty() && a.encoded.empty() && a.json.empty())
+    throw UsageError(fmt::format("--layout {} needs --csv, --encoded or --json", layout.name));
+  check_distinct_outputs({}, {{"--csv", a.csv}, {"--encoded", a.encoded}, {"--json", a.json}});
   check_output("--csv", a.csv);
   check_output("--encoded", a.encoded);
-  return run_albedo_glass_layout(layout, a.tolerance, a.threads, a.csv, a.encoded);
+  check_output("--json", a.json);
+  return run_albedo_glass_layout(layout, a.tolerance, a.threads, {a.csv, a.encoded, a.json});
 }
 
 int run_layout(const AlbedoArgs& a) {
@@ -211,13 +213,15 @@ void print_anisotropic(const AnisotropicAlbedoTable& t) {
   }
 }
 
-// --alphas-y: the anisotropic mirror's table (scatter/albedo_anisotropic.h), CSV only.
+// --alphas-y: the anisotropic mirror's table (scatter/albedo_anisotropic.h), CSV and JSON.
 int run_anisotropic(const AlbedoArgs& a) {
-  check_only(a, {"--model", "--alphas", "--alphas-y", "--phis", "--mus", "--tolerance", "--threads", "--csv"},
+  check_only(a, {"--model", "--alphas", "--alphas-y", "--phis", "--mus", "--tolerance", "--threads", "--csv", "--json"},
              "--alphas-y (the anisotropic GGX mirror's table)");
   if (a.model != "analytic") throw UsageError("--alphas-y needs --model analytic");
-  if (a.csv.empty()) throw UsageError("--alphas-y needs --csv T.csv");
+  if (a.csv.empty() && a.json.empty()) throw UsageError("--alphas-y needs --csv T.csv or --json T.json");
+  check_distinct_outputs({}, {{"--csv", a.csv}, {"--json", a.json}});
   check_output("--csv", a.csv);
+  check_output("--json", a.json);
   AnisotropicAlbedoRequest r;
   try {
     r.alphas_x = albedo_alphas(a);
@@ -234,7 +238,8 @@ int run_anisotropic(const AlbedoArgs& a) {
   const std::optional<AnisotropicAlbedoTable> t = anisotropic_albedo_table(r);
   progress->finish();
   if (!t) return interrupted_nothing_written("albedo");
-  write_file_atomically(a.csv, anisotropic_albedo_csv(*t));
+  if (!a.csv.empty()) write_file_atomically(a.csv, anisotropic_albedo_csv(*t));
+  if (!a.json.empty()) write_file_atomically(a.json, anisotropic_albedo_json(*t).dump(2) + "\n");
   print_anisotropic(*t);
   return kExitOk;
 }

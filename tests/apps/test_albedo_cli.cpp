@@ -187,7 +187,7 @@ std::vector<BadInputCase> albedo_cli_cases() {
       {"anisotropic_alpha_y", "albedo --model analytic --alphas-y 3 --csv a.csv", 2, "'3'"},
       {"phis_alone", kAlbedo + "--phis 4", 2, "--phis applies to --alphas-y only"},
       {"glass_layout_out", "albedo --layout cycles-glass --out o.exr --csv g.csv", 2, "--out does not apply"},
-      {"glass_layout_no_output", "albedo --layout cycles-glass-inv", 2, "needs --csv or --encoded"},
+      {"glass_layout_no_output", "albedo --layout cycles-glass-inv", 2, "needs --csv, --encoded or --json"},
       {"glass_layout_material", "albedo --layout cycles-glass --material dielectric:1.5 --csv g.csv", 2,
        "--material does not apply"},
       {"encoded_without_layout", kAlbedo + "--encoded e.bin", 2, "--encoded applies to --layout"},
