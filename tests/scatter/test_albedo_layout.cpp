@@ -218,7 +218,7 @@ TEST(AlbedoGrade, TheCorrectTablePassesAndOneNodeOffBy1e3IsFlagged) {
 // weighted by (1 - VoH)^5, and a Schlick material's albedo is mix(DFG.x, DFG.y, f0). The table as Filament
 // stores it (halves) passes in both channels; one DFG.x texel moved by 1e-3 is flagged (the negative control)
 // while DFG.y still passes.
-TEST(AlbedoGrade, FilamentsTwoChannelsAreGradedAndOnePlantedTexelIsFlagged) {
+TEST(AlbedoGradeChannels, FilamentsTwoChannelsAreGradedAndOnePlantedTexelIsFlagged) {
   AlbedoLayout l = find_albedo_layout("--layout", "filament-dfg");
   ASSERT_TRUE(l.has_grazing());
   EXPECT_EQ(l.grazing_quantity, "DFG.x");
