@@ -301,10 +301,10 @@ void add_albedo_options(CLI::App* sub, AlbedoArgs& a) {
   sub->add_option("--layout", a.layout,
                   "a renderer's layout of the GGX mirror's E(mu, alpha), analytic reference and error per node: " +
                       albedo_layout_names() + "; of a GGX dielectric's E = E_R + E_T over Cycles' index axis (--csv, "
-                      "--encoded): " + glass_layout_names());
+                      "--encoded, --json): " + glass_layout_names());
   sub->add_option("--alphas-y", a.alphas_y,
                   "analytic mirror: an anisotropic table, E(mu, phi) per (alpha_x in --alphas, alpha_y in this list), "
-                  "and E_avg (--csv)");
+                  "and E_avg (--csv, --json)");
   add_number_option(sub, "--phis", a.phis, integer(1, 64),
                     "--alphas-y: Gauss-Legendre nodes in phi over [0, pi/2], 1..64")->default_str(std::to_string(a.phis));
   sub->add_option("--encoded", a.encoded, "--layout: also write the values in the renderer's own encoding");
