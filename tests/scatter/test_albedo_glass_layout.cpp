@@ -221,8 +221,8 @@ TEST(AlbedoGlassLayout, PublishedTablesReadAsCyclesReadsThem) {
 // ---- the grade of a glass table --------------------------------------------------------------------------------
 
 const GlassLayoutTable& graded_reference(bool inverse) {
-  static const GlassLayoutTable outside = *glass_layout_table(small_glass(false), 1e-6, {}, false);
-  static const GlassLayoutTable inside = *glass_layout_table(small_glass(true), 1e-6, {}, false);
+  static const GlassLayoutTable outside = *glass_layout_table(small_glass(false), 1e-5, {}, false);
+  static const GlassLayoutTable inside = *glass_layout_table(small_glass(true), 1e-5, {}, false);
   return inverse ? inside : outside;
 }
 
