@@ -7,6 +7,7 @@
 #include "core/parse.h"
 #include "microfacet/ggx.h"
 #include "microgeom/exr_io.h"
+#include "scatter/albedo_glass_grade.h"
 #include "scatter/albedo_grade.h"
 #include "scatter/albedo_layout_io.h"
 
@@ -30,6 +31,9 @@ void print_layout_table(const LayoutTable& t) {
   fmt::print("albedo layout {}: {}\nsource: {}\nencoding: {}; reference tolerance {:g}; {:.1f} s\n", t.layout.name,
              t.layout.summary, t.layout.source, to_string(t.layout.encoding), t.tolerance, t.seconds);
   print_interpolation("interpolation error at cell centres (bilinear between nodes - reference)", t.interpolation);
+  if (t.layout.has_grazing())
+    print_interpolation(fmt::format("{} (the grazing channel): interpolation error at cell centres",
+                                    t.layout.grazing_quantity).c_str(), t.grazing_interpolation);
   std::size_t outside = 0;
   for (const bool in : t.in_range) outside += !in;
   if (outside > 0)
@@ -43,9 +47,9 @@ void print_layout_table(const LayoutTable& t) {
                t.average[i].standard_error);
 }
 
-std::vector<double> read_grade_values(const std::string& path, const AlbedoLayout& layout) {
+LayoutValues read_grade_values(const std::string& path, const AlbedoLayout& layout) {
   try {
-    return read_layout_values(path, layout);
+    return read_layout_channels(path, layout);
   } catch (const std::invalid_argument& e) {  // unreadable, or not a table of this layout
     throw UsageError(fmt::format("--grade {}: {}", quote_excerpt(path), e.what()));
   }
@@ -53,9 +57,9 @@ std::vector<double> read_grade_values(const std::string& path, const AlbedoLayou
 
 void print_grade(const AlbedoGrade& g) {
   const CellGrade& w = g.cells[g.worst];
-  fmt::print("grade: {} layout, {} nodes against the analytic reference (quadrature tolerance {:g}: the smaller of the "
-             "tolerance / 100 and a tenth of the encoding's rounding step)\n", g.layout.name, g.cells.size(),
-             g.reference_tolerance);
+  fmt::print("grade: {} layout, {} ({} nodes) against the analytic reference (quadrature tolerance {:g}: the smaller "
+             "of the tolerance / 100 and a tenth of the encoding's rounding step)\n", g.layout.name, g.quantity,
+             g.cells.size(), g.reference_tolerance);
   fmt::print("max |table - reference| {:.3g} at node (roughness {}, mu {}) = (alpha {:.6g}, mu {:.6g}): table {:.9g}, "
              "reference {:.9g}; RMS {:.3g}\n", g.max_abs, w.ri, w.mj, w.alpha, w.mu, w.value, w.reference.value, g.rms);
   if (g.not_graded > 0)
@@ -72,11 +76,55 @@ void print_grade(const AlbedoGrade& g) {
     if (!c.within_tolerance)
       fmt::print("FAIL node (roughness {}, mu {}) alpha {:.6g} mu {:.6g}: table {:.9g} reference {:.9g} difference {:.3g}\n",
                  c.ri, c.mj, c.alpha, c.mu, c.value, c.reference.value, c.difference);
-  fmt::print("{}: {} of {} nodes beyond the tolerance {:g}\n", g.passed() ? "PASS" : "FAIL", g.failed, g.cells.size(),
-             g.tolerance);
+  fmt::print("{}: {} of {} nodes beyond the tolerance {:g} ({})\n", g.passed() ? "PASS" : "FAIL", g.failed,
+             g.cells.size(), g.tolerance, g.quantity);
+}
+
+void print_glass_grade(const GlassGrade& g) {
+  const GlassCellGrade& w = g.cells[g.worst];
+  fmt::print("grade: {} layout ({}), {} nodes against the analytic reference (quadrature tolerance {:g}: the smaller "
+             "of the tolerance / 100 and a tenth of the 6-decimal rounding step)\n", g.layout.name, g.layout.quantity,
+             g.cells.size(), g.reference_tolerance);
+  fmt::print("max |table - reference| {:.3g} at node (x {}, y {}, z {}) = (alpha {:.6g}, mu {:.6g}, ior {:.6g}): "
+             "table {:.9g}, reference {:.9g}; RMS {:.3g}\n", g.max_abs, w.x, w.y, w.z, w.alpha, w.mu, w.ior, w.value,
+             w.reference.value, g.rms);
+  if (g.not_graded > 0)
+    fmt::print("not graded: {} nodes of alpha below {:g}, the reference's range\n", g.not_graded, kMinAlpha);
+  fmt::print("beyond Cycles' 6-decimal rounding: {} of {} nodes\n", g.beyond_quantisation, g.cells.size());
+  if (g.table_samples > 0)
+    fmt::print("beyond the noise of {} samples per node ({:.2f} sigma: family level {:g}; weights in [0, 1]): {} of {} "
+               "nodes\n", g.table_samples, g.noise_z, kGradeNoiseLevel, g.beyond_noise, g.cells.size());
+  for (const GlassCellGrade& c : g.cells)
+    if (!c.within_tolerance)
+      fmt::print("FAIL node (x {}, y {}, z {}) alpha {:.6g} mu {:.6g} ior {:.6g}: table {:.9g} reference {:.9g} "
+                 "difference {:.3g}\n", c.x, c.y, c.z, c.alpha, c.mu, c.ior, c.value, c.reference.value, c.difference);
+  fmt::print("{}: {} of {} nodes beyond the tolerance {:g} ({})\n", g.passed() ? "PASS" : "FAIL", g.failed,
+             g.cells.size(), g.tolerance, g.layout.quantity);
 }
 
 }  // namespace
+
+int run_albedo_glass_grade(const GlassLayout& layout, const std::string& table, double tolerance,
+                           std::uint64_t table_samples, int threads, const std::string& json) {
+  std::vector<double> values;
+  try {
+    values = read_glass_values(table, layout);
+  } catch (const std::invalid_argument& e) {  // unreadable, or not a table of this layout
+    throw UsageError(fmt::format("--grade {}: {}", quote_excerpt(table), e.what()));
+  }
+  for (std::size_t k = 0; k < values.size(); ++k)
+    if (!std::isfinite(values[k]))
+      throw UsageError(fmt::format("--grade {}: value {} is not finite", quote_excerpt(table), k));
+  const auto progress = std::make_shared<CliProgress>(true);
+  install_interrupt_handler();
+  const std::optional<GlassGrade> g =
+      grade_glass_table(layout, values, tolerance, table_samples, cli_run_control(threads, progress));
+  progress->finish();
+  if (!g) return interrupted_nothing_written("albedo");
+  if (!json.empty()) write_file_atomically(json, glass_grade_json(*g).dump(2) + "\n");
+  print_glass_grade(*g);
+  return g->passed() ? kExitOk : kExitRejected;
+}
 
 int run_albedo_layout(const AlbedoLayout& layout, double tolerance, int threads, const LayoutOutputs& o) {
   const auto progress = std::make_shared<CliProgress>(true);
@@ -95,8 +143,7 @@ int run_albedo_layout(const AlbedoLayout& layout, double tolerance, int threads,
   return kExitOk;
 }
 
-int run_albedo_glass_layout(const GlassLayout& layout, double tolerance, int threads, const std::string& csv,
-                            const std::string& encoded) {
+int run_albedo_glass_layout(const GlassLayout& layout, double tolerance, int threads, const GlassOutputs& o) {
   const auto progress = std::make_shared<CliProgress>(true);
   install_interrupt_handler();
   fmt::print(stderr, "albedo: layout {} ({} x {} x {} nodes and E_avg)\n", layout.name, layout.roughness_nodes,
@@ -104,8 +151,9 @@ int run_albedo_glass_layout(const GlassLayout& layout, double tolerance, int thr
   const std::optional<GlassLayoutTable> t = glass_layout_table(layout, tolerance, cli_run_control(threads, progress));
   progress->finish();
   if (!t) return interrupted_nothing_written("albedo");
-  if (!csv.empty()) write_file_atomically(csv, glass_layout_csv(*t));
-  if (!encoded.empty()) write_file_atomically(encoded, glass_layout_encoded(*t));
+  if (!o.csv.empty()) write_file_atomically(o.csv, glass_layout_csv(*t));
+  if (!o.encoded.empty()) write_file_atomically(o.encoded, glass_layout_encoded(*t));
+  if (!o.json.empty()) write_file_atomically(o.json, glass_layout_json(*t).dump(2) + "\n");
   fmt::print("albedo layout {}: {}\nsource: {}\nreference tolerance {:g}; {:.1f} s\n", layout.name, layout.summary,
              layout.source, t->tolerance, t->seconds);
   double worst = 0;
@@ -121,19 +169,28 @@ int run_albedo_glass_layout(const GlassLayout& layout, double tolerance, int thr
 
 int run_albedo_grade(const AlbedoLayout& layout, const std::string& table, double tolerance,
                      std::uint64_t table_samples, int threads, const std::string& json) {
-  const std::vector<double> values = read_grade_values(table, layout);
-  for (std::size_t k = 0; k < values.size(); ++k)
-    if (!std::isfinite(values[k]))
-      throw UsageError(fmt::format("--grade {}: value {} is not finite", quote_excerpt(table), k));
+  const LayoutValues v = read_grade_values(table, layout);
+  for (const std::vector<double>* channel : {&v.values, &v.grazing})
+    for (std::size_t k = 0; k < channel->size(); ++k)
+      if (!std::isfinite((*channel)[k]))
+        throw UsageError(fmt::format("--grade {}: value {} is not finite", quote_excerpt(table), k));
   const auto progress = std::make_shared<CliProgress>(true);
   install_interrupt_handler();
-  const std::optional<AlbedoGrade> g =
-      grade_albedo_table(layout, values, tolerance, table_samples, cli_run_control(threads, progress));
+  const std::optional<std::vector<AlbedoGrade>> g =
+      grade_albedo_channels(layout, v.values, v.grazing, tolerance, table_samples, cli_run_control(threads, progress));
   progress->finish();
   if (!g) return interrupted_nothing_written("albedo");
-  if (!json.empty()) write_file_atomically(json, albedo_grade_json(*g).dump(2) + "\n");
-  print_grade(*g);
-  return g->passed() ? kExitOk : kExitRejected;
+  nlohmann::json out = albedo_grade_json(g->front());
+  if (g->size() > 1) out["grazing"] = albedo_grade_json(g->back());
+  if (!json.empty()) write_file_atomically(json, out.dump(2) + "\n");
+  bool passed = true;
+  for (const AlbedoGrade& grade : *g) {
+    print_grade(grade);
+    passed = passed && grade.passed();
+  }
+  if (layout.has_grazing() && v.grazing.empty())
+    fmt::print("the table has no {} channel: {} graded alone\n", layout.grazing_quantity, layout.quantity);
+  return passed ? kExitOk : kExitRejected;
 }
 
 }  // namespace microsim::app

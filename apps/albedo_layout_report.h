@@ -19,15 +19,24 @@ struct LayoutOutputs {
 // kExitOk, or kExitInterrupted with nothing written.
 int run_albedo_layout(const AlbedoLayout& layout, double tolerance, int threads, const LayoutOutputs& outputs);
 
-// Computes a glass layout's table (scatter/albedo_glass_layout.h) and writes its CSV and encoded text ("" for
-// none); prints E_avg's corners and the largest error estimate. kExitOk, or kExitInterrupted (nothing written).
-int run_albedo_glass_layout(const GlassLayout& layout, double tolerance, int threads, const std::string& csv,
-                            const std::string& encoded);
+struct GlassOutputs {
+  std::string csv, encoded, json;  // "" for none
+};
+
+// Computes a glass layout's table (scatter/albedo_glass_layout.h) and writes its CSV, encoded text and JSON;
+// prints E_avg's corners and the largest error estimate. kExitOk, or kExitInterrupted (nothing written).
+int run_albedo_glass_layout(const GlassLayout& layout, double tolerance, int threads, const GlassOutputs& outputs);
 
 // Reads `table` (.exr, or the .csv microsim writes for a layout; UsageError when unreadable or not in the
 // layout), grades it and prints the result; `json`: also the whole grade. Returns kExitOk when every node is
 // within `tolerance`, kExitRejected otherwise, kExitInterrupted (nothing written) when cancelled.
 int run_albedo_grade(const AlbedoLayout& layout, const std::string& table, double tolerance,
                      std::uint64_t table_samples, int threads, const std::string& json);
+
+// Reads `table` (a glass layout's .csv as microsim writes it, or the .txt of values as Cycles prints them;
+// UsageError when unreadable or not in the layout), grades it (scatter/albedo_glass_grade.h) and prints the
+// result; exit codes as run_albedo_grade.
+int run_albedo_glass_grade(const GlassLayout& layout, const std::string& table, double tolerance,
+                           std::uint64_t table_samples, int threads, const std::string& json);
 
 }  // namespace microsim::app

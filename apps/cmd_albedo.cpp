@@ -148,18 +148,20 @@ const AlbedoLayout& chosen_layout(const AlbedoArgs& a) {
   }
 }
 
-// A dielectric over Cycles' index axis (scatter/albedo_glass_layout.h): CSV and the encoded text, no EXR.
+// A dielectric over Cycles' index axis (scatter/albedo_glass_layout.h): CSV, the encoded text and JSON, no EXR.
 int run_glass_layout(const AlbedoArgs& a, const GlassLayout& layout) {
-  check_only(a, {"--layout", "--model", "--tolerance", "--threads", "--csv", "--encoded"},
+  check_only(a, {"--layout", "--model", "--tolerance", "--threads", "--csv", "--encoded", "--json"},
              "a glass --layout (the analytic reference of a GGX dielectric at the layout's indices)");
   if (a.given.count("--model") && a.model != "analytic")
     throw UsageError(fmt::format("--model {}: a layout table holds the analytic reference (--model analytic)",
                                  quote_excerpt(a.model)));
-  if (a.csv.empty() && a.encoded.empty()) throw UsageError(fmt::format("--layout {} needs --csv or --encoded", layout.name));
-  check_distinct_outputs({}, {{"--csv", a.csv}, {"--encoded", a.encoded}});
+  if (a.csv.empty() && a.encoded.empty() && a.json.empty())
+    throw UsageError(fmt::format("--layout {} needs --csv, --encoded or --json", layout.name));
+  check_distinct_outputs({}, {{"--csv", a.csv}, {"--encoded", a.encoded}, {"--json", a.json}});
   check_output("--csv", a.csv);
   check_output("--encoded", a.encoded);
-  return run_albedo_glass_layout(layout, a.tolerance, a.threads, a.csv, a.encoded);
+  check_output("--json", a.json);
+  return run_albedo_glass_layout(layout, a.tolerance, a.threads, {a.csv, a.encoded, a.json});
 }
 
 int run_layout(const AlbedoArgs& a) {
@@ -185,12 +187,16 @@ int run_layout(const AlbedoArgs& a) {
 int run_grade(const AlbedoArgs& a) {
   check_only(a, {"--grade", "--layout", "--tolerance", "--table-samples", "--threads", "--json"},
              "--grade (the grade of a table in a layout)");
-  if (a.layout.empty()) throw UsageError("--grade needs --layout (the table's layout: " + albedo_layout_names() + ")");
-  const AlbedoLayout& layout = chosen_layout(a);
+  if (a.layout.empty())
+    throw UsageError("--grade needs --layout (the table's layout: " + albedo_layout_names() + ", " +
+                     glass_layout_names() + ")");
+  const GlassLayout* glass = find_glass_layout(a.layout);
+  const AlbedoLayout* layout = glass == nullptr ? &chosen_layout(a) : nullptr;
   check_distinct_outputs({{"--grade", a.grade}}, {{"--json", a.json}});
   check_output("--json", a.json);
   const double tolerance = a.given.count("--tolerance") ? a.tolerance : kDefaultGradeTolerance;
-  return run_albedo_grade(layout, a.grade, tolerance, a.table_samples, a.threads, a.json);
+  if (glass != nullptr) return run_albedo_glass_grade(*glass, a.grade, tolerance, a.table_samples, a.threads, a.json);
+  return run_albedo_grade(*layout, a.grade, tolerance, a.table_samples, a.threads, a.json);
 }
 
 void print_anisotropic(const AnisotropicAlbedoTable& t) {
@@ -207,13 +213,15 @@ void print_anisotropic(const AnisotropicAlbedoTable& t) {
   }
 }
 
-// --alphas-y: the anisotropic mirror's table (scatter/albedo_anisotropic.h), CSV only.
+// --alphas-y: the anisotropic mirror's table (scatter/albedo_anisotropic.h), CSV and JSON.
 int run_anisotropic(const AlbedoArgs& a) {
-  check_only(a, {"--model", "--alphas", "--alphas-y", "--phis", "--mus", "--tolerance", "--threads", "--csv"},
+  check_only(a, {"--model", "--alphas", "--alphas-y", "--phis", "--mus", "--tolerance", "--threads", "--csv", "--json"},
              "--alphas-y (the anisotropic GGX mirror's table)");
   if (a.model != "analytic") throw UsageError("--alphas-y needs --model analytic");
-  if (a.csv.empty()) throw UsageError("--alphas-y needs --csv T.csv");
+  if (a.csv.empty() && a.json.empty()) throw UsageError("--alphas-y needs --csv T.csv or --json T.json");
+  check_distinct_outputs({}, {{"--csv", a.csv}, {"--json", a.json}});
   check_output("--csv", a.csv);
+  check_output("--json", a.json);
   AnisotropicAlbedoRequest r;
   try {
     r.alphas_x = albedo_alphas(a);
@@ -230,7 +238,8 @@ int run_anisotropic(const AlbedoArgs& a) {
   const std::optional<AnisotropicAlbedoTable> t = anisotropic_albedo_table(r);
   progress->finish();
   if (!t) return interrupted_nothing_written("albedo");
-  write_file_atomically(a.csv, anisotropic_albedo_csv(*t));
+  if (!a.csv.empty()) write_file_atomically(a.csv, anisotropic_albedo_csv(*t));
+  if (!a.json.empty()) write_file_atomically(a.json, anisotropic_albedo_json(*t).dump(2) + "\n");
   print_anisotropic(*t);
   return kExitOk;
 }
@@ -292,17 +301,18 @@ void add_albedo_options(CLI::App* sub, AlbedoArgs& a) {
   sub->add_option("--layout", a.layout,
                   "a renderer's layout of the GGX mirror's E(mu, alpha), analytic reference and error per node: " +
                       albedo_layout_names() + "; of a GGX dielectric's E = E_R + E_T over Cycles' index axis (--csv, "
-                      "--encoded): " + glass_layout_names());
+                      "--encoded, --json): " + glass_layout_names());
   sub->add_option("--alphas-y", a.alphas_y,
                   "analytic mirror: an anisotropic table, E(mu, phi) per (alpha_x in --alphas, alpha_y in this list), "
-                  "and E_avg (--csv)");
+                  "and E_avg (--csv, --json)");
   add_number_option(sub, "--phis", a.phis, integer(1, 64),
                     "--alphas-y: Gauss-Legendre nodes in phi over [0, pi/2], 1..64")->default_str(std::to_string(a.phis));
   sub->add_option("--encoded", a.encoded, "--layout: also write the values in the renderer's own encoding");
   sub->add_option("--centres", a.centres, "--layout: also write the interpolation error at the cell centres (CSV)");
   sub->add_option("--grade", a.grade,
-                  "grade a table in --layout L (.exr, or the .csv microsim writes) against the reference: exit 0 all "
-                  "nodes within --tolerance, 1 not");
+                  "grade a table in --layout L (.exr, or the .csv microsim writes; a glass layout: the .csv, or the "
+                  ".txt of values as Cycles prints them) against the reference: exit 0 all nodes within --tolerance, 1 "
+                  "not");
   add_number_option(sub, "--table-samples", a.table_samples, whole(1, kMaxRays),
                     "--grade: the samples per node the table was built from (its noise is reported)");
 }

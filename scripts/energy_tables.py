@@ -4,7 +4,8 @@
   layout-cycles.{exr,csv,txt}       Cycles ggx_E (32 x 32) and ggx_Eavg; .txt: as Cycles prints its tables
   layout-enterprise-pbr.{exr,csv,bin} Enterprise PBR GGX_E (32 x 32) and GGX_E_avg; .bin: float32
   layout-uniform.{exr,csv,bin}      32 x 32 at cell centres in alpha and mu; .bin: normalised uint16
-  layout-filament-dfg.{exr,bin}     Filament's DFG.y (128 x 128); .bin: half floats in GL order
+  layout-filament-dfg.{exr,bin}     Filament's DFG (128 x 128), both channels; .bin: per texel two half floats,
+                                    R = DFG.x, G = DFG.y, in GL order
 
 each node the analytic reference of a GGX mirror with its quadrature error, and prints the interpolation error
 of each layout at its cell centres (the "is 32x32 enough?" table of the record), overall and where renderers

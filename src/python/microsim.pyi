@@ -68,7 +68,11 @@ def albedo_table(*, model: str = "analytic", ndf: str = "ggx", material: str = "
                  alphas: Optional[Sequence[float]] = None, mus: int = 16, tolerance: float = 1e-8,
                  paths: int = 1000000, seed: int = 1, max_order: int = 100, resolution: int = 512, threads: int = 0,
                  layout: Optional[str] = None, progress: Progress = None) -> dict[str, Any]:
-    """`microsim albedo` (`--layout L` when layout is given): the dict its --json writes."""
+    """`microsim albedo` (`--layout L` when layout is given, a glass layout too): the dict its --json writes."""
+
+def anisotropic_albedo_table(*, alphas_x: Sequence[float], alphas_y: Sequence[float], mus: int = 16, phis: int = 8,
+                             tolerance: float = 1e-8, threads: int = 0, progress: Progress = None) -> dict[str, Any]:
+    """`microsim albedo --model analytic --alphas AX,... --alphas-y AY,...`: the dict its --json writes."""
 
 def grade_albedo_table(path: Union[str, "os.PathLike[str]"], *, layout: str, tolerance: float = 1e-4,
                        table_samples: Optional[int] = None, threads: int = 0,

@@ -7,6 +7,7 @@
 #include "scatter/parallel_cells.h"
 
 #include <fmt/core.h>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <atomic>
@@ -101,6 +102,39 @@ std::string anisotropic_albedo_csv(const AnisotropicAlbedoTable& t) {
                            t.alphas_y[iy], t.mus[j], t.phis[k], e.value, e.standard_error, a.value, a.standard_error);
         }
   return s;
+}
+
+nlohmann::json anisotropic_albedo_json(const AnisotropicAlbedoTable& t) {
+  nlohmann::json value = nlohmann::json::array(), error = nlohmann::json::array();
+  nlohmann::json avg_value = nlohmann::json::array(), avg_error = nlohmann::json::array();
+  for (std::size_t ix = 0; ix < t.alphas_x.size(); ++ix) {
+    nlohmann::json vx = nlohmann::json::array(), ex = nlohmann::json::array(), av = nlohmann::json::array(),
+                   ae = nlohmann::json::array();
+    for (std::size_t iy = 0; iy < t.alphas_y.size(); ++iy) {
+      nlohmann::json vy = nlohmann::json::array(), ey = nlohmann::json::array();
+      for (std::size_t j = 0; j < t.mus.size(); ++j) {
+        std::vector<double> v, e;
+        for (std::size_t k = 0; k < t.phis.size(); ++k) {
+          v.push_back(t.cells[t.index(ix, iy, j, k)].value);
+          e.push_back(t.cells[t.index(ix, iy, j, k)].standard_error);
+        }
+        vy.push_back(v);
+        ey.push_back(e);
+      }
+      vx.push_back(vy);
+      ex.push_back(ey);
+      av.push_back(t.average[ix * t.alphas_y.size() + iy].value);
+      ae.push_back(t.average[ix * t.alphas_y.size() + iy].standard_error);
+    }
+    value.push_back(vx);
+    error.push_back(ex);
+    avg_value.push_back(av);
+    avg_error.push_back(ae);
+  }
+  return {{"kind", "anisotropic albedo table"}, {"alphas_x", t.alphas_x}, {"alphas_y", t.alphas_y}, {"mus", t.mus},
+          {"mu_weights", t.mu_weights}, {"phis", t.phis}, {"phi_weights", t.phi_weights}, {"tolerance", t.tolerance},
+          {"seconds", t.seconds}, {"E", {{"value", value}, {"error", error}}},
+          {"E_avg", {{"value", avg_value}, {"error", avg_error}}}};
 }
 
 }  // namespace microsim

@@ -17,6 +17,8 @@
 #include "core/estimate.h"
 #include "core/run_control.h"
 
+#include <nlohmann/json_fwd.hpp>
+
 #include <optional>
 #include <string>
 #include <vector>
@@ -49,5 +51,8 @@ Estimate anisotropic_mirror_albedo(double alpha_x, double alpha_y, double mu, do
 std::optional<AnisotropicAlbedoTable> anisotropic_albedo_table(const AnisotropicAlbedoRequest& request);
 // One line per node: alpha_x,alpha_y,mu,phi,E,E_error,E_avg,E_avg_error, after a header and `#` comments.
 std::string anisotropic_albedo_csv(const AnisotropicAlbedoTable& table);
+// The same as JSON: kind "anisotropic albedo table", the axes and weights, tolerance, seconds, E {value, error}
+// nested [alpha_x][alpha_y][mu][phi] and E_avg {value, error} nested [alpha_x][alpha_y].
+nlohmann::json anisotropic_albedo_json(const AnisotropicAlbedoTable& table);
 
 }  // namespace microsim

@@ -5,6 +5,7 @@
 #include "microfacet/ggx.h"
 
 #include <fmt/core.h>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <atomic>
@@ -180,6 +181,55 @@ std::string glass_layout_csv(const GlassLayoutTable& t) {
         s += "\n";
       }
   return s;
+}
+
+namespace {
+
+// [z][y][x] of one quantity of every node.
+template <class F> nlohmann::json glass_nested(const GlassLayoutTable& t, const F& of) {
+  nlohmann::json out = nlohmann::json::array();
+  for (std::size_t z = 0; z < t.iors.size(); ++z) {
+    nlohmann::json slice = nlohmann::json::array();
+    for (std::size_t y = 0; y < t.mus.size(); ++y) {
+      std::vector<double> row;
+      for (std::size_t x = 0; x < t.alphas.size(); ++x) row.push_back(of(t.cells[t.index(x, y, z)]));
+      slice.push_back(row);
+    }
+    out.push_back(slice);
+  }
+  return out;
+}
+
+}  // namespace
+
+nlohmann::json glass_layout_json(const GlassLayoutTable& t) {
+  using C = SingleScatteringAlbedo;
+  nlohmann::json j{{"kind", "glass layout table"}, {"layout", t.layout.name}, {"summary", t.layout.summary},
+                   {"source", t.layout.source}, {"quantity", t.layout.quantity}, {"inverse", t.layout.inverse},
+                   {"roughness", t.roughness}, {"alphas", t.alphas}, {"mus", t.mus},
+                   {"index_coordinates", t.index_coordinates}, {"iors", t.iors}, {"tolerance", t.tolerance},
+                   {"seconds", t.seconds}};
+  j["E"] = {{"value", glass_nested(t, [](const C& c) { return c.total().value; })},
+            {"error", glass_nested(t, [](const C& c) { return c.total().standard_error; })}};
+  j["E_R"] = {{"value", glass_nested(t, [](const C& c) { return c.reflected.value; })},
+              {"error", glass_nested(t, [](const C& c) { return c.reflected.standard_error; })}};
+  j["E_T"] = {{"value", glass_nested(t, [](const C& c) { return c.transmitted.value; })},
+              {"error", glass_nested(t, [](const C& c) { return c.transmitted.standard_error; })}};
+  j["E_encoded"] = glass_nested(t, [](const C& c) { return encode_glass_value(c.total().value); });
+  if (!t.average.empty()) {
+    nlohmann::json value = nlohmann::json::array(), error = nlohmann::json::array();
+    for (std::size_t z = 0; z < t.iors.size(); ++z) {
+      std::vector<double> v, e;
+      for (std::size_t x = 0; x < t.alphas.size(); ++x) {
+        v.push_back(t.average[z * t.alphas.size() + x].value);
+        e.push_back(t.average[z * t.alphas.size() + x].standard_error);
+      }
+      value.push_back(v);
+      error.push_back(e);
+    }
+    j["E_avg"] = {{"value", value}, {"error", error}};
+  }
+  return j;
 }
 
 }  // namespace microsim

@@ -32,6 +32,8 @@
 #include "core/run_control.h"
 #include "scatter/albedo_table.h"
 
+#include <nlohmann/json_fwd.hpp>
+
 #include <optional>
 #include <string>
 #include <string_view>
@@ -84,5 +86,9 @@ std::string glass_layout_average_encoded(const GlassLayoutTable& table);
 // CSV, one line per node: x,y,z,roughness,alpha,mu,t,ior,E,E_error,E_R,E_R_error,E_T,E_T_error,E_encoded
 // [,E_avg,E_avg_error], after a header and `#` comments naming the layout and its source.
 std::string glass_layout_csv(const GlassLayoutTable& table);
+// The same as JSON: kind "glass layout table", the layout's name, summary, source and quantity, the axes
+// (roughness, alphas, mus, index_coordinates, iors), tolerance, seconds, E, E_R and E_T {value, error} nested
+// [z][y][x] (Cycles' order), E_encoded the same, and E_avg {value, error} nested [z][x] when the table has it.
+nlohmann::json glass_layout_json(const GlassLayoutTable& table);
 
 }  // namespace microsim

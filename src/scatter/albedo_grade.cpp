@@ -24,8 +24,8 @@ void check_grade_input(const AlbedoLayout& layout, const std::vector<double>& va
     throw std::invalid_argument(fmt::format("grade: tolerance {} must be positive", tolerance));
 }
 
-CellGrade grade_cell(const LayoutTable& t, std::size_t ri, std::size_t mj, double value, double tolerance,
-                     std::uint64_t samples, double z) {
+CellGrade grade_cell(const LayoutTable& t, const std::vector<Estimate>& reference, std::size_t ri, std::size_t mj,
+                     double value, double tolerance, std::uint64_t samples, double z) {
   CellGrade c;
   c.ri = ri;
   c.mj = mj;
@@ -33,7 +33,7 @@ CellGrade grade_cell(const LayoutTable& t, std::size_t ri, std::size_t mj, doubl
   c.mu = t.mus[mj];
   c.value = value;
   c.graded = t.in_range[ri];
-  c.reference = t.cells[ri * t.mus.size() + mj];
+  c.reference = reference[ri * t.mus.size() + mj];
   c.difference = value - c.reference.value;
   c.quantisation = layout_quantisation(t.layout.encoding, value);
   const double slack = c.quantisation + c.reference.standard_error;
@@ -55,10 +55,14 @@ double grade_reference_tolerance(const AlbedoLayout& layout, double tolerance) {
 }
 
 AlbedoGrade grade_against(const LayoutTable& t, const std::vector<double>& values, double tolerance,
-                          std::uint64_t samples) {
+                          std::uint64_t samples, bool grazing) {
   check_grade_input(t.layout, values, tolerance);
+  if (grazing && (!t.layout.has_grazing() || t.grazing.size() != t.cells.size()))
+    throw std::invalid_argument(fmt::format("grade: the {} layout's reference has no grazing channel", t.layout.name));
+  const std::vector<Estimate>& reference = grazing ? t.grazing : t.cells;
   AlbedoGrade g;
   g.layout = t.layout;
+  g.quantity = grazing ? t.layout.grazing_quantity : t.layout.quantity;
   g.tolerance = tolerance;
   g.reference_tolerance = t.tolerance;
   g.table_samples = samples;
@@ -72,7 +76,7 @@ AlbedoGrade grade_against(const LayoutTable& t, const std::vector<double>& value
   for (std::size_t ri = 0; ri < t.alphas.size(); ++ri)
     for (std::size_t mj = 0; mj < nm; ++mj) {
       nodes[ri * nm + mj] = values[layout_storage_index(t.layout, ri, mj)];
-      const CellGrade c = grade_cell(t, ri, mj, nodes[ri * nm + mj], tolerance, samples, g.noise_z);
+      const CellGrade c = grade_cell(t, reference, ri, mj, nodes[ri * nm + mj], tolerance, samples, g.noise_z);
       g.cells.push_back(c);
       if (!c.graded) {
         ++g.not_graded;
@@ -89,8 +93,8 @@ AlbedoGrade grade_against(const LayoutTable& t, const std::vector<double>& value
     }
   const std::size_t graded = g.cells.size() - g.not_graded;
   g.rms = graded == 0 ? 0.0 : std::sqrt(sum / double(graded));
-  g.table_interpolation = interpolation_error(t, nodes);
-  g.reference_interpolation = t.interpolation;
+  g.table_interpolation = interpolation_error(t, nodes, grazing ? t.grazing_centres : t.centres);
+  g.reference_interpolation = grazing ? t.grazing_interpolation : t.interpolation;
   return g;
 }
 
@@ -100,6 +104,23 @@ std::optional<AlbedoGrade> grade_albedo_table(const AlbedoLayout& layout, const 
   const std::optional<LayoutTable> t = layout_table(layout, grade_reference_tolerance(layout, tolerance), run, false);
   if (!t) return std::nullopt;
   return grade_against(*t, values, tolerance, samples);
+}
+
+std::optional<std::vector<AlbedoGrade>> grade_albedo_channels(const AlbedoLayout& layout,
+                                                              const std::vector<double>& values,
+                                                              const std::vector<double>& grazing, double tolerance,
+                                                              std::uint64_t samples, const RunControl& run) {
+  check_grade_input(layout, values, tolerance);
+  if (!grazing.empty()) {
+    if (!layout.has_grazing())
+      throw std::invalid_argument(fmt::format("grade: the {} layout has no grazing channel", layout.name));
+    check_grade_input(layout, grazing, tolerance);
+  }
+  const std::optional<LayoutTable> t = layout_table(layout, grade_reference_tolerance(layout, tolerance), run, false);
+  if (!t) return std::nullopt;
+  std::vector<AlbedoGrade> grades{grade_against(*t, values, tolerance, samples)};
+  if (!grazing.empty()) grades.push_back(grade_against(*t, grazing, tolerance, samples, true));
+  return grades;
 }
 
 namespace {
@@ -124,6 +145,7 @@ nlohmann::json albedo_grade_json(const AlbedoGrade& g) {
   for (const CellGrade& c : g.cells) cells.push_back(cell_json(c));
   return {{"kind", "albedo table grade"},
           {"layout", g.layout.name},
+          {"quantity", g.quantity},
           {"source", g.layout.source},
           {"encoding", to_string(g.layout.encoding)},
           {"tolerance", g.tolerance},

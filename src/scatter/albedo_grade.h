@@ -21,6 +21,7 @@
 
 #include <cstdint>
 #include <optional>
+#include <string>
 #include <vector>
 
 namespace microsim {
@@ -37,6 +38,7 @@ struct CellGrade {
 
 struct AlbedoGrade {
   AlbedoLayout layout;
+  std::string quantity;             // the channel graded: the layout's quantity, or its grazing_quantity
   double tolerance = 0, reference_tolerance = 0;
   double noise_z = 0;               // the noise check's quantile (0 when no sample count)
   std::uint64_t table_samples = 0;  // 0: not stated
@@ -61,11 +63,22 @@ inline constexpr double kGradeNoiseLevel = 1e-3;  // the family level of the noi
 // quadrature's cost grows as its tolerance shrinks, and a finer reference changes no verdict.)
 double grade_reference_tolerance(const AlbedoLayout& layout, double tolerance);
 // The same against a reference computed once (layout_table of the layout, any tolerance).
+// grazing: grade the layout's grazing channel (Filament's DFG.x) against the reference's (std::invalid_argument
+// when the layout or the reference has none); its per-sample weight G1 (1 - VoH)^5 is in [0, 1] too, so the
+// noise bound holds for it as for E.
 AlbedoGrade grade_against(const LayoutTable& reference, const std::vector<double>& values, double tolerance,
-                          std::uint64_t table_samples = 0);
+                          std::uint64_t table_samples = 0, bool grazing = false);
 std::optional<AlbedoGrade> grade_albedo_table(const AlbedoLayout& layout, const std::vector<double>& values,
                                               double tolerance, std::uint64_t table_samples = 0,
                                               const RunControl& run = {});
+// The grade of E (values) and, when `grazing` is not empty, of the layout's grazing channel, against one
+// reference (computed as grade_albedo_table's, both channels in one quadrature): one or two grades, E first.
+// std::invalid_argument as above, and for grazing values in a layout without that channel.
+std::optional<std::vector<AlbedoGrade>> grade_albedo_channels(const AlbedoLayout& layout,
+                                                              const std::vector<double>& values,
+                                                              const std::vector<double>& grazing, double tolerance,
+                                                              std::uint64_t table_samples = 0,
+                                                              const RunControl& run = {});
 nlohmann::json albedo_grade_json(const AlbedoGrade& grade);
 
 }  // namespace microsim

@@ -52,15 +52,17 @@ AlbedoLayout cycles_layout() {
 AlbedoLayout filament_layout() {
   AlbedoLayout l;
   l.name = "filament-dfg";
-  l.summary = "Filament DFG LUT, G channel (DFG.y = E of F = 1): 128 x 128 texel centres over NoV and perceptual "
-              "roughness, half floats, GL order";
+  l.summary = "Filament DFG LUT, multiscatter form (R = DFG.x, the albedo weighted by (1 - VoH)^5; G = DFG.y, E of "
+              "F = 1): 128 x 128 texel centres over NoV and perceptual roughness, half floats, GL order";
   // Generator: libs/ibl/src/CubemapIBL.cpp (CubemapIBL::DFG, DFV_Multiscatter: NoV = (x + 0.5) / width,
   // linear_roughness = coord^2 with coord the perceptual roughness, 1024 Hammersley samples of the GGX NDF,
-  // height-correlated Smith visibility) and tools/cmgen/src/cmgen.cpp (iblLutDfg: half2 per texel, rows
-  // flipped to GL order); engine: filament/src/details/DFG.cpp (DFG_LUT_SIZE 128, a 16F texture) and the
-  // shaders' textureLod(light_iblDFG, vec2(NoV, perceptualRoughness)).
+  // height-correlated Smith visibility, r.x += v Fc and r.y += v with Fc = (1 - VoH)^5) and
+  // tools/cmgen/src/cmgen.cpp (iblLutDfg: half floats per texel, rows flipped to GL order); engine:
+  // filament/src/details/DFG.cpp (DFG_LUT_SIZE 128, an RGB16F texture, B the cloth term) and the shaders'
+  // textureLod(light_iblDFG, vec2(NoV, perceptualRoughness)), specularDFG = mix(dfg.xxx, dfg.yyy, f0).
   l.source = "google/filament libs/ibl/src/CubemapIBL.cpp, tools/cmgen/src/cmgen.cpp, filament/src/details/DFG.cpp";
   l.quantity = "DFG.y";
+  l.grazing_quantity = "DFG.x";
   l.roughness = {128, LayoutPlacement::centres, 0};
   l.mu = {128, LayoutPlacement::centres, 0};
   l.encoding = LayoutEncoding::half;
@@ -183,9 +185,25 @@ Estimate mirror_albedo_reference(double alpha, double mu, double tolerance) {
       .total();
 }
 
+SchlickSplitAlbedo mirror_split_reference(double alpha, double mu, double tolerance) {
+  return schlick_split_albedo(GGX<double>(alpha), albedo_view(mu, false), tolerance);
+}
+
 namespace {
 
-constexpr int kAverageNodes = 32;  // Gauss-Legendre nodes of E_avg's mu integral
+constexpr int kAverageNodes = 32;
+
+// The reference at (alpha, mu) into e, and the grazing channel into g when the layout has it (one quadrature
+// for both).
+void layout_reference(const AlbedoLayout& layout, double alpha, double mu, double tolerance, Estimate& e, Estimate& g) {
+  if (!layout.has_grazing()) {
+    e = mirror_albedo_reference(alpha, mu, tolerance);
+    return;
+  }
+  const SchlickSplitAlbedo s = mirror_split_reference(alpha, mu, tolerance);
+  e = s.unit;
+  g = s.grazing;
+}  // Gauss-Legendre nodes of E_avg's mu integral
 
 LayoutTable empty_layout_table(const AlbedoLayout& layout, double tolerance) {
   LayoutTable t;
@@ -233,28 +251,44 @@ std::optional<LayoutTable> layout_table(const AlbedoLayout& layout, double toler
   const std::uint64_t total = nr * nm + cr * cm + (layout.has_average && averages ? nr * kAverageNodes : 0);
   std::atomic<std::uint64_t> done{0};
   t.cells.resize(nr * nm);
+  t.grazing.resize(layout.has_grazing() ? nr * nm : 0);
   if (!parallel_cells(t.cells.size(), run, "layout table", done, total, [&](std::size_t k) {
-        t.cells[k] = mirror_albedo_reference(t.alphas[k / nm], t.mus[k % nm], tolerance);
+        Estimate unused;
+        layout_reference(layout, t.alphas[k / nm], t.mus[k % nm], tolerance, t.cells[k],
+                         layout.has_grazing() ? t.grazing[k] : unused);
       }))
     return std::nullopt;
   t.centres.resize(cr * cm);
+  t.grazing_centres.resize(layout.has_grazing() ? cr * cm : 0);
   if (!parallel_cells(t.centres.size(), run, "layout table", done, total, [&](std::size_t k) {
         const double r = layout_coordinate(layout.roughness, double(k / cm) + 0.5);
         const double mu = layout_coordinate(layout.mu, double(k % cm) + 0.5);
-        t.centres[k] = mirror_albedo_reference(layout_alpha(layout, r), mu, tolerance);
+        Estimate unused;
+        layout_reference(layout, layout_alpha(layout, r), mu, tolerance, t.centres[k],
+                         layout.has_grazing() ? t.grazing_centres[k] : unused);
       }))
     return std::nullopt;
   if (layout.has_average && averages && !fill_averages(t, run, done, total)) return std::nullopt;
   std::vector<double> nodes;
   for (const Estimate& e : t.cells) nodes.push_back(e.value);
   t.interpolation = interpolation_error(t, nodes);
+  if (layout.has_grazing()) {
+    std::vector<double> grazing;
+    for (const Estimate& e : t.grazing) grazing.push_back(e.value);
+    t.grazing_interpolation = interpolation_error(t, grazing, t.grazing_centres);
+  }
   t.seconds = seconds_since(start);
   return t;
 }
 
 InterpolationError interpolation_error(const LayoutTable& t, const std::vector<double>& nodes) {
+  return interpolation_error(t, nodes, t.centres);
+}
+
+InterpolationError interpolation_error(const LayoutTable& t, const std::vector<double>& nodes,
+                                       const std::vector<Estimate>& centres) {
   const std::size_t nm = t.mus.size(), cr = t.alphas.size() - 1, cm = nm - 1;
-  if (nodes.size() != t.cells.size() || t.centres.size() != cr * cm)
+  if (nodes.size() != t.cells.size() || centres.size() != cr * cm)
     throw std::invalid_argument("interpolation_error: node or centre count does not match the layout");
   InterpolationError r;
   double sum = 0;
@@ -268,7 +302,7 @@ InterpolationError interpolation_error(const LayoutTable& t, const std::vector<d
       ++counted;
       const double bilinear =
           (nodes[i * nm + j] + nodes[i * nm + j + 1] + nodes[(i + 1) * nm + j] + nodes[(i + 1) * nm + j + 1]) / 4;
-      const double e = bilinear - t.centres[i * cm + j].value;
+      const double e = bilinear - centres[i * cm + j].value;
       r.errors.push_back(e);
       sum += e * e;
       if (std::abs(e) > r.max_abs) {

@@ -10,10 +10,14 @@
 //                   coordinate clamped to >= 1e-4) in r = sqrt(alpha) and mu; stored data[y * 32 + x]
 //                   with x the roughness and y mu; read by bilinear interpolation between nodes
 //                   (x (size - 1), lookup_table.h); float32 printed with 6 decimals; ggx_Eavg: 32 over r.
-//   filament-dfg    Filament's DFG LUT, second channel (DFG.y, the multiscatter form: E of F = 1 with
-//                   the height-correlated Smith G2): 128 x 128 texels, values at texel centres
-//                   ((i + 0.5) / 128) in NoV and perceptual roughness r = sqrt(alpha), GL order (row y =
-//                   roughness, increasing), half floats (RG16F, here the G plane alone), read by the GPU's
+//   filament-dfg    Filament's DFG LUT in its multiscatter form (DFV_Multiscatter): DFG.y = E of F = 1 and
+//                   DFG.x = the albedo weighted by Schlick's grazing term (1 - VoH)^5, both with the
+//                   height-correlated Smith G2 (Filament's Visibility), which the shaders mix as
+//                   E(f0) = mix(DFG.x, DFG.y, f0) (schlick_split_albedo, albedo_table.h): 128 x 128 texels,
+//                   values at texel centres ((i + 0.5) / 128) in NoV and perceptual roughness
+//                   r = sqrt(alpha) (alpha = Filament's linear_roughness), GL order (row y = roughness,
+//                   increasing), half floats, R = DFG.x and G = DFG.y per texel (the engine's texture is
+//                   RGB16F: its third, cloth channel, DFV_Charlie, is not modelled here), read by the GPU's
 //                   bilinear filter with clamp to edge.
 //   enterprise-pbr  Dassault Systemes' Enterprise PBR GGX_E: 32 x 32, [roughness][cos theta] (rows
 //                   roughness r = sqrt(alpha), columns mu), float32; GGX_E_avg: 32 over r. The spec gives
@@ -35,6 +39,7 @@
 #include "core/estimate.h"
 #include "core/run_control.h"
 #include "microfacet/material.h"
+#include "scatter/albedo_table.h"
 
 #include <cstdint>
 #include <optional>
@@ -64,6 +69,10 @@ struct AlbedoLayout {
   bool mu_rows = false;             // storage rows are mu, columns roughness (else rows roughness)
   LayoutEncoding encoding = LayoutEncoding::float32;
   bool has_average = false;         // the renderer ships E_avg over the roughness nodes
+  // The renderer's name of a second channel, the albedo weighted by Schlick's grazing term (1 - VoH)^5
+  // (Filament's "DFG.x": SchlickSplitAlbedo::grazing); "" when the layout ships E alone.
+  std::string grazing_quantity;
+  bool has_grazing() const { return !grazing_quantity.empty(); }
 };
 
 // The registry, in a fixed order (cycles, filament-dfg, enterprise-pbr, uniform).
@@ -105,12 +114,17 @@ struct LayoutTable {
   std::vector<Estimate> average;           // E_avg per roughness node (when the layout has it)
   std::vector<Estimate> centres;           // the reference at each cell centre (InterpolationError order)
   InterpolationError interpolation;
+  // The grazing channel where the layout has it (has_grazing), as cells, centres and interpolation above.
+  std::vector<Estimate> grazing, grazing_centres;
+  InterpolationError grazing_interpolation;
   double seconds = 0;
 };
 
 // The reference single-scattering albedo of a GGX mirror at (alpha, mu) (alpha > 0, mu in (0, 1]; alpha
 // below kMinAlpha is computed at kMinAlpha).
 Estimate mirror_albedo_reference(double alpha, double mu, double tolerance);
+// Both channels of the Schlick split (schlick_split_albedo) at (alpha, mu), alpha clamped as above.
+SchlickSplitAlbedo mirror_split_reference(double alpha, double mu, double tolerance);
 
 // The layout's nodes, cell centres and (if the layout has it) E_avg, each cell in parallel on
 // run.threads; progress "layout table" in evaluations. nullopt when cancelled. `tolerance` in [1e-13, 1e-2]
@@ -118,7 +132,10 @@ Estimate mirror_albedo_reference(double alpha, double mu, double tolerance);
 // averages false: no E_avg (a grade needs only the nodes and the centres).
 std::optional<LayoutTable> layout_table(const AlbedoLayout& layout, double tolerance, const RunControl& run = {},
                                         bool averages = true);
-// The interpolation error of `nodes` ([ri * mus + mj]) against `centres` (the references there).
+// The interpolation error of `nodes` ([ri * mus + mj]) against `centres` (the references there; by default
+// the table's centres of E).
 InterpolationError interpolation_error(const LayoutTable& table, const std::vector<double>& nodes);
+InterpolationError interpolation_error(const LayoutTable& table, const std::vector<double>& nodes,
+                                       const std::vector<Estimate>& centres);
 
 }  // namespace microsim

@@ -47,6 +47,37 @@ template <class F> void for_storage(const LayoutTable& t, const F& f) {
   }
 }
 
+// The grazing channel (AlbedoLayout::grazing_quantity) as "<quantity>.value", ".error" and ".encoded".
+void add_grazing_channels(microgeom::ExrImage& image, const LayoutTable& t) {
+  const std::string& q = t.layout.grazing_quantity;
+  auto& value = image.add_channel(q + ".value");
+  auto& error = image.add_channel(q + ".error");
+  auto& encoded = image.add_channel(q + ".encoded");
+  for_storage(t, [&](std::size_t ri, std::size_t mj, std::size_t k) {
+    const Estimate& e = t.grazing[ri * t.mus.size() + mj];
+    value.data[k] = float(e.value);
+    error.data[k] = float(e.standard_error);
+    encoded.data[k] = float(encode_layout_value(t.layout.encoding, e.value));
+  });
+}
+
+// One value in the layout's binary encoding (float32: 4 bytes, half and unorm16: 2; little-endian).
+void append_encoded(std::string& s, LayoutEncoding enc, double v) {
+  unsigned char bytes[4];
+  std::size_t n = 2;
+  if (enc == LayoutEncoding::float32) {
+    const auto bits = std::bit_cast<std::uint32_t>(float(v));
+    for (int b = 0; b < 4; ++b) bytes[b] = static_cast<unsigned char>(bits >> (8 * b));
+    n = 4;
+  } else {
+    const std::uint16_t bits =
+        enc == LayoutEncoding::half ? half_bits(v) : std::uint16_t(std::nearbyint(std::clamp(v, 0.0, 1.0) * 65535));
+    bytes[0] = static_cast<unsigned char>(bits & 0xff);
+    bytes[1] = static_cast<unsigned char>(bits >> 8);
+  }
+  s.append(reinterpret_cast<const char*>(bytes), n);
+}
+
 }  // namespace
 
 microgeom::ExrImage layout_table_exr(const LayoutTable& t) {
@@ -62,6 +93,7 @@ microgeom::ExrImage layout_table_exr(const LayoutTable& t) {
     error.data[k] = float(e.standard_error);
     encoded.data[k] = float(encode_layout_value(t.layout.encoding, e.value));
   });
+  if (t.layout.has_grazing()) add_grazing_channels(image, t);
   image.attributes = {{"kind", kAlbedoLayoutKind}, {"layout", t.layout.name}, {"source", t.layout.source},
                       {"quantity", t.layout.quantity}, {"encoding", to_string(t.layout.encoding)},
                       {"columns", column_axis(t.layout)}, {"rows", row_axis(t.layout)},
@@ -72,6 +104,11 @@ microgeom::ExrImage layout_table_exr(const LayoutTable& t) {
   std::string in_range;
   for (const bool in : t.in_range) in_range += (in_range.empty() ? "" : ",") + std::string(in ? "1" : "0");
   image.attributes["roughness_in_reference_range"] = in_range;
+  if (t.layout.has_grazing()) {
+    image.attributes["grazing_quantity"] = t.layout.grazing_quantity;
+    image.attributes["grazing_interpolation_max_abs"] = layout_number(t.grazing_interpolation.max_abs);
+    image.attributes["grazing_interpolation_rms"] = layout_number(t.grazing_interpolation.rms);
+  }
   if (!t.average.empty()) {
     image.attributes["E_avg"] = layout_joined(layout_values_of(t.average, false));
     image.attributes["E_avg_error"] = layout_joined(layout_values_of(t.average, true));
@@ -80,13 +117,17 @@ microgeom::ExrImage layout_table_exr(const LayoutTable& t) {
 }
 
 std::string layout_table_csv(const LayoutTable& t) {
-  const bool avg = !t.average.empty();
-  std::string s = std::string("x,y,roughness,alpha,mu,E,E_error,E_encoded") + (avg ? ",E_avg,E_avg_error" : "") + "\n";
+  const bool avg = !t.average.empty(), grazing = t.layout.has_grazing();
+  std::string s = std::string("x,y,roughness,alpha,mu,E,E_error,E_encoded") +
+                  (grazing ? ",E_grazing,E_grazing_error,E_grazing_encoded" : "") + (avg ? ",E_avg,E_avg_error" : "") + "\n";
   s += fmt::format("# microsim albedo layout {}: {}\n# source: {}\n", t.layout.name, t.layout.summary, t.layout.source);
   s += fmt::format("# x: {} index, y: {} index; roughness = {}; encoding {}\n", column_axis(t.layout),
                    row_axis(t.layout), roughness_name(t.layout), to_string(t.layout.encoding));
   s += fmt::format("# E: analytic single scattering of a GGX mirror (F = 1), E_error its quadrature error estimate "
                    "(tolerance {})\n", layout_number(t.tolerance));
+  if (grazing)
+    s += fmt::format("# E_grazing: the same weighted by Schlick's grazing term (1 - VoH)^5 ({}; E is {})\n",
+                     t.layout.grazing_quantity, t.layout.quantity);
   std::size_t outside = 0;
   for (const bool in : t.in_range) outside += !in;
   if (outside > 0)
@@ -97,6 +138,11 @@ std::string layout_table_csv(const LayoutTable& t) {
     const std::size_t x = k % std::size_t(layout_columns(t.layout)), y = k / std::size_t(layout_columns(t.layout));
     s += fmt::format("{},{},{},{},{},{},{},{}", x, y, layout_number(t.roughness[ri]), layout_number(t.alphas[ri]), layout_number(t.mus[mj]),
                      layout_number(e.value), layout_number(e.standard_error), layout_number(encode_layout_value(t.layout.encoding, e.value)));
+    if (grazing) {
+      const Estimate& g = t.grazing[ri * t.mus.size() + mj];
+      s += fmt::format(",{},{},{}", layout_number(g.value), layout_number(g.standard_error),
+                       layout_number(encode_layout_value(t.layout.encoding, g.value)));
+    }
     if (avg) s += fmt::format(",{},{}", layout_number(t.average[ri].value), layout_number(t.average[ri].standard_error));
     s += "\n";
   });
@@ -113,19 +159,8 @@ std::string layout_table_encoded(const LayoutTable& t) {
       s += (k + 1) % std::size_t(layout_columns(t.layout)) == 0 ? "\n" : ",";
       return;
     }
-    unsigned char bytes[4];
-    std::size_t n = 2;
-    if (enc == LayoutEncoding::float32) {
-      const auto bits = std::bit_cast<std::uint32_t>(float(v));
-      for (int b = 0; b < 4; ++b) bytes[b] = static_cast<unsigned char>(bits >> (8 * b));
-      n = 4;
-    } else {
-      const std::uint16_t bits =
-          enc == LayoutEncoding::half ? half_bits(v) : std::uint16_t(std::nearbyint(std::clamp(v, 0.0, 1.0) * 65535));
-      bytes[0] = static_cast<unsigned char>(bits & 0xff);
-      bytes[1] = static_cast<unsigned char>(bits >> 8);
-    }
-    s.append(reinterpret_cast<const char*>(bytes), n);
+    if (t.layout.has_grazing()) append_encoded(s, enc, t.grazing[ri * t.mus.size() + mj].value);  // R, then G
+    append_encoded(s, enc, v);
   });
   return s;
 }
@@ -166,6 +201,19 @@ nlohmann::json layout_table_json(const LayoutTable& t) {
     error.push_back(row(true));
   }
   j["E"] = {{"value", value}, {"error", error}};  // [roughness][mu]
+  if (t.layout.has_grazing()) {
+    nlohmann::json rows = nlohmann::json::array(), errors = nlohmann::json::array();
+    for (std::size_t i = 0; i < t.alphas.size(); ++i) {
+      std::vector<double> r, e;
+      for (std::size_t m = 0; m < t.mus.size(); ++m) {
+        r.push_back(t.grazing[i * t.mus.size() + m].value);
+        e.push_back(t.grazing[i * t.mus.size() + m].standard_error);
+      }
+      rows.push_back(r);
+      errors.push_back(e);
+    }
+    j["E_grazing"] = {{"quantity", t.layout.grazing_quantity}, {"value", rows}, {"error", errors}};
+  }
   if (!t.average.empty()) j["E_avg"] = {{"value", layout_values_of(t.average, false)}, {"error", layout_values_of(t.average, true)}};
   const InterpolationError& e = t.interpolation;
   j["interpolation"] = {{"max_abs", e.max_abs}, {"rms", e.rms}, {"worst_alpha", e.worst_alpha}, {"worst_mu", e.worst_mu}};
@@ -209,13 +257,13 @@ std::vector<std::string_view> csv_fields(std::string_view line) {
 
 }  // namespace
 
-std::vector<double> layout_values_from_csv(std::string_view text, const AlbedoLayout& l) {
+std::vector<double> layout_values_from_csv(std::string_view text, const AlbedoLayout& l, std::string_view column) {
   std::istringstream in{std::string(text)};
   std::string header_line, line;
   if (!std::getline(in, header_line)) throw std::invalid_argument("an empty CSV");
   if (!header_line.empty() && header_line.back() == '\r') header_line.pop_back();
   const std::vector<std::string_view> header = csv_fields(header_line);
-  const std::size_t cx = csv_column(header, "x"), cy = csv_column(header, "y"), ce = csv_column(header, "E");
+  const std::size_t cx = csv_column(header, "x"), cy = csv_column(header, "y"), ce = csv_column(header, column);
   const std::size_t w = std::size_t(layout_columns(l)), h = std::size_t(layout_rows(l));
   std::vector<double> values(w * h, std::nan(""));
   std::size_t seen = 0, number_of_line = 1;
@@ -230,7 +278,7 @@ std::vector<double> layout_values_from_csv(std::string_view text, const AlbedoLa
     const auto x = std::size_t(parse_uint(what + " x", f[cx], 0, w - 1));
     const auto y = std::size_t(parse_uint(what + " y", f[cy], 0, h - 1));
     if (!std::isnan(values[y * w + x])) throw std::invalid_argument(fmt::format("{}: cell ({}, {}) given twice", what, x, y));
-    values[y * w + x] = parse_double(what + " E", f[ce]);
+    values[y * w + x] = parse_double(fmt::format("{} {}", what, column), f[ce]);
     ++seen;
   }
   if (seen != w * h)
@@ -238,7 +286,26 @@ std::vector<double> layout_values_from_csv(std::string_view text, const AlbedoLa
   return values;
 }
 
-std::vector<double> read_layout_values(const std::string& path, const AlbedoLayout& layout) {
+std::vector<double> layout_grazing_values_from_exr(const microgeom::ExrImage& image, const AlbedoLayout& l) {
+  if (!l.has_grazing()) return {};
+  if (image.width != layout_columns(l) || image.height != layout_rows(l))
+    throw std::invalid_argument(fmt::format("a {} x {} image; the {} layout is {} x {}", image.width, image.height,
+                                            l.name, layout_columns(l), layout_rows(l)));
+  const microgeom::ExrChannel* c = image.find(l.grazing_quantity + ".value");
+  if (c == nullptr && image.find("G") != nullptr) c = image.find("R");
+  if (c == nullptr) return {};
+  return std::vector<double>(c->data.begin(), c->data.end());
+}
+
+std::vector<double> layout_grazing_values_from_csv(std::string_view text, const AlbedoLayout& l) {
+  if (!l.has_grazing()) return {};
+  const std::string_view header = text.substr(0, text.find('\n'));
+  for (const std::string_view name : csv_fields(header))
+    if (name == "E_grazing" || name == "E_grazing\r") return layout_values_from_csv(text, l, "E_grazing");
+  return {};
+}
+
+LayoutValues read_layout_channels(const std::string& path, const AlbedoLayout& layout) {
   const std::string ext = std::filesystem::path(path).extension().string();
   if (ext != ".exr" && ext != ".csv") throw std::invalid_argument("an .exr or a .csv table");
   std::ifstream in(path, std::ios::binary);
@@ -246,7 +313,7 @@ std::vector<double> read_layout_values(const std::string& path, const AlbedoLayo
   if (ext == ".csv") {
     std::ostringstream text;
     text << in.rdbuf();
-    return layout_values_from_csv(text.str(), layout);
+    return {layout_values_from_csv(text.str(), layout), layout_grazing_values_from_csv(text.str(), layout)};
   }
   microgeom::ExrImage image;
   try {
@@ -254,7 +321,11 @@ std::vector<double> read_layout_values(const std::string& path, const AlbedoLayo
   } catch (const std::runtime_error& e) {  // not an EXR, or a damaged one
     throw std::invalid_argument(e.what());
   }
-  return layout_values_from_exr(image, layout);
+  return {layout_values_from_exr(image, layout), layout_grazing_values_from_exr(image, layout)};
+}
+
+std::vector<double> read_layout_values(const std::string& path, const AlbedoLayout& layout) {
+  return read_layout_channels(path, layout).values;
 }
 
 }  // namespace microsim

@@ -302,25 +302,34 @@ Integral<K> piecewise_integral(const F& f, const std::vector<double>& cuts, doub
   return sum;
 }
 
-// Outer integral over u1 of [inner R, inner T, inner R error, inner T error]: the last two integrate the
-// inner error estimates, so that the total error is the outer estimate plus their integral.
+// Two densities over the visible normals' unit square (density(u) -> Values<2>, with the kinks of
+// `material`'s lobes), integrated: the outer integral over u1 of [inner 0, inner 1, inner 0 error, inner 1
+// error]; the last two integrate the inner error estimates, so that each total error is the outer estimate
+// plus their integral. Returns {value, error} per density and adds the inner evaluations to `evaluations`.
+template <class Ndf, class Density>
+std::array<Estimate, 2> visible_normal_integrals(const Ndf& ndf, const Material& material, const Vec3<double>& wi,
+                                                 double tolerance, const Density& density, long long& evaluations) {
+  const auto outer = [&](double u1) -> Values<4> {
+    const auto inner = [&](double u2) { return density(Vec2<double>(u1, u2)); };
+    const Integral<2> in =
+        piecewise_integral<2, 2>(inner, line_cuts(ndf, material, wi, u1), tolerance / 2, kMaxInnerIntervals);
+    evaluations += in.evaluations;
+    return {in.value[0], in.value[1], in.error[0], in.error[1]};
+  };
+  const Integral<4> out = piecewise_integral<4, 2>(outer, outer_cuts(ndf, material, wi), tolerance / 2, kMaxOuterIntervals);
+  return {Estimate{out.value[0], out.error[0] + std::abs(out.value[2]) + out.error[2]},
+          Estimate{out.value[1], out.error[1] + std::abs(out.value[3]) + out.error[3]}};
+}
+
 template <class Ndf>
 SingleScatteringAlbedo albedo_of(const Ndf& ndf, const Material& material, int channel, const Vec3<double>& wi,
                                  double tolerance, RefractionMasking masking) {
   check_view(material, wi, tolerance);
-  long long inner_evaluations = 0;
-  const auto outer = [&](double u1) -> Values<4> {
-    const auto density = [&](double u2) { return lobe_densities(ndf, material, channel, wi, Vec2<double>(u1, u2), masking); };
-    const Integral<2> in =
-        piecewise_integral<2, 2>(density, line_cuts(ndf, material, wi, u1), tolerance / 2, kMaxInnerIntervals);
-    inner_evaluations += in.evaluations;
-    return {in.value[0], in.value[1], in.error[0], in.error[1]};
-  };
-  const Integral<4> out = piecewise_integral<4, 2>(outer, outer_cuts(ndf, material, wi), tolerance / 2, kMaxOuterIntervals);
   SingleScatteringAlbedo a;
-  a.reflected = {out.value[0], out.error[0] + std::abs(out.value[2]) + out.error[2]};
-  a.transmitted = {out.value[1], out.error[1] + std::abs(out.value[3]) + out.error[3]};
-  a.evaluations = inner_evaluations;
+  const auto density = [&](const Vec2<double>& u) { return lobe_densities(ndf, material, channel, wi, u, masking); };
+  const std::array<Estimate, 2> r = visible_normal_integrals(ndf, material, wi, tolerance, density, a.evaluations);
+  a.reflected = r[0];
+  a.transmitted = r[1];
   return a;
 }
 
@@ -338,6 +347,25 @@ SingleScatteringAlbedo single_scattering_albedo(const Beckmann<double>& beckmann
                                                 int channel, const Vec3<double>& wi, double tolerance,
                                                 RefractionMasking masking) {
   return albedo_of(beckmann, material, channel, wi, tolerance, masking);
+}
+
+SchlickSplitAlbedo schlick_split_albedo(const GGX<double>& ggx, const Vec3<double>& wi, double tolerance) {
+  const Material mirror = Material::mirror();
+  check_view(mirror, wi, tolerance);
+  // The mirror's reflection density through the visible normal m(u), and the same weighted by the
+  // grazing term of Schlick's Fresnel (1 - wi . m)^5 (wi . m = wo . m for a reflection).
+  const auto density = [&](const Vec2<double>& u) -> Values<2> {
+    const double d = lobe_densities(ggx, mirror, 0, wi, u, RefractionMasking::smith_microsurface)[0];
+    if (d == 0) return {0.0, 0.0};
+    const SampleResult<double> s = sample_visible_normal(ggx, wi, u);
+    const double c = 1 - std::clamp(wi.dot(s->direction), 0.0, 1.0);
+    return {d, d * sqr(sqr(c)) * c};
+  };
+  SchlickSplitAlbedo a;
+  const std::array<Estimate, 2> r = visible_normal_integrals(ggx, mirror, wi, tolerance, density, a.evaluations);
+  a.unit = r[0];
+  a.grazing = r[1];
+  return a;
 }
 
 MuGrid gauss_legendre_mus(int n) {

@@ -170,6 +170,19 @@ SingleScatteringAlbedo single_scattering_albedo(
     const Beckmann<double>& beckmann, const Material& material, int channel, const Vec3<double>& wi,
     double tolerance, RefractionMasking masking = RefractionMasking::smith_microsurface);
 
+// The two integrals of a GGX mirror's single scattering that Schlick's Fresnel F = f0 + (1 - f0) (1 - wo.m)^5
+// splits into (Karis 2013, "Real Shading in Unreal Engine 4"; Filament's DFG LUT in its multiscatter form,
+// google/filament libs/ibl/src/CubemapIBL.cpp DFV_Multiscatter): unit = E of F = 1 (DFG.y), grazing = the
+// albedo with the facet weight (1 - wo.m)^5 (DFG.x), so that E(f0) = f0 unit + (1 - f0) grazing. Both with the
+// height-correlated Smith G2 of the mirror (the reflection form 1 / (1 + Lambda_i + Lambda_o), Heitz 2014
+// eq. 99), by the quadrature of single_scattering_albedo (one pass, both integrands: their own error estimates).
+// std::invalid_argument as single_scattering_albedo for a bad view or tolerance (wi.z > 0 required).
+struct SchlickSplitAlbedo {
+  Estimate unit, grazing;
+  long long evaluations = 0;
+};
+SchlickSplitAlbedo schlick_split_albedo(const GGX<double>& ggx, const Vec3<double>& wi, double tolerance);
+
 // Called after each completed row (on the calling thread) with the table so far and the row's index.
 using AlbedoRowCallback = std::function<void(const AlbedoTable& so_far, std::size_t row)>;
 

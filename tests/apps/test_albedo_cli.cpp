@@ -187,7 +187,7 @@ std::vector<BadInputCase> albedo_cli_cases() {
       {"anisotropic_alpha_y", "albedo --model analytic --alphas-y 3 --csv a.csv", 2, "'3'"},
       {"phis_alone", kAlbedo + "--phis 4", 2, "--phis applies to --alphas-y only"},
       {"glass_layout_out", "albedo --layout cycles-glass --out o.exr --csv g.csv", 2, "--out does not apply"},
-      {"glass_layout_no_output", "albedo --layout cycles-glass-inv", 2, "needs --csv or --encoded"},
+      {"glass_layout_no_output", "albedo --layout cycles-glass-inv", 2, "needs --csv, --encoded or --json"},
       {"glass_layout_material", "albedo --layout cycles-glass --material dielectric:1.5 --csv g.csv", 2,
        "--material does not apply"},
       {"encoded_without_layout", kAlbedo + "--encoded e.bin", 2, "--encoded applies to --layout"},
@@ -211,6 +211,17 @@ std::vector<BadInputCase> albedo_cli_cases() {
        [](const fs::path& d) { write_text(d / "t.txt", "1\n"); }},
       {"grade_not_exr", "albedo --grade t.exr --layout cycles", 2, "--grade 't.exr'",
        [](const fs::path& d) { write_text(d / "t.exr", "not an exr"); }},
+      {"glass_grade_wrong_size", "albedo --grade g.csv --layout cycles-glass", 2,
+       "2 nodes in the CSV; the cycles-glass layout has 4096",
+       [](const fs::path& d) { write_text(d / "g.csv", "# a comment\nx,y,z,E\n0,0,0,0.5\n1,0,0,0.5\n"); }},
+      {"glass_grade_text_count", "albedo --grade g.txt --layout cycles-glass-inv", 2,
+       "3 values in the text; the cycles-glass-inv layout has 4096",
+       [](const fs::path& d) { write_text(d / "g.txt", "0.5, 0.5,\n\n0.5\n"); }},
+      {"glass_grade_no_z", "albedo --grade g.csv --layout cycles-glass", 2, "no column 'z'",
+       [](const fs::path& d) { write_text(d / "g.csv", "x,y,E\n0,0,0.5\n"); }},
+      {"glass_grade_exr", "albedo --grade g.exr --layout cycles-glass", 2, "a .csv or a .txt",
+       [](const fs::path& d) { write_text(d / "g.exr", "x"); }},
+      {"glass_grade_out", "albedo --grade g.csv --layout cycles-glass --csv o.csv", 2, "--csv does not apply to --grade"},
   };
 }
 

@@ -112,3 +112,44 @@ def test_grade_refuses_what_the_cli_refuses(tmp_path):
         microsim.grade_albedo_table(tmp_path / "t.txt", layout="uniform")
     with pytest.raises(ValueError):
         microsim.grade_albedo_table(tmp_path / "t.txt", layout="uniform", table_samples=0)
+
+
+# The anisotropic mirror's table and Cycles' glass layouts from Python: the anisotropic table is the CLI's
+# (--alphas-y --json), on a few nodes; the glass layouts (16 x 16 x 16 quadratures of a dielectric, minutes) are
+# checked for the arguments they refuse, and their grade for the files it refuses (its reference costs as
+# much; the grade itself is tested in C++ on a small grid of the same code path, AlbedoGlassGrade).
+def test_anisotropic_table_is_the_clis(tmp_path):
+    run_cli("albedo", "--model", "analytic", "--alphas", "0.2", "--alphas-y", "0.05,0.5", "--mus", "3", "--phis", "2",
+            "--json", tmp_path / "a.json")
+    cli = json.loads((tmp_path / "a.json").read_text())
+    py = microsim.anisotropic_albedo_table(alphas_x=[0.2], alphas_y=[0.05, 0.5], mus=3, phis=2)
+    assert without_times(py) == without_times(cli)
+    assert len(py["E"]["value"]) == 1 and len(py["E"]["value"][0]) == 2 and len(py["E"]["value"][0][1][2]) == 2
+    assert 0 < py["E_avg"]["value"][0][1] < py["E_avg"]["value"][0][0] < 1  # rougher in y: more energy lost
+
+
+def test_anisotropic_table_refuses_what_the_cli_refuses():
+    for bad in ({"alphas_x": [3.0]}, {"alphas_y": [0.0]}, {"mus": 1}, {"phis": 0}, {"phis": 65}, {"tolerance": 0.0},
+                {"threads": -1}):
+        kwargs = {"alphas_x": [0.5], "alphas_y": [0.5], **bad}
+        with pytest.raises(ValueError):
+            microsim.anisotropic_albedo_table(**kwargs)
+
+
+def test_glass_layout_refuses_what_the_cli_refuses():
+    for bad in ({"model": "smith-walk"}, {"material": "dielectric:1.5"}, {"alphas": [0.5]}, {"mus": 4},
+                {"inside": True}, {"tolerance": 0.0}):
+        for layout in ("cycles-glass", "cycles-glass-inv"):
+            with pytest.raises(ValueError):
+                microsim.albedo_table(layout=layout, **bad)
+
+
+def test_glass_grade_refuses_what_the_cli_refuses(tmp_path):
+    (tmp_path / "g.csv").write_text("# a comment\nx,y,z,E\n0,0,0,0.5\n1,0,0,0.5\n")
+    with pytest.raises(ValueError, match="2 nodes in the CSV; the cycles-glass layout has 4096"):
+        microsim.grade_albedo_table(tmp_path / "g.csv", layout="cycles-glass")
+    (tmp_path / "g.txt").write_text("0.5, 0.5\n")
+    with pytest.raises(ValueError, match="2 values in the text"):
+        microsim.grade_albedo_table(tmp_path / "g.txt", layout="cycles-glass-inv")
+    with pytest.raises(ValueError, match="a .csv or a .txt"):
+        microsim.grade_albedo_table(tmp_path / "g.exr", layout="cycles-glass")

@@ -7,6 +7,11 @@
 // at ior -> 1 (Cycles' first index node) the refraction does not bend, so E_T = E[G2 / G1] = (1 + Lambda) /
 // (1 + 2 Lambda) and E_R = 0, from both sides; on a near-smooth surface at normal incidence E_R = F0 = t^4.
 // The published tables read back the same way, three nodes of each against the independent quadrature.
+// The grade of such a table (scatter/albedo_glass_grade.h) on the small grid: the table as Cycles stores it
+// (6 decimals), read back from the text Cycles prints and from the CSV microsim writes, passes and is within
+// its rounding; one node moved by 1e-3 is flagged (the negative control); a table with the noise of N samples
+// of weights in [0, 1] is within the noise of N and beyond that of 100 N; malformed files are refused.
+#include "scatter/albedo_glass_grade.h"
 #include "scatter/albedo_glass_layout.h"
 
 #include "microfacet/ggx.h"
@@ -15,12 +20,15 @@
 #include <boost/math/quadrature/gauss.hpp>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <numbers>
+#include <random>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -208,6 +216,80 @@ TEST(AlbedoGlassLayout, PublishedTablesReadAsCyclesReadsThem) {
           << x << " " << y << " " << z << (inverse ? " inside" : "");
     }
   }
+}
+
+// ---- the grade of a glass table --------------------------------------------------------------------------------
+
+const GlassLayoutTable& graded_reference(bool inverse) {
+  static const GlassLayoutTable outside = *glass_layout_table(small_glass(false), 1e-5, {}, false);
+  static const GlassLayoutTable inside = *glass_layout_table(small_glass(true), 1e-5, {}, false);
+  return inverse ? inside : outside;
+}
+
+TEST(AlbedoGlassGrade, TheTableAsCyclesStoresItPassesAndOnePlantedNodeIsFlagged) {
+  for (const bool inverse : {false, true}) {
+    const GlassLayoutTable& t = graded_reference(inverse);
+    const std::vector<double> text = glass_values_from_text(glass_layout_encoded(t), t.layout);
+    const std::vector<double> csv = glass_values_from_csv(glass_layout_csv(t), t.layout);
+    ASSERT_EQ(text.size(), 36u);
+    for (std::size_t k = 0; k < text.size(); ++k) {
+      EXPECT_NEAR(text[k], encode_glass_value(t.cells[k].total().value), 1e-7) << k;  // the text: 6 decimals of a float
+      EXPECT_NEAR(csv[k], t.cells[k].total().value, 1e-11) << k;
+    }
+    const GlassGrade good = grade_glass_against(t, text, 5e-4);
+    EXPECT_TRUE(good.passed()) << inverse;
+    EXPECT_EQ(good.not_graded, 9u) << "r = 1e-4 (alpha 1e-8) is below the reference's alpha range";
+    EXPECT_EQ(good.beyond_quantisation, 0u) << "a table in Cycles' 6 decimals is within its rounding";
+    EXPECT_LT(good.max_abs, 6e-7);
+    std::vector<double> planted = text;
+    const std::size_t node = t.index(2, 1, 1);  // alpha 4/9, mu 1/2, ior 5/3 (inverse: 3/5)
+    planted[node] += 1e-3;
+    const GlassGrade bad = grade_glass_against(t, planted, 5e-4);
+    EXPECT_FALSE(bad.passed());
+    EXPECT_EQ(bad.failed, 1u);
+    EXPECT_EQ(bad.worst, node);
+    EXPECT_EQ(bad.cells[node].x, 2u);
+    EXPECT_EQ(bad.cells[node].z, 1u);
+    EXPECT_NEAR(bad.cells[node].ior, inverse ? 0.6 : 5.0 / 3, 1e-12);
+    EXPECT_NEAR(bad.max_abs, 1e-3, 1e-6);
+  }
+}
+
+// A table whose nodes carry the noise of N samples of weights in [0, 1] (a Bernoulli count of mean E: the
+// largest variance a weight in [0, 1] of mean E can have) passes the noise check at N and fails it at 100 N.
+TEST(AlbedoGlassGrade, ANoisyTableIsWithinItsStatedSampleCountsNoise) {
+  const GlassLayoutTable& t = graded_reference(false);
+  const std::uint64_t samples = 4096;
+  std::mt19937_64 rng(3);
+  std::vector<double> noisy;
+  for (const SingleScatteringAlbedo& c : t.cells) {
+    const double e = std::clamp(c.total().value, 0.0, 1.0);
+    noisy.push_back(double(std::binomial_distribution<std::uint64_t>(samples, e)(rng)) / double(samples));
+  }
+  const GlassGrade g = grade_glass_against(t, noisy, 0.05, samples);
+  EXPECT_TRUE(g.passed());
+  EXPECT_EQ(g.beyond_noise, 0u) << "z " << g.noise_z;
+  EXPECT_GT(g.beyond_quantisation, 10u);
+  EXPECT_GT(grade_glass_against(t, noisy, 0.05, 100 * samples).beyond_noise, 5u);
+}
+
+TEST(AlbedoGlassGradeInput, RefusesWrongCountsMissingColumnsAndRepeatedNodes) {
+  const GlassLayout l = small_glass(false);
+  EXPECT_THROW(glass_values_from_text("0.5, 0.5\n", l), std::invalid_argument);
+  EXPECT_THROW(glass_values_from_csv("x,y,E\n0,0,0.5\n", l), std::invalid_argument);
+  EXPECT_THROW(glass_values_from_csv("x,y,z,E\n0,0,0,0.5\n0,0,0,0.5\n", l), std::invalid_argument);
+  EXPECT_THROW(glass_values_from_csv("x,y,z,E\n0,0,0,0.5\n", l), std::invalid_argument) << "35 nodes missing";
+  EXPECT_THROW(glass_values_from_text(std::string(36 * 5, ',') + "x", l), std::invalid_argument);
+  EXPECT_THROW(read_glass_values("table.exr", l), std::invalid_argument);
+  const GlassLayoutTable& t = graded_reference(false);
+  std::vector<double> values(36, 0.5);
+  EXPECT_NO_THROW(grade_glass_against(t, values, 1e-3));
+  EXPECT_THROW(grade_glass_against(t, std::vector<double>(35, 0.5), 1e-3), std::invalid_argument);
+  values[4] = std::nan("");
+  EXPECT_THROW(grade_glass_against(t, values, 1e-3), std::invalid_argument);
+  EXPECT_THROW(grade_glass_against(t, std::vector<double>(36, 0.5), 0.0), std::invalid_argument);
+  EXPECT_NEAR(glass_grade_reference_tolerance(1e-3), layout_quantisation(LayoutEncoding::six_decimals, 0.5) / 10,
+              1e-20);
 }
 
 }  // namespace

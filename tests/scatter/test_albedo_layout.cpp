@@ -213,6 +213,47 @@ TEST(AlbedoGrade, TheCorrectTablePassesAndOneNodeOffBy1e3IsFlagged) {
   EXPECT_EQ(bad.beyond_quantisation, 1u);
 }
 
+// Filament's DFG layout, both channels, on an 8 x 8 grid of its own placement (texel centres, perceptual
+// roughness) so that the test stays cheap: DFG.y is E of F = 1 (the mirror's reference), DFG.x the albedo
+// weighted by (1 - VoH)^5, and a Schlick material's albedo is mix(DFG.x, DFG.y, f0). The table as Filament
+// stores it (halves) passes in both channels; one DFG.x texel moved by 1e-3 is flagged (the negative control)
+// while DFG.y still passes.
+TEST(AlbedoGradeChannels, FilamentsTwoChannelsAreGradedAndOnePlantedTexelIsFlagged) {
+  AlbedoLayout l = find_albedo_layout("--layout", "filament-dfg");
+  ASSERT_TRUE(l.has_grazing());
+  EXPECT_EQ(l.grazing_quantity, "DFG.x");
+  l.roughness.nodes = 8;
+  l.mu.nodes = 8;
+  const std::optional<LayoutTable> t = layout_table(l, 1e-5, {}, false);
+  ASSERT_TRUE(t.has_value());
+  ASSERT_EQ(t->grazing.size(), 64u);
+  ASSERT_EQ(t->grazing_centres.size(), 49u);
+  EXPECT_LT(t->grazing_interpolation.max_abs, 0.05);
+  const std::size_t node = 5 * 8 + 2;  // r = 5.5 / 8, NoV = 2.5 / 8
+  EXPECT_NEAR(t->cells[node].value, mirror_albedo_reference(t->alphas[5], t->mus[2], 1e-9).value, 1e-5);
+  EXPECT_GT(t->grazing[node].value, 0.0);
+  EXPECT_LT(t->grazing[node].value, t->cells[node].value);
+  std::vector<double> y(64), x(64);
+  for (std::size_t k = 0; k < 64; ++k) {
+    y[layout_storage_index(l, k / 8, k % 8)] = encode_layout_value(l.encoding, t->cells[k].value);
+    x[layout_storage_index(l, k / 8, k % 8)] = encode_layout_value(l.encoding, t->grazing[k].value);
+  }
+  const AlbedoGrade gy = grade_against(*t, y, 5e-4), gx = grade_against(*t, x, 5e-4, 0, true);
+  EXPECT_TRUE(gy.passed());
+  EXPECT_TRUE(gx.passed());
+  EXPECT_EQ(gx.quantity, "DFG.x");
+  EXPECT_EQ(gx.beyond_quantisation, 0u) << "a half-float table is within its rounding";
+  x[layout_storage_index(l, 3, 6)] += 1e-3;
+  const AlbedoGrade bad = grade_against(*t, x, 5e-4, 0, true);
+  EXPECT_FALSE(bad.passed());
+  EXPECT_EQ(bad.failed, 1u);
+  EXPECT_EQ(bad.cells[bad.worst].ri, 3u);
+  EXPECT_EQ(bad.cells[bad.worst].mj, 6u);
+  const LayoutTable plain = *layout_table(small_layout(), 1e-6, {}, false);
+  EXPECT_THROW(grade_against(plain, reference_values(plain), 5e-4, 0, true), std::invalid_argument)
+      << "a layout without a grazing channel";
+}
+
 // The Cycles grid with half-float storage (the encoding of the sampled tables below).
 LayoutTable half_reference() {
   LayoutTable t = cycles_reference();

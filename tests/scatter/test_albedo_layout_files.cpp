@@ -5,8 +5,10 @@
 // no visible-normal substitution, no adaptivity).
 //   Cycles (cycles_precompute.cpp, lookup_table.h): 32 text lines of 32 values, table[y][x], x the roughness
 //     r = sqrt(alpha) at x / 31, y mu at y / 31.
-//   Filament (CubemapIBL.cpp DFG, cmgen's RG16F "GL order"): 128 x 128 little-endian half floats (the G plane),
-//     row = perceptual roughness r = sqrt(alpha) at (row + 0.5) / 128, column = NoV at (column + 0.5) / 128.
+//   Filament (CubemapIBL.cpp DFG, DFV_Multiscatter; cmgen's "GL order"): 128 x 128 texels of two little-endian
+//     half floats, R = DFG.x (the albedo weighted by Schlick's (1 - VoH)^5), G = DFG.y (E of F = 1), row =
+//     perceptual roughness r = sqrt(alpha) at (row + 0.5) / 128, column = NoV at (column + 0.5) / 128; a
+//     shader reads E(f0) = mix(DFG.x, DFG.y, f0).
 //   Enterprise PBR (res/pbrlut.hpp GGX_E[32 roughness][32 cos_theta]): 32 x 32 little-endian float32,
 //     nodes at cell centres (i + 0.5) / 32, roughness r = sqrt(alpha).
 #include <boost/math/quadrature/gauss.hpp>
@@ -37,7 +39,8 @@ std::string bytes_of(const fs::path& path) {
 
 // E(mu) of a GGX mirror, single scattering with the height-correlated Smith G2 (Heitz 2014, eq. 99):
 // integral over the upper hemisphere of D(h) G2(i, o) / (4 mu_i) dwo, phi over [0, pi] doubled (symmetry).
-double independent_albedo(double alpha, double mu) {
+// schlick_power 5: each direction weighted by (1 - wi.h)^5 (Filament's DFG.x); 0: F = 1.
+double independent_albedo(double alpha, double mu, int schlick_power = 0) {
   const double a2 = alpha * alpha, si = std::sqrt(1 - mu * mu);
   const auto lambda = [&](double c) { return (-1 + std::sqrt(1 + a2 * (1 - c * c) / (c * c))) / 2; };
   const auto integrand = [&](double theta, double phi) {
@@ -46,7 +49,8 @@ double independent_albedo(double alpha, double mu) {
     const double hn2 = hx * hx + hy * hy + hz * hz, cos2 = hz * hz / hn2, tan2 = (1 - cos2) / cos2;
     const double d = 1 / (std::numbers::pi * a2 * cos2 * cos2 * std::pow(1 + tan2 / a2, 2));
     const double g2 = 1 / (1 + lambda(mu) + lambda(co));
-    return d * g2 / (4 * mu) * so;
+    const double weight = std::pow(1 - (si * hx + mu * hz) / std::sqrt(hn2), schlick_power);
+    return d * g2 / (4 * mu) * so * weight;
   };
   using Rule = boost::math::quadrature::gauss<double, 200>;
   double sum = 0;
@@ -90,15 +94,19 @@ TEST(AlbedoLayoutFiles, CyclesTableReadAsCyclesReadsIt) {
 
 TEST(AlbedoLayoutFiles, FilamentDfgReadAsFilamentSamplesIt) {
   const std::string b = bytes_of(kData / "layout-filament-dfg.bin");
-  ASSERT_EQ(b.size(), 128u * 128 * 2);
-  const auto texel = [&](int column, int row) {
-    const std::size_t k = 2 * (std::size_t(row) * 128 + std::size_t(column));
+  ASSERT_EQ(b.size(), 128u * 128 * 2 * 2);
+  const auto texel = [&](int column, int row, int channel) {  // channel 0: R, 1: G
+    const std::size_t k = 4 * (std::size_t(row) * 128 + std::size_t(column)) + 2 * std::size_t(channel);
     return half_to_double(std::uint16_t(std::uint8_t(b[k]) | (std::uint8_t(b[k + 1]) << 8)));
   };
+  const auto half_ulp = [](double v) { return std::ldexp(1.0, std::ilogb(v) - 11); };
   for (const auto& [column, row] : {std::pair{64, 64}, std::pair{100, 40}, std::pair{20, 120}}) {
     const double nov = (column + 0.5) / 128, r = (row + 0.5) / 128;
-    const double e = independent_albedo(r * r, nov);
-    EXPECT_NEAR(texel(column, row), e, std::ldexp(1.0, std::ilogb(e) - 11) + 1e-7) << column << " " << row;
+    const double y = independent_albedo(r * r, nov), x = independent_albedo(r * r, nov, 5);
+    EXPECT_NEAR(texel(column, row, 1), y, half_ulp(y) + 1e-7) << "DFG.y " << column << " " << row;
+    EXPECT_NEAR(texel(column, row, 0), x, half_ulp(x) + 1e-7) << "DFG.x " << column << " " << row;
+    EXPECT_GT(x, 0.0);
+    EXPECT_LT(x, y) << "the grazing weight (1 - VoH)^5 is below 1";
   }
 }
 
