@@ -23,7 +23,10 @@ std::string layout_number(double x) { return fmt::format("{:.17g}", x); }
 
 std::string layout_joined(const std::vector<double>& values) {
   std::string s;
-  for (const double v : values) s += (s.empty() ? "" : ",") + layout_number(v);
+  for (const double v : values) {
+    if (!s.empty()) s += ',';
+    s += layout_number(v);
+  }
   return s;
 }
 
