@@ -4,7 +4,6 @@
 #include "scatter/albedo_grade.h"
 #include "scatter/albedo_layout.h"
 
-#include <boost/math/distributions/normal.hpp>
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
@@ -41,22 +40,11 @@ GlassCellGrade grade_glass_cell(const GlassLayoutTable& t, std::size_t k, double
   c.x = k % nx;
   c.y = (k / nx) % ny;
   c.z = k / (nx * ny);
+  static_cast<NodeGrade&>(c) = grade_node(value, t.cells[k].total(), layout_quantisation(LayoutEncoding::six_decimals, value),
+                                          t.in_range[c.x], tolerance, samples, z);
   c.alpha = t.alphas[c.x];
   c.mu = t.mus[c.y];
   c.ior = t.layout.inverse ? 1 / t.iors[c.z] : t.iors[c.z];
-  c.value = value;
-  c.graded = t.in_range[c.x];
-  c.reference = t.cells[k].total();
-  c.difference = value - c.reference.value;
-  c.quantisation = layout_quantisation(LayoutEncoding::six_decimals, value);
-  const double slack = c.quantisation + c.reference.standard_error;
-  c.within_quantisation = std::abs(c.difference) <= slack;
-  if (samples > 0) {
-    const double e = std::clamp(c.reference.value, 0.0, 1.0);
-    c.noise = z * std::sqrt(e * (1 - e) / double(samples));
-    c.within_noise = std::abs(c.difference) <= c.noise + slack;
-  }
-  c.within_tolerance = !c.graded || std::abs(c.difference) <= tolerance;
   return c;
 }
 
@@ -77,29 +65,10 @@ GlassGrade grade_glass_against(const GlassLayoutTable& t, const std::vector<doub
   g.tolerance = tolerance;
   g.reference_tolerance = t.tolerance;
   g.table_samples = samples;
-  if (samples > 0) {
-    const double per_node = 1 - std::pow(1 - kGradeNoiseLevel, 1.0 / double(values.size()));
-    g.noise_z = boost::math::quantile(boost::math::complement(boost::math::normal(), per_node / 2));
-  }
-  double sum = 0;
-  for (std::size_t k = 0; k < values.size(); ++k) {
-    const GlassCellGrade c = grade_glass_cell(t, k, values[k], tolerance, samples, g.noise_z);
-    g.cells.push_back(c);
-    if (!c.graded) {
-      ++g.not_graded;
-      continue;
-    }
-    sum += c.difference * c.difference;
-    if (std::abs(c.difference) > g.max_abs || !g.cells[g.worst].graded) {
-      g.max_abs = std::abs(c.difference);
-      g.worst = k;
-    }
-    g.failed += !c.within_tolerance;
-    g.beyond_quantisation += !c.within_quantisation;
-    g.beyond_noise += samples > 0 && !c.within_noise;
-  }
-  const std::size_t graded = g.cells.size() - g.not_graded;
-  g.rms = graded == 0 ? 0.0 : std::sqrt(sum / double(graded));
+  g.noise_z = grade_noise_z(values.size(), samples);
+  for (std::size_t k = 0; k < values.size(); ++k)
+    g.cells.push_back(grade_glass_cell(t, k, values[k], tolerance, samples, g.noise_z));
+  static_cast<GradeTotals&>(g) = grade_totals(g.cells, samples > 0);
   return g;
 }
 

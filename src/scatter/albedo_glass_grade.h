@@ -18,6 +18,7 @@
 
 #include "core/run_control.h"
 #include "scatter/albedo_glass_layout.h"
+#include "scatter/albedo_grade.h"
 
 #include <nlohmann/json_fwd.hpp>
 
@@ -29,25 +30,16 @@
 
 namespace microsim {
 
-struct GlassCellGrade {
+struct GlassCellGrade : NodeGrade {
   std::size_t x = 0, y = 0, z = 0;  // roughness, mu and index node
   double alpha = 0, mu = 0, ior = 0;
-  double value = 0;  // the table's
-  Estimate reference;
-  double difference = 0, quantisation = 0, noise = 0;  // noise: 0 when no sample count is stated
-  bool graded = true;
-  bool within_quantisation = false, within_noise = false, within_tolerance = false;
 };
 
-struct GlassGrade {
+struct GlassGrade : GradeTotals {
   GlassLayout layout;
   double tolerance = 0, reference_tolerance = 0, noise_z = 0;
   std::uint64_t table_samples = 0;
   std::vector<GlassCellGrade> cells;  // Cycles' storage order, GlassLayoutTable::index
-  double max_abs = 0, rms = 0;
-  std::size_t worst = 0;  // index into cells (graded nodes only, as max_abs and rms)
-  std::size_t failed = 0, beyond_quantisation = 0, beyond_noise = 0, not_graded = 0;
-  bool passed() const { return failed == 0; }
 };
 
 // The reference's quadrature tolerance for a grade at `tolerance`: the smaller of tolerance / 100 and a tenth

@@ -27,27 +27,42 @@ void check_grade_input(const AlbedoLayout& layout, const std::vector<double>& va
 CellGrade grade_cell(const LayoutTable& t, const std::vector<Estimate>& reference, std::size_t ri, std::size_t mj,
                      double value, double tolerance, std::uint64_t samples, double z) {
   CellGrade c;
+  static_cast<NodeGrade&>(c) = grade_node(value, reference[ri * t.mus.size() + mj],
+                                          layout_quantisation(t.layout.encoding, value), t.in_range[ri], tolerance,
+                                          samples, z);
   c.ri = ri;
   c.mj = mj;
   c.alpha = t.alphas[ri];
   c.mu = t.mus[mj];
-  c.value = value;
-  c.graded = t.in_range[ri];
-  c.reference = reference[ri * t.mus.size() + mj];
-  c.difference = value - c.reference.value;
-  c.quantisation = layout_quantisation(t.layout.encoding, value);
-  const double slack = c.quantisation + c.reference.standard_error;
-  c.within_quantisation = std::abs(c.difference) <= slack;
-  if (samples > 0) {
-    const double e = std::clamp(c.reference.value, 0.0, 1.0);
-    c.noise = z * std::sqrt(e * (1 - e) / double(samples));
-    c.within_noise = std::abs(c.difference) <= c.noise + slack;
-  }
-  c.within_tolerance = !c.graded || std::abs(c.difference) <= tolerance;
   return c;
 }
 
 }  // namespace
+
+NodeGrade grade_node(double value, const Estimate& reference, double quantisation, bool graded, double tolerance,
+                     std::uint64_t samples, double z) {
+  NodeGrade c;
+  c.value = value;
+  c.reference = reference;
+  c.graded = graded;
+  c.difference = value - reference.value;
+  c.quantisation = quantisation;
+  const double slack = quantisation + reference.standard_error;
+  c.within_quantisation = std::abs(c.difference) <= slack;
+  if (samples > 0) {
+    const double e = std::clamp(reference.value, 0.0, 1.0);
+    c.noise = z * std::sqrt(e * (1 - e) / double(samples));
+    c.within_noise = std::abs(c.difference) <= c.noise + slack;
+  }
+  c.within_tolerance = !graded || std::abs(c.difference) <= tolerance;
+  return c;
+}
+
+double grade_noise_z(std::size_t nodes, std::uint64_t samples) {
+  if (samples == 0 || nodes == 0) return 0;
+  const double per_node = 1 - std::pow(1 - kGradeNoiseLevel, 1.0 / double(nodes));
+  return boost::math::quantile(boost::math::complement(boost::math::normal(), per_node / 2));
+}
 
 double grade_reference_tolerance(const AlbedoLayout& layout, double tolerance) {
   const double step = layout_quantisation(layout.encoding, 0.5);
@@ -67,32 +82,14 @@ AlbedoGrade grade_against(const LayoutTable& t, const std::vector<double>& value
   g.reference_tolerance = t.tolerance;
   g.table_samples = samples;
   const std::size_t nm = t.mus.size();
-  if (samples > 0) {
-    const double per_node = 1 - std::pow(1 - kGradeNoiseLevel, 1.0 / double(values.size()));
-    g.noise_z = boost::math::quantile(boost::math::complement(boost::math::normal(), per_node / 2));
-  }
+  g.noise_z = grade_noise_z(values.size(), samples);
   std::vector<double> nodes(t.cells.size());
-  double sum = 0;
   for (std::size_t ri = 0; ri < t.alphas.size(); ++ri)
     for (std::size_t mj = 0; mj < nm; ++mj) {
       nodes[ri * nm + mj] = values[layout_storage_index(t.layout, ri, mj)];
-      const CellGrade c = grade_cell(t, reference, ri, mj, nodes[ri * nm + mj], tolerance, samples, g.noise_z);
-      g.cells.push_back(c);
-      if (!c.graded) {
-        ++g.not_graded;
-        continue;
-      }
-      sum += c.difference * c.difference;
-      if (std::abs(c.difference) > g.max_abs || !g.cells[g.worst].graded) {
-        g.max_abs = std::abs(c.difference);
-        g.worst = g.cells.size() - 1;
-      }
-      g.failed += !c.within_tolerance;
-      g.beyond_quantisation += !c.within_quantisation;
-      g.beyond_noise += samples > 0 && !c.within_noise;
+      g.cells.push_back(grade_cell(t, reference, ri, mj, nodes[ri * nm + mj], tolerance, samples, g.noise_z));
     }
-  const std::size_t graded = g.cells.size() - g.not_graded;
-  g.rms = graded == 0 ? 0.0 : std::sqrt(sum / double(graded));
+  static_cast<GradeTotals&>(g) = grade_totals(g.cells, samples > 0);
   g.table_interpolation = interpolation_error(t, nodes, grazing ? t.grazing_centres : t.centres);
   g.reference_interpolation = grazing ? t.grazing_interpolation : t.interpolation;
   return g;

@@ -19,6 +19,8 @@
 
 #include <nlohmann/json_fwd.hpp>
 
+#include <cmath>
+
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -26,29 +28,46 @@
 
 namespace microsim {
 
-struct CellGrade {
-  std::size_t ri = 0, mj = 0;  // roughness and mu node
-  double alpha = 0, mu = 0;
-  double value = 0;            // the table's
+// One node of a table against the reference (the rules above; the glass layouts' grade uses them too).
+struct NodeGrade {
+  double value = 0;  // the table's
   Estimate reference;
   double difference = 0, quantisation = 0, noise = 0;  // noise: 0 when no sample count is stated
-  bool graded = true;  // the node's alpha is in the reference's range (LayoutTable::in_range)
+  bool graded = true;  // the node's alpha is in the reference's range (reported, not graded, otherwise)
   bool within_quantisation = false, within_noise = false, within_tolerance = false;
 };
+// `quantisation`: the encoding's rounding at the value; `z`: the noise check's quantile (grade_noise_z).
+NodeGrade grade_node(double value, const Estimate& reference, double quantisation, bool graded, double tolerance,
+                     std::uint64_t samples, double z);
+// The noise check's two-sided normal quantile for `nodes` nodes at the family level kGradeNoiseLevel (Sidak);
+// 0 when no sample count is stated.
+double grade_noise_z(std::size_t nodes, std::uint64_t samples);
 
-struct AlbedoGrade {
+// What the graded nodes add up to: the largest and RMS difference, where, and the counts beyond each bound.
+struct GradeTotals {
+  double max_abs = 0, rms = 0;
+  std::size_t worst = 0;  // index into the cells (graded nodes only, as max_abs and rms)
+  std::size_t failed = 0, beyond_quantisation = 0, beyond_noise = 0, not_graded = 0;
+  bool passed() const { return failed == 0; }
+};
+// The totals of `nodes` (each a NodeGrade) in their order; samples_stated: the noise check ran.
+template <class Node>
+GradeTotals grade_totals(const std::vector<Node>& nodes, bool samples_stated);
+
+struct CellGrade : NodeGrade {
+  std::size_t ri = 0, mj = 0;  // roughness and mu node
+  double alpha = 0, mu = 0;
+};
+
+struct AlbedoGrade : GradeTotals {
   AlbedoLayout layout;
   std::string quantity;             // the channel graded: the layout's quantity, or its grazing_quantity
   double tolerance = 0, reference_tolerance = 0;
   double noise_z = 0;               // the noise check's quantile (0 when no sample count)
   std::uint64_t table_samples = 0;  // 0: not stated
   std::vector<CellGrade> cells;     // [ri * mus + mj]
-  double max_abs = 0, rms = 0;
-  std::size_t worst = 0;            // index into cells (graded nodes only, as max_abs and rms)
-  std::size_t failed = 0, beyond_quantisation = 0, beyond_noise = 0, not_graded = 0;
   InterpolationError table_interpolation;      // the table's bilinear at cell centres vs the reference
   InterpolationError reference_interpolation;  // the layout's own (the reference's nodes)
-  bool passed() const { return failed == 0; }
 };
 
 inline constexpr double kGradeNoiseLevel = 1e-3;  // the family level of the noise check
@@ -80,5 +99,29 @@ std::optional<std::vector<AlbedoGrade>> grade_albedo_channels(const AlbedoLayout
                                                               std::uint64_t table_samples = 0,
                                                               const RunControl& run = {});
 nlohmann::json albedo_grade_json(const AlbedoGrade& grade);
+
+template <class Node>
+GradeTotals grade_totals(const std::vector<Node>& nodes, bool samples_stated) {
+  GradeTotals g;
+  double sum = 0;
+  for (std::size_t k = 0; k < nodes.size(); ++k) {
+    const NodeGrade& c = nodes[k];
+    if (!c.graded) {
+      ++g.not_graded;
+      continue;
+    }
+    sum += c.difference * c.difference;
+    if (std::abs(c.difference) > g.max_abs || !nodes[g.worst].graded) {
+      g.max_abs = std::abs(c.difference);
+      g.worst = k;
+    }
+    g.failed += !c.within_tolerance;
+    g.beyond_quantisation += !c.within_quantisation;
+    g.beyond_noise += samples_stated && !c.within_noise;
+  }
+  const std::size_t graded = nodes.size() - g.not_graded;
+  g.rms = graded == 0 ? 0.0 : std::sqrt(sum / double(graded));
+  return g;
+}
 
 }  // namespace microsim
