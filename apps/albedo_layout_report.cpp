@@ -28,8 +28,9 @@ void print_interpolation(const char* what, const InterpolationError& e) {
 }
 
 void print_layout_table(const LayoutTable& t) {
-  fmt::print("albedo layout {}: {}\nsource: {}\nencoding: {}; reference tolerance {:g}; {:.1f} s\n", t.layout.name,
-             t.layout.summary, t.layout.source, to_string(t.layout.encoding), t.tolerance, t.seconds);
+  fmt::print("albedo layout {} ({} mirror): {}\nsource: {}\nencoding: {}; reference tolerance {:g}; {:.1f} s\n",
+             t.layout.name, to_string(t.ndf), t.layout.summary, t.layout.source, to_string(t.layout.encoding),
+             t.tolerance, t.seconds);
   print_interpolation("interpolation error at cell centres (bilinear between nodes - reference)", t.interpolation);
   if (t.layout.has_grazing())
     print_interpolation(fmt::format("{} (the grazing channel): interpolation error at cell centres",
@@ -37,9 +38,9 @@ void print_layout_table(const LayoutTable& t) {
   std::size_t outside = 0;
   for (const bool in : t.in_range) outside += !in;
   if (outside > 0)
-    fmt::print("{} roughness node(s) of alpha below {:g}: the reference there is at alpha {:g} (microsim's GGX clamps "
+    fmt::print("{} roughness node(s) of alpha below {:g}: the reference there is at alpha {:g} (microsim's {} clamps "
                "alpha), not graded, and the cells touching them are left out of the interpolation error\n", outside,
-               kMinAlpha, kMinAlpha);
+               kMinAlpha, kMinAlpha, t.ndf == NdfKind::ggx ? "GGX" : "Beckmann");
   if (t.average.empty()) return;
   fmt::print("{:<12} {:<12} {:>24}\n", "roughness", "alpha", "E_avg");
   for (std::size_t i = 0; i < t.alphas.size(); ++i)
@@ -57,14 +58,14 @@ LayoutValues read_grade_values(const std::string& path, const AlbedoLayout& layo
 
 void print_grade(const AlbedoGrade& g) {
   const CellGrade& w = g.cells[g.worst];
-  fmt::print("grade: {} layout, {} ({} nodes) against the analytic reference (quadrature tolerance {:g}: the smaller "
-             "of the tolerance / 100 and a tenth of the encoding's rounding step)\n", g.layout.name, g.quantity,
-             g.cells.size(), g.reference_tolerance);
+  fmt::print("grade: {} layout, {} ({} nodes) against the analytic reference of a {} mirror (quadrature tolerance "
+             "{:g}: the smaller of the tolerance / 100 and a tenth of the encoding's rounding step)\n", g.layout.name,
+             g.quantity, g.cells.size(), to_string(g.ndf), g.reference_tolerance);
   fmt::print("max |table - reference| {:.3g} at node (roughness {}, mu {}) = (alpha {:.6g}, mu {:.6g}): table {:.9g}, "
              "reference {:.9g}; RMS {:.3g}\n", g.max_abs, w.ri, w.mj, w.alpha, w.mu, w.value, w.reference.value, g.rms);
   if (g.not_graded > 0)
-    fmt::print("not graded: {} nodes of alpha below {:g}, the reference's range (microsim's GGX clamps alpha there)\n",
-               g.not_graded, kMinAlpha);
+    fmt::print("not graded: {} nodes of alpha below {:g}, the reference's range (microsim's {} clamps alpha there)\n",
+               g.not_graded, kMinAlpha, g.ndf == NdfKind::ggx ? "GGX" : "Beckmann");
   fmt::print("beyond the encoding's quantisation ({}): {} of {} nodes\n", to_string(g.layout.encoding),
              g.beyond_quantisation, g.cells.size());
   if (g.table_samples > 0)
@@ -126,12 +127,12 @@ int run_albedo_glass_grade(const GlassLayout& layout, const std::string& table, 
   return g->passed() ? kExitOk : kExitRejected;
 }
 
-int run_albedo_layout(const AlbedoLayout& layout, double tolerance, int threads, const LayoutOutputs& o) {
+int run_albedo_layout(const AlbedoLayout& layout, NdfKind ndf, double tolerance, int threads, const LayoutOutputs& o) {
   const auto progress = std::make_shared<CliProgress>(true);
   install_interrupt_handler();
   fmt::print(stderr, "albedo: layout {} ({} x {} nodes and the cell centres)\n", layout.name, layout_columns(layout),
              layout_rows(layout));
-  const std::optional<LayoutTable> t = layout_table(layout, tolerance, cli_run_control(threads, progress));
+  const std::optional<LayoutTable> t = layout_table(layout, tolerance, cli_run_control(threads, progress), true, ndf);
   progress->finish();
   if (!t) return interrupted_nothing_written("albedo");
   microgeom::write_exr(o.exr, layout_table_exr(*t));
@@ -167,7 +168,7 @@ int run_albedo_glass_layout(const GlassLayout& layout, double tolerance, int thr
   return kExitOk;
 }
 
-int run_albedo_grade(const AlbedoLayout& layout, const std::string& table, double tolerance,
+int run_albedo_grade(const AlbedoLayout& layout, NdfKind ndf, const std::string& table, double tolerance,
                      std::uint64_t table_samples, int threads, const std::string& json) {
   const LayoutValues v = read_grade_values(table, layout);
   for (const std::vector<double>* channel : {&v.values, &v.grazing})
@@ -177,7 +178,8 @@ int run_albedo_grade(const AlbedoLayout& layout, const std::string& table, doubl
   const auto progress = std::make_shared<CliProgress>(true);
   install_interrupt_handler();
   const std::optional<std::vector<AlbedoGrade>> g =
-      grade_albedo_channels(layout, v.values, v.grazing, tolerance, table_samples, cli_run_control(threads, progress));
+      grade_albedo_channels(layout, v.values, v.grazing, tolerance, table_samples, cli_run_control(threads, progress),
+                            ndf);
   progress->finish();
   if (!g) return interrupted_nothing_written("albedo");
   nlohmann::json out = albedo_grade_json(g->front());

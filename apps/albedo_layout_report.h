@@ -17,7 +17,9 @@ struct LayoutOutputs {
 
 // Computes and writes the layout's table; prints its summary (E_avg, the interpolation error). Returns
 // kExitOk, or kExitInterrupted with nothing written.
-int run_albedo_layout(const AlbedoLayout& layout, double tolerance, int threads, const LayoutOutputs& outputs);
+// ndf: the mirror's distribution (GGX, what the renderers ship, or Beckmann in the same grid and encoding).
+int run_albedo_layout(const AlbedoLayout& layout, NdfKind ndf, double tolerance, int threads,
+                      const LayoutOutputs& outputs);
 
 struct GlassOutputs {
   std::string csv, encoded, json;  // "" for none
@@ -30,7 +32,8 @@ int run_albedo_glass_layout(const GlassLayout& layout, double tolerance, int thr
 // Reads `table` (.exr, or the .csv microsim writes for a layout; UsageError when unreadable or not in the
 // layout), grades it and prints the result; `json`: also the whole grade. Returns kExitOk when every node is
 // within `tolerance`, kExitRejected otherwise, kExitInterrupted (nothing written) when cancelled.
-int run_albedo_grade(const AlbedoLayout& layout, const std::string& table, double tolerance,
+// ndf: the distribution the table is of (the reference is that mirror's).
+int run_albedo_grade(const AlbedoLayout& layout, NdfKind ndf, const std::string& table, double tolerance,
                      std::uint64_t table_samples, int threads, const std::string& json);
 
 // Reads `table` (a glass layout's .csv as microsim writes it, or the .txt of values as Cycles prints them;

@@ -140,6 +140,14 @@ void check_only(const AlbedoArgs& a, const std::set<std::string>& allowed, const
     if (!allowed.count(o)) throw UsageError(fmt::format("{} does not apply to {}", o, mode));
 }
 
+NdfKind layout_ndf(const AlbedoArgs& a) {
+  try {
+    return parse_ndf_kind("--ndf", a.ndf);
+  } catch (const ParseError& e) {
+    throw UsageError(e.what());
+  }
+}
+
 const AlbedoLayout& chosen_layout(const AlbedoArgs& a) {
   try {
     return find_albedo_layout("--layout", a.layout);
@@ -166,37 +174,42 @@ int run_glass_layout(const AlbedoArgs& a, const GlassLayout& layout) {
 
 int run_layout(const AlbedoArgs& a) {
   if (const GlassLayout* glass = find_glass_layout(a.layout)) return run_glass_layout(a, *glass);
-  check_only(a, {"--layout", "--model", "--material", "--tolerance", "--threads", "--out", "--csv", "--json", "--encoded",
-                 "--centres"}, "--layout (a renderer's table: the analytic reference of a GGX mirror)");
+  check_only(a, {"--layout", "--model", "--material", "--ndf", "--tolerance", "--threads", "--out", "--csv", "--json",
+                 "--encoded", "--centres"},
+             "--layout (a renderer's table: the analytic reference of a GGX or Beckmann mirror)");
   if (a.given.count("--model") && a.model != "analytic")
     throw UsageError(fmt::format("--model {}: a layout table holds the analytic reference (--model analytic)",
                                  quote_excerpt(a.model)));
   if (a.material != "mirror")
-    throw UsageError(fmt::format("--material {}: the renderers' layouts hold a GGX mirror's E (F = 1): --material mirror",
+    throw UsageError(fmt::format("--material {}: the renderers' layouts hold a mirror's E (F = 1): --material mirror",
                                  quote_excerpt(a.material)));
   const AlbedoLayout& layout = chosen_layout(a);
+  const NdfKind ndf = layout_ndf(a);
   if (a.out.empty()) throw UsageError("--layout needs --out T.exr");
   check_albedo_outputs(a);
   check_distinct_outputs({}, {{"--out", a.out}, {"--csv", a.csv}, {"--json", a.json}, {"--encoded", a.encoded},
                               {"--centres", a.centres}});
   check_output("--encoded", a.encoded);
   check_output("--centres", a.centres);
-  return run_albedo_layout(layout, a.tolerance, a.threads, {a.out, a.csv, a.json, a.encoded, a.centres});
+  return run_albedo_layout(layout, ndf, a.tolerance, a.threads, {a.out, a.csv, a.json, a.encoded, a.centres});
 }
 
 int run_grade(const AlbedoArgs& a) {
-  check_only(a, {"--grade", "--layout", "--tolerance", "--table-samples", "--threads", "--json"},
+  check_only(a, {"--grade", "--layout", "--ndf", "--tolerance", "--table-samples", "--threads", "--json"},
              "--grade (the grade of a table in a layout)");
   if (a.layout.empty())
     throw UsageError("--grade needs --layout (the table's layout: " + albedo_layout_names() + ", " +
                      glass_layout_names() + ")");
   const GlassLayout* glass = find_glass_layout(a.layout);
   const AlbedoLayout* layout = glass == nullptr ? &chosen_layout(a) : nullptr;
+  const NdfKind ndf = layout_ndf(a);
+  if (glass != nullptr && ndf != NdfKind::ggx)
+    throw UsageError(fmt::format("--ndf {} does not apply to a glass layout (a GGX dielectric's)", to_string(ndf)));
   check_distinct_outputs({{"--grade", a.grade}}, {{"--json", a.json}});
   check_output("--json", a.json);
   const double tolerance = a.given.count("--tolerance") ? a.tolerance : kDefaultGradeTolerance;
   if (glass != nullptr) return run_albedo_glass_grade(*glass, a.grade, tolerance, a.table_samples, a.threads, a.json);
-  return run_albedo_grade(*layout, a.grade, tolerance, a.table_samples, a.threads, a.json);
+  return run_albedo_grade(*layout, ndf, a.grade, tolerance, a.table_samples, a.threads, a.json);
 }
 
 void print_anisotropic(const AnisotropicAlbedoTable& t) {
@@ -271,7 +284,8 @@ void add_albedo_options(CLI::App* sub, AlbedoArgs& a) {
   sub->add_option("--material", a.material, "mirror, conductor:ETA,K (one index; its F_avg too) or dielectric:ETA")
       ->capture_default_str();
   sub->add_flag("--inside", a.inside, "light from inside the dielectric (the table of 1/eta)");
-  sub->add_option("--ndf", a.ndf, "ggx or beckmann (surface: the smith or beckmann assembly)")->capture_default_str();
+  sub->add_option("--ndf", a.ndf, "ggx or beckmann (surface: the smith or beckmann assembly; --layout, --grade: the "
+                  "mirror's distribution)")->capture_default_str();
   sub->add_option("--alphas", a.alphas,
                   fmt::format("roughnesses (rows), increasing, each in [{}, {}]", kMinAlbedoAlpha, kMaxAlbedoAlpha))
       ->capture_default_str();
@@ -299,7 +313,8 @@ void add_albedo_options(CLI::App* sub, AlbedoArgs& a) {
   sub->add_option("--csv", a.csv, "also write the table as CSV");
   sub->add_option("--json", a.json, "also write the table (--grade: the grade) as JSON");
   sub->add_option("--layout", a.layout,
-                  "a renderer's layout of the GGX mirror's E(mu, alpha), analytic reference and error per node: " +
+                  "a renderer's layout of the GGX (or --ndf beckmann) mirror's E(mu, alpha), analytic reference and error "
+                  "per node: " +
                       albedo_layout_names() + "; of a GGX dielectric's E = E_R + E_T over Cycles' index axis (--csv, "
                       "--encoded, --json): " + glass_layout_names());
   sub->add_option("--alphas-y", a.alphas_y,

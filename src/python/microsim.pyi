@@ -74,7 +74,7 @@ def anisotropic_albedo_table(*, alphas_x: Sequence[float], alphas_y: Sequence[fl
                              tolerance: float = 1e-8, threads: int = 0, progress: Progress = None) -> dict[str, Any]:
     """`microsim albedo --model analytic --alphas AX,... --alphas-y AY,...`: the dict its --json writes."""
 
-def grade_albedo_table(path: Union[str, "os.PathLike[str]"], *, layout: str, tolerance: float = 1e-4,
+def grade_albedo_table(path: Union[str, "os.PathLike[str]"], *, layout: str, ndf: str = "ggx", tolerance: float = 1e-4,
                        table_samples: Optional[int] = None, threads: int = 0,
                        progress: Progress = None) -> dict[str, Any]:
     """`microsim albedo --grade PATH --layout L`: the dict its --json writes, plus exit_code (0 pass, 1 fail)."""

@@ -62,7 +62,6 @@ void check_layout_arguments(const AlbedoArguments& a) {
   const auto refuse = [](bool given, const char* name) {
     if (given) throw py::value_error(std::string(name) + " does not apply to layout (the layout fixes its nodes)");
   };
-  refuse(a.ndf != "ggx", "ndf");
   refuse(a.inside, "inside");
   refuse(a.alphas.has_value(), "alphas");
   refuse(a.mus != kDefaultMus, "mus");
@@ -74,17 +73,19 @@ void check_layout_arguments(const AlbedoArguments& a) {
     throw py::value_error("tolerance must be in [1e-13, 1e-2], got " + std::to_string(a.tolerance));
 }
 
-// `microsim albedo --layout L`: the analytic reference of a GGX mirror in a renderer's layout.
+// `microsim albedo --layout L`: the analytic reference of a GGX (or, ndf='beckmann', a Beckmann) mirror in a
+// renderer's layout.
 py::object albedo_layout_of(const AlbedoLayout& layout, const AlbedoArguments& a, const py::object& progress) {
   if (a.material != "mirror")
-    throw py::value_error("material '" + a.material + "': the renderers' layouts hold a GGX mirror's E (F = 1): "
+    throw py::value_error("material '" + a.material + "': the renderers' layouts hold a mirror's E (F = 1): "
                           "material='mirror'");
   check_layout_arguments(a);
+  const NdfKind ndf = parse_ndf_kind("ndf", a.ndf);  // ParseError: ValueError
   std::optional<LayoutTable> table;
   run_interruptible([&](const RunControl& run) {
     RunControl r = run;
     r.threads = a.threads;
-    table = layout_table(layout, a.tolerance, r);
+    table = layout_table(layout, a.tolerance, r, true, ndf);
   }, progress);
   return json_object(layout_table_json(*table));
 }
@@ -94,6 +95,7 @@ py::object albedo_layout_of(const AlbedoLayout& layout, const AlbedoArguments& a
 py::object glass_layout_of(const GlassLayout& layout, const AlbedoArguments& a, const py::object& progress) {
   if (a.material != "mirror")
     throw py::value_error("material '" + a.material + "' does not apply to a glass layout (it fixes the indices)");
+  if (a.ndf != "ggx") throw py::value_error("ndf does not apply to a glass layout (a GGX dielectric's)");
   check_layout_arguments(a);
   std::optional<GlassLayoutTable> table;
   run_interruptible([&](const RunControl& run) {
@@ -185,15 +187,19 @@ py::object grade_glass_table_of(const std::string& file, const GlassLayout& layo
 
 // `microsim albedo --grade TABLE --layout L`: the dict its --json writes, plus "exit_code" (0 every graded node
 // within the tolerance, 1 not). A file that cannot be read or is not a table in the layout: ValueError.
-py::object grade_albedo_table_of(const py::object& path, const std::string& layout, double tolerance,
-                                 std::optional<std::uint64_t> table_samples, int threads, const py::object& progress) {
+py::object grade_albedo_table_of(const py::object& path, const std::string& layout, const std::string& ndf,
+                                 double tolerance, std::optional<std::uint64_t> table_samples, int threads,
+                                 const py::object& progress) {
   check_threads(threads);
+  const NdfKind kind = parse_ndf_kind("ndf", ndf);  // ParseError: ValueError
   if (!(tolerance >= 1e-13 && tolerance <= 1e-2))
     throw py::value_error("tolerance must be in [1e-13, 1e-2], got " + std::to_string(tolerance));
   if (table_samples && *table_samples < 1) throw py::value_error("table_samples must be >= 1 (None: not stated)");
   const std::string file = py::module_::import("os").attr("fsdecode")(path).cast<std::string>();
-  if (const GlassLayout* glass = find_glass_layout(layout))
+  if (const GlassLayout* glass = find_glass_layout(layout)) {
+    if (kind != NdfKind::ggx) throw py::value_error("ndf does not apply to a glass layout (a GGX dielectric's)");
     return grade_glass_table_of(file, *glass, tolerance, table_samples.value_or(0), threads, progress);
+  }
   const AlbedoLayout& l = layout_named(layout);
   LayoutValues v;
   try {
@@ -208,7 +214,7 @@ py::object grade_albedo_table_of(const py::object& path, const std::string& layo
   run_interruptible([&](const RunControl& run) {
     RunControl r = run;
     r.threads = threads;
-    grades = grade_albedo_channels(l, v.values, v.grazing, tolerance, table_samples.value_or(0), r);
+    grades = grade_albedo_channels(l, v.values, v.grazing, tolerance, table_samples.value_or(0), r, kind);
   }, progress);
   nlohmann::json j = albedo_grade_json(grades->front());
   if (grades->size() > 1) j["grazing"] = albedo_grade_json(grades->back());
@@ -246,8 +252,9 @@ model: 'analytic' (single scattering by quadrature, to `tolerance`), 'smith-walk
 `paths` per cell); ndf: 'ggx' or 'beckmann'; material: 'mirror' or 'dielectric:ETA' (inside: light from inside);
 alphas: increasing, in [0.005, 2] (default 0.1, 0.25, 0.5, 0.75, 1). Returns the dict `albedo --json` writes.
 layout: 'cycles', 'filament-dfg', 'enterprise-pbr' or 'uniform' (`albedo --layout`): the analytic E of a GGX
-mirror at the layout's nodes with its errors, E_avg where the renderer ships it and the layout's interpolation
-error at cell centres (the layout fixes the nodes: only tolerance and threads apply); 'cycles-glass' or
+mirror (ndf='beckmann': a Beckmann mirror) at the layout's nodes with its errors, E_avg where the renderer ships
+it and the layout's interpolation error at cell centres (the layout fixes the nodes: only ndf, tolerance and
+threads apply); 'cycles-glass' or
 'cycles-glass-inv': a GGX dielectric's E = E_R + E_T over Cycles' 16 x 16 x 16 rough-glass grid (roughness, mu,
 index), with E_avg (the layout fixes the indices too: material does not apply).)");
   m.def("anisotropic_albedo_table", &anisotropic_albedo_table_of, py::kw_only(), "alphas_x"_a, "alphas_y"_a,
@@ -256,11 +263,11 @@ index), with E_avg (the layout fixes the indices too: material does not apply).)
 E(mu, phi) per (alpha_x, alpha_y), analytic single scattering with errors, on Gauss-Legendre nodes in mu (mus)
 and phi on [0, pi/2] (phis, 1..64; phi from the alpha_x axis), and E_avg. alphas in [0.005, 2]. Returns the
 dict `--json` writes (E nested [alpha_x][alpha_y][mu][phi], E_avg [alpha_x][alpha_y]).)");
-  m.def("grade_albedo_table", &grade_albedo_table_of, "path"_a, py::kw_only(), "layout"_a, "tolerance"_a = 1e-4,
-        "table_samples"_a = py::none(), "threads"_a = 0, "progress"_a = py::none(),
+  m.def("grade_albedo_table", &grade_albedo_table_of, "path"_a, py::kw_only(), "layout"_a, "ndf"_a = "ggx",
+        "tolerance"_a = 1e-4, "table_samples"_a = py::none(), "threads"_a = 0, "progress"_a = py::none(),
         R"(The grade of a table in a renderer's layout (`microsim albedo --grade PATH --layout L`): path an .exr or the
 .csv microsim writes (a glass layout, 'cycles-glass' or 'cycles-glass-inv': the .csv, or the .txt of values as
-Cycles prints them; Filament's: both channels, DFG.x under "grazing", when the file has it); each node against the analytic reference, within the encoding's quantisation, within the
+Cycles prints them; Filament's: both channels, DFG.x under "grazing", when the file has it); each node against the analytic reference (of a GGX mirror, or ndf='beckmann' a Beckmann mirror's), within the encoding's quantisation, within the
 noise of table_samples samples per node (when stated), and within tolerance. Returns the dict `--json` writes
 ("passed", "failed", "max_abs", "rms", "cells"...) plus "exit_code" (the command line's: 0 pass, 1 fail).)");
   m.def("stability", &stability_of, py::kw_only(), "threads"_a = 0, "progress"_a = py::none(),

@@ -78,6 +78,7 @@ AlbedoGrade grade_against(const LayoutTable& t, const std::vector<double>& value
   AlbedoGrade g;
   g.layout = t.layout;
   g.quantity = grazing ? t.layout.grazing_quantity : t.layout.quantity;
+  g.ndf = t.ndf;
   g.tolerance = tolerance;
   g.reference_tolerance = t.tolerance;
   g.table_samples = samples;
@@ -96,9 +97,11 @@ AlbedoGrade grade_against(const LayoutTable& t, const std::vector<double>& value
 }
 
 std::optional<AlbedoGrade> grade_albedo_table(const AlbedoLayout& layout, const std::vector<double>& values,
-                                              double tolerance, std::uint64_t samples, const RunControl& run) {
+                                              double tolerance, std::uint64_t samples, const RunControl& run,
+                                              NdfKind ndf) {
   check_grade_input(layout, values, tolerance);
-  const std::optional<LayoutTable> t = layout_table(layout, grade_reference_tolerance(layout, tolerance), run, false);
+  const std::optional<LayoutTable> t =
+      layout_table(layout, grade_reference_tolerance(layout, tolerance), run, false, ndf);
   if (!t) return std::nullopt;
   return grade_against(*t, values, tolerance, samples);
 }
@@ -106,14 +109,16 @@ std::optional<AlbedoGrade> grade_albedo_table(const AlbedoLayout& layout, const 
 std::optional<std::vector<AlbedoGrade>> grade_albedo_channels(const AlbedoLayout& layout,
                                                               const std::vector<double>& values,
                                                               const std::vector<double>& grazing, double tolerance,
-                                                              std::uint64_t samples, const RunControl& run) {
+                                                              std::uint64_t samples, const RunControl& run,
+                                                              NdfKind ndf) {
   check_grade_input(layout, values, tolerance);
   if (!grazing.empty()) {
     if (!layout.has_grazing())
       throw std::invalid_argument(fmt::format("grade: the {} layout has no grazing channel", layout.name));
     check_grade_input(layout, grazing, tolerance);
   }
-  const std::optional<LayoutTable> t = layout_table(layout, grade_reference_tolerance(layout, tolerance), run, false);
+  const std::optional<LayoutTable> t =
+      layout_table(layout, grade_reference_tolerance(layout, tolerance), run, false, ndf);
   if (!t) return std::nullopt;
   std::vector<AlbedoGrade> grades{grade_against(*t, values, tolerance, samples)};
   if (!grazing.empty()) grades.push_back(grade_against(*t, grazing, tolerance, samples, true));
@@ -143,6 +148,7 @@ nlohmann::json albedo_grade_json(const AlbedoGrade& g) {
   return {{"kind", "albedo table grade"},
           {"layout", g.layout.name},
           {"quantity", g.quantity},
+          {"ndf", to_string(g.ndf)},
           {"source", g.layout.source},
           {"encoding", to_string(g.layout.encoding)},
           {"tolerance", g.tolerance},

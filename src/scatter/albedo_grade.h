@@ -62,6 +62,7 @@ struct CellGrade : NodeGrade {
 struct AlbedoGrade : GradeTotals {
   AlbedoLayout layout;
   std::string quantity;             // the channel graded: the layout's quantity, or its grazing_quantity
+  NdfKind ndf = NdfKind::ggx;       // the reference mirror's distribution
   double tolerance = 0, reference_tolerance = 0;
   double noise_z = 0;               // the noise check's quantile (0 when no sample count)
   std::uint64_t table_samples = 0;  // 0: not stated
@@ -87,9 +88,10 @@ double grade_reference_tolerance(const AlbedoLayout& layout, double tolerance);
 // noise bound holds for it as for E.
 AlbedoGrade grade_against(const LayoutTable& reference, const std::vector<double>& values, double tolerance,
                           std::uint64_t table_samples = 0, bool grazing = false);
+// ndf: the distribution the table is of (the reference is that mirror's).
 std::optional<AlbedoGrade> grade_albedo_table(const AlbedoLayout& layout, const std::vector<double>& values,
                                               double tolerance, std::uint64_t table_samples = 0,
-                                              const RunControl& run = {});
+                                              const RunControl& run = {}, NdfKind ndf = NdfKind::ggx);
 // The grade of E (values) and, when `grazing` is not empty, of the layout's grazing channel, against one
 // reference (computed as grade_albedo_table's, both channels in one quadrature): one or two grades, E first.
 // std::invalid_argument as above, and for grazing values in a layout without that channel.
@@ -97,7 +99,7 @@ std::optional<std::vector<AlbedoGrade>> grade_albedo_channels(const AlbedoLayout
                                                               const std::vector<double>& values,
                                                               const std::vector<double>& grazing, double tolerance,
                                                               std::uint64_t table_samples = 0,
-                                                              const RunControl& run = {});
+                                                              const RunControl& run = {}, NdfKind ndf = NdfKind::ggx);
 nlohmann::json albedo_grade_json(const AlbedoGrade& grade);
 
 template <class Node>

@@ -180,12 +180,14 @@ double layout_quantisation(LayoutEncoding e, double v) {
   return 0;
 }
 
-Estimate mirror_albedo_reference(double alpha, double mu, double tolerance) {
+Estimate mirror_albedo_reference(double alpha, double mu, double tolerance, NdfKind ndf) {
+  if (ndf == NdfKind::beckmann) return beckmann_mirror_split(alpha, mu, tolerance).unit;
   return single_scattering_albedo(GGX<double>(alpha), Material::mirror(), 0, albedo_view(mu, false), tolerance)
       .total();
 }
 
-SchlickSplitAlbedo mirror_split_reference(double alpha, double mu, double tolerance) {
+SchlickSplitAlbedo mirror_split_reference(double alpha, double mu, double tolerance, NdfKind ndf) {
+  if (ndf == NdfKind::beckmann) return beckmann_mirror_split(alpha, mu, tolerance);
   return schlick_split_albedo(GGX<double>(alpha), albedo_view(mu, false), tolerance);
 }
 
@@ -195,12 +197,13 @@ constexpr int kAverageNodes = 32;
 
 // The reference at (alpha, mu) into e, and the grazing channel into g when the layout has it (one quadrature
 // for both).
-void layout_reference(const AlbedoLayout& layout, double alpha, double mu, double tolerance, Estimate& e, Estimate& g) {
+void layout_reference(const AlbedoLayout& layout, NdfKind ndf, double alpha, double mu, double tolerance, Estimate& e,
+                      Estimate& g) {
   if (!layout.has_grazing()) {
-    e = mirror_albedo_reference(alpha, mu, tolerance);
+    e = mirror_albedo_reference(alpha, mu, tolerance, ndf);
     return;
   }
-  const SchlickSplitAlbedo s = mirror_split_reference(alpha, mu, tolerance);
+  const SchlickSplitAlbedo s = mirror_split_reference(alpha, mu, tolerance, ndf);
   e = s.unit;
   g = s.grazing;
 }  // Gauss-Legendre nodes of E_avg's mu integral
@@ -224,7 +227,7 @@ bool fill_averages(LayoutTable& t, const RunControl& run, std::atomic<std::uint6
   const std::size_t n = grid.mus.size();
   std::vector<Estimate> e(t.alphas.size() * n);
   if (!parallel_cells(e.size(), run, "layout table", done, total, [&](std::size_t k) {
-        e[k] = mirror_albedo_reference(t.alphas[k / n], grid.mus[k % n], t.tolerance);
+        e[k] = mirror_albedo_reference(t.alphas[k / n], grid.mus[k % n], t.tolerance, t.ndf);
       }))
     return false;
   for (std::size_t i = 0; i < t.alphas.size(); ++i) {
@@ -242,11 +245,12 @@ bool fill_averages(LayoutTable& t, const RunControl& run, std::atomic<std::uint6
 }  // namespace
 
 std::optional<LayoutTable> layout_table(const AlbedoLayout& layout, double tolerance, const RunControl& run,
-                                        bool averages) {
+                                        bool averages, NdfKind ndf) {
   if (!(tolerance >= 1e-13 && tolerance <= 1e-2))
     throw std::invalid_argument(fmt::format("layout table: tolerance {} outside [1e-13, 1e-2]", tolerance));
   const auto start = std::chrono::steady_clock::now();
   LayoutTable t = empty_layout_table(layout, tolerance);
+  t.ndf = ndf;
   const std::size_t nr = t.alphas.size(), nm = t.mus.size(), cr = nr - 1, cm = nm - 1;
   const std::uint64_t total = nr * nm + cr * cm + (layout.has_average && averages ? nr * kAverageNodes : 0);
   std::atomic<std::uint64_t> done{0};
@@ -254,7 +258,7 @@ std::optional<LayoutTable> layout_table(const AlbedoLayout& layout, double toler
   t.grazing.resize(layout.has_grazing() ? nr * nm : 0);
   if (!parallel_cells(t.cells.size(), run, "layout table", done, total, [&](std::size_t k) {
         Estimate unused;
-        layout_reference(layout, t.alphas[k / nm], t.mus[k % nm], tolerance, t.cells[k],
+        layout_reference(layout, ndf, t.alphas[k / nm], t.mus[k % nm], tolerance, t.cells[k],
                          layout.has_grazing() ? t.grazing[k] : unused);
       }))
     return std::nullopt;
@@ -264,7 +268,7 @@ std::optional<LayoutTable> layout_table(const AlbedoLayout& layout, double toler
         const double r = layout_coordinate(layout.roughness, double(k / cm) + 0.5);
         const double mu = layout_coordinate(layout.mu, double(k % cm) + 0.5);
         Estimate unused;
-        layout_reference(layout, layout_alpha(layout, r), mu, tolerance, t.centres[k],
+        layout_reference(layout, ndf, layout_alpha(layout, r), mu, tolerance, t.centres[k],
                          layout.has_grazing() ? t.grazing_centres[k] : unused);
       }))
     return std::nullopt;

@@ -25,8 +25,11 @@
 //                   ((i + 0.5) / 32): docs/records/energy-tables.md.
 //   uniform         a plain 32 x 32 grid at cell centres in alpha itself and mu, normalised uint16.
 //
-// The reference per node: the analytic single-scattering albedo (single_scattering_albedo, quadrature
-// over the visible normals, albedo_table.h) with its error estimate. microsim's GGX clamps alpha from below
+// The reference per node: the analytic single-scattering albedo with its error estimate, of GGX (what the
+// renderers ship; single_scattering_albedo, quadrature over the visible normals, albedo_table.h) or of
+// Beckmann (LayoutTable::ndf: the same grid, storage and encoding holding a Beckmann mirror's E, and for
+// Filament its DFG.x; beckmann_mirror_split, the same integrals in the view's visible slopes, albedo_table.h).
+// Beckmann clamps alpha at the same kMinAlpha (microfacet/beckmann.h). microsim's GGX clamps alpha from below
 // at kMinAlpha = 1e-4 (microfacet/ggx.h), so a node of smaller alpha (Cycles' r = 1e-4, Filament's first
 // roughness row) holds the reference at alpha 1e-4: it is outside the reference's range (in_range false),
 // not graded, and the cells that touch it are left out of the interpolation error (NaN there). E_avg per roughness node: 2 sum_j
@@ -37,6 +40,7 @@
 #pragma once
 
 #include "core/estimate.h"
+#include "core/ndf_kind.h"
 #include "core/run_control.h"
 #include "microfacet/material.h"
 #include "scatter/albedo_table.h"
@@ -106,6 +110,7 @@ struct InterpolationError {
 
 struct LayoutTable {
   AlbedoLayout layout;
+  NdfKind ndf = NdfKind::ggx;              // the microfacet distribution of the mirror
   double tolerance = 1e-8;                 // each reference's quadrature target
   std::vector<double> roughness, alphas;   // per roughness node: its coordinate and alpha
   std::vector<bool> in_range;              // per roughness node: alpha >= kMinAlpha (the reference holds)
@@ -120,18 +125,20 @@ struct LayoutTable {
   double seconds = 0;
 };
 
-// The reference single-scattering albedo of a GGX mirror at (alpha, mu) (alpha > 0, mu in (0, 1]; alpha
-// below kMinAlpha is computed at kMinAlpha).
-Estimate mirror_albedo_reference(double alpha, double mu, double tolerance);
-// Both channels of the Schlick split (schlick_split_albedo) at (alpha, mu), alpha clamped as above.
-SchlickSplitAlbedo mirror_split_reference(double alpha, double mu, double tolerance);
+// The reference single-scattering albedo of a GGX (or Beckmann) mirror at (alpha, mu) (alpha > 0, mu in
+// (0, 1]; alpha below kMinAlpha is computed at kMinAlpha). GGX: single_scattering_albedo; Beckmann:
+// beckmann_mirror_split (albedo_table.h).
+Estimate mirror_albedo_reference(double alpha, double mu, double tolerance, NdfKind ndf = NdfKind::ggx);
+// Both channels of the Schlick split (schlick_split_albedo, or beckmann_mirror_split) at (alpha, mu), alpha
+// clamped as above.
+SchlickSplitAlbedo mirror_split_reference(double alpha, double mu, double tolerance, NdfKind ndf = NdfKind::ggx);
 
 // The layout's nodes, cell centres and (if the layout has it) E_avg, each cell in parallel on
 // run.threads; progress "layout table" in evaluations. nullopt when cancelled. `tolerance` in [1e-13, 1e-2]
 // (std::invalid_argument otherwise).
-// averages false: no E_avg (a grade needs only the nodes and the centres).
+// averages false: no E_avg (a grade needs only the nodes and the centres). ndf: the mirror's distribution.
 std::optional<LayoutTable> layout_table(const AlbedoLayout& layout, double tolerance, const RunControl& run = {},
-                                        bool averages = true);
+                                        bool averages = true, NdfKind ndf = NdfKind::ggx);
 // The interpolation error of `nodes` ([ri * mus + mj]) against `centres` (the references there; by default
 // the table's centres of E).
 InterpolationError interpolation_error(const LayoutTable& table, const std::vector<double>& nodes);

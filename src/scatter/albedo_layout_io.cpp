@@ -97,7 +97,8 @@ microgeom::ExrImage layout_table_exr(const LayoutTable& t) {
     encoded.data[k] = float(encode_layout_value(t.layout.encoding, e.value));
   });
   if (t.layout.has_grazing()) add_grazing_channels(image, t);
-  image.attributes = {{"kind", kAlbedoLayoutKind}, {"layout", t.layout.name}, {"source", t.layout.source},
+  image.attributes = {{"kind", kAlbedoLayoutKind}, {"layout", t.layout.name}, {"ndf", to_string(t.ndf)},
+                      {"source", t.layout.source},
                       {"quantity", t.layout.quantity}, {"encoding", to_string(t.layout.encoding)},
                       {"columns", column_axis(t.layout)}, {"rows", row_axis(t.layout)},
                       {"roughness_axis", roughness_name(t.layout)}, {"roughness", layout_joined(t.roughness)},
@@ -126,8 +127,8 @@ std::string layout_table_csv(const LayoutTable& t) {
   s += fmt::format("# microsim albedo layout {}: {}\n# source: {}\n", t.layout.name, t.layout.summary, t.layout.source);
   s += fmt::format("# x: {} index, y: {} index; roughness = {}; encoding {}\n", column_axis(t.layout),
                    row_axis(t.layout), roughness_name(t.layout), to_string(t.layout.encoding));
-  s += fmt::format("# E: analytic single scattering of a GGX mirror (F = 1), E_error its quadrature error estimate "
-                   "(tolerance {})\n", layout_number(t.tolerance));
+  s += fmt::format("# E: analytic single scattering of a {} mirror (F = 1), E_error its quadrature error estimate "
+                   "(tolerance {})\n", t.ndf == NdfKind::ggx ? "GGX" : "Beckmann", layout_number(t.tolerance));
   if (grazing)
     s += fmt::format("# E_grazing: the same weighted by Schlick's grazing term (1 - VoH)^5 ({}; E is {})\n",
                      t.layout.grazing_quantity, t.layout.quantity);
@@ -135,7 +136,7 @@ std::string layout_table_csv(const LayoutTable& t) {
   for (const bool in : t.in_range) outside += !in;
   if (outside > 0)
     s += fmt::format("# the first {} roughness node(s) have alpha below 1e-4: E there is the reference at alpha 1e-4 "
-                     "(microsim's GGX clamps alpha)\n", outside);
+                     "(microsim's {} clamps alpha)\n", outside, t.ndf == NdfKind::ggx ? "GGX" : "Beckmann");
   for_storage(t, [&](std::size_t ri, std::size_t mj, std::size_t k) {
     const Estimate& e = t.cells[ri * t.mus.size() + mj];
     const std::size_t x = k % std::size_t(layout_columns(t.layout)), y = k / std::size_t(layout_columns(t.layout));
@@ -184,7 +185,8 @@ std::string layout_centres_csv(const LayoutTable& t) {
 }
 
 nlohmann::json layout_table_json(const LayoutTable& t) {
-  nlohmann::json j{{"kind", kAlbedoLayoutKind}, {"layout", t.layout.name}, {"summary", t.layout.summary},
+  nlohmann::json j{{"kind", kAlbedoLayoutKind}, {"layout", t.layout.name}, {"ndf", to_string(t.ndf)},
+                   {"summary", t.layout.summary},
                    {"source", t.layout.source}, {"quantity", t.layout.quantity},
                    {"encoding", to_string(t.layout.encoding)}, {"columns", column_axis(t.layout)},
                    {"rows", row_axis(t.layout)}, {"roughness_axis", roughness_name(t.layout)},

@@ -16,6 +16,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
+#include <numbers>
 #include <stdexcept>
 
 namespace microsim {
@@ -366,6 +368,110 @@ SchlickSplitAlbedo schlick_split_albedo(const GGX<double>& ggx, const Vec3<doubl
   a.unit = r[0];
   a.grazing = r[1];
   return a;
+}
+
+// ---- an isotropic Beckmann mirror in its view's visible slopes ---------------------------------------------
+
+namespace {
+
+// The Gaussian tails beyond a standard slope L are left out, L the first of 3, 3.5, ..., 9 where the weight
+// left out (BeckmannMirrorSlopes::tail_weight) is below a tenth of the tolerance; it is added to the error.
+constexpr double kMaxSlopeTail = 9.0;
+
+// The view of beckmann_mirror_split in its visible slopes (albedo_table.h): the outer weight
+// w(x) = (a - x) exp(-x^2) / N, the half-width Y(x) of the reflecting disk at x, and the two integrands
+// G2 / G1(wi) and G2 / G1(wi) (1 - wi.m)^5.
+struct BeckmannMirrorSlopes {
+  Beckmann<double> ndf;
+  Vec3<double> wi;
+  double alpha = 0, tan_i = 0, sec_i = 0;
+  double inv_a = 0;      // 1 / a = alpha tan(theta_i): 0 at normal incidence (a = inf)
+  double scale = 0;      // N / a = exp(-a^2) / (2 a) + sqrt(pi) erfc(-a) / 2
+  double lambda_i1 = 0;  // 1 + Lambda(wi)
+
+  double tail = kMaxSlopeTail;  // L: |x|, y beyond are left out
+
+  BeckmannMirrorSlopes(double alpha_in, double mu) : ndf(alpha_in), wi(albedo_view(mu, false)) {
+    alpha = ndf.alpha_x();
+    tan_i = wi.x() / wi.z();
+    sec_i = 1 / wi.z();
+    inv_a = alpha * tan_i;
+    const double a = inv_a > 0 ? 1 / inv_a : std::numeric_limits<double>::infinity();
+    scale = (std::isfinite(a) ? std::exp(-a * a) * inv_a / 2 : 0.0) + std::sqrt(std::numbers::pi) / 2 * std::erfc(-a);
+    lambda_i1 = 1 + ndf.masked_area(wi) / wi.z();
+  }
+  double weight(double x) const { return (1 - x * inv_a) * std::exp(-x * x) / scale; }
+  // An upper bound on the weight beyond L (both integrands are at most 1): the outer tails, int_{x<-L} w <=
+  // (exp(-L^2) / (2 a) + sqrt(pi) erfc(L) / 2) / (N / a) and int_{x>L} w <= that, plus the inner tail,
+  // 2 int_L^inf exp(-y^2) / sqrt(pi) dy = erfc(L).
+  double tail_weight(double l) const {
+    const double e = std::erfc(l);
+    return 2 * (std::exp(-l * l) * inv_a / 2 + std::sqrt(std::numbers::pi) / 2 * e) / scale + e;
+  }
+  // Y(x) from (alpha x + tan)^2 + (alpha y)^2 < sec^2, the difference of squares factored (no cancellation at
+  // the disk's ends).
+  double half_width(double x) const {
+    const double c = alpha * x + tan_i;
+    return std::sqrt(std::max(0.0, (sec_i - c) * (sec_i + c))) / alpha;
+  }
+  double x_low() const { return std::max(-tail, (-tan_i - sec_i) / alpha); }
+  double x_high() const { return std::min(tail, (sec_i - tan_i) / alpha); }
+  // G2 / G1(wi) = (1 + Lambda_i) / (1 + Lambda_i + Lambda_o) (Heitz 2014 eq. 99), as
+  // (1 + Lambda_i) wo.z / ((1 + Lambda_i) wo.z + |wo.z| Lambda_o): 0 on the horizon; and the same times
+  // Schlick's grazing term (1 - wi.m)^5.
+  Values<2> integrands(double x, double y) const {
+    const Vec3<double> m = Vec3<double>(-alpha * x, -alpha * y, 1.0).normalized();
+    const double im = wi.dot(m);
+    const Vec3<double> wo = 2 * im * m - wi;
+    if (!(wo.z() > 0)) return {0.0, 0.0};
+    const double seen = lambda_i1 * wo.z();
+    const double h = seen / (seen + ndf.masked_area(wo));
+    const double c = 1 - std::clamp(im, 0.0, 1.0);
+    return {h, h * sqr(sqr(c)) * c};
+  }
+};
+
+}  // namespace
+
+SchlickSplitAlbedo beckmann_mirror_split(double alpha, double mu, double tolerance) {
+  if (!std::isfinite(alpha) || !(mu > 0 && mu <= 1))
+    throw std::invalid_argument(
+        fmt::format("Beckmann mirror albedo: alpha {} must be finite and mu {} in (0, 1]", alpha, mu));
+  check_view(Material::mirror(), albedo_view(mu, false), tolerance);
+  BeckmannMirrorSlopes s(alpha, mu);
+  for (double l = 3; l < kMaxSlopeTail; l += 0.5)
+    if (s.tail_weight(l) < tolerance / 10) {
+      s.tail = l;
+      break;
+    }
+  const double left_out = s.tail_weight(s.tail);
+  const double x0 = s.x_low(), dx = s.x_high() - x0;
+  SchlickSplitAlbedo r;
+  if (!(dx > 0)) {
+    r.unit.standard_error = r.grazing.standard_error = left_out;
+    return r;
+  }
+  const std::vector<double> whole{0.0, 1.0};
+  // Outer, over x = x0 + dx v: the two inner integrals 2 int_0^Y exp(-y^2) / sqrt(pi) (...) dy, over y = Y t,
+  // times w(x), and their error estimates.
+  const auto outer = [&](double v) -> Values<4> {
+    const double x = x0 + dx * v, width = std::min(s.half_width(x), s.tail);
+    if (!(width > 0)) return {0.0, 0.0, 0.0, 0.0};
+    const double gauss = 2 * width / std::sqrt(std::numbers::pi);
+    const auto inner = [&](double t) -> Values<2> {
+      const double y = width * t, g = gauss * std::exp(-y * y);
+      const Values<2> h = s.integrands(x, y);
+      return {g * h[0], g * h[1]};
+    };
+    const Integral<2> in = piecewise_integral<2, 2>(inner, whole, tolerance / 2, kMaxInnerIntervals);
+    r.evaluations += in.evaluations;
+    const double w = dx * s.weight(x);
+    return {w * in.value[0], w * in.value[1], w * in.error[0], w * in.error[1]};
+  };
+  const Integral<4> out = piecewise_integral<4, 2>(outer, whole, tolerance / 2, kMaxOuterIntervals);
+  r.unit = {out.value[0], out.error[0] + std::abs(out.value[2]) + out.error[2] + left_out};
+  r.grazing = {out.value[1], out.error[1] + std::abs(out.value[3]) + out.error[3] + left_out};
+  return r;
 }
 
 MuGrid gauss_legendre_mus(int n) {

@@ -183,6 +183,28 @@ struct SchlickSplitAlbedo {
 };
 SchlickSplitAlbedo schlick_split_albedo(const GGX<double>& ggx, const Vec3<double>& wi, double tolerance);
 
+// The same two integrals (unit: E of F = 1; grazing: weighted by (1 - wi.m)^5) for an isotropic Beckmann mirror
+// seen from albedo_view(mu, false), integrated in the view's visible slopes instead of through the sampler's
+// unit square (whose Beckmann inverse CDF costs a root-finding per point, and whose kinks must be searched for).
+// In the stretched (alpha = 1) configuration of a view at theta_i, the visible slopes (x, y) of Beckmann have
+// the density (Heitz & d'Eon 2014, sec. 4 and appendix; Heitz 2014 eq. 16 with Walter et al. 2007 eq. 25)
+//   q(x, y) = w(x) exp(-y^2) / sqrt(pi),  w(x) = (a - x)+ exp(-x^2) / N,  a = cot(theta_i) / alpha,
+//   N = exp(-a^2) / 2 + a sqrt(pi) erfc(-a) / 2,
+// with the normal m = (-alpha x, -alpha y, 1) / |.|. A mirror's single scattering is E = int D_wi(m) G2 / G1(wi)
+// dm (Walter et al. 2007 eq. 14: dwo = 4 |wi.m| dm; G2 height-correlated, Heitz 2014 eq. 99, Lambda Walter
+// et al. eq. 27), and wo = reflect(wi, m) is above the horizon exactly inside the disk
+//   (alpha x + tan theta_i)^2 + (alpha y)^2 < sec^2 theta_i
+// (from wo.z = 2 (wi.m) m.z - wi.z; the disk lies inside the visible half-plane x < a). So, h even in y,
+//   E = int_{x_lo}^{x_hi} w(x) 2 int_0^{Y(x)} exp(-y^2) / sqrt(pi) h(x, y) dy dx,
+//   x_lo,hi = (-tan theta_i -+ sec theta_i) / alpha,  Y(x) = sqrt(sec^2 - (alpha x + tan)^2) / alpha:
+// every kink of the integrand is an end of an interval, known in closed form (a square-root end of the outer
+// integrand where Y -> 0), nothing to search for, no inverse CDF. The Gaussian tails beyond |x|, |y| = 9 are
+// left out (below erfc(9) / 2 < 1e-36). Both integrals by the quadrature of single_scattering_albedo (each
+// interval through the smoothstep, global adaptive Gauss-Kronrod 15/7), and the same error estimate: the outer
+// |Kronrod - Gauss| plus the outer integral of the inner ones. alpha below kMinAlpha is computed at kMinAlpha
+// (Beckmann's clamp); mu in (0, 1] (std::invalid_argument otherwise, or for a tolerance that is not positive).
+SchlickSplitAlbedo beckmann_mirror_split(double alpha, double mu, double tolerance);
+
 // Called after each completed row (on the calling thread) with the table so far and the row's index.
 using AlbedoRowCallback = std::function<void(const AlbedoTable& so_far, std::size_t row)>;
 

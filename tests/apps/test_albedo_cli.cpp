@@ -130,6 +130,24 @@ TEST(AlbedoCliGrade, TheUniformTablePassesAndAPlantedErrorFails) {
   fs::remove_all(dir);
 }
 
+// --ndf beckmann with --layout and --grade: the table says it holds a Beckmann mirror's E (the summary, the
+// EXR attribute, the JSON), and graded against the Beckmann reference it passes, the grade saying which
+// reference it used. The negative control (GGX's table graded against Beckmann fails, from the command line
+// and from Python) is tests/python/test_tables.py's: a GGX grade here would cost the GGX reference's 2000 nodes.
+TEST(AlbedoCli, ABeckmannLayoutTableIsGradedAgainstTheBeckmannReference) {
+  const fs::path dir = scratch_dir("albedo_cli", "beckmann");
+  const auto r = run_cli(dir, "albedo --layout uniform --ndf beckmann --tolerance 1e-3 --out b.exr --json b.json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("(beckmann mirror)"), std::string::npos) << r.out;
+  EXPECT_EQ(microgeom::read_exr(dir / "b.exr").attributes.at("ndf"), "beckmann");
+  EXPECT_EQ(nlohmann::json::parse(slurp(dir / "b.json")).at("ndf"), "beckmann");
+  const auto pass = run_cli(dir, "albedo --grade b.exr --layout uniform --ndf beckmann --tolerance 1e-3 --json g.json");
+  EXPECT_EQ(pass.exit_code, 0) << pass.out << pass.err;
+  EXPECT_NE(pass.out.find("of a beckmann mirror"), std::string::npos) << pass.out;
+  EXPECT_EQ(nlohmann::json::parse(slurp(dir / "g.json")).at("ndf"), "beckmann");
+  fs::remove_all(dir);
+}
+
 const std::string kAlbedo = "albedo --model analytic --out o.exr ";
 
 void write_text(const fs::path& path, const std::string& text) { std::ofstream(path) << text; }
@@ -192,6 +210,8 @@ std::vector<BadInputCase> albedo_cli_cases() {
        "--material does not apply"},
       {"encoded_without_layout", kAlbedo + "--encoded e.bin", 2, "--encoded applies to --layout"},
       {"grade_no_layout", "albedo --grade t.csv", 2, "--grade needs --layout"},
+      {"layout_ndf_unknown", "albedo --layout cycles --ndf phong --out o.exr", 2, "--ndf 'phong'"},
+      {"glass_grade_ndf", "albedo --grade t.csv --layout cycles-glass --ndf beckmann", 2, "--ndf beckmann does not apply"},
       {"grade_missing", "albedo --grade none.csv --layout cycles", 2, "cannot be read"},
       {"grade_out", "albedo --grade t.csv --layout cycles --out o.exr", 2, "--out does not apply to --grade"},
       {"grade_samples_zero", "albedo --grade t.csv --layout cycles --table-samples 0", 2, "--table-samples"},

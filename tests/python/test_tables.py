@@ -63,7 +63,7 @@ def test_albedo_layout_is_the_clis(uniform_layout):
 
 def test_albedo_layout_refuses_what_the_cli_refuses():
     for bad in ({"model": "smith-walk"}, {"material": "dielectric:1.5"}, {"alphas": [0.5]}, {"mus": 4},
-                {"ndf": "beckmann"}, {"seed": 2}):
+                {"ndf": "phong"}, {"seed": 2}):
         with pytest.raises(ValueError):
             microsim.albedo_table(layout="cycles", **bad)
     with pytest.raises(ValueError, match="cycles"):
@@ -138,7 +138,7 @@ def test_anisotropic_table_refuses_what_the_cli_refuses():
 
 def test_glass_layout_refuses_what_the_cli_refuses():
     for bad in ({"model": "smith-walk"}, {"material": "dielectric:1.5"}, {"alphas": [0.5]}, {"mus": 4},
-                {"inside": True}, {"tolerance": 0.0}):
+                {"inside": True}, {"tolerance": 0.0}, {"ndf": "beckmann"}):
         for layout in ("cycles-glass", "cycles-glass-inv"):
             with pytest.raises(ValueError):
                 microsim.albedo_table(layout=layout, **bad)
@@ -153,3 +153,24 @@ def test_glass_grade_refuses_what_the_cli_refuses(tmp_path):
         microsim.grade_albedo_table(tmp_path / "g.txt", layout="cycles-glass-inv")
     with pytest.raises(ValueError, match="a .csv or a .txt"):
         microsim.grade_albedo_table(tmp_path / "g.exr", layout="cycles-glass")
+
+
+def test_beckmann_layout_is_the_clis(tmp_path):
+    """albedo_table(layout=..., ndf="beckmann") is `albedo --layout L --ndf beckmann --json`: a Beckmann mirror's E."""
+    run_cli("albedo", "--layout", "uniform", "--ndf", "beckmann", "--tolerance", "1e-3", "--out", tmp_path / "b.exr",
+            "--json", tmp_path / "b.json")
+    cli = json.loads((tmp_path / "b.json").read_text())
+    py = microsim.albedo_table(layout="uniform", ndf="beckmann", tolerance=1e-3)
+    assert without_times(py) == without_times(cli)
+    assert py["ndf"] == "beckmann"
+
+
+def test_grade_against_beckmann_is_the_clis(uniform_layout, tmp_path):
+    """The GGX table graded as a Beckmann mirror's (ndf, --ndf beckmann) fails, from Python as from the CLI."""
+    d, _ = uniform_layout
+    p = run_cli("albedo", "--grade", d / "t.csv", "--layout", "uniform", "--ndf", "beckmann", "--tolerance", "1e-3",
+                "--json", tmp_path / "g.json")
+    cli = json.loads((tmp_path / "g.json").read_text())
+    py = microsim.grade_albedo_table(d / "t.csv", layout="uniform", ndf="beckmann", tolerance=1e-3)
+    assert p.returncode == 1 and py["exit_code"] == 1 and py["ndf"] == "beckmann" and py["failed"] > 0
+    assert {k: v for k, v in py.items() if k != "exit_code"} == cli

@@ -12,11 +12,16 @@
 
 #include "core/parse.h"
 
+#include <Eigen/Core>
+#include <boost/math/quadrature/gauss.hpp>
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <random>
+#include <vector>
 
 namespace microsim {
 namespace {
@@ -252,6 +257,79 @@ TEST(AlbedoGradeChannels, FilamentsTwoChannelsAreGradedAndOnePlantedTexelIsFlagg
   const LayoutTable plain = *layout_table(small_layout(), 1e-6, {}, false);
   EXPECT_THROW(grade_against(plain, reference_values(plain), 5e-4, 0, true), std::invalid_argument)
       << "a layout without a grazing channel";
+}
+
+// The 200-point Gauss-Legendre rule (even: no node at the centre) of a two-valued f on [a, b].
+template <class F> Eigen::Array2d gauss_legendre_pair(const F& f, double a, double b) {
+  using Rule = boost::math::quadrature::gauss<double, 200>;
+  const double mid = (a + b) / 2, half = (b - a) / 2;
+  Eigen::Array2d sum = Eigen::Array2d::Zero();
+  for (std::size_t i = 0; i < Rule::abscissa().size(); ++i)
+    sum += Rule::weights()[i] * (f(mid + half * Rule::abscissa()[i]) + f(mid - half * Rule::abscissa()[i]));
+  return half * sum;
+}
+
+// E(mu) of a Beckmann mirror, single scattering with the height-correlated Smith G2 (Heitz 2014, eq. 99):
+// Beckmann's D (Walter et al. 2007, eq. 25) and its Smith Lambda (Walter et al. 2007, eq. 27 as
+// Lambda = (erf(a) - 1) / 2 + exp(-a^2) / (2 a sqrt(pi)), a = 1 / (alpha tan theta)), integrated over the
+// outgoing hemisphere by Gauss-Legendre in theta and phi (phi over [0, pi] doubled: symmetry), as
+// test_albedo_layout_files.cpp integrates GGX's; and the same weighted by Schlick's grazing term (1 - wi.h)^5
+// (h the half vector), Filament's DFG.x.
+Eigen::Array2d independent_beckmann_albedo(double alpha, double mu) {
+  const double a2 = alpha * alpha, si = std::sqrt(1 - mu * mu), sqrt_pi = std::sqrt(std::numbers::pi);
+  const auto lambda = [&](double c) {
+    const double s = std::sqrt(std::max(0.0, 1 - c * c));
+    if (s == 0) return 0.0;
+    const double a = c / (alpha * s);
+    return (std::erf(a) - 1) / 2 + std::exp(-a * a) / (2 * a * sqrt_pi);
+  };
+  const auto integrand = [&](double theta, double phi) {
+    const double co = std::cos(theta), so = std::sin(theta);
+    const double hx = si + so * std::cos(phi), hy = so * std::sin(phi), hz = mu + co;
+    const double cos2 = hz * hz / (hx * hx + hy * hy + hz * hz), tan2 = (1 - cos2) / cos2;
+    const double d = std::exp(-tan2 / a2) / (std::numbers::pi * a2 * cos2 * cos2);
+    const double e = d / (1 + lambda(mu) + lambda(co)) / (4 * mu) * so;
+    const double c = 1 - (si * hx + mu * hz) / std::sqrt(hx * hx + hy * hy + hz * hz);
+    return Eigen::Array2d(e, e * c * c * c * c * c);
+  };
+  Eigen::Array2d sum = Eigen::Array2d::Zero();
+  const int pieces = 8;  // theta in 8 pieces, phi in 8 pieces, 200 nodes each
+  for (int i = 0; i < pieces; ++i)
+    for (int j = 0; j < pieces; ++j) {
+      const double t0 = std::numbers::pi / 2 * i / pieces, t1 = std::numbers::pi / 2 * (i + 1) / pieces;
+      const double p0 = std::numbers::pi * j / pieces, p1 = std::numbers::pi * (j + 1) / pieces;
+      sum += gauss_legendre_pair(
+          [&](double t) { return gauss_legendre_pair([&](double p) { return integrand(t, p); }, p0, p1); }, t0, t1);
+    }
+  return 2 * sum;
+}
+
+// --ndf beckmann in a layout: the same grid holds a Beckmann mirror's E, three nodes of it agree with the
+// independent quadrature above, it is not GGX's table, the files say which it is, and grading GGX's table
+// against the Beckmann reference fails while the Beckmann table passes (the negative control).
+TEST(AlbedoLayouts, ABeckmannTableHoldsTheBeckmannMirrorsAlbedo) {
+  const AlbedoLayout l = small_layout();
+  const std::optional<LayoutTable> b = layout_table(l, 1e-9, {}, true, NdfKind::beckmann);
+  const std::optional<LayoutTable> g = layout_table(l, 1e-6, {}, false);
+  ASSERT_TRUE(b.has_value() && g.has_value());
+  EXPECT_EQ(b->ndf, NdfKind::beckmann);
+  for (const std::size_t k : {1u, 6u, 11u}) {
+    const Eigen::Array2d independent = independent_beckmann_albedo(b->alphas[k / 4], b->mus[k % 4]);
+    EXPECT_NEAR(b->cells[k].value, independent[0], 2e-6) << k;
+    // Filament's DFG.x of a Beckmann mirror at the same node: the same quadrature's second integral.
+    EXPECT_NEAR(mirror_split_reference(b->alphas[k / 4], b->mus[k % 4], 1e-9, NdfKind::beckmann).grazing.value,
+                independent[1], 2e-6) << k;
+  }
+  double apart = 0;
+  for (std::size_t k = 0; k < b->cells.size(); ++k) apart = std::max(apart, std::abs(b->cells[k].value - g->cells[k].value));
+  EXPECT_GT(apart, 1e-2);
+  EXPECT_EQ(layout_table_json(*b).at("ndf"), "beckmann");
+  EXPECT_EQ(layout_table_exr(*g).attributes.at("ndf"), "ggx");
+  EXPECT_NE(layout_table_csv(*b).find("of a Beckmann mirror"), std::string::npos);
+  EXPECT_TRUE(grade_against(*b, reference_values(*b), 1e-4).passed());
+  const AlbedoGrade wrong = grade_against(*b, reference_values(*g), 1e-4);
+  EXPECT_FALSE(wrong.passed());
+  EXPECT_EQ(wrong.ndf, NdfKind::beckmann);
 }
 
 // The Cycles grid with half-float storage (the encoding of the sampled tables below).
