@@ -13,10 +13,7 @@
 // The whole tracer (HeightfieldScene::trace: the segment loop, the lift and skip rules, the convex-edge
 // pass-over; or the pyramid's walk):
 //   trace_triangles, trace_grid    Embree
-//   trace_pyramid                  the min-max pyramid walk (trace/heightfield_pyramid.h), its wide layout
-//                                  (4 x 4 children per block; the default)
-//   trace_pyramid_binary           the same walk over the binary layout (one node per step)
-//   trace_pyramid_binary_huge      the binary layout, pyramid and a copy of the heights in huge pages
+//   trace_pyramid                  the min-max pyramid walk (trace/heightfield_pyramid.h)
 //   trace_pyramid_morton           the same, Morton order
 //   trace_pyramid_lockstep         the same rays, each block's traced 4 in lockstep (trace_batch)
 // After the benchmarks: one table, ns/ray per option per resolution, and each option's rate against raw_high;
@@ -59,8 +56,7 @@ constexpr int kLargest = 4096;  // from this resolution on, only raw_high*, trac
 
 const char* const kOptions[] = {"raw_high",        "raw_high_morton", "raw_medium",    "raw_low",
                                 "raw_compact",     "raw_grid",        "trace_triangles", "trace_grid",
-                                "trace_pyramid",   "trace_pyramid_binary", "trace_pyramid_binary_huge", "trace_pyramid_morton",
-                                "trace_pyramid_lockstep"};
+                                "trace_pyramid",   "trace_pyramid_morton", "trace_pyramid_lockstep"};
 constexpr int kOptionCount = int(sizeof(kOptions) / sizeof(kOptions[0]));
 
 struct Segment {
@@ -110,14 +106,11 @@ struct Fixture {
   std::unique_ptr<microgeom::Heightfield> field;
   std::map<HeightfieldGeometry, std::unique_ptr<HeightfieldScene>> scenes;
   std::map<std::string, std::unique_ptr<RawScene>> raw;
-  std::unique_ptr<PyramidTracer> binary;      // the pyramid walk over the binary layout
-  std::unique_ptr<PyramidTracer> binary_huge;  // the same in huge pages
   std::vector<Vec3<double>> origins;          // the rays (all of direction dir)
   std::vector<std::uint32_t> morton;          // the rays in Morton order within each block
   std::vector<Segment> segments, segments_morton;
   Vec3<double> dir;
   std::uint64_t differing = 0;  // rays whose pyramid hit differs from the triangles' (triangle or outcome)
-  std::uint64_t layouts_differ = 0;  // rays whose hit (outcome, triangle, t) differs between the layouts
 };
 
 std::uint64_t morton_code(double x, double y, double tile) {
@@ -189,20 +182,12 @@ Fixture& fixture(int res) {
     f.raw["raw_compact"] = std::make_unique<RawScene>(*f.field, RTC_BUILD_QUALITY_HIGH,
                                                       RTCSceneFlags(RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_COMPACT));
   }
-  const HeightfieldScene& pyr = *f.scenes.at(HeightfieldGeometry::pyramid);
-  f.binary = std::make_unique<PyramidTracer>(*f.field, pyr.escape_height(), pyr.floor_height(), PyramidLayout::binary);
-  f.binary_huge =
-      std::make_unique<PyramidTracer>(*f.field, pyr.escape_height(), pyr.floor_height(), PyramidLayout::binary, true);
   make_rays(f);
   for (std::size_t i = 0; i < f.origins.size(); ++i) {
     embree::FlushDenormalsScope ftz;
     const HeightfieldHit a = f.scenes[HeightfieldGeometry::triangles]->trace(f.origins[i], f.dir);
     const HeightfieldHit b = f.scenes[HeightfieldGeometry::pyramid]->trace(f.origins[i], f.dir);
-    const HeightfieldHit c = f.binary->trace(f.origins[i], f.dir, std::nullopt);
-    const HeightfieldHit d = f.binary_huge->trace(f.origins[i], f.dir, std::nullopt);
-    f.layouts_differ += d.outcome != c.outcome || d.triangle != c.triangle || d.t != c.t;
     f.differing += a.outcome != b.outcome || (a.is_hit() && a.triangle != b.triangle);
-    f.layouts_differ += b.outcome != c.outcome || b.triangle != c.triangle || b.t != c.t || b.segments != c.segments;
   }
   return f;
 }
@@ -251,13 +236,6 @@ std::uint64_t run_option(const Fixture& f, const std::string& option) {
   if (option.rfind("raw_", 0) == 0) return replay(f.raw.at(option)->scene, f.segments, d);
   if (option == "trace_triangles") return trace_all(*f.scenes.at(HeightfieldGeometry::triangles), f, false);
   if (option == "trace_grid") return trace_all(*f.scenes.at(HeightfieldGeometry::grid), f, false);
-  if (option == "trace_pyramid_binary" || option == "trace_pyramid_binary_huge") {
-    const PyramidTracer& tracer = option == "trace_pyramid_binary" ? *f.binary : *f.binary_huge;
-    embree::FlushDenormalsScope ftz;
-    std::uint64_t hits = 0;
-    for (const Vec3<double>& o : f.origins) hits += tracer.trace(o, f.dir, std::nullopt).is_hit();
-    return hits;
-  }
   if (option == "trace_pyramid_lockstep") return trace_lockstep(*f.scenes.at(HeightfieldGeometry::pyramid), f);
   return trace_all(*f.scenes.at(HeightfieldGeometry::pyramid), f, option == "trace_pyramid_morton");
 }
@@ -274,9 +252,6 @@ void BM_Tracer(benchmark::State& state, int res, std::string option) {
   state.SetItemsProcessed(std::int64_t(state.iterations()) * std::int64_t(kRays));
   state.counters["segments_per_ray"] = double(f.segments.size()) / double(kRays);
   state.counters["pyramid_differs"] = double(f.differing);
-  state.counters["layouts_differ"] = double(f.layouts_differ);
-  state.counters["wide_MB"] = double(f.scenes.at(HeightfieldGeometry::pyramid)->pyramid_bytes()) / 1e6;
-  state.counters["binary_MB"] = double(f.binary->bytes()) / 1e6;
 }
 
 std::string name(int res, const std::string& option) { return fmt::format("BM_Tracer/{}/{}", res, option); }
