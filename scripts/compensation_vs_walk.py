@@ -19,6 +19,11 @@ rule, so the albedo differences are then physics: f_ss holds the exact Fresnel o
 - Kulla & Conty 2017 scale the mirror's multiple-scattering term by F_avg^2 E_avg / (1 - F_avg (1 - E_avg)), with
   F_avg = 2 int F(mu) mu dmu (microsim.albedo_table's F_avg);
 - Turquin 2019 scale by 1 + F0 (1 - E(mu_i)) / E(mu_i), F0 the Fresnel at normal incidence.
+A dielectric (`--material dielectric:ETA`, light from outside) loses nothing: the walk and the lobes cover both
+hemispheres, E(mu) is the single-scattering E_R + E_T of that dielectric (microsim.albedo_table), and only Turquin's
+rule is measured, as Blender Cycles applies it to its rough glass (f_ss / E(mu_i), E from its glass tables); the
+Kulla-Conty columns are left empty (their dielectric form, a multiple-scattering lobe split between the sides, is
+not written here).
 Run: PYTHONPATH=build/python /usr/bin/python3 scripts/compensation_vs_walk.py [--rays N] [--material M]"""
 import argparse
 
@@ -34,6 +39,10 @@ ROWS = 16
 def albedo_curve(alpha, material):
     """The mirror's (F = 1) E(mu) interpolated and E_avg, which both schemes use whatever the Fresnel, and F_avg (1
     for the mirror; a conductor's table holds it beside its own E, which includes the Fresnel)."""
+    if material.startswith("dielectric"):
+        t = microsim.albedo_table(alphas=[alpha], mus=64, material=material)
+        mus, e = np.array(t["mus"]), np.array(t["quantities"]["E1"]["value"][0])
+        return (lambda mu: np.interp(mu, mus, e)), t["quantities"]["E1"]["average"][0], None
     t = microsim.albedo_table(alphas=[alpha], mus=64, material="mirror")
     mus = np.array(t["mus"])
     e = np.array(t["quantities"]["E1"]["value"][0])
@@ -60,14 +69,20 @@ def row(alpha, theta, rays, material, curve):
     omega = np.array(walk["binning"]["solid_angle"])
     mu_o = np.clip(centres[..., 2], 0, None)
     mu_i = np.cos(np.radians(theta))
-    fresnel_ms = f_avg ** 2 * e_avg / (1 - f_avg * (1 - e_avg))  # Kulla & Conty 2017, the multiple-scattering Fresnel
-    kc = ss + fresnel_ms * (1 - E(mu_i)) * (1 - E(mu_o)) / (np.pi * (1 - e_avg)) * mu_o * omega * (mu_o > 0)
-    turquin = ss * (1 + normal_fresnel(material) * (1 - E(mu_i)) / E(mu_i))
+    if f_avg is None:  # a dielectric: Turquin's scale of both lobes only
+        kc, turquin = None, ss / E(mu_i)
+    else:
+        fresnel_ms = f_avg ** 2 * e_avg / (1 - f_avg * (1 - e_avg))  # Kulla & Conty 2017, the multiple-scattering Fresnel
+        kc = ss + fresnel_ms * (1 - E(mu_i)) * (1 - E(mu_o)) / (np.pi * (1 - e_avg)) * mu_o * omega * (mu_o > 0)
+        turquin = ss * (1 + normal_fresnel(material) * (1 - E(mu_i)) / E(mu_i))
     walk_albedo = mean.sum()
     floor = 0.5 * np.sqrt(2 / np.pi) * np.sqrt(var).sum() / walk_albedo
     se = walk["summary"]["channels"][0]["albedo"]["total"]["both"]["standard_error"]  # over paths (0 for the mirror)
     out = [alpha, theta, walk_albedo, se]
     for lobe in (kc, turquin):
+        if lobe is None:
+            out += [None, None, floor]
+            continue
         tv = 0.5 * np.abs(lobe / lobe.sum() - mean / walk_albedo).sum()
         out += [lobe.sum() - walk_albedo, tv, floor]
     return out
@@ -76,7 +91,8 @@ def row(alpha, theta, rays, material, curve):
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--rays", type=int, default=1_000_000)
-    p.add_argument("--material", default="mirror", help="mirror, or one conductor channel conductor:ETA,K")
+    p.add_argument("--material", default="mirror",
+                   help="mirror, one conductor channel conductor:ETA,K, or dielectric:ETA (light from outside)")
     a = p.parse_args()
     print("| alpha | theta | walk albedo (SE) | KC - walk | KC lobe TV | Turquin - walk | Turquin lobe TV | TV noise floor |")
     print("|---|---|---|---|---|---|---|---|")
@@ -84,7 +100,8 @@ def main():
         curve = albedo_curve(alpha, a.material)
         for theta in THETAS:
             al, th, w, se, kc_d, kc_tv, fl, tq_d, tq_tv, _ = row(alpha, theta, a.rays, a.material, curve)
-            print(f"| {al} | {th} | {w:.5f} ({se:.5f}) | {kc_d:+.5f} | {kc_tv:.4f} | {tq_d:+.5f} | {tq_tv:.4f} | {fl:.4f} |")
+            kc = "- | -" if kc_d is None else f"{kc_d:+.5f} | {kc_tv:.4f}"
+            print(f"| {al} | {th} | {w:.5f} ({se:.5f}) | {kc} | {tq_d:+.5f} | {tq_tv:.4f} | {fl:.4f} |")
 
 
 if __name__ == "__main__":
