@@ -106,6 +106,19 @@ py::object glass_layout_of(const GlassLayout& layout, const AlbedoArguments& a, 
   return json_object(glass_layout_json(*table));
 }
 
+// `compute` of a copy of `request` run with this call's RunControl (GIL released, Ctrl-C) on `threads`: its result.
+template <class Request, class Compute>
+auto run_request(const Request& request, int threads, const py::object& progress, Compute compute) {
+  decltype(compute(request)) result;
+  run_interruptible([&](const RunControl& run) {
+    Request r = request;
+    r.run = run;
+    r.run.threads = threads;
+    result = compute(r);
+  }, progress);
+  return result;
+}
+
 // `microsim albedo --model analytic --alphas AX,... --alphas-y AY,... --json`: the anisotropic mirror's table;
 // the request checked by anisotropic_albedo_table (std::invalid_argument: ValueError).
 py::object anisotropic_albedo_table_of(const std::vector<double>& alphas_x, const std::vector<double>& alphas_y,
@@ -117,14 +130,8 @@ py::object anisotropic_albedo_table_of(const std::vector<double>& alphas_x, cons
   r.mus = mus;
   r.phis = phis;
   r.tolerance = tolerance;
-  std::optional<AnisotropicAlbedoTable> table;
-  run_interruptible([&](const RunControl& run) {
-    AnisotropicAlbedoRequest request = r;
-    request.run = run;
-    request.run.threads = threads;
-    table = anisotropic_albedo_table(request);
-  }, progress);
-  return json_object(anisotropic_albedo_json(*table));
+  const auto table = [](const AnisotropicAlbedoRequest& q) { return anisotropic_albedo_table(q); };
+  return json_object(anisotropic_albedo_json(*run_request(r, threads, progress, table)));
 }
 
 // `microsim albedo`: E(mu, alpha) and its average per alpha; the request checked as the command line checks it.
@@ -152,14 +159,8 @@ py::object albedo_table_of(const std::string& model, const std::string& ndf, con
   r.max_order = max_order;
   r.resolution = resolution;
   check_albedo_request(r);  // std::invalid_argument: ValueError
-  std::optional<AlbedoTable> table;
-  run_interruptible([&](const RunControl& run) {
-    AlbedoTableRequest request = r;
-    request.run = run;
-    request.run.threads = threads;
-    table = albedo_table(request);
-  }, progress);
-  return json_object(albedo_table_json(*table));
+  const auto table = [](const AlbedoTableRequest& q) { return std::optional<AlbedoTable>(albedo_table(q)); };
+  return json_object(albedo_table_json(*run_request(r, threads, progress, table)));
 }
 
 // `microsim albedo --grade TABLE --layout cycles-glass|cycles-glass-inv`: the dict its --json writes, plus
