@@ -399,6 +399,21 @@ TEST(ExperimentCli, APassingDumpPassesAndARunWithoutATestHasNoVerdict) {
   EXPECT_EQ(results_of(dir / "none")["results"]["tested"], 0);
   EXPECT_NE(none.out.find("Verdict: none"), std::string::npos) << none.out;
   EXPECT_NE(headline(dir / "none", "none").find("No statistical test"), std::string::npos);
+  // The passing dump beside a validation the plan cannot run (the ndf sampler against a tile: it does not claim
+  // the visible normals): a test that did not run is not a pass, and the run names it.
+  write(dir / "half.toml", dump_spec({"good.npy"}) + "[[quantity]]\nkind = \"validation\"\nmaterial = \"m\"\n"
+                                                     "sampler = \"ndf\"\nsurface = \"smith\"\ntheta = [40]\nrows = 7\n"
+                                                     "detect_tv = 0.2\n");
+  const auto half = run_cli(dir, "run half.toml --out half");
+  EXPECT_EQ(half.exit_code, 0) << half.out << half.err;
+  const nlohmann::json half_doc = results_of(dir / "half");
+  const nlohmann::json& h = half_doc["results"];
+  EXPECT_EQ(h["verdict"], "none");
+  EXPECT_EQ(h["tested"], 1);
+  EXPECT_EQ(h["untested"].size(), 1u) << h["untested"].dump();
+  EXPECT_NE(half.out.find("Verdict: none (1 test(s) ran, none rejected; no verdict from: quantity[1]"), std::string::npos)
+      << half.out;
+  EXPECT_NE(headline(dir / "half", "none").find("could not give a verdict"), std::string::npos);
   fs::remove_all(dir);
 }
 
