@@ -8,6 +8,7 @@
 // (the run's verdict and exit code take it, as a rejected validation's). Not shared by ranks (the root loads the
 // plugin, reads the files). Cancelled: nothing kept, it runs again on resumption.
 #include "experiment/measurement.h"
+#include "experiment/plan_kinds.h"
 #include "experiment/report_html.h"
 
 #include "core/wall_clock.h"
@@ -48,6 +49,12 @@ std::string read_plugin_params(const SpecTable& t) {
   return joined;
 }
 
+// A view's theta (degrees) under `key`: in [0, 180] and not 90; from inside (over 90) only for a dielectric.
+void check_view_theta(const SpecTable& t, const char* key, double theta, const SpecMaterial& m) {
+  if (!(theta >= 0 && theta <= 180) || theta == 90) t.fail(key, fmt::format("theta {}: in [0, 180] and not 90 deg", theta));
+  if (theta > 90 && !m.facet.transmits()) t.fail(key, fmt::format("theta {}: from inside, only a dielectric", theta));
+}
+
 // The views, [theta, phi] in degrees (a number: phi 0); none: the battery's default grid. From inside (theta over
 // 90) only for a dielectric.
 nlohmann::json read_battery_views(const SpecTable& t, const SpecMaterial& m) {
@@ -58,9 +65,7 @@ nlohmann::json read_battery_views(const SpecTable& t, const SpecMaterial& m) {
     const bool pair = v.is_array() && v.size() == 2;
     if (!pair && !v.is_number()) t.fail("views", "each view is a theta or a [theta, phi] pair (degrees)");
     const double theta = t.number_value(pair ? v[0] : v, "views"), phi = pair ? t.number_value(v[1], "views") : 0.0;
-    if (!(theta >= 0 && theta <= 180) || theta == 90)
-      t.fail("views", fmt::format("theta {}: in [0, 180] and not 90 deg", theta));
-    if (theta > 90 && !m.facet.transmits()) t.fail("views", fmt::format("theta {}: from inside, only a dielectric", theta));
+    check_view_theta(t, "views", theta, m);
     views.push_back({theta, phi});
   }
   return views;
@@ -117,8 +122,7 @@ nlohmann::json read_bsdf_files(const SpecTable& t, const SpecMaterial& m, const 
   read_file_columns(t, s);
   s["frame"] = read_choice(t, "frame", "z-up", {"z-up", "y-up"});
   const double theta = t.number("theta"), phi = t.number("phi", 0.0);
-  if (!(theta >= 0 && theta <= 180) || theta == 90) t.fail("theta", fmt::format("{}: in [0, 180] and not 90 deg", theta));
-  if (theta > 90 && !m.facet.transmits()) t.fail("theta", fmt::format("{}: from inside, only a dielectric", theta));
+  check_view_theta(t, "theta", theta, m);
   s["theta"] = theta;
   s["phi"] = phi;
   s["lost"] = t.integer("lost", 0, 0, std::numeric_limits<std::int64_t>::max());
@@ -281,11 +285,7 @@ std::uint64_t quantity_dump_rows(const SpecQuantity& q, const RunControl& run) {
   try {
     DirectionSampleReader reader(std::filesystem::path(q.settings.at("dump").get<std::string>()),
                                  SampleColumns::parse(q.settings.at("columns").get<std::string>()));
-    std::vector<Vec3<double>> block(kSampleFileBlock);
-    std::vector<double> pdfs(block.size()), weights(block.size() * std::size_t(reader.columns().channels()));
-    while (reader.read(block, pdfs, weights) > 0)
-      if (run.cancelled()) throw Cancelled("plan: reading a dump");
-    return reader.rows_read();
+    return count_dump_rows(reader, run);
   } catch (const SampleFileError& e) {
     throw std::invalid_argument(fmt::format("{}.dump: {}", q.key, e.what()));
   }

@@ -259,12 +259,7 @@ private:
 std::uint64_t dump_rows(const SpecQuantity& q, const RunControl& run) {
   try {
     DirectionSampleReader reader = open_dump(q);
-    std::vector<Vec3<double>> block(kSampleFileBlock);
-    std::vector<double> pdfs(reader.columns().has_pdf() ? block.size() : 0);
-    std::vector<double> weights(block.size() * std::size_t(reader.columns().channels()));
-    while (reader.read(block, pdfs, weights) > 0)
-      if (run.cancelled()) throw Cancelled("plan: reading a dump");
-    return reader.rows_read();
+    return count_dump_rows(reader, run);
   } catch (const SampleFileError& e) {
     throw dump_error(q, e);
   }

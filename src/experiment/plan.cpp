@@ -111,6 +111,15 @@ void plan_views(const ExperimentSpec& spec, std::size_t index, const PlanOptions
     }
 }
 
+std::uint64_t count_dump_rows(DirectionSampleReader& reader, const RunControl& run) {
+  std::vector<Vec3<double>> block(kSampleFileBlock);
+  std::vector<double> pdfs(reader.columns().has_pdf() ? block.size() : 0);
+  std::vector<double> weights(block.size() * std::size_t(reader.columns().channels()));
+  while (reader.read(block, pdfs, weights) > 0)
+    if (run.cancelled()) throw Cancelled("plan: reading a dump");
+  return reader.rows_read();
+}
+
 ExperimentPlan plan_experiment(const ExperimentSpec& spec, const PlanOptions& options) {
   ExperimentPlan plan;
   SurfaceCache memory;  // without the caller's cache: surfaces for this plan only

@@ -4,6 +4,7 @@
 
 #include "experiment/heightfield_measures.h"
 #include "experiment/measurement.h"
+#include "validate/sample_io.h"
 
 #include <functional>
 #include <string>
@@ -26,6 +27,10 @@ std::uint64_t paths_to_bound_bias(double threshold);
 // Caps 4, 8, 16, ... probed until one leaves less than kBiasShare of the (relative) target on the surface;
 // the cap and its reason.
 std::pair<int, std::string> walk_order_cap(const CapPilot& pilot, double relative_target, const std::string& where);
+
+// A dump's rows, every one read (a file that cannot be read as samples throws SampleFileError before anything
+// runs); Cancelled when run is.
+std::uint64_t count_dump_rows(DirectionSampleReader& reader, const RunControl& run);
 
 // The tile a decision planned, into d.surface; false (with why it is not runnable) when none fits.
 bool take_surface(const SurfaceDecision& s, Decision& d);
