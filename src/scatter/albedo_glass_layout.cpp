@@ -1,4 +1,5 @@
 #include "scatter/albedo_glass_layout.h"
+#include "scatter/albedo_table_io.h"
 #include "scatter/parallel_cells.h"
 
 #include "core/wall_clock.h"
@@ -216,19 +217,7 @@ nlohmann::json glass_layout_json(const GlassLayoutTable& t) {
   j["E_T"] = {{"value", glass_nested(t, [](const C& c) { return c.transmitted.value; })},
               {"error", glass_nested(t, [](const C& c) { return c.transmitted.standard_error; })}};
   j["E_encoded"] = glass_nested(t, [](const C& c) { return encode_glass_value(c.total().value); });
-  if (!t.average.empty()) {
-    nlohmann::json value = nlohmann::json::array(), error = nlohmann::json::array();
-    for (std::size_t z = 0; z < t.iors.size(); ++z) {
-      std::vector<double> v, e;
-      for (std::size_t x = 0; x < t.alphas.size(); ++x) {
-        v.push_back(t.average[z * t.alphas.size() + x].value);
-        e.push_back(t.average[z * t.alphas.size() + x].standard_error);
-      }
-      value.push_back(v);
-      error.push_back(e);
-    }
-    j["E_avg"] = {{"value", value}, {"error", error}};
-  }
+  if (!t.average.empty()) j["E_avg"] = estimate_rows_json(t.average, t.alphas.size());  // [index][roughness]
   return j;
 }
 

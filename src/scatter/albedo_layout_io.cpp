@@ -1,4 +1,5 @@
 #include "scatter/albedo_layout_io.h"
+#include "scatter/albedo_table_io.h"
 
 #include "core/parse.h"
 
@@ -28,12 +29,6 @@ std::string layout_joined(const std::vector<double>& values) {
     s += layout_number(v);
   }
   return s;
-}
-
-std::vector<double> layout_values_of(const std::vector<Estimate>& e, bool errors) {
-  std::vector<double> v;
-  for (const Estimate& x : e) v.push_back(errors ? x.standard_error : x.value);
-  return v;
 }
 
 const char* column_axis(const AlbedoLayout& l) { return l.mu_rows ? "roughness" : "mu"; }
@@ -114,8 +109,8 @@ microgeom::ExrImage layout_table_exr(const LayoutTable& t) {
     image.attributes["grazing_interpolation_rms"] = layout_number(t.grazing_interpolation.rms);
   }
   if (!t.average.empty()) {
-    image.attributes["E_avg"] = layout_joined(layout_values_of(t.average, false));
-    image.attributes["E_avg_error"] = layout_joined(layout_values_of(t.average, true));
+    image.attributes["E_avg"] = layout_joined(estimate_values(t.average, false));
+    image.attributes["E_avg_error"] = layout_joined(estimate_values(t.average, true));
   }
   return image;
 }
@@ -192,34 +187,12 @@ nlohmann::json layout_table_json(const LayoutTable& t) {
                    {"rows", row_axis(t.layout)}, {"roughness_axis", roughness_name(t.layout)},
                    {"roughness", t.roughness}, {"alphas", t.alphas}, {"mus", t.mus}, {"tolerance", t.tolerance},
                    {"seconds", t.seconds}};
-  nlohmann::json value = nlohmann::json::array(), error = nlohmann::json::array();
-  for (std::size_t i = 0; i < t.alphas.size(); ++i) {
-    const auto row = [&](bool err) {
-      std::vector<double> r;
-      for (std::size_t m = 0; m < t.mus.size(); ++m) {
-        const Estimate& e = t.cells[i * t.mus.size() + m];
-        r.push_back(err ? e.standard_error : e.value);
-      }
-      return r;
-    };
-    value.push_back(row(false));
-    error.push_back(row(true));
-  }
-  j["E"] = {{"value", value}, {"error", error}};  // [roughness][mu]
+  j["E"] = estimate_rows_json(t.cells, t.mus.size());  // [roughness][mu]
   if (t.layout.has_grazing()) {
-    nlohmann::json rows = nlohmann::json::array(), errors = nlohmann::json::array();
-    for (std::size_t i = 0; i < t.alphas.size(); ++i) {
-      std::vector<double> r, e;
-      for (std::size_t m = 0; m < t.mus.size(); ++m) {
-        r.push_back(t.grazing[i * t.mus.size() + m].value);
-        e.push_back(t.grazing[i * t.mus.size() + m].standard_error);
-      }
-      rows.push_back(r);
-      errors.push_back(e);
-    }
-    j["E_grazing"] = {{"quantity", t.layout.grazing_quantity}, {"value", rows}, {"error", errors}};
+    j["E_grazing"] = estimate_rows_json(t.grazing, t.mus.size());
+    j["E_grazing"]["quantity"] = t.layout.grazing_quantity;
   }
-  if (!t.average.empty()) j["E_avg"] = {{"value", layout_values_of(t.average, false)}, {"error", layout_values_of(t.average, true)}};
+  if (!t.average.empty()) j["E_avg"] = {{"value", estimate_values(t.average, false)}, {"error", estimate_values(t.average, true)}};
   const InterpolationError& e = t.interpolation;
   j["interpolation"] = {{"max_abs", e.max_abs}, {"rms", e.rms}, {"worst_alpha", e.worst_alpha}, {"worst_mu", e.worst_mu}};
   return j;

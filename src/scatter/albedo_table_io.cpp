@@ -3,6 +3,7 @@
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <map>
 #include <stdexcept>
 
@@ -19,12 +20,6 @@ std::string joined(const std::vector<double>& values) {
     s += number(values[i]);
   }
   return s;
-}
-
-std::vector<double> values_of(const std::vector<Estimate>& estimates, bool errors) {
-  std::vector<double> v;
-  for (const Estimate& e : estimates) v.push_back(errors ? e.standard_error : e.value);
-  return v;
 }
 
 const char* side_of(const AlbedoTableRequest& r) { return r.inside ? "inside" : "outside"; }
@@ -67,8 +62,8 @@ microgeom::ExrImage albedo_table_exr(const AlbedoTable& t) {
       value.data[i] = float(q.cells[i].value);
       error.data[i] = float(q.cells[i].standard_error);
     }
-    image.attributes[q.name + ".average"] = joined(values_of(q.average, false));
-    image.attributes[q.name + ".average_error"] = joined(values_of(q.average, true));
+    image.attributes[q.name + ".average"] = joined(estimate_values(q.average, false));
+    image.attributes[q.name + ".average_error"] = joined(estimate_values(q.average, true));
   }
   const AlbedoTableRequest& r = t.request;
   image.attributes.merge(std::map<std::string, std::string>{
@@ -126,17 +121,10 @@ std::string albedo_table_csv(const AlbedoTable& t) {
 namespace {
 
 nlohmann::json quantity_json(const AlbedoTable& t, const AlbedoQuantity& q) {
-  nlohmann::json values = nlohmann::json::array(), errors = nlohmann::json::array();
-  const std::size_t n = t.mus.size();
-  for (std::size_t a = 0; a < t.alphas.size(); ++a) {
-    const std::vector<Estimate> row(q.cells.begin() + std::ptrdiff_t(a * n), q.cells.begin() + std::ptrdiff_t((a + 1) * n));
-    values.push_back(values_of(row, false));
-    errors.push_back(values_of(row, true));
-  }
-  return {{"value", values},
-          {"error", errors},
-          {"average", values_of(q.average, false)},
-          {"average_error", values_of(q.average, true)}};
+  nlohmann::json j = estimate_rows_json(q.cells, t.mus.size());
+  j["average"] = estimate_values(q.average, false);
+  j["average_error"] = estimate_values(q.average, true);
+  return j;
 }
 
 }  // namespace
@@ -168,6 +156,23 @@ nlohmann::json albedo_table_json(const AlbedoTable& t) {
     j["quantities"][q.name] = quantity_json(t, q);
   }
   return j;
+}
+
+std::vector<double> estimate_values(const std::vector<Estimate>& estimates, bool errors) {
+  std::vector<double> v;
+  for (const Estimate& e : estimates) v.push_back(errors ? e.standard_error : e.value);
+  return v;
+}
+
+nlohmann::json estimate_rows_json(const std::vector<Estimate>& estimates, std::size_t columns) {
+  nlohmann::json values = nlohmann::json::array(), errors = nlohmann::json::array();
+  for (std::size_t start = 0; columns > 0 && start < estimates.size(); start += columns) {
+    const std::vector<Estimate> row(estimates.begin() + std::ptrdiff_t(start),
+                                    estimates.begin() + std::ptrdiff_t(std::min(start + columns, estimates.size())));
+    values.push_back(estimate_values(row, false));
+    errors.push_back(estimate_values(row, true));
+  }
+  return {{"value", values}, {"error", errors}};
 }
 
 }  // namespace microsim

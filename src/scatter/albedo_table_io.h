@@ -26,6 +26,7 @@
 #include <nlohmann/json_fwd.hpp>
 
 #include <string>
+#include <vector>
 
 namespace microsim {
 
@@ -35,6 +36,11 @@ inline constexpr const char* kAlbedoTableKind = "albedo table";
 microgeom::ExrImage albedo_table_exr(const AlbedoTable& table);
 std::string albedo_table_csv(const AlbedoTable& table);
 nlohmann::json albedo_table_json(const AlbedoTable& table);
+
+// The values (or, errors: the standard errors) of `estimates`, in their order.
+std::vector<double> estimate_values(const std::vector<Estimate>& estimates, bool errors);
+// Estimates stored row by row, `columns` to a row, as JSON rows: {"value": [[...], ...], "error": [[...], ...]}.
+nlohmann::json estimate_rows_json(const std::vector<Estimate>& estimates, std::size_t columns);
 
 // "mirror" / "dielectric:1.5" and the side: the table's one-line description ("analytic ggx mirror outside").
 std::string describe_albedo_request(const AlbedoTableRequest& request);
