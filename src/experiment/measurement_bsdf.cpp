@@ -97,14 +97,13 @@ void read_file_columns(const SpecTable& t, nlohmann::json& settings) {
   const std::string columns = t.string("columns", "x,y,z,pdf,weight"), eval = t.string("eval_columns", "wi,wo,value,pdf");
   std::string problem;
   try {
-    const SampleColumns c = SampleColumns::parse(columns);
-    if (!c.has_pdf() || c.channels() < 1) problem = "the dump needs x, y, z, pdf and a weight per channel";
+    problem = dump_columns_problem(SampleColumns::parse(columns));
   } catch (const std::invalid_argument& e) {
     problem = e.what();
   }
   if (!problem.empty()) t.fail("columns", fmt::format("{}: {}", quote_excerpt(columns), problem));
   try {
-    if (!EvalColumns::parse(eval).has_pdf()) problem = "the eval file needs wi, wo, value and pdf";
+    problem = eval_columns_problem(EvalColumns::parse(eval));
   } catch (const std::invalid_argument& e) {
     problem = e.what();
   }

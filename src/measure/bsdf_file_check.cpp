@@ -24,8 +24,8 @@ struct FileRows {
 FileRows read_rows(const BsdfRows& dump, const SampleColumns& dc, const BsdfRows& eval, const EvalColumns& ec,
                    const Vec3<double>& view, const BsdfFileCheckOptions& o) {
   const int c = dc.channels();
-  if (!dc.has_pdf() || c < 1) throw std::invalid_argument("--columns: the dump needs x, y, z, pdf and a weight per channel");
-  if (!ec.has_pdf()) throw std::invalid_argument("--eval-columns: the eval file needs wi, wo, value and pdf");
+  if (const std::string p = dump_columns_problem(dc); !p.empty()) throw std::invalid_argument("--columns: " + p);
+  if (const std::string p = eval_columns_problem(ec); !p.empty()) throw std::invalid_argument("--eval-columns: " + p);
   DirectionSampleReader d = dump.open(dc), wi_r = eval.open(ec.wi_columns(c)), wo_r = eval.open(ec.wo_columns(c));
   for (DirectionSampleReader* r : {&d, &wi_r, &wo_r}) r->set_frame(o.frame);
   FileRows f;
@@ -145,6 +145,14 @@ CellFile read_cells(const BsdfRows& rows, const EvalColumns& ec, int c, const Ve
 }
 
 }  // namespace
+
+std::string dump_columns_problem(const SampleColumns& columns) {
+  return columns.has_pdf() && columns.channels() >= 1 ? "" : "the dump needs x, y, z, pdf and a weight per channel";
+}
+
+std::string eval_columns_problem(const EvalColumns& columns) {
+  return columns.has_pdf() ? "" : "the eval file needs wi, wo, value and pdf";
+}
 
 DirectionSampleReader BsdfRows::open(const SampleColumns& columns) const {
   return array ? DirectionSampleReader(*array, columns) : DirectionSampleReader(path, columns);

@@ -21,6 +21,7 @@
 
 #include <filesystem>
 #include <optional>
+#include <string>
 
 namespace microsim {
 
@@ -37,6 +38,11 @@ struct BsdfRows {
   std::string name() const { return array ? array->name : path.string(); }
   DirectionSampleReader open(const SampleColumns& columns) const;
 };
+
+// Why the dump's columns (x, y, z, pdf and a weight per channel) or the eval file's (wi, wo, value and pdf) cannot
+// be checked; "" when they can. Each caller names its own option or key before it.
+std::string dump_columns_problem(const SampleColumns& columns);
+std::string eval_columns_problem(const EvalColumns& columns);
 
 struct BsdfFileCheckOptions {
   SampleFrame frame = SampleFrame::z_up;

@@ -216,15 +216,15 @@ py::object check_bsdf_files(const py::handle& dump, const py::handle& eval, cons
   } catch (const std::invalid_argument& e) {
     throw py::value_error(fmt::format("columns '{}': {}", a.columns, e.what()));
   }
-  if (!dc.has_pdf() || dc.channels() < 1)
-    throw py::value_error(fmt::format("columns '{}': the dump needs x, y, z, pdf and a weight per channel", a.columns));
+  if (const std::string p = dump_columns_problem(dc); !p.empty())
+    throw py::value_error(fmt::format("columns '{}': {}", a.columns, p));
   try {
     ec = EvalColumns::parse(a.eval_columns);
   } catch (const std::invalid_argument& e) {
     throw py::value_error(fmt::format("eval_columns: {}", e.what()));
   }
-  if (!ec.has_pdf())
-    throw py::value_error(fmt::format("eval_columns '{}': the eval file needs wi, wo, value and pdf", a.eval_columns));
+  if (const std::string p = eval_columns_problem(ec); !p.empty())
+    throw py::value_error(fmt::format("eval_columns '{}': {}", a.eval_columns, p));
   BsdfFileCheckOptions o = files_options(a);
   std::vector<py::array> keep;  // the arrays read in place, alive until the check returns
   const int eval_width = ec.wi_columns(dc.channels()).count;
