@@ -56,6 +56,17 @@ LayoutValues read_grade_values(const std::string& path, const AlbedoLayout& layo
   }
 }
 
+// A grade's noise check, when the table's sample count is stated, and its verdict, both kinds of layout alike.
+void print_noise_line(std::uint64_t samples, double z, std::size_t beyond, std::size_t nodes) {
+  if (samples > 0)
+    fmt::print("beyond the noise of {} samples per node ({:.2f} sigma: family level {:g}; weights in [0, 1]): {} of {} "
+               "nodes\n", samples, z, kGradeNoiseLevel, beyond, nodes);
+}
+void print_verdict_line(const GradeTotals& g, std::size_t nodes, double tolerance, const std::string& quantity) {
+  fmt::print("{}: {} of {} nodes beyond the tolerance {:g} ({})\n", g.passed() ? "PASS" : "FAIL", g.failed, nodes,
+             tolerance, quantity);
+}
+
 void print_grade(const AlbedoGrade& g) {
   const CellGrade& w = g.cells[g.worst];
   fmt::print("grade: {} layout, {} ({} nodes) against the analytic reference of a {} mirror (quadrature tolerance "
@@ -68,17 +79,14 @@ void print_grade(const AlbedoGrade& g) {
                g.not_graded, kMinAlpha, g.ndf == NdfKind::ggx ? "GGX" : "Beckmann");
   fmt::print("beyond the encoding's quantisation ({}): {} of {} nodes\n", to_string(g.layout.encoding),
              g.beyond_quantisation, g.cells.size());
-  if (g.table_samples > 0)
-    fmt::print("beyond the noise of {} samples per node ({:.2f} sigma: family level {:g}; weights in [0, 1]): {} of {} "
-               "nodes\n", g.table_samples, g.noise_z, kGradeNoiseLevel, g.beyond_noise, g.cells.size());
+  print_noise_line(g.table_samples, g.noise_z, g.beyond_noise, g.cells.size());
   print_interpolation("the table's bilinear interpolation at cell centres - reference", g.table_interpolation);
   print_interpolation("the layout's own (reference nodes) at cell centres", g.reference_interpolation);
   for (const CellGrade& c : g.cells)
     if (!c.within_tolerance)
       fmt::print("FAIL node (roughness {}, mu {}) alpha {:.6g} mu {:.6g}: table {:.9g} reference {:.9g} difference {:.3g}\n",
                  c.ri, c.mj, c.alpha, c.mu, c.value, c.reference.value, c.difference);
-  fmt::print("{}: {} of {} nodes beyond the tolerance {:g} ({})\n", g.passed() ? "PASS" : "FAIL", g.failed,
-             g.cells.size(), g.tolerance, g.quantity);
+  print_verdict_line(g, g.cells.size(), g.tolerance, g.quantity);
 }
 
 void print_glass_grade(const GlassGrade& g) {
@@ -92,15 +100,12 @@ void print_glass_grade(const GlassGrade& g) {
   if (g.not_graded > 0)
     fmt::print("not graded: {} nodes of alpha below {:g}, the reference's range\n", g.not_graded, kMinAlpha);
   fmt::print("beyond Cycles' 6-decimal rounding: {} of {} nodes\n", g.beyond_quantisation, g.cells.size());
-  if (g.table_samples > 0)
-    fmt::print("beyond the noise of {} samples per node ({:.2f} sigma: family level {:g}; weights in [0, 1]): {} of {} "
-               "nodes\n", g.table_samples, g.noise_z, kGradeNoiseLevel, g.beyond_noise, g.cells.size());
+  print_noise_line(g.table_samples, g.noise_z, g.beyond_noise, g.cells.size());
   for (const GlassCellGrade& c : g.cells)
     if (!c.within_tolerance)
       fmt::print("FAIL node (x {}, y {}, z {}) alpha {:.6g} mu {:.6g} ior {:.6g}: table {:.9g} reference {:.9g} "
                  "difference {:.3g}\n", c.x, c.y, c.z, c.alpha, c.mu, c.ior, c.value, c.reference.value, c.difference);
-  fmt::print("{}: {} of {} nodes beyond the tolerance {:g} ({})\n", g.passed() ? "PASS" : "FAIL", g.failed,
-             g.cells.size(), g.tolerance, g.layout.quantity);
+  print_verdict_line(g, g.cells.size(), g.tolerance, g.layout.quantity);
 }
 
 }  // namespace
