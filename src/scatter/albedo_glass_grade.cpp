@@ -1,6 +1,7 @@
 #include "scatter/albedo_glass_grade.h"
 
 #include "core/parse.h"
+#include "core/strict_parse.h"
 #include "scatter/albedo_grade.h"
 #include "scatter/albedo_layout.h"
 
@@ -113,14 +114,10 @@ std::string_view trimmed(std::string_view s) {
   return s;
 }
 
+// The ','-separated fields of `line` (reader::split_commas), each trimmed of blanks.
 std::vector<std::string_view> comma_fields(std::string_view line) {
-  std::vector<std::string_view> f;
-  std::size_t start = 0;
-  for (std::size_t i = 0; i <= line.size(); ++i)
-    if (i == line.size() || line[i] == ',') {
-      f.push_back(trimmed(line.substr(start, i - start)));
-      start = i + 1;
-    }
+  std::vector<std::string_view> f = reader::split_commas(line);
+  for (std::string_view& field : f) field = trimmed(field);
   return f;
 }
 

@@ -2,6 +2,7 @@
 #include "scatter/albedo_table_io.h"
 
 #include "core/parse.h"
+#include "core/strict_parse.h"
 
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
@@ -222,17 +223,6 @@ std::size_t csv_column(const std::vector<std::string_view>& header, std::string_
                                           "x, y and E)", name));
 }
 
-std::vector<std::string_view> csv_fields(std::string_view line) {
-  std::vector<std::string_view> f;
-  std::size_t start = 0;
-  for (std::size_t i = 0; i <= line.size(); ++i)
-    if (i == line.size() || line[i] == ',') {
-      f.push_back(line.substr(start, i - start));
-      start = i + 1;
-    }
-  return f;
-}
-
 }  // namespace
 
 std::vector<double> layout_values_from_csv(std::string_view text, const AlbedoLayout& l, std::string_view column) {
@@ -240,7 +230,7 @@ std::vector<double> layout_values_from_csv(std::string_view text, const AlbedoLa
   std::string header_line, line;
   if (!std::getline(in, header_line)) throw std::invalid_argument("an empty CSV");
   if (!header_line.empty() && header_line.back() == '\r') header_line.pop_back();
-  const std::vector<std::string_view> header = csv_fields(header_line);
+  const std::vector<std::string_view> header = reader::split_commas(header_line);
   const std::size_t cx = csv_column(header, "x"), cy = csv_column(header, "y"), ce = csv_column(header, column);
   const std::size_t w = std::size_t(layout_columns(l)), h = std::size_t(layout_rows(l));
   std::vector<double> values(w * h, std::nan(""));
@@ -249,7 +239,7 @@ std::vector<double> layout_values_from_csv(std::string_view text, const AlbedoLa
     ++number_of_line;
     if (!line.empty() && line.back() == '\r') line.pop_back();
     if (line.empty() || line.front() == '#') continue;
-    const std::vector<std::string_view> f = csv_fields(line);
+    const std::vector<std::string_view> f = reader::split_commas(line);
     if (f.size() != header.size())
       throw std::invalid_argument(fmt::format("line {}: {} fields, the header has {}", number_of_line, f.size(), header.size()));
     const std::string what = fmt::format("line {}", number_of_line);
@@ -278,7 +268,7 @@ std::vector<double> layout_grazing_values_from_exr(const microgeom::ExrImage& im
 std::vector<double> layout_grazing_values_from_csv(std::string_view text, const AlbedoLayout& l) {
   if (!l.has_grazing()) return {};
   const std::string_view header = text.substr(0, text.find('\n'));
-  for (const std::string_view name : csv_fields(header))
+  for (const std::string_view name : reader::split_commas(header))
     if (name == "E_grazing" || name == "E_grazing\r") return layout_values_from_csv(text, l, "E_grazing");
   return {};
 }
