@@ -6,15 +6,19 @@
   layout-uniform.{exr,csv,bin}      32 x 32 at cell centres in alpha and mu; .bin: normalised uint16
   layout-filament-dfg.{exr,bin}     Filament's DFG (128 x 128), both channels; .bin: per texel two half floats,
                                     R = DFG.x, G = DFG.y, in GL order
+  layout-{cycles,enterprise-pbr,uniform}-beckmann.*  the same three 32 x 32 layouts for a Beckmann mirror
+                                    (`--ndf beckmann`; no renderer ships one: for a renderer with a Beckmann lobe)
 
-each node the analytic reference of a GGX mirror with its quadrature error, and prints the interpolation error
+each node the analytic reference of a GGX (or Beckmann) mirror with its quadrature error, and prints the interpolation error
 of each layout at its cell centres (the "is 32x32 enough?" table of the record), overall and where renderers
 mostly look (mu >= 0.1 and alpha >= 0.01); cells touching a node of alpha below 1e-4 (microsim's GGX clamps
 alpha there) are left out. About 15 minutes on 2 cores (Filament's 32k quadratures are most
 of it).
 
-Usage: /usr/bin/python3 scripts/energy_tables.py [build/microsim]
+Usage: /usr/bin/python3 scripts/energy_tables.py [build/microsim] [--ndf ggx|beckmann]
+(--ndf: that NDF's tables alone; the Beckmann ones take about 30 s)
 """
+import argparse
 import csv
 import math
 import os
@@ -24,11 +28,14 @@ import tempfile
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 DATA = os.path.join(ROOT, "docs", "data")
-LAYOUTS = [  # name, encoded file's extension, whether the CSV goes to docs/data (Filament's is 2.4 MB)
-    ("cycles", "txt", True),
-    ("enterprise-pbr", "bin", True),
-    ("uniform", "bin", True),
-    ("filament-dfg", "bin", False),
+LAYOUTS = [  # name, NDF, encoded file's extension, whether the CSV goes to docs/data (Filament's is 2.4 MB)
+    ("cycles", "ggx", "txt", True),
+    ("enterprise-pbr", "ggx", "bin", True),
+    ("uniform", "ggx", "bin", True),
+    ("filament-dfg", "ggx", "bin", False),
+    ("cycles", "beckmann", "txt", True),
+    ("enterprise-pbr", "beckmann", "bin", True),
+    ("uniform", "beckmann", "bin", True),
 ]
 
 
@@ -51,23 +58,30 @@ def summary(errors):
 
 
 def main():
-    microsim = os.path.realpath(sys.argv[1] if len(sys.argv) > 1 else os.path.join(ROOT, "build", "microsim"))
+    parser = argparse.ArgumentParser(description="Renderers' energy-compensation tables, written to docs/data/.")
+    parser.add_argument("microsim", nargs="?", default=os.path.join(ROOT, "build", "microsim"))
+    parser.add_argument("--ndf", choices=["ggx", "beckmann"], help="this NDF's tables alone (default: both)")
+    options = parser.parse_args()
+    microsim = os.path.realpath(options.microsim)
     os.makedirs(DATA, exist_ok=True)
-    lines = ["| layout | nodes | max abs (all) | RMS (all) | max abs (mu >= 0.1, alpha >= 0.01) | RMS (same) | worst at |",
-             "|---|---|---|---|---|---|---|"]
+    lines = ["| layout | NDF | nodes | max abs (all) | RMS (all) | max abs (mu >= 0.1, alpha >= 0.01) | RMS (same) | worst at |",
+             "|---|---|---|---|---|---|---|---|"]
     with tempfile.TemporaryDirectory() as tmp:
-        for name, ext, keep_csv in LAYOUTS:
-            base = os.path.join(DATA, f"layout-{name}")
-            centres = os.path.join(tmp, f"{name}-centres.csv")
-            args = [microsim, "albedo", "--layout", name, "--out", base + ".exr", "--encoded", f"{base}.{ext}",
-                    "--centres", centres, "--json", os.path.join(tmp, f"{name}.json")]
+        for name, ndf, ext, keep_csv in LAYOUTS:
+            if options.ndf and ndf != options.ndf:
+                continue
+            stem = f"layout-{name}" + ("" if ndf == "ggx" else f"-{ndf}")
+            base = os.path.join(DATA, stem)
+            centres = os.path.join(tmp, f"{stem}-centres.csv")
+            args = [microsim, "albedo", "--layout", name, "--ndf", ndf, "--out", base + ".exr",
+                    "--encoded", f"{base}.{ext}", "--centres", centres, "--json", os.path.join(tmp, f"{stem}.json")]
             args += ["--csv", base + ".csv"] if keep_csv else []
             subprocess.run(args, check=True, stdout=subprocess.DEVNULL)
             errors = centre_errors(centres)
             inner = [e for e in errors if e[1] >= 0.1 and e[0] >= 0.01]
             worst = max(errors, key=lambda e: abs(e[2]))
             nodes = "128 x 128" if name == "filament-dfg" else "32 x 32"
-            lines.append(f"| {name} | {nodes} | {' | '.join(summary(errors))} | {' | '.join(summary(inner))} | "
+            lines.append(f"| {name} | {ndf} | {nodes} | {' | '.join(summary(errors))} | {' | '.join(summary(inner))} | "
                          f"alpha {worst[0]:.3g}, mu {worst[1]:.3g} |")
     print("\n".join(lines))
 

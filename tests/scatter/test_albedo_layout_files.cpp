@@ -37,17 +37,26 @@ std::string bytes_of(const fs::path& path) {
   return s.str();
 }
 
-// E(mu) of a GGX mirror, single scattering with the height-correlated Smith G2 (Heitz 2014, eq. 99):
-// integral over the upper hemisphere of D(h) G2(i, o) / (4 mu_i) dwo, phi over [0, pi] doubled (symmetry).
-// schlick_power 5: each direction weighted by (1 - wi.h)^5 (Filament's DFG.x); 0: F = 1.
-double independent_albedo(double alpha, double mu, int schlick_power = 0) {
+// E(mu) of a GGX (or Beckmann) mirror, single scattering with the height-correlated Smith G2 (Heitz 2014,
+// eq. 99): integral over the upper hemisphere of D(h) G2(i, o) / (4 mu_i) dwo, phi over [0, pi] doubled
+// (symmetry). schlick_power 5: each direction weighted by (1 - wi.h)^5 (Filament's DFG.x); 0: F = 1.
+// GGX: D and Lambda of Heitz 2014 eqs. 71-72; Beckmann: eqs. 69-70 (Lambda by erf).
+double independent_albedo(double alpha, double mu, int schlick_power = 0, bool beckmann = false) {
   const double a2 = alpha * alpha, si = std::sqrt(1 - mu * mu);
-  const auto lambda = [&](double c) { return (-1 + std::sqrt(1 + a2 * (1 - c * c) / (c * c))) / 2; };
+  const auto lambda = [&](double c) {
+    if (!beckmann) return (-1 + std::sqrt(1 + a2 * (1 - c * c) / (c * c))) / 2;
+    const double a = c / (alpha * std::sqrt(1 - c * c));
+    return (std::erf(a) - 1) / 2 + std::exp(-a * a) / (2 * a * std::sqrt(std::numbers::pi));
+  };
+  const auto ndf = [&](double cos2, double tan2) {
+    const double p = std::numbers::pi * a2 * cos2 * cos2;
+    return beckmann ? std::exp(-tan2 / a2) / p : 1 / (p * std::pow(1 + tan2 / a2, 2));
+  };
   const auto integrand = [&](double theta, double phi) {
     const double co = std::cos(theta), so = std::sin(theta);
     const double hx = si + so * std::cos(phi), hy = so * std::sin(phi), hz = mu + co;
     const double hn2 = hx * hx + hy * hy + hz * hz, cos2 = hz * hz / hn2, tan2 = (1 - cos2) / cos2;
-    const double d = 1 / (std::numbers::pi * a2 * cos2 * cos2 * std::pow(1 + tan2 / a2, 2));
+    const double d = ndf(cos2, tan2);
     const double g2 = 1 / (1 + lambda(mu) + lambda(co));
     const double weight = std::pow(1 - (si * hx + mu * hz) / std::sqrt(hn2), schlick_power);
     return d * g2 / (4 * mu) * so * weight;
@@ -75,8 +84,9 @@ TEST(AlbedoLayoutFiles, TheIndependentQuadratureIsThePublishedValue) {
   EXPECT_NEAR(independent_albedo(1.0, 1.0), 0.306853, 2e-6);  // Kulla & Conty 2017: E(mu = 1) at alpha 1
 }
 
-TEST(AlbedoLayoutFiles, CyclesTableReadAsCyclesReadsIt) {
-  std::istringstream text(bytes_of(kData / "layout-cycles.txt"));
+// Cycles' text form: 32 lines of 32 comma-separated values, table[y][x].
+std::vector<std::vector<double>> cycles_table(const fs::path& path) {
+  std::istringstream text(bytes_of(path));
   std::vector<std::vector<double>> table;
   for (std::string line; std::getline(text, line);) {
     std::vector<double> row;
@@ -84,12 +94,28 @@ TEST(AlbedoLayoutFiles, CyclesTableReadAsCyclesReadsIt) {
     for (std::string f; std::getline(fields, f, ',');) row.push_back(std::stod(f));
     table.push_back(row);
   }
+  return table;
+}
+
+void expect_cycles_nodes(const fs::path& path, bool beckmann) {
+  const std::vector<std::vector<double>> table = cycles_table(path);
   ASSERT_EQ(table.size(), 32u);
   for (const auto& row : table) ASSERT_EQ(row.size(), 32u);
   for (const auto& [x, y] : {std::pair{16, 20}, std::pair{31, 31}, std::pair{24, 8}}) {
     const double r = x / 31.0, mu = y / 31.0;
-    EXPECT_NEAR(table[std::size_t(y)][std::size_t(x)], independent_albedo(r * r, mu), 1e-6) << x << " " << y;
+    EXPECT_NEAR(table[std::size_t(y)][std::size_t(x)], independent_albedo(r * r, mu, 0, beckmann), 1e-6)
+        << x << " " << y;
   }
+}
+
+TEST(AlbedoLayoutFiles, CyclesTableReadAsCyclesReadsIt) { expect_cycles_nodes(kData / "layout-cycles.txt", false); }
+
+// The Beckmann mirror's table in Cycles' layout; the GGX quadrature would miss it (negative control).
+TEST(AlbedoLayoutFiles, BeckmannTableInCyclesLayoutIsTheBeckmannQuadrature) {
+  expect_cycles_nodes(kData / "layout-cycles-beckmann.txt", true);
+  const std::vector<std::vector<double>> table = cycles_table(kData / "layout-cycles-beckmann.txt");
+  ASSERT_EQ(table.size(), 32u);
+  EXPECT_GT(std::abs(table[8][24] - independent_albedo(24.0 * 24.0 / (31.0 * 31.0), 8.0 / 31.0)), 1e-3);
 }
 
 TEST(AlbedoLayoutFiles, FilamentDfgReadAsFilamentSamplesIt) {
