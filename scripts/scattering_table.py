@@ -37,8 +37,22 @@ THETAS = [0, 30, 60, 75, 85]
 REFERENCE_NDF = {"beckmann": "beckmann"}  # every other assembly is GGX
 
 
+CPU = {}  # CPU seconds of the commands run, by step: "surface build", "scatter --surface", ...
+
+
+def step_of(cmd):
+    if cmd[1] == "scatter":
+        return "scatter --surface" if "--surface" in cmd else "scatter " + cmd[cmd.index("--model") + 1]
+    return " ".join(cmd[1:3]) if cmd[1] == "surface" else cmd[1]
+
+
 def run(cmd, ok=(0,)):
+    before = os.times()
     r = subprocess.run(cmd, capture_output=True, text=True)
+    after = os.times()
+    step = step_of(cmd)
+    CPU[step] = CPU.get(step, 0.0) + (after.children_user - before.children_user) + (
+        after.children_system - before.children_system)
     if r.returncode not in ok:
         sys.exit(f"scattering_table: {' '.join(cmd)} exited {r.returncode}\n{r.stderr}")
     return r
@@ -69,6 +83,8 @@ class Table:
                    "--rows", str(self.args.rows), "--out", out, "--json", js]
             if "analytic" not in model_args:
                 cmd += ["--rays", str(self.args.rays), "--seed", "1"]
+            if "--surface" in model_args:
+                cmd += ["--geometry", self.args.geometry]
             run(cmd)
         with open(js) as f:
             return out, json.load(f)
@@ -177,7 +193,12 @@ def markdown(rows, args, seconds):
     lines.append("")
     lines.append(f"{len(rows)} configurations, {args.rays} paths per run, surfaces {args.res}^2 (seed 1), "
                  f"{args.rows} rows per hemisphere; largest standard error of an albedo {se:.1e}; "
-                 f"{seconds:.0f} s on this machine. Gold: channel R of {GOLD}.")
+                 f"{seconds:.0f} s wall on this machine. Gold: channel R of {GOLD}.")
+    if CPU:
+        lines += ["", f"CPU seconds of the commands this run executed (a file already in the work folder is reused, "
+                  f"not timed), explicit surfaces traced with `--geometry {args.geometry}`: "
+                  + ", ".join(f"{step} {cpu:.0f} s" for step, cpu in sorted(CPU.items(), key=lambda kv: -kv[1]))
+                  + f"; total {sum(CPU.values()):.0f} s."]
     return "\n".join(lines) + "\n"
 
 
@@ -199,6 +220,7 @@ def main():
     p.add_argument("--rays", type=int, default=1000000)
     p.add_argument("--res", type=int, default=1024)
     p.add_argument("--rows", type=int, default=8)
+    p.add_argument("--geometry", default="pyramid", help="the explicit surfaces' tracer (scatter --geometry)")
     p.add_argument("--work", default="build/scattering-table")
     p.add_argument("--out", default="docs/records/scattering-table.md")
     p.add_argument("--csv", default="docs/data/scattering-table.csv")
