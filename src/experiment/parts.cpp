@@ -195,9 +195,7 @@ std::optional<std::vector<SurfaceMasking>> combine_masking_parts(std::optional<s
   const bool complete = add_parts(parts, task, first, [&](const json& s, const BlockRange& blocks, int) {
     if (!s.is_array() || s.size() != own->size()) throw std::invalid_argument("not one part per light");
     for (std::size_t k = 0; k < own->size(); ++k) {
-      const MaskingPart light = read_masking_part(s[k]);
-      (*own)[k].result.sums += light.sums;
-      (*own)[k].result.rays += light.sums.rays;
+      add_masking_part((*own)[k], read_masking_part(s[k]));
       (*own)[k].provenance.blocks.end = blocks.end;
     }
   });
