@@ -11,10 +11,10 @@
 
 #include "core/block_runner.h"
 #include "measure/masking.h"
+#include "measure/validation.h"
 #include "measure/vndf.h"
 #include "scatter/albedo_table.h"
 #include "stats/scatter_histogram.h"
-#include "validate/battery.h"
 
 #include <nlohmann/json.hpp>
 
@@ -53,15 +53,14 @@ void check_start(const BlockRange& own, bool partial, const BlockRange& round, i
 // A part cancelled before its first block with nothing measured (a tile's build cancelled on that rank).
 std::string cancelled_part(const RoundTask& task, const BlockRange& mine);
 
-// A drawn validation: a rank's tally (tally_json; nullopt: cancelled).
-std::string validation_part(const RoundTask& task, const BlockRange& blocks, const std::optional<battery::Tally>& tally);
-// This process's tally of `blocks`, nullopt when cancelled; the cells of a tally (counts per binning).
-std::optional<battery::Tally> own_tally(const SamplerInfo& sampler, const ReferenceDistribution& reference,
-                                        ValidationOptions options, const BlockRange& blocks);
-std::vector<std::size_t> tally_cells(const battery::Tally& tally);
-// The tallies in rank order as one (merge_tallies); Cancelled when any part was cancelled.
-battery::Tally merged_validation_tally(const std::optional<battery::Tally>& own, const std::vector<std::size_t>& cells,
-                                       const std::vector<std::string>& parts, const RoundTask& task, int first);
+// A drawn validation as the library's run of one validation (measure/validation.h: `microsim validate`'s),
+// whose parts are validate's; a rank's part of its blocks (nullopt: cancelled) and that part in a round's.
+ValidationRun drawn_validation_run(const ValidationCase& validation, const ValidationOptions& options);
+std::optional<ValidationPart> own_validation_part(const ValidationRun& run, const BlockRange& blocks);
+std::string validation_round_part(const RoundTask& task, const BlockRange& blocks, const std::optional<ValidationPart>& part);
+// The parts' tallies in rank order as one (merge_tallies); Cancelled when any part was cancelled.
+battery::Tally merged_validation_tally(const std::optional<ValidationPart>& own, const std::vector<std::string>& parts,
+                                       const RoundTask& task, int first);
 
 // A heightfield masking round: every light's exact sums (masking_part_json; nullopt: cancelled).
 std::string masking_round_part(const RoundTask& task, const BlockRange& blocks,
