@@ -13,8 +13,8 @@
 #include "core/errors.h"
 #include "core/wall_clock.h"
 #include "stats/scatter_compare.h"
-#include "stats/part_json.h"
 #include "stats/scatter_io.h"
+#include "stats/scatter_merge.h"
 
 #include <fmt/core.h>
 
@@ -29,17 +29,17 @@ namespace {
 
 using nlohmann::json;
 
-// Every exact sum of the histogram (stats/part_json.h scatter_sums_json).
+// A scattering round's part: its histogram's part form (stats/scatter_merge.h scatter_part_json: every exact sum).
 std::string scatter_part(const RoundTask& task, const ScatterHistogram& h) {
-  return round_part(task, h.provenance.blocks, h.partial, scatter_sums_json(h));
+  return round_part(task, h.provenance.blocks, h.partial, scatter_part_json(h, {}));
 }
 
-// The parts (from `first` on, as combine_vndf_parts) added to `own` in rank order: the one-process round.
+// The parts (from `first` on; the root's own is rank 0's) added to `own` in rank order: the one-process round.
 ScatterHistogram combine_scatter_parts(ScatterHistogram own, const std::vector<std::string>& parts,
                                        const RoundTask& task, int first) {
   check_start(own.provenance.blocks, own.partial, task.blocks, first, int(parts.size()));
   const auto add = [&](const json& s, const BlockRange& blocks, int) {
-    add_scatter_sums(own, s, PartReader("scattering part"), "sums");
+    add_scatter_part(own, read_scatter_part(s).histogram);
     own.provenance.blocks.end = blocks.end;
   };
   if (!own.partial && !add_parts(parts, task, first, add)) own.partial = true;

@@ -127,8 +127,8 @@ public:
     const SamplerInfo* sampler = find_sampler(quantity_.sampler);
     if (sampler == nullptr) throw InternalError(fmt::format("a split validation of an unknown sampler '{}'", quantity_.sampler));
     const ValidationOptions options = validation_request(quantity_, task.units, task.seed, run);
-    const auto bins = claimed_reference_bins(*sampler, ggx(), view(), quantity_.rows);
-    return validation_part(task, mine, own_tally(*sampler, *bins, options, mine));
+    const ValidationRun drawn = drawn_validation_run(validation(*sampler, task.seed), options);
+    return validation_round_part(task, mine, own_validation_part(drawn, mine));
   }
   void run(const RoundContext& c, MeasurementResult& m) const override {
     const SamplerInfo* sampler = find_sampler(quantity_.sampler);
@@ -138,9 +138,15 @@ public:
         validation_request(quantity_, first_units(decision_, c.options.cost_factor), c.round_seed(0), c.options.run);
     run_once(m, [&] {
       const auto clock = std::chrono::steady_clock::now();
-      const ValidationReport r = split_validation(c.split(), c.index, *sampler, ggx(), view(), v);
+      const ValidationReport r = split_validation(c.split(), c.index, validation(*sampler, v.seed), v);
       record(r, r.samples, seconds_since(clock), m);
     });
+  }
+
+private:
+  // The sampler's validation at this decision's roughness and view, from `seed`.
+  ValidationCase validation(const SamplerInfo& sampler, std::uint64_t seed) const {
+    return {&sampler, decision_.alpha.first, decision_.alpha.second, decision_.view.theta_deg, decision_.view.phi_deg, seed};
   }
 };
 

@@ -15,6 +15,7 @@
 #include "stats/part_json.h"
 
 #include <fmt/core.h>
+#include <fmt/ranges.h>
 
 #include <chrono>
 
@@ -25,112 +26,50 @@ namespace {
 
 using nlohmann::json;
 
-// Adds counts of the same size element by element.
-void add_counts(std::vector<std::uint64_t>& to, const json& from) {
-  if (!from.is_array() || from.size() != to.size())
-    throw std::invalid_argument(fmt::format("{} counts where the root has {}", from.size(), to.size()));
-  for (std::size_t k = 0; k < to.size(); ++k) to[k] += from[k].get<std::uint64_t>();
+// A VNDF round's part: its histogram's part form (measure/vndf.h vndf_part_json: counts, unbinned rays, a
+// tile's tracer diagnostics, exact).
+std::string vndf_part(const RoundTask& task, const TracedHistogram& histogram) {
+  return round_part(task, vndf_provenance(histogram).blocks, histogram.partial, vndf_part_json(histogram));
 }
 
-// ---- VNDF parts -------------------------------------------------------------------------------------------
-
-namespace {
-// The traced sums of a VNDF round: counts and the heightfield tracer's diagnostics (0 on the ellipsoid).
-struct VndfSums {
-  TraceResult trace;
-  HeightfieldVndfDiagnostics diagnostics;
-};
-
-std::vector<std::uint64_t*> diagnostic_counts(HeightfieldVndfDiagnostics& d) {
-  return {&d.backfacing, &d.edge_grazes, &d.leaked, &d.unresolved};
-}
-}  // namespace
-
-std::string vndf_part(const RoundTask& task, const TraceResult& trace, const HeightfieldVndfDiagnostics& diagnostics) {
-  HeightfieldVndfDiagnostics d = diagnostics;
-  json diagnostic = json::array();
-  for (const std::uint64_t* count : diagnostic_counts(d)) diagnostic.push_back(*count);
-  return round_part(task, trace.blocks, trace.partial,
-                    {{"rays", trace.rays}, {"hits", trace.hits}, {"counts", trace.counts},
-                     {"unbinned", trace.unbinned}, {"diagnostics", diagnostic}});
-}
-
-namespace {
-std::string joined_counts(const std::vector<std::uint64_t>& v) {
-  std::string s;
-  for (std::size_t k = 0; k < v.size(); ++k) {
-    if (k > 0) s += ',';
-    s += std::to_string(v[k]);
-  }
-  return s;
-}
-
-// The parts (from `first` on; the root's own is rank 0's) added to `own` in rank order: the one-process round's
-// sums, timed `seconds`.
-VndfSums combine_vndf_sums(VndfSums own, const std::vector<std::string>& parts, const RoundTask& task, int first,
-                           double seconds) {
+// The parts (from `first` on; the root's own is rank 0's) added to `own` in rank order (add_vndf_part): the
+// one-process round's counts, and its trace and attributes (blocks, unbinned, rate; a tile's diagnostics),
+// timed `seconds`.
+template <class Vndf>
+void add_vndf_parts(Vndf& own, const std::vector<std::string>& parts, const RoundTask& task, int first, double seconds) {
+  TracedHistogram& h = own.histogram;
   TraceResult& t = own.trace;
   check_start(t.blocks, t.partial, task.blocks, first, int(parts.size()));
   const auto add = [&](const json& s, const BlockRange& blocks, int) {
-    t.rays += s.at("rays").get<std::uint64_t>();
-    t.hits += s.at("hits").get<std::uint64_t>();
-    if (s.at("counts").size() != t.counts.size()) throw std::invalid_argument("its binnings differ from the root's");
-    for (std::size_t b = 0; b < t.counts.size(); ++b) add_counts(t.counts[b], s["counts"][b]);
-    add_counts(t.unbinned, s.at("unbinned"));
-    const std::vector<std::uint64_t*> d = diagnostic_counts(own.diagnostics);
-    if (s.at("diagnostics").size() != d.size()) throw std::invalid_argument("not the tracer's diagnostics");
-    for (std::size_t k = 0; k < d.size(); ++k) *d[k] += s["diagnostics"][k].get<std::uint64_t>();
+    add_vndf_part(h, t.unbinned, read_vndf_part(s));
     t.blocks.end = blocks.end;
   };
   if (!t.partial && !add_parts(parts, task, first, add)) t.partial = true;
+  t.counts = h.counts;
+  t.rays = h.rays;
+  t.hits = h.hits;
   t.seconds = seconds;
-  return own;
-}
-
-// The root's histogram (binnings, run attributes) holding the combined sums: the counts, and the per-part
-// attributes (blocks, unbinned, rate; a tile's diagnostics) those of the whole.
-TracedHistogram combined_histogram(TracedHistogram h, const VndfSums& sums) {
-  const TraceResult& t = sums.trace;
-  h.counts = t.counts;
-  h.rays = t.rays;
-  h.hits = t.hits;
   h.partial = t.partial;
   h.attributes["blocks"] = fmt::format("{},{}", t.blocks.begin, t.blocks.end);
-  h.attributes["unbinned"] = joined_counts(t.unbinned);
+  h.attributes["unbinned"] = fmt::format("{}", fmt::join(t.unbinned, ","));
   h.attributes["rays_per_second"] = fmt::format("{:.17g}", t.rays_per_second());
-  if (h.attributes.count("backfacing")) {
-    const HeightfieldVndfDiagnostics& d = sums.diagnostics;
-    h.attributes["backfacing"] = std::to_string(d.backfacing);
-    h.attributes["edge_grazes"] = std::to_string(d.edge_grazes);
-    h.attributes["leaked"] = std::to_string(d.leaked);
-    h.attributes["unresolved"] = std::to_string(d.unresolved);
-  }
-  return h;
 }
-}  // namespace
 
 EllipsoidVndf combine_vndf_parts(EllipsoidVndf own, const std::vector<std::string>& parts, const RoundTask& task,
                                  int first, double seconds) {
-  VndfSums sums = combine_vndf_sums({std::move(own.trace), {}}, parts, task, first, seconds);
-  EllipsoidVndf combined = analyse_ellipsoid_vndf(combined_histogram(std::move(own.histogram), sums), sums.trace.unbinned);
-  combined.trace = std::move(sums.trace);
+  add_vndf_parts(own, parts, task, first, seconds);
+  EllipsoidVndf combined = analyse_ellipsoid_vndf(std::move(own.histogram), own.trace.unbinned);
+  combined.trace = std::move(own.trace);
   combined.expected_hit_fraction = own.expected_hit_fraction;
   return combined;
 }
 
 HeightfieldVndf combine_vndf_parts(HeightfieldVndf own, const std::vector<std::string>& parts,
                                    const RoundTask& task, int first, double seconds) {
-  VndfSums sums = combine_vndf_sums({std::move(own.trace), own.diagnostics}, parts, task, first, seconds);
-  HeightfieldVndf combined;
-  combined.histogram = combined_histogram(std::move(own.histogram), sums);
-  combined.trace = std::move(sums.trace);
-  combined.diagnostics = sums.diagnostics;
-  return combined;
+  add_vndf_parts(own, parts, task, first, seconds);
+  own.diagnostics = heightfield_diagnostics(own.histogram);
+  return own;
 }
-
-namespace {
-HeightfieldVndfDiagnostics diagnostics_of(const EllipsoidVndf&) { return {}; }
-const HeightfieldVndfDiagnostics& diagnostics_of(const HeightfieldVndf& h) { return h.diagnostics; }
 
 // A VNDF round, the ellipsoid's or a tile's (`trace` of a request's blocks), split.
 template <class Vndf, class Trace>
@@ -139,12 +78,11 @@ Vndf split_traced_round(const RoundSplit& split, std::size_t measurement, const 
   const RoundTask task{measurement, request.rays, request.seed, round_blocks(request.blocks, request.rays, kRaysPerBlock)};
   return split_round<Vndf>(
       split, task, [&](const std::optional<BlockRange>& blocks) { return trace(with_blocks(request, blocks)); },
-      [&](const Vndf& own, const BlockRange&) { return vndf_part(task, own.trace, diagnostics_of(own)); },
+      [&](const Vndf& own, const BlockRange&) { return vndf_part(task, own.histogram); },
       [&](Vndf own, const std::vector<std::string>& parts, int first) {
         return combine_vndf_parts(std::move(own), parts, task, first, seconds_since(start));
       });
 }
-}  // namespace
 
 // An ellipsoid's VNDF round, split: the round's counts, not analysed (the caller analyses its sum).
 EllipsoidVndf split_vndf_round(const RoundSplit& split, std::size_t measurement, const EllipsoidTarget& target,
@@ -163,21 +101,6 @@ HeightfieldVndf split_heightfield_vndf_round(const RoundSplit& split, std::size_
 }
 
 namespace {
-
-// Adds a round's exact counts to the sum (the first round gives the binnings and attributes).
-void add_vndf_counts(TracedHistogram& sum, std::vector<std::uint64_t>& unbinned, const TracedHistogram& round,
-                     const std::vector<std::uint64_t>& round_unbinned) {
-  if (sum.binnings.empty()) {
-    sum = round;
-    unbinned = round_unbinned;
-    return;
-  }
-  for (std::size_t k = 0; k < sum.counts.size(); ++k)
-    for (std::size_t i = 0; i < sum.counts[k].size(); ++i) sum.counts[k][i] += round.counts[k][i];
-  for (std::size_t k = 0; k < unbinned.size(); ++k) unbinned[k] += round_unbinned[k];
-  sum.rays += round.rays;
-  sum.hits += round.hits;
-}
 
 class VndfMeasurement : public Measurement {
 public:
@@ -208,7 +131,12 @@ protected:
     m.partial = r.trace.partial;  // cancelled: its completed blocks are a shorter run of that seed, kept
     if (r.histogram.rays == 0) return false;
     const bool fresh = m.histogram.binnings.empty();
-    add_vndf_counts(m.histogram, m.unbinned, r.histogram, r.trace.unbinned);
+    if (fresh) {  // the first gives the binnings and attributes
+      m.histogram = r.histogram;
+      m.unbinned = r.trace.unbinned;
+    } else {
+      add_vndf_part(m.histogram, m.unbinned, r.histogram);  // a tile's diagnostics too: the analysis reads them
+    }
     analyse(r, fresh);
     m.units += r.histogram.rays;
     m.rays += r.histogram.rays;
@@ -225,7 +153,7 @@ public:
   std::string part(const RoundTask& task, const BlockRange& mine, const RunControl& run, SurfaceCache&) const override {
     VndfRequest request = vndf_request(spec_, decision_, task.units, task.seed, run);
     request.blocks = mine;
-    return vndf_part(task, measure_ellipsoid_vndf(target(decision_), request).trace, {});
+    return vndf_part(task, measure_ellipsoid_vndf(target(decision_), request).histogram);
   }
   void run(const RoundContext& c, MeasurementResult& m) const override {
     const auto trace = [&](const VndfRequest& req) { return split_vndf_round(c.split(), c.index, target(decision_), req); };
@@ -266,10 +194,7 @@ public:
     // The scene is built when the root's own part begins: after the round was sent, while the ranks build theirs.
     const SceneOf scene = [&c, field]() -> const HeightfieldScene& { return c.surfaces.scene_for(*field); };
     const auto trace = [&](const VndfRequest& req) {
-      HeightfieldVndf r = split_heightfield_vndf_round(c.split(), c.index, scene, *field, surface_label(decision_.surface), req);
-      if (r.histogram.rays > 0 && !m.histogram.binnings.empty())
-        add_heightfield_diagnostics(m.histogram, r.histogram);  // the analysis reads them
-      return r;
+      return split_heightfield_vndf_round(c.split(), c.index, scene, *field, surface_label(decision_.surface), req);
     };
     run_histogram_rounds(c, m, kMaxRays, [&](const RoundStart& start) {
       return round(c, start, m, trace, [&](const HeightfieldVndf&, bool) {
@@ -344,7 +269,7 @@ std::string tile_vndf_part(const ExperimentSpec& spec, const Decision& decision,
   VndfRequest request = vndf_request(spec, decision, task.units, task.seed, run);
   request.blocks = mine;
   const HeightfieldVndf m = trace_heightfield_vndf(surfaces.scene_for(*field), *field, surface_label(decision.surface), request);
-  return vndf_part(task, m.trace, m.diagnostics);
+  return vndf_part(task, m.histogram);
 }
 
 static std::unique_ptr<Measurement> make_vndf_measurement(const ExperimentSpec& spec, const Decision& decision) {

@@ -3,7 +3,6 @@
 
 #include "core/errors.h"
 #include "stats/part_json.h"
-#include "validate/validation_part.h"
 
 #include <fmt/core.h>
 
@@ -135,45 +134,47 @@ RoundTask round_task_from_json(const json& task) {
           task.value("surface_seed", std::uint64_t(0))};
 }
 
-// ---- validation parts (a drawn validation's tally) ---------------------------------------------------------
+// ---- validation parts (a drawn validation's tally, in validate's part form) ----------------------------------
 
-std::string validation_part(const RoundTask& task, const BlockRange& blocks, const std::optional<battery::Tally>& tally) {
-  return tally ? round_part(task, blocks, false, tally_json(*tally)) : cancelled_part(task, blocks);
+ValidationRun drawn_validation_run(const ValidationCase& validation, const ValidationOptions& options) {
+  ValidationRun run;
+  run.cases = {validation};
+  run.options = options;
+  run.seed = validation.seed;
+  run.family_significance = options.significance;
+  return run;
 }
 
-// This rank's tally of its blocks of a validation, or nullopt when cancelled.
-std::optional<battery::Tally> own_tally(const SamplerInfo& sampler, const ReferenceDistribution& reference,
-                                        ValidationOptions options, const BlockRange& blocks) {
-  options.blocks = blocks;
+std::optional<ValidationPart> own_validation_part(const ValidationRun& run, const BlockRange& blocks) {
   try {
-    return tally_drawn_samples(sampler, reference, options);
+    return sample_validation_part(run, blocks, nullptr);
   } catch (const Cancelled&) {
     return std::nullopt;
   }
 }
 
-std::vector<std::size_t> tally_cells(const battery::Tally& tally) {
-  std::vector<std::size_t> cells;
-  for (const auto& counts : tally.counts) cells.push_back(counts.size());
-  return cells;
+std::string validation_round_part(const RoundTask& task, const BlockRange& blocks, const std::optional<ValidationPart>& part) {
+  return part ? round_part(task, blocks, false, validation_part_json(*part)) : cancelled_part(task, blocks);
 }
 
 // The tallies in rank order as one (merge_tallies): `own` (rank 0's; none for the parts of shard jobs, whose
 // first part is then rank 0's) and the parts after it. Cancelled when any part was cancelled.
-battery::Tally merged_validation_tally(const std::optional<battery::Tally>& own, const std::vector<std::size_t>& cells,
-                                       const std::vector<std::string>& parts, const RoundTask& task, int first) {
-  std::vector<battery::Tally> tallies;
+battery::Tally merged_validation_tally(const std::optional<ValidationPart>& own, const std::vector<std::string>& parts,
+                                       const RoundTask& task, int first) {
+  std::vector<ValidationPart> in_order;
   if (first == 1) {
     if (!own) throw Cancelled("validation");
-    tallies.push_back(*own);
+    in_order.push_back(*own);
   }
-  const bool complete = add_parts(parts, task, first, [&](const json& s, const BlockRange& blocks, int rank) {
-    tallies.push_back(tally_from_json(s, cells, blocks.size(), PartReader("validation part"), fmt::format("rank {}", rank)));
+  const bool complete = add_parts(parts, task, first, [&](const json& s, const BlockRange& blocks, int) {
+    in_order.push_back(read_validation_part(s));
+    if (in_order.back().provenance.blocks != blocks || in_order.back().tallies.size() != 1)
+      throw std::invalid_argument("not one validation's tally of its blocks");
   });
   if (!complete) throw Cancelled("validation");
-  std::vector<const battery::Tally*> in_order;
-  for (const battery::Tally& t : tallies) in_order.push_back(&t);
-  return merge_tallies(in_order);
+  std::vector<const battery::Tally*> tallies;
+  for (const ValidationPart& p : in_order) tallies.push_back(&p.tallies.front());
+  return merge_tallies(tallies);
 }
 
 // ---- heightfield masking parts (every light's exact sums of a shard of the round's blocks) ---------------------
@@ -195,9 +196,7 @@ std::optional<std::vector<SurfaceMasking>> combine_masking_parts(std::optional<s
   const bool complete = add_parts(parts, task, first, [&](const json& s, const BlockRange& blocks, int) {
     if (!s.is_array() || s.size() != own->size()) throw std::invalid_argument("not one part per light");
     for (std::size_t k = 0; k < own->size(); ++k) {
-      const MaskingPart light = read_masking_part(s[k]);
-      (*own)[k].result.sums += light.sums;
-      (*own)[k].result.rays += light.sums.rays;
+      add_masking_part((*own)[k], read_masking_part(s[k]));
       (*own)[k].provenance.blocks.end = blocks.end;
     }
   });

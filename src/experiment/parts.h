@@ -1,20 +1,23 @@
 // experiment: the parts of a split round (split_rounds.h): what one rank, thread or shard job measured of a
 // round's block range, in the JSON part form `microsim merge` reads (stats/part_json.h): the round's
 // provenance (producer "microsim run"; its measurement, units and surface seed as the parameters; its seed;
-// the blocks the part holds, a prefix of its shard when cancelled part way), whether it was, and the kind's
-// exact sums ("sums": integers, ExactSum's two halves, reals as their bits; absent when nothing was
-// measured). The combine functions add the parts from `first` on (0: the parts of shard jobs onto a
-// measurement of no block; 1: the ranks' parts after the root's own, rank 0's) in block order: the
-// one-process round, bit for bit. A part that is not rank r's shard of the round (another round, out of
-// block order, missing, overlapping) or is malformed is a bug: InternalError.
+// the blocks the part holds, a prefix of its shard when cancelled part way), whether it was, and as "sums"
+// (absent when nothing was measured) the kind's own part, the one its command writes for --shard:
+// measure/vndf.h vndf_part_json (trace vndf), stats/scatter_merge.h scatter_part_json (scatter),
+// measure/masking.h masking_part_json per light (trace masking), measure/validation.h validation_part_json
+// (validate); an albedo table's its cells' sums (measurement_albedo.cpp). The combine functions add the parts from `first` on (0: the parts of shard jobs onto a
+// measurement of no block; 1: the ranks' parts after the root's own, rank 0's) in block order through the
+// library's own additions (add_vndf_part, add_scatter_part, add_masking_part, merge_tallies): the one-process
+// round, bit for bit. A part that is not rank r's shard of the round (another round, out of block order,
+// missing, overlapping) or is malformed is a bug: InternalError.
 #pragma once
 
 #include "core/block_runner.h"
 #include "measure/masking.h"
+#include "measure/validation.h"
 #include "measure/vndf.h"
 #include "scatter/albedo_table.h"
 #include "stats/scatter_histogram.h"
-#include "validate/battery.h"
 
 #include <nlohmann/json.hpp>
 
@@ -53,15 +56,14 @@ void check_start(const BlockRange& own, bool partial, const BlockRange& round, i
 // A part cancelled before its first block with nothing measured (a tile's build cancelled on that rank).
 std::string cancelled_part(const RoundTask& task, const BlockRange& mine);
 
-// A drawn validation: a rank's tally (tally_json; nullopt: cancelled).
-std::string validation_part(const RoundTask& task, const BlockRange& blocks, const std::optional<battery::Tally>& tally);
-// This process's tally of `blocks`, nullopt when cancelled; the cells of a tally (counts per binning).
-std::optional<battery::Tally> own_tally(const SamplerInfo& sampler, const ReferenceDistribution& reference,
-                                        ValidationOptions options, const BlockRange& blocks);
-std::vector<std::size_t> tally_cells(const battery::Tally& tally);
-// The tallies in rank order as one (merge_tallies); Cancelled when any part was cancelled.
-battery::Tally merged_validation_tally(const std::optional<battery::Tally>& own, const std::vector<std::size_t>& cells,
-                                       const std::vector<std::string>& parts, const RoundTask& task, int first);
+// A drawn validation as the library's run of one validation (measure/validation.h: `microsim validate`'s),
+// whose parts are validate's; a rank's part of its blocks (nullopt: cancelled) and that part in a round's.
+ValidationRun drawn_validation_run(const ValidationCase& validation, const ValidationOptions& options);
+std::optional<ValidationPart> own_validation_part(const ValidationRun& run, const BlockRange& blocks);
+std::string validation_round_part(const RoundTask& task, const BlockRange& blocks, const std::optional<ValidationPart>& part);
+// The parts' tallies in rank order as one (merge_tallies); Cancelled when any part was cancelled.
+battery::Tally merged_validation_tally(const std::optional<ValidationPart>& own, const std::vector<std::string>& parts,
+                                       const RoundTask& task, int first);
 
 // A heightfield masking round: every light's exact sums (masking_part_json; nullopt: cancelled).
 std::string masking_round_part(const RoundTask& task, const BlockRange& blocks,

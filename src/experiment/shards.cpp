@@ -31,6 +31,10 @@ std::string read_bytes(const fs::path& path) {
   return ss.str();
 }
 
+// The form of the parts a shard holds (parts.h): 2 since they carry the library's part JSON of each kind
+// (vndf_part_json, scatter_part_json, masking_part_json, validation_part_json); a shard of another is refused.
+constexpr int kPartsVersion = 2;
+
 [[noreturn]] void bad_shard(const fs::path& dir, const std::string& what) {
   throw std::invalid_argument(fmt::format("--merge {}: {}", quote_excerpt(dir.string()), what));
 }
@@ -40,13 +44,16 @@ nlohmann::json shard_json(const ExperimentSpec& spec, const ShardParts& shard) {
   for (std::size_t t = 0; t < shard.tasks.size(); ++t)
     tasks.push_back({{"round", round_task_json(shard.tasks[t])}, {"file", part_file(t)}, {"bytes", shard.parts[t].size()},
                      {"digest", part_digest(shard.parts[t])}});
-  return {{"format", "microsim experiment shard"}, {"spec", {{"name", spec.name}, {"digest", shard.spec_digest}}},
+  return {{"format", "microsim experiment shard"}, {"parts_version", kPartsVersion}, {"spec", {{"name", spec.name}, {"digest", shard.spec_digest}}},
           {"seed", shard.seed}, {"shard", {shard.k, shard.n}}, {"plan", shard.plan}, {"rounds", tasks}};
 }
 
 // The shard's identity: its spec and seed must be the merge's.
 void check_identity(const fs::path& dir, const nlohmann::json& doc, const ExperimentSpec& spec, std::uint64_t seed) {
   if (doc.value("format", "") != "microsim experiment shard") bad_shard(dir, "shard.json is not a microsim experiment shard");
+  if (const int v = doc.value("parts_version", 1); v != kPartsVersion)
+    bad_shard(dir, fmt::format("its parts are of version {}, this microsim reads version {} (written by another "
+                               "version of microsim: run its shard jobs again with this one)", v, kPartsVersion));
   const std::string digest = doc.at("spec").at("digest").get<std::string>();
   if (digest != spec_digest(spec))
     bad_shard(dir, fmt::format("a shard of another spec (digest {}; {} has {})", digest, spec.source, spec_digest(spec)));

@@ -41,11 +41,12 @@ struct ShardParts {
 ShardParts run_shard(const ExperimentSpec& spec, const ExperimentPlan& plan, std::uint64_t seed, std::uint64_t k,
                      std::uint64_t n, const RunControl& run, SurfaceCache& surfaces);
 
-// PART: shard.json (spec name and digest, seed, K/N, plan, tasks, part files and their sizes) and part-I.bin,
-// each written atomically, shard.json last. PART must be new or empty (std::invalid_argument: nothing written).
+// PART: shard.json (spec name and digest, seed, K/N, the version of its parts' form, plan, tasks, part files and
+// their sizes) and part-I.bin, each written atomically, shard.json last. PART must be new or empty
+// (std::invalid_argument: nothing written).
 void write_shard_directory(const std::filesystem::path& dir, const ExperimentSpec& spec, const ShardParts& shard);
-// Throws std::invalid_argument naming PART and the problem: no shard.json, another spec (digest) or seed, a
-// malformed member, a part file missing or of another size.
+// Throws std::invalid_argument naming PART and the problem: no shard.json, parts of another version (another
+// microsim's), another spec (digest) or seed, a malformed member, a part file missing or of another size.
 ShardParts read_shard_directory(const std::filesystem::path& dir, const ExperimentSpec& spec, std::uint64_t seed);
 
 // The shards (named for messages) as one job's first rounds. Throws std::invalid_argument naming the problem:

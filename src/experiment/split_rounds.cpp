@@ -61,26 +61,26 @@ std::optional<std::vector<SurfaceMasking>> split_masking_round(const RoundSplit&
       });
 }
 
-ValidationReport split_validation(const RoundSplit& split, std::size_t measurement, const SamplerInfo& sampler,
-                                  const GGX<double>& ggx, const Vec3<double>& wi, const ValidationOptions& options) {
+ValidationReport split_validation(const RoundSplit& split, std::size_t measurement, const ValidationCase& validation,
+                                  const ValidationOptions& options) {
   const BlockRange round{0, BlockPlan{options.samples, kSampleBlock}.blocks()};
   const RoundTask task{measurement, options.samples, options.seed, round};
   const bool ranks = split.ranks != nullptr && split.ranks->size() > 1;
-  if (stored_parts(split.stored, task) == nullptr && !ranks) return validate_sampler(sampler, ggx, wi, options);
+  const SamplerInfo& sampler = *validation.sampler;
+  if (stored_parts(split.stored, task) == nullptr && !ranks)
+    return validate_sampler(sampler, validation.ggx(), validation.wi(), options);
   const auto start = std::chrono::steady_clock::now();
   require_samples_for_any_test(options.samples);  // before the cubature, as validate_sampler
-  const auto reference = claimed_reference(sampler, ggx, wi, options.rows);
+  const auto reference = claimed_reference(sampler, validation.ggx(), validation.wi(), options.rows);
   require_samples(options.samples, *reference);
-  // The cells of the tallies: those of a tally of no sample.
-  const std::optional<battery::Tally> none = own_tally(sampler, *reference, options, BlockRange{0, 0});
-  if (!none) throw Cancelled("validation");
-  using Tally = std::optional<battery::Tally>;
-  const battery::Tally tally = split_round<Tally, battery::Tally>(
+  const ValidationRun run = drawn_validation_run(validation, options);
+  using Part = std::optional<ValidationPart>;
+  const battery::Tally tally = split_round<Part, battery::Tally>(
       split, task,  // never alone here (validate_sampler above): `mine` is always a block range
-      [&](const std::optional<BlockRange>& mine) { return own_tally(sampler, *reference, options, *mine); },
-      [&](const Tally& own, const BlockRange& mine) { return validation_part(task, mine, own); },
-      [&](Tally own, const std::vector<std::string>& parts, int first) {
-        return merged_validation_tally(own, tally_cells(*none), parts, task, first);
+      [&](const std::optional<BlockRange>& mine) { return own_validation_part(run, *mine); },
+      [&](const Part& own, const BlockRange& mine) { return validation_round_part(task, mine, own); },
+      [&](Part own, const std::vector<std::string>& parts, int first) {
+        return merged_validation_tally(own, parts, task, first);
       });
   ValidationReport r = report_drawn_samples(sampler, *reference, tally, options);
   r.seconds = seconds_since(start);

@@ -108,10 +108,11 @@ HeightfieldVndf split_heightfield_vndf_round(const RoundSplit& split, std::size_
 std::optional<std::vector<SurfaceMasking>> split_masking_round(const RoundSplit& split, std::size_t measurement,
                                                                const MaskingRuns& h, std::uint64_t surface_seed,
                                                                const BlockRange& blocks, const RunControl& run);
-// validate_sampler over the ranks (split.ranks; alone without them). Throws Cancelled when any rank's part
-// was cancelled (after every rank has answered), InsufficientData as validate_sampler.
-ValidationReport split_validation(const RoundSplit& split, std::size_t measurement, const SamplerInfo& sampler,
-                                  const GGX<double>& ggx, const Vec3<double>& wi, const ValidationOptions& options);
+// validate_sampler of `validation` (its seed options.seed) over the ranks (split.ranks; alone without them).
+// Throws Cancelled when any rank's part was cancelled (after every rank has answered), InsufficientData as
+// validate_sampler.
+ValidationReport split_validation(const RoundSplit& split, std::size_t measurement, const ValidationCase& validation,
+                                  const ValidationOptions& options);
 
 // Rank `rank`'s part of a round (`ranks` ranks) run in this process: its tallies, in the split's encoding. A
 // heightfield's tile comes from `surfaces` (a build cancelled there: a part cancelled before its first block).

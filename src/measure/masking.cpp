@@ -268,25 +268,39 @@ MaskingPart read_masking_part(const nlohmann::json& report) {
   return part;
 }
 
+namespace {
+// Adds `part`'s sums to `sums`, those of the run `parameters` and `provenance` describe (HistogramMergeError
+// naming the part `name` otherwise).
+void add_part_sums(MaskingSums& sums, const nlohmann::json& parameters, const Provenance& provenance,
+                   const MaskingPart& part, const std::string& name) {
+  check_same_parameters(parameters, part.parameters, name);
+  provenance.check_same_run(part.provenance);
+  try {
+    sums += part.sums;
+  } catch (const std::invalid_argument& e) {
+    throw HistogramMergeError(fmt::format("{}: {}", name, e.what()));
+  }
+}
+}  // namespace
+
 MaskingPart merge_masking_parts(const std::vector<MaskingPart>& parts) {
   if (parts.empty()) throw HistogramMergeError("nothing to merge");
   MaskingPart merged = parts.front();
   std::vector<BlockRange> ranges;
   for (std::size_t i = 0; i < parts.size(); ++i) {
     const MaskingPart& p = parts[i];
-    check_same_parameters(parts.front().parameters, p.parameters, fmt::format("part {}", i + 1));
-    parts.front().provenance.check_same_run(p.provenance);
     ranges.push_back(p.provenance.blocks);
     if (i == 0) continue;
-    try {
-      merged.sums += p.sums;
-    } catch (const std::invalid_argument& e) {
-      throw HistogramMergeError(fmt::format("part {}: {}", i + 1, e.what()));
-    }
+    add_part_sums(merged.sums, parts.front().parameters, parts.front().provenance, p, fmt::format("part {}", i + 1));
     merged.seconds += p.seconds;
   }
   merged.provenance.blocks = merge_block_ranges(ranges, merged.provenance.total_blocks, /*require_complete=*/true);
   return merged;
+}
+
+void add_masking_part(SurfaceMasking& sum, const MaskingPart& part) {
+  add_part_sums(sum.result.sums, sum.parameters, sum.provenance, part, "the part");
+  sum.result.rays += part.sums.rays;
 }
 
 SurfaceMasking analyse_masking_part(const MaskingPart& part, const MaskingSurface& surface) {

@@ -119,6 +119,11 @@ MaskingPart read_masking_part(const nlohmann::json& report);
 // HistogramMergeError naming the problem: parts of different runs (the first parameter that differs, the
 // seed), or blocks repeated or missing (named as ranges).
 MaskingPart merge_masking_parts(const std::vector<MaskingPart>& parts);
+// Adds one part of the run `sum` holds some blocks of (its parameters and seed) to it, exactly: its sums and
+// its shadow rays; the blocks and the time are the caller's. merge_masking_parts adds its parts' sums the same
+// way; the experiment a round's parts in block order. Throws HistogramMergeError for a part of another run or
+// of other bins.
+void add_masking_part(SurfaceMasking& sum, const MaskingPart& part);
 // The measurement of a (merged) part, computed exactly as measure_masking computes it for the same sums.
 // Throws HistogramMergeError when `surface` is not the surface the part was traced on.
 SurfaceMasking analyse_masking_part(const MaskingPart& part, const MaskingSurface& surface);

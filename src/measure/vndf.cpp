@@ -194,12 +194,7 @@ EllipsoidVndf measure_ellipsoid_vndf(const EllipsoidTarget& target, const VndfRe
 HeightfieldVndf analyse_heightfield_vndf(TracedHistogram histogram, const std::vector<std::uint64_t>& unbinned,
                                          const microgeom::Heightfield& field) {
   HeightfieldVndf m;
-  if (histogram.attributes.count("backfacing")) {
-    m.diagnostics.backfacing = count_attribute(histogram, "backfacing");
-    m.diagnostics.edge_grazes = count_attribute(histogram, "edge_grazes");
-    m.diagnostics.leaked = count_attribute(histogram, "leaked");
-    m.diagnostics.unresolved = count_attribute(histogram, "unresolved");
-  }
+  m.diagnostics = heightfield_diagnostics(histogram);
   const AnalyticSmith analytic = analytic_reference(field, &m.reference_source);
   const EmpiricalSmith empirical(field);
   const Vec3<double> wi = vndf_view(histogram);
@@ -245,6 +240,16 @@ HeightfieldVndf measure_heightfield_vndf(const microgeom::Heightfield& field, co
   return m;
 }
 
+namespace {
+// Adds a part's unbinned rays (attribute "unbinned", per binning) to `unbinned`.
+void add_unbinned(std::vector<std::uint64_t>& unbinned, const TracedHistogram& part) {
+  const std::vector<std::uint64_t> u = count_list_attribute(part, "unbinned");
+  if (u.size() != unbinned.size())
+    throw HistogramMergeError(fmt::format("attribute unbinned has {} values where the sum has {}", u.size(), unbinned.size()));
+  for (std::size_t k = 0; k < u.size(); ++k) unbinned[k] += u[k];
+}
+}  // namespace
+
 TracedHistogram merge_vndf_parts(const std::vector<TracedHistogram>& parts, std::vector<std::uint64_t>& unbinned) {
   if (parts.empty()) throw HistogramMergeError("nothing to merge");
   const Provenance first = vndf_provenance(parts.front());
@@ -257,15 +262,12 @@ TracedHistogram merge_vndf_parts(const std::vector<TracedHistogram>& parts, std:
     check_same_run(parts.front(), p, name);
     first.check_same_run(vndf_provenance(p));
     ranges.push_back(vndf_provenance(p).blocks);
-    const std::vector<std::uint64_t> u = count_list_attribute(p, "unbinned");
-    if (u.size() != unbinned.size()) throw HistogramMergeError(fmt::format("{}: attribute unbinned has {} values", name, u.size()));
-    for (std::size_t k = 0; k < u.size(); ++k) unbinned[k] += u[k];
-    if (i == 0) continue;
-    add_heightfield_diagnostics(merged, p);
-    merged.rays += p.rays;
-    merged.hits += p.hits;
-    for (std::size_t k = 0; k < merged.counts.size(); ++k)
-      for (std::size_t b = 0; b < merged.counts[k].size(); ++b) merged.counts[k][b] += p.counts[k][b];
+    try {
+      if (i == 0) add_unbinned(unbinned, p);  // its other sums are merged's own
+      else add_vndf_part(merged, unbinned, p);
+    } catch (const HistogramMergeError& e) {
+      throw HistogramMergeError(fmt::format("{}: {}", name, e.what()));
+    }
   }
   const BlockRange all = merge_block_ranges(ranges, first.total_blocks, /*require_complete=*/true);
   merged.partial = false;
@@ -273,6 +275,18 @@ TracedHistogram merge_vndf_parts(const std::vector<TracedHistogram>& parts, std:
   merged.attributes["unbinned"] = join_counts(unbinned);
   merged.attributes.erase("shard");
   return merged;
+}
+
+void add_vndf_part(TracedHistogram& sum, std::vector<std::uint64_t>& unbinned, const TracedHistogram& part) {
+  add_unbinned(unbinned, part);
+  if (part.counts.size() != sum.counts.size()) throw HistogramMergeError("the parts' binnings differ");
+  for (std::size_t k = 0; k < sum.counts.size(); ++k)
+    if (part.counts[k].size() != sum.counts[k].size()) throw HistogramMergeError("the parts' binnings differ");
+  add_heightfield_diagnostics(sum, part);
+  sum.rays += part.rays;
+  sum.hits += part.hits;
+  for (std::size_t k = 0; k < sum.counts.size(); ++k)
+    for (std::size_t b = 0; b < sum.counts[k].size(); ++b) sum.counts[k][b] += part.counts[k][b];
 }
 
 // ---- the part as JSON -------------------------------------------------------------------------------------------
@@ -372,6 +386,12 @@ TracedHistogram read_vndf_part(const nlohmann::json& report) {
   h.attributes["total_blocks"] = std::to_string(p.total_blocks);
   h.attributes["blocks"] = fmt::format("{},{}", p.blocks.begin, p.blocks.end);
   return h;
+}
+
+HeightfieldVndfDiagnostics heightfield_diagnostics(const TracedHistogram& h) {
+  if (!h.attributes.count("backfacing")) return {};
+  return {count_attribute(h, "backfacing"), count_attribute(h, "edge_grazes"), count_attribute(h, "leaked"),
+          count_attribute(h, "unresolved")};
 }
 
 void add_heightfield_diagnostics(TracedHistogram& sum, const TracedHistogram& part) {

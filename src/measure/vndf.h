@@ -118,9 +118,17 @@ TracedHistogram read_vndf_part(const nlohmann::json& report);
 // HistogramMergeError naming the problem: parts of different runs (the first attribute that differs),
 // different binnings, or blocks repeated or missing (named as ranges). `unbinned` receives the sum.
 TracedHistogram merge_vndf_parts(const std::vector<TracedHistogram>& parts, std::vector<std::uint64_t>& unbinned);
+// Adds one part (or one round) to a running sum of the same binnings, exactly: its counts, rays and hits and
+// its heightfield diagnostics to `sum`, its unbinned rays (attribute "unbinned") to `unbinned`; sum's other
+// attributes (blocks, unbinned) are the caller's to set. merge_vndf_parts adds its parts with it; the
+// experiment adds a round's parts in block order, and its rounds. Throws HistogramMergeError for binnings of
+// other sizes or a malformed attribute.
+void add_vndf_part(TracedHistogram& sum, std::vector<std::uint64_t>& unbinned, const TracedHistogram& part);
 // Adds a part's (or a round's) heightfield tracer diagnostics (backfacing, edge_grazes, leaked, unresolved) to
 // those `sum` records; an ellipsoid histogram has none. Throws HistogramMergeError for a malformed or missing one.
 void add_heightfield_diagnostics(TracedHistogram& sum, const TracedHistogram& part);
+// The heightfield tracer's diagnostics a histogram records (all 0 for an ellipsoid's). Throws HistogramMergeError.
+HeightfieldVndfDiagnostics heightfield_diagnostics(const TracedHistogram& histogram);
 
 // The analyses of a merged histogram, exactly as measure_*_vndf computes them for the same counts.
 EllipsoidVndf analyse_ellipsoid_vndf(TracedHistogram histogram, const std::vector<std::uint64_t>& unbinned);

@@ -19,8 +19,7 @@ ScatterHistogram merge_scatter_parts(const std::vector<ScatterHistogram>& parts)
   for (std::size_t i = 0; i < parts.size(); ++i) {
     const ScatterHistogram& p = parts[i];
     try {
-      merged.provenance.check_same_run(p.provenance);
-      if (i > 0) merged.merge(p);
+      if (i > 0) add_scatter_part(merged, p);
     } catch (const HistogramMergeError& e) {
       throw HistogramMergeError(fmt::format("part {}: {}", i + 1, e.what()));
     }
@@ -29,6 +28,11 @@ ScatterHistogram merge_scatter_parts(const std::vector<ScatterHistogram>& parts)
   merged.provenance.blocks = merge_block_ranges(ranges, merged.provenance.total_blocks, /*require_complete=*/true);
   merged.partial = false;
   return merged;
+}
+
+void add_scatter_part(ScatterHistogram& sum, const ScatterHistogram& part) {
+  sum.provenance.check_same_run(part.provenance);
+  sum.merge(part);
 }
 
 namespace {

@@ -23,6 +23,10 @@ inline constexpr const char* kScatterPartProducer = "scatter";
 // Throws HistogramMergeError naming the first part of another run (producer, measurement, seed, total
 // blocks, binning or channels differ) and every block range held twice or missing.
 ScatterHistogram merge_scatter_parts(const std::vector<ScatterHistogram>& parts);
+// Adds one part of the run `sum` holds some blocks of to it, exactly (ScatterHistogram::merge); the blocks are
+// the caller's to join. merge_scatter_parts adds its parts with it, the experiment a round's parts in block
+// order. Throws HistogramMergeError for a part of another run, binning or channels.
+void add_scatter_part(ScatterHistogram& sum, const ScatterHistogram& part);
 
 struct ScatterPart {
   ScatterHistogram histogram;

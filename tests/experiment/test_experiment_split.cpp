@@ -40,6 +40,7 @@
 #include <barrier>
 #include <exception>
 #include <filesystem>
+#include <fstream>
 #include <functional>
 #include <string>
 #include <thread>
@@ -707,6 +708,26 @@ TEST(ExperimentSplitMasking, RanksAndShardsGiveTheOneProcessSumsBitForBit) {
   const SplitRun cut = run_split(spec, plan, 3, {}, 1);
   ASSERT_TRUE(cut.results.partial);
   EXPECT_TRUE(cut.results.measurements.at(0).rounds.empty());
+}
+
+// A shard directory records the version of its parts' form (shards.h): one of another version (written by
+// another microsim, whose parts this one cannot add) is refused with a message that says so; this version's is read.
+TEST(ExperimentShardDirectory, PartsOfAnotherVersionAreRefused) {
+  const ExperimentSpec spec = split_spec();
+  const std::filesystem::path dir = microsim::test::scratch_dir("split", "shard_parts_version");
+  const ShardParts shard{1, 1, spec.seed, spec_digest(spec), nlohmann::json::object(), {}, {}};
+  write_shard_directory(dir / "part", spec, shard);
+  EXPECT_EQ(read_shard_directory(dir / "part", spec, spec.seed).k, 1u);
+  nlohmann::json doc = nlohmann::json::parse(std::ifstream(dir / "part" / "shard.json"));
+  doc.erase("parts_version");  // as the shards of earlier versions were written
+  std::ofstream(dir / "part" / "shard.json") << doc.dump();
+  try {
+    read_shard_directory(dir / "part", spec, spec.seed);
+    ADD_FAILURE() << "a shard of an earlier version was read";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("its parts are of version 1"), std::string::npos) << e.what();
+  }
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace
