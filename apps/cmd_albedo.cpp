@@ -325,9 +325,9 @@ void add_albedo_options(CLI::App* sub, AlbedoArgs& a) {
   sub->add_option("--encoded", a.encoded, "--layout: also write the values in the renderer's own encoding");
   sub->add_option("--centres", a.centres, "--layout: also write the interpolation error at the cell centres (CSV)");
   sub->add_option("--grade", a.grade,
-                  "grade a table in --layout L (.exr, or the .csv microsim writes; a glass layout: the .csv, or the "
-                  ".txt of values as Cycles prints them) against the reference: exit 0 all nodes within --tolerance, 1 "
-                  "not");
+                  "grade a table in --layout L (.exr; the .csv microsim writes; or a .txt of the values in storage order as "
+                  "the renderer prints them, Cycles' 'f' suffixes allowed) against the reference: exit 0 all nodes "
+                  "within --tolerance, 1 not");
   add_number_option(sub, "--table-samples", a.table_samples, whole(1, kMaxRays),
                     "--grade: the samples per node the table was built from (its noise is reported)");
 }

@@ -4,6 +4,7 @@
 #include "core/strict_parse.h"
 #include "scatter/albedo_grade.h"
 #include "scatter/albedo_layout.h"
+#include "scatter/albedo_layout_io.h"
 
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
@@ -167,19 +168,7 @@ std::vector<double> glass_values_from_csv(std::string_view text, const GlassLayo
 }
 
 std::vector<double> glass_values_from_text(std::string_view text, const GlassLayout& l) {
-  std::vector<double> values;
-  std::istringstream in{std::string(text)};
-  std::size_t number_of_line = 0;
-  for (std::string line; std::getline(in, line);) {
-    ++number_of_line;
-    if (trimmed(line).empty()) continue;
-    for (const std::string_view f : comma_fields(line))
-      if (!f.empty()) values.push_back(parse_double(fmt::format("line {}", number_of_line), f));
-  }
-  if (values.size() != glass_node_count(l))
-    throw std::invalid_argument(fmt::format("{} values in the text; the {} layout has {}", values.size(), l.name,
-                                            glass_node_count(l)));
-  return values;
+  return printed_values(text, glass_node_count(l), l.name);
 }
 
 std::vector<double> read_glass_values(const std::string& path, const GlassLayout& layout) {

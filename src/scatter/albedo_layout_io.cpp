@@ -273,14 +273,40 @@ std::vector<double> layout_grazing_values_from_csv(std::string_view text, const 
   return {};
 }
 
+std::vector<double> printed_values(std::string_view text, std::size_t count, const std::string& layout_name) {
+  std::vector<double> values;
+  std::size_t number_of_line = 1;
+  for (std::size_t i = 0; i < text.size();) {
+    const char c = text[i];
+    if (c == '\n') ++number_of_line;
+    if (c == ',' || c == ' ' || c == '\t' || c == '\r' || c == '\n') {
+      ++i;
+      continue;
+    }
+    const std::size_t end = std::min(text.find_first_of(", \t\r\n", i), text.size());
+    std::string_view number = text.substr(i, end - i);
+    if (number.size() > 1 && (number.back() == 'f' || number.back() == 'F')) number.remove_suffix(1);
+    values.push_back(parse_double(fmt::format("line {}", number_of_line), number));
+    i = end;
+  }
+  if (values.size() != count)
+    throw std::invalid_argument(fmt::format("{} values in the text; the {} layout has {}", values.size(), layout_name, count));
+  return values;
+}
+
 LayoutValues read_layout_channels(const std::string& path, const AlbedoLayout& layout) {
   const std::string ext = std::filesystem::path(path).extension().string();
-  if (ext != ".exr" && ext != ".csv") throw std::invalid_argument("an .exr or a .csv table");
+  if (ext != ".exr" && ext != ".csv" && ext != ".txt")
+    throw std::invalid_argument("an .exr, a .csv or a .txt (the values as the renderer prints them) table");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::invalid_argument("cannot be read");
-  if (ext == ".csv") {
+  if (ext != ".exr") {
     std::ostringstream text;
     text << in.rdbuf();
+    if (ext == ".txt") {
+      const std::size_t count = std::size_t(layout_columns(layout)) * std::size_t(layout_rows(layout));
+      return {printed_values(text.str(), count, layout.name), {}};
+    }
     return {layout_values_from_csv(text.str(), layout), layout_grazing_values_from_csv(text.str(), layout)};
   }
   microgeom::ExrImage image;

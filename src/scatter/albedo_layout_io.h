@@ -55,7 +55,13 @@ std::vector<double> layout_values_from_csv(std::string_view text, const AlbedoLa
 // channel or the file does not carry it; std::invalid_argument as above for a file that is wrong.
 std::vector<double> layout_grazing_values_from_exr(const microgeom::ExrImage& image, const AlbedoLayout& layout);
 std::vector<double> layout_grazing_values_from_csv(std::string_view text, const AlbedoLayout& layout);
-// The values of the table file at `path`, by its extension: .exr or .csv, as above. std::invalid_argument
+// The values of a table as a renderer's source prints them (Cycles' `shader.tables` and its
+// `cycles_precompute`: %.6f floats, comma-separated, a storage row per line): every number in storage order,
+// separated by commas, blanks or line breaks, each with or without C's float suffix 'f'; exactly `count` of
+// them. std::invalid_argument naming the line of a number that does not parse, or the count found.
+std::vector<double> printed_values(std::string_view text, std::size_t count, const std::string& layout_name);
+
+// The values of the table file at `path`, by its extension: .exr, .csv, or .txt (printed_values), as above. std::invalid_argument
 // when it cannot be read, has another extension or is not a table in `layout` (the message without the path).
 std::vector<double> read_layout_values(const std::string& path, const AlbedoLayout& layout);
 // Both channels of the file at `path` (grazing empty when the layout or the file has none).

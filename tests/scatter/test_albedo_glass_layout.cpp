@@ -209,7 +209,10 @@ TEST(AlbedoGlassLayout, PublishedTablesReadAsCyclesReadsThem) {
     const auto table = read_cycles_text(text.str());
     ASSERT_EQ(table.size(), 16u);
     for (const auto& slice : table) ASSERT_EQ(slice.size(), 16u);
-    for (const auto& [x, y, z] : {std::array{10, 8, 5}, std::array{15, 12, 9}, std::array{6, 4, 12}}) {
+    // The last two, light from inside below the critical angle (total internal reflection on most facets), are
+    // nodes where Cycles' own shipped ggx_glass_inv_E differs (0.8589 and 0.6661; records/energy-tables.md).
+    for (const auto& [x, y, z] : {std::array{10, 8, 5}, std::array{15, 12, 9}, std::array{6, 4, 12},
+                                  std::array{8, 2, 8}, std::array{15, 2, 8}}) {
       const double r = x / 15.0, mu = y / 15.0, t = z / 15.0, ior = (1 + t * t) / (1 - t * t);
       const Lobes e = independent_glass(r * r, mu, inverse ? 1 / ior : ior);
       EXPECT_NEAR(table[std::size_t(z)][std::size_t(y)][std::size_t(x)], e.reflected + e.transmitted, 5e-6)

@@ -369,5 +369,25 @@ TEST(AlbedoGradeInput, RefusesATableOfTheWrongSizeOrWithANonFiniteValue) {
   EXPECT_THROW(grade_against(ref, reference_values(ref), 0.0), std::invalid_argument);
 }
 
+// A table as a renderer's source prints it (Cycles' shader.tables: C floats with their 'f', comma-separated
+// rows): every number in order; a wrong count or a number that does not parse is named.
+TEST(AlbedoGradeInput, PrintedValuesAreReadAsTheRenderersSourcePrintsThem) {
+  EXPECT_EQ(printed_values("  1.000000f, 0.980405f,\n  0.5f, 0.25\n", 4, "cycles"),
+            (std::vector<double>{1.0, 0.980405, 0.5, 0.25}));
+  EXPECT_EQ(printed_values("1,2\n\n3,4", 4, "cycles"), (std::vector<double>{1, 2, 3, 4}));
+  try {
+    printed_values("1, 2,\n3, x4f", 4, "cycles");
+    ADD_FAILURE() << "a number that does not parse";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("line 2"), std::string::npos) << e.what();
+  }
+  try {
+    printed_values("1, 2, 3", 4, "cycles");
+    ADD_FAILURE() << "three values for four";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("3 values in the text; the cycles layout has 4"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace microsim
