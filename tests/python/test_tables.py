@@ -107,8 +107,11 @@ def test_grade_flags_a_planted_error(uniform_layout, tmp_path):
 def test_grade_refuses_what_the_cli_refuses(tmp_path):
     with pytest.raises(ValueError, match="cannot be read"):
         microsim.grade_albedo_table(tmp_path / "none.csv", layout="uniform")
-    (tmp_path / "t.txt").write_text("1\n")
-    with pytest.raises(ValueError, match="an .exr or a .csv"):
+    (tmp_path / "t.json").write_text("1\n")
+    with pytest.raises(ValueError, match="an .exr, a .csv or a .txt"):
+        microsim.grade_albedo_table(tmp_path / "t.json", layout="uniform")
+    (tmp_path / "t.txt").write_text("1.0f\n")
+    with pytest.raises(ValueError, match="1 values in the text; the uniform layout has 1024"):
         microsim.grade_albedo_table(tmp_path / "t.txt", layout="uniform")
     with pytest.raises(ValueError):
         microsim.grade_albedo_table(tmp_path / "t.txt", layout="uniform", table_samples=0)
