@@ -1,6 +1,7 @@
 // microsim merge: joins the partial results of one run (the JSON parts of `trace vndf --shard K/N`,
 // `scatter --shard K/N`, `trace masking --surface S --shard K/N`, `validate ... --shard K/N`,
-// `stability --shard K/N` and `albedo --model smith-walk --shard K/N`, told apart by their provenance's producer) into the whole run. Reading, checking and adding the parts is the library's (measure/merge.h);
+// `stability --shard K/N` and `albedo --model smith-walk --shard K/N`, told apart by their provenance's
+// producer) into the whole run. Reading, checking and adding the parts is the library's (measure/merge.h);
 // this front end checks the options each kind takes and reports the merged run as the single run does.
 // The parts must come from the same run (every run attribute or parameter equal, same binnings, same seed)
 // and together hold every block exactly once; the merged result, its analysis, JSON and table are those
@@ -141,8 +142,8 @@ CommandRegistration merge_registration{"merge", [](CLI::App& app) {
   auto* sub = app.add_subcommand(
       "merge",
       "Join the partial results of one run (the JSON parts of `microsim trace vndf --shard K/N`, `microsim scatter "
-      "--shard K/N`, `microsim trace masking --surface S --shard K/N`, `microsim validate ... --shard K/N` or "
-      "`microsim stability --shard K/N`, `microsim albedo --model smith-walk --shard K/N`) into the whole run: the same "
+      "--shard K/N`, `microsim trace masking --surface S --shard K/N`, `microsim validate ... --shard K/N`, "
+      "`microsim stability --shard K/N` or `microsim albedo --model smith-walk --shard K/N`) into the whole run: the same "
       "histogram EXR or JSON report, and the same table, as the single run, bit for bit. The parts must be of one run and "
       "hold every block exactly once (missing or repeated block ranges are named). Exit 0 merged (trace masking: "
       "1 if the merged leak test failed; validate, stability: 1 if the merged run rejects, as the single run), 2 bad "

@@ -1,10 +1,12 @@
-// experiment: the albedo kind (measurement.h): a table E(alpha, mu). Sampled (the Smith walk, or paths on the
-// plan's tiles): rounds of tables, each from its own seed, pooled cell by cell (pool_rounds); the worst
-// relative SE of the quantities the target applies to (measures.h, albedo_target_applies) decides. A round's
-// blocks are the table's cells (row-major, each cell its own walk from its own seed): ranks and shards compute
-// shards of the cells, joined in order (albedo_table_from_cells). A round cut short is run again whole on
-// resumption (its completed rows are not kept). Analytic: the quadrature at the planned tolerance, again 100
-// times tighter while an error estimate exceeds the target (deterministic: resumed, run again).
+// experiment: the albedo kind (measurement.h): a table E(alpha, mu), measured by measure/albedo.h (the table,
+// its cells by block range, their parts, the pilots' measures); this file is its spec keys, plan, rounds and
+// report section. Sampled (the Smith walk, or paths on the plan's tiles): rounds of tables, each from its own
+// seed, pooled cell by cell (pool_rounds); the worst relative SE of the quantities the target applies to
+// decides. A round's blocks are the table's cells: ranks and shards compute ranges of them, whose parts
+// (albedo_part_json, as `microsim albedo --shard` writes) are joined in block order. A round cut short is run
+// again whole on resumption (its completed rows are not kept). Analytic: the quadrature at the planned
+// tolerance, again 100 times tighter while an error estimate exceeds the target (deterministic: resumed, run
+// again).
 #include "experiment/plan_kinds.h"
 #include "experiment/measurement.h"
 #include "stats/curve_figure.h"
@@ -29,19 +31,23 @@ namespace {
 
 using nlohmann::json;
 
-// Per cell, its estimates as exact reals (measure/albedo.h albedo_cells_json).
-std::string albedo_part(const RoundTask& task, const BlockRange& cells, const std::optional<AlbedoCells>& estimates) {
-  return estimates ? round_part(task, cells, false, albedo_cells_json(*estimates)) : cancelled_part(task, cells);
+// A rank's cells as the part `microsim albedo --shard` writes (measure/albedo.h albedo_part_json; its time 0:
+// the round's is the root's), in the round's part.
+std::string albedo_part(const RoundTask& task, const AlbedoTableRequest& request, const BlockRange& cells,
+                        const std::optional<AlbedoCells>& estimates) {
+  if (!estimates) return cancelled_part(task, cells);
+  return round_part(task, cells, false, albedo_part_json(request, cells, *estimates, 0));
 }
 
-// The parts from `first` on, in rank order, after `cells` (rank 0's, or none): the whole table, or a partial
-// one (no row) when a part was cancelled.
+// The parts from `first` on, in rank order, after `cells` (rank 0's, or none), read as `microsim merge` reads
+// them (read_albedo_part): the whole table, or a partial one (no row) when a part was cancelled.
 AlbedoTable combine_albedo_parts(const AlbedoTableRequest& request, AlbedoCells cells,
                                  const std::vector<std::string>& parts, const RoundTask& task, int first,
                                  double seconds) {
-  const std::size_t quantities = albedo_quantity_names(request.model, request.material).size();
   const bool complete = add_parts(parts, task, first, [&](const json& s, const BlockRange& blocks, int) {
-    append_albedo_cells(cells, s, std::size_t(blocks.size()), quantities, PartReader("albedo part"), "sums");
+    const AlbedoPart part = read_albedo_part(s);
+    if (part.provenance.blocks != blocks) throw std::invalid_argument("its cells are not the part's blocks");
+    cells.insert(cells.end(), part.cells.begin(), part.cells.end());
   });
   return albedo_table_of_cells(request, complete ? std::optional(std::move(cells)) : std::nullopt, seconds);
 }
@@ -60,7 +66,7 @@ AlbedoTable split_albedo_round(const RoundSplit& split, std::size_t measurement,
       [&](const std::optional<BlockRange>& mine) -> Cells {
         return stored ? Cells(AlbedoCells{}) : cells(request, mine ? *mine : round);
       },
-      [&](const Cells& own, const BlockRange& mine) { return albedo_part(task, mine, own); },
+      [&](const Cells& own, const BlockRange& mine) { return albedo_part(task, request, mine, own); },
       [&](Cells own, const std::vector<std::string>& parts, int first) {
         if (!own) return albedo_table_of_cells(request, std::nullopt, 0);
         return combine_albedo_parts(request, std::move(*own), parts, task, first, seconds_since(start));
@@ -138,8 +144,8 @@ public:
   }
   std::string part(const RoundTask& task, const BlockRange& mine, const RunControl& run,
                    SurfaceCache& surfaces) const override {
-    return albedo_part(task, mine, albedo_cells_of(decision_, surfaces)(
-                                       sampled_albedo_request(spec_, decision_, task.units, task.seed, run), mine));
+    const AlbedoTableRequest request = sampled_albedo_request(spec_, decision_, task.units, task.seed, run);
+    return albedo_part(task, request, mine, albedo_cells_of(decision_, surfaces)(request, mine));
   }
   void run(const RoundContext& c, MeasurementResult& m) const override {
     const RunControl& run = c.options.run;

@@ -99,8 +99,13 @@ AlbedoTable measure_albedo_cells_table(const AlbedoTableRequest& request, const 
   return albedo_table_of_cells(request, cells, seconds_since(start));
 }
 
-// ---- a block range of cells as exact JSON --------------------------------------------------------------------
+// ---- the part of a shard ---------------------------------------------------------------------------------------
 
+namespace {
+
+const PartReader kAlbedoReader(kAlbedoPartProducer);
+
+// Per cell, its estimates as [value, error], each exact_real_json.
 nlohmann::json albedo_cells_json(const AlbedoCells& cells) {
   nlohmann::json out = nlohmann::json::array();
   for (const std::vector<Estimate>& cell : cells) {
@@ -111,6 +116,7 @@ nlohmann::json albedo_cells_json(const AlbedoCells& cells) {
   return out;
 }
 
+// Appends `count` cells of that form (member `where`), each of `quantities` estimates, to `cells`.
 void append_albedo_cells(AlbedoCells& cells, const nlohmann::json& sums, std::size_t count, std::size_t quantities,
                          const PartReader& reader, const std::string& where) {
   if (!sums.is_array() || sums.size() != count) reader.malformed(where, "is not one estimate list per cell");
@@ -125,18 +131,13 @@ void append_albedo_cells(AlbedoCells& cells, const nlohmann::json& sums, std::si
   }
 }
 
-// ---- the part of a shard ---------------------------------------------------------------------------------------
-
-namespace {
-
-const PartReader kAlbedoReader(kAlbedoPartProducer);
-
-// What defines the run besides its seed and blocks: every member of the request a cell depends on.
+// What defines the run besides its seed and blocks: every member of the request a cell depends on (counts
+// unsigned, as a part read back from its text holds them).
 nlohmann::json albedo_parameters(const AlbedoTableRequest& r) {
   nlohmann::json p{{"model", to_string(r.model)}, {"ndf", to_string(r.ndf)}, {"material", r.material.describe()},
-                   {"inside", r.inside}, {"alphas", r.alphas}, {"mus", r.mus}, {"paths", r.paths},
-                   {"max_order", r.max_order}};
-  if (r.model == AlbedoModel::surface) p["resolution"] = r.resolution;
+                   {"inside", r.inside}, {"alphas", r.alphas}, {"mus", std::uint64_t(r.mus)}, {"paths", r.paths},
+                   {"max_order", std::uint64_t(r.max_order)}};
+  if (r.model == AlbedoModel::surface) p["resolution"] = std::uint64_t(r.resolution);
   return p;
 }
 
@@ -155,7 +156,9 @@ AlbedoTableRequest request_of(const nlohmann::json& p, std::uint64_t seed) {
     r.max_order = int(kAlbedoReader.count(p, "max_order", where));
     if (r.model == AlbedoModel::surface) r.resolution = int(kAlbedoReader.count(p, "resolution", where));
     r.seed = seed;
-    check_albedo_request(r);
+    AlbedoTableRequest checked = r;  // a surface's build parameters are its caller's (surface_albedo_cells)
+    if (checked.model == AlbedoModel::surface) checked.model = AlbedoModel::smith_walk;
+    check_albedo_request(checked);
   } catch (const HistogramMergeError&) {
     throw;
   } catch (const std::exception& e) {  // ParseError, a json type error, the request's check

@@ -45,19 +45,13 @@ AlbedoTable albedo_table_of_cells(const AlbedoTableRequest& request, const std::
 // Every cell of a sampled table from `cells_of` in this process, as one table (albedo_table_of_cells).
 AlbedoTable measure_albedo_cells_table(const AlbedoTableRequest& request, const AlbedoCellsOf& cells_of);
 
-// ---- a block range of cells as exact JSON --------------------------------------------------------------------
-
-// Per cell, its quantities' estimates (albedo_quantity_names order) as [value, error], each exact_real_json.
-nlohmann::json albedo_cells_json(const AlbedoCells& cells);
-// Appends `count` cells of that form (member `where` of a part read by `reader`) to `cells`, each of
-// `quantities` estimates. HistogramMergeError (the reader's message) when they are not.
-void append_albedo_cells(AlbedoCells& cells, const nlohmann::json& sums, std::size_t count, std::size_t quantities,
-                         const PartReader& reader, const std::string& where);
+// ---- a block range of cells as a part ------------------------------------------------------------------------
 
 // The part of `microsim albedo --shard K/N`: a sampled table's cells `blocks` (of albedo_cell_count) with
 // provenance (producer kAlbedoPartProducer; the request's model, ndf, material, side, alphas, mus, paths,
-// order cap and, for a surface, resolution as its parameters; its seed), "quantity_names", "cells"
-// (albedo_cells_json) and "seconds" (the time the cells took).
+// order cap and, for a surface, resolution as its parameters; its seed), "quantity_names", "cells" (per cell,
+// its quantities' estimates in albedo_quantity_names order as [value, error], each exact_real_json) and
+// "seconds" (the time the cells took). The part of a rank or shard job of an experiment's albedo round too.
 inline constexpr const char* kAlbedoPartProducer = "albedo";
 nlohmann::json albedo_part_json(const AlbedoTableRequest& request, const BlockRange& blocks, const AlbedoCells& cells,
                                 double seconds);
