@@ -1,5 +1,6 @@
 // `microsim albedo` end to end: a small table of each model is written (EXR, CSV, JSON) and agrees with the
-// library; a walk table's shards merged (`microsim merge`) are the single run bit for bit; the bad-input table: each case exits 2 naming the bad value and writes nothing.
+// library; a walk table's shards merged (`microsim merge`) are the single run bit for bit; the bad-input
+// table: each case exits 2 naming the bad value and writes nothing.
 #include "cli_helpers.h"
 
 #include "microgeom/exr_io.h"
