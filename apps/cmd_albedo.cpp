@@ -3,7 +3,8 @@
 // single scattering, the Smith random walk or the explicit `smith` heightfield (scatter/albedo_table.h),
 // written as an EXR (rows alpha, columns mu), a CSV and JSON (scatter/albedo_table_io.h); with --layout, the
 // table in a renderer's layout (scatter/albedo_layout.h), and with --grade TABLE --layout L, the grade of a
-// table a renderer ships (scatter/albedo_grade.h).
+// table a renderer ships (scatter/albedo_grade.h). The table is measured by measure/albedo.h; with --shard K/N
+// (the Smith walk), block range K of N of the table's cells, written as the part `microsim merge` joins.
 //
 // Exit codes: 0 done (a grade: every node within the tolerance), 1 a graded node beyond the tolerance, 2 bad
 // usage or input (nothing written), 130 interrupted (the complete alphas written, marked partial; none
@@ -16,6 +17,7 @@
 
 #include "microfacet/material.h"
 #include "microgeom/assembly.h"
+#include "measure/albedo.h"
 #include "scatter/albedo_anisotropic.h"
 #include "scatter/albedo_glass_layout.h"
 #include "scatter/albedo_table.h"
@@ -48,6 +50,7 @@ struct AlbedoArgs {
   std::uint64_t seed = 1;
   int threads = 0;
   std::string out, csv, json;
+  std::string shard;                            // --shard K/N: the part of block range K of N of the cells
   std::string layout, grade, encoded, centres;  // --layout, --grade and their outputs
   std::string alphas_y;                         // anisotropic: the alpha_y axis (--alphas is alpha_x)
   int phis = 8;
@@ -65,6 +68,7 @@ void check_model_options(const AlbedoArgs& a, AlbedoModel model) {
     for (const char* o : {"--rays", "--seed", "--max-order"}) refuse(o, "the sampled models (smith-walk, surface)");
   if (model != AlbedoModel::surface) refuse("--res", "--model surface");
   if (model != AlbedoModel::analytic) refuse("--tolerance", "--model analytic");
+  if (model != AlbedoModel::smith_walk) refuse("--shard", "--model smith-walk");
 }
 
 Material albedo_material(const AlbedoArgs& a) {
@@ -95,7 +99,18 @@ std::vector<double> albedo_alphas(const AlbedoArgs& a) {
   return alphas;
 }
 
+// --shard: --out is the part for `microsim merge`, a JSON file, and the only output.
+void check_shard_outputs(const AlbedoArgs& a) {
+  for (const auto& [option, path] : {std::pair{"--csv", a.csv}, std::pair{"--json", a.json}})
+    if (!path.empty()) throw UsageError(fmt::format("{} does not apply to --shard (its output is the part, --out PART.json)", option));
+  if (std::filesystem::path(a.out).extension() != ".json")
+    throw UsageError(fmt::format("--out {}: with --shard {} it is the part for `microsim merge`, a JSON file (--out "
+                                 "PART.json)", quote_excerpt(a.out), a.shard));
+  check_output("--out", a.out);
+}
+
 void check_albedo_outputs(const AlbedoArgs& a) {
+  if (!a.shard.empty()) return check_shard_outputs(a);
   check_distinct_outputs({}, {{"--out", a.out}, {"--csv", a.csv}, {"--json", a.json}});
   if (std::filesystem::path(a.out).extension() != ".exr")
     throw UsageError(fmt::format("--out {}: must be an .exr file", quote_excerpt(a.out)));
@@ -257,6 +272,26 @@ int run_anisotropic(const AlbedoArgs& a) {
   return kExitOk;
 }
 
+// --shard K/N: block range K of N of the table's cells.
+BlockRange shard_cells(const AlbedoArgs& a, const AlbedoTableRequest& request) {
+  try {
+    const ShardSpec s = parse_shard("--shard", a.shard, albedo_cell_count(request));
+    return shard_range(albedo_cell_count(request), s.index, s.count);
+  } catch (const ParseError& e) {
+    throw UsageError(e.what());
+  }
+}
+
+// The part of a shard's cells (measure_albedo_part), written to --out.
+int run_shard(const AlbedoArgs& a, const AlbedoTableRequest& request, const BlockRange& cells) {
+  const std::optional<nlohmann::json> part = measure_albedo_part(request, cells);
+  if (!part) return interrupted_nothing_written("albedo");
+  write_file_atomically(a.out, part->dump(2) + "\n");
+  fmt::print("albedo: shard {}: cells {} of {} ({} paths each), {:.1f} s; part written to {} (`microsim merge`)\n",
+             a.shard, cells.to_string(), albedo_cell_count(request), request.paths, (*part)["seconds"].get<double>(), a.out);
+  return kExitOk;
+}
+
 int run_albedo(const AlbedoArgs& a) {
   if (!a.grade.empty()) return run_grade(a);
   if (a.given.count("--alphas-y")) return run_anisotropic(a);
@@ -267,13 +302,19 @@ int run_albedo(const AlbedoArgs& a) {
   if (a.model.empty()) throw UsageError("--model is required (analytic, smith-walk or surface), or --layout or --grade");
   if (a.out.empty()) throw UsageError("--out is required");
   AlbedoTableRequest request = albedo_request(a);
+  const std::optional<BlockRange> shard = a.shard.empty() ? std::nullopt : std::optional(shard_cells(a, request));
   const auto progress = std::make_shared<CliProgress>(true);
   request.run = cli_run_control(a.threads, progress);
   install_interrupt_handler();
   fmt::print(stderr, "albedo: {}, {} alphas x {} mus{}\n", describe_albedo_request(request), request.alphas.size(),
              request.mus,
              request.model == AlbedoModel::analytic ? "" : fmt::format(", {} paths per cell", request.paths));
-  const AlbedoTable table = albedo_table(request, print_albedo_row);
+  if (shard) {
+    const int code = run_shard(a, request, *shard);
+    progress->finish();
+    return code;
+  }
+  const AlbedoTable table = measure_albedo_table(request, print_albedo_row);
   progress->finish();
   return report_albedo_table(table, {a.out, a.csv, a.json});
 }
@@ -309,7 +350,11 @@ void add_albedo_options(CLI::App* sub, AlbedoArgs& a) {
       ->default_str(std::to_string(a.seed));
   add_number_option(sub, "--threads", a.threads, integer(0, kMaxThreads), at_most("worker threads (0: all cores)", kMaxThreads))
       ->default_str(std::to_string(a.threads));
-  sub->add_option("--out", a.out, "the table as an EXR (rows alpha, columns mu; --layout: the layout's grid)");
+  sub->add_option("--out", a.out, "the table as an EXR (rows alpha, columns mu; --layout: the layout's grid; --shard: the "
+                  "part, a JSON file)");
+  sub->add_option("--shard", a.shard,
+                  "smith-walk: run only shard K of N (K/N, 1-based) of the table's cells and write its part, --out "
+                  "PART.json (exact estimates); `microsim merge` joins the parts into the single run's table, bit for bit");
   sub->add_option("--csv", a.csv, "also write the table as CSV");
   sub->add_option("--json", a.json, "also write the table (--grade: the grade) as JSON");
   sub->add_option("--layout", a.layout,

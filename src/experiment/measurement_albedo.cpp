@@ -1,20 +1,22 @@
-// experiment: the albedo kind (measurement.h): a table E(alpha, mu). Sampled (the Smith walk, or paths on the
-// plan's tiles): rounds of tables, each from its own seed, pooled cell by cell (pool_rounds); the worst
-// relative SE of the quantities the target applies to (measures.h, albedo_target_applies) decides. A round's
-// blocks are the table's cells (row-major, each cell its own walk from its own seed): ranks and shards compute
-// shards of the cells, joined in order (albedo_table_from_cells). A round cut short is run again whole on
-// resumption (its completed rows are not kept). Analytic: the quadrature at the planned tolerance, again 100
-// times tighter while an error estimate exceeds the target (deterministic: resumed, run again).
+// experiment: the albedo kind (measurement.h): a table E(alpha, mu), measured by measure/albedo.h (the table,
+// its cells by block range, their parts, the pilots' measures); this file is its spec keys, plan, rounds and
+// report section. Sampled (the Smith walk, or paths on the plan's tiles): rounds of tables, each from its own
+// seed, pooled cell by cell (pool_rounds); the worst relative SE of the quantities the target applies to
+// decides. A round's blocks are the table's cells: ranks and shards compute ranges of them, whose parts
+// (albedo_part_json, as `microsim albedo --shard` writes) are joined in block order. A round cut short is run
+// again whole on resumption (its completed rows are not kept). Analytic: the quadrature at the planned
+// tolerance, again 100 times tighter while an error estimate exceeds the target (deterministic: resumed, run
+// again).
 #include "experiment/plan_kinds.h"
 #include "experiment/measurement.h"
 #include "stats/curve_figure.h"
 #include "experiment/report_html.h"
 #include "experiment/measures.h"
 #include "experiment/surface_albedo.h"
+#include "measure/albedo.h"
 
 #include "core/wall_clock.h"
 #include "scatter/albedo_table_io.h"
-#include "stats/part_json.h"
 
 #include <fmt/core.h>
 
@@ -29,43 +31,25 @@ namespace {
 
 using nlohmann::json;
 
-// The cells of a sampled albedo request: walk_albedo_cells (a walk), or its tiles' (surface_albedo.h).
-using AlbedoCellsOf = std::function<std::optional<AlbedoCells>(const AlbedoTableRequest& request, const BlockRange& cells)>;
-
-// Per cell, its estimates [value, standard error] as their bits (exact_real_json).
-std::string albedo_part(const RoundTask& task, const BlockRange& cells, const std::optional<AlbedoCells>& estimates) {
+// A rank's cells as the part `microsim albedo --shard` writes (measure/albedo.h albedo_part_json; its time 0:
+// the round's is the root's), in the round's part.
+std::string albedo_part(const RoundTask& task, const AlbedoTableRequest& request, const BlockRange& cells,
+                        const std::optional<AlbedoCells>& estimates) {
   if (!estimates) return cancelled_part(task, cells);
-  json out = json::array();
-  for (const std::vector<Estimate>& cell : *estimates) {
-    json values = json::array();
-    for (const Estimate& e : cell) values.push_back({exact_real_json(e.value), exact_real_json(e.standard_error)});
-    out.push_back(values);
-  }
-  return round_part(task, cells, false, out);
+  return round_part(task, cells, false, albedo_part_json(request, cells, *estimates, 0));
 }
 
-// A round cut short: no row (it is run again whole on resumption).
-AlbedoTable cancelled_albedo_table(const AlbedoTableRequest& request) {
-  AlbedoTable cancelled;
-  cancelled.request = request;
-  cancelled.partial = true;
-  return cancelled;
-}
-
-// The parts from `first` on, in rank order, after `cells` (rank 0's, or none): the whole table, or a partial
-// one (no row) when a part was cancelled.
+// The parts from `first` on, in rank order, after `cells` (rank 0's, or none), read as `microsim merge` reads
+// them (read_albedo_part): the whole table, or a partial one (no row) when a part was cancelled.
 AlbedoTable combine_albedo_parts(const AlbedoTableRequest& request, AlbedoCells cells,
                                  const std::vector<std::string>& parts, const RoundTask& task, int first,
                                  double seconds) {
-  const PartReader reader("albedo part");
   const bool complete = add_parts(parts, task, first, [&](const json& s, const BlockRange& blocks, int) {
-    if (s.size() != blocks.size()) throw std::invalid_argument("not one estimate list per cell");
-    for (const json& values : s) {
-      std::vector<Estimate>& cell = cells.emplace_back();
-      for (const json& e : values) cell.push_back({reader.exact_real(e.at(0), "cell"), reader.exact_real(e.at(1), "cell")});
-    }
+    const AlbedoPart part = read_albedo_part(s);
+    if (part.provenance.blocks != blocks) throw std::invalid_argument("its cells are not the part's blocks");
+    cells.insert(cells.end(), part.cells.begin(), part.cells.end());
   });
-  return complete ? albedo_table_from_cells(request, cells, seconds) : cancelled_albedo_table(request);
+  return albedo_table_of_cells(request, complete ? std::optional(std::move(cells)) : std::nullopt, seconds);
 }
 
 // The table of a sampled request (a walk's, or on tiles) from `cells`, its cells split: albedo_table's, bit for
@@ -73,7 +57,7 @@ AlbedoTable combine_albedo_parts(const AlbedoTableRequest& request, AlbedoCells 
 AlbedoTable split_albedo_round(const RoundSplit& split, std::size_t measurement, const AlbedoTableRequest& request,
                                const AlbedoCellsOf& cells) {
   const auto start = std::chrono::steady_clock::now();
-  const BlockRange round{0, request.alphas.size() * std::uint64_t(request.mus)};
+  const BlockRange round{0, albedo_cell_count(request)};
   const RoundTask task{measurement, request.paths, request.seed, round};
   const bool stored = stored_parts(split.stored, task) != nullptr;  // its start: no cell (no tile acquired)
   using Cells = std::optional<AlbedoCells>;
@@ -82,9 +66,9 @@ AlbedoTable split_albedo_round(const RoundSplit& split, std::size_t measurement,
       [&](const std::optional<BlockRange>& mine) -> Cells {
         return stored ? Cells(AlbedoCells{}) : cells(request, mine ? *mine : round);
       },
-      [&](const Cells& own, const BlockRange& mine) { return albedo_part(task, mine, own); },
+      [&](const Cells& own, const BlockRange& mine) { return albedo_part(task, request, mine, own); },
       [&](Cells own, const std::vector<std::string>& parts, int first) {
-        if (!own) return cancelled_albedo_table(request);
+        if (!own) return albedo_table_of_cells(request, std::nullopt, 0);
         return combine_albedo_parts(request, std::move(*own), parts, task, first, seconds_since(start));
       });
 }
@@ -104,32 +88,12 @@ std::uint64_t albedo_round_cells(const ExperimentSpec& spec, const Decision& dec
   return spec.material(q.material).alphas.size() * std::uint64_t(q.mus);
 }
 
-}  // namespace
-
-namespace {
-
-// Whether a target applies to a quantity of an albedo table: orders single, the single-scattering albedos (E1,
-// E1_R, E1_T); all orders, every albedo the table holds, not the unfinished or lost weight. The worst relative
-// error (error / value) over the cells and E_avg it applies to; infinite for a value 0 with an error.
-bool albedo_target_applies(const SpecQuantity& quantity, std::string_view table_quantity) {
-  return table_quantity.starts_with(quantity.orders == Orders::single ? "E1" : "E");
-}
-
-std::string albedo_target_text(const SpecQuantity& quantity) { return quantity.orders == Orders::single ? "E1*" : "E*"; }
-
-double albedo_relative_error(const Estimate& e) {
-  if (e.standard_error == 0) return 0;
-  return e.value != 0 ? e.standard_error / std::abs(e.value) : std::numeric_limits<double>::infinity();
-}
-
+// The albedos a target applies to: orders single, the single-scattering albedos (E1, E1_R, E1_T); all orders,
+// every albedo the table holds, not the unfinished or lost weight (measure/albedo.h worst_relative_albedo_error).
+std::string_view albedo_target_prefix(const SpecQuantity& quantity) { return quantity.orders == Orders::single ? "E1" : "E"; }
+std::string albedo_target_text(const SpecQuantity& quantity) { return std::string(albedo_target_prefix(quantity)) + "*"; }
 double worst_relative_error(const AlbedoTable& table, const SpecQuantity& quantity) {
-  double worst = 0;
-  for (const AlbedoQuantity& q : table.quantities) {
-    if (!albedo_target_applies(quantity, q.name)) continue;
-    for (const Estimate& e : q.cells) worst = std::max(worst, albedo_relative_error(e));
-    for (const Estimate& e : q.average) worst = std::max(worst, albedo_relative_error(e));
-  }
-  return worst;
+  return worst_relative_albedo_error(table, albedo_target_prefix(quantity));
 }
 
 // The rounds' tables as one table of their summed paths per cell (pool_rounds per cell and per E_avg).
@@ -180,8 +144,8 @@ public:
   }
   std::string part(const RoundTask& task, const BlockRange& mine, const RunControl& run,
                    SurfaceCache& surfaces) const override {
-    return albedo_part(task, mine, albedo_cells_of(decision_, surfaces)(
-                                       sampled_albedo_request(spec_, decision_, task.units, task.seed, run), mine));
+    const AlbedoTableRequest request = sampled_albedo_request(spec_, decision_, task.units, task.seed, run);
+    return albedo_part(task, request, mine, albedo_cells_of(decision_, surfaces)(request, mine));
   }
   void run(const RoundContext& c, MeasurementResult& m) const override {
     const RunControl& run = c.options.run;
@@ -226,7 +190,8 @@ public:
     m.rounds.clear();  // resumed: deterministic and cheap, run again
     m.partial = false;
     for (int r = 0; r < c.options.max_rounds && !m.met && tolerance >= 1e-13; ++r, tolerance /= 100) {
-      const AlbedoTable t = albedo_table(albedo_request(spec_, quantity_, Model::analytic, 1, 0, tolerance, 1, c.options.run));
+      const AlbedoTable t =
+          measure_albedo_table(albedo_request(spec_, quantity_, Model::analytic, 1, 0, tolerance, 1, c.options.run));
       if (t.partial) {
         m.partial = true;
         break;
@@ -242,24 +207,16 @@ public:
 
 // ---- its plan ----------------------------------------------------------------------------------------------
 
-// The roughest row of an albedo table (paths stay longest on the roughest surface), every mu: the cell whose
-// unfinished weight (plus two standard errors) is the largest share of its E. `cells`: the walk's, or on tiles.
+// The order-cap pilot on the roughest row of an albedo table, every mu (measure/albedo.h
+// albedo_unfinished_share). `cells`: the walk's, or on tiles.
 CapPilot table_cap_pilot(AlbedoTableRequest row, const AlbedoCellsOf& cells) {
   return [row, cells](int cap) {
     AlbedoTableRequest r = row;
     r.max_order = cap;
-    const AlbedoTable t = split_albedo_round({}, 0, r, cells);
+    const AlbedoTable t = measure_albedo_cells_table(r, cells);
     if (t.partial) throw Cancelled("plan: order-cap pilot");
-    CapProbe worst{cap, 0, 0};
-    for (std::size_t m = 0; m < t.mus.size(); ++m) {
-      Estimate u = t.cell("unfinished", 0, m);
-      // None left among n paths: the 95% upper bound is 3 / n (the rule of three), i.e. "2 standard errors".
-      if (u.value == 0) u.standard_error = 1.5 / double(r.paths);
-      const double e = std::max(t.cell("E", 0, m).value, 1e-300);
-      if ((u.value + 2 * u.standard_error) / e > worst.unfinished + 2 * worst.unfinished_se)
-        worst = {cap, u.value / e, u.standard_error / e};
-    }
-    return worst;
+    const AlbedoUnfinishedShare worst = albedo_unfinished_share(t);
+    return CapProbe{cap, worst.share, worst.share_se};
   };
 }
 
@@ -272,7 +229,7 @@ void plan_analytic_albedo(const ExperimentSpec& spec, const SpecQuantity& q, con
   AlbedoTableRequest pilot = albedo_request(spec, q, Model::analytic, 1, 0, d.tolerance, 1, o.run);
   const std::size_t rows = pilot.alphas.size();
   pilot.alphas = {pilot.alphas.front()};
-  const AlbedoTable t = albedo_table(pilot);
+  const AlbedoTable t = measure_albedo_table(pilot);
   if (t.partial) throw Cancelled("plan: albedo pilot");
   d.pilot_units = 1;
   d.pilot_seconds = t.seconds;
@@ -297,8 +254,8 @@ void plan_sampled_albedo(const ExperimentSpec& spec, const SpecQuantity& q, cons
     std::tie(d.order_cap, d.cap_reason) = walk_order_cap(
         table_cap_pilot(row, cells), q.target, fmt::format("alpha {}, {} mus, {} paths per cell", row.alphas.front(), q.mus, row.paths));
   }
-  const AlbedoTable t = split_albedo_round(
-      {}, 0, sampled_albedo_request(spec, d, o.pilot_paths, derived_seed(seed, kTablePilot, d.quantity), o.run), cells);
+  const AlbedoTable t = measure_albedo_cells_table(
+      sampled_albedo_request(spec, d, o.pilot_paths, derived_seed(seed, kTablePilot, d.quantity), o.run), cells);
   if (t.partial) throw Cancelled("plan: albedo pilot");
   d.pilot_units = o.pilot_paths;
   d.pilot_seconds = t.seconds;

@@ -1,9 +1,10 @@
 // experiment: the library calls behind a decision, shared by the planner's pilots and the runs: the albedo
-// table request of a spec quantity (scatter/albedo_table.h), the ellipsoid VNDF measurement of a view
+// table request of a spec quantity (measured by measure/albedo.h), the ellipsoid VNDF measurement of a view
 // (measure/vndf.h), and the errors the targets are stated in.
 #pragma once
 
 #include "experiment/plan.h"
+#include "measure/albedo.h"
 #include "measure/scatter.h"
 #include "measure/vndf.h"
 #include "scatter/albedo_table.h"
@@ -28,11 +29,6 @@ Material albedo_table_material(const SpecMaterial& material);
 AlbedoTableRequest albedo_request(const ExperimentSpec& spec, const SpecQuantity& quantity, Model model,
                                   std::uint64_t paths, int max_order, double tolerance, std::uint64_t seed,
                                   const RunControl& run);
-
-// The table albedo_table_json wrote (alphas, mus, weights, quantities, timings), with `request` (the table's
-// own, which the JSON names but does not hold whole). Values read back exactly (JSON numbers round-trip);
-// null reads as NaN. Throws std::invalid_argument naming a missing or malformed member. For a resumed run.
-AlbedoTable albedo_table_from_json(const nlohmann::json& table, const AlbedoTableRequest& request);
 
 // The ellipsoid-oracle request of a VNDF decision: `rays` rays of `seed` from its view, in its quantity's rows.
 VndfRequest vndf_request(const ExperimentSpec& spec, const Decision& decision, std::uint64_t rays, std::uint64_t seed,

@@ -5,9 +5,10 @@
 // (absent when nothing was measured) the kind's own part, the one its command writes for --shard:
 // measure/vndf.h vndf_part_json (trace vndf), stats/scatter_merge.h scatter_part_json (scatter),
 // measure/masking.h masking_part_json per light (trace masking), measure/validation.h validation_part_json
-// (validate); an albedo table's its cells' sums (measurement_albedo.cpp). The combine functions add the parts from `first` on (0: the parts of shard jobs onto a
-// measurement of no block; 1: the ranks' parts after the root's own, rank 0's) in block order through the
-// library's own additions (add_vndf_part, add_scatter_part, add_masking_part, merge_tallies): the one-process
+// (validate), measure/albedo.h albedo_part_json (albedo). The combine functions add the parts from `first` on
+// (0: the parts of shard jobs onto a measurement of no block; 1: the ranks' parts after the root's own, rank
+// 0's) in block order through the library's own additions (add_vndf_part, add_scatter_part, add_masking_part,
+// merge_tallies, read_albedo_part's cells): the one-process
 // round, bit for bit. A part that is not rank r's shard of the round (another round, out of block order,
 // missing, overlapping) or is malformed is a bug: InternalError.
 #pragma once

@@ -31,9 +31,10 @@ std::string read_bytes(const fs::path& path) {
   return ss.str();
 }
 
-// The form of the parts a shard holds (parts.h): 2 since they carry the library's part JSON of each kind
-// (vndf_part_json, scatter_part_json, masking_part_json, validation_part_json); a shard of another is refused.
-constexpr int kPartsVersion = 2;
+// The form of the parts a shard holds (parts.h): 3 since they carry the library's part JSON of each kind
+// (vndf_part_json, scatter_part_json, masking_part_json, validation_part_json, albedo_part_json); a shard of
+// another is refused.
+constexpr int kPartsVersion = 3;
 
 [[noreturn]] void bad_shard(const fs::path& dir, const std::string& what) {
   throw std::invalid_argument(fmt::format("--merge {}: {}", quote_excerpt(dir.string()), what));

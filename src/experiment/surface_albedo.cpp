@@ -3,6 +3,7 @@
 
 #include "core/wall_clock.h"
 #include "experiment/heightfield_measures.h"
+#include "measure/albedo.h"
 #include "measure/heightfield_trade.h"
 #include "experiment/measures.h"
 #include "scatter/surface_scatter.h"
@@ -20,7 +21,7 @@ namespace {
 // E_min: the smallest single-scattering albedo of the table (analytic, to 1e-4 absolute; every side it has),
 // a lower bound of every albedo the target applies to (all orders hold order 1 on each side).
 double smallest_targeted_albedo(const ExperimentSpec& spec, const SpecQuantity& q, const RunControl& run) {
-  const AlbedoTable t = albedo_table(albedo_request(spec, q, Model::analytic, 1, 0, 1e-4, 1, run));
+  const AlbedoTable t = measure_albedo_table(albedo_request(spec, q, Model::analytic, 1, 0, 1e-4, 1, run));
   if (t.partial) throw Cancelled("plan: the smallest albedo of the table");
   double smallest = 1;
   for (const AlbedoQuantity& quantity : t.quantities)

@@ -109,6 +109,11 @@ MergedRun merge_stability(const std::vector<std::string>& paths) {
   return {PartKind::stability, parts.size(), merged([&] { return merge_stability_parts(parts); })};
 }
 
+MergedRun merge_albedo(const std::vector<std::string>& paths) {
+  const std::vector<AlbedoPart> parts = read_json_parts(paths, read_albedo_part);
+  return {PartKind::albedo, parts.size(), merged([&] { return merge_albedo_parts(parts); })};
+}
+
 // The kinds: the producer their parts' provenance names, and their merge.
 struct PartKindEntry {
   PartKind kind;
@@ -116,12 +121,13 @@ struct PartKindEntry {
   MergedRun (*merge)(const std::vector<std::string>&);
 };
 
-constexpr std::array<PartKindEntry, 5> kPartKinds{{
+constexpr std::array<PartKindEntry, 6> kPartKinds{{
     {PartKind::vndf, kVndfPartProducer, merge_vndf},
     {PartKind::scatter, kScatterPartProducer, merge_scatter},
     {PartKind::masking, "trace masking", merge_masking},
     {PartKind::validate, "validate", merge_validation},
     {PartKind::stability, "stability", merge_stability},
+    {PartKind::albedo, kAlbedoPartProducer, merge_albedo},
 }};
 
 const PartKindEntry& entry_of(PartKind kind) {
@@ -130,7 +136,7 @@ const PartKindEntry& entry_of(PartKind kind) {
   throw std::logic_error("unknown part kind");
 }
 
-// The kinds, by name: "trace vndf, scatter, trace masking, validate, stability".
+// The kinds, by name: "trace vndf, scatter, trace masking, validate, stability, albedo".
 std::string kind_names() {
   std::string names;
   for (const PartKindEntry& e : kPartKinds) names += (names.empty() ? "" : ", ") + std::string(e.producer);

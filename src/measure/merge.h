@@ -1,13 +1,14 @@
 // measure: the merge of the partial results of one run into the whole run (`microsim merge`, Python
 // `merge`). A part is a JSON file with provenance and exact sums (stats/part_json.h), written by
-// `trace vndf --shard K/N`, `scatter --shard K/N`, `trace masking --shard`, `validate --shard` or
-// `stability --shard`, its kind told by its provenance's producer. The parts must come from one run (every
+// `trace vndf --shard K/N`, `scatter --shard K/N`, `trace masking --shard`, `validate --shard`,
+// `stability --shard` or `albedo --shard` (measure/albedo.h), its kind told by its provenance's producer. The parts must come from one run (every
 // run attribute or parameter equal, same binnings, same seed) and together hold every block exactly once;
 // they are added in block order, so the merged result is the single run's bit for bit.
 //
 // The kinds are the table kPartKinds of merge.cpp, the one place that decides a part's kind and its merge.
 #pragma once
 
+#include "measure/albedo.h"
 #include "measure/masking.h"
 #include "measure/validation.h"
 #include "measure/vndf.h"
@@ -32,10 +33,10 @@ struct MergeError : std::invalid_argument {
   using std::invalid_argument::invalid_argument;
 };
 
-enum class PartKind { vndf, scatter, masking, validate, stability };
+enum class PartKind { vndf, scatter, masking, validate, stability, albedo };
 
 // The producer that writes parts of the kind: "trace vndf", "scatter", "trace masking", "validate",
-// "stability".
+// "stability", "albedo".
 const char* part_kind_name(PartKind kind);
 
 // The kind of the parts, all of one kind (MergeError otherwise), by their provenance's producer (every part
@@ -52,12 +53,12 @@ struct MergedScatter {
   std::map<std::string, std::string> notes;  // the parts' notes (equal in every part)
 };
 
-// The whole run of the parts: the histogram (vndf, scatter) or the part (masking, validate, stability)
-// that the single run would have written.
+// The whole run of the parts: the histogram (vndf, scatter), the part (masking, validate, stability) or the
+// table (albedo) that the single run would have written.
 struct MergedRun {
   PartKind kind = PartKind::vndf;
   std::size_t parts = 0;
-  std::variant<MergedVndf, MergedScatter, MaskingPart, ValidationPart, StabilityTable> result;
+  std::variant<MergedVndf, MergedScatter, MaskingPart, ValidationPart, StabilityTable, AlbedoTable> result;
 };
 
 // Reads the parts (any order) and merges them. Throws MergeError naming the offending part and the block

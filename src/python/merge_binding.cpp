@@ -5,10 +5,12 @@
 
 #include "core/atomic_file.h"
 #include "core/output_paths.h"
+#include "measure/albedo.h"
 #include "measure/masking.h"
 #include "measure/merge.h"
 #include "measure/scatter.h"
 #include "measure/validate_all.h"
+#include "scatter/albedo_table_io.h"
 #include "stats/histogram_io.h"
 #include "stats/scatter_io.h"
 #include "validate/stability.h"
@@ -33,14 +35,15 @@ struct MergeOutputs {
 };
 
 // The command's checks: no output is a part, the surface or the other output, each can be created, `out` is
-// what the parts' kind writes (an .exr histogram for trace vndf and scatter parts, nothing for the others),
+// what the parts' kind writes (an .exr histogram for trace vndf and scatter parts, the table's .exr for albedo
+// parts, nothing for the others),
 // and `surface` applies to the kinds traced on a heightfield.
 void check_outputs(PartKind kind, const std::vector<std::string>& parts, const MergeOutputs& o) {
   std::vector<PathOption> inputs;
   for (const std::string& p : parts) inputs.push_back({"part", p});
   inputs.push_back({"surface", o.surface});
   check_output_paths(inputs, {{"out", o.out}, {"json", o.json}});
-  const bool histogram = kind == PartKind::vndf || kind == PartKind::scatter;
+  const bool histogram = kind == PartKind::vndf || kind == PartKind::scatter || kind == PartKind::albedo;
   if (!histogram && !o.out.empty())
     throw py::value_error("out '" + o.out + "': " + part_kind_name(kind) + " parts merge into a JSON report (json=...)");
   if (histogram && !o.out.empty() && std::filesystem::path(o.out).extension() != ".exr")
@@ -113,6 +116,11 @@ nlohmann::json merged_report(MergedRun run, const MergeOutputs& o, const RunCont
     case PartKind::masking: return masking_report(std::get<MaskingPart>(run.result), o);
     case PartKind::validate: return validation_report(std::get<ValidationPart>(run.result), control);
     case PartKind::stability: return stability_table_json(std::get<StabilityTable>(run.result));
+    case PartKind::albedo: {
+      const auto& table = std::get<AlbedoTable>(run.result);
+      if (!o.out.empty()) microgeom::write_exr(o.out, albedo_table_exr(table));
+      return albedo_table_json(table);
+    }
   }
   throw std::logic_error("merge: unknown part kind");
 }

@@ -3,6 +3,7 @@
 // `microsim stability`, each returned as the dict its --json writes.
 #include "python/binding.h"
 
+#include "measure/albedo.h"
 #include "microfacet/material.h"
 #include "scatter/albedo_anisotropic.h"
 #include "scatter/albedo_glass_grade.h"
@@ -159,7 +160,7 @@ py::object albedo_table_of(const std::string& model, const std::string& ndf, con
   r.max_order = max_order;
   r.resolution = resolution;
   check_albedo_request(r);  // std::invalid_argument: ValueError
-  const auto table = [](const AlbedoTableRequest& q) { return std::optional<AlbedoTable>(albedo_table(q)); };
+  const auto table = [](const AlbedoTableRequest& q) { return std::optional<AlbedoTable>(measure_albedo_table(q)); };
   return json_object(albedo_table_json(*run_request(r, threads, progress, table)));
 }
 

@@ -1,9 +1,11 @@
 // `microsim albedo` end to end: a small table of each model is written (EXR, CSV, JSON) and agrees with the
-// library; the bad-input table: each case exits 2 naming the bad value and writes nothing.
+// library; a walk table's shards merged (`microsim merge`) are the single run bit for bit; the bad-input
+// table: each case exits 2 naming the bad value and writes nothing.
 #include "cli_helpers.h"
 
 #include "microgeom/exr_io.h"
 
+#include <fmt/core.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -64,6 +66,38 @@ TEST(AlbedoCli, SampledModelsWriteTheirQuantities) {
   const auto surface = run_cli(dir, "albedo --model surface --res 256 --alphas 0.5 --mus 2 --rays 2000 --out s.exr");
   ASSERT_EQ(surface.exit_code, 0) << surface.err;
   EXPECT_NE(microgeom::read_exr(dir / "s.exr").find("lost.value"), nullptr);
+  fs::remove_all(dir);
+}
+
+// The JSON of a table without its timings (what differs between runs of the same seed).
+nlohmann::json without_timings(nlohmann::json j) {
+  j.erase("seconds");
+  j.erase("row_seconds");
+  return j;
+}
+
+// A walk table in two shards (given to merge out of order) merged: the single run's CSV and values, bit for bit.
+// Negative control: a part of another seed is refused.
+TEST(AlbedoCli, TwoShardsMergeIntoTheSingleRunsTableBitForBit) {
+  const fs::path dir = scratch_dir("albedo_cli", "shards");
+  const std::string walk = "albedo --model smith-walk --material dielectric:1.5 --alphas 0.3,0.8 --mus 3 --rays 600 "
+                           "--seed 7 --threads 2 ";
+  ASSERT_EQ(run_cli(dir, walk + "--out w.exr --csv w.csv --json w.json").exit_code, 0);
+  for (const char* k : {"1", "2"}) {
+    const auto r = run_cli(dir, walk + fmt::format("--shard {}/2 --out p{}.json", k, k));
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+  }
+  const auto m = run_cli(dir, "merge p2.json p1.json --out m.exr --csv m.csv --json m.json");
+  ASSERT_EQ(m.exit_code, 0) << m.err;
+  EXPECT_EQ(slurp(dir / "m.csv"), slurp(dir / "w.csv"));
+  EXPECT_EQ(without_timings(nlohmann::json::parse(slurp(dir / "m.json"))),
+            without_timings(nlohmann::json::parse(slurp(dir / "w.json"))));
+  ASSERT_EQ(run_cli(dir, "albedo --model smith-walk --material dielectric:1.5 --alphas 0.3,0.8 --mus 3 --rays 600 "
+                         "--seed 8 --shard 2/2 --out q2.json").exit_code, 0);
+  const auto refused = run_cli(dir, "merge p1.json q2.json --out n.exr");
+  EXPECT_EQ(refused.exit_code, 2);
+  EXPECT_NE(refused.err.find("seed"), std::string::npos) << refused.err;
+  EXPECT_FALSE(fs::exists(dir / "n.exr"));
   fs::remove_all(dir);
 }
 
@@ -244,6 +278,11 @@ std::vector<BadInputCase> albedo_cli_cases() {
       {"glass_grade_exr", "albedo --grade g.exr --layout cycles-glass", 2, "a .csv or a .txt",
        [](const fs::path& d) { write_text(d / "g.exr", "x"); }},
       {"glass_grade_out", "albedo --grade g.csv --layout cycles-glass --csv o.csv", 2, "--csv does not apply to --grade"},
+      {"shard_analytic", "albedo --model analytic --shard 1/2 --out p.json", 2, "--shard applies to --model smith-walk"},
+      {"shard_surface", "albedo --model surface --shard 1/2 --out p.json", 2, "--shard applies to --model smith-walk"},
+      {"shard_out_exr", "albedo --model smith-walk --shard 1/2 --out p.exr", 2, "--out 'p.exr': with --shard"},
+      {"shard_csv", "albedo --model smith-walk --shard 1/2 --out p.json --csv p.csv", 2, "--csv does not apply to --shard"},
+      {"shard_beyond", "albedo --model smith-walk --alphas 0.5 --mus 2 --shard 3/3 --out p.json", 2, "--shard"},
   };
 }
 

@@ -1,8 +1,12 @@
 // Tests of the merge as a library call (src/measure/merge.h): the shards of one ellipsoid VNDF run, written
 // as `trace vndf --shard` writes them (JSON parts), merge in any order into the single run's counts; the
 // kind is found from the files; a missing or repeated block range, parts of two kinds and an EXR part (the
-// form of earlier versions) are MergeErrors naming them (negative controls).
+// form of earlier versions) are MergeErrors naming them (negative controls). A Smith-walk albedo table's cells
+// measured in block ranges (measure/albedo.h), written as `albedo --shard` writes them, merge in any order into
+// the whole table bit for bit; parts of another seed, a missing range and a malformed estimate are refused.
 #include "measure/merge.h"
+
+#include "measure/albedo.h"
 
 #include "measure/vndf.h"
 #include "stats/histogram_io.h"
@@ -11,7 +15,9 @@
 
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <fstream>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -76,6 +82,81 @@ TEST(Merge, VndfShardsInAnyOrderAreTheSingleRun) {
   write_histogram_exr(exr, single.histogram);
   EXPECT_NE(message_of({parts[0], exr}).find("is an EXR file: parts are JSON now"), std::string::npos)
       << message_of({parts[0], exr});
+}
+
+// ---- albedo tables: a sampled table's cells in parts ------------------------------------------------------
+
+AlbedoTableRequest albedo_walk_request(std::uint64_t seed) {
+  AlbedoTableRequest r;
+  r.model = AlbedoModel::smith_walk;
+  r.material = Material::dielectric(1.5);
+  r.alphas = {0.4, 0.9};
+  r.mus = 3;
+  r.paths = 400;
+  r.seed = seed;
+  return r;
+}
+
+void expect_same_albedo_bits(const AlbedoTable& a, const AlbedoTable& b) {
+  ASSERT_EQ(a.quantities.size(), b.quantities.size());
+  for (std::size_t q = 0; q < a.quantities.size(); ++q)
+    for (const auto member : {&AlbedoQuantity::cells, &AlbedoQuantity::average}) {
+      const std::vector<Estimate>&x = a.quantities[q].*member, &y = b.quantities[q].*member;
+      ASSERT_EQ(x.size(), y.size());
+      for (std::size_t i = 0; i < x.size(); ++i) {
+        EXPECT_EQ(x[i].value, y[i].value) << a.quantities[q].name << " " << i;
+        EXPECT_EQ(x[i].standard_error, y[i].standard_error) << a.quantities[q].name << " " << i;
+      }
+    }
+}
+
+TEST(MergeAlbedo, ShardsOfAWalkTableInAnyOrderAreTheWholeTableBitForBit) {
+  const auto dir = test::scratch_dir("merge", "albedo");
+  const AlbedoTableRequest r = albedo_walk_request(11);
+  ASSERT_EQ(albedo_cell_count(r), 6u);
+  const AlbedoTable whole = measure_albedo_table(r);
+  std::vector<std::string> paths;
+  std::vector<AlbedoPart> parts;
+  for (const BlockRange& cells : {BlockRange{0, 2}, BlockRange{2, 5}, BlockRange{5, 6}}) {
+    const std::optional<nlohmann::json> part = measure_albedo_part(r, cells);
+    ASSERT_TRUE(part.has_value());
+    paths.push_back((dir / ("a" + std::to_string(cells.begin) + ".json")).string());
+    std::ofstream(paths.back()) << part->dump();
+    parts.push_back(read_albedo_part(nlohmann::json::parse(part->dump())));
+  }
+  EXPECT_EQ(parts[1].request.material, r.material);
+  const MergedRun m = merge_parts({paths[2], paths[0], paths[1]});
+  ASSERT_EQ(m.kind, PartKind::albedo);
+  expect_same_albedo_bits(std::get<AlbedoTable>(m.result), whole);
+  expect_same_albedo_bits(measure_albedo_cells_table(r, walk_albedo_cells), whole);
+  // Negative controls: a range missing, a part of another seed.
+  EXPECT_NE(message_of({paths[0], paths[2]}).find("are missing"), std::string::npos) << message_of({paths[0], paths[2]});
+  const AlbedoPart other = read_albedo_part(*measure_albedo_part(albedo_walk_request(12), {2, 5}));
+  EXPECT_THROW(merge_albedo_parts({parts[0], other, parts[2]}), HistogramMergeError);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(MergeAlbedo, AMalformedPartIsRefusedNamingWhere) {
+  nlohmann::json part = *measure_albedo_part(albedo_walk_request(11), {1, 2});
+  part["cells"][0][0][1] = "not bits";
+  try {
+    read_albedo_part(part);
+    FAIL() << "a malformed estimate was read";
+  } catch (const HistogramMergeError& e) {
+    EXPECT_NE(std::string(e.what()).find("cells/0"), std::string::npos) << e.what();
+  }
+  part = *measure_albedo_part(albedo_walk_request(11), {1, 2});
+  part["provenance"]["parameters"]["model"] = "analytic";
+  EXPECT_THROW(read_albedo_part(part), HistogramMergeError);
+}
+
+TEST(MergeAlbedo, TheWorstRelativeErrorIsOverTheTargetedQuantitiesOnly) {
+  AlbedoTable t;
+  t.quantities = {{"E", {{0.5, 0.01}}, {{0.5, 0.002}}}, {"E1", {{0.25, 0.001}}, {{0.25, 0}}},
+                  {"unfinished", {{0.0, 0.3}}, {{0.0, 0.3}}}};
+  EXPECT_DOUBLE_EQ(worst_relative_albedo_error(t, "E1"), 0.004);
+  EXPECT_DOUBLE_EQ(worst_relative_albedo_error(t, "E"), 0.02);
+  EXPECT_EQ(worst_relative_albedo_error(t, "unfinished"), std::numeric_limits<double>::infinity());
 }
 
 }  // namespace
