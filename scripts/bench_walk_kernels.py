@@ -1,0 +1,72 @@
+#!/usr/bin/python3
+"""The Smith walk's two kernels side by side in one bench_walk binary (docs/records/walk-speed.md, "Third round").
+
+Runs BM_WalkKernels (1 thread: the scalar walk, kernel 0, and the walk in SIMD lanes, kernel 1) for each
+material, the kernels one after the other, the first one swapping from round to round, ROUNDS times, and
+prints per round and as medians the paths per CPU second (the process's CPU time: on a loaded machine the
+wall clock also counts the time others hold the core), the ratio lanes / scalar per round, and the load
+average before and after.
+
+  scripts/bench_walk_kernels.py build/bench_walk [--rounds 7] [--min-time 0.5]
+"""
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+
+PATHS_PER_ITERATION = 64 * 4096  # BM_WalkKernels: 64 blocks of kPathsPerBlock paths
+MATERIALS = {0: "mirror", 2: "gold (3 channels)"}
+KERNELS = {0: "scalar", 1: "lanes"}
+
+
+def run_once(binary, material, kernel, min_time):
+    """(paths per CPU second, paths per wall second, label) of one run of BM_WalkKernels."""
+    name = f"BM_WalkKernels/material:{material}/kernel:{kernel}$"
+    out = subprocess.run([binary, f"--benchmark_filter={name}", f"--benchmark_min_time={min_time}",
+                          "--benchmark_format=json"], check=True, capture_output=True, text=True).stdout
+    b = json.loads(out)["benchmarks"][0]
+    scale = {"ns": 1e-9, "us": 1e-6, "ms": 1e-3, "s": 1.0}[b["time_unit"]]
+    return (PATHS_PER_ITERATION / (b["cpu_time"] * scale), PATHS_PER_ITERATION / (b["real_time"] * scale),
+            b.get("label", ""))
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("binary")
+    parser.add_argument("--rounds", type=int, default=7)
+    parser.add_argument("--min-time", type=float, default=0.5)
+    args = parser.parse_args()
+    load_before = os.getloadavg()
+    cpu = {(m, k): [] for m in MATERIALS for k in KERNELS}
+    ratios = {m: [] for m in MATERIALS}
+    labels = {}
+    for r in range(args.rounds):
+        order = [0, 1] if r % 2 == 0 else [1, 0]
+        for m, name in MATERIALS.items():
+            got = {}
+            for k in order:
+                rate, _, label = run_once(args.binary, m, k, args.min_time)
+                got[k] = rate
+                cpu[(m, k)].append(rate)
+                labels[(m, k)] = label
+            ratios[m].append(got[1] / got[0])
+            print(f"round {r + 1} {name}: scalar {got[0] / 1e6:.2f} lanes {got[1] / 1e6:.2f} M paths per CPU s, "
+                  f"ratio {ratios[m][-1]:.2f}", flush=True)
+    load_after = os.getloadavg()
+    print(f"\nload average (1, 5, 15 min) before {load_before[0]:.1f} {load_before[1]:.1f} {load_before[2]:.1f}, "
+          f"after {load_after[0]:.1f} {load_after[1]:.1f} {load_after[2]:.1f}")
+    print(f"medians over {args.rounds} rounds (M paths per CPU second, 1 thread; ns per path):")
+    print("| material | scalar | lanes | lanes / scalar | range over rounds | lanes' label |")
+    print("|---|---|---|---|---|---|")
+    for m, name in MATERIALS.items():
+        s, l = statistics.median(cpu[(m, 0)]), statistics.median(cpu[(m, 1)])
+        print(f"| {name} | {s / 1e6:.2f} ({1e9 / s:.0f} ns) | {l / 1e6:.2f} ({1e9 / l:.0f} ns) | "
+              f"**{statistics.median(ratios[m]):.2f}x** | {min(ratios[m]):.2f}-{max(ratios[m]):.2f}x | "
+              f"{labels[(m, 1)]} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
