@@ -15,7 +15,7 @@
 // supplemental code of Heitz, Hanika, d'Eon, Dachsbacher 2016 on the same configuration, one thread, as a
 // reference point: its Microsurface::sample per path (float, std::mt19937, its conductor is the mirror F = 1,
 // no order cap), with no binning or reduction, so it times the walk alone.
-// BM_WalkKernels/material:<0 mirror|2 gold conductor>/kernel:<0 scalar|1 lanes>: the same run on 1 thread with
+// BM_WalkKernels/material:<0 mirror|1 dielectric|2 gold conductor>/kernel:<0 scalar|1 lanes>: the same run on 1 thread with
 // the kernel chosen (smith_walk.h WalkKernel), both kernels in one binary; scripts/bench_walk_kernels.py runs
 // them in alternating rounds (docs/records/walk-speed.md, "Third round").
 // scripts/bench_walk_side_by_side.py runs the BM_WalkPaths of two builds alternately (docs/records/walk-speed.md).
@@ -70,7 +70,8 @@ void BM_WalkKernels(benchmark::State& state) {
   }
   state.counters["paths_per_second"] =
       benchmark::Counter(double(state.iterations()) * double(o.paths), benchmark::Counter::kIsRate);
-  state.SetLabel(std::string(state.range(0) == 0 ? "GGX 0.5 mirror, " : "GGX 0.5 gold, ") +
+  const char* names[] = {"GGX 0.5 mirror, ", "GGX 0.5 dielectric 1.5, ", "GGX 0.5 gold, "};
+  state.SetLabel(std::string(names[state.range(0)]) +
                  (kernel == WalkKernel::scalar ? "scalar" : "lanes " + smith_walk_lanes_target()));
 }
 
@@ -103,7 +104,7 @@ BENCHMARK(BM_WalkPaths)
     ->MeasureProcessCPUTime()
     ->MinTime(0.5);
 BENCHMARK(BM_WalkKernels)
-    ->ArgsProduct({{0, 2}, {0, 1}})
+    ->ArgsProduct({{0, 1, 2}, {0, 1}})
     ->ArgNames({"material", "kernel"})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()

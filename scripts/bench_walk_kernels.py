@@ -17,7 +17,7 @@ import subprocess
 import sys
 
 PATHS_PER_ITERATION = 64 * 4096  # BM_WalkKernels: 64 blocks of kPathsPerBlock paths
-MATERIALS = {0: "mirror", 2: "gold (3 channels)"}
+MATERIALS = {0: "mirror", 1: "dielectric 1.5", 2: "gold (3 channels)"}
 KERNELS = {0: "scalar", 1: "lanes"}
 
 

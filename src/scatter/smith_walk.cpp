@@ -374,14 +374,19 @@ walk_lanes::LaneWalk lane_walk(const SmithMicrosurface& s, const ScatterOptions&
 // The block's paths walked in lanes, their ends binned in path order (the same reduction as run_walk's).
 BlockEnds walk_block_lanes(const walk_lanes::LaneWalk& walk, const FastDirectionBinner& bins, std::uint64_t block,
                            std::uint64_t n) {
-  std::vector<walk_lanes::LaneEnd> lane_ends(static_cast<std::size_t>(n));
+  thread_local std::vector<walk_lanes::LaneEnd> lane_ends;  // reused: a block's scratch, not its result
+  thread_local std::vector<int> lane_bins;
+  lane_ends.resize(std::size_t(n));
+  lane_bins.resize(std::size_t(n));
   BlockEnds ends;
   ends.weights.resize(std::size_t(n) * std::size_t(walk.channels));
   walk_lanes::walk_block(walk, block, n, lane_ends.data(), ends.weights.data());
+  walk_lanes::bin_escaped(bins, lane_ends.data(), int(n), lane_bins.data());
   ends.ends.reserve(std::size_t(n));
-  for (const walk_lanes::LaneEnd& e : lane_ends) {
+  for (std::size_t i = 0; i < lane_ends.size(); ++i) {
+    const walk_lanes::LaneEnd& e = lane_ends[i];
     const Vec3<double> direction(e.x, e.y, e.z);
-    if (e.kind == 0) ends.ends.push_back({WalkEnd::escaped, e.order, bins(direction), direction});
+    if (e.kind == 0) ends.ends.push_back({WalkEnd::escaped, e.order, lane_bins[i], direction});
     else ends.ends.push_back({e.kind == 1 ? WalkEnd::unfinished : WalkEnd::lost, e.order, -1});
   }
   return ends;

@@ -14,6 +14,7 @@
 
 #include <hwy/targets.h>
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <stdexcept>
@@ -313,6 +314,27 @@ void walk_block(const LaneWalk& walk, std::uint64_t block, std::uint64_t paths, 
         park(st, i);
         --live;
       }
+    }
+  }
+}
+
+void bin_escaped(const FastDirectionBinner& bins, const LaneEnd* ends, int n, int* out) {
+  constexpr int kChunk = 256;
+  float x[kChunk], y[kChunk], z[kChunk];
+  for (int first = 0; first < n; first += kChunk) {
+    const int m = std::min(kChunk, n - first);
+    for (int i = 0; i < m; ++i) {
+      const LaneEnd& e = ends[first + i];
+      x[i] = float(e.x);
+      y[i] = float(e.y);
+      z[i] = float(e.z);
+    }
+    if (bins.specialised_for_floats()) bins.classify_floats(x, y, z, m, out + first, /*vector=*/true);
+    for (int i = 0; i < m; ++i) {
+      const LaneEnd& e = ends[first + i];
+      int& bin = out[first + i];
+      if (e.kind != 0) bin = -1;
+      else if (!bins.specialised_for_floats() || bin == FastDirectionBinner::kNeedsExact) bin = bins(Vec3<double>(e.x, e.y, e.z));
     }
   }
 }

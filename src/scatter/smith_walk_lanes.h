@@ -17,6 +17,7 @@
 #pragma once
 
 #include "microfacet/material.h"
+#include "stats/direction_binner.h"
 
 #include <array>
 #include <cstdint>
@@ -46,6 +47,16 @@ struct LaneEnd {
 
 // Walks the `paths` paths of block `block`: ends[j] and weights[j * channels + c] for path j.
 void walk_block(const LaneWalk& walk, std::uint64_t block, std::uint64_t paths, LaneEnd* ends, double* weights);
+
+// The bins of the n escaped directions ends[i] (kind 0; the others get -1), exactly as `bins`' operator()
+// (= DirectionBinning::bin_of) bins them, for a binner of a hemispheres binning (the walk's histogram): pass 1
+// of its float batch code (FastDirectionBinner::classify_floats, vector) on the directions rounded to float,
+// then operator() on the double direction wherever pass 1 is not certain. Exact: rounding to float moves a
+// unit direction by at most about 2^-23 (a relative 2^-24 per component), so its fractional row index by
+// 2^-23 rows / 2 and its column index by 2^-23 cols / (2 pi) bin widths (rows and cols of the whole sphere),
+// a hundredth of pass 1's guard bands (1e-5 rows and 1e-5 cols bin widths, direction_binner.h), which
+// already hold 16 times pass 1's own float errors. Binnings without a pass 1 use operator() throughout.
+void bin_escaped(const FastDirectionBinner& bins, const LaneEnd* ends, int n, int* out);
 
 // The Highway target walk_block runs ("AVX3", "AVX2", "SSE4", ...).
 std::string walk_lanes_target();

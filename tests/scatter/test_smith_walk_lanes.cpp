@@ -7,10 +7,14 @@
 // the weight left at the order cap, each as a z-score of the difference over its standard error, summed in squares (chi-square with
 // that many degrees of freedom); and the directions of orders 1, 2 and of every order, by the weighted
 // homogeneity test (stats/chi2.h, Gagunashvili 2010: the same distribution over the bins).
+// The exits' batch binning (walk_lanes::bin_escaped) equals DirectionBinning::bin_of on random directions and
+// on directions at and around every row and column edge (offsets from 0 to 1e-3 bin widths).
 // Also: the lanes kernel gives the same histogram for any thread count and shards, names itself in the
 // measurement string, and refuses what it does not cover.
 #include "scatter/smith_walk.h"
 
+#include "scatter/smith_walk_lanes.h"
+#include "stats/binning.h"
 #include "stats/chi2.h"
 
 #include <boost/math/distributions/chi_squared.hpp>
@@ -18,6 +22,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -148,6 +153,33 @@ TEST(SmithWalkLanes, ThreadsAndShardsDoNotChangeTheResult) {
   EXPECT_TRUE(merged == one);
   EXPECT_NE(one.provenance.measurement.find("kernel=lanes"), std::string::npos);
   EXPECT_EQ(smith_walk_scatter(s, o, WalkKernel::scalar).provenance.measurement.find("kernel="), std::string::npos);
+}
+
+TEST(SmithWalkLanes, BatchBinningOfTheExitsIsBinOf) {
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> normal;
+  for (const int rows : {1, 4, 8, 16, 250}) {
+    const DirectionBinning b = DirectionBinning::hemispheres(rows);
+    const FastDirectionBinner fast(b);
+    std::vector<walk_lanes::LaneEnd> ends;
+    auto add = [&](const Vec3<double>& w, int kind = 0) { ends.push_back({kind, 1, w.x(), w.y(), w.z()}); };
+    for (int i = 0; i < 20000; ++i) add(Vec3<double>(normal(rng), normal(rng), normal(rng)).normalized(), i % 50 == 0 ? 1 : 0);
+    const double dz = (b.z_max() - b.z_min()) / b.rows(), dphi = 2 * kPi<double> / b.cols();
+    auto add_param = [&](double z, double phi) {
+      const double zz = std::clamp(z, -1.0, 1.0), r = std::sqrt(1 - zz * zz);
+      add(Vec3<double>(r * std::cos(phi), r * std::sin(phi), zz));
+    };
+    for (const double offset : {0.0, 1e-15, -1e-15, 1e-9, -1e-9, 1e-7, -1e-7, 1e-6, -1e-6, 1e-5, -1e-5, 1e-3, -1e-3}) {
+      for (int k = 0; k <= b.rows(); ++k) add_param(b.z_max() - (k + offset) * dz, 0.3 + offset);
+      for (int j = 0; j < b.cols(); ++j) add_param(0.37 - 0.2 * (j % 5), (j + offset) * dphi);
+    }
+    std::vector<int> bins(ends.size());
+    walk_lanes::bin_escaped(fast, ends.data(), int(ends.size()), bins.data());
+    for (std::size_t i = 0; i < ends.size(); ++i) {
+      const Vec3<double> w(ends[i].x, ends[i].y, ends[i].z);
+      ASSERT_EQ(bins[i], ends[i].kind == 0 ? b.bin_of(w).value_or(-1) : -1) << "rows " << rows << " w " << w.transpose();
+    }
+  }
 }
 
 TEST(SmithWalkLanes, RefusesWhatItDoesNotCover) {
