@@ -15,17 +15,20 @@
 // supplemental code of Heitz, Hanika, d'Eon, Dachsbacher 2016 on the same configuration, one thread, as a
 // reference point: its Microsurface::sample per path (float, std::mt19937, its conductor is the mirror F = 1,
 // no order cap), with no binning or reduction, so it times the walk alone.
-// BM_WalkKernels/material:<0 mirror|1 dielectric|2 gold conductor>/kernel:<0 scalar|1 lanes>: the same run on 1 thread with
+// BM_WalkKernels/material:<0 mirror|1 dielectric|2 gold conductor>/kernel:<0 scalar|1 lanes|2 lanes on AVX2>: the same run on 1 thread with
 // the kernel chosen (smith_walk.h WalkKernel), both kernels in one binary; scripts/bench_walk_kernels.py runs
 // them in alternating rounds (docs/records/walk-speed.md, "Third round").
 // scripts/bench_walk_side_by_side.py runs the BM_WalkPaths of two builds alternately (docs/records/walk-speed.md).
 //   build-*/bench_walk --benchmark_repetitions=3
 #include "scatter/smith_walk.h"
+#include "stats/direction_binner.h"
 
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <chrono>
 #include <string>
+#include <vector>
 
 using namespace microsim;
 
@@ -64,6 +67,13 @@ void BM_WalkPaths(benchmark::State& state) {
 void BM_WalkKernels(benchmark::State& state) {
   const ScatterOptions o = bench_options(int(state.range(0)), 1, 64 * kPathsPerBlock);
   const WalkKernel kernel = state.range(1) == 0 ? WalkKernel::scalar : WalkKernel::lanes;
+  // kernel 2: the lanes on AVX2 (4 lanes of doubles) where the CPU has better (Highway's choice is global).
+  const std::vector<std::string> targets = direction_binner_targets();
+  if (state.range(1) == 2 && std::find(targets.begin(), targets.end(), "AVX2") == targets.end()) {
+    state.SkipWithError("AVX2 not available");
+    return;
+  }
+  if (state.range(1) == 2) use_direction_binner_target("AVX2");
   for (auto _ : state) {
     const ScatterHistogram h = smith_walk_scatter(kSurface, o, kernel);
     benchmark::DoNotOptimize(h.paths());
@@ -73,6 +83,7 @@ void BM_WalkKernels(benchmark::State& state) {
   const char* names[] = {"GGX 0.5 mirror, ", "GGX 0.5 dielectric 1.5, ", "GGX 0.5 gold, "};
   state.SetLabel(std::string(names[state.range(0)]) +
                  (kernel == WalkKernel::scalar ? "scalar" : "lanes " + smith_walk_lanes_target()));
+  use_direction_binner_target("");
 }
 
 void BM_WalkOrder2(benchmark::State& state) {
@@ -104,7 +115,7 @@ BENCHMARK(BM_WalkPaths)
     ->MeasureProcessCPUTime()
     ->MinTime(0.5);
 BENCHMARK(BM_WalkKernels)
-    ->ArgsProduct({{0, 1, 2}, {0, 1}})
+    ->ArgsProduct({{0, 1, 2}, {0, 1, 2}})
     ->ArgNames({"material", "kernel"})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()

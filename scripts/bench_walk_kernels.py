@@ -1,11 +1,11 @@
 #!/usr/bin/python3
 """The Smith walk's two kernels side by side in one bench_walk binary (docs/records/walk-speed.md, "Third round").
 
-Runs BM_WalkKernels (1 thread: the scalar walk, kernel 0, and the walk in SIMD lanes, kernel 1) for each
-material, the kernels one after the other, the first one swapping from round to round, ROUNDS times, and
-prints per round and as medians the paths per CPU second (the process's CPU time: on a loaded machine the
-wall clock also counts the time others hold the core), the ratio lanes / scalar per round, and the load
-average before and after.
+Runs BM_WalkKernels (1 thread: the scalar walk, kernel 0; the walk in SIMD lanes on the CPU's best target,
+kernel 1, and on AVX2, kernel 2) for each material, the kernels one after the other, their order reversed
+from round to round, ROUNDS times, and prints per round and as medians the paths per CPU second (the
+process's CPU time: on a loaded machine the wall clock also counts the time others hold the core), the
+ratios lanes / scalar per round, and the load average before and after.
 
   scripts/bench_walk_kernels.py build/bench_walk [--rounds 7] [--min-time 0.5]
 """
@@ -18,7 +18,7 @@ import sys
 
 PATHS_PER_ITERATION = 64 * 4096  # BM_WalkKernels: 64 blocks of kPathsPerBlock paths
 MATERIALS = {0: "mirror", 1: "dielectric 1.5", 2: "gold (3 channels)"}
-KERNELS = {0: "scalar", 1: "lanes"}
+KERNELS = {0: "scalar", 1: "lanes", 2: "lanes AVX2"}
 
 
 def run_once(binary, material, kernel, min_time):
@@ -41,9 +41,10 @@ def main():
     load_before = os.getloadavg()
     cpu = {(m, k): [] for m in MATERIALS for k in KERNELS}
     ratios = {m: [] for m in MATERIALS}
+    ratios_avx2 = {m: [] for m in MATERIALS}
     labels = {}
     for r in range(args.rounds):
-        order = [0, 1] if r % 2 == 0 else [1, 0]
+        order = list(KERNELS) if r % 2 == 0 else list(reversed(KERNELS))
         for m, name in MATERIALS.items():
             got = {}
             for k in order:
@@ -52,19 +53,22 @@ def main():
                 cpu[(m, k)].append(rate)
                 labels[(m, k)] = label
             ratios[m].append(got[1] / got[0])
-            print(f"round {r + 1} {name}: scalar {got[0] / 1e6:.2f} lanes {got[1] / 1e6:.2f} M paths per CPU s, "
-                  f"ratio {ratios[m][-1]:.2f}", flush=True)
+            ratios_avx2[m].append(got[2] / got[0])
+            print(f"round {r + 1} {name}: scalar {got[0] / 1e6:.2f} lanes {got[1] / 1e6:.2f} lanes AVX2 "
+                  f"{got[2] / 1e6:.2f} M paths per CPU s, ratios {ratios[m][-1]:.2f} {ratios_avx2[m][-1]:.2f}",
+                  flush=True)
     load_after = os.getloadavg()
     print(f"\nload average (1, 5, 15 min) before {load_before[0]:.1f} {load_before[1]:.1f} {load_before[2]:.1f}, "
           f"after {load_after[0]:.1f} {load_after[1]:.1f} {load_after[2]:.1f}")
     print(f"medians over {args.rounds} rounds (M paths per CPU second, 1 thread; ns per path):")
-    print("| material | scalar | lanes | lanes / scalar | range over rounds | lanes' label |")
-    print("|---|---|---|---|---|---|")
+    print("| material | scalar | lanes | lanes / scalar (range) | lanes AVX2 | AVX2 / scalar (range) | lanes' label |")
+    print("|---|---|---|---|---|---|---|")
     for m, name in MATERIALS.items():
-        s, l = statistics.median(cpu[(m, 0)]), statistics.median(cpu[(m, 1)])
+        s, l, a = (statistics.median(cpu[(m, k)]) for k in KERNELS)
         print(f"| {name} | {s / 1e6:.2f} ({1e9 / s:.0f} ns) | {l / 1e6:.2f} ({1e9 / l:.0f} ns) | "
-              f"**{statistics.median(ratios[m]):.2f}x** | {min(ratios[m]):.2f}-{max(ratios[m]):.2f}x | "
-              f"{labels[(m, 1)]} |")
+              f"**{statistics.median(ratios[m]):.2f}x** ({min(ratios[m]):.2f}-{max(ratios[m]):.2f}) | "
+              f"{a / 1e6:.2f} ({1e9 / a:.0f} ns) | {statistics.median(ratios_avx2[m]):.2f}x "
+              f"({min(ratios_avx2[m]):.2f}-{max(ratios_avx2[m]):.2f}) | {labels[(m, 1)]} |")
     return 0
 
 
