@@ -23,7 +23,7 @@ KERNELS = {0: "scalar", 1: "lanes", 2: "lanes AVX2"}
 
 def run_once(binary, material, kernel, min_time):
     """(paths per CPU second, paths per wall second, label) of one run of BM_WalkKernels."""
-    name = f"BM_WalkKernels/material:{material}/kernel:{kernel}$"
+    name = f"BM_WalkKernels/material:{material}/kernel:{kernel}/"
     out = subprocess.run([binary, f"--benchmark_filter={name}", f"--benchmark_min_time={min_time}",
                           "--benchmark_format=json"], check=True, capture_output=True, text=True).stdout
     b = json.loads(out)["benchmarks"][0]

@@ -15,6 +15,7 @@
 #include <hwy/targets.h>
 
 #include <algorithm>
+#include <bit>
 #include <cstddef>
 #include <cstdint>
 #include <stdexcept>
@@ -44,7 +45,6 @@ struct Lanes {
   alignas(64) std::uint64_t counter[kMaxLanes];                      // the path's stream: draws so far
   alignas(64) double weight[Material::kMaxChannels][kMaxLanes];      // conductor only (else 1)
   std::uint64_t path[kMaxLanes];
-  bool live[kMaxLanes];
 };
 
 }  // namespace microsim::walk_lanes
@@ -187,8 +187,9 @@ HWY_INLINE void reflecting_event(D d, const LaneWalk& walk, Lanes& st, std::size
 // numbers from each path's stream, the next meeting's height from g = ln C1(h) (escape upward iff
 // ln U <= Lambda g, else g' = g - ln U / Lambda; downward g' = g + ln U / (1 + Lambda); smith_walk.cpp states
 // the rules), then, for the lanes that meet the surface below the order cap, the normal and the facet event.
-// Writes each lane's outcome to st.end; a lane that ended keeps its direction and weights.
-void step_vector(const LaneWalk& walk, Lanes& st, std::size_t first, std::uint64_t block_key) {
+// Writes each lane's outcome to st.end (a lane that ended keeps its direction and weights) and returns the
+// lanes that ended as bits (bit i: lane first + i).
+std::uint64_t step_vector(const LaneWalk& walk, Lanes& st, std::size_t first, std::uint64_t block_key) {
   const D d;
   const DU du;
   const VU key = hn::Set(du, block_key), counter = hn::Load(du, st.counter + first);
@@ -228,6 +229,11 @@ void step_vector(const LaneWalk& walk, Lanes& st, std::size_t first, std::uint64
   const V end = hn::IfThenElse(escaped, hn::Set(d, kEscaped),
                                hn::IfThenElse(capped, hn::Set(d, kUnfinished), hn::IfThenElseZero(lost, hn::Set(d, kLost))));
   hn::Store(end, d, st.end + first);
+  std::uint64_t bits = 0;  // StoreMaskBits writes (lanes + 7) / 8 <= 4 bytes, little-endian bit order
+  std::uint8_t bytes[8] = {};
+  hn::StoreMaskBits(d, hn::Not(meets), bytes);
+  for (std::size_t b = 0; b < (hn::Lanes(d) + 7) / 8; ++b) bits |= std::uint64_t(bytes[b]) << (8 * b);
+  return bits;
 }
 
 // The number of lanes of this target (at most kMaxLanes).
@@ -262,7 +268,6 @@ void start(const LaneWalk& walk, Lanes& st, std::size_t i, std::uint64_t j) {
   for (int c = 0; c < walk.channels; ++c) st.weight[c][i] = 1;
   st.path[i] = j;
   st.counter[i] = j << 32;
-  st.live[i] = true;
 }
 
 // A lane with no path left: an upward ray above the surface, which escapes at once and is never recorded.
@@ -271,7 +276,6 @@ void park(Lanes& st, std::size_t i) {
   st.wz[i] = 1;
   st.g[i] = st.events[i] = st.inside[i] = 0;
   st.counter[i] = 0;
-  st.live[i] = false;
 }
 
 // Lane i's path ended: its end and weights at its index (the direction in the global frame).
@@ -293,26 +297,25 @@ void walk_block(const LaneWalk& walk, std::uint64_t block, std::uint64_t paths, 
   // The block's key: the first draw of CounterRng(seed, block), a function of (seed, block) only.
   const std::uint64_t key = CounterRng(walk.seed, block).next_u64();
   Lanes st;
-  std::uint64_t next = 0;
-  std::size_t live = 0;
+  std::uint64_t next = 0, live = 0;  // live: bit i for a lane holding a path
   for (std::size_t i = 0; i < lanes; ++i) {
     if (next < paths) {
       start(walk, st, i, next++);
-      ++live;
+      live |= std::uint64_t(1) << i;
     } else {
       park(st, i);
     }
   }
-  while (live > 0) {
-    step(walk, st, 0, key);
-    for (std::size_t i = 0; i < lanes; ++i) {
-      if (!st.live[i] || st.end[i] == kGoesOn) continue;
+  while (live != 0) {
+    // The lanes that ended, one after another (no test of the lanes that go on).
+    for (std::uint64_t ended = step(walk, st, 0, key) & live; ended != 0; ended &= ended - 1) {
+      const auto i = std::size_t(std::countr_zero(ended));
       record(walk, st, i, ends, weights);
       if (next < paths) {
         start(walk, st, i, next++);
       } else {
         park(st, i);
-        --live;
+        live &= ~(std::uint64_t(1) << i);
       }
     }
   }
