@@ -83,6 +83,29 @@ HWY_INLINE V lambda_ggx(D d, V sx, V sy, V wz, V t) {
   return hn::IfThenZeroElse(a2 == hn::Zero(d), hn::Div(a2, hn::Mul(hn::Set(d, 2.0), hn::Mul(z, hn::Add(t, z)))));
 }
 
+// (cos 2 pi u, sin 2 pi u) for u in [0, 1), by quadrant: 4u = k + f with k = round(4u) and f in [-1/2, 1/2]
+// exact (4u and k share u's binary scale), so 2 pi u = k pi/2 + x with x = f pi/2 in [-pi/4, pi/4], rounded
+// once; sin x and cos x by their Taylor series to x^15 and x^16 (the next terms are below 5e-17 on that
+// interval), then the quarter turns k: (c, s), (-s, c), (-c, -s), (s, -c). One reduction for both, where
+// hwy/contrib/math's Sin and Cos reduce twice.
+HWY_INLINE void sincos_two_pi(D d, V u, V& cos_phi, V& sin_phi) {
+  const V t = hn::Mul(hn::Set(d, 4.0), u), k = hn::Round(t);
+  const V x = hn::Mul(hn::Sub(t, k), hn::Set(d, kPi<double> / 2)), x2 = hn::Mul(x, x);
+  // 1 / n! for n = 1 .. 16.
+  constexpr double f[17] = {1.0, 1.0, 1.0 / 2, 1.0 / 6, 1.0 / 24, 1.0 / 120, 1.0 / 720, 1.0 / 5040, 1.0 / 40320,
+                            1.0 / 362880, 1.0 / 3628800, 1.0 / 39916800, 1.0 / 479001600, 1.0 / 6227020800.0,
+                            1.0 / 87178291200.0, 1.0 / 1307674368000.0, 1.0 / 20922789888000.0};
+  V ps = hn::Set(d, -f[15]), pc = hn::Set(d, f[16]);  // sin x = x sum (-1)^i x^2i / (2i+1)!, cos alike
+  for (int i = 6; i >= 0; --i) ps = hn::MulAdd(ps, x2, hn::Set(d, (i % 2 ? -1.0 : 1.0) * f[2 * i + 1]));
+  for (int i = 7; i >= 0; --i) pc = hn::MulAdd(pc, x2, hn::Set(d, (i % 2 ? -1.0 : 1.0) * f[2 * i]));
+  const V s = hn::Mul(x, ps), c = pc;
+  const M q1 = k == hn::Set(d, 1.0), q2 = k == hn::Set(d, 2.0), q3 = k == hn::Set(d, 3.0);
+  const M swap = hn::Or(q1, q3);
+  const V a = hn::IfThenElse(swap, s, c), b = hn::IfThenElse(swap, c, s);
+  cos_phi = hn::IfThenElse(hn::Or(q1, q2), hn::Neg(a), a);
+  sin_phi = hn::IfThenElse(hn::Or(q2, q3), hn::Neg(b), b);
+}
+
 // The microfacet normal a ray travelling in w meets: a sample of the upper visible normals of v = -w
 // (upper_vndf.h). Stretched to alpha = 1 (Heitz 2018, "Sampling the GGX Distribution of Visible Normals",
 // JCGT 7(4), sec. 4, step 1: Vh = normalize(ax vx, ay vy, vz)), the visible normals of the hemisphere
@@ -95,10 +118,11 @@ HWY_INLINE V lambda_ggx(D d, V sx, V sy, V wz, V t) {
 HWY_INLINE void visible_normal(D d, V ax, V ay, V sx, V sy, V wz, V t, V u1, V u2, V& mx, V& my, V& mz) {
   const V one = hn::Set(d, 1.0), inv_t = hn::Div(one, t);
   const V vx = hn::Neg(hn::Mul(sx, inv_t)), vy = hn::Neg(hn::Mul(sy, inv_t)), vz = hn::Neg(hn::Mul(wz, inv_t));
-  const V phi = hn::Mul(hn::Set(d, 2 * kPi<double>), u1);
+  V cos_phi, sin_phi;
+  sincos_two_pi(d, u1, cos_phi, sin_phi);
   const V cz = hn::MulSub(hn::Sub(one, u2), hn::Add(one, vz), vz);  // uniform in (-vz, 1]
   const V sin_theta = hn::Sqrt(hn::Max(hn::Zero(d), hn::NegMulAdd(cz, cz, one)));
-  const V hx = hn::MulAdd(sin_theta, hn::Cos(d, phi), vx), hy = hn::MulAdd(sin_theta, hn::Sin(d, phi), vy);
+  const V hx = hn::MulAdd(sin_theta, cos_phi, vx), hy = hn::MulAdd(sin_theta, sin_phi, vy);
   const V hz = hn::Add(cz, vz);
   const V nx = hn::Mul(ax, hx), ny = hn::Mul(ay, hy);
   const V inv_len = hn::Div(one, hn::Sqrt(hn::MulAdd(nx, nx, hn::MulAdd(ny, ny, hn::Mul(hz, hz)))));
@@ -237,6 +261,19 @@ std::uint64_t step_vector(const LaneWalk& walk, Lanes& st, std::size_t first, st
   return bits;
 }
 
+// sincos_two_pi over whole vectors of u (tests): returns how many it did (a multiple of the vector width).
+std::size_t sincos_vectors(const double* u, std::size_t n, double* c, double* s) {
+  const D d;
+  std::size_t i = 0;
+  for (; i + hn::Lanes(d) <= n; i += hn::Lanes(d)) {
+    V cv, sv;
+    sincos_two_pi(d, hn::LoadU(d, u + i), cv, sv);
+    hn::StoreU(cv, d, c + i);
+    hn::StoreU(sv, d, s + i);
+  }
+  return i;
+}
+
 // The number of lanes of this target (at most kMaxLanes).
 std::size_t lanes() { return hn::Lanes(D()); }
 std::int64_t target_bit() { return HWY_TARGET; }
@@ -250,6 +287,7 @@ namespace microsim::walk_lanes {
 
 HWY_EXPORT(step_vector);
 HWY_EXPORT(lanes);
+HWY_EXPORT(sincos_vectors);
 HWY_EXPORT(target_bit);
 
 namespace {
@@ -341,6 +379,10 @@ void bin_escaped(const FastDirectionBinner& bins, const LaneEnd* ends, int n, in
       else if (!bins.specialised_for_floats() || bin == FastDirectionBinner::kNeedsExact) bin = bins(Vec3<double>(e.x, e.y, e.z));
     }
   }
+}
+
+std::size_t sincos_two_pi(const double* u, std::size_t n, double* c, double* s) {
+  return HWY_DYNAMIC_DISPATCH(sincos_vectors)(u, n, c, s);
 }
 
 std::string walk_lanes_target() { return hwy::TargetName(HWY_DYNAMIC_DISPATCH(target_bit)()); }

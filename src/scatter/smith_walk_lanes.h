@@ -58,6 +58,10 @@ void walk_block(const LaneWalk& walk, std::uint64_t block, std::uint64_t paths, 
 // already hold 16 times pass 1's own float errors. Binnings without a pass 1 use operator() throughout.
 void bin_escaped(const FastDirectionBinner& bins, const LaneEnd* ends, int n, int* out);
 
+// Tests: the kernel's (cos 2 pi u, sin 2 pi u) for the first k u[i], k the largest multiple of the vector
+// width <= n (returned).
+std::size_t sincos_two_pi(const double* u, std::size_t n, double* c, double* s);
+
 // The Highway target walk_block runs ("AVX3", "AVX2", "SSE4", ...).
 std::string walk_lanes_target();
 

@@ -7,7 +7,8 @@
 // the weight left at the order cap, each as a z-score of the difference over its standard error, summed in squares (chi-square with
 // that many degrees of freedom); and the directions of orders 1, 2 and of every order, by the weighted
 // homogeneity test (stats/chi2.h, Gagunashvili 2010: the same distribution over the bins).
-// The exits' batch binning (walk_lanes::bin_escaped) equals DirectionBinning::bin_of on random directions and
+// The kernel's sincos of 2 pi u equals cos and sin in long double to 3e-16. The exits' batch binning
+// (walk_lanes::bin_escaped) equals DirectionBinning::bin_of on random directions and
 // on directions at and around every row and column edge (offsets from 0 to 1e-3 bin widths).
 // Also: the lanes kernel gives the same histogram for any thread count and shards, names itself in the
 // measurement string, and refuses what it does not cover; every SIMD target the CPU runs agrees with the
@@ -202,6 +203,24 @@ TEST(SmithWalkLanes, BatchBinningOfTheExitsIsBinOf) {
       const Vec3<double> w(ends[i].x, ends[i].y, ends[i].z);
       ASSERT_EQ(bins[i], ends[i].kind == 0 ? b.bin_of(w).value_or(-1) : -1) << "rows " << rows << " w " << w.transpose();
     }
+  }
+}
+
+TEST(SmithWalkLanes, SinCosOfTwoPiUAreExactToRounding) {
+  std::mt19937_64 rng(3);
+  std::vector<double> u;
+  for (int i = 0; i < 100000; ++i) u.push_back(double(rng() >> 11) * 0x1.0p-53);
+  for (int k = 0; k < 8; ++k) {
+    for (const double e : {0.0, 0x1.0p-53, -0x1.0p-53, 1e-9, -1e-9}) u.push_back(std::clamp(k / 8.0 + e, 0.0, 1 - 0x1.0p-53));
+  }
+  std::vector<double> c(u.size()), s(u.size());
+  const std::size_t done = walk_lanes::sincos_two_pi(u.data(), u.size(), c.data(), s.data());
+  ASSERT_GT(done, u.size() - 64);
+  for (std::size_t i = 0; i < done; ++i) {
+    // In long double: 2 pi u rounded to double would itself be off by up to 4.4e-16.
+    const long double phi = 2 * 3.141592653589793238462643383279503L * (long double)u[i];
+    ASSERT_NEAR(c[i], double(std::cos(phi)), 3e-16) << "u " << u[i];
+    ASSERT_NEAR(s[i], double(std::sin(phi)), 3e-16) << "u " << u[i];
   }
 }
 
