@@ -167,17 +167,20 @@ struct Event {
 // refraction changes side: the direction -t, ln C1 -> ln(1 - C1) (Heitz et al. 2016 sec. 5.2).
 HWY_INLINE void dielectric_event(D d, const LaneWalk& walk, M meets, V w_m, V mx, V my, V mz, V u3, Event& e) {
   const V zero = hn::Zero(d), one = hn::Set(d, 1.0);
-  const V eta = hn::IfThenElse(e.inside > hn::Set(d, 0.5), hn::Set(d, 1 / walk.eta), hn::Set(d, walk.eta));
+  const M in = e.inside > hn::Set(d, 0.5);  // eta and 1 / eta of this side, without a division
+  const V eta = hn::IfThenElse(in, hn::Set(d, 1 / walk.eta), hn::Set(d, walk.eta));
+  const V inv_eta = hn::IfThenElse(in, hn::Set(d, walk.eta), hn::Set(d, 1 / walk.eta));
   const V cos_i = hn::Min(hn::Max(hn::Neg(w_m), zero), one);
-  const V sin2_t = hn::Div(hn::NegMulAdd(cos_i, cos_i, one), hn::Mul(eta, eta));
+  const V sin2_t = hn::Mul(hn::NegMulAdd(cos_i, cos_i, one), hn::Mul(inv_eta, inv_eta));
   const M tir = sin2_t >= one;
   const V cos_t = hn::Sqrt(hn::Max(zero, hn::Sub(one, sin2_t)));
   const V e_ci = hn::Mul(eta, cos_i), e_ct = hn::Mul(eta, cos_t);
-  const V r_parl = hn::Div(hn::Sub(e_ci, cos_t), hn::Add(e_ci, cos_t));
-  const V r_perp = hn::Div(hn::Sub(cos_i, e_ct), hn::Add(cos_i, e_ct));
-  const V f = hn::Mul(hn::Set(d, 0.5), hn::MulAdd(r_parl, r_parl, hn::Mul(r_perp, r_perp)));
+  // F = (r_parl^2 + r_perp^2) / 2 with r_parl = a / b, r_perp = c / e, over one division.
+  const V a = hn::Sub(e_ci, cos_t), b = hn::Add(e_ci, cos_t), c = hn::Sub(cos_i, e_ct), e_ = hn::Add(cos_i, e_ct);
+  const V ae = hn::Mul(a, e_), cb = hn::Mul(c, b), be = hn::Mul(b, e_);
+  const V f = hn::Div(hn::Mul(hn::Set(d, 0.5), hn::MulAdd(ae, ae, hn::Mul(cb, cb))), hn::Mul(be, be));
   const M refracts = hn::And(hn::And(meets, cos_i > zero), hn::AndNot(tir, u3 >= f));
-  const V two_w_m = hn::Add(w_m, w_m), inv_eta = hn::Div(one, eta);
+  const V two_w_m = hn::Add(w_m, w_m);
   const V k = hn::Sub(hn::Mul(cos_i, inv_eta), cos_t);  // t = w / eta + k m
   const V tx = hn::MulAdd(e.wx, inv_eta, hn::Mul(k, mx)), ty = hn::MulAdd(e.wy, inv_eta, hn::Mul(k, my));
   const V tz = hn::MulAdd(e.wz, inv_eta, hn::Mul(k, mz));
