@@ -27,6 +27,7 @@
 #include <cmath>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace microsim {
@@ -163,20 +164,26 @@ TEST(SmithWalkLanes, NegativeControlAWrongAlphaIsRejected) {
 
 TEST(SmithWalkLanes, ThreadsAndShardsDoNotChangeTheResult) {
   const SmithMicrosurface s{NdfKind::ggx, 0.4, 0.7};
-  ScatterOptions o = options(direction_from_degrees(50.0, 10.0), kGold, 5 * kPathsPerBlock + 17, 3);
-  o.run.threads = 1;
-  const ScatterHistogram one = smith_walk_scatter(s, o, WalkKernel::lanes);
-  o.run.threads = 2;
-  EXPECT_TRUE(smith_walk_scatter(s, o, WalkKernel::lanes) == one);
-  ScatterOptions first = o, second = o;
-  first.blocks = BlockRange{0, 2};
-  second.blocks = BlockRange{2, 6};
-  ScatterHistogram merged = smith_walk_scatter(s, first, WalkKernel::lanes);
-  merged.merge(smith_walk_scatter(s, second, WalkKernel::lanes));
-  merged.provenance.blocks = one.provenance.blocks;
-  EXPECT_TRUE(merged == one);
-  EXPECT_NE(one.provenance.measurement.find("kernel=lanes"), std::string::npos);
-  EXPECT_EQ(smith_walk_scatter(s, o, WalkKernel::scalar).provenance.measurement.find("kernel="), std::string::npos);
+  for (const auto& [wi, material] : {std::pair{direction_from_degrees(50.0, 10.0), kGold},
+                                     std::pair{direction_from_degrees(130.0, 10.0), Material::dielectric(1.5)}}) {
+    ScatterOptions o = options(wi, material, 5 * kPathsPerBlock + 17, 3);
+    o.run.threads = 1;
+    const ScatterHistogram one = smith_walk_scatter(s, o, WalkKernel::lanes);
+    o.run.threads = 2;
+    EXPECT_TRUE(smith_walk_scatter(s, o, WalkKernel::lanes) == one) << material.describe();
+    ScatterOptions first = o, second = o;
+    first.blocks = BlockRange{0, 2};
+    second.blocks = BlockRange{2, 6};
+    ScatterHistogram merged = smith_walk_scatter(s, first, WalkKernel::lanes);
+    merged.merge(smith_walk_scatter(s, second, WalkKernel::lanes));
+    merged.provenance.blocks = one.provenance.blocks;
+    EXPECT_TRUE(merged == one) << material.describe();
+    // Negative control: another seed is another run.
+    o.seed = 4;
+    EXPECT_FALSE(smith_walk_scatter(s, o, WalkKernel::lanes) == one) << material.describe();
+    EXPECT_NE(one.provenance.measurement.find("kernel=lanes"), std::string::npos);
+    EXPECT_EQ(smith_walk_scatter(s, o, WalkKernel::scalar).provenance.measurement.find("kernel="), std::string::npos);
+  }
 }
 
 TEST(SmithWalkLanes, BatchBinningOfTheExitsIsBinOf) {
