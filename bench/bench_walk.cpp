@@ -15,22 +15,35 @@
 // supplemental code of Heitz, Hanika, d'Eon, Dachsbacher 2016 on the same configuration, one thread, as a
 // reference point: its Microsurface::sample per path (float, std::mt19937, its conductor is the mirror F = 1,
 // no order cap), with no binning or reduction, so it times the walk alone.
+// BM_WalkKernels/material:<0 mirror|1 dielectric|2 gold conductor>/kernel:<0 scalar|1 lanes|2 lanes on AVX2>: the same run on 1 thread with
+// the kernel chosen (smith_walk.h WalkKernel), both kernels in one binary; scripts/bench_walk_kernels.py runs
+// them in alternating rounds (docs/records/walk-speed.md, "Third round").
 // scripts/bench_walk_side_by_side.py runs the BM_WalkPaths of two builds alternately (docs/records/walk-speed.md).
 //   build-*/bench_walk --benchmark_repetitions=3
 #include "scatter/smith_walk.h"
+#include "stats/direction_binner.h"
 
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <chrono>
+#include <string>
+#include <vector>
 
 using namespace microsim;
 
 namespace {
 
+Material bench_material(int material) {
+  if (material == 0) return Material::mirror();
+  if (material == 1) return Material::dielectric(1.5);
+  return Material::conductor({{0.18, 3.4}, {0.42, 2.35}, {1.37, 1.77}});  // gold, 3 channels
+}
+
 ScatterOptions bench_options(int material, int threads, std::uint64_t paths) {
   ScatterOptions o;
   o.wi = direction_from_degrees(60.0, 0.0);
-  o.material = material == 0 ? Material::mirror() : Material::dielectric(1.5);
+  o.material = bench_material(material);
   o.paths = paths;
   o.seed = 2016;
   o.rows = 16;
@@ -49,6 +62,28 @@ void BM_WalkPaths(benchmark::State& state) {
   state.counters["paths_per_second"] =
       benchmark::Counter(double(state.iterations()) * double(o.paths), benchmark::Counter::kIsRate);
   state.SetLabel(state.range(0) == 0 ? "GGX 0.5 mirror" : "GGX 0.5 dielectric 1.5");
+}
+
+void BM_WalkKernels(benchmark::State& state) {
+  const ScatterOptions o = bench_options(int(state.range(0)), 1, 64 * kPathsPerBlock);
+  const WalkKernel kernel = state.range(1) == 0 ? WalkKernel::scalar : WalkKernel::lanes;
+  // kernel 2: the lanes on AVX2 (4 lanes of doubles) where the CPU has better (Highway's choice is global).
+  const std::vector<std::string> targets = direction_binner_targets();
+  if (state.range(1) == 2 && std::find(targets.begin(), targets.end(), "AVX2") == targets.end()) {
+    state.SkipWithError("AVX2 not available");
+    return;
+  }
+  if (state.range(1) == 2) use_direction_binner_target("AVX2");
+  for (auto _ : state) {
+    const ScatterHistogram h = smith_walk_scatter(kSurface, o, kernel);
+    benchmark::DoNotOptimize(h.paths());
+  }
+  state.counters["paths_per_second"] =
+      benchmark::Counter(double(state.iterations()) * double(o.paths), benchmark::Counter::kIsRate);
+  const char* names[] = {"GGX 0.5 mirror, ", "GGX 0.5 dielectric 1.5, ", "GGX 0.5 gold, "};
+  state.SetLabel(std::string(names[state.range(0)]) +
+                 (kernel == WalkKernel::scalar ? "scalar" : "lanes " + smith_walk_lanes_target()));
+  use_direction_binner_target("");
 }
 
 void BM_WalkOrder2(benchmark::State& state) {
@@ -75,6 +110,13 @@ void BM_WalkOrder2(benchmark::State& state) {
 BENCHMARK(BM_WalkPaths)
     ->ArgsProduct({{0, 1}, {1, 2}})
     ->ArgNames({"material", "threads"})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->MeasureProcessCPUTime()
+    ->MinTime(0.5);
+BENCHMARK(BM_WalkKernels)
+    ->ArgsProduct({{0, 1, 2}, {0, 1, 2}})
+    ->ArgNames({"material", "kernel"})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
     ->MeasureProcessCPUTime()

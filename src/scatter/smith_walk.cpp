@@ -8,6 +8,7 @@
 #include "microfacet/ggx.h"
 #include "microfacet/roughness.h"
 #include "microfacet/upper_vndf.h"
+#include "scatter/smith_walk_lanes.h"
 #include "stats/direction_binner.h"
 
 #include <boost/math/special_functions/erf.hpp>
@@ -348,6 +349,66 @@ ScatterHistogram run_walk(const Ndf& ndf, const SmithMicrosurface& s, const Scat
   return result;
 }
 
+// ---- the walk in SIMD lanes (smith_walk_lanes.h) ------------------------------------------------------------
+
+walk_lanes::LaneWalk lane_walk(const SmithMicrosurface& s, const ScatterOptions& o) {
+  walk_lanes::LaneWalk w;
+  w.alpha_x = s.alpha_x;
+  w.alpha_y = s.alpha_y;
+  w.wi[0] = o.wi.x();
+  w.wi[1] = o.wi.y();
+  w.wi[2] = o.wi.z();
+  w.max_order = o.max_order;
+  w.channels = o.material.channels();
+  w.conductor = o.material.kind() == MaterialKind::conductor;
+  w.dielectric = o.material.kind() == MaterialKind::dielectric;
+  if (w.dielectric) w.eta = o.material.eta();
+  for (int c = 0; w.conductor && c < w.channels; ++c) {
+    w.n[std::size_t(c)] = o.material.ior(c).real();
+    w.k[std::size_t(c)] = o.material.ior(c).imag();
+  }
+  w.seed = o.seed;
+  return w;
+}
+
+// The block's paths walked in lanes, their ends binned in path order (the same reduction as run_walk's).
+BlockEnds walk_block_lanes(const walk_lanes::LaneWalk& walk, const FastDirectionBinner& bins, std::uint64_t block,
+                           std::uint64_t n) {
+  thread_local std::vector<walk_lanes::LaneEnd> lane_ends;  // reused: a block's scratch, not its result
+  thread_local std::vector<int> lane_bins;
+  lane_ends.resize(std::size_t(n));
+  lane_bins.resize(std::size_t(n));
+  BlockEnds ends;
+  ends.weights.resize(std::size_t(n) * std::size_t(walk.channels));
+  walk_lanes::walk_block(walk, block, n, lane_ends.data(), ends.weights.data());
+  walk_lanes::bin_escaped(bins, lane_ends.data(), int(n), lane_bins.data());
+  ends.ends.reserve(std::size_t(n));
+  for (std::size_t i = 0; i < lane_ends.size(); ++i) {
+    const walk_lanes::LaneEnd& e = lane_ends[i];
+    const Vec3<double> direction(e.x, e.y, e.z);
+    if (e.kind == 0) ends.ends.push_back({WalkEnd::escaped, e.order, lane_bins[i], direction});
+    else ends.ends.push_back({e.kind == 1 ? WalkEnd::unfinished : WalkEnd::lost, e.order, -1});
+  }
+  return ends;
+}
+
+ScatterHistogram run_walk_lanes(const SmithMicrosurface& s, const ScatterOptions& o) {
+  ScatterHistogram result =
+      empty_scatter_histogram(o, std::string(kSmithWalkProducer), walk_measurement(s, o) + " kernel=lanes");
+  const walk_lanes::LaneWalk walk = lane_walk(s, o);
+  const DirectionBinning binning = DirectionBinning::hemispheres(o.rows);
+  const FastDirectionBinner bins(binning);
+  const BlockPlan plan{o.paths, kPathsPerBlock};
+  const int channels = o.material.channels();
+  const BlockRunStatus status = for_each_block(
+      result.provenance.blocks, o.run, {"smith walk", plan, walk_blocks_in_flight(channels)},
+      [&](std::uint64_t block) { return walk_block_lanes(walk, bins, block, plan.units_in(block)); },
+      [&](BlockEnds&& ends, std::uint64_t block) { add_ends(result, ends, plan.units_in(block), channels); });
+  result.provenance.blocks = status.done;
+  result.partial = status.cancelled;
+  return result;
+}
+
 // ---- the walk as a sampler -------------------------------------------------------------------------------
 
 template <class Ndf>
@@ -492,6 +553,25 @@ SmithWalkEval smith_walk_eval(const SmithMicrosurface& surface, const ScatterOpt
 ScatterHistogram smith_walk_scatter(const SmithMicrosurface& surface, const ScatterOptions& options) {
   return detail::smith_walk_scatter(surface, options, WalkFault::none);
 }
+
+bool smith_walk_lanes_support(const SmithMicrosurface& surface, const ScatterOptions& options) {
+  const MaterialKind kind = options.material.kind();
+  return surface.ndf == NdfKind::ggx && surface.heights == HeightDistribution::uniform &&
+         kind != MaterialKind::lambertian;
+}
+
+ScatterHistogram smith_walk_scatter(const SmithMicrosurface& surface, const ScatterOptions& options, WalkKernel kernel) {
+  if (kernel == WalkKernel::scalar) return smith_walk_scatter(surface, options);
+  check_walk(surface, options);
+  if (!smith_walk_lanes_support(surface, options)) {
+    throw std::invalid_argument(fmt::format("smith walk lanes: {} with {} is not supported (GGX, uniform heights, "
+                                            "a mirror, a conductor or a dielectric)",
+                                            describe(surface), options.material.describe()));
+  }
+  return run_walk_lanes(surface, options);
+}
+
+std::string smith_walk_lanes_target() { return walk_lanes::walk_lanes_target(); }
 
 SmithWalkEval smith_walk_eval(const SmithMicrosurface& surface, const ScatterOptions& options, const Vec3<double>& wo) {
   return detail::smith_walk_eval(surface, options, wo, WalkFault::none);

@@ -69,6 +69,19 @@ inline constexpr std::string_view kSmithWalkProducer = "scatter smith-walk";
 // inside on a material that does not transmit, check_smith_microsurface).
 ScatterHistogram smith_walk_scatter(const SmithMicrosurface& surface, const ScatterOptions& options);
 
+// Which code walks the paths of smith_walk_scatter. scalar: one path after another (the reference, and the
+// default). lanes: paths in SIMD lanes (scatter/smith_walk_lanes.h), each path with its own random stream,
+// for the case smith_walk_lanes_support accepts; the same walk, not the same numbers: it agrees with the
+// scalar walk statistically (tests/scatter/test_smith_walk_lanes.cpp), and its measurement string names it
+// (" kernel=lanes"), so that shards of the two kernels never merge.
+enum class WalkKernel { scalar, lanes };
+// GGX, uniform heights, a mirror, a conductor or a dielectric (every material but the Lambertian).
+bool smith_walk_lanes_support(const SmithMicrosurface& surface, const ScatterOptions& options);
+// As above with the kernel chosen; lanes where smith_walk_lanes_support is false throws std::invalid_argument.
+ScatterHistogram smith_walk_scatter(const SmithMicrosurface& surface, const ScatterOptions& options, WalkKernel kernel);
+// The SIMD target the lanes kernel runs on this CPU ("AVX3", "AVX2", ...).
+std::string smith_walk_lanes_target();
+
 // The BSDF value by next-event estimation (Heitz et al. 2016 sec. 6): along each walk from wi, every meeting
 // with the surface adds the path weight times the facet's phase function toward wo times the probability of
 // leaving from there in wo (on the other side, at the other side's height, for a refraction). Its mean over
