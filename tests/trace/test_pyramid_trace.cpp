@@ -137,7 +137,9 @@ Tally path_rays(const HeightfieldScene& embree, const HeightfieldScene& pyramid,
       const Vec3<double> up = embree.field().triangle_normal(e.triangle);
       const HeightfieldHit a = embree.trace_from_surface(e.point, e.wo, e.triangle, up, side);
       const HeightfieldHit b = pyramid.trace_from_surface(e.point, e.wo, e.triangle, up, side);
-      if (k + 1 < events.size()) EXPECT_TRUE(a.is_hit() && a.triangle == events[k + 1].triangle);
+      if (k + 1 < events.size()) {
+        EXPECT_TRUE(a.is_hit() && a.triangle == events[k + 1].triangle);
+      }
       compare(pyramid, a, b, embree.surface_origin(e.point, e.triangle, up, side), e.wo, band, tally);
     }
   }
