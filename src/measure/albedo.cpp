@@ -200,15 +200,9 @@ AlbedoPart read_albedo_part(const nlohmann::json& part) {
 }
 
 AlbedoTable merge_albedo_parts(const std::vector<AlbedoPart>& parts) {
-  std::vector<Provenance> provenances;
-  std::vector<nlohmann::json> parameters;
-  for (const AlbedoPart& p : parts) {
-    provenances.push_back(p.provenance);
-    parameters.push_back(p.parameters);
-  }
   AlbedoCells cells;
   double seconds = 0;
-  for (const std::size_t i : check_parts_of_one_run(provenances, parameters)) {
+  for (const std::size_t i : check_parts_of_one_run(parts)) {
     cells.insert(cells.end(), parts[i].cells.begin(), parts[i].cells.end());
     seconds += parts[i].seconds;
   }

@@ -176,13 +176,7 @@ ValidationPart read_validation_part(const nlohmann::json& report) {
 }
 
 ValidationPart merge_validation_parts(const std::vector<ValidationPart>& parts) {
-  std::vector<Provenance> provenances;
-  std::vector<nlohmann::json> parameters;
-  for (const ValidationPart& p : parts) {
-    provenances.push_back(p.provenance);
-    parameters.push_back(p.parameters);
-  }
-  const std::vector<std::size_t> order = check_parts_of_one_run(provenances, parameters);
+  const std::vector<std::size_t> order = check_parts_of_one_run(parts);
   ValidationPart merged = parts.front();
   merged.provenance.blocks = {0, merged.provenance.total_blocks};
   for (std::size_t c = 0; c < merged.tallies.size(); ++c) {

@@ -324,29 +324,36 @@ void add_ends(ScatterHistogram& h, const BlockEnds& block, std::uint64_t paths, 
 // Blocks computed before their reduction: the default, fewer for many channels (memory, not the result).
 std::uint64_t walk_blocks_in_flight(int channels) { return channels > 4 ? std::uint64_t(std::max(16, 1024 / channels)) : 0; }
 
-template <class Ndf>
-ScatterHistogram run_walk(const Ndf& ndf, const SmithMicrosurface& s, const ScatterOptions& o, WalkFault fault) {
-  ScatterHistogram result = empty_scatter_histogram(o, std::string(kSmithWalkProducer), walk_measurement(s, o));
-  const Microsurface<Ndf> surface(ndf, o.material, s.heights, fault);
+// The histogram of a walk's blocks: walk_block(bins, block, paths) gives a block's ends, added in block order.
+template <class WalkBlock>
+ScatterHistogram walk_histogram(const ScatterOptions& o, const std::string& measurement, const WalkBlock& walk_block) {
+  ScatterHistogram result = empty_scatter_histogram(o, std::string(kSmithWalkProducer), measurement);
   const DirectionBinning binning = DirectionBinning::hemispheres(o.rows);
-  const FastDirectionBinner bins(binning);
+  const FastDirectionBinner bins(binning);  // keeps a pointer to binning
   const BlockPlan plan{o.paths, kPathsPerBlock};
   const int channels = o.material.channels();
   const BlockRunStatus status = for_each_block(
       result.provenance.blocks, o.run, {"smith walk", plan, walk_blocks_in_flight(channels)},
-      [&](std::uint64_t block) {
-        CounterRng rng(o.seed, block);
-        BlockEnds ends;
-        const std::uint64_t n = plan.units_in(block);
-        ends.ends.reserve(std::size_t(n));
-        ends.weights.reserve(std::size_t(n) * std::size_t(channels));
-        for (std::uint64_t i = 0; i < n; ++i) walk_path(surface, o, &bins, rng, ends);
-        return ends;
-      },
+      [&](std::uint64_t block) { return walk_block(bins, block, plan.units_in(block)); },
       [&](BlockEnds&& ends, std::uint64_t block) { add_ends(result, ends, plan.units_in(block), channels); });
   result.provenance.blocks = status.done;
   result.partial = status.cancelled;
   return result;
+}
+
+template <class Ndf>
+ScatterHistogram run_walk(const Ndf& ndf, const SmithMicrosurface& s, const ScatterOptions& o, WalkFault fault) {
+  const Microsurface<Ndf> surface(ndf, o.material, s.heights, fault);
+  const std::size_t channels = std::size_t(o.material.channels());
+  return walk_histogram(o, walk_measurement(s, o), [&](const FastDirectionBinner& bins, std::uint64_t block,
+                                                       std::uint64_t n) {
+    CounterRng rng(o.seed, block);
+    BlockEnds ends;
+    ends.ends.reserve(std::size_t(n));
+    ends.weights.reserve(std::size_t(n) * channels);
+    for (std::uint64_t i = 0; i < n; ++i) walk_path(surface, o, &bins, rng, ends);
+    return ends;
+  });
 }
 
 // ---- the walk in SIMD lanes (smith_walk_lanes.h) ------------------------------------------------------------
@@ -393,20 +400,11 @@ BlockEnds walk_block_lanes(const walk_lanes::LaneWalk& walk, const FastDirection
 }
 
 ScatterHistogram run_walk_lanes(const SmithMicrosurface& s, const ScatterOptions& o) {
-  ScatterHistogram result =
-      empty_scatter_histogram(o, std::string(kSmithWalkProducer), walk_measurement(s, o) + " kernel=lanes");
   const walk_lanes::LaneWalk walk = lane_walk(s, o);
-  const DirectionBinning binning = DirectionBinning::hemispheres(o.rows);
-  const FastDirectionBinner bins(binning);
-  const BlockPlan plan{o.paths, kPathsPerBlock};
-  const int channels = o.material.channels();
-  const BlockRunStatus status = for_each_block(
-      result.provenance.blocks, o.run, {"smith walk", plan, walk_blocks_in_flight(channels)},
-      [&](std::uint64_t block) { return walk_block_lanes(walk, bins, block, plan.units_in(block)); },
-      [&](BlockEnds&& ends, std::uint64_t block) { add_ends(result, ends, plan.units_in(block), channels); });
-  result.provenance.blocks = status.done;
-  result.partial = status.cancelled;
-  return result;
+  return walk_histogram(o, walk_measurement(s, o) + " kernel=lanes",
+                        [&](const FastDirectionBinner& bins, std::uint64_t block, std::uint64_t n) {
+                          return walk_block_lanes(walk, bins, block, n);
+                        });
 }
 
 // ---- the walk as a sampler -------------------------------------------------------------------------------

@@ -84,5 +84,15 @@ void check_same_parameters(const nlohmann::json& first, const nlohmann::json& ot
 // Returns the order of the parts by their first block, the order in which their results are reduced.
 std::vector<std::size_t> check_parts_of_one_run(const std::vector<Provenance>& provenances,
                                                 const std::vector<nlohmann::json>& parameters);
+// The same for parts that carry their `provenance` and `parameters` members (a validation's, an albedo table's).
+template <class Part> std::vector<std::size_t> check_parts_of_one_run(const std::vector<Part>& parts) {
+  std::vector<Provenance> provenances;
+  std::vector<nlohmann::json> parameters;
+  for (const Part& p : parts) {
+    provenances.push_back(p.provenance);
+    parameters.push_back(p.parameters);
+  }
+  return check_parts_of_one_run(provenances, parameters);
+}
 
 }  // namespace microsim
