@@ -123,6 +123,12 @@ TEST(AlbedoCli, TheLanesKernelWalksTheSameTable) {
   EXPECT_EQ(l["walk_kernel"], "lanes");
   EXPECT_EQ(microgeom::read_exr(dir / "l.exr").attributes.at("walk_kernel"), "lanes");
   EXPECT_NE(slurp(dir / "l.csv").find("# walk_kernel lanes"), std::string::npos);
+  // Its shards merge into it, bit for bit (the part records the kernel, the merge walks none).
+  for (const char* k : {"1", "2"})
+    ASSERT_EQ(run_cli(dir, walk + fmt::format("--walk-kernel lanes --shard {}/2 --out p{}.json", k, k)).exit_code, 0);
+  const auto m = run_cli(dir, "merge p1.json p2.json --out m.exr --csv m.csv");
+  ASSERT_EQ(m.exit_code, 0) << m.err;
+  EXPECT_EQ(slurp(dir / "m.csv"), slurp(dir / "l.csv"));
   const nlohmann::json &es = s["quantities"]["E_R"], &el = l["quantities"]["E_R"];
   for (int row = 0; row < 2; ++row) {
     const double difference = el["average"][row].get<double>() - es["average"][row].get<double>();

@@ -127,9 +127,15 @@ TEST_F(ScatterCli, WalkKernelLanesRunsTheLanesWalk) {
   const double error = std::hypot(el["standard_error"].get<double>(), es["standard_error"].get<double>());
   EXPECT_NE(difference, 0.0);
   EXPECT_LT(std::abs(difference), 4 * error) << difference << " +- " << error;
-  // The parts of the two kernels are parts of different runs: merge refuses them (exit 2), naming the kernel.
-  ASSERT_EQ(run_cli(dir, run + "--shard 1/2 --out p1.json").exit_code, 0);
+  // The lanes run's shards merge into it bit for bit; the parts of the two kernels are parts of different runs:
+  // merge refuses them (exit 2), naming the kernel.
+  ASSERT_EQ(run_cli(dir, run + "--walk-kernel lanes --shard 1/2 --out l1.json").exit_code, 0);
   ASSERT_EQ(run_cli(dir, run + "--walk-kernel lanes --shard 2/2 --out p2.json").exit_code, 0);
+  ASSERT_EQ(run_cli(dir, "merge p2.json l1.json --out lm.exr").exit_code, 0);
+  const ScatterFile merged = read_scatter_exr(dir / "lm.exr");
+  EXPECT_EQ(merged.histogram, l.histogram);
+  EXPECT_EQ(merged.notes, l.notes);
+  ASSERT_EQ(run_cli(dir, run + "--shard 1/2 --out p1.json").exit_code, 0);
   const CliRun m = run_cli(dir, "merge p1.json p2.json --out m.exr");
   EXPECT_EQ(m.exit_code, 2) << m.err;
   EXPECT_NE(m.err.find("walk_kernel 'lanes' vs 'scalar'"), std::string::npos) << m.err;
