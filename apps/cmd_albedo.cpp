@@ -41,6 +41,7 @@ constexpr double kDefaultGradeTolerance = 1e-4;
 
 struct AlbedoArgs {
   std::string model, material = "mirror", ndf = "ggx", alphas = "0.1,0.25,0.5,0.75,1";
+  std::string walk_kernel = "scalar";  // --walk-kernel: smith-walk's kernel (scatter/smith_walk.h)
   bool inside = false;
   int mus = 16;
   std::uint64_t rays = 1'000'000;
@@ -69,6 +70,17 @@ void check_model_options(const AlbedoArgs& a, AlbedoModel model) {
   if (model != AlbedoModel::surface) refuse("--res", "--model surface");
   if (model != AlbedoModel::analytic) refuse("--tolerance", "--model analytic");
   if (model != AlbedoModel::smith_walk) refuse("--shard", "--model smith-walk");
+  if (model != AlbedoModel::smith_walk) refuse("--walk-kernel", "--model smith-walk");
+}
+
+// --walk-kernel of a smith-walk table, refused before any work where the lanes kernel does not walk (it walks
+// GGX: every material of a table is its).
+WalkKernel albedo_walk_kernel(const AlbedoArgs& a, NdfKind ndf) {
+  const WalkKernel kernel = parse_walk_kernel("--walk-kernel", a.walk_kernel);  // ParseError: the caller's
+  if (kernel == WalkKernel::lanes && ndf != NdfKind::ggx)
+    throw UsageError(fmt::format("--ndf {}: not supported by --walk-kernel lanes (it walks GGX); --walk-kernel scalar "
+                                 "walks every case", to_string(ndf)));
+  return kernel;
 }
 
 Material albedo_material(const AlbedoArgs& a) {
@@ -128,10 +140,11 @@ AlbedoTableRequest albedo_request(const AlbedoArgs& a) {
     r.model = parse_albedo_model("--model", a.model);
     r.ndf = parse_ndf_kind("--ndf", a.ndf);
     r.alphas = albedo_alphas(a);
+    check_model_options(a, r.model);
+    r.walk_kernel = albedo_walk_kernel(a, r.ndf);
   } catch (const ParseError& e) {
     throw UsageError(e.what());
   }
-  check_model_options(a, r.model);
   r.material = albedo_material(a);
   r.inside = a.inside;
   r.mus = a.mus;
@@ -355,6 +368,9 @@ void add_albedo_options(CLI::App* sub, AlbedoArgs& a) {
   sub->add_option("--shard", a.shard,
                   "smith-walk: run only shard K of N (K/N, 1-based) of the table's cells and write its part, --out "
                   "PART.json (exact estimates); `microsim merge` joins the parts into the single run's table, bit for bit");
+  sub->add_option("--walk-kernel", a.walk_kernel, "smith-walk: the code that walks each cell's paths: scalar (the "
+                  "reference) or lanes (SIMD lanes, several times faster, GGX only; other random numbers: its parts "
+                  "merge only with its own)")->capture_default_str();
   sub->add_option("--csv", a.csv, "also write the table as CSV");
   sub->add_option("--json", a.json, "also write the table (--grade: the grade) as JSON");
   sub->add_option("--layout", a.layout,

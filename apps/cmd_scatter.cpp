@@ -4,7 +4,10 @@
 // summary. Models:
 //   --model analytic     the single-scattering BSDF (GGX or Beckmann) binned by cubature: the exact expectation
 //                        of order 1, for compare-scattering
-//   --model smith-walk   the Smith random walk (Heitz et al. 2016), GGX or Beckmann
+//   --model smith-walk   the Smith random walk (Heitz et al. 2016), GGX or Beckmann; --walk-kernel lanes walks
+//                        its paths in SIMD lanes (GGX, uniform heights, not Lambertian: other numbers, the
+//                        same walk; the kernel is part of the run's measurement, so its shards merge only
+//                        with its own)
 //   --surface SURF.exr   an explicit heightfield, every bounce traced with Embree
 // each one call of measure/scatter.h, as an experiment's scattering quantity measures them.
 // The view: --theta in [0, 90) from above, (90, 180] from below (light inside a dielectric), --phi.
@@ -42,6 +45,7 @@ struct ScatterArgs {
   std::optional<double> tile_size;  // --tile-size L: an imported heightmap's tile
   std::string ndf = "ggx";    // --ndf ggx | beckmann (the Smith walk's and the analytic model's NDF)
   std::string heights = "uniform";  // --heights uniform | gaussian (the Smith walk's height distribution)
+  std::string walk_kernel = "scalar";  // --walk-kernel scalar | lanes (the code that walks the Smith walk's paths)
   std::string alpha;          // --alpha AX[,AY]
   std::string material = "mirror";
   double theta = std::nan("");
@@ -120,6 +124,25 @@ std::map<std::string, std::string> scatter_notes(const ScatterArgs& a, const std
 
 std::string alpha_note(double ax, double ay) { return fmt::format("{},{}", ax, ay); }
 
+// --walk-kernel, checked against the walk it is asked for before any work: the lanes kernel walks GGX with
+// uniform heights on every material but the Lambertian (scatter/smith_walk.h, smith_walk_lanes_support).
+WalkKernel scatter_walk_kernel(const ScatterArgs& a, const SmithMicrosurface& surface, const ScatterOptions& o) {
+  WalkKernel kernel = WalkKernel::scalar;
+  try {
+    kernel = parse_walk_kernel("--walk-kernel", a.walk_kernel);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
+  if (kernel == WalkKernel::scalar || smith_walk_lanes_support(surface, o)) return kernel;
+  std::string unsupported;
+  if (surface.ndf != NdfKind::ggx) unsupported = "--ndf " + to_string(surface.ndf);
+  else if (surface.heights != HeightDistribution::uniform) unsupported = "--heights " + to_string(surface.heights);
+  else unsupported = "--material " + o.material.describe();
+  throw UsageError(fmt::format("{}: not supported by --walk-kernel lanes (it walks GGX with uniform heights on a "
+                               "mirror, a conductor or a dielectric); --walk-kernel scalar walks every case",
+                               unsupported));
+}
+
 // Options that the sampled models do not take from the command line because they are not theirs.
 void refuse_options(const ScatterArgs& a, std::initializer_list<const char*> options, const std::string& why) {
   for (const char* option : options)
@@ -138,6 +161,7 @@ void check_scatter_outputs(const ScatterArgs& a) {
 }
 
 int run_analytic(const ScatterArgs& a) {
+  refuse_options(a, {"--walk-kernel"}, "applies to --model smith-walk only");
   refuse_options(a, {"--rays", "--seed", "--max-order", "--shard", "--heights", "--tile-size", "--geometry"},
                  "applies to the sampled models (--model smith-walk, --surface) only: --model analytic is the exact "
                  "single-scattering expectation");
@@ -175,15 +199,19 @@ int run_walk(const ScatterArgs& a) {
   } catch (const std::invalid_argument& e) {
     throw UsageError(e.what());
   }
+  const WalkKernel kernel = scatter_walk_kernel(a, surface, o);
   check_scatter_outputs(a);
   install_interrupt_handler();
   const auto progress = std::make_shared<CliProgress>(true);
   o.run = cli_run_control(a.threads, progress);
-  fmt::print(stderr, "scatter: Smith random walk, {}, {}, theta {} phi {}, {} paths, order cap {}{}\n", describe(surface),
-             material.describe(), a.theta, a.phi, a.rays, a.max_order, a.shard.empty() ? "" : ", shard " + a.shard);
-  const ScatterHistogram h = smith_walk_paths(surface)(o);
+  fmt::print(stderr, "scatter: Smith random walk ({} kernel), {}, {}, theta {} phi {}, {} paths, order cap {}{}\n",
+             to_string(kernel), describe(surface), material.describe(), a.theta, a.phi, a.rays, a.max_order,
+             a.shard.empty() ? "" : ", shard " + a.shard);
+  const ScatterHistogram h = smith_walk_paths(surface, kernel)(o);
   progress->finish();
-  return report_scatter(h, scatter_notes(a, a.ndf, alpha_note(ax, ay), material), {a.out, a.json, !a.shard.empty()});
+  std::map<std::string, std::string> notes = scatter_notes(a, a.ndf, alpha_note(ax, ay), material);
+  notes["walk_kernel"] = to_string(kernel);
+  return report_scatter(h, notes, {a.out, a.json, !a.shard.empty()});
 }
 
 // The NDF and roughness a surface file records (assembly metadata), for the notes; "" when it records none.
@@ -205,6 +233,7 @@ HeightfieldGeometry scatter_geometry(const std::string& text) {
 }
 
 int run_surface(const ScatterArgs& a) {
+  refuse_options(a, {"--walk-kernel"}, "applies to --model smith-walk only");
   refuse_options(a, {"--alpha", "--ndf", "--heights"},
                  "applies to --model only: a traced surface has its own facets (its file records its assembly)");
   const Material material = scatter_material(a.material);
@@ -262,6 +291,10 @@ CommandRegistration scatter_registration{"scatter", [](CLI::App& app) {
   sub->add_option("--ndf", args->ndf, "ggx or beckmann (--model)")->capture_default_str();
   sub->add_option("--heights", args->heights, "the Smith walk's height distribution: uniform or gaussian (the result "
                   "does not depend on it)")->capture_default_str();
+  sub->add_option("--walk-kernel", args->walk_kernel, "--model smith-walk: the code that walks its paths: scalar (one "
+                  "path after another, the reference) or lanes (paths in SIMD lanes, several times faster; GGX with "
+                  "uniform heights, not Lambertian; the same walk, other random numbers: its shards merge only with "
+                  "its own)")->capture_default_str();
   sub->add_option("--alpha", args->alpha, "roughness AX[,AY], each in [1e-4, 10], anisotropy at most 1:1000");
   sub->add_option("--material", args->material,
                   "mirror, conductor:ETA,K[;ETA,K...] (one channel each), dielectric:ETA or lambertian[:ALBEDO]")

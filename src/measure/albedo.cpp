@@ -138,6 +138,8 @@ nlohmann::json albedo_parameters(const AlbedoTableRequest& r) {
                    {"inside", r.inside}, {"alphas", r.alphas}, {"mus", std::uint64_t(r.mus)}, {"paths", r.paths},
                    {"max_order", std::uint64_t(r.max_order)}};
   if (r.model == AlbedoModel::surface) p["resolution"] = std::uint64_t(r.resolution);
+  // Only a lanes table names its kernel: the parts of scalar tables keep the form they had before the choice.
+  if (r.walk_kernel != WalkKernel::scalar) p["walk_kernel"] = to_string(r.walk_kernel);
   return p;
 }
 
@@ -155,6 +157,8 @@ AlbedoTableRequest request_of(const nlohmann::json& p, std::uint64_t seed) {
     r.paths = kAlbedoReader.count(p, "paths", where);
     r.max_order = int(kAlbedoReader.count(p, "max_order", where));
     if (r.model == AlbedoModel::surface) r.resolution = int(kAlbedoReader.count(p, "resolution", where));
+    if (p.contains("walk_kernel"))
+      r.walk_kernel = parse_walk_kernel("walk_kernel", kAlbedoReader.text(p, "walk_kernel", where));
     r.seed = seed;
     AlbedoTableRequest checked = r;  // a surface's build parameters are its caller's (surface_albedo_cells)
     if (checked.model == AlbedoModel::surface) checked.model = AlbedoModel::smith_walk;

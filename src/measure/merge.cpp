@@ -15,6 +15,8 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <map>
+#include <set>
 
 namespace microsim {
 namespace {
@@ -79,6 +81,20 @@ MergedRun merge_vndf(const std::vector<std::string>& paths) {
   return {PartKind::vndf, parts.size(), std::move(m)};
 }
 
+// The first note (by key) that two parts record differently, as "KEY 'A' vs 'B'" (a note one lacks: '').
+std::string note_difference(const std::map<std::string, std::string>& a, const std::map<std::string, std::string>& b) {
+  const auto value = [](const std::map<std::string, std::string>& notes, const std::string& key) {
+    const auto it = notes.find(key);
+    return it == notes.end() ? std::string() : it->second;
+  };
+  std::set<std::string> keys;
+  for (const auto* notes : {&a, &b})
+    for (const auto& [key, text] : *notes) keys.insert(key);
+  for (const std::string& key : keys)
+    if (value(a, key) != value(b, key)) return fmt::format("{} '{}' vs '{}'", key, value(a, key), value(b, key));
+  return "";
+}
+
 MergedRun merge_scatter(const std::vector<std::string>& paths) {
   std::vector<ScatterPart> read = read_json_parts(paths, read_scatter_part);
   std::vector<ScatterHistogram> parts;
@@ -86,8 +102,8 @@ MergedRun merge_scatter(const std::vector<std::string>& paths) {
   m.notes = read.front().notes;
   for (std::size_t i = 0; i < read.size(); ++i) {
     if (read[i].notes != m.notes)
-      throw MergeError(fmt::format("cannot merge: part '{}' records other notes than part '{}' (another run)", paths[i],
-                                   paths.front()));
+      throw MergeError(fmt::format("cannot merge: part '{}' records other notes than part '{}' (another run: {})",
+                                   paths[i], paths.front(), note_difference(read[i].notes, m.notes)));
     parts.push_back(std::move(read[i].histogram));
   }
   m.histogram = merged([&] { return merge_scatter_parts(parts); });

@@ -16,8 +16,8 @@ ScatterExpectation measure_analytic_scatter(NdfKind ndf, std::pair<double, doubl
   return analytic_single_scattering(GGX<double>(ax, ay), wi, material, rows, run);
 }
 
-ScatterPaths smith_walk_paths(const SmithMicrosurface& surface) {
-  return [surface](const ScatterOptions& options) { return smith_walk_scatter(surface, options); };
+ScatterPaths smith_walk_paths(const SmithMicrosurface& surface, WalkKernel kernel) {
+  return [surface, kernel](const ScatterOptions& options) { return smith_walk_scatter(surface, options, kernel); };
 }
 
 ScatterPaths surface_paths(const HeightfieldScene& scene, SurfaceScatterDiagnostics* diagnostics) {

@@ -29,8 +29,9 @@ ScatterExpectation measure_analytic_scatter(NdfKind ndf, std::pair<double, doubl
 
 // A sampled model: the histogram of the paths a request asks for (all of its blocks, or options.blocks).
 using ScatterPaths = std::function<ScatterHistogram(const ScatterOptions&)>;
-// The Smith walk on `surface`.
-ScatterPaths smith_walk_paths(const SmithMicrosurface& surface);
+// The Smith walk on `surface`, walked by `kernel` (scatter/smith_walk.h: lanes throws std::invalid_argument where
+// smith_walk_lanes_support is false).
+ScatterPaths smith_walk_paths(const SmithMicrosurface& surface, WalkKernel kernel = WalkKernel::scalar);
 // Every bounce traced on `scene` (which must outlive the function); the tracer's diagnostics of a request
 // written to `*diagnostics` when it is given (and outlives the function).
 ScatterPaths surface_paths(const HeightfieldScene& scene, SurfaceScatterDiagnostics* diagnostics = nullptr);

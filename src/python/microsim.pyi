@@ -66,9 +66,11 @@ def validate_all(*, samples: int = 200000, seed: int = 1, precision: str = "doub
 
 def albedo_table(*, model: str = "analytic", ndf: str = "ggx", material: str = "mirror", inside: bool = False,
                  alphas: Optional[Sequence[float]] = None, mus: int = 16, tolerance: float = 1e-8,
-                 paths: int = 1000000, seed: int = 1, max_order: int = 100, resolution: int = 512, threads: int = 0,
-                 layout: Optional[str] = None, progress: Progress = None) -> dict[str, Any]:
-    """`microsim albedo` (`--layout L` when layout is given, a glass layout too): the dict its --json writes."""
+                 paths: int = 1000000, seed: int = 1, max_order: int = 100, resolution: int = 512,
+                 walk_kernel: str = "scalar", threads: int = 0, layout: Optional[str] = None,
+                 progress: Progress = None) -> dict[str, Any]:
+    """`microsim albedo` (`--layout L` when layout is given, a glass layout too; walk_kernel: `--walk-kernel`):
+    the dict its --json writes."""
 
 def anisotropic_albedo_table(*, alphas_x: Sequence[float], alphas_y: Sequence[float], mus: int = 16, phis: int = 8,
                              tolerance: float = 1e-8, threads: int = 0, progress: Progress = None) -> dict[str, Any]:
@@ -115,10 +117,11 @@ def masking(surface: "Heightfield", theta: float, phi: float = 0.0, *, samples: 
     """Masking measured on a heightfield (`microsim trace masking --surface`): the JSON "masking" object."""
 
 def smith_walk(alpha: Alpha, theta: float, phi: float = 0.0, *, material: str = "mirror", ndf: str = "ggx",
-               heights: str = "uniform", rays: int = 1000000, seed: int = 1, max_order: int = 100, rows: int = 16,
-               threads: int = 0, progress: Progress = None) -> dict[str, Any]:
-    """The Smith random walk (Heitz et al. 2016; `microsim scatter --model smith-walk`): {'summary' (albedos per
-    order), 'paths', 'partial', 'mean_weight' and 'stderr' (channels, 5, rows, cols), 'binning' (geometry)}."""
+               heights: str = "uniform", walk_kernel: str = "scalar", rays: int = 1000000, seed: int = 1,
+               max_order: int = 100, rows: int = 16, threads: int = 0, progress: Progress = None) -> dict[str, Any]:
+    """The Smith random walk (Heitz et al. 2016; `microsim scatter --model smith-walk [--walk-kernel K]`):
+    {'summary' (albedos per order), 'paths', 'partial', 'mean_weight' and 'stderr' (channels, 5, rows, cols),
+    'binning' (geometry)}. walk_kernel 'lanes': the SIMD walk (GGX, uniform heights, not Lambertian)."""
 
 def analytic_scatter(alpha: Alpha, theta: float, phi: float = 0.0, *, material: str = "mirror", ndf: str = "ggx",
                      rows: int = 16, threads: int = 0, progress: Progress = None) -> dict[str, Any]:

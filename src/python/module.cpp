@@ -305,8 +305,8 @@ py::dict run_scatter(const std::function<ScatterHistogram(const ScatterOptions&)
 // `scatter --model smith-walk`: the Smith random walk (Heitz et al. 2016, "Multiple-Scattering Microfacet BSDFs
 // with the Smith Model", SIGGRAPH).
 py::dict smith_walk(const py::handle& alpha, double theta, double phi, const std::string& material, const std::string& ndf,
-                    const std::string& heights, std::uint64_t rays, std::uint64_t seed, int max_order, int rows,
-                    int threads, const py::object& progress) {
+                    const std::string& heights, const std::string& walk_kernel, std::uint64_t rays, std::uint64_t seed,
+                    int max_order, int rows, int threads, const py::object& progress) {
   SmithMicrosurface surface;
   const GGX<double> ggx = ggx_of(alpha);
   surface.alpha_x = ggx.alpha_x();
@@ -315,7 +315,11 @@ py::dict smith_walk(const py::handle& alpha, double theta, double phi, const std
   surface.heights = parse_height_distribution("heights", heights);
   check_smith_microsurface(surface);
   const ScatterOptions o = scatter_options(theta, phi, material, rays, seed, max_order, rows);
-  return run_scatter(smith_walk_paths(surface), o, threads, progress);
+  const WalkKernel kernel = parse_walk_kernel("walk_kernel", walk_kernel);
+  if (kernel == WalkKernel::lanes && !smith_walk_lanes_support(surface, o))  // refused before any work
+    throw py::value_error("walk_kernel 'lanes': " + describe(surface) + " with " + o.material.describe() +
+                          " is not supported (GGX, uniform heights, a mirror, a conductor or a dielectric)");
+  return run_scatter(smith_walk_paths(surface, kernel), o, threads, progress);
 }
 
 // `scatter --model analytic`: the single-scattering BSDF binned by cubature (the exact expectation of order 1),
@@ -466,11 +470,13 @@ beside Smith's (analytic and empirical NDF), by <v, m> and by height; with theta
 command line's JSON "masking" object as a dict (same values for the same surface and seed). Ctrl-C raises
 KeyboardInterrupt whose `partial_result` holds the measurement of the blocks done.)");
   m.def("smith_walk", &smith_walk, "alpha"_a, "theta"_a, "phi"_a = 0.0, py::kw_only(), "material"_a = "mirror",
-        "ndf"_a = "ggx", "heights"_a = "uniform", "rays"_a = 1'000'000, "seed"_a = 1, "max_order"_a = 100, "rows"_a = 16,
-        "threads"_a = 0, "progress"_a = py::none(),
+        "ndf"_a = "ggx", "heights"_a = "uniform", "walk_kernel"_a = "scalar", "rays"_a = 1'000'000, "seed"_a = 1,
+        "max_order"_a = 100, "rows"_a = 16, "threads"_a = 0, "progress"_a = py::none(),
         R"(Multiple scattering in the Smith model by the random walk of Heitz et al. 2016 (`microsim scatter --model
 smith-walk`). theta in [0, 90) (from above) or (90, 180] (light from inside a dielectric); material:
-'mirror', 'conductor:ETA,K[;ETA,K...]', 'dielectric:ETA' or 'lambertian[:ALBEDO]'; ndf: 'ggx' or 'beckmann'.
+'mirror', 'conductor:ETA,K[;ETA,K...]', 'dielectric:ETA' or 'lambertian[:ALBEDO]'; ndf: 'ggx' or 'beckmann';
+walk_kernel: 'scalar' (the reference) or 'lanes' (paths in SIMD lanes: GGX, uniform heights, not Lambertian;
+the same walk with other random numbers, as `--walk-kernel lanes`).
 Returns a dict: summary (the command line's JSON: albedos per order with standard errors, unfinished, lost),
 paths, partial, mean_weight and stderr per (channel, order 1..4 and 5+, row, col) of the hemispheres binning,
 and binning (its geometry). Same sums as the command line for the same seed.)");

@@ -138,9 +138,12 @@ py::object anisotropic_albedo_table_of(const std::vector<double>& alphas_x, cons
 // `microsim albedo`: E(mu, alpha) and its average per alpha; the request checked as the command line checks it.
 py::object albedo_table_of(const std::string& model, const std::string& ndf, const std::string& material, bool inside,
                            const std::optional<std::vector<double>>& alphas, int mus, double tolerance,
-                           std::uint64_t paths, std::uint64_t seed, int max_order, int resolution, int threads,
-                           const std::optional<std::string>& layout, const py::object& progress) {
+                           std::uint64_t paths, std::uint64_t seed, int max_order, int resolution,
+                           const std::string& walk_kernel, int threads, const std::optional<std::string>& layout,
+                           const py::object& progress) {
   check_threads(threads);
+  if (layout && walk_kernel != "scalar")
+    throw py::value_error("walk_kernel does not apply to layout (an analytic table)");
   if (layout && find_glass_layout(*layout) != nullptr)
     return glass_layout_of(*find_glass_layout(*layout), {model, ndf, material, inside, alphas, mus, tolerance, paths,
                                                          seed, max_order, resolution, threads}, progress);
@@ -159,7 +162,8 @@ py::object albedo_table_of(const std::string& model, const std::string& ndf, con
   r.seed = seed;
   r.max_order = max_order;
   r.resolution = resolution;
-  check_albedo_request(r);  // std::invalid_argument: ValueError
+  r.walk_kernel = parse_walk_kernel("walk_kernel", walk_kernel);
+  check_albedo_request(r);  // std::invalid_argument (lanes: GGX smith-walk only): ValueError
   const auto table = [](const AlbedoTableRequest& q) { return std::optional<AlbedoTable>(measure_albedo_table(q)); };
   return json_object(albedo_table_json(*run_request(r, threads, progress, table)));
 }
@@ -247,12 +251,14 @@ void bind_tables(py::module_& m) {
   using namespace pybind11::literals;
   m.def("albedo_table", &albedo_table_of, py::kw_only(), "model"_a = "analytic", "ndf"_a = "ggx", "material"_a = "mirror",
         "inside"_a = false, "alphas"_a = py::none(), "mus"_a = 16, "tolerance"_a = 1e-8, "paths"_a = 1'000'000,
-        "seed"_a = 1, "max_order"_a = kDefaultMaxOrder, "resolution"_a = 512, "threads"_a = 0, "layout"_a = py::none(), "progress"_a = py::none(),
+        "seed"_a = 1, "max_order"_a = kDefaultMaxOrder, "resolution"_a = 512, "walk_kernel"_a = "scalar", "threads"_a = 0,
+        "layout"_a = py::none(), "progress"_a = py::none(),
         R"(The energy table of `microsim albedo`: E(mu, alpha) at Gauss-Legendre mus and its hemispherical average.
 
 model: 'analytic' (single scattering by quadrature, to `tolerance`), 'smith-walk' or 'surface' (sampled with
 `paths` per cell); ndf: 'ggx' or 'beckmann'; material: 'mirror' or 'dielectric:ETA' (inside: light from inside);
-alphas: increasing, in [0.005, 2] (default 0.1, 0.25, 0.5, 0.75, 1). Returns the dict `albedo --json` writes.
+alphas: increasing, in [0.005, 2] (default 0.1, 0.25, 0.5, 0.75, 1); walk_kernel: 'scalar' or 'lanes' (smith-walk
+with GGX: `albedo --walk-kernel`). Returns the dict `albedo --json` writes.
 layout: 'cycles', 'filament-dfg', 'enterprise-pbr' or 'uniform' (`albedo --layout`): the analytic E of a GGX
 mirror (ndf='beckmann': a Beckmann mirror) at the layout's nodes with its errors, E_avg where the renderer ships
 it and the layout's interpolation error at cell centres (the layout fixes the nodes: only ndf, tolerance and

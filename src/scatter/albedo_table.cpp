@@ -83,6 +83,9 @@ void check_albedo_request(const AlbedoTableRequest& r) {
   if (r.inside && kind != MaterialKind::dielectric)
     throw std::invalid_argument("albedo table: light from inside needs a dielectric (a mirror is opaque)");
   check_alphas(r.alphas);
+  if (r.walk_kernel == WalkKernel::lanes && (r.model != AlbedoModel::smith_walk || r.ndf != NdfKind::ggx))
+    throw std::invalid_argument(fmt::format("albedo table: the lanes walk kernel walks GGX Smith-walk tables only "
+                                            "(not {} {})", to_string(r.model), to_string(r.ndf)));
   if (r.mus < kMinAlbedoMus || r.mus > kMaxAlbedoMus)
     throw std::invalid_argument(fmt::format("albedo table: {} mus (expected {} to {})", r.mus, kMinAlbedoMus, kMaxAlbedoMus));
   if (r.model == AlbedoModel::analytic) {
@@ -291,7 +294,7 @@ std::optional<AlbedoCells> sampled_cells(const AlbedoTableRequest& r, const Bloc
 
 std::optional<RowCells> walk_row(const AlbedoTableRequest& r, std::size_t row, const MuGrid& grid) {
   const SmithMicrosurface surface{r.ndf, r.alphas[row], r.alphas[row], HeightDistribution::uniform};
-  return sampled_row(r, row, grid, [&](const ScatterOptions& o) { return smith_walk_scatter(surface, o); });
+  return sampled_row(r, row, grid, [&](const ScatterOptions& o) { return smith_walk_scatter(surface, o, r.walk_kernel); });
 }
 
 // A surface row: build the surface of this alpha (nullopt when cancelled during the build), then its cells.
@@ -330,7 +333,8 @@ std::optional<AlbedoCells> walk_albedo_cells(const AlbedoTableRequest& r, const 
   check_albedo_request(r);
   if (r.model != AlbedoModel::smith_walk) throw std::invalid_argument("walk_albedo_cells: a Smith-walk table only");
   return sampled_cells(r, cells, "walk_albedo_cells", [&r](std::size_t row, const ScatterOptions& o) {
-    return smith_walk_scatter(SmithMicrosurface{r.ndf, r.alphas[row], r.alphas[row], HeightDistribution::uniform}, o);
+    return smith_walk_scatter(SmithMicrosurface{r.ndf, r.alphas[row], r.alphas[row], HeightDistribution::uniform}, o,
+                              r.walk_kernel);
   });
 }
 

@@ -86,6 +86,9 @@ struct AlbedoTableRequest {
   std::uint64_t seed = 1;                  // sampled: cell seeds (albedo_cell_seed); surface: the build's seed
   int max_order = kDefaultMaxOrder;        // sampled: the order cap
   int resolution = 512;                    // surface: vertices per side (microgeom's supported range)
+  // smith-walk: the code that walks each cell's paths (scatter/smith_walk.h); lanes for GGX only. Another
+  // kernel, other random numbers: a table of the same walk, not the same bits.
+  WalkKernel walk_kernel = WalkKernel::scalar;
   // Threads and cancel token of every step; progress: "albedo table" (cells, or paths for the sampled
   // models, of the whole table) and "build surface" (thousandths of one build).
   RunControl run;

@@ -30,6 +30,7 @@ std::map<std::string, std::string> model_parameters(const AlbedoTableRequest& r)
   std::map<std::string, std::string> p{
       {"paths", std::to_string(r.paths)}, {"seed", std::to_string(r.seed)}, {"max_order", std::to_string(r.max_order)}};
   if (r.model == AlbedoModel::surface) p["resolution"] = std::to_string(r.resolution);
+  if (r.model == AlbedoModel::smith_walk) p["walk_kernel"] = to_string(r.walk_kernel);
   return p;
 }
 
@@ -149,6 +150,7 @@ nlohmann::json albedo_table_json(const AlbedoTable& t) {
   if (r.model == AlbedoModel::analytic) j["tolerance"] = r.tolerance;
   else j.update({{"paths", r.paths}, {"seed", r.seed}, {"max_order", r.max_order}});
   if (r.model == AlbedoModel::surface) j["resolution"] = r.resolution;
+  if (r.model == AlbedoModel::smith_walk) j["walk_kernel"] = to_string(r.walk_kernel);
   if (t.fresnel_average) j["F_avg"] = *t.fresnel_average;
   j["quantity_names"] = nlohmann::json::array();
   for (const AlbedoQuantity& q : t.quantities) {

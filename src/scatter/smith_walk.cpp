@@ -34,6 +34,14 @@ HeightDistribution parse_height_distribution(std::string_view what, std::string_
       fmt::format("{} {}: unknown height distribution (expected uniform or gaussian)", what, quote_excerpt(text)));
 }
 
+std::string to_string(WalkKernel kernel) { return kernel == WalkKernel::scalar ? "scalar" : "lanes"; }
+
+WalkKernel parse_walk_kernel(std::string_view what, std::string_view text) {
+  if (text == "scalar") return WalkKernel::scalar;
+  if (text == "lanes") return WalkKernel::lanes;
+  throw ParseError(fmt::format("{} {}: unknown walk kernel (expected scalar or lanes)", what, quote_excerpt(text)));
+}
+
 std::string describe(const SmithMicrosurface& s) {
   return fmt::format("{} alpha={},{} heights={}", to_string(s.ndf), s.alpha_x, s.alpha_y, to_string(s.heights));
 }

@@ -75,6 +75,9 @@ ScatterHistogram smith_walk_scatter(const SmithMicrosurface& surface, const Scat
 // scalar walk statistically (tests/scatter/test_smith_walk_lanes.cpp), and its measurement string names it
 // (" kernel=lanes"), so that shards of the two kernels never merge.
 enum class WalkKernel { scalar, lanes };
+std::string to_string(WalkKernel kernel);  // "scalar", "lanes"
+// Parse "scalar" / "lanes"; ParseError naming `what` and quoting the text.
+WalkKernel parse_walk_kernel(std::string_view what, std::string_view text);
 // GGX, uniform heights, a mirror, a conductor or a dielectric (every material but the Lambertian).
 bool smith_walk_lanes_support(const SmithMicrosurface& surface, const ScatterOptions& options);
 // As above with the kernel chosen; lanes where smith_walk_lanes_support is false throws std::invalid_argument.

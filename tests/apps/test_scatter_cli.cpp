@@ -3,6 +3,8 @@
 // measurement), shards merge into the single run bit for bit, the JSON says what each geometric hemisphere
 // holds (for light from inside a dielectric the upper one is the transmitted light), a traced mirror
 // surface conserves its energy, and compare-scattering takes the surface and the walk side by side.
+// --walk-kernel lanes runs the lanes kernel (its histogram, bit for bit), agrees with the scalar walk on the
+// albedo, and its parts do not merge with the scalar walk's.
 #include "cli_helpers.h"
 
 #include "microgeom/assembly.h"
@@ -95,6 +97,49 @@ TEST_F(ScatterCli, WalkShardsMergeIntoTheSingleRun) {
   EXPECT_EQ(merged.histogram, whole.histogram);
   EXPECT_EQ(merged.notes, whole.notes);
   EXPECT_EQ(whole.histogram.channels(), 2);
+}
+
+TEST_F(ScatterCli, WalkKernelLanesRunsTheLanesWalk) {
+  const std::string run = "scatter --model smith-walk --alpha 0.4,0.7 --theta 70 --material conductor:0.2,3.9 "
+                          "--rays 16384 --rows 2 --seed 5 ";  // 4 blocks of 4096 paths
+  const CliRun lanes = run_cli(dir, run + "--walk-kernel lanes --out l.exr --json l.json");
+  ASSERT_EQ(lanes.exit_code, 0) << lanes.err;
+  ASSERT_EQ(run_cli(dir, run + "--out s.exr --json s.json").exit_code, 0);  // the default: scalar
+  ScatterOptions o;
+  o.wi = view(70);
+  o.material = Material::conductor({{0.2, 3.9}});
+  o.paths = 16384;
+  o.rows = 2;
+  o.seed = 5;
+  const SmithMicrosurface surface{NdfKind::ggx, 0.4, 0.7};
+  const ScatterFile l = read_scatter_exr(dir / "l.exr"), s = read_scatter_exr(dir / "s.exr");
+  EXPECT_EQ(l.histogram, smith_walk_scatter(surface, o, WalkKernel::lanes));
+  EXPECT_EQ(s.histogram, smith_walk_scatter(surface, o));
+  EXPECT_EQ(l.notes.at("walk_kernel"), "lanes");
+  EXPECT_EQ(s.notes.at("walk_kernel"), "scalar");
+  EXPECT_NE(l.histogram.provenance.measurement, s.histogram.provenance.measurement);
+  // Other random streams, the same walk: the total albedos differ and agree within 4 standard errors of the
+  // difference (fixed seed; a false alarm has probability 6e-5).
+  const json jl = json::parse(slurp(dir / "l.json")), js = json::parse(slurp(dir / "s.json"));
+  EXPECT_EQ(jl["notes"]["walk_kernel"], "lanes");
+  const json &el = jl["channels"][0]["albedo"]["total"]["both"], &es = js["channels"][0]["albedo"]["total"]["both"];
+  const double difference = el["value"].get<double>() - es["value"].get<double>();
+  const double error = std::hypot(el["standard_error"].get<double>(), es["standard_error"].get<double>());
+  EXPECT_NE(difference, 0.0);
+  EXPECT_LT(std::abs(difference), 4 * error) << difference << " +- " << error;
+  // The lanes run's shards merge into it bit for bit; the parts of the two kernels are parts of different runs:
+  // merge refuses them (exit 2), naming the kernel.
+  ASSERT_EQ(run_cli(dir, run + "--walk-kernel lanes --shard 1/2 --out l1.json").exit_code, 0);
+  ASSERT_EQ(run_cli(dir, run + "--walk-kernel lanes --shard 2/2 --out p2.json").exit_code, 0);
+  ASSERT_EQ(run_cli(dir, "merge p2.json l1.json --out lm.exr").exit_code, 0);
+  const ScatterFile merged = read_scatter_exr(dir / "lm.exr");
+  EXPECT_EQ(merged.histogram, l.histogram);
+  EXPECT_EQ(merged.notes, l.notes);
+  ASSERT_EQ(run_cli(dir, run + "--shard 1/2 --out p1.json").exit_code, 0);
+  const CliRun m = run_cli(dir, "merge p1.json p2.json --out m.exr");
+  EXPECT_EQ(m.exit_code, 2) << m.err;
+  EXPECT_NE(m.err.find("walk_kernel 'lanes' vs 'scalar'"), std::string::npos) << m.err;
+  EXPECT_FALSE(fs::exists(dir / "m.exr"));
 }
 
 TEST_F(ScatterCli, SurfaceWritesTheLibraryHistogramAndConservesAMirrorsEnergy) {
