@@ -356,11 +356,12 @@ void read_albedo_spec(const SpecTable& t, SpecQuantity& q, const SpecMaterial& m
   q.mus = int(t.integer("mus", 16, kMinAlbedoMus, kMaxAlbedoMus));
   q.inside = t.boolean("inside", false);
   check_albedo_material(t, m, q.inside);
+  read_walk_kernel(t, q, m);
 }
 
 }  // namespace
 
-const KindSpec albedo_spec{"orders target_relative_error mus inside", read_albedo_spec};
+const KindSpec albedo_spec{"orders target_relative_error mus inside walk_kernel", read_albedo_spec};
 
 // ---- its report section (report_html.h) -----------------------------------------------------------------------
 

@@ -171,11 +171,12 @@ class WalkScattering final : public SampledScattering {
 public:
   using SampledScattering::SampledScattering;
   std::string part(const RoundTask& task, const BlockRange& mine, const RunControl& run, SurfaceCache&) const override {
-    return scatter_part(task, smith_walk_paths(scatter_surface(material(), decision_))(request(task, mine, run)));
+    return scatter_part(task, paths()(request(task, mine, run)));
   }
-  void run(const RoundContext& c, MeasurementResult& m) const override {
-    run_paths(c, smith_walk_paths(scatter_surface(material(), decision_)), m);
-  }
+  void run(const RoundContext& c, MeasurementResult& m) const override { run_paths(c, paths(), m); }
+
+private:
+  ScatterPaths paths() const { return smith_walk_paths(scatter_surface(material(), decision_), walk_kernel_of(quantity_)); }
 };
 
 // On a tile (built once through the cache, or read back); its scene kept by the cache between rounds.
@@ -331,7 +332,7 @@ void plan_walk_scattering(const ExperimentSpec& spec, const SpecQuantity& q, con
 void plan_scattering_view(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
   const SpecMaterial& m = spec.material(q.material);
   if (d.model.model == Model::analytic) return plan_analytic_scattering(m, q, o, d);
-  plan_walk_scattering(spec, q, o, d, smith_walk_paths(scatter_surface(m, d)));
+  plan_walk_scattering(spec, q, o, d, smith_walk_paths(scatter_surface(m, d), walk_kernel_of(q)));
 }
 
 // The per-order lobes on a tile: its scene built once (kept: the run's rounds on this tile use it).
@@ -371,10 +372,11 @@ void read_scattering_spec(const SpecTable& t, SpecQuantity& q, const SpecMateria
   q.target = read_target(t, "target_tv", 1, "a TV distance is below 1");
   q.directions = read_directions(t, m.facet.transmits());
   q.orders = read_orders(t);
+  read_walk_kernel(t, q, m);
 }
 }  // namespace
 
-const KindSpec scattering_spec{"orders target_tv theta theta_range phi", read_scattering_spec};
+const KindSpec scattering_spec{"orders target_tv theta theta_range phi walk_kernel", read_scattering_spec};
 
 // ---- its report section (report_html.h) -----------------------------------------------------------------------
 

@@ -27,6 +27,10 @@ VndfRequest vndf_request(const ExperimentSpec& spec, const Decision& decision, s
   return request;
 }
 
+WalkKernel walk_kernel_of(const SpecQuantity& quantity) {
+  return quantity.settings.value("walk_kernel", "scalar") == "lanes" ? WalkKernel::lanes : WalkKernel::scalar;
+}
+
 SmithMicrosurface scatter_surface(const SpecMaterial& material, const Decision& decision) {
   return {material.ndf, decision.alpha.first, decision.alpha.second, HeightDistribution::uniform};
 }
@@ -68,6 +72,7 @@ AlbedoTableRequest albedo_request(const ExperimentSpec& spec, const SpecQuantity
   r.paths = paths;
   r.seed = seed;
   if (max_order > 0) r.max_order = max_order;
+  if (r.model == AlbedoModel::smith_walk) r.walk_kernel = walk_kernel_of(quantity);
   r.run = run;
   return r;
 }

@@ -48,6 +48,8 @@ inline constexpr int kScatterRows = 8;
 // The walk of a scattering decision: its material's microsurface at the decision's alpha, and the options of
 // `paths` paths from the decision's view at its order cap (light from inside for theta > 90).
 SmithMicrosurface scatter_surface(const SpecMaterial& material, const Decision& decision);
+// The walk kernel a quantity asked for (read_walk_kernel): lanes when its settings say so, else scalar.
+WalkKernel walk_kernel_of(const SpecQuantity& quantity);
 ScatterOptions scatter_request(const SpecMaterial& material, const Decision& decision, std::uint64_t paths,
                                std::uint64_t seed, const RunControl& run);
 

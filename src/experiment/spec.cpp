@@ -257,6 +257,16 @@ Orders read_orders(const SpecTable& t) {
   return orders == "single" ? Orders::single : Orders::all;
 }
 
+void read_walk_kernel(const SpecTable& t, SpecQuantity& q, const SpecMaterial& m) {
+  const std::string kernel = t.string("walk_kernel", "scalar");
+  if (kernel != "scalar" && kernel != "lanes") t.fail("walk_kernel", fmt::format("{}: scalar or lanes", quote_excerpt(kernel)));
+  if (kernel == "scalar") return;
+  if (m.ndf != NdfKind::ggx || m.facet.kind() == MaterialKind::lambertian)
+    t.fail("walk_kernel", fmt::format("lanes walks GGX mirrors, conductors and dielectrics (material {} is {} {}); "
+                                      "scalar walks every case", quote_excerpt(m.name), to_string(m.ndf), m.facet.describe()));
+  q.settings["walk_kernel"] = kernel;
+}
+
 void read_validator_rows(const SpecTable& t, SpecQuantity& q, const SpecMaterial& m) {
   q.rows = int(t.integer("rows", 31, 3, kMaxBinningRows));
   if (q.rows % 2 == 0) t.fail("rows", fmt::format("{} must be odd", q.rows));

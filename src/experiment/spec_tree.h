@@ -114,6 +114,10 @@ double read_target(const SpecTable& t, const std::string& key, double below, con
 // from inside a dielectric) where `from_inside_ok`.
 std::vector<Direction> read_directions(const SpecTable& t, bool from_inside_ok);
 Orders read_orders(const SpecTable& t);  // orders: single (default) or all
+// The Smith walk's kernel of a quantity that may be walked (albedo, scattering): `walk_kernel` "scalar" (default)
+// or "lanes" (the SIMD walk of scatter/smith_walk.h: GGX facets other than Lambertian; the same walk, other random
+// numbers), kept in its settings only when lanes, so that a spec without the key keeps its digest.
+void read_walk_kernel(const SpecTable& t, SpecQuantity& q, const SpecMaterial& m);
 // The validator's rows (odd, default 31) of a quantity measured against GGX's D_v (vndf, validation).
 void read_validator_rows(const SpecTable& t, SpecQuantity& q, const SpecMaterial& m);
 // A file named in a spec: as given when absolute, else in the spec's folder.

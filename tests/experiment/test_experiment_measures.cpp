@@ -291,6 +291,39 @@ TEST(ScatterPilotFloor, ExtrapolatedFromItsQuarterPredictsALongRunsFloor) {
   }
 }
 
+// A scattering quantity with walk_kernel = "lanes" is walked by the SIMD kernel (its histogram's measurement names
+// it) and agrees with the scalar walk's albedo within errors; the default is the scalar walk.
+TEST(ScatterPilotFloor, AQuantityAskingForTheLanesWalkGetsIt) {
+  const std::string text = R"(
+seed = 6
+[[material]]
+name = "gold"
+alphas = [0.4]
+type = "conductor"
+eta = 0.2
+k = 3.2
+[[quantity]]
+kind = "scattering"
+material = "gold"
+orders = "all"
+theta = [50]
+target_tv = 0.2
+)";
+  std::vector<ScatterHistogram> walks;
+  for (const char* kernel : {"", "walk_kernel = \"lanes\"\n"}) {
+    const ExperimentSpec spec = parse_spec_toml(text + kernel, "lanes.toml");
+    const ExperimentPlan plan = microsim::test::plan_with_small_pilots(spec);
+    ASSERT_EQ(plan.decisions.at(0).model.model, Model::smith_walk);
+    const ExperimentResults results = run_experiment(spec, plan, RunOptions{});
+    walks.push_back(results.measurements.at(0).scatter);
+  }
+  EXPECT_EQ(walks[0].provenance.measurement.find("kernel=lanes"), std::string::npos);
+  EXPECT_NE(walks[1].provenance.measurement.find("kernel=lanes"), std::string::npos) << walks[1].provenance.measurement;
+  const Estimate a0 = walks[0].albedo(0, -1), a1 = walks[1].albedo(0, -1);
+  EXPECT_NEAR(a0.value, a1.value, 4 * std::hypot(a0.standard_error, a1.standard_error));
+  EXPECT_NE(a0.value, a1.value) << "other random numbers";
+}
+
 // The plan fixes the orders a per-order target applies to, and the run resolves and reports those: on this
 // view order 2 carries about 5% of the albedo, so at TV 0.05 whether it counts turned on the noise of its share.
 TEST(ScatterPilotFloor, TheRunResolvesTheOrdersThePlanTargeted) {

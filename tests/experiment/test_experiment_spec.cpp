@@ -164,6 +164,13 @@ INSTANTIATE_TEST_SUITE_P(
                 spec_with("alphas = [0.5, 0.1]\ntype = \"mirror\"", "kind = \"albedo\"\nmaterial = \"m\"\ntarget_relative_error = 0.01"),
                 "quantity[0].material", 10, "must increase"},
         BadSpec{"even_rows", spec_with(kMirror, kVndf + "\nrows = 30"), "quantity[0].rows", 13, "must be odd"},
+        BadSpec{"unknown_walk_kernel",
+                spec_with(kMirror, "kind = \"scattering\"\nmaterial = \"m\"\ntheta = [30]\ntarget_tv = 0.1\nwalk_kernel = \"gpu\""),
+                "quantity[0].walk_kernel", 13, "scalar or lanes"},
+        BadSpec{"lanes_on_beckmann",
+                spec_with("ndf = \"beckmann\"\n" + kMirror,
+                          "kind = \"albedo\"\nmaterial = \"m\"\ntarget_relative_error = 0.01\nwalk_kernel = \"lanes\""),
+                "quantity[0].walk_kernel", 13, "lanes walks GGX"},
         BadSpec{"unknown_sampler",
                 spec_with(kMirror, "kind = \"validation\"\nmaterial = \"m\"\nsampler = \"nope\"\ntheta = [0]\ndetect_tv = 0.01"),
                 "quantity[0].sampler", 11, "not a sampler of the zoo"},
@@ -213,6 +220,18 @@ INSTANTIATE_TEST_SUITE_P(
         BadSpec{"no_quantity", "name = \"t\"\n[[material]]\nname = \"m\"\n" + kMirror + "\n", "quantity", 0, "missing"},
         BadSpec{"syntax", spec_with(kMirror, kVndf) + "oops = [1, \n", "(syntax)", 13, ""}),
     [](const auto& info) { return info.param.name; });
+
+// walk_kernel = "lanes" is a setting of the quantity (its digest changes); "scalar", the default, leaves the spec
+// as it was without the key.
+TEST(ExperimentSpec, TheWalkKernelIsRecordedOnlyWhenLanes) {
+  const std::string albedo = "kind = \"albedo\"\nmaterial = \"m\"\norders = \"all\"\ntarget_relative_error = 0.01";
+  const ExperimentSpec plain = parse_spec_toml(spec_with(kMirror, albedo), "a.toml");
+  const ExperimentSpec scalar = parse_spec_toml(spec_with(kMirror, albedo + "\nwalk_kernel = \"scalar\""), "a.toml");
+  const ExperimentSpec lanes = parse_spec_toml(spec_with(kMirror, albedo + "\nwalk_kernel = \"lanes\""), "a.toml");
+  EXPECT_EQ(spec_digest(plain), spec_digest(scalar));
+  EXPECT_NE(spec_digest(plain), spec_digest(lanes));
+  EXPECT_EQ(lanes.quantities[0].settings.value("walk_kernel", ""), "lanes");
+}
 
 TEST(ExperimentSpec, JsonErrorsNameTheLineOfTheKey) {
   const std::string json = "{\n  \"material\": [{\"name\": \"m\", \"alpha\": 0.3, \"type\": \"mirror\"}],\n"
