@@ -19,6 +19,7 @@
 #include "microgeom/assembly.h"
 #include "measure/albedo.h"
 #include "scatter/albedo_anisotropic.h"
+#include "scatter/albedo_anisotropic_walk.h"
 #include "scatter/albedo_glass_layout.h"
 #include "scatter/albedo_table.h"
 #include "scatter/albedo_layout.h"
@@ -254,22 +255,71 @@ void print_anisotropic(const AnisotropicAlbedoTable& t) {
   }
 }
 
-// --alphas-y: the anisotropic mirror's table (scatter/albedo_anisotropic.h), CSV and JSON.
-int run_anisotropic(const AlbedoArgs& a) {
-  check_only(a, {"--model", "--alphas", "--alphas-y", "--phis", "--mus", "--tolerance", "--threads", "--csv", "--json"},
-             "--alphas-y (the anisotropic GGX mirror's table)");
-  if (a.model != "analytic") throw UsageError("--alphas-y needs --model analytic");
+// The outputs and axes of an anisotropic table (either model), checked before any work.
+void anisotropic_axes(const AlbedoArgs& a, std::vector<double>& alphas_x, std::vector<double>& alphas_y) {
   if (a.csv.empty() && a.json.empty()) throw UsageError("--alphas-y needs --csv T.csv or --json T.json");
   check_distinct_outputs({}, {{"--csv", a.csv}, {"--json", a.json}});
   check_output("--csv", a.csv);
   check_output("--json", a.json);
-  AnisotropicAlbedoRequest r;
   try {
-    r.alphas_x = albedo_alphas(a);
-    r.alphas_y = parse_double_list("--alphas-y", a.alphas_y, Interval{kMinAlbedoAlpha, kMaxAlbedoAlpha});
+    alphas_x = albedo_alphas(a);
+    alphas_y = parse_double_list("--alphas-y", a.alphas_y, Interval{kMinAlbedoAlpha, kMaxAlbedoAlpha});
   } catch (const ParseError& e) {
     throw UsageError(e.what());
   }
+}
+
+void print_anisotropic_walk(const AnisotropicWalkTable& t) {
+  const AnisotropicWalkRequest& r = t.request;
+  fmt::print("anisotropic GGX mirror (F = 1), Smith walk (Heitz et al. 2016): {} x {} roughnesses, {} mus x {} phis, "
+             "{} paths per node; {:.1f} s\nE1_avg and E_ms_avg (orders >= 2) with standard errors:\n",
+             r.alphas_x.size(), r.alphas_y.size(), t.mus.size(), t.phis.size(), r.paths, t.seconds);
+  for (std::size_t ix = 0; ix < r.alphas_x.size(); ++ix)
+    for (std::size_t iy = 0; iy < r.alphas_y.size(); ++iy) {
+      const AnisotropicWalkNode& n = t.average[ix * r.alphas_y.size() + iy];
+      fmt::print("  alpha ({:g}, {:g}): E1_avg {:.6f} +- {:.1e}, E_ms_avg {:.6f} +- {:.1e}\n", r.alphas_x[ix],
+                 r.alphas_y[iy], n[1].value, n[1].standard_error, n[2].value, n[2].standard_error);
+    }
+}
+
+// --alphas-y --model smith-walk: the walk's table (scatter/albedo_anisotropic_walk.h), CSV and JSON.
+int run_anisotropic_walk(const AlbedoArgs& a) {
+  check_only(a, {"--model", "--alphas", "--alphas-y", "--phis", "--mus", "--rays", "--seed", "--max-order",
+                 "--walk-kernel", "--threads", "--csv", "--json"},
+             "--alphas-y --model smith-walk (the anisotropic GGX mirror's walk table)");
+  AnisotropicWalkRequest r;
+  anisotropic_axes(a, r.alphas_x, r.alphas_y);
+  try {
+    r.walk_kernel = parse_walk_kernel("--walk-kernel", a.walk_kernel);
+  } catch (const ParseError& e) {
+    throw UsageError(e.what());
+  }
+  r.mus = a.mus;
+  r.phis = a.phis;
+  r.paths = a.rays;
+  r.seed = a.seed;
+  r.max_order = a.max_order;
+  const auto progress = std::make_shared<CliProgress>(true);
+  r.run = cli_run_control(a.threads, progress);
+  install_interrupt_handler();
+  const std::optional<AnisotropicWalkTable> t = anisotropic_walk_table(r);
+  progress->finish();
+  if (!t) return interrupted_nothing_written("albedo");
+  if (!a.csv.empty()) write_file_atomically(a.csv, anisotropic_walk_csv(*t));
+  if (!a.json.empty()) write_file_atomically(a.json, anisotropic_walk_json(*t).dump(2) + "\n");
+  print_anisotropic_walk(*t);
+  return kExitOk;
+}
+
+// --alphas-y: the anisotropic mirror's table (scatter/albedo_anisotropic.h), CSV and JSON.
+int run_anisotropic(const AlbedoArgs& a) {
+  if (a.model == "smith-walk") return run_anisotropic_walk(a);
+  check_only(a, {"--model", "--alphas", "--alphas-y", "--phis", "--mus", "--tolerance", "--threads", "--csv", "--json"},
+             "--alphas-y (the anisotropic GGX mirror's table)");
+  if (a.model != "analytic")
+    throw UsageError(fmt::format("--model {}: --alphas-y needs --model analytic or smith-walk", quote_excerpt(a.model)));
+  AnisotropicAlbedoRequest r;
+  anisotropic_axes(a, r.alphas_x, r.alphas_y);
   r.mus = a.mus;
   r.phis = a.phis;
   r.tolerance = a.tolerance;
@@ -379,8 +429,9 @@ void add_albedo_options(CLI::App* sub, AlbedoArgs& a) {
                       albedo_layout_names() + "; of a GGX dielectric's E = E_R + E_T over Cycles' index axis (--csv, "
                       "--encoded, --json): " + glass_layout_names());
   sub->add_option("--alphas-y", a.alphas_y,
-                  "analytic mirror: an anisotropic table, E(mu, phi) per (alpha_x in --alphas, alpha_y in this list), "
-                  "and E_avg (--csv, --json)");
+                  "an anisotropic GGX mirror's table per (alpha_x in --alphas, alpha_y in this list) and node (mu, phi): "
+                  "--model analytic: E (single scattering) and E_avg; --model smith-walk: E (every order), E1 (order "
+                  "1), E_ms (orders >= 2) and unfinished, with standard errors, and their averages (--csv, --json)");
   add_number_option(sub, "--phis", a.phis, integer(1, 64),
                     "--alphas-y: Gauss-Legendre nodes in phi over [0, pi/2], 1..64")->default_str(std::to_string(a.phis));
   sub->add_option("--encoded", a.encoded, "--layout: also write the values in the renderer's own encoding");
@@ -404,7 +455,8 @@ CommandRegistration albedo_registration{"albedo", [](CLI::App& app) {
       "2016: all orders and order 1) or surface (the explicit smith heightfield, traced). mu on Gauss-Legendre "
       "nodes. Writes an EXR, optionally CSV and JSON. --layout cycles|filament-dfg|enterprise-pbr|uniform: the GGX "
       "mirror's table in a renderer's layout; --layout cycles-glass|cycles-glass-inv: a GGX dielectric's over Cycles' "
-      "index axis; --alphas-y: the anisotropic mirror's E(mu, phi) and E_avg; --grade TABLE --layout L: grade a "
+      "index axis; --alphas-y: the anisotropic mirror's E(mu, phi) and E_avg (analytic; smith-walk: split into order 1 and "
+      "orders >= 2); --grade TABLE --layout L: grade a "
       "shipped table. Exit 0 done (grade: "
       "passed), 1 a graded node beyond --tolerance, 2 bad input (nothing written), 130 interrupted.");
   add_albedo_options(sub, *args);

@@ -45,6 +45,9 @@ struct AnisotropicAlbedoTable {
   }
 };
 
+// The axes of a table (analytic or walk, scatter/albedo_anisotropic_walk.h): std::invalid_argument naming an alpha
+// outside [kMinAlbedoAlpha, kMaxAlbedoAlpha] (or none), mus outside [kMinAlbedoMus, kMaxAlbedoMus], phis outside [1, 64].
+void check_anisotropic_axes(const std::vector<double>& alphas_x, const std::vector<double>& alphas_y, int mus, int phis);
 // One node: E of the view (mu, phi) (mu in (0, 1]) on GGX(alpha_x, alpha_y), with its error estimate.
 Estimate anisotropic_mirror_albedo(double alpha_x, double alpha_y, double mu, double phi, double tolerance);
 // The table: std::invalid_argument naming the bad value; nullopt when cancelled.
