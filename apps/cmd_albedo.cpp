@@ -21,6 +21,7 @@
 #include "scatter/albedo_anisotropic.h"
 #include "scatter/albedo_anisotropic_walk.h"
 #include "scatter/albedo_glass_layout.h"
+#include "scatter/albedo_glass_walk.h"
 #include "scatter/albedo_table.h"
 #include "scatter/albedo_layout.h"
 #include "scatter/albedo_table_io.h"
@@ -185,13 +186,69 @@ const AlbedoLayout& chosen_layout(const AlbedoArgs& a) {
   }
 }
 
+// Per index node: the multiple scattering E - E1 averaged over the in-range (roughness, mu) nodes, and the
+// share of it transmitted, sum (E_T - E1_T) / sum (E - E1).
+void print_glass_walk(const GlassWalkTable& t) {
+  fmt::print("{} nodes, Smith walk (Heitz et al. 2016; order 1 with the walk's own masking, not Cycles'): {} paths "
+             "per node; {:.1f} s\n{:>12} {:>12} {:>12}\n", t.request.layout.name, t.request.paths, t.seconds, "ior",
+             "mean E-E1", "T share");
+  for (std::size_t z = 0; z < t.iors.size(); ++z) {
+    double ms = 0, ms_t = 0;
+    int n = 0;
+    for (std::size_t y = 0; y < t.mus.size(); ++y)
+      for (std::size_t x = 0; x < t.alphas.size(); ++x) {
+        if (!t.in_range[x]) continue;
+        const GlassWalkNode& c = t.cells[t.index(x, y, z)];
+        ms += c[0].value - c[3].value;
+        ms_t += c[2].value - c[5].value;
+        ++n;
+      }
+    fmt::print("{:>12.6g} {:>12.6f} {:>12.4f}\n", t.request.layout.inverse ? 1 / t.iors[z] : t.iors[z], ms / n,
+               ms > 0 ? ms_t / ms : 0.0);
+  }
+}
+
+// --layout cycles-glass[-inv] --model smith-walk: the walk's split over the layout's nodes
+// (scatter/albedo_glass_walk.h): CSV and JSON.
+int run_glass_walk(const AlbedoArgs& a, const GlassLayout& layout) {
+  check_only(a, {"--layout", "--model", "--rays", "--seed", "--max-order", "--walk-kernel", "--threads", "--csv",
+                 "--json"},
+             "a glass --layout with --model smith-walk (the walk's split on the layout's nodes)");
+  if (a.csv.empty() && a.json.empty())
+    throw UsageError(fmt::format("--layout {} --model smith-walk needs --csv or --json", layout.name));
+  check_distinct_outputs({}, {{"--csv", a.csv}, {"--json", a.json}});
+  check_output("--csv", a.csv);
+  check_output("--json", a.json);
+  GlassWalkRequest r;
+  r.layout = layout;
+  try {
+    r.walk_kernel = parse_walk_kernel("--walk-kernel", a.walk_kernel);
+  } catch (const ParseError& e) {
+    throw UsageError(e.what());
+  }
+  r.paths = a.rays;
+  r.seed = a.seed;
+  r.max_order = a.max_order;
+  const auto progress = std::make_shared<CliProgress>(true);
+  r.run = cli_run_control(a.threads, progress);
+  install_interrupt_handler();
+  const std::optional<GlassWalkTable> t = glass_walk_table(r);
+  progress->finish();
+  if (!t) return interrupted_nothing_written("albedo");
+  if (!a.csv.empty()) write_file_atomically(a.csv, glass_walk_csv(*t));
+  if (!a.json.empty()) write_file_atomically(a.json, glass_walk_json(*t).dump(2) + "\n");
+  print_glass_walk(*t);
+  return kExitOk;
+}
+
 // A dielectric over Cycles' index axis (scatter/albedo_glass_layout.h): CSV, the encoded text and JSON, no EXR.
 int run_glass_layout(const AlbedoArgs& a, const GlassLayout& layout) {
+  if (a.model == "smith-walk") return run_glass_walk(a, layout);
   check_only(a, {"--layout", "--model", "--tolerance", "--threads", "--csv", "--encoded", "--json"},
              "a glass --layout (the analytic reference of a GGX dielectric at the layout's indices)");
   if (a.given.count("--model") && a.model != "analytic")
-    throw UsageError(fmt::format("--model {}: a layout table holds the analytic reference (--model analytic)",
-                                 quote_excerpt(a.model)));
+    throw UsageError(fmt::format("--model {}: a glass layout table holds the analytic reference (--model analytic) "
+                                 "or the walk's split (--model smith-walk)", quote_excerpt(a.model)));
   if (a.csv.empty() && a.encoded.empty() && a.json.empty())
     throw UsageError(fmt::format("--layout {} needs --csv, --encoded or --json", layout.name));
   check_distinct_outputs({}, {{"--csv", a.csv}, {"--encoded", a.encoded}, {"--json", a.json}});
@@ -427,7 +484,9 @@ void add_albedo_options(CLI::App* sub, AlbedoArgs& a) {
                   "a renderer's layout of the GGX (or --ndf beckmann) mirror's E(mu, alpha), analytic reference and error "
                   "per node: " +
                       albedo_layout_names() + "; of a GGX dielectric's E = E_R + E_T over Cycles' index axis (--csv, "
-                      "--encoded, --json): " + glass_layout_names());
+                      "--encoded, --json): " + glass_layout_names() +
+                      " (with --model smith-walk: the walk's E_R, E_T of every order and of order 1 per node, --csv, "
+                      "--json)");
   sub->add_option("--alphas-y", a.alphas_y,
                   "an anisotropic GGX mirror's table per (alpha_x in --alphas, alpha_y in this list) and node (mu, phi): "
                   "--model analytic: E (single scattering) and E_avg; --model smith-walk: E (every order), E1 (order "
@@ -455,10 +514,10 @@ CommandRegistration albedo_registration{"albedo", [](CLI::App& app) {
       "2016: all orders and order 1) or surface (the explicit smith heightfield, traced). mu on Gauss-Legendre "
       "nodes. Writes an EXR, optionally CSV and JSON. --layout cycles|filament-dfg|enterprise-pbr|uniform: the GGX "
       "mirror's table in a renderer's layout; --layout cycles-glass|cycles-glass-inv: a GGX dielectric's over Cycles' "
-      "index axis; --alphas-y: the anisotropic mirror's E(mu, phi) and E_avg (analytic; smith-walk: split into order 1 and "
-      "orders >= 2); --grade TABLE --layout L: grade a "
-      "shipped table. Exit 0 done (grade: "
-      "passed), 1 a graded node beyond --tolerance, 2 bad input (nothing written), 130 interrupted.");
+      "index axis (--model smith-walk: the walk's reflected / transmitted split per node); --alphas-y: the "
+      "anisotropic mirror's E(mu, phi) and E_avg (analytic; smith-walk: split into order 1 and orders >= 2); --grade "
+      "TABLE --layout L: grade a shipped table. Exit 0 done (grade: passed), 1 a graded node beyond --tolerance, 2 "
+      "bad input (nothing written), 130 interrupted.");
   add_albedo_options(sub, *args);
   on_selected(sub, [args, sub] {
     for (const CLI::Option* o : sub->get_options())

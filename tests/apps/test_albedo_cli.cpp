@@ -173,6 +173,14 @@ TEST(AlbedoCli, LayoutTableIsWrittenInTheRenderersFormsAndTheAnisotropicTableToo
   EXPECT_NE(w.find("alpha_x,alpha_y,mu,phi,E,E_se,E1,E1_se,E_ms,E_ms_se,unfinished,unfinished_se,E_avg,"), std::string::npos);
   EXPECT_EQ(std::count(w.begin(), w.end(), '\n'), 2 + 1 + 2);
   EXPECT_NE(slurp(dir / "w.json").find("\"kind\": \"anisotropic walk table\""), std::string::npos);
+  // The walk's split on Cycles' glass nodes (16 paths a node: the form, not the values).
+  const auto glass = run_cli(dir, "albedo --layout cycles-glass --model smith-walk --rays 16 --walk-kernel lanes "
+                                  "--csv g.csv --json g.json");
+  ASSERT_EQ(glass.exit_code, 0) << glass.err;
+  EXPECT_NE(glass.out.find("T share"), std::string::npos) << glass.out;
+  const std::string g = slurp(dir / "g.csv");
+  EXPECT_EQ(std::count(g.begin(), g.end(), '\n'), 3 + 1 + 4096);
+  EXPECT_NE(slurp(dir / "g.json").find("\"kind\": \"glass walk table\""), std::string::npos);
   fs::remove_all(dir);
 }
 
@@ -296,6 +304,12 @@ std::vector<BadInputCase> albedo_cli_cases() {
        "--walk-kernel 'simd'"},
       {"anisotropic_alpha_y", "albedo --model analytic --alphas-y 3 --csv a.csv", 2, "'3'"},
       {"phis_alone", kAlbedo + "--phis 4", 2, "--phis applies to --alphas-y only"},
+      {"glass_walk_tolerance", "albedo --layout cycles-glass --model smith-walk --tolerance 1e-6 --csv g.csv", 2,
+       "--tolerance does not apply"},
+      {"glass_walk_encoded", "albedo --layout cycles-glass --model smith-walk --encoded g.txt", 2,
+       "--encoded does not apply"},
+      {"glass_walk_no_output", "albedo --layout cycles-glass-inv --model smith-walk", 2, "needs --csv or --json"},
+      {"glass_layout_surface", "albedo --layout cycles-glass --model surface --csv g.csv", 2, "--model 'surface'"},
       {"glass_layout_out", "albedo --layout cycles-glass --out o.exr --csv g.csv", 2, "--out does not apply"},
       {"glass_layout_no_output", "albedo --layout cycles-glass-inv", 2, "needs --csv, --encoded or --json"},
       {"glass_layout_material", "albedo --layout cycles-glass --material dielectric:1.5 --csv g.csv", 2,
