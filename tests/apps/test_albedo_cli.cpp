@@ -140,7 +140,8 @@ TEST(AlbedoCli, TheLanesKernelWalksTheSameTable) {
 }
 
 // A layout table: the Cycles layout (at a coarse quadrature tolerance, to keep the test short) is written as
-// EXR, CSV, JSON and Cycles' own 6-decimal text; and the anisotropic mirror's table.
+// EXR, CSV, JSON and Cycles' own 6-decimal text; the anisotropic mirror's table, analytic and from the walk;
+// and the walk's split on Cycles' glass nodes (the forms of the files, not their values: tests/scatter).
 TEST(AlbedoCli, LayoutTableIsWrittenInTheRenderersFormsAndTheAnisotropicTableToo) {
   const fs::path dir = scratch_dir("albedo_cli", "layout");
   const auto r = run_cli(dir, "albedo --layout cycles --tolerance 1e-2 --out c.exr --csv c.csv --json c.json "
