@@ -19,7 +19,9 @@
 #include "microgeom/assembly.h"
 #include "measure/albedo.h"
 #include "scatter/albedo_anisotropic.h"
+#include "scatter/albedo_anisotropic_walk.h"
 #include "scatter/albedo_glass_layout.h"
+#include "scatter/albedo_glass_walk.h"
 #include "scatter/albedo_table.h"
 #include "scatter/albedo_layout.h"
 #include "scatter/albedo_table_io.h"
@@ -184,13 +186,69 @@ const AlbedoLayout& chosen_layout(const AlbedoArgs& a) {
   }
 }
 
+// Per index node: the multiple scattering E - E1 averaged over the in-range (roughness, mu) nodes, and the
+// share of it transmitted, sum (E_T - E1_T) / sum (E - E1).
+void print_glass_walk(const GlassWalkTable& t) {
+  fmt::print("{} nodes, Smith walk (Heitz et al. 2016; order 1 with the walk's own masking, not Cycles'): {} paths "
+             "per node; {:.1f} s\n{:>12} {:>12} {:>12}\n", t.request.layout.name, t.request.paths, t.seconds, "ior",
+             "mean E-E1", "T share");
+  for (std::size_t z = 0; z < t.iors.size(); ++z) {
+    double ms = 0, ms_t = 0;
+    int n = 0;
+    for (std::size_t y = 0; y < t.mus.size(); ++y)
+      for (std::size_t x = 0; x < t.alphas.size(); ++x) {
+        if (!t.in_range[x]) continue;
+        const GlassWalkNode& c = t.cells[t.index(x, y, z)];
+        ms += c[0].value - c[3].value;
+        ms_t += c[2].value - c[5].value;
+        ++n;
+      }
+    fmt::print("{:>12.6g} {:>12.6f} {:>12.4f}\n", t.request.layout.inverse ? 1 / t.iors[z] : t.iors[z], ms / n,
+               ms > 0 ? ms_t / ms : 0.0);
+  }
+}
+
+// --layout cycles-glass[-inv] --model smith-walk: the walk's split over the layout's nodes
+// (scatter/albedo_glass_walk.h): CSV and JSON.
+int run_glass_walk(const AlbedoArgs& a, const GlassLayout& layout) {
+  check_only(a, {"--layout", "--model", "--rays", "--seed", "--max-order", "--walk-kernel", "--threads", "--csv",
+                 "--json"},
+             "a glass --layout with --model smith-walk (the walk's split on the layout's nodes)");
+  if (a.csv.empty() && a.json.empty())
+    throw UsageError(fmt::format("--layout {} --model smith-walk needs --csv or --json", layout.name));
+  check_distinct_outputs({}, {{"--csv", a.csv}, {"--json", a.json}});
+  check_output("--csv", a.csv);
+  check_output("--json", a.json);
+  GlassWalkRequest r;
+  r.layout = layout;
+  try {
+    r.walk_kernel = parse_walk_kernel("--walk-kernel", a.walk_kernel);
+  } catch (const ParseError& e) {
+    throw UsageError(e.what());
+  }
+  r.paths = a.rays;
+  r.seed = a.seed;
+  r.max_order = a.max_order;
+  const auto progress = std::make_shared<CliProgress>(true);
+  r.run = cli_run_control(a.threads, progress);
+  install_interrupt_handler();
+  const std::optional<GlassWalkTable> t = glass_walk_table(r);
+  progress->finish();
+  if (!t) return interrupted_nothing_written("albedo");
+  if (!a.csv.empty()) write_file_atomically(a.csv, glass_walk_csv(*t));
+  if (!a.json.empty()) write_file_atomically(a.json, glass_walk_json(*t).dump(2) + "\n");
+  print_glass_walk(*t);
+  return kExitOk;
+}
+
 // A dielectric over Cycles' index axis (scatter/albedo_glass_layout.h): CSV, the encoded text and JSON, no EXR.
 int run_glass_layout(const AlbedoArgs& a, const GlassLayout& layout) {
+  if (a.model == "smith-walk") return run_glass_walk(a, layout);
   check_only(a, {"--layout", "--model", "--tolerance", "--threads", "--csv", "--encoded", "--json"},
              "a glass --layout (the analytic reference of a GGX dielectric at the layout's indices)");
   if (a.given.count("--model") && a.model != "analytic")
-    throw UsageError(fmt::format("--model {}: a layout table holds the analytic reference (--model analytic)",
-                                 quote_excerpt(a.model)));
+    throw UsageError(fmt::format("--model {}: a glass layout table holds the analytic reference (--model analytic) "
+                                 "or the walk's split (--model smith-walk)", quote_excerpt(a.model)));
   if (a.csv.empty() && a.encoded.empty() && a.json.empty())
     throw UsageError(fmt::format("--layout {} needs --csv, --encoded or --json", layout.name));
   check_distinct_outputs({}, {{"--csv", a.csv}, {"--encoded", a.encoded}, {"--json", a.json}});
@@ -254,22 +312,71 @@ void print_anisotropic(const AnisotropicAlbedoTable& t) {
   }
 }
 
-// --alphas-y: the anisotropic mirror's table (scatter/albedo_anisotropic.h), CSV and JSON.
-int run_anisotropic(const AlbedoArgs& a) {
-  check_only(a, {"--model", "--alphas", "--alphas-y", "--phis", "--mus", "--tolerance", "--threads", "--csv", "--json"},
-             "--alphas-y (the anisotropic GGX mirror's table)");
-  if (a.model != "analytic") throw UsageError("--alphas-y needs --model analytic");
+// The outputs and axes of an anisotropic table (either model), checked before any work.
+void anisotropic_axes(const AlbedoArgs& a, std::vector<double>& alphas_x, std::vector<double>& alphas_y) {
   if (a.csv.empty() && a.json.empty()) throw UsageError("--alphas-y needs --csv T.csv or --json T.json");
   check_distinct_outputs({}, {{"--csv", a.csv}, {"--json", a.json}});
   check_output("--csv", a.csv);
   check_output("--json", a.json);
-  AnisotropicAlbedoRequest r;
   try {
-    r.alphas_x = albedo_alphas(a);
-    r.alphas_y = parse_double_list("--alphas-y", a.alphas_y, Interval{kMinAlbedoAlpha, kMaxAlbedoAlpha});
+    alphas_x = albedo_alphas(a);
+    alphas_y = parse_double_list("--alphas-y", a.alphas_y, Interval{kMinAlbedoAlpha, kMaxAlbedoAlpha});
   } catch (const ParseError& e) {
     throw UsageError(e.what());
   }
+}
+
+void print_anisotropic_walk(const AnisotropicWalkTable& t) {
+  const AnisotropicWalkRequest& r = t.request;
+  fmt::print("anisotropic GGX mirror (F = 1), Smith walk (Heitz et al. 2016): {} x {} roughnesses, {} mus x {} phis, "
+             "{} paths per node; {:.1f} s\nE1_avg and E_ms_avg (orders >= 2) with standard errors:\n",
+             r.alphas_x.size(), r.alphas_y.size(), t.mus.size(), t.phis.size(), r.paths, t.seconds);
+  for (std::size_t ix = 0; ix < r.alphas_x.size(); ++ix)
+    for (std::size_t iy = 0; iy < r.alphas_y.size(); ++iy) {
+      const AnisotropicWalkNode& n = t.average[ix * r.alphas_y.size() + iy];
+      fmt::print("  alpha ({:g}, {:g}): E1_avg {:.6f} +- {:.1e}, E_ms_avg {:.6f} +- {:.1e}\n", r.alphas_x[ix],
+                 r.alphas_y[iy], n[1].value, n[1].standard_error, n[2].value, n[2].standard_error);
+    }
+}
+
+// --alphas-y --model smith-walk: the walk's table (scatter/albedo_anisotropic_walk.h), CSV and JSON.
+int run_anisotropic_walk(const AlbedoArgs& a) {
+  check_only(a, {"--model", "--alphas", "--alphas-y", "--phis", "--mus", "--rays", "--seed", "--max-order",
+                 "--walk-kernel", "--threads", "--csv", "--json"},
+             "--alphas-y --model smith-walk (the anisotropic GGX mirror's walk table)");
+  AnisotropicWalkRequest r;
+  anisotropic_axes(a, r.alphas_x, r.alphas_y);
+  try {
+    r.walk_kernel = parse_walk_kernel("--walk-kernel", a.walk_kernel);
+  } catch (const ParseError& e) {
+    throw UsageError(e.what());
+  }
+  r.mus = a.mus;
+  r.phis = a.phis;
+  r.paths = a.rays;
+  r.seed = a.seed;
+  r.max_order = a.max_order;
+  const auto progress = std::make_shared<CliProgress>(true);
+  r.run = cli_run_control(a.threads, progress);
+  install_interrupt_handler();
+  const std::optional<AnisotropicWalkTable> t = anisotropic_walk_table(r);
+  progress->finish();
+  if (!t) return interrupted_nothing_written("albedo");
+  if (!a.csv.empty()) write_file_atomically(a.csv, anisotropic_walk_csv(*t));
+  if (!a.json.empty()) write_file_atomically(a.json, anisotropic_walk_json(*t).dump(2) + "\n");
+  print_anisotropic_walk(*t);
+  return kExitOk;
+}
+
+// --alphas-y: the anisotropic mirror's table (scatter/albedo_anisotropic.h), CSV and JSON.
+int run_anisotropic(const AlbedoArgs& a) {
+  if (a.model == "smith-walk") return run_anisotropic_walk(a);
+  check_only(a, {"--model", "--alphas", "--alphas-y", "--phis", "--mus", "--tolerance", "--threads", "--csv", "--json"},
+             "--alphas-y (the anisotropic GGX mirror's table)");
+  if (a.model != "analytic")
+    throw UsageError(fmt::format("--model {}: --alphas-y needs --model analytic or smith-walk", quote_excerpt(a.model)));
+  AnisotropicAlbedoRequest r;
+  anisotropic_axes(a, r.alphas_x, r.alphas_y);
   r.mus = a.mus;
   r.phis = a.phis;
   r.tolerance = a.tolerance;
@@ -377,10 +484,13 @@ void add_albedo_options(CLI::App* sub, AlbedoArgs& a) {
                   "a renderer's layout of the GGX (or --ndf beckmann) mirror's E(mu, alpha), analytic reference and error "
                   "per node: " +
                       albedo_layout_names() + "; of a GGX dielectric's E = E_R + E_T over Cycles' index axis (--csv, "
-                      "--encoded, --json): " + glass_layout_names());
+                      "--encoded, --json): " + glass_layout_names() +
+                      " (with --model smith-walk: the walk's E_R, E_T of every order and of order 1 per node, --csv, "
+                      "--json)");
   sub->add_option("--alphas-y", a.alphas_y,
-                  "analytic mirror: an anisotropic table, E(mu, phi) per (alpha_x in --alphas, alpha_y in this list), "
-                  "and E_avg (--csv, --json)");
+                  "an anisotropic GGX mirror's table per (alpha_x in --alphas, alpha_y in this list) and node (mu, phi): "
+                  "--model analytic: E (single scattering) and E_avg; --model smith-walk: E (every order), E1 (order "
+                  "1), E_ms (orders >= 2) and unfinished, with standard errors, and their averages (--csv, --json)");
   add_number_option(sub, "--phis", a.phis, integer(1, 64),
                     "--alphas-y: Gauss-Legendre nodes in phi over [0, pi/2], 1..64")->default_str(std::to_string(a.phis));
   sub->add_option("--encoded", a.encoded, "--layout: also write the values in the renderer's own encoding");
@@ -404,9 +514,10 @@ CommandRegistration albedo_registration{"albedo", [](CLI::App& app) {
       "2016: all orders and order 1) or surface (the explicit smith heightfield, traced). mu on Gauss-Legendre "
       "nodes. Writes an EXR, optionally CSV and JSON. --layout cycles|filament-dfg|enterprise-pbr|uniform: the GGX "
       "mirror's table in a renderer's layout; --layout cycles-glass|cycles-glass-inv: a GGX dielectric's over Cycles' "
-      "index axis; --alphas-y: the anisotropic mirror's E(mu, phi) and E_avg; --grade TABLE --layout L: grade a "
-      "shipped table. Exit 0 done (grade: "
-      "passed), 1 a graded node beyond --tolerance, 2 bad input (nothing written), 130 interrupted.");
+      "index axis (--model smith-walk: the walk's reflected / transmitted split per node); --alphas-y: the "
+      "anisotropic mirror's E(mu, phi) and E_avg (analytic; smith-walk: split into order 1 and orders >= 2); --grade "
+      "TABLE --layout L: grade a shipped table. Exit 0 done (grade: passed), 1 a graded node beyond --tolerance, 2 "
+      "bad input (nothing written), 130 interrupted.");
   add_albedo_options(sub, *args);
   on_selected(sub, [args, sub] {
     for (const CLI::Option* o : sub->get_options())

@@ -28,13 +28,21 @@ void check_anisotropic_alphas(const char* what, const std::vector<double>& alpha
           fmt::format("anisotropic albedo: {} {} outside [{}, {}]", what, a, kMinAlbedoAlpha, kMaxAlbedoAlpha));
 }
 
+}  // namespace
+
+void check_anisotropic_axes(const std::vector<double>& alphas_x, const std::vector<double>& alphas_y, int mus,
+                            int phis) {
+  check_anisotropic_alphas("alpha_x", alphas_x);
+  check_anisotropic_alphas("alpha_y", alphas_y);
+  if (mus < kMinAlbedoMus || mus > kMaxAlbedoMus)
+    throw std::invalid_argument(fmt::format("anisotropic albedo: {} mus outside [{}, {}]", mus, kMinAlbedoMus, kMaxAlbedoMus));
+  if (phis < 1 || phis > 64) throw std::invalid_argument(fmt::format("anisotropic albedo: {} phis outside [1, 64]", phis));
+}
+
+namespace {
+
 void check_anisotropic_request(const AnisotropicAlbedoRequest& r) {
-  check_anisotropic_alphas("alpha_x", r.alphas_x);
-  check_anisotropic_alphas("alpha_y", r.alphas_y);
-  if (r.mus < kMinAlbedoMus || r.mus > kMaxAlbedoMus)
-    throw std::invalid_argument(fmt::format("anisotropic albedo: {} mus outside [{}, {}]", r.mus, kMinAlbedoMus, kMaxAlbedoMus));
-  if (r.phis < 1 || r.phis > 64)
-    throw std::invalid_argument(fmt::format("anisotropic albedo: {} phis outside [1, 64]", r.phis));
+  check_anisotropic_axes(r.alphas_x, r.alphas_y, r.mus, r.phis);
   if (!(r.tolerance >= 1e-13 && r.tolerance <= 1e-2))
     throw std::invalid_argument(fmt::format("anisotropic albedo: tolerance {} outside [1e-13, 1e-2]", r.tolerance));
 }

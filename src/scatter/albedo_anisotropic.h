@@ -11,7 +11,8 @@
 // single-scattering albedo (single_scattering_albedo: its quadrature over the anisotropic visible normals)
 // with its error estimate; E_avg = 2 sum_j w_j mu_j sum_k v_k E(mu_j, phi_k), v_k the phi weights (sum 1),
 // errors added (the rules' own error is not in it). The Smith walk's every-order albedo of a mirror is 1
-// (every path leaves), so the single-scattering table is the one compensation needs. Never prints.
+// (every path leaves), so the single-scattering table is the one compensation needs; the walk's split of that 1
+// into order 1 and the rest, per node: scatter/albedo_anisotropic_walk.h. Never prints.
 #pragma once
 
 #include "core/estimate.h"
@@ -45,6 +46,9 @@ struct AnisotropicAlbedoTable {
   }
 };
 
+// The axes of a table (analytic or walk, scatter/albedo_anisotropic_walk.h): std::invalid_argument naming an alpha
+// outside [kMinAlbedoAlpha, kMaxAlbedoAlpha] (or none), mus outside [kMinAlbedoMus, kMaxAlbedoMus], phis outside [1, 64].
+void check_anisotropic_axes(const std::vector<double>& alphas_x, const std::vector<double>& alphas_y, int mus, int phis);
 // One node: E of the view (mu, phi) (mu in (0, 1]) on GGX(alpha_x, alpha_y), with its error estimate.
 Estimate anisotropic_mirror_albedo(double alpha_x, double alpha_y, double mu, double phi, double tolerance);
 // The table: std::invalid_argument naming the bad value; nullopt when cancelled.

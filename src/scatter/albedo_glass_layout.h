@@ -25,7 +25,8 @@
 // E = E_T = (1 + Lambda) / (1 + 2 Lambda) in closed form (the quadrature from inside, at a critical angle
 // 2e-4 from grazing, would not converge in reasonable time).
 // The Smith walk's every-order albedo of a dielectric is 1 (no absorption: every path leaves), so only the
-// single-scattering table carries information. Never prints.
+// single-scattering table carries information; the walk's split of that 1 into reflection and transmission, of
+// every order and of order 1, on these nodes: scatter/albedo_glass_walk.h. Never prints.
 #pragma once
 
 #include "core/estimate.h"

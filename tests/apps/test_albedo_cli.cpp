@@ -140,7 +140,8 @@ TEST(AlbedoCli, TheLanesKernelWalksTheSameTable) {
 }
 
 // A layout table: the Cycles layout (at a coarse quadrature tolerance, to keep the test short) is written as
-// EXR, CSV, JSON and Cycles' own 6-decimal text; and the anisotropic mirror's table.
+// EXR, CSV, JSON and Cycles' own 6-decimal text; the anisotropic mirror's table, analytic and from the walk;
+// and the walk's split on Cycles' glass nodes (the forms of the files, not their values: tests/scatter).
 TEST(AlbedoCli, LayoutTableIsWrittenInTheRenderersFormsAndTheAnisotropicTableToo) {
   const fs::path dir = scratch_dir("albedo_cli", "layout");
   const auto r = run_cli(dir, "albedo --layout cycles --tolerance 1e-2 --out c.exr --csv c.csv --json c.json "
@@ -164,6 +165,23 @@ TEST(AlbedoCli, LayoutTableIsWrittenInTheRenderersFormsAndTheAnisotropicTableToo
   const std::string a = slurp(dir / "a.csv");
   EXPECT_NE(a.find("alpha_x,alpha_y,mu,phi,E,E_error,E_avg,E_avg_error\n"), std::string::npos);
   EXPECT_EQ(std::count(a.begin(), a.end(), '\n'), 2 + 1 + 2 * 2 * 2);
+  // Its walk table: per node E, E1, E_ms and unfinished with standard errors, and their averages.
+  const auto walk = run_cli(dir, "albedo --model smith-walk --alphas 0.5 --alphas-y 0.25 --mus 2 --phis 1 --rays 2000 "
+                                 "--walk-kernel lanes --csv w.csv --json w.json");
+  ASSERT_EQ(walk.exit_code, 0) << walk.err;
+  EXPECT_NE(walk.out.find("E1_avg"), std::string::npos) << walk.out;
+  const std::string w = slurp(dir / "w.csv");
+  EXPECT_NE(w.find("alpha_x,alpha_y,mu,phi,E,E_se,E1,E1_se,E_ms,E_ms_se,unfinished,unfinished_se,E_avg,"), std::string::npos);
+  EXPECT_EQ(std::count(w.begin(), w.end(), '\n'), 2 + 1 + 2);
+  EXPECT_NE(slurp(dir / "w.json").find("\"kind\": \"anisotropic walk table\""), std::string::npos);
+  // The walk's split on Cycles' glass nodes (16 paths a node: the form, not the values).
+  const auto glass = run_cli(dir, "albedo --layout cycles-glass --model smith-walk --rays 16 --walk-kernel lanes "
+                                  "--csv g.csv --json g.json");
+  ASSERT_EQ(glass.exit_code, 0) << glass.err;
+  EXPECT_NE(glass.out.find("T share"), std::string::npos) << glass.out;
+  const std::string g = slurp(dir / "g.csv");
+  EXPECT_EQ(std::count(g.begin(), g.end(), '\n'), 3 + 1 + 4096);
+  EXPECT_NE(slurp(dir / "g.json").find("\"kind\": \"glass walk table\""), std::string::npos);
   fs::remove_all(dir);
 }
 
@@ -277,9 +295,22 @@ std::vector<BadInputCase> albedo_cli_cases() {
       {"layout_out_not_exr", "albedo --layout cycles --out o.png", 2, "--out 'o.png'"},
       {"layout_encoded_is_out", "albedo --layout cycles --out o.exr --encoded o.exr", 2, "o.exr"},
       {"anisotropic_no_csv", "albedo --model analytic --alphas-y 0.5 --out o.exr", 2, "--out does not apply"},
-      {"anisotropic_walk", "albedo --model smith-walk --alphas-y 0.5 --csv a.csv", 2, "--model analytic"},
+      {"anisotropic_surface", "albedo --model surface --alphas-y 0.5 --csv a.csv", 2,
+       "--model 'surface': --alphas-y needs --model analytic or smith-walk"},
+      {"anisotropic_walk_tolerance", "albedo --model smith-walk --alphas-y 0.5 --tolerance 1e-6 --csv a.csv", 2,
+       "--tolerance does not apply"},
+      {"anisotropic_analytic_rays", "albedo --model analytic --alphas-y 0.5 --rays 10 --csv a.csv", 2,
+       "--rays does not apply"},
+      {"anisotropic_walk_kernel", "albedo --model smith-walk --alphas-y 0.5 --walk-kernel simd --csv a.csv", 2,
+       "--walk-kernel 'simd'"},
       {"anisotropic_alpha_y", "albedo --model analytic --alphas-y 3 --csv a.csv", 2, "'3'"},
       {"phis_alone", kAlbedo + "--phis 4", 2, "--phis applies to --alphas-y only"},
+      {"glass_walk_tolerance", "albedo --layout cycles-glass --model smith-walk --tolerance 1e-6 --csv g.csv", 2,
+       "--tolerance does not apply"},
+      {"glass_walk_encoded", "albedo --layout cycles-glass --model smith-walk --encoded g.txt", 2,
+       "--encoded does not apply"},
+      {"glass_walk_no_output", "albedo --layout cycles-glass-inv --model smith-walk", 2, "needs --csv or --json"},
+      {"glass_layout_surface", "albedo --layout cycles-glass --model surface --csv g.csv", 2, "--model 'surface'"},
       {"glass_layout_out", "albedo --layout cycles-glass --out o.exr --csv g.csv", 2, "--out does not apply"},
       {"glass_layout_no_output", "albedo --layout cycles-glass-inv", 2, "needs --csv, --encoded or --json"},
       {"glass_layout_material", "albedo --layout cycles-glass --material dielectric:1.5 --csv g.csv", 2,

@@ -5,8 +5,10 @@
 // at normal incidence E does not depend on phi; anisotropy between the two isotropic tables' values. The Smith
 // random walk on the anisotropic microsurface (Heitz et al. 2016) checks the table from outside the quadrature:
 // its order 1 is the table's E within its sampling error, its every-order albedo is 1 (a mirror absorbs nothing).
+// The walk's own table (scatter/albedo_anisotropic_walk.h) is checked node by node against the analytic one.
 #include "scatter/albedo_anisotropic.h"
 
+#include "scatter/albedo_anisotropic_walk.h"
 #include "scatter/albedo_layout.h"
 #include "scatter/albedo_table.h"
 #include "scatter/smith_walk.h"
@@ -103,6 +105,56 @@ TEST(AlbedoAnisotropicWalk, OrderOneIsTheAnalyticNodeAndEveryPathLeaves) {
     const Estimate swapped = anisotropic_mirror_albedo(n.ay, n.ax, n.mu, n.phi, 1e-9);
     EXPECT_GT(std::abs(swapped.value - single.value), 10 * single.standard_error) << "the negative control";
   }
+}
+
+// The walk table (lanes kernel, fixed seed) against the analytic table at the same 2 x 2 nodes of (0.3, 0.8):
+// E1 within 4 standard errors plus the quadrature's estimate at every node and in E1_avg (two-sided level 6e-5
+// per check); E + unfinished = 1 and E1 + E_ms = E per node (a mirror absorbs nothing; the orders partition
+// the paths). Negative control: the analytic table with the roughnesses swapped is more than 4 standard errors
+// off at some node. Same seed, same table with 1 or 2 threads.
+TEST(AlbedoAnisotropicWalk, TheWalkTablesOrderOneIsTheAnalyticTable) {
+  AnisotropicWalkRequest w;
+  w.alphas_x = {0.3};
+  w.alphas_y = {0.8};
+  w.mus = 2;
+  w.phis = 2;
+  w.paths = 40'000;
+  w.seed = 7;
+  w.walk_kernel = WalkKernel::lanes;
+  const std::optional<AnisotropicWalkTable> walk = anisotropic_walk_table(w);
+  ASSERT_TRUE(walk);
+  AnisotropicAlbedoRequest a;
+  a.alphas_x = w.alphas_x;
+  a.alphas_y = w.alphas_y;
+  a.mus = w.mus;
+  a.phis = w.phis;
+  a.tolerance = 1e-7;
+  const std::optional<AnisotropicAlbedoTable> exact = anisotropic_albedo_table(a);
+  ASSERT_TRUE(exact);
+  ASSERT_EQ(walk->cells.size(), exact->cells.size());
+  double largest_swapped_z = 0;
+  for (std::size_t c = 0; c < walk->cells.size(); ++c) {
+    const Estimate &e = walk->cells[c][0], &e1 = walk->cells[c][1], &ms = walk->cells[c][2], &left = walk->cells[c][3];
+    EXPECT_NEAR(e1.value, exact->cells[c].value, 4 * e1.standard_error + exact->cells[c].standard_error) << c;
+    EXPECT_NEAR(e.value + left.value, 1.0, 1e-12) << c;
+    EXPECT_NEAR(e1.value + ms.value, e.value, 1e-12) << c;
+    EXPECT_GT(ms.value, 0.0) << c;
+    const std::size_t j = c / 2, k = c % 2;
+    const double swapped = anisotropic_mirror_albedo(0.8, 0.3, walk->mus[j], walk->phis[k], 1e-7).value;
+    largest_swapped_z = std::max(largest_swapped_z, std::abs(swapped - e1.value) / e1.standard_error);
+  }
+  EXPECT_NEAR(walk->average[0][1].value, exact->average[0].value,
+              4 * walk->average[0][1].standard_error + exact->average[0].standard_error);
+  EXPECT_GT(largest_swapped_z, 4.0) << "the negative control";
+  w.paths = 2'000;
+  w.run.threads = 1;
+  const std::optional<AnisotropicWalkTable> one = anisotropic_walk_table(w);
+  w.run.threads = 2;
+  const std::optional<AnisotropicWalkTable> two = anisotropic_walk_table(w);
+  ASSERT_TRUE(one && two);
+  EXPECT_EQ(anisotropic_walk_csv(*one), anisotropic_walk_csv(*two));
+  w.paths = 0;
+  EXPECT_THROW(anisotropic_walk_table(w), std::invalid_argument);
 }
 
 TEST(AlbedoAnisotropicInput, RefusesRoughnessesNodesAndTolerancesOutOfRange) {

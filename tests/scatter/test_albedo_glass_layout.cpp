@@ -11,8 +11,20 @@
 // (6 decimals), read back from the text Cycles prints and from the CSV microsim writes, passes and is within
 // its rounding; one node moved by 1e-3 is flagged (the negative control); a table with the noise of N samples
 // of weights in [0, 1] is within the noise of N and beyond that of 100 N; malformed files are refused.
+//
+// The Smith walk's reflected / transmitted split on Cycles' rough-glass nodes (scatter/albedo_glass_walk.h).
+// Order 1 of the walk (Heitz et al. 2016) is single scattering with the Smith microsurface's own masking: at
+// nodes of both layouts its E1_R and E1_T agree with the analytic single scattering of that masking
+// (single_scattering_albedo, RefractionMasking::smith_microsurface, as `albedo --model analytic --material
+// dielectric:ETA`) within 4 standard errors plus the quadrature's estimate (two-sided level 6e-5 per check).
+// Negative control: Cycles' own masking (the reflection form for both lobes, RefractionMasking::height_correlated)
+// is more than 4 standard errors from the walk's E1_T at some node, so the comparison would see the wrong model.
+// Every node of a small layout (4 x 4 x 4, the same code path) loses nothing: E + unfinished = 1, E_R + E_T = E,
+// E1_R + E1_T = E1 <= E; its node is glass_walk_node's bit for bit, whatever the thread count.
 #include "scatter/albedo_glass_grade.h"
 #include "scatter/albedo_glass_layout.h"
+#include "scatter/albedo_glass_walk.h"
+#include "scatter/albedo_table.h"
 
 #include "microfacet/ggx.h"
 #include "microfacet/material.h"
@@ -293,6 +305,67 @@ TEST(AlbedoGlassGradeInput, RefusesWrongCountsMissingColumnsAndRepeatedNodes) {
   EXPECT_THROW(grade_glass_against(t, std::vector<double>(36, 0.5), 0.0), std::invalid_argument);
   EXPECT_NEAR(glass_grade_reference_tolerance(1e-3), layout_quantisation(LayoutEncoding::six_decimals, 0.5) / 10,
               1e-20);
+}
+
+TEST(AlbedoGlassWalk, OrderOneIsTheSmithMaskingsSingleScatteringNotCycles) {
+  struct Node {
+    const char* layout;
+    std::size_t x, y, z;
+  };
+  double largest_cycles_z = 0;
+  for (const Node& n : {Node{"cycles-glass", 10, 8, 5}, Node{"cycles-glass-inv", 12, 4, 8}, Node{"cycles-glass", 14, 3, 10}}) {
+    GlassWalkRequest r;
+    r.layout = *find_glass_layout(n.layout);
+    r.paths = 100'000;
+    r.seed = 11;
+    r.walk_kernel = WalkKernel::lanes;
+    const std::optional<GlassWalkNode> c = glass_walk_node(r, n.x, n.y, n.z);
+    ASSERT_TRUE(c);
+    const double rough = glass_layout_coordinate(int(n.x), 16), mu = glass_layout_coordinate(int(n.y), 16);
+    const Material glass = Material::dielectric(glass_layout_ior(glass_layout_index_coordinate(int(n.z), 16)));
+    const Vec3<double> wi = albedo_view(mu, r.layout.inverse);
+    const GGX<double> ggx(rough * rough);
+    const SingleScatteringAlbedo smith = single_scattering_albedo(ggx, glass, 0, wi, 1e-7);
+    const Estimate &e1_r = (*c)[4], &e1_t = (*c)[5];
+    EXPECT_NEAR(e1_r.value, smith.reflected.value, 4 * e1_r.standard_error + smith.reflected.standard_error) << n.layout;
+    EXPECT_NEAR(e1_t.value, smith.transmitted.value, 4 * e1_t.standard_error + smith.transmitted.standard_error) << n.layout;
+    EXPECT_NEAR((*c)[0].value + (*c)[6].value, 1.0, 1e-12);
+    const SingleScatteringAlbedo cycles =
+        single_scattering_albedo(ggx, glass, 0, wi, 1e-7, RefractionMasking::height_correlated);
+    largest_cycles_z = std::max(largest_cycles_z, std::abs(cycles.transmitted.value - e1_t.value) / e1_t.standard_error);
+  }
+  EXPECT_GT(largest_cycles_z, 4.0) << "the negative control: Cycles' masking";
+}
+
+TEST(AlbedoGlassWalk, EveryNodeOfASmallLayoutLosesNothingAndIsItsNode) {
+  GlassWalkRequest r;
+  r.layout = *find_glass_layout("cycles-glass-inv");
+  r.layout.roughness_nodes = r.layout.mu_nodes = r.layout.index_nodes = 4;
+  r.paths = 500;
+  r.seed = 3;
+  r.walk_kernel = WalkKernel::lanes;
+  r.run.threads = 1;
+  const std::optional<GlassWalkTable> t = glass_walk_table(r);
+  ASSERT_TRUE(t);
+  ASSERT_EQ(t->cells.size(), 64u);
+  for (const GlassWalkNode& c : t->cells) {
+    EXPECT_NEAR(c[0].value + c[6].value, 1.0, 1e-12);
+    EXPECT_NEAR(c[1].value + c[2].value, c[0].value, 1e-12);
+    EXPECT_NEAR(c[4].value + c[5].value, c[3].value, 1e-12);
+    EXPECT_LE(c[3].value, c[0].value + 1e-12);
+  }
+  r.run.threads = 2;
+  const std::optional<GlassWalkNode> node = glass_walk_node(r, 2, 1, 3);
+  ASSERT_TRUE(node);
+  for (std::size_t q = 0; q < node->size(); ++q) EXPECT_EQ((*node)[q].value, t->cells[t->index(2, 1, 3)][q].value) << q;
+  const std::string csv = glass_walk_csv(*t);
+  EXPECT_NE(csv.find("x,y,z,roughness,alpha,mu,t,ior,E,E_se,E_R,E_R_se,E_T,E_T_se,E1,E1_se,E1_R,E1_R_se,E1_T,E1_T_se,"
+                     "unfinished,unfinished_se\n"), std::string::npos);
+  EXPECT_NE(csv.find("# masking: "), std::string::npos);
+  r.paths = 0;
+  EXPECT_THROW(glass_walk_table(r), std::invalid_argument);
+  r.paths = 1;
+  EXPECT_THROW(glass_walk_node(r, 4, 0, 0), std::invalid_argument);
 }
 
 }  // namespace
