@@ -208,6 +208,31 @@ void print_glass_walk(const GlassWalkTable& t) {
   }
 }
 
+// A walk table's run (the glass layout's split, the anisotropic mirror's): the walk options of the request, its
+// progress and Ctrl-C (exit 130, nothing written), then its CSV and JSON and its printed summary.
+template <class Request, class Compute, class Csv, class Json, class Print>
+int run_walk_table(const AlbedoArgs& a, Request r, const Compute& compute, const Csv& csv, const Json& json,
+                   const Print& print) {
+  try {
+    r.walk_kernel = parse_walk_kernel("--walk-kernel", a.walk_kernel);
+  } catch (const ParseError& e) {
+    throw UsageError(e.what());
+  }
+  r.paths = a.rays;
+  r.seed = a.seed;
+  r.max_order = a.max_order;
+  const auto progress = std::make_shared<CliProgress>(true);
+  r.run = cli_run_control(a.threads, progress);
+  install_interrupt_handler();
+  const auto t = compute(r);
+  progress->finish();
+  if (!t) return interrupted_nothing_written("albedo");
+  if (!a.csv.empty()) write_file_atomically(a.csv, csv(*t));
+  if (!a.json.empty()) write_file_atomically(a.json, json(*t).dump(2) + "\n");
+  print(*t);
+  return kExitOk;
+}
+
 // --layout cycles-glass[-inv] --model smith-walk: the walk's split over the layout's nodes
 // (scatter/albedo_glass_walk.h): CSV and JSON.
 int run_glass_walk(const AlbedoArgs& a, const GlassLayout& layout) {
@@ -221,24 +246,7 @@ int run_glass_walk(const AlbedoArgs& a, const GlassLayout& layout) {
   check_output("--json", a.json);
   GlassWalkRequest r;
   r.layout = layout;
-  try {
-    r.walk_kernel = parse_walk_kernel("--walk-kernel", a.walk_kernel);
-  } catch (const ParseError& e) {
-    throw UsageError(e.what());
-  }
-  r.paths = a.rays;
-  r.seed = a.seed;
-  r.max_order = a.max_order;
-  const auto progress = std::make_shared<CliProgress>(true);
-  r.run = cli_run_control(a.threads, progress);
-  install_interrupt_handler();
-  const std::optional<GlassWalkTable> t = glass_walk_table(r);
-  progress->finish();
-  if (!t) return interrupted_nothing_written("albedo");
-  if (!a.csv.empty()) write_file_atomically(a.csv, glass_walk_csv(*t));
-  if (!a.json.empty()) write_file_atomically(a.json, glass_walk_json(*t).dump(2) + "\n");
-  print_glass_walk(*t);
-  return kExitOk;
+  return run_walk_table(a, r, glass_walk_table, glass_walk_csv, glass_walk_json, print_glass_walk);
 }
 
 // A dielectric over Cycles' index axis (scatter/albedo_glass_layout.h): CSV, the encoded text and JSON, no EXR.
@@ -346,26 +354,10 @@ int run_anisotropic_walk(const AlbedoArgs& a) {
              "--alphas-y --model smith-walk (the anisotropic GGX mirror's walk table)");
   AnisotropicWalkRequest r;
   anisotropic_axes(a, r.alphas_x, r.alphas_y);
-  try {
-    r.walk_kernel = parse_walk_kernel("--walk-kernel", a.walk_kernel);
-  } catch (const ParseError& e) {
-    throw UsageError(e.what());
-  }
   r.mus = a.mus;
   r.phis = a.phis;
-  r.paths = a.rays;
-  r.seed = a.seed;
-  r.max_order = a.max_order;
-  const auto progress = std::make_shared<CliProgress>(true);
-  r.run = cli_run_control(a.threads, progress);
-  install_interrupt_handler();
-  const std::optional<AnisotropicWalkTable> t = anisotropic_walk_table(r);
-  progress->finish();
-  if (!t) return interrupted_nothing_written("albedo");
-  if (!a.csv.empty()) write_file_atomically(a.csv, anisotropic_walk_csv(*t));
-  if (!a.json.empty()) write_file_atomically(a.json, anisotropic_walk_json(*t).dump(2) + "\n");
-  print_anisotropic_walk(*t);
-  return kExitOk;
+  return run_walk_table(a, r, anisotropic_walk_table, anisotropic_walk_csv, anisotropic_walk_json,
+                        print_anisotropic_walk);
 }
 
 // --alphas-y: the anisotropic mirror's table (scatter/albedo_anisotropic.h), CSV and JSON.

@@ -56,16 +56,7 @@ GlassLayoutTable empty_glass_table(const GlassLayout& l, double tolerance) {
   GlassLayoutTable t;
   t.layout = l;
   t.tolerance = tolerance;
-  for (int i = 0; i < l.roughness_nodes; ++i) {
-    t.roughness.push_back(glass_layout_coordinate(i, l.roughness_nodes));
-    t.alphas.push_back(t.roughness.back() * t.roughness.back());
-    t.in_range.push_back(t.alphas.back() >= kMinAlpha);
-  }
-  for (int j = 0; j < l.mu_nodes; ++j) t.mus.push_back(glass_layout_coordinate(j, l.mu_nodes));
-  for (int k = 0; k < l.index_nodes; ++k) {
-    t.index_coordinates.push_back(glass_layout_index_coordinate(k, l.index_nodes));
-    t.iors.push_back(glass_layout_ior(t.index_coordinates.back()));
-  }
+  fill_glass_axes(t, l);
   return t;
 }
 

@@ -59,6 +59,20 @@ std::string glass_layout_names();  // "cycles-glass, cycles-glass-inv"
 double glass_layout_coordinate(int index, int nodes);
 double glass_layout_index_coordinate(int index, int nodes);
 double glass_layout_ior(double index_coordinate);
+// The axes of a table on layout `l` (its roughness, alphas, in_range, mus, index_coordinates and iors members),
+// shared by the analytic table and the walk's.
+template <class Table> void fill_glass_axes(Table& t, const GlassLayout& l) {
+  for (int i = 0; i < l.roughness_nodes; ++i) {
+    t.roughness.push_back(glass_layout_coordinate(i, l.roughness_nodes));
+    t.alphas.push_back(t.roughness.back() * t.roughness.back());
+    t.in_range.push_back(t.alphas.back() >= kMinAlpha);
+  }
+  for (int j = 0; j < l.mu_nodes; ++j) t.mus.push_back(glass_layout_coordinate(j, l.mu_nodes));
+  for (int k = 0; k < l.index_nodes; ++k) {
+    t.index_coordinates.push_back(glass_layout_index_coordinate(k, l.index_nodes));
+    t.iors.push_back(glass_layout_ior(t.index_coordinates.back()));
+  }
+}
 
 struct GlassLayoutTable {
   GlassLayout layout;
