@@ -140,6 +140,8 @@ nlohmann::json albedo_parameters(const AlbedoTableRequest& r) {
   if (r.model == AlbedoModel::surface) p["resolution"] = std::uint64_t(r.resolution);
   // Only a lanes table names its kernel: the parts of scalar tables keep the form they had before the choice.
   if (r.walk_kernel != WalkKernel::scalar) p["walk_kernel"] = to_string(r.walk_kernel);
+  // Its SIMD target too: parts walked on machines of other targets differ in their last bits and do not merge.
+  if (r.walk_kernel == WalkKernel::lanes) p["walk_target"] = smith_walk_lanes_target();
   return p;
 }
 

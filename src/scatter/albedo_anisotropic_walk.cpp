@@ -43,21 +43,10 @@ Estimate multiple_scattering(const ScatterHistogram& h) {
 // The options of node c (of `nodes`) at (mu, phi): its view, seed, paths; progress in paths of the whole table.
 ScatterOptions node_options(const AnisotropicWalkRequest& r, std::size_t pair, std::size_t node, std::size_t c,
                             std::size_t nodes, double mu, double phi) {
-  ScatterOptions o;
   const double s = std::sqrt(std::max(0.0, 1 - mu * mu));
-  o.wi = Vec3<double>(s * std::cos(phi), s * std::sin(phi), mu);
-  o.paths = r.paths;
-  o.seed = albedo_cell_seed(r.seed, pair, node);
-  o.max_order = r.max_order;
-  o.rows = 1;
-  o.run.threads = r.run.threads;
-  o.run.cancel = r.run.cancel;
-  const std::uint64_t before = c * r.paths, total = nodes * r.paths;
-  if (r.run.progress)
-    o.run.progress = [&run = r.run, before, total](std::string_view, std::uint64_t done, std::uint64_t) {
-      run.report("anisotropic walk table", before + done, total);
-    };
-  return o;
+  return albedo_cell_walk(Vec3<double>(s * std::cos(phi), s * std::sin(phi), mu), r.paths,
+                          albedo_cell_seed(r.seed, pair, node), r.max_order, r.run, "anisotropic walk table",
+                          c * r.paths, nodes * r.paths);
 }
 
 // The hemispherical averages of every alpha pair (the header's rule and its standard error).

@@ -229,23 +229,33 @@ std::vector<Estimate> sampled_cell(const AlbedoTableRequest& r, const ScatterHis
   return c;
 }
 
+}  // namespace
+
+ScatterOptions albedo_cell_walk(const Vec3<double>& wi, std::uint64_t paths, std::uint64_t seed, int max_order,
+                                const RunControl& run, const char* label, std::uint64_t before, std::uint64_t total) {
+  ScatterOptions o;
+  o.wi = wi;
+  o.paths = paths;
+  o.seed = seed;
+  o.max_order = max_order;
+  o.rows = 1;
+  o.run.threads = run.threads;
+  o.run.cancel = run.cancel;
+  if (run.progress)
+    o.run.progress = [&run, label, before, total](std::string_view, std::uint64_t done, std::uint64_t) {
+      run.report(label, before + done, total);
+    };
+  return o;
+}
+
+namespace {
+
 // The options of cell (row, j): its view, seed and paths; progress in paths of the whole table.
 ScatterOptions cell_options(const AlbedoTableRequest& r, std::size_t row, std::size_t j, const MuGrid& grid) {
-  ScatterOptions o;
-  o.wi = albedo_view(grid.mus[j], r.inside);
+  ScatterOptions o = albedo_cell_walk(albedo_view(grid.mus[j], r.inside), r.paths, albedo_cell_seed(r.seed, row, j),
+                                      r.max_order, r.run, "albedo table", (row * grid.mus.size() + j) * r.paths,
+                                      r.alphas.size() * grid.mus.size() * r.paths);
   o.material = r.material;
-  o.paths = r.paths;
-  o.seed = albedo_cell_seed(r.seed, row, j);
-  o.max_order = r.max_order;
-  o.rows = 1;
-  o.run.threads = r.run.threads;
-  o.run.cancel = r.run.cancel;
-  const std::uint64_t before = (row * grid.mus.size() + j) * r.paths;
-  const std::uint64_t total = r.alphas.size() * grid.mus.size() * r.paths;
-  if (r.run.progress)
-    o.run.progress = [&run = r.run, before, total](std::string_view, std::uint64_t done, std::uint64_t) {
-      run.report("albedo table", before + done, total);
-    };
   return o;
 }
 

@@ -148,6 +148,12 @@ MuGrid gauss_legendre_mus(int n);
 // The seed of cell (alpha_index, mu_index) of a sampled table: a CounterRng draw keyed by (seed, cell), so
 // that cells are independent streams.
 std::uint64_t albedo_cell_seed(std::uint64_t seed, std::size_t alpha_index, std::size_t mu_index);
+// The walk of one cell of a sampled table: light along -wi, `paths` from `seed` (the cell's albedo_cell_seed),
+// capped at `max_order`, one row per hemisphere (a table reads the order bins' totals), on the run's threads and
+// cancellation, its progress reported to `run` (which must outlive the options) as `label`, from `before` of
+// `total` paths of the whole table.
+ScatterOptions albedo_cell_walk(const Vec3<double>& wi, std::uint64_t paths, std::uint64_t seed, int max_order,
+                                const RunControl& run, const char* label, std::uint64_t before, std::uint64_t total);
 
 // The direction toward the light of a table's column: (sqrt(1 - mu^2), 0, mu), z negated from inside.
 Vec3<double> albedo_view(double mu, bool inside);

@@ -409,7 +409,7 @@ BlockEnds walk_block_lanes(const walk_lanes::LaneWalk& walk, const FastDirection
 
 ScatterHistogram run_walk_lanes(const SmithMicrosurface& s, const ScatterOptions& o) {
   const walk_lanes::LaneWalk walk = lane_walk(s, o);
-  return walk_histogram(o, walk_measurement(s, o) + " kernel=lanes",
+  return walk_histogram(o, walk_measurement(s, o) + " kernel=lanes target=" + smith_walk_lanes_target(),
                         [&](const FastDirectionBinner& bins, std::uint64_t block, std::uint64_t n) {
                           return walk_block_lanes(walk, bins, block, n);
                         });

@@ -72,8 +72,9 @@ ScatterHistogram smith_walk_scatter(const SmithMicrosurface& surface, const Scat
 // Which code walks the paths of smith_walk_scatter. scalar: one path after another (the reference, and the
 // default). lanes: paths in SIMD lanes (scatter/smith_walk_lanes.h), each path with its own random stream,
 // for the case smith_walk_lanes_support accepts; the same walk, not the same numbers: it agrees with the
-// scalar walk statistically (tests/scatter/test_smith_walk_lanes.cpp), and its measurement string names it
-// (" kernel=lanes"), so that shards of the two kernels never merge.
+// scalar walk statistically (tests/scatter/test_smith_walk_lanes.cpp), and its measurement string names it and
+// the SIMD target it ran on (" kernel=lanes target=AVX3"): the targets' transcendentals differ in their last
+// bits, so shards of the two kernels, or of two targets, never merge.
 enum class WalkKernel { scalar, lanes };
 std::string to_string(WalkKernel kernel);  // "scalar", "lanes"
 // Parse "scalar" / "lanes"; ParseError naming `what` and quoting the text.
