@@ -7,6 +7,7 @@
 #include "validate/validate.h"
 #include "microgeom/assembly.h"
 #include "scatter/albedo_table.h"
+#include "scatter/smith_walk.h"
 #include "stats/binning.h"
 
 #include <fmt/core.h>
@@ -261,7 +262,7 @@ void read_walk_kernel(const SpecTable& t, SpecQuantity& q, const SpecMaterial& m
   const std::string kernel = t.string("walk_kernel", "scalar");
   if (kernel != "scalar" && kernel != "lanes") t.fail("walk_kernel", fmt::format("{}: scalar or lanes", quote_excerpt(kernel)));
   if (kernel == "scalar") return;
-  if (m.ndf != NdfKind::ggx || m.facet.kind() == MaterialKind::lambertian)
+  if (!smith_walk_lanes_support(m.ndf, HeightDistribution::uniform, m.facet))
     t.fail("walk_kernel", fmt::format("lanes walks GGX mirrors, conductors and dielectrics (material {} is {} {}); "
                                       "scalar walks every case", quote_excerpt(m.name), to_string(m.ndf), m.facet.describe()));
   q.settings["walk_kernel"] = kernel;

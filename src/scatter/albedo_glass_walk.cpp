@@ -31,17 +31,15 @@ GlassWalkTable empty_glass_walk(const GlassWalkRequest& r) {
   return t;
 }
 
-// The options of node (x, y, z): its view (from inside for the -inv layout), material, seed, paths.
-ScatterOptions node_options(const GlassWalkRequest& r, std::size_t x, std::size_t y, std::size_t z) {
+// The options of node (x, y, z): its view (from inside for the -inv layout), material, seed, paths; progress
+// reported from `before` of `total` paths.
+ScatterOptions node_options(const GlassWalkRequest& r, std::size_t x, std::size_t y, std::size_t z,
+                            std::uint64_t before, std::uint64_t total) {
   const GlassLayout& l = r.layout;
-  ScatterOptions o;
-  o.wi = albedo_view(glass_layout_coordinate(int(y), l.mu_nodes), l.inverse);
+  ScatterOptions o = albedo_cell_walk(albedo_view(glass_layout_coordinate(int(y), l.mu_nodes), l.inverse), r.paths,
+                                      albedo_cell_seed(r.seed, z, y * std::size_t(l.roughness_nodes) + x),
+                                      r.max_order, r.run, "glass walk table", before, total);
   o.material = Material::dielectric(glass_layout_ior(glass_layout_index_coordinate(int(z), l.index_nodes)));
-  o.paths = r.paths;
-  o.seed = albedo_cell_seed(r.seed, z, y * std::size_t(l.roughness_nodes) + x);
-  o.max_order = r.max_order;
-  o.rows = 1;
-  o.run = r.run;
   return o;
 }
 
@@ -64,18 +62,24 @@ void check_glass_walk_request(const GlassWalkRequest& r) {
     throw std::invalid_argument(fmt::format("glass walk table: max_order {} outside [1, {}]", r.max_order, kMaxOrderCap));
 }
 
-}  // namespace
-
-std::optional<GlassWalkNode> glass_walk_node(const GlassWalkRequest& r, std::size_t x, std::size_t y, std::size_t z) {
-  check_glass_walk_request(r);
+// Node (x, y, z), its progress from `before` of `total` paths.
+std::optional<GlassWalkNode> walk_node(const GlassWalkRequest& r, std::size_t x, std::size_t y, std::size_t z,
+                                       std::uint64_t before, std::uint64_t total) {
   const GlassLayout& l = r.layout;
   if (x >= std::size_t(l.roughness_nodes) || y >= std::size_t(l.mu_nodes) || z >= std::size_t(l.index_nodes))
     throw std::invalid_argument(fmt::format("glass walk node ({}, {}, {}) outside the {} layout", x, y, z, l.name));
   const double r0 = glass_layout_coordinate(int(x), l.roughness_nodes), alpha = std::max(r0 * r0, kMinAlpha);
   const SmithMicrosurface surface{NdfKind::ggx, alpha, alpha, HeightDistribution::uniform};
-  const ScatterHistogram h = smith_walk_scatter(surface, node_options(r, x, y, z), r.walk_kernel);
+  const ScatterHistogram h = smith_walk_scatter(surface, node_options(r, x, y, z, before, total), r.walk_kernel);
   if (h.partial) return std::nullopt;
   return node_quantities(h, l.inverse);
+}
+
+}  // namespace
+
+std::optional<GlassWalkNode> glass_walk_node(const GlassWalkRequest& r, std::size_t x, std::size_t y, std::size_t z) {
+  check_glass_walk_request(r);
+  return walk_node(r, x, y, z, 0, r.paths);
 }
 
 std::optional<GlassWalkTable> glass_walk_table(const GlassWalkRequest& r) {
@@ -85,13 +89,8 @@ std::optional<GlassWalkTable> glass_walk_table(const GlassWalkRequest& r) {
   const std::size_t nx = t.alphas.size(), ny = t.mus.size(), nodes = nx * ny * t.iors.size();
   for (std::size_t c = 0; c < nodes; ++c) {
     if (r.run.cancelled()) return std::nullopt;
-    GlassWalkRequest node = r;  // its progress: paths of the whole table
-    const std::uint64_t before = c * r.paths, total = nodes * r.paths;
-    if (r.run.progress)
-      node.run.progress = [&run = r.run, before, total](std::string_view, std::uint64_t done, std::uint64_t) {
-        run.report("glass walk table", before + done, total);
-      };
-    const std::optional<GlassWalkNode> cell = glass_walk_node(node, c % nx, (c / nx) % ny, c / (nx * ny));
+    const std::optional<GlassWalkNode> cell =
+        walk_node(r, c % nx, (c / nx) % ny, c / (nx * ny), c * r.paths, nodes * r.paths);
     if (!cell) return std::nullopt;
     t.cells.push_back(*cell);
   }

@@ -83,7 +83,8 @@ void check_albedo_request(const AlbedoTableRequest& r) {
   if (r.inside && kind != MaterialKind::dielectric)
     throw std::invalid_argument("albedo table: light from inside needs a dielectric (a mirror is opaque)");
   check_alphas(r.alphas);
-  if (r.walk_kernel == WalkKernel::lanes && (r.model != AlbedoModel::smith_walk || r.ndf != NdfKind::ggx))
+  if (r.walk_kernel == WalkKernel::lanes &&
+      (r.model != AlbedoModel::smith_walk || !smith_walk_lanes_support(r.ndf, HeightDistribution::uniform, r.material)))
     throw std::invalid_argument(fmt::format("albedo table: the lanes walk kernel walks GGX Smith-walk tables only "
                                             "(not {} {})", to_string(r.model), to_string(r.ndf)));
   if (r.mus < kMinAlbedoMus || r.mus > kMaxAlbedoMus)

@@ -560,10 +560,12 @@ ScatterHistogram smith_walk_scatter(const SmithMicrosurface& surface, const Scat
   return detail::smith_walk_scatter(surface, options, WalkFault::none);
 }
 
+bool smith_walk_lanes_support(NdfKind ndf, HeightDistribution heights, const Material& material) {
+  return ndf == NdfKind::ggx && heights == HeightDistribution::uniform && material.kind() != MaterialKind::lambertian;
+}
+
 bool smith_walk_lanes_support(const SmithMicrosurface& surface, const ScatterOptions& options) {
-  const MaterialKind kind = options.material.kind();
-  return surface.ndf == NdfKind::ggx && surface.heights == HeightDistribution::uniform &&
-         kind != MaterialKind::lambertian;
+  return smith_walk_lanes_support(surface.ndf, surface.heights, options.material);
 }
 
 ScatterHistogram smith_walk_scatter(const SmithMicrosurface& surface, const ScatterOptions& options, WalkKernel kernel) {

@@ -73,13 +73,15 @@ ScatterHistogram smith_walk_scatter(const SmithMicrosurface& surface, const Scat
 // default). lanes: paths in SIMD lanes (scatter/smith_walk_lanes.h), each path with its own random stream,
 // for the case smith_walk_lanes_support accepts; the same walk, not the same numbers: it agrees with the
 // scalar walk statistically (tests/scatter/test_smith_walk_lanes.cpp), and its measurement string names it and
-// the SIMD target it ran on (" kernel=lanes target=AVX3"): the targets' transcendentals differ in their last
-// bits, so shards of the two kernels, or of two targets, never merge.
+// the SIMD target it ran on (" kernel=lanes target=AVX3"): bits are only promised within one target (and one
+// build), so shards of the two kernels, or of two targets, never merge.
 enum class WalkKernel { scalar, lanes };
 std::string to_string(WalkKernel kernel);  // "scalar", "lanes"
 // Parse "scalar" / "lanes"; ParseError naming `what` and quoting the text.
 WalkKernel parse_walk_kernel(std::string_view what, std::string_view text);
-// GGX, uniform heights, a mirror, a conductor or a dielectric (every material but the Lambertian).
+// Whether the lanes kernel walks a case: GGX, uniform heights, a mirror, a conductor or a dielectric (every
+// material but the Lambertian). The one statement of that rule: the commands and an experiment's spec ask it.
+bool smith_walk_lanes_support(NdfKind ndf, HeightDistribution heights, const Material& material);
 bool smith_walk_lanes_support(const SmithMicrosurface& surface, const ScatterOptions& options);
 // As above with the kernel chosen; lanes where smith_walk_lanes_support is false throws std::invalid_argument.
 ScatterHistogram smith_walk_scatter(const SmithMicrosurface& surface, const ScatterOptions& options, WalkKernel kernel);
