@@ -30,7 +30,7 @@ def run_once(binary, material, kernel, min_time):
             else f"BM_WalkKernels/material:{material}/kernel:{kernel}/")
     out = subprocess.run([binary, f"--benchmark_filter={name}", f"--benchmark_min_time={min_time}",
                           "--benchmark_format=json"], check=True, capture_output=True, text=True).stdout
-    found = json.loads(out)["benchmarks"]
+    found = json.loads(out)["benchmarks"] if out.strip() else []  # no match: Google Benchmark prints nothing
     if not found:
         return None
     b = found[0]
