@@ -1,0 +1,47 @@
+// microsim: the node steps of the min-max pyramid walk (heightfield_pyramid.h) in SIMD lanes, one ray per
+// lane: the kernel of PyramidTracer::trace_batch. Compiled once per Highway target and dispatched at run
+// time (heightfield_pyramid_lanes.cpp); the loop that feeds the lanes and the cell tests are
+// PyramidTracer's (heightfield_pyramid.cpp).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+namespace microsim::pyramid_lanes {
+
+inline constexpr std::size_t kMaxLanes = 64;
+
+// The walks in the lanes, structure of arrays; the fields of PyramidTracer's Walk and its level k.
+struct State {
+  alignas(64) double ox[kMaxLanes], oy[kMaxLanes], oz[kMaxLanes];  // origin, x and y in cells
+  alignas(64) double dx[kMaxLanes], dy[kMaxLanes], dz[kMaxLanes];  // direction, x and y in cells
+  alignas(64) double idx[kMaxLanes], idy[kMaxLanes];                // 1 / dx, 1 / dy (0 where dx, dy = 0)
+  alignas(64) double t[kMaxLanes];
+  alignas(64) std::int64_t sx[kMaxLanes], sy[kMaxLanes];  // signs of dx, dy
+  alignas(64) std::int64_t ci[kMaxLanes], cj[kMaxLanes], k[kMaxLanes];
+  alignas(64) std::int64_t entry[kMaxLanes], g_known[kMaxLanes];
+  alignas(64) std::int64_t tile_x[kMaxLanes], tile_y[kMaxLanes], wraps[kMaxLanes];
+  // Set by a step: 0 goes on, 1 escaped, 2 leaked, 3 unresolved.
+  alignas(64) std::int64_t done[kMaxLanes];
+};
+
+// The tracer's constants.
+struct Grid {
+  const std::uint64_t* nodes = nullptr;  // HeightPyramid::nodes(): {min, max} floats, min in the low bits
+  const double* level_offset = nullptr;  // [k], k = 0 .. top: level_offset(k) (0 for k = 0)
+  const double* level_n = nullptr;       // [k]: nodes per side (0 for k = 0)
+  double margin = 0, escape_height = 0, floor_height = 0;
+  std::int64_t n = 0, top = 0, max_segments = 0;
+};
+
+// One node step of every lane i < lanes with k[i] > 0 (PyramidTracer::step's node branch, the same
+// expressions): the node is entered (k - 1) or passed (the walk advanced, k up if it left the parent),
+// or the walk ends (done). Lanes with k = 0 are left as they are. Returns bit i set for the lanes with
+// k = 0 or done != 0 afterwards. lanes: a multiple of vector_lanes(), at most kMaxLanes.
+std::uint64_t step(const Grid& grid, State& state, std::size_t lanes);
+// Doubles per vector of the target chosen for this CPU, and its name.
+std::size_t vector_lanes();
+std::string target_name();
+
+}  // namespace microsim::pyramid_lanes
