@@ -361,20 +361,28 @@ bool PyramidTracer::settle(Batch& b, std::size_t i) const {
 
 void PyramidTracer::run_batch(Batch& b) const {
   const std::size_t width = pyramid_lanes::vector_lanes();
-  std::size_t lanes = batch_lanes_ > 0 ? std::size_t(batch_lanes_) : 4 * width;
+  std::size_t lanes = batch_lanes_ > 0 ? std::size_t(batch_lanes_) : pyramid_lanes::kMaxLanes;
   lanes = std::min(pyramid_lanes::kMaxLanes / width * width, std::max(width, lanes / width * width));
   pyramid_lanes::Grid grid;
   grid.nodes = reinterpret_cast<const std::uint64_t*>(pyramid_.nodes().data());
   grid.level_offset = level_offset_.data(), grid.level_n = level_n_.data();
   grid.margin = margin_, grid.escape_height = escape_height_, grid.floor_height = floor_height_;
-  grid.n = n_, grid.top = pyramid_.top_level(), grid.max_segments = kMaxSegments;
+  grid.n = n_, grid.top = pyramid_.top_level(), grid.max_segments = kMaxSegments, grid.rounds = batch_rounds_;
   std::uint64_t live = 0;
   for (std::size_t i = 0; i < lanes; ++i) {
     b.ray[i] = b.n, b.lane[i].k = 0;
     if (settle(b, i)) live |= std::uint64_t(1) << i;
   }
   while (live != 0) {
-    for (std::uint64_t flagged = pyramid_lanes::step(grid, b.state, lanes) & live; flagged != 0; flagged &= flagged - 1) {
+    const std::uint64_t flagged_lanes = pyramid_lanes::step(grid, b.state, lanes) & live;
+    // The heights of the cells the lanes reached, read together before their tests need them.
+    for (std::uint64_t flagged = flagged_lanes; flagged != 0; flagged &= flagged - 1) {
+      const auto i = std::size_t(std::countr_zero(flagged));
+      const std::int64_t cj = b.state.cj[i], j1 = cj + 1 == n_ ? 0 : cj + 1;
+      __builtin_prefetch(&field_.heights()[std::size_t(cj * n_ + b.state.ci[i])]);
+      __builtin_prefetch(&field_.heights()[std::size_t(j1 * n_ + b.state.ci[i])]);
+    }
+    for (std::uint64_t flagged = flagged_lanes; flagged != 0; flagged &= flagged - 1) {
       const auto i = std::size_t(std::countr_zero(flagged));
       Lane& lane = b.lane[i];
       b.from_state(i);

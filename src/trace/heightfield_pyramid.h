@@ -105,6 +105,7 @@ public:
   // Lanes per batch walk (a multiple of the SIMD width, at most kMaxBatchLanes); for benchmarks.
   static constexpr int kMaxBatchLanes = 64;
   void set_batch_lanes(int lanes) { batch_lanes_ = lanes; }
+  void set_batch_rounds(int rounds) { batch_rounds_ = rounds; }
 
   const HeightPyramid& pyramid() const { return pyramid_; }
   // Bytes the tracer allocated (the pyramid; the heights are the field's).
@@ -132,7 +133,8 @@ private:
   double tile_ = 0, cell_ = 0, inv_cell_ = 0;
   double escape_height_ = 0, floor_height_ = 0;
   double margin_ = 0;  // of the node tests
-  int batch_lanes_ = 0;  // 0: the default of the SIMD target
+  int batch_lanes_ = 0;   // 0: the default of the SIMD target
+  int batch_rounds_ = 1;  // node steps of the lanes between cell tests
   std::vector<double> level_offset_, level_n_;  // per level 0 .. K, for the lanes (0 at level 0)
 };
 

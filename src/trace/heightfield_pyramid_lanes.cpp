@@ -79,7 +79,8 @@ HWY_INLINE std::uint64_t step_vector(const Grid& g, State& s, std::size_t i) {
   const V t = hn::Load(d, s.t + i);
   const VI sx = hn::Load(di, s.sx + i), sy = hn::Load(di, s.sy + i);
   const VI ci = hn::Load(di, s.ci + i), cj = hn::Load(di, s.cj + i), k = hn::Load(di, s.k + i);
-  const MI live = hn::Gt(k, zero);
+  const VI done0 = hn::Load(di, s.done + i);
+  const MI live = hn::And(hn::Gt(k, zero), hn::Eq(done0, zero));
   const V z = hn::Add(oz, hn::Mul(t, dz));
   const M escaped = hn::And(hn::Ge(dz, hn::Zero(d)), hn::Gt(z, hn::Set(d, g.escape_height)));
   const M leaked = hn::And(hn::Le(dz, hn::Zero(d)), hn::Lt(z, hn::Set(d, g.floor_height)));
@@ -128,7 +129,7 @@ HWY_INLINE std::uint64_t step_vector(const Grid& g, State& s, std::size_t i) {
   hn::Store(k_new, di, s.k + i);
   const VI done = hn::IfThenElse(hn::RebindMask(di, hn::And(escaped, hn::RebindMask(d, live))), one,
                                  hn::IfThenElse(hn::RebindMask(di, hn::And(leaked, hn::RebindMask(d, live))),
-                                                hn::Set(di, 2), hn::IfThenElseZero(unresolved, hn::Set(di, 3))));
+                                                hn::Set(di, 2), hn::IfThenElse(unresolved, hn::Set(di, 3), done0)));
   hn::Store(done, di, s.done + i);
   std::uint8_t bits[8] = {};
   hn::StoreMaskBits(di, hn::Or(hn::Eq(k_new, zero), hn::Ne(done, zero)), bits);
@@ -140,7 +141,8 @@ HWY_INLINE std::uint64_t step_vector(const Grid& g, State& s, std::size_t i) {
 std::uint64_t step_lanes(const Grid& g, State& s, std::size_t lanes) {
   const std::size_t w = hn::Lanes(D());
   std::uint64_t flags = 0;
-  for (std::size_t i = 0; i < lanes; i += w) flags |= step_vector(g, s, i) << i;
+  for (int round = 0; round < g.rounds; ++round)
+    for (std::size_t i = 0; i < lanes; i += w) flags |= step_vector(g, s, i) << i;
   return flags;
 }
 

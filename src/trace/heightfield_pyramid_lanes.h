@@ -33,12 +33,13 @@ struct Grid {
   const double* level_n = nullptr;       // [k]: nodes per side (0 for k = 0)
   double margin = 0, escape_height = 0, floor_height = 0;
   std::int64_t n = 0, top = 0, max_segments = 0;
+  int rounds = 1;  // node steps per call (a lane stops at level 0 or when done)
 };
 
-// One node step of every lane i < lanes with k[i] > 0 (PyramidTracer::step's node branch, the same
-// expressions): the node is entered (k - 1) or passed (the walk advanced, k up if it left the parent),
-// or the walk ends (done). Lanes with k = 0 are left as they are. Returns bit i set for the lanes with
-// k = 0 or done != 0 afterwards. lanes: a multiple of vector_lanes(), at most kMaxLanes.
+// grid.rounds node steps of every lane i < lanes with k[i] > 0 and done[i] = 0 (PyramidTracer::step's
+// node branch, the same expressions): the node is entered (k - 1) or passed (the walk advanced, k up if
+// it left the parent), or the walk ends (done). Other lanes are left as they are. Returns bit i set for
+// the lanes with k = 0 or done != 0 afterwards. lanes: a multiple of vector_lanes(), at most kMaxLanes.
 std::uint64_t step(const Grid& grid, State& state, std::size_t lanes);
 // Doubles per vector of the target chosen for this CPU, and its name.
 std::size_t vector_lanes();
