@@ -71,11 +71,8 @@ PyramidTracer::PyramidTracer(const microgeom::Heightfield& field, double escape_
       inv_cell_(1.0 / field.cell_size()), escape_height_(escape_height), floor_height_(floor_height) {
   const double zmax = field.max_height(), zmin = field.min_height();
   margin_ = 1e-9 * (std::max(std::abs(zmax), std::abs(zmin)) + (zmax - zmin));
-  level_offset_.assign(1, 0.0), level_n_.assign(1, 0.0);
-  for (int k = 1; k <= pyramid_.top_level(); ++k) {
-    level_offset_.push_back(double(pyramid_.level_offset(k)));
-    level_n_.push_back(double(pyramid_.nodes_per_side(k)));
-  }
+  level_offset_.assign(1, 0.0);
+  for (int k = 1; k <= pyramid_.top_level(); ++k) level_offset_.push_back(double(pyramid_.level_offset(k)));
 }
 
 // One ray's state: origin and direction with x, y in cells (the origin shifted by N cells whenever the ray
@@ -301,7 +298,7 @@ HeightfieldHit PyramidTracer::trace(const Vec3<double>& origin, const Vec3<doubl
 // ---- many rays in SIMD lanes ------------------------------------------------------------------------------
 
 // The rays of a batch (rays[i], or origins[i] along dir), their results, and the walks in the lanes: the
-// node steps' fields in `state` (pyramid_lanes::State), the rest of each walk in `lane`.
+// fields the vector steps use in `state` (pyramid_lanes::State), the rest of each walk in `lane`.
 struct PyramidTracer::Batch {
   std::size_t n = 0, next = 0;
   const Ray* rays = nullptr;
@@ -316,47 +313,45 @@ struct PyramidTracer::Batch {
     const Walk& w = lane[i].w;
     pyramid_lanes::State& s = state;
     s.ox[i] = w.ox, s.oy[i] = w.oy, s.oz[i] = w.oz, s.dx[i] = w.dx, s.dy[i] = w.dy, s.dz[i] = w.dz;
-    s.idx[i] = w.idx, s.idy[i] = w.idy, s.t[i] = w.t, s.sx[i] = w.sx, s.sy[i] = w.sy;
+    s.idx[i] = w.idx, s.idy[i] = w.idy, s.t[i] = w.t, s.g[i] = w.g, s.sx[i] = w.sx, s.sy[i] = w.sy;
     s.ci[i] = w.ci, s.cj[i] = w.cj, s.k[i] = lane[i].k, s.entry[i] = w.entry, s.g_known[i] = w.g_known;
     s.tile_x[i] = w.tile_x, s.tile_y[i] = w.tile_y, s.wraps[i] = w.wraps, s.done[i] = 0;
   }
-  // The fields a node step changes, back into lane i's walk.
+  // The fields a vector step changes, back into lane i's walk.
   void from_state(std::size_t i) {
     Walk& w = lane[i].w;
     const pyramid_lanes::State& s = state;
-    w.ox = s.ox[i], w.oy = s.oy[i], w.t = s.t[i], w.ci = int(s.ci[i]), w.cj = int(s.cj[i]);
+    w.ox = s.ox[i], w.oy = s.oy[i], w.t = s.t[i], w.g = s.g[i], w.ci = int(s.ci[i]), w.cj = int(s.cj[i]);
     lane[i].k = int(s.k[i]), w.entry = int(s.entry[i]), w.g_known = s.g_known[i] != 0;
     w.tile_x = s.tile_x[i], w.tile_y = s.tile_y[i], w.wraps = s.wraps[i];
   }
 };
 
-// Walks lane i in scalar steps while it is at level 0 (cell tests), starting the batch's next rays in it
-// as its rays finish; true when it holds a walk at a level above 0 (written to the state), false when no
-// ray is left for it.
+// Lane i after the vector steps flagged it: its walk holding a cell the scalar code tests (one step(); a
+// ray not finished by it goes back to the lanes), or no ray (finished, or at the start): then the batch's
+// next ray not done at once is started in it. False when no ray is left for the lane (then parked).
 bool PyramidTracer::settle(Batch& b, std::size_t i) const {
   Lane& lane = b.lane[i];
-  for (;;) {
-    if (lane.k > 0) {
+  if (b.ray[i] < b.n) {
+    if (!step(lane)) {
       b.to_state(i);
       return true;
     }
-    if (b.ray[i] < b.n && !step(lane)) continue;
-    if (b.ray[i] < b.n) b.out[b.ray[i]] = lane.out;
-    for (b.ray[i] = b.n; b.next < b.n;) {  // the next ray that is not done at once
-      const std::size_t r = b.next++;
-      const bool done = b.rays ? start(lane, b.rays[r].origin, b.rays[r].dir, b.rays[r].skip_triangle)
-                               : start(lane, b.origins[r], b.dir, std::nullopt);
-      if (!done) {
-        b.ray[i] = r;
-        break;
-      }
-      b.out[r] = lane.out;
-    }
-    if (b.ray[i] == b.n) {
-      b.state.k[i] = 0;  // parked: the node steps leave it
-      return false;
-    }
+    b.out[b.ray[i]] = lane.out;
   }
+  for (b.ray[i] = b.n; b.next < b.n;) {
+    const std::size_t r = b.next++;
+    const bool done = b.rays ? start(lane, b.rays[r].origin, b.rays[r].dir, b.rays[r].skip_triangle)
+                             : start(lane, b.origins[r], b.dir, std::nullopt);
+    if (!done) {
+      b.ray[i] = r;
+      b.to_state(i);
+      return true;
+    }
+    b.out[r] = lane.out;
+  }
+  b.state.done[i] = 4;  // parked: the vector steps leave it
+  return false;
 }
 
 void PyramidTracer::run_batch(Batch& b) const {
@@ -365,24 +360,18 @@ void PyramidTracer::run_batch(Batch& b) const {
   lanes = std::min(pyramid_lanes::kMaxLanes / width * width, std::max(width, lanes / width * width));
   pyramid_lanes::Grid grid;
   grid.nodes = reinterpret_cast<const std::uint64_t*>(pyramid_.nodes().data());
-  grid.level_offset = level_offset_.data(), grid.level_n = level_n_.data();
+  grid.heights = field_.heights().data();
+  grid.level_offset = level_offset_.data();
   grid.margin = margin_, grid.escape_height = escape_height_, grid.floor_height = floor_height_;
   grid.n = n_, grid.top = pyramid_.top_level(), grid.max_segments = kMaxSegments, grid.rounds = batch_rounds_;
+  grid.prefetch = batch_prefetch_;
   std::uint64_t live = 0;
   for (std::size_t i = 0; i < lanes; ++i) {
-    b.ray[i] = b.n, b.lane[i].k = 0;
+    b.ray[i] = b.n;
     if (settle(b, i)) live |= std::uint64_t(1) << i;
   }
   while (live != 0) {
-    const std::uint64_t flagged_lanes = pyramid_lanes::step(grid, b.state, lanes) & live;
-    // The heights of the cells the lanes reached, read together before their tests need them.
-    for (std::uint64_t flagged = flagged_lanes; flagged != 0; flagged &= flagged - 1) {
-      const auto i = std::size_t(std::countr_zero(flagged));
-      const std::int64_t cj = b.state.cj[i], j1 = cj + 1 == n_ ? 0 : cj + 1;
-      __builtin_prefetch(&field_.heights()[std::size_t(cj * n_ + b.state.ci[i])]);
-      __builtin_prefetch(&field_.heights()[std::size_t(j1 * n_ + b.state.ci[i])]);
-    }
-    for (std::uint64_t flagged = flagged_lanes; flagged != 0; flagged &= flagged - 1) {
+    for (std::uint64_t flagged = pyramid_lanes::step(grid, b.state, lanes) & live; flagged != 0; flagged &= flagged - 1) {
       const auto i = std::size_t(std::countr_zero(flagged));
       Lane& lane = b.lane[i];
       b.from_state(i);
@@ -390,7 +379,7 @@ void PyramidTracer::run_batch(Batch& b) const {
         lane.out.outcome = done == 1 ? RayOutcome::escaped : (done == 2 ? RayOutcome::leaked : RayOutcome::unresolved);
         if (done == 3) lane.out.segments = kMaxSegments;
         b.out[b.ray[i]] = lane.out;
-        b.ray[i] = b.n, lane.k = 0;  // finished: settle starts the next ray
+        b.ray[i] = b.n;  // finished: settle starts the next ray
       }
       if (!settle(b, i)) live &= ~(std::uint64_t(1) << i);
     }

@@ -106,6 +106,7 @@ public:
   static constexpr int kMaxBatchLanes = 64;
   void set_batch_lanes(int lanes) { batch_lanes_ = lanes; }
   void set_batch_rounds(int rounds) { batch_rounds_ = rounds; }
+  void set_batch_prefetch(bool prefetch) { batch_prefetch_ = prefetch; }
 
   const HeightPyramid& pyramid() const { return pyramid_; }
   // Bytes the tracer allocated (the pyramid; the heights are the field's).
@@ -134,8 +135,9 @@ private:
   double escape_height_ = 0, floor_height_ = 0;
   double margin_ = 0;  // of the node tests
   int batch_lanes_ = 0;   // 0: the default of the SIMD target
-  int batch_rounds_ = 1;  // node steps of the lanes between cell tests
-  std::vector<double> level_offset_, level_n_;  // per level 0 .. K, for the lanes (0 at level 0)
+  int batch_rounds_ = 1;  // vector steps of the lanes between scalar cell tests
+  bool batch_prefetch_ = false;
+  std::vector<double> level_offset_;  // HeightPyramid::level_offset per level 0 .. K, for the lanes (0 at 0)
 };
 
 }  // namespace microsim

@@ -68,81 +68,186 @@ HWY_INLINE VI advance_axis(const Grid& g, M step, VI s, VI a, VI b, V o_dir_t1, 
   return c;
 }
 
-// The node step of lanes [i, i + Lanes(d)); returns their bits of k = 0 or done.
-HWY_INLINE std::uint64_t step_vector(const Grid& g, State& s, std::size_t i) {
+// The height on a cell edge from ha to hb at fraction f, clamped (heightfield_pyramid.cpp edge_height).
+HWY_INLINE V edge_height(V ha, V hb, V f) {
+  const D d;
+  const V zero = hn::Zero(d), one = hn::Set(d, 1.0);
+  const V c = hn::IfThenElse(hn::Lt(f, zero), zero, hn::IfThenElse(hn::Lt(one, f), one, f));
+  return hn::Add(ha, hn::Mul(c, hn::Sub(hb, ha)));
+}
+
+// A ray's walk at a step, as the lanes hold it.
+struct Ray {
+  V ox, oy, oz, dx, dy, dz, t;
+  VI sx, sy, ci, cj, k;
+};
+
+// The four vertex heights of each lane's cell (h00, h10, h01, h11; lanes outside `lanes` read cell 0).
+HWY_INLINE void cell_heights(const Grid& g, const Ray& r, MI lanes, V h[4]) {
+  const D d;
+  const DI di;
+  const hn::Rebind<float, D> df;
+  const hn::Rebind<std::int32_t, D> di32;
+  const VI one = hn::Set(di, 1), n = hn::Set(di, g.n), zero = hn::Zero(di);
+  const VI i1 = hn::IfThenElse(hn::Eq(hn::Add(r.ci, one), n), zero, hn::Add(r.ci, one));
+  const VI j1 = hn::IfThenElse(hn::Eq(hn::Add(r.cj, one), n), zero, hn::Add(r.cj, one));
+  const V nd = hn::Set(d, double(g.n));
+  const V row0 = hn::Mul(hn::ConvertTo(d, hn::IfThenElseZero(lanes, r.cj)), nd);
+  const V row1 = hn::Mul(hn::ConvertTo(d, hn::IfThenElseZero(lanes, j1)), nd);
+  const V c0 = hn::ConvertTo(d, hn::IfThenElseZero(lanes, r.ci)), c1 = hn::ConvertTo(d, hn::IfThenElseZero(lanes, i1));
+  const auto at = [&](V row, V col) {
+    return hn::PromoteTo(d, hn::GatherIndex(df, g.heights, hn::DemoteTo(di32, hn::Add(row, col))));
+  };
+  h[0] = at(row0, c0), h[1] = at(row0, c1), h[2] = at(row1, c0), h[3] = at(row1, c1);
+}
+
+// The cell test of test_cell without its hit: true for the lanes whose g = z - surface height keeps its
+// sign over the cell's parts (entry, diagonal crossing, exit: the same expressions), whose entry g is
+// known or on an edge or corner (entry 0 is the scalar code's). g1: g at the exit.
+HWY_INLINE M cell_clear(const Grid& g, const State& s, std::size_t i, const Ray& r, MI lanes, V t1, M step_x, M step_y,
+                        V& g1) {
+  const D d;
+  const DI di;
+  V h[4];
+  cell_heights(g, r, lanes, h);
+  const V ci = hn::ConvertTo(d, r.ci), cj = hn::ConvertTo(d, r.cj), zero = hn::Zero(d);
+  const auto u_at = [&](V t) { return hn::Sub(hn::Add(r.ox, hn::Mul(t, r.dx)), ci); };
+  const auto v_at = [&](V t) { return hn::Sub(hn::Add(r.oy, hn::Mul(t, r.dy)), cj); };
+  const auto g_at = [&](V t, V hs) { return hn::Sub(hn::Add(r.oz, hn::Mul(t, r.dz)), hs); };
+  const V u0 = u_at(r.t), v0 = v_at(r.t), u1 = u_at(t1), v1 = v_at(t1);
+  const M xp = hn::RebindMask(d, hn::Gt(r.sx, hn::Zero(di))), yp = hn::RebindMask(d, hn::Gt(r.sy, hn::Zero(di)));
+  const VI entry = hn::Load(di, s.entry + i);
+  const M known = hn::RebindMask(d, hn::Ne(hn::Load(di, s.g_known + i), hn::Zero(di)));
+  const M e1 = hn::RebindMask(d, hn::Eq(entry, hn::Set(di, 1))), e2 = hn::RebindMask(d, hn::Eq(entry, hn::Set(di, 2)));
+  const V hs0 = hn::IfThenElse(
+      e1, hn::IfThenElse(xp, edge_height(h[0], h[2], v0), edge_height(h[1], h[3], v0)),
+      hn::IfThenElse(e2, hn::IfThenElse(yp, edge_height(h[0], h[1], u0), edge_height(h[2], h[3], u0)),
+                     hn::IfThenElse(xp, hn::IfThenElse(yp, h[0], h[2]), hn::IfThenElse(yp, h[1], h[3]))));
+  const V g0 = hn::IfThenElse(known, hn::Load(d, s.g + i), g_at(r.t, hs0));
+  const M testable = hn::Or(known, hn::RebindMask(d, hn::Ne(entry, hn::Zero(di))));
+  const V hs1 = hn::IfThenElse(
+      hn::AndNot(step_y, step_x), hn::IfThenElse(xp, edge_height(h[1], h[3], v1), edge_height(h[0], h[2], v1)),
+      hn::IfThenElse(hn::AndNot(step_x, step_y),
+                     hn::IfThenElse(yp, edge_height(h[2], h[3], u1), edge_height(h[0], h[1], u1)),
+                     hn::IfThenElse(xp, hn::IfThenElse(yp, h[3], h[1]), hn::IfThenElse(yp, h[2], h[0]))));
+  g1 = g_at(t1, hs1);
+  const V d0 = hn::Sub(u0, v0), d1 = hn::Sub(u1, v1);
+  const M crosses = hn::Or(hn::And(hn::Gt(d0, zero), hn::Lt(d1, zero)), hn::And(hn::Lt(d0, zero), hn::Gt(d1, zero)));
+  const V td = hn::Add(r.t, hn::Mul(hn::Sub(t1, r.t), hn::Div(d0, hn::Sub(d0, d1))));
+  const V sd = hn::Mul(hn::Set(d, 0.5), hn::Add(u_at(td), v_at(td)));
+  const V gd = g_at(td, edge_height(h[0], h[3], sd));
+  const M p0 = hn::Gt(g0, zero), p1 = hn::Gt(g1, zero), pd = hn::Gt(gd, zero);
+  const M change = hn::Or(hn::And(crosses, hn::Or(hn::Xor(p0, pd), hn::Xor(pd, p1))), hn::AndNot(crosses, hn::Xor(p0, p1)));
+  return hn::AndNot(change, testable);
+}
+
+// The node test of step: true for the lanes whose part in the node [t, t1] lies above its maximum or
+// below its minimum (by the margin).
+HWY_INLINE M node_passed(const Grid& g, const Ray& r, MI lanes, V z, V z1) {
   const D d;
   const DI di;
   const DU du;
-  const VI zero = hn::Zero(di), one = hn::Set(di, 1);
-  const V ox0 = hn::Load(d, s.ox + i), oy0 = hn::Load(d, s.oy + i), oz = hn::Load(d, s.oz + i);
-  const V dx = hn::Load(d, s.dx + i), dy = hn::Load(d, s.dy + i), dz = hn::Load(d, s.dz + i);
-  const V t = hn::Load(d, s.t + i);
-  const VI sx = hn::Load(di, s.sx + i), sy = hn::Load(di, s.sy + i);
-  const VI ci = hn::Load(di, s.ci + i), cj = hn::Load(di, s.cj + i), k = hn::Load(di, s.k + i);
-  const VI done0 = hn::Load(di, s.done + i);
-  const MI live = hn::And(hn::Gt(k, zero), hn::Eq(done0, zero));
-  const V z = hn::Add(oz, hn::Mul(t, dz));
-  const M escaped = hn::And(hn::Ge(dz, hn::Zero(d)), hn::Gt(z, hn::Set(d, g.escape_height)));
-  const M leaked = hn::And(hn::Le(dz, hn::Zero(d)), hn::Lt(z, hn::Set(d, g.floor_height)));
-  const VI ax = (ci >> k) << k, ay = (cj >> k) << k;
-  const VI size = one << k, n = hn::Set(di, g.n);
-  const VI bx = hn::Min(n, hn::Add(ax, size)), by = hn::Min(n, hn::Add(ay, size));
-  const V tx = exit_distance(sx, ax, bx, ox0, hn::Load(d, s.idx + i));
-  const V ty = exit_distance(sy, ay, by, oy0, hn::Load(d, s.idy + i));
-  const V t1 = std_max(std_min(tx, ty), t);
   // The node's {min, max}: level_offset[k] + (cj >> k) n_k + (ci >> k), exact integers in double.
-  const V index = hn::Add(hn::Add(hn::GatherIndex(d, g.level_offset, k),
-                                  hn::Mul(hn::ConvertTo(d, cj >> k), hn::GatherIndex(d, g.level_n, k))),
-                          hn::ConvertTo(d, ci >> k));
+  // Nodes per side of level k: ceil(N / 2^k).
+  const VI nk = hn::Add(hn::Set(di, g.n), hn::Sub(hn::Set(di, 1) << r.k, hn::Set(di, 1))) >> r.k;
+  const V index = hn::Add(hn::Add(hn::GatherIndex(d, g.level_offset, r.k),
+                                  hn::Mul(hn::ConvertTo(d, r.cj >> r.k), hn::ConvertTo(d, nk))),
+                          hn::ConvertTo(d, r.ci >> r.k));
   V lo, hi;
-  node_bounds(hn::GatherIndex(du, g.nodes, hn::IfThenElseZero(live, hn::ConvertTo(di, index))), lo, hi);
-  const V z1 = hn::Add(oz, hn::Mul(t1, dz));
+  node_bounds(hn::GatherIndex(du, g.nodes, hn::IfThenElseZero(lanes, hn::ConvertTo(di, index))), lo, hi);
   const V margin = hn::Set(d, g.margin);
-  const M pass = hn::Or(hn::Gt(hn::Min(z, z1), hn::Add(hi, margin)), hn::Lt(hn::Max(z, z1), hn::Sub(lo, margin)));
-  const M active = hn::AndNot(hn::Or(escaped, leaked), hn::RebindMask(d, live));
-  const M moves = hn::And(active, pass);
-  // Passed: advance() to the neighbouring cell across the node's exit edge(s), up a level if it left
-  // the parent.
-  V ox = ox0, oy = oy0;
-  VI tile_x = hn::Load(di, s.tile_x + i), tile_y = hn::Load(di, s.tile_y + i), wraps = hn::Load(di, s.wraps + i);
+  return hn::Or(hn::Gt(hn::Min(z, z1), hn::Add(hi, margin)), hn::Lt(hn::Max(z, z1), hn::Sub(lo, margin)));
+}
+
+// One step of lanes [i, i + Lanes(d)) (step: a node entered or passed, or a cell without a hit passed);
+// returns their bits of done or of a cell the scalar code must test.
+HWY_INLINE std::uint64_t step_vector(const Grid& g, State& s, std::size_t i) {
+  const D d;
+  const DI di;
+  const VI zero = hn::Zero(di), one = hn::Set(di, 1);
+  Ray r{hn::Load(d, s.ox + i), hn::Load(d, s.oy + i), hn::Load(d, s.oz + i), hn::Load(d, s.dx + i),
+        hn::Load(d, s.dy + i), hn::Load(d, s.dz + i), hn::Load(d, s.t + i), hn::Load(di, s.sx + i),
+        hn::Load(di, s.sy + i), hn::Load(di, s.ci + i), hn::Load(di, s.cj + i), hn::Load(di, s.k + i)};
+  const VI done0 = hn::Load(di, s.done + i);
+  const MI live = hn::Eq(done0, zero);
+  if (hn::AllFalse(di, live)) return 0;  // every lane done or parked (a batch's tail)
+  const MI at_node = hn::And(live, hn::Gt(r.k, zero)), at_cell = hn::AndNot(at_node, live);
+  const V z = hn::Add(r.oz, hn::Mul(r.t, r.dz));
+  const M escaped = hn::And(hn::Ge(r.dz, hn::Zero(d)), hn::Gt(z, hn::Set(d, g.escape_height)));
+  const M leaked = hn::And(hn::Le(r.dz, hn::Zero(d)), hn::Lt(z, hn::Set(d, g.floor_height)));
+  const VI ax = (r.ci >> r.k) << r.k, ay = (r.cj >> r.k) << r.k, size = one << r.k, n = hn::Set(di, g.n);
+  const VI bx = hn::Min(n, hn::Add(ax, size)), by = hn::Min(n, hn::Add(ay, size));
+  const V tx = exit_distance(r.sx, ax, bx, r.ox, hn::Load(d, s.idx + i));
+  const V ty = exit_distance(r.sy, ay, by, r.oy, hn::Load(d, s.idy + i));
+  const V t1 = std_max(std_min(tx, ty), r.t);
   const M step_x = hn::Le(tx, ty), step_y = hn::Le(ty, tx);
-  const VI ci1 = advance_axis(g, step_x, sx, ax, bx, hn::Add(ox0, hn::Mul(t1, dx)), ox, tile_x, wraps);
-  const VI cj1 = advance_axis(g, step_y, sy, ay, by, hn::Add(oy0, hn::Mul(t1, dy)), oy, tile_y, wraps);
+  // Each test only where a lane needs it (most steps of a walk are node steps).
+  const M none = hn::FirstN(d, 0);
+  const M pass = hn::AllFalse(di, at_node) ? none : node_passed(g, r, at_node, z, hn::Add(r.oz, hn::Mul(t1, r.dz)));
+  V g1 = hn::Zero(d);
+  const M clear = hn::AllFalse(di, at_cell) ? none : cell_clear(g, s, i, r, at_cell, t1, step_x, step_y, g1);
+  const MI active = hn::AndNot(hn::RebindMask(di, hn::Or(escaped, leaked)), live);
+  const MI moves = hn::And(active, hn::Or(hn::And(at_node, hn::RebindMask(di, pass)),
+                                          hn::And(at_cell, hn::RebindMask(di, clear))));
+  const MI enters = hn::And(active, hn::AndNot(hn::RebindMask(di, pass), at_node));
+  const MI scalar = hn::And(active, hn::AndNot(hn::RebindMask(di, clear), at_cell));
+  // Moving on: advance() to the neighbouring cell across the exit edge(s); up a level if it left the
+  // parent (a cell: its 2 x 2 node); g at the entry known after a cell, not after a node.
+  const M md = hn::RebindMask(d, moves);
+  V ox = r.ox, oy = r.oy;
+  VI tile_x = hn::Load(di, s.tile_x + i), tile_y = hn::Load(di, s.tile_y + i), wraps = hn::Load(di, s.wraps + i);
+  const VI ci1 = advance_axis(g, step_x, r.sx, ax, bx, hn::Add(r.ox, hn::Mul(t1, r.dx)), ox, tile_x, wraps);
+  const VI cj1 = advance_axis(g, step_y, r.sy, ay, by, hn::Add(r.oy, hn::Mul(t1, r.dy)), oy, tile_y, wraps);
   const VI entry = hn::Or(hn::IfThenElseZero(hn::RebindMask(di, step_x), one),
                           hn::IfThenElseZero(hn::RebindMask(di, step_y), hn::Set(di, 2)));
-  const VI k1 = hn::Add(k, one);
-  const MI left = hn::Or(hn::Ne(ci >> k1, ci1 >> k1), hn::Ne(cj >> k1, cj1 >> k1));
-  const VI k_passed = hn::IfThenElse(hn::And(left, hn::Lt(k, hn::Set(di, g.top))), k1, k);
-  const MI mi = hn::RebindMask(di, moves), enters = hn::RebindMask(di, hn::AndNot(pass, active));
-  const MI unresolved = hn::And(mi, hn::Gt(wraps, hn::Set(di, g.max_segments - 1)));
-  hn::Store(hn::IfThenElse(moves, ox, ox0), d, s.ox + i);
-  hn::Store(hn::IfThenElse(moves, oy, oy0), d, s.oy + i);
-  hn::Store(hn::IfThenElse(moves, t1, t), d, s.t + i);
-  hn::Store(hn::IfThenElse(mi, ci1, ci), di, s.ci + i);
-  hn::Store(hn::IfThenElse(mi, cj1, cj), di, s.cj + i);
-  hn::Store(hn::IfThenElse(mi, entry, hn::Load(di, s.entry + i)), di, s.entry + i);
-  hn::Store(hn::IfThenElseZero(hn::Not(mi), hn::Load(di, s.g_known + i)), di, s.g_known + i);
-  hn::Store(hn::IfThenElse(mi, tile_x, hn::Load(di, s.tile_x + i)), di, s.tile_x + i);
-  hn::Store(hn::IfThenElse(mi, tile_y, hn::Load(di, s.tile_y + i)), di, s.tile_y + i);
-  hn::Store(hn::IfThenElse(mi, wraps, hn::Load(di, s.wraps + i)), di, s.wraps + i);
-  const VI k_new = hn::IfThenElse(mi, k_passed, hn::IfThenElse(enters, hn::Sub(k, one), k));
-  hn::Store(k_new, di, s.k + i);
-  const VI done = hn::IfThenElse(hn::RebindMask(di, hn::And(escaped, hn::RebindMask(d, live))), one,
-                                 hn::IfThenElse(hn::RebindMask(di, hn::And(leaked, hn::RebindMask(d, live))),
-                                                hn::Set(di, 2), hn::IfThenElse(unresolved, hn::Set(di, 3), done0)));
+  const VI k1 = hn::Add(r.k, one);
+  const MI left = hn::Or(hn::Ne(r.ci >> k1, ci1 >> k1), hn::Ne(r.cj >> k1, cj1 >> k1));
+  const VI k_moved = hn::IfThenElse(hn::And(left, hn::Lt(r.k, hn::Set(di, g.top))), k1, r.k);
+  hn::Store(hn::IfThenElse(md, ox, r.ox), d, s.ox + i);
+  hn::Store(hn::IfThenElse(md, oy, r.oy), d, s.oy + i);
+  hn::Store(hn::IfThenElse(md, t1, r.t), d, s.t + i);
+  hn::Store(hn::IfThenElse(moves, ci1, r.ci), di, s.ci + i);
+  hn::Store(hn::IfThenElse(moves, cj1, r.cj), di, s.cj + i);
+  hn::Store(hn::IfThenElse(moves, entry, hn::Load(di, s.entry + i)), di, s.entry + i);
+  hn::Store(hn::IfThenElse(moves, hn::IfThenElseZero(at_cell, one), hn::Load(di, s.g_known + i)), di, s.g_known + i);
+  hn::Store(hn::IfThenElse(hn::RebindMask(d, hn::And(moves, at_cell)), g1, hn::Load(d, s.g + i)), d, s.g + i);
+  hn::Store(hn::IfThenElse(moves, tile_x, hn::Load(di, s.tile_x + i)), di, s.tile_x + i);
+  hn::Store(hn::IfThenElse(moves, tile_y, hn::Load(di, s.tile_y + i)), di, s.tile_y + i);
+  hn::Store(hn::IfThenElse(moves, wraps, hn::Load(di, s.wraps + i)), di, s.wraps + i);
+  hn::Store(hn::IfThenElse(moves, k_moved, hn::IfThenElse(enters, hn::Sub(r.k, one), r.k)), di, s.k + i);
+  const MI unresolved = hn::And(moves, hn::Gt(wraps, hn::Set(di, g.max_segments - 1)));
+  const MI live_escaped = hn::And(live, hn::RebindMask(di, escaped)), live_leaked = hn::And(live, hn::RebindMask(di, leaked));
+  const VI done = hn::IfThenElse(live_escaped, one, hn::IfThenElse(live_leaked, hn::Set(di, 2),
+                                                                  hn::IfThenElse(unresolved, hn::Set(di, 3), done0)));
   hn::Store(done, di, s.done + i);
   std::uint8_t bits[8] = {};
-  hn::StoreMaskBits(di, hn::Or(hn::Eq(k_new, zero), hn::Ne(done, zero)), bits);
+  hn::StoreMaskBits(di, hn::And(live, hn::Or(scalar, hn::Ne(done, zero))), bits);
   std::uint64_t out = 0;
   for (std::size_t b = 0; b < 8; ++b) out |= std::uint64_t(bits[b]) << (8 * b);
   return out;
 }
 
+// Software prefetch of what each lane's next step reads: its node's {min, max}, or its cell's two rows
+// of heights. Issued for all lanes before the steps, so that their reads are in flight together (a
+// vector's gather holds up the steps after it until its slowest lane's read is back).
+HWY_INLINE void prefetch(const Grid& g, const State& s, std::size_t lanes) {
+  for (std::size_t j = 0; j < lanes; ++j) {
+    const std::int64_t k = s.k[j], ci = s.ci[j], cj = s.cj[j], j1 = cj + 1 == g.n ? 0 : cj + 1;
+    const std::int64_t node = std::int64_t(g.level_offset[k]) + (cj >> k) * ((g.n + (std::int64_t(1) << k) - 1) >> k) + (ci >> k);
+    const char* a = k > 0 ? reinterpret_cast<const char*>(g.nodes + node) : reinterpret_cast<const char*>(g.heights + cj * g.n + ci);
+    const char* b = k > 0 ? a : reinterpret_cast<const char*>(g.heights + j1 * g.n + ci);
+    __builtin_prefetch(a);
+    __builtin_prefetch(b);
+  }
+}
+
 std::uint64_t step_lanes(const Grid& g, State& s, std::size_t lanes) {
   const std::size_t w = hn::Lanes(D());
   std::uint64_t flags = 0;
-  for (int round = 0; round < g.rounds; ++round)
+  for (int round = 0; round < g.rounds; ++round) {
+    if (g.prefetch) prefetch(g, s, lanes);
     for (std::size_t i = 0; i < lanes; i += w) flags |= step_vector(g, s, i) << i;
+  }
   return flags;
 }
 

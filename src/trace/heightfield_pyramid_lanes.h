@@ -17,29 +17,32 @@ struct State {
   alignas(64) double ox[kMaxLanes], oy[kMaxLanes], oz[kMaxLanes];  // origin, x and y in cells
   alignas(64) double dx[kMaxLanes], dy[kMaxLanes], dz[kMaxLanes];  // direction, x and y in cells
   alignas(64) double idx[kMaxLanes], idy[kMaxLanes];                // 1 / dx, 1 / dy (0 where dx, dy = 0)
-  alignas(64) double t[kMaxLanes];
+  alignas(64) double t[kMaxLanes], g[kMaxLanes];                   // the walk's t, g at the cell entry
   alignas(64) std::int64_t sx[kMaxLanes], sy[kMaxLanes];  // signs of dx, dy
   alignas(64) std::int64_t ci[kMaxLanes], cj[kMaxLanes], k[kMaxLanes];
   alignas(64) std::int64_t entry[kMaxLanes], g_known[kMaxLanes];
   alignas(64) std::int64_t tile_x[kMaxLanes], tile_y[kMaxLanes], wraps[kMaxLanes];
-  // Set by a step: 0 goes on, 1 escaped, 2 leaked, 3 unresolved.
+  // Set by a step: 0 goes on, 1 escaped, 2 leaked, 3 unresolved; 4: no ray in the lane.
   alignas(64) std::int64_t done[kMaxLanes];
 };
 
 // The tracer's constants.
 struct Grid {
   const std::uint64_t* nodes = nullptr;  // HeightPyramid::nodes(): {min, max} floats, min in the low bits
+  const float* heights = nullptr;        // the heightfield's, row by row
   const double* level_offset = nullptr;  // [k], k = 0 .. top: level_offset(k) (0 for k = 0)
-  const double* level_n = nullptr;       // [k]: nodes per side (0 for k = 0)
   double margin = 0, escape_height = 0, floor_height = 0;
   std::int64_t n = 0, top = 0, max_segments = 0;
-  int rounds = 1;  // node steps per call (a lane stops at level 0 or when done)
+  int rounds = 1;         // steps per call (a lane stops at a cell for the scalar code or when done)
+  bool prefetch = false;  // prefetch every lane's next read before the steps
 };
 
-// grid.rounds node steps of every lane i < lanes with k[i] > 0 and done[i] = 0 (PyramidTracer::step's
-// node branch, the same expressions): the node is entered (k - 1) or passed (the walk advanced, k up if
-// it left the parent), or the walk ends (done). Other lanes are left as they are. Returns bit i set for
-// the lanes with k = 0 or done != 0 afterwards. lanes: a multiple of vector_lanes(), at most kMaxLanes.
+// grid.rounds steps of every lane i < lanes with done[i] = 0, as PyramidTracer::step with the same
+// expressions: a node entered (k - 1) or passed (the walk advanced, k up if it left the parent), a cell
+// over which g = z - surface height keeps its sign passed likewise, or the walk ended (done). A cell
+// where g may change sign (a hit, unless the start triangle) is left to the scalar step(), as is a cell
+// whose entry g is not known from an edge (a ray's start cell). Returns bit i set for the lanes with
+// done[i] != 0 or such a cell.
 std::uint64_t step(const Grid& grid, State& state, std::size_t lanes);
 // Doubles per vector of the target chosen for this CPU, and its name.
 std::size_t vector_lanes();
