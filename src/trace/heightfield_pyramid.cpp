@@ -363,8 +363,7 @@ void PyramidTracer::run_batch(Batch& b) const {
   grid.heights = field_.heights().data();
   grid.level_offset = level_offset_.data();
   grid.margin = margin_, grid.escape_height = escape_height_, grid.floor_height = floor_height_;
-  grid.n = n_, grid.top = pyramid_.top_level(), grid.max_segments = kMaxSegments, grid.rounds = batch_rounds_;
-  grid.prefetch = batch_prefetch_;
+  grid.n = n_, grid.top = pyramid_.top_level(), grid.max_segments = kMaxSegments;
   std::uint64_t live = 0;
   for (std::size_t i = 0; i < lanes; ++i) {
     b.ray[i] = b.n;

@@ -105,8 +105,6 @@ public:
   // Lanes per batch walk (a multiple of the SIMD width, at most kMaxBatchLanes); for benchmarks.
   static constexpr int kMaxBatchLanes = 64;
   void set_batch_lanes(int lanes) { batch_lanes_ = lanes; }
-  void set_batch_rounds(int rounds) { batch_rounds_ = rounds; }
-  void set_batch_prefetch(bool prefetch) { batch_prefetch_ = prefetch; }
 
   const HeightPyramid& pyramid() const { return pyramid_; }
   // Bytes the tracer allocated (the pyramid; the heights are the field's).
@@ -135,8 +133,6 @@ private:
   double escape_height_ = 0, floor_height_ = 0;
   double margin_ = 0;  // of the node tests
   int batch_lanes_ = 0;   // 0: the default of the SIMD target
-  int batch_rounds_ = 1;  // vector steps of the lanes between scalar cell tests
-  bool batch_prefetch_ = false;
   std::vector<double> level_offset_;  // HeightPyramid::level_offset per level 0 .. K, for the lanes (0 at 0)
 };
 

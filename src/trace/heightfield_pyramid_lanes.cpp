@@ -14,6 +14,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 
 HWY_BEFORE_NAMESPACE();
@@ -26,6 +27,9 @@ using V = hn::Vec<D>;
 using VI = hn::Vec<DI>;
 using M = hn::Mask<D>;
 using MI = hn::Mask<DI>;
+
+// A vector's cell tests wait for this many of its lanes at cells (or for no lane at a node).
+constexpr std::size_t kCellBatch = 2;
 
 // std::min(a, b) and std::max(a, b): b only if it is strictly less (greater), as <algorithm> chooses.
 HWY_INLINE V std_min(V a, V b) { return hn::IfThenElse(hn::Lt(b, a), b, a); }
@@ -185,12 +189,16 @@ HWY_INLINE std::uint64_t step_vector(const Grid& g, State& s, std::size_t i) {
   const M none = hn::FirstN(d, 0);
   const M pass = hn::AllFalse(di, at_node) ? none : node_passed(g, r, at_node, z, hn::Add(r.oz, hn::Mul(t1, r.dz)));
   V g1 = hn::Zero(d);
-  const M clear = hn::AllFalse(di, at_cell) ? none : cell_clear(g, s, i, r, at_cell, t1, step_x, step_y, g1);
+  // The cells' tests once enough lanes wait at cells (or no lane is at a node): they cost as much as the
+  // node test, and a vector's lanes reach cells at different steps.
+  const std::size_t cells = hn::CountTrue(di, at_cell);
+  const bool test_cells = cells >= kCellBatch || (cells > 0 && hn::AllFalse(di, at_node));
+  const M clear = test_cells ? cell_clear(g, s, i, r, at_cell, t1, step_x, step_y, g1) : none;
   const MI active = hn::AndNot(hn::RebindMask(di, hn::Or(escaped, leaked)), live);
   const MI moves = hn::And(active, hn::Or(hn::And(at_node, hn::RebindMask(di, pass)),
                                           hn::And(at_cell, hn::RebindMask(di, clear))));
   const MI enters = hn::And(active, hn::AndNot(hn::RebindMask(di, pass), at_node));
-  const MI scalar = hn::And(active, hn::AndNot(hn::RebindMask(di, clear), at_cell));
+  const MI scalar = test_cells ? hn::And(active, hn::AndNot(hn::RebindMask(di, clear), at_cell)) : hn::FirstN(di, 0);
   // Moving on: advance() to the neighbouring cell across the exit edge(s); up a level if it left the
   // parent (a cell: its 2 x 2 node); g at the entry known after a cell, not after a node.
   const M md = hn::RebindMask(d, moves);
@@ -223,31 +231,14 @@ HWY_INLINE std::uint64_t step_vector(const Grid& g, State& s, std::size_t i) {
   std::uint8_t bits[8] = {};
   hn::StoreMaskBits(di, hn::And(live, hn::Or(scalar, hn::Ne(done, zero))), bits);
   std::uint64_t out = 0;
-  for (std::size_t b = 0; b < 8; ++b) out |= std::uint64_t(bits[b]) << (8 * b);
+  std::memcpy(&out, bits, sizeof(out));  // lane b: bit b (little-endian)
   return out;
-}
-
-// Software prefetch of what each lane's next step reads: its node's {min, max}, or its cell's two rows
-// of heights. Issued for all lanes before the steps, so that their reads are in flight together (a
-// vector's gather holds up the steps after it until its slowest lane's read is back).
-HWY_INLINE void prefetch(const Grid& g, const State& s, std::size_t lanes) {
-  for (std::size_t j = 0; j < lanes; ++j) {
-    const std::int64_t k = s.k[j], ci = s.ci[j], cj = s.cj[j], j1 = cj + 1 == g.n ? 0 : cj + 1;
-    const std::int64_t node = std::int64_t(g.level_offset[k]) + (cj >> k) * ((g.n + (std::int64_t(1) << k) - 1) >> k) + (ci >> k);
-    const char* a = k > 0 ? reinterpret_cast<const char*>(g.nodes + node) : reinterpret_cast<const char*>(g.heights + cj * g.n + ci);
-    const char* b = k > 0 ? a : reinterpret_cast<const char*>(g.heights + j1 * g.n + ci);
-    __builtin_prefetch(a);
-    __builtin_prefetch(b);
-  }
 }
 
 std::uint64_t step_lanes(const Grid& g, State& s, std::size_t lanes) {
   const std::size_t w = hn::Lanes(D());
   std::uint64_t flags = 0;
-  for (int round = 0; round < g.rounds; ++round) {
-    if (g.prefetch) prefetch(g, s, lanes);
-    for (std::size_t i = 0; i < lanes; i += w) flags |= step_vector(g, s, i) << i;
-  }
+  for (std::size_t i = 0; i < lanes; i += w) flags |= step_vector(g, s, i) << i;
   return flags;
 }
 

@@ -33,16 +33,15 @@ struct Grid {
   const double* level_offset = nullptr;  // [k], k = 0 .. top: level_offset(k) (0 for k = 0)
   double margin = 0, escape_height = 0, floor_height = 0;
   std::int64_t n = 0, top = 0, max_segments = 0;
-  int rounds = 1;         // steps per call (a lane stops at a cell for the scalar code or when done)
-  bool prefetch = false;  // prefetch every lane's next read before the steps
 };
 
-// grid.rounds steps of every lane i < lanes with done[i] = 0, as PyramidTracer::step with the same
+// One step of every lane i < lanes with done[i] = 0, as PyramidTracer::step with the same
 // expressions: a node entered (k - 1) or passed (the walk advanced, k up if it left the parent), a cell
 // over which g = z - surface height keeps its sign passed likewise, or the walk ended (done). A cell
 // where g may change sign (a hit, unless the start triangle) is left to the scalar step(), as is a cell
-// whose entry g is not known from an edge (a ray's start cell). Returns bit i set for the lanes with
-// done[i] != 0 or such a cell.
+// whose entry g is not known from an edge (a ray's start cell). A lane at a cell may wait a step (a
+// vector's cell tests wait for two of its lanes at cells). Returns bit i set for the lanes with
+// done[i] != 0 or a cell for step().
 std::uint64_t step(const Grid& grid, State& state, std::size_t lanes);
 // Doubles per vector of the target chosen for this CPU, and its name.
 std::size_t vector_lanes();
