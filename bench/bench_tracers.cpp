@@ -17,7 +17,7 @@
 //   trace_pyramid_morton           the same, Morton order
 //   trace_pyramid_lanes            the same rays, each block's traced by PyramidTracer::trace_batch (walks
 //                                  in SIMD lanes, every ray's result trace()'s to the bit), 64 lanes;
-//                                  _L: with L lanes
+//                                  _L: with L lanes; _pf / _npf: with / without software prefetch
 // After the benchmarks: one table, ns/ray per option per resolution, and each option's rate against raw_high;
 // also how many of the rays the pyramid and Embree's triangles hit on a different triangle.
 //
@@ -60,7 +60,8 @@ constexpr int kLargest = 4096;  // from this resolution on, only raw_high*, trac
 const char* const kOptions[] = {"raw_high",        "raw_high_morton", "raw_medium",    "raw_low",
                                 "raw_compact",     "raw_grid",        "trace_triangles", "trace_grid",
                                 "trace_pyramid",   "trace_pyramid_morton", "trace_pyramid_lanes",
-                                "trace_pyramid_lanes_8", "trace_pyramid_lanes_16", "trace_pyramid_lanes_32"};
+                                "trace_pyramid_lanes_8", "trace_pyramid_lanes_16", "trace_pyramid_lanes_32",
+                                "trace_pyramid_lanes_pf", "trace_pyramid_lanes_npf"};
 constexpr int kOptionCount = int(sizeof(kOptions) / sizeof(kOptions[0]));
 
 struct Segment {
@@ -230,9 +231,10 @@ std::uint64_t trace_all(const HeightfieldScene& scene, const Fixture& f, bool mo
   return hits;
 }
 
-std::uint64_t trace_lanes(PyramidTracer& tracer, const Fixture& f, int lanes) {
+std::uint64_t trace_lanes(PyramidTracer& tracer, const Fixture& f, int lanes, int prefetch = -1) {
   embree::FlushDenormalsScope ftz;
   tracer.set_batch_lanes(lanes);
+  tracer.set_batch_prefetch(prefetch < 0 ? f.field->resolution() >= PyramidTracer::kPrefetchResolution : prefetch > 0);
   std::vector<HeightfieldHit> out(kRaysPerBlock);
   std::uint64_t hits = 0;
   for (std::size_t first = 0; first < f.origins.size(); first += kRaysPerBlock) {
@@ -253,6 +255,8 @@ std::uint64_t run_option(Fixture& f, const std::string& option) {
   if (option.rfind("raw_", 0) == 0) return replay(f.raw.at(option)->scene, f.segments, d);
   if (option == "trace_triangles") return trace_all(*f.scenes.at(HeightfieldGeometry::triangles), f, false);
   if (option == "trace_grid") return trace_all(*f.scenes.at(HeightfieldGeometry::grid), f, false);
+  if (option == "trace_pyramid_lanes_pf" || option == "trace_pyramid_lanes_npf")
+    return trace_lanes(*f.pyramid, f, 0, option == "trace_pyramid_lanes_pf");
   if (option.rfind("trace_pyramid_lanes", 0) == 0)
     return trace_lanes(*f.pyramid, f, option.size() > 20 ? std::atoi(option.c_str() + 20) : 0);
   return trace_all(*f.scenes.at(HeightfieldGeometry::pyramid), f, option == "trace_pyramid_morton");

@@ -71,6 +71,7 @@ PyramidTracer::PyramidTracer(const microgeom::Heightfield& field, double escape_
       inv_cell_(1.0 / field.cell_size()), escape_height_(escape_height), floor_height_(floor_height) {
   const double zmax = field.max_height(), zmin = field.min_height();
   margin_ = 1e-9 * (std::max(std::abs(zmax), std::abs(zmin)) + (zmax - zmin));
+  batch_prefetch_ = n_ >= kPrefetchResolution;
   level_offset_.assign(1, 0.0);
   for (int k = 1; k <= pyramid_.top_level(); ++k) level_offset_.push_back(double(pyramid_.level_offset(k)));
 }
@@ -363,7 +364,7 @@ void PyramidTracer::run_batch(Batch& b) const {
   grid.heights = field_.heights().data();
   grid.level_offset = level_offset_.data();
   grid.margin = margin_, grid.escape_height = escape_height_, grid.floor_height = floor_height_;
-  grid.n = n_, grid.top = pyramid_.top_level(), grid.max_segments = kMaxSegments;
+  grid.n = n_, grid.top = pyramid_.top_level(), grid.max_segments = kMaxSegments, grid.prefetch = batch_prefetch_;
   std::uint64_t live = 0;
   for (std::size_t i = 0; i < lanes; ++i) {
     b.ray[i] = b.n;

@@ -105,6 +105,10 @@ public:
   // Lanes per batch walk (a multiple of the SIMD width, at most kMaxBatchLanes); for benchmarks.
   static constexpr int kMaxBatchLanes = 64;
   void set_batch_lanes(int lanes) { batch_lanes_ = lanes; }
+  // Software prefetch of every lane's next read before each step of the lanes (default: on for tiles of
+  // kPrefetchResolution^2 and more, whose heights and pyramid leave the caches).
+  static constexpr int kPrefetchResolution = 2048;
+  void set_batch_prefetch(bool prefetch) { batch_prefetch_ = prefetch; }
 
   const HeightPyramid& pyramid() const { return pyramid_; }
   // Bytes the tracer allocated (the pyramid; the heights are the field's).
@@ -132,7 +136,8 @@ private:
   double tile_ = 0, cell_ = 0, inv_cell_ = 0;
   double escape_height_ = 0, floor_height_ = 0;
   double margin_ = 0;  // of the node tests
-  int batch_lanes_ = 0;   // 0: the default of the SIMD target
+  int batch_lanes_ = 0;  // 0: the default of the SIMD target
+  bool batch_prefetch_ = false;
   std::vector<double> level_offset_;  // HeightPyramid::level_offset per level 0 .. K, for the lanes (0 at 0)
 };
 

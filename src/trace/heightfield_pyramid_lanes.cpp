@@ -235,9 +235,26 @@ HWY_INLINE std::uint64_t step_vector(const Grid& g, State& s, std::size_t i) {
   return out;
 }
 
+// Software prefetch of what each lane's next step reads: its node's {min, max}, or its cell's two rows
+// of heights. Issued for all lanes before the steps, so that their reads are in flight together (a
+// vector's gather holds up the steps after it until its slowest lane's read is back).
+HWY_INLINE void prefetch(const Grid& g, const State& s, std::size_t lanes) {
+  for (std::size_t j = 0; j < lanes; ++j) {
+    const std::int64_t k = s.k[j], ci = s.ci[j], cj = s.cj[j], j1 = cj + 1 == g.n ? 0 : cj + 1;
+    const std::int64_t nk = (g.n + (std::int64_t(1) << k) - 1) >> k;
+    const std::int64_t node = std::int64_t(g.level_offset[k]) + (cj >> k) * nk + (ci >> k);
+    const char* a = k > 0 ? reinterpret_cast<const char*>(g.nodes + node)
+                          : reinterpret_cast<const char*>(g.heights + cj * g.n + ci);
+    const char* b = k > 0 ? a : reinterpret_cast<const char*>(g.heights + j1 * g.n + ci);
+    __builtin_prefetch(a);
+    __builtin_prefetch(b);
+  }
+}
+
 std::uint64_t step_lanes(const Grid& g, State& s, std::size_t lanes) {
   const std::size_t w = hn::Lanes(D());
   std::uint64_t flags = 0;
+  if (g.prefetch) prefetch(g, s, lanes);
   for (std::size_t i = 0; i < lanes; i += w) flags |= step_vector(g, s, i) << i;
   return flags;
 }

@@ -33,6 +33,7 @@ struct Grid {
   const double* level_offset = nullptr;  // [k], k = 0 .. top: level_offset(k) (0 for k = 0)
   double margin = 0, escape_height = 0, floor_height = 0;
   std::int64_t n = 0, top = 0, max_segments = 0;
+  bool prefetch = false;  // prefetch every lane's next read before the steps
 };
 
 // One step of every lane i < lanes with done[i] = 0, as PyramidTracer::step with the same

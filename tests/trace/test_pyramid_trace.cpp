@@ -299,7 +299,8 @@ std::vector<PyramidTracer::Ray> path_batch(const HeightfieldScene& scene, const 
 
 // The batch walk gives every ray trace()'s result to the bit: primary rays at 0-88 deg on 256^2 tiles
 // (alpha 0.3 and 1) and a 100^2 tile (not a power of two), and every ray of mirror and dielectric paths
-// (the rays of SameHitsAsEmbreeAtEveryBounce), with the default lanes and with one SIMD vector's worth.
+// (the rays of SameHitsAsEmbreeAtEveryBounce), with the default lanes and with one SIMD vector's worth
+// (and software prefetch).
 // Negative control: the batch of a tracer on heights shifted at every 7th vertex differs on many rays.
 TEST(PyramidTrace, BatchWalkIsTraceToTheBit) {
   embree::FlushDenormalsScope ftz;
@@ -308,7 +309,8 @@ TEST(PyramidTrace, BatchWalkIsTraceToTheBit) {
     PyramidTracer tracer(field, scene.escape_height(), scene.floor_height());
     EXPECT_EQ(batch_differences(tracer, tracer, rays), 0) << what;
     tracer.set_batch_lanes(1);  // rounded up to one vector
-    EXPECT_EQ(batch_differences(tracer, tracer, rays), 0) << what << ", one vector of lanes";
+    tracer.set_batch_prefetch(true);  // the default from 2048^2 on
+    EXPECT_EQ(batch_differences(tracer, tracer, rays), 0) << what << ", one vector of lanes, prefetching";
   };
   for (const double alpha : {0.3, 1.0}) {
     const auto field = smith(256, alpha, 3);
