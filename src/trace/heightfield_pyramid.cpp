@@ -355,6 +355,8 @@ bool PyramidTracer::settle(Batch& b, std::size_t i) const {
   return false;
 }
 
+static_assert(PyramidTracer::kMaxBatchLanes == int(pyramid_lanes::kMaxLanes));
+
 void PyramidTracer::run_batch(Batch& b) const {
   const std::size_t width = pyramid_lanes::vector_lanes();
   std::size_t lanes = batch_lanes_ > 0 ? std::size_t(batch_lanes_) : pyramid_lanes::kMaxLanes;

@@ -1,7 +1,10 @@
-// microsim: the node steps of the min-max pyramid walk (heightfield_pyramid.h) in SIMD lanes, one ray per
-// lane: the kernel of PyramidTracer::trace_batch. Compiled once per Highway target and dispatched at run
-// time (heightfield_pyramid_lanes.cpp); the loop that feeds the lanes and the cell tests are
-// PyramidTracer's (heightfield_pyramid.cpp).
+// microsim: the steps of the min-max pyramid walk (heightfield_pyramid.h) in SIMD lanes, one ray per lane,
+// a lane refilled with the next ray as soon as its ray is done (the per-lane traversal with refill of Aila
+// and Laine 2009, "Understanding the Efficiency of Ray Traversal on GPUs", section 3, on a CPU's vector
+// lanes): the kernel of PyramidTracer::trace_batch. Node steps and cells without a hit run in the lanes;
+// a cell that may hold the hit, a ray's start and its end are PyramidTracer's scalar code
+// (heightfield_pyramid.cpp). Compiled once per Highway target and dispatched at run time
+// (heightfield_pyramid_lanes.cpp).
 #pragma once
 
 #include <cstddef>
