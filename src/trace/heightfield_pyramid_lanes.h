@@ -10,6 +10,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace microsim::pyramid_lanes {
 
@@ -50,5 +51,10 @@ std::uint64_t step(const Grid& grid, State& state, std::size_t lanes);
 // Doubles per vector of the target chosen for this CPU, and its name.
 std::size_t vector_lanes();
 std::string target_name();
+// Tests: the targets compiled in that this CPU runs (Highway's names, best first; while none is forced),
+// and from now on run `name`, one of them ("": the best again). Process-wide (Highway's choice of target
+// for all its kernels).
+std::vector<std::string> targets();
+void use_target(const std::string& name);
 
 }  // namespace microsim::pyramid_lanes

@@ -12,6 +12,7 @@
 
 #include "core/random.h"
 #include "microgeom/assembly.h"
+#include "trace/heightfield_pyramid_lanes.h"
 #include "trace/heightfield_trace.h"
 #include "trace/trace_vndf.h"
 
@@ -20,6 +21,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <string>
 #include <vector>
 
 namespace microsim {
@@ -335,6 +337,27 @@ TEST(PyramidTrace, BatchWalkIsTraceToTheBit) {
   const PyramidTracer right_tracer(field, scene.escape_height(), scene.floor_height());
   const PyramidTracer wrong_tracer(wrong, scene.escape_height(), scene.floor_height());
   EXPECT_GT(batch_differences(wrong_tracer, right_tracer, mirror), 500);
+}
+
+// The same on every SIMD target this CPU runs (the kernel is compiled once per target; the machine that
+// runs the tests picks its best), on fewer rays.
+TEST(PyramidTrace, BatchWalkIsTraceToTheBitOnEverySimdTarget) {
+  embree::FlushDenormalsScope ftz;
+  const auto field = smith(128, 0.8, 5);
+  const HeightfieldScene scene(field, HeightfieldGeometry::pyramid);
+  const PyramidTracer tracer(field, scene.escape_height(), scene.floor_height());
+  const auto primary = primary_batch(scene, 10, 1000, 33);
+  const auto paths = path_batch(scene, Material::dielectric(1.5), 40.0, 3000, 9);
+  const std::vector<std::string> targets = pyramid_lanes::targets();
+  EXPECT_FALSE(targets.empty());
+  for (const std::string& target : targets) {
+    pyramid_lanes::use_target(target);
+    EXPECT_EQ(pyramid_lanes::target_name(), target);
+    EXPECT_EQ(batch_differences(tracer, tracer, primary), 0) << target;
+    EXPECT_EQ(batch_differences(tracer, tracer, paths), 0) << target;
+    std::printf("[ pyramid ] target %s: %zu primary and %zu path rays\n", target.c_str(), primary.size(), paths.size());
+  }
+  pyramid_lanes::use_target("");
 }
 
 }  // namespace
