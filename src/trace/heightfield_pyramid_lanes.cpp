@@ -109,8 +109,7 @@ HWY_INLINE void cell_heights(const Grid& g, const Ray& r, MI lanes, V h[4]) {
 }
 
 // The cell test of test_cell without its hit: true for the lanes whose g = z - surface height keeps its
-// sign over the cell's parts (entry, diagonal crossing, exit: the same expressions), whose entry g is
-// known or on an edge or corner (entry 0 is the scalar code's). g1: g at the exit.
+// sign over the cell's parts (entry, diagonal crossing, exit: the same expressions). g1: g at the exit.
 HWY_INLINE M cell_clear(const Grid& g, const State& s, std::size_t i, const Ray& r, MI lanes, V t1, M step_x, M step_y,
                         V& g1) {
   const D d;
@@ -126,12 +125,18 @@ HWY_INLINE M cell_clear(const Grid& g, const State& s, std::size_t i, const Ray&
   const VI entry = hn::Load(di, s.entry + i);
   const M known = hn::RebindMask(d, hn::Ne(hn::Load(di, s.g_known + i), hn::Zero(di)));
   const M e1 = hn::RebindMask(d, hn::Eq(entry, hn::Set(di, 1))), e2 = hn::RebindMask(d, hn::Eq(entry, hn::Set(di, 2)));
+  // Entry 0 (the ray's start cell): the plane of the triangle under the start (plane_slopes).
+  const M lower = hn::Ge(u0, v0);
+  const V plane_x = hn::IfThenElse(lower, hn::Sub(h[1], h[0]), hn::Sub(h[3], h[2]));
+  const V plane_y = hn::IfThenElse(lower, hn::Sub(h[3], h[1]), hn::Sub(h[2], h[0]));
+  const V at_start = hn::Add(hn::Add(h[0], hn::Mul(plane_x, u0)), hn::Mul(plane_y, v0));
+  const M e3 = hn::RebindMask(d, hn::Eq(entry, hn::Set(di, 3)));
   const V hs0 = hn::IfThenElse(
       e1, hn::IfThenElse(xp, edge_height(h[0], h[2], v0), edge_height(h[1], h[3], v0)),
       hn::IfThenElse(e2, hn::IfThenElse(yp, edge_height(h[0], h[1], u0), edge_height(h[2], h[3], u0)),
-                     hn::IfThenElse(xp, hn::IfThenElse(yp, h[0], h[2]), hn::IfThenElse(yp, h[1], h[3]))));
+                     hn::IfThenElse(e3, hn::IfThenElse(xp, hn::IfThenElse(yp, h[0], h[2]), hn::IfThenElse(yp, h[1], h[3])),
+                                    at_start)));
   const V g0 = hn::IfThenElse(known, hn::Load(d, s.g + i), g_at(r.t, hs0));
-  const M testable = hn::Or(known, hn::RebindMask(d, hn::Ne(entry, hn::Zero(di))));
   const V hs1 = hn::IfThenElse(
       hn::AndNot(step_y, step_x), hn::IfThenElse(xp, edge_height(h[1], h[3], v1), edge_height(h[0], h[2], v1)),
       hn::IfThenElse(hn::AndNot(step_x, step_y),
@@ -145,7 +150,7 @@ HWY_INLINE M cell_clear(const Grid& g, const State& s, std::size_t i, const Ray&
   const V gd = g_at(td, edge_height(h[0], h[3], sd));
   const M p0 = hn::Gt(g0, zero), p1 = hn::Gt(g1, zero), pd = hn::Gt(gd, zero);
   const M change = hn::Or(hn::And(crosses, hn::Or(hn::Xor(p0, pd), hn::Xor(pd, p1))), hn::AndNot(crosses, hn::Xor(p0, p1)));
-  return hn::AndNot(change, testable);
+  return hn::Not(change);
 }
 
 // The node test of step: true for the lanes whose part in the node [t, t1] lies above its maximum or

@@ -43,8 +43,8 @@ struct Grid {
 // One step of every lane i < lanes with done[i] = 0, as PyramidTracer::step with the same
 // expressions: a node entered (k - 1) or passed (the walk advanced, k up if it left the parent), a cell
 // over which g = z - surface height keeps its sign passed likewise, or the walk ended (done). A cell
-// where g may change sign (a hit, unless the start triangle) is left to the scalar step(), as is a cell
-// whose entry g is not known from an edge (a ray's start cell). A lane at a cell may wait a step (a
+// where g may change sign (a hit, unless the start triangle) is left to the scalar step(). A lane at a
+// cell may wait a step (a
 // vector's cell tests wait for two of its lanes at cells). Returns bit i set for the lanes with
 // done[i] != 0 or a cell for step().
 std::uint64_t step(const Grid& grid, State& state, std::size_t lanes);
