@@ -15,7 +15,9 @@
 //   trace_triangles, trace_grid    Embree
 //   trace_pyramid                  the min-max pyramid walk (trace/heightfield_pyramid.h)
 //   trace_pyramid_morton           the same, Morton order
-//   trace_pyramid_lockstep         the same rays, each block's traced 4 in lockstep (trace_batch)
+//   trace_pyramid_lanes            the same rays, each block's traced by PyramidTracer::trace_batch (walks
+//                                  in SIMD lanes, every ray's result trace()'s to the bit), 64 lanes;
+//                                  _L: with L lanes; _pf / _npf: with / without software prefetch
 // After the benchmarks: one table, ns/ray per option per resolution, and each option's rate against raw_high;
 // also how many of the rays the pyramid and Embree's triangles hit on a different triangle.
 //
@@ -25,6 +27,7 @@
 #include "microgeom/assembly.h"
 #include "core/cpu_time.h"
 #include "core/random.h"
+#include "trace/heightfield_pyramid_lanes.h"
 #include "trace/heightfield_trace.h"
 #include "trace/trace_vndf.h"
 
@@ -56,7 +59,9 @@ constexpr int kLargest = 4096;  // from this resolution on, only raw_high*, trac
 
 const char* const kOptions[] = {"raw_high",        "raw_high_morton", "raw_medium",    "raw_low",
                                 "raw_compact",     "raw_grid",        "trace_triangles", "trace_grid",
-                                "trace_pyramid",   "trace_pyramid_morton", "trace_pyramid_lockstep"};
+                                "trace_pyramid",   "trace_pyramid_morton", "trace_pyramid_lanes",
+                                "trace_pyramid_lanes_8", "trace_pyramid_lanes_16", "trace_pyramid_lanes_32",
+                                "trace_pyramid_lanes_pf", "trace_pyramid_lanes_npf"};
 constexpr int kOptionCount = int(sizeof(kOptions) / sizeof(kOptions[0]));
 
 struct Segment {
@@ -111,6 +116,8 @@ struct Fixture {
   std::vector<Segment> segments, segments_morton;
   Vec3<double> dir;
   std::uint64_t differing = 0;  // rays whose pyramid hit differs from the triangles' (triangle or outcome)
+  std::uint64_t lanes_differing = 0;  // rays whose trace_batch result differs from trace()'s (any bit)
+  std::unique_ptr<PyramidTracer> pyramid;  // as the pyramid scene's, for trace_batch with a lane count
 };
 
 std::uint64_t morton_code(double x, double y, double tile) {
@@ -183,6 +190,15 @@ Fixture& fixture(int res) {
                                                       RTCSceneFlags(RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_COMPACT));
   }
   make_rays(f);
+  const HeightfieldScene& ps = *f.scenes[HeightfieldGeometry::pyramid];
+  f.pyramid = std::make_unique<PyramidTracer>(*f.field, ps.escape_height(), ps.floor_height());
+  std::vector<HeightfieldHit> batch(f.origins.size());
+  f.pyramid->trace_batch(f.origins, f.dir, batch);
+  for (std::size_t i = 0; i < f.origins.size(); ++i) {
+    const HeightfieldHit a = f.pyramid->trace(f.origins[i], f.dir, std::nullopt), &b = batch[i];
+    f.lanes_differing += a.outcome != b.outcome || a.triangle != b.triangle || a.segments != b.segments ||
+                         std::memcmp(&a.t, &b.t, sizeof(double)) != 0;
+  }
   for (std::size_t i = 0; i < f.origins.size(); ++i) {
     embree::FlushDenormalsScope ftz;
     const HeightfieldHit a = f.scenes[HeightfieldGeometry::triangles]->trace(f.origins[i], f.dir);
@@ -215,19 +231,22 @@ std::uint64_t trace_all(const HeightfieldScene& scene, const Fixture& f, bool mo
   return hits;
 }
 
-std::uint64_t trace_lockstep(const HeightfieldScene& scene, const Fixture& f) {
+std::uint64_t trace_lanes(PyramidTracer& tracer, const Fixture& f, int lanes, int prefetch = -1) {
+  embree::FlushDenormalsScope ftz;
+  tracer.set_batch_lanes(lanes);
+  tracer.set_batch_prefetch(prefetch < 0 ? f.field->resolution() >= PyramidTracer::kPrefetchResolution : prefetch > 0);
   std::vector<HeightfieldHit> out(kRaysPerBlock);
   std::uint64_t hits = 0;
   for (std::size_t first = 0; first < f.origins.size(); first += kRaysPerBlock) {
     const std::size_t n = std::min<std::size_t>(kRaysPerBlock, f.origins.size() - first);
-    scene.trace_batch(std::span<const Vec3<double>>(f.origins.data() + first, n), f.dir,
-                      std::span<HeightfieldHit>(out.data(), n));
+    tracer.trace_batch(std::span<const Vec3<double>>(f.origins.data() + first, n), f.dir,
+                       std::span<HeightfieldHit>(out.data(), n));
     for (std::size_t i = 0; i < n; ++i) hits += out[i].is_hit();
   }
   return hits;
 }
 
-std::uint64_t run_option(const Fixture& f, const std::string& option) {
+std::uint64_t run_option(Fixture& f, const std::string& option) {
   const Vec3<float> d = f.dir.cast<float>();
   const RTCScene triangles = f.scenes.at(HeightfieldGeometry::triangles)->embree_scene().handle();
   if (option == "raw_high") return replay(triangles, f.segments, d);
@@ -236,12 +255,15 @@ std::uint64_t run_option(const Fixture& f, const std::string& option) {
   if (option.rfind("raw_", 0) == 0) return replay(f.raw.at(option)->scene, f.segments, d);
   if (option == "trace_triangles") return trace_all(*f.scenes.at(HeightfieldGeometry::triangles), f, false);
   if (option == "trace_grid") return trace_all(*f.scenes.at(HeightfieldGeometry::grid), f, false);
-  if (option == "trace_pyramid_lockstep") return trace_lockstep(*f.scenes.at(HeightfieldGeometry::pyramid), f);
+  if (option == "trace_pyramid_lanes_pf" || option == "trace_pyramid_lanes_npf")
+    return trace_lanes(*f.pyramid, f, 0, option == "trace_pyramid_lanes_pf");
+  if (option.rfind("trace_pyramid_lanes", 0) == 0)
+    return trace_lanes(*f.pyramid, f, option.size() > 20 ? std::atoi(option.c_str() + 20) : 0);
   return trace_all(*f.scenes.at(HeightfieldGeometry::pyramid), f, option == "trace_pyramid_morton");
 }
 
 void BM_Tracer(benchmark::State& state, int res, std::string option) {
-  const Fixture& f = fixture(res);
+  Fixture& f = fixture(res);
   std::uint64_t hits = 0;
   const double cpu0 = process_cpu_seconds();
   for (auto _ : state) {
@@ -252,6 +274,7 @@ void BM_Tracer(benchmark::State& state, int res, std::string option) {
   state.SetItemsProcessed(std::int64_t(state.iterations()) * std::int64_t(kRays));
   state.counters["segments_per_ray"] = double(f.segments.size()) / double(kRays);
   state.counters["pyramid_differs"] = double(f.differing);
+  state.counters["lanes_differ"] = double(f.lanes_differing);
 }
 
 std::string name(int res, const std::string& option) { return fmt::format("BM_Tracer/{}/{}", res, option); }
@@ -260,7 +283,8 @@ class TableReporter : public bench::RepetitionReporter {
 public:
   void PrintRatios() const {
     fmt::print("\nfirst hits of the same {} rays per resolution (theta {}, phi {}, smith alpha {}), 1 thread, median "
-               "CPU ns/ray (x = raw_high / option):\n| option |", kRays, kTheta, kPhi, kAlpha);
+               "CPU ns/ray (x = raw_high / option); lanes: {} doubles per vector ({}):\n| option |", kRays, kTheta, kPhi,
+               kAlpha, pyramid_lanes::vector_lanes(), pyramid_lanes::target_name());
     for (int res : g_resolutions) fmt::print(" {}^2 ns/ray | x |", res);
     fmt::print("\n|---|");
     for (std::size_t i = 0; i < g_resolutions.size(); ++i) fmt::print("---|---|");

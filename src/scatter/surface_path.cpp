@@ -102,14 +102,48 @@ void SurfacePathTracer::trace(const Vec3<double>& origin, CounterRng rng, Surfac
 void SurfacePathTracer::trace_block(std::uint64_t seed, std::uint64_t block, std::uint64_t n, std::uint64_t block_size,
                                     const std::function<void(std::uint64_t, const SurfacePath&)>& done,
                                     std::vector<EmbreeCall>* calls) const {
+  if (calls || scene_.geometry() != HeightfieldGeometry::pyramid) return trace_block_in_pairs(seed, block, n, block_size, done, calls);
+  CounterRng origins(seed, block);
+  std::vector<PathState> state(n);
+  std::vector<SurfacePath> path(n);
+  std::vector<std::uint64_t> live(n);
+  for (std::uint64_t i = 0; i < n; ++i) {
+    const double u0 = origins.uniform(), u1 = origins.uniform();
+    begin(origin(u0, u1), path_event_stream(seed, block, i, block_size), state[i], path[i]);
+    live[i] = i;
+  }
+  // Bounce by bounce: the current rays of the paths still going, traced together
+  // (HeightfieldScene::trace_rays: each result trace_ray()'s), then each path advanced. Each path has its
+  // own variates and done() is called in path order, so the result is that of tracing them one by one.
+  std::vector<HeightfieldScene::SurfaceRay> rays;
+  std::vector<HeightfieldHit> hits;
+  while (!live.empty()) {
+    rays.clear();
+    for (const std::uint64_t i : live) {
+      const PathState& s = state[i];
+      rays.push_back({s.point, s.dir, s.start, s.start_up, s.side});
+    }
+    hits.resize(rays.size());
+    scene_.trace_rays(rays, hits);
+    std::size_t kept = 0;
+    for (std::size_t q = 0; q < live.size(); ++q)
+      if (advance(state[live[q]], path[live[q]], hits[q])) live[kept++] = live[q];
+    live.resize(kept);
+  }
+  for (std::uint64_t i = 0; i < n; ++i) done(i, path[i]);
+}
+
+void SurfacePathTracer::trace_block_in_pairs(std::uint64_t seed, std::uint64_t block, std::uint64_t n,
+                                             std::uint64_t block_size,
+                                             const std::function<void(std::uint64_t, const SurfacePath&)>& done,
+                                             std::vector<EmbreeCall>* calls) const {
   CounterRng origins(seed, block);
   const auto start = [&](std::uint64_t i, PathState& state, SurfacePath& path) {
     const double u0 = origins.uniform(), u1 = origins.uniform();
     begin(origin(u0, u1), path_event_stream(seed, block, i, block_size), state, path);
   };
   // Paths in pairs, their rays traced alternately: the hit facet's heights (far from Embree's data, read
-  // for its normal) are prefetched while the other path's ray is traced. Each path has its own variates
-  // and done() is called in path order, so the result is that of tracing them one by one.
+  // for its normal) are prefetched while the other path's ray is traced.
   std::array<PathState, 2> state;
   std::array<SurfacePath, 2> path;
   std::array<HeightfieldHit, 2> hit;

@@ -112,8 +112,10 @@ public:
   void trace(const Vec3<double>& origin, CounterRng rng, SurfacePath& path,
              std::vector<SurfacePathEvent>* events = nullptr, std::vector<EmbreeCall>* calls = nullptr) const;
   // The paths [0, n) of block `block` of block_size paths, with their variates (path_event_stream), in
-  // order; done(i, path) is called for i = 0, 1, ... in order once path i has ended (paths are traced in
-  // pairs, their rays alternately); every Embree call is appended to `calls` if given.
+  // order; done(i, path) is called for i = 0, 1, ... in order. The pyramid geometry traces the paths'
+  // rays bounce by bounce, together (HeightfieldScene::trace_rays); the Embree geometries trace the paths
+  // in pairs, their rays alternately (the faster way for them, measured), every Embree call appended to
+  // `calls` if given.
   void trace_block(std::uint64_t seed, std::uint64_t block, std::uint64_t n, std::uint64_t block_size,
                    const std::function<void(std::uint64_t, const SurfacePath&)>& done,
                    std::vector<EmbreeCall>* calls = nullptr) const;
@@ -126,6 +128,9 @@ public:
                std::vector<SurfacePathEvent>* events = nullptr) const;
 
 private:
+  void trace_block_in_pairs(std::uint64_t seed, std::uint64_t block, std::uint64_t n, std::uint64_t block_size,
+                            const std::function<void(std::uint64_t, const SurfacePath&)>& done,
+                            std::vector<EmbreeCall>* calls) const;
   void end_without_hit(RayOutcome outcome, const PathState& state, SurfacePath& path) const;
 
   const HeightfieldScene& scene_;

@@ -1,13 +1,16 @@
 // microsim: the min-max pyramid and its exact heightfield tracer (see heightfield_pyramid.h).
 #include "trace/heightfield_pyramid.h"
 
+#include "trace/heightfield_pyramid_lanes.h"
 #include "trace/heightfield_trace.h"
 
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <span>
 
 namespace microsim {
@@ -29,12 +32,16 @@ inline double wrap_into(double x, double tile) {
 
 HeightPyramid::HeightPyramid(const microgeom::Heightfield& field) {
   const int n = field.resolution();
-  int prev_n = n;
-  for (int k = 1; prev_n > 1; ++k) {
-    Level level;
-    level.n = (prev_n + 1) / 2;
-    level.minmax.resize(std::size_t(level.n) * std::size_t(level.n));
-    const Level* child = k > 1 ? &levels_.back() : nullptr;
+  std::size_t total = 0;
+  for (int m = n; m > 1;) {
+    m = (m + 1) / 2;
+    levels_.push_back({m, total});
+    total += std::size_t(m) * std::size_t(m);
+  }
+  nodes_.resize(total);
+  for (std::size_t k = 0; k < levels_.size(); ++k) {
+    const Level& level = levels_[k];
+    const Level* child = k > 0 ? &levels_[k - 1] : nullptr;
     tbb::parallel_for(0, level.n, [&](int b) {
       for (int a = 0; a < level.n; ++a) {
         float lo = std::numeric_limits<float>::infinity(), hi = -lo;
@@ -47,22 +54,14 @@ HeightPyramid::HeightPyramid(const microgeom::Heightfield& field) {
         } else {  // from the (up to) 2 x 2 children: their vertex ranges make up the node's
           for (int y = 2 * b; y < std::min(child->n, 2 * b + 2); ++y)
             for (int x = 2 * a; x < std::min(child->n, 2 * a + 2); ++x) {
-              const auto& c = child->minmax[std::size_t(y) * std::size_t(child->n) + std::size_t(x)];
+              const auto& c = nodes_[child->offset + std::size_t(y) * std::size_t(child->n) + std::size_t(x)];
               lo = std::min(lo, c[0]), hi = std::max(hi, c[1]);
             }
         }
-        level.minmax[std::size_t(b) * std::size_t(level.n) + std::size_t(a)] = {lo, hi};
+        nodes_[level.offset + std::size_t(b) * std::size_t(level.n) + std::size_t(a)] = {lo, hi};
       }
     });
-    levels_.push_back(std::move(level));
-    prev_n = levels_.back().n;
   }
-}
-
-std::size_t HeightPyramid::bytes() const {
-  std::size_t total = 0;
-  for (const Level& l : levels_) total += l.minmax.size() * sizeof(l.minmax[0]);
-  return total;
 }
 
 // ---- the tracer -----------------------------------------------------------------------------------------
@@ -72,6 +71,9 @@ PyramidTracer::PyramidTracer(const microgeom::Heightfield& field, double escape_
       inv_cell_(1.0 / field.cell_size()), escape_height_(escape_height), floor_height_(floor_height) {
   const double zmax = field.max_height(), zmin = field.min_height();
   margin_ = 1e-9 * (std::max(std::abs(zmax), std::abs(zmin)) + (zmax - zmin));
+  batch_prefetch_ = n_ >= kPrefetchResolution;
+  level_offset_.assign(1, 0.0);
+  for (int k = 1; k <= pyramid_.top_level(); ++k) level_offset_.push_back(double(pyramid_.level_offset(k)));
 }
 
 // One ray's state: origin and direction with x, y in cells (the origin shifted by N cells whenever the ray
@@ -213,7 +215,7 @@ HeightfieldHit PyramidTracer::trace_vertical(const Vec3<double>& origin, const V
   return out;
 }
 
-// One ray's walk and its level, for tracing several in lockstep.
+// One ray's walk and its level.
 struct PyramidTracer::Lane {
   Walk w;
   int k = 0;
@@ -294,30 +296,109 @@ HeightfieldHit PyramidTracer::trace(const Vec3<double>& origin, const Vec3<doubl
   return lane.out;
 }
 
-void PyramidTracer::trace_batch(std::span<const Vec3<double>> origins, const Vec3<double>& dir,
-                                std::span<HeightfieldHit> out) const {
-  std::array<Lane, kLanes> lanes;
-  std::array<std::size_t, kLanes> ray{};
-  std::size_t next = 0;
-  int live = 0;
-  // Fills lane l with the next ray that is not done at once; false if none is left.
-  const auto refill = [&](int l) {
-    while (next < origins.size()) {
-      const std::size_t i = next++;
-      if (!start(lanes[std::size_t(l)], origins[i], dir, std::nullopt)) return ray[std::size_t(l)] = i, true;
-      out[i] = lanes[std::size_t(l)].out;
+// ---- many rays in SIMD lanes ------------------------------------------------------------------------------
+
+// The rays of a batch (rays[i], or origins[i] along dir), their results, and the walks in the lanes: the
+// fields the vector steps use in `state` (pyramid_lanes::State), the rest of each walk in `lane`.
+struct PyramidTracer::Batch {
+  std::size_t n = 0, next = 0;
+  const Ray* rays = nullptr;
+  const Vec3<double>* origins = nullptr;
+  Vec3<double> dir;
+  HeightfieldHit* out = nullptr;
+  pyramid_lanes::State state;
+  std::array<Lane, pyramid_lanes::kMaxLanes> lane;
+  std::array<std::size_t, pyramid_lanes::kMaxLanes> ray{};
+
+  void to_state(std::size_t i) {
+    const Walk& w = lane[i].w;
+    pyramid_lanes::State& s = state;
+    s.ox[i] = w.ox, s.oy[i] = w.oy, s.oz[i] = w.oz, s.dx[i] = w.dx, s.dy[i] = w.dy, s.dz[i] = w.dz;
+    s.idx[i] = w.idx, s.idy[i] = w.idy, s.t[i] = w.t, s.g[i] = w.g, s.sx[i] = w.sx, s.sy[i] = w.sy;
+    s.ci[i] = w.ci, s.cj[i] = w.cj, s.k[i] = lane[i].k, s.entry[i] = w.entry, s.g_known[i] = w.g_known;
+    s.tile_x[i] = w.tile_x, s.tile_y[i] = w.tile_y, s.wraps[i] = w.wraps, s.done[i] = 0;
+  }
+  // The fields a vector step changes, back into lane i's walk.
+  void from_state(std::size_t i) {
+    Walk& w = lane[i].w;
+    const pyramid_lanes::State& s = state;
+    w.ox = s.ox[i], w.oy = s.oy[i], w.t = s.t[i], w.g = s.g[i], w.ci = int(s.ci[i]), w.cj = int(s.cj[i]);
+    lane[i].k = int(s.k[i]), w.entry = int(s.entry[i]), w.g_known = s.g_known[i] != 0;
+    w.tile_x = s.tile_x[i], w.tile_y = s.tile_y[i], w.wraps = s.wraps[i];
+  }
+};
+
+// Lane i after the vector steps flagged it: its walk holding a cell the scalar code tests (one step(); a
+// ray not finished by it goes back to the lanes), or no ray (finished, or at the start): then the batch's
+// next ray not done at once is started in it. False when no ray is left for the lane (then parked).
+bool PyramidTracer::settle(Batch& b, std::size_t i) const {
+  Lane& lane = b.lane[i];
+  if (b.ray[i] < b.n) {
+    if (!step(lane)) {
+      b.to_state(i);
+      return true;
     }
-    return false;
-  };
-  std::array<bool, kLanes> active{};
-  for (int l = 0; l < kLanes; ++l) live += (active[std::size_t(l)] = refill(l));
-  while (live > 0) {
-    for (int l = 0; l < kLanes; ++l) {
-      if (!active[std::size_t(l)] || !step(lanes[std::size_t(l)])) continue;
-      out[ray[std::size_t(l)]] = lanes[std::size_t(l)].out;
-      if (!(active[std::size_t(l)] = refill(l))) --live;
+    b.out[b.ray[i]] = lane.out;
+  }
+  for (b.ray[i] = b.n; b.next < b.n;) {
+    const std::size_t r = b.next++;
+    const bool done = b.rays ? start(lane, b.rays[r].origin, b.rays[r].dir, b.rays[r].skip_triangle)
+                             : start(lane, b.origins[r], b.dir, std::nullopt);
+    if (!done) {
+      b.ray[i] = r;
+      b.to_state(i);
+      return true;
+    }
+    b.out[r] = lane.out;
+  }
+  b.state.done[i] = 4;  // parked: the vector steps leave it
+  return false;
+}
+
+static_assert(PyramidTracer::kMaxBatchLanes == int(pyramid_lanes::kMaxLanes));
+
+void PyramidTracer::run_batch(Batch& b) const {
+  const std::size_t width = pyramid_lanes::vector_lanes();
+  std::size_t lanes = batch_lanes_ > 0 ? std::size_t(batch_lanes_) : pyramid_lanes::kMaxLanes;
+  lanes = std::min(pyramid_lanes::kMaxLanes / width * width, std::max(width, lanes / width * width));
+  pyramid_lanes::Grid grid;
+  grid.nodes = reinterpret_cast<const std::uint64_t*>(pyramid_.nodes().data());
+  grid.heights = field_.heights().data();
+  grid.level_offset = level_offset_.data();
+  grid.margin = margin_, grid.escape_height = escape_height_, grid.floor_height = floor_height_;
+  grid.n = n_, grid.top = pyramid_.top_level(), grid.max_segments = kMaxSegments, grid.prefetch = batch_prefetch_;
+  std::uint64_t live = 0;
+  for (std::size_t i = 0; i < lanes; ++i) {
+    b.ray[i] = b.n;
+    if (settle(b, i)) live |= std::uint64_t(1) << i;
+  }
+  while (live != 0) {
+    for (std::uint64_t flagged = pyramid_lanes::step(grid, b.state, lanes) & live; flagged != 0; flagged &= flagged - 1) {
+      const auto i = std::size_t(std::countr_zero(flagged));
+      Lane& lane = b.lane[i];
+      b.from_state(i);
+      if (const std::int64_t done = b.state.done[i]; done != 0) {
+        lane.out.outcome = done == 1 ? RayOutcome::escaped : (done == 2 ? RayOutcome::leaked : RayOutcome::unresolved);
+        if (done == 3) lane.out.segments = kMaxSegments;
+        b.out[b.ray[i]] = lane.out;
+        b.ray[i] = b.n;  // finished: settle starts the next ray
+      }
+      if (!settle(b, i)) live &= ~(std::uint64_t(1) << i);
     }
   }
+}
+
+void PyramidTracer::trace_batch(std::span<const Vec3<double>> origins, const Vec3<double>& dir,
+                                std::span<HeightfieldHit> out) const {
+  auto b = std::make_unique<Batch>();
+  b->n = origins.size(), b->origins = origins.data(), b->dir = dir, b->out = out.data();
+  run_batch(*b);
+}
+
+void PyramidTracer::trace_batch(std::span<const Ray> rays, std::span<HeightfieldHit> out) const {
+  auto b = std::make_unique<Batch>();
+  b->n = rays.size(), b->rays = rays.data(), b->out = out.data();
+  run_batch(*b);
 }
 
 }  // namespace microsim

@@ -35,7 +35,11 @@
 // up, leaked below floor_height going down, unresolved after kMaxSegments tiles. `segments` counts the
 // tiles the ray crossed (one per tile, the first included).
 //
-// Determinism: a ray's result depends on the ray only. Thread-safe (const after construction).
+// Many rays at once (trace_batch): the same walks in SIMD lanes (heightfield_pyramid_lanes.h), every
+// ray's result trace()'s to the bit (tests/trace/test_pyramid_trace.cpp).
+//
+// Determinism: a ray's result depends on the ray only. Thread-safe (const after construction; the
+// set_batch_* knobs, for benchmarks and tests, excepted).
 #pragma once
 
 #include "microgeom/heightfield.h"
@@ -63,16 +67,21 @@ public:
   // (clipped to the tile, wrapped).
   const std::array<float, 2>& node(int k, int a, int b) const {
     const Level& l = levels_[std::size_t(k - 1)];
-    return l.minmax[std::size_t(b) * std::size_t(l.n) + std::size_t(a)];
+    return nodes_[l.offset + std::size_t(b) * std::size_t(l.n) + std::size_t(a)];
   }
-  std::size_t bytes() const;
+  // Every level's nodes in one array, level 1 first, each row by row (for gathers by lanes).
+  std::span<const std::array<float, 2>> nodes() const { return nodes_; }
+  // Index in nodes() of node (0, 0) of level k.
+  std::size_t level_offset(int k) const { return levels_[std::size_t(k - 1)].offset; }
+  std::size_t bytes() const { return nodes_.size() * sizeof(nodes_[0]); }
 
 private:
   struct Level {
     int n = 0;
-    std::vector<std::array<float, 2>> minmax;
+    std::size_t offset = 0;
   };
   std::vector<Level> levels_;
+  std::vector<std::array<float, 2>> nodes_;
 };
 
 class PyramidTracer {
@@ -85,12 +94,26 @@ public:
   HeightfieldHit trace(const Vec3<double>& origin, const Vec3<double>& dir,
                        std::optional<std::uint32_t> skip_triangle) const;
 
-  // trace() of the rays origins[i] along dir (no skip) into out[i], kLanes walks in lockstep: one step of
-  // each in turn, so that their memory reads could overlap (a walk's next node depends on its last read).
-  // Every ray's result is trace()'s. Measured slower than one ray after the other (bench_tracers,
-  // trace_pyramid_lockstep): kept for that benchmark, not used by the pipelines.
-  static constexpr int kLanes = 4;
+  // A ray of a batch: trace()'s arguments.
+  struct Ray {
+    Vec3<double> origin, dir;
+    std::optional<std::uint32_t> skip_triangle;
+  };
+  // trace() of many rays at once, out[i] bit for bit trace()'s result for ray i: the walks run in SIMD
+  // lanes (heightfield_pyramid_lanes.h), each lane its own ray, so that the reads of many rays' nodes
+  // are in flight together (a walk's next node depends on its last read). Node steps and cells without
+  // a hit run in the lanes with the same double expressions as trace()'s (no contraction into FMA); a
+  // cell that may hold the hit runs through trace()'s own step. The first form: rays origins[i] along
+  // dir, no skip. Lanes: kMaxBatchLanes (measured fastest; 8 to 32 slower).
   void trace_batch(std::span<const Vec3<double>> origins, const Vec3<double>& dir, std::span<HeightfieldHit> out) const;
+  void trace_batch(std::span<const Ray> rays, std::span<HeightfieldHit> out) const;
+  // Lanes per batch walk (rounded to a multiple of the SIMD width, at most kMaxBatchLanes); for benchmarks.
+  static constexpr int kMaxBatchLanes = 64;
+  void set_batch_lanes(int lanes) { batch_lanes_ = lanes; }
+  // Software prefetch of every lane's next read before each step of the lanes (default: on for tiles of
+  // kPrefetchResolution^2 and more, whose heights and pyramid leave the caches).
+  static constexpr int kPrefetchResolution = 2048;
+  void set_batch_prefetch(bool prefetch) { batch_prefetch_ = prefetch; }
 
   const HeightPyramid& pyramid() const { return pyramid_; }
   // Bytes the tracer allocated (the pyramid; the heights are the field's).
@@ -108,6 +131,9 @@ private:
   HeightfieldHit trace_vertical(const Vec3<double>& origin, const Vec3<double>& dir,
                                 std::optional<std::uint32_t> skip_triangle) const;
   void finish_hit(const Walk& w, double t, int tri, HeightfieldHit& out) const;
+  struct Batch;
+  void run_batch(Batch& batch) const;
+  bool settle(Batch& batch, std::size_t lane) const;
 
   const microgeom::Heightfield& field_;
   HeightPyramid pyramid_;
@@ -115,6 +141,9 @@ private:
   double tile_ = 0, cell_ = 0, inv_cell_ = 0;
   double escape_height_ = 0, floor_height_ = 0;
   double margin_ = 0;  // of the node tests
+  int batch_lanes_ = 0;  // 0: the default of the SIMD target
+  bool batch_prefetch_ = false;
+  std::vector<double> level_offset_;  // HeightPyramid::level_offset per level 0 .. K, for the lanes (0 at 0)
 };
 
 }  // namespace microsim

@@ -485,6 +485,23 @@ void HeightfieldScene::trace_batch(std::span<const Vec3<double>> origins, const 
   for (std::size_t i = 0; i < origins.size(); ++i) out[i] = trace(origins[i], dir);
 }
 
+void HeightfieldScene::trace_rays(std::span<const SurfaceRay> rays, std::span<HeightfieldHit> out) const {
+  if (!pyramid_) {
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+      const SurfaceRay& r = rays[i];
+      out[i] = r.start ? trace_from_surface(r.point, r.dir, *r.start, r.up, r.side) : trace(r.point, r.dir, std::nullopt, r.side);
+    }
+    return;
+  }
+  // The origins as trace() and trace_from_surface() hand them to the pyramid.
+  std::vector<PyramidTracer::Ray> walk(rays.size());
+  for (std::size_t i = 0; i < rays.size(); ++i) {
+    const SurfaceRay& r = rays[i];
+    walk[i] = {r.start ? surface_origin(r.point, *r.start, r.up, r.side) : r.point, r.dir, r.start};
+  }
+  pyramid_->trace_batch(walk, out);
+}
+
 HeightfieldHit HeightfieldScene::trace_from_surface(const Vec3<double>& p, const Vec3<double>& dir,
                                                     std::uint32_t triangle, const Vec3<double>& up, RaySide side) const {
   if (pyramid_) return pyramid_->trace(surface_origin(p, triangle, up, side), dir, triangle);

@@ -163,9 +163,21 @@ public:
   HeightfieldHit trace(const Vec3<double>& origin, const Vec3<double>& dir,
                        std::optional<std::uint32_t> skip_triangle = std::nullopt,
                        RaySide side = RaySide::outside) const;
-  // trace() of the rays origins[i] along dir (no start triangle, outside) into out[i]; the pyramid traces
-  // several in lockstep (PyramidTracer::trace_batch; benchmarks), the Embree geometries one by one.
+  // trace() of the rays origins[i] along dir (no start triangle, outside) into out[i], each result trace()'s
+  // to the bit; the pyramid walks them in SIMD lanes (PyramidTracer::trace_batch), the Embree geometries
+  // trace them one by one.
   void trace_batch(std::span<const Vec3<double>> origins, const Vec3<double>& dir, std::span<HeightfieldHit> out) const;
+  // A ray of trace_rays: trace(point, dir, none, side) without a start facet, else
+  // trace_from_surface(point, dir, *start, up, side).
+  struct SurfaceRay {
+    Vec3<double> point, dir;
+    std::optional<std::uint32_t> start;
+    Vec3<double> up;
+    RaySide side = RaySide::outside;
+  };
+  // Each ray of `rays` traced into out[i], each result that call's to the bit; the pyramid walks them in
+  // SIMD lanes (PyramidTracer::trace_batch), the Embree geometries trace them one by one.
+  void trace_rays(std::span<const SurfaceRay> rays, std::span<HeightfieldHit> out) const;
   // A ray leaving the point p of `triangle` (unit upward normal `up`, field().triangle_normal) on `side`
   // (a bounce of a scattering path): trace() from surface_origin() instead of lifted(), the triangle
   // skipped in the first segment.

@@ -62,10 +62,17 @@ HeightfieldBlockTally trace_heightfield_block(const HeightfieldScene& scene, con
     }
   };
   std::optional<std::uint32_t> pending;
+  // The block's rays traced together (HeightfieldScene::trace_batch: each ray's result trace()'s), then
+  // tallied in their order.
   CounterRng rng(seed, block);
-  for (std::uint64_t i = 0; i < t.rays; ++i) {
+  std::vector<Vec3<double>> origins(t.rays);
+  for (Vec3<double>& o : origins) {
     const double x = tile * rng.uniform(), y = tile * rng.uniform();
-    const HeightfieldHit hit = scene.trace(Vec3<double>(x, y, z0), -wi);
+    o = Vec3<double>(x, y, z0);
+  }
+  std::vector<HeightfieldHit> hits(t.rays);
+  scene.trace_batch(origins, -wi, hits);
+  for (const HeightfieldHit& hit : hits) {
     if (hit.edge_grazes > 0) ++t.diagnostics.edge_grazes;
     if (!hit.is_hit()) {
       if (hit.outcome == RayOutcome::unresolved) ++t.diagnostics.unresolved;

@@ -12,6 +12,7 @@
 
 #include "core/random.h"
 #include "microgeom/assembly.h"
+#include "trace/heightfield_pyramid_lanes.h"
 #include "trace/heightfield_trace.h"
 #include "trace/trace_vndf.h"
 
@@ -19,6 +20,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <string>
 #include <vector>
 
 namespace microsim {
@@ -232,6 +235,129 @@ TEST(PyramidTrace, NegativeControlAShiftedSurfaceDisagrees) {
     if (closest_edge_approach(field, o, d, t_max) >= band_of(field)) ++t.other;
   }
   EXPECT_GT(t.other, 100);
+}
+
+// ---- PyramidTracer::trace_batch (walks in SIMD lanes) against trace(), ray by ray -------------------------
+
+// Rays whose batch result differs from trace()'s in any field (outcome, triangle, segments, t and the hit
+// point, bit for bit).
+long batch_differences(const PyramidTracer& batch_tracer, const PyramidTracer& tracer,
+                       const std::vector<PyramidTracer::Ray>& rays) {
+  std::vector<HeightfieldHit> out(rays.size());
+  batch_tracer.trace_batch(rays, out);
+  const auto same_bits = [](const auto& a, const auto& b) { return std::memcmp(&a, &b, sizeof(a)) == 0; };
+  long differ = 0;
+  for (std::size_t i = 0; i < rays.size(); ++i) {
+    const HeightfieldHit a = tracer.trace(rays[i].origin, rays[i].dir, rays[i].skip_triangle), &b = out[i];
+    const bool same = a.outcome == b.outcome && a.triangle == b.triangle && a.segments == b.segments &&
+                      same_bits(a.t, b.t) && same_bits(a.point.x(), b.point.x()) &&
+                      same_bits(a.point.y(), b.point.y()) && same_bits(a.point.z(), b.point.z());
+    differ += !same;
+  }
+  return differ;
+}
+
+// Primary rays from above: directions at theta 0 (vertical) and uniform in [0, 88] deg, any azimuth, each
+// along with `per_direction` uniform origins (one direction per run of rays, as trace vndf's batches).
+std::vector<PyramidTracer::Ray> primary_batch(const HeightfieldScene& scene, int directions, int per_direction,
+                                              std::uint64_t seed) {
+  std::vector<PyramidTracer::Ray> rays;
+  CounterRng rng(seed, 0);
+  const double tile = scene.field().tile_size();
+  for (int k = 0; k < directions; ++k) {
+    const Vec3<double> d = -direction_from_degrees(k == 0 ? 0.0 : 88.0 * rng.uniform(), 360.0 * rng.uniform());
+    for (int i = 0; i < per_direction; ++i) {
+      const double x = tile * rng.uniform(), y = tile * rng.uniform();
+      rays.push_back({Vec3<double>(x, y, scene.start_height()), d, std::nullopt});
+    }
+  }
+  return rays;
+}
+
+// Every bounce ray of explicit scattering paths on the pyramid scene, as trace_from_surface passes it to
+// the tracer (from surface_origin, its start triangle skipped); the primary rays too.
+std::vector<PyramidTracer::Ray> path_batch(const HeightfieldScene& scene, const Material& material, double theta,
+                                           int paths, std::uint64_t seed) {
+  std::vector<PyramidTracer::Ray> rays;
+  const Vec3<double> wi = direction_from_degrees(theta, 25.0);
+  const SurfacePathTracer tracer(scene, material, wi, 64);
+  CounterRng origins(seed, 0);
+  SurfacePath path;
+  std::vector<SurfacePathEvent> events;
+  for (int i = 0; i < paths; ++i) {
+    const Vec3<double> o = tracer.origin(origins.uniform(), origins.uniform());
+    events.clear();
+    tracer.trace(o, path_event_stream(seed, 1, std::uint64_t(i), std::uint64_t(paths)), path, &events);
+    rays.push_back({o, -wi, std::nullopt});
+    RaySide side = RaySide::outside;
+    for (const SurfacePathEvent& e : events) {
+      if (e.refracted) side = side == RaySide::outside ? RaySide::inside : RaySide::outside;
+      const Vec3<double> up = scene.field().triangle_normal(e.triangle);
+      rays.push_back({scene.surface_origin(e.point, e.triangle, up, side), e.wo, e.triangle});
+    }
+  }
+  return rays;
+}
+
+// The batch walk gives every ray trace()'s result to the bit: primary rays at 0-88 deg on 256^2 tiles
+// (alpha 0.3 and 1) and a 100^2 tile (not a power of two), and every ray of mirror and dielectric paths
+// (the rays of SameHitsAsEmbreeAtEveryBounce), with the default lanes and with one SIMD vector's worth
+// (and software prefetch).
+// Negative control: the batch of a tracer on heights shifted at every 7th vertex differs on many rays.
+TEST(PyramidTrace, BatchWalkIsTraceToTheBit) {
+  embree::FlushDenormalsScope ftz;
+  const auto check = [](const microgeom::Heightfield& field, const std::vector<PyramidTracer::Ray>& rays, const char* what) {
+    const HeightfieldScene scene(field, HeightfieldGeometry::pyramid);
+    PyramidTracer tracer(field, scene.escape_height(), scene.floor_height());
+    EXPECT_EQ(batch_differences(tracer, tracer, rays), 0) << what;
+    tracer.set_batch_lanes(1);  // rounded up to one vector
+    tracer.set_batch_prefetch(true);  // the default from 2048^2 on
+    EXPECT_EQ(batch_differences(tracer, tracer, rays), 0) << what << ", one vector of lanes, prefetching";
+  };
+  for (const double alpha : {0.3, 1.0}) {
+    const auto field = smith(256, alpha, 3);
+    check(field, primary_batch(HeightfieldScene(field, HeightfieldGeometry::pyramid), 30, 1000, 31), "primary rays");
+  }
+  const auto square = smith(128, 0.6, 9);
+  std::vector<float> cropped;
+  for (int j = 0; j < 100; ++j)
+    for (int i = 0; i < 100; ++i) cropped.push_back(square.height_unchecked(i, j));
+  const microgeom::Heightfield field100(100, 100.0 / 128, std::move(cropped));
+  check(field100, primary_batch(HeightfieldScene(field100, HeightfieldGeometry::pyramid), 20, 1000, 32), "primary, 100^2");
+  const auto field = smith(128, 0.8, 5);
+  const HeightfieldScene scene(field, HeightfieldGeometry::pyramid);
+  const auto mirror = path_batch(scene, Material::mirror(), 60.0, 10'000, 7);
+  const auto glass = path_batch(scene, Material::dielectric(1.5), 30.0, 10'000, 8);
+  EXPECT_GT(glass.size(), 20'000u);
+  check(field, mirror, "mirror paths");
+  check(field, glass, "dielectric paths");
+  std::vector<float> shifted = field.heights();
+  for (std::size_t k = 0; k < shifted.size(); k += 7) shifted[k] += 1e-3f;
+  const microgeom::Heightfield wrong(field.resolution(), field.tile_size(), std::move(shifted));
+  const PyramidTracer right_tracer(field, scene.escape_height(), scene.floor_height());
+  const PyramidTracer wrong_tracer(wrong, scene.escape_height(), scene.floor_height());
+  EXPECT_GT(batch_differences(wrong_tracer, right_tracer, mirror), 500);
+}
+
+// The same on every SIMD target this CPU runs (the kernel is compiled once per target; the machine that
+// runs the tests picks its best), on fewer rays.
+TEST(PyramidTrace, BatchWalkIsTraceToTheBitOnEverySimdTarget) {
+  embree::FlushDenormalsScope ftz;
+  const auto field = smith(128, 0.8, 5);
+  const HeightfieldScene scene(field, HeightfieldGeometry::pyramid);
+  const PyramidTracer tracer(field, scene.escape_height(), scene.floor_height());
+  const auto primary = primary_batch(scene, 10, 1000, 33);
+  const auto paths = path_batch(scene, Material::dielectric(1.5), 40.0, 3000, 9);
+  const std::vector<std::string> targets = pyramid_lanes::targets();
+  EXPECT_FALSE(targets.empty());
+  for (const std::string& target : targets) {
+    pyramid_lanes::use_target(target);
+    EXPECT_EQ(pyramid_lanes::target_name(), target);
+    EXPECT_EQ(batch_differences(tracer, tracer, primary), 0) << target;
+    EXPECT_EQ(batch_differences(tracer, tracer, paths), 0) << target;
+    std::printf("[ pyramid ] target %s: %zu primary and %zu path rays\n", target.c_str(), primary.size(), paths.size());
+  }
+  pyramid_lanes::use_target("");
 }
 
 }  // namespace
