@@ -286,20 +286,5 @@ std::uint64_t step(const Grid& grid, State& state, std::size_t lanes) {
 std::size_t vector_lanes() { return HWY_DYNAMIC_DISPATCH(lanes_of_target)(); }
 std::string target_name() { return hwy::TargetName(HWY_DYNAMIC_DISPATCH(target_bit)()); }
 
-std::vector<std::string> targets() {
-  std::vector<std::string> names;
-  for (const std::int64_t bit : hwy::SupportedAndGeneratedTargets()) names.emplace_back(hwy::TargetName(bit));
-  return names;
-}
-
-void use_target(const std::string& name) {
-  std::int64_t chosen = 0;
-  hwy::SetSupportedTargetsForTest(0);  // the CPU's own list, not a target forced before
-  for (const std::int64_t bit : hwy::SupportedAndGeneratedTargets())
-    if (name == hwy::TargetName(bit)) chosen = bit;
-  if (!name.empty() && chosen == 0) throw std::invalid_argument("pyramid lanes: SIMD target '" + name + "' not available");
-  hwy::SetSupportedTargetsForTest(chosen);  // 0: the CPU's best again
-}
-
 }  // namespace microsim::pyramid_lanes
 #endif  // HWY_ONCE

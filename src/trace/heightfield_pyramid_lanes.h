@@ -10,7 +10,6 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
-#include <vector>
 
 namespace microsim::pyramid_lanes {
 
@@ -51,10 +50,7 @@ std::uint64_t step(const Grid& grid, State& state, std::size_t lanes);
 // Doubles per vector of the target chosen for this CPU, and its name.
 std::size_t vector_lanes();
 std::string target_name();
-// Tests: the targets compiled in that this CPU runs (Highway's names, best first; while none is forced),
-// and from now on run `name`, one of them ("": the best again). Process-wide (Highway's choice of target
-// for all its kernels).
-std::vector<std::string> targets();
-void use_target(const std::string& name);
+// Tests choose the target with stats/direction_binner.h's use_direction_binner_target: Highway's choice is
+// process-wide, the same for every kernel.
 
 }  // namespace microsim::pyramid_lanes

@@ -13,6 +13,7 @@
 #include "core/random.h"
 #include "microgeom/assembly.h"
 #include "trace/heightfield_pyramid_lanes.h"
+#include "stats/direction_binner.h"
 #include "trace/heightfield_trace.h"
 #include "trace/trace_vndf.h"
 
@@ -348,16 +349,16 @@ TEST(PyramidTrace, BatchWalkIsTraceToTheBitOnEverySimdTarget) {
   const PyramidTracer tracer(field, scene.escape_height(), scene.floor_height());
   const auto primary = primary_batch(scene, 10, 1000, 33);
   const auto paths = path_batch(scene, Material::dielectric(1.5), 40.0, 3000, 9);
-  const std::vector<std::string> targets = pyramid_lanes::targets();
+  const std::vector<std::string> targets = direction_binner_targets();
   EXPECT_FALSE(targets.empty());
   for (const std::string& target : targets) {
-    pyramid_lanes::use_target(target);
+    use_direction_binner_target(target);
     EXPECT_EQ(pyramid_lanes::target_name(), target);
     EXPECT_EQ(batch_differences(tracer, tracer, primary), 0) << target;
     EXPECT_EQ(batch_differences(tracer, tracer, paths), 0) << target;
     std::printf("[ pyramid ] target %s: %zu primary and %zu path rays\n", target.c_str(), primary.size(), paths.size());
   }
-  pyramid_lanes::use_target("");
+  use_direction_binner_target("");
 }
 
 }  // namespace
