@@ -525,6 +525,19 @@ bool HeightfieldScene::escapes(const Vec3<double>& origin, const Vec3<double>& d
   return h.outcome == RayOutcome::escaped;
 }
 
+void HeightfieldScene::escape_outcomes(std::span<const ShadowRay> rays, std::span<RayOutcome> out) const {
+  if (!pyramid_) {
+    for (std::size_t i = 0; i < rays.size(); ++i) escapes(rays[i].origin, rays[i].dir, rays[i].start, &out[i]);
+    return;
+  }
+  std::vector<PyramidTracer::Ray> walk(rays.size());  // the origins as trace() hands them to the pyramid
+  for (std::size_t i = 0; i < rays.size(); ++i)
+    walk[i] = {lifted(rays[i].origin, rays[i].start, RaySide::outside), rays[i].dir, rays[i].start};
+  std::vector<HeightfieldHit> hits(rays.size());
+  pyramid_->trace_batch(walk, hits);
+  for (std::size_t i = 0; i < rays.size(); ++i) out[i] = hits[i].outcome;
+}
+
 // ---- reference tracer (double) ---------------------------------------------------------------------------
 
 namespace {

@@ -192,6 +192,13 @@ public:
   // are returned through `outcome` if non-null (as escaped = visible they would bias; callers count them).
   bool escapes(const Vec3<double>& origin, const Vec3<double>& dir, std::optional<std::uint32_t> skip_triangle,
                RayOutcome* outcome = nullptr) const;
+  // escapes()'s outcome of each ray into out[i], that call's to the bit; the pyramid walks them in SIMD lanes
+  // (PyramidTracer::trace_batch), the Embree geometries trace them one by one.
+  struct ShadowRay {
+    Vec3<double> origin, dir;
+    std::uint32_t start = 0;  // the triangle the ray leaves (escapes()'s skip_triangle)
+  };
+  void escape_outcomes(std::span<const ShadowRay> rays, std::span<RayOutcome> out) const;
 
   // Distance by which surface points are lifted along their facet normal before tracing from them.
   double surface_offset() const { return surface_offset_; }

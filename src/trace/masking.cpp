@@ -582,17 +582,6 @@ SurfacePoint draw_surface_point(const SamplingContext& c, CounterRng& rng) {
   return s;
 }
 
-// Whether p sees direction dir (the start triangle skipped), counting the ray and its outcome.
-bool shadow_ray(const SamplingContext& c, BlockSums& bs, const Vec3<double>& p, const Vec3<double>& dir,
-                std::uint32_t triangle) {
-  RayOutcome outcome;
-  const bool visible = c.scene.escapes(p, dir, triangle, &outcome);
-  ++bs.rays;
-  if (outcome == RayOutcome::leaked) ++bs.leaked;
-  if (outcome == RayOutcome::unresolved) ++bs.unresolved;
-  return visible;
-}
-
 // G1: the sample (weight w, visible y_v = w or 0) in the overall, normal, near-grazing and height sums.
 void add_g1_sample(const SamplingContext& c, BlockSums& bs, double w, double y_v, double vm, double z) {
   const MaskingView& view = c.view;
@@ -608,11 +597,9 @@ void add_g1_sample(const SamplingContext& c, BlockSums& bs, double w, double y_v
   bs.height_pred_empirical[hb] += w * EmpiricalSmith::height_masking(c1, view.lambda_e_v);
 }
 
-// G2 in the mirror configuration l = reflect(v, m) of the sample's facet.
-void add_mirror_sample(const SamplingContext& c, BlockSums& bs, const SurfacePoint& s, const Vec3<double>& p,
-                       const Vec3<double>& m, double w, bool vis) {
+// G2 in the mirror configuration l = reflect(v, m) of the sample's facet; vis_l: p sees both v and l.
+void add_mirror_sample(const SamplingContext& c, BlockSums& bs, const Vec3<double>& m, double w, bool vis_l) {
   const Vec3<double> l = reflect(c.view.v, m);
-  const bool vis_l = vis && l.z() > 0 && shadow_ray(c, bs, p, l, s.triangle);
   const double y2 = vis_l ? w : 0.0;
   const double ga = c.analytic.G2(c.view.v, l), ge = c.empirical.G2_tabulated(c.view.v, l);
   const double sep_a = w * c.view.g1a_v * c.analytic.G1(l);
@@ -621,42 +608,84 @@ void add_mirror_sample(const SamplingContext& c, BlockSums& bs, const SurfacePoi
 }
 
 // G2 for the fixed light, on facets facing it (and those within the cone around the half vector).
-void add_pair_sample(const SamplingContext& c, BlockSums& bs, const SurfacePoint& s, const Vec3<double>& p,
-                     const Vec3<double>& m, double w, bool vis) {
+void add_pair_sample(const SamplingContext& c, BlockSums& bs, const Vec3<double>& m, double w, bool vis_l) {
   const MaskingView& view = c.view;
-  const bool vis_l = vis && shadow_ray(c, bs, p, *view.light, s.triangle);
   const double y2 = vis_l ? w : 0.0;
   const double sep_a = w * view.pair_sep_a, sep_e = w * view.pair_sep_e;
   bs.pair.add(w, y2, view.pair_a, view.pair_e, sep_a, sep_e);
   if (m.dot(view.half) >= view.cos_cone) bs.cone.add(w, y2, view.pair_a, view.pair_e, sep_a, sep_e);
 }
 
-// One surface point: its shadow ray toward v, and every sum it enters.
-void add_surface_point(const SamplingContext& c, BlockSums& bs, const SurfacePoint& s) {
+// A front-facing point of a block and its shadow rays' indices (-1: none).
+struct FrontPoint {
+  SurfacePoint s;
+  Vec3<double> m, p;
+  double vm = 0, w = 0;
+  std::ptrdiff_t g1 = -1, mirror = -1, pair = -1;
+};
+
+// The shadow rays of a block, traced together (HeightfieldScene::escape_outcomes), each counted with its
+// outcome; visible(k): ray k escaped.
+struct ShadowRays {
+  std::vector<HeightfieldScene::ShadowRay> rays;
+  std::vector<RayOutcome> outcomes;
+  std::ptrdiff_t add(const Vec3<double>& p, const Vec3<double>& dir, std::uint32_t triangle) {
+    rays.push_back({p, dir, triangle});
+    return std::ptrdiff_t(rays.size()) - 1;
+  }
+  void trace(const HeightfieldScene& scene, BlockSums& bs, std::size_t from) {
+    outcomes.resize(rays.size());
+    scene.escape_outcomes(std::span(rays).subspan(from), std::span(outcomes).subspan(from));
+    for (std::size_t k = from; k < rays.size(); ++k) {
+      ++bs.rays;
+      if (outcomes[k] == RayOutcome::leaked) ++bs.leaked;
+      if (outcomes[k] == RayOutcome::unresolved) ++bs.unresolved;
+    }
+  }
+  bool visible(std::ptrdiff_t k) const { return k >= 0 && outcomes[std::size_t(k)] == RayOutcome::escaped; }
+};
+
+// A surface point: its facet, weight (w for uniform points, 1 for points already drawn proportionally to w)
+// and shadow ray toward v, if it faces v.
+std::optional<FrontPoint> front_point(const SamplingContext& c, const SurfacePoint& s, ShadowRays& shadow) {
   const auto& field = c.scene.field();
-  const Vec3<double> m = field.triangle_normal(s.triangle);
-  const double vm = c.view.v.dot(m);
-  if (!(vm > 0)) return;
-  ++bs.front;
-  // Sample weight: w for uniform points, 1 for points already drawn proportionally to w.
-  const double w = c.view.projected ? 1.0 : vm / m.z();
-  const double z = field.height_at(s.x, s.y);
-  const Vec3<double> p(s.x, s.y, z);
-  const bool vis = shadow_ray(c, bs, p, c.view.v, s.triangle);
-  add_g1_sample(c, bs, w, vis ? w : 0.0, vm, z);
-  if (c.view.mirror) add_mirror_sample(c, bs, s, p, m, w, vis);
-  if (c.view.light && c.view.light->dot(m) > 0) add_pair_sample(c, bs, s, p, m, w, vis);
+  FrontPoint f{s, field.triangle_normal(s.triangle), Vec3<double>::Zero()};
+  f.vm = c.view.v.dot(f.m);
+  if (!(f.vm > 0)) return std::nullopt;
+  f.w = c.view.projected ? 1.0 : f.vm / f.m.z();
+  f.p = Vec3<double>(s.x, s.y, field.height_at(s.x, s.y));
+  f.g1 = shadow.add(f.p, c.view.v, s.triangle);
+  return f;
 }
 
-// Block `block` of the run: its points from CounterRng(seed, block).
+// Block `block` of the run: its points from CounterRng(seed, block). Their rays toward v traced together,
+// then the second rays (toward the mirror direction and the light) of the points that see v; the sums
+// taken in point order, as one point after the other would.
 BlockSums sample_masking_block(const SamplingContext& c, std::uint64_t block) {
   embree::FlushDenormalsScope ftz;
   BlockSums bs = empty_block_sums(c.view.kn, c.view.kh);
   const std::uint64_t count = c.plan.units_in(block);
   CounterRng rng(c.seed, block);
-  for (std::uint64_t i = 0; i < count; ++i) {
-    ++bs.samples;
-    add_surface_point(c, bs, draw_surface_point(c, rng));
+  ShadowRays shadow;
+  std::vector<FrontPoint> front;
+  for (std::uint64_t i = 0; i < count; ++i)
+    if (auto f = front_point(c, draw_surface_point(c, rng), shadow)) front.push_back(*f);
+  bs.samples = count;
+  shadow.trace(c.scene, bs, 0);
+  const std::size_t second = shadow.rays.size();
+  for (FrontPoint& f : front) {
+    if (!shadow.visible(f.g1)) continue;
+    const Vec3<double> l = reflect(c.view.v, f.m);
+    if (c.view.mirror && l.z() > 0) f.mirror = shadow.add(f.p, l, f.s.triangle);
+    if (c.view.light && c.view.light->dot(f.m) > 0) f.pair = shadow.add(f.p, *c.view.light, f.s.triangle);
+  }
+  shadow.trace(c.scene, bs, second);
+  for (const FrontPoint& f : front) {
+    ++bs.front;
+    const bool vis = shadow.visible(f.g1);
+    add_g1_sample(c, bs, f.w, vis ? f.w : 0.0, f.vm, f.p.z());
+    if (c.view.mirror) add_mirror_sample(c, bs, f.m, f.w, shadow.visible(f.mirror));
+    if (c.view.light && c.view.light->dot(f.m) > 0) add_pair_sample(c, bs, f.m, f.w, shadow.visible(f.pair));
   }
   return bs;
 }
