@@ -208,8 +208,25 @@ void print_glass_walk(const GlassWalkTable& t) {
   }
 }
 
-// A walk table's run (the glass layout's split, the anisotropic mirror's): the walk options of the request, its
-// progress and Ctrl-C (exit 130, nothing written), then its CSV and JSON and its printed summary.
+// A table's run (the anisotropic mirror's, the walk tables): its progress and Ctrl-C (exit 130, nothing
+// written), then its CSV and JSON and its printed summary.
+template <class Request, class Compute, class Csv, class Json, class Print>
+int run_table(const AlbedoArgs& a, Request r, const Compute& compute, const Csv& csv, const Json& json,
+              const Print& print) {
+  const auto progress = std::make_shared<CliProgress>(true);
+  r.run = cli_run_control(a.threads, progress);
+  install_interrupt_handler();
+  const auto t = compute(r);
+  progress->finish();
+  if (!t) return interrupted_nothing_written("albedo");
+  if (!a.csv.empty()) write_file_atomically(a.csv, csv(*t));
+  if (!a.json.empty()) write_file_atomically(a.json, json(*t).dump(2) + "\n");
+  print(*t);
+  return kExitOk;
+}
+
+// A walk table's run (the glass layout's split, the anisotropic mirror's): the walk options of the request, then
+// run_table.
 template <class Request, class Compute, class Csv, class Json, class Print>
 int run_walk_table(const AlbedoArgs& a, Request r, const Compute& compute, const Csv& csv, const Json& json,
                    const Print& print) {
@@ -221,16 +238,7 @@ int run_walk_table(const AlbedoArgs& a, Request r, const Compute& compute, const
   r.paths = a.rays;
   r.seed = a.seed;
   r.max_order = a.max_order;
-  const auto progress = std::make_shared<CliProgress>(true);
-  r.run = cli_run_control(a.threads, progress);
-  install_interrupt_handler();
-  const auto t = compute(r);
-  progress->finish();
-  if (!t) return interrupted_nothing_written("albedo");
-  if (!a.csv.empty()) write_file_atomically(a.csv, csv(*t));
-  if (!a.json.empty()) write_file_atomically(a.json, json(*t).dump(2) + "\n");
-  print(*t);
-  return kExitOk;
+  return run_table(a, r, compute, csv, json, print);
 }
 
 // --layout cycles-glass[-inv] --model smith-walk: the walk's split over the layout's nodes
@@ -321,17 +329,19 @@ void print_anisotropic(const AnisotropicAlbedoTable& t) {
 }
 
 // The outputs and axes of an anisotropic table (either model), checked before any work.
-void anisotropic_axes(const AlbedoArgs& a, std::vector<double>& alphas_x, std::vector<double>& alphas_y) {
+void anisotropic_axes(const AlbedoArgs& a, AnisotropicAxes& axes) {
   if (a.csv.empty() && a.json.empty()) throw UsageError("--alphas-y needs --csv T.csv or --json T.json");
   check_distinct_outputs({}, {{"--csv", a.csv}, {"--json", a.json}});
   check_output("--csv", a.csv);
   check_output("--json", a.json);
   try {
-    alphas_x = albedo_alphas(a);
-    alphas_y = parse_double_list("--alphas-y", a.alphas_y, Interval{kMinAlbedoAlpha, kMaxAlbedoAlpha});
+    axes.alphas_x = albedo_alphas(a);
+    axes.alphas_y = parse_double_list("--alphas-y", a.alphas_y, Interval{kMinAlbedoAlpha, kMaxAlbedoAlpha});
   } catch (const ParseError& e) {
     throw UsageError(e.what());
   }
+  axes.mus = a.mus;
+  axes.phis = a.phis;
 }
 
 void print_anisotropic_walk(const AnisotropicWalkTable& t) {
@@ -353,9 +363,7 @@ int run_anisotropic_walk(const AlbedoArgs& a) {
                  "--walk-kernel", "--threads", "--csv", "--json"},
              "--alphas-y --model smith-walk (the anisotropic GGX mirror's walk table)");
   AnisotropicWalkRequest r;
-  anisotropic_axes(a, r.alphas_x, r.alphas_y);
-  r.mus = a.mus;
-  r.phis = a.phis;
+  anisotropic_axes(a, r);
   return run_walk_table(a, r, anisotropic_walk_table, anisotropic_walk_csv, anisotropic_walk_json,
                         print_anisotropic_walk);
 }
@@ -368,20 +376,9 @@ int run_anisotropic(const AlbedoArgs& a) {
   if (a.model != "analytic")
     throw UsageError(fmt::format("--model {}: --alphas-y needs --model analytic or smith-walk", quote_excerpt(a.model)));
   AnisotropicAlbedoRequest r;
-  anisotropic_axes(a, r.alphas_x, r.alphas_y);
-  r.mus = a.mus;
-  r.phis = a.phis;
+  anisotropic_axes(a, r);
   r.tolerance = a.tolerance;
-  const auto progress = std::make_shared<CliProgress>(true);
-  r.run = cli_run_control(a.threads, progress);
-  install_interrupt_handler();
-  const std::optional<AnisotropicAlbedoTable> t = anisotropic_albedo_table(r);
-  progress->finish();
-  if (!t) return interrupted_nothing_written("albedo");
-  if (!a.csv.empty()) write_file_atomically(a.csv, anisotropic_albedo_csv(*t));
-  if (!a.json.empty()) write_file_atomically(a.json, anisotropic_albedo_json(*t).dump(2) + "\n");
-  print_anisotropic(*t);
-  return kExitOk;
+  return run_table(a, r, anisotropic_albedo_table, anisotropic_albedo_csv, anisotropic_albedo_json, print_anisotropic);
 }
 
 // --shard K/N: block range K of N of the table's cells.

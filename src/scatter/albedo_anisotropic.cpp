@@ -30,19 +30,18 @@ void check_anisotropic_alphas(const char* what, const std::vector<double>& alpha
 
 }  // namespace
 
-void check_anisotropic_axes(const std::vector<double>& alphas_x, const std::vector<double>& alphas_y, int mus,
-                            int phis) {
-  check_anisotropic_alphas("alpha_x", alphas_x);
-  check_anisotropic_alphas("alpha_y", alphas_y);
-  if (mus < kMinAlbedoMus || mus > kMaxAlbedoMus)
-    throw std::invalid_argument(fmt::format("anisotropic albedo: {} mus outside [{}, {}]", mus, kMinAlbedoMus, kMaxAlbedoMus));
-  if (phis < 1 || phis > 64) throw std::invalid_argument(fmt::format("anisotropic albedo: {} phis outside [1, 64]", phis));
+void check_anisotropic_axes(const AnisotropicAxes& a) {
+  check_anisotropic_alphas("alpha_x", a.alphas_x);
+  check_anisotropic_alphas("alpha_y", a.alphas_y);
+  if (a.mus < kMinAlbedoMus || a.mus > kMaxAlbedoMus)
+    throw std::invalid_argument(fmt::format("anisotropic albedo: {} mus outside [{}, {}]", a.mus, kMinAlbedoMus, kMaxAlbedoMus));
+  if (a.phis < 1 || a.phis > 64) throw std::invalid_argument(fmt::format("anisotropic albedo: {} phis outside [1, 64]", a.phis));
 }
 
 namespace {
 
 void check_anisotropic_request(const AnisotropicAlbedoRequest& r) {
-  check_anisotropic_axes(r.alphas_x, r.alphas_y, r.mus, r.phis);
+  check_anisotropic_axes(r);
   if (!(r.tolerance >= 1e-13 && r.tolerance <= 1e-2))
     throw std::invalid_argument(fmt::format("anisotropic albedo: tolerance {} outside [1e-13, 1e-2]", r.tolerance));
 }
@@ -52,20 +51,26 @@ AnisotropicAlbedoTable empty_anisotropic_table(const AnisotropicAlbedoRequest& r
   t.alphas_x = r.alphas_x;
   t.alphas_y = r.alphas_y;
   t.tolerance = r.tolerance;
-  const MuGrid mu = gauss_legendre_mus(r.mus), phi = gauss_legendre_mus(r.phis);
-  t.mus = mu.mus;
-  t.mu_weights = mu.weights;
-  for (const double p : phi.mus) t.phis.push_back(p * std::numbers::pi / 2);
-  t.phi_weights = phi.weights;
+  static_cast<AnisotropicNodes&>(t) = anisotropic_nodes(r);
   return t;
 }
 
 }  // namespace
 
-Estimate anisotropic_mirror_albedo(double ax, double ay, double mu, double phi, double tolerance) {
+AnisotropicNodes anisotropic_nodes(const AnisotropicAxes& axes) {
+  const MuGrid mu = gauss_legendre_mus(axes.mus), phi = gauss_legendre_mus(axes.phis);
+  AnisotropicNodes n{mu.mus, mu.weights, {}, phi.weights};
+  for (const double p : phi.mus) n.phis.push_back(p * std::numbers::pi / 2);
+  return n;
+}
+
+Vec3<double> anisotropic_view(double mu, double phi) {
   const double s = std::sqrt(std::max(0.0, 1 - mu * mu));
-  const Vec3<double> wi(s * std::cos(phi), s * std::sin(phi), mu);
-  return single_scattering_albedo(GGX<double>(ax, ay), Material::mirror(), 0, wi, tolerance).total();
+  return {s * std::cos(phi), s * std::sin(phi), mu};
+}
+
+Estimate anisotropic_mirror_albedo(double ax, double ay, double mu, double phi, double tolerance) {
+  return single_scattering_albedo(GGX<double>(ax, ay), Material::mirror(), 0, anisotropic_view(mu, phi), tolerance).total();
 }
 
 std::optional<AnisotropicAlbedoTable> anisotropic_albedo_table(const AnisotropicAlbedoRequest& r) {
@@ -84,7 +89,7 @@ std::optional<AnisotropicAlbedoTable> anisotropic_albedo_table(const Anisotropic
     Estimate avg;
     for (std::size_t j = 0; j < nm; ++j)
       for (std::size_t k = 0; k < np; ++k) {
-        const double w = 2 * t.mu_weights[j] * t.mus[j] * t.phi_weights[k];
+        const double w = t.average_weight(j, k);
         avg.value += w * t.cells[(ixy * nm + j) * np + k].value;
         avg.standard_error += w * t.cells[(ixy * nm + j) * np + k].standard_error;
       }

@@ -16,6 +16,7 @@
 #pragma once
 
 #include "core/estimate.h"
+#include "core/math.h"
 #include "core/run_control.h"
 
 #include <nlohmann/json_fwd.hpp>
@@ -26,17 +27,31 @@
 
 namespace microsim {
 
-struct AnisotropicAlbedoRequest {
+// The axes of an anisotropic table's request (analytic or walk, scatter/albedo_anisotropic_walk.h).
+struct AnisotropicAxes {
   std::vector<double> alphas_x{0.25, 0.5, 1.0}, alphas_y{0.25, 0.5, 1.0};  // each in [kMinAlbedoAlpha, kMaxAlbedoAlpha]
   int mus = 16;                // Gauss-Legendre nodes in mu, in [kMinAlbedoMus, kMaxAlbedoMus]
   int phis = 8;                // Gauss-Legendre nodes in phi on [0, pi / 2], in [1, 64]
+};
+
+struct AnisotropicAlbedoRequest : AnisotropicAxes {
   double tolerance = 1e-8;     // each node's quadrature, in [1e-13, 1e-2]
   RunControl run;              // threads, cancel; progress "anisotropic albedo table" in nodes
 };
 
-struct AnisotropicAlbedoTable {
+// The nodes of an anisotropic table (analytic or walk): Gauss-Legendre in mu on [0, 1] and in phi on [0, pi / 2]
+// (phi_weights sum to 1).
+struct AnisotropicNodes {
+  std::vector<double> mus, mu_weights, phis, phi_weights;
+  // The weight of node (j, k) in a hemispherical average (the header's rule): 2 w_j mu_j v_k.
+  double average_weight(std::size_t j, std::size_t k) const { return 2 * mu_weights[j] * mus[j] * phi_weights[k]; }
+};
+AnisotropicNodes anisotropic_nodes(const AnisotropicAxes& axes);
+// The view of node (mu, phi): (sqrt(1 - mu^2) cos phi, sqrt(1 - mu^2) sin phi, mu), phi from the alpha_x axis.
+Vec3<double> anisotropic_view(double mu, double phi);
+
+struct AnisotropicAlbedoTable : AnisotropicNodes {
   std::vector<double> alphas_x, alphas_y;
-  std::vector<double> mus, mu_weights, phis, phi_weights;  // phi_weights sum to 1
   double tolerance = 0;
   std::vector<Estimate> cells;    // [((ix * alphas_y + iy) * mus + j) * phis + k]
   std::vector<Estimate> average;  // [ix * alphas_y + iy]
@@ -46,9 +61,9 @@ struct AnisotropicAlbedoTable {
   }
 };
 
-// The axes of a table (analytic or walk, scatter/albedo_anisotropic_walk.h): std::invalid_argument naming an alpha
-// outside [kMinAlbedoAlpha, kMaxAlbedoAlpha] (or none), mus outside [kMinAlbedoMus, kMaxAlbedoMus], phis outside [1, 64].
-void check_anisotropic_axes(const std::vector<double>& alphas_x, const std::vector<double>& alphas_y, int mus, int phis);
+// std::invalid_argument naming an alpha outside [kMinAlbedoAlpha, kMaxAlbedoAlpha] (or none), mus outside
+// [kMinAlbedoMus, kMaxAlbedoMus], phis outside [1, 64].
+void check_anisotropic_axes(const AnisotropicAxes& axes);
 // One node: E of the view (mu, phi) (mu in (0, 1]) on GGX(alpha_x, alpha_y), with its error estimate.
 Estimate anisotropic_mirror_albedo(double alpha_x, double alpha_y, double mu, double phi, double tolerance);
 // The table: std::invalid_argument naming the bad value; nullopt when cancelled.

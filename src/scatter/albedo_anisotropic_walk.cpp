@@ -2,7 +2,6 @@
 
 #include "core/exact_sum.h"
 #include "core/wall_clock.h"
-#include "scatter/albedo_anisotropic.h"
 #include "scatter/albedo_table.h"
 
 #include <fmt/core.h>
@@ -11,7 +10,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <numbers>
 #include <stdexcept>
 #include <string_view>
 
@@ -20,7 +18,7 @@ namespace microsim {
 namespace {
 
 void check_walk_request(const AnisotropicWalkRequest& r) {
-  check_anisotropic_axes(r.alphas_x, r.alphas_y, r.mus, r.phis);
+  check_anisotropic_axes(r);
   if (r.paths == 0) throw std::invalid_argument("anisotropic walk table: 0 paths per node");
   if (r.max_order < 1 || r.max_order > kMaxOrderCap)
     throw std::invalid_argument(fmt::format("anisotropic walk table: max_order {} outside [1, {}]", r.max_order, kMaxOrderCap));
@@ -43,8 +41,7 @@ Estimate multiple_scattering(const ScatterHistogram& h) {
 // The options of node c (of `nodes`) at (mu, phi): its view, seed, paths; progress in paths of the whole table.
 ScatterOptions node_options(const AnisotropicWalkRequest& r, std::size_t pair, std::size_t node, std::size_t c,
                             std::size_t nodes, double mu, double phi) {
-  const double s = std::sqrt(std::max(0.0, 1 - mu * mu));
-  return albedo_cell_walk(Vec3<double>(s * std::cos(phi), s * std::sin(phi), mu), r.paths,
+  return albedo_cell_walk(anisotropic_view(mu, phi), r.paths,
                           albedo_cell_seed(r.seed, pair, node), r.max_order, r.run, "anisotropic walk table",
                           c * r.paths, nodes * r.paths);
 }
@@ -58,7 +55,7 @@ void add_averages(AnisotropicWalkTable& t) {
       double variance = 0;
       for (std::size_t j = 0; j < nm; ++j)
         for (std::size_t k = 0; k < np; ++k) {
-          const double w = 2 * t.mu_weights[j] * t.mus[j] * t.phi_weights[k];
+          const double w = t.average_weight(j, k);
           const Estimate& e = t.cells[(pair * nm + j) * np + k][q];
           avg[q].value += w * e.value;
           variance += (w * e.standard_error) * (w * e.standard_error);
@@ -77,11 +74,7 @@ std::optional<AnisotropicWalkTable> anisotropic_walk_table(const AnisotropicWalk
   AnisotropicWalkTable t;
   t.request = r;
   t.request.run = {};
-  const MuGrid mu = gauss_legendre_mus(r.mus), phi = gauss_legendre_mus(r.phis);
-  t.mus = mu.mus;
-  t.mu_weights = mu.weights;
-  for (const double p : phi.mus) t.phis.push_back(p * std::numbers::pi / 2);
-  t.phi_weights = phi.weights;
+  static_cast<AnisotropicNodes&>(t) = anisotropic_nodes(r);
   const std::size_t ny = r.alphas_y.size(), nm = t.mus.size(), np = t.phis.size();
   const std::size_t nodes = r.alphas_x.size() * ny * nm * np;
   for (std::size_t c = 0; c < nodes; ++c) {

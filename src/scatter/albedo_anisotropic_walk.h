@@ -16,6 +16,7 @@
 
 #include "core/estimate.h"
 #include "core/run_control.h"
+#include "scatter/albedo_anisotropic.h"
 #include "scatter/scatter_setup.h"
 #include "scatter/smith_walk.h"
 
@@ -29,10 +30,7 @@
 
 namespace microsim {
 
-struct AnisotropicWalkRequest {
-  std::vector<double> alphas_x{0.25, 0.5, 1.0}, alphas_y{0.25, 0.5, 1.0};  // each in [kMinAlbedoAlpha, kMaxAlbedoAlpha]
-  int mus = 16;                       // Gauss-Legendre nodes in mu, in [kMinAlbedoMus, kMaxAlbedoMus]
-  int phis = 8;                       // Gauss-Legendre nodes in phi on [0, pi / 2], in [1, 64]
+struct AnisotropicWalkRequest : AnisotropicAxes {
   std::uint64_t paths = 100'000;      // per node, >= 1
   std::uint64_t seed = 1;
   int max_order = kDefaultMaxOrder;   // in [1, kMaxOrderCap]
@@ -44,9 +42,8 @@ struct AnisotropicWalkRequest {
 inline constexpr std::array<const char*, 4> kAnisotropicWalkQuantities{"E", "E1", "E_ms", "unfinished"};
 using AnisotropicWalkNode = std::array<Estimate, 4>;
 
-struct AnisotropicWalkTable {
+struct AnisotropicWalkTable : AnisotropicNodes {
   AnisotropicWalkRequest request;  // as given, without its RunControl
-  std::vector<double> mus, mu_weights, phis, phi_weights;  // phi_weights sum to 1
   std::vector<AnisotropicWalkNode> cells;    // [((ix * alphas_y + iy) * mus + j) * phis + k]
   std::vector<AnisotropicWalkNode> average;  // [ix * alphas_y + iy]
   double seconds = 0;
