@@ -8,11 +8,13 @@ exit as the doc says (0, or the N of a trailing comment that says "exit N"). A b
   /usr/bin/python3 tests/docs/test_doc_commands.py --binary build/microsim --python-path build/python \\
       --scratch build/docs-commands [--only README.md]
 
-`microsim` and `build/microsim` are the built binary, `python3` is the interpreter running this test (Debian's
-/usr/bin/python3, with numpy) with the built module on PYTHONPATH (`build/python` too). Each page runs in its
+`microsim` and `build/microsim` are the built binary; Python commands name Debian's /usr/bin/python3 (with
+numpy; a bare `python3` is a failure: the user's PATH may hold one without numpy), run with the built module on
+PYTHONPATH (`build/python` too). Each page runs in its
 own folder holding a copy of examples/; the scratch folder is removed at the end, pass or fail. Exit 0 when
 every command exits as documented, 1 otherwise (each failure shown with its output), 2 for a malformed marker.
-A self-test runs first: a failing command and a wrong exit code must be caught (the negative control)."""
+A self-test runs first: a failing command, a wrong exit code and a bare python3 must be caught (the negative
+control)."""
 import argparse
 import os
 import pathlib
@@ -89,8 +91,13 @@ def expected_exit(command):
     return int(m.group(1)) if m else 0
 
 
+# A command that runs a bare `python3` (after any VAR=value): it would take the first python3 on the user's PATH,
+# which may lack numpy (a pyenv shim, say); the pages name Debian's /usr/bin/python3.
+BARE_PYTHON = re.compile(r"(?:^|[;&|(]\s*)(?:\w+=\S*\s+)*python3(?:\s|$)", re.M)
+
+
 def prepare(folder, binary, python_path):
-    """A page's folder: examples/ copied, bin/ with microsim and python3, build/microsim, the example BSDF plugins
+    """A page's folder: examples/ copied, bin/ with microsim, build/microsim, the example BSDF plugins
     built beside it (build/microsim_plugin_*.so) and build/python."""
     folder.mkdir(parents=True)
     shutil.copytree(ROOT / "examples", folder / "examples", ignore=shutil.ignore_patterns("__pycache__"))
@@ -101,7 +108,6 @@ def prepare(folder, binary, python_path):
         (folder / "build/microsim").symlink_to(pathlib.Path(binary).resolve())
         for plugin in pathlib.Path(binary).resolve().parent.glob("microsim_plugin_*.so"):
             (folder / "build" / plugin.name).symlink_to(plugin)
-    (folder / "bin/python3").symlink_to(sys.executable)
     if python_path:
         (folder / "build/python").symlink_to(pathlib.Path(python_path).resolve())
 
@@ -119,6 +125,11 @@ def run_page(name, text, folder, binary, python_path, report, quiet):
             report["skipped"].append((f"{name}:{line}", len(cmds), reason))
             continue
         for command in cmds:
+            if BARE_PYTHON.search(command):
+                failures += 1
+                if not quiet:
+                    print(f"FAIL {name}:{line}: runs a bare python3 (write /usr/bin/python3):\n  $ {command}\n")
+                continue
             want = expected_exit(command)
             start = time.monotonic()
             try:
@@ -163,6 +174,9 @@ def self_test():
         bad = "```sh\nfalse\ntrue   # exit 1\n```\n"
         failures, _ = run([("bad.md", bad)], None, None, pathlib.Path(tmp) / "s", quiet=True)
         assert failures == 2, failures  # a failing command and a wrong documented exit code are both caught
+        bare = "```sh\npython3 -c 1\nPYTHONPATH=x python3 -c 1\ntrue && python3 -c 1\n/usr/bin/python3 -c 1\n```\n"
+        failures, report = run([("bare.md", bare)], None, None, pathlib.Path(tmp) / "s", quiet=True)
+        assert failures == 3 and len(report["ran"]) == 1, (failures, report)  # only /usr/bin/python3 runs
         assert not (pathlib.Path(tmp) / "s").exists()
     for malformed in ("<!-- not-run: -->\n```sh\ntrue\n```\n", "<!-- not-run: why -->\ntext\n"):
         try:
@@ -170,7 +184,7 @@ def self_test():
         except MarkerError:
             continue
         raise AssertionError(f"malformed marker accepted: {malformed!r}")
-    print("self-test: a failing command, a wrong exit code and malformed markers are caught")
+    print("self-test: a failing command, a wrong exit code, a bare python3 and malformed markers are caught")
 
 
 def main():
