@@ -1,5 +1,5 @@
 """microsim.validate_all(): the batch of `microsim validate --all` from Python, its verdict table the
-command line's. Few samples and few rows (--samples 20000 --rows 5) keep the two runs short; the verdict
+command line's. Few samples and the fewest rows (--samples 20000 --rows 3) keep the two runs short; the verdict
 at these settings still needs every correct sampler to pass and every negative control (the zoo's own
 broken samplers) to be rejected with p < 1e-6, so the comparison covers both outcomes."""
 import pytest
@@ -7,7 +7,7 @@ import pytest
 import microsim
 from conftest import cli_json
 
-ARGS = {"samples": 20000, "rows": 5, "seed": 3}
+ARGS = {"samples": 20000, "rows": 3, "seed": 3}
 
 
 @pytest.fixture(scope="module")
