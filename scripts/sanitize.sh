@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# microsim: the sanitizer gate. Builds the test suite and the CLI with AddressSanitizer and UBSan
-# (-fsanitize=address,undefined, every report fatal) in build-sanitize/ with g++, the library at -O1 -g1
+# microsim: the sanitizer gate. Builds the library and the CLI with AddressSanitizer and UBSan
+# (-fsanitize=address,undefined, every report fatal) and the library's tests with ASan alone (UBSan there
+# would check the tests' own code: CMakeLists.txt) in build-sanitize/ with g++, the library at -O1 -g1
 # (ASan's stacks keep file and line; MICROSIM_SANITIZE_DEBUG=-g0, as CI runs it, compiles about 11% faster:
 # UBSan's reports still name file and line, ASan's stacks name functions), the library's tests at -O1 too (their own loops call the microfacet
 # functions millions of times: at -O0 they compile in half the time but ran 5-14 times slower under ASan,
