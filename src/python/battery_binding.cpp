@@ -155,7 +155,7 @@ py::object check_bsdf(const py::function& sample, const py::function& eval, cons
                                                   ", reference " + a.reference,
                                               fmt::format("{} samples per view, seed {}, level {} (Sidak over the "
                                                           "statistical tests)", a.samples, a.seed, a.level)}));
-  return py::module_::import("json").attr("loads")(j.dump());
+  return json_object(j);
 }
 
 
@@ -241,7 +241,7 @@ py::object check_bsdf_files(const py::handle& dump, const py::handle& eval, cons
   j.update({{"dump", rows_name(d)}, {"eval", rows_name(e)}, {"theta", a.theta}, {"phi", a.phi},
             {"level", a.level}, {"passed", r->passed}});
   if (!a.cells.is_none()) j["cells"] = rows_name(o.cells);
-  return py::module_::import("json").attr("loads")(j.dump());
+  return json_object(j);
 }
 
 void bind_files(py::module_& m) {

@@ -1,14 +1,15 @@
 // python: the `microsim` Python module (pybind11), a thin layer over the library: each function parses and
 // checks its Python arguments, calls the library function the command line calls, and converts the result
-// to numpy arrays and Python objects (docs/guide/python.md). Two translation units: validate_binding.cpp (the
-// validation, the samplers, the run of long calls) and module.cpp (the module, the analytic functions,
-// tracing, surfaces, masking, scattering).
+// to numpy arrays and Python objects (docs/guide/python.md). module.cpp (the module, the analytic functions,
+// tracing, surfaces, masking, scattering), validate_binding.cpp (the validation, the samplers, the run of long
+// calls, the shared converters below) and one file per group of functions registered below.
 #pragma once
 
 #include "core/run_control.h"
 #include "microfacet/ggx.h"
 #include "validate/sample_io.h"
 
+#include <nlohmann/json_fwd.hpp>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
@@ -57,5 +58,9 @@ py::array_t<double, py::array::c_style | py::array::forcecast> directions_of(con
 py::array checked_array(const py::handle& object, const char* what, int columns, bool exact_float);
 // Column `column` of a checked array (1-D: its only one), read in place by a DirectionSampleReader.
 SampleArrayColumn column_of(const py::array& a, int column);
+
+// A JSON document as the Python object json.loads gives (dicts, lists, numbers, strings): what the command
+// line's --json writes, returned from Python (validate_binding.cpp).
+py::object json_object(const nlohmann::json& j);
 
 }  // namespace microsim::python

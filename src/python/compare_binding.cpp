@@ -31,7 +31,7 @@ py::object compare_scattering_of(const std::vector<std::string>& files, bool ana
   }, progress);
   nlohmann::json j = to_json(*result);
   j["passed"] = !result->rejected();
-  return py::module_::import("json").attr("loads")(j.dump());
+  return json_object(j);
 }
 
 }  // namespace

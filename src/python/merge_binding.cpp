@@ -139,7 +139,7 @@ py::object merge_of(const std::vector<py::object>& part_paths, const py::object&
   run_interruptible([&](const RunControl& control) { report = merged_report(merge_parts(kind, parts), o, control); },
                     progress);
   if (!o.json.empty()) write_file_atomically(o.json, report.dump(2) + "\n");
-  return py::module_::import("json").attr("loads")(report.dump());
+  return json_object(report);
 }
 
 }  // namespace

@@ -206,8 +206,6 @@ py::dict trace_surface_vndf(const microgeom::Heightfield& surface, double theta,
 
 // ---- masking ---------------------------------------------------------------------------------------------------
 
-py::object json_object(const nlohmann::json& j) { return py::module_::import("json").attr("loads")(j.dump()); }
-
 MaskingRequest masking_request(double theta, double phi, std::optional<double> theta_l, double phi_l, double cone,
                                std::uint64_t samples, std::uint64_t seed, int bins, double grazing_share) {
   view_of(theta, phi);  // `trace masking --theta/--phi`

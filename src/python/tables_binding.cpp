@@ -28,8 +28,6 @@ namespace microsim::python {
 
 namespace {
 
-py::object json_object(const nlohmann::json& j) { return py::module_::import("json").attr("loads")(j.dump()); }
-
 struct AlbedoArguments {
   std::string model, ndf, material;
   bool inside = false;

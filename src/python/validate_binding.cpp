@@ -195,6 +195,8 @@ py::array checked_array(const py::handle& object, const char* what, int columns,
   return a;
 }
 
+py::object json_object(const nlohmann::json& j) { return py::module_::import("json").attr("loads")(j.dump()); }
+
 SampleArrayColumn column_of(const py::array& a, int column) {
   const auto* base = static_cast<const char*>(a.data());
   return {base + (a.ndim() == 2 ? column * a.strides(1) : 0), a.strides(0), a.itemsize() == 4};
@@ -455,7 +457,6 @@ ValidationReport validate_zoo_sampler(const std::string& name, const py::handle&
 
 // ---- the result ---------------------------------------------------------------------------------------------
 
-py::object json_to_python(const nlohmann::json& j) { return py::module_::import("json").attr("loads")(j.dump()); }
 
 // p-values by test: the chi-square tests ("chi2_sphere", "chi2_lobe") and the applicable statistical checks.
 py::dict p_values_of(const ValidationReport& r) {
@@ -499,7 +500,7 @@ void bind_result(py::module_& m) {
       .def_readonly("seconds", &ValidationReport::seconds, "wall-clock time of the validation")
       .def_property_readonly("p_values", &p_values_of, "p-value of each statistical test, by name")
       .def_property_readonly("worst_cells", &worst_cells_of, "the cells contributing most to each chi-square statistic")
-      .def("to_dict", [](const ValidationReport& r) { return json_to_python(to_json(r)); },
+      .def("to_dict", [](const ValidationReport& r) { return json_object(to_json(r)); },
            "The report as a dict: the JSON of `microsim validate --json`")
       .def("__bool__", [](const ValidationReport& r) { return r.passed; })
       .def("__repr__", &repr_of);
@@ -573,7 +574,7 @@ py::object validate_all_with_keywords(std::uint64_t samples, std::uint64_t seed,
   if (threads < 0) throw py::value_error("threads must be >= 0 (0: all cores), got " + std::to_string(threads));
   std::optional<ZooResult> result;
   auto to_python = [](const ZooResult& r) {
-    py::object out = json_to_python(to_json(r));
+    py::object out = json_object(to_json(r));
     out["exit_code"] = exit_code(r);
     return out;
   };
