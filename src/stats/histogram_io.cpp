@@ -3,6 +3,7 @@
 #include "core/atomic_file.h"
 #include "microgeom/exr_io.h"
 #include "stats/exr_reading.h"
+#include "core/parse.h"
 #include "core/strict_parse.h"
 
 #include <fmt/core.h>
@@ -83,8 +84,6 @@ void write_histogram_exr(const std::filesystem::path& path, const TracedHistogra
 }
 
 namespace {
-
-using reader::quote_excerpt;
 
 // The checks of one file, each naming the file, the attribute or channel, and the bad value.
 class HistogramReader {

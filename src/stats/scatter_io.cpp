@@ -2,6 +2,7 @@
 #include "stats/scatter_io.h"
 #include "stats/json_values.h"
 
+#include "core/parse.h"
 #include "core/strict_parse.h"
 #include "microfacet/material.h"
 #include "microgeom/exr_io.h"
@@ -21,8 +22,6 @@
 namespace microsim {
 
 namespace {
-
-using reader::quote_excerpt;
 
 constexpr std::array<const char*, kScatterOrderBins> kOrderParts{"order1", "order2", "order3", "order4", "order5plus"};
 constexpr std::array<const char*, 6> kSumLimbs{"hi0", "hi1", "hi2", "lo0", "lo1", "lo2"};
