@@ -1,6 +1,7 @@
 """Long calls: the traced oracle (identical to the command line's histogram), progress, the GIL released,
 Ctrl-C through the cancel token with the partial result kept, and heightfields."""
 import _thread
+import signal
 import threading
 import time
 
@@ -58,12 +59,18 @@ def test_progress_and_gil_released():
 
 
 def test_ctrl_c_cancels_and_keeps_the_partial_result():
+    # Python's own SIGINT handler for the call: a shell's background job starts with SIGINT ignored, where
+    # interrupt_main does nothing and the call would run its 1e11 rays.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     timer = threading.Timer(0.5, _thread.interrupt_main)  # SIGINT's flag, as Ctrl-C sets it
-    timer.start()
-    start = time.monotonic()
-    with pytest.raises(KeyboardInterrupt) as interrupt:
-        microsim.trace_vndf(0.3, 45.0, rays=10 ** 11, seed=1)
-    timer.join()
+    try:
+        timer.start()
+        start = time.monotonic()
+        with pytest.raises(KeyboardInterrupt) as interrupt:
+            microsim.trace_vndf(0.3, 45.0, rays=10 ** 11, seed=1)
+        timer.join()
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert time.monotonic() - start < 30
     partial = interrupt.value.partial_result
     assert partial["partial"] and 0 < partial["rays"] < 10 ** 11
