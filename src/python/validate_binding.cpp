@@ -18,6 +18,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
@@ -182,9 +183,6 @@ py::array checked_array(const py::handle& object, const char* what, int columns,
   if ((exact_float && !float_ok) || (!exact_float && kind != 'f' && kind != 'i' && kind != 'u'))
     throw py::value_error(std::string(what) + ": dtype " + py::str(a.dtype()).cast<std::string>() +
                           " is not supported (expected float32 or float64)");
-  if (exact_float && a.dtype().byteorder() == '>')  // read in place: the machine's byte order only
-    throw py::value_error(std::string(what) + ": big-endian dtype " + py::str(a.dtype()).cast<std::string>() +
-                          " is not supported (convert with arr.astype('<f8') or arr.astype('<f4'))");
   const bool shape_ok = columns == 0    ? a.ndim() == 1
                         : columns < 0   ? a.ndim() == 1 || (a.ndim() == 2 && a.shape(1) >= 1)
                                         : a.ndim() == 2 && a.shape(1) == columns;
@@ -199,7 +197,9 @@ py::object json_object(const nlohmann::json& j) { return py::module_::import("js
 
 SampleArrayColumn column_of(const py::array& a, int column) {
   const auto* base = static_cast<const char*>(a.data());
-  return {base + (a.ndim() == 2 ? column * a.strides(1) : 0), a.strides(0), a.itemsize() == 4};
+  const char order = a.dtype().byteorder();  // '=' or '|': the machine's; '<' little-endian; '>' big-endian
+  const bool swapped = std::endian::native == std::endian::little ? order == '>' : order == '<';
+  return {base + (a.ndim() == 2 ? column * a.strides(1) : 0), a.strides(0), a.itemsize() == 4, swapped};
 }
 
 namespace {

@@ -160,7 +160,7 @@ public:
       if (key == "descr") {
         if (peek() != '\'' && peek() != '"')
           error("unsupported dtype: 'descr' is not a simple type string (structured arrays are not "
-                "supported; expected '<f4' or '<f8')");
+                "supported; expected float32 or float64: '<f4', '<f8', '>f4' or '>f8')");
         h.descr = parse_string("the 'descr' value");
         have_descr = true;
       } else if (key == "fortran_order") {
@@ -256,6 +256,13 @@ std::uint64_t read_le(const unsigned char* p, int bytes) {
   return v;
 }
 
+// A value of `bytes` bytes stored most significant byte first (an NPY dtype '>f4' or '>f8').
+std::uint64_t read_be(const unsigned char* p, int bytes) {
+  std::uint64_t v = 0;
+  for (int i = 0; i < bytes; ++i) v = (v << 8) | p[i];
+  return v;
+}
+
 std::string shape_string(const std::vector<std::uint64_t>& shape) {
   std::string s = "(";
   const std::size_t shown = shape.size() <= 8 ? shape.size() : 4;  // a long tuple is cut: short messages
@@ -270,6 +277,7 @@ struct NpyLayout {
   std::uint64_t rows = 0;
   std::size_t data_offset = 0;
   bool is_float32 = false;
+  bool big_endian = false;     // dtype '>f4' or '>f8' (numpy's astype('>f8'), or a file saved on a big-endian machine)
   int columns = 3;
   bool fortran_order = false;  // column-major: each column's `rows` values are contiguous
   std::size_t item() const { return is_float32 ? 4 : 8; }
@@ -308,19 +316,14 @@ NpyLayout read_npy_layout(const std::filesystem::path& path, std::string_view by
                    reader::quote_excerpt(header.substr(header.size() - 1)) + ")");
   const NpyHeader h = NpyHeaderParser(path, header).parse();
 
-  std::size_t item = 0;
-  bool is_float32 = false;
-  if (h.descr == "<f4") {
-    item = 4;
-    is_float32 = true;
-  } else if (h.descr == "<f8") {
-    item = 8;
-  } else if (h.descr == ">f4" || h.descr == ">f8") {
+  // Either byte order: numpy writes '<' on little-endian machines and for astype('<f8'), '>' for astype('>f8').
+  const bool big_endian = h.descr.size() == 3 && h.descr[0] == '>';
+  const std::string kind = h.descr.size() == 3 && (h.descr[0] == '<' || h.descr[0] == '>') ? h.descr.substr(1) : "";
+  if (kind != "f4" && kind != "f8")
     fail(path, "unsupported NPY dtype " + reader::quote_excerpt(h.descr) +
-                   " (big-endian; convert with arr.astype('<f8') or arr.astype('<f4'))");
-  } else {
-    fail(path, "unsupported NPY dtype " + reader::quote_excerpt(h.descr) + " (expected '<f4' float32 or '<f8' float64)");
-  }
+                   " (expected float32 or float64: '<f4', '<f8', '>f4' or '>f8')");
+  const bool is_float32 = kind == "f4";
+  const std::size_t item = is_float32 ? 4 : 8;
   if (h.shape.size() != 2)
     fail(path, "unsupported NPY shape " + shape_string(h.shape) + " (expected (N, " + std::to_string(columns.count) +
                    "): " + columns.describe() + ")");
@@ -341,7 +344,8 @@ NpyLayout read_npy_layout(const std::filesystem::path& path, std::string_view by
     fail(path, "NPY data has " + std::to_string(available - rows * row_bytes) +
                    " unexpected trailing bytes after the " + std::to_string(rows) + " declared rows");
 
-  return NpyLayout{rows, prefix + static_cast<std::size_t>(header_len), is_float32, columns.count, h.fortran_order};
+  return NpyLayout{rows, prefix + static_cast<std::size_t>(header_len), is_float32, big_endian, columns.count,
+                   h.fortran_order};
 }
 
 // Decodes and checks rows [first, first + out.size()) of a checked NPY file (`bytes` as above); the extra
@@ -358,8 +362,9 @@ void decode_npy_rows(const std::filesystem::path& path, std::string_view bytes, 
     const std::uint64_t r = first + i;
     const auto value = [&](int c) -> double {
       const unsigned char* p = data + layout.offset(r, c);
-      if (is_float32) return std::bit_cast<float>(static_cast<std::uint32_t>(read_le(p, 4)));
-      return std::bit_cast<double>(read_le(p, 8));
+      const auto bits = [&](int bytes) { return layout.big_endian ? read_be(p, bytes) : read_le(p, bytes); };
+      if (is_float32) return std::bit_cast<float>(static_cast<std::uint32_t>(bits(4)));
+      return std::bit_cast<double>(bits(8));
     };
     const auto where = [r] { return "row " + std::to_string(r) + " (0-based)"; };
     out[i] = split_row(path, where, value, columns, tolerance, precision_name, invalid, extras + i * stride);
@@ -368,16 +373,21 @@ void decode_npy_rows(const std::filesystem::path& path, std::string_view bytes, 
 
 // ---- arrays in memory -------------------------------------------------------------------------------
 
-// Value of row r of an array column (memcpy: a strided view need not be aligned).
+// Value of row r of an array column (its bytes copied: a strided view need not be aligned; reversed when the
+// column is stored in the other byte order).
 double array_value(const SampleArrayColumn& column, std::uint64_t r) {
   const char* p = static_cast<const char*>(column.data) + std::ptrdiff_t(r) * column.stride;
+  const std::size_t size = column.is_float32 ? 4 : 8;
+  unsigned char b[8];
+  std::memcpy(b, p, size);
+  if (column.byte_swapped) std::reverse(b, b + size);
   if (column.is_float32) {
     float f;
-    std::memcpy(&f, p, sizeof f);
+    std::memcpy(&f, b, sizeof f);
     return f;
   }
   double d;
-  std::memcpy(&d, p, sizeof d);
+  std::memcpy(&d, b, sizeof d);
   return d;
 }
 

@@ -3,7 +3,7 @@
 //
 // Formats (docs/reference/file-formats.md, "Sample files"):
 // - NPY (NumPy format versions 1.0, 2.0 and 3.0; https://numpy.org/doc/stable/reference/generated/
-//   numpy.lib.format.html): dtype '<f4' or '<f8' (little-endian float32/float64), shape (N, 3), in C order
+//   numpy.lib.format.html): dtype '<f4', '<f8', '>f4' or '>f8' (float32/float64 in either byte order), shape (N, 3), in C order
 //   (row by row) or Fortran order (fortran_order True: column by column, as np.save writes a transposed or
 //   column-indexed array). Recognised by its magic string "\x93NUMPY", whatever the file name.
 // - Text: three numbers per line separated by whitespace and/or single commas; '#' starts a comment that
@@ -108,6 +108,7 @@ struct SampleArrayColumn {
   const void* data = nullptr;  // the value of row 0
   std::ptrdiff_t stride = 0;   // bytes from one row's value to the next
   bool is_float32 = false;     // float32, else float64
+  bool byte_swapped = false;   // stored in the other byte order than the machine's (numpy's '>f8' on x86)
 };
 struct SampleArray {
   std::string name = "samples";             // stands for a file's path in messages
