@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <vector>
 
 namespace microsim {
 
@@ -114,8 +115,24 @@ ValidationReport validate_dump(const DirectionSampleReader& samples, std::shared
   return r;
 }
 
+namespace {
+
+// Reads the first rows once, so that a malformed file is reported before the reference's cubature (which takes
+// longest at many rows and for a BSDF's density); the main pass reads them again.
+void check_first_rows(const DirectionSampleReader& samples) {
+  constexpr std::size_t kRows = 1024;
+  DirectionSampleReader reader = samples.reopened();
+  std::vector<Vec3<double>> rows(kRows);
+  std::vector<double> pdfs(reader.columns().has_pdf() ? kRows : 0);
+  std::vector<double> weights(kRows * std::size_t(reader.columns().channels()));
+  reader.read(rows, pdfs, weights);
+}
+
+}  // namespace
+
 ValidationReport validate_dump_as_given(DirectionSampleReader& samples, const DumpClaims& claims, const GGX<double>& ggx,
                                         const Vec3<double>& view, ValidationOptions options, bool diagnose_frame) {
+  check_first_rows(samples);
   const ViewFromOutside v = seen_from_outside(view, claims.bsdf);
   samples.set_mirrored(v.mirrored);
   if (options.bsdf) options.bsdf = v.bsdf;
