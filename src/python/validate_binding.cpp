@@ -197,9 +197,9 @@ py::object json_object(const nlohmann::json& j) { return py::module_::import("js
 
 SampleArrayColumn column_of(const py::array& a, int column) {
   const auto* base = static_cast<const char*>(a.data());
-  const char order = a.dtype().byteorder();  // '=' or '|': the machine's; '<' little-endian; '>' big-endian
-  const bool swapped = std::endian::native == std::endian::little ? order == '>' : order == '<';
-  return {base + (a.ndim() == 2 ? column * a.strides(1) : 0), a.strides(0), a.itemsize() == 4, swapped};
+  const char order = a.dtype().byteorder();  // '<' little-endian, '>' big-endian, '=' or '|' the machine's
+  const bool big_endian = order == '>' || (order != '<' && std::endian::native == std::endian::big);
+  return {base + (a.ndim() == 2 ? column * a.strides(1) : 0), a.strides(0), a.itemsize() == 4, big_endian};
 }
 
 namespace {
@@ -456,7 +456,6 @@ ValidationReport validate_zoo_sampler(const std::string& name, const py::handle&
 }
 
 // ---- the result ---------------------------------------------------------------------------------------------
-
 
 // p-values by test: the chi-square tests ("chi2_sphere", "chi2_lobe") and the applicable statistical checks.
 py::dict p_values_of(const ValidationReport& r) {

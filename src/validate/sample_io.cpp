@@ -263,6 +263,13 @@ std::uint64_t read_be(const unsigned char* p, int bytes) {
   return v;
 }
 
+// The float32 or float64 value at p, stored little- or big-endian whatever the machine's order (an NPY
+// file's values, an array's columns).
+double stored_value(const unsigned char* p, bool is_float32, bool big_endian) {
+  if (is_float32) return std::bit_cast<float>(static_cast<std::uint32_t>(big_endian ? read_be(p, 4) : read_le(p, 4)));
+  return std::bit_cast<double>(big_endian ? read_be(p, 8) : read_le(p, 8));
+}
+
 std::string shape_string(const std::vector<std::uint64_t>& shape) {
   std::string s = "(";
   const std::size_t shown = shape.size() <= 8 ? shape.size() : 4;  // a long tuple is cut: short messages
@@ -317,12 +324,11 @@ NpyLayout read_npy_layout(const std::filesystem::path& path, std::string_view by
   const NpyHeader h = NpyHeaderParser(path, header).parse();
 
   // Either byte order: numpy writes '<' on little-endian machines and for astype('<f8'), '>' for astype('>f8').
-  const bool big_endian = h.descr.size() == 3 && h.descr[0] == '>';
-  const std::string kind = h.descr.size() == 3 && (h.descr[0] == '<' || h.descr[0] == '>') ? h.descr.substr(1) : "";
-  if (kind != "f4" && kind != "f8")
+  if (h.descr != "<f4" && h.descr != "<f8" && h.descr != ">f4" && h.descr != ">f8")
     fail(path, "unsupported NPY dtype " + reader::quote_excerpt(h.descr) +
                    " (expected float32 or float64: '<f4', '<f8', '>f4' or '>f8')");
-  const bool is_float32 = kind == "f4";
+  const bool big_endian = h.descr[0] == '>';
+  const bool is_float32 = h.descr[2] == '4';
   const std::size_t item = is_float32 ? 4 : 8;
   if (h.shape.size() != 2)
     fail(path, "unsupported NPY shape " + shape_string(h.shape) + " (expected (N, " + std::to_string(columns.count) +
@@ -361,10 +367,7 @@ void decode_npy_rows(const std::filesystem::path& path, std::string_view bytes, 
   for (std::uint64_t i = 0; i < out.size(); ++i) {
     const std::uint64_t r = first + i;
     const auto value = [&](int c) -> double {
-      const unsigned char* p = data + layout.offset(r, c);
-      const auto bits = [&](int bytes) { return layout.big_endian ? read_be(p, bytes) : read_le(p, bytes); };
-      if (is_float32) return std::bit_cast<float>(static_cast<std::uint32_t>(bits(4)));
-      return std::bit_cast<double>(bits(8));
+      return stored_value(data + layout.offset(r, c), is_float32, layout.big_endian);
     };
     const auto where = [r] { return "row " + std::to_string(r) + " (0-based)"; };
     out[i] = split_row(path, where, value, columns, tolerance, precision_name, invalid, extras + i * stride);
@@ -373,22 +376,10 @@ void decode_npy_rows(const std::filesystem::path& path, std::string_view bytes, 
 
 // ---- arrays in memory -------------------------------------------------------------------------------
 
-// Value of row r of an array column (its bytes copied: a strided view need not be aligned; reversed when the
-// column is stored in the other byte order).
+// Value of row r of an array column (read byte by byte: a strided view need not be aligned).
 double array_value(const SampleArrayColumn& column, std::uint64_t r) {
   const char* p = static_cast<const char*>(column.data) + std::ptrdiff_t(r) * column.stride;
-  const std::size_t size = column.is_float32 ? 4 : 8;
-  unsigned char b[8];
-  std::memcpy(b, p, size);
-  if (column.byte_swapped) std::reverse(b, b + size);
-  if (column.is_float32) {
-    float f;
-    std::memcpy(&f, b, sizeof f);
-    return f;
-  }
-  double d;
-  std::memcpy(&d, b, sizeof d);
-  return d;
+  return stored_value(reinterpret_cast<const unsigned char*>(p), column.is_float32, column.big_endian);
 }
 
 bool array_directions_are_float32(const SampleArray& array, const SampleColumns& columns) {

@@ -108,7 +108,7 @@ struct SampleArrayColumn {
   const void* data = nullptr;  // the value of row 0
   std::ptrdiff_t stride = 0;   // bytes from one row's value to the next
   bool is_float32 = false;     // float32, else float64
-  bool byte_swapped = false;   // stored in the other byte order than the machine's (numpy's '>f8' on x86)
+  bool big_endian = false;     // stored most significant byte first (numpy's '>f8'), else little-endian
 };
 struct SampleArray {
   std::string name = "samples";             // stands for a file's path in messages
