@@ -151,11 +151,13 @@ std::vector<Pending> split_around_focus(const Cell& c, const std::vector<FocusPo
 // ---- one bin ----------------------------------------------------------------------------------------
 
 // One cell's sides as the inner and outer interval of the nested rule (inner direction theta or phi),
-// with the inner line's 17 grid points: its two ends and the 15 nodes of the rule.
+// with the inner line's 17 grid points: its two ends and the 15 nodes of the rule, and their sines and
+// cosines (the same on every inner line: computed once per cell, not once per line).
 struct CellFrame {
   double i0, i1, o0, o1;
   double oc, oh;              // centre and half-width of the outer interval
   std::array<double, 17> xs;  // grid points along an inner line
+  std::array<double, 17> sin_xs, cos_xs;
   CellFrame(const Cell& c, bool theta_inner, const Rule15& rule)
       : i0(theta_inner ? c.t0 : c.p0), i1(theta_inner ? c.t1 : c.p1), o0(theta_inner ? c.p0 : c.t0),
         o1(theta_inner ? c.p1 : c.t1), oc(0.5 * (o0 + o1)), oh(0.5 * (o1 - o0)) {
@@ -163,6 +165,7 @@ struct CellFrame {
     xs[0] = i0;
     for (int i = 0; i < 15; ++i) xs[i + 1] = ic + ih * rule.x[i];
     xs[16] = i1;
+    for (int i = 0; i < 17; ++i) sin_xs[i] = std::sin(xs[i]), cos_xs[i] = std::cos(xs[i]);
   }
 };
 
@@ -237,6 +240,7 @@ private:
   void cut_line(const CellFrame& f, bool theta_inner, int j, double outer, const std::vector<double>& grid,
                 LineCuts& cuts, long long& evals) const;
   std::pair<double, double> segment_rule(bool theta_inner, double a, double b, double outer, long long& evals) const;
+  std::pair<double, double> whole_line_rule(const CellFrame& f, bool theta_inner, double outer, long long& evals) const;
   std::pair<double, double> line_rule(const CellFrame& f, bool theta_inner, int j, double outer,
                                       const std::vector<double>& grid, long long& evals) const;
   void nested(Cell& c, bool theta_inner, const std::vector<double>& grid, long long& evals) const;
@@ -303,8 +307,7 @@ std::vector<Cell> BinCubature::focus_phase(int bin, const std::vector<FocusPoint
 int BinCubature::break_grid(const Cell& c, bool theta_inner, std::vector<double>& values, long long& evals) const {
   const CellFrame f(c, theta_inner, rule_);
   values.resize(n_breaks_ * 15 * 17);
-  std::array<double, 17> s_inner, c_inner;  // the 17 inner abscissae are the same on every line
-  for (int i = 0; i < 17; ++i) s_inner[i] = std::sin(f.xs[i]), c_inner[i] = std::cos(f.xs[i]);
+  const std::array<double, 17>&s_inner = f.sin_xs, &c_inner = f.cos_xs;
   int lines_cut = 0;
   for (int j = 0; j < 15; ++j) {
     const double outer = 0.5 * (f.o0 + f.o1) + 0.5 * (f.o1 - f.o0) * rule_.x[j];
@@ -372,12 +375,29 @@ std::pair<double, double> BinCubature::segment_rule(bool theta_inner, double a, 
   return {ks * mh, gs * mh};
 }
 
+// segment_rule over a whole inner line of the cell (a = i0, b = i1): the same nodes, their sines and cosines
+// taken from the frame.
+std::pair<double, double> BinCubature::whole_line_rule(const CellFrame& f, bool theta_inner, double outer,
+                                                       long long& evals) const {
+  const double so = std::sin(outer), co = std::cos(outer);
+  double ks = 0, gs = 0;
+  for (int i = 0; i < 15; ++i) {
+    const double si = f.sin_xs[i + 1], ci = f.cos_xs[i + 1];
+    const double val = theta_inner ? integrand_of_trig(si, ci, so, co) : integrand_of_trig(so, co, si, ci);
+    ks += rule_.wk[i] * val;
+    gs += rule_.wg[i] * val;
+  }
+  evals += 15;
+  const double mh = 0.5 * (f.i1 - f.i0);
+  return {ks * mh, gs * mh};
+}
+
 // Kronrod and Gauss estimates along inner line j: in one piece, or piecewise between the cuts.
 std::pair<double, double> BinCubature::line_rule(const CellFrame& f, bool theta_inner, int j, double outer,
                                                  const std::vector<double>& grid, long long& evals) const {
   LineCuts cuts;
   cut_line(f, theta_inner, j, outer, grid, cuts, evals);
-  if (cuts.n == 1) return segment_rule(theta_inner, f.i0, f.i1, outer, evals);
+  if (cuts.n == 1) return whole_line_rule(f, theta_inner, outer, evals);
   cuts.at[cuts.n++] = f.i1;
   std::sort(cuts.at.begin(), cuts.at.begin() + cuts.n);
   double lk = 0, lg = 0;
