@@ -240,7 +240,8 @@ private:
   void cut_line(const CellFrame& f, bool theta_inner, int j, double outer, const std::vector<double>& grid,
                 LineCuts& cuts, long long& evals) const;
   std::pair<double, double> segment_rule(bool theta_inner, double a, double b, double outer, long long& evals) const;
-  std::pair<double, double> whole_line_rule(const CellFrame& f, bool theta_inner, double outer, long long& evals) const;
+  std::pair<double, double> rule_at_nodes(bool theta_inner, const double* sines, const double* cosines, double outer,
+                                          double mh, long long& evals) const;
   std::pair<double, double> line_rule(const CellFrame& f, bool theta_inner, int j, double outer,
                                       const std::vector<double>& grid, long long& evals) const;
   void nested(Cell& c, bool theta_inner, const std::vector<double>& grid, long long& evals) const;
@@ -307,7 +308,8 @@ std::vector<Cell> BinCubature::focus_phase(int bin, const std::vector<FocusPoint
 int BinCubature::break_grid(const Cell& c, bool theta_inner, std::vector<double>& values, long long& evals) const {
   const CellFrame f(c, theta_inner, rule_);
   values.resize(n_breaks_ * 15 * 17);
-  const std::array<double, 17>&s_inner = f.sin_xs, &c_inner = f.cos_xs;
+  const std::array<double, 17>& s_inner = f.sin_xs;
+  const std::array<double, 17>& c_inner = f.cos_xs;
   int lines_cut = 0;
   for (int j = 0; j < 15; ++j) {
     const double outer = 0.5 * (f.o0 + f.o1) + 0.5 * (f.o1 - f.o0) * rule_.x[j];
@@ -357,16 +359,15 @@ void BinCubature::cut_line(const CellFrame& f, bool theta_inner, int j, double o
   }
 }
 
-// Kronrod and Gauss estimates of the integral along the inner direction from a to b (at `outer`).
-std::pair<double, double> BinCubature::segment_rule(bool theta_inner, double a, double b, double outer,
-                                                    long long& evals) const {
-  const double mc = 0.5 * (a + b), mh = 0.5 * (b - a);
+// Kronrod and Gauss estimates at `outer` from the sines and cosines of the 15 inner nodes of a segment of
+// half-width mh (the rule's nodes in ascending order).
+std::pair<double, double> BinCubature::rule_at_nodes(bool theta_inner, const double* sines, const double* cosines,
+                                                     double outer, double mh, long long& evals) const {
   // The outer angle is fixed along the segment: its sine and cosine once, not at each of the 15 nodes.
   const double so = std::sin(outer), co = std::cos(outer);
   double ks = 0, gs = 0;
   for (int i = 0; i < 15; ++i) {
-    const double inner = mc + mh * rule_.x[i];
-    const double si = std::sin(inner), ci = std::cos(inner);
+    const double si = sines[i], ci = cosines[i];
     const double val = theta_inner ? integrand_of_trig(si, ci, so, co) : integrand_of_trig(so, co, si, ci);
     ks += rule_.wk[i] * val;
     gs += rule_.wg[i] * val;
@@ -375,21 +376,16 @@ std::pair<double, double> BinCubature::segment_rule(bool theta_inner, double a, 
   return {ks * mh, gs * mh};
 }
 
-// segment_rule over a whole inner line of the cell (a = i0, b = i1): the same nodes, their sines and cosines
-// taken from the frame.
-std::pair<double, double> BinCubature::whole_line_rule(const CellFrame& f, bool theta_inner, double outer,
-                                                       long long& evals) const {
-  const double so = std::sin(outer), co = std::cos(outer);
-  double ks = 0, gs = 0;
+// Kronrod and Gauss estimates of the integral along the inner direction from a to b (at `outer`).
+std::pair<double, double> BinCubature::segment_rule(bool theta_inner, double a, double b, double outer,
+                                                    long long& evals) const {
+  const double mc = 0.5 * (a + b), mh = 0.5 * (b - a);
+  std::array<double, 15> sines, cosines;
   for (int i = 0; i < 15; ++i) {
-    const double si = f.sin_xs[i + 1], ci = f.cos_xs[i + 1];
-    const double val = theta_inner ? integrand_of_trig(si, ci, so, co) : integrand_of_trig(so, co, si, ci);
-    ks += rule_.wk[i] * val;
-    gs += rule_.wg[i] * val;
+    const double inner = mc + mh * rule_.x[i];
+    sines[i] = std::sin(inner), cosines[i] = std::cos(inner);
   }
-  evals += 15;
-  const double mh = 0.5 * (f.i1 - f.i0);
-  return {ks * mh, gs * mh};
+  return rule_at_nodes(theta_inner, sines.data(), cosines.data(), outer, mh, evals);
 }
 
 // Kronrod and Gauss estimates along inner line j: in one piece, or piecewise between the cuts.
@@ -397,7 +393,8 @@ std::pair<double, double> BinCubature::line_rule(const CellFrame& f, bool theta_
                                                  const std::vector<double>& grid, long long& evals) const {
   LineCuts cuts;
   cut_line(f, theta_inner, j, outer, grid, cuts, evals);
-  if (cuts.n == 1) return whole_line_rule(f, theta_inner, outer, evals);
+  // Uncut: the whole line, whose nodes' sines and cosines the frame holds.
+  if (cuts.n == 1) return rule_at_nodes(theta_inner, &f.sin_xs[1], &f.cos_xs[1], outer, 0.5 * (f.i1 - f.i0), evals);
   cuts.at[cuts.n++] = f.i1;
   std::sort(cuts.at.begin(), cuts.at.begin() + cuts.n);
   double lk = 0, lg = 0;
