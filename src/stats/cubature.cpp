@@ -234,7 +234,7 @@ private:
 
   std::vector<double> band_pieces(int bin) const;
   std::vector<Cell> focus_phase(int bin, const std::vector<FocusPoint>& focus) const;
-  int break_grid(const Cell& c, bool theta_inner, std::vector<double>& values, long long& evals) const;
+  int break_grid(const CellFrame& f, bool theta_inner, std::vector<double>& values, long long& evals) const;
   double break_root(bool theta_inner, std::size_t k, double outer, double lo, double hi, double flo, double fhi,
                     long long& evals) const;
   void cut_line(const CellFrame& f, bool theta_inner, int j, double outer, const std::vector<double>& grid,
@@ -244,7 +244,7 @@ private:
                                           double mh, long long& evals) const;
   std::pair<double, double> line_rule(const CellFrame& f, bool theta_inner, int j, double outer,
                                       const std::vector<double>& grid, long long& evals) const;
-  void nested(Cell& c, bool theta_inner, const std::vector<double>& grid, long long& evals) const;
+  void nested(Cell& c, const CellFrame& f, bool theta_inner, const std::vector<double>& grid, long long& evals) const;
   void evaluate(Cell& c, long long& evals) const;
   void add_cell(Refinement& r, Cell c) const;
   void refine_worst(Refinement& r, bool along_theta) const;
@@ -305,8 +305,7 @@ std::vector<Cell> BinCubature::focus_phase(int bin, const std::vector<FocusPoint
 
 // Break-function values on the 15 inner lines x 17 grid points of a cell (CellFrame), inner direction
 // theta (theta_inner) or phi; returns how many lines see a sign change.
-int BinCubature::break_grid(const Cell& c, bool theta_inner, std::vector<double>& values, long long& evals) const {
-  const CellFrame f(c, theta_inner, rule_);
+int BinCubature::break_grid(const CellFrame& f, bool theta_inner, std::vector<double>& values, long long& evals) const {
   values.resize(n_breaks_ * 15 * 17);
   const std::array<double, 17>& s_inner = f.sin_xs;
   const std::array<double, 17>& c_inner = f.cos_xs;
@@ -410,8 +409,8 @@ std::pair<double, double> BinCubature::line_rule(const CellFrame& f, bool theta_
 
 // Nested Gauss-Kronrod (K15 x K15, error against G7 x G7) over a cell, the inner integral along theta
 // (theta_inner) or along phi, each inner line cut where a break function changes sign (line_rule).
-void BinCubature::nested(Cell& c, bool theta_inner, const std::vector<double>& grid, long long& evals) const {
-  const CellFrame f(c, theta_inner, rule_);
+void BinCubature::nested(Cell& c, const CellFrame& f, bool theta_inner, const std::vector<double>& grid,
+                         long long& evals) const {
   double k = 0, g = 0, inner_err = 0, outer_err = 0;
   for (int j = 0; j < 15; ++j) {
     const double outer = f.oc + f.oh * rule_.x[j];
@@ -432,19 +431,24 @@ void BinCubature::nested(Cell& c, bool theta_inner, const std::vector<double>& g
 // With break curves, the inner direction is the one whose lines the curves cross most often: lines
 // parallel to a curve can miss it (a sliver between two nodes), lines across it cannot.
 void BinCubature::evaluate(Cell& c, long long& evals) const {
+  const CellFrame theta_frame(c, true, rule_);
   if (n_breaks_ == 0) {
     static const std::vector<double> none;
-    nested(c, true, none, evals);
+    nested(c, theta_frame, true, none, evals);
     return;
   }
   std::vector<double> theta_grid, phi_grid;
-  const int theta_cuts = break_grid(c, true, theta_grid, evals);
+  const int theta_cuts = break_grid(theta_frame, true, theta_grid, evals);
   // Every theta line cut: the phi order cannot see more crossings.
-  const int phi_cuts = theta_cuts == 15 ? 0 : break_grid(c, false, phi_grid, evals);
-  if (phi_cuts > theta_cuts) {
-    nested(c, false, phi_grid, evals);
+  if (theta_cuts == 15) {
+    nested(c, theta_frame, true, theta_grid, evals);
+    return;
+  }
+  const CellFrame phi_frame(c, false, rule_);
+  if (break_grid(phi_frame, false, phi_grid, evals) > theta_cuts) {
+    nested(c, phi_frame, false, phi_grid, evals);
   } else {
-    nested(c, true, theta_grid, evals);
+    nested(c, theta_frame, true, theta_grid, evals);
   }
 }
 
