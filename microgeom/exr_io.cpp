@@ -232,8 +232,8 @@ double max_compression_ratio(Imf::Compression c) {
   }
 }
 
-// The sizes the header claims, checked before anything is allocated for them: the decoded float data
-// against `max_decoded_bytes`, and what the file must then hold (its chunk offset table, and the pixel
+// The sizes the header claims, checked before anything is allocated for them: the decoded float data,
+// and one tile or chunk of scan lines, against `max_decoded_bytes`, and what the file must then hold (its chunk offset table, and the pixel
 // data where the compression bounds its ratio) against the file's size.
 void check_claimed_size(const Imf::Header& header, int version, std::uint64_t file_bytes,
                         std::uint64_t max_decoded_bytes) {
@@ -261,6 +261,13 @@ void check_claimed_size(const Imf::Header& header, int version, std::uint64_t fi
     chunks = std::ceil(w / t.xSize) * std::ceil(h / t.ySize);  // level 0 alone: a lower bound
   } else if (const int lines = lines_per_chunk(header.compression()); lines > 0) {
     chunks = std::ceil(h / lines);
+    // OpenEXR sizes its line buffer and its decompressor's buffers for a whole chunk of `lines` scan
+    // lines, however few lines the image has: a one-line image of DWAB compression allocates 256 lines.
+    if (w * lines * channels * 4 > double(max_decoded_bytes))
+      throw std::runtime_error(fmt::format(
+          "the header claims scan lines of {} pixels x {} channel{}, which its compression decodes {} lines at a "
+          "time: {} of float data, over the limit of {}", w, channels, channels == 1 ? "" : "s", lines,
+          format_bytes(w * lines * channels * 4), format_bytes(double(max_decoded_bytes))));
   }
   if (chunks * 8 > double(file_bytes))
     throw std::runtime_error(fmt::format("the header claims {} x {} pixels, whose {} chunk offsets alone need more "

@@ -109,6 +109,21 @@ TEST(ExrLimits, AHeaderClaimingMorePixelsThanTheLimitIsRejectedBeforeDecoding) {
   fs::remove_all(dir);
 }
 
+TEST(ExrLimits, AChunkOfScanLinesOverTheLimitIsRejectedHoweverFewLinesTheImageHas) {
+  // OpenEXR decodes ZIP files 16 lines at a time, and allocates for 16 lines even in a one-line image.
+  const fs::path dir = scratch("exr_wide");
+  microgeom::ExrImage img;
+  img.width = img.height = 8;
+  img.add_channel("height");
+  microgeom::write_exr(dir / "small.exr", img);
+  write_bytes(dir / "wide.exr", with_window(read_bytes(dir / "small.exr"), 4096, 1));
+  const std::string m = message_of([&] { microgeom::read_exr(dir / "wide.exr", 32768); });  // 16 KiB of pixels
+  EXPECT_NE(m.find("scan lines of 4096 pixels x 1 channel, which its compression decodes 16 lines at a time: "
+                   "262144 bytes of float data, over the limit of 32768 bytes"), std::string::npos) << m;
+  EXPECT_NE(m.find("wide.exr"), std::string::npos) << m;
+  fs::remove_all(dir);
+}
+
 TEST(ExrLimits, AnAttributeDeclaringMoreBytesThanTheFileIsRejected) {
   const fs::path dir = scratch("exr_attr");
   microgeom::ExrImage img;

@@ -90,6 +90,10 @@ def set_window(w, h):
     return lambda attrs: [(n, t, box if n in (b"dataWindow", b"displayWindow") else v) for n, t, v in attrs]
 
 
+def set_compression(c):
+    return lambda attrs: [(n, t, bytes([c]) if n == b"compression" else v) for n, t, v in attrs]
+
+
 def heightmap(n, tile_size="1", channel=b"height", ptype=2):
     """An uncompressed single-channel heightmap of n x n (FLOAT: ptype 2, HALF: 1)."""
     def attr(name, typ, value):
@@ -142,6 +146,11 @@ put("heightmap_exr", "good_float", heightmap(4))
 put("heightmap_exr", "good_half_y", heightmap(3, "2.5", channel=b"Y", ptype=1))
 put("heightmap_exr", "bad_nan_tile_size", heightmap(2, "nan"))
 put("heightmap_exr", "bad_not_square", exr_edit(heightmap(4), set_window(2, 4)))
+# One scan line of 12 MiB: within the fuzz targets' limit of pixel data, but DWAA and B44 decode 32 lines
+# at a time and DWAB 256, and OpenEXR sizes its buffers for a whole chunk.
+for name, c in (("dwaa", 8), ("b44", 6), ("dwab", 9)):
+    put("heightmap_exr", "bad_wide_line_" + name,
+        exr_edit(heightmap(4), lambda a, c=c: set_compression(c)(set_window(3 << 20, 1)(a))))
 
 # ---- numbers -------------------------------------------------------------------------------------------
 for i, token in enumerate([b"0", b"18446744073709551615", b"18446744073709551616", b"-1", b"0.3,0.25",
