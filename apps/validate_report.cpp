@@ -86,6 +86,8 @@ void print_tests(const ValidationReport& r) {
   for (const SubTest& c : r.checks) {
     if (c.name == "dropped_fraction")
       print_check("dropped samples", c, fmt::format("{:.4f}%", 100 * c.value), fmt_p(c.p_value));
+    if (c.name == "bsdf_weight_sign" && !c.passed)
+      print_check("weights: negative", c, fmt::format("{:.0f}", c.value), "0");
     if (c.name == "bsdf_albedo") print_check("weights: BSDF albedo", c, fmt::format("{:.6g}", c.value), fmt_p(c.p_value));
     if (c.name == "bsdf_bins")
       print_check("weights: BSDF flux per bin", c, fmt::format("z {:.2f}", c.value), fmt_p(c.p_value));

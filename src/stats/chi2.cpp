@@ -3,6 +3,7 @@
 #include "stats/json_values.h"
 
 #include <boost/math/distributions/chi_squared.hpp>
+#include <boost/math/special_functions/gamma.hpp>
 #include <boost/math/tools/minima.hpp>
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
@@ -356,6 +357,19 @@ double sidak_adjusted_p(double p_min, int n_tests) {
   if (n_tests < 1) throw std::invalid_argument(fmt::format("sidak_adjusted_p: n_tests must be >= 1, got {}", n_tests));
   if (!(p_min < 1)) return 1.0;
   return -std::expm1(n_tests * std::log1p(-std::max(p_min, 0.0)));
+}
+
+double skewed_mean_p(double deviation, double se, double skew) {
+  if (!std::isfinite(deviation)) return 0.0;
+  if (!(se > 0)) return deviation == 0 ? 1.0 : 0.0;
+  // Nearly symmetric: the normal (the gamma's shape would pass 4e6, where Boost's series can fail to converge).
+  if (!(std::abs(skew) >= 1e-3)) return std::min(1.0, std::erfc(std::abs(deviation / se) / std::sqrt(2.0)));
+  // X = G - k theta, G ~ Gamma(k, theta): mean 0, sd se, skewness 2 / sqrt(k); mirrored for a negative skew.
+  const double k = 4 / (skew * skew), theta = se * std::abs(skew) / 2;
+  const double g = (skew > 0 ? deviation : -deviation) / theta + k;  // G / theta at the deviation
+  if (g <= 0) return 0.0;                                            // below the gamma's support
+  const double lower = boost::math::gamma_p(k, g), upper = boost::math::gamma_q(k, g);
+  return std::min(1.0, 2 * std::min(lower, upper));
 }
 
 KolmogorovResult ks_test_uniform(std::span<const double> values) {

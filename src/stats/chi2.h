@@ -121,6 +121,14 @@ double sidak_significance(double alpha, int n_tests);
 // The family-wise p-value of the smallest of n p-values: 1 - (1 - p_min)^n.
 double sidak_adjusted_p(double p_min, int n_tests);
 
+// Two-sided p of a sample mean's deviation from its expectation, given its standard error `se` and
+// skewness `skew` under the null: the translated gamma with those three moments (Seal 1977, "Approximations
+// to risk theory's F(x, t) by means of the gamma distribution", ASTIN Bulletin 9), the normal when
+// |skew| < 1e-3. A mean of few nonzero terms (a bin that few samples reach) is skewed; the normal's tails
+// then misstate p by a factor of a few at the levels a Sidak correction over hundreds of bins asks.
+// p = 2 min(P(X <= deviation), P(X >= deviation)), at most 1; 0 for a non-finite deviation.
+double skewed_mean_p(double deviation, double se, double skew);
+
 // One-sample Kolmogorov-Smirnov test of values against the uniform distribution on [0, 1]
 // (e.g. p-values under a null): D = sup |F_n - F|, p from the asymptotic Kolmogorov distribution
 // with Stephens' small-sample correction (Stephens 1970): lambda = (sqrt(n) + 0.12 + 0.11 / sqrt(n)) D.

@@ -7,6 +7,7 @@
 
 #include "microfacet/bsdf_samplers.h"
 #include "validate/validate.h"
+#include "validate/weight_test.h"
 
 #include <memory>
 #include <optional>
@@ -40,7 +41,7 @@ ClaimedDensity file_claimed_density(FilePdf pdf, const std::optional<Material>& 
 // over two binnings and of the BSDF's flux over the sphere bins).
 struct BsdfReference {
   std::shared_ptr<const ReferenceDistribution> directions;
-  std::vector<std::vector<double>> flux;  // expected weight per sample, [channel][sphere bin], in `convention`
+  ExpectedWeights flux;  // expected weight per sample and its square, per channel and sphere bin, in `convention`
   BsdfConvention convention;
 };
 BsdfReference bsdf_reference(const Material& bsdf, const BsdfConvention& convention, const GGX<double>& ggx,

@@ -10,6 +10,8 @@
 #include <cmath>
 #include <functional>
 #include <stdexcept>
+#include <tuple>
+#include <utility>
 
 namespace microsim {
 
@@ -29,71 +31,102 @@ double bsdf_flux(const GGX<double>& ggx, const Material& bsdf, const BsdfConvent
   return 0.0;
 }
 
-// Two-sided p of z (0 for a non-finite z: NaN weights reject).
-double two_sided_p(double z) { return std::isfinite(z) ? std::erfc(std::abs(z) / std::sqrt(2.0)) : 0.0; }
+// A mean weight over n samples against its moments under the reference (one sample's E[w^j 1_B], j = 1..3):
+// z = (sum / n - m1) / se, se = sqrt((m2 - m1^2) / n) (with a floor of 1e-12 relative for rounding), and the
+// two-sided p from the translated gamma of the mean's skewness (stats/chi2.h skewed_mean_p).
+struct MeanTest {
+  double z = 0, p = 1;
+};
 
-// z of a mean weight: (sum / n - expected) / its standard error from the sums (with a floor of 1e-12
-// relative for rounding).
-double mean_z(double sum, double sum_sq, double n, double expected) {
-  const double mean = sum / n, var = std::max(sum_sq / n - mean * mean, 0.0);
-  const double se = std::sqrt(var / n + 1e-24 * expected * expected);
-  return se > 0 ? (mean - expected) / se : (mean == expected ? 0.0 : INFINITY);
+MeanTest mean_test(double sum, double n, double m1, double m2, double m3) {
+  const double var = std::max(m2 - m1 * m1, 0.0), se = std::sqrt(var / n + 1e-24 * m1 * m1);
+  const double deviation = sum / n - m1;
+  const double mu3 = m3 - 3 * m1 * m2 + 2 * m1 * m1 * m1;  // one sample's third central moment
+  const double skew = var > 0 ? mu3 / (var * std::sqrt(var) * std::sqrt(n)) : 0.0;
+  const double z = se > 0 ? deviation / se : (deviation == 0 ? 0.0 : INFINITY);
+  return {z, skewed_mean_p(deviation, se, skew)};
 }
 
-// The mean weight per channel against the albedo (the sum of the expected bin weights `e`, already scaled).
-SubTest albedo_test(const WeightSums& s, const std::vector<std::vector<double>>& e, double n, const Material& bsdf,
-                    const ValidationOptions& options) {
-  double p_min = 1;
-  std::vector<double> albedo, measured;
-  for (std::size_t c = 0; c < e.size(); ++c) {
-    double sum = 0, sum_sq = 0, total = 0;
-    for (std::size_t b = 0; b < e[c].size(); ++b) {
-      sum += s.sum[c][b];
-      sum_sq += s.sum_sq[c][b];
-      total += e[c][b];
-    }
-    albedo.push_back(total);
-    measured.push_back(sum / n);
-    p_min = std::min(p_min, two_sided_p(mean_z(sum, sum_sq, n, total)));
+// No negative weight: a BSDF and a pdf are never negative, and a few negative weights hide in a mean.
+SubTest sign_check(const WeightSums& s) {
+  SubTest t;
+  t.name = "bsdf_weight_sign";
+  t.label = "negative weights";
+  t.passed = s.negative == 0;
+  t.value = double(s.negative);
+  t.detail = t.passed ? "none"
+                      : fmt::format("{} of {} samples have a negative weight (the first: sample {}, weight {:.6g})",
+                                    s.negative, s.rows, s.first_negative_row, s.first_negative);
+  return t;
+}
+
+// One channel's mean weight over all bins against its albedo.
+struct ChannelAlbedo {
+  double p = 2, mean = 0, sd = 0, albedo = 0, albedo_sd = 0;
+  int channel = 0;
+};
+
+ChannelAlbedo channel_albedo(const WeightSums& s, const ExpectedWeights& e, double n, std::size_t c) {
+  double sum = 0, sum_sq = 0, albedo = 0, square = 0, cube = 0;
+  for (std::size_t b = 0; b < e.mean[c].size(); ++b) {
+    sum += s.sum[c][b];
+    sum_sq += s.sum_sq[c][b];
+    albedo += e.mean[c][b];
+    square += e.square[c][b];
+    cube += e.cube[c][b];
   }
+  return {mean_test(sum, n, albedo, square, cube).p, sum / n, std::sqrt(std::max(sum_sq / n - sqr(sum / n), 0.0)),
+          albedo, std::sqrt(std::max(square - sqr(albedo), 0.0)), int(c)};
+}
+
+// The mean weight per channel against the albedo (the sums over the bins of the expected weights `e`, already
+// scaled); the figures shown are those of the channel of the smallest p.
+SubTest albedo_test(const WeightSums& s, const ExpectedWeights& e, double n, const Material& bsdf,
+                    const ValidationOptions& options) {
+  ChannelAlbedo worst;
+  for (std::size_t c = 0; c < e.mean.size(); ++c)
+    if (const ChannelAlbedo a = channel_albedo(s, e, n, c); a.p < worst.p) worst = a;
   SubTest t;
   t.name = "bsdf_albedo";
   t.label = "BSDF albedo (mean weight)";
   t.statistical = true;
-  t.p_value = sidak_adjusted_p(p_min, int(e.size()));
-  t.value = measured.front();
-  t.tolerance = albedo.front();
+  t.p_value = sidak_adjusted_p(std::min(worst.p, 1.0), int(e.mean.size()));
+  t.value = worst.mean;
+  t.tolerance = worst.albedo;
   const std::string dropped =
       options.dropped_below_horizon ? fmt::format(" + {} dropped", *options.dropped_below_horizon) : "";
-  t.detail = fmt::format("mean weight {:.6g} vs the BSDF's directional albedo {:.6g} ({}, {}; {} samples{})",
-                         measured.front(), albedo.front(), bsdf.describe(), describe(options.convention), s.rows, dropped);
+  const std::string channel = e.mean.size() > 1 ? fmt::format(", channel {}", bsdf.channel_name(worst.channel)) : "";
+  t.detail = fmt::format("mean weight {:.6g} vs the BSDF's directional albedo {:.6g} ({}{}, {}; {} samples{}); the "
+                         "weights' standard deviation {:.4g} vs the BSDF's {:.4g}",
+                         worst.mean, worst.albedo, bsdf.describe(), channel, describe(options.convention), s.rows,
+                         dropped, worst.sd, worst.albedo_sd);
   return t;
 }
 
 // The mean weight per bin (with at least kMinWeightBinSamples samples) and channel against the flux.
-SubTest bins_test(const WeightSums& s, const std::vector<std::vector<double>>& e, double n, const DirectionBinning& sphere,
+SubTest bins_test(const WeightSums& s, const ExpectedWeights& e, double n, const DirectionBinning& sphere,
                   const Material& bsdf) {
-  double worst_z = 0;
+  MeanTest worst_test;
   int tested = 0;
   std::string worst;
-  for (std::size_t c = 0; c < e.size(); ++c)
-    for (std::size_t b = 0; b < e[c].size(); ++b) {
+  for (std::size_t c = 0; c < e.mean.size(); ++c)
+    for (std::size_t b = 0; b < e.mean[c].size(); ++b) {
       if (s.samples[b] < kMinWeightBinSamples) continue;
       ++tested;
-      const double z = mean_z(s.sum[c][b], s.sum_sq[c][b], n, e[c][b]);
-      if (std::isnan(worst_z) || std::abs(z) <= std::abs(worst_z)) continue;  // a NaN weight stays the worst
-      worst_z = z;
+      const MeanTest test = mean_test(s.sum[c][b], n, e.mean[c][b], e.square[c][b], e.cube[c][b]);
+      if (std::isnan(worst_test.z) || !(test.p < worst_test.p || std::isnan(test.z))) continue;  // NaN stays the worst
+      worst_test = test;
       worst = fmt::format("{} ({}): mean weight {:.4g} vs flux {:.4g}", sphere.describe_bin(int(b)),
-                          bsdf.channel_name(int(c)), s.sum[c][b] / n, e[c][b]);
+                          bsdf.channel_name(int(c)), s.sum[c][b] / n, e.mean[c][b]);
     }
   SubTest t;
   t.name = "bsdf_bins";
   t.label = "BSDF flux per bin (mean weight)";
   t.applicable = t.statistical = tested > 0;
-  t.p_value = tested > 0 ? sidak_adjusted_p(two_sided_p(worst_z), tested) : 1.0;
-  t.value = worst_z;
+  t.p_value = tested > 0 ? sidak_adjusted_p(worst_test.p, tested) : 1.0;
+  t.value = worst_test.z;
   t.detail = tested > 0 ? fmt::format("{} bin-channels with >= {} samples; worst z = {:.2f} at {}", tested,
-                                      kMinWeightBinSamples, worst_z, worst)
+                                      kMinWeightBinSamples, worst_test.z, worst)
                         : "not applicable: no bin holds enough samples";
   return t;
 }
@@ -125,11 +158,9 @@ std::vector<SubTest> weight_tests_of(const std::function<DirectionSampleReader()
                                      const ReferenceDistribution& ref, const Material& bsdf,
                                      const ValidationOptions& options) {
   check_weight_inputs(columns, ref, bsdf);
-  std::vector<std::vector<double>> expected = expected_bin_weights(ref, bsdf, options.convention);
+  ExpectedWeights expected = expected_bin_weights(ref, bsdf, options.convention);
   // Conditioned on the kept samples without the dropped count: the kept samples' mean weight.
-  if (ref.kept_only && !options.dropped_below_horizon)
-    for (auto& channel : expected)
-      for (double& e : channel) e /= ref.kept_mass;
+  if (ref.kept_only && !options.dropped_below_horizon) expected.divide(ref.kept_mass);
   DirectionSampleReader reader = open();
   const WeightSums s = sum_weights(reader, ref.sphere, bsdf.channels());
   const double n = double(s.rows + options.dropped_below_horizon.value_or(0));
@@ -149,11 +180,14 @@ void WeightSums::add(const FastDirectionBinner& binner, std::span<const Vec3<dou
   rows += n;
   for (std::size_t i = 0; i < n; ++i) {
     if (!directions[i].allFinite()) continue;  // the sampler's failure: weighs nothing, counted in rows
+    const auto row = weights.subspan(i * channels, channels);
+    if (const auto w = std::find_if(row.begin(), row.end(), [](double x) { return x < 0; }); w != row.end())
+      if (negative++ == 0) std::tie(first_negative_row, first_negative) = std::pair(rows - n + i + 1, *w);
     const int b = binner(directions[i]);
     if (b < 0) continue;
     ++samples[std::size_t(b)];
     for (std::size_t c = 0; c < channels; ++c) {
-      const double w = weights[i * channels + c];
+      const double w = row[c];
       sum[c][std::size_t(b)] += w;
       sum_sq[c][std::size_t(b)] += w * w;
     }
@@ -161,6 +195,9 @@ void WeightSums::add(const FastDirectionBinner& binner, std::span<const Vec3<dou
 }
 
 void WeightSums::merge(const WeightSums& other) {
+  if (negative == 0 && other.negative > 0)
+    std::tie(first_negative_row, first_negative) = std::pair(rows + other.first_negative_row, other.first_negative);
+  negative += other.negative;
   rows += other.rows;
   for (std::size_t b = 0; b < samples.size(); ++b) samples[b] += other.samples[b];
   for (std::size_t c = 0; c < sum.size(); ++c)
@@ -201,8 +238,14 @@ std::vector<DirectionFunction> dielectric_breaks(const Vec3<double>& wi, double 
   return breaks;
 }
 
-std::vector<std::vector<double>> expected_bin_weights(const ReferenceDistribution& ref, const Material& bsdf,
-                                                      const BsdfConvention& convention) {
+void ExpectedWeights::divide(double s) {
+  for (auto* moments : {&mean, &square, &cube})
+    for (auto& channel : *moments)
+      for (double& e : channel) e /= s;
+}
+
+ExpectedWeights expected_bin_weights(const ReferenceDistribution& ref, const Material& bsdf,
+                                     const BsdfConvention& convention) {
   IntegrationOptions o;
   o.focus = ref.lobe.lattice_directions(4096);
   if (bsdf.transmits()) {
@@ -210,17 +253,28 @@ std::vector<std::vector<double>> expected_bin_weights(const ReferenceDistributio
     o.focus.insert(o.focus.end(), refracted.begin(), refracted.end());
   }
   o.z_breaks = {0.0, -ref.wi.z()};
-  std::vector<std::vector<double>> e;
-  for (int c = 0; c < bsdf.channels(); ++c)
-    e.push_back(
-        ref.sphere.integrate([&](const Vec3<double>& wo) { return bsdf_flux(ref.ggx, bsdf, convention, c, ref.wi, wo); }, o)
-            .probability);
+  ExpectedWeights e;
+  for (int c = 0; c < bsdf.channels(); ++c) {
+    const auto flux = [&](const Vec3<double>& wo) { return bsdf_flux(ref.ggx, bsdf, convention, c, ref.wi, wo); };
+    e.mean.push_back(ref.sphere.integrate(flux, o).probability);
+    // (f cos)^2 / pdf: the weight times the flux; 0 where the pdf is (no sample lands there).
+    const auto square = [&](const Vec3<double>& wo) {
+      const double p = ref.returned_pdf(wo), f = flux(wo);
+      return p > 0 ? f * f / p : 0.0;
+    };
+    e.square.push_back(ref.sphere.integrate(square, o).probability);
+    const auto cube = [&](const Vec3<double>& wo) {  // (f cos)^3 / pdf^2: E[w^3 1_B]'s integrand
+      const double p = ref.returned_pdf(wo), f = flux(wo);
+      return p > 0 ? f * sqr(f / p) : 0.0;
+    };
+    e.cube.push_back(ref.sphere.integrate(cube, o).probability);
+  }
   return e;
 }
 
-std::vector<SubTest> weight_checks(const WeightSums& sums, const std::vector<std::vector<double>>& expected, double n,
+std::vector<SubTest> weight_checks(const WeightSums& sums, const ExpectedWeights& expected, double n,
                                    const DirectionBinning& sphere, const Material& bsdf, const ValidationOptions& options) {
-  return {albedo_test(sums, expected, n, bsdf, options), bins_test(sums, expected, n, sphere, bsdf)};
+  return {sign_check(sums), albedo_test(sums, expected, n, bsdf, options), bins_test(sums, expected, n, sphere, bsdf)};
 }
 
 std::vector<SubTest> bsdf_weight_tests(const std::filesystem::path& file, const SampleColumns& columns, SampleFrame frame,

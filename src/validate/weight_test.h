@@ -3,9 +3,12 @@
 // A renderer's sample() returns a direction wo with the weight w = f(wi, wo) cos(wo) / pdf(wo). Whatever
 // pdf drew wo, E[w 1_B(wo)] = the integral over B of f(wi, wo) cos(wo) dwo (the estimator is unbiased), so
 // the mean weight per sample in a bin B of the sphere binning must equal the BSDF's single-scattering flux
-// into B, and the mean weight over all samples the directional albedo: tests of the weights alone,
-// independent of how the directions were drawn. Each is a z-score with the samples' own variance of
-// w 1_B (per channel); the albedo test takes the channels' smallest p, the bin test the smallest p over
+// into B, and the mean weight over all samples the directional albedo. Each is a z-score whose variance
+// is the one w 1_B has under the reference (directions drawn from its pdf, weights f cos / returned pdf:
+// E[w^2 1_B] - E[w 1_B]^2), not the samples' own: a few huge weights (fireflies) would inflate the
+// samples' variance with the mean and pass at z ~ sqrt(their count), and bins that come out low would get
+// too small a variance. Its p comes from the mean's skewness under the reference too (E[w^3 1_B]): a bin
+// that few samples reach holds a skewed sum. The albedo test takes the channels' smallest p, the bin test the smallest p over
 // the bins with at least kMinWeightBinSamples samples and the channels, each Sidak-corrected. They catch
 // a weight without G1(wo), a wrong Fresnel, a wrong Jacobian, a roughness squared twice, even when the
 // directions are right. Reflected directions of a mirror or conductor BSDF (microfacet/bsdf.h:
@@ -34,6 +37,9 @@ struct WeightSums {
   std::vector<std::vector<double>> sum, sum_sq;  // [channel][bin]
   std::vector<std::uint64_t> samples;            // per bin
   std::uint64_t rows = 0;                        // every sample given, lost ones included
+  std::uint64_t negative = 0;                    // samples with a negative weight in some channel
+  std::uint64_t first_negative_row = 0;          // the first one's 1-based index among the rows
+  double first_negative = 0;                     // and its weight
   WeightSums(int channels, int bins);
   // n directions with their weights (channels per row, row-major); a non-finite direction or one outside
   // the binning weighs nothing but counts in rows.
@@ -52,15 +58,23 @@ std::vector<Vec3<double>> refracted_lobe_focus(const DirectionBinning& lobe, con
 // reflection (<wi, m> = sqrt(1 - eta^2), where F has a kink and 1 - F ends).
 std::vector<DirectionFunction> dielectric_breaks(const Vec3<double>& wi, double eta);
 
-// The expected weight per sample in every sphere bin of `ref`, per channel of `bsdf`: the integral of
-// f(wi, wo) |wo.z| over the bin, f in the renderer's `convention` (transport mode, masking form:
-// bsdf_convention.h) (mirror, conductor: reflected directions; dielectric: reflection and refraction over the
-// whole sphere, the cubature focused on the refracted lobe too).
-std::vector<std::vector<double>> expected_bin_weights(const ReferenceDistribution& ref, const Material& bsdf,
-                                                      const BsdfConvention& convention);
+// What one sample contributes on average to a sphere bin B under the reference, per channel: E[w 1_B], the
+// integral of f(wi, wo) |wo.z| over B (the BSDF's flux), E[w^2 1_B] and E[w^3 1_B], the integrals of
+// (f |wo.z|)^j / pdf^(j-1) (w = f |wo.z| / pdf, the returned pdf).
+struct ExpectedWeights {
+  std::vector<std::vector<double>> mean, square, cube;  // [channel][bin]
+  void divide(double s);  // all three, by s (a reference conditioned on its kept mass)
+};
 
-// The checks "bsdf_albedo" and "bsdf_bins" of sums over n samples (lost ones weigh 0) against `expected`.
-std::vector<SubTest> weight_checks(const WeightSums& sums, const std::vector<std::vector<double>>& expected, double n,
+// The expected weights in every sphere bin of `ref`, per channel of `bsdf`, f in the renderer's `convention`
+// (transport mode, masking form: bsdf_convention.h) (mirror, conductor: reflected directions; dielectric:
+// reflection and refraction over the whole sphere, the cubature focused on the refracted lobe too).
+ExpectedWeights expected_bin_weights(const ReferenceDistribution& ref, const Material& bsdf,
+                                     const BsdfConvention& convention);
+
+// The checks "bsdf_weight_sign" (no weight is negative: f >= 0, pdf > 0), "bsdf_albedo" and "bsdf_bins" of
+// sums over n samples (lost ones weigh 0) against `expected`.
+std::vector<SubTest> weight_checks(const WeightSums& sums, const ExpectedWeights& expected, double n,
                                    const DirectionBinning& sphere, const Material& bsdf, const ValidationOptions& options);
 
 // The samples of a file, read again with its columns and frame, and their weights (one column per channel

@@ -58,6 +58,14 @@ std::string with_window(std::string exr, int w, int h) {
   return exr;
 }
 
+// An 8 x 8 single-channel EXR, as write_exr writes it (ZIP: 16 scan lines per chunk).
+void write_small_exr(const fs::path& path) {
+  microgeom::ExrImage img;
+  img.width = img.height = 8;
+  img.add_channel("height");
+  microgeom::write_exr(path, img);
+}
+
 }  // namespace
 
 // ---- strict_parse.h ------------------------------------------------------------------------------------
@@ -90,10 +98,7 @@ TEST(StrictParse, ExcerptsAreShortAndEscaped) {
 
 TEST(ExrLimits, AHeaderClaimingMorePixelsThanTheLimitIsRejectedBeforeDecoding) {
   const fs::path dir = scratch("exr_huge");
-  microgeom::ExrImage img;
-  img.width = img.height = 8;
-  img.add_channel("height");
-  microgeom::write_exr(dir / "small.exr", img);
+  write_small_exr(dir / "small.exr");
   write_bytes(dir / "huge.exr", with_window(read_bytes(dir / "small.exr"), 46340, 46340));
   const auto start = std::chrono::steady_clock::now();
   const std::string m = message_of([&] { microgeom::read_exr(dir / "huge.exr"); });
@@ -112,10 +117,7 @@ TEST(ExrLimits, AHeaderClaimingMorePixelsThanTheLimitIsRejectedBeforeDecoding) {
 TEST(ExrLimits, AChunkOfScanLinesOverTheLimitIsRejectedHoweverFewLinesTheImageHas) {
   // OpenEXR decodes ZIP files 16 lines at a time, and allocates for 16 lines even in a one-line image.
   const fs::path dir = scratch("exr_wide");
-  microgeom::ExrImage img;
-  img.width = img.height = 8;
-  img.add_channel("height");
-  microgeom::write_exr(dir / "small.exr", img);
+  write_small_exr(dir / "small.exr");
   write_bytes(dir / "wide.exr", with_window(read_bytes(dir / "small.exr"), 4096, 1));
   const std::string m = message_of([&] { microgeom::read_exr(dir / "wide.exr", 32768); });  // 16 KiB of pixels
   EXPECT_NE(m.find("scan lines of 4096 pixels x 1 channel, which its compression decodes 16 lines at a time: "

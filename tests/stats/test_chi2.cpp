@@ -157,6 +157,23 @@ TEST(ChiSquare, Sidak) {
   EXPECT_THROW(sidak_significance(0.01, 0), std::invalid_argument);
 }
 
+// The mean of m Exp(1) variables is Gamma(m, 1 / m): mean 1, standard error 1 / sqrt(m), skewness 2 / sqrt(m),
+// so the translated gamma is exact there: its tails in closed form for m = 1 and 2.
+TEST(ChiSquare, SkewedMeanPIsTheGammasTails) {
+  EXPECT_NEAR(skewed_mean_p(3.0, 1.0, 2.0), 2 * std::exp(-4.0), 1e-12);               // m = 1, x = 4
+  EXPECT_NEAR(skewed_mean_p(-0.9, 1.0, 2.0), 2 * (1 - std::exp(-0.1)), 1e-12);        // x = 0.1
+  EXPECT_NEAR(skewed_mean_p(-3.0, 1.0, -2.0), 2 * std::exp(-4.0), 1e-12);             // mirrored
+  EXPECT_EQ(skewed_mean_p(-1.5, 1.0, 2.0), 0.0);                                       // x = -0.5: impossible
+  EXPECT_NEAR(skewed_mean_p(2.0, 1 / std::sqrt(2.0), std::sqrt(2.0)), 2 * 7 * std::exp(-6.0), 1e-12);  // m = 2, x = 3
+  // Nearly symmetric: the normal's; never above 1; a non-finite deviation rejects.
+  EXPECT_NEAR(skewed_mean_p(1.959963984540054, 1.0, 0.0), 0.05, 1e-12);
+  EXPECT_NEAR(skewed_mean_p(1.959963984540054, 1.0, 1e-4), 0.05, 1e-5);
+  EXPECT_NEAR(skewed_mean_p(0.0, 1.0, 2.0), 2 * std::exp(-1.0), 1e-12);  // at the mean, not the median
+  EXPECT_EQ(skewed_mean_p(NAN, 1.0, 0.5), 0.0);
+  // The normal misstates the right tail of a skewed mean (the point of it): 3 se above is 0.0366 not 0.0027.
+  EXPECT_GT(skewed_mean_p(3.0, 1.0, 2.0), 10 * skewed_mean_p(3.0, 1.0, 0.0));
+}
+
 TEST(ChiSquare, KolmogorovSmirnov) {
   std::vector<double> grid;
   for (int i = 0; i < 100; ++i) grid.push_back((i + 0.5) / 100);

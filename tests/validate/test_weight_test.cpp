@@ -97,3 +97,45 @@ TEST(BsdfWeights, RefusesWhatItCannotTest) {
   EXPECT_THROW(bsdf_weight_tests("none.txt", one, SampleFrame::z_up, *ref, Material::lambertian(0.5), o), std::invalid_argument);
   EXPECT_THROW(bsdf_weight_tests("none.txt", one, SampleFrame::z_up, *ref, Material::conductor(kGold), o), std::invalid_argument);
 }
+
+// Bugs the samples' own variance hides: a few huge weights (fireflies) raise the variance with the mean, one
+// negative weight moves no mean; and a bug in one channel must be reported in that channel's figures.
+TEST(BsdfWeights, FirefliesANegativeWeightAndOneChannelsBugAreCaught) {
+  const GGX<double> ggx(0.3);
+  const Vec3<double> wi = direction_from_degrees(60.0, 0.0);
+  const auto correct = [&](int c, const Vec3<double>& m, const Vec3<double>& wo) {
+    return fresnel_conductor(wi.dot(m), kGold[std::size_t(c)]) * ggx.G2(wi, wo) / ggx.G1(wi);
+  };
+  // The weight of the k-th call: calls come per sample, channel 0, 1, 2.
+  const auto planted = [&](std::function<double(int, int, double)> edit) {
+    return [correct, edit, calls = 0](int c, const Vec3<double>& m, const Vec3<double>& wo) mutable {
+      return edit(calls++ / 3, c, correct(c, m, wo));
+    };
+  };
+  const std::map<std::string, WeightOf> weights = {
+      {"correct", correct},
+      {"fireflies", planted([](int i, int, double w) { return i == 5 || i == 900 || i == 7000 ? w * 1e5 : w; })},
+      {"negative", planted([](int i, int c, double w) { return i == 5 && c == 1 ? -0.5 : w; })},
+      {"blue", planted([](int, int c, double w) { return c == 2 ? w * 1.03 : w; })},
+  };
+  const std::string blue = Material::conductor(kGold).channel_name(2);
+  for (const auto& [name, weight] : weights) {
+    const fs::path p = write_dump(name, ggx, wi, 200'000, weight);
+    const ValidationReport r = validate_dump(p, ggx, wi);
+    fs::remove(p);
+    const SubTest& sign = r.check("bsdf_weight_sign");
+    const SubTest& albedo = r.check("bsdf_albedo");
+    EXPECT_EQ(r.passed, name == "correct") << name << ": " << (r.failures.empty() ? "" : r.failures.front());
+    EXPECT_EQ(sign.passed, name != "negative") << name << ": " << sign.detail;
+    if (name == "negative") {
+      EXPECT_NE(sign.detail.find("1 of "), std::string::npos) << sign.detail;
+    }
+    if (name == "fireflies") {
+      EXPECT_LT(albedo.p_value, 1e-6) << albedo.detail;
+    }
+    if (name == "blue") {
+      EXPECT_LT(albedo.p_value, 1e-6) << albedo.detail;
+      EXPECT_NE(albedo.detail.find("channel " + blue), std::string::npos) << albedo.detail;
+    }
+  }
+}
