@@ -332,6 +332,9 @@ NpyLayout read_npy_layout(const std::filesystem::path& path, std::string_view by
   if (h.shape.size() != 2)
     fail(path, "unsupported NPY shape " + shape_string(h.shape) + " (expected (N, " + std::to_string(columns.count) +
                    "): " + columns.describe() + ")");
+  if (h.shape[1] != std::uint64_t(columns.count) && h.shape[0] == std::uint64_t(columns.count))
+    fail(path, "NPY shape " + shape_string(h.shape) + ": one sample per column; the rows are samples, shape (N, " +
+                   std::to_string(columns.count) + "): save the transpose (numpy: np.save(path, a.T))");
   if (h.shape[1] != std::uint64_t(columns.count))
     fail(path, "NPY shape " + shape_string(h.shape) + ": the file has " + std::to_string(h.shape[1]) + " column(s), " +
                    column_count_advice(columns, h.shape[1]));

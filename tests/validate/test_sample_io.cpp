@@ -522,6 +522,13 @@ TEST_F(SampleIo, ExtraColumnsGoToPdfsAndWeights) {
     EXPECT_NE(std::string(e.what()).find("the file has 4 column(s), --columns x,y,z (the default) names 3: give "
                                          "--columns x,y,z,- ('-' ignores a column)"), std::string::npos) << e.what();
   }
+  try {  // numpy's (3, N): one sample per column
+    DirectionSampleReader columns(write_bytes("t.npy", npy_bytes(1, 0, dict("<f8", "(3, 4)"), f8_data({0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 1, 1}))));
+    ADD_FAILURE() << "no error";
+  } catch (const SampleFileError& e) {
+    EXPECT_NE(std::string(e.what()).find("one sample per column; the rows are samples, shape (N, 3): save the transpose"),
+              std::string::npos) << e.what();
+  }
   DirectionSampleReader short_text(write_bytes("short.txt", "0 0 1 0.5\n"), c);
   EXPECT_THROW(short_text.read(d, pdfs, weights), SampleFileError);
 }
