@@ -50,6 +50,15 @@ ValidationReport validate_dump(const fs::path& p, const GGX<double>& ggx, const 
   return validate_sample_file(reader, d.domain, ggx, wi, o, density_reference(d, ggx, wi, o.rows));
 }
 
+// The validation of a dump of 2e5 samples with these weights (the dump removed after).
+ValidationReport validate_weights(const std::string& name, const GGX<double>& ggx, const Vec3<double>& wi,
+                                  const WeightOf& weight) {
+  const fs::path p = write_dump(name, ggx, wi, 200'000, weight);
+  ValidationReport r = validate_dump(p, ggx, wi);
+  fs::remove(p);
+  return r;
+}
+
 }  // namespace
 
 TEST(BsdfWeights, ACorrectConductorSamplerPassesAndRenderersBugsAreRejected) {
@@ -68,9 +77,7 @@ TEST(BsdfWeights, ACorrectConductorSamplerPassesAndRenderersBugsAreRejected) {
          return fresnel_conductor(wi.dot(m), kGold[std::size_t(c)]) * squared.G2(wi, wo) / squared.G1(wi); }},
   };
   for (const auto& [name, weight] : weights) {
-    const fs::path p = write_dump(name, ggx, wi, 200'000, weight);
-    const ValidationReport r = validate_dump(p, ggx, wi);
-    fs::remove(p);
+    const ValidationReport r = validate_weights(name, ggx, wi, weight);
     const SubTest& albedo = r.check("bsdf_albedo");
     const SubTest& bins = r.check("bsdf_bins");
     ASSERT_TRUE(albedo.statistical && bins.statistical) << name;
@@ -120,9 +127,7 @@ TEST(BsdfWeights, FirefliesANegativeWeightAndOneChannelsBugAreCaught) {
   };
   const std::string blue = Material::conductor(kGold).channel_name(2);
   for (const auto& [name, weight] : weights) {
-    const fs::path p = write_dump(name, ggx, wi, 200'000, weight);
-    const ValidationReport r = validate_dump(p, ggx, wi);
-    fs::remove(p);
+    const ValidationReport r = validate_weights(name, ggx, wi, weight);
     const SubTest& sign = r.check("bsdf_weight_sign");
     const SubTest& albedo = r.check("bsdf_albedo");
     EXPECT_EQ(r.passed, name == "correct") << name << ": " << (r.failures.empty() ? "" : r.failures.front());
