@@ -154,7 +154,9 @@ public:
         // where the claimed pdf is ill-conditioned (a jump, or D at alpha = 1e-3 seen through a
         // cancelling half vector) that alone can change the analytic pdf by more than the tolerance.
         direction_rounding_(precision == Precision::float32 ? 2 * 0x1p-24 : 2 * 0x1p-53),
-        pdf_tol_(returned_pdf_tolerance(options, precision)), back_(ref.wi.z() < 0),
+        pdf_tol_(returned_pdf_tolerance(options, precision)),
+        float_tol_(returned_pdf_tolerance(options, Precision::float32)),
+        widened_(precision == Precision::float64 && !(options.pdf_tolerance > 0)), back_(ref.wi.z() < 0),
         wi_front_(back_ ? Vec3<double>(-ref.wi) : ref.wi), weighs_(ref.domain == SampleDomain::microfacet_normal) {}
 
   // A failed sample contributes weight 0.
@@ -176,7 +178,11 @@ private:
   void check_pdf(std::uint64_t i, const Vec3<double>& w, double pdf, PdfChecks& c) const {
     const double claimed = ref_.returned_pdf(w);
     const double e = relative_difference(pdf, claimed);
-    if (e > pdf_tol_ && e > pdf_tol_ + 2 * rounding_sensitivity(ref_, w, claimed, direction_rounding_)) ++c.pdf_outliers;
+    // A float32 pdf widened to float64 (numpy's astype, Python's arrays) came with float32's direction and
+    // arithmetic: that sample gets float32's tolerance and rounding, as in a float32 file.
+    const bool from_float = widened_ && double(float(pdf)) == pdf;
+    const double tol = from_float ? float_tol_ : pdf_tol_, rounding = from_float ? 2 * 0x1p-24 : direction_rounding_;
+    if (e > tol && e > tol + 2 * rounding_sensitivity(ref_, w, claimed, rounding)) ++c.pdf_outliers;
     if (e > c.pdf_worst) {
       c.pdf_worst = e;
       c.pdf_worst_index = i;
@@ -186,7 +192,8 @@ private:
   }
 
   const ReferenceDistribution& ref_;
-  const double direction_rounding_, pdf_tol_;
+  const double direction_rounding_, pdf_tol_, float_tol_;
+  const bool widened_;  // float64 storage with the default tolerance: float32-exact pdfs are float32 data
   const bool back_;
   const Vec3<double> wi_front_;
   const bool weighs_;
