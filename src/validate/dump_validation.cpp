@@ -21,22 +21,6 @@ std::string frame_mistake(SampleFrame f) {
   }
 }
 
-// A rejected dump with many samples where the claimed pdf is zero: which frame mistake would explain it.
-std::string frame_hint(const ValidationReport& r, const DirectionSampleReader& samples,
-                       const std::shared_ptr<const ReferenceDistribution>& reference, const ValidationOptions& o) {
-  const double share = 100.0 * double(r.samples_where_pdf_is_zero) / double(r.samples);
-  const std::optional<FrameHint> best = diagnose_sample_frame(samples, reference, o);
-  if (!best)
-    return fmt::format("{:.0f}% of the samples fall where the claimed pdf is zero; none of the common frame mistakes "
-                       "(y-up, z flipped, negated) explains it",
-                       share);
-  const std::string fix = best->frame == SampleFrame::y_up ? "give --frame y-up (Python: frame='y-up')"
-                                                           : "fix the dump's frame";
-  return fmt::format("{:.0f}% of the samples fall where the claimed pdf is zero; read {} they {} (p = {:.3g}): {}", share,
-                     frame_mistake(best->frame), best->report.passed ? "pass" : "are still rejected",
-                     best->report.p_value, fix);
-}
-
 // The claimed density loses samples (a BSDF's reflections below the horizon, a dielectric's refractions above
 // it) that a renderer drops from its dump: the file holds none of them, where the test expects them.
 std::string dropped_samples_hint(const ValidationReport& r, const ReferenceDistribution& ref) {
@@ -49,6 +33,25 @@ std::string dropped_samples_hint(const ValidationReport& r, const ReferenceDistr
                      "dump that drops the samples its sampler loses? Test it with --above-horizon "
                      "(above_horizon=True) and --dropped N (dropped=N), the count it dropped",
                      100 * lost, expected, r.failed_samples);
+}
+
+// A rejected dump with many samples where the claimed pdf is zero: which frame mistake would explain it.
+std::string frame_hint(const ValidationReport& r, const DirectionSampleReader& samples,
+                       const std::shared_ptr<const ReferenceDistribution>& reference, const ValidationOptions& o) {
+  const double share = 100.0 * double(r.samples_where_pdf_is_zero) / double(r.samples);
+  const std::optional<FrameHint> best = diagnose_sample_frame(samples, reference, o);
+  if (!best)
+    return fmt::format("{:.0f}% of the samples fall where the claimed pdf is zero; none of the common frame mistakes "
+                       "(y-up, z flipped, negated) explains it",
+                       share);
+  const std::string fix = best->frame == SampleFrame::y_up ? "give --frame y-up (Python: frame='y-up')"
+                                                           : "fix the dump's frame";
+  // Read in the right frame, still rejected for want of the samples a renderer drops: say that fix too.
+  std::string then = best->report.passed ? "" : dropped_samples_hint(best->report, *reference);
+  if (then.empty() && !best->report.passed && !best->report.hints.empty()) then = best->report.hints.front();
+  return fmt::format("{:.0f}% of the samples fall where the claimed pdf is zero; read {} they {} (p = {:.3g}): {}{}",
+                     share, frame_mistake(best->frame), best->report.passed ? "pass" : "are still rejected",
+                     best->report.p_value, fix, then.empty() ? "" : "; read so, " + then);
 }
 
 // A rejected dump whose view is within 1.6 deg of the normal: a theta given in radians (at most pi / 2) where

@@ -290,6 +290,20 @@ TEST(CliValidate, FrameMistakesGetAHintAndYUpDumpsPassWithFrameYUp) {
   const CliRun t = run("--from '" + talk.string() + "' --alpha 0.3 --theta 40");
   EXPECT_EQ(t.exit_code, 1) << t.out;
   EXPECT_EQ(t.out.find("frame"), std::string::npos) << t.out;
+  // A y-up renderer's reflections with those below the horizon dropped: the hint names both fixes.
+  const fs::path reflections = dir / "yup_reflections.npy";
+  std::vector<Vec3<double>> kept;
+  for (const Vec3<double>& wo : samples_of("heitz2018", 0.3, 60, 100000, /*reflected=*/true))
+    if (wo.z() > 0) kept.emplace_back(wo.x(), wo.z(), -wo.y());
+  write_npy(reflections, kept, false);
+  const std::string dropped = std::to_string(100000 - kept.size());
+  const CliRun d = run("--from '" + reflections.string() + "' --alpha 0.3 --theta 60 --reflected");
+  EXPECT_EQ(d.exit_code, 1) << d.out << d.err;
+  EXPECT_NE(d.out.find("give --frame y-up (Python: frame='y-up'); read so, "), std::string::npos) << d.out;
+  EXPECT_NE(d.out.find("--above-horizon"), std::string::npos) << d.out;
+  const CliRun both = run("--from '" + reflections.string() +
+                          "' --alpha 0.3 --theta 60 --reflected --frame y-up --above-horizon --dropped " + dropped);
+  EXPECT_EQ(both.exit_code, 0) << both.out << both.err;
   for (const std::string& bad : {"--from '" + yup.string() + "' --alpha 0.3 --theta 40 --frame x-up",
                                  std::string("--sampler heitz2018 --alpha 0.3 --theta 40 --frame y-up")}) {
     const CliRun r = run(bad);
