@@ -233,8 +233,9 @@ double max_compression_ratio(Imf::Compression c) {
 }
 
 // The sizes the header claims, checked before anything is allocated for them: the decoded float data,
-// and one tile or chunk of scan lines, against `max_decoded_bytes`, and what the file must then hold (its chunk offset table, and the pixel
-// data where the compression bounds its ratio) against the file's size.
+// and one tile or chunk of scan lines, against `max_decoded_bytes`, and what the file must then hold
+// (its chunk offset table, and the pixel data where the compression bounds its ratio) against the
+// file's size.
 void check_claimed_size(const Imf::Header& header, int version, std::uint64_t file_bytes,
                         std::uint64_t max_decoded_bytes) {
   const Imath::Box2i dw = header.dataWindow();

@@ -54,8 +54,8 @@ inline constexpr std::uint64_t kMaxExrDecodedBytes = std::uint64_t(2) << 30;
 // attribute. Throws std::runtime_error naming the path (missing file, not an EXR, a multi-part or deep
 // file, subsampled channels, truncated data). The sizes the header claims are checked before anything
 // is allocated or decoded: the decoded data, and one tile or chunk of scan lines, against
-// `max_decoded_bytes` (the message states the claim and the limit), and the chunk offset table and (for uncompressed, RLE, ZIP and PXR24 files) the pixel
-// data against the size of the file. std::bad_alloc passes through unchanged (out of memory).
+// `max_decoded_bytes` (the message states the claim and the limit), and the chunk offset table and (for
+// uncompressed, RLE, ZIP and PXR24 files) the pixel data against the size of the file. std::bad_alloc passes through unchanged (out of memory).
 ExrImage read_exr(const std::filesystem::path& path, std::uint64_t max_decoded_bytes = kMaxExrDecodedBytes);
 // The same for the bytes of an EXR file in memory; `name` stands for the path in messages.
 ExrImage read_exr_memory(std::span<const char> bytes, const std::string& name,

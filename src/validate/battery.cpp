@@ -145,6 +145,9 @@ double rounding_sensitivity(const ReferenceDistribution& ref, const Vec3<double>
   return s;
 }
 
+// How far a stored direction may be from the sampler's: twice the half-ulp of its precision.
+constexpr double kFloatDirectionRounding = 2 * 0x1p-24, kDoubleDirectionRounding = 2 * 0x1p-53;
+
 // The checks of each sample against a claimed pdf: the returned pdf, and the weight D <wi, m>+ / pdf.
 class ClaimedPdfChecks {
 public:
@@ -153,7 +156,7 @@ public:
         // The stored direction carries the rounding of its precision (a float sample has |dw| ~ 1e-7):
         // where the claimed pdf is ill-conditioned (a jump, or D at alpha = 1e-3 seen through a
         // cancelling half vector) that alone can change the analytic pdf by more than the tolerance.
-        direction_rounding_(precision == Precision::float32 ? 2 * 0x1p-24 : 2 * 0x1p-53),
+        direction_rounding_(precision == Precision::float32 ? kFloatDirectionRounding : kDoubleDirectionRounding),
         pdf_tol_(returned_pdf_tolerance(options, precision)),
         float_tol_(returned_pdf_tolerance(options, Precision::float32)),
         widened_(precision == Precision::float64 && !(options.pdf_tolerance > 0)), back_(ref.wi.z() < 0),
@@ -181,7 +184,8 @@ private:
     // A float32 pdf widened to float64 (numpy's astype, Python's arrays) came with float32's direction and
     // arithmetic: that sample gets float32's tolerance and rounding, as in a float32 file.
     const bool from_float = widened_ && double(float(pdf)) == pdf;
-    const double tol = from_float ? float_tol_ : pdf_tol_, rounding = from_float ? 2 * 0x1p-24 : direction_rounding_;
+    const double tol = from_float ? float_tol_ : pdf_tol_;
+    const double rounding = from_float ? kFloatDirectionRounding : direction_rounding_;
     if (e > tol && e > tol + 2 * rounding_sensitivity(ref_, w, claimed, rounding)) ++c.pdf_outliers;
     if (e > c.pdf_worst) {
       c.pdf_worst = e;

@@ -41,7 +41,7 @@ ClaimedDensity file_claimed_density(FilePdf pdf, const std::optional<Material>& 
 // over two binnings and of the BSDF's flux over the sphere bins).
 struct BsdfReference {
   std::shared_ptr<const ReferenceDistribution> directions;
-  ExpectedWeights flux;  // expected weight per sample and its square, per channel and sphere bin, in `convention`
+  ExpectedWeights flux;  // a sample's expected w, w^2, w^3 per channel and sphere bin, in `convention`
   BsdfConvention convention;
 };
 BsdfReference bsdf_reference(const Material& bsdf, const BsdfConvention& convention, const GGX<double>& ggx,

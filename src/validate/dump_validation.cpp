@@ -46,9 +46,12 @@ std::string frame_hint(const ValidationReport& r, const DirectionSampleReader& s
                        share);
   const std::string fix = best->frame == SampleFrame::y_up ? "give --frame y-up (Python: frame='y-up')"
                                                            : "fix the dump's frame";
-  // Read in the right frame, still rejected for want of the samples a renderer drops: say that fix too.
-  std::string then = best->report.passed ? "" : dropped_samples_hint(best->report, *reference);
-  if (then.empty() && !best->report.passed && !best->report.hints.empty()) then = best->report.hints.front();
+  // Read in the right frame and still rejected (for want of the samples a renderer drops): that fix too.
+  std::string then;
+  if (!best->report.passed) {
+    then = dropped_samples_hint(best->report, *reference);
+    if (then.empty() && !best->report.hints.empty()) then = best->report.hints.front();
+  }
   return fmt::format("{:.0f}% of the samples fall where the claimed pdf is zero; read {} they {} (p = {:.3g}): {}{}",
                      share, frame_mistake(best->frame), best->report.passed ? "pass" : "are still rejected",
                      best->report.p_value, fix, then.empty() ? "" : "; read so, " + then);

@@ -8,8 +8,9 @@
 // E[w^2 1_B] - E[w 1_B]^2), not the samples' own: a few huge weights (fireflies) would inflate the
 // samples' variance with the mean and pass at z ~ sqrt(their count), and bins that come out low would get
 // too small a variance. Its p comes from the mean's skewness under the reference too (E[w^3 1_B]): a bin
-// that few samples reach holds a skewed sum. The albedo test takes the channels' smallest p, the bin test the smallest p over
-// the bins with at least kMinWeightBinSamples samples and the channels, each Sidak-corrected. They catch
+// that few samples reach holds a skewed sum. The albedo test takes the channels' smallest p, the bin test
+// the smallest p over the bins with at least kMinWeightBinSamples samples and the channels, each
+// Sidak-corrected. They catch
 // a weight without G1(wo), a wrong Fresnel, a wrong Jacobian, a roughness squared twice, even when the
 // directions are right. Reflected directions of a mirror or conductor BSDF (microfacet/bsdf.h:
 // mirror_brdf, conductor_brdf, Walter et al. 2007 eq. 20), and both lobes of the rough dielectric
