@@ -90,6 +90,7 @@ void Moments::merge(const Moments& o) {
 void PdfChecks::merge(const PdfChecks& o) {
   weight.merge(o.weight);
   pdf_outliers += o.pdf_outliers;
+  printed = printed || o.printed;
   if (o.pdf_worst > pdf_worst) {
     pdf_worst = o.pdf_worst;
     pdf_worst_index = o.pdf_worst_index;
@@ -167,8 +168,9 @@ public:
     if (weighs_) c.weight.add(0.0);
   }
 
-  void inside(std::uint64_t i, const Vec3<double>& w, double pdf, PdfChecks& c) const {
-    check_pdf(i, w, pdf, c);
+  // `printed`: a text file's digits (zero for binary storage and drawn samples).
+  void inside(std::uint64_t i, const Vec3<double>& w, double pdf, const PrintedRounding& printed, PdfChecks& c) const {
+    check_pdf(i, w, pdf, printed, c);
     if (!weighs_) return;
     const Vec3<double> m = back_ ? Vec3<double>(-w) : w;
     const double numerator = ref_.ggx.D(m) * std::max(wi_front_.dot(m), 0.0);
@@ -178,15 +180,23 @@ public:
   }
 
 private:
-  void check_pdf(std::uint64_t i, const Vec3<double>& w, double pdf, PdfChecks& c) const {
+  void check_pdf(std::uint64_t i, const Vec3<double>& w, double pdf, const PrintedRounding& printed,
+                 PdfChecks& c) const {
     const double claimed = ref_.returned_pdf(w);
     const double e = relative_difference(pdf, claimed);
+    const bool text = printed.direction > 0 || printed.pdf > 0;
     // A float32 pdf widened to float64 (numpy's astype, Python's arrays) came with float32's direction and
     // arithmetic: that sample gets float32's tolerance and rounding, as in a float32 file.
-    const bool from_float = widened_ && double(float(pdf)) == pdf;
+    const bool from_float = widened_ && !text && double(float(pdf)) == pdf;
     const double tol = from_float ? float_tol_ : pdf_tol_;
-    const double rounding = from_float ? kFloatDirectionRounding : direction_rounding_;
-    if (e > tol && e > tol + 2 * rounding_sensitivity(ref_, w, claimed, rounding)) ++c.pdf_outliers;
+    // Printed digits: the direction moved by up to their half unit per component, the pdf by its own.
+    const double rounding = text ? std::max(2 * printed.direction, direction_rounding_)
+                            : from_float ? kFloatDirectionRounding
+                                         : direction_rounding_;
+    const double printed_pdf = text ? printed.pdf / std::max(std::abs(pdf), std::abs(claimed)) : 0.0;
+    c.printed = c.printed || text;
+    if (e > tol + printed_pdf && e > tol + printed_pdf + 2 * rounding_sensitivity(ref_, w, claimed, rounding))
+      ++c.pdf_outliers;
     if (e > c.pdf_worst) {
       c.pdf_worst = e;
       c.pdf_worst_index = i;
@@ -237,7 +247,7 @@ public:
       if (!block.valid.empty() && !block.valid[k]) {
         failed(counts, has_pdf, c);
       } else if (bin(w, counts) && has_pdf) {
-        checks_->inside(block.first + k, w, block.pdfs[k], c);
+        checks_->inside(block.first + k, w, block.pdfs[k], block.rounding.empty() ? PrintedRounding{} : block.rounding[k], c);
       }
     }
   }
@@ -502,7 +512,10 @@ SubTest returned_pdf_check(const Tally& tally, const ReferenceDistribution& ref,
                                "plus the change a rounding of the direction can cause ({} allowed)",
                                c.pdf_worst, c.pdf_worst_index, c.worst_direction.x(), c.worst_direction.y(),
                                c.worst_direction.z(), c.worst_returned, ref.returned_pdf(c.worst_direction), c.pdf_outliers,
-                               pdf_tol, allowed)
+                               pdf_tol, allowed) +
+                       (c.printed ? "; text: plus the rounding of the printed digits (half a unit in the last digit "
+                                    "of the pdf and of each direction component)"
+                                  : "")
                  : std::string("returned pdf equals the claimed pdf on every sample");
   return t;
 }

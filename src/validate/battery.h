@@ -61,6 +61,7 @@ struct PdfChecks {
   std::uint64_t pdf_worst_index = 0, pdf_outliers = 0;
   Vec3<double> worst_direction = Vec3<double>::Zero();
   double worst_returned = 0;
+  bool printed = false;  // some pdf came from text: its printed digits' rounding was allowed for
   void merge(const PdfChecks& other);
 };
 

@@ -70,7 +70,7 @@ battery::SampleSource bsdf_samples(const BsdfSamplerInfo& s, const Material& bsd
           buf.draw(s, bsdf, ggx, wi, options.seed, plan.first_unit(b), plan.first_unit(b) + plan.units_in(b));
           WeightSums block(1, sphere.size());
           block.add(binner, buf.directions, buf.weights, buf.directions.size());
-          visit(SampleBlockView{plan.first_unit(b), buf.directions, buf.pdfs, buf.valid},
+          visit(SampleBlockView{plan.first_unit(b), buf.directions, buf.pdfs, buf.valid, {}},
                 std::size_t((b - range.begin) % kChunkBlocks));
           return block;
         },

@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <cstdint>
@@ -410,11 +411,40 @@ void decode_array_rows(const SampleArray& array, const SampleColumns& columns, s
 
 bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
 
+// Half a unit in the last digit of a number as printed (token as read: sign, digits, point, exponent):
+// "0.1234" 5e-5, "-1.5e-03" 5e-5, "12" 0.5; 0 for "nan" and "inf".
+double printed_half_unit(std::string_view token) {
+  std::size_t i = 0;
+  if (i < token.size() && (token[i] == '+' || token[i] == '-')) ++i;
+  if (i == token.size() || !(std::isdigit(static_cast<unsigned char>(token[i])) || token[i] == '.')) return 0;
+  int decimals = 0;
+  while (i < token.size() && std::isdigit(static_cast<unsigned char>(token[i]))) ++i;
+  if (i < token.size() && token[i] == '.')
+    for (++i; i < token.size() && std::isdigit(static_cast<unsigned char>(token[i])); ++i) ++decimals;
+  int exponent = 0;
+  if (i < token.size() && (token[i] == 'e' || token[i] == 'E')) {
+    const std::size_t e = i + 1 < token.size() && token[i + 1] == '+' ? i + 2 : i + 1;
+    std::from_chars(token.data() + e, token.data() + token.size(), exponent);
+  }
+  return 0.5 * std::pow(10.0, double(exponent) - double(decimals));
+}
+
+// The rows parsed from text, with their extra values (extras_per_row(columns) each) and printed rounding.
+struct TextRows {
+  std::vector<Vec3<double>> rows;
+  std::vector<double> extras;
+  std::vector<PrintedRounding> rounding;
+  void clear() {
+    rows.clear();
+    extras.clear();
+    rounding.clear();
+  }
+};
+
 // Parses the lines of `text` (whole lines; the last may lack its '\n'), appending their rows to `out`;
 // line_no counts the lines read so far (over all the chunks of a file).
 void read_text_lines(const std::filesystem::path& path, std::string_view text, std::size_t& line_no,
-                     const SampleColumns& columns, std::vector<Vec3<double>>& out, std::vector<double>& extras,
-                     InvalidRows& invalid) {
+                     const SampleColumns& columns, TextRows& out, InvalidRows& invalid) {
   while (!text.empty()) {
     ++line_no;
     const std::size_t nl = text.find('\n');
@@ -427,7 +457,7 @@ void read_text_lines(const std::filesystem::path& path, std::string_view text, s
       fail(path, where + ": malformed line: " + why + " (expected three numbers separated by whitespace "
                          "or commas)");
     };
-    std::vector<double> values;
+    std::vector<double> values, half_units;
     std::size_t i = 0;
     const auto skip_blanks = [&] {
       while (i < line.size() && is_blank(line[i])) ++i;
@@ -450,6 +480,7 @@ void read_text_lines(const std::filesystem::path& path, std::string_view text, s
         malformed(token.empty() ? std::string("empty field") : reader::quote_excerpt(token) + " is not a number");
       }
       values.push_back(v);
+      half_units.push_back(printed_half_unit(token));
       i = end;
       // One separator: blanks, optionally one comma with blanks around it; or the end of the line.
       skip_blanks();
@@ -463,10 +494,14 @@ void read_text_lines(const std::filesystem::path& path, std::string_view text, s
     if (values.size() != std::size_t(columns.count))
       fail(path, where + ": wrong column count: found " + std::to_string(values.size()) + " numbers, " +
                      column_count_advice(columns, values.size()));
-    extras.resize(extras.size() + extras_per_row(columns));
-    out.push_back(split_row(path, [&where] { return where; }, [&values](int c) { return values[std::size_t(c)]; },
-                            columns, kUnitLengthToleranceText, "text data", invalid,
-                            extras.data() + extras.size() - extras_per_row(columns)));
+    out.extras.resize(out.extras.size() + extras_per_row(columns));
+    out.rows.push_back(split_row(path, [&where] { return where; }, [&values](int c) { return values[std::size_t(c)]; },
+                                 columns, kUnitLengthToleranceText, "text data", invalid,
+                                 out.extras.data() + out.extras.size() - extras_per_row(columns)));
+    PrintedRounding r;
+    for (const int c : columns.direction) r.direction = std::max(r.direction, half_units[std::size_t(c)]);
+    if (columns.has_pdf()) r.pdf = half_units[std::size_t(columns.pdf)];
+    out.rounding.push_back(r);
   }
 }
 
@@ -552,8 +587,7 @@ struct DirectionSampleReader::Impl {
   NpyLayout layout;
   // Text: the unparsed tail of the chunks read, and the rows parsed from whole lines.
   std::string pending, chunk;
-  std::vector<Vec3<double>> parsed;
-  std::vector<double> parsed_extras;  // extras_per_row(columns) per parsed row
+  TextRows parsed;
   SampleColumns columns;
   std::size_t parsed_pos = 0, line_no = 0;
   bool eof = false, bom_checked = false, in_comment = false;
@@ -639,7 +673,7 @@ void DirectionSampleReader::Impl::parse_pending(std::size_t end) {
     if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);  // UTF-8 byte order mark
     bom_checked = true;
   }
-  read_text_lines(path, text, line_no, columns, parsed, parsed_extras, invalid);
+  read_text_lines(path, text, line_no, columns, parsed, invalid);
   pending.erase(0, end);
 }
 
@@ -656,10 +690,9 @@ void DirectionSampleReader::Impl::shorten_long_line() {
     return;
   }
   std::size_t n = line_no;
-  std::vector<Vec3<double>> ignored;
-  std::vector<double> ignored_extras;
+  TextRows ignored;
   InvalidRows ignored_invalid;
-  read_text_lines(path, pending, n, columns, ignored, ignored_extras, ignored_invalid);  // names the malformed token, as for a shorter line
+  read_text_lines(path, pending, n, columns, ignored, ignored_invalid);  // names the malformed token, as for a shorter line
   fail(path, "line " + std::to_string(line_no + 1) + ": longer than " + std::to_string(kTextChunk) +
                  " bytes without a line end (expected three numbers)");
 }
@@ -667,10 +700,9 @@ void DirectionSampleReader::Impl::shorten_long_line() {
 // Reads chunks until some rows are parsed; false at the end of the file.
 bool DirectionSampleReader::Impl::refill_text() {
   parsed.clear();
-  parsed_extras.clear();
   parsed_pos = 0;
   chunk.resize(kTextChunk);
-  while (parsed.empty()) {
+  while (parsed.rows.empty()) {
     if (eof) return false;
     const std::size_t k = read_some(chunk.data(), chunk.size());
     if (k == 0) {
@@ -757,8 +789,9 @@ std::string DirectionSampleReader::storage() const {
   return impl_->layout.is_float32 ? "float32 .npy" : "float64 .npy";
 }
 
-std::size_t DirectionSampleReader::read(std::span<Vec3<double>> out, std::span<double> pdfs, std::span<double> weights) {
-  const std::size_t n = read_as_stored(out, pdfs, weights);
+std::size_t DirectionSampleReader::read(std::span<Vec3<double>> out, std::span<double> pdfs, std::span<double> weights,
+                                       std::span<PrintedRounding> rounding) {
+  const std::size_t n = read_as_stored(out, pdfs, weights, rounding);
   if (impl_->frame != SampleFrame::z_up)
     for (std::size_t i = 0; i < n; ++i) out[i] = to_z_up(impl_->frame, out[i]);
   if (impl_->mirrored)
@@ -785,25 +818,31 @@ std::string to_string(SampleFrame frame) {
   }
 }
 
-// The rows as stored; their extras (pdf, weights) scattered into pdfs and weights.
+// The rows as stored; their extras (pdf, weights) scattered into pdfs and weights, their printed rounding
+// into `rounding`.
 std::size_t DirectionSampleReader::read_as_stored(std::span<Vec3<double>> out, std::span<double> pdfs,
-                                                  std::span<double> weights) {
+                                                  std::span<double> weights, std::span<PrintedRounding> rounding) {
   Impl& m = *impl_;
   const std::size_t stride = extras_per_row(m.columns), channels = m.columns.weights.size();
   if (m.columns.has_pdf() && pdfs.size() < out.size()) throw std::invalid_argument("DirectionSampleReader: pdfs too short");
   if (weights.size() < out.size() * channels) throw std::invalid_argument("DirectionSampleReader: weights too short");
+  if (!rounding.empty() && rounding.size() < out.size())
+    throw std::invalid_argument("DirectionSampleReader: rounding too short");
   std::vector<double> extras;
   std::size_t n = 0;
   if (m.npy || m.array) {
     extras.resize(out.size() * stride);
     n = m.array ? m.read_array_rows(out, extras.data()) : m.read_npy_rows(out, extras.data());
+    std::fill_n(rounding.begin(), rounding.empty() ? 0 : n, PrintedRounding{});
   } else {
     while (n < out.size()) {
-      if (m.parsed_pos == m.parsed.size() && !m.refill_text()) break;
-      const std::size_t k = std::min(out.size() - n, m.parsed.size() - m.parsed_pos);
-      std::copy_n(m.parsed.begin() + std::ptrdiff_t(m.parsed_pos), k, out.begin() + std::ptrdiff_t(n));
-      extras.insert(extras.end(), m.parsed_extras.begin() + std::ptrdiff_t(m.parsed_pos * stride),
-                    m.parsed_extras.begin() + std::ptrdiff_t((m.parsed_pos + k) * stride));
+      if (m.parsed_pos == m.parsed.rows.size() && !m.refill_text()) break;
+      const std::size_t k = std::min(out.size() - n, m.parsed.rows.size() - m.parsed_pos);
+      const auto from = std::ptrdiff_t(m.parsed_pos);
+      std::copy_n(m.parsed.rows.begin() + from, k, out.begin() + std::ptrdiff_t(n));
+      if (!rounding.empty()) std::copy_n(m.parsed.rounding.begin() + from, k, rounding.begin() + std::ptrdiff_t(n));
+      extras.insert(extras.end(), m.parsed.extras.begin() + from * std::ptrdiff_t(stride),
+                    m.parsed.extras.begin() + (from + std::ptrdiff_t(k)) * std::ptrdiff_t(stride));
       m.parsed_pos += k;
       n += k;
     }
@@ -831,13 +870,12 @@ std::vector<Vec3<double>> parse_direction_samples(std::string_view bytes, const 
   if (name.extension() == ".npy")
     fail(name, "not an NPY file (the magic string \\x93NUMPY is missing) although the name ends in .npy");
   if (bytes.substr(0, 3) == "\xEF\xBB\xBF") bytes.remove_prefix(3);  // UTF-8 byte order mark
-  std::vector<Vec3<double>> out;
-  std::vector<double> extras;
+  TextRows out;
   std::size_t line_no = 0;
   InvalidRows invalid;
-  read_text_lines(name, bytes, line_no, SampleColumns{}, out, extras, invalid);
-  if (out.empty()) fail(name, "empty: no samples (only blank or comment lines)");
-  return out;
+  read_text_lines(name, bytes, line_no, SampleColumns{}, out, invalid);
+  if (out.rows.empty()) fail(name, "empty: no samples (only blank or comment lines)");
+  return std::move(out.rows);
 }
 
 std::vector<Vec3<double>> read_direction_samples(const std::filesystem::path& path) {

@@ -99,6 +99,15 @@ struct SampleColumns {
   std::string describe() const;  // "x y z", "x y z pdf weight"
 };
 
+// What the digits of a text row keep: half a unit in the last printed digit ("0.1234" 5e-5, "1.5e-03"
+// 5e-5, "12" 0.5), the coarsest of its direction's three numbers and that of its pdf. A renderer's dump
+// printed with printf's %g or %.4f is that far from the values the renderer held; binary storage
+// (NPY, arrays) has no printed digits: both are 0 and its precision (float32, float64) says it.
+struct PrintedRounding {
+  double direction = 0;  // absolute, per component
+  double pdf = 0;        // absolute
+};
+
 // Samples already in memory (a NumPy array handed over by the Python module, src/python): each column a
 // strided view of float32 or float64 values, read in place (no copy). `stride` is in bytes between rows
 // (any sign, any alignment). The rows get the checks of an NPY file's rows with the tolerance of the
@@ -139,8 +148,10 @@ public:
   // Fills `out` with the next rows, up to out.size(); returns how many (fewer only at the end, 0 after
   // it). Throws SampleFileError on a bad row, and at the end of a file that held no sample at all. With a
   // pdf column its values go to `pdfs` (at least out.size() of them), with weight columns to `weights`
-  // (channels() per row, row-major); spans that are not needed may be empty.
-  std::size_t read(std::span<Vec3<double>> out, std::span<double> pdfs = {}, std::span<double> weights = {});
+  // (channels() per row, row-major); spans that are not needed may be empty. `rounding`, when not empty
+  // (at least out.size()), receives each row's PrintedRounding.
+  std::size_t read(std::span<Vec3<double>> out, std::span<double> pdfs = {}, std::span<double> weights = {},
+                   std::span<PrintedRounding> rounding = {});
   const SampleColumns& columns() const;
   bool is_float32() const;  // an NPY file of float32 values, or an array whose directions are float32
   std::uint64_t rows_read() const;
@@ -158,7 +169,8 @@ public:
   const InvalidRows& invalid_rows() const;
 
 private:
-  std::size_t read_as_stored(std::span<Vec3<double>> out, std::span<double> pdfs, std::span<double> weights);
+  std::size_t read_as_stored(std::span<Vec3<double>> out, std::span<double> pdfs, std::span<double> weights,
+                             std::span<PrintedRounding> rounding);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

@@ -75,7 +75,7 @@ void for_each_drawn_block_as(SampleResult<T> (*sample)(const GGX<T>&, const Vec3
       [&](std::uint64_t b) {
         BlockBuffer& buf = buffers.local();
         draw_block(sample, g, w, options.seed, plan.first_unit(b), plan.first_unit(b) + plan.units_in(b), buf);
-        visit(SampleBlockView{plan.first_unit(b), buf.directions, buf.pdfs, buf.valid},
+        visit(SampleBlockView{plan.first_unit(b), buf.directions, buf.pdfs, buf.valid, {}},
               std::size_t((b - range.begin) % kChunkBlocks));
         return b;
       },
@@ -276,7 +276,7 @@ void for_each_block(std::span<const Vec3<double>> samples, const SampleBlockVisi
     const std::uint64_t chunk_end = std::min(blocks, c + kChunkBlocks);
     tbb::parallel_for(c, chunk_end, [&](std::uint64_t b) {
       const std::uint64_t first = b * kSampleBlock, end = std::min(n, first + kSampleBlock);
-      visit(SampleBlockView{first, samples.subspan(first, end - first), {}, {}}, std::size_t(b - c));
+      visit(SampleBlockView{first, samples.subspan(first, end - first), {}, {}, {}}, std::size_t(b - c));
     });
     if (chunk_done) chunk_done(std::size_t(chunk_end - c));
   }
@@ -285,20 +285,26 @@ void for_each_block(std::span<const Vec3<double>> samples, const SampleBlockVisi
 void for_each_block(DirectionSampleReader& reader, const SampleBlockVisitor& visit, const ChunkDone& chunk_done) {
   // One chunk of rows in memory at a time (kChunkBlocks x kSampleBlock x 24 bytes = 25 MB), its blocks
   // processed concurrently; the file is read on this thread.
-  // With a pdf column, the returned pdfs come along (the returned-pdf and E[weight] checks).
+  // With a pdf column, the returned pdfs come along (the returned-pdf and E[weight] checks), and from text
+  // the digits they were printed with.
   std::vector<Vec3<double>> rows(kChunkBlocks * kSampleBlock);
   std::vector<double> pdfs(reader.columns().has_pdf() ? rows.size() : 0);
   std::vector<double> weights(rows.size() * std::size_t(reader.columns().channels()));
+  std::vector<PrintedRounding> rounding(reader.storage() == "text" ? pdfs.size() : 0);
   std::uint64_t first = reader.rows_read();
   for (;;) {
-    const std::size_t n = reader.read(rows, pdfs, weights);
+    const std::size_t n = reader.read(rows, pdfs, weights, rounding);
     if (n == 0) break;
     const std::size_t blocks = std::size_t((n + kSampleBlock - 1) / kSampleBlock);
     tbb::parallel_for(std::size_t(0), blocks, [&](std::size_t b) {
       const std::size_t begin = b * kSampleBlock, end = std::min<std::size_t>(n, begin + kSampleBlock);
       const std::span<const double> block_pdfs =
           pdfs.empty() ? std::span<const double>() : std::span<const double>(pdfs).subspan(begin, end - begin);
-      visit(SampleBlockView{first + begin, std::span<const Vec3<double>>(rows).subspan(begin, end - begin), block_pdfs, {}},
+      const std::span<const PrintedRounding> block_rounding =
+          rounding.empty() ? std::span<const PrintedRounding>()
+                           : std::span<const PrintedRounding>(rounding).subspan(begin, end - begin);
+      visit(SampleBlockView{first + begin, std::span<const Vec3<double>>(rows).subspan(begin, end - begin), block_pdfs,
+                            {}, block_rounding},
             b);
     });
     if (chunk_done) chunk_done(blocks);

@@ -260,6 +260,7 @@ struct SampleBlockView {
   std::span<const Vec3<double>> directions;
   std::span<const double> pdfs;             // returned pdfs; empty when the samples came without one
   std::span<const std::uint8_t> valid;      // 0 where the sampler returned nothing; empty: all valid
+  std::span<const PrintedRounding> rounding;  // a text file's printed digits per sample; empty: binary storage
 };
 // visit(block, slot) runs concurrently for the blocks of a chunk (slot: the block's place in its chunk,
 // < kChunkBlocks); chunk_done(blocks) runs after each chunk, in order, on the calling thread.
