@@ -47,6 +47,7 @@ struct Args {
   std::string transport;                    // with --bsdf: radiance (default) or importance
   std::string masking;                      // with --bsdf: height-correlated (default) or separable
   bool above_horizon = false;               // with --reflected: the dump holds the reflections above it only
+  bool lost_as_zero_weight = false;         // the dump keeps its sampler's lost samples as rows of weight 0
   std::optional<long long> dropped;         // with --above-horizon: how many the renderer dropped below it
   bool all = false;
   std::string alpha;
@@ -313,7 +314,7 @@ microsim::ValidationReport validate_file(const Args& a, const microsim::GGX<doub
                                          const microsim::ValidationOptions& o) {
   using namespace microsim;
   DirectionSampleReader samples = open_samples_or_usage_error(a);
-  const DumpClaims claims{file_pdf(a), bsdf_of(a), a.above_horizon};
+  const DumpClaims claims{file_pdf(a), bsdf_of(a), a.above_horizon, a.lost_as_zero_weight};
   try {
     (void)seen_from_outside(view, claims.bsdf);
   } catch (const std::invalid_argument& e) {
@@ -398,6 +399,9 @@ void check_file_options(const Args& a) {
     throw UsageError("--above-horizon applies to reflected directions: give --from FILE --reflected (or --pdf bounded)");
   if (a.above_horizon && !a.against.empty()) throw UsageError("--above-horizon tests against the analytic pdf, not --against");
   if (a.dropped && !a.above_horizon) throw UsageError("--dropped applies with --above-horizon only");
+  if (a.lost_as_zero_weight && (a.from.empty() || !a.against.empty() || a.above_horizon || sample_columns(a).channels() == 0))
+    throw UsageError("--lost-as-zero-weight applies to --from FILE with weight columns (--columns x,y,z,pdf,weight), "
+                     "without --above-horizon (the lost samples are dropped or kept, not both) or --against");
   if (!a.frame.empty() && a.from.empty()) throw UsageError("--frame applies to --from FILE only");
   if (!a.columns.empty() && a.from.empty()) throw UsageError("--columns applies to --from FILE only");
   sample_columns(a);  // a bad spec is exit 2 here, before any work
@@ -428,7 +432,8 @@ int run_model(const Args& a) {
   if (a.from.empty()) throw UsageError("--model smith-walk validates a dump: give --from FILE");
   for (const auto& [given, name] : {std::pair{!a.sampler.empty() || a.all, "--sampler/--all"}, {!a.against.empty(), "--against"},
                                     {!a.bsdf.empty(), "--bsdf (give --material)"}, {!a.pdf.empty() || a.reflected, "--pdf/--reflected"},
-                                    {a.above_horizon, "--above-horizon"}, {!a.plot.empty(), "--plot"}, {!a.shard.empty(), "--shard"},
+                                    {a.above_horizon, "--above-horizon"}, {a.lost_as_zero_weight, "--lost-as-zero-weight"},
+                                    {!a.plot.empty(), "--plot"}, {!a.shard.empty(), "--shard"},
                                     {!a.transport.empty() || !a.masking.empty(), "--transport/--masking"}})
     if (given) throw UsageError(fmt::format("{} does not apply to --model smith-walk", name));
   if (!a.theta) throw UsageError("--model smith-walk needs --theta");
@@ -519,6 +524,10 @@ microsim::app::CommandRegistration validate_registration{"validate", [](CLI::App
                 "them, dropping wo.z <= 0); test against the reflection pdf conditioned on wo.z > 0. With --pdf bsdf: "
                 "the file holds the samples the sampler kept (a dielectric also loses its refractions above the "
                 "horizon), tested against its density conditioned on them");
+  sub->add_flag("--lost-as-zero-weight", args->lost_as_zero_weight,
+                "with --from and weight columns: the file keeps the samples its sampler lost (a reflection below the "
+                "horizon, a refraction on the wrong side) as rows of weight 0, as Mitsuba 3's sample() returns them; "
+                "they count as the sampler's failures, tested against the mass the claimed pdf loses");
   add_number_option(sub, "--dropped", args->dropped, microsim::app::whole(0, microsim::kMaxSamples),
                     "with --above-horizon: how many samples the renderer dropped (reflections below the horizon, a "
                     "dielectric's refractions above it; tested against the fraction the pdf loses)");

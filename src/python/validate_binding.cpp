@@ -341,6 +341,7 @@ struct Reference {
   FilePdf claimed = FilePdf::vndf;
   std::optional<Material> bsdf;  // of pdf='bsdf'
   bool above_horizon = false;
+  bool lost_as_zero_weight = false;
   std::optional<std::string> against;
   std::uint64_t oracle_rays = 0, seed = 1;
   bool diagnose_frame = true;  // no frame given: a rejection looking like a frame mistake is diagnosed
@@ -355,11 +356,12 @@ ValidationReport validate_reader(DirectionSampleReader& reader, const GGX<double
     return compare_sample_file_to_trace(reader, "samples", ggx, view, o, traced);
   }
   try {
-    return validate_dump_as_given(reader, {r.claimed, r.bsdf, r.above_horizon}, ggx, view, o, r.diagnose_frame);
+    return validate_dump_as_given(reader, {r.claimed, r.bsdf, r.above_horizon, r.lost_as_zero_weight}, ggx, view, o,
+                                  r.diagnose_frame);
   } catch (const InsufficientData&) {
     throw;
   } catch (const std::invalid_argument& e) {  // the claims' reference (dump_reference)
-    throw py::value_error(std::string("above_horizon: ") + e.what());
+    throw py::value_error(std::string(r.lost_as_zero_weight ? "lost_as_zero_weight: " : "above_horizon: ") + e.what());
   }
 }
 
@@ -368,6 +370,7 @@ void check_against(const Reference& r, bool has_weights) {
   if (!r.against) return;
   if (r.claimed != FilePdf::vndf) throw py::value_error("against: the traced oracle measures visible normals (pdf='vndf')");
   if (r.above_horizon) throw py::value_error("above_horizon tests against the analytic pdf, not against the traced oracle");
+  if (r.lost_as_zero_weight) throw py::value_error("lost_as_zero_weight applies to weights, not against the traced oracle");
   if (has_weights) throw py::value_error("weights are tested against the analytic BSDF, not against the traced oracle");
   if (*r.against != "ellipsoid" && std::filesystem::path(*r.against).extension() != ".exr")
     throw py::value_error("against '" + *r.against + "': use 'ellipsoid' or a histogram .exr from `microsim trace vndf`");
@@ -380,6 +383,7 @@ struct DumpArguments {
   double significance = 0.01;
   bool above_horizon = false;
   std::optional<std::uint64_t> dropped;
+  bool lost_as_zero_weight = false;
   std::optional<std::string> against;
   std::uint64_t oracle_rays = 0, seed = 1;
 };
@@ -407,7 +411,11 @@ ValidationReport validate_array(const py::handle& samples, const py::handle& alp
   o.convention = convention_of(d.transport, d.masking, d.bsdf);
   if (d.above_horizon && !claims_reflected_directions(claimed))
     throw py::value_error("above_horizon applies to reflected directions: give pdf='reflection', 'bounded' or 'bsdf'");
-  const Reference reference{claimed, material, d.above_horizon, d.against, d.oracle_rays, d.seed, !d.frame};
+  if (d.lost_as_zero_weight && (d.above_horizon || !has_weights))
+    throw py::value_error("lost_as_zero_weight needs weights (the lost samples' rows weigh 0) and excludes above_horizon "
+                          "(the lost samples are dropped or kept, not both)");
+  const Reference reference{claimed, material, d.above_horizon, d.lost_as_zero_weight, d.against, d.oracle_rays, d.seed,
+                            !d.frame};
   check_against(reference, has_weights);
   ValidationReport report;
   run_interruptible(
@@ -428,10 +436,10 @@ ValidationReport validate_with_keywords(const py::handle& samples, const py::han
                                         std::optional<std::string> masking, std::optional<std::string> columns,
                                         std::optional<std::string> frame, int rows,
                                         double significance, bool above_horizon, std::optional<std::uint64_t> dropped,
-                                        std::optional<std::string> against, std::uint64_t oracle_rays, std::uint64_t seed,
-                                        const py::object& progress) {
-  const DumpArguments d{pdf,           bsdf,    transport, masking,     columns, frame, rows, significance,
-                        above_horizon, dropped, against,   oracle_rays, seed};
+                                        bool lost_as_zero_weight, std::optional<std::string> against,
+                                        std::uint64_t oracle_rays, std::uint64_t seed, const py::object& progress) {
+  const DumpArguments d{pdf,     bsdf,    transport,           masking, columns,     frame, rows, significance,
+                        above_horizon, dropped, lost_as_zero_weight, against, oracle_rays, seed};
   return validate_array(samples, alpha, theta, phi, weights, pdfs, d, progress);
 }
 
@@ -611,6 +619,8 @@ columns: a file's columns as `--columns` names them ('x,y,z' by default; 'x,y,z,
 frame: 'z-up' (default) or 'y-up'; without it a rejection that looks like a frame mistake is diagnosed (hints);
 rows, significance: as the command line's --rows, --significance;
 above_horizon, dropped: reflections above the horizon only (--above-horizon, --dropped).
+lost_as_zero_weight: the samples the sampler lost are rows of weight 0, as Mitsuba 3's sample() returns them
+  (--lost-as-zero-weight); they count as its failures.
 against: None (the claimed pdf), 'ellipsoid' (the oracle traced now with oracle_rays rays, its seed mixed from
   `seed` as the command line does) or the path of a histogram EXR of `microsim trace vndf`: the two-sample
   chi-square test against the traced oracle (`validate --against`).
@@ -620,7 +630,7 @@ KeyboardInterrupt on Ctrl-C.)",
         "samples"_a, "alpha"_a, "theta"_a, "phi"_a = 0.0, "pdf"_a = py::none(), "weights"_a = py::none(),
         "pdfs"_a = py::none(), py::kw_only(), "bsdf"_a = py::none(), "transport"_a = py::none(), "masking"_a = py::none(),
         "columns"_a = py::none(), "frame"_a = py::none(), "rows"_a = 31, "significance"_a = 0.01,
-        "above_horizon"_a = false, "dropped"_a = py::none(),
+        "above_horizon"_a = false, "dropped"_a = py::none(), "lost_as_zero_weight"_a = false,
         "against"_a = py::none(), "oracle_rays"_a = 4'000'000, "seed"_a = 1, "progress"_a = py::none());
   m.def("validate_sampler", &validate_zoo_sampler, R"(Validates a sampler of the zoo (what `microsim validate --sampler` does).
 

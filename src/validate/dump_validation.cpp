@@ -57,6 +57,25 @@ std::string frame_hint(const ValidationReport& r, const DirectionSampleReader& s
                      best->report.p_value, fix, then.empty() ? "" : "; read so, " + then);
 }
 
+// A rejected dump with samples where the claimed pdf is zero, all of weight 0: the samples its sampler lost,
+// kept as rows of weight 0 (as Mitsuba 3's sample() returns them)?
+std::string zero_weight_hint(const ValidationReport& r, const DirectionSampleReader& samples) {
+  if (samples.zero_weight_rows_lost() || samples.columns().channels() == 0 || r.samples_where_pdf_is_zero == 0) return "";
+  DirectionSampleReader reader = samples.reopened();
+  const std::size_t channels = std::size_t(reader.columns().channels());
+  std::vector<Vec3<double>> rows(kSampleFileBlock);
+  std::vector<double> pdfs(reader.columns().has_pdf() ? rows.size() : 0), weights(rows.size() * channels);
+  std::uint64_t zero = 0;
+  while (const std::size_t n = reader.read(rows, pdfs, weights))
+    for (std::size_t i = 0; i < n; ++i)
+      zero += std::all_of(&weights[i * channels], &weights[(i + 1) * channels], [](double w) { return w == 0; });
+  if (zero < r.samples_where_pdf_is_zero) return "";
+  return fmt::format("{} sample(s) fall where the claimed pdf is zero and {} row(s) have weight 0: a dump that keeps "
+                     "the samples its sampler loses as rows of weight 0 (as Mitsuba 3's sample() returns them)? Test "
+                     "it with --lost-as-zero-weight (lost_as_zero_weight=True)",
+                     r.samples_where_pdf_is_zero, zero);
+}
+
 // A rejected dump whose view is within 1.6 deg of the normal: a theta given in radians (at most pi / 2) where
 // degrees are read? The number the user gave is the view's angle in degrees.
 std::string radians_hint(const Vec3<double>& wi) {
@@ -75,6 +94,9 @@ std::vector<std::string> dump_notes(const ValidationReport& r, const DirectionSa
   if (!samples.columns().has_pdf())
     notes.push_back("the returned pdfs were not checked: the dump has no pdf column (a pdf wrong by the same factor "
                     "as f leaves the weights right)");
+  if (samples.zero_weight_rows_lost())
+    notes.push_back(fmt::format("rows of weight 0 counted as the sampler's lost samples: {} of {}", r.failed_samples,
+                                r.samples));
   if (samples.mirrored())
     notes.push_back("light from inside: the view and the rows mirrored in z, validated as the dielectric of index "
                     "1 / eta seen from outside");
@@ -116,7 +138,9 @@ ValidationReport validate_dump(const DirectionSampleReader& samples, std::shared
   r.notes = dump_notes(r, samples, options);
   if (r.passed) return r;
   if (diagnose_frame && looks_like_a_frame_mistake(r)) r.hints.push_back(frame_hint(r, samples, reference, options));
-  if (std::string hint = dropped_samples_hint(r, *reference); !hint.empty()) r.hints.push_back(std::move(hint));
+  // Rows of weight 0 where the pdf is zero explain the lost mass better than samples dropped.
+  if (std::string hint = zero_weight_hint(r, samples); !hint.empty()) r.hints.push_back(std::move(hint));
+  else if (std::string dropped = dropped_samples_hint(r, *reference); !dropped.empty()) r.hints.push_back(std::move(dropped));
   if (std::string hint = radians_hint(wi); !hint.empty()) r.hints.push_back(std::move(hint));
   return r;
 }
@@ -138,6 +162,10 @@ void check_first_rows(const DirectionSampleReader& samples) {
 
 ValidationReport validate_dump_as_given(DirectionSampleReader& samples, const DumpClaims& claims, const GGX<double>& ggx,
                                         const Vec3<double>& view, ValidationOptions options, bool diagnose_frame) {
+  if (claims.zero_weight_lost && claims.kept_only)
+    throw std::invalid_argument("the lost samples are either dropped (above the horizon only) or kept as rows of "
+                                "weight 0, not both");
+  samples.set_zero_weight_rows_lost(claims.zero_weight_lost);
   check_first_rows(samples);
   const ViewFromOutside v = seen_from_outside(view, claims.bsdf);
   samples.set_mirrored(v.mirrored);

@@ -14,12 +14,14 @@
 namespace microsim {
 
 // What a dump claims: the density of its directions, the BSDF whose samples (FilePdf::bsdf) or weights they
-// are, and whether it holds only the samples its sampler kept (renderers drop a reflection below the horizon,
-// a refraction back up: `--above-horizon`).
+// are, and how it holds the samples its sampler lost (a reflection below the horizon, a refraction back up):
+// dropped (pbrt-v4: `--above-horizon`), or kept as rows of weight 0 (Mitsuba 3: `--lost-as-zero-weight`,
+// counted as failed samples; DirectionSampleReader::set_zero_weight_rows_lost).
 struct DumpClaims {
   FilePdf pdf = FilePdf::vndf;
   std::optional<Material> bsdf;
   bool kept_only = false;
+  bool zero_weight_lost = false;
 };
 
 // Light from inside a dielectric (a view below the surface, wi.z < 0) is validated as its mirror image in z:
@@ -52,7 +54,7 @@ ValidationReport validate_dump(const DirectionSampleReader& samples, std::shared
 // dielectric) is mirrored (seen_from_outside, the samples' reader set_mirrored), options.bsdf (the weight test,
 // when set) is the BSDF so seen, the reference is dump_reference of the claims, and the report keeps the view
 // as given. std::invalid_argument for claims that do not fit (a view below the surface without a dielectric,
-// kept_only with a density of normals).
+// kept_only with a density of normals, zero_weight_lost with kept_only or without weight columns).
 ValidationReport validate_dump_as_given(DirectionSampleReader& samples, const DumpClaims& claims, const GGX<double>& ggx,
                                         const Vec3<double>& view, ValidationOptions options, bool diagnose_frame);
 

@@ -594,6 +594,7 @@ struct DirectionSampleReader::Impl {
   InvalidRows invalid;
   SampleFrame frame = SampleFrame::z_up;
   bool mirrored = false;  // z -> -z after the frame
+  bool zero_weight_lost = false;
 
   ~Impl() {
     if (map) ::munmap(map, map_size);
@@ -773,6 +774,7 @@ DirectionSampleReader DirectionSampleReader::reopened() const {
                                          : DirectionSampleReader(impl_->path, impl_->columns);
   r.set_frame(impl_->frame);
   r.set_mirrored(impl_->mirrored);
+  r.set_zero_weight_rows_lost(impl_->zero_weight_lost);
   return r;
 }
 
@@ -802,6 +804,12 @@ std::size_t DirectionSampleReader::read(std::span<Vec3<double>> out, std::span<d
 void DirectionSampleReader::set_frame(SampleFrame frame) { impl_->frame = frame; }
 void DirectionSampleReader::set_mirrored(bool mirrored) { impl_->mirrored = mirrored; }
 bool DirectionSampleReader::mirrored() const { return impl_->mirrored; }
+void DirectionSampleReader::set_zero_weight_rows_lost(bool lost) {
+  if (lost && impl_->columns.channels() == 0)
+    throw std::invalid_argument("rows of weight 0 as lost samples: the dump has no weight column (--columns x,y,z,pdf,weight)");
+  impl_->zero_weight_lost = lost;
+}
+bool DirectionSampleReader::zero_weight_rows_lost() const { return impl_->zero_weight_lost; }
 SampleFrame DirectionSampleReader::frame() const { return impl_->frame; }
 const SampleColumns& DirectionSampleReader::columns() const { return impl_->columns; }
 bool DirectionSampleReader::is_float32() const {

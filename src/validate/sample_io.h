@@ -163,6 +163,11 @@ public:
   // image seen from outside (dump_validation.h, seen_from_outside).
   void set_mirrored(bool mirrored);
   bool mirrored() const;
+  // Rows whose weights are all 0 are samples the sampler lost, kept in the dump: Mitsuba 3's sample() returns
+  // a reflection below the horizon or a refraction on the wrong side with its direction, its pdf and weight
+  // 0. Readers of blocks (validate.h, for_each_block) count them as failed samples. Needs weight columns.
+  void set_zero_weight_rows_lost(bool lost);
+  bool zero_weight_rows_lost() const;
   // How the rows are stored: "float32 .npy", "float64 .npy", "text", "float32 array" or "float64 array".
   std::string storage() const;
   // The rows read so far that hold the sampler's failures (see above).

@@ -291,10 +291,14 @@ void for_each_block(DirectionSampleReader& reader, const SampleBlockVisitor& vis
   std::vector<double> pdfs(reader.columns().has_pdf() ? rows.size() : 0);
   std::vector<double> weights(rows.size() * std::size_t(reader.columns().channels()));
   std::vector<PrintedRounding> rounding(reader.storage() == "text" ? pdfs.size() : 0);
+  const std::size_t channels = std::size_t(reader.columns().channels());
+  std::vector<std::uint8_t> valid(reader.zero_weight_rows_lost() ? rows.size() : 0);
   std::uint64_t first = reader.rows_read();
   for (;;) {
     const std::size_t n = reader.read(rows, pdfs, weights, rounding);
     if (n == 0) break;
+    for (std::size_t i = 0; i < std::min(n, valid.size()); ++i)  // a lost sample kept as a row of weight 0
+      valid[i] = std::any_of(&weights[i * channels], &weights[(i + 1) * channels], [](double w) { return w != 0; });
     const std::size_t blocks = std::size_t((n + kSampleBlock - 1) / kSampleBlock);
     tbb::parallel_for(std::size_t(0), blocks, [&](std::size_t b) {
       const std::size_t begin = b * kSampleBlock, end = std::min<std::size_t>(n, begin + kSampleBlock);
@@ -303,8 +307,10 @@ void for_each_block(DirectionSampleReader& reader, const SampleBlockVisitor& vis
       const std::span<const PrintedRounding> block_rounding =
           rounding.empty() ? std::span<const PrintedRounding>()
                            : std::span<const PrintedRounding>(rounding).subspan(begin, end - begin);
+      const std::span<const std::uint8_t> block_valid =
+          valid.empty() ? std::span<const std::uint8_t>() : std::span<const std::uint8_t>(valid).subspan(begin, end - begin);
       visit(SampleBlockView{first + begin, std::span<const Vec3<double>>(rows).subspan(begin, end - begin), block_pdfs,
-                            {}, block_rounding},
+                            block_valid, block_rounding},
             b);
     });
     if (chunk_done) chunk_done(blocks);

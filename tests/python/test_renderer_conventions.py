@@ -3,8 +3,9 @@ line and Python alike: every correct dump passes, every bug is rejected by a tes
 the two front ends give the same verdict.
 
 A renderer samples wo from the direction wg it was given (the camera side on camera paths) and returns the pdf
-and the weight f |cos wo| / pdf; it drops the samples it loses (a reflection below the horizon, a refraction back
-up). Conventions (src/microfacet/bsdf_convention.h):
+and the weight f |cos wo| / pdf; the samples it loses (a reflection below the horizon, a refraction back up) it
+drops (pbrt-v4's Sample_f returns no sample) or returns with weight 0 (Mitsuba 3's sample(): G1(wo, m) is 0 on
+the wrong side). Conventions (src/microfacet/bsdf_convention.h):
 - transport: radiance (camera paths; a refraction's f holds (n_g / n_s)^2, pbrt-v4 DielectricBxDF and Mitsuba 3
   roughdielectric in radiance mode) or importance (light paths: no such factor);
 - masking: height-correlated G2 = 1 / (1 + Lambda_g + Lambda_o) (pbrt-v4) or separable G1(wg) G1(wo) (Mitsuba 3).
@@ -49,9 +50,11 @@ def fresnel_conductor(c, eta, k):
 
 
 # ---- a renderer's sample(): the conventions and the bugs ---------------------------------------------------------
-def renderer_dump(kind, wg, alpha, transport="radiance", masking="height-correlated", bug=None, eta=1.5, seed=7):
+def renderer_dump(kind, wg, alpha, transport="radiance", masking="height-correlated", bug=None, eta=1.5, seed=7,
+                  lost="dropped"):
     """Samples of a rough conductor (kind 'conductor', GOLD) or dielectric of index eta from wg (either side):
-    (directions (K, 3), pdfs (K,), weights (K,), dropped); the lost samples are dropped as renderers drop them."""
+    (directions (K, 3), pdfs (K,), weights (K,), dropped); the lost samples are dropped (lost='dropped', as pbrt-v4)
+    or kept with their pdf and weight 0 (lost='zero-weight', as Mitsuba 3)."""
     ax, ay = alpha
     u = np.random.default_rng(seed).random((N, 3))
     up = wg[2] > 0
@@ -71,7 +74,8 @@ def renderer_dump(kind, wg, alpha, transport="radiance", masking="height-correla
     wt = -g / eta_r + (c / eta_r - ct)[:, None] * m
     wo = np.where(reflect[:, None], wr, wt)
     kept = np.where(reflect, wo[:, 2] > 0, wo[:, 2] < 0)
-    wo, m, c, F, reflect = wo[kept], m[kept], c[kept], F[kept], reflect[kept]
+    if lost == "dropped":
+        wo, m, c, F, reflect = wo[kept], m[kept], c[kept], F[kept], reflect[kept]
     om = np.einsum("ij,ij->i", wo, m)
     D = ggx_d(m, ax, ay)
     lg, lo = ggx_lambda(g, ax, ay), ggx_lambda(wo, ax, ay)
@@ -92,6 +96,8 @@ def renderer_dump(kind, wg, alpha, transport="radiance", masking="height-correla
     if bug == "pdf_and_f_eta2":  # f and pdf of a refraction both off by eta^2: the weight stays right
         f, pdf = np.where(reflect, f, f * eta_r ** 2), np.where(reflect, pdf, pdf * eta_r ** 2)
     weight = f * np.abs(wo[:, 2]) / pdf
+    if lost == "zero-weight":
+        return wo * flip, pdf, np.where(kept, weight, 0.0), 0
     return wo * flip, pdf, weight, N - int(kept.sum())
 
 
@@ -105,10 +111,15 @@ CASES = [
     ("pbrt-v4 glass, light from inside", dict(kind="dielectric", theta=130), GLASS, "c32", True),
     ("pbrt-v4 glass, anisotropic, y-up renderer frame", dict(kind="dielectric", theta=40, phi=30, alpha=(0.15, 0.5)),
      {**GLASS, "frame": "y-up"}, "text", True),
-    ("Mitsuba 3 glass, separable masking", dict(kind="dielectric", theta=70, masking="separable"),
+    ("Mitsuba 3 glass, separable masking", dict(kind="dielectric", theta=70, masking="separable", lost="zero-weight"),
      {**GLASS, "masking": "separable"}, "c64", True),
-    ("Mitsuba 3 gold, separable masking, 80 deg", dict(kind="conductor", theta=80, masking="separable"),
+    ("Mitsuba 3 glass from inside", dict(kind="dielectric", theta=120, masking="separable", lost="zero-weight"),
+     {**GLASS, "masking": "separable"}, "c32", True),
+    ("Mitsuba 3 gold, separable masking, 80 deg", dict(kind="conductor", theta=80, masking="separable",
+                                                        lost="zero-weight"),
      {"bsdf": "conductor:0.2,3.9", "masking": "separable"}, "c32", True),
+    ("Mitsuba 3 glass, the dump filtering its rows of weight 0", dict(kind="dielectric", theta=70, masking="separable"),
+     {**GLASS, "masking": "separable"}, "c64", True),
     ("pbrt-v4 gold, 80 deg", dict(kind="conductor", theta=80), {"bsdf": "conductor:0.2,3.9"}, "c32", True),
     ("glass without a pdf column", dict(kind="dielectric", theta=50), GLASS, "c32-nopdf", True),
     ("pbrt-v4 gold, Fortran-order float32 .npy", dict(kind="conductor", theta=30), {"bsdf": "conductor:0.2,3.9"},
@@ -118,8 +129,11 @@ CASES = [
      "c32", False),
     ("importance glass claimed as radiance", dict(kind="dielectric", theta=50, transport="importance"), GLASS, "c32",
      False),
-    ("Mitsuba 3 gold claimed height-correlated", dict(kind="conductor", theta=80, masking="separable"),
+    ("Mitsuba 3 gold claimed height-correlated", dict(kind="conductor", theta=80, masking="separable",
+                                                       lost="zero-weight"),
      {"bsdf": "conductor:0.2,3.9"}, "c32", False),
+    ("Mitsuba 3 glass, G1 for G2", dict(kind="dielectric", theta=60, masking="separable", bug="g1_for_g2",
+                                        lost="zero-weight"), {**GLASS, "masking": "separable"}, "c32", False),
     ("glass, eta^2 factor applied twice", dict(kind="dielectric", theta=50, bug="eta2_twice"), GLASS, "c32", False),
     ("glass from inside, eta^2 factor twice", dict(kind="dielectric", theta=130, bug="eta2_twice"), GLASS, "c32",
      False),
@@ -151,13 +165,15 @@ def write_dump(path, layout, directions, pdfs, weights, frame):
 def test_renderer_dump_verdicts_agree_in_cli_and_python(tmp_path, name, dump, claims, layout, passes):
     theta, phi, alpha = dump.pop("theta"), dump.pop("phi", 0.0), dump.pop("alpha", (0.3, 0.3))
     kind = dump.pop("kind")
+    zero_weight = dump.get("lost") == "zero-weight"
     directions, pdfs, weights, dropped = renderer_dump(kind, view(theta, phi), alpha, **dump)
     claims = dict(claims)
     frame = claims.pop("frame", None)
     path = tmp_path / ("dump.txt" if layout == "text" else "dump.npy")
     columns = write_dump(path, layout, directions, pdfs, weights, frame)
     cli = ["validate", "--from", path, "--alpha", f"{alpha[0]},{alpha[1]}", "--theta", theta, "--phi", phi,
-           "--columns", columns, "--above-horizon", "--dropped", dropped, "--rows", 11]
+           "--columns", columns, "--rows", 11]
+    cli += ["--lost-as-zero-weight"] if zero_weight else ["--above-horizon", "--dropped", dropped]
     for key, value in claims.items():
         cli += [f"--{key}", value]
     if frame:
@@ -166,7 +182,8 @@ def test_renderer_dump_verdicts_agree_in_cli_and_python(tmp_path, name, dump, cl
     assert p.returncode == (0 if passes else 1), f"{name}: exit {p.returncode}\n{p.stdout}\n{p.stderr}"
     loaded = np.loadtxt(path) if layout == "text" else np.load(path)
     d = loaded[:, :3]
-    kwargs = dict(claims, rows=11, above_horizon=True, dropped=dropped, frame=frame or "z-up", weights=loaded[:, -1])
+    lost = dict(lost_as_zero_weight=True) if zero_weight else dict(above_horizon=True, dropped=dropped)
+    kwargs = dict(claims, rows=11, **lost, frame=frame or "z-up", weights=loaded[:, -1])
     if not layout.endswith("nopdf"):
         kwargs["pdfs"] = loaded[:, 3]
     r = microsim.validate(d, alpha, theta, phi, **kwargs)
@@ -197,3 +214,23 @@ def test_a_dump_that_drops_its_lost_samples_gets_the_hint(tmp_path):
     r = microsim.validate(directions, 0.3, 50, pdfs=pdfs, weights=weights, bsdf="dielectric:1.5", rows=11)
     assert not r.passed
     assert any("above_horizon=True" in h for h in r.hints), r.hints
+
+
+def test_a_dump_that_keeps_its_lost_samples_with_weight_0_gets_the_hint(tmp_path):
+    """Mitsuba 3 returns a lost sample with weight 0: without lost_as_zero_weight such a dump is rejected (its rows
+    fall where the claimed pdf is zero), with the hint naming the fix; the same dump passes with it, in the command
+    line too, whose report says how many rows were counted as lost."""
+    directions, pdfs, weights, _ = renderer_dump("dielectric", view(70), (0.3, 0.3), masking="separable",
+                                                 lost="zero-weight")
+    common = dict(pdfs=pdfs, weights=weights, bsdf="dielectric:1.5", masking="separable", rows=11)
+    r = microsim.validate(directions, 0.3, 70, **common)
+    assert not r.passed
+    assert any("lost_as_zero_weight=True" in h for h in r.hints), r.hints
+    assert microsim.validate(directions, 0.3, 70, lost_as_zero_weight=True, **common).passed
+    path = tmp_path / "mitsuba.npy"
+    np.save(path, np.column_stack([directions, pdfs, weights]))
+    p = run_cli("validate", "--from", path, "--alpha", 0.3, "--theta", 70, "--columns", "x,y,z,pdf,weight", "--bsdf",
+                "dielectric:1.5", "--masking", "separable", "--rows", 11, "--lost-as-zero-weight")
+    assert p.returncode == 0, p.stdout + p.stderr
+    lost = int((weights == 0).sum())
+    assert f"rows of weight 0 counted as the sampler's lost samples: {lost} of {N}" in p.stdout
