@@ -89,10 +89,14 @@ BatteryLine file_furnace(const FileRows& f, int c, const BsdfFileCheckOptions& o
     s1 += x, s2 += x * x;
   }
   const double n = double(f.s.drawn), mean = s1 / n, se = std::sqrt(std::max(0.0, s2 / n - mean * mean) / (n - 1));
-  if (!o.albedo) return {"furnace", "files", fmt::format("mean weight {:.5f} +- {:.5f} (no albedo claimed)", mean, se), -1, true};
-  const double p = difference_p({mean, se}, {*o.albedo, 0});
-  return {"furnace", "files", fmt::format("mean weight {:.5f} +- {:.5f} against the claimed albedo {:.5f}", mean, se, *o.albedo),
-          p, p >= level};
+  BatteryLine line{"furnace", "files", fmt::format("mean weight {:.5f} +- {:.5f} (no albedo claimed)", mean, se), -1, true};
+  if (o.albedo) {
+    const double p = difference_p({mean, se}, {*o.albedo, 0});
+    line = {"furnace", "files", fmt::format("mean weight {:.5f} +- {:.5f} against the claimed albedo {:.5f}", mean, se, *o.albedo),
+            p, p >= level};
+  }
+  battery::fail_if_one_weight_dominates(f.s, c, line);
+  return line;
 }
 
 // How far w lies outside cell c of sphere_cell's partition (in z, and in phi times sin theta): 0 inside.

@@ -74,6 +74,11 @@ BatteryLine sampling_against_walk(const BsdfUnderTest& b, const Material& m, con
                                   const Vec3<double>& wi, const ViewSamples& s, const std::string& view, double level,
                                   const BatteryOptions& o);
 
+// A test of the weights' mean from their own standard error (furnace, integral, sampling) is void when one
+// sample holds more than kMaxDominantShare of their spread (stats/chi2.h, dominant_value: a firefly raises the
+// mean and its error together): `line` then fails, its detail naming the sample.
+void fail_if_one_weight_dominates(const ViewSamples& s, int channels, BatteryLine& line);
+
 // The pairs of `q` the stochastic tests use: off the horizon (|z| >= 0.1 both), at most `count`, spread over q.
 std::vector<BsdfQuery> stochastic_pairs(const std::vector<BsdfQuery>& q, std::size_t count);
 

@@ -27,8 +27,9 @@ ScatterOptions walk_options(const Material& material, const Vec3<double>& wi, co
 }
 
 // The dump's rows as a histogram of one order over the walk's binning: each row a launched path leaving with its
-// weights; the dropped samples launched paths that left nothing.
-ScatterHistogram dump_histogram(DirectionSampleReader& dump, const ScatterOptions& s, std::uint64_t dropped) {
+// weights; the dropped samples launched paths that left nothing. `spread` gets each channel's weights.
+ScatterHistogram dump_histogram(DirectionSampleReader& dump, const ScatterOptions& s, std::uint64_t dropped,
+                                std::vector<DominanceTally>& spread) {
   const int channels = s.material.channels();
   if (dump.columns().channels() != channels)
     throw std::invalid_argument(fmt::format("the dump has {} weight column(s); the material has {} channel(s)",
@@ -37,17 +38,30 @@ ScatterHistogram dump_histogram(DirectionSampleReader& dump, const ScatterOption
   const DirectionBinning binning = DirectionBinning::hemispheres(s.rows);
   std::vector<Vec3<double>> rows(kSampleFileBlock);
   std::vector<double> pdfs(dump.columns().has_pdf() ? rows.size() : 0), weights(rows.size() * std::size_t(channels));
+  spread.assign(std::size_t(channels), DominanceTally{});
   for (std::size_t n; (n = dump.read(rows, pdfs, weights)) > 0;) {
     if (s.run.cancelled()) throw Cancelled("reading the dump");
     for (std::size_t i = 0; i < n; ++i) {
       const std::span<const double> w(&weights[i * std::size_t(channels)], std::size_t(channels));
+      for (std::size_t c = 0; c < w.size(); ++c) spread[c].add(w[c]);
       if (const auto bin = binning.bin_of(rows[i])) h.add_escaped(1, std::size_t(*bin), w);
       else h.add_escaped_unbinned(1, w);
     }
     h.add_launched(n);
   }
   h.add_launched(dropped);
+  for (DominanceTally& t : spread) t.add_zeros(dropped);
   return h;
+}
+
+// The albedo tests compare means with their own standard errors: void when one row holds much of the spread.
+void firefly_check(WalkValidationReport& r, const DominanceTally& spread) {
+  r.dominant = spread.result();
+  if (!(r.dominant.share > kMaxDominantShare)) return;
+  r.failures.push_back(fmt::format("the dump's row {} (weight {:.6g}) holds {:.0f}% of the weights' spread (at most {:.0f}% "
+                                   "for an albedo's test): a firefly",
+                                   r.dominant.index, r.dominant.value, 100 * r.dominant.share, 100 * kMaxDominantShare));
+  r.passed = false;
 }
 
 // One channel's three tests; the report keeps the channel whose smallest p is the smallest.
@@ -102,7 +116,8 @@ WalkValidationReport validate_dump_against_walk(DirectionSampleReader& dump, con
                                                 const WalkValidationOptions& options) {
   const ScatterOptions s = walk_options(material, wi, options);
   check_scatter_options(s);
-  const ScatterHistogram d = dump_histogram(dump, s, options.dropped);
+  std::vector<DominanceTally> spread;
+  const ScatterHistogram d = dump_histogram(dump, s, options.dropped, spread);
   const ScatterHistogram walk = smith_walk_scatter(surface, s);
   if (walk.partial) throw Cancelled("the walk");
   WalkValidationReport best;
@@ -111,7 +126,9 @@ WalkValidationReport validate_dump_against_walk(DirectionSampleReader& dump, con
     if (!r.chi2)
       throw InsufficientData(fmt::format("too little data for the lobe's shape test: {}", r.insufficient), d.paths(), 0);
     walk_verdict(r, material.channels(), options.significance, material.transmits());
-    if (c == 0 || r.p_value < best.p_value) best = std::move(r);
+    firefly_check(r, spread[std::size_t(c)]);
+    // A failed channel is reported before a passing one with a smaller p (a firefly fails at any p).
+    if (c == 0 || (r.passed != best.passed ? !r.passed : r.p_value < best.p_value)) best = std::move(r);
   }
   best.rows = d.paths();
   best.paths = walk.paths();
@@ -130,6 +147,7 @@ nlohmann::json to_json(const WalkValidationReport& r) {
                    {"albedo_transmitted",
                     {{"dump", estimate_json(r.albedo_transmitted_dump)}, {"walk", estimate_json(r.albedo_transmitted_walk)}, {"p", r.p_transmitted}}},
                    {"walk_unfinished", estimate_json(r.walk_unfinished)},
+                   {"dominant_weight", {{"row", r.dominant.index}, {"weight", r.dominant.value}, {"share", r.dominant.share}}},
                    {"tests", r.tests},
                    {"per_test_significance", r.per_test_significance},
                    {"p_value", r.p_value},

@@ -43,6 +43,7 @@ struct WalkValidationReport {
   double p_reflected = 1, p_transmitted = 1;
   std::optional<ChiSquareResult> chi2;
   std::string insufficient;    // why the shape test could not run (too little data: never a pass)
+  DominantValue dominant;      // the row holding most of the channel's weights' spread (a firefly above kMaxDominantShare)
   int tests = 0;
   double per_test_significance = 0, p_value = 1;  // Sidak-adjusted smallest p
   bool passed = false;

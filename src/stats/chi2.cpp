@@ -422,4 +422,38 @@ nlohmann::json to_json(const ChiSquareResult& r) {
   return j;
 }
 
+void DominanceTally::add(double x) {
+  const std::uint64_t at = seen_++;
+  if (!std::isfinite(x)) return;
+  if (!any_ || x < lo_) lo_ = x, lo_at_ = at;
+  if (!any_ || x > hi_) hi_ = x, hi_at_ = at;
+  any_ = true;
+  n_ += 1;
+  const double d = x - mean_;
+  mean_ += d / n_;
+  m2_ += d * (x - mean_);
+}
+
+void DominanceTally::add_zeros(std::uint64_t n) {
+  if (n == 0) return;
+  const double k = double(n), total = n_ + k, d = -mean_;
+  m2_ += d * d * n_ * k / total;
+  mean_ += d * k / total;
+  n_ = total;
+}
+
+DominantValue DominanceTally::result() const {
+  if (!any_ || !(n_ > 1) || !(m2_ > 0)) return {};
+  const double below = (lo_ - mean_) * (lo_ - mean_), above = (hi_ - mean_) * (hi_ - mean_);
+  return above >= below ? DominantValue{std::min(1.0, above / m2_), hi_at_, hi_}
+                        : DominantValue{std::min(1.0, below / m2_), lo_at_, lo_};
+}
+
+DominantValue dominant_value(std::span<const double> x, std::uint64_t zeros) {
+  DominanceTally t;
+  for (const double v : x) t.add(v);
+  t.add_zeros(zeros);
+  return t.result();
+}
+
 }  // namespace microsim

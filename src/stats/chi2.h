@@ -129,6 +129,34 @@ double sidak_adjusted_p(double p_min, int n_tests);
 // p = 2 min(P(X <= deviation), P(X >= deviation)), at most 1; 0 for a non-finite deviation.
 double skewed_mean_p(double deviation, double se, double skew);
 
+// The value of a sample that holds the largest share of its sum of squared deviations from the mean, with
+// `zeros` more values of 0 (lost samples, weighing 0); non-finite values are skipped. A test of a mean from
+// its own standard error needs every share small: the central limit theorem holds for sums of asymptotically
+// negligible terms only (Lindeberg 1922; Feller 1935: max_i var_i / sum var -> 0 is necessary). One value
+// holding a large share (a firefly) raises the mean and the standard error that should expose it together:
+// z ~ sqrt(number of such values), whatever their size.
+struct DominantValue {
+  double share = 0;         // in [0, 1]
+  std::uint64_t index = 0;  // in x (the order of add())
+  double value = 0;
+};
+DominantValue dominant_value(std::span<const double> x, std::uint64_t zeros = 0);
+// The same over values streamed one at a time (Welford's running sum of squared deviations; the largest
+// deviation is the largest or the smallest value's).
+class DominanceTally {
+public:
+  void add(double x);  // non-finite values are counted in the index but skipped
+  void add_zeros(std::uint64_t n);
+  DominantValue result() const;
+
+private:
+  double n_ = 0, mean_ = 0, m2_ = 0, lo_ = 0, hi_ = 0;
+  std::uint64_t seen_ = 0, lo_at_ = 0, hi_at_ = 0;
+  bool any_ = false;
+};
+// The largest share a sample mean's test accepts; an honest weight sample of 1e4 bounded values holds ~1e-3.
+inline constexpr double kMaxDominantShare = 0.1;
+
 // One-sample Kolmogorov-Smirnov test of values against the uniform distribution on [0, 1]
 // (e.g. p-values under a null): D = sup |F_n - F|, p from the asymptotic Kolmogorov distribution
 // with Stephens' small-sample correction (Stephens 1970): lambda = (sqrt(n) + 0.12 + 0.11 / sqrt(n)) D.

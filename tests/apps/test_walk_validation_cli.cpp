@@ -19,14 +19,18 @@ namespace microsim::test {
 namespace {
 
 // A dump of `paths` walks from theta (degrees, phi 0), as rows x,y,z,weight; returns the dropped count.
-std::uint64_t write_walk_dump(const fs::path& path, double theta, detail::WalkFault fault, std::uint64_t seed) {
+// `fireflies`: that many rows (spread over the dump) get their weight times 1e4.
+std::uint64_t write_walk_dump(const fs::path& path, double theta, detail::WalkFault fault, std::uint64_t seed,
+                              int fireflies = 0) {
   ScatterOptions o;
   const double t = theta * kPi<double> / 180;
   o.wi = Vec3<double>(std::sin(t), 0, std::cos(t));
   o.material = Material::dielectric(1.5);
   o.paths = 200'000;
   o.seed = seed;
-  const WalkSamples s = detail::smith_walk_samples(SmithMicrosurface{NdfKind::ggx, 1.0, 1.0}, o, fault);
+  WalkSamples s = detail::smith_walk_samples(SmithMicrosurface{NdfKind::ggx, 1.0, 1.0}, o, fault);
+  const std::size_t row = 3 + std::size_t(s.channels), rows = s.rows.size() / row;
+  for (int k = 0; k < fireflies; ++k) s.rows[(std::size_t(k) * rows / std::size_t(fireflies) + 10) * row + 3] *= 1e4;
   write_npy_table(path, s.rows, 3 + std::size_t(s.channels), true);
   return s.dropped;
 }
@@ -56,6 +60,22 @@ TEST(WalkValidationCli, ACorrectSmithGlassPassesAndTheStaleHeightWalkIsRejected)
     EXPECT_NEAR(b["albedo_reflected"]["dump"]["value"].get<double>() + b["albedo_transmitted"]["dump"]["value"].get<double>(),
                 1.0, 1e-3) << "the stale height conserves energy too";
   }
+  fs::remove_all(dir);
+}
+
+// Three rows of a correct dump with weights 1e4 times too large raise the albedo and its standard error together
+// (z stays near sqrt(3)): the row holding the weights' spread is named and the dump rejected.
+TEST(WalkValidationCli, FirefliesAreRejectedNamingTheRow) {
+  const fs::path dir = scratch_dir("walk_validation", "fireflies");
+  const fs::path dump = dir / "fireflies.npy";
+  const std::uint64_t dropped = write_walk_dump(dump, 85.0, detail::WalkFault::none, 11, 3);
+  const CliRun r = run_cli(dir, walk_args(dump, 85.0, dropped));
+  EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
+  EXPECT_NE(r.out.find("a firefly"), std::string::npos) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(slurp(dir / "v.json"));
+  EXPECT_EQ(j["verdict"], "fail");
+  EXPECT_GT(j["dominant_weight"]["share"].get<double>(), 0.1);
+  EXPECT_EQ(j["failures"].size(), 1u) << "the albedo tests alone pass the fireflies: " << j["failures"].dump();
   fs::remove_all(dir);
 }
 

@@ -136,3 +136,20 @@ def test_a_runs_bad_keys_exit_2_naming_the_key(tmp_path):
     assert p.returncode == 2 and "quantity[0].samples" in p.stderr, p.stderr
     p, _ = run_spec(tmp_path, 0, 'colour = "red"')
     assert p.returncode == 2 and "quantity[0].colour" in p.stderr, p.stderr
+
+
+@pytest.mark.parametrize("scale", [1e3, 1e5])
+def test_fireflies_that_eval_agrees_with_are_rejected(tmp_path, scale):
+    """Three samples whose weight and eval() are both `scale` times too large (an eval spike where the sampler
+    rarely goes; consistency holds): they raise the mean weight and its standard error together, so the furnace's
+    z stays near sqrt(3) whatever the scale. The furnace names the sample holding the weights' spread and fails;
+    the same files without them pass (above)."""
+    dump, evals, cells, lost = write_files(tmp_path)
+    rows = [10, 2000, 9000]
+    dump[rows, 4] *= scale
+    evals[rows, 6] *= scale
+    report = microsim.check_bsdf_files(dump, evals, theta=THETA, lost=lost, cells=cells)
+    tests = {t["test"]: t for t in report["tests"]}
+    assert tests["consistency"]["passed"]
+    assert not report["passed"] and not tests["furnace"]["passed"], tests["furnace"]
+    assert "firefly" in tests["furnace"]["detail"]

@@ -197,3 +197,33 @@ TEST(ChiSquare, JsonCarriesTheVerdict) {
     EXPECT_TRUE(j.contains(key)) << key;
   EXPECT_EQ(j["dof"], 3);
 }
+
+namespace microsim {
+namespace {
+
+// The largest share of the spread one value holds: tiny for 1e4 bounded values (uniform in [0, 1): at most
+// (1/2)^2 / (1e4 / 12) = 3e-4), most of it for one firefly among them, and the same streamed with zeros
+// (lost samples) as from the whole sample.
+TEST(DominantValue, OneFireflyHoldsTheSpreadBoundedValuesDoNot) {
+  std::vector<double> x(10'000);
+  for (std::size_t i = 0; i < x.size(); ++i) x[i] = double((i * 7919) % 10'000) / 10'000.0;
+  const DominantValue bounded = dominant_value(x);
+  EXPECT_LT(bounded.share, 3.1e-4);
+  x[4321] = 1e3;
+  const DominantValue firefly = dominant_value(x);
+  EXPECT_GT(firefly.share, 0.99);
+  EXPECT_EQ(firefly.index, 4321u);
+  EXPECT_EQ(firefly.value, 1e3);
+  x.push_back(std::numeric_limits<double>::quiet_NaN());  // skipped
+  DominanceTally t;
+  for (const double v : x) t.add(v);
+  t.add_zeros(500);
+  std::vector<double> with_zeros(x.begin(), x.end() - 1);
+  with_zeros.insert(with_zeros.end(), 500, 0.0);
+  EXPECT_NEAR(t.result().share, dominant_value(with_zeros).share, 1e-12);
+  EXPECT_EQ(t.result().index, 4321u);
+  EXPECT_EQ(dominant_value(std::vector<double>{2.0, 2.0}).share, 0.0);  // no spread
+}
+
+}  // namespace
+}  // namespace microsim
