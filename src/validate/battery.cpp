@@ -185,14 +185,14 @@ private:
     const double claimed = ref_.returned_pdf(w);
     const double e = relative_difference(pdf, claimed);
     const bool text = printed.direction > 0 || printed.pdf > 0;
-    // A float32 pdf widened to float64 (numpy's astype, Python's arrays) came with float32's direction and
-    // arithmetic: that sample gets float32's tolerance and rounding, as in a float32 file.
-    const bool from_float = widened_ && !text && double(float(pdf)) == pdf;
+    // A float32 pdf widened to float64 (numpy's astype, Python's arrays) or printed with digits a float32 fills
+    // came with float32's direction and arithmetic: that sample gets float32's tolerance and rounding, as in a
+    // float32 file.
+    const bool from_float = widened_ && (text ? std::abs(double(float(pdf)) - pdf) <= printed.pdf : double(float(pdf)) == pdf);
     const double tol = from_float ? float_tol_ : pdf_tol_;
     // Printed digits: the direction moved by up to their half unit per component, the pdf by its own.
-    const double rounding = text ? std::max(2 * printed.direction, direction_rounding_)
-                            : from_float ? kFloatDirectionRounding
-                                         : direction_rounding_;
+    const double rounding = std::max(text ? 2 * printed.direction : 0.0,
+                                     from_float ? kFloatDirectionRounding : direction_rounding_);
     const double printed_pdf = text ? printed.pdf / std::max(std::abs(pdf), std::abs(claimed)) : 0.0;
     c.printed = c.printed || text;
     if (e > tol + printed_pdf && e > tol + printed_pdf + 2 * rounding_sensitivity(ref_, w, claimed, rounding))

@@ -391,6 +391,44 @@ TEST(ValidateReturnedPdf, Float32DataWidenedToFloat64KeepsFloat32sTolerance) {
   EXPECT_FALSE(off.passed) << off.detail;
   const SubTest float64_off = check("f64_off", [&](const Vec3<float>& f) { return pdf(f) * (1 + 1e-5); });
   EXPECT_FALSE(float64_off.passed) << float64_off.detail;
+  // float32's tolerance (1e-4) still rejects a pdf 0.2% off, which the former 1e-2 accepted.
+  const SubTest slightly_off = check("f32_off", [&](const Vec3<float>& f) { return double(float(pdf(f) * 1.002)); });
+  EXPECT_FALSE(slightly_off.passed) << slightly_off.detail;
+}
+
+// A float32 renderer's text dump, its directions and pdfs from heitz2018's float version printed with %.9g (every
+// float's digits): the digits are a float32's, so float32's tolerance applies, and the dump passes; 0.2% off, it
+// fails.
+TEST(ValidateReturnedPdf, TextOfFloat32ValuesGetsFloat32sTolerance) {
+  const GGX<float> ggx(0.01f);
+  const Vec3<double> wi = direction_from_degrees(80.0, 0.0);
+  const Vec3<float> wf = wi.cast<float>();
+  std::vector<DirectionSample<float>> samples;
+  for (std::uint64_t i = 0; i < 50'000; ++i) {
+    CounterRng rng(41, i);
+    const Vec2<float> u(float(rng.uniform()), float(rng.uniform()));
+    if (const auto s = sample_heitz2018<float>(ggx, wf, u)) samples.push_back(*s);
+  }
+  const auto check = [&](float factor) {
+    std::string text;
+    for (const DirectionSample<float>& s : samples) {
+      const Vec3<float>& f = s.direction;
+      text += fmt::format("{:.9g} {:.9g} {:.9g} {:.9g}\n", f.x(), f.y(), f.z(), s.pdf * factor);
+    }
+    const fs::path p = fs::temp_directory_path() / fmt::format("microsim_float_text_{}.txt", ::getpid());
+    write_file_atomically(p, text);
+    DirectionSampleReader reader(p, SampleColumns::parse("x,y,z,pdf"));
+    const GGX<double> g(0.01);
+    const ClaimedDensity d = claimed_density(FilePdf::vndf, g, wi);
+    ValidationOptions o;
+    const ValidationReport r = validate_sample_file(reader, d.domain, g, wi, o, density_reference(d, g, wi, o.rows));
+    fs::remove(p);
+    return r.check("returned_pdf");
+  };
+  const SubTest ok = check(1.0f);
+  EXPECT_TRUE(ok.passed) << ok.detail;
+  const SubTest off = check(1.002f);
+  EXPECT_FALSE(off.passed) << off.detail;
 }
 
 // A text dump's pdfs and directions are as exact as their printed digits (printf's %g keeps 6 significant
