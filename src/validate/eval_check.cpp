@@ -146,12 +146,19 @@ struct Epsilons {
   double arithmetic, value, direction;
 };
 
+// Text has no storage epsilon: each row's printed digits say how exact it is (RowDigits).
 Epsilons epsilons(const DirectionSampleReader& reader, Precision arithmetic) {
   const double e32 = std::numeric_limits<float>::epsilon() / 2, e64 = std::numeric_limits<double>::epsilon() / 2;
   const double a = arithmetic == Precision::float32 ? e32 : e64;
-  if (reader.storage().find("text") != std::string::npos) return {a, 5e-5, 6e-5};
+  if (reader.storage().find("text") != std::string::npos) return {a, 0, 0};
   return reader.is_float32() ? Epsilons{a, e32, e32} : Epsilons{a, e64, e64};
 }
+
+// A text row's printed rounding (sample_io.h, PrintedRounding), absolute: of its values, its pdf and its two
+// directions' components; 0 for binary storage.
+struct RowDigits {
+  double value = 0, pdf = 0, direction = 0;
+};
 
 Vec3<float> float_direction(const Vec3<double>& w) { return w.cast<float>(); }
 
@@ -187,14 +194,15 @@ double fresnel_amplification(const Material& bsdf, const Vec3<double>& wi, const
 }
 
 // The renderer's rounding of the directions and the half vector is a perturbation of its inputs by its
-// epsilon: the direction term takes the larger of storage and arithmetic.
+// epsilon: the direction term takes the larger of storage (or printed digits) and arithmetic. A printed
+// number is within its half unit of the value held: that much more, once.
 double eval_tolerance(const Reference& ref, double value, const Vec3<double>& wi, const Vec3<double>& wo, const Epsilons& e,
-                 double amplification) {
+                      double amplification, double printed, double printed_direction) {
   const double in_arithmetic = e.arithmetic > 1e-10 ? ref(wi, wo, true) : value;
   const double rounding = std::isfinite(in_arithmetic) ? std::abs(in_arithmetic - value) : std::abs(value);
-  const double eps_in = std::max(e.direction, e.arithmetic);
+  const double eps_in = std::max({e.direction, e.arithmetic, printed_direction});
   return kToleranceFactor * (rounding + e.arithmetic * (amplification + kConditioningAllowance) * std::abs(value) + e.value * std::abs(value)) +
-         2 * eps_in * direction_sensitivity(ref, wi, wo) + 1e-300;
+         printed + 2 * eps_in * direction_sensitivity(ref, wi, wo) + 1e-300;
 }
 
 // Keeps the `limit` largest excesses, failures first.
@@ -214,10 +222,11 @@ struct EvalContext {
 
 // Compares one number; records it in the report.
 void compare_number(EvalCheckReport& r, const EvalContext& x, const Reference& ref, std::uint64_t row, const Vec3<double>& wi,
-             const Vec3<double>& wo, const std::string& quantity, double given, bool pdf) {
+                    const Vec3<double>& wo, const std::string& quantity, double given, bool pdf, const RowDigits& digits) {
   const double value = ref(wi, wo, false);
   EvalMismatch m{row, wi, wo, quantity, given, value,
-                 eval_tolerance(ref, value, wi, wo, x.eps, fresnel_amplification(x.bsdf, wi, wo))};
+                 eval_tolerance(ref, value, wi, wo, x.eps, fresnel_amplification(x.bsdf, wi, wo),
+                                pdf ? digits.pdf : digits.value, digits.direction)};
   ++(pdf ? r.pdfs_checked : r.values_checked);
   if (value != 0 && m.tolerance > kLooseRelativeTolerance * std::abs(value)) ++r.loose;
   else if (value != 0) r.max_relative_tolerance_tight = std::max(r.max_relative_tolerance_tight, m.tolerance / std::abs(value));
@@ -242,15 +251,15 @@ Reference pdf_reference(const EvalContext& x) {
 
 // One row: every channel's value and the pdf (a mirror's or conductor's wi below the surface is skipped).
 void check_row(EvalCheckReport& r, const EvalContext& x, std::uint64_t row, const Vec3<double>& wi, const Vec3<double>& wo,
-               const double* values, const double* pdf) {
+               const double* values, const double* pdf, const RowDigits& digits = {}) {
   if (!x.bsdf.transmits() && wi.z() <= 0 && wi.allFinite()) {
     ++r.skipped_below;
     return;
   }
   const int channels = x.bsdf.channels();
   for (int c = 0; c < channels; ++c)
-    compare_number(r, x, value_reference(x, c), row, wi, wo, "value " + x.bsdf.channel_name(c), values[c], false);
-  if (pdf != nullptr) compare_number(r, x, pdf_reference(x), row, wi, wo, "pdf", *pdf, true);
+    compare_number(r, x, value_reference(x, c), row, wi, wo, "value " + x.bsdf.channel_name(c), values[c], false, digits);
+  if (pdf != nullptr) compare_number(r, x, pdf_reference(x), row, wi, wo, "pdf", *pdf, true, digits);
 }
 
 std::vector<std::string> eval_notes(const EvalCheckReport& r, const EvalContext& x, bool has_pdf) {
@@ -288,11 +297,15 @@ EvalCheckReport check_eval_file(const std::filesystem::path& file, const EvalCol
   const bool has_pdf = columns.has_pdf();
   std::vector<Vec3<double>> wi(kSampleFileBlock), wo(kSampleFileBlock);
   std::vector<double> pdfs(has_pdf ? kSampleFileBlock : 0), values(kSampleFileBlock * std::size_t(channels));
-  for (std::size_t n; (n = wi_reader.read(wi, pdfs, values)) > 0;) {
-    if (wo_reader.read(std::span<Vec3<double>>(wo.data(), n)) != n) throw SampleFileError(file.string() + ": rows differ");
+  std::vector<PrintedRounding> wi_digits(kSampleFileBlock), wo_digits(kSampleFileBlock);
+  for (std::size_t n; (n = wi_reader.read(wi, pdfs, values, wi_digits)) > 0;) {
+    if (wo_reader.read(std::span<Vec3<double>>(wo.data(), n), {}, {}, wo_digits) != n)
+      throw SampleFileError(file.string() + ": rows differ");
     if (options.run.cancelled()) throw Cancelled("the eval check");
-    for (std::size_t i = 0; i < n; ++i)
-      check_row(r, x, r.rows + i, wi[i], wo[i], &values[i * std::size_t(channels)], has_pdf ? &pdfs[i] : nullptr);
+    for (std::size_t i = 0; i < n; ++i) {
+      const RowDigits digits{wi_digits[i].weight, wi_digits[i].pdf, std::max(wi_digits[i].direction, wo_digits[i].direction)};
+      check_row(r, x, r.rows + i, wi[i], wo[i], &values[i * std::size_t(channels)], has_pdf ? &pdfs[i] : nullptr, digits);
+    }
     r.rows += n;
   }
   r.passed = r.value_failures == 0 && r.pdf_failures == 0;

@@ -14,12 +14,13 @@
 // roughconductor with visible-normal sampling) return it.
 //
 // Tolerance of each compared number, from the file's precision and the reference's conditioning:
-//   tol = K (|ref_r - ref| + eps_r (A + 1024) |ref|) + K eps_v |ref| + 2 max(eps_in, eps_r) sum_k |d ref / d x_k|,
+//   tol = K (|ref_r - ref| + eps_r (A + 1024) |ref|) + K eps_v |ref| + h + 2 max(eps_in, eps_r, h_in) sum_k |d ref / d x_k|,
 // ref in double, ref_r the same formula in the renderer's arithmetic (float32 unless said), eps_r that
 // arithmetic's epsilon, A the amplification of a rounded cosine through the Fresnel term (F's square root and
 // 1 - F cancel near total internal reflection, as renderers compute them), 1024 epsilons for a renderer's formula
 // conditioned worse than the reference's (grazing views), eps_v and eps_in the storage's of values and
-// directions (text: 5e-5 and 6e-5, what 4-5 printed digits keep), the derivative over the six direction
+// directions (binary storage; text: 0), h and h_in a text row's printed rounding (sample_io.h, PrintedRounding:
+// half a unit in the last digit of the number, the coarsest of the row's direction components), the derivative over the six direction
 // components by central differences (large across a kink or the horizon: the pair is then checked loosely, and
 // counted), K = 16. Float32 arithmetic: about 1e-3 relative at most pairs; float64: about 2e-12.
 #pragma once

@@ -501,6 +501,7 @@ void read_text_lines(const std::filesystem::path& path, std::string_view text, s
     PrintedRounding r;
     for (const int c : columns.direction) r.direction = std::max(r.direction, half_units[std::size_t(c)]);
     if (columns.has_pdf()) r.pdf = half_units[std::size_t(columns.pdf)];
+    for (const int c : columns.weights) r.weight = std::max(r.weight, half_units[std::size_t(c)]);
     out.rounding.push_back(r);
   }
 }

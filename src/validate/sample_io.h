@@ -100,12 +100,13 @@ struct SampleColumns {
 };
 
 // What the digits of a text row keep: half a unit in the last printed digit ("0.1234" 5e-5, "1.5e-03"
-// 5e-5, "12" 0.5), the coarsest of its direction's three numbers and that of its pdf. A renderer's dump
-// printed with printf's %g or %.4f is that far from the values the renderer held; binary storage
-// (NPY, arrays) has no printed digits: both are 0 and its precision (float32, float64) says it.
+// 5e-5, "12" 0.5), the coarsest of its direction's three numbers, that of its pdf and of its weights. A
+// renderer's dump printed with printf's %g or %.4f is that far from the values the renderer held; binary
+// storage (NPY, arrays) has no printed digits: all are 0 and its precision (float32, float64) says it.
 struct PrintedRounding {
   double direction = 0;  // absolute, per component
   double pdf = 0;        // absolute
+  double weight = 0;     // absolute, the coarsest of the weight columns'
 };
 
 // Samples already in memory (a NumPy array handed over by the Python module, src/python): each column a

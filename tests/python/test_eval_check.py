@@ -34,9 +34,9 @@ def queries(tmp_path_factory):
 def check(tmp_path, q, kind, layout="c32", claims=(), **renderer):
     value, pdf = renderer_eval(q, kind, **renderer)
     rows = np.column_stack([q, value, pdf])
-    path = tmp_path / ("eval.txt" if layout == "text" else "eval.npy")
-    if layout == "text":
-        np.savetxt(path, rows, fmt="%.9g")
+    path = tmp_path / ("eval.txt" if layout.startswith("text") else "eval.npy")
+    if layout.startswith("text"):  # "text" %.9g, "text:FMT" another printf format
+        np.savetxt(path, rows, fmt=layout[5:] or "%.9g")
     else:
         np.save(path, rows.astype(np.float32 if layout == "c32" else np.float64))
     bsdf = f"dielectric:{ETA}" if kind == "dielectric" else f"conductor:{GOLD[0]},{GOLD[1]}"
@@ -50,6 +50,8 @@ CORRECT = [
      dict(transport="importance", dtype=np.float64)),
     ("Mitsuba 3 glass, separable masking, text", "dielectric", "text", ("--masking", "separable"), dict(masking="separable")),
     ("pbrt-v4 gold, float32", "conductor", "c32", (), {}),
+    ("glass printed with 4 decimals", "dielectric", "text:%.4f", ("--arithmetic", "float64"), dict(dtype=np.float64)),
+    ("gold printed with %g", "conductor", "text:%g", (), {}),
 ]
 
 BUGS = [
@@ -75,6 +77,15 @@ def test_a_buggy_eval_is_rejected(tmp_path, queries, name, kind, claims, rendere
     assert code == 1, out
     worst = out.split("excess")[1].splitlines()[1]  # the first listed pair
     assert what in worst, out
+
+
+@pytest.mark.parametrize("fmt", ["%.4f", "%g"])
+def test_a_buggy_eval_printed_with_few_digits_is_rejected(tmp_path, queries, fmt):
+    """Each number is allowed the rounding of its own printed digits, no more: the radiance factor applied twice
+    is still rejected at 4 decimals and at 6 significant digits."""
+    code, out = check(tmp_path, queries["dielectric"], "dielectric", f"text:{fmt}", ("--arithmetic", "float64"),
+                      dtype=np.float64, bug="eta2_twice")
+    assert code == 1, out
 
 
 def test_without_a_pdf_column_the_report_says_so(tmp_path, queries):
