@@ -51,7 +51,7 @@ DirectionSampleReader open_dump(const SpecQuantity& quantity) {
 
 DumpClaims dump_claims(const SpecQuantity& quantity, const SpecMaterial& material) {
   return {parse_file_pdf(quantity.dump_pdf), dump_has_bsdf(quantity) ? std::optional<Material>(material.facet) : std::nullopt,
-          quantity.above_horizon};
+          quantity.above_horizon, quantity.lost_as_zero_weight};
 }
 
 // The validator's binned counts as a histogram (counts, and the claimed pdf's bin probabilities): what the
@@ -394,7 +394,9 @@ ModelChoice validation_choice(const SpecQuantity& q) {
           fmt::format("a renderer's dump ({}) against the density it claims (pdf {}{}{}): its rows are read, not drawn; "
                       "the analytic reference by cubature (no tracing needed)",
                       std::filesystem::path(q.dump).filename().string(), q.dump_pdf,
-                      q.above_horizon ? ", only the reflections above the horizon" : "",
+                      q.above_horizon        ? ", only the reflections above the horizon"
+                      : q.lost_as_zero_weight ? ", the lost samples as rows of weight 0"
+                                              : "",
                       q.dump_columns == "x,y,z" ? "" : fmt::format(", columns {}", q.dump_columns))};
 }
 
@@ -409,7 +411,7 @@ static ModelChoice validation_model(const SpecQuantity& q, const SpecMaterial&) 
 namespace {
 
 void read_zoo_sampler(const SpecTable& t, SpecQuantity& q) {
-  for (const char* key : {"pdf", "above_horizon", "columns", "frame", "dropped", "transport", "masking"})
+  for (const char* key : {"pdf", "above_horizon", "lost_as_zero_weight", "columns", "frame", "dropped", "transport", "masking"})
     if (t.has(key)) t.fail(key, fmt::format("{} applies to a dump (a zoo sampler's density is its own)", key));
   q.sampler = t.string("sampler");
   if (find_sampler(q.sampler) == nullptr)
@@ -467,6 +469,11 @@ void read_dump(const SpecTable& t, SpecQuantity& q, const SpecMaterial& m, const
     t.fail("above_horizon", fmt::format("pdf {} is a density of normals (none is below the horizon)", q.dump_pdf));
   if (t.has("dropped") && !q.above_horizon) t.fail("dropped", "dropped applies with above_horizon = true only");
   q.dump_dropped = std::uint64_t(t.integer("dropped", 0, 0, std::int64_t(1) << 53));
+  q.lost_as_zero_weight = t.boolean("lost_as_zero_weight", false);
+  if (q.lost_as_zero_weight && q.above_horizon)
+    t.fail("lost_as_zero_weight", "the lost samples are dropped (above_horizon) or kept as rows of weight 0, not both");
+  if (q.lost_as_zero_weight && SampleColumns::parse(q.dump_columns).channels() == 0)
+    t.fail("lost_as_zero_weight", "the rows of weight 0 need weight columns (columns = \"x,y,z,pdf,weight\")");
 }
 
 // A dump validated against its analytic reference needs no detect_tv: its rows are given, and they fix the TV
@@ -498,13 +505,14 @@ nlohmann::json validation_canonical(const SpecQuantity& q) {
   if (q.dump_columns != "x,y,z") j["columns"] = q.dump_columns;
   if (q.dump_frame != "z-up") j["frame"] = q.dump_frame;
   if (q.dump_dropped != 0) j["dropped"] = q.dump_dropped;
+  if (q.lost_as_zero_weight) j["lost_as_zero_weight"] = true;
   if (q.convention != BsdfConvention{}) j["convention"] = describe(q.convention);
   return j;
 }
 }  // namespace
 
-const KindSpec validation_spec{"sampler dump pdf above_horizon detect_tv power significance theta theta_range phi rows "
-                               "columns frame dropped transport masking", read_validation_spec, validation_canonical};
+const KindSpec validation_spec{"sampler dump pdf above_horizon lost_as_zero_weight detect_tv power significance theta "
+                               "theta_range phi rows columns frame dropped transport masking", read_validation_spec, validation_canonical};
 
 // ---- its report section (report_html.h) -----------------------------------------------------------------------
 

@@ -132,6 +132,7 @@ struct SpecQuantity {
   std::string dump;      // validation: a sample file (.npy or text; a relative path is the spec folder's)
   std::string dump_pdf = "vndf";  // validation of a dump: the density it claims (FilePdf; bsdf: the material's BSDF)
   bool above_horizon = false;     // validation of a dump of reflections: only those above the horizon kept
+  bool lost_as_zero_weight = false;  // validation of a dump: the sampler's lost samples kept as rows of weight 0
   std::string dump_columns = "x,y,z";  // validation of a dump: what its columns hold (SampleColumns::parse)
   std::string dump_frame = "z-up";     // validation of a dump: the frame of its rows (z-up or y-up)
   std::uint64_t dump_dropped = 0;      // validation of a dump above the horizon: the samples its renderer dropped

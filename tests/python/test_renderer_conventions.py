@@ -234,3 +234,12 @@ def test_a_dump_that_keeps_its_lost_samples_with_weight_0_gets_the_hint(tmp_path
     assert p.returncode == 0, p.stdout + p.stderr
     lost = int((weights == 0).sum())
     assert f"rows of weight 0 counted as the sampler's lost samples: {lost} of {N}" in p.stdout
+    # The same through `microsim run` (lost_as_zero_weight = true in the spec), and without the key: rejected.
+    for lost_key, code in (("lost_as_zero_weight = true\n", 0), ("", 1)):
+        (tmp_path / "spec.toml").write_text(
+            '[[material]]\nname = "glass"\nalpha = 0.3\ntype = "dielectric"\neta = 1.5\n'
+            '[[quantity]]\nkind = "validation"\nmaterial = "glass"\ndump = "mitsuba.npy"\npdf = "bsdf"\n'
+            'columns = "x,y,z,pdf,weight"\nmasking = "separable"\ntheta = [70]\nrows = 11\n' + lost_key)
+        out = tmp_path / f"run{code}"
+        p = run_cli("run", tmp_path / "spec.toml", "--out", out, check=False)
+        assert p.returncode == code, p.stdout + p.stderr
