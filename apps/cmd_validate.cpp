@@ -481,6 +481,46 @@ int run(const Args& a) {
   return a.all ? run_all(a) : run_single(a);
 }
 
+// The options that say what a --from file holds: its columns, the BSDF and its conventions, its frame, and how
+// it holds the samples its sampler lost.
+void add_dump_options(CLI::App* sub, Args& a) {
+  using microsim::app::add_number_option;
+  sub->add_option("--columns", a.columns,
+                  "with --from: what the columns of a row hold, e.g. x,y,z,pdf (the pdf the sampler returned: checked "
+                  "against the claimed pdf at each sample) or x,y,z,pdf,weight; '-' skips a column (default x,y,z)");
+  sub->add_option("--bsdf", a.bsdf,
+                  "with --from: the rows are this BSDF's samples, tested against its outgoing density (--pdf bsdf unless "
+                  "--pdf or --reflected says otherwise) and, with weight columns, their weights (f cos / pdf) against "
+                  "the BSDF: mirror, conductor (with --eta and --k), dielectric (with --eta) or a spec as scatter "
+                  "--material takes (conductor:0.2,3.9;0.9,2.4, dielectric:1.5)");
+  sub->add_option("--eta", a.eta,
+                  "with --bsdf conductor: the real parts of the indices, one per weight column; with --bsdf dielectric: "
+                  "the index inside over outside (a view from inside: mirror the rows and give 1 / eta)");
+  sub->add_option("--k", a.k, "with --bsdf conductor: the imaginary parts, one per weight column");
+  sub->add_option("--transport", a.transport,
+                  "with --bsdf: the transport mode of the weights: radiance (default: camera paths; a refraction's weight "
+                  "holds (n_given / n_sampled)^2, as pbrt-v4 and Mitsuba 3 in radiance mode) or importance (light "
+                  "paths: no such factor)");
+  sub->add_option("--masking", a.masking,
+                  "with --bsdf: the masking-shadowing form of the BSDF: height-correlated (default, Smith's G2 = 1 / (1 "
+                  "+ Lambda_i + Lambda_o), pbrt-v4) or separable (G1(wi) G1(wo), Mitsuba 3)");
+  sub->add_option("--frame", a.frame,
+                  "with --from: the frame of the rows: z-up (default, microsim's) or y-up (normal along +y, rotated to "
+                  "z-up by (x, y, z) -> (x, -z, y); --theta/--phi stay z-up)");
+  sub->add_flag("--above-horizon", a.above_horizon,
+                "with --from --reflected: the file holds only the reflections above the horizon (as renderers emit "
+                "them, dropping wo.z <= 0); test against the reflection pdf conditioned on wo.z > 0. With --pdf bsdf: "
+                "the file holds the samples the sampler kept (a dielectric also loses its refractions above the "
+                "horizon), tested against its density conditioned on them");
+  sub->add_flag("--lost-as-zero-weight", a.lost_as_zero_weight,
+                "with --from and weight columns: the file keeps the samples its sampler lost (a reflection below the "
+                "horizon, a refraction on the wrong side) as rows of weight 0, as Mitsuba 3's sample() returns them; "
+                "they count as the sampler's failures, tested against the mass the claimed pdf loses");
+  add_number_option(sub, "--dropped", a.dropped, microsim::app::whole(0, microsim::kMaxSamples),
+                    "with --above-horizon: how many samples the renderer dropped (reflections below the horizon, a "
+                    "dielectric's refractions above it; tested against the fraction the pdf loses)");
+}
+
 microsim::app::CommandRegistration validate_registration{"validate", [](CLI::App& app) {
   auto args = std::make_shared<Args>();
   auto* sub = app.add_subcommand(
@@ -497,40 +537,7 @@ microsim::app::CommandRegistration validate_registration{"validate", [](CLI::App
                   "bounded (reflections of the bounded VNDF, Eto & Tokuyoshi 2023), reflection (reflections of VNDF "
                   "sampling, = --reflected), bsdf (the outgoing directions of the --bsdf's VNDF sampling: a conductor's "
                   "reflections; a dielectric's reflections with probability F and refractions, over the whole sphere)");
-  sub->add_option("--columns", args->columns,
-                  "with --from: what the columns of a row hold, e.g. x,y,z,pdf (the pdf the sampler returned: checked "
-                  "against the claimed pdf at each sample) or x,y,z,pdf,weight; '-' skips a column (default x,y,z)");
-  sub->add_option("--bsdf", args->bsdf,
-                  "with --from: the rows are this BSDF's samples, tested against its outgoing density (--pdf bsdf unless "
-                  "--pdf or --reflected says otherwise) and, with weight columns, their weights (f cos / pdf) against "
-                  "the BSDF: mirror, conductor (with --eta and --k), dielectric (with --eta) or a spec as scatter "
-                  "--material takes (conductor:0.2,3.9;0.9,2.4, dielectric:1.5)");
-  sub->add_option("--eta", args->eta,
-                  "with --bsdf conductor: the real parts of the indices, one per weight column; with --bsdf dielectric: "
-                  "the index inside over outside (a view from inside: mirror the rows and give 1 / eta)");
-  sub->add_option("--k", args->k, "with --bsdf conductor: the imaginary parts, one per weight column");
-  sub->add_option("--transport", args->transport,
-                  "with --bsdf: the transport mode of the weights: radiance (default: camera paths; a refraction's weight "
-                  "holds (n_given / n_sampled)^2, as pbrt-v4 and Mitsuba 3 in radiance mode) or importance (light "
-                  "paths: no such factor)");
-  sub->add_option("--masking", args->masking,
-                  "with --bsdf: the masking-shadowing form of the BSDF: height-correlated (default, Smith's G2 = 1 / (1 "
-                  "+ Lambda_i + Lambda_o), pbrt-v4) or separable (G1(wi) G1(wo), Mitsuba 3)");
-  sub->add_option("--frame", args->frame,
-                  "with --from: the frame of the rows: z-up (default, microsim's) or y-up (normal along +y, rotated to "
-                  "z-up by (x, y, z) -> (x, -z, y); --theta/--phi stay z-up)");
-  sub->add_flag("--above-horizon", args->above_horizon,
-                "with --from --reflected: the file holds only the reflections above the horizon (as renderers emit "
-                "them, dropping wo.z <= 0); test against the reflection pdf conditioned on wo.z > 0. With --pdf bsdf: "
-                "the file holds the samples the sampler kept (a dielectric also loses its refractions above the "
-                "horizon), tested against its density conditioned on them");
-  sub->add_flag("--lost-as-zero-weight", args->lost_as_zero_weight,
-                "with --from and weight columns: the file keeps the samples its sampler lost (a reflection below the "
-                "horizon, a refraction on the wrong side) as rows of weight 0, as Mitsuba 3's sample() returns them; "
-                "they count as the sampler's failures, tested against the mass the claimed pdf loses");
-  add_number_option(sub, "--dropped", args->dropped, microsim::app::whole(0, microsim::kMaxSamples),
-                    "with --above-horizon: how many samples the renderer dropped (reflections below the horizon, a "
-                    "dielectric's refractions above it; tested against the fraction the pdf loses)");
+  add_dump_options(sub, *args);
   sub->add_flag("--all", args->all, "validate the whole zoo over the standard grid (Sidak-corrected over the batch)");
   sub->add_option("--alpha", args->alpha,
                   "roughness AX or AX,AY, each in [1e-4, 10], anisotropy at most 1:1000 (docs/reference/conventions.md)");
