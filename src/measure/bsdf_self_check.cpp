@@ -335,11 +335,12 @@ void fail_if_one_weight_dominates(const ViewSamples& s, int channels, BatteryLin
   std::vector<double> x(s.wo.size());
   for (std::size_t i = 0; i < x.size(); ++i) x[i] = channel_mean(&s.weight[std::size_t(channels) * i], channels);
   const DominantValue d = dominant_value(x, s.drawn - s.wo.size());
-  if (!(d.share > kMaxDominantShare)) return;
+  if (!d.dominates()) return;
   line.passed = false;
   line.detail += fmt::format("; the sample of row {} (weight {:.6g}) holds {:.0f}% of the weights' spread (at most {:.0f}% "
-                             "for a mean's test): a firefly",
-                             d.index, d.value, 100 * d.share, 100 * kMaxDominantShare);
+                             "for a mean's test of {:.0f} samples): a firefly",
+                             d.index, d.value, 100 * d.share,
+                             100 * d.limit(), d.count);
 }
 
 int cell_strata(int points_per_cell) { return std::max(2, 2 * int(std::lround(std::sqrt(double(points_per_cell)) / 2))); }

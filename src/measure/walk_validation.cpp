@@ -57,10 +57,11 @@ ScatterHistogram dump_histogram(DirectionSampleReader& dump, const ScatterOption
 // The albedo tests compare means with their own standard errors: void when one row holds much of the spread.
 void firefly_check(WalkValidationReport& r, const DominanceTally& spread) {
   r.dominant = spread.result();
-  if (!(r.dominant.share > kMaxDominantShare)) return;
+  if (!r.dominant.dominates()) return;
   r.failures.push_back(fmt::format("the dump's row {} (weight {:.6g}) holds {:.0f}% of the weights' spread (at most {:.0f}% "
-                                   "for an albedo's test): a firefly",
-                                   r.dominant.index, r.dominant.value, 100 * r.dominant.share, 100 * kMaxDominantShare));
+                                   "for an albedo's test of {:.0f} rows): a firefly",
+                                   r.dominant.index, r.dominant.value, 100 * r.dominant.share, 100 * r.dominant.limit(),
+                                   r.dominant.count));
   r.passed = false;
 }
 

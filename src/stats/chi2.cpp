@@ -445,8 +445,8 @@ void DominanceTally::add_zeros(std::uint64_t n) {
 DominantValue DominanceTally::result() const {
   if (!any_ || !(n_ > 1) || !(m2_ > 0)) return {};
   const double below = (lo_ - mean_) * (lo_ - mean_), above = (hi_ - mean_) * (hi_ - mean_);
-  return above >= below ? DominantValue{std::min(1.0, above / m2_), hi_at_, hi_}
-                        : DominantValue{std::min(1.0, below / m2_), lo_at_, lo_};
+  return above >= below ? DominantValue{std::min(1.0, above / m2_), hi_at_, hi_, n_}
+                        : DominantValue{std::min(1.0, below / m2_), lo_at_, lo_, n_};
 }
 
 DominantValue dominant_value(std::span<const double> x, std::uint64_t zeros) {

@@ -19,6 +19,8 @@
 
 #include <nlohmann/json_fwd.hpp>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <span>
@@ -135,10 +137,17 @@ double skewed_mean_p(double deviation, double se, double skew);
 // negligible terms only (Lindeberg 1922; Feller 1935: max_i var_i / sum var -> 0 is necessary). One value
 // holding a large share (a firefly) raises the mean and the standard error that should expose it together:
 // z ~ sqrt(number of such values), whatever their size.
+// The largest share a sample mean's test accepts; an honest weight sample of 1e4 bounded values holds ~1e-3.
+inline constexpr double kMaxDominantShare = 0.1;
 struct DominantValue {
   double share = 0;         // in [0, 1]
   std::uint64_t index = 0;  // in x (the order of add())
   double value = 0;
+  double count = 0;         // values (zeros included)
+  // More than a mean's test accepts: kMaxDominantShare, or for few values ten times what the largest of n
+  // normal values holds (2 ln n / n), which an honest small sample can reach.
+  double limit() const { return std::max(kMaxDominantShare, 20 * std::log(count) / count); }
+  bool dominates() const { return count > 1 && share > limit(); }
 };
 DominantValue dominant_value(std::span<const double> x, std::uint64_t zeros = 0);
 // The same over values streamed one at a time (Welford's running sum of squared deviations; the largest
@@ -154,8 +163,6 @@ private:
   std::uint64_t seen_ = 0, lo_at_ = 0, hi_at_ = 0;
   bool any_ = false;
 };
-// The largest share a sample mean's test accepts; an honest weight sample of 1e4 bounded values holds ~1e-3.
-inline constexpr double kMaxDominantShare = 0.1;
 
 // One-sample Kolmogorov-Smirnov test of values against the uniform distribution on [0, 1]
 // (e.g. p-values under a null): D = sup |F_n - F|, p from the asymptotic Kolmogorov distribution

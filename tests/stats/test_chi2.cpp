@@ -223,6 +223,14 @@ TEST(DominantValue, OneFireflyHoldsTheSpreadBoundedValuesDoNot) {
   EXPECT_NEAR(t.result().share, dominant_value(with_zeros).share, 1e-12);
   EXPECT_EQ(t.result().index, 4321u);
   EXPECT_EQ(dominant_value(std::vector<double>{2.0, 2.0}).share, 0.0);  // no spread
+  EXPECT_TRUE(firefly.dominates());
+  EXPECT_FALSE(bounded.dominates());
+  // 50 honest normal-like values: the largest can hold 10-20% of the spread; the limit for so few is looser.
+  std::vector<double> few(50);
+  for (std::size_t i = 0; i < few.size(); ++i) few[i] = std::sin(double(i) * 1.7) + (i == 7 ? 2.5 : 0.0);
+  const DominantValue small = dominant_value(few);
+  EXPECT_GT(small.share, 0.1);
+  EXPECT_FALSE(small.dominates()) << small.share << " limit " << small.limit();
 }
 
 }  // namespace
