@@ -62,6 +62,10 @@ struct PdfChecks {
   Vec3<double> worst_direction = Vec3<double>::Zero();
   double worst_returned = 0;
   bool printed = false;  // some pdf came from text: its printed digits' rounding was allowed for
+  // Text: the sum over samples of how far their printed digits can move the weight (pdf and direction rounding),
+  // and the samples whose pdf is printed within its rounding of 0 (their weight is unbounded).
+  double weight_rounding = 0;
+  std::uint64_t weight_unbounded = 0;
   void merge(const PdfChecks& other);
 };
 

@@ -396,6 +396,42 @@ TEST(ValidateReturnedPdf, Float32DataWidenedToFloat64KeepsFloat32sTolerance) {
   EXPECT_FALSE(slightly_off.passed) << slightly_off.detail;
 }
 
+// E[weight] from a text dump: each weight D <wi, m> / pdf moves with the printed digits of the pdf and the
+// direction (Jensen: a rounded small pdf raises its weight on average). At alpha 3, 60 deg, the pdfs printed
+// with %.4f (the smallest about 2e-4) made the mean of a correct dump 1e-3 high (2e5 samples: p 3e-8); the test takes
+// the deviation beyond the digits' bound (about 8e-4 here), and a pdf 1% off still fails it. A pdf printed
+// as 0.0000 leaves its weight unbounded: the test is then not applicable, never passed or failed on it.
+TEST(ValidateWeightMean, TextDigitsBoundTheMeanWeightsDeviation) {
+  const GGX<double> ggx(3.0);
+  const Vec3<double> wi = direction_from_degrees(60.0, 0.0);
+  std::vector<DirectionSample<double>> samples;
+  for (std::uint64_t i = 0; i < 100'000; ++i) {
+    CounterRng rng(43, i);
+    if (const auto s = sample_heitz2018<double>(ggx, wi, Vec2<double>(rng.uniform(), rng.uniform()))) samples.push_back(*s);
+  }
+  const ClaimedDensity d = claimed_density(FilePdf::vndf, ggx, wi);
+  const ValidationOptions o;
+  const auto reference = density_reference(d, ggx, wi, o.rows);
+  const auto check = [&](double factor, double pdf_floor) {
+    std::string text;
+    for (const DirectionSample<double>& s : samples)
+      text += fmt::format("{:.4f} {:.4f} {:.4f} {:.4f}\n", s.direction.x(), s.direction.y(), s.direction.z(),
+                          s.pdf < pdf_floor ? 0.0 : s.pdf * factor);
+    const fs::path p = fs::temp_directory_path() / fmt::format("microsim_weight_text_{}.txt", ::getpid());
+    write_file_atomically(p, text);
+    DirectionSampleReader reader(p, SampleColumns::parse("x,y,z,pdf"));
+    const ValidationReport r = validate_sample_file(reader, d.domain, ggx, wi, o, reference);
+    fs::remove(p);
+    return r.check("weight_mean");
+  };
+  const SubTest ok = check(1.0, 0.0);
+  EXPECT_TRUE(ok.applicable && ok.passed) << ok.detail;
+  const SubTest off = check(1.01, 0.0);
+  EXPECT_FALSE(off.passed) << off.detail;
+  const SubTest zero = check(1.0, 1e-3);  // the smallest pdfs printed as 0.0000
+  EXPECT_FALSE(zero.applicable) << zero.detail;
+}
+
 // A float32 renderer's text dump, its directions and pdfs from heitz2018's float version printed with %.9g (every
 // float's digits): the digits are a float32's, so float32's tolerance applies, and the dump passes; 0.2% off, it
 // fails.
