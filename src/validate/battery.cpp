@@ -148,13 +148,18 @@ double rounding_sensitivity(const ReferenceDistribution& ref, const Vec3<double>
   return s;
 }
 
+// How far a float32 printed with 9 significant digits is from the decimal read back, relative: at most half a
+// unit in the 9th digit.
+constexpr double kNineDigits = 5e-9;
+
 // How far a stored direction may be from the sampler's: twice the half-ulp of its precision.
 constexpr double kFloatDirectionRounding = 2 * 0x1p-24, kDoubleDirectionRounding = 2 * 0x1p-53;
 
 // The checks of each sample against a claimed pdf: the returned pdf, and the weight D <wi, m>+ / pdf.
 class ClaimedPdfChecks {
 public:
-  ClaimedPdfChecks(const ReferenceDistribution& ref, const ValidationOptions& options, Precision precision)
+  // `given`: samples from a file or an array (their float64 values may be float32 data), not drawn here.
+  ClaimedPdfChecks(const ReferenceDistribution& ref, const ValidationOptions& options, Precision precision, bool given)
       : ref_(ref),
         // The stored direction carries the rounding of its precision (a float sample has |dw| ~ 1e-7):
         // where the claimed pdf is ill-conditioned (a jump, or D at alpha = 1e-3 seen through a
@@ -162,7 +167,7 @@ public:
         direction_rounding_(precision == Precision::float32 ? kFloatDirectionRounding : kDoubleDirectionRounding),
         pdf_tol_(returned_pdf_tolerance(options, precision)),
         float_tol_(returned_pdf_tolerance(options, Precision::float32)),
-        widened_(precision == Precision::float64 && !(options.pdf_tolerance > 0)), back_(ref.wi.z() < 0),
+        widened_(given && precision == Precision::float64 && !(options.pdf_tolerance > 0)), back_(ref.wi.z() < 0),
         wi_front_(back_ ? Vec3<double>(-ref.wi) : ref.wi), weighs_(ref.domain == SampleDomain::microfacet_normal) {}
 
   // A failed sample contributes weight 0.
@@ -202,10 +207,13 @@ private:
     const double claimed = ref_.returned_pdf(w);
     const double e = relative_difference(pdf, claimed);
     const bool text = printed.direction > 0 || printed.pdf > 0;
-    // A float32 pdf widened to float64 (numpy's astype, Python's arrays) or printed with digits a float32 fills
-    // came with float32's direction and arithmetic: that sample gets float32's tolerance and rounding, as in a
-    // float32 file.
-    const bool from_float = widened_ && (text ? std::abs(double(float(pdf)) - pdf) <= printed.pdf : double(float(pdf)) == pdf);
+    // A float32 pdf widened to float64 (numpy's astype, Python's arrays), printed with digits a float32 fills, or
+    // so printed with 9 significant digits and read back (np.loadtxt) came with float32's direction and
+    // arithmetic: that sample gets float32's tolerance and rounding, as in a float32 file. (A float printed with
+    // its last digit a tie, 969.1953125 as 969.195312, sits exactly a half unit away.)
+    const double off_float = std::abs(double(float(pdf)) - pdf);
+    const bool from_float =
+        widened_ && (text ? off_float <= printed.pdf * (1 + 1e-6) : off_float <= kNineDigits * std::abs(pdf));
     const double tol = from_float ? float_tol_ : pdf_tol_;
     // Printed digits: the direction moved by up to their half unit per component, the pdf by its own.
     const double rounding = std::max(text ? 2 * printed.direction : 0.0,
@@ -327,7 +335,7 @@ private:
 Tally tally_samples(const SampleSource& source, const std::vector<const DirectionBinning*>& binnings,
                     const ValidationOptions& options, const ReferenceDistribution* claimed) {
   std::optional<ClaimedPdfChecks> checks;
-  if (claimed && source.returns_pdf) checks.emplace(*claimed, options, source.precision);
+  if (claimed && source.returns_pdf) checks.emplace(*claimed, options, source.precision, !source.seeded);
   Tallier tallier(binnings, options, checks ? &*checks : nullptr);
   source.stream([&](const SampleBlockView& b, std::size_t slot) { tallier.visit(b, slot); },
                 [&](std::size_t blocks) { tallier.chunk_done(blocks); });

@@ -121,6 +121,8 @@ CASES = [
     ("Mitsuba 3 glass, the dump filtering its rows of weight 0", dict(kind="dielectric", theta=70, masking="separable"),
      {**GLASS, "masking": "separable"}, "c64", True),
     ("pbrt-v4 gold, 80 deg", dict(kind="conductor", theta=80), {"bsdf": "conductor:0.2,3.9"}, "c32", True),
+    ("pbrt-v4 gold, alpha 0.01, float32 values printed %.9g", dict(kind="conductor", theta=60, alpha=(0.01, 0.01)),
+     {"bsdf": "conductor:0.2,3.9"}, "text-f32", True),
     ("glass without a pdf column", dict(kind="dielectric", theta=50), GLASS, "c32-nopdf", True),
     ("pbrt-v4 gold, Fortran-order float32 .npy", dict(kind="conductor", theta=30), {"bsdf": "conductor:0.2,3.9"},
      "f32", True),
@@ -154,6 +156,8 @@ def write_dump(path, layout, directions, pdfs, weights, frame):
     rows = np.concatenate(cols, axis=1)
     if layout == "text":
         np.savetxt(path, rows, fmt="%.17g")
+    elif layout == "text-f32":  # a float32 renderer printing every float's digits (ties included: 969.1953125)
+        np.savetxt(path, rows.astype(np.float32).astype(np.float64), fmt="%.9g")
     elif layout == "f32":  # numpy writes Fortran order for a column-indexed or transposed array
         np.save(path, np.asfortranarray(rows.astype(np.float32)))
     else:
@@ -169,7 +173,7 @@ def test_renderer_dump_verdicts_agree_in_cli_and_python(tmp_path, name, dump, cl
     directions, pdfs, weights, dropped = renderer_dump(kind, view(theta, phi), alpha, **dump)
     claims = dict(claims)
     frame = claims.pop("frame", None)
-    path = tmp_path / ("dump.txt" if layout == "text" else "dump.npy")
+    path = tmp_path / ("dump.txt" if layout.startswith("text") else "dump.npy")
     columns = write_dump(path, layout, directions, pdfs, weights, frame)
     cli = ["validate", "--from", path, "--alpha", f"{alpha[0]},{alpha[1]}", "--theta", theta, "--phi", phi,
            "--columns", columns, "--rows", 11]
@@ -180,7 +184,7 @@ def test_renderer_dump_verdicts_agree_in_cli_and_python(tmp_path, name, dump, cl
         cli += ["--frame", frame]
     p = run_cli(*cli)
     assert p.returncode == (0 if passes else 1), f"{name}: exit {p.returncode}\n{p.stdout}\n{p.stderr}"
-    loaded = np.loadtxt(path) if layout == "text" else np.load(path)
+    loaded = np.loadtxt(path) if layout.startswith("text") else np.load(path)
     d = loaded[:, :3]
     lost = dict(lost_as_zero_weight=True) if zero_weight else dict(above_horizon=True, dropped=dropped)
     kwargs = dict(claims, rows=11, **lost, frame=frame or "z-up", weights=loaded[:, -1])
