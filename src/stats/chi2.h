@@ -144,9 +144,9 @@ struct DominantValue {
   std::uint64_t index = 0;  // in x (the order of add())
   double value = 0;
   double count = 0;         // values (zeros included)
-  // More than a mean's test accepts: kMaxDominantShare, or for few values ten times what the largest of n
+  // More than a mean's test accepts: kMaxDominantShare, or for few values five times what the largest of n
   // normal values holds (2 ln n / n), which an honest small sample can reach.
-  double limit() const { return std::max(kMaxDominantShare, 20 * std::log(count) / count); }
+  double limit() const { return std::max(kMaxDominantShare, 10 * std::log(count) / count); }
   bool dominates() const { return count > 1 && share > limit(); }
 };
 DominantValue dominant_value(std::span<const double> x, std::uint64_t zeros = 0);

@@ -139,6 +139,26 @@ def test_a_runs_bad_keys_exit_2_naming_the_key(tmp_path):
 
 
 @pytest.mark.parametrize("scale", [1e3, 1e5])
+def test_fireflies_in_a_small_dump_are_rejected(tmp_path, scale):
+    """Three fireflies among about 190 rows (200 draws, no albedo claimed): each holds a third of the spread, above
+    the limit for so few rows (10 ln(n) / n, 0.28); the 190 honest rows alone pass."""
+    sample, _, _ = glass()
+    wi = np.tile(view(THETA), (200, 1))
+    wo, pdf, weight = sample(wi, np.random.default_rng(5).random((200, 3)))
+    kept = pdf > 0
+    wi, wo, pdf, weight = wi[kept], wo[kept], pdf[kept], weight[kept]
+    value, epdf = renderer_eval(np.column_stack([wi, wo]), "dielectric", dtype=np.float64)
+    dump, evals = np.column_stack([wo, pdf, weight]), np.column_stack([wi, wo, value, epdf])
+    honest = microsim.check_bsdf_files(dump, evals, theta=THETA, lost=int(200 - kept.sum()))
+    assert honest["passed"], honest["tests"]
+    dump[[3, 60, 120], 4] *= scale
+    evals[[3, 60, 120], 6] *= scale
+    report = microsim.check_bsdf_files(dump, evals, theta=THETA, lost=int(200 - kept.sum()))
+    furnace = {t["test"]: t for t in report["tests"]}["furnace"]
+    assert not report["passed"] and "firefly" in furnace["detail"], furnace
+
+
+@pytest.mark.parametrize("scale", [1e3, 1e5])
 def test_fireflies_that_eval_agrees_with_are_rejected(tmp_path, scale):
     """Three samples whose weight and eval() are both `scale` times too large (an eval spike where the sampler
     rarely goes; consistency holds): they raise the mean weight and its standard error together, so the furnace's
