@@ -76,6 +76,28 @@ std::string zero_weight_hint(const ValidationReport& r, const DirectionSampleRea
                      r.samples_where_pdf_is_zero, zero);
 }
 
+// A text dump rejected by a chi-square test whose directions are printed coarsely for the lobe's bins (about
+// alpha / rows wide): the rounding alone moves samples between bins.
+std::string printed_directions_hint(const ValidationReport& r, const DirectionSampleReader& samples, int rows) {
+  const bool binned_failed =
+      std::any_of(r.binned.begin(), r.binned.end(), [&](const BinnedTest& b) { return b.chi2.p_value < r.per_test_significance; });
+  if (samples.storage() != "text" || !binned_failed) return "";
+  DirectionSampleReader reader = samples.reopened();
+  const std::size_t channels = std::size_t(reader.columns().channels());
+  std::vector<Vec3<double>> directions(kSampleFileBlock);
+  std::vector<double> pdfs(reader.columns().has_pdf() ? directions.size() : 0), weights(directions.size() * channels);
+  std::vector<PrintedRounding> printed(directions.size());
+  double coarsest = 0;
+  while (const std::size_t n = reader.read(directions, pdfs, weights, printed))
+    for (std::size_t i = 0; i < n; ++i) coarsest = std::max(coarsest, printed[i].direction);
+  const double bin = std::min(r.alpha_x, r.alpha_y) / rows;
+  if (!(coarsest >= 0.05 * bin)) return "";
+  return fmt::format("the directions are printed to within {:.1e} (half a unit in their last digit), {:.0f}% of a lobe "
+                     "bin's width at alpha {:g} (about alpha / rows = {:.1e}): their rounding alone can move samples "
+                     "between bins; print them with more digits (%.9g)",
+                     coarsest, 100 * coarsest / bin, std::min(r.alpha_x, r.alpha_y), bin);
+}
+
 // A rejected dump whose view is within 1.6 deg of the normal: a theta given in radians (at most pi / 2) where
 // degrees are read? The number the user gave is the view's angle in degrees.
 std::string radians_hint(const Vec3<double>& wi) {
@@ -94,6 +116,9 @@ std::vector<std::string> dump_notes(const ValidationReport& r, const DirectionSa
   if (!samples.columns().has_pdf())
     notes.push_back("the returned pdfs were not checked: the dump has no pdf column (a pdf wrong by the same factor "
                     "as f leaves the weights right)");
+  if (const auto w = std::find_if(r.checks.begin(), r.checks.end(), [](const SubTest& t) { return t.name == "weight_mean"; });
+      w != r.checks.end() && w->detail.find("printed within their rounding of 0") != std::string::npos)
+    notes.push_back("E[weight] was not tested: " + w->detail.substr(std::string("not applicable: ").size()));
   if (samples.zero_weight_rows_lost())
     notes.push_back(fmt::format("rows of weight 0 counted as the sampler's lost samples: {} of {}", r.failed_samples,
                                 r.samples));
@@ -142,6 +167,7 @@ ValidationReport validate_dump(const DirectionSampleReader& samples, std::shared
   if (std::string hint = zero_weight_hint(r, samples); !hint.empty()) r.hints.push_back(std::move(hint));
   else if (std::string dropped = dropped_samples_hint(r, *reference); !dropped.empty()) r.hints.push_back(std::move(dropped));
   if (std::string hint = radians_hint(wi); !hint.empty()) r.hints.push_back(std::move(hint));
+  if (std::string hint = printed_directions_hint(r, samples, options.rows); !hint.empty()) r.hints.push_back(std::move(hint));
   return r;
 }
 

@@ -301,3 +301,17 @@ def test_a_dielectric_dump_identical_to_cli(tmp_path):
     wrong, wrong_lost = dielectric_samples(100_000, seed=21, eta=1.3)
     assert not microsim.validate(wrong, ALPHA, THETA, pdf="bsdf", bsdf="dielectric:1.5", above_horizon=True,
                                  dropped=wrong_lost, rows=15).passed  # the wrong index: rejected
+
+
+def test_directions_printed_too_coarsely_for_the_lobe_get_a_hint(tmp_path):
+    """Correct normals at alpha 0.01 printed with 4 decimals: the rounding (5e-5) is a sixth of a lobe bin, the
+    chi-square rejects them (level 0.01) and the hint says to print more digits; printed with %.9g they pass."""
+    wi = np.array([0.0, 0.0, 1.0])
+    d, p = microsim.sample("heitz2018", wi, 0.01, np.random.default_rng(11).random((200_000, 2)))
+    coarse, fine = tmp_path / "coarse.txt", tmp_path / "fine.txt"
+    np.savetxt(coarse, np.column_stack([d, p]), fmt="%.4f")
+    np.savetxt(fine, np.column_stack([d, p]), fmt="%.9g")
+    r = microsim.validate(str(coarse), 0.01, 0.0, columns="x,y,z,pdf")
+    assert not r.passed
+    assert any("print them with more digits" in h for h in r.hints), r.hints
+    assert microsim.validate(str(fine), 0.01, 0.0, columns="x,y,z,pdf").passed
