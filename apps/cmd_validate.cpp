@@ -531,7 +531,8 @@ microsim::app::CommandRegistration validate_registration{"validate", [](CLI::App
   sub->add_option("--from", args->from,
                   "validate samples from FILE instead: .npy (float32/float64, shape (N,3)) or text, one x y z per line");
   sub->add_flag("--reflected", args->reflected,
-                "with --from: rows are reflected directions (tested against the VNDF reflection pdf), not normals");
+                "with --from: rows are reflected directions of VNDF sampling (= --pdf reflection; the bounded "
+                "sampler's reflections: --pdf bounded alone), not normals");
   sub->add_option("--pdf", args->pdf,
                   "with --from: the density the samples claim: vndf (normals, default), ndf (normals, D(m) m.z), "
                   "bounded (reflections of the bounded VNDF, Eto & Tokuyoshi 2023), reflection (reflections of VNDF "
