@@ -397,10 +397,10 @@ TEST(ValidateReturnedPdf, Float32DataWidenedToFloat64KeepsFloat32sTolerance) {
 }
 
 // E[weight] from a text dump: each weight D <wi, m> / pdf moves with the printed digits of the pdf and the
-// direction (Jensen: a rounded small pdf raises its weight on average). At alpha 3, 60 deg, the pdfs printed
-// with %.4f (the smallest about 2e-4) made the mean of a correct dump 1e-3 high (2e5 samples: p 3e-8); the test takes
-// the deviation beyond the digits' bound (about 8e-4 here), and a pdf 1% off still fails it. A pdf printed
-// as 0.0000 leaves its weight unbounded: the test is then not applicable, never passed or failed on it.
+// direction (Jensen: a rounded small pdf raises its weight on average), enough at alpha 3, 60 deg, with %.4f
+// (the smallest pdfs about 2e-4) to reject a correct dump. The test takes the deviation beyond the digits'
+// bound, and a pdf 1% off still fails it (docs/reference/validator.md). A pdf printed as 0.0000 leaves its
+// weight unbounded: the test is then not applicable, never passed or failed on it.
 TEST(ValidateWeightMean, TextDigitsBoundTheMeanWeightsDeviation) {
   const GGX<double> ggx(3.0);
   const Vec3<double> wi = direction_from_degrees(60.0, 0.0);
