@@ -177,13 +177,14 @@ public:
 
   // `printed`: a text file's digits (zero for binary storage and drawn samples).
   void inside(std::uint64_t i, const Vec3<double>& w, double pdf, const PrintedRounding& printed, PdfChecks& c) const {
-    check_pdf(i, w, pdf, printed, c);
+    const double claimed = ref_.returned_pdf(w);
+    check_pdf(i, w, pdf, claimed, printed, c);
     if (!weighs_) return;
     const Vec3<double> m = back_ ? Vec3<double>(-w) : w;
     const double numerator = ref_.ggx.D(m) * std::max(wi_front_.dot(m), 0.0);
     double weight = 0;
     if (numerator > 0) weight = pdf > 0 ? numerator / pdf : std::numeric_limits<double>::infinity();
-    if (printed.pdf > 0 && numerator > 0) printed_weight_rounding(w, pdf, weight, printed, c);
+    if (printed.pdf > 0 && numerator > 0) printed_weight_rounding(w, claimed, pdf, weight, printed, c);
     c.weight.add(std::isfinite(weight) || printed.pdf == 0 ? weight : 0.0);
   }
 
@@ -191,20 +192,18 @@ private:
   // How far a text row's digits can move its weight D <wi, m> / pdf: the pdf by its half unit, the claimed
   // density (D <wi, m> over the projected area) by the direction's rounding. A pdf printed within its rounding
   // of 0 leaves the weight unbounded (counted; its weight taken as 0).
-  void printed_weight_rounding(const Vec3<double>& w, double pdf, double weight, const PrintedRounding& printed,
-                               PdfChecks& c) const {
+  void printed_weight_rounding(const Vec3<double>& w, double claimed, double pdf, double weight,
+                               const PrintedRounding& printed, PdfChecks& c) const {
     if (!(pdf > printed.pdf)) {
       ++c.weight_unbounded;
       return;
     }
-    const double claimed = ref_.returned_pdf(w);
     const double moved = rounding_sensitivity(ref_, w, claimed, std::max(2 * printed.direction, direction_rounding_));
     c.weight_rounding += weight * (printed.pdf / (pdf - printed.pdf) + moved);
   }
 
-  void check_pdf(std::uint64_t i, const Vec3<double>& w, double pdf, const PrintedRounding& printed,
+  void check_pdf(std::uint64_t i, const Vec3<double>& w, double pdf, double claimed, const PrintedRounding& printed,
                  PdfChecks& c) const {
-    const double claimed = ref_.returned_pdf(w);
     const double e = relative_difference(pdf, claimed);
     const bool text = printed.direction > 0 || printed.pdf > 0;
     // A float32 pdf widened to float64 (numpy's astype, Python's arrays), printed with digits a float32 fills, or
