@@ -95,7 +95,7 @@ BatteryLine file_furnace(const FileRows& f, int c, const BsdfFileCheckOptions& o
     line = {"furnace", "files", fmt::format("mean weight {:.5f} +- {:.5f} against the claimed albedo {:.5f}", mean, se, *o.albedo),
             p, p >= level};
   }
-  battery::fail_if_one_weight_dominates(f.s, c, line);
+  battery::fail_if_dominated(battery::weight_dominance(f.s, c), line);
   return line;
 }
 

@@ -331,16 +331,17 @@ void recheck_integral(const BsdfUnderTest& b, const Vec3<double>& wi, const View
 
 }  // namespace
 
-void fail_if_one_weight_dominates(const ViewSamples& s, int channels, BatteryLine& line) {
-  std::vector<double> x(s.wo.size());
-  for (std::size_t i = 0; i < x.size(); ++i) x[i] = channel_mean(&s.weight[std::size_t(channels) * i], channels);
-  const DominantValue d = dominant_value(x, s.drawn - s.wo.size());
+DominantValue weight_dominance(const ViewSamples& s, int channels) {
+  DominanceTally t;
+  for (std::size_t i = 0; i < s.wo.size(); ++i) t.add(channel_mean(&s.weight[std::size_t(channels) * i], channels));
+  t.add_zeros(s.drawn - s.wo.size());
+  return t.result();
+}
+
+void fail_if_dominated(const DominantValue& d, BatteryLine& line) {
   if (!d.dominates()) return;
   line.passed = false;
-  line.detail += fmt::format("; the sample of row {} (weight {:.6g}) holds {:.0f}% of the weights' spread (at most {:.0f}% "
-                             "for a mean's test of {:.0f} samples): a firefly",
-                             d.index, d.value, 100 * d.share,
-                             100 * d.limit(), d.count);
+  line.detail += "; " + d.firefly();
 }
 
 int cell_strata(int points_per_cell) { return std::max(2, 2 * int(std::lround(std::sqrt(double(points_per_cell)) / 2))); }
@@ -393,14 +394,15 @@ std::vector<BatteryLine> cell_tests(const ViewSamples& s, int channels, const st
   residuals.push_back(residual_map("integral", view, w, var, eval_cells.value, eval_cells.variance));
   lines.push_back(shape_line("integral", view, "weighted samples against the integral of eval() per cell", w, var,
                              eval_cells.value, eval_cells.variance, level));
-  fail_if_one_weight_dominates(s, channels, lines.back());
+  const DominantValue dominant = weight_dominance(s, channels);
+  fail_if_dominated(dominant, lines.back());
   const Estimate mean = mean_weight(s, channels), integral = eval_cells.total();
   const double p = difference_p(mean, integral);
   lines.push_back({"furnace", view,
                    fmt::format("mean weight {:.5f} +- {:.5f}, integral of eval cos {:.5f} +- {:.5f}", mean.value,
                                mean.standard_error, integral.value, integral.standard_error),
                    p, p >= level});
-  fail_if_one_weight_dominates(s, channels, lines.back());
+  fail_if_dominated(dominant, lines.back());
   return lines;
 }
 
@@ -425,7 +427,7 @@ BatteryLine sampling_against_walk(const BsdfUnderTest& b, const Material& m, con
                               a.standard_error, r.value, r.standard_error, p);
   shape.passed = shape.passed && p >= level;
   shape.p = std::min(shape.p, p);
-  fail_if_one_weight_dominates(s, b.channels, shape);
+  fail_if_dominated(weight_dominance(s, b.channels), shape);
   return shape;
 }
 

@@ -74,10 +74,12 @@ BatteryLine sampling_against_walk(const BsdfUnderTest& b, const Material& m, con
                                   const Vec3<double>& wi, const ViewSamples& s, const std::string& view, double level,
                                   const BatteryOptions& o);
 
-// A test of the weights' mean from their own standard error (furnace, integral, sampling) is void when one
-// sample holds more than kMaxDominantShare of their spread (stats/chi2.h, dominant_value: a firefly raises the
-// mean and its error together): `line` then fails, its detail naming the sample.
-void fail_if_one_weight_dominates(const ViewSamples& s, int channels, BatteryLine& line);
+// The sample holding the largest share of the weights' spread (their channel mean per row, the lost samples as
+// 0; stats/chi2.h, DominantValue). A test of the weights' mean from their own standard error (furnace,
+// integral, sampling) is void when it dominates (a firefly raises the mean and its error together):
+// fail_if_dominated fails `line`, its detail naming the sample.
+DominantValue weight_dominance(const ViewSamples& s, int channels);
+void fail_if_dominated(const DominantValue& d, BatteryLine& line);
 
 // The pairs of `q` the stochastic tests use: off the horizon (|z| >= 0.1 both), at most `count`, spread over q.
 std::vector<BsdfQuery> stochastic_pairs(const std::vector<BsdfQuery>& q, std::size_t count);

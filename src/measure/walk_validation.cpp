@@ -58,10 +58,7 @@ ScatterHistogram dump_histogram(DirectionSampleReader& dump, const ScatterOption
 void firefly_check(WalkValidationReport& r, const DominanceTally& spread) {
   r.dominant = spread.result();
   if (!r.dominant.dominates()) return;
-  r.failures.push_back(fmt::format("the dump's row {} (weight {:.6g}) holds {:.0f}% of the weights' spread (at most {:.0f}% "
-                                   "for an albedo's test of {:.0f} rows): a firefly",
-                                   r.dominant.index, r.dominant.value, 100 * r.dominant.share, 100 * r.dominant.limit(),
-                                   r.dominant.count));
+  r.failures.push_back("the dump's albedo cannot be tested: " + r.dominant.firefly());
   r.passed = false;
 }
 

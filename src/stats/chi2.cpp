@@ -449,6 +449,12 @@ DominantValue DominanceTally::result() const {
                         : DominantValue{std::min(1.0, below / m2_), lo_at_, lo_, n_};
 }
 
+std::string DominantValue::firefly() const {
+  return fmt::format("the sample of row {} (weight {:.6g}) holds {:.0f}% of the weights' spread (at most {:.0f}% for a "
+                     "mean's test of {:.0f} samples): a firefly",
+                     index, value, 100 * share, 100 * limit(), count);
+}
+
 DominantValue dominant_value(std::span<const double> x, std::uint64_t zeros) {
   DominanceTally t;
   for (const double v : x) t.add(v);

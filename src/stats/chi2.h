@@ -131,14 +131,15 @@ double sidak_adjusted_p(double p_min, int n_tests);
 // p = 2 min(P(X <= deviation), P(X >= deviation)), at most 1; 0 for a non-finite deviation.
 double skewed_mean_p(double deviation, double se, double skew);
 
+// The largest share a sample mean's test accepts; an honest weight sample of 1e4 bounded values holds ~1e-3.
+inline constexpr double kMaxDominantShare = 0.1;
+
 // The value of a sample that holds the largest share of its sum of squared deviations from the mean, with
 // `zeros` more values of 0 (lost samples, weighing 0); non-finite values are skipped. A test of a mean from
 // its own standard error needs every share small: the central limit theorem holds for sums of asymptotically
 // negligible terms only (Lindeberg 1922; Feller 1935: max_i var_i / sum var -> 0 is necessary). One value
 // holding a large share (a firefly) raises the mean and the standard error that should expose it together:
 // z ~ sqrt(number of such values), whatever their size.
-// The largest share a sample mean's test accepts; an honest weight sample of 1e4 bounded values holds ~1e-3.
-inline constexpr double kMaxDominantShare = 0.1;
 struct DominantValue {
   double share = 0;         // in [0, 1]
   std::uint64_t index = 0;  // in x (the order of add())
@@ -148,6 +149,9 @@ struct DominantValue {
   // normal values holds (2 ln n / n), which an honest small sample can reach.
   double limit() const { return std::max(kMaxDominantShare, 10 * std::log(count) / count); }
   bool dominates() const { return count > 1 && share > limit(); }
+  // "the sample of row I (weight W) holds S% of the weights' spread (at most L% for a mean's test of N
+  // samples): a firefly", what a failed test's detail says.
+  std::string firefly() const;
 };
 DominantValue dominant_value(std::span<const double> x, std::uint64_t zeros = 0);
 // The same over values streamed one at a time (Welford's running sum of squared deviations; the largest
