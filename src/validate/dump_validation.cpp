@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <span>
 #include <stdexcept>
 #include <vector>
 
@@ -57,18 +58,26 @@ std::string frame_hint(const ValidationReport& r, const DirectionSampleReader& s
                      best->report.p_value, fix, then.empty() ? "" : "; read so, " + then);
 }
 
-// A rejected dump with samples where the claimed pdf is zero, all of weight 0: the samples its sampler lost,
-// kept as rows of weight 0 (as Mitsuba 3's sample() returns them)?
-std::string zero_weight_hint(const ValidationReport& r, const DirectionSampleReader& samples) {
-  if (samples.zero_weight_rows_lost() || samples.columns().channels() == 0 || r.samples_where_pdf_is_zero == 0) return "";
+// Reads the samples again from their first row: visit(weights, printed) for each row, its weights (one per
+// channel) and a text row's printed rounding.
+template <class Visit> void reread_rows(const DirectionSampleReader& samples, Visit visit) {
   DirectionSampleReader reader = samples.reopened();
   const std::size_t channels = std::size_t(reader.columns().channels());
   std::vector<Vec3<double>> rows(kSampleFileBlock);
   std::vector<double> pdfs(reader.columns().has_pdf() ? rows.size() : 0), weights(rows.size() * channels);
+  std::vector<PrintedRounding> printed(rows.size());
+  while (const std::size_t n = reader.read(rows, pdfs, weights, printed))
+    for (std::size_t i = 0; i < n; ++i) visit(std::span<const double>(&weights[i * channels], channels), printed[i]);
+}
+
+// A rejected dump with samples where the claimed pdf is zero, all of weight 0: the samples its sampler lost,
+// kept as rows of weight 0 (as Mitsuba 3's sample() returns them)?
+std::string zero_weight_hint(const ValidationReport& r, const DirectionSampleReader& samples) {
+  if (samples.zero_weight_rows_lost() || samples.columns().channels() == 0 || r.samples_where_pdf_is_zero == 0) return "";
   std::uint64_t zero = 0;
-  while (const std::size_t n = reader.read(rows, pdfs, weights))
-    for (std::size_t i = 0; i < n; ++i)
-      zero += std::all_of(&weights[i * channels], &weights[(i + 1) * channels], [](double w) { return w == 0; });
+  reread_rows(samples, [&](std::span<const double> w, const PrintedRounding&) {
+    zero += std::all_of(w.begin(), w.end(), [](double x) { return x == 0; });
+  });
   if (zero < r.samples_where_pdf_is_zero) return "";
   return fmt::format("{} sample(s) fall where the claimed pdf is zero and {} row(s) have weight 0: a dump that keeps "
                      "the samples its sampler loses as rows of weight 0 (as Mitsuba 3's sample() returns them)? Test "
@@ -82,14 +91,8 @@ std::string printed_directions_hint(const ValidationReport& r, const DirectionSa
   const bool binned_failed =
       std::any_of(r.binned.begin(), r.binned.end(), [&](const BinnedTest& b) { return b.chi2.p_value < r.per_test_significance; });
   if (samples.storage() != "text" || !binned_failed) return "";
-  DirectionSampleReader reader = samples.reopened();
-  const std::size_t channels = std::size_t(reader.columns().channels());
-  std::vector<Vec3<double>> directions(kSampleFileBlock);
-  std::vector<double> pdfs(reader.columns().has_pdf() ? directions.size() : 0), weights(directions.size() * channels);
-  std::vector<PrintedRounding> printed(directions.size());
   double coarsest = 0;
-  while (const std::size_t n = reader.read(directions, pdfs, weights, printed))
-    for (std::size_t i = 0; i < n; ++i) coarsest = std::max(coarsest, printed[i].direction);
+  reread_rows(samples, [&](std::span<const double>, const PrintedRounding& p) { coarsest = std::max(coarsest, p.direction); });
   const double bin = std::min(r.alpha_x, r.alpha_y) / rows;
   if (!(coarsest >= 0.05 * bin)) return "";
   return fmt::format("the directions are printed to within {:.1e} (half a unit in their last digit), {:.0f}% of a lobe "

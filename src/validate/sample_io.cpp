@@ -445,6 +445,7 @@ struct TextRows {
 // line_no counts the lines read so far (over all the chunks of a file).
 void read_text_lines(const std::filesystem::path& path, std::string_view text, std::size_t& line_no,
                      const SampleColumns& columns, TextRows& out, InvalidRows& invalid) {
+  std::vector<double> values, half_units;  // of a line, reused
   while (!text.empty()) {
     ++line_no;
     const std::size_t nl = text.find('\n');
@@ -457,7 +458,8 @@ void read_text_lines(const std::filesystem::path& path, std::string_view text, s
       fail(path, where + ": malformed line: " + why + " (expected three numbers separated by whitespace "
                          "or commas)");
     };
-    std::vector<double> values, half_units;
+    values.clear();
+    half_units.clear();
     std::size_t i = 0;
     const auto skip_blanks = [&] {
       while (i < line.size() && is_blank(line[i])) ++i;
