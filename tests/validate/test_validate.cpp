@@ -314,6 +314,19 @@ std::vector<Vec3<double>> renderer_reflections(F&& sampler, const Vec3<double>& 
   return out;
 }
 
+// Validates the rows x,y,z,pdf of the file `p` against `reference` (of the density `d` claims; default options),
+// then removes the file.
+ValidationReport validate_file_and_remove(const fs::path& p, const GGX<double>& ggx, const Vec3<double>& wi,
+                                          const ClaimedDensity& d, std::shared_ptr<const ReferenceDistribution> reference) {
+  ValidationReport r;
+  {
+    DirectionSampleReader reader(p, SampleColumns::parse("x,y,z,pdf"));
+    r = validate_sample_file(reader, d.domain, ggx, wi, ValidationOptions{}, std::move(reference));
+  }
+  fs::remove(p);
+  return r;
+}
+
 }  // namespace
 
 // At alpha 0.3, 60 deg about 8.9% of the reflections fall below the horizon: a correct renderer-style dump
@@ -369,6 +382,8 @@ TEST(ValidateReturnedPdf, Float32DataWidenedToFloat64KeepsFloat32sTolerance) {
   std::uint64_t dropped = 0;
   const auto dump = renderer_reflections([&](Vec2<double> u) { return sample_heitz2018<double>(ggx, wi, u); }, wi,
                                          100'000, 9, dropped);
+  const ClaimedDensity d = claimed_density(FilePdf::reflection, ggx, wi);
+  const auto reference = density_reference(d, ggx, wi, ValidationOptions{}.rows);
   const auto check = [&](const std::string& name, const std::function<double(const Vec3<float>&)>& pdf_of) {
     std::vector<double> table;
     for (const Vec3<double>& wo : dump) {
@@ -377,12 +392,7 @@ TEST(ValidateReturnedPdf, Float32DataWidenedToFloat64KeepsFloat32sTolerance) {
     }
     const fs::path p = fs::temp_directory_path() / fmt::format("microsim_widened_{}_{}.npy", ::getpid(), name);
     write_npy_table(p, table, 4, /*as_float32=*/false);
-    DirectionSampleReader reader(p, SampleColumns::parse("x,y,z,pdf"));
-    const ClaimedDensity d = claimed_density(FilePdf::reflection, ggx, wi);
-    ValidationOptions o;
-    const ValidationReport r = validate_sample_file(reader, d.domain, ggx, wi, o, density_reference(d, ggx, wi, o.rows));
-    fs::remove(p);
-    return r.check("returned_pdf");
+    return validate_file_and_remove(p, ggx, wi, d, reference).check("returned_pdf");
   };
   const auto pdf = [&](const Vec3<float>& f) { return ggx.visible_reflection_pdf(wi, f.cast<double>()); };
   const SubTest widened = check("widened", [&](const Vec3<float>& f) { return double(float(pdf(f))); });
@@ -419,10 +429,7 @@ TEST(ValidateWeightMean, TextDigitsBoundTheMeanWeightsDeviation) {
                           s.pdf < pdf_floor ? 0.0 : s.pdf * factor);
     const fs::path p = fs::temp_directory_path() / fmt::format("microsim_weight_text_{}.txt", ::getpid());
     write_file_atomically(p, text);
-    DirectionSampleReader reader(p, SampleColumns::parse("x,y,z,pdf"));
-    const ValidationReport r = validate_sample_file(reader, d.domain, ggx, wi, o, reference);
-    fs::remove(p);
-    return r.check("weight_mean");
+    return validate_file_and_remove(p, ggx, wi, d, reference).check("weight_mean");
   };
   const SubTest ok = check(1.0, 0.0);
   EXPECT_TRUE(ok.applicable && ok.passed) << ok.detail;
@@ -457,10 +464,7 @@ TEST(ValidateReturnedPdf, TextOfFloat32ValuesGetsFloat32sTolerance) {
     }
     const fs::path p = fs::temp_directory_path() / fmt::format("microsim_float_text_{}.txt", ::getpid());
     write_file_atomically(p, text);
-    DirectionSampleReader reader(p, SampleColumns::parse("x,y,z,pdf"));
-    const ValidationReport r = validate_sample_file(reader, d.domain, g, wi, o, reference);
-    fs::remove(p);
-    return r.check("returned_pdf");
+    return validate_file_and_remove(p, g, wi, d, reference).check("returned_pdf");
   };
   const SubTest ok = check(1.0f);
   EXPECT_TRUE(ok.passed) << ok.detail;
@@ -496,10 +500,7 @@ TEST(ValidateReturnedPdf, TextIsAsExactAsItsPrintedDigits) {
       }
       write_npy_table(p, table, 4, /*as_float32=*/false);
     }
-    DirectionSampleReader reader(p, SampleColumns::parse("x,y,z,pdf"));
-    const ValidationReport r = validate_sample_file(reader, d.domain, ggx, wi, o, reference);
-    fs::remove(p);
-    return r.check("returned_pdf");
+    return validate_file_and_remove(p, ggx, wi, d, reference).check("returned_pdf");
   };
   for (const std::string format : {"%g", "%.4f", "%.5f", "%.6e", "%.9g", "%.17g"}) {
     const SubTest ok = check(format, 1.0, false);
