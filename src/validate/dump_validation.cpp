@@ -67,7 +67,7 @@ template <class Visit> void reread_rows(const DirectionSampleReader& samples, Vi
   std::vector<double> pdfs(reader.columns().has_pdf() ? rows.size() : 0), weights(rows.size() * channels);
   std::vector<PrintedRounding> printed(rows.size());
   while (const std::size_t n = reader.read(rows, pdfs, weights, printed))
-    for (std::size_t i = 0; i < n; ++i) visit(std::span<const double>(&weights[i * channels], channels), printed[i]);
+    for (std::size_t i = 0; i < n; ++i) visit(std::span<const double>(weights).subspan(i * channels, channels), printed[i]);
 }
 
 // A rejected dump with samples where the claimed pdf is zero, all of weight 0: the samples its sampler lost,
