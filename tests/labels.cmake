@@ -63,6 +63,11 @@ set(MICROSIM_SANITIZE_SKIP
   [=[ExperimentShardCli\.AMissingRepeatedForeign]=]              # ExperimentShardCli.BadShardValues..., ExperimentSplit.PartsOutOfOrder...
   [=[AlbedoCli\.LayoutTableIsWrittenInTheRenderersForms]=]       # AlbedoCli.ABeckmannLayoutTable..., AlbedoLayoutFiles.*
   [=[ExperimentSplit\.ACancelledRankEndsTheRound]=]              # ExperimentSplit.ShardsOfTheFirstRounds..., CliInterrupt.*
+  [=[ExperimentCli\.ASpecRejectsBsdfDumpsInTheWrongTransportMode]=] # ExperimentCli.ASpecValidatesBsdfDumpsInTheirTransportMode
+  [=[WalkValidationCli\.ACorrectSmithGlassPasses]=]              # WalkValidationCli.FirefliesAreRejectedNamingTheRow
+  [=[BsdfWeights\.FirefliesANegativeWeight]=]                    # BsdfWeights.RefusesWhatItCannotTest, DominantValue.*, ExperimentCli.ASpecValidatesBsdfDumps...
+  [=[CliInterrupt\.TraceMaskingTableWhileTracing]=]              # CliInterrupt.TraceMaskingTableWhileBuildingSurfaces
+  [=[ReportBrowser\.ChromiumRendersTheReport]=]                  # ReportBrowser.ChromiumShowsARejectedRunsVerdictFirst
 )
 list(JOIN MICROSIM_SANITIZE_SKIP "|" MICROSIM_SANITIZE_SKIP_REGEX)
 
