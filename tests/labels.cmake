@@ -2,7 +2,7 @@
 # leaves them out):
 #   sanitize-skip  left out by the sanitizer gate (scripts/sanitize.sh -LE sanitize-skip, .ci/run): the slowest
 #                  statistical tests and the shard/merge bit-identity tests, whose code paths faster tests
-#                  run many times under the sanitizers too (docs/reliability.md names them);
+#                  run many times under the sanitizers too (docs/records/reliability.md names them);
 #   slow           those, and the hostile-input battery and the Python tests (a minute or more each);
 #   mpi            the mpirun tests (tests/mpi, microsim_mpi_tests);
 #   browser        the experiment report rendered by a real browser (chromium).
@@ -68,6 +68,8 @@ set(MICROSIM_SANITIZE_SKIP
   [=[BsdfWeights\.FirefliesANegativeWeight]=]                    # BsdfWeights.RefusesWhatItCannotTest, DominantValue.*, ExperimentCli.ASpecValidatesBsdfDumps...
   [=[CliInterrupt\.TraceMaskingTableWhileTracing]=]              # CliInterrupt.TraceMaskingTableWhileBuildingSurfaces
   [=[ReportBrowser\.ChromiumRendersTheReport]=]                  # ReportBrowser.ChromiumShowsARejectedRunsVerdictFirst
+  [=[WalkEvalCheck\.AStaleHeightIsRejected]=]                    # WalkEvalCheck.TheWalksOwnValuesPass
+  [=[CheckBsdfCli\.ARejectedPluginsPageSaysSo]=]                  # CheckBsdfCli.TheHtmlReportIsSelfContained...
 )
 list(JOIN MICROSIM_SANITIZE_SKIP "|" MICROSIM_SANITIZE_SKIP_REGEX)
 

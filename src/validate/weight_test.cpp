@@ -254,7 +254,7 @@ ExpectedWeights expected_bin_weights(const ReferenceDistribution& ref, const Mat
   }
   o.z_breaks = {0.0, -ref.wi.z()};
   // A dielectric's flux jumps and has kinks where its sampling density does: on those curves the cubature
-  // integrates piecewise instead of refining into them: a smaller error in less time (docs/records/reliability.md).
+  // integrates piecewise instead of refining into them: a smaller error in less time (docs/records/validate-all.md).
   if (bsdf.transmits()) o.breaks = dielectric_breaks(ref.wi, bsdf.eta());
   // The second and third moments set a variance and a skewness: 1e-3 relative is plenty (se to 5e-4), and cheaper.
   IntegrationOptions coarse = o;
