@@ -560,9 +560,9 @@ SubTest weight_test(const Tally& tally, const ReferenceDistribution& ref, const 
   const Moments& all = tally.checks.weight;
   if (tally.checks.weight_unbounded > 0) {
     t.applicable = t.statistical = false;
-    t.detail = fmt::format("not applicable: {} returned pdf(s) printed within their rounding of 0 (no significant digit): "
-                           "their weights D <wi, m> / pdf are unbounded; print the pdfs with more digits (%.9g)",
-                           tally.checks.weight_unbounded);
+    t.detail = fmt::format("not applicable: {} {} (no significant digit): their weights D <wi, m> / pdf are "
+                           "unbounded; print the pdfs with more digits (%.9g)",
+                           tally.checks.weight_unbounded, kPdfsPrintedAsZero);
     return t;
   }
   const double expected = ref.ggx.projected_area(ref.wi);

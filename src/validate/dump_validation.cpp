@@ -120,7 +120,7 @@ std::vector<std::string> dump_notes(const ValidationReport& r, const DirectionSa
     notes.push_back("the returned pdfs were not checked: the dump has no pdf column (a pdf wrong by the same factor "
                     "as f leaves the weights right)");
   if (const auto w = std::find_if(r.checks.begin(), r.checks.end(), [](const SubTest& t) { return t.name == "weight_mean"; });
-      w != r.checks.end() && w->detail.find("printed within their rounding of 0") != std::string::npos)
+      w != r.checks.end() && w->detail.find(kPdfsPrintedAsZero) != std::string::npos)
     notes.push_back("E[weight] was not tested: " + w->detail.substr(std::string("not applicable: ").size()));
   if (samples.zero_weight_rows_lost())
     notes.push_back(fmt::format("rows of weight 0 counted as the sampler's lost samples: {} of {}", r.failed_samples,

@@ -2,11 +2,13 @@
 // sub-test fails on the input it is meant to catch. All at fixed seeds; levels stated per test.
 #include "core/atomic_file.h"
 #include "core/random.h"
+#include "validate/dump_validation.h"
 #include "validate/sample_io.h"
 #include "validate/validate.h"
 
 #include <fmt/core.h>
 #include <fmt/printf.h>
+#include <fmt/ranges.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 #include <tbb/global_control.h>
@@ -422,13 +424,16 @@ TEST(ValidateWeightMean, TextDigitsBoundTheMeanWeightsDeviation) {
   const ClaimedDensity d = claimed_density(FilePdf::vndf, ggx, wi);
   const ValidationOptions o;
   const auto reference = density_reference(d, ggx, wi, o.rows);
-  const auto check = [&](double factor, double pdf_floor) {
+  const fs::path p = fs::temp_directory_path() / fmt::format("microsim_weight_text_{}.txt", ::getpid());
+  const auto write = [&](double factor, double pdf_floor) {
     std::string text;
     for (const DirectionSample<double>& s : samples)
       text += fmt::format("{:.4f} {:.4f} {:.4f} {:.4f}\n", s.direction.x(), s.direction.y(), s.direction.z(),
                           s.pdf < pdf_floor ? 0.0 : s.pdf * factor);
-    const fs::path p = fs::temp_directory_path() / fmt::format("microsim_weight_text_{}.txt", ::getpid());
     write_file_atomically(p, text);
+  };
+  const auto check = [&](double factor, double pdf_floor) {
+    write(factor, pdf_floor);
     return validate_file_and_remove(p, ggx, wi, d, reference).check("weight_mean");
   };
   const SubTest ok = check(1.0, 0.0);
@@ -437,6 +442,17 @@ TEST(ValidateWeightMean, TextDigitsBoundTheMeanWeightsDeviation) {
   EXPECT_FALSE(off.passed) << off.detail;
   const SubTest zero = check(1.0, 1e-3);  // the smallest pdfs printed as 0.0000
   EXPECT_FALSE(zero.applicable) << zero.detail;
+  // A dump's validation says so in its notes.
+  write(1.0, 1e-3);
+  ValidationReport dump;
+  {
+    const DirectionSampleReader reader(p, SampleColumns::parse("x,y,z,pdf"));
+    dump = validate_dump(reader, reference, ggx, wi, o, false);
+  }
+  fs::remove(p);
+  EXPECT_TRUE(std::any_of(dump.notes.begin(), dump.notes.end(),
+                          [](const std::string& n) { return n.rfind("E[weight] was not tested: ", 0) == 0; }))
+      << fmt::format("{}", fmt::join(dump.notes, " | "));
 }
 
 // A float32 renderer's text dump, its directions and pdfs from heitz2018's float version printed with %.9g (every
