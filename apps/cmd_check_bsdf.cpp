@@ -46,7 +46,7 @@ void print_table(const BatteryReport& r) {
   fmt::print("{:<12} {:<13} {:>9} {:<9} {}\n", "test", "view", "p", "verdict", "detail");
   for (const BatteryLine& l : r.lines)
     fmt::print("{:<12} {:<13} {:>9} {:<9} {}\n", l.test, l.view, l.p < 0 ? "-" : fmt::format("{:.3g}", l.p),
-               l.passed ? "pass" : "REJECTED", l.detail);
+               l.verdict_word(), l.detail);
   fmt::print("{}\n", r.passed ? "passed" : "REJECTED");
 }
 

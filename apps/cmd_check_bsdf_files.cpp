@@ -65,8 +65,7 @@ int run_check_bsdf_files(const FilesArgs& a) {
   }
   fmt::print("{:<12} {:>9} {:<9} {}\n", "test", "p", "verdict", "detail");
   for (const BatteryLine& l : r.lines)
-    fmt::print("{:<12} {:>9} {:<9} {}\n", l.test, l.p < 0 ? "-" : fmt::format("{:.3g}", l.p), l.passed ? "pass" : "REJECTED",
-               l.detail);
+    fmt::print("{:<12} {:>9} {:<9} {}\n", l.test, l.p < 0 ? "-" : fmt::format("{:.3g}", l.p), l.verdict_word(), l.detail);
   fmt::print("{}\n", r.passed ? "passed" : "REJECTED");
   return r.passed ? kExitOk : kExitRejected;
 }

@@ -56,7 +56,7 @@ struct Args {
   std::optional<long long> samples;
   unsigned long long seed = 1;
   bool use_float = false;
-  int rows = 31;
+  std::optional<int> rows;  // default kDefaultRows; a traced histogram (--against HIST.exr) has its own
   double significance = 0.01;
   std::string json;
   std::string against;             // "ellipsoid" or a traced histogram HIST.exr (compare.h)
@@ -69,6 +69,7 @@ struct Args {
 };
 
 constexpr long long kAllDefaultSamples = 200'000;
+constexpr int kDefaultRows = 31;
 
 std::string names_list() {
   std::string s;
@@ -102,7 +103,7 @@ microsim::BsdfConvention bsdf_convention(const Args& a) {
 microsim::ValidationOptions base_options(const Args& a) {
   microsim::ValidationOptions o;
   o.seed = a.seed;
-  o.rows = a.rows;
+  o.rows = a.rows.value_or(kDefaultRows);
   o.significance = a.significance;
   o.precision = a.use_float ? microsim::Precision::float32 : microsim::Precision::float64;
   if (a.dropped) o.dropped_below_horizon = std::uint64_t(*a.dropped);
@@ -207,7 +208,7 @@ int run_against(const Args& a, const microsim::GGX<double>& ggx, const microsim:
     OracleTraceOptions t;
     t.rays = std::uint64_t(a.rays.value_or(4'000'000));
     t.seed = oracle_seed(a.seed);
-    t.rows = a.rows;
+    t.rows = a.rows.value_or(kDefaultRows);
     const auto progress = std::make_shared<CliProgress>(true);
     t.run = cli_run_control(0, progress);
     traced = trace_vndf_histogram(ggx, wi, t);
@@ -421,6 +422,12 @@ void check_file_options(const Args& a) {
     throw UsageError(fmt::format("{} is the convention of a BSDF's weights: give the BSDF with --bsdf",
                                  a.transport.empty() ? "--masking" : "--transport"));
   bsdf_convention(a);  // an unknown name is exit 2 here, before any work
+  // Weights are f cos / pdf of a BSDF: without it they could not be tested, and a pass would look as if they were.
+  if (const int weights = sample_columns(a).channels(); weights > 0 && a.bsdf.empty())
+    throw UsageError(fmt::format("--columns {} names {} weight column(s): weights (f cos / pdf) are tested against the "
+                                 "BSDF they come from: give it with --bsdf (mirror, conductor --eta --k, dielectric "
+                                 "--eta), or mark the columns '-' to skip them",
+                                 a.columns, weights));
   if (file_pdf(a) == microsim::FilePdf::bsdf && !bsdf_of(a))
     throw UsageError("--pdf bsdf is the sampling density of a BSDF: give it with --bsdf (e.g. --bsdf dielectric --eta 1.5)");
   sample_frame(a);  // an unknown frame is exit 2 here, before any work
@@ -470,6 +477,9 @@ int run(const Args& a) {
       throw UsageError(fmt::format("--against '{}': use 'ellipsoid' or a histogram .exr from `microsim trace vndf`", a.against));
   }
   if (a.rays && a.against != "ellipsoid") throw UsageError("--rays applies to --against ellipsoid only");
+  if (a.rows && !a.against.empty() && a.against != "ellipsoid")
+    throw UsageError(fmt::format("--rows {}: a traced histogram ({}) is compared in its own binnings; leave --rows out",
+                                 *a.rows, a.against));
   if (!a.plot.empty()) {
     if (a.all) throw UsageError("--plot draws one validation; it does not apply to --all");
     if (fs::path(a.plot).extension() != ".svg")
@@ -487,7 +497,8 @@ void add_dump_options(CLI::App* sub, Args& a) {
   using microsim::app::add_number_option;
   sub->add_option("--columns", a.columns,
                   "with --from: what the columns of a row hold, e.g. x,y,z,pdf (the pdf the sampler returned: checked "
-                  "against the claimed pdf at each sample) or x,y,z,pdf,weight; '-' skips a column (default x,y,z)");
+                  "against the claimed pdf at each sample) or x,y,z,pdf,weight (weights need --bsdf, the BSDF they are "
+                  "tested against); '-' skips a column (default x,y,z)");
   sub->add_option("--bsdf", a.bsdf,
                   "with --from: the rows are this BSDF's samples, tested against its outgoing density (--pdf bsdf unless "
                   "--pdf or --reflected says otherwise) and, with weight columns, their weights (f cos / pdf) against "

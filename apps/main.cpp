@@ -120,6 +120,22 @@ bool explain_unexpected_arguments(CLI::App& app, bool options_only) {
   return true;
 }
 
+// An option given an empty value ("--json ''"): nothing would be written or read, and nothing would say so. Every
+// option with a value wants a path, a name or a number. False (and the option named) when one is empty.
+bool no_empty_values(const CLI::App& app) {
+  for (const CLI::Option* option : app.get_options())
+    if (option->get_type_size_max() > 0 && option->count() > 0)
+      for (const std::string& value : option->results())
+        if (value.empty()) {
+          fmt::print(stderr, "microsim: error: {}: an empty value (give a path, a name or a number)\n",
+                     option->get_name());
+          return false;
+        }
+  for (const CLI::App* sub : app.get_subcommands())
+    if (sub->parsed() && !no_empty_values(*sub)) return false;
+  return true;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -129,6 +145,9 @@ int main(int argc, char** argv) {
   auto& commands = microsim::app::command_registry();
   std::sort(commands.begin(), commands.end(), [](const auto& a, const auto& b) { return a.name < b.name; });
   for (auto& c : commands) c.setup(app);
+  app.failure_message([](const CLI::App*, const CLI::Error& e) {
+    return fmt::format("microsim: error: {}\nRun with --help for more information.\n", e.what());
+  });
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -146,5 +165,6 @@ int main(int argc, char** argv) {
     app.exit(e);
     return microsim::app::kExitUsage;
   }
+  if (!no_empty_values(app)) return microsim::app::kExitUsage;
   return microsim::app::run_selected();
 }

@@ -449,7 +449,9 @@ static std::string bsdf_report(const nlohmann::json& values, std::size_t, const 
                        text_of(member(b, "samples")), esc(text_of(member(b, "verdict"))), text_of(member(b, "level")));
   for (const json& t : member(b, "tests"))
     body += row({esc(text_of(member(t, "test"))), esc(text_of(member(t, "view"))), text_of(member(t, "p")),
-                 member(t, "passed").get<bool>() ? "pass" : "<span class=\"notmet\">rejected</span>",
+                 !member(t, "passed").get<bool>() ? "<span class=\"notmet\">rejected</span>"
+                 : t.value("tested", true)        ? "pass"
+                                                  : "reported",
                  esc(text_of(member(t, "detail")))});
   return head + table({"test", "view", "p", "verdict", "detail"}, body);
 }

@@ -273,7 +273,7 @@ nlohmann::json to_json(const BatteryReport& r) {
   nlohmann::json tests = nlohmann::json::array();
   for (const BatteryLine& l : r.lines)
     tests.push_back({{"test", l.test}, {"view", l.view}, {"p", l.p < 0 ? nlohmann::json(nullptr) : nlohmann::json(l.p)},
-                     {"passed", l.passed}, {"detail", l.detail}});
+                     {"passed", l.passed}, {"tested", l.tested}, {"detail", l.detail}});
   // The pointwise eval check runs against an exact reference only (null otherwise).
   const bool eval_checked = r.eval.rows > 0;
   return {{"verdict", r.passed ? "pass" : "fail"}, {"tests", tests}, {"eval", eval_checked ? to_json(r.eval) : nlohmann::json(nullptr)}};

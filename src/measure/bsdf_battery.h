@@ -90,6 +90,9 @@ struct BatteryLine {
   std::string test, view, detail;
   double p = -1;  // a statistical test's Sidak-adjusted p; -1 for the others
   bool passed = true;
+  bool tested = true;  // false: a value reported with nothing to test it against (it cannot fail)
+  // The verdict column: "pass", "REJECTED", or "reported" for a line that tested nothing.
+  const char* verdict_word() const { return !passed ? "REJECTED" : tested ? "pass" : "reported"; }
 };
 
 // The residual per cell of a cell test (bsdf_self_check.h) at one view: (a - lambda b) / sqrt(var a + lambda^2 var b),

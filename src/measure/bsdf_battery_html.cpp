@@ -51,7 +51,7 @@ std::string lines_table(const BatteryReport& r) {
   for (const BatteryLine& l : r.lines)
     out += fmt::format("<tr><td>{}</td><td>{}</td><td>{}</td><td class=\"{}\">{}</td><td>{}</td></tr>\n", esc(l.test),
                        esc(l.view), l.p < 0 ? "-" : fmt::format("{:.3g}", l.p), l.passed ? "pass" : "fail",
-                       l.passed ? "pass" : "REJECTED", esc(l.detail));
+                       l.verdict_word(), esc(l.detail));
   return out + "</tbody></table>\n";
 }
 

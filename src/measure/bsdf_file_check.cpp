@@ -11,8 +11,10 @@
 #include <numbers>
 
 namespace microsim {
-
 namespace {
+
+// A direction as the messages print it.
+std::string text_of(const Vec3<double>& w) { return fmt::format("({:.6g}, {:.6g}, {:.6g})", w.x(), w.y(), w.z()); }
 
 constexpr double kFileConsistency = 1e-3;  // relative, as the battery's
 
@@ -39,8 +41,12 @@ FileRows read_rows(const BsdfRows& dump, const SampleColumns& dc, const BsdfRows
       throw SampleFileError(fmt::format("{}: fewer rows than the dump {}", eval.name(), dump.name()));
     for (std::size_t i = 0; i < n; ++i) {
       const std::uint64_t row = f.s.wo.size();
-      if ((ewi[i] - view).norm() > 1e-4 || (ewo[i] - wo[i]).norm() > 1e-4)
-        throw SampleFileError(fmt::format("{}: row {} (0-based) is not the view and the dump's direction", eval.name(), row));
+      if ((ewi[i] - view).norm() > 1e-4)
+        throw SampleFileError(fmt::format("{}: row {} (0-based): wi {} is not the view {} (--theta, --phi)", eval.name(),
+                                          row, text_of(ewi[i]), text_of(view)));
+      if ((ewo[i] - wo[i]).norm() > 1e-4)
+        throw SampleFileError(fmt::format("{}: row {} (0-based): wo {} is not the dump's direction {} (the files' rows "
+                                          "must match one to one)", eval.name(), row, text_of(ewo[i]), text_of(wo[i])));
       f.s.wo.push_back(wo[i]);
       f.s.pdf.push_back(pdf[i]);
       f.eval_pdf.push_back(epdf[i]);
@@ -89,7 +95,7 @@ BatteryLine file_furnace(const FileRows& f, int c, const BsdfFileCheckOptions& o
     s1 += x, s2 += x * x;
   }
   const double n = double(f.s.drawn), mean = s1 / n, se = std::sqrt(std::max(0.0, s2 / n - mean * mean) / (n - 1));
-  BatteryLine line{"furnace", "files", fmt::format("mean weight {:.5f} +- {:.5f} (no albedo claimed)", mean, se), -1, true};
+  BatteryLine line{"furnace", "files", fmt::format("mean weight {:.5f} +- {:.5f} (no albedo claimed)", mean, se), -1, true, false};
   if (o.albedo) {
     const double p = difference_p({mean, se}, {*o.albedo, 0});
     line = {"furnace", "files", fmt::format("mean weight {:.5f} +- {:.5f} against the claimed albedo {:.5f}", mean, se, *o.albedo),
@@ -128,7 +134,8 @@ CellFile read_cells(const BsdfRows& rows, const EvalColumns& ec, int c, const Ve
     wo_r.read(std::span(wo.data(), n));
     for (std::size_t i = 0; i < n; ++i) {
       if (!((wi[i] - view).norm() <= 1e-4))
-        throw SampleFileError(fmt::format("{}: row {} (0-based): wi is not the view", rows.name(), all_wo.size()));
+        throw SampleFileError(fmt::format("{}: row {} (0-based): wi {} is not the view {} (--theta, --phi)", rows.name(),
+                                          all_wo.size(), text_of(wi[i]), text_of(view)));
       all_wo.push_back(wo[i]);
       const double x = channel_mean(&v[i * std::size_t(c)], c);
       const bool finite = std::isfinite(x) && (!ec.has_pdf() || std::isfinite(pdf[i]));

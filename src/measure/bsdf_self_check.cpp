@@ -341,6 +341,7 @@ DominantValue weight_dominance(const ViewSamples& s, int channels) {
 void fail_if_dominated(const DominantValue& d, BatteryLine& line) {
   if (!d.dominates()) return;
   line.passed = false;
+  line.tested = true;
   line.detail += "; " + d.firefly();
 }
 

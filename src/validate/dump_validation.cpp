@@ -194,6 +194,10 @@ ValidationReport validate_dump_as_given(DirectionSampleReader& samples, const Du
   if (claims.zero_weight_lost && claims.kept_only)
     throw std::invalid_argument("the lost samples are either dropped (above the horizon only) or kept as rows of "
                                 "weight 0, not both");
+  // Weights are f cos / pdf of a BSDF: without it they would go untested under a verdict that looks as if they were.
+  if (samples.columns().channels() > 0 && !options.bsdf)
+    throw std::invalid_argument(fmt::format("the dump has {} weight column(s) but no BSDF to test them against: give "
+                                            "the BSDF (its material), or skip the columns", samples.columns().channels()));
   samples.set_zero_weight_rows_lost(claims.zero_weight_lost);
   check_first_rows(samples);
   const ViewFromOutside v = seen_from_outside(view, claims.bsdf);

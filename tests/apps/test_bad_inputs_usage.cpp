@@ -38,6 +38,16 @@ std::vector<BadInputCase> usage_cases() {
        "unknown option '--xxxxxxxx"},
       {"unexpected_argument", "validate heitz2018 --alpha 0.3 --theta 30", 2,
        "unexpected argument 'heitz2018' for `microsim validate`"},
+      // An empty value would write or read nothing, silently: refused, the option named.
+      {"empty_json_path", "validate --sampler heitz2018 --alpha 0.3 --theta 30 --samples 20000 --json ''", 2,
+       "microsim: error: --json: an empty value"},
+      {"empty_out_path", "scatter --model analytic --alpha 0.3 --theta 30 --out ''", 2, "--out: an empty value"},
+      // A parse error carries the command's prefix, as every other error does.
+      {"not_a_number_prefixed", "validate --sampler heitz2018 --alpha 0.3 --theta nan", 2,
+       "microsim: error: --theta 'nan'"},
+      // A traced histogram has its own binnings: --rows would be ignored.
+      {"rows_with_a_traced_histogram", "validate --sampler heitz2018 --alpha 0.3 --theta 30 --against h.exr --rows 15", 2,
+       "--rows 15: a traced histogram (h.exr) is compared in its own binnings"},
       // Too few samples in a file: the message names the file as well as the number needed.
       {"from_too_few_names_file", "validate --from one.txt --alpha 0.3 --theta 30", 2, "--from 'one.txt': 1 sample",
        one_line},

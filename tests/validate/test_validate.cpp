@@ -455,6 +455,43 @@ TEST(ValidateWeightMean, TextDigitsBoundTheMeanWeightsDeviation) {
       << fmt::format("{}", fmt::join(dump.notes, " | "));
 }
 
+// A weight column is f cos / pdf of a BSDF: a dump that has one but names no BSDF is refused (it would otherwise
+// pass with its weights untested), whatever the weights hold; the same rows with the BSDF given are tested.
+TEST(ValidateDumpWeights, AWeightColumnWithoutItsBsdfIsRefused) {
+  const GGX<double> ggx(0.3);
+  const Vec3<double> wi = direction_from_degrees(40.0, 0.0);
+  const fs::path p = fs::temp_directory_path() / fmt::format("microsim_weights_no_bsdf_{}.txt", ::getpid());
+  std::string text;
+  for (std::uint64_t i = 0; i < 20'000; ++i) {
+    CounterRng rng(5, i);
+    const auto m = sample_heitz2018<double>(ggx, wi, Vec2<double>(rng.uniform(), rng.uniform()));
+    if (!m) continue;
+    const Vec3<double> wo = reflect(wi, m->direction);
+    if (wo.z() <= 0) continue;
+    text += fmt::format("{:.9g} {:.9g} {:.9g} {:.9g} -1000\n", wo.x(), wo.y(), wo.z(), m->pdf / (4 * wi.dot(m->direction)));
+  }
+  write_file_atomically(p, text);
+  const auto validate = [&](std::optional<Material> bsdf) {
+    DirectionSampleReader reader(p, SampleColumns::parse("x,y,z,pdf,weight"));
+    ValidationOptions o;
+    o.bsdf = bsdf;
+    return validate_dump_as_given(reader, {FilePdf::reflection, bsdf, true, false}, ggx, wi, o, false);
+  };
+  EXPECT_THROW(
+      {
+        try {
+          validate(std::nullopt);
+        } catch (const std::invalid_argument& e) {
+          EXPECT_NE(std::string(e.what()).find("no BSDF to test them against"), std::string::npos) << e.what();
+          throw;
+        }
+      },
+      std::invalid_argument);
+  const ValidationReport r = validate(Material::mirror());  // the weights of -1000 are tested, and fail
+  fs::remove(p);
+  EXPECT_FALSE(r.passed);
+}
+
 // A float32 renderer's text dump, its directions and pdfs from heitz2018's float version printed with %.9g (every
 // float's digits): the digits are a float32's, so float32's tolerance applies, and the dump passes; 0.2% off, it
 // fails.
