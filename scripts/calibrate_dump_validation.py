@@ -2,7 +2,7 @@
 """microsim: how often `validate` rejects a correct renderer dump (the false-rejection rate at its level).
 
 Writes RUNS dumps of a correct renderer's samples (seeds SEED0, SEED0 + 1, ...), validates each with
-`--above-horizon --dropped N`, and prints how many runs were rejected (exit 1) against the level's expectation,
+`--above-horizon --dropped N` (or as --convention says), and prints how many runs were rejected (exit 1) against the level's expectation,
 and per test the fraction of runs with p below the level and below the per-test Sidak level. The dumps go to a
 temporary folder, removed at the end. Records: docs/records/validation.md.
 - `--material conductor` (default): the gold conductor of examples/renderer_dump.py (float32 .npy), validated
@@ -10,13 +10,14 @@ temporary folder, removed at the end. Records: docs/records/validation.md.
 - `--material dielectric`: the rough glass of `renderer_dump` in tests/python/test_renderer_conventions.py
   (kind 'dielectric', eta 1.5, pbrt-v4's radiance transport and height-correlated G2, its lost samples dropped;
   imported, PYTHONPATH=build/python is added), saved as .npy of --dtype (default float32) and validated as that
-  test file does (`--bsdf dielectric:1.5`). It also prints the report's test keys, the statistical tests
+  test file does (`--bsdf dielectric:1.5`); with `--convention mitsuba`, Mitsuba 3's instead: separable G1 G1 and
+  its lost samples kept as rows of weight 0 (`--masking separable --lost-as-zero-weight`). It also prints the report's test keys, the statistical tests
   taken from it, and which tests the rejected runs failed.
 --rows is passed to validate when given (else validate's default, 31); --jobs runs that many validations at
 once; --p-values CSV writes each run's seed, exit code and p-values.
 Usage: /usr/bin/python3 scripts/calibrate_dump_validation.py [--material conductor|dielectric] [--runs 300]
        [--samples 30000] [--seed0 20000] [--alpha 0.3] [--theta 60] [--rows R] [--dtype float32|float64]
-       [--jobs 1] [--p-values CSV] [--microsim build/microsim]
+       [--convention pbrt|mitsuba] [--jobs 1] [--p-values CSV] [--microsim build/microsim]
 """
 import argparse
 import concurrent.futures
@@ -37,7 +38,7 @@ def conductor_dump(dump, seed, a):
                           str(a.alpha), "--theta", str(a.theta), "--samples", str(a.samples), "--seed", str(seed)],
                          check=True, capture_output=True, text=True).stdout
     dropped = re.search(r"dropped below the horizon: (\d+)", out).group(1)
-    return dropped, ["--bsdf", "conductor", "--eta", "0.2", "--k", "3.9"]
+    return ["--above-horizon", "--dropped", dropped], ["--bsdf", "conductor", "--eta", "0.2", "--k", "3.9"]
 
 
 def dielectric_dump(dump, seed, a):
@@ -47,20 +48,23 @@ def dielectric_dump(dump, seed, a):
             sys.path.insert(0, path)
     import test_renderer_conventions as trc
     from conftest import view
-    trc.N = a.samples  # the generator draws its module-level N samples
-    directions, pdfs, weights, dropped = trc.renderer_dump("dielectric", view(a.theta), (a.alpha, a.alpha),
-                                                           eta=GLASS_ETA, seed=seed)
+    mitsuba = a.convention == "mitsuba"
+    directions, pdfs, weights, dropped = trc.renderer_dump(
+        "dielectric", view(a.theta), (a.alpha, a.alpha), eta=GLASS_ETA, seed=seed, n=a.samples,
+        masking="separable" if mitsuba else "height-correlated", lost="zero-weight" if mitsuba else "dropped")
     np.save(dump, np.column_stack([directions, pdfs, weights]).astype(a.dtype))
-    return str(dropped), ["--bsdf", f"dielectric:{GLASS_ETA}"]
+    claims = ["--masking", "separable", "--lost-as-zero-weight"] if mitsuba else ["--above-horizon", "--dropped",
+                                                                                  str(dropped)]
+    return claims, ["--bsdf", f"dielectric:{GLASS_ETA}"]
 
 
 def validate_one(tmp, seed, a):
     dump = os.path.join(tmp, f"dump-{seed}.npy")
-    dropped, bsdf = (dielectric_dump if a.material == "dielectric" else conductor_dump)(dump, seed, a)
+    lost, bsdf = (dielectric_dump if a.material == "dielectric" else conductor_dump)(dump, seed, a)
     report = os.path.join(tmp, f"report-{seed}.json")
     rows = ["--rows", str(a.rows)] if a.rows else []
     rc = subprocess.run([a.microsim, "validate", "--from", dump, "--alpha", str(a.alpha), "--theta", str(a.theta),
-                         "--columns", "x,y,z,pdf,weight", *bsdf, "--above-horizon", "--dropped", dropped, *rows,
+                         "--columns", "x,y,z,pdf,weight", *bsdf, *lost, *rows,
                          "--json", report], capture_output=True).returncode
     if rc not in (0, 1):
         sys.exit(f"validate exited {rc} for seed {seed}")
@@ -88,12 +92,16 @@ def main():
     p.add_argument("--rows", type=int, help="rows of validate's sphere and lobe binnings (default: validate's)")
     p.add_argument("--dtype", choices=["float32", "float64"], default="float32",
                    help="the dielectric dump's storage (the conductor's example writes float32)")
+    p.add_argument("--convention", choices=["pbrt", "mitsuba"], default="pbrt",
+                   help="the dielectric's: pbrt-v4 (lost samples dropped, height-correlated) or Mitsuba 3's")
     p.add_argument("--jobs", type=int, default=1, help="validations run at once")
     p.add_argument("--p-values", help="write seed, exit code and each test's p-value per run to this CSV")
     p.add_argument("--microsim", default=os.path.join(ROOT, "build", "microsim"))
     a = p.parse_args()
     if a.material == "conductor" and a.dtype != "float32":
         p.error("--dtype is for --material dielectric (examples/renderer_dump.py writes float32)")
+    if a.material == "conductor" and a.convention != "pbrt":
+        p.error("--convention is for --material dielectric")
     seeds = range(a.seed0, a.seed0 + a.runs)
     with tempfile.TemporaryDirectory() as tmp:
         if a.jobs > 1:
@@ -117,7 +125,7 @@ def main():
     per_test = 1 - (1 - a.level) ** (1 / len(tests))
     if a.material == "dielectric":
         print(f"report tests: {', '.join(results[0][2][0])}; statistical (with a p-value): {', '.join(tests)}")
-        print(f"{a.runs} correct rough-dielectric dumps (eta {GLASS_ETA}, {a.dtype}) of {a.samples} samples "
+        print(f"{a.runs} correct rough-dielectric dumps ({a.convention}, eta {GLASS_ETA}, {a.dtype}) of {a.samples} samples "
               f"(alpha {a.alpha}, theta {a.theta}, seeds {a.seed0}.., rows {a.rows or 'default'}): "
               f"{rejected} rejected at level {a.level} (expected about {a.level * a.runs:.1f})")
     else:

@@ -359,15 +359,32 @@ double sidak_adjusted_p(double p_min, int n_tests) {
   return -std::expm1(n_tests * std::log1p(-std::max(p_min, 0.0)));
 }
 
-double skewed_mean_p(double deviation, double se, double skew) {
+namespace {
+// Chebyshev's inequality, P(|X - E X| >= t) <= Var X / t^2: a p-value for any distribution of the mean.
+double chebyshev_p(double deviation, double se) {
+  const double r = se / deviation;
+  return deviation == 0 ? 1.0 : std::min(1.0, r * r);
+}
+}  // namespace
+
+double skewed_mean_p(double deviation, double se, double skew, double least) {
   if (!std::isfinite(deviation)) return 0.0;
   if (!(se > 0)) return deviation == 0 ? 1.0 : 0.0;
   // Nearly symmetric: the normal (the gamma's shape would pass 4e6, where Boost's series can fail to converge).
-  if (!(std::abs(skew) >= 1e-3)) return std::min(1.0, std::erfc(std::abs(deviation / se) / std::sqrt(2.0)));
+  if (!(std::abs(skew) >= 1e-3)) {
+    if (0.5 * std::erfc(-least / se / std::sqrt(2.0)) > kSkewedMeanSupportMass) return chebyshev_p(deviation, se);
+    return std::min(1.0, std::erfc(std::abs(deviation / se) / std::sqrt(2.0)));
+  }
   // X = G - k theta, G ~ Gamma(k, theta): mean 0, sd se, skewness 2 / sqrt(k); mirrored for a negative skew.
   const double k = 4 / (skew * skew), theta = se * std::abs(skew) / 2;
-  const double g = (skew > 0 ? deviation : -deviation) / theta + k;  // G / theta at the deviation
-  if (g <= 0) return 0.0;                                            // below the gamma's support
+  const auto g_of = [&](double x) { return (skew > 0 ? x : -x) / theta + k; };  // G / theta at deviation x
+  // The approximation's mass below `least`, where the mean cannot be.
+  const double g_least = g_of(least);
+  const double outside = skew > 0 ? (g_least <= 0 ? 0.0 : boost::math::gamma_p(k, g_least))
+                                  : (g_least <= 0 ? 1.0 : boost::math::gamma_q(k, g_least));
+  if (outside > kSkewedMeanSupportMass) return chebyshev_p(deviation, se);
+  const double g = g_of(deviation);
+  if (g <= 0) return 0.0;  // below the gamma's support
   const double lower = boost::math::gamma_p(k, g), upper = boost::math::gamma_q(k, g);
   return std::min(1.0, 2 * std::min(lower, upper));
 }

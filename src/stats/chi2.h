@@ -129,7 +129,12 @@ double sidak_adjusted_p(double p_min, int n_tests);
 // |skew| < 1e-3. A mean of few nonzero terms (a bin that few samples reach) is skewed; the normal's tails
 // then misstate p by a factor of a few at the levels a Sidak correction over hundreds of bins asks.
 // p = 2 min(P(X <= deviation), P(X >= deviation)), at most 1; 0 for a non-finite deviation.
-double skewed_mean_p(double deviation, double se, double skew);
+// `least`: the smallest deviation the mean can take (-m1 for a mean of terms >= 0 whose mean is m1). Where the
+// approximation puts more than kSkewedMeanSupportMass of its mass below it (a mean of a few rare nonzero terms:
+// the gamma then sits mostly where the mean cannot be, and calls the likeliest outcome, no term at all, extreme),
+// p is Chebyshev's bound min(1, (se / deviation)^2), which holds for any distribution.
+inline constexpr double kSkewedMeanSupportMass = 1e-6;
+double skewed_mean_p(double deviation, double se, double skew, double least = -INFINITY);
 
 // The largest share a sample mean's test accepts; an honest weight sample of 1e4 bounded values holds ~1e-3.
 inline constexpr double kMaxDominantShare = 0.1;

@@ -33,7 +33,8 @@ double bsdf_flux(const GGX<double>& ggx, const Material& bsdf, const BsdfConvent
 
 // A mean weight over n samples against its moments under the reference (one sample's E[w^j 1_B], j = 1..3):
 // z = (sum / n - m1) / se, se = sqrt((m2 - m1^2) / n) (with a floor of 1e-12 relative for rounding), and the
-// two-sided p from the translated gamma of the mean's skewness (stats/chi2.h skewed_mean_p).
+// two-sided p from the translated gamma of the mean's skewness (stats/chi2.h skewed_mean_p; Chebyshev's bound
+// where the gamma would put the mean below 0: a bin that few nonzero weights reach).
 struct MeanTest {
   double z = 0, p = 1;
 };
@@ -44,7 +45,7 @@ MeanTest mean_test(double sum, double n, double m1, double m2, double m3) {
   const double mu3 = m3 - 3 * m1 * m2 + 2 * m1 * m1 * m1;  // one sample's third central moment
   const double skew = var > 0 ? mu3 / (var * std::sqrt(var) * std::sqrt(n)) : 0.0;
   const double z = se > 0 ? deviation / se : (deviation == 0 ? 0.0 : INFINITY);
-  return {z, skewed_mean_p(deviation, se, skew)};
+  return {z, skewed_mean_p(deviation, se, skew, -m1)};  // weights are >= 0: the mean is at least 0
 }
 
 // No negative weight: a BSDF and a pdf are never negative, and a few negative weights hide in a mean.

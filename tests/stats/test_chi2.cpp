@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <random>
 #include <vector>
 
 using namespace microsim;
@@ -172,6 +173,37 @@ TEST(ChiSquare, SkewedMeanPIsTheGammasTails) {
   EXPECT_EQ(skewed_mean_p(NAN, 1.0, 0.5), 0.0);
   // The normal misstates the right tail of a skewed mean (the point of it): 3 se above is 0.0366 not 0.0027.
   EXPECT_GT(skewed_mean_p(3.0, 1.0, 2.0), 10 * skewed_mean_p(3.0, 1.0, 0.0));
+}
+
+// A mean of n terms c Bernoulli(q) (a bin that few nonzero weights reach; lambda = n q of them expected), against
+// its moments as the weight test gives them: the fraction of draws with p below 0.01 (fixed seed, 20000 draws).
+double rare_terms_rejection_rate(double lambda, bool support) {
+  const double n = 1e5, q = lambda / n, c = 0.7;
+  const double m1 = c * q, m2 = c * c * q, m3 = c * c * c * q;
+  const double var = m2 - m1 * m1, se = std::sqrt(var / n);
+  const double skew = (m3 - 3 * m1 * m2 + 2 * m1 * m1 * m1) / (var * std::sqrt(var) * std::sqrt(n));
+  std::mt19937_64 rng(11);
+  std::binomial_distribution<long long> terms(static_cast<long long>(n), q);
+  int rejected = 0;
+  constexpr int kDraws = 20000;
+  for (int i = 0; i < kDraws; ++i) {
+    const double deviation = c * double(terms(rng)) / n - m1;
+    rejected += (support ? skewed_mean_p(deviation, se, skew, -m1) : skewed_mean_p(deviation, se, skew)) < 0.01;
+  }
+  return double(rejected) / kDraws;
+}
+
+// The mean cannot go below 0: where the translated gamma puts its mass there (few nonzero terms expected), the
+// likeliest outcome (no term at all) was called extreme; Chebyshev's bound then holds the level. Negative control:
+// without the support, lambda 1e-6 rejects nearly every draw.
+TEST(ChiSquare, SkewedMeanPOfRareTermsHoldsItsLevel) {
+  for (double lambda : {1e-6, 0.01, 0.3, 3.0, 40.0, 400.0}) {
+    const double rate = rare_terms_rejection_rate(lambda, true);
+    EXPECT_LE(rate, 0.01 + 3 * std::sqrt(0.01 * 0.99 / 20000)) << "lambda " << lambda;
+  }
+  EXPECT_GT(rare_terms_rejection_rate(1e-6, false), 0.99);
+  // No term at all where 1e-8 of one is expected: p 1.
+  EXPECT_EQ(skewed_mean_p(-1e-13, std::sqrt(1e-13 / 1e5), 1e4, -1e-13), 1.0);
 }
 
 TEST(ChiSquare, KolmogorovSmirnov) {
