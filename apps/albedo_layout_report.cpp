@@ -63,8 +63,8 @@ void print_noise_line(std::uint64_t samples, double z, std::size_t beyond, std::
                "nodes\n", samples, z, kGradeNoiseLevel, beyond, nodes);
 }
 void print_verdict_line(const GradeTotals& g, std::size_t nodes, double tolerance, const std::string& quantity) {
-  fmt::print("{}: {} of {} nodes beyond the tolerance {:g} ({})\n", g.passed() ? "PASS" : "FAIL", g.failed, nodes,
-             tolerance, quantity);
+  fmt::print("{}: {} of {} nodes beyond the tolerance {:g} (beyond the encoding's rounding) ({})\n",
+             g.passed() ? "PASS" : "FAIL", g.failed, nodes, tolerance, quantity);
 }
 
 void print_grade(const AlbedoGrade& g) {

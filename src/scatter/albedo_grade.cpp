@@ -54,7 +54,8 @@ NodeGrade grade_node(double value, const Estimate& reference, double quantisatio
     c.noise = z * std::sqrt(e * (1 - e) / double(samples));
     c.within_noise = std::abs(c.difference) <= c.noise + slack;
   }
-  c.within_tolerance = !graded || std::abs(c.difference) <= tolerance;
+  // A node is judged beyond what its encoding can hold: a table rounded to half floats cannot be nearer than that.
+  c.within_tolerance = !graded || std::abs(c.difference) <= tolerance + slack;
   return c;
 }
 

@@ -10,7 +10,8 @@
 // table of unbiased nodes has a node beyond its noise with probability at most about 1e-3): E (1 - E) bounds the variance of a per-sample weight in [0, 1] of mean E (the
 // Bhatia-Davis inequality), which a VNDF-sampled mirror's weight G1(wo) is; a table built by NDF sampling
 // has a larger variance (weights above 1), so its noise can exceed this bound. Passed: every graded node
-// within the tolerance the user gives (a node below the reference's alpha range is reported, not graded).
+// within the tolerance the user gives beyond that rounding and the reference's error (|difference| <= tolerance
+// + quantisation + error; a node below the reference's alpha range is reported, not graded).
 // Never prints.
 #pragma once
 

@@ -248,7 +248,14 @@ TEST(AlbedoGradeChannels, FilamentsTwoChannelsAreGradedAndOnePlantedTexelIsFlagg
   EXPECT_TRUE(gx.passed());
   EXPECT_EQ(gx.quantity, "DFG.x");
   EXPECT_EQ(gx.beyond_quantisation, 0u) << "a half-float table is within its rounding";
+  // At the default tolerance (1e-4, below half floats' rounding near 1: up to 2.4e-4) the exact table still passes:
+  // it is judged beyond what its encoding can hold.
+  EXPECT_TRUE(grade_against(*t, y, 1e-4).passed());
+  EXPECT_TRUE(grade_against(*t, x, 1e-4, 0, true).passed());
+  EXPECT_GT(std::max(grade_against(*t, y, 1e-4).max_abs, grade_against(*t, x, 1e-4, 0, true).max_abs), 1e-4)
+      << "the rounding exceeds the tolerance somewhere (else this checks nothing)";
   x[layout_storage_index(l, 3, 6)] += 1e-3;
+  EXPECT_FALSE(grade_against(*t, x, 1e-4, 0, true).passed());
   const AlbedoGrade bad = grade_against(*t, x, 5e-4, 0, true);
   EXPECT_FALSE(bad.passed());
   EXPECT_EQ(bad.failed, 1u);
