@@ -87,6 +87,7 @@ void print_grade(const AlbedoGrade& g) {
       fmt::print("FAIL node (roughness {}, mu {}) alpha {:.6g} mu {:.6g}: table {:.9g} reference {:.9g} difference {:.3g}\n",
                  c.ri, c.mj, c.alpha, c.mu, c.value, c.reference.value, c.difference);
   print_verdict_line(g, g.cells.size(), g.tolerance, g.quantity);
+  for (const std::string& h : g.hints) fmt::print("hint: {}\n", h);
 }
 
 void print_glass_grade(const GlassGrade& g) {

@@ -37,6 +37,55 @@ CellGrade grade_cell(const LayoutTable& t, const std::vector<Estimate>& referenc
   return c;
 }
 
+// A way to misread a table: the reference node (ri', mj') the value stored at (ri, mj) was made for, if any.
+struct Misreading {
+  const char* words;
+  std::optional<std::pair<std::size_t, std::size_t>> (*node)(std::size_t ri, std::size_t mj, std::size_t nr,
+                                                              std::size_t nm);
+};
+using Node = std::optional<std::pair<std::size_t, std::size_t>>;
+constexpr Misreading kMisreadings[] = {
+    {"its roughness rows one node up (row i filled at roughness node i + 1, as Filament's generator fills its LUT)",
+     [](std::size_t ri, std::size_t mj, std::size_t nr, std::size_t) { return ri + 1 < nr ? Node{{ri + 1, mj}} : Node{}; }},
+    {"its roughness rows one node down (row i filled at roughness node i - 1)",
+     [](std::size_t ri, std::size_t mj, std::size_t, std::size_t) { return ri > 0 ? Node{{ri - 1, mj}} : Node{}; }},
+    {"its mu columns one node up (column j filled at mu node j + 1)",
+     [](std::size_t ri, std::size_t mj, std::size_t, std::size_t nm) { return mj + 1 < nm ? Node{{ri, mj + 1}} : Node{}; }},
+    {"its mu columns one node down (column j filled at mu node j - 1)",
+     [](std::size_t ri, std::size_t mj, std::size_t, std::size_t) { return mj > 0 ? Node{{ri, mj - 1}} : Node{}; }},
+    {"transposed (roughness and mu swapped)",
+     [](std::size_t ri, std::size_t mj, std::size_t nr, std::size_t nm) { return nr == nm ? Node{{mj, ri}} : Node{}; }},
+};
+// A misreading counts when it fits the graded nodes it covers with at most half the straight RMS difference.
+constexpr double kMisreadingGain = 0.5;
+
+// The RMS difference of the table read as `m` says against the reference (graded nodes; NaN when none is covered).
+double misread_rms(const LayoutTable& t, const std::vector<Estimate>& reference, const std::vector<double>& nodes,
+                   const Misreading& m) {
+  const std::size_t nr = t.alphas.size(), nm = t.mus.size();
+  double sum = 0;
+  std::size_t n = 0;
+  for (std::size_t ri = 0; ri < nr; ++ri)
+    for (std::size_t mj = 0; mj < nm; ++mj)
+      if (const Node to = m.node(ri, mj, nr, nm); to && t.in_range[ri] && t.in_range[to->first]) {
+        const double d = nodes[ri * nm + mj] - reference[to->first * nm + to->second].value;
+        sum += d * d;
+        ++n;
+      }
+  return n == 0 ? std::nan("") : std::sqrt(sum / double(n));
+}
+
+std::vector<std::string> misreading_hints(const LayoutTable& t, const std::vector<Estimate>& reference,
+                                          const std::vector<double>& nodes, const AlbedoGrade& g) {
+  std::vector<std::string> hints;
+  if (g.passed()) return hints;
+  for (const Misreading& m : kMisreadings)
+    if (const double rms = misread_rms(t, reference, nodes, m); rms <= kMisreadingGain * g.rms)
+      hints.push_back(fmt::format("the table fits the reference read with {}: RMS difference {:.3g} against {:.3g} as "
+                                  "the layout reads it", m.words, rms, g.rms));
+  return hints;
+}
+
 }  // namespace
 
 NodeGrade grade_node(double value, const Estimate& reference, double quantisation, bool graded, double tolerance,
@@ -94,6 +143,7 @@ AlbedoGrade grade_against(const LayoutTable& t, const std::vector<double>& value
   static_cast<GradeTotals&>(g) = grade_totals(g.cells, samples > 0);
   g.table_interpolation = interpolation_error(t, nodes, grazing ? t.grazing_centres : t.centres);
   g.reference_interpolation = grazing ? t.grazing_interpolation : t.interpolation;
+  g.hints = misreading_hints(t, reference, nodes, g);
   return g;
 }
 
@@ -167,6 +217,7 @@ nlohmann::json albedo_grade_json(const AlbedoGrade& g) {
           {"beyond_noise", g.beyond_noise},
           {"table_interpolation", interpolation_json(g.table_interpolation)},
           {"reference_interpolation", interpolation_json(g.reference_interpolation)},
+          {"hints", g.hints},
           {"cells", cells}};
 }
 

@@ -70,6 +70,9 @@ struct AlbedoGrade : GradeTotals {
   std::vector<CellGrade> cells;     // [ri * mus + mj]
   InterpolationError table_interpolation;      // the table's bilinear at cell centres vs the reference
   InterpolationError reference_interpolation;  // the layout's own (the reference's nodes)
+  // A failed table that the reference fits far better read another way (its rows a node off in roughness or
+  // mu, or transposed): each such reading in words with both RMS differences ("" none).
+  std::vector<std::string> hints;
 };
 
 inline constexpr double kGradeNoiseLevel = 1e-3;  // the family level of the noise check

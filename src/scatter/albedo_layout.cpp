@@ -60,6 +60,10 @@ AlbedoLayout filament_layout() {
   // tools/cmgen/src/cmgen.cpp (iblLutDfg: half floats per texel, rows flipped to GL order); engine:
   // filament/src/details/DFG.cpp (DFG_LUT_SIZE 128, an RGB16F texture, B the cloth term) and the shaders'
   // textureLod(light_iblDFG, vec2(NoV, perceptualRoughness)), specularDFG = mix(dfg.xxx, dfg.yyy, f0).
+  // The nodes are where the shader reads (texel centres). The generator's image row y has coord =
+  // (height - y + 0.5) / height, and cmgen writes GL row j from image row height - 1 - j: GL row j holds
+  // roughness (j + 1.5) / 128 (the last row clamped to 1), one texel above where it is read; a LUT made so is
+  // graded as the renderer reads it, and the grade's hint names the shift.
   l.source = "google/filament libs/ibl/src/CubemapIBL.cpp, tools/cmgen/src/cmgen.cpp, filament/src/details/DFG.cpp";
   l.quantity = "DFG.y";
   l.grazing_quantity = "DFG.x";

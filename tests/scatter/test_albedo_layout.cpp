@@ -14,6 +14,7 @@
 
 #include <Eigen/Core>
 #include <boost/math/quadrature/gauss.hpp>
+#include <fmt/ranges.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -264,6 +265,44 @@ TEST(AlbedoGradeChannels, FilamentsTwoChannelsAreGradedAndOnePlantedTexelIsFlagg
   const LayoutTable plain = *layout_table(small_layout(), 1e-6, {}, false);
   EXPECT_THROW(grade_against(plain, reference_values(plain), 5e-4, 0, true), std::invalid_argument)
       << "a layout without a grazing channel";
+}
+
+// A table filled one roughness node up (as Filament's generator fills its LUT: row i at roughness node i + 1, the
+// last row clamped) fails, and the grade names the shift; a transposed one likewise; the exact table, and one with
+// errors that no misreading explains, get no such hint.
+TEST(AlbedoGradeChannels, ATableFilledOneNodeOffOrTransposedIsNamed) {
+  AlbedoLayout l = find_albedo_layout("--layout", "filament-dfg");
+  l.roughness.nodes = 8;
+  l.mu.nodes = 8;
+  const std::optional<LayoutTable> t = layout_table(l, 1e-6, {}, false);
+  ASSERT_TRUE(t.has_value());
+  const auto table = [&](const auto& node_of) {
+    std::vector<double> v(64);
+    for (std::size_t ri = 0; ri < 8; ++ri)
+      for (std::size_t mj = 0; mj < 8; ++mj) {
+        const auto [r, m] = node_of(ri, mj);
+        v[layout_storage_index(l, ri, mj)] = t->cells[r * 8 + m].value;
+      }
+    return v;
+  };
+  const auto names = [](const AlbedoGrade& g, const std::string& words) {
+    return std::any_of(g.hints.begin(), g.hints.end(), [&](const std::string& h) { return h.find(words) != std::string::npos; });
+  };
+  const AlbedoGrade up = grade_against(*t, table([](std::size_t ri, std::size_t mj) {
+    return std::pair{std::min<std::size_t>(ri + 1, 7), mj};
+  }), 1e-4);
+  EXPECT_FALSE(up.passed());
+  EXPECT_TRUE(names(up, "roughness rows one node up")) << fmt::format("{}", fmt::join(up.hints, " | "));
+  const AlbedoGrade swapped = grade_against(*t, table([](std::size_t ri, std::size_t mj) { return std::pair{mj, ri}; }), 1e-4);
+  EXPECT_FALSE(swapped.passed());
+  EXPECT_TRUE(names(swapped, "transposed")) << fmt::format("{}", fmt::join(swapped.hints, " | "));
+  const AlbedoGrade exact = grade_against(*t, table([](std::size_t ri, std::size_t mj) { return std::pair{ri, mj}; }), 1e-4);
+  EXPECT_TRUE(exact.passed() && exact.hints.empty());
+  std::vector<double> noisy = table([](std::size_t ri, std::size_t mj) { return std::pair{ri, mj}; });
+  for (std::size_t k = 0; k < noisy.size(); ++k) noisy[k] += (k % 3 == 0 ? 2e-3 : -1e-3);
+  const AlbedoGrade off = grade_against(*t, noisy, 1e-4);
+  EXPECT_FALSE(off.passed());
+  EXPECT_TRUE(off.hints.empty()) << fmt::format("{}", fmt::join(off.hints, " | "));
 }
 
 // The 200-point Gauss-Legendre rule (even: no node at the centre) of a two-valued f on [a, b].
