@@ -328,8 +328,11 @@ microsim::ValidationReport validate_file(const Args& a, const microsim::GGX<doub
           return validate_dump_as_given(samples, claims, ggx, view, o, a.frame.empty());
         } catch (const InsufficientData&) {
           throw;
-        } catch (const std::invalid_argument& e) {  // the claims' reference (dump_reference)
-          throw UsageError(fmt::format("--above-horizon: {}", e.what()));
+        } catch (const std::invalid_argument& e) {  // the claims' reference (dump_reference), named by the flag given
+          throw UsageError(fmt::format("{}{}", a.lost_as_zero_weight ? "--lost-as-zero-weight: "
+                                               : a.above_horizon    ? "--above-horizon: "
+                                                                    : "",
+                                       e.what()));
         }
       },
       a.from);
@@ -340,7 +343,7 @@ microsim::ValidationReport validate_file(const Args& a, const microsim::GGX<doub
 int run_single(const Args& a) {
   using namespace microsim;
   if (a.alpha.empty()) throw UsageError("--alpha is required (e.g. --alpha 0.3 or --alpha 0.05,0.5)");
-  if (!a.theta) throw UsageError("--theta is required (degrees in [0, 90); (90, 180) for light from inside a dielectric)");
+  if (!a.theta) throw UsageError("--theta is required (degrees in [0, 90); (90, 180] for light from inside a dielectric)");
   const auto [ax, ay] = microsim::parse_alpha("--alpha", a.alpha);
   const GGX<double> ggx(ax, ay);
   const Vec3<double> wi = direction_from_degrees(*a.theta, a.phi);
@@ -462,9 +465,9 @@ int run(const Args& a) {
   check_file_options(a);
   if (a.use_float && !a.from.empty()) throw UsageError("--float applies to --sampler and --all, not to --from");
   if (a.samples && !a.from.empty()) throw UsageError("--samples does not apply to --from (the file gives the samples)");
-  const bool inside = a.theta && *a.theta > 90 && *a.theta < 180 && !a.from.empty() && a.against.empty();
+  const bool inside = a.theta && *a.theta > 90 && *a.theta <= 180 && !a.from.empty() && a.against.empty();
   if (a.theta && !(*a.theta >= 0 && *a.theta < 90) && !inside)
-    throw UsageError(fmt::format("--theta must be in [0, 90) degrees (or (90, 180) with --from and --bsdf dielectric: "
+    throw UsageError(fmt::format("--theta must be in [0, 90) degrees (or (90, 180] with --from and --bsdf dielectric: "
                                  "light from inside), got {}",
                                  *a.theta));
   if (!std::isfinite(a.phi)) throw UsageError(fmt::format("--phi must be finite, got {}", a.phi));
@@ -554,7 +557,7 @@ microsim::app::CommandRegistration validate_registration{"validate", [](CLI::App
   sub->add_option("--alpha", args->alpha,
                   "roughness AX or AX,AY, each in [1e-4, 10], anisotropy at most 1:1000 (docs/reference/conventions.md)");
   using microsim::app::add_number_option;
-  add_number_option(sub, "--theta", args->theta, microsim::app::real(), "view zenith angle in degrees, [0, 90); with --from and --bsdf dielectric also (90, 180): light from "
+  add_number_option(sub, "--theta", args->theta, microsim::app::real(), "view zenith angle in degrees, [0, 90); with --from and --bsdf dielectric also (90, 180]: light from "
                     "inside the dielectric (the view below the surface)");
   add_number_option(sub, "--phi", args->phi, microsim::app::real(), "view azimuth in degrees (default 0)");
   add_number_option(sub, "--samples", args->samples, microsim::app::whole(1, microsim::kMaxSamples),

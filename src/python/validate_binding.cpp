@@ -361,7 +361,10 @@ ValidationReport validate_reader(DirectionSampleReader& reader, const GGX<double
   } catch (const InsufficientData&) {
     throw;
   } catch (const std::invalid_argument& e) {  // the claims' reference (dump_reference)
-    throw py::value_error(std::string(r.lost_as_zero_weight ? "lost_as_zero_weight: " : "above_horizon: ") + e.what());
+    throw py::value_error(std::string(r.lost_as_zero_weight ? "lost_as_zero_weight: "
+                                      : r.above_horizon     ? "above_horizon: "
+                                                            : "") +
+                          e.what());
   }
 }
 
@@ -392,8 +395,8 @@ ValidationReport validate_array(const py::handle& samples, const py::handle& alp
                                 const py::handle& weights, const py::handle& pdfs, const DumpArguments& d,
                                 const py::object& progress) {
   const GGX<double> ggx = ggx_of(alpha);
-  // Light from inside a dielectric: theta in (90, 180), validated as its mirror image (dump_validation.h).
-  const bool inside = theta > 90 && theta < 180 && d.bsdf && !d.against;
+  // Light from inside a dielectric: theta in (90, 180], validated as its mirror image (dump_validation.h).
+  const bool inside = theta > 90 && theta <= 180 && d.bsdf && !d.against;
   const Vec3<double> view = inside ? direction_from_degrees(theta, phi) : view_of(theta, phi);
   ValidationOptions o = validation_options(d.rows, d.significance, d.seed);
   if (d.dropped && !d.above_horizon) throw py::value_error("dropped applies with above_horizon=True only");
@@ -603,7 +606,7 @@ samples: (N, 3) float32 or float64 array of unit directions in the z-up frame (a
   place); NaN rows are the sampler's failures (the validation rejects and names them). Or the path (str or
   os.PathLike) of a sample file (.npy in C or Fortran order, or text) as `validate --from FILE` reads it.
 alpha: roughness, a number or (alpha_x, alpha_y); theta, phi: the view in degrees (theta in [0, 90); with a
-  dielectric bsdf also (90, 180): light from inside, validated as its mirror image).
+  dielectric bsdf also (90, 180]: light from inside, validated as its mirror image).
 pdf: the claimed density: 'vndf' (normals, D_v; the default without bsdf), 'ndf' (normals, D(m) m.z),
   'bounded' or 'reflection' (reflected directions), 'bsdf' (the outgoing directions of `bsdf`'s VNDF
   sampling, a conductor's reflections, a dielectric's reflections and refractions; the default with bsdf).

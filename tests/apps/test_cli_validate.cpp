@@ -390,11 +390,16 @@ TEST(CliValidate, BsdfMisuseIsBadUsage) {
       {"--from '" + f.string() + "' --reflected --alpha 0.3 --theta 120 --columns x,y,z,weight --bsdf mirror",
        "light from inside a dielectric"},
       {"--from '" + f.string() + "' --alpha 0.3 --theta 120", "light from inside a dielectric"},
+      // Weights need directions: named as --bsdf's, not as an option that was not given.
+      {"--from '" + f.string() + "' --pdf ndf --alpha 0.3 --theta 30 --columns x,y,z,weight --bsdf mirror",
+       "microsim: error: --bsdf: the weight test needs outgoing directions"},
   };
   for (const auto& [args, message] : cases) {
     const CliRun r = run(args);
     EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.err;
     EXPECT_NE(r.err.find(message), std::string::npos) << args << "\n" << r.err;
+    if (args.find("--above-horizon") == std::string::npos)
+      EXPECT_EQ(r.err.find("--above-horizon:"), std::string::npos) << args << "\n" << r.err;
   }
 }
 

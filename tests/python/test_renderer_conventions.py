@@ -265,3 +265,17 @@ def test_a_grazing_glass_from_inside_with_its_lost_samples_kept_passes(seed):
         d, pdfs, weights, _ = renderer_dump("dielectric", view(170), (1.0, 1.0), masking="separable",
                                             lost="zero-weight", seed=seed, n=200_000, bug="eta2_twice")
         assert not microsim.validate(d, 1.0, 170, pdfs=pdfs, weights=weights, **common).passed
+
+
+def test_light_from_inside_at_normal_incidence_is_a_view(tmp_path):
+    """theta 180 (light from inside along the normal) is accepted as every other view from inside, by the command line
+    and Python alike, and the correct dump passes."""
+    d, pdfs, weights, _ = renderer_dump("dielectric", view(180), (1.0, 1.0), masking="separable", lost="zero-weight",
+                                        seed=5, n=100_000)
+    path = tmp_path / "inside.npy"
+    np.save(path, np.column_stack([d, pdfs, weights]).astype(np.float32))
+    p = run_cli("validate", "--from", path, "--alpha", 1, "--theta", 180, "--columns", "x,y,z,pdf,weight", "--bsdf",
+                "dielectric:1.5", "--masking", "separable", "--lost-as-zero-weight")
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert microsim.validate(str(path), 1.0, 180, columns="x,y,z,pdf,weight", bsdf="dielectric:1.5",
+                             masking="separable", lost_as_zero_weight=True).passed
