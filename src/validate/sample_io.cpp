@@ -35,6 +35,10 @@ namespace microsim {
 namespace {
 
 constexpr std::string_view kNpyMagic = "\x93NUMPY";
+// A zip archive (numpy's .npz, np.savez): several arrays, not one table of samples.
+constexpr std::string_view kZipMagic = "PK\x03\x04";
+constexpr const char* kNpzMessage = "a zip archive (numpy's .npz from np.savez), not one array: save the samples with "
+                                    "np.save(PATH.npy, array) or as text";
 
 [[noreturn]] void fail(const std::filesystem::path& path, const std::string& what) {
   throw SampleFileError(path.string() + ": " + what);
@@ -758,6 +762,8 @@ DirectionSampleReader::DirectionSampleReader(const std::filesystem::path& path, 
     m.open_npy(regular, std::uint64_t(st.st_size));
   } else if (path.extension() == ".npy") {
     fail(path, "not an NPY file (the magic string \\x93NUMPY is missing) although the name ends in .npy");
+  } else if (std::string_view(head, got).starts_with(kZipMagic)) {
+    fail(path, kNpzMessage);
   }
 }
 
@@ -880,6 +886,7 @@ std::vector<Vec3<double>> parse_direction_samples(std::string_view bytes, const 
   }
   if (name.extension() == ".npy")
     fail(name, "not an NPY file (the magic string \\x93NUMPY is missing) although the name ends in .npy");
+  if (bytes.starts_with(kZipMagic)) fail(name, kNpzMessage);
   if (bytes.substr(0, 3) == "\xEF\xBB\xBF") bytes.remove_prefix(3);  // UTF-8 byte order mark
   TextRows out;
   std::size_t line_no = 0;

@@ -309,6 +309,9 @@ TEST_F(SampleIo, NpyHeaderErrors) {
   expect_error(write_bytes("cut3.npy", npy_bytes(1, 0, dict("<f8", "(1, 3)"), d).substr(0, 30)),
                {"truncated NPY header"});
   expect_error(write_bytes("fake.npy", "0 0 1\n"), {"not an NPY file"});
+  // np.savez's archive (a zip's local file header first): named as such, not read as malformed text.
+  expect_error(write_bytes("samples.npz", std::string("PK\x03\x04\x14\x00\x00\x00", 8) + "a.npy"),
+               {"a zip archive (numpy's .npz", "np.save"});
 }
 
 // ---- files written by NumPy itself (tests/data/README.md says how) --------------------------------------
