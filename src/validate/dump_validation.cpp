@@ -58,6 +58,19 @@ std::string frame_hint(const ValidationReport& r, const DirectionSampleReader& s
                      best->report.p_value, fix, then.empty() ? "" : "; read so, " + then);
 }
 
+// A rejected dump whose claimed density covers where its samples fall (a dielectric's, over the whole sphere) gives
+// no share of samples at a zero pdf to go by: a reading in another frame is named only when it passes.
+constexpr double kGrosslyRejected = 1e-12;  // the validation's p below which another frame is tried
+std::string passing_frame_hint(const ValidationReport& r, const DirectionSampleReader& samples,
+                               const std::shared_ptr<const ReferenceDistribution>& reference, const ValidationOptions& o) {
+  if (r.passed || !(r.p_value < kGrosslyRejected)) return "";
+  const std::optional<FrameHint> best = diagnose_sample_frame(samples, reference, o);
+  if (!best || !best->report.passed) return "";
+  return fmt::format("the samples are far from the claimed density (p = {:.3g}); read {} they pass (p = {:.3g}): {}",
+                     r.p_value, frame_mistake(best->frame), best->report.p_value,
+                     best->frame == SampleFrame::y_up ? "give --frame y-up (Python: frame='y-up')" : "fix the dump's frame");
+}
+
 // Reads the samples again from their first row: visit(weights, printed) for each row, its weights (one per
 // channel) and a text row's printed rounding.
 template <class Visit> void reread_rows(const DirectionSampleReader& samples, Visit visit) {
@@ -166,6 +179,8 @@ ValidationReport validate_dump(const DirectionSampleReader& samples, std::shared
   r.notes = dump_notes(r, samples, options);
   if (r.passed) return r;
   if (diagnose_frame && looks_like_a_frame_mistake(r)) r.hints.push_back(frame_hint(r, samples, reference, options));
+  else if (std::string hint = diagnose_frame ? passing_frame_hint(r, samples, reference, options) : ""; !hint.empty())
+    r.hints.push_back(std::move(hint));
   // Rows of weight 0 where the pdf is zero explain the lost mass better than samples dropped.
   if (std::string hint = zero_weight_hint(r, samples); !hint.empty()) r.hints.push_back(std::move(hint));
   else if (std::string dropped = dropped_samples_hint(r, *reference); !dropped.empty()) r.hints.push_back(std::move(dropped));

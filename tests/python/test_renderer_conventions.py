@@ -279,3 +279,16 @@ def test_light_from_inside_at_normal_incidence_is_a_view(tmp_path):
     assert p.returncode == 0, p.stdout + p.stderr
     assert microsim.validate(str(path), 1.0, 180, columns="x,y,z,pdf,weight", bsdf="dielectric:1.5",
                              masking="separable", lost_as_zero_weight=True).passed
+
+
+def test_a_glass_dump_in_the_wrong_frame_gets_the_frame_hint(tmp_path):
+    """A dielectric's density covers the whole sphere, so a glass dump written with z flipped puts few samples where
+    it is zero: the frame is still named, as the reading in which the dump passes; the correct dump gets no such
+    hint."""
+    d, pdfs, weights, dropped = renderer_dump("dielectric", view(50), (0.3, 0.3), seed=3)
+    claims = dict(pdfs=pdfs, weights=weights, bsdf="dielectric:1.5", above_horizon=True, dropped=dropped)
+    flipped = microsim.validate(d * np.array([1.0, 1.0, -1.0]), 0.3, 50, **claims)
+    assert not flipped.passed
+    assert any("read with z flipped" in h and "they pass" in h for h in flipped.hints), flipped.hints
+    right = microsim.validate(d, 0.3, 50, **claims)
+    assert right.passed and not any("frame" in h for h in right.hints), right.hints
