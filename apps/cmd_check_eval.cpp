@@ -25,7 +25,8 @@ namespace microsim::app {
 namespace {
 
 struct EvalArgs {
-  std::string file, alpha, bsdf, columns = "wi,wo,value", transport, masking, frame = "z-up", arithmetic = "float32", json;
+  std::string file, alpha, bsdf, columns = "wi,wo,value", transport, masking, sampling, frame = "z-up",
+      arithmetic = "float32", json;
   std::string model = "exact";
   int worst = 10;
   long long paths = 32768;
@@ -38,6 +39,7 @@ EvalCheckOptions options_of(const EvalArgs& a) {
   try {
     if (!a.transport.empty()) o.convention.transport = parse_transport_mode("--transport", a.transport);
     if (!a.masking.empty()) o.convention.masking = parse_masking_form("--masking", a.masking);
+    if (!a.sampling.empty()) o.convention.normals = parse_sampled_normals("--sampling", a.sampling);
   } catch (const std::invalid_argument& e) {
     throw UsageError(e.what());
   }
@@ -112,6 +114,9 @@ int run_check_eval(const EvalArgs& a) {
   } catch (const std::invalid_argument& e) {
     throw UsageError(fmt::format("--columns: {}", e.what()));
   }
+  if (!a.sampling.empty() && (a.model == "smith-walk" || !columns.has_pdf()))
+    throw UsageError("--sampling says what the pdf column is the density of: it applies to --model exact with a pdf "
+                     "column (--columns wi,wo,value,pdf)");
   if (a.model == "smith-walk") return run_walk_check(a, columns, bsdf, ax, ay);
   if (a.model != "exact") throw UsageError(fmt::format("--model {}: exact or smith-walk", quote_excerpt(a.model)));
   EvalCheckOptions o = options_of(a);
@@ -154,6 +159,9 @@ CommandRegistration check_eval_registration{"check-eval", [](CLI::App& app) {
                   "n_sampled)^2) or importance (light paths)");
   sub->add_option("--masking", a->masking, "the masking-shadowing form: height-correlated (default, pbrt-v4) or separable "
                                            "(G1(wi) G1(wo), Mitsuba 3)");
+  sub->add_option("--sampling", a->sampling,
+                  "the normals the BSDF's sample() draws, which its pdf() is the density of: vndf (default: the visible "
+                  "normals, Heitz 2018) or ndf (D(m) cos, Walter et al. 2007: Mitsuba 3's sample_visible = false)");
   sub->add_option("--frame", a->frame, "the frame of the rows: z-up or y-up")->capture_default_str();
   sub->add_option("--arithmetic", a->arithmetic,
                   "the renderer's arithmetic, float32 or float64 (the tolerances follow it)")

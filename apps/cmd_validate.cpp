@@ -46,6 +46,7 @@ struct Args {
   std::string eta, k;                       // with --bsdf conductor: per channel
   std::string transport;                    // with --bsdf: radiance (default) or importance
   std::string masking;                      // with --bsdf: height-correlated (default) or separable
+  std::string sampling;                     // with --bsdf: the normals sample() draws, vndf (default) or ndf
   bool above_horizon = false;               // with --reflected: the dump holds the reflections above it only
   bool lost_as_zero_weight = false;         // the dump keeps its sampler's lost samples as rows of weight 0
   std::optional<long long> dropped;         // with --above-horizon: how many the renderer dropped below it
@@ -94,6 +95,7 @@ microsim::BsdfConvention bsdf_convention(const Args& a) {
   try {
     if (!a.transport.empty()) c.transport = microsim::parse_transport_mode("--transport", a.transport);
     if (!a.masking.empty()) c.masking = microsim::parse_masking_form("--masking", a.masking);
+    if (!a.sampling.empty()) c.normals = microsim::parse_sampled_normals("--sampling", a.sampling);
   } catch (const std::invalid_argument& e) {
     throw UsageError(e.what());
   }
@@ -424,6 +426,14 @@ void check_file_options(const Args& a) {
   if ((!a.transport.empty() || !a.masking.empty()) && a.bsdf.empty())
     throw UsageError(fmt::format("{} is the convention of a BSDF's weights: give the BSDF with --bsdf",
                                  a.transport.empty() ? "--masking" : "--transport"));
+  if (!a.sampling.empty() && (a.bsdf.empty() || file_pdf(a) != microsim::FilePdf::bsdf))
+    throw UsageError("--sampling is how a BSDF's sample() draws its normals: it sets the BSDF's own density (--bsdf, "
+                     "which implies --pdf bsdf), not that of --pdf or --reflected");
+  if (bsdf_convention(a).normals == microsim::SampledNormals::ndf && sample_columns(a).channels() > 0 &&
+      bsdf_of(a)->transmits())
+    throw UsageError("--sampling ndf with a dielectric's weight columns: those weights are heavy-tailed (~ 1 / m.z near "
+                     "the horizon) and not tested; mark the weight columns '-' to validate its directions and pdfs, "
+                     "and check its eval() with check-eval --sampling ndf");
   bsdf_convention(a);  // an unknown name is exit 2 here, before any work
   // Weights are f cos / pdf of a BSDF: without it they could not be tested, and a pass would look as if they were.
   if (const int weights = sample_columns(a).channels(); weights > 0 && a.bsdf.empty())
@@ -444,7 +454,8 @@ int run_model(const Args& a) {
                                     {!a.bsdf.empty(), "--bsdf (give --material)"}, {!a.pdf.empty() || a.reflected, "--pdf/--reflected"},
                                     {a.above_horizon, "--above-horizon"}, {a.lost_as_zero_weight, "--lost-as-zero-weight"},
                                     {!a.plot.empty(), "--plot"}, {!a.shard.empty(), "--shard"},
-                                    {!a.transport.empty() || !a.masking.empty(), "--transport/--masking"}})
+                                    {!a.transport.empty() || !a.masking.empty() || !a.sampling.empty(),
+                                     "--transport/--masking/--sampling"}})
     if (given) throw UsageError(fmt::format("{} does not apply to --model smith-walk", name));
   if (!a.theta) throw UsageError("--model smith-walk needs --theta");
   microsim::app::WalkValidationArgs w{a.from, a.columns, a.frame, a.material, a.alpha, a.json, *a.theta, a.phi,
@@ -518,6 +529,10 @@ void add_dump_options(CLI::App* sub, Args& a) {
   sub->add_option("--masking", a.masking,
                   "with --bsdf: the masking-shadowing form of the BSDF: height-correlated (default, Smith's G2 = 1 / (1 "
                   "+ Lambda_i + Lambda_o), pbrt-v4) or separable (G1(wi) G1(wo), Mitsuba 3)");
+  sub->add_option("--sampling", a.sampling,
+                  "with --bsdf: the normals its sample() draws, which set the density of its directions: vndf (default: "
+                  "the visible normals, Heitz 2018; pbrt-v4, Mitsuba 3) or ndf (D(m) cos, Walter et al. 2007: Mitsuba "
+                  "3's sample_visible = false)");
   sub->add_option("--frame", a.frame,
                   "with --from: the frame of the rows: z-up (default, microsim's) or y-up (normal along +y, rotated to "
                   "z-up by (x, y, z) -> (x, -z, y); --theta/--phi stay z-up)");

@@ -49,8 +49,10 @@ def fresnel_conductor(c, eta, k):
     return (rs + rp) / 2
 
 
-def renderer_eval(q, kind, dtype=np.float32, transport="radiance", masking="height-correlated", bug=None):
-    """(value, pdf) per query row (wg, ws) as a renderer computes them, in `dtype`."""
+def renderer_eval(q, kind, dtype=np.float32, transport="radiance", masking="height-correlated", bug=None,
+                  normals="vndf"):
+    """(value, pdf) per query row (wg, ws) as a renderer computes them, in `dtype`; normals='ndf': pdf() of a
+    sample() that draws m from D(m) cos (Walter et al. 2007) instead of the visible normals."""
     q = q.astype(dtype)
     wg, ws = q[:, :3], q[:, 3:]
     cg, cs = wg[:, 2], ws[:, 2]
@@ -71,7 +73,8 @@ def renderer_eval(q, kind, dtype=np.float32, transport="radiance", masking="heig
         if kind == "conductor":
             F = fresnel_conductor(np.abs(hg), dtype(GOLD[0]), dtype(GOLD[1]))
             f = D * G * F / np.abs(4 * cg * cs)
-            pdf = np.where(reflect, 1 / (1 + lg) * D * np.abs(hg) / np.abs(cg) / (4 * np.abs(hg)), 0)
+            dm = D * h[:, 2] if normals == "ndf" else 1 / (1 + lg) * D * np.abs(hg) / np.abs(cg)
+            pdf = np.where(reflect, dm / (4 * np.abs(hg)), 0)
             f = np.where(ok | (bug == "no_hemisphere_check"), np.where(reflect, f, 0), 0)
             return np.nan_to_num(f * np.abs(cs)), np.nan_to_num(np.where(ok, pdf, 0))
         F = fresnel_dielectric(hg, dtype(ETA))
@@ -81,7 +84,7 @@ def renderer_eval(q, kind, dtype=np.float32, transport="radiance", masking="heig
         if transport == "radiance":
             ft = ft / etap ** (4 if bug == "eta2_twice" else 2)
         f = np.where(ok, np.where(reflect, fr, ft), 0)
-        dv = 1 / (1 + lg) * D * np.abs(hg) / np.abs(cg)
+        dv = D * h[:, 2] if normals == "ndf" else 1 / (1 + lg) * D * np.abs(hg) / np.abs(cg)
         jac = np.where(reflect, 1 / (4 * np.abs(hs)), np.abs(hs) / denom)
         p_lobe = np.where(reflect, one if bug == "pdf_without_fresnel" else F, 1 - F)
         pdf = np.where(ok, dv * jac * p_lobe, 0)

@@ -10,6 +10,10 @@
 // Masking-shadowing form: Smith's height-correlated G2 = 1 / (1 + Lambda_i + Lambda_o) (Heitz 2014 eq. 99;
 // pbrt-v4's TrowbridgeReitzDistribution::G) or the separable G1(wi) G1(wo) (Heitz 2014 eq. 98; Mitsuba 3's
 // MicrofacetDistribution::G), for both the reflection and the refraction lobe.
+//
+// Sampled normals: the microfacet normal a BSDF's sample() draws, from the visible normals D_v(wi, m) (Heitz 2018,
+// JCGT 7(4); pbrt-v4, Mitsuba 3 by default) or from D(m) <m, n> (Walter et al. 2007 eq. 38: Mitsuba 3's
+// sample_visible = false, older renderers). It sets the density of the sampled directions, not the BSDF.
 #pragma once
 
 #include <string>
@@ -19,19 +23,23 @@ namespace microsim {
 
 enum class TransportMode { radiance, importance };
 enum class MaskingForm { height_correlated, separable };
+enum class SampledNormals { visible, ndf };
 
 struct BsdfConvention {
   TransportMode transport = TransportMode::radiance;      // camera paths: what renderers mostly dump
   MaskingForm masking = MaskingForm::height_correlated;  // Smith's own form
+  SampledNormals normals = SampledNormals::visible;       // what sample() draws m from
   bool operator==(const BsdfConvention&) const = default;
 };
 
 std::string to_string(TransportMode mode);   // "radiance", "importance"
 std::string to_string(MaskingForm form);     // "height-correlated", "separable"
+std::string to_string(SampledNormals normals);  // "vndf", "ndf"
 // "radiance transport (camera paths), height-correlated G2": how a report names the convention.
 std::string describe(const BsdfConvention& convention);
 // Parse the names above; throw ParseError naming `what`, the bad token and the valid names.
 TransportMode parse_transport_mode(std::string_view what, std::string_view text);
 MaskingForm parse_masking_form(std::string_view what, std::string_view text);
+SampledNormals parse_sampled_normals(std::string_view what, std::string_view text);
 
 }  // namespace microsim

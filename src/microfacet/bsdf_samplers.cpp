@@ -182,16 +182,30 @@ double conductor_vndf_pdf(const GGX<double>& ggx, std::complex<double>, const Ve
 }
 
 double dielectric_vndf_pdf(const GGX<double>& ggx, std::complex<double> ior, const Vec3<double>& wi, const Vec3<double>& wo) {
-  const double eta = ior.real();
+  return dielectric_sampling_pdf(ggx, SampledNormals::visible, ior.real(), wi, wo);
+}
+
+double conductor_sampling_pdf(const GGX<double>& ggx, SampledNormals normals, const Vec3<double>& wi,
+                              const Vec3<double>& wo) {
+  if (normals == SampledNormals::visible) return conductor_vndf_pdf(ggx, {}, wi, wo);
+  if (!(wo.z() > 0)) return 0.0;
+  const Vec3<double> m = reflection_half_vector(wi, wo);
+  if (!(wi.dot(m) > 0 && wo.dot(m) > 0)) return 0.0;
+  return sampled_normal_pdf(ggx, normals, wi, m) * reflection_jacobian(wo, m);
+}
+
+double dielectric_sampling_pdf(const GGX<double>& ggx, SampledNormals normals, double eta, const Vec3<double>& wi,
+                               const Vec3<double>& wo) {
   if (wo.z() > 0) {
     const Vec3<double> m = reflection_half_vector(wi, wo);
     if (!(wi.dot(m) > 0 && wo.dot(m) > 0)) return 0.0;
-    return fresnel_dielectric(wi.dot(m), eta) * ggx.visible_normal_pdf(wi, m) * reflection_jacobian(wo, m);
+    return fresnel_dielectric(wi.dot(m), eta) * sampled_normal_pdf(ggx, normals, wi, m) * reflection_jacobian(wo, m);
   }
   if (!(wo.z() < 0)) return 0.0;
   const Vec3<double> m = refraction_half_vector(wi, wo, eta);
   if (!(m.z() > 0 && wi.dot(m) > 0 && wo.dot(m) < 0)) return 0.0;
-  return (1 - fresnel_dielectric(wi.dot(m), eta)) * ggx.visible_normal_pdf(wi, m) * refraction_jacobian(wi, wo, m, eta);
+  return (1 - fresnel_dielectric(wi.dot(m), eta)) * sampled_normal_pdf(ggx, normals, wi, m) *
+         refraction_jacobian(wi, wo, m, eta);
 }
 
 double mean_weight_shift_z(BsdfSampleFunction bug, BsdfSampleFunction correct, const GGX<double>& ggx,

@@ -57,6 +57,18 @@ double conductor_vndf_pdf(const GGX<double>& ggx, std::complex<double> eta, cons
 // or refraction, the reflections below and refractions above the horizon lost (see above).
 double dielectric_vndf_pdf(const GGX<double>& ggx, std::complex<double> eta, const Vec3<double>& wi, const Vec3<double>& wo);
 
+// The density of the normal m that a BSDF's sample() draws given wi (bsdf_convention.h SampledNormals): D_v(wi, m)
+// (Heitz 2018 eq. 1), or D(m) m.z for m.z > 0 (Walter et al. 2007 eq. 38).
+template <class T> T sampled_normal_pdf(const GGX<T>& ggx, SampledNormals normals, const Vec3<T>& wi, const Vec3<T>& m) {
+  if (normals == SampledNormals::visible) return ggx.visible_normal_pdf(wi, m);
+  return m.z() > T(0) ? ggx.D(m) * m.z() : T(0);
+}
+// The two densities above with the normals drawn as `normals` says (the vndf ones for SampledNormals::visible): the
+// same Jacobians (Walter et al. 2007 eq. 14 and 17), the samples whose normal faces away from wi lost with the rest.
+double conductor_sampling_pdf(const GGX<double>& ggx, SampledNormals normals, const Vec3<double>& wi, const Vec3<double>& wo);
+double dielectric_sampling_pdf(const GGX<double>& ggx, SampledNormals normals, double eta, const Vec3<double>& wi,
+                               const Vec3<double>& wo);
+
 struct BsdfSamplerInfo {
   std::string_view name;
   std::string_view description;

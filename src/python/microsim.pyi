@@ -40,9 +40,10 @@ class ValidationResult:
 
 def validate(samples: Union[np.ndarray, str, os.PathLike], alpha: Alpha, theta: float, phi: float = 0.0,
              pdf: str = "vndf", weights: Optional[np.ndarray] = None, pdfs: Optional[np.ndarray] = None, *,
-             bsdf: Optional[str] = None, columns: Optional[str] = None, frame: str = "z-up", rows: int = 31,
+             bsdf: Optional[str] = None, transport: Optional[str] = None, masking: Optional[str] = None,
+             sampling: Optional[str] = None, columns: Optional[str] = None, frame: str = "z-up", rows: int = 31,
              significance: float = 0.01, above_horizon: bool = False, dropped: Optional[int] = None,
-             against: Optional[str] = None, oracle_rays: int = 4000000, seed: int = 1,
+             lost_as_zero_weight: bool = False, against: Optional[str] = None, oracle_rays: int = 4000000, seed: int = 1,
              progress: Progress = None) -> ValidationResult:
     """Validates samples (N, 3) float32/float64 against the density they claim (`microsim validate --from`);
     pdfs (N,): the returned pdfs; weights (N,) or (N, C) with bsdf ('mirror', 'conductor:ETA,K', 'dielectric:ETA'):

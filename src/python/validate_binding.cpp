@@ -309,15 +309,21 @@ FilePdf claimed_pdf_of(const std::optional<std::string>& pdf, const std::optiona
   return bsdf && !against ? FilePdf::bsdf : FilePdf::vndf;
 }
 
-// The weights' convention: transport mode and masking form (bsdf_convention.h), with a BSDF only.
+// The BSDF's convention: transport mode, masking form and sampled normals (bsdf_convention.h), with a BSDF only;
+// the sampled normals set its own density only (pdf 'bsdf', the default with a BSDF).
 BsdfConvention convention_of(const std::optional<std::string>& transport, const std::optional<std::string>& masking,
-                             const std::optional<std::string>& bsdf) {
+                             const std::optional<std::string>& sampling, const std::optional<std::string>& bsdf,
+                             FilePdf claimed) {
   if ((transport || masking) && !bsdf)
     throw py::value_error(std::string(transport ? "transport" : "masking") +
                           " is the convention of a BSDF's weights: give the BSDF with bsdf");
+  if (sampling && (!bsdf || claimed != FilePdf::bsdf))
+    throw py::value_error("sampling is how a BSDF's sample() draws its normals: it sets the BSDF's own density (bsdf, "
+                          "with pdf 'bsdf', its default), not that of another pdf");
   BsdfConvention c;
   if (transport) c.transport = parse_transport_mode("transport", *transport);
   if (masking) c.masking = parse_masking_form("masking", *masking);
+  if (sampling) c.normals = parse_sampled_normals("sampling", *sampling);
   return c;
 }
 
@@ -381,7 +387,7 @@ void check_against(const Reference& r, bool has_weights) {
 
 // What validate() is asked beside the arrays and the view (keyword arguments).
 struct DumpArguments {
-  std::optional<std::string> pdf, bsdf, transport, masking, columns, frame;
+  std::optional<std::string> pdf, bsdf, transport, masking, sampling, columns, frame;
   int rows = 31;
   double significance = 0.01;
   bool above_horizon = false;
@@ -411,7 +417,11 @@ ValidationReport validate_array(const py::handle& samples, const py::handle& alp
     throw py::value_error(std::string("theta: ") + e.what());
   }
   if (has_weights) o.bsdf = material;  // the weight test
-  o.convention = convention_of(d.transport, d.masking, d.bsdf);
+  o.convention = convention_of(d.transport, d.masking, d.sampling, d.bsdf, claimed);
+  if (o.convention.normals == SampledNormals::ndf && has_weights && material && material->transmits())
+    throw py::value_error("sampling='ndf' with a dielectric's weights: those weights are heavy-tailed (~ 1 / m.z near "
+                          "the horizon) and not tested; validate its directions and pdfs without weights, and its eval() "
+                          "with check-eval --sampling ndf");
   if (d.above_horizon && !claims_reflected_directions(claimed))
     throw py::value_error("above_horizon applies to reflected directions: give pdf='reflection', 'bounded' or 'bsdf'");
   if (d.lost_as_zero_weight && (d.above_horizon || !has_weights))
@@ -436,13 +446,14 @@ ValidationReport validate_array(const py::handle& samples, const py::handle& alp
 ValidationReport validate_with_keywords(const py::handle& samples, const py::handle& alpha, double theta, double phi,
                                         std::optional<std::string> pdf, const py::handle& weights, const py::handle& pdfs,
                                         std::optional<std::string> bsdf, std::optional<std::string> transport,
-                                        std::optional<std::string> masking, std::optional<std::string> columns,
+                                        std::optional<std::string> masking, std::optional<std::string> sampling,
+                                        std::optional<std::string> columns,
                                         std::optional<std::string> frame, int rows,
                                         double significance, bool above_horizon, std::optional<std::uint64_t> dropped,
                                         bool lost_as_zero_weight, std::optional<std::string> against,
                                         std::uint64_t oracle_rays, std::uint64_t seed, const py::object& progress) {
-  const DumpArguments d{pdf,     bsdf,    transport,           masking, columns,     frame, rows, significance,
-                        above_horizon, dropped, lost_as_zero_weight, against, oracle_rays, seed};
+  const DumpArguments d{pdf,           bsdf,    transport,           masking, sampling, columns,     frame, rows,
+                        significance,  above_horizon, dropped, lost_as_zero_weight, against,  oracle_rays, seed};
   return validate_array(samples, alpha, theta, phi, weights, pdfs, d, progress);
 }
 
@@ -616,7 +627,9 @@ weights: optional (N,) or (N, C) array of the weights f cos / pdf the sampler re
 pdfs: optional (N,) array of the pdfs the sampler returned, checked against the claimed pdf.
 transport: the weights' transport mode with bsdf: 'radiance' (default: camera paths, a refraction's weight holds
   (n_given / n_sampled)^2) or 'importance' (light paths); masking: 'height-correlated' (default, Smith's G2)
-  or 'separable' (G1(wi) G1(wo), as Mitsuba 3).
+  or 'separable' (G1(wi) G1(wo), as Mitsuba 3); sampling: the normals the BSDF's sample() draws, which set the
+  density of its directions: 'vndf' (default: the visible normals) or 'ndf' (D(m) cos, Walter et al. 2007, as
+  Mitsuba 3 with sample_visible=False).
 columns: a file's columns as `--columns` names them ('x,y,z' by default; 'x,y,z,pdf,weight', '-' to skip a
   column): with a path, its pdfs and weights are its columns (the arrays pdfs and weights are for arrays).
 frame: 'z-up' (default) or 'y-up'; without it a rejection that looks like a frame mistake is diagnosed (hints);
@@ -632,7 +645,7 @@ Returns a ValidationResult; raises ValueError for bad input (the command line's 
 KeyboardInterrupt on Ctrl-C.)",
         "samples"_a, "alpha"_a, "theta"_a, "phi"_a = 0.0, "pdf"_a = py::none(), "weights"_a = py::none(),
         "pdfs"_a = py::none(), py::kw_only(), "bsdf"_a = py::none(), "transport"_a = py::none(), "masking"_a = py::none(),
-        "columns"_a = py::none(), "frame"_a = py::none(), "rows"_a = 31, "significance"_a = 0.01,
+        "sampling"_a = py::none(), "columns"_a = py::none(), "frame"_a = py::none(), "rows"_a = 31, "significance"_a = 0.01,
         "above_horizon"_a = false, "dropped"_a = py::none(), "lost_as_zero_weight"_a = false,
         "against"_a = py::none(), "oracle_rays"_a = 4'000'000, "seed"_a = 1, "progress"_a = py::none());
   m.def("validate_sampler", &validate_zoo_sampler, R"(Validates a sampler of the zoo (what `microsim validate --sampler` does).

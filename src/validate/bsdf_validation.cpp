@@ -99,26 +99,27 @@ Material zoo_bsdf_material(const BsdfSamplerInfo& sampler, bool from_inside) {
   return Material::conductor({kZooConductorIor});
 }
 
-ClaimedDensity bsdf_sampling_density(const Material& bsdf, const GGX<double>& ggx, const Vec3<double>& wi_in) {
+ClaimedDensity bsdf_sampling_density(const Material& bsdf, const GGX<double>& ggx, const Vec3<double>& wi_in,
+                                     SampledNormals normals) {
   const Vec3<double> wi = wi_in.normalized();
   if (!bsdf.transmits())
     return {SampleDomain::reflected_direction,
-            [ggx, wi](const Vec3<double>& o) { return conductor_vndf_pdf(ggx, {}, wi, o); },
+            [ggx, wi, normals](const Vec3<double>& o) { return conductor_sampling_pdf(ggx, normals, wi, o); },
             {[](const Vec3<double>& o) { return o.z(); }},  // the lost reflections below the horizon
             {},
             1e-7};
   const double eta = bsdf.eta();
   const DirectionBinning lobe = DirectionBinning::lobe(ggx, wi, SampleDomain::reflected_direction, 31);
   return {SampleDomain::reflected_direction,
-          [ggx, wi, eta](const Vec3<double>& o) { return dielectric_vndf_pdf(ggx, eta, wi, o); },
+          [ggx, wi, eta, normals](const Vec3<double>& o) { return dielectric_sampling_pdf(ggx, normals, eta, wi, o); },
           dielectric_breaks(wi, eta), refracted_lobe_focus(lobe, wi, eta), kDielectricDensityRelTolerance};
 }
 
 ClaimedDensity file_claimed_density(FilePdf pdf, const std::optional<Material>& bsdf, const GGX<double>& ggx,
-                                    const Vec3<double>& wi) {
+                                    const Vec3<double>& wi, SampledNormals normals) {
   if (pdf != FilePdf::bsdf) return claimed_density(pdf, ggx, wi);
   if (!bsdf) throw std::invalid_argument("the pdf 'bsdf' is the sampling density of a BSDF: give the BSDF");
-  return bsdf_sampling_density(*bsdf, ggx, wi);
+  return bsdf_sampling_density(*bsdf, ggx, wi, normals);
 }
 
 BsdfReference bsdf_reference(const Material& bsdf, const BsdfConvention& convention, const GGX<double>& ggx,

@@ -28,14 +28,16 @@ Material zoo_bsdf_material(const BsdfSamplerInfo& sampler, bool from_inside);
 inline constexpr double kDielectricDensityRelTolerance = 1e-4;
 
 // The claimed density of sampling `bsdf` as the zoo's correct sampler of its kind does (conductor and mirror:
-// conductor_vndf_pdf; dielectric: dielectric_vndf_pdf with its eta), with the refracted lobe as focus.
-ClaimedDensity bsdf_sampling_density(const Material& bsdf, const GGX<double>& ggx, const Vec3<double>& wi);
+// conductor_vndf_pdf; dielectric: dielectric_vndf_pdf with its eta), with the refracted lobe as focus; with
+// `normals` ndf, the same with the normals drawn from D(m) cos (conductor_ / dielectric_sampling_pdf).
+ClaimedDensity bsdf_sampling_density(const Material& bsdf, const GGX<double>& ggx, const Vec3<double>& wi,
+                                     SampledNormals normals = SampledNormals::visible);
 
 // The density a file of samples claims (`validate --from --pdf`): claimed_density(pdf), or for FilePdf::bsdf
-// the sampling density of `bsdf` (bsdf_sampling_density). std::invalid_argument for FilePdf::bsdf without a
-// BSDF.
+// the sampling density of `bsdf` (bsdf_sampling_density, its normals drawn as `normals` says).
+// std::invalid_argument for FilePdf::bsdf without a BSDF.
 ClaimedDensity file_claimed_density(FilePdf pdf, const std::optional<Material>& bsdf, const GGX<double>& ggx,
-                                    const Vec3<double>& wi);
+                                    const Vec3<double>& wi, SampledNormals normals = SampledNormals::visible);
 
 // What the validations of one configuration and material share (expensive: cubature of the claimed pdf
 // over two binnings and of the BSDF's flux over the sphere bins).

@@ -39,8 +39,10 @@ ViewFromOutside seen_from_outside(const Vec3<double>& wi, const std::optional<Ma
 // The reference of the claimed density: the density itself, or conditioned on the kept samples (a BSDF's
 // density: on its own support; a reflection density: on wo.z > 0). std::invalid_argument for FilePdf::bsdf
 // without a BSDF, or kept_only with a density of normals or no kept mass.
+// `normals`: how the BSDF of FilePdf::bsdf draws its normals (BsdfConvention::normals).
 std::shared_ptr<const ReferenceDistribution> dump_reference(const DumpClaims& claims, const GGX<double>& ggx,
-                                                            const Vec3<double>& wi, int rows);
+                                                            const Vec3<double>& wi, int rows,
+                                                            SampledNormals normals = SampledNormals::visible);
 
 // Validates the samples `samples` reads (from their start) against `reference` (dump_reference of the claims),
 // the weights against options.bsdf in options.convention, and adds the report's hints and notes. A frame

@@ -3,6 +3,7 @@
 #include "stats/json_values.h"
 
 #include "microfacet/bsdf.h"
+#include "microfacet/bsdf_samplers.h"
 
 #include <fmt/core.h>
 #include <fmt/format.h>
@@ -76,11 +77,17 @@ DielectricPair<T> dielectric_pair(double eta_material, const Vec3<T>& wi_given, 
 }  // namespace
 
 template <class T>
-T renderer_pdf(const Material& bsdf, const GGX<T>& ggx, const Vec3<T>& wi, const Vec3<T>& wo) {
-  if (!bsdf.transmits()) return wi.z() > T(0) && wo.z() > T(0) ? ggx.visible_reflection_pdf(wi, wo) : T(0);
+T renderer_pdf(const Material& bsdf, const GGX<T>& ggx, const Vec3<T>& wi, const Vec3<T>& wo, SampledNormals normals) {
+  if (!bsdf.transmits() && normals == SampledNormals::visible)
+    return wi.z() > T(0) && wo.z() > T(0) ? ggx.visible_reflection_pdf(wi, wo) : T(0);
+  if (!bsdf.transmits()) {
+    if (!(wi.z() > T(0) && wo.z() > T(0))) return T(0);
+    const Vec3<T> h = (wi + wo).normalized();
+    return sampled_normal_pdf(ggx, normals, wi, h) / (T(4) * wo.dot(h));
+  }
   const DielectricPair<T> p = dielectric_pair(bsdf.eta(), wi, wo);
   if (!p.valid) return T(0);
-  const T ih = p.wi.dot(p.h), oh = p.wo.dot(p.h), dv = ggx.visible_normal_pdf(p.wi, p.h);
+  const T ih = p.wi.dot(p.h), oh = p.wo.dot(p.h), dv = sampled_normal_pdf(ggx, normals, p.wi, p.h);
   if (p.reflect) return dv * p.F / (T(4) * oh);
   const T denom = ih + p.eta * oh;
   return dv * (T(1) - p.F) * p.eta * p.eta * std::abs(oh) / (denom * denom);
@@ -90,8 +97,9 @@ template double bsdf_value_cos(const Material&, const GGX<double>&, const BsdfCo
                                const Vec3<double>&);
 template float bsdf_value_cos(const Material&, const GGX<float>&, const BsdfConvention&, int, const Vec3<float>&,
                               const Vec3<float>&);
-template double renderer_pdf(const Material&, const GGX<double>&, const Vec3<double>&, const Vec3<double>&);
-template float renderer_pdf(const Material&, const GGX<float>&, const Vec3<float>&, const Vec3<float>&);
+template double renderer_pdf(const Material&, const GGX<double>&, const Vec3<double>&, const Vec3<double>&,
+                             SampledNormals);
+template float renderer_pdf(const Material&, const GGX<float>&, const Vec3<float>&, const Vec3<float>&, SampledNormals);
 
 EvalColumns EvalColumns::parse(std::string_view spec) {
   EvalColumns c;
@@ -245,7 +253,9 @@ Reference value_reference(const EvalContext& x, int c) {
 
 Reference pdf_reference(const EvalContext& x) {
   return [&x](const Vec3<double>& wi, const Vec3<double>& wo, bool as_float) {
-    return as_float ? double(renderer_pdf(x.bsdf, x.ggx32, float_direction(wi), float_direction(wo))) : renderer_pdf(x.bsdf, x.ggx, wi, wo);
+    const SampledNormals normals = x.options.convention.normals;
+    return as_float ? double(renderer_pdf(x.bsdf, x.ggx32, float_direction(wi), float_direction(wo), normals))
+                    : renderer_pdf(x.bsdf, x.ggx, wi, wo, normals);
   };
 }
 
@@ -271,6 +281,9 @@ std::vector<std::string> eval_notes(const EvalCheckReport& r, const EvalContext&
                                                         : "height-correlated masking G2"),
                               x.options.arithmetic == Precision::float32 ? "float32" : "float64", r.storage));
   if (!has_pdf) notes.push_back("the pdfs were not checked: the file has no pdf column");
+  else if (x.options.convention.normals == SampledNormals::ndf)
+    notes.push_back("pdfs against sampling the normals from D(m) cos (Walter et al. 2007), the lobe chosen by wo's side "
+                    "and Fresnel");
   else notes.push_back("pdfs against VNDF sampling with the lobe chosen by wo's side and Fresnel (pbrt-v4, Mitsuba 3)");
   if (r.skipped_below > 0)
     notes.push_back(fmt::format("{} rows with wi below the surface of a one-sided BSDF were not checked (renderers "

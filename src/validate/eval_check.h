@@ -86,9 +86,11 @@ struct EvalCheckReport {
 template <class T>
 T bsdf_value_cos(const Material& bsdf, const GGX<T>& ggx, const BsdfConvention& convention, int c, const Vec3<T>& wi,
                  const Vec3<T>& wo);
-// The pdf() of wo given wi of VNDF sampling as renderers return it (above), in arithmetic T.
+// The pdf() of wo given wi as renderers return it (above), the normals drawn as `normals` says (VNDF sampling by
+// default), in arithmetic T.
 template <class T>
-T renderer_pdf(const Material& bsdf, const GGX<T>& ggx, const Vec3<T>& wi, const Vec3<T>& wo);
+T renderer_pdf(const Material& bsdf, const GGX<T>& ggx, const Vec3<T>& wi, const Vec3<T>& wo,
+               SampledNormals normals = SampledNormals::visible);
 
 // Checks every row of `file`. Throws SampleFileError for a file that cannot be read as `columns` say,
 // std::invalid_argument for a Lambertian BSDF.

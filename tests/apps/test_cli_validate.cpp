@@ -390,6 +390,9 @@ TEST(CliValidate, BsdfMisuseIsBadUsage) {
       {"--from '" + f.string() + "' --reflected --alpha 0.3 --theta 120 --columns x,y,z,weight --bsdf mirror",
        "light from inside a dielectric"},
       {"--from '" + f.string() + "' --alpha 0.3 --theta 120", "light from inside a dielectric"},
+      {from + "--sampling ndf", "--sampling is how a BSDF's sample() draws its normals"},
+      {"--from '" + f.string() + "' --alpha 0.3 --theta 30 --columns x,y,z,weight --bsdf mirror --sampling visible",
+       "--sampling 'visible': unknown normal sampling"},
       // Weights need directions: named as --bsdf's, not as an option that was not given.
       {"--from '" + f.string() + "' --pdf ndf --alpha 0.3 --theta 30 --columns x,y,z,weight --bsdf mirror",
        "microsim: error: --bsdf: the weight test needs outgoing directions"},

@@ -52,6 +52,9 @@ CORRECT = [
     ("pbrt-v4 gold, float32", "conductor", "c32", (), {}),
     ("glass printed with 4 decimals", "dielectric", "text:%.4f", ("--arithmetic", "float64"), dict(dtype=np.float64)),
     ("gold printed with %g", "conductor", "text:%g", (), {}),
+    ("Mitsuba 3 gold, sample_visible=false (pdf of D(m) cos)", "conductor", "c32",
+     ("--masking", "separable", "--sampling", "ndf"), dict(masking="separable", normals="ndf")),
+    ("glass whose sample() draws D(m) cos", "dielectric", "c32", ("--sampling", "ndf"), dict(normals="ndf")),
 ]
 
 BUGS = [
@@ -62,6 +65,8 @@ BUGS = [
     ("Mitsuba 3 glass claimed height-correlated", "dielectric", (), dict(masking="separable"), "value"),
     ("glass, reflection pdf without its Fresnel choice", "dielectric", (), dict(bug="pdf_without_fresnel"), "pdf"),
     ("gold without the same-hemisphere check", "conductor", (), dict(bug="no_hemisphere_check"), "value"),
+    ("gold's pdf of D(m) cos claimed as VNDF sampling", "conductor", (), dict(normals="ndf"), "pdf"),
+    ("glass's VNDF pdf claimed as D(m) cos", "dielectric", ("--sampling", "ndf"), {}, "pdf"),
 ]
 
 

@@ -51,18 +51,28 @@ def fresnel_conductor(c, eta, k):
 
 # ---- a renderer's sample(): the conventions and the bugs ---------------------------------------------------------
 def renderer_dump(kind, wg, alpha, transport="radiance", masking="height-correlated", bug=None, eta=1.5, seed=7,
-                  lost="dropped", n=N):
+                  lost="dropped", n=N, normals="vndf"):
     """Samples of a rough conductor (kind 'conductor', GOLD) or dielectric of index eta from wg (either side):
     (directions (K, 3), pdfs (K,), weights (K,), dropped); the lost samples are dropped (lost='dropped', as pbrt-v4)
-    or kept with their pdf and weight 0 (lost='zero-weight', as Mitsuba 3)."""
+    or kept with their pdf and weight 0 (lost='zero-weight', as Mitsuba 3). normals='ndf': the microfacet normals
+    drawn from D(m) cos (Walter et al. 2007 eq. 35-36, isotropic alpha), a normal facing away from wg lost."""
     ax, ay = alpha
     u = np.random.default_rng(seed).random((n, 3))
     up = wg[2] > 0
     flip = np.array([1.0, 1.0, 1.0 if up else -1.0])
     g = wg * flip  # the given direction on the upper side; mirrored back at the end
     eta_r = eta if up else 1 / eta  # the index across over the index on wg's side
-    m = heitz2018_numpy(g, alpha, u[:, :2])
+    if normals == "ndf":  # tan^2 theta_m = alpha^2 u / (1 - u), phi_m = 2 pi u'
+        t2 = ax * ax * u[:, 0] / (1 - u[:, 0])
+        cz = 1 / np.sqrt(1 + t2)
+        sz = np.sqrt(np.maximum(0.0, 1 - cz * cz))
+        ph = 2 * np.pi * u[:, 1]
+        m = np.stack([sz * np.cos(ph), sz * np.sin(ph), cz], axis=1)
+    else:
+        m = heitz2018_numpy(g, alpha, u[:, :2])
     c = m @ g
+    facing = c > 0
+    c = np.where(facing, c, 1e-300)  # a normal facing away: lost below
     if kind == "conductor":
         F = fresnel_conductor(c, *GOLD)
         reflect = np.ones(n, bool)
@@ -73,14 +83,14 @@ def renderer_dump(kind, wg, alpha, transport="radiance", masking="height-correla
     ct = np.sqrt(np.maximum(0.0, 1 - (1 - c ** 2) / eta_r ** 2))
     wt = -g / eta_r + (c / eta_r - ct)[:, None] * m
     wo = np.where(reflect[:, None], wr, wt)
-    kept = np.where(reflect, wo[:, 2] > 0, wo[:, 2] < 0)
+    kept = np.where(reflect, wo[:, 2] > 0, wo[:, 2] < 0) & facing
     if lost == "dropped":
         wo, m, c, F, reflect = wo[kept], m[kept], c[kept], F[kept], reflect[kept]
     om = np.einsum("ij,ij->i", wo, m)
     D = ggx_d(m, ax, ay)
     lg, lo = ggx_lambda(g, ax, ay), ggx_lambda(wo, ax, ay)
     g1g = 1 / (1 + lg)
-    dv = g1g * c * D / g[2]
+    dv = D * m[:, 2] if normals == "ndf" else g1g * c * D / g[2]
     p_lobe = F if kind == "dielectric" else np.ones_like(F)
     denom = (c + eta_r * om) ** 2
     jac = np.where(reflect, 1 / (4 * np.abs(om)), eta_r ** 2 * np.abs(om) / denom)
@@ -124,6 +134,9 @@ CASES = [
     ("pbrt-v4 gold, alpha 0.01, float32 values printed %.9g", dict(kind="conductor", theta=60, alpha=(0.01, 0.01)),
      {"bsdf": "conductor:0.2,3.9"}, "text-f32", True),
     ("glass without a pdf column", dict(kind="dielectric", theta=50), GLASS, "c32-nopdf", True),
+    ("Mitsuba 3 gold, sample_visible=false (normals from D(m) cos)",
+     dict(kind="conductor", theta=60, masking="separable", lost="zero-weight", normals="ndf"),
+     {"bsdf": "conductor:0.2,3.9", "masking": "separable", "sampling": "ndf"}, "c32", True),
     ("pbrt-v4 gold, Fortran-order float32 .npy", dict(kind="conductor", theta=30), {"bsdf": "conductor:0.2,3.9"},
      "f32", True),
     # The other convention's correct dump, and real bugs wrong in both conventions.
@@ -146,6 +159,8 @@ CASES = [
      False),
     ("glass, f and pdf both off by eta^2", dict(kind="dielectric", theta=50, bug="pdf_and_f_eta2"), GLASS, "c32",
      False),
+    ("gold sampling D(m) cos, claimed as VNDF sampling", dict(kind="conductor", theta=60, normals="ndf"),
+     {"bsdf": "conductor:0.2,3.9"}, "c32", False),
 ]
 
 
@@ -292,3 +307,24 @@ def test_a_glass_dump_in_the_wrong_frame_gets_the_frame_hint(tmp_path):
     assert any("read with z flipped" in h and "they pass" in h for h in flipped.hints), flipped.hints
     right = microsim.validate(d, 0.3, 50, **claims)
     assert right.passed and not any("frame" in h for h in right.hints), right.hints
+
+
+def test_a_glass_sampling_its_normals_from_the_ndf(tmp_path):
+    """A rough glass whose sample() draws m from D(m) cos (Walter et al. 2007; pbrt-v3-style, its lost samples
+    dropped): its directions and pdfs pass with sampling='ndf' and are rejected claimed as VNDF sampling; its weights
+    (heavy-tailed near the horizon) are refused, not tested, by the command line (exit 2) and Python alike."""
+    d, pdfs, weights, dropped = renderer_dump("dielectric", view(50), (0.3, 0.3), seed=11, normals="ndf")
+    path = tmp_path / "glass.npy"
+    np.save(path, np.column_stack([d, pdfs, weights]).astype(np.float32))
+    common = ["validate", "--from", path, "--alpha", 0.3, "--theta", 50, "--bsdf", "dielectric:1.5", "--above-horizon",
+              "--dropped", dropped]
+    p = run_cli(*common, "--columns", "x,y,z,pdf,-", "--sampling", "ndf")
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert run_cli(*common, "--columns", "x,y,z,pdf,-").returncode == 1  # claimed as VNDF sampling
+    p = run_cli(*common, "--columns", "x,y,z,pdf,weight", "--sampling", "ndf", check=False)
+    assert p.returncode == 2 and "--sampling ndf with a dielectric's weight columns" in p.stderr, p.stderr
+    kwargs = dict(pdfs=pdfs, bsdf="dielectric:1.5", above_horizon=True, dropped=dropped)
+    assert microsim.validate(d, 0.3, 50, sampling="ndf", **kwargs).passed
+    assert not microsim.validate(d, 0.3, 50, **kwargs).passed
+    with pytest.raises(ValueError, match="heavy-tailed"):
+        microsim.validate(d, 0.3, 50, sampling="ndf", weights=weights, **kwargs)
