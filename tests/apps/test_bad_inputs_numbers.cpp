@@ -190,7 +190,7 @@ std::vector<BadInputCase> numbers_cases() {
        "--res '99999999999': too large: an integer in [16, 8192]"},
       {"BuildResNotPowerOfTwo", kBuildLine.with("--res", "100"), 2, "--res '100': not a power of two (one in [16, 8192]"},
       {"TableResNotPowerOfTwo", kTableLine.with("--res", "17"), 2, "--res '17': not a power of two"},
-      {"StatsAlphaEmpty", kStatsLine.with("--alpha", "''"), 2, "--alpha '': empty", surface},
+      {"StatsAlphaEmpty", kStatsLine.with("--alpha", "''"), 2, "--alpha: an empty value", surface},
       {"BuildTileSizeZero", kBuildLine.with("--tile-size", "0"), 2, "--tile-size '0': outside (0, inf]"},
       {"BuildCorrCellsNegative", kBuildLine.with("--corr-cells", "-1"), 2, "--corr-cells '-1': outside [0, inf]"},
       {"BuildIterationsHuge", kBuildLine.with("--iterations", "1e3"), 2,
