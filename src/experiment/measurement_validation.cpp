@@ -411,7 +411,8 @@ static ModelChoice validation_model(const SpecQuantity& q, const SpecMaterial&) 
 namespace {
 
 void read_zoo_sampler(const SpecTable& t, SpecQuantity& q) {
-  for (const char* key : {"pdf", "above_horizon", "lost_as_zero_weight", "columns", "frame", "dropped", "transport", "masking"})
+  for (const char* key : {"pdf", "above_horizon", "lost_as_zero_weight", "columns", "frame", "dropped", "transport", "masking",
+                          "sampling"})
     if (t.has(key)) t.fail(key, fmt::format("{} applies to a dump (a zoo sampler's density is its own)", key));
   q.sampler = t.string("sampler");
   if (find_sampler(q.sampler) == nullptr)
@@ -436,12 +437,24 @@ void read_dump_layout(const SpecTable& t, SpecQuantity& q, const SpecMaterial& m
   for (const char* key : {"transport", "masking"})
     if (t.has(key) && !bsdf) t.fail(key, fmt::format("{} is the convention of a BSDF's weights: give pdf = \"bsdf\" or "
                                                      "weight columns", key));
-  try {
-    if (t.has("transport")) q.convention.transport = parse_transport_mode("transport", t.string("transport"));
-    if (t.has("masking")) q.convention.masking = parse_masking_form("masking", t.string("masking"));
-  } catch (const std::invalid_argument& e) {
-    t.fail(t.has("transport") ? "transport" : "masking", e.what());
+  if (t.has("sampling") && q.dump_pdf != "bsdf")
+    t.fail("sampling", "sampling is how a BSDF's sample() draws its normals: it sets the BSDF's own density (pdf = "
+                       "\"bsdf\")");
+  for (const char* key : {"transport", "masking", "sampling"}) {
+    if (!t.has(key)) continue;
+    try {
+      const std::string text = t.string(key);
+      if (key == std::string_view("transport")) q.convention.transport = parse_transport_mode(key, text);
+      if (key == std::string_view("masking")) q.convention.masking = parse_masking_form(key, text);
+      if (key == std::string_view("sampling")) q.convention.normals = parse_sampled_normals(key, text);
+    } catch (const std::invalid_argument& e) {
+      t.fail(key, e.what());
+    }
   }
+  if (q.convention.normals == SampledNormals::ndf && SampleColumns::parse(q.dump_columns).channels() > 0 &&
+      m.facet.transmits())
+    t.fail("sampling", "sampling = \"ndf\" with a dielectric's weight columns: those weights are heavy-tailed (~ 1 / "
+                       "m.z near the horizon) and not tested; mark the weight columns \"-\" to test its directions");
 }
 
 // A dump was sampled at one alpha and one view; its density is one the validator knows, or its material's BSDF.
@@ -512,7 +525,7 @@ nlohmann::json validation_canonical(const SpecQuantity& q) {
 }  // namespace
 
 const KindSpec validation_spec{"sampler dump pdf above_horizon lost_as_zero_weight detect_tv power significance theta "
-                               "theta_range phi rows columns frame dropped transport masking", read_validation_spec, validation_canonical};
+                               "theta_range phi rows columns frame dropped transport masking sampling", read_validation_spec, validation_canonical};
 
 // ---- its report section (report_html.h) -----------------------------------------------------------------------
 

@@ -328,3 +328,12 @@ def test_a_glass_sampling_its_normals_from_the_ndf(tmp_path):
     assert not microsim.validate(d, 0.3, 50, **kwargs).passed
     with pytest.raises(ValueError, match="heavy-tailed"):
         microsim.validate(d, 0.3, 50, sampling="ndf", weights=weights, **kwargs)
+    # The same through `microsim run`: its directions pass with sampling = "ndf", fail without; its weights are refused.
+    for key, columns, code in (('sampling = "ndf"\n', "x,y,z,pdf,-", 0), ("", "x,y,z,pdf,-", 1),
+                               ('sampling = "ndf"\n', "x,y,z,pdf,weight", 2)):
+        (tmp_path / "spec.toml").write_text(
+            '[[material]]\nname = "glass"\nalpha = 0.3\ntype = "dielectric"\neta = 1.5\n'
+            '[[quantity]]\nkind = "validation"\nmaterial = "glass"\ndump = "glass.npy"\npdf = "bsdf"\n'
+            f'columns = "{columns}"\ntheta = [50]\nrows = 11\nabove_horizon = true\ndropped = {dropped}\n' + key)
+        p = run_cli("run", tmp_path / "spec.toml", "--out", tmp_path / f"run{code}", check=False)
+        assert p.returncode == code, p.stdout + p.stderr
