@@ -449,11 +449,14 @@ ValidationReport validate_with_keywords(const py::handle& samples, const py::han
                                         std::optional<std::string> masking, std::optional<std::string> sampling,
                                         std::optional<std::string> columns,
                                         std::optional<std::string> frame, int rows,
-                                        double significance, bool above_horizon, std::optional<std::uint64_t> dropped,
+                                        double significance, bool above_horizon, std::optional<std::int64_t> dropped,
                                         bool lost_as_zero_weight, std::optional<std::string> against,
                                         std::uint64_t oracle_rays, std::uint64_t seed, const py::object& progress) {
-  const DumpArguments d{pdf,           bsdf,    transport,           masking, sampling, columns,     frame, rows,
-                        significance,  above_horizon, dropped, lost_as_zero_weight, against,  oracle_rays, seed};
+  if (dropped && *dropped < 0)
+    throw py::value_error("dropped must be a count of samples (>= 0), got " + std::to_string(*dropped));
+  const std::optional<std::uint64_t> count = dropped ? std::optional<std::uint64_t>(std::uint64_t(*dropped)) : std::nullopt;
+  const DumpArguments d{pdf,           bsdf,          transport, masking, sampling, columns,     frame, rows,
+                        significance,  above_horizon, count,     lost_as_zero_weight, against,  oracle_rays, seed};
   return validate_array(samples, alpha, theta, phi, weights, pdfs, d, progress);
 }
 

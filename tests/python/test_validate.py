@@ -188,6 +188,7 @@ def test_bad_arrays(bad, expected):
     (dict(phi=float("inf")), "phi must be finite"), (dict(pdf="foo"), "vndf"),
     (dict(rows=4), "rows must be odd"), (dict(significance=1.5), "significance"),
     (dict(above_horizon=True), "above_horizon"),
+    (dict(pdf="reflection", above_horizon=True, dropped=-3), r"dropped must be a count of samples \(>= 0\), got -3"),
 ])
 def test_bad_arguments(kwargs, expected):
     args = dict(samples=numpy_samples(1000, seed=1), alpha=ALPHA, theta=THETA) | kwargs
