@@ -56,6 +56,13 @@ LayoutValues read_grade_values(const std::string& path, const AlbedoLayout& layo
   }
 }
 
+// The failing nodes listed on stdout, in storage order (the rest are in --json's cells), and the line saying so.
+constexpr std::size_t kListedFailures = 40;
+void print_more_failures(std::size_t failed) {
+  if (failed > kListedFailures)
+    fmt::print("... and {} more failing nodes (every node is in --json's cells)\n", failed - kListedFailures);
+}
+
 // A grade's noise check, when the table's sample count is stated, and its verdict, both kinds of layout alike.
 void print_noise_line(std::uint64_t samples, double z, std::size_t beyond, std::size_t nodes) {
   if (samples > 0)
@@ -82,10 +89,12 @@ void print_grade(const AlbedoGrade& g) {
   print_noise_line(g.table_samples, g.noise_z, g.beyond_noise, g.cells.size());
   print_interpolation("the table's bilinear interpolation at cell centres - reference", g.table_interpolation);
   print_interpolation("the layout's own (reference nodes) at cell centres", g.reference_interpolation);
+  std::size_t listed = 0;
   for (const CellGrade& c : g.cells)
-    if (!c.within_tolerance)
+    if (!c.within_tolerance && listed++ < kListedFailures)
       fmt::print("FAIL node (roughness {}, mu {}) alpha {:.6g} mu {:.6g}: table {:.9g} reference {:.9g} difference {:.3g}\n",
                  c.ri, c.mj, c.alpha, c.mu, c.value, c.reference.value, c.difference);
+  print_more_failures(listed);
   print_verdict_line(g, g.cells.size(), g.tolerance, g.quantity);
   for (const std::string& h : g.hints) fmt::print("hint: {}\n", h);
 }
@@ -102,10 +111,12 @@ void print_glass_grade(const GlassGrade& g) {
     fmt::print("not graded: {} nodes of alpha below {:g}, the reference's range\n", g.not_graded, kMinAlpha);
   fmt::print("beyond Cycles' 6-decimal rounding: {} of {} nodes\n", g.beyond_quantisation, g.cells.size());
   print_noise_line(g.table_samples, g.noise_z, g.beyond_noise, g.cells.size());
+  std::size_t listed = 0;
   for (const GlassCellGrade& c : g.cells)
-    if (!c.within_tolerance)
+    if (!c.within_tolerance && listed++ < kListedFailures)
       fmt::print("FAIL node (x {}, y {}, z {}) alpha {:.6g} mu {:.6g} ior {:.6g}: table {:.9g} reference {:.9g} "
                  "difference {:.3g}\n", c.x, c.y, c.z, c.alpha, c.mu, c.ior, c.value, c.reference.value, c.difference);
+  print_more_failures(listed);
   print_verdict_line(g, g.cells.size(), g.tolerance, g.layout.quantity);
 }
 
