@@ -11,13 +11,15 @@ temporary folder, removed at the end. Records: docs/records/validation.md.
   (kind 'dielectric', eta 1.5, pbrt-v4's radiance transport and height-correlated G2, its lost samples dropped;
   imported, PYTHONPATH=build/python is added), saved as .npy of --dtype (default float32) and validated as that
   test file does (`--bsdf dielectric:1.5`); with `--convention mitsuba`, Mitsuba 3's instead: separable G1 G1 and
-  its lost samples kept as rows of weight 0 (`--masking separable --lost-as-zero-weight`). It also prints the report's test keys, the statistical tests
+  its lost samples kept as rows of weight 0 (`--masking separable --lost-as-zero-weight`); with `--normals ndf`, its
+  normals drawn from D(m) cos (`--sampling ndf`; the weights, heavy-tailed then, are not tested: columns
+  x,y,z,pdf,-). It also prints the report's test keys, the statistical tests
   taken from it, and which tests the rejected runs failed.
 --rows is passed to validate when given (else validate's default, 31); --jobs runs that many validations at
 once; --p-values CSV writes each run's seed, exit code and p-values.
 Usage: /usr/bin/python3 scripts/calibrate_dump_validation.py [--material conductor|dielectric] [--runs 300]
        [--samples 30000] [--seed0 20000] [--alpha 0.3] [--theta 60] [--rows R] [--dtype float32|float64]
-       [--convention pbrt|mitsuba] [--jobs 1] [--p-values CSV] [--microsim build/microsim]
+       [--convention pbrt|mitsuba] [--normals vndf|ndf] [--jobs 1] [--p-values CSV] [--microsim build/microsim]
 """
 import argparse
 import concurrent.futures
@@ -51,10 +53,13 @@ def dielectric_dump(dump, seed, a):
     mitsuba = a.convention == "mitsuba"
     directions, pdfs, weights, dropped = trc.renderer_dump(
         "dielectric", view(a.theta), (a.alpha, a.alpha), eta=GLASS_ETA, seed=seed, n=a.samples,
-        masking="separable" if mitsuba else "height-correlated", lost="zero-weight" if mitsuba else "dropped")
+        masking="separable" if mitsuba else "height-correlated", lost="zero-weight" if mitsuba else "dropped",
+        normals=a.normals)
     np.save(dump, np.column_stack([directions, pdfs, weights]).astype(a.dtype))
     claims = ["--masking", "separable", "--lost-as-zero-weight"] if mitsuba else ["--above-horizon", "--dropped",
                                                                                   str(dropped)]
+    if a.normals == "ndf":
+        claims += ["--sampling", "ndf"]
     return claims, ["--bsdf", f"dielectric:{GLASS_ETA}"]
 
 
@@ -63,8 +68,9 @@ def validate_one(tmp, seed, a):
     lost, bsdf = (dielectric_dump if a.material == "dielectric" else conductor_dump)(dump, seed, a)
     report = os.path.join(tmp, f"report-{seed}.json")
     rows = ["--rows", str(a.rows)] if a.rows else []
+    columns = "x,y,z,pdf,-" if a.normals == "ndf" else "x,y,z,pdf,weight"
     rc = subprocess.run([a.microsim, "validate", "--from", dump, "--alpha", str(a.alpha), "--theta", str(a.theta),
-                         "--columns", "x,y,z,pdf,weight", *bsdf, *lost, *rows,
+                         "--columns", columns, *bsdf, *lost, *rows,
                          "--json", report], capture_output=True).returncode
     if rc not in (0, 1):
         sys.exit(f"validate exited {rc} for seed {seed}")
@@ -94,14 +100,16 @@ def main():
                    help="the dielectric dump's storage (the conductor's example writes float32)")
     p.add_argument("--convention", choices=["pbrt", "mitsuba"], default="pbrt",
                    help="the dielectric's: pbrt-v4 (lost samples dropped, height-correlated) or Mitsuba 3's")
+    p.add_argument("--normals", choices=["vndf", "ndf"], default="vndf",
+                   help="the dielectric's sampled normals: visible (default) or D(m) cos (directions and pdfs tested)")
     p.add_argument("--jobs", type=int, default=1, help="validations run at once")
     p.add_argument("--p-values", help="write seed, exit code and each test's p-value per run to this CSV")
     p.add_argument("--microsim", default=os.path.join(ROOT, "build", "microsim"))
     a = p.parse_args()
     if a.material == "conductor" and a.dtype != "float32":
         p.error("--dtype is for --material dielectric (examples/renderer_dump.py writes float32)")
-    if a.material == "conductor" and a.convention != "pbrt":
-        p.error("--convention is for --material dielectric")
+    if a.material == "conductor" and (a.convention != "pbrt" or a.normals != "vndf"):
+        p.error("--convention and --normals are for --material dielectric")
     seeds = range(a.seed0, a.seed0 + a.runs)
     with tempfile.TemporaryDirectory() as tmp:
         if a.jobs > 1:
@@ -125,7 +133,7 @@ def main():
     per_test = 1 - (1 - a.level) ** (1 / len(tests))
     if a.material == "dielectric":
         print(f"report tests: {', '.join(results[0][2][0])}; statistical (with a p-value): {', '.join(tests)}")
-        print(f"{a.runs} correct rough-dielectric dumps ({a.convention}, eta {GLASS_ETA}, {a.dtype}) of {a.samples} samples "
+        print(f"{a.runs} correct rough-dielectric dumps ({a.convention}, normals {a.normals}, eta {GLASS_ETA}, {a.dtype}) of {a.samples} samples "
               f"(alpha {a.alpha}, theta {a.theta}, seeds {a.seed0}.., rows {a.rows or 'default'}): "
               f"{rejected} rejected at level {a.level} (expected about {a.level * a.runs:.1f})")
     else:
