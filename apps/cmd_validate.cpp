@@ -429,11 +429,9 @@ void check_file_options(const Args& a) {
   if (!a.sampling.empty() && (a.bsdf.empty() || file_pdf(a) != microsim::FilePdf::bsdf))
     throw UsageError("--sampling is how a BSDF's sample() draws its normals: it sets the BSDF's own density (--bsdf, "
                      "which implies --pdf bsdf), not that of --pdf or --reflected");
-  if (bsdf_convention(a).normals == microsim::SampledNormals::ndf && sample_columns(a).channels() > 0 &&
-      bsdf_of(a)->transmits())
-    throw UsageError("--sampling ndf with a dielectric's weight columns: those weights are heavy-tailed (~ 1 / m.z near "
-                     "the horizon) and not tested; mark the weight columns '-' to validate its directions and pdfs, "
-                     "and check its eval() with check-eval --sampling ndf");
+  if (const auto bsdf = bsdf_of(a); bsdf && sample_columns(a).channels() > 0)
+    if (const std::string why = microsim::untested_weights_reason(*bsdf, bsdf_convention(a)); !why.empty())
+      throw UsageError(fmt::format("--sampling {} with --columns {}: {}", a.sampling, a.columns, why));
   bsdf_convention(a);  // an unknown name is exit 2 here, before any work
   // Weights are f cos / pdf of a BSDF: without it they could not be tested, and a pass would look as if they were.
   if (const int weights = sample_columns(a).channels(); weights > 0 && a.bsdf.empty())

@@ -451,10 +451,8 @@ void read_dump_layout(const SpecTable& t, SpecQuantity& q, const SpecMaterial& m
       t.fail(key, e.what());
     }
   }
-  if (q.convention.normals == SampledNormals::ndf && SampleColumns::parse(q.dump_columns).channels() > 0 &&
-      m.facet.transmits())
-    t.fail("sampling", "sampling = \"ndf\" with a dielectric's weight columns: those weights are heavy-tailed (~ 1 / "
-                       "m.z near the horizon) and not tested; mark the weight columns \"-\" to test its directions");
+  if (SampleColumns::parse(q.dump_columns).channels() > 0)
+    if (const std::string why = untested_weights_reason(m.facet, q.convention); !why.empty()) t.fail("sampling", why);
 }
 
 // A dump was sampled at one alpha and one view; its density is one the validator knows, or its material's BSDF.

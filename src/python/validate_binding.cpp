@@ -418,10 +418,9 @@ ValidationReport validate_array(const py::handle& samples, const py::handle& alp
   }
   if (has_weights) o.bsdf = material;  // the weight test
   o.convention = convention_of(d.transport, d.masking, d.sampling, d.bsdf, claimed);
-  if (o.convention.normals == SampledNormals::ndf && has_weights && material && material->transmits())
-    throw py::value_error("sampling='ndf' with a dielectric's weights: those weights are heavy-tailed (~ 1 / m.z near "
-                          "the horizon) and not tested; validate its directions and pdfs without weights, and its eval() "
-                          "with check-eval --sampling ndf");
+  if (has_weights && material)
+    if (const std::string why = untested_weights_reason(*material, o.convention); !why.empty())
+      throw py::value_error("sampling='ndf' with weights: " + why);
   if (d.above_horizon && !claims_reflected_directions(claimed))
     throw py::value_error("above_horizon applies to reflected directions: give pdf='reflection', 'bounded' or 'bsdf'");
   if (d.lost_as_zero_weight && (d.above_horizon || !has_weights))

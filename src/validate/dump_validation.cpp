@@ -154,6 +154,13 @@ std::vector<std::string> dump_notes(const ValidationReport& r, const DirectionSa
 
 }  // namespace
 
+std::string untested_weights_reason(const Material& bsdf, const BsdfConvention& convention) {
+  if (!bsdf.transmits() || convention.normals != SampledNormals::ndf) return "";
+  return "a dielectric sampling its normals from D(m) cos has heavy-tailed weights (~ 1 / m.z near the horizon), which "
+         "are not tested: leave its weight columns out (mark them '-') to test its directions and pdfs, and check its "
+         "eval() with check-eval";
+}
+
 ViewFromOutside seen_from_outside(const Vec3<double>& wi, const std::optional<Material>& bsdf) {
   if (!(wi.z() < 0)) return {wi, bsdf, false};
   if (!bsdf || !bsdf->transmits())
@@ -213,12 +220,9 @@ ValidationReport validate_dump_as_given(DirectionSampleReader& samples, const Du
   if (samples.columns().channels() > 0 && !options.bsdf)
     throw std::invalid_argument(fmt::format("the dump has {} weight column(s) but no BSDF to test them against: give "
                                             "the BSDF (its material), or skip the columns", samples.columns().channels()));
-  // A dielectric drawing D(m) cos refracts through normals near the horizon with weights ~ 1 / m.z: a heavy tail
-  // whose third moment the weight tests' skewed-mean p cannot represent (correct dumps rejected at every seed).
-  if (options.bsdf && options.bsdf->transmits() && options.convention.normals == SampledNormals::ndf)
-    throw std::invalid_argument("the weights of a dielectric that samples its normals from D(m) cos are heavy-tailed "
-                                "(~ 1 / m.z near the horizon) and not tested: validate its directions and pdfs (mark "
-                                "the weight columns '-'), and its eval() with check-eval");
+  if (options.bsdf)
+    if (const std::string why = untested_weights_reason(*options.bsdf, options.convention); !why.empty())
+      throw std::invalid_argument(why);
   samples.set_zero_weight_rows_lost(claims.zero_weight_lost);
   check_first_rows(samples);
   const ViewFromOutside v = seen_from_outside(view, claims.bsdf);

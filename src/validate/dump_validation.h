@@ -39,6 +39,11 @@ ViewFromOutside seen_from_outside(const Vec3<double>& wi, const std::optional<Ma
 // The reference of the claimed density: the density itself, or conditioned on the kept samples (a BSDF's
 // density: on its own support; a reflection density: on wo.z > 0). std::invalid_argument for FilePdf::bsdf
 // without a BSDF, or kept_only with a density of normals or no kept mass.
+// Why the weights of `bsdf` in `convention` are not tested ("" when they are): a dielectric drawing D(m) cos
+// refracts through normals near the horizon with weights ~ 1 / m.z, a heavy tail whose third moment the weight
+// tests' skewed-mean p cannot represent (docs/records/validation.md). Callers name their own option before it.
+std::string untested_weights_reason(const Material& bsdf, const BsdfConvention& convention);
+
 // `normals`: how the BSDF of FilePdf::bsdf draws its normals (BsdfConvention::normals).
 std::shared_ptr<const ReferenceDistribution> dump_reference(const DumpClaims& claims, const GGX<double>& ggx,
                                                             const Vec3<double>& wi, int rows,

@@ -322,7 +322,7 @@ def test_a_glass_sampling_its_normals_from_the_ndf(tmp_path):
     assert p.returncode == 0, p.stdout + p.stderr
     assert run_cli(*common, "--columns", "x,y,z,pdf,-").returncode == 1  # claimed as VNDF sampling
     p = run_cli(*common, "--columns", "x,y,z,pdf,weight", "--sampling", "ndf", check=False)
-    assert p.returncode == 2 and "--sampling ndf with a dielectric's weight columns" in p.stderr, p.stderr
+    assert p.returncode == 2 and "--sampling ndf with --columns x,y,z,pdf,weight: a dielectric sampling" in p.stderr, p.stderr
     kwargs = dict(pdfs=pdfs, bsdf="dielectric:1.5", above_horizon=True, dropped=dropped)
     assert microsim.validate(d, 0.3, 50, sampling="ndf", **kwargs).passed
     assert not microsim.validate(d, 0.3, 50, **kwargs).passed
