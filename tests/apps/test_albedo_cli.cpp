@@ -14,6 +14,7 @@
 #include <cctype>
 #include <cmath>
 #include <fstream>
+#include <functional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -199,39 +200,32 @@ TEST(AlbedoCliGrade, TheUniformTablePassesAndAPlantedErrorFails) {
   EXPECT_NE(pass.out.find("PASS: 0 of 1024 nodes beyond the tolerance 0.01 (beyond the encoding's rounding)"), std::string::npos) << pass.out;
   EXPECT_NE(pass.out.find("quadrature tolerance 7.62951e-07"), std::string::npos) << pass.out;
   EXPECT_NEAR(nlohmann::json::parse(slurp(dir / "g.json"))["reference_tolerance"].get<double>(), 0.05 / 65535, 1e-12);
-  // The planted error: node x = 20 (mu (20 + 0.5) / 32), y = 7 (alpha (7 + 0.5) / 32) raised by 0.05.
-  std::string planted, everywhere;
-  std::istringstream lines(slurp(dir / "u.csv"));
-  for (std::string line; std::getline(lines, line);) {
-    everywhere += line + "\n";
-    if (line.rfind("20,7,", 0) == 0) {
+  // The CSV with E (its sixth column) raised by 0.05 on the data rows `raise` selects (x and y its first two).
+  const std::string csv = slurp(dir / "u.csv");
+  const auto raised = [&](const std::function<bool(const std::string& row)>& raise) {
+    std::string out;
+    std::istringstream lines(csv);
+    for (std::string line; std::getline(lines, line);) {
       std::vector<std::string> f;
       std::istringstream fields(line);
       for (std::string x; std::getline(fields, x, ',');) f.push_back(x);
-      f[5] = std::to_string(std::stod(f[5]) + 0.05);
-      line.clear();
-      for (std::size_t i = 0; i < f.size(); ++i) line += (i ? "," : "") + f[i];
+      if (f.size() > 5 && std::isdigit(static_cast<unsigned char>(f[0][0])) && raise(line)) {
+        f[5] = std::to_string(std::stod(f[5]) + 0.05);
+        line.clear();
+        for (std::size_t i = 0; i < f.size(); ++i) line += (i ? "," : "") + f[i];
+      }
+      out += line + "\n";
     }
-    planted += line + "\n";
-  }
-  std::ofstream(dir / "planted.csv") << planted;
+    return out;
+  };
+  // The planted error: node x = 20 (mu (20 + 0.5) / 32), y = 7 (alpha (7 + 0.5) / 32) raised by 0.05.
+  std::ofstream(dir / "planted.csv") << raised([](const std::string& row) { return row.rfind("20,7,", 0) == 0; });
   const auto fail = run_cli(dir, "albedo --grade planted.csv --layout uniform --tolerance 1e-2");
   EXPECT_EQ(fail.exit_code, 1) << fail.out << fail.err;
   EXPECT_NE(fail.out.find("FAIL node (roughness 7, mu 20)"), std::string::npos) << fail.out;
   EXPECT_NE(fail.out.find("FAIL: 1 of 1024 nodes"), std::string::npos) << fail.out;
   // Every node off: the first 40 failing nodes listed, the rest counted (all in the JSON).
-  std::string off;
-  std::istringstream all(everywhere);
-  for (std::string line; std::getline(all, line);) {
-    std::vector<std::string> f;
-    std::istringstream fields(line);
-    for (std::string x; std::getline(fields, x, ',');) f.push_back(x);
-    if (f.size() > 5 && std::isdigit(static_cast<unsigned char>(f[0][0]))) f[5] = std::to_string(std::stod(f[5]) + 0.05);
-    line.clear();
-    for (std::size_t i = 0; i < f.size(); ++i) line += (i ? "," : "") + f[i];
-    off += line + "\n";
-  }
-  std::ofstream(dir / "off.csv") << off;
+  std::ofstream(dir / "off.csv") << raised([](const std::string&) { return true; });
   const auto many = run_cli(dir, "albedo --grade off.csv --layout uniform --tolerance 1e-2");
   EXPECT_EQ(many.exit_code, 1) << many.out << many.err;
   EXPECT_NE(many.out.find("... and 984 more failing nodes"), std::string::npos) << many.out;
