@@ -440,17 +440,18 @@ void read_dump_layout(const SpecTable& t, SpecQuantity& q, const SpecMaterial& m
   if (t.has("sampling") && q.dump_pdf != "bsdf")
     t.fail("sampling", "sampling is how a BSDF's sample() draws its normals: it sets the BSDF's own density (pdf = "
                        "\"bsdf\")");
-  for (const char* key : {"transport", "masking", "sampling"}) {
-    if (!t.has(key)) continue;
+  // Each convention key parsed into its field; a bad name fails naming the key.
+  const auto read = [&t](const char* key, auto parse, auto& field) {
+    if (!t.has(key)) return;
     try {
-      const std::string text = t.string(key);
-      if (key == std::string_view("transport")) q.convention.transport = parse_transport_mode(key, text);
-      if (key == std::string_view("masking")) q.convention.masking = parse_masking_form(key, text);
-      if (key == std::string_view("sampling")) q.convention.normals = parse_sampled_normals(key, text);
+      field = parse(key, t.string(key));
     } catch (const std::invalid_argument& e) {
       t.fail(key, e.what());
     }
-  }
+  };
+  read("transport", parse_transport_mode, q.convention.transport);
+  read("masking", parse_masking_form, q.convention.masking);
+  read("sampling", parse_sampled_normals, q.convention.normals);
   if (SampleColumns::parse(q.dump_columns).channels() > 0)
     if (const std::string why = untested_weights_reason(m.facet, q.convention); !why.empty()) t.fail("sampling", why);
 }

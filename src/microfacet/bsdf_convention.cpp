@@ -4,6 +4,8 @@
 
 #include <fmt/core.h>
 
+#include <utility>
+
 namespace microsim {
 
 std::string to_string(TransportMode mode) { return mode == TransportMode::radiance ? "radiance" : "importance"; }
@@ -21,27 +23,34 @@ std::string describe(const BsdfConvention& c) {
                      c.normals == SampledNormals::ndf ? ", normals sampled from D(m) cos (Walter et al. 2007)" : "");
 }
 
+namespace {
+// A convention's two names, the first for `first` and the second for `second`; else a ParseError naming `what`, the
+// bad token, the kind of convention and the valid names (`valid`).
+template <class E>
+E parse_either(std::string_view what, std::string_view text, std::string_view kind, std::string_view valid,
+               std::pair<std::string_view, E> first, std::pair<std::string_view, E> second) {
+  if (text == first.first) return first.second;
+  if (text == second.first) return second.second;
+  throw ParseError(fmt::format("{} {}: unknown {} (valid: {})", what, quote_excerpt(text), kind, valid));
+}
+}  // namespace
+
 TransportMode parse_transport_mode(std::string_view what, std::string_view text) {
-  if (text == "radiance") return TransportMode::radiance;
-  if (text == "importance") return TransportMode::importance;
-  throw ParseError(fmt::format("{} {}: unknown transport mode (valid: radiance for camera paths, importance for "
-                               "light paths)",
-                               what, quote_excerpt(text)));
+  return parse_either(what, text, "transport mode", "radiance for camera paths, importance for light paths",
+                      std::pair{std::string_view("radiance"), TransportMode::radiance},
+                      std::pair{std::string_view("importance"), TransportMode::importance});
 }
 
 MaskingForm parse_masking_form(std::string_view what, std::string_view text) {
-  if (text == "height-correlated") return MaskingForm::height_correlated;
-  if (text == "separable") return MaskingForm::separable;
-  throw ParseError(fmt::format("{} {}: unknown masking-shadowing form (valid: height-correlated, separable)", what,
-                               quote_excerpt(text)));
+  return parse_either(what, text, "masking-shadowing form", "height-correlated, separable",
+                      std::pair{std::string_view("height-correlated"), MaskingForm::height_correlated},
+                      std::pair{std::string_view("separable"), MaskingForm::separable});
 }
 
 SampledNormals parse_sampled_normals(std::string_view what, std::string_view text) {
-  if (text == "vndf") return SampledNormals::visible;
-  if (text == "ndf") return SampledNormals::ndf;
-  throw ParseError(fmt::format("{} {}: unknown normal sampling (valid: vndf, the visible normals; ndf, D(m) cos as "
-                               "Walter et al. 2007)",
-                               what, quote_excerpt(text)));
+  return parse_either(what, text, "normal sampling", "vndf, the visible normals; ndf, D(m) cos as Walter et al. 2007",
+                      std::pair{std::string_view("vndf"), SampledNormals::visible},
+                      std::pair{std::string_view("ndf"), SampledNormals::ndf});
 }
 
 }  // namespace microsim

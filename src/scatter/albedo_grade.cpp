@@ -38,12 +38,11 @@ CellGrade grade_cell(const LayoutTable& t, const std::vector<Estimate>& referenc
 }
 
 // A way to misread a table: the reference node (ri', mj') the value stored at (ri, mj) was made for, if any.
+using Node = std::optional<std::pair<std::size_t, std::size_t>>;
 struct Misreading {
   const char* words;
-  std::optional<std::pair<std::size_t, std::size_t>> (*node)(std::size_t ri, std::size_t mj, std::size_t nr,
-                                                              std::size_t nm);
+  Node (*node)(std::size_t ri, std::size_t mj, std::size_t nr, std::size_t nm);
 };
-using Node = std::optional<std::pair<std::size_t, std::size_t>>;
 constexpr Misreading kMisreadings[] = {
     {"its roughness rows one node up (row i filled at roughness node i + 1, as Filament's generator fills its LUT)",
      [](std::size_t ri, std::size_t mj, std::size_t nr, std::size_t) { return ri + 1 < nr ? Node{{ri + 1, mj}} : Node{}; }},

@@ -36,6 +36,11 @@ std::string dropped_samples_hint(const ValidationReport& r, const ReferenceDistr
                      100 * lost, expected, r.failed_samples);
 }
 
+// What a user does about a frame mistake: the y-up one has an option, the others are the dump's to fix.
+std::string frame_fix(SampleFrame frame) {
+  return frame == SampleFrame::y_up ? "give --frame y-up (Python: frame='y-up')" : "fix the dump's frame";
+}
+
 // A rejected dump with many samples where the claimed pdf is zero: which frame mistake would explain it.
 std::string frame_hint(const ValidationReport& r, const DirectionSampleReader& samples,
                        const std::shared_ptr<const ReferenceDistribution>& reference, const ValidationOptions& o) {
@@ -45,8 +50,6 @@ std::string frame_hint(const ValidationReport& r, const DirectionSampleReader& s
     return fmt::format("{:.0f}% of the samples fall where the claimed pdf is zero; none of the common frame mistakes "
                        "(y-up, z flipped, negated) explains it",
                        share);
-  const std::string fix = best->frame == SampleFrame::y_up ? "give --frame y-up (Python: frame='y-up')"
-                                                           : "fix the dump's frame";
   // Read in the right frame and still rejected (for want of the samples a renderer drops): that fix too.
   std::string then;
   if (!best->report.passed) {
@@ -55,7 +58,7 @@ std::string frame_hint(const ValidationReport& r, const DirectionSampleReader& s
   }
   return fmt::format("{:.0f}% of the samples fall where the claimed pdf is zero; read {} they {} (p = {:.3g}): {}{}",
                      share, frame_mistake(best->frame), best->report.passed ? "pass" : "are still rejected",
-                     best->report.p_value, fix, then.empty() ? "" : "; read so, " + then);
+                     best->report.p_value, frame_fix(best->frame), then.empty() ? "" : "; read so, " + then);
 }
 
 // A rejected dump whose claimed density covers where its samples fall (a dielectric's, over the whole sphere) gives
@@ -67,8 +70,7 @@ std::string passing_frame_hint(const ValidationReport& r, const DirectionSampleR
   const std::optional<FrameHint> best = diagnose_sample_frame(samples, reference, o);
   if (!best || !best->report.passed) return "";
   return fmt::format("the samples are far from the claimed density (p = {:.3g}); read {} they pass (p = {:.3g}): {}",
-                     r.p_value, frame_mistake(best->frame), best->report.p_value,
-                     best->frame == SampleFrame::y_up ? "give --frame y-up (Python: frame='y-up')" : "fix the dump's frame");
+                     r.p_value, frame_mistake(best->frame), best->report.p_value, frame_fix(best->frame));
 }
 
 // Reads the samples again from their first row: visit(weights, printed) for each row, its weights (one per
