@@ -43,6 +43,7 @@ std::unique_ptr<BsdfPlugin> load_plugin(const std::string& path, const std::stri
 }
 
 void print_table(const BatteryReport& r) {
+  fmt::print("convention: {}\n", r.convention);
   fmt::print("{:<12} {:<13} {:>9} {:<9} {}\n", "test", "view", "p", "verdict", "detail");
   for (const BatteryLine& l : r.lines)
     fmt::print("{:<12} {:<13} {:>9} {:<9} {}\n", l.test, l.view, l.p < 0 ? "-" : fmt::format("{:.3g}", l.p),
@@ -61,12 +62,18 @@ std::vector<BatteryView> view_options(const std::vector<std::string>& texts) {
 }
 
 // The plugin against what the BSDF claims; a combination the battery cannot run is a UsageError.
-void check_claims(const BsdfPlugin& plugin, const BatteryOptions& o, const std::string& bsdf, int channels) {
-  if (plugin.channels() != channels)
-    throw UsageError(fmt::format("--plugin has {} channel(s), --bsdf {} has {}", plugin.channels(), bsdf, channels));
+void check_claims(const BsdfPlugin& plugin, const BatteryOptions& o, const std::string& bsdf, const Material& m) {
+  if (plugin.channels() != m.channels())
+    throw UsageError(fmt::format("--plugin has {} channel(s), --bsdf {} has {}", plugin.channels(), bsdf, m.channels()));
   if (o.reference == BatteryReference::single_scattering && (plugin.stochastic_eval() || !plugin.has_pdf()))
     throw UsageError("--reference single-scattering needs a deterministic eval() and a pdf(): the plugin declares a "
                      "stochastic eval or has no pdf (--reference smith-walk or none)");
+  if (plugin.under_test().convention.normals == SampledNormals::ndf && m.transmits())
+    throw UsageError(fmt::format("--plugin declares its normals sampled from D(m) cos (MICROSIM_BSDF_NDF_SAMPLING) and "
+                                 "--bsdf {} is a dielectric: its weights are heavy-tailed (~ 1 / m.z near the horizon) "
+                                 "and the battery cannot judge them; test its directions and pdfs with `microsim "
+                                 "validate --from DUMP --sampling ndf` (weight columns left out) and its eval() with "
+                                 "check-eval", bsdf));
 }
 
 BatteryReference reference_option(const std::string& text) {
@@ -97,7 +104,7 @@ int run_check_bsdf(const CheckArgs& a) {
   o.arithmetic = arithmetic;
   o.reference = reference;
   o.views = views;
-  check_claims(plugin, o, a.bsdf, m.channels());
+  check_claims(plugin, o, a.bsdf, m);
   install_interrupt_handler();
   o.run = cli_run_control(0, nullptr);
   BatteryReport r;
@@ -130,8 +137,8 @@ CommandRegistration check_bsdf_registration{"check-bsdf", [](CLI::App& app) {
       "weights), its eval() and pdf() at the pairs of bsdf-queries, its weights against eval / pdf, non-finite "
       "values; and against itself per view: its directions against its pdf(), its weighted samples against the "
       "integral of its eval() per cell, the white furnace (mean weight against the integral of eval cos). The views: "
-      "theta 0, 30, 60, 80, 89.9 deg (120, 150 from inside a dielectric), and for an anisotropic --alpha theta 60, 80 "
-      "(120) at phi 30 and 60 too. Exit 0 passed, 1 rejected, 2 bad usage or a plugin that cannot be loaded.");
+      "theta 0, 30, 60, 80, 89.9 deg (120, 150 from inside a dielectric; 89.9 left out for a plugin sampling its "
+      "normals from D(m) cos), and for an anisotropic --alpha theta 60, 80 (120) at phi 30 and 60 too. Exit 0 passed, 1 rejected, 2 bad usage or a plugin that cannot be loaded.");
   sub->add_option("--plugin", a->plugin, "the shared library (.so) defining microsim_bsdf_plugin_entry")->required();
   sub->add_option("--param", a->params, "a key=value parameter passed to the plugin's create() (repeatable)");
   sub->add_option("--bsdf", a->bsdf, "the BSDF it claims: mirror, conductor:ETA,K or dielectric:ETA")->required();

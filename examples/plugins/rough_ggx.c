@@ -8,7 +8,10 @@
  *   f of eq. 20 and 21 (the refraction divided by eta^2 in radiance mode), the half-vector Jacobians of eq. 14
  *   and 17, exact Fresnel for a dielectric and for a conductor (complex index).
  * Built with -DMICROSIM_PLANTED_EVAL_BUG it forgets the radiance factor in eval() only: sample() stays right,
- * so only the eval check sees it. */
+ * so only the eval check sees it. Built with -DMICROSIM_NDF_SAMPLING it draws its normals from D(m) cos instead
+ * (Walter et al. 2007 eq. 35-36, the slopes stretched by the roughness; Mitsuba 3's sample_visible = false), a
+ * normal facing away from wi losing the sample, and says so in its flags (MICROSIM_BSDF_NDF_SAMPLING); with
+ * -DMICROSIM_NDF_UNDECLARED too it samples so without saying it (a test's negative control). */
 #include "microsim/bsdf_plugin.h"
 
 #include <math.h>
@@ -71,6 +74,14 @@ static void sample_visible_normal(const ggx_bsdf* b, const double w[3], double u
   normalize3(m);
 }
 
+/* A normal of the distribution D(m) cos from two uniforms: slopes of tan^2 = u1 / (1 - u1) at azimuth 2 pi u2
+ * (Walter et al. 2007 eq. 35-36 for alpha 1), stretched by (alpha_x, alpha_y). */
+static void sample_ndf_normal(const ggx_bsdf* b, double u1, double u2, double m[3]) {
+  const double r = sqrt(u1 / (1 - u1)), phi = 2 * M_PI * u2;
+  m[0] = -b->ax * r * cos(phi), m[1] = -b->ay * r * sin(phi), m[2] = 1;
+  normalize3(m);
+}
+
 /* The pair seen from wi's side (mirrored when wi is below): wi' and wo' in `up`, eta across over wi's side. */
 static double upper_side(const ggx_bsdf* b, const double wi[3], const double wo[3], double up_i[3], double up_o[3]) {
   const double side = wi[2] < 0 ? -1 : 1;
@@ -79,9 +90,15 @@ static double upper_side(const ggx_bsdf* b, const double wi[3], const double wo[
   return side > 0 ? b->eta : 1 / b->eta;
 }
 
-static double visible_pdf(const ggx_bsdf* b, const double wi[3], const double m[3]) {
+/* The density of the sampled normal m (per unit solid angle of m) given wi: the visible normals' (Heitz 2018
+ * eq. 2), or D(m) cos(m) when the normals come from the NDF. */
+static double normal_pdf(const ggx_bsdf* b, const double wi[3], const double m[3]) {
   const double c = dot3(wi, m);
+#ifdef MICROSIM_NDF_SAMPLING
+  return c > 0 ? ggx_d(b, m) * m[2] : 0;
+#else
   return c > 0 ? ggx_d(b, m) * c / (wi[2] * (1 + ggx_lambda(b, wi))) : 0;
+#endif
 }
 
 /* f |cos wo| and the pdf of wo, in radiance transport, for wi on the upper side (eta across over it). */
@@ -100,7 +117,7 @@ static void evaluate(const ggx_bsdf* b, const double wi[3], const double wo[3], 
   if (ih <= 0 || (reflect ? oh <= 0 : oh >= 0)) return;
   const double D = ggx_d(b, h), G = 1 / (1 + ggx_lambda(b, wi) + ggx_lambda(b, wo));
   const double F = b->dielectric ? fresnel_dielectric(ih, eta) : fresnel_conductor(ih, b->eta, b->k);
-  const double dv = visible_pdf(b, wi, h);
+  const double dv = normal_pdf(b, wi, h);
   if (reflect) {
     *value = F * D * G / (4 * wi[2]);
     *pdf = dv * (b->dielectric ? F : 1) / (4 * oh);
@@ -143,8 +160,13 @@ static int sample(void* self, const double wi[3], const double u[3], double wo[3
   double up[3], up_z[3], m[3], out[3];
   const double eta = upper_side(b, wi, z, up, up_z), side = wi[2] < 0 ? -1 : 1;
   if (up[2] <= 0) return 0;
+#ifdef MICROSIM_NDF_SAMPLING
+  sample_ndf_normal(b, u[0], u[1], m);
+#else
   sample_visible_normal(b, up, u[0], u[1], m);
+#endif
   const double c = dot3(up, m);
+  if (c <= 0) return 0; /* a normal facing away from wi (drawn from the NDF only) */
   const double F = b->dielectric ? fresnel_dielectric(c, eta) : 1;
   if (!b->dielectric || u[2] < F) {
     for (int i = 0; i < 3; ++i) out[i] = 2 * c * m[i] - up[i];
@@ -185,7 +207,11 @@ static double pdf(void* self, const double wi[3], const double wo[3]) {
 static const microsim_bsdf_plugin plugin = {MICROSIM_BSDF_PLUGIN_ABI, "rough GGX (conductor or dielectric)", 1, 0, 0, 0,
                                             create, destroy, sample, eval, pdf
 #if MICROSIM_BSDF_PLUGIN_ABI >= 2
-                                            , 0 /* flags: eval() deterministic */
+#if defined(MICROSIM_NDF_SAMPLING) && !defined(MICROSIM_NDF_UNDECLARED)
+                                            , MICROSIM_BSDF_NDF_SAMPLING /* flags: normals from the NDF */
+#else
+                                            , 0 /* flags: eval() deterministic, visible normals */
+#endif
 #endif
 };
 

@@ -28,6 +28,11 @@
  *     heavy-tailed estimate's error from its own few hundred calls is too small): every call must be a fresh
  *     estimate. eval() is called from one thread; its
  *     random state is the plugin's (seed it in create() for a run that repeats).
+ *   MICROSIM_BSDF_NDF_SAMPLING: sample() draws the microfacet normal m from D(m) cos (Walter et al. 2007 eq. 35;
+ *     Mitsuba 3's sample_visible = false), not from the visible normals of wi (Heitz 2018); a normal facing away
+ *     from wi loses the sample. The samples are then tested against that density. A dielectric's weights under
+ *     it are heavy-tailed (~ 1 / m.z near the horizon) and the battery refuses it (test its directions and pdfs
+ *     with `microsim validate --from DUMP --sampling ndf`).
  * Versions: ABI 1 is this struct without `flags` (and pdf required); a plugin built against the version-1 header
  * sets abi_version 1 and still loads: the fields after `pdf` are read only from a plugin of version 2 or more. */
 #ifndef MICROSIM_BSDF_PLUGIN_H
@@ -40,6 +45,7 @@ extern "C" {
 #define MICROSIM_BSDF_PLUGIN_ABI 2
 #define MICROSIM_BSDF_MAX_CHANNELS 8
 #define MICROSIM_BSDF_STOCHASTIC_EVAL 1 /* a bit of `flags` */
+#define MICROSIM_BSDF_NDF_SAMPLING 2    /* a bit of `flags` */
 
 typedef struct microsim_bsdf_plugin {
   int abi_version; /* MICROSIM_BSDF_PLUGIN_ABI (1 or 2) */
@@ -53,7 +59,7 @@ typedef struct microsim_bsdf_plugin {
   int (*sample)(void* self, const double wi[3], const double u[3], double wo[3], double* pdf, double* weight);
   void (*eval)(void* self, const double wi[3], const double wo[3], double* value);
   double (*pdf)(void* self, const double wi[3], const double wo[3]);
-  int flags; /* ABI 2: MICROSIM_BSDF_STOCHASTIC_EVAL or 0 */
+  int flags; /* ABI 2: MICROSIM_BSDF_STOCHASTIC_EVAL, MICROSIM_BSDF_NDF_SAMPLING (or'ed), or 0 */
 } microsim_bsdf_plugin;
 
 typedef const microsim_bsdf_plugin* (*microsim_bsdf_plugin_entry_fn)(void);

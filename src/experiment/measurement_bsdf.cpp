@@ -342,9 +342,10 @@ private:
   // The battery's report as `check-bsdf --json` writes it, under "battery" (the registry's test member).
   void record(const BatteryReport& r, const BsdfPlugin& plugin, const BatteryOptions& o, double seconds,
               MeasurementResult& m) const {
-    const std::size_t views = o.views.empty() ? battery_views(material().facet, GGX<double>(decision_.alpha.first,
-                                                                                           decision_.alpha.second)).size()
-                                              : o.views.size();
+    const std::size_t views =
+        o.views.empty() ? battery_views(material().facet, GGX<double>(decision_.alpha.first, decision_.alpha.second),
+                                        plugin.under_test().convention.normals).size()
+                        : o.views.size();
     nlohmann::json j = to_json(r);
     j.update({{"plugin", quantity_.settings.at("plugin")}, {"name", plugin.name()}, {"params", quantity_.settings.at("params")},
               {"bsdf", material().facet.describe()}, {"alpha", bsdf_alpha_text(decision_.alpha)}, {"level", o.level},

@@ -226,8 +226,9 @@ void check_views(const Material& m, const std::vector<BatteryView>& views) {
 
 }  // namespace
 
-std::vector<BatteryView> battery_views(const Material& m, const GGX<double>& ggx) {
+std::vector<BatteryView> battery_views(const Material& m, const GGX<double>& ggx, SampledNormals normals) {
   std::vector<double> thetas{0, 30, 60, 80, 89.9}, turned{60, 80};
+  if (normals == SampledNormals::ndf) thetas.pop_back();
   if (m.transmits()) thetas.insert(thetas.end(), {120, 150}), turned.push_back(120);
   std::vector<BatteryView> v;
   for (const double t : thetas) v.push_back({t, 0});
@@ -250,12 +251,18 @@ BatteryReport run_bsdf_battery(const BsdfUnderTest& bsdf, const Material& claime
   const bool exact = options.reference == BatteryReference::single_scattering;
   if (exact && (bsdf.stochastic_eval || !bsdf.pdf))
     throw std::invalid_argument("the exact single-scattering reference needs a deterministic eval() and a pdf()");
-  const std::vector<BatteryView> views = options.views.empty() ? battery_views(claimed, ggx) : options.views;
+  if (claimed.transmits() && bsdf.convention.normals == SampledNormals::ndf)
+    throw std::invalid_argument(
+        "a dielectric sampling its normals from D(m) cos has heavy-tailed weights (~ 1 / m.z near the horizon), which "
+        "the battery's weight tests cannot judge: test its directions and pdfs with `microsim validate --from DUMP "
+        "--sampling ndf` (its weight columns left out) and its eval() with check-eval");
+  const std::vector<BatteryView> views = options.views.empty() ? battery_views(claimed, ggx, bsdf.convention.normals) : options.views;
   check_views(claimed, views);
   const int statistical = int(views.size()) * view_tests(bsdf, options) +
                           (options.reference == BatteryReference::smith_walk ? 1 : 0) + (bsdf.stochastic_eval ? 1 : 0);
   const double level = sidak_significance(options.level, statistical);
   BatteryReport r;
+  r.convention = describe(bsdf.convention);
   for (const BatteryView& v : views) check_view(bsdf, claimed, ggx, v, options, level, r);
   if (exact) {
     BatteryLine reciprocal;
@@ -276,7 +283,7 @@ nlohmann::json to_json(const BatteryReport& r) {
                      {"passed", l.passed}, {"tested", l.tested}, {"detail", l.detail}});
   // The pointwise eval check runs against an exact reference only (null otherwise).
   const bool eval_checked = r.eval.rows > 0;
-  return {{"verdict", r.passed ? "pass" : "fail"}, {"tests", tests}, {"eval", eval_checked ? to_json(r.eval) : nlohmann::json(nullptr)}};
+  return {{"verdict", r.passed ? "pass" : "fail"}, {"convention", r.convention}, {"tests", tests}, {"eval", eval_checked ? to_json(r.eval) : nlohmann::json(nullptr)}};
 }
 
 }  // namespace microsim

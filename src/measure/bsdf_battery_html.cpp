@@ -63,6 +63,7 @@ std::string battery_html(const BatteryReport& report, const std::string& title, 
   page += fmt::format("<h1>{}</h1>\n<p class=\"{}\">{}</p>\n<ul>\n", esc(title), report.passed ? "pass" : "fail",
                       report.passed ? "passed: every test" : "REJECTED");
   for (const std::string& f : facts) page += "<li>" + esc(f) + "</li>\n";
+  if (!report.convention.empty()) page += "<li>convention: " + esc(report.convention) + "</li>\n";
   page += "</ul>\n<h2>Tests</h2>\n" + lines_table(report);
   page += "<h2>Residuals per cell</h2>\n<p>Each map is the sphere's equal-area cells (rows: z = cos theta of wo from +1 "
           "at the top to -1 at the bottom; columns: phi). The residual of a cell is (a - lambda b) / sqrt(var a + "

@@ -33,6 +33,9 @@ void check_plugin_api(const std::string& path, const microsim_bsdf_plugin* api) 
     throw PluginLoadError(path, fmt::format("{} channels", api->channels));
   if (!api->create || !api->destroy || !api->sample || !api->eval || (!api->pdf && api->abi_version < 2))
     throw PluginLoadError(path, "a function pointer is NULL");
+  constexpr int known = MICROSIM_BSDF_STOCHASTIC_EVAL | MICROSIM_BSDF_NDF_SAMPLING;
+  if (api->abi_version >= 2 && (api->flags & ~known) != 0)
+    throw PluginLoadError(path, fmt::format("flags {:#x}: bits this microsim does not know (it knows {:#x})", api->flags, known));
 }
 
 void plugin_raw(const Vec3<double>& v, double out[3]) { out[0] = v.x(), out[1] = v.y(), out[2] = v.z(); }
@@ -67,7 +70,8 @@ BsdfUnderTest BsdfPlugin::under_test() const {
   b.name = name();
   b.channels = p.api->channels;
   b.convention = {p.api->transport == 1 ? TransportMode::importance : TransportMode::radiance,
-                  p.api->masking == 1 ? MaskingForm::separable : MaskingForm::height_correlated};
+                  p.api->masking == 1 ? MaskingForm::separable : MaskingForm::height_correlated,
+                  (p.flags() & MICROSIM_BSDF_NDF_SAMPLING) ? SampledNormals::ndf : SampledNormals::visible};
   b.stochastic_eval = stochastic_eval();
   const std::size_t c = std::size_t(b.channels);
   b.sample = [&p, c](std::span<const Vec3<double>> wi, std::span<const double> u, std::span<Vec3<double>> wo,

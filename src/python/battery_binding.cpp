@@ -87,7 +87,7 @@ BsdfUnderTest under_test(const py::function& sample, const py::function& eval, c
 
 // The keyword options of check_bsdf, as `check-bsdf` takes them.
 struct PyBatteryArgs {
-  std::string bsdf, transport, masking, arithmetic, reference;
+  std::string bsdf, transport, masking, sampling, arithmetic, reference;
   py::object alpha, views, html;
   int channels = 1;
   bool stochastic_eval = false;
@@ -139,6 +139,7 @@ py::object check_bsdf(const py::function& sample, const py::function& eval, cons
   BsdfConvention convention;
   convention.transport = parse_transport_mode("transport", a.transport);
   convention.masking = parse_masking_form("masking", a.masking);
+  convention.normals = parse_sampled_normals("sampling", a.sampling);
   const BatteryOptions o = options_of(a);
   if (o.reference == BatteryReference::single_scattering && (a.stochastic_eval || pdf.is_none()))
     throw py::value_error("reference 'single-scattering' needs a deterministic eval and a pdf (reference 'smith-walk' "
@@ -282,10 +283,11 @@ void bind_battery(py::module_& m) {
       "check_bsdf",
       [](const py::function& sample, const py::function& eval, const py::object& pdf, const std::string& bsdf,
          const py::object& alpha, int channels, const std::string& transport, const std::string& masking,
-         std::uint64_t samples, std::uint64_t seed, double level, const std::string& arithmetic,
+         const std::string& sampling, std::uint64_t samples, std::uint64_t seed, double level, const std::string& arithmetic,
          const std::string& reference, const py::object& views, bool stochastic_eval, const py::object& html) {
         return check_bsdf(sample, eval, pdf,
-                          {bsdf, transport, masking, arithmetic, reference, alpha, views, html, channels, stochastic_eval,
+                          {bsdf, transport, masking, sampling, arithmetic, reference, alpha, views, html, channels,
+                           stochastic_eval,
                            samples, seed, level});
       },
       R"(Runs the whole BSDF battery (what `microsim check-bsdf` runs on a C plugin) on a BSDF
@@ -294,7 +296,10 @@ given as vectorised numpy callables, against the BSDF it claims (`bsdf`, `alpha`
     (without a pdf callable, a weight of 0 in every channel);
   eval(wi (n, 3), wo (n, 3)) -> f(wi, wo) |cos wo|, (n,) or (n, channels);
   pdf(wi (n, 3), wo (n, 3)) -> (n,), or None (a sampler whose density is not known in closed form).
-Directions z-up, wi the direction given (the camera side in radiance transport). The options are check-bsdf's:
+Directions z-up, wi the direction given (the camera side in radiance transport); transport 'radiance' or
+'importance', masking 'height-correlated' or 'separable', sampling 'vndf' (the visible normals, Heitz 2018) or
+'ndf' (normals from D(m) cos, Walter et al. 2007; a dielectric's then refused: ValueError), as a C plugin
+declares them. The options are check-bsdf's:
 reference 'single-scattering' (the exact BSDF of `bsdf`), 'smith-walk' (the Smith walk's multiple scattering) or
 'none' (only the tests against itself); views None (the default grid; anisotropic alpha: views off the axes too)
 or a list of THETA or (THETA, PHI) in degrees; stochastic_eval (eval an unbiased noisy estimate: averaged over
@@ -302,8 +307,8 @@ repeated calls); samples per view; level (family-wise, Sidak); html a path for t
 report as a dict (the JSON of `check-bsdf --json`): "verdict" ("pass" or "fail"), "passed", "tests" (one per
 view's sampling and consistency, and the eval check), "eval" (the worst pairs), "bsdf", "alpha", "level".)",
       "sample"_a, "eval"_a, "pdf"_a = py::none(), py::kw_only(), "bsdf"_a, "alpha"_a, "channels"_a = 1,
-      "transport"_a = "radiance", "masking"_a = "height-correlated", "samples"_a = 200'000, "seed"_a = 1,
-      "level"_a = 0.01, "arithmetic"_a = "float32", "reference"_a = "single-scattering", "views"_a = py::none(),
+      "transport"_a = "radiance", "masking"_a = "height-correlated", "sampling"_a = "vndf",
+      "samples"_a = 200'000, "seed"_a = 1, "level"_a = 0.01, "arithmetic"_a = "float32", "reference"_a = "single-scattering", "views"_a = py::none(),
       "stochastic_eval"_a = false, "html"_a = py::none());
 }
 

@@ -160,8 +160,8 @@ def check_bsdf(sample: Callable[[np.ndarray, np.ndarray], Tuple[np.ndarray, np.n
                eval: Callable[[np.ndarray, np.ndarray], np.ndarray],
                pdf: Optional[Callable[[np.ndarray, np.ndarray], np.ndarray]] = None, *,
                bsdf: str, alpha: Alpha, channels: int = 1, transport: str = "radiance",
-               masking: str = "height-correlated", samples: int = 200000, seed: int = 1, level: float = 0.01,
-               arithmetic: str = "float32", reference: str = "single-scattering",
+               masking: str = "height-correlated", sampling: str = "vndf", samples: int = 200000, seed: int = 1,
+               level: float = 0.01, arithmetic: str = "float32", reference: str = "single-scattering",
                views: Optional[Sequence[Union[float, Tuple[float, float]]]] = None, stochastic_eval: bool = False,
                html: Optional[Union[str, "os.PathLike[str]"]] = None) -> Dict[str, Any]:
     """The whole BSDF battery (`microsim check-bsdf`) on vectorised numpy callables, with its options (reference

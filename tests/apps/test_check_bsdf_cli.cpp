@@ -232,6 +232,33 @@ TEST(CheckBsdfCli, FilesOfOneBsdfAgainstEachOther) {
   fs::remove_all(dir);
 }
 
+// A rough GGX conductor drawing its normals from D(m) cos (Walter 2007; Mitsuba 3's sample_visible = false) passes
+// when its plugin says so (MICROSIM_BSDF_NDF_SAMPLING; the default grid without 89.9 deg), and the report names
+// the convention; the same plugin not saying it is rejected by the sampling test at the tilted views.
+TEST(CheckBsdfCli, APluginSamplingNormalsFromTheNdfIsTestedAgainstThatDensity) {
+  const fs::path dir = scratch_dir("check_bsdf", "ndf");
+  const std::string gold = "--param kind=conductor --param alpha=0.3 --param eta=0.2 --param k=3.9 --bsdf conductor:0.2,3.9 "
+                           "--alpha 0.3";
+  const CliRun declared = run_cli(dir, check(MICROSIM_PLUGIN_NDF, gold));
+  EXPECT_EQ(declared.exit_code, 0) << declared.out << declared.err;
+  EXPECT_NE(declared.out.find("convention: radiance transport (camera paths), height-correlated G2, normals sampled from "
+                              "D(m) cos"), std::string::npos) << declared.out;
+  const nlohmann::json j = nlohmann::json::parse(slurp(dir / "c.json"));
+  EXPECT_NE(j["convention"].get<std::string>().find("D(m) cos"), std::string::npos);
+  std::set<std::string> views;
+  for (const nlohmann::json& t : j["tests"]) views.insert(t["view"].get<std::string>());
+  EXPECT_EQ(views.count("80 deg"), 1u);
+  EXPECT_EQ(views.count("89.9 deg"), 0u);
+  const CliRun undeclared = run_cli(dir, check(MICROSIM_PLUGIN_NDF_UNDECLARED, gold));
+  EXPECT_EQ(undeclared.exit_code, 1) << undeclared.out << undeclared.err;
+  int rejected = 0;
+  const nlohmann::json u = nlohmann::json::parse(slurp(dir / "c.json"));
+  for (const nlohmann::json& t : u["tests"])
+    if (t["test"] == "sampling" && !t["passed"].get<bool>()) ++rejected;
+  EXPECT_GE(rejected, 3) << "the sampling test at the tilted views";
+  fs::remove_all(dir);
+}
+
 TEST(CheckBsdfCli, BadPluginsAreExit2) {
   const fs::path dir = scratch_dir("check_bsdf", "usage");
   const std::pair<std::string, std::string> cases[] = {
@@ -250,6 +277,7 @@ TEST(CheckBsdfCli, BadPluginsAreExit2) {
        "from inside"},
       {std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_GOOD + " --bsdf mirror --alpha 0.3 --view 10,20,30",
        "--view"},
+      {std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_NDF + " " + kPluginGlass, "heavy-tailed"},
   };
   for (const auto& [args, message] : cases) {
     const CliRun r = run_cli(dir, args);

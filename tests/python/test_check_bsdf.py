@@ -209,3 +209,58 @@ def test_a_numpy_smith_walk_passes_against_the_walk_reference():
     failed = {t["test"] for t in r["tests"] if not t["passed"]}
     assert {"integral", "furnace", "eval"} <= failed, failed
     assert "sampling" not in failed
+
+
+# ---- a conductor drawing its normals from D(m) cos (Walter et al. 2007 eq. 35-36; Mitsuba 3's sample_visible=false) ----
+def ndf_gold(alpha=0.3, n_k=(0.2, 3.9)):
+    """eval (f |cos wo|), pdf and sample of a rough GGX conductor whose sampler draws m from D(m) cos: a normal facing
+    away from wi, or a reflection below the horizon, is a lost sample (pdf 0)."""
+    def d(m):
+        e = (m[:, 0] ** 2 + m[:, 1] ** 2) / alpha ** 2 + m[:, 2] ** 2
+        return np.where(m[:, 2] > 0, 1 / (np.pi * alpha ** 2 * np.maximum(e, 1e-150) ** 2), 0.0)
+
+    def lam(w):
+        return (-1 + np.sqrt(1 + alpha ** 2 * (w[:, 0] ** 2 + w[:, 1] ** 2) / w[:, 2] ** 2)) / 2
+
+    def fresnel(c):
+        n = complex(*n_k)
+        ct = np.sqrt(1 - (1 - c ** 2) / n ** 2 + 0j)
+        return (np.abs((c - n * ct) / (c + n * ct)) ** 2 + np.abs((n * c - ct) / (n * c + ct)) ** 2) / 2
+
+    def value_and_pdf(wi, wo):
+        h = wi + wo
+        h = h / np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-300)
+        c, oh = np.einsum("ij,ij->i", wi, h), np.einsum("ij,ij->i", wo, h)
+        ok = (wi[:, 2] > 0) & (wo[:, 2] > 0) & (c > 0)
+        dm = d(h)
+        g2 = 1 / (1 + lam(wi) + lam(np.where(ok[:, None], wo, wi)))
+        value = np.where(ok, fresnel(np.clip(c, 0, 1)) * dm * g2 / (4 * np.where(ok, wi[:, 2], 1)), 0.0)
+        pdf = np.where(ok, dm * h[:, 2] / (4 * np.where(ok, oh, 1)), 0.0)
+        return value, pdf
+
+    def sample(wi, u):
+        r, phi = np.sqrt(u[:, 0] / (1 - u[:, 0])), 2 * np.pi * u[:, 1]
+        m = np.stack([-alpha * r * np.cos(phi), -alpha * r * np.sin(phi), np.ones(len(u))], axis=1)
+        m /= np.linalg.norm(m, axis=1, keepdims=True)
+        c = np.einsum("ij,ij->i", wi, m)
+        wo = 2 * c[:, None] * m - wi
+        value, p = value_and_pdf(wi, wo)
+        p = np.where((c > 0) & (wo[:, 2] > 0), p, 0.0)
+        return wo, p, np.where(p > 0, value / np.where(p > 0, p, 1), 0.0)
+
+    return sample, (lambda wi, wo: value_and_pdf(wi, wo)[0]), (lambda wi, wo: value_and_pdf(wi, wo)[1])
+
+
+def test_a_conductor_sampling_its_normals_from_the_ndf_passes_when_it_says_so():
+    sample, evaluate, pdf = ndf_gold()
+    args = dict(bsdf="conductor:0.2,3.9", alpha=0.3, samples=50_000, arithmetic="float64")
+    said = microsim.check_bsdf(sample, evaluate, pdf, sampling="ndf", **args)
+    assert said["passed"], [t for t in said["tests"] if not t["passed"]]
+    assert "D(m) cos" in said["convention"] and not any(t["view"] == "89.9 deg" for t in said["tests"])
+    unsaid = microsim.check_bsdf(sample, evaluate, pdf, **args)  # claimed as visible-normal sampling: rejected
+    assert not unsaid["passed"]
+    assert any(t["test"] == "sampling" and not t["passed"] for t in unsaid["tests"])
+    with pytest.raises(ValueError, match="heavy-tailed"):  # a dielectric so sampled: its weights are not judged
+        microsim.check_bsdf(sample, evaluate, pdf, sampling="ndf", bsdf="dielectric:1.5", alpha=0.3)
+    with pytest.raises(ValueError, match="sampling"):
+        microsim.check_bsdf(sample, evaluate, pdf, sampling="visible", **args)
