@@ -99,10 +99,9 @@ json decision_json(const Decision& d, const ExperimentSpec& spec) {
   json j = {{"quantity", q.key}, {"kind", to_string(q.kind)}, {"material", q.material}, {"target", q.target}};
   write_fields(d, kDecision, j);
   write_fields(d, kPilot, j["pilot"]);
-  if (kind_has_views(q.kind)) {
-    j["alpha"] = {d.alpha.first, d.alpha.second};
-    j["view"] = {{"theta_deg", d.view.theta_deg}, {"phi_deg", d.view.phi_deg}};
-  }
+  // A kind without views may still be planned at one alpha (a BSDF's battery): resume and merge read it back.
+  if (kind_has_views(q.kind) || d.alpha.first > 0) j["alpha"] = {d.alpha.first, d.alpha.second};
+  if (kind_has_views(q.kind)) j["view"] = {{"theta_deg", d.view.theta_deg}, {"phi_deg", d.view.phi_deg}};
   if (d.tolerance > 0) j["tolerance"] = d.tolerance;
   if (!d.targeted_orders.empty()) j["targeted_orders"] = d.targeted_orders;
   if (!d.runnable) j["not_runnable"] = d.not_runnable;

@@ -82,6 +82,20 @@ TEST(ExperimentBsdf, TheWorkedPluginPassesAndThePlantedEvalBugFailsTheRun) {
   EXPECT_EQ(v.rejected, std::vector<std::string>{bug.decision.label});
 }
 
+// A resumed or merged run reads its plan back from JSON: the battery runs at the material's alpha there too, and
+// its verdict is the single run's (read back without its alpha, the correct plugin was tested at alpha 0 and
+// rejected).
+TEST(ExperimentBsdf, APlanReadBackKeepsTheAlphaAndTheVerdict) {
+  const ExperimentSpec good = plugin_spec(MICROSIM_PLUGIN_GOOD);
+  const ExperimentPlan plan = plan_experiment(good, PlanOptions{});
+  const ExperimentPlan back = plan_from_json(plan_json(plan, good), good);
+  ASSERT_EQ(back.decisions.size(), 1u);
+  EXPECT_EQ(back.decisions[0].alpha, std::make_pair(0.3, 0.3));
+  const ExperimentResults r = run_experiment(good, back, RunOptions{});
+  EXPECT_EQ(r.measurements.at(0).values.at("battery").at("alpha"), "0.3");
+  EXPECT_EQ(run_verdict(r).verdict, Verdict::pass);
+}
+
 TEST(ExperimentBsdf, AMissingPluginIsABadSpecAndARefusedOneStopsThePlan) {
   try {
     plugin_spec("no-such-plugin.so");
