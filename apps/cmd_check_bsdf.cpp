@@ -145,7 +145,7 @@ CommandRegistration check_bsdf_registration{"check-bsdf", [](CLI::App& app) {
   sub->add_option("--alpha", a->alpha, "its GGX roughness AX or AX,AY")->required();
   add_number_option(sub, "--samples", a->samples, whole(1000, 100'000'000), "samples per view")->default_str("200000");
   add_number_option(sub, "--seed", a->seed, whole(), "seed of the uniforms")->default_str("1");
-  add_number_option(sub, "--level", a->level, real(), "family-wise significance level (Sidak over the views)")->default_str("0.01");
+  add_number_option(sub, "--level", a->level, level(), "family-wise significance level (Sidak over the views)")->default_str("0.01");
   sub->add_option("--arithmetic", a->arithmetic, "the plugin's arithmetic for the eval tolerances: float32 or float64")
       ->capture_default_str();
   sub->add_option("--reference", a->reference,

@@ -95,7 +95,7 @@ CommandRegistration check_bsdf_files_registration{"check-bsdf-files", [](CLI::Ap
   add_number_option(sub, "--lost", a->lost, whole(), "samples the dump leaves out (lost): they weigh 0 in the furnace")
       ->default_str("0");
   add_number_option(sub, "--albedo", a->albedo, real({0, 10}), "the albedo the BSDF claims at this view (1: energy conserving)");
-  add_number_option(sub, "--level", a->level, real({0, 1}), "family-wise significance level of the statistical tests")->default_str("0.01");
+  add_number_option(sub, "--level", a->level, level(), "family-wise significance level of the statistical tests")->default_str("0.01");
   sub->add_option("--json", a->json, "write the report as JSON");
   on_selected(sub, [a] { return run_check_bsdf_files(*a); });
 }};

@@ -173,7 +173,7 @@ CommandRegistration check_eval_registration{"check-eval", [](CLI::App& app) {
       ->capture_default_str();
   add_number_option(sub, "--paths", a->paths, whole(16, 100'000'000), "smith-walk: walks per pair (fewer underestimate the walk's error where rare long paths dominate)")->default_str("32768");
   add_number_option(sub, "--seed", a->seed, whole(), "smith-walk: seed of the walks")->default_str("1");
-  add_number_option(sub, "--level", a->level, real(), "smith-walk: significance level of the chi-square")->default_str("0.01");
+  add_number_option(sub, "--level", a->level, level(), "smith-walk: significance level of the chi-square")->default_str("0.01");
   sub->add_option("--json", a->json, "write the report as JSON");
   on_selected(sub, [a] { return run_check_eval(*a); });
 }};

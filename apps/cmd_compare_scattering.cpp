@@ -78,7 +78,7 @@ CommandRegistration compare_scattering_registration{"compare-scattering", [](CLI
                 "phi, material)");
   sub->add_option("--orders", args->orders, "scatter files: orders to compare, a list of 1, 2, 3, 4, 5+, total")
       ->default_str("1,2,3,4,5+,total");
-  add_number_option(sub, "--level", args->level, real(), "family-wise significance level of the verdict")->default_str("0.01");
+  add_number_option(sub, "--level", args->level, level(), "family-wise significance level of the verdict")->default_str("0.01");
   add_number_option(sub, "--threads", args->threads, integer(0, kMaxThreads),
                     at_most("threads of the --analytic cubature (0: all cores)", kMaxThreads))
       ->default_str("0");

@@ -581,7 +581,7 @@ microsim::app::CommandRegistration validate_registration{"validate", [](CLI::App
   add_number_option(sub, "--rows", args->rows, microsim::app::binning_rows(3),
                     fmt::format("rows of the sphere and lobe binnings (odd, 3..{}; cols = 2 rows; default 31)",
                                 microsim::kMaxBinningRows));
-  add_number_option(sub, "--significance", args->significance, microsim::app::real(),
+  add_number_option(sub, "--significance", args->significance, microsim::app::level(),
                     "family-wise significance level (default 0.01)");
   sub->add_option("--json", args->json, "write the results as JSON to PATH (atomically)");
   sub->add_option("--against", args->against,

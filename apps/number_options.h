@@ -57,6 +57,8 @@ CLI::Option* add_number_option(CLI::App* sub, const std::string& name, T& target
 inline auto real(Interval range = {}) {
   return [range](std::string_view what, std::string_view text) { return parse_double(what, text, range); };
 }
+// A significance level: a real in (0, 1) (at 0 nothing is rejected, at 1 everything).
+inline auto level() { return real({0, 1, true, true}); }
 // An integer in [min, max].
 inline auto integer(std::int64_t min, std::int64_t max) {
   return [min, max](std::string_view what, std::string_view text) { return parse_int(what, text, min, max); };

@@ -349,6 +349,9 @@ std::uint64_t goodness_of_fit_minimum_samples(std::span<const double> p, double 
 
 double sidak_significance(double alpha, int n_tests) {
   if (n_tests < 1) throw std::invalid_argument(fmt::format("sidak_significance: n_tests must be >= 1, got {}", n_tests));
+  // A level of 0 rejects nothing and 1 everything: a verdict at either would say nothing.
+  if (!(alpha > 0 && alpha < 1))
+    throw std::invalid_argument(fmt::format("the significance level must be in (0, 1), got {}", alpha));
   // 1 - (1 - alpha)^(1/n), without cancellation for small alpha.
   return -std::expm1(std::log1p(-alpha) / n_tests);
 }

@@ -121,7 +121,7 @@ std::vector<BadInputCase> scatter_cases() {
       {"compare_analytic_of_expectation", "compare-scattering a.exr --analytic", 2, "already an expectation", prepare_files},
       {"compare_orders_unknown", "compare-scattering a.exr a.exr --orders 1,6", 2, "unknown order '6'", prepare_files},
       {"compare_orders_twice", "compare-scattering a.exr a.exr --orders 1,1", 2, "given twice", prepare_files},
-      {"compare_level", "compare-scattering a.exr a.exr --level 1.5", 2, "--level 1.5", prepare_files},
+      {"compare_level", "compare-scattering a.exr a.exr --level 1.5", 2, "--level '1.5': outside (0, 1)", prepare_files},
       {"compare_svg_extension", "compare-scattering a.exr a.exr --svg f.png", 2, "--svg 'f.png'", prepare_files},
       {"compare_json_is_input", "compare-scattering a.exr hf.exr --json a.exr", 2, "a.exr", prepare_files},
       // merge of scatter parts

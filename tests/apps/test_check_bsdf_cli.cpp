@@ -278,6 +278,9 @@ TEST(CheckBsdfCli, BadPluginsAreExit2) {
       {std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_GOOD + " --bsdf mirror --alpha 0.3 --view 10,20,30",
        "--view"},
       {std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_NDF + " " + kPluginGlass, "heavy-tailed"},
+      {std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_GOOD + " --bsdf mirror --alpha 0.3 --level 0", "--level"},
+      {std::string("check-bsdf --plugin ") + MICROSIM_PLUGIN_GOOD + " --bsdf mirror --alpha 0.3 --level 1", "--level"},
+      {"check-bsdf-files d.npy e.npy --theta 60 --level 0", "--level '0': outside (0, 1)"},
   };
   for (const auto& [args, message] : cases) {
     const CliRun r = run_cli(dir, args);

@@ -156,6 +156,8 @@ TEST(ChiSquare, Sidak) {
   EXPECT_EQ(sidak_adjusted_p(0.0, 5), 0.0);
   EXPECT_EQ(sidak_adjusted_p(1.0, 5), 1.0);
   EXPECT_THROW(sidak_significance(0.01, 0), std::invalid_argument);
+  for (const double level : {0.0, -1.0, 1.0, 2.0, std::nan("")})  // nothing or everything rejected: no verdict
+    EXPECT_THROW(sidak_significance(level, 3), std::invalid_argument) << level;
 }
 
 // The mean of m Exp(1) variables is Gamma(m, 1 / m): mean 1, standard error 1 / sqrt(m), skewness 2 / sqrt(m),
