@@ -105,7 +105,8 @@ int write_results(const RunArgs& a, const experiment::ExperimentSpec& spec, cons
              (fs::path(a.out) / "index.html").string());
   const int code = run_exit_code(results);
   if (code == kExitInterrupted)
-    fmt::print(stderr, "run: interrupted: results marked partial; run the same command again to resume\n");
+    fmt::print(stderr, "run: interrupted: results marked partial; run the same command{} again to resume\n",
+               a.merge.empty() ? "" : " without --merge (the shards' rounds are in --out)");
   if (code == kExitRejected) fmt::print(stderr, "run: a validation rejected: exit {}\n", kExitRejected);
   return code;
 }
@@ -123,9 +124,22 @@ experiment::ExperimentPlan plan_or_shards(const RunArgs& a, const experiment::Ex
 
 // The run on the root (alone, or rank 0 of an MPI job: `ranks` then serve its rounds). `plan_sent`: whether
 // the other ranks got the plan (after that, an error must abort the job: they may be inside a round).
+// The run writes its files under --out (results, report, figures, surfaces, parts): no file the spec reads may
+// lie there. UsageError naming the spec's key.
+void check_inputs_outside(const experiment::ExperimentSpec& spec, const std::string& out) {
+  const fs::path dir = fs::weakly_canonical(fs::absolute(out));
+  for (const PathOption& in : experiment::spec_input_files(spec)) {
+    const fs::path rel = fs::weakly_canonical(fs::absolute(in.path)).lexically_relative(dir);
+    if (!rel.empty() && *rel.begin() != "..")
+      throw UsageError(fmt::format("{} '{}' lies inside --out {}: the run writes there; keep its inputs outside",
+                                   in.option, in.path.string(), out));
+  }
+}
+
 int run_experiment_command(const RunArgs& a, experiment::Ranks& ranks, bool& plan_sent) {
   const experiment::ExperimentSpec spec = experiment::load_spec(a.spec);  // SpecError: exit 2, nothing run
   check_distinct_outputs({{"SPEC", a.spec}}, {{"--out", (fs::path(a.out) / "results.json").string()}});
+  check_inputs_outside(spec, a.out);
   const std::uint64_t seed = a.seed != 0 ? a.seed : spec.seed;
   const std::optional<experiment::PreviousRun> previous = experiment::load_previous_run(a.out, spec, seed);
   const auto progress = std::make_shared<CliProgress>(true);
@@ -226,6 +240,7 @@ int run_one_shard(const RunArgs& a) {
   const ShardSpec s = parse_shard("--shard", a.shard, kMaxShards);  // ParseError: exit 2
   const experiment::ExperimentSpec spec = experiment::load_spec(a.spec);
   check_distinct_outputs({{"SPEC", a.spec}}, {{"--out", (fs::path(a.out) / "shard.json").string()}});
+  check_inputs_outside(spec, a.out);
   if (fs::exists(a.out) && (!fs::is_directory(a.out) || !fs::is_empty(a.out)))
     throw UsageError(fmt::format("--out {}: a shard's directory must be new or empty", a.out));
   const std::uint64_t seed = a.seed != 0 ? a.seed : spec.seed;

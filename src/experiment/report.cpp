@@ -91,7 +91,7 @@ std::string status_section(const json& doc) {
   const bool partial = member(doc, "partial").get<bool>();
   std::string out = fmt::format("<h1>Experiment {}</h1>\n", esc(text_of(member(member(doc, "spec"), "name"))));
   if (partial)
-    out += "<p class=\"partial\">PARTIAL: the run was interrupted; running the same command again resumes it. "
+    out += "<p class=\"partial\">PARTIAL: the run was interrupted; running it again (microsim run SPEC --out DIR) resumes it. "
            "The values below are what the completed rounds measured.</p>\n";
   out += fmt::format("<p>All targets met (enough samples; the verdict above says what the tests found): <b "
                      "id=\"all-targets-met\">{}</b>; run time {} s.</p>\n",

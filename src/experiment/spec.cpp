@@ -13,6 +13,7 @@
 #include <fmt/core.h>
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <functional>
@@ -117,7 +118,11 @@ std::vector<std::pair<double, double>> material_alphas(const Table& t) {
   const Json& list = t.at("alphas");
   if (!list.is_array() || list.empty()) t.fail("alphas", "must be a non-empty array");
   std::vector<std::pair<double, double>> out;
-  for (const Json& item : list) out.push_back(alpha_item(t, "alphas", item));
+  for (const Json& item : list) {
+    out.push_back(alpha_item(t, "alphas", item));
+    if (std::find(out.begin(), out.end() - 1, out.back()) != out.end() - 1)  // decisions are named by their alpha
+      t.fail("alphas", fmt::format("alpha {},{} is given twice", out.back().first, out.back().second));
+  }
   return out;
 }
 
@@ -243,7 +248,12 @@ std::vector<Direction> read_directions(const SpecTable& t, bool from_inside_ok) 
       t.fail(theta_key, fmt::format("theta {} deg is {} (this quantity takes [0, 90){})", theta,
                                     theta >= 90 && theta <= 180 ? "at or below the horizon" : "not an angle of a view",
                                     from_inside_ok ? ", or (90, 180] from inside a dielectric" : ""));
-    for (double phi : t.has("phi") ? t.numbers("phi") : std::vector<double>{0.0}) out.push_back({theta, phi});
+    for (double phi : t.has("phi") ? t.numbers("phi") : std::vector<double>{0.0}) {
+      const auto same = [&](const Direction& d) { return d.theta_deg == theta && d.phi_deg == phi; };
+      if (std::any_of(out.begin(), out.end(), same))  // decisions are named by their view
+        t.fail(theta_key, fmt::format("the view theta {} phi {} is given twice", theta, phi));
+      out.push_back({theta, phi});
+    }
   }
   return out;
 }
@@ -318,6 +328,18 @@ ExperimentSpec load_spec(const std::filesystem::path& path) {
   text << in.rdbuf();
   if (path.extension() == ".json") return parse_spec_json(text.str(), path.string());
   return parse_spec_toml(text.str(), path.string());
+}
+
+std::vector<PathOption> spec_input_files(const ExperimentSpec& spec) {
+  std::vector<PathOption> files{{"SPEC", spec.source}};
+  for (const SpecQuantity& q : spec.quantities) {
+    if (!q.dump.empty()) files.push_back({q.key + ".dump", q.dump});
+    if (q.surface.kind == SurfaceChoice::Kind::heightmap) files.push_back({q.key + ".surface", q.surface.name});
+    for (const char* key : {"plugin", "dump", "eval", "cells"})
+      if (const auto it = q.settings.find(key); it != q.settings.end() && it->is_string() && !it->get<std::string>().empty())
+        files.push_back({q.key + "." + key, it->get<std::string>()});
+  }
+  return files;
 }
 
 }  // namespace microsim::experiment

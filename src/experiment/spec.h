@@ -30,6 +30,7 @@
 #pragma once
 
 #include "core/ndf_kind.h"
+#include "core/output_paths.h"
 #include "microfacet/bsdf_convention.h"
 #include "microfacet/material.h"
 
@@ -164,6 +165,10 @@ ExperimentSpec parse_spec_toml(std::string_view text, const std::string& source)
 ExperimentSpec parse_spec_json(std::string_view text, const std::string& source);
 // Reads a file: .json as JSON, anything else as TOML. Throws SpecError (an unreadable file is line 0).
 ExperimentSpec load_spec(const std::filesystem::path& path);
+
+// The files a spec reads, named by key ("SPEC", "quantity[2].dump", "quantity[0].plugin", a heightmap surface):
+// what a command writing files must never overwrite.
+std::vector<PathOption> spec_input_files(const ExperimentSpec& spec);
 
 // A canonical description of the spec's content (not its source or formatting): equal for equal specs,
 // whether written in TOML or JSON. results.json records its hash; a run refuses a directory holding another

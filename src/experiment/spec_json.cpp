@@ -4,6 +4,8 @@
 #include "experiment/spec_tree.h"
 
 #include <algorithm>
+#include <string>
+#include <vector>
 
 namespace microsim::experiment {
 namespace {
@@ -50,13 +52,32 @@ private:
   std::size_t cursor_ = 0;
 };
 
+// The parser's callback that refuses a key given twice in one object (nlohmann-json keeps the last silently; TOML
+// refuses it): SpecError naming the key.
+nlohmann::ordered_json::parser_callback_t refuse_repeated_keys(const std::string& source,
+                                                                std::vector<std::vector<std::string>>& open) {
+  using Event = nlohmann::ordered_json::parse_event_t;
+  return [&source, &open](int, Event event, nlohmann::ordered_json& parsed) {
+    if (event == Event::object_start) open.emplace_back();
+    if (event == Event::object_end && !open.empty()) open.pop_back();
+    if (event == Event::key && !open.empty()) {
+      const std::string key = parsed.get<std::string>();
+      if (std::find(open.back().begin(), open.back().end(), key) != open.back().end())
+        throw SpecError(source, 0, key, "given twice in one table (only one value can hold)");
+      open.back().push_back(key);
+    }
+    return true;
+  };
+}
+
 }  // namespace
 
 SpecTree json_tree(std::string_view text, const std::string& source) {
   SpecTree tree;
   tree.source = source;
   try {
-    tree.root = nlohmann::ordered_json::parse(text.begin(), text.end());
+    std::vector<std::vector<std::string>> open;
+    tree.root = nlohmann::ordered_json::parse(text.begin(), text.end(), refuse_repeated_keys(source, open));
   } catch (const nlohmann::json::parse_error& e) {
     throw SpecError(source, line_at(text, e.byte > 0 ? e.byte - 1 : 0), "(syntax)", e.what());
   }

@@ -368,6 +368,32 @@ TEST(ExperimentCli, ARejectedBsdfPluginFailsTheRunAndAMissingOneIsABadSpec) {
   fs::remove_all(dir);
 }
 
+// No file a spec reads is ever written: `plan --json` naming its dump, a spec or a dump inside `run --out` (where
+// the run writes its files) are exit 2 naming the key, and the files keep their bytes.
+TEST(ExperimentCli, NoFileTheSpecReadsIsOverwritten) {
+  const fs::path dir = scratch_dir("experiment", "inputs");
+  write_dumps(dir);
+  write(dir / "s.toml", dump_spec({"good.npy"}));
+  const std::string dump = slurp(dir / "good.npy");
+  const auto plan = run_cli(dir, "plan s.toml --json good.npy");
+  EXPECT_EQ(plan.exit_code, 2) << plan.err;
+  EXPECT_NE(plan.err.find("quantity[0].dump"), std::string::npos) << plan.err;
+  EXPECT_EQ(slurp(dir / "good.npy"), dump);
+  fs::create_directories(dir / "out");
+  fs::copy_file(dir / "good.npy", dir / "out" / "good.npy");
+  write(dir / "out" / "index.html", dump_spec({"good.npy"}));
+  const auto spec_inside = run_cli(dir, "run out/index.html --out out");
+  EXPECT_EQ(spec_inside.exit_code, 2) << spec_inside.err;
+  EXPECT_NE(spec_inside.err.find("lies inside --out"), std::string::npos) << spec_inside.err;
+  EXPECT_EQ(slurp(dir / "out" / "index.html"), dump_spec({"good.npy"}));
+  write(dir / "t.toml", dump_spec({"out/good.npy"}));
+  const auto dump_inside = run_cli(dir, "run t.toml --out out");
+  EXPECT_EQ(dump_inside.exit_code, 2) << dump_inside.err;
+  EXPECT_NE(dump_inside.err.find("quantity[0].dump"), std::string::npos) << dump_inside.err;
+  EXPECT_FALSE(fs::exists(dir / "out" / "results.json"));
+  fs::remove_all(dir);
+}
+
 TEST(ExperimentCli, APassingDumpPassesAndARunWithoutATestHasNoVerdict) {
   const fs::path dir = scratch_dir("experiment", "verdict_pass");
   write_dumps(dir);

@@ -164,6 +164,10 @@ INSTANTIATE_TEST_SUITE_P(
                 spec_with("alphas = [0.5, 0.1]\ntype = \"mirror\"", "kind = \"albedo\"\nmaterial = \"m\"\ntarget_relative_error = 0.01"),
                 "quantity[0].material", 10, "must increase"},
         BadSpec{"even_rows", spec_with(kMirror, kVndf + "\nrows = 30"), "quantity[0].rows", 13, "must be odd"},
+        BadSpec{"repeated_view", spec_with(kMirror, "kind = \"vndf\"\nmaterial = \"m\"\ntheta = [40, 40]\ntarget_tv = 0.1"),
+                "quantity[0].theta", 11, "theta 40 phi 0 is given twice"},
+        BadSpec{"repeated_alpha", spec_with("alphas = [0.3, 0.5, 0.3]\ntype = \"mirror\"", kVndf), "material[0].alphas", 5,
+                "alpha 0.3,0.3 is given twice"},
         BadSpec{"unknown_walk_kernel",
                 spec_with(kMirror, "kind = \"scattering\"\nmaterial = \"m\"\ntheta = [30]\ntarget_tv = 0.1\nwalk_kernel = \"gpu\""),
                 "quantity[0].walk_kernel", 13, "scalar or lanes"},
@@ -243,6 +247,21 @@ TEST(ExperimentSpec, JsonErrorsNameTheLineOfTheKey) {
   } catch (const SpecError& e) {
     EXPECT_EQ(e.key(), "quantity[0].target_tv");
     EXPECT_EQ(e.line(), 5) << e.what();
+  }
+}
+
+// A key given twice in one JSON object is refused (TOML refuses it too): the parser would keep the last silently.
+TEST(ExperimentSpec, AJsonKeyGivenTwiceIsASpecError) {
+  const std::string once = "{\"material\": [{\"name\": \"m\", \"alpha\": 0.3, \"type\": \"mirror\"}],\n"
+                           "\"quantity\": [{\"kind\": \"validation\", \"material\": \"m\", \"sampler\": \"ndf\", "
+                           "\"theta\": [30], \"detect_tv\": 0.05, \"significance\": 0.01";
+  EXPECT_NO_THROW(parse_spec_json(once + "}]}", "once.json"));
+  try {
+    parse_spec_json(once + ", \"significance\": 0.4}]}", "twice.json");
+    FAIL() << "accepted";
+  } catch (const SpecError& e) {
+    EXPECT_EQ(e.key(), "significance");
+    EXPECT_NE(std::string(e.what()).find("given twice"), std::string::npos) << e.what();
   }
 }
 
