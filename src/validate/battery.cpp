@@ -93,6 +93,8 @@ void PdfChecks::merge(const PdfChecks& o) {
   printed = printed || o.printed;
   weight_rounding += o.weight_rounding;
   weight_unbounded += o.weight_unbounded;
+  pdfs_checked += o.pdfs_checked;
+  pdfs_from_float += o.pdfs_from_float;
   if (o.pdf_worst > pdf_worst) {
     pdf_worst = o.pdf_worst;
     pdf_worst_index = o.pdf_worst_index;
@@ -214,6 +216,8 @@ private:
     const bool from_float =
         widened_ && (text ? off_float <= printed.pdf * (1 + 1e-6) : off_float <= kNineDigits * std::abs(pdf));
     const double tol = from_float ? float_tol_ : pdf_tol_;
+    ++c.pdfs_checked;
+    if (from_float) ++c.pdfs_from_float;
     // Printed digits: the direction moved by up to their half unit per component, the pdf by its own.
     const double rounding = std::max(text ? 2 * printed.direction : 0.0,
                                      from_float ? kFloatDirectionRounding : direction_rounding_);
@@ -568,9 +572,11 @@ SubTest weight_test(const Tally& tally, const ReferenceDistribution& ref, const 
   const double expected = ref.ggx.projected_area(ref.wi);
   // A text file's digits move the mean by at most this much: only the deviation beyond it is tested.
   const double printed = all.n > 0 ? tally.checks.weight_rounding / all.n : 0.0;
-  const double rounding = options.weight_rounding > 0 ? options.weight_rounding
-                          : precision == Precision::float32 ? 1e-5
-                                                            : 1e-9;
+  // Float32 data (a float32 file, or float32 values widened to float64 or printed so: every returned pdf) rounds
+  // its weights as float32 does.
+  const bool float_data = precision == Precision::float32 ||
+                          (tally.checks.pdfs_checked > 0 && tally.checks.pdfs_from_float == tally.checks.pdfs_checked);
+  const double rounding = options.weight_rounding > 0 ? options.weight_rounding : float_data ? 1e-5 : 1e-9;
   const double se_stat = all.n > 1 ? std::sqrt(all.m2 / (all.n - 1) / all.n) : 0.0;
   const double se = std::sqrt(se_stat * se_stat + (rounding * expected) * (rounding * expected));
   const double deviation = all.mean - expected;
