@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <span>
 #include <stdexcept>
 #include <vector>
@@ -106,14 +107,23 @@ std::string printed_directions_hint(const ValidationReport& r, const DirectionSa
   const bool binned_failed =
       std::any_of(r.binned.begin(), r.binned.end(), [&](const BinnedTest& b) { return b.chi2.p_value < r.per_test_significance; });
   if (samples.storage() != "text" || !binned_failed) return "";
-  double coarsest = 0;
-  reread_rows(samples, [&](std::span<const double>, const PrintedRounding& p) { coarsest = std::max(coarsest, p.direction); });
+  // The rounding most rows show: %g drops trailing zeros, so a row printing -0.5 says nothing of the digits kept.
+  std::map<double, std::uint64_t> roundings;
+  std::uint64_t read = 0;
+  reread_rows(samples, [&](std::span<const double>, const PrintedRounding& p) { ++roundings[p.direction], ++read; });
+  double typical = 0;
+  std::uint64_t seen = 0;
+  for (const auto& [rounding, count] : roundings)
+    if ((seen += count) * 2 >= read) {
+      typical = rounding;
+      break;
+    }
   const double bin = std::min(r.alpha_x, r.alpha_y) / rows;
-  if (!(coarsest >= 0.05 * bin)) return "";
-  return fmt::format("the directions are printed to within {:.1e} (half a unit in their last digit), {:.0f}% of a lobe "
-                     "bin's width at alpha {:g} (about alpha / rows = {:.1e}): their rounding alone can move samples "
-                     "between bins; print them with more digits (%.9g)",
-                     coarsest, 100 * coarsest / bin, std::min(r.alpha_x, r.alpha_y), bin);
+  if (!(typical >= 0.05 * bin)) return "";
+  return fmt::format("the directions are printed to within {:.1e} in most rows (half a unit in their last digit), "
+                     "{:.0f}% of a lobe bin's width at alpha {:g} (about alpha / rows = {:.1e}): their rounding alone "
+                     "can move samples between bins; print them with more digits (%.9g)",
+                     typical, 100 * typical / bin, std::min(r.alpha_x, r.alpha_y), bin);
 }
 
 // A rejected dump whose view is within 1.6 deg of the normal: a theta given in radians (at most pi / 2) where
