@@ -291,7 +291,16 @@ void time_validation(const ExperimentSpec& spec, const SpecQuantity& q, const Pl
 
 // A dump against its analytic reference: every row is tested, so the count is the file's rows and the TV they
 // detect follows from it; detect_tv, when the spec gives one, is a target those rows meet or not.
-void plan_dump_validation(const SpecQuantity& q, const PlanOptions& o, Decision& d) {
+// validation_samples for the quantity's detect_tv; a count no validation can draw is a SpecError naming the key.
+std::uint64_t planned_samples(const ExperimentSpec& spec, const SpecQuantity& q, const ValidationTests& tests) {
+  try {
+    return validation_samples(q.target, tests.dof, tests.level, q.power);
+  } catch (const std::invalid_argument& e) {
+    throw SpecError(spec.source, q.line, q.key + ".detect_tv", e.what());
+  }
+}
+
+void plan_dump_validation(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
   const ValidationTests tests = validation_tests(q.rows, q.significance);
   d.units = dump_rows(q, o.run);
   d.unit = "samples";
@@ -301,7 +310,7 @@ void plan_dump_validation(const SpecQuantity& q, const PlanOptions& o, Decision&
                                "TV^2)", d.units, std::filesystem::path(q.dump).filename().string(), detected, q.power,
                                tests.level, q.significance, tests.dof);
   if (q.target > 0) {
-    const std::uint64_t needed = validation_samples(q.target, tests.dof, tests.level, q.power);
+    const std::uint64_t needed = planned_samples(spec, q, tests);
     d.count_reason += fmt::format("; detect_tv {} needs {} rows: {}", q.target, needed,
                                   d.units >= needed ? "the dump has them" : "the dump has fewer (target not met)");
   } else {
@@ -311,13 +320,13 @@ void plan_dump_validation(const SpecQuantity& q, const PlanOptions& o, Decision&
 }
 
 void plan_validation_view(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
-  if (!q.dump.empty()) return plan_dump_validation(q, o, d);
+  if (!q.dump.empty()) return plan_dump_validation(spec, q, o, d);
   const ValidationTests tests = validation_tests(q.rows, q.significance);
-  d.units = validation_samples(q.target, tests.dof, tests.level, q.power);
+  d.units = planned_samples(spec, q, tests);
   d.unit = "samples";
   d.count_reason = fmt::format("chi-square power: df {}, level {:.3g} per binning (Sidak of {}), power {} against any "
-                               "deviation of TV {} (noncentrality >= 4 N TV^2)", tests.dof, tests.level, q.significance,
-                               q.power, q.target);
+                               "deviation of TV {} (noncentrality >= 4 N TV^2), at least 5 samples per cell",
+                               tests.dof, tests.level, q.significance, q.power, q.target);
   time_validation(spec, q, o, d);
   d.runnable = true;
 }
@@ -352,7 +361,7 @@ void plan_heightfield_validation(const ExperimentSpec& spec, const SpecQuantity&
       vndf_request(spec, d, o.pilot_rays, derived_seed(plan_seed(spec, o), kVndfPilot, d.quantity), o.run));
   if (pilot.trace.partial) throw Cancelled("plan: validation pilot on the tile");
   const std::uint64_t minimum = 2 * trace_minimum_samples(pilot.histogram);
-  d.units = std::max(2 * validation_samples(q.target, tests.dof, tests.level, q.power), minimum);
+  d.units = std::max(2 * planned_samples(spec, q, tests), minimum);
   d.unit = "samples";
   d.count_reason = fmt::format("two-sample chi-square against as many rays traced on the tile: power {} at level {:.3g} "
                                "per binning (Sidak of {}), df {}, against any deviation of TV {}: twice the one-sample "

@@ -83,7 +83,9 @@ std::optional<int> order_cap_for(const std::vector<CapProbe>& probes, double thr
 // of total variation `detect_tv` with probability `power`. Any such deviation has a noncentrality
 // lambda = N sum (q - p)^2 / p >= N (sum |q - p|)^2 = 4 N tv^2 (Cauchy-Schwarz, sum p = 1), so N =
 // lambda_needed / (4 tv^2), lambda_needed from the noncentral chi-square (Boost.Math): the count at which the
-// least detectable deviation of that size is still detected. Pure.
+// least detectable deviation of that size is still detected. At least 5 per cell of the binning on average
+// (2 rows^2 cells for df = 2 rows^2 - 1): fewer leave the chi-square too few cells to reject with. Pure; throws
+// std::invalid_argument when more than kMaxSamples are needed.
 std::uint64_t validation_samples(double detect_tv, int degrees_of_freedom, double significance, double power);
 // The inverse: the smallest TV deviation `samples` samples detect with that power at that level,
 // sqrt(lambda_needed / (4 N)) (a dump's rows are given: they fix it). Pure; throws std::invalid_argument as

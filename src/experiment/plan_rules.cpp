@@ -85,7 +85,11 @@ std::uint64_t validation_samples(double detect_tv, int degrees_of_freedom, doubl
   if (!(detect_tv > 0 && detect_tv < 1))
     throw std::invalid_argument(fmt::format("validation_samples: tv {}, df {}, significance {}, power {}", detect_tv,
                                             degrees_of_freedom, significance, power));
-  return std::uint64_t(std::ceil(needed_noncentrality(degrees_of_freedom, significance, power) / (4 * detect_tv * detect_tv)));
+  const double needed = std::ceil(needed_noncentrality(degrees_of_freedom, significance, power) / (4 * detect_tv * detect_tv));
+  if (!(needed <= double(kMaxSamples)))
+    throw std::invalid_argument(fmt::format("detect_tv {} needs {:.3g} samples, more than the {:.0e} a validation can "
+                                            "draw", detect_tv, needed, double(kMaxSamples)));
+  return std::max(std::uint64_t(needed), 5 * std::uint64_t(degrees_of_freedom + 1));
 }
 
 double detectable_tv(std::uint64_t samples, int degrees_of_freedom, double significance, double power) {

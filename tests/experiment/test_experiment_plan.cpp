@@ -85,6 +85,27 @@ TEST(ExperimentPlan, ValidationSamplesGiveThePowerAtTheWorstDeviation) {
     }
   EXPECT_GT(validation_samples(0.001, 100, 0.01, 0.9), validation_samples(0.002, 100, 0.01, 0.9));
   EXPECT_THROW(detectable_tv(0, 100, 0.01, 0.9), std::invalid_argument);
+  // A TV so large that a handful of samples would "detect" it: at least 5 per cell (df + 1 cells), or the
+  // chi-square has too few cells left to reject with (the run stopped on it, after other work); a TV so small
+  // that no validation can draw its samples is refused, not rounded past 2^64.
+  EXPECT_EQ(validation_samples(0.99, 17, 0.01, 0.9), 90u);
+  EXPECT_THROW(validation_samples(1e-9, 241, 0.01, 0.9), std::invalid_argument);
+}
+
+// A validation whose detect_tv needs more samples than any validation draws is a spec error naming the key, at
+// plan time (before anything runs).
+TEST(ExperimentPlan, AnImpossibleDetectTvIsASpecErrorNamingTheKey) {
+  const ExperimentSpec spec = parse_spec_toml("[[material]]\nname = \"m\"\nalpha = 0.3\ntype = \"mirror\"\n"
+                                              "[[quantity]]\nkind = \"validation\"\nmaterial = \"m\"\n"
+                                              "sampler = \"heitz2018\"\ntheta = [40]\nrows = 11\ndetect_tv = 1e-9\n",
+                                              "tiny.toml");
+  try {
+    plan_experiment(spec, PlanOptions{});
+    FAIL() << "planned";
+  } catch (const SpecError& e) {
+    EXPECT_EQ(e.key(), "quantity[0].detect_tv") << e.what();
+    EXPECT_NE(std::string(e.what()).find("more than the 1e+12"), std::string::npos) << e.what();
+  }
 }
 
 TEST(ExperimentPlan, PooledRoundsAreTheRunOfAllTheirUnits) {
