@@ -68,12 +68,8 @@ void check_claims(const BsdfPlugin& plugin, const BatteryOptions& o, const std::
   if (o.reference == BatteryReference::single_scattering && (plugin.stochastic_eval() || !plugin.has_pdf()))
     throw UsageError("--reference single-scattering needs a deterministic eval() and a pdf(): the plugin declares a "
                      "stochastic eval or has no pdf (--reference smith-walk or none)");
-  if (plugin.under_test().convention.normals == SampledNormals::ndf && m.transmits())
-    throw UsageError(fmt::format("--plugin declares its normals sampled from D(m) cos (MICROSIM_BSDF_NDF_SAMPLING) and "
-                                 "--bsdf {} is a dielectric: its weights are heavy-tailed (~ 1 / m.z near the horizon) "
-                                 "and the battery cannot judge them; test its directions and pdfs with `microsim "
-                                 "validate --from DUMP --sampling ndf` (weight columns left out) and its eval() with "
-                                 "check-eval", bsdf));
+  if (const std::string why = battery_refusal(m, plugin.sampled_normals()); !why.empty())
+    throw UsageError(fmt::format("--plugin declares MICROSIM_BSDF_NDF_SAMPLING, --bsdf {}: {}", bsdf, why));
 }
 
 BatteryReference reference_option(const std::string& text) {
@@ -138,7 +134,8 @@ CommandRegistration check_bsdf_registration{"check-bsdf", [](CLI::App& app) {
       "values; and against itself per view: its directions against its pdf(), its weighted samples against the "
       "integral of its eval() per cell, the white furnace (mean weight against the integral of eval cos). The views: "
       "theta 0, 30, 60, 80, 89.9 deg (120, 150 from inside a dielectric; 89.9 left out for a plugin sampling its "
-      "normals from D(m) cos), and for an anisotropic --alpha theta 60, 80 (120) at phi 30 and 60 too. Exit 0 passed, 1 rejected, 2 bad usage or a plugin that cannot be loaded.");
+      "normals from D(m) cos), and for an anisotropic --alpha theta 60, 80 (120) at phi 30 and 60 too. Exit 0 "
+      "passed, 1 rejected, 2 bad usage or a plugin that cannot be loaded.");
   sub->add_option("--plugin", a->plugin, "the shared library (.so) defining microsim_bsdf_plugin_entry")->required();
   sub->add_option("--param", a->params, "a key=value parameter passed to the plugin's create() (repeatable)");
   sub->add_option("--bsdf", a->bsdf, "the BSDF it claims: mirror, conductor:ETA,K or dielectric:ETA")->required();

@@ -29,10 +29,9 @@ struct PlanArgs {
 };
 
 int run_plan(const PlanArgs& a) {
-  check_distinct_outputs({{"SPEC", a.spec}}, {{"--json", a.json}});
   check_output("--json", a.json);
   const experiment::ExperimentSpec spec = experiment::load_spec(a.spec);  // SpecError: exit 2, nothing run
-  check_distinct_outputs(experiment::spec_input_files(spec), {{"--json", a.json}});  // the dumps, plugins...
+  check_distinct_outputs(experiment::spec_input_files(spec), {{"--json", a.json}});  // the spec, dumps, plugins...
   const auto progress = std::make_shared<CliProgress>(true);
   experiment::PlanOptions options;
   options.seed = a.seed;

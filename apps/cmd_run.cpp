@@ -122,8 +122,6 @@ experiment::ExperimentPlan plan_or_shards(const RunArgs& a, const experiment::Ex
   return plan;
 }
 
-// The run on the root (alone, or rank 0 of an MPI job: `ranks` then serve its rounds). `plan_sent`: whether
-// the other ranks got the plan (after that, an error must abort the job: they may be inside a round).
 // The run writes its files under --out (results, report, figures, surfaces, parts): no file the spec reads may
 // lie there. UsageError naming the spec's key.
 void check_inputs_outside(const experiment::ExperimentSpec& spec, const std::string& out) {
@@ -136,6 +134,8 @@ void check_inputs_outside(const experiment::ExperimentSpec& spec, const std::str
   }
 }
 
+// The run on the root (alone, or rank 0 of an MPI job: `ranks` then serve its rounds). `plan_sent`: whether
+// the other ranks got the plan (after that, an error must abort the job: they may be inside a round).
 int run_experiment_command(const RunArgs& a, experiment::Ranks& ranks, bool& plan_sent) {
   const experiment::ExperimentSpec spec = experiment::load_spec(a.spec);  // SpecError: exit 2, nothing run
   check_distinct_outputs({{"SPEC", a.spec}}, {{"--out", (fs::path(a.out) / "results.json").string()}});

@@ -344,7 +344,7 @@ private:
               MeasurementResult& m) const {
     const std::size_t views =
         o.views.empty() ? battery_views(material().facet, GGX<double>(decision_.alpha.first, decision_.alpha.second),
-                                        plugin.under_test().convention.normals).size()
+                                        plugin.sampled_normals()).size()
                         : o.views.size();
     nlohmann::json j = to_json(r);
     j.update({{"plugin", quantity_.settings.at("plugin")}, {"name", plugin.name()}, {"params", quantity_.settings.at("params")},

@@ -289,8 +289,6 @@ void time_validation(const ExperimentSpec& spec, const SpecQuantity& q, const Pl
   d.predicted_seconds = reference_seconds + predicted_seconds(d.units, pilot, tally_seconds);
 }
 
-// A dump against its analytic reference: every row is tested, so the count is the file's rows and the TV they
-// detect follows from it; detect_tv, when the spec gives one, is a target those rows meet or not.
 // validation_samples for the quantity's detect_tv; a count no validation can draw is a SpecError naming the key.
 std::uint64_t planned_samples(const ExperimentSpec& spec, const SpecQuantity& q, const ValidationTests& tests) {
   try {
@@ -300,6 +298,8 @@ std::uint64_t planned_samples(const ExperimentSpec& spec, const SpecQuantity& q,
   }
 }
 
+// A dump against its analytic reference: every row is tested, so the count is the file's rows and the TV they
+// detect follows from it; detect_tv, when the spec gives one, is a target those rows meet or not.
 void plan_dump_validation(const ExperimentSpec& spec, const SpecQuantity& q, const PlanOptions& o, Decision& d) {
   const ValidationTests tests = validation_tests(q.rows, q.significance);
   d.units = dump_rows(q, o.run);

@@ -54,10 +54,10 @@ private:
 
 // The parser's callback that refuses a key given twice in one object (nlohmann-json keeps the last silently; TOML
 // refuses it): SpecError naming the key.
-nlohmann::ordered_json::parser_callback_t refuse_repeated_keys(const std::string& source,
-                                                                std::vector<std::vector<std::string>>& open) {
+nlohmann::ordered_json::parser_callback_t refuse_repeated_keys(const std::string& source) {
   using Event = nlohmann::ordered_json::parse_event_t;
-  return [&source, &open](int, Event event, nlohmann::ordered_json& parsed) {
+  return [&source, open = std::vector<std::vector<std::string>>()](int, Event event,
+                                                                    nlohmann::ordered_json& parsed) mutable {
     if (event == Event::object_start) open.emplace_back();
     if (event == Event::object_end && !open.empty()) open.pop_back();
     if (event == Event::key && !open.empty()) {
@@ -76,8 +76,7 @@ SpecTree json_tree(std::string_view text, const std::string& source) {
   SpecTree tree;
   tree.source = source;
   try {
-    std::vector<std::vector<std::string>> open;
-    tree.root = nlohmann::ordered_json::parse(text.begin(), text.end(), refuse_repeated_keys(source, open));
+    tree.root = nlohmann::ordered_json::parse(text.begin(), text.end(), refuse_repeated_keys(source));
   } catch (const nlohmann::json::parse_error& e) {
     throw SpecError(source, line_at(text, e.byte > 0 ? e.byte - 1 : 0), "(syntax)", e.what());
   }

@@ -238,6 +238,13 @@ std::vector<BatteryView> battery_views(const Material& m, const GGX<double>& ggx
   return v;
 }
 
+std::string battery_refusal(const Material& claimed, SampledNormals normals) {
+  if (!claimed.transmits() || normals != SampledNormals::ndf) return "";
+  return "a dielectric sampling its normals from D(m) cos has heavy-tailed weights (~ 1 / m.z near the horizon), which "
+         "the battery's weight tests cannot judge: test its directions and pdfs with `microsim validate --from DUMP "
+         "--sampling ndf` (its weight columns left out) and its eval() with check-eval";
+}
+
 std::string view_label(const BatteryView& v) {
   return v.phi == 0 ? fmt::format("{:g} deg", v.theta) : fmt::format("{:g} deg phi {:g}", v.theta, v.phi);
 }
@@ -251,11 +258,8 @@ BatteryReport run_bsdf_battery(const BsdfUnderTest& bsdf, const Material& claime
   const bool exact = options.reference == BatteryReference::single_scattering;
   if (exact && (bsdf.stochastic_eval || !bsdf.pdf))
     throw std::invalid_argument("the exact single-scattering reference needs a deterministic eval() and a pdf()");
-  if (claimed.transmits() && bsdf.convention.normals == SampledNormals::ndf)
-    throw std::invalid_argument(
-        "a dielectric sampling its normals from D(m) cos has heavy-tailed weights (~ 1 / m.z near the horizon), which "
-        "the battery's weight tests cannot judge: test its directions and pdfs with `microsim validate --from DUMP "
-        "--sampling ndf` (its weight columns left out) and its eval() with check-eval");
+  if (const std::string why = battery_refusal(claimed, bsdf.convention.normals); !why.empty())
+    throw std::invalid_argument(why);
   const std::vector<BatteryView> views = options.views.empty() ? battery_views(claimed, ggx, bsdf.convention.normals) : options.views;
   check_views(claimed, views);
   const int statistical = int(views.size()) * view_tests(bsdf, options) +

@@ -74,6 +74,10 @@ std::vector<BatteryView> battery_views(const Material& m, const GGX<double>& ggx
 // "60 deg" at phi 0, else "60 deg phi 30".
 std::string view_label(const BatteryView& v);
 
+// Why the battery cannot judge a BSDF claiming `claimed` whose sample() draws its normals as `normals` ("" when it
+// can): a dielectric sampling D(m) cos has weights too heavy-tailed for the weight tests.
+std::string battery_refusal(const Material& claimed, SampledNormals normals);
+
 struct BatteryOptions {
   std::uint64_t samples = 200'000;  // per view
   std::uint64_t seed = 1;

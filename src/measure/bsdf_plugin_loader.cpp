@@ -63,6 +63,9 @@ std::string BsdfPlugin::name() const { return loaded_->api->name ? loaded_->api-
 int BsdfPlugin::channels() const { return loaded_->api->channels; }
 bool BsdfPlugin::stochastic_eval() const { return (loaded_->flags() & MICROSIM_BSDF_STOCHASTIC_EVAL) != 0; }
 bool BsdfPlugin::has_pdf() const { return loaded_->api->pdf != nullptr; }
+SampledNormals BsdfPlugin::sampled_normals() const {
+  return (loaded_->flags() & MICROSIM_BSDF_NDF_SAMPLING) ? SampledNormals::ndf : SampledNormals::visible;
+}
 
 BsdfUnderTest BsdfPlugin::under_test() const {
   const Loaded& p = *loaded_;
@@ -70,8 +73,7 @@ BsdfUnderTest BsdfPlugin::under_test() const {
   b.name = name();
   b.channels = p.api->channels;
   b.convention = {p.api->transport == 1 ? TransportMode::importance : TransportMode::radiance,
-                  p.api->masking == 1 ? MaskingForm::separable : MaskingForm::height_correlated,
-                  (p.flags() & MICROSIM_BSDF_NDF_SAMPLING) ? SampledNormals::ndf : SampledNormals::visible};
+                  p.api->masking == 1 ? MaskingForm::separable : MaskingForm::height_correlated, sampled_normals()};
   b.stochastic_eval = stochastic_eval();
   const std::size_t c = std::size_t(b.channels);
   b.sample = [&p, c](std::span<const Vec3<double>> wi, std::span<const double> u, std::span<Vec3<double>> wo,

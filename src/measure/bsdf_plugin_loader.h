@@ -37,6 +37,7 @@ public:
   int channels() const;
   bool stochastic_eval() const;  // ABI 2's flag: eval() an unbiased noisy estimate
   bool has_pdf() const;          // a closed-form pdf() (ABI 2 may leave it NULL)
+  SampledNormals sampled_normals() const;  // ABI 2's flag: the normals sample() draws (D(m) cos or visible)
   // The BSDF under test, each row one call from the calling thread; it refers to this plugin, which must outlive it.
   BsdfUnderTest under_test() const;
 
