@@ -250,6 +250,8 @@ std::unique_ptr<BsdfPlugin> load_quantity_plugin(const SpecQuantity& q, const Sp
   if (battery_reference(q.settings) == BatteryReference::single_scattering && (plugin->stochastic_eval() || !plugin->has_pdf()))
     throw std::invalid_argument(fmt::format("{}.reference: single-scattering needs a deterministic eval() and a pdf(): the "
                                             "plugin declares a stochastic eval or has no pdf (smith-walk or none)", q.key));
+  if (const std::string why = battery_refusal(m.facet, plugin->sampled_normals()); !why.empty())
+    throw std::invalid_argument(fmt::format("{}.plugin: declares MICROSIM_BSDF_NDF_SAMPLING: {}", q.key, why));
   return plugin;
 }
 
@@ -413,7 +415,8 @@ static void plan_bsdf_quantity(const ExperimentSpec& spec, std::size_t index, co
                         std::filesystem::path(q.settings.at("plugin").get<std::string>()).filename().string());
   d.model = choose_model(q, m);
   const std::size_t views = q.settings.at("views").empty()
-                                ? battery_views(m.facet, GGX<double>(d.alpha.first, d.alpha.second)).size()
+                                ? battery_views(m.facet, GGX<double>(d.alpha.first, d.alpha.second),
+                                                plugin->sampled_normals()).size()
                                 : q.settings.at("views").size();
   const std::uint64_t samples = q.settings.at("samples").get<std::uint64_t>();
   d.units = samples * views;

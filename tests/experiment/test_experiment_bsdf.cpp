@@ -96,6 +96,39 @@ TEST(ExperimentBsdf, APlanReadBackKeepsTheAlphaAndTheVerdict) {
   EXPECT_EQ(run_verdict(r).verdict, Verdict::pass);
 }
 
+// A plugin drawing its normals from D(m) cos (its flag): as check-bsdf tests it, the plan counts the grid without
+// 89.9 deg and the run passes a conductor; a dielectric so sampled is refused at plan time naming the key.
+TEST(ExperimentBsdf, APluginSamplingTheNdfIsPlannedAndRunAsCheckBsdfRunsIt) {
+  const ExperimentSpec gold = parse_spec_toml(fmt::format(R"(
+seed = 7
+[[material]]
+name = "gold"
+alpha = 0.3
+type = "conductor"
+eta = 0.2
+k = 3.9
+[[quantity]]
+kind = "bsdf"
+material = "gold"
+plugin = "{}"
+params = {{ kind = "conductor", alpha = 0.3, eta = 0.2, k = 3.9 }}
+samples = 20000
+)", MICROSIM_PLUGIN_NDF), "gold.toml");
+  const ExperimentPlan plan = plan_experiment(gold, PlanOptions{});
+  EXPECT_EQ(plan.decisions.at(0).units, 4u * 20000u);  // theta 0, 30, 60, 80
+  const ExperimentResults r = run_experiment(gold, plan, RunOptions{});
+  EXPECT_EQ(run_verdict(r).verdict, Verdict::pass);
+  EXPECT_NE(r.measurements.at(0).values.at("battery").at("convention").get<std::string>().find("D(m) cos"),
+            std::string::npos);
+  try {
+    plan_experiment(plugin_spec(MICROSIM_PLUGIN_NDF), PlanOptions{});
+    FAIL() << "a dielectric sampling D(m) cos was planned";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("quantity[0].plugin: declares MICROSIM_BSDF_NDF_SAMPLING"), std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(ExperimentBsdf, AMissingPluginIsABadSpecAndARefusedOneStopsThePlan) {
   try {
     plugin_spec("no-such-plugin.so");
