@@ -14,15 +14,15 @@ namespace {
 
 using namespace svg;
 
-constexpr double kMargin = 50, kGap = 45, kHeader = 60, kRowGap = 110, kResidualClip = 4;
+constexpr double kScatterMargin = 50, kScatterGap = 45, kScatterHeader = 60, kScatterRowGap = 110, kScatterResidualClip = 4;
 
-struct Layout {
+struct ScatterLayout {
   double panel_width = 0, width = 0, height = 0;
   std::vector<double> row_y;  // top of each row's maps
 };
 
-Layout layout(const DirectionBinning& b, const std::vector<ScatterFigureRow>& rows, std::size_t subtitle_lines) {
-  Layout l;
+ScatterLayout layout(const DirectionBinning& b, const std::vector<ScatterFigureRow>& rows, std::size_t subtitle_lines) {
+  ScatterLayout l;
   std::size_t panels = 1;
   for (const ScatterFigureRow& r : rows) {
     panels = std::max(panels, r.lobes.size() + r.residuals.size());
@@ -34,49 +34,49 @@ Layout layout(const DirectionBinning& b, const std::vector<ScatterFigureRow>& ro
   }
   l.panel_width = panels > 4 ? 240 : 300;
   const double cell = l.panel_width / b.cols();
-  double y = kHeader + 17.0 * (double(subtitle_lines) - 1) + 25;
+  double y = kScatterHeader + 17.0 * (double(subtitle_lines) - 1) + 25;
   for (std::size_t k = 0; k < rows.size(); ++k) {
     l.row_y.push_back(y + 20);
-    y += 20 + b.rows() * cell + kRowGap;
+    y += 20 + b.rows() * cell + kScatterRowGap;
   }
   l.height = y;
-  l.width = kMargin + double(panels) * (l.panel_width + kGap) + 20;
+  l.width = kScatterMargin + double(panels) * (l.panel_width + kScatterGap) + 20;
   return l;
 }
 
 std::string residual_color(double r) {
   if (std::isnan(r)) return "#c8c8c8";
-  return color_at(kDiverging, 0.5 + std::clamp(r, -kResidualClip, kResidualClip) / (2 * kResidualClip));
+  return color_at(kDiverging, 0.5 + std::clamp(r, -kScatterResidualClip, kScatterResidualClip) / (2 * kScatterResidualClip));
 }
 
 // One order: the lobes on one sequential scale, then the residual maps.
-std::string figure_row(const ScatterFigureRow& row, const DirectionBinning& b, const Layout& l, double y) {
+std::string figure_row(const ScatterFigureRow& row, const DirectionBinning& b, const ScatterLayout& l, double y) {
   const double cell = l.panel_width / b.cols();
   double scale = 0;
   for (const BinMap& m : row.lobes)
     for (double v : m.values)
       if (std::isfinite(v)) scale = std::max(scale, v);
-  std::string svg = fmt::format(R"(<text x="{}" y="{}" font-size="14" font-weight="bold">{}</text>)", kMargin, y - 28,
+  std::string svg = fmt::format(R"(<text x="{}" y="{}" font-size="14" font-weight="bold">{}</text>)", kScatterMargin, y - 28,
                                 escape(row.title));
-  double x = kMargin;
+  double x = kScatterMargin;
   for (const BinMap& m : row.lobes) {
     const Panel p{x, y, b.rows(), b.cols(), cell};
     svg += cell_map(p, [&](int i) { return color_at(kSequential, m.values[std::size_t(i)] / scale); });
     svg += axes(p, b, m.label);
-    x += l.panel_width + kGap;
+    x += l.panel_width + kScatterGap;
   }
   const double bar_y = y + b.rows() * cell + 36;
-  svg += colorbar(kMargin, bar_y, x - kGap - kMargin, "sequential", "0", fmt::format("{:.4g}", scale),
+  svg += colorbar(kScatterMargin, bar_y, x - kScatterGap - kScatterMargin, "sequential", "0", fmt::format("{:.4g}", scale),
                   "weight per launched path per bin");
   const double residual_x = x;
   for (const BinMap& m : row.residuals) {
     const Panel p{x, y, b.rows(), b.cols(), cell};
     svg += cell_map(p, [&](int i) { return residual_color(m.values[std::size_t(i)]); });
     svg += axes(p, b, m.label);
-    x += l.panel_width + kGap;
+    x += l.panel_width + kScatterGap;
   }
   if (!row.residuals.empty())
-    svg += colorbar(residual_x, bar_y, x - kGap - residual_x, "diverging", "-4", "+4",
+    svg += colorbar(residual_x, bar_y, x - kScatterGap - residual_x, "diverging", "-4", "+4",
                     "shape residual / sigma (grey: too few entries)");
   return svg + "\n";
 }
@@ -86,8 +86,8 @@ std::string figure_row(const ScatterFigureRow& row, const DirectionBinning& b, c
 std::string scatter_figure_svg(const std::string& title, const std::string& subtitle, const DirectionBinning& binning,
                                const std::vector<ScatterFigureRow>& rows) {
   const std::vector<std::string> lines = subtitle_lines(subtitle);
-  const Layout l = layout(binning, rows, lines.size());
-  std::string svg = document_header(l.width, l.height, kMargin, title, lines);
+  const ScatterLayout l = layout(binning, rows, lines.size());
+  std::string svg = document_header(l.width, l.height, kScatterMargin, title, lines);
   for (std::size_t k = 0; k < rows.size(); ++k) svg += figure_row(rows[k], binning, l, l.row_y[k]);
   return svg + "</svg>\n";
 }
