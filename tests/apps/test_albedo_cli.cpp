@@ -19,6 +19,9 @@
 #include <string>
 #include <vector>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_albedo_cli {
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -381,3 +384,5 @@ INSTANTIATE_TEST_SUITE_P(Cases, BadInputsAlbedo, ::testing::ValuesIn(albedo_cli_
                          [](const auto& info) { return info.param.name; });
 
 }  // namespace
+
+}  // namespace test_albedo_cli

@@ -11,6 +11,9 @@
 #include <cstring>
 #include <vector>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_bad_inputs_files {
+
 namespace {
 
 using microsim::test::BadInputCase;
@@ -152,3 +155,5 @@ INSTANTIATE_TEST_SUITE_P(Readers, BadInputsFiles, ::testing::ValuesIn(files_case
                          [](const auto& info) { return info.param.name; });
 
 }  // namespace
+
+}  // namespace test_bad_inputs_files

@@ -8,6 +8,9 @@
 
 #include <vector>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_bad_inputs_masking_shard {
+
 namespace {
 
 using microsim::test::BadInputCase;
@@ -89,3 +92,5 @@ INSTANTIATE_TEST_SUITE_P(Cases, BadMaskingShardInput, ::testing::ValuesIn(maskin
                          [](const auto& info) { return info.param.name; });
 
 }  // namespace
+
+}  // namespace test_bad_inputs_masking_shard

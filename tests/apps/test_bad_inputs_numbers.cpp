@@ -15,6 +15,9 @@
 #include <string>
 #include <vector>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_bad_inputs_numbers {
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -288,3 +291,5 @@ TEST(BadNumbersBinning, RowsBeyondTheMaximumAreRejected) {
 }
 
 }  // namespace
+
+}  // namespace test_bad_inputs_numbers

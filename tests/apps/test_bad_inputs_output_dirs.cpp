@@ -9,6 +9,9 @@
 
 #include <vector>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_bad_inputs_output_dirs {
+
 namespace {
 
 using microsim::test::BadInputCase;
@@ -57,3 +60,5 @@ INSTANTIATE_TEST_SUITE_P(Cases, OutputThatCannotBeCreated, ::testing::ValuesIn(o
                          [](const auto& info) { return info.param.name; });
 
 }  // namespace
+
+}  // namespace test_bad_inputs_output_dirs

@@ -22,6 +22,9 @@
 #include <string>
 #include <vector>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_bad_inputs_outputs {
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -259,3 +262,5 @@ TEST(AtomicFile, TemporariesAreNewSiblingsAndLeaveNothing) {
 }
 
 }  // namespace
+
+}  // namespace test_bad_inputs_outputs

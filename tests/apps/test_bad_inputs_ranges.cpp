@@ -11,6 +11,9 @@
 #include <string>
 #include <vector>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_bad_inputs_ranges {
+
 namespace {
 
 using microsim::test::BadInputCase;
@@ -126,3 +129,5 @@ TEST(RangeEdges, LibraryRuleEdgesMeetTheNdfCheckOverSeeds) {
 }
 
 }  // namespace
+
+}  // namespace test_bad_inputs_ranges

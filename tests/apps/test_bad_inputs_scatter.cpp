@@ -12,6 +12,9 @@
 
 #include <fstream>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_bad_inputs_scatter {
+
 namespace {
 
 using microsim::test::BadInputCase;
@@ -142,3 +145,5 @@ INSTANTIATE_TEST_SUITE_P(Cases, BadInputsScatter, ::testing::ValuesIn(scatter_ca
                          [](const auto& info) { return info.param.name; });
 
 }  // namespace
+
+}  // namespace test_bad_inputs_scatter

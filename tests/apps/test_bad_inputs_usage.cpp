@@ -8,6 +8,9 @@
 #include <string>
 #include <vector>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_bad_inputs_usage {
+
 namespace {
 
 using microsim::test::BadInputCase;
@@ -59,3 +62,5 @@ TEST_P(BadUsage, ExitTwoNamingTheWordAndWritingNothing) { microsim::test::expect
 INSTANTIATE_TEST_SUITE_P(Usage, BadUsage, ::testing::ValuesIn(usage_cases()), [](const auto& info) { return info.param.name; });
 
 }  // namespace
+
+}  // namespace test_bad_inputs_usage

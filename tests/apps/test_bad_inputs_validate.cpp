@@ -10,6 +10,9 @@
 #include <string>
 #include <vector>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_bad_inputs_validate {
+
 using microsim::test::BadInputCase;
 using microsim::test::expect_bad_input;
 namespace fs = std::filesystem;
@@ -70,3 +73,5 @@ INSTANTIATE_TEST_SUITE_P(TooFewSamples, BadInputsValidate, ::testing::ValuesIn(t
                          [](const ::testing::TestParamInfo<BadInputCase>& i) { return i.param.name; });
 
 }  // namespace
+
+}  // namespace test_bad_inputs_validate

@@ -9,6 +9,9 @@
 #include <fstream>
 #include <vector>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_bad_inputs_validate_shard {
+
 namespace {
 
 using microsim::test::BadInputCase;
@@ -103,3 +106,5 @@ INSTANTIATE_TEST_SUITE_P(Cases, BadValidateShardInput, ::testing::ValuesIn(valid
                          [](const auto& info) { return info.param.name; });
 
 }  // namespace
+
+}  // namespace test_bad_inputs_validate_shard

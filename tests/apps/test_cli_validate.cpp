@@ -20,6 +20,9 @@
 #include <sstream>
 #include <string>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_cli_validate {
+
 using namespace microsim;
 namespace fs = std::filesystem;
 
@@ -474,3 +477,5 @@ TEST(CliValidate, PlotWritesAFigureAndRejectsBadPaths) {
   EXPECT_EQ(run("--all --plot '" + (dir / "all.svg").string() + "'").exit_code, 2);
   EXPECT_FALSE(fs::exists(dir / "all.svg"));
 }
+
+}  // namespace test_cli_validate

@@ -24,6 +24,9 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_experiment_cli {
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -458,8 +461,8 @@ struct BsdfDumpCase {
 
 void expect_bsdf_dump_verdicts(const char* name, const std::vector<BsdfDumpCase>& cases) {
   const fs::path dir = scratch_dir("experiment", name);
-  const GGX<double> ggx(0.3, 0.3);
-  const Vec3<double> wi = direction_from_degrees(50.0, 0.0);
+  const microsim::GGX<double> ggx(0.3, 0.3);
+  const microsim::Vec3<double> wi = microsim::direction_from_degrees(50.0, 0.0);
   microsim::test::write_bsdf_dump(dir / "radiance.txt", "dielectric_vndf", ggx, 1.5, wi, 50000);
   microsim::test::write_bsdf_dump(dir / "importance.txt", "dielectric_vndf_importance", ggx, 1.5, wi, 50000);
   microsim::test::write_bsdf_dump(dir / "twice.txt", "diel_eta2_twice", ggx, 1.5, wi, 50000);
@@ -536,3 +539,5 @@ TEST(ExperimentCli, AnInterruptedRunKeepsItsRejectionAndTheResumedRunExits1) {
 }
 
 }  // namespace
+
+}  // namespace test_experiment_cli

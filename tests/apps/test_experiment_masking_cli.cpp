@@ -10,6 +10,9 @@
 #include <fstream>
 #include <string>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_experiment_masking_cli {
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -76,3 +79,5 @@ TEST(ExperimentMaskingCli, ABadMaskingSpecNamesKeyAndLineAndRunsNothing) {
 }
 
 }  // namespace
+
+}  // namespace test_experiment_masking_cli

@@ -13,6 +13,9 @@
 #include <fstream>
 #include <string>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_experiment_shard_cli {
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -149,3 +152,5 @@ TEST_F(ExperimentShardCli, ShardsOfNoBlockMergeAsTheOneProcessRun) {
 }
 
 }  // namespace
+
+}  // namespace test_experiment_shard_cli

@@ -31,6 +31,9 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_interrupt_cli {
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -306,3 +309,5 @@ INSTANTIATE_TEST_SUITE_P(
     [](const auto& info) { return info.param.name; });
 
 }  // namespace
+
+}  // namespace test_interrupt_cli

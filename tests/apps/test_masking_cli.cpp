@@ -17,6 +17,9 @@
 #include <vector>
 #include <sys/wait.h>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_masking_cli {
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -155,3 +158,5 @@ TEST_F(MaskingCli, BadInputExitsTwoAndWritesNothing) {
 }
 
 }  // namespace
+
+}  // namespace test_masking_cli

@@ -4,6 +4,9 @@
 
 #include <gtest/gtest.h>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_plot_cli {
+
 using namespace microsim::test;
 
 TEST(PlotCli, DrawsATracedHistogramAndRejectsBadInput) {
@@ -53,3 +56,5 @@ TEST(PlotCli, DrawsAScatterResultByOrder) {
   EXPECT_EQ(a.find("order2"), std::string::npos) << "an expectation has order 1 only";
   fs::remove_all(dir);
 }
+
+}  // namespace test_plot_cli

@@ -25,6 +25,9 @@
 
 #include <unistd.h>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_readers_strict {
+
 using namespace microsim;
 namespace fs = std::filesystem;
 
@@ -353,3 +356,5 @@ TEST(SampleMessages, NpyHeaderWithoutNewlineIsRejected) {
   bytes[9 + dict.size()] = '\n';
   EXPECT_EQ(parse_direction_samples(bytes, "n.npy").size(), 1u);
 }
+
+}  // namespace test_readers_strict

@@ -18,6 +18,9 @@
 #include <string>
 #include <vector>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_report_browser_cli {
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -148,3 +151,5 @@ TEST(ReportBrowser, ChromiumShowsARejectedRunsVerdictFirst) {
 }
 
 }  // namespace
+
+}  // namespace test_report_browser_cli

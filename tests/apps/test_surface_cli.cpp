@@ -14,6 +14,9 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_surface_cli {
+
 namespace fs = std::filesystem;
 
 namespace {
@@ -157,3 +160,5 @@ TEST(SurfaceCli, BuildHelpPointsToTheAssembliesBelow) {
   EXPECT_LT(option, listed) << h.out;
   fs::remove_all(dir);
 }
+
+}  // namespace test_surface_cli

@@ -21,6 +21,9 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_trace_cli {
+
 namespace fs = std::filesystem;
 
 namespace {
@@ -200,3 +203,5 @@ TEST(TraceCli, ValidateAgainstTracedOracle) {
   EXPECT_NE(good.out.find("reference bias"), std::string::npos) << good.out;
   fs::remove_all(dir);
 }
+
+}  // namespace test_trace_cli

@@ -17,6 +17,9 @@
 #include <string>
 #include <vector>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_validate_hardening {
+
 using namespace microsim;
 namespace fs = std::filesystem;
 
@@ -221,3 +224,5 @@ TEST(Streaming, MemoryDoesNotGrowWithTheSampleCount) {
   EXPECT_LT(usage.ru_maxrss, 80 * 1024) << "peak resident KB of the largest child";
   fs::remove_all(dir);
 }
+
+}  // namespace test_validate_hardening

@@ -9,6 +9,9 @@
 #include <random>
 #include <vector>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_math {
+
 using namespace microsim;
 
 namespace {
@@ -171,3 +174,5 @@ TYPED_TEST(MathTyped, GuardsNeverReturnNaN) {
   EXPECT_NEAR((normalized_or_zero(Vec3<T>(3, 0, 4)) - Vec3<T>(T(0.6), 0, T(0.8))).norm(), T(0),
               2 * std::numeric_limits<T>::epsilon());
 }
+
+}  // namespace test_math

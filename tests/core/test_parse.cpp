@@ -10,6 +10,9 @@
 #include <limits>
 #include <string>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_parse {
+
 namespace {
 
 using namespace microsim;
@@ -202,3 +205,5 @@ TEST(Parse, AlphaHasOneSupportedRange) {
 }
 
 }  // namespace
+
+}  // namespace test_parse

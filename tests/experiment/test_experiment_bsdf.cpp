@@ -24,6 +24,9 @@
 #include <stdexcept>
 #include <string>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_experiment_bsdf {
+
 namespace {
 
 using namespace microsim::experiment;
@@ -237,3 +240,5 @@ TEST(ExperimentBsdf, TheFilesFormsKeysAreCheckedNamingKeyAndLine) {
 }
 
 }  // namespace
+
+}  // namespace test_experiment_bsdf

@@ -29,6 +29,9 @@
 #include <iterator>
 #include <string>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_experiment_heightfield {
+
 namespace heightfield_experiment_test {
 
 using namespace microsim;
@@ -431,3 +434,5 @@ TEST(ExperimentHeightfield, AHeightmapThatCannotBeReadIsBadInputNamingTheKey) {
 }
 
 }  // namespace heightfield_experiment_test
+
+}  // namespace test_experiment_heightfield

@@ -31,6 +31,9 @@
 #include <iostream>
 #include <string>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_experiment_masking {
+
 namespace {
 namespace masking_tests {  // its own names in the unity build
 
@@ -501,3 +504,5 @@ TEST(ExperimentMasking, ANamedHeightmapIsTracedAsItIs) {
 
 }  // namespace masking_tests
 }  // namespace
+
+}  // namespace test_experiment_masking

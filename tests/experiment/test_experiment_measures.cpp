@@ -31,6 +31,9 @@
 #include <fstream>
 #include <optional>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_experiment_measures {
+
 namespace {
 
 using namespace microsim;
@@ -346,3 +349,5 @@ TEST(ScatterPilotFloor, TheRunResolvesTheOrdersThePlanTargeted) {
   const ExperimentPlan back = plan_from_json(plan_json(plan, spec), spec);
   EXPECT_EQ(back.decisions.at(0).targeted_orders, d.targeted_orders) << "kept in the plan's JSON";
 }
+
+}  // namespace test_experiment_measures

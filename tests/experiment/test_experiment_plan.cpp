@@ -14,6 +14,9 @@
 #include <cmath>
 #include <random>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_experiment_plan {
+
 namespace {
 
 using namespace microsim::experiment;
@@ -192,3 +195,5 @@ target_tv = 0.05
 }
 
 }  // namespace
+
+}  // namespace test_experiment_plan

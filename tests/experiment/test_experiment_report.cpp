@@ -24,6 +24,9 @@
 #include <unistd.h>
 #include <vector>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_experiment_report {
+
 namespace {
 
 using namespace microsim;
@@ -253,3 +256,5 @@ TEST(ExperimentReport, TheRunDirectoryReadsBackAsTheSameRunAndRefusesAnother) {
 }
 
 }  // namespace
+
+}  // namespace test_experiment_report

@@ -17,6 +17,9 @@
 #include <cmath>
 #include <string>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_experiment_resume {
+
 namespace {
 
 using namespace microsim;
@@ -214,3 +217,5 @@ TEST(ExperimentHonesty, FourTimesThePlannedCostMovesTheVndfByLessThanTheTarget) 
 }
 
 }  // namespace
+
+}  // namespace test_experiment_resume

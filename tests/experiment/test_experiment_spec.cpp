@@ -8,6 +8,9 @@
 #include <ostream>
 #include <string>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_experiment_spec {
+
 namespace {
 
 using namespace microsim::experiment;
@@ -281,3 +284,5 @@ TEST(ExperimentSpec, AnUnreadableFileIsASpecError) {
 }
 
 }  // namespace
+
+}  // namespace test_experiment_spec

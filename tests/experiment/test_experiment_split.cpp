@@ -46,6 +46,9 @@
 #include <thread>
 #include <vector>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_experiment_split {
+
 namespace {
 
 using namespace microsim;
@@ -731,3 +734,5 @@ TEST(ExperimentShardDirectory, PartsOfAnotherVersionAreRefused) {
 }
 
 }  // namespace
+
+}  // namespace test_experiment_split

@@ -33,6 +33,9 @@
 #include <iostream>
 #include <string>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_experiment_surface_albedo {
+
 namespace surface_albedo_test {
 
 using namespace microsim;
@@ -229,3 +232,5 @@ TEST(ExperimentSurfaceValidation, ATracedTileValidatesVndfSamplersAndDumps) {
 }
 
 }  // namespace surface_validation_test
+
+}  // namespace test_experiment_surface_albedo

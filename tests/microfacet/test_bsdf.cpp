@@ -20,6 +20,9 @@
 #include <string>
 #include <vector>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_bsdf {
+
 using namespace microsim;
 using microsim::test::integrate_2d;
 using microsim::test::integrate_lune;
@@ -511,3 +514,5 @@ TEST(BsdfDegenerate, NoNaNAnywhere) {
     for (std::size_t k = 0; k + 1 < dirs.size(); k += 2) check(dirs[k], dirs[k + 1]);
   }
 }
+
+}  // namespace test_bsdf

@@ -17,6 +17,9 @@
 #include <string>
 #include <vector>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_ggx {
+
 using namespace microsim;
 using microsim::test::integrate_2d;
 using microsim::test::integrate_lune;
@@ -457,3 +460,5 @@ TEST(GgxFloatVsDouble, WorstUlpErrorIsBounded) {
   ::testing::Test::RecordProperty("worst_scaled_D_v", value);
   EXPECT_LE(dv_worst_scaled, 32.0) << dv_scaled_where;
 }
+
+}  // namespace test_ggx

@@ -13,6 +13,9 @@
 #include <cmath>
 #include <limits>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_root_solvers {
+
 using namespace microsim;
 
 namespace {
@@ -86,3 +89,5 @@ TEST(HeitzDEon2014Roots, BoundaryValues) {
   check_boundaries<double>();
   check_boundaries<long double>();
 }
+
+}  // namespace test_root_solvers

@@ -6,6 +6,9 @@
 
 #include <random>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_samplers_smoke {
+
 using namespace microsim;
 
 TEST(SamplerRegistry, ReturnedPdfMatchesClaimedPdf) {
@@ -29,3 +32,5 @@ TEST(SamplerRegistry, ReturnedPdfMatchesClaimedPdf) {
     }
   }
 }
+
+}  // namespace test_samplers_smoke

@@ -9,6 +9,9 @@
 
 #include <cmath>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_assembly {
+
 using namespace microgeom;
 
 namespace {
@@ -225,3 +228,5 @@ TEST(Assembly, RadixSortMatchesAStableSortByTheUpperHalf) {
   microgeom::detail::radix_sort_by_high32(empty, scratch);
   EXPECT_TRUE(empty.empty());
 }
+
+}  // namespace test_assembly

@@ -11,6 +11,9 @@
 
 #include <algorithm>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_ellipsoid_facets {
+
 using namespace microsim;
 
 namespace {
@@ -78,3 +81,5 @@ TEST(EllipsoidFacets, MedianSlopeIsAlpha) {
     EXPECT_NEAR(slopes[slopes.size() / 2] / alpha, 1.0, 0.02) << alpha;
   }
 }
+
+}  // namespace test_ellipsoid_facets

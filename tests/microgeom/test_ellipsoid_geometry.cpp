@@ -9,6 +9,9 @@
 #include <random>
 #include <unistd.h>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_ellipsoid_geometry {
+
 using microgeom::Ellipsoid;
 
 namespace {
@@ -148,3 +151,5 @@ TEST(EllipsoidMesh, WritesPlyAndObjThatReadBack) {
   EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir), std::filesystem::directory_iterator{}), 2);
   std::filesystem::remove_all(dir);
 }
+
+}  // namespace test_ellipsoid_geometry

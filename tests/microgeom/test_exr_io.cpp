@@ -12,6 +12,9 @@
 
 #include <unistd.h>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_exr_io {
+
 namespace fs = std::filesystem;
 using microgeom::ExrImage;
 
@@ -138,3 +141,5 @@ TEST(ExrIo, AddChannelReferencesSurviveLaterChannels) {
   EXPECT_EQ(img.find("first")->data[5], 7.0f);
   EXPECT_EQ(img.find("c63")->data[0], 63.0f);
 }
+
+}  // namespace test_exr_io

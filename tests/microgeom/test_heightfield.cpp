@@ -18,6 +18,9 @@
 
 #include <unistd.h>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_heightfield {
+
 namespace fs = std::filesystem;
 using microgeom::Heightfield;
 
@@ -206,3 +209,5 @@ TEST(Heightfield, ExternalHeightmapsAreValidatedWithClearMessages) {
   EXPECT_THROW(microgeom::load_heightmap_exr(dir / "missing.exr", 1.0), std::runtime_error);
   fs::remove_all(dir);
 }
+
+}  // namespace test_heightfield

@@ -16,6 +16,9 @@
 #include <cmath>
 #include <numeric>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_ndf_match {
+
 using namespace microgeom;
 
 namespace {
@@ -134,3 +137,5 @@ TEST(NdfMatch, RefinementLowersTheDiscrepancy) {
   EXPECT_GT(report.refine_moves, 0u);
   EXPECT_LT(report.refine_objective_after, 0.1 * report.refine_objective_before);
 }
+
+}  // namespace test_ndf_match

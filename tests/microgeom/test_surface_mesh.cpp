@@ -9,6 +9,9 @@
 
 #include <unistd.h>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_surface_mesh {
+
 namespace fs = std::filesystem;
 
 namespace {
@@ -78,3 +81,5 @@ TEST(SurfaceMesh, BadRequestsThrowAndLeaveNothing) {
   EXPECT_TRUE(fs::is_empty(dir));
   fs::remove_all(dir);
 }
+
+}  // namespace test_surface_mesh

@@ -9,6 +9,9 @@
 
 #include <cmath>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_surface_stats {
+
 using namespace microgeom;
 
 TEST(SurfaceStats, ReferenceRadiusLawsAreConsistent) {
@@ -91,3 +94,5 @@ TEST(SurfaceStats, HeightSlopeCorrelationDetectsSteepLowFacets) {
   EXPECT_LT(st.spearman_height_slope, -0.5);
   EXPECT_LT(st.steepest_1pct_height_z, -1.0);
 }
+
+}  // namespace test_surface_stats

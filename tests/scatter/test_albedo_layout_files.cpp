@@ -24,6 +24,9 @@
 #include <string>
 #include <vector>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_albedo_layout_files {
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -151,3 +154,5 @@ TEST(AlbedoLayoutFiles, EnterprisePbrTableReadAsItsSpecSays) {
 }
 
 }  // namespace
+
+}  // namespace test_albedo_layout_files

@@ -6,6 +6,9 @@
 
 #include <random>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_binning {
+
 using namespace microsim;
 
 namespace {
@@ -198,3 +201,5 @@ TEST(DirectionBinning, DescriptionRoundTrips) {
   EXPECT_THROW(DirectionBinning::from_description(nlohmann::json{{"kind", "sphere"}, {"rows", 3}, {"cols", 5}}),
                std::invalid_argument);
 }
+
+}  // namespace test_binning

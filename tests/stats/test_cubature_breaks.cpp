@@ -17,6 +17,9 @@
 #include <cmath>
 #include <vector>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_cubature_breaks {
+
 using namespace microsim;
 
 namespace {
@@ -92,3 +95,5 @@ TEST(CubatureBreaks, TiltedHemisphereBinsMatchTheirExactAreas) {
   EXPECT_GT(without.worst_error, 100 * with.worst_error);
   EXPECT_GT(without.evaluations, 10 * with.evaluations);
 }
+
+}  // namespace test_cubature_breaks

@@ -10,6 +10,9 @@
 
 #include <gtest/gtest.h>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_cubature_second_pass {
+
 using namespace microsim;
 
 namespace {
@@ -99,3 +102,5 @@ TEST(CubatureSecondPass, VisibleEdgeDirectionsApproachMinusWiForReflections) {
   EXPECT_LT(closest, 1e-9);
   EXPECT_TRUE(DirectionBinning::sphere(31).visible_edge_directions(4, 4).empty());
 }
+
+}  // namespace test_cubature_second_pass

@@ -9,6 +9,9 @@
 #include <stdexcept>
 #include <string>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_figure {
+
 using namespace microsim;
 
 namespace {
@@ -59,3 +62,5 @@ TEST(Figure, RejectsVectorsOfTheWrongSize) {
   c.expected.pop_back();
   EXPECT_THROW(histogram_figure_svg("t", "s", {c}), std::invalid_argument);
 }
+
+}  // namespace test_figure

@@ -8,6 +8,9 @@
 #include <random>
 #include <vector>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_embree {
+
 using namespace microsim;
 using microsim::embree::BuildQuality;
 using microsim::embree::Device;
@@ -107,3 +110,5 @@ TEST(QuadricEllipsoid, EmbreeUserGeometryMatchesDoubleIntersection) {
   EXPECT_FLOAT_EQ(inside->t, 1.0f);
   EXPECT_FLOAT_EQ(inside->Ng.z(), 1.0f);
 }
+
+}  // namespace test_embree

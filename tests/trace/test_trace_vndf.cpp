@@ -18,6 +18,9 @@
 #include <random>
 #include <unistd.h>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_trace_vndf {
+
 using namespace microsim;
 
 namespace {
@@ -356,3 +359,5 @@ TEST(TraceVndf, QuadricRefusesRoughnessOutsideItsRange) {
   o.rays = 1000;
   EXPECT_THROW(trace_vndf_histogram(GGX<double>(1e-4, 1.0), direction_from_degrees(60.0, 30.0), o), UnsupportedRoughness);
 }
+
+}  // namespace test_trace_vndf

@@ -10,6 +10,9 @@
 #include <stdexcept>
 #include <string>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_battery {
+
 using namespace microsim;
 
 namespace {
@@ -219,3 +222,5 @@ TEST(Battery, ValidateAndCompareBreakTiesAlike) {
     EXPECT_EQ(r->dof, r->binned[1].chi2.dof);
   }
 }
+
+}  // namespace test_battery

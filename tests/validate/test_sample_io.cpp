@@ -15,6 +15,9 @@
 #include <tuple>
 #include <unistd.h>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_sample_io {
+
 using namespace microsim;
 namespace fs = std::filesystem;
 
@@ -535,3 +538,5 @@ TEST_F(SampleIo, ExtraColumnsGoToPdfsAndWeights) {
   DirectionSampleReader short_text(write_bytes("short.txt", "0 0 1 0.5\n"), c);
   EXPECT_THROW(short_text.read(d, pdfs, weights), SampleFileError);
 }
+
+}  // namespace test_sample_io

@@ -23,6 +23,9 @@
 #include <limits>
 #include <string>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_stability {
+
 using namespace microsim;
 
 namespace {
@@ -445,3 +448,5 @@ TEST(StabilityCli, PrintsTheTableWritesJsonAndRejectsBadPaths) {
   std::remove(json.c_str());
   std::remove(out.c_str());
 }
+
+}  // namespace test_stability

@@ -12,6 +12,9 @@
 #include <cstdio>
 #include <limits>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_trace_compare {
+
 using namespace microsim;
 
 namespace {
@@ -120,3 +123,5 @@ TEST(TraceCompare, AReferenceThatDepartsFromDvIsRefusedWhereItWouldRejectAnExact
   EXPECT_LE(pass.check("reference_bias").value, 0.02);
   EXPECT_FALSE(compare_sampler_to_trace(*find_sampler("heitz2018-talk"), ggx, wi, o, off).passed);
 }
+
+}  // namespace test_trace_compare

@@ -22,6 +22,9 @@
 
 #include <unistd.h>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_validate {
+
 using namespace microsim;
 namespace fs = std::filesystem;
 
@@ -599,3 +602,5 @@ TEST(ValidateFilePdf, EachDensityPassesItsOwnSamplesAndRejectsAnother) {
   EXPECT_THROW(above_horizon_reference(claimed_density(FilePdf::ndf, ggx, wi), ggx, wi, o.rows), std::invalid_argument);
   EXPECT_THROW(parse_file_pdf("ggx"), std::invalid_argument);
 }
+
+}  // namespace test_validate

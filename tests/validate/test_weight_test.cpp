@@ -17,6 +17,9 @@
 #include <map>
 #include <unistd.h>
 
+// Its own namespace: the file shares a unity batch with others (CMakeLists.txt, microsim_unity).
+namespace test_weight_test {
+
 using namespace microsim;
 namespace fs = std::filesystem;
 
@@ -144,3 +147,5 @@ TEST(BsdfWeights, FirefliesANegativeWeightAndOneChannelsBugAreCaught) {
     }
   }
 }
+
+}  // namespace test_weight_test
