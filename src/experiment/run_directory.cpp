@@ -2,6 +2,7 @@
 #include "experiment/run_directory.h"
 
 #include "core/atomic_file.h"
+#include "core/fnv1a.h"
 #include "core/parse.h"
 #include "experiment/measurement.h"
 #include "experiment/report.h"
@@ -38,7 +39,41 @@ std::string text_member(const nlohmann::json& j, const char* object, const char*
   return j[object][key].get<std::string>();
 }
 
-// The document must be this spec's, at this seed.
+// FNV-1a of a file's bytes, 16 hex digits ("" when it cannot be read: the run reports that itself).
+std::string file_digest(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return "";
+  std::uint64_t h = kFnv1aOffset;
+  std::vector<char> buffer(1 << 16);
+  while (in.read(buffer.data(), std::streamsize(buffer.size())) || in.gcount() > 0)
+    h = fnv1a(h, buffer.data(), std::size_t(in.gcount()));
+  return fmt::format("{:016x}", h);
+}
+
+// The digest of each file the spec reads beyond itself (a dump, a plugin, an eval file, a heightmap), by key.
+nlohmann::json input_digests(const ExperimentSpec& spec) {
+  nlohmann::json j = nlohmann::json::object();
+  for (const PathOption& f : spec_input_files(spec))
+    if (f.option != "SPEC") j[f.option] = file_digest(f.path);
+  return j;
+}
+
+// A file the spec reads whose content changed since the document was written: its results are not this file's.
+void check_same_inputs(const fs::path& dir, const nlohmann::json& doc, const ExperimentSpec& spec) {
+  if (!doc["spec"].contains("inputs") || !doc["spec"]["inputs"].is_object()) return;
+  const nlohmann::json& recorded = doc["spec"]["inputs"];
+  for (const PathOption& f : spec_input_files(spec)) {
+    if (f.option == "SPEC" || !recorded.contains(f.option) || !recorded[f.option].is_string()) continue;
+    const std::string now = file_digest(f.path);
+    if (recorded[f.option].get<std::string>() != now)
+      throw std::invalid_argument(fmt::format(
+          "--out {}: {} ({}) changed since that run (content digest {}, now {}): its results are not this file's; "
+          "use another --out to measure it",
+          quote_excerpt(dir.string()), f.option, quote_excerpt(f.path.string()), recorded[f.option].get<std::string>(), now));
+  }
+}
+
+// The document must be this spec's, at this seed, with the same input files.
 void check_same_run(const fs::path& dir, const nlohmann::json& doc, const ExperimentSpec& spec, std::uint64_t seed) {
   const std::string digest = text_member(doc, "spec", "digest");
   if (digest != spec_digest(spec))
@@ -50,6 +85,7 @@ void check_same_run(const fs::path& dir, const nlohmann::json& doc, const Experi
     throw std::invalid_argument(fmt::format("--out {}: holds this spec's run with seed {}, this run's seed is {}: "
                                             "refusing to mix them; rerun with --seed {} to resume it, or use another --out",
                                             quote_excerpt(dir.string()), recorded, seed, recorded));
+  check_same_inputs(dir, doc, spec);
 }
 
 // The counts and sums of the measurements that have them, read back into the results (each kind's read_back).
@@ -80,6 +116,7 @@ nlohmann::json spec_identity_json(const ExperimentSpec& spec) {
   return {{"name", spec.name},
           {"source", spec.source},
           {"digest", spec_digest(spec)},
+          {"inputs", input_digests(spec)},
           {"canonical", nlohmann::json::parse(canonical_spec(spec))}};
 }
 

@@ -397,6 +397,22 @@ TEST(ExperimentCli, NoFileTheSpecReadsIsOverwritten) {
   fs::remove_all(dir);
 }
 
+// Running the command again on the same --out resumes only with the same input files: a dump replaced by one that
+// the validation rejects (the negative control's samples) is refused, exit 2 naming the key, never the old pass.
+TEST(ExperimentCli, AReplacedDumpIsNotGivenTheOldVerdict) {
+  const fs::path dir = scratch_dir("experiment", "replaced_dump");
+  write_dumps(dir);
+  write(dir / "s.toml", dump_spec({"good.npy"}));
+  ASSERT_EQ(run_cli(dir, "run s.toml --out out").exit_code, 0);
+  EXPECT_EQ(run_cli(dir, "run s.toml --out out").exit_code, 0);  // the same files: the complete run again
+  fs::copy_file(dir / "talk.npy", dir / "good.npy", fs::copy_options::overwrite_existing);
+  const auto again = run_cli(dir, "run s.toml --out out");
+  EXPECT_EQ(again.exit_code, 2) << again.out << again.err;
+  EXPECT_NE(again.err.find("quantity[0].dump ('good.npy') changed since that run"), std::string::npos) << again.err;
+  EXPECT_EQ(run_cli(dir, "run s.toml --out fresh").exit_code, 1);  // the replaced dump, measured: rejected
+  fs::remove_all(dir);
+}
+
 TEST(ExperimentCli, APassingDumpPassesAndARunWithoutATestHasNoVerdict) {
   const fs::path dir = scratch_dir("experiment", "verdict_pass");
   write_dumps(dir);
