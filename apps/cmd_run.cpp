@@ -98,9 +98,9 @@ int run_exit_code(const experiment::ExperimentResults& results) {
 
 // DIR's files and the summary; the exit code (run_exit_code).
 int write_results(const RunArgs& a, const experiment::ExperimentSpec& spec, const experiment::ExperimentPlan& plan,
-                  const experiment::ExperimentResults& results, std::uint64_t seed) {
+                  const experiment::ExperimentResults& results, std::uint64_t seed, const nlohmann::json& inputs) {
   print_results_table(results);
-  experiment::write_run_directory(a.out, spec, plan, results, {reproduce_command(a), MICROSIM_VERSION, seed});
+  experiment::write_run_directory(a.out, spec, plan, results, {reproduce_command(a), MICROSIM_VERSION, seed, inputs});
   fmt::print(stderr, "run: wrote {} and {}\n", (fs::path(a.out) / "results.json").string(),
              (fs::path(a.out) / "index.html").string());
   const int code = run_exit_code(results);
@@ -141,7 +141,8 @@ int run_experiment_command(const RunArgs& a, experiment::Ranks& ranks, bool& pla
   check_distinct_outputs({{"SPEC", a.spec}}, {{"--out", (fs::path(a.out) / "results.json").string()}});
   check_inputs_outside(spec, a.out);
   const std::uint64_t seed = a.seed != 0 ? a.seed : spec.seed;
-  const std::optional<experiment::PreviousRun> previous = experiment::load_previous_run(a.out, spec, seed);
+  const nlohmann::json inputs = experiment::input_digests(spec);  // once: compared on resume, then recorded
+  const std::optional<experiment::PreviousRun> previous = experiment::load_previous_run(a.out, spec, seed, inputs);
   const auto progress = std::make_shared<CliProgress>(true);
   experiment::PlanOptions plan_options;
   plan_options.seed = a.seed;
@@ -185,7 +186,7 @@ int run_experiment_command(const RunArgs& a, experiment::Ranks& ranks, bool& pla
   };
   const experiment::ExperimentResults results = experiment::run_experiment(spec, plan, options);
   progress->finish();
-  const int code = write_results(a, spec, plan, results, seed);
+  const int code = write_results(a, spec, plan, results, seed, inputs);
   experiment::send_stop(ranks, code);
   return code;
 }

@@ -50,21 +50,14 @@ std::string file_digest(const fs::path& path) {
   return fmt::format("{:016x}", h);
 }
 
-// The digest of each file the spec reads beyond itself (a dump, a plugin, an eval file, a heightmap), by key.
-nlohmann::json input_digests(const ExperimentSpec& spec) {
-  nlohmann::json j = nlohmann::json::object();
-  for (const PathOption& f : spec_input_files(spec))
-    if (f.option != "SPEC") j[f.option] = file_digest(f.path);
-  return j;
-}
-
 // A file the spec reads whose content changed since the document was written: its results are not this file's.
-void check_same_inputs(const fs::path& dir, const nlohmann::json& doc, const ExperimentSpec& spec) {
+void check_same_inputs(const fs::path& dir, const nlohmann::json& doc, const ExperimentSpec& spec,
+                       const nlohmann::json& inputs) {
   if (!doc["spec"].contains("inputs") || !doc["spec"]["inputs"].is_object()) return;
   const nlohmann::json& recorded = doc["spec"]["inputs"];
   for (const PathOption& f : spec_input_files(spec)) {
     if (f.option == "SPEC" || !recorded.contains(f.option) || !recorded[f.option].is_string()) continue;
-    const std::string now = file_digest(f.path);
+    const std::string now = inputs.value(f.option, "");
     if (recorded[f.option].get<std::string>() != now)
       throw std::invalid_argument(fmt::format(
           "--out {}: {} ({}) changed since that run (content digest {}, now {}): its results are not this file's; "
@@ -74,7 +67,8 @@ void check_same_inputs(const fs::path& dir, const nlohmann::json& doc, const Exp
 }
 
 // The document must be this spec's, at this seed, with the same input files.
-void check_same_run(const fs::path& dir, const nlohmann::json& doc, const ExperimentSpec& spec, std::uint64_t seed) {
+void check_same_run(const fs::path& dir, const nlohmann::json& doc, const ExperimentSpec& spec, std::uint64_t seed,
+                    const nlohmann::json& inputs) {
   const std::string digest = text_member(doc, "spec", "digest");
   if (digest != spec_digest(spec))
     throw std::invalid_argument(fmt::format("--out {}: holds the results of another spec (digest '{}', this spec's {}): "
@@ -85,7 +79,7 @@ void check_same_run(const fs::path& dir, const nlohmann::json& doc, const Experi
     throw std::invalid_argument(fmt::format("--out {}: holds this spec's run with seed {}, this run's seed is {}: "
                                             "refusing to mix them; rerun with --seed {} to resume it, or use another --out",
                                             quote_excerpt(dir.string()), recorded, seed, recorded));
-  check_same_inputs(dir, doc, spec);
+  check_same_inputs(dir, doc, spec, inputs);
 }
 
 // The counts and sums of the measurements that have them, read back into the results (each kind's read_back).
@@ -112,19 +106,27 @@ bool holds_only_surfaces(const fs::path& dir) {
 
 }  // namespace
 
+nlohmann::json input_digests(const ExperimentSpec& spec) {
+  nlohmann::json j = nlohmann::json::object();
+  for (const PathOption& f : spec_input_files(spec))
+    if (f.option != "SPEC") j[f.option] = file_digest(f.path);
+  return j;
+}
+
 nlohmann::json spec_identity_json(const ExperimentSpec& spec) {
   return {{"name", spec.name},
           {"source", spec.source},
           {"digest", spec_digest(spec)},
-          {"inputs", input_digests(spec)},
           {"canonical", nlohmann::json::parse(canonical_spec(spec))}};
 }
 
 nlohmann::json run_document(const ExperimentSpec& spec, const ExperimentPlan& plan, const ExperimentResults& results,
                             const RunIdentity& identity) {
+  nlohmann::json spec_json = spec_identity_json(spec);
+  spec_json["inputs"] = identity.inputs;
   return {{"command", identity.command},
           {"version", identity.version},
-          {"spec", spec_identity_json(spec)},
+          {"spec", std::move(spec_json)},
           {"seed", identity.seed},
           {"plan", plan_json(plan, spec)},
           {"results", results_json(results)},
@@ -158,7 +160,8 @@ void write_run_directory(const fs::path& dir, const ExperimentSpec& spec, const 
   write_file_atomically(dir / "index.html", experiment_report_html(doc, histograms, scatters));
 }
 
-std::optional<PreviousRun> load_previous_run(const fs::path& dir, const ExperimentSpec& spec, std::uint64_t seed) {
+std::optional<PreviousRun> load_previous_run(const fs::path& dir, const ExperimentSpec& spec, std::uint64_t seed,
+                                             const nlohmann::json& inputs) {
   if (!fs::exists(dir)) {
     const fs::path parent = dir.has_parent_path() ? dir.parent_path() : fs::path(".");
     if (!fs::is_directory(parent)) throw std::invalid_argument(fmt::format("--out {}: its parent is not a directory", quote_excerpt(dir.string())));
@@ -169,7 +172,7 @@ std::optional<PreviousRun> load_previous_run(const fs::path& dir, const Experime
   if (!fs::exists(dir / "results.json"))
     throw std::invalid_argument(fmt::format("--out {}: not empty and holds no results.json: refusing to write into it", quote_excerpt(dir.string())));
   const nlohmann::json doc = read_document(dir / "results.json");
-  check_same_run(dir, doc, spec, seed);
+  check_same_run(dir, doc, spec, seed, inputs);
   PreviousRun previous;
   previous.plan = plan_from_json(doc.value("plan", nlohmann::json::object()), spec);
   previous.results = results_from_json(doc.value("results", nlohmann::json::object()), previous.plan);

@@ -27,7 +27,12 @@ struct RunIdentity {
   std::string command;  // the command line that reproduces the run
   std::string version;
   std::uint64_t seed = 0;  // the seed the run used (the spec's unless overridden)
+  nlohmann::json inputs;   // input_digests(spec) when the run started: results.json's spec.inputs
 };
+
+// The content digest (FNV-1a, 16 hex digits; "" when unreadable) of each file the spec reads beyond itself (a dump,
+// an eval file, a plugin, a heightmap), by key: taken once when a run starts, recorded, and compared on resume.
+nlohmann::json input_digests(const ExperimentSpec& spec);
 
 // The spec's identity in a document: name, source, digest, canonical content.
 nlohmann::json spec_identity_json(const ExperimentSpec& spec);
@@ -49,9 +54,10 @@ struct PreviousRun {
 
 // nullopt when DIR does not exist or is empty: a fresh run. Throws std::invalid_argument (bad usage: nothing
 // is run or written) when DIR is not a directory, holds files but no results.json, holds another spec's
-// results (digest), or this spec's run with another seed (the message names both and says what to do), or
-// when results.json or a histogram cannot be read.
+// results (digest), or this spec's run with another seed (the message names both and says what to do), or a
+// run of input files whose content has changed since (`inputs`: input_digests(spec) now; the message names the
+// key), or when results.json or a histogram cannot be read.
 std::optional<PreviousRun> load_previous_run(const std::filesystem::path& dir, const ExperimentSpec& spec,
-                                             std::uint64_t seed);
+                                             std::uint64_t seed, const nlohmann::json& inputs);
 
 }  // namespace microsim::experiment

@@ -303,7 +303,7 @@ TEST(ExperimentHeightfield, AnAssemblyVndfRunsWritesAndResumesWithoutRedoingWork
     EXPECT_NE(html.find("surfaces/" + d.surface.hash + ".exr"), std::string::npos);
     EXPECT_NE(html.find("predicted bias (TV) 0.1035"), std::string::npos);
   }
-  const std::optional<PreviousRun> previous = load_previous_run(dir, spec, spec.seed);
+  const std::optional<PreviousRun> previous = load_previous_run(dir, spec, spec.seed, input_digests(spec));
   ASSERT_TRUE(previous);
   ASSERT_TRUE(previous->plan.decisions[0].surface.hash == d.surface.hash);
   SurfaceCache again(dir / "surfaces");

@@ -440,7 +440,7 @@ ExperimentResults cut_in_its_second_round(const ExperimentSpec& spec, const Expe
   EXPECT_EQ(cut.measurements.at(0).rounds.size(), 1u);
   const std::filesystem::path dir = microsim::test::scratch_dir("masking", "cut");
   write_run_directory(dir, spec, plan, cut, {"microsim run cond.toml --out DIR", "test", spec.seed});
-  const std::optional<PreviousRun> previous = load_previous_run(dir, spec, spec.seed);
+  const std::optional<PreviousRun> previous = load_previous_run(dir, spec, spec.seed, input_digests(spec));
   std::filesystem::remove_all(dir);
   if (!previous) throw std::runtime_error("the run directory was not read back");
   return previous->results;

@@ -235,12 +235,12 @@ TEST(ExperimentReport, TheRunDirectoryReadsBackAsTheSameRunAndRefusesAnother) {
   const SmallRun& run = small_run();
   const fs::path dir = fs::temp_directory_path() / ("microsim_report_dir_" + std::to_string(::getpid()));
   fs::remove_all(dir);
-  EXPECT_FALSE(load_previous_run(dir, run.spec, 1).has_value());
+  EXPECT_FALSE(load_previous_run(dir, run.spec, 1, input_digests(run.spec)).has_value());
   write_run_directory(dir, run.spec, run.plan, run.results, {"cmd", "0.1", 1});
   for (const char* f : {"results.json", "index.html", "albedo-0.csv", "vndf-1.exr", "vndf-2.exr", "validation-3.exr",
                         "validation-4.exr", "scattering-5.exr", "scattering-6.exr"})
     EXPECT_TRUE(fs::exists(dir / f)) << f;
-  const auto previous = load_previous_run(dir, run.spec, 1);
+  const auto previous = load_previous_run(dir, run.spec, 1, input_digests(run.spec));
   ASSERT_TRUE(previous.has_value());
   EXPECT_EQ(plan_json(previous->plan, run.spec).dump(), plan_json(run.plan, run.spec).dump());
   EXPECT_EQ(results_json(previous->results).dump(), results_json(run.results).dump());
@@ -250,8 +250,8 @@ TEST(ExperimentReport, TheRunDirectoryReadsBackAsTheSameRunAndRefusesAnother) {
     ASSERT_GT(run.results.measurements[i].expectation.bins(), 0u);
     EXPECT_EQ(previous->results.measurements[i].expectation.order1, run.results.measurements[i].expectation.order1);
   }
-  EXPECT_THROW(load_previous_run(dir, run.spec, 2), std::invalid_argument);             // another seed
-  EXPECT_THROW(load_previous_run(dir, small_spec(0.35), 1), std::invalid_argument);  // another spec
+  EXPECT_THROW(load_previous_run(dir, run.spec, 2, input_digests(run.spec)), std::invalid_argument);             // another seed
+  EXPECT_THROW(load_previous_run(dir, small_spec(0.35), 1, input_digests(small_spec(0.35))), std::invalid_argument);  // another spec
   fs::remove_all(dir);
 }
 
