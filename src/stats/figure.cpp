@@ -15,7 +15,6 @@ namespace {
 
 using namespace svg;
 
-constexpr double kResidualClip = 4;
 constexpr double kPooledBelow = 5;  // the chi-square tests pool cells expected below 5 (chi2.h)
 
 constexpr double kMargin = 50, kGap = 60, kHeader = 60, kRowGap = 95, kPanelWidth = 330;

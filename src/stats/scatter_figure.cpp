@@ -14,7 +14,7 @@ namespace {
 
 using namespace svg;
 
-constexpr double kScatterMargin = 50, kScatterGap = 45, kScatterHeader = 60, kScatterRowGap = 110, kScatterResidualClip = 4;
+constexpr double kScatterMargin = 50, kScatterGap = 45, kScatterHeader = 60, kScatterRowGap = 110;
 
 struct ScatterLayout {
   double panel_width = 0, width = 0, height = 0;
@@ -46,7 +46,7 @@ ScatterLayout layout(const DirectionBinning& b, const std::vector<ScatterFigureR
 
 std::string residual_color(double r) {
   if (std::isnan(r)) return "#c8c8c8";
-  return color_at(kDiverging, 0.5 + std::clamp(r, -kScatterResidualClip, kScatterResidualClip) / (2 * kScatterResidualClip));
+  return color_at(kDiverging, 0.5 + std::clamp(r, -kResidualClip, kResidualClip) / (2 * kResidualClip));
 }
 
 // One order: the lobes on one sequential scale, then the residual maps.

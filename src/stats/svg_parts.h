@@ -28,8 +28,9 @@ constexpr std::array<ColorStop, 5> kSequential{{{0.0, {255, 255, 255}},
                                                 {0.4, {250, 150, 60}},
                                                 {0.7, {195, 30, 40}},
                                                 {1.0, {70, 0, 35}}}};
-// Diverging scale for residuals in [-4, 4]: blue (observed below expected), white, red (above).
+// Diverging scale for residuals in [-kResidualClip, kResidualClip]: blue (observed below expected), white, red (above).
 constexpr std::array<ColorStop, 3> kDiverging{{{0.0, {35, 85, 170}}, {0.5, {247, 247, 247}}, {1.0, {180, 25, 45}}}};
+constexpr double kResidualClip = 4;
 
 template <std::size_t N> std::string color_at(const std::array<ColorStop, N>& stops, double t) {
   t = std::isfinite(t) ? std::clamp(t, 0.0, 1.0) : 0.0;  // NaN (0/0 scale) draws as the low end
