@@ -31,6 +31,20 @@ namespace {
 
 using namespace microsim::experiment;
 
+// A gold conductor's bsdf quantity, its own keys to follow (from line 12).
+constexpr const char* kGoldBsdfQuantity = R"(
+seed = 7
+[[material]]
+name = "gold"
+alpha = 0.3
+type = "conductor"
+eta = 0.2
+k = 3.9
+[[quantity]]
+kind = "bsdf"
+material = "gold"
+)";
+
 ExperimentSpec plugin_spec(const std::string& plugin, const std::string& params = "kind = \"dielectric\", alpha = 0.3, eta = 1.5") {
   return parse_spec_toml(fmt::format(R"(
 seed = 7
@@ -102,21 +116,10 @@ TEST(ExperimentBsdf, APlanReadBackKeepsTheAlphaAndTheVerdict) {
 // A plugin drawing its normals from D(m) cos (its flag): as check-bsdf tests it, the plan counts the grid without
 // 89.9 deg and the run passes a conductor; a dielectric so sampled is refused at plan time naming the key.
 TEST(ExperimentBsdf, APluginSamplingTheNdfIsPlannedAndRunAsCheckBsdfRunsIt) {
-  const ExperimentSpec gold = parse_spec_toml(fmt::format(R"(
-seed = 7
-[[material]]
-name = "gold"
-alpha = 0.3
-type = "conductor"
-eta = 0.2
-k = 3.9
-[[quantity]]
-kind = "bsdf"
-material = "gold"
-plugin = "{}"
-params = {{ kind = "conductor", alpha = 0.3, eta = 0.2, k = 3.9 }}
-samples = 20000
-)", MICROSIM_PLUGIN_NDF), "gold.toml");
+  const ExperimentSpec gold = parse_spec_toml(
+      fmt::format("{}plugin = \"{}\"\nparams = {{ kind = \"conductor\", alpha = 0.3, eta = 0.2, k = 3.9 }}\nsamples = 20000\n",
+                  kGoldBsdfQuantity, MICROSIM_PLUGIN_NDF),
+      "gold.toml");
   const ExperimentPlan plan = plan_experiment(gold, PlanOptions{});
   EXPECT_EQ(plan.decisions.at(0).units, 4u * 20000u);  // theta 0, 30, 60, 80
   const ExperimentResults r = run_experiment(gold, plan, RunOptions{});
@@ -152,22 +155,9 @@ TEST(ExperimentBsdf, AMissingPluginIsABadSpecAndARefusedOneStopsThePlan) {
 // The conductor's files in `dir` (d.txt, e.txt), weights times `weight_scale`; a spec naming them, with `extra`
 // keys (line 15), seen at `theta`.
 ExperimentSpec files_spec(const std::filesystem::path& dir, const std::string& extra = "", double theta = 30) {
-  return parse_spec_toml(fmt::format(R"(
-seed = 7
-[[material]]
-name = "gold"
-alpha = 0.3
-type = "conductor"
-eta = 0.2
-k = 3.9
-[[quantity]]
-kind = "bsdf"
-material = "gold"
-dump = "{}"
-eval = "{}"
-theta = {}
-{}
-)", (dir / "d.txt").string(), (dir / "e.txt").string(), theta, extra), "bsdf.toml");
+  return parse_spec_toml(fmt::format("{}dump = \"{}\"\neval = \"{}\"\ntheta = {}\n{}\n", kGoldBsdfQuantity,
+                                     (dir / "d.txt").string(), (dir / "e.txt").string(), theta, extra),
+                         "bsdf.toml");
 }
 
 TEST(ExperimentBsdf, FilesOfOneBsdfPassAsCheckBsdfFilesPassesThemAndAPlantedWeightBugFailsTheRun) {
