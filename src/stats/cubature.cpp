@@ -148,6 +148,32 @@ std::vector<Pending> split_around_focus(const Cell& c, const std::vector<FocusPo
   return out;
 }
 
+// A cell cut in four (in two along a side already at min_size), its focus points handed to the quarter
+// holding each: a blind cell (BinCubature::blind) is resolved alike whether its mass is a strip along an
+// edge or across it.
+std::vector<Pending> quarters(const Pending& p, double min_size) {
+  std::vector<Cell> halves = {p.cell};
+  for (bool along_theta : {true, false}) {
+    if (!((along_theta ? theta_side(p.cell) : phi_side(p.cell)) > min_size)) continue;
+    std::vector<Cell> cut;
+    for (const Cell& h : halves) {
+      const auto [a, b] = split_along(h, along_theta);
+      cut.push_back(a);
+      cut.push_back(b);
+    }
+    halves = std::move(cut);
+  }
+  std::vector<Pending> out;
+  for (const Cell& c : halves) out.push_back({c, {}});
+  for (const auto& f : p.focus)
+    for (Pending& q : out)
+      if (f.first >= q.cell.t0 && f.first <= q.cell.t1 && f.second >= q.cell.p0 && f.second <= q.cell.p1) {
+        q.focus.push_back(f);
+        break;
+      }
+  return out;
+}
+
 // ---- one bin ----------------------------------------------------------------------------------------
 
 // One cell's sides as the inner and outer interval of the nested rule (inner direction theta or phi),
@@ -205,7 +231,7 @@ public:
   // splits along the side that carries the error.
   BinResult integrate_bin(int bin, const std::vector<FocusPoint>& focus, int directed_budget) const {
     Refinement r;
-    for (Cell& c : focus_phase(bin, focus)) add_cell(r, c);
+    focus_phase(bin, focus, r);
     refine_longer_sides(r);
     refine_directed(r, directed_budget);
     return resum(r);
@@ -233,7 +259,10 @@ private:
   }
 
   std::vector<double> band_pieces(int bin) const;
-  std::vector<Cell> focus_phase(int bin, const std::vector<FocusPoint>& focus) const;
+  void focus_phase(int bin, const std::vector<FocusPoint>& focus, Refinement& r) const;
+  bool blind(const Cell& c, const std::vector<FocusPoint>& focus, long long& evals) const;
+  // Blind cells split per bin at most: a structure thinner than min_cell_size cannot make a bin endless.
+  static constexpr int kMaxBlindSplits = 256;
   int break_grid(const CellFrame& f, bool theta_inner, std::vector<double>& values, long long& evals) const;
   double break_root(bool theta_inner, std::size_t k, double outer, double lo, double hi, double flo, double fhi,
                     long long& evals) const;
@@ -246,7 +275,7 @@ private:
                                       const std::vector<double>& grid, long long& evals) const;
   void nested(Cell& c, const CellFrame& f, bool theta_inner, const std::vector<double>& grid, long long& evals) const;
   void evaluate(Cell& c, long long& evals) const;
-  void add_cell(Refinement& r, Cell c) const;
+  void add_evaluated(Refinement& r, const Cell& c) const;
   void refine_worst(Refinement& r, bool along_theta) const;
   void refine_longer_sides(Refinement& r) const;
   void refine_directed(Refinement& r, int budget) const;
@@ -274,9 +303,10 @@ std::vector<double> BinCubature::band_pieces(int bin) const {
   return zs;
 }
 
-// Phase 1: the bin's band pieces, every cell holding more than max_focus_per_cell focus points split
-// (down to min_cell_size); returns the cells that are left.
-std::vector<Cell> BinCubature::focus_phase(int bin, const std::vector<FocusPoint>& focus) const {
+// Phase 1: the bin's band pieces, every cell holding more than
+// max_focus_per_cell focus points, or blind to those it holds, split (down to min_cell_size); the cells
+// that are left evaluated into r.
+void BinCubature::focus_phase(int bin, const std::vector<FocusPoint>& focus, Refinement& r) const {
   const int col = bin % binning_.cols();
   const std::vector<double> zs = band_pieces(bin);
   std::vector<Pending> stack;
@@ -288,19 +318,49 @@ std::vector<Cell> BinCubature::focus_phase(int bin, const std::vector<FocusPoint
       if (f.first >= p.cell.t0 && f.first <= p.cell.t1) p.focus.push_back(f);
     stack.push_back(std::move(p));
   }
-  std::vector<Cell> leaves;
+  int blind_splits = 0;
   while (!stack.empty()) {
     Pending p = std::move(stack.back());
     stack.pop_back();
-    const bool crowded = int(p.focus.size()) > options_.max_focus_per_cell &&
-                         std::max(theta_side(p.cell), phi_side(p.cell)) > options_.min_cell_size;
-    if (!crowded) {
-      leaves.push_back(p.cell);
+    const bool splittable = std::max(theta_side(p.cell), phi_side(p.cell)) > options_.min_cell_size;
+    if (!splittable || int(p.focus.size()) <= options_.max_focus_per_cell) {
+      evaluate(p.cell, r.evaluations);
+      if (!splittable || blind_splits >= kMaxBlindSplits || !blind(p.cell, p.focus, r.evaluations)) {
+        add_evaluated(r, p.cell);
+        continue;
+      }
+      ++blind_splits;
+      for (Pending& quarter : quarters(p, options_.min_cell_size)) stack.push_back(std::move(quarter));
       continue;
     }
     for (Pending& piece : split_around_focus(p.cell, p.focus, options_.min_cell_size)) stack.push_back(std::move(piece));
   }
-  return leaves;
+}
+
+// Whether a cell's rule saw nothing (value 0) although the pdf is positive in it: at one of its focus
+// points, or just inside one of its edges (the rule's nodes never reach them; a lobe 1e-4 wide along an
+// edge of a cell 0.1 wide lies between them and the edge). Its zero error estimate is then false. A value
+// too small to matter were it the integrand over the whole cell (an underflowing tail) is not mass.
+bool BinCubature::blind(const Cell& c, const std::vector<FocusPoint>& focus, long long& evals) const {
+  if (c.value != 0) return false;
+  const double negligible = 1e-6 * options_.abs_tolerance / ((c.t1 - c.t0) * (c.p1 - c.p0));
+  auto positive = [&](double theta, double phi) {
+    evals += 1;
+    return integrand_of_trig(std::sin(theta), std::cos(theta), std::sin(phi), std::cos(phi)) > negligible;
+  };
+  for (const FocusPoint& f : focus)
+    if (positive(f.first, f.second)) return true;
+  // Probes 1e-6 of a side inside each edge, so that a pdf zero beyond the edge (a hemisphere's) is not seen.
+  const double et = 1e-6 * (c.t1 - c.t0), ep = 1e-6 * (c.p1 - c.p0);
+  constexpr int kProbes = 17;
+  for (int i = 0; i < kProbes; ++i) {
+    const double s = double(i) / (kProbes - 1);
+    const double theta = c.t0 + et + s * (c.t1 - c.t0 - 2 * et), phi = c.p0 + ep + s * (c.p1 - c.p0 - 2 * ep);
+    if (positive(theta, c.p0 + ep) || positive(theta, c.p1 - ep) || positive(c.t0 + et, phi) ||
+        positive(c.t1 - et, phi))
+      return true;
+  }
+  return false;
 }
 
 // Break-function values on the 15 inner lines x 17 grid points of a cell (CellFrame), inner direction
@@ -452,8 +512,7 @@ void BinCubature::evaluate(Cell& c, long long& evals) const {
   }
 }
 
-void BinCubature::add_cell(Refinement& r, Cell c) const {
-  evaluate(c, r.evaluations);
+void BinCubature::add_evaluated(Refinement& r, const Cell& c) const {
   r.value += c.value;
   r.error += c.error;
   r.queue.push(c);

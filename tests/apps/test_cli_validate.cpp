@@ -404,8 +404,9 @@ TEST(CliValidate, BsdfMisuseIsBadUsage) {
     const CliRun r = run(args);
     EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.err;
     EXPECT_NE(r.err.find(message), std::string::npos) << args << "\n" << r.err;
-    if (args.find("--above-horizon") == std::string::npos)
+    if (args.find("--above-horizon") == std::string::npos) {
       EXPECT_EQ(r.err.find("--above-horizon:"), std::string::npos) << args << "\n" << r.err;
+    }
   }
 }
 
