@@ -17,7 +17,9 @@
 //   tol = K (|ref_r - ref| + eps_r (A + 1024) |ref|) + K eps_v |ref| + h + 2 max(eps_in, eps_r, h_in) sum_k |d ref / d x_k|,
 // ref in double, ref_r the same formula in the renderer's arithmetic (float32 unless said), eps_r that
 // arithmetic's epsilon, A the amplification of a rounded cosine through the Fresnel term (F's square root and
-// 1 - F cancel near total internal reflection, as renderers compute them), 1024 epsilons for a renderer's formula
+// 1 - F cancel near total internal reflection, as renderers compute them) plus that of a rounded sin^2 of the
+// half vector through D (2 / (alpha^2 cos^2 + sin^2): renderers compute D from cos theta_m, as pbrt-v4's
+// Tan2Theta = (1 - cos^2) / cos^2, which cancels near the peak of a low roughness), 1024 epsilons for a renderer's formula
 // conditioned worse than the reference's (grazing views), eps_v and eps_in the storage's of values and
 // directions (binary storage; text: 0), h and h_in a text row's printed rounding (sample_io.h, PrintedRounding:
 // half a unit in the last digit of the number, the coarsest of the row's direction components), the derivative over the six direction
