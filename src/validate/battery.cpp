@@ -46,21 +46,21 @@ SampleSource drawn_samples(const SamplerInfo& sampler, const GGX<double>& ggx, c
   return s;
 }
 
-SampleSource given_samples(std::span<const Vec3<double>> samples, std::string name) {
+SampleSource given_samples(std::span<const Vec3<double>> samples, std::string name, const RunControl* run) {
   SampleSource s;
   s.name = std::move(name);
-  s.stream = [samples](const SampleBlockVisitor& visit, const ChunkDone& chunk_done) {
-    for_each_block(samples, visit, chunk_done);
+  s.stream = [samples, run](const SampleBlockVisitor& visit, const ChunkDone& chunk_done) {
+    for_each_block(samples, visit, chunk_done, run);
   };
   s.seeded = false;
   return s;
 }
 
-SampleSource given_samples(DirectionSampleReader& reader, std::string name) {
+SampleSource given_samples(DirectionSampleReader& reader, std::string name, const RunControl* run) {
   SampleSource s;
   s.name = std::move(name);
-  s.stream = [&reader](const SampleBlockVisitor& visit, const ChunkDone& chunk_done) {
-    for_each_block(reader, visit, chunk_done);
+  s.stream = [&reader, run](const SampleBlockVisitor& visit, const ChunkDone& chunk_done) {
+    for_each_block(reader, visit, chunk_done, run);
   };
   s.seeded = false;
   s.storage = reader.storage();

@@ -42,8 +42,8 @@ struct SampleSource {
 SampleSource drawn_samples(const SamplerInfo& sampler, const GGX<double>& ggx, const Vec3<double>& wi,
                            const ValidationOptions& options);
 // Samples from elsewhere, in double, without pdfs.
-SampleSource given_samples(std::span<const Vec3<double>> samples, std::string name);
-SampleSource given_samples(DirectionSampleReader& reader, std::string name);
+SampleSource given_samples(std::span<const Vec3<double>> samples, std::string name, const RunControl* run = nullptr);
+SampleSource given_samples(DirectionSampleReader& reader, std::string name, const RunControl* run = nullptr);
 
 // ---- the tally ----------------------------------------------------------------------------------------
 

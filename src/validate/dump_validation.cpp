@@ -221,6 +221,26 @@ void check_first_rows(const DirectionSampleReader& samples) {
   reader.read(rows, pdfs, weights);
 }
 
+// A rejected file of normals claimed as VNDF sampling's reflected directions, or the reverse (--reflected given
+// or forgotten): read as the other, do they pass? Only for those two claims, all rows kept, seen from outside,
+// without weights (a BSDF's weights belong to its outgoing directions).
+std::string other_domain_hint(const ValidationReport& r, const DirectionSampleReader& samples, const DumpClaims& claims,
+                              const GGX<double>& ggx, const Vec3<double>& wi, const ValidationOptions& options) {
+  const bool normals = claims.pdf == FilePdf::vndf;
+  if (r.passed || (!normals && claims.pdf != FilePdf::reflection) || claims.kept_only || claims.zero_weight_lost ||
+      samples.mirrored() || options.bsdf)
+    return "";
+  const FilePdf other = normals ? FilePdf::reflection : FilePdf::vndf;
+  const auto reference = dump_reference({other, claims.bsdf, false}, ggx, wi, options.rows, options.convention.normals);
+  const ValidationReport again = validate_dump(samples, reference, ggx, wi, options, false);
+  if (!again.passed) return "";
+  return fmt::format("the rows are rejected as {} (p = {:.3g}) and pass as {} (p = {:.3g}): {}",
+                     normals ? "normals" : "reflected directions", r.p_value,
+                     normals ? "VNDF sampling's reflected directions" : "VNDF normals", again.p_value,
+                     normals ? "give --reflected (Python and specs: pdf 'reflection')"
+                             : "leave out --reflected (Python and specs: pdf 'vndf')");
+}
+
 }  // namespace
 
 ValidationReport validate_dump_as_given(DirectionSampleReader& samples, const DumpClaims& claims, const GGX<double>& ggx,
@@ -243,6 +263,8 @@ ValidationReport validate_dump_as_given(DirectionSampleReader& samples, const Du
   const auto reference =
       dump_reference({claims.pdf, v.bsdf, claims.kept_only}, ggx, v.wi, options.rows, options.convention.normals);
   ValidationReport report = validate_dump(samples, reference, ggx, v.wi, options, diagnose_frame);
+  if (std::string hint = other_domain_hint(report, samples, claims, ggx, v.wi, options); !hint.empty())
+    report.hints = {std::move(hint)};  // read so they pass: the other hints answer the wrong question
   report.wi = view;
   return report;
 }

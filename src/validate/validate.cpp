@@ -270,9 +270,11 @@ void for_each_drawn_block(const SamplerInfo& sampler, const GGX<double>& ggx, co
     for_each_drawn_block_as<double>(sampler.sample_double, ggx, wi, options, visit, chunk_done);
 }
 
-void for_each_block(std::span<const Vec3<double>> samples, const SampleBlockVisitor& visit, const ChunkDone& chunk_done) {
+void for_each_block(std::span<const Vec3<double>> samples, const SampleBlockVisitor& visit, const ChunkDone& chunk_done,
+                    const RunControl* run) {
   const std::uint64_t n = samples.size(), blocks = (n + kSampleBlock - 1) / kSampleBlock;
   for (std::uint64_t c = 0; c < blocks; c += kChunkBlocks) {
+    if (run && run->cancelled()) throw Cancelled("while tallying the samples");
     const std::uint64_t chunk_end = std::min(blocks, c + kChunkBlocks);
     tbb::parallel_for(c, chunk_end, [&](std::uint64_t b) {
       const std::uint64_t first = b * kSampleBlock, end = std::min(n, first + kSampleBlock);
@@ -282,7 +284,8 @@ void for_each_block(std::span<const Vec3<double>> samples, const SampleBlockVisi
   }
 }
 
-void for_each_block(DirectionSampleReader& reader, const SampleBlockVisitor& visit, const ChunkDone& chunk_done) {
+void for_each_block(DirectionSampleReader& reader, const SampleBlockVisitor& visit, const ChunkDone& chunk_done,
+                    const RunControl* run) {
   // One chunk of rows in memory at a time (kChunkBlocks x kSampleBlock x 24 bytes = 25 MB), its blocks
   // processed concurrently; the file is read on this thread.
   // With a pdf column, the returned pdfs come along (the returned-pdf and E[weight] checks), and from text
@@ -295,6 +298,7 @@ void for_each_block(DirectionSampleReader& reader, const SampleBlockVisitor& vis
   std::vector<std::uint8_t> valid(reader.zero_weight_rows_lost() ? rows.size() : 0);
   std::uint64_t first = reader.rows_read();
   for (;;) {
+    if (run && run->cancelled()) throw Cancelled("while reading the samples");
     const std::size_t n = reader.read(rows, pdfs, weights, rounding);
     if (n == 0) break;
     for (std::size_t i = 0; i < std::min(n, valid.size()); ++i)  // a lost sample kept as a row of weight 0
@@ -397,7 +401,7 @@ template <class Stream>
 ValidationReport validate_stream(Stream& stream, const ReferenceDistribution& ref, const ValidationOptions& options,
                                  std::vector<SubTest> extra_checks = {}) {
   const auto t0 = std::chrono::steady_clock::now();
-  ValidationReport r = validate_source(battery::given_samples(stream, "samples"), ref, options,
+  ValidationReport r = validate_source(battery::given_samples(stream, "samples", &options.run), ref, options,
                                        [&ref](std::uint64_t seen) { require_samples(seen, ref); }, std::move(extra_checks));
   r.seconds = elapsed(t0);
   return r;

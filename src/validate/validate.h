@@ -278,10 +278,12 @@ using ChunkDone = std::function<void(std::size_t blocks)>;
 void for_each_drawn_block(const SamplerInfo& sampler, const GGX<double>& ggx, const Vec3<double>& wi,
                           const ValidationOptions& options, const SampleBlockVisitor& visit,
                           const ChunkDone& chunk_done = {});
-// Samples from elsewhere: a span, or a file read block by block (sample_io.h); all valid, no pdfs.
+// Samples from elsewhere: a span, or a file read block by block (sample_io.h); all valid, no pdfs. With `run`,
+// a cancelled run stops before the next chunk (Cancelled thrown).
 void for_each_block(std::span<const Vec3<double>> samples, const SampleBlockVisitor& visit,
-                    const ChunkDone& chunk_done = {});
-void for_each_block(DirectionSampleReader& reader, const SampleBlockVisitor& visit, const ChunkDone& chunk_done = {});
+                    const ChunkDone& chunk_done = {}, const RunControl* run = nullptr);
+void for_each_block(DirectionSampleReader& reader, const SampleBlockVisitor& visit, const ChunkDone& chunk_done = {},
+                    const RunControl* run = nullptr);
 
 // The drawn samples held in memory (for a dump; validations stream them instead).
 struct SampleSet {

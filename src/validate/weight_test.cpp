@@ -144,13 +144,16 @@ void check_weight_inputs(const SampleColumns& columns, const ReferenceDistributi
                                             bsdf.describe(), bsdf.channels(), columns.channels()));
 }
 
-// The sums of the weights of the samples `reader` reads, block by block.
-WeightSums sum_weights(DirectionSampleReader& reader, const DirectionBinning& sphere, int channels) {
+// The sums of the weights of the samples `reader` reads, block by block; a cancelled run stops between blocks.
+WeightSums sum_weights(DirectionSampleReader& reader, const DirectionBinning& sphere, int channels, const RunControl& run) {
   const FastDirectionBinner binner(sphere);
   WeightSums s(channels, sphere.size());
   std::vector<Vec3<double>> rows(kSampleFileBlock);
   std::vector<double> pdfs(reader.columns().has_pdf() ? rows.size() : 0), weights(rows.size() * std::size_t(channels));
-  while (const std::size_t n = reader.read(rows, pdfs, weights)) s.add(binner, rows, weights, n);
+  while (const std::size_t n = reader.read(rows, pdfs, weights)) {
+    s.add(binner, rows, weights, n);
+    if (run.cancelled()) throw Cancelled("while summing the weights");
+  }
   return s;
 }
 
@@ -163,7 +166,7 @@ std::vector<SubTest> weight_tests_of(const std::function<DirectionSampleReader()
   // Conditioned on the kept samples without the dropped count: the kept samples' mean weight.
   if (ref.kept_only && !options.dropped_below_horizon) expected.divide(ref.kept_mass);
   DirectionSampleReader reader = open();
-  const WeightSums s = sum_weights(reader, ref.sphere, bsdf.channels());
+  const WeightSums s = sum_weights(reader, ref.sphere, bsdf.channels(), options.run);
   const double n = double(s.rows + options.dropped_below_horizon.value_or(0));
   return weight_checks(s, expected, n, ref.sphere, bsdf, options);
 }

@@ -296,7 +296,7 @@ TEST(ExperimentHeightfield, AnAssemblyVndfRunsWritesAndResumesWithoutRedoingWork
   ASSERT_TRUE(cut.partial);
   ASSERT_TRUE(cut.measurements[0].rounds.back().partial);
   EXPECT_LT(cut.measurements[0].units, w.units);
-  write_run_directory(dir, spec, plan, cut, {"test", "test", spec.seed});
+  write_run_directory(dir, spec, plan, cut, {"test", "test", spec.seed, {}});
   {  // the report states the tile, where it is cached and its predicted bias
     std::ifstream page(dir / "index.html");
     const std::string html((std::istreambuf_iterator<char>(page)), std::istreambuf_iterator<char>());

@@ -307,7 +307,7 @@ TEST(ExperimentMasking, ConditionalMaskingRunsToItsTargetInRounds) {
   EXPECT_LT(std::abs(mk["g1"]["difference_own_ndf"]["value"].get<double>()), 5 * mk["g1"]["standard_error"].get<double>());
   for (const nlohmann::json& b : mk["conditional"]["by_normal"]) EXPECT_LE(b["standard_error"].get<double>(), 0.004);
   // The report shows the values, the conditional tables and their figures against Smith.
-  const std::string page = experiment_report_html(run_document(spec, plan, whole, {"microsim run cond.toml", "test", 4}), {}, {});
+  const std::string page = experiment_report_html(run_document(spec, plan, whole, {"microsim run cond.toml", "test", 4, {}}), {}, {});
   EXPECT_NE(page.find(report_number(mk["g1"]["value"])), std::string::npos);
   EXPECT_NE(page.find(report_number(mk["conditional"]["by_height"][0]["value"])), std::string::npos);
   EXPECT_NE(page.find("G1(v | height)"), std::string::npos);
@@ -439,7 +439,7 @@ ExperimentResults cut_in_its_second_round(const ExperimentSpec& spec, const Expe
   EXPECT_TRUE(cut.partial);
   EXPECT_EQ(cut.measurements.at(0).rounds.size(), 1u);
   const std::filesystem::path dir = microsim::test::scratch_dir("masking", "cut");
-  write_run_directory(dir, spec, plan, cut, {"microsim run cond.toml --out DIR", "test", spec.seed});
+  write_run_directory(dir, spec, plan, cut, {"microsim run cond.toml --out DIR", "test", spec.seed, {}});
   const std::optional<PreviousRun> previous = load_previous_run(dir, spec, spec.seed, input_digests(spec));
   std::filesystem::remove_all(dir);
   if (!previous) throw std::runtime_error("the run directory was not read back");

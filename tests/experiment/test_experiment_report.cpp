@@ -91,7 +91,7 @@ std::size_t count(const std::string& text, const std::string& what) {
 
 TEST(ExperimentReport, ThePageIsSelfContainedAndHoldsEveryMeasuredValue) {
   const SmallRun& run = small_run();
-  const nlohmann::json doc = run_document(run.spec, run.plan, run.results, {"microsim run small.toml --out x", "0.1", 1});
+  const nlohmann::json doc = run_document(run.spec, run.plan, run.results, {"microsim run small.toml --out x", "0.1", 1, {}});
   ReportHistograms histograms;
   for (std::size_t i = 0; i < run.results.measurements.size(); ++i)
     if (!run.results.measurements[i].histogram.binnings.empty()) histograms.emplace(i, run.results.measurements[i].histogram);
@@ -145,7 +145,7 @@ TEST(ExperimentVerdict, TheValidationsAloneDecideItAndThePageShowsItFirst) {
   EXPECT_EQ(passed.verdict, Verdict::pass);
   EXPECT_EQ(passed.tested, 2u);
   EXPECT_TRUE(passed.rejected.empty());
-  const RunIdentity id{"microsim run small.toml --out x", "0.1", 1};
+  const RunIdentity id{"microsim run small.toml --out x", "0.1", 1, {}};
   EXPECT_TRUE(headline_first(experiment_report_html(run_document(run.spec, run.plan, run.results, id), {}), "pass"));
   // One validation's test rejected, its target met: the run fails, that measurement named and marked.
   ExperimentResults rejected = run.results;
@@ -236,7 +236,7 @@ TEST(ExperimentReport, TheRunDirectoryReadsBackAsTheSameRunAndRefusesAnother) {
   const fs::path dir = fs::temp_directory_path() / ("microsim_report_dir_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   EXPECT_FALSE(load_previous_run(dir, run.spec, 1, input_digests(run.spec)).has_value());
-  write_run_directory(dir, run.spec, run.plan, run.results, {"cmd", "0.1", 1});
+  write_run_directory(dir, run.spec, run.plan, run.results, {"cmd", "0.1", 1, {}});
   for (const char* f : {"results.json", "index.html", "albedo-0.csv", "vndf-1.exr", "vndf-2.exr", "validation-3.exr",
                         "validation-4.exr", "scattering-5.exr", "scattering-6.exr"})
     EXPECT_TRUE(fs::exists(dir / f)) << f;

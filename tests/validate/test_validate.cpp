@@ -5,6 +5,7 @@
 #include "validate/dump_validation.h"
 #include "validate/sample_io.h"
 #include "validate/validate.h"
+#include "sample_dumps.h"
 
 #include <fmt/core.h>
 #include <fmt/printf.h>
@@ -601,6 +602,61 @@ TEST(ValidateFilePdf, EachDensityPassesItsOwnSamplesAndRejectsAnother) {
   EXPECT_TRUE(validate_samples(upper, d.domain, ggx, wi, o, above_horizon_reference(d, ggx, wi, o.rows)).passed);
   EXPECT_THROW(above_horizon_reference(claimed_density(FilePdf::ndf, ggx, wi), ggx, wi, o.rows), std::invalid_argument);
   EXPECT_THROW(parse_file_pdf("ggx"), std::invalid_argument);
+}
+
+// Normals validated as reflected directions (--reflected given by mistake) and reflections validated as normals
+// (--reflected forgotten): each rejection says the other reading passes and which option gives it. The talk
+// listing's normals pass neither reading: no such hint.
+TEST(ValidateDumpDomain, NormalsAndReflectionsReadTheWrongWayAreNamed) {
+  const GGX<double> ggx(0.3);
+  const Vec3<double> wi = direction_from_degrees(60.0, 0.0);
+  ValidationOptions o;
+  o.samples = 200'000;
+  o.seed = 4;
+  const auto dump_of = [&](const char* sampler, bool reflected, const char* name) {
+    SampleSet s = draw_samples(*find_sampler(sampler), ggx, wi, o);
+    if (reflected)
+      for (Vec3<double>& m : s.directions) m = reflect(wi, m);
+    const fs::path p = fs::temp_directory_path() / fmt::format("microsim_domain_{}_{}.npy", name, ::getpid());
+    write_npy(p, s.directions, false);
+    return p;
+  };
+  const auto hints_of = [&](const fs::path& p, FilePdf claims) {
+    DirectionSampleReader reader(p, SampleColumns::parse("x,y,z"));
+    const ValidationReport r = validate_dump_as_given(reader, {claims, std::nullopt, false, false}, ggx, wi, o, true);
+    EXPECT_FALSE(r.passed);
+    return fmt::format("{}", fmt::join(r.hints, "\n"));
+  };
+  const fs::path normals = dump_of("heitz2018", false, "normals"), reflections = dump_of("heitz2018", true, "reflections"),
+                 talk = dump_of("heitz2018-talk", false, "talk");
+  const std::string as_reflections = hints_of(normals, FilePdf::reflection);
+  EXPECT_NE(as_reflections.find("pass as VNDF normals"), std::string::npos) << as_reflections;
+  EXPECT_NE(as_reflections.find("leave out --reflected"), std::string::npos) << as_reflections;
+  const std::string as_normals = hints_of(reflections, FilePdf::vndf);
+  EXPECT_NE(as_normals.find("give --reflected"), std::string::npos) << as_normals;
+  const std::string talk_hints = hints_of(talk, FilePdf::vndf);
+  EXPECT_EQ(talk_hints.find("--reflected"), std::string::npos) << talk_hints;
+  for (const fs::path& p : {normals, reflections, talk}) fs::remove(p);
+}
+
+// A cancelled run stops a dump's validation at its next block of rows (Cancelled: the experiment's run marks the
+// measurement partial) instead of reading the whole file to a verdict.
+TEST(ValidateDumpDomain, ACancelledRunStopsReadingTheDump) {
+  const GGX<double> ggx(0.3);
+  const Vec3<double> wi = direction_from_degrees(30.0, 0.0);
+  const fs::path p = fs::temp_directory_path() / fmt::format("microsim_cancelled_dump_{}.npy", ::getpid());
+  test::write_sampler_dump(p, "heitz2018", 0.3, 30.0, 100'000);
+  ValidationOptions o;
+  const auto validate = [&] {
+    DirectionSampleReader reader(p, SampleColumns::parse("x,y,z"));
+    return validate_dump_as_given(reader, {FilePdf::vndf, std::nullopt, false, false}, ggx, wi, o, true);
+  };
+  EXPECT_TRUE(validate().passed);  // the same call, not cancelled
+  CancelToken cancel;
+  cancel.cancel();
+  o.run.cancel = &cancel;
+  EXPECT_THROW(validate(), Cancelled);
+  fs::remove(p);
 }
 
 }  // namespace test_validate
