@@ -64,10 +64,10 @@ std::string reproduce_command(const RunArgs& a) {
 // The shards of `--merge`, checked (one job: same spec, seed, plan and N, each K once); UsageError naming the
 // problem. Their first rounds are taken from their parts; everything else runs here.
 experiment::StoredRounds merged_shards(const RunArgs& a, const experiment::ExperimentSpec& spec, std::uint64_t seed,
-                                       experiment::ExperimentPlan& plan) {
+                                       const nlohmann::json& inputs, experiment::ExperimentPlan& plan) {
   std::vector<experiment::ShardParts> shards;
   try {
-    for (const std::string& dir : a.merge) shards.push_back(experiment::read_shard_directory(dir, spec, seed));
+    for (const std::string& dir : a.merge) shards.push_back(experiment::read_shard_directory(dir, spec, seed, inputs));
     plan = experiment::plan_from_json(shards.front().plan, spec);
     return experiment::merge_shards(shards, a.merge);
   } catch (const std::invalid_argument& e) {
@@ -113,12 +113,13 @@ int write_results(const RunArgs& a, const experiment::ExperimentSpec& spec, cons
 
 // The plan: the shards' (`--merge`: `stored` receives their first rounds), an earlier run's, or the pilots'.
 experiment::ExperimentPlan plan_or_shards(const RunArgs& a, const experiment::ExperimentSpec& spec, std::uint64_t seed,
+                                          const nlohmann::json& inputs,
                                           const std::optional<experiment::PreviousRun>& previous,
                                           const experiment::PlanOptions& options, experiment::StoredRounds& stored) {
   if (a.merge.empty()) return plan_of(spec, previous, options);
   if (previous) throw UsageError(fmt::format("--merge: --out {} holds a run: the merge writes a new one", a.out));
   experiment::ExperimentPlan plan;
-  stored = merged_shards(a, spec, seed, plan);
+  stored = merged_shards(a, spec, seed, inputs, plan);
   return plan;
 }
 
@@ -154,7 +155,7 @@ int run_experiment_command(const RunArgs& a, experiment::Ranks& ranks, bool& pla
   experiment::StoredRounds stored;
   experiment::ExperimentPlan plan;
   try {
-    plan = plan_or_shards(a, spec, seed, previous, plan_options, stored);
+    plan = plan_or_shards(a, spec, seed, inputs, previous, plan_options, stored);
   } catch (const Cancelled&) {
     if (surfaces.builds() == 0 || a.dry_run) throw;  // nothing written: the common message
     progress->finish();

@@ -7,6 +7,7 @@
 #include "core/parse.h"
 #include "core/run_control.h"
 #include "experiment/run.h"
+#include "experiment/run_directory.h"
 
 #include <fmt/core.h>
 
@@ -45,12 +46,23 @@ nlohmann::json shard_json(const ExperimentSpec& spec, const ShardParts& shard) {
   for (std::size_t t = 0; t < shard.tasks.size(); ++t)
     tasks.push_back({{"round", round_task_json(shard.tasks[t])}, {"file", part_file(t)}, {"bytes", shard.parts[t].size()},
                      {"digest", part_digest(shard.parts[t])}});
-  return {{"format", "microsim experiment shard"}, {"parts_version", kPartsVersion}, {"spec", {{"name", spec.name}, {"digest", shard.spec_digest}}},
+  return {{"format", "microsim experiment shard"}, {"parts_version", kPartsVersion},
+          {"spec", {{"name", spec.name}, {"digest", shard.spec_digest}, {"inputs", shard.inputs}}},
           {"seed", shard.seed}, {"shard", {shard.k, shard.n}}, {"plan", shard.plan}, {"rounds", tasks}};
 }
 
-// The shard's identity: its spec and seed must be the merge's.
-void check_identity(const fs::path& dir, const nlohmann::json& doc, const ExperimentSpec& spec, std::uint64_t seed) {
+// The shard's input files: each as the merge finds it (a heightmap or dump replaced between the shards and the
+// merge would mix parts measured from different files).
+void check_inputs(const fs::path& dir, const nlohmann::json& recorded, const nlohmann::json& inputs) {
+  for (const auto& [key, digest] : inputs.items())
+    if (!recorded.contains(key) || recorded.at(key) != digest)
+      bad_shard(dir, fmt::format("{} has changed since the shard ran (digest {}, now {}): run the shard jobs again",
+                                 key, recorded.contains(key) ? recorded.at(key).dump() : "none", digest.dump()));
+}
+
+// The shard's identity: its spec, seed and input files must be the merge's.
+void check_identity(const fs::path& dir, const nlohmann::json& doc, const ExperimentSpec& spec, std::uint64_t seed,
+                    const nlohmann::json& inputs) {
   if (doc.value("format", "") != "microsim experiment shard") bad_shard(dir, "shard.json is not a microsim experiment shard");
   if (const int v = doc.value("parts_version", 1); v != kPartsVersion)
     bad_shard(dir, fmt::format("its parts are of version {}, this microsim reads version {} (written by another "
@@ -60,12 +72,14 @@ void check_identity(const fs::path& dir, const nlohmann::json& doc, const Experi
     bad_shard(dir, fmt::format("a shard of another spec (digest {}; {} has {})", digest, spec.source, spec_digest(spec)));
   const auto shard_seed = doc.at("seed").get<std::uint64_t>();
   if (shard_seed != seed) bad_shard(dir, fmt::format("a shard of seed {}, not {} (give --seed {})", shard_seed, seed, shard_seed));
+  check_inputs(dir, doc.at("spec").value("inputs", nlohmann::json::object()), inputs);
 }
 
 ShardParts shard_from_json(const fs::path& dir, const nlohmann::json& doc) {
   ShardParts shard;
   shard.seed = doc.at("seed").get<std::uint64_t>();
   shard.spec_digest = doc.at("spec").at("digest").get<std::string>();
+  shard.inputs = doc.at("spec").value("inputs", nlohmann::json::object());
   shard.k = doc.at("shard").at(0).get<std::uint64_t>();
   shard.n = doc.at("shard").at(1).get<std::uint64_t>();
   if (shard.n == 0 || shard.k == 0 || shard.k > shard.n) bad_shard(dir, fmt::format("shard {}/{} is not K/N with 1 <= K <= N", shard.k, shard.n));
@@ -98,7 +112,8 @@ void check_same_job(const ShardParts& a, const ShardParts& b, const std::string&
 
 ShardParts run_shard(const ExperimentSpec& spec, const ExperimentPlan& plan, std::uint64_t seed, std::uint64_t k,
                      std::uint64_t n, const RunControl& run, SurfaceCache& surfaces) {
-  ShardParts shard{k, n, seed, spec_digest(spec), plan_json(plan, spec), first_split_rounds(spec, plan, seed), {}};
+  ShardParts shard{k, n, seed, spec_digest(spec), input_digests(spec), plan_json(plan, spec),
+                   first_split_rounds(spec, plan, seed), {}};
   for (const RoundTask& task : shard.tasks) {
     shard.parts.push_back(run_part(spec, plan, task, int(k - 1), int(n), run, surfaces));
     if (part_is_partial(shard.parts.back())) throw Cancelled("a shard keeps nothing when interrupted");
@@ -114,11 +129,12 @@ void write_shard_directory(const fs::path& dir, const ExperimentSpec& spec, cons
   write_file_atomically(dir / "shard.json", shard_json(spec, shard).dump(1) + "\n");
 }
 
-ShardParts read_shard_directory(const fs::path& dir, const ExperimentSpec& spec, std::uint64_t seed) {
+ShardParts read_shard_directory(const fs::path& dir, const ExperimentSpec& spec, std::uint64_t seed,
+                                const nlohmann::json& inputs) {
   if (!fs::is_regular_file(dir / "shard.json")) bad_shard(dir, "holds no shard.json (not a `run --shard K/N` directory)");
   try {
     const nlohmann::json doc = nlohmann::json::parse(read_bytes(dir / "shard.json"));
-    check_identity(dir, doc, spec, seed);
+    check_identity(dir, doc, spec, seed, inputs);
     return shard_from_json(dir, doc);
   } catch (const nlohmann::json::exception& e) {
     bad_shard(dir, fmt::format("shard.json is malformed: {}", e.what()));

@@ -31,6 +31,7 @@ struct ShardParts {
   std::uint64_t k = 1, n = 1;   // shard k of n (1-based)
   std::uint64_t seed = 0;       // the run's seed
   std::string spec_digest;
+  nlohmann::json inputs;        // input_digests(spec) when it ran: the files its parts were measured from
   nlohmann::json plan;          // plan_json of the plan it ran
   std::vector<RoundTask> tasks; // first_split_rounds
   std::vector<std::string> parts;  // per task: shard k's part
@@ -41,13 +42,15 @@ struct ShardParts {
 ShardParts run_shard(const ExperimentSpec& spec, const ExperimentPlan& plan, std::uint64_t seed, std::uint64_t k,
                      std::uint64_t n, const RunControl& run, SurfaceCache& surfaces);
 
-// PART: shard.json (spec name and digest, seed, K/N, the version of its parts' form, plan, tasks, part files and
-// their sizes) and part-I.bin, each written atomically, shard.json last. PART must be new or empty
+// PART: shard.json (spec name and digest, its input files' digests, seed, K/N, the version of its parts' form, plan,
+// tasks, part files and their sizes) and part-I.bin, each written atomically, shard.json last. PART must be new or empty
 // (std::invalid_argument: nothing written).
 void write_shard_directory(const std::filesystem::path& dir, const ExperimentSpec& spec, const ShardParts& shard);
 // Throws std::invalid_argument naming PART and the problem: no shard.json, parts of another version (another
-// microsim's), another spec (digest) or seed, a malformed member, a part file missing or of another size.
-ShardParts read_shard_directory(const std::filesystem::path& dir, const ExperimentSpec& spec, std::uint64_t seed);
+// microsim's), another spec (digest) or seed, an input file changed since the shard ran (its digest against
+// `inputs`, the merge's input_digests), a malformed member, a part file missing or of another size.
+ShardParts read_shard_directory(const std::filesystem::path& dir, const ExperimentSpec& spec, std::uint64_t seed,
+                                const nlohmann::json& inputs);
 
 // The shards (named for messages) as one job's first rounds. Throws std::invalid_argument naming the problem:
 // shards of different N, plans or tasks, a shard missing or given twice.

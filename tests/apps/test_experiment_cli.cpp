@@ -413,6 +413,26 @@ TEST(ExperimentCli, AReplacedDumpIsNotGivenTheOldVerdict) {
   fs::remove_all(dir);
 }
 
+// A job array's shards record the digests of the files the spec reads: a merge after one was replaced is refused
+// (exit 2, naming the key), nothing written; with the files as the shards saw them the merge runs.
+TEST(ExperimentCli, AMergeAfterADumpWasReplacedIsRefused) {
+  const fs::path dir = scratch_dir("experiment", "replaced_dump_shards");
+  write_dumps(dir);
+  write(dir / "s.toml", dump_spec({"good.npy"}));
+  for (const char* k : {"1", "2"})
+    ASSERT_EQ(run_cli(dir, std::string("run s.toml --out p") + k + " --shard " + k + "/2").exit_code, 0);
+  fs::copy_file(dir / "good.npy", dir / "kept.npy");
+  fs::copy_file(dir / "talk.npy", dir / "good.npy", fs::copy_options::overwrite_existing);
+  const auto refused = run_cli(dir, "run s.toml --out merged --merge p1 p2");
+  EXPECT_EQ(refused.exit_code, 2) << refused.out << refused.err;
+  EXPECT_NE(refused.err.find("quantity[0].dump"), std::string::npos) << refused.err;
+  EXPECT_NE(refused.err.find("has changed since the shard ran"), std::string::npos) << refused.err;
+  EXPECT_FALSE(fs::exists(dir / "merged" / "results.json"));
+  fs::copy_file(dir / "kept.npy", dir / "good.npy", fs::copy_options::overwrite_existing);
+  EXPECT_EQ(run_cli(dir, "run s.toml --out merged --merge p1 p2").exit_code, 0);
+  fs::remove_all(dir);
+}
+
 TEST(ExperimentCli, APassingDumpPassesAndARunWithoutATestHasNoVerdict) {
   const fs::path dir = scratch_dir("experiment", "verdict_pass");
   write_dumps(dir);

@@ -718,14 +718,14 @@ TEST(ExperimentSplitMasking, RanksAndShardsGiveTheOneProcessSumsBitForBit) {
 TEST(ExperimentShardDirectory, PartsOfAnotherVersionAreRefused) {
   const ExperimentSpec spec = split_spec();
   const std::filesystem::path dir = microsim::test::scratch_dir("split", "shard_parts_version");
-  const ShardParts shard{1, 1, spec.seed, spec_digest(spec), nlohmann::json::object(), {}, {}};
+  const ShardParts shard{1, 1, spec.seed, spec_digest(spec), input_digests(spec), nlohmann::json::object(), {}, {}};
   write_shard_directory(dir / "part", spec, shard);
-  EXPECT_EQ(read_shard_directory(dir / "part", spec, spec.seed).k, 1u);
+  EXPECT_EQ(read_shard_directory(dir / "part", spec, spec.seed, input_digests(spec)).k, 1u);
   nlohmann::json doc = nlohmann::json::parse(std::ifstream(dir / "part" / "shard.json"));
   doc.erase("parts_version");  // as the shards of earlier versions were written
   std::ofstream(dir / "part" / "shard.json") << doc.dump();
   try {
-    read_shard_directory(dir / "part", spec, spec.seed);
+    read_shard_directory(dir / "part", spec, spec.seed, input_digests(spec));
     ADD_FAILURE() << "a shard of an earlier version was read";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("its parts are of version 1"), std::string::npos) << e.what();
