@@ -101,12 +101,38 @@ std::string zero_weight_hint(const ValidationReport& r, const DirectionSampleRea
                      r.samples_where_pdf_is_zero, zero);
 }
 
+// The narrowest width of a lobe bin near the lobe's centre: alpha / rows for normals; reflection maps a normal's
+// step dm across the view's plane to 2 (wi . m) dm, so at a grazing view reflected directions are squeezed by
+// 2 |wi.z| (m near the pole).
+double narrowest_lobe_bin(const ValidationReport& r, const Vec3<double>& wi, int rows) {
+  const double squeeze = r.domain == SampleDomain::reflected_direction ? std::min(1.0, 2 * std::abs(wi.z())) : 1.0;
+  return std::min(r.alpha_x, r.alpha_y) * squeeze / rows;
+}
+
+bool binned_test_failed(const ValidationReport& r) {
+  return std::any_of(r.binned.begin(), r.binned.end(),
+                     [&](const BinnedTest& b) { return b.chi2.p_value < r.per_test_significance; });
+}
+
+// A binary float32 dump rejected by a chi-square test whose lobe bins are so narrow that float32's rounding of a
+// direction (half a unit in the last place of a component near 1: 2^-25) is a visible share of them: the
+// storage alone moves samples between bins.
+std::string float32_directions_hint(const ValidationReport& r, const DirectionSampleReader& samples,
+                                    const Vec3<double>& wi, int rows) {
+  if (samples.storage() == "text" || !samples.is_float32() || !binned_test_failed(r)) return "";
+  const double rounding = std::ldexp(1.0, -25), bin = narrowest_lobe_bin(r, wi, rows);
+  if (!(rounding >= 0.05 * bin)) return "";
+  return fmt::format("the directions are float32: their rounding (about {:.1e}) is {:.0f}% of the narrowest lobe bins "
+                     "here (about {:.1e}: alpha {:g}{}, {} rows): the storage alone can move samples between bins; "
+                     "save the directions as float64 to test the sampler itself",
+                     rounding, 100 * rounding / bin, bin, std::min(r.alpha_x, r.alpha_y),
+                     r.domain == SampleDomain::reflected_direction ? ", squeezed by 2 |wi.z| in reflection" : "", rows);
+}
+
 // A text dump rejected by a chi-square test whose directions are printed coarsely for the lobe's bins (about
 // alpha / rows wide): the rounding alone moves samples between bins.
 std::string printed_directions_hint(const ValidationReport& r, const DirectionSampleReader& samples, int rows) {
-  const bool binned_failed =
-      std::any_of(r.binned.begin(), r.binned.end(), [&](const BinnedTest& b) { return b.chi2.p_value < r.per_test_significance; });
-  if (samples.storage() != "text" || !binned_failed) return "";
+  if (samples.storage() != "text" || !binned_test_failed(r)) return "";
   // The rounding most rows show: %g drops trailing zeros, so a row printing -0.5 says nothing of the digits kept.
   std::map<double, std::uint64_t> roundings;
   std::uint64_t read = 0;
@@ -205,6 +231,7 @@ ValidationReport validate_dump(const DirectionSampleReader& samples, std::shared
   else if (std::string dropped = dropped_samples_hint(r, *reference); !dropped.empty()) r.hints.push_back(std::move(dropped));
   if (std::string hint = radians_hint(wi); !hint.empty()) r.hints.push_back(std::move(hint));
   if (std::string hint = printed_directions_hint(r, samples, options.rows); !hint.empty()) r.hints.push_back(std::move(hint));
+  if (std::string hint = float32_directions_hint(r, samples, wi, options.rows); !hint.empty()) r.hints.push_back(std::move(hint));
   return r;
 }
 
