@@ -202,8 +202,8 @@ double fresnel_amplification(const Material& bsdf, const Vec3<double>& wi, const
 }
 
 // The factor a unit roundoff of sin^2 of the half vector is amplified by in D: renderers compute D from
-// cos theta_m (pbrt-v4's Tan2Theta = (1 - cos^2) / cos^2; Karis 2013's 1 + (alpha^2 - 1) cos^2), where
-// 1 - cos^2 cancels near the peak; d ln D / d sin^2 = 2 / (alpha_phi^2 cos^2 + sin^2) for GGX (Walter et al.
+// cos theta_m (pbrt-v4's Tan2Theta = (1 - cos^2) / cos^2, with cos phi clamped; Karis 2013's 1 + (alpha^2 - 1)
+// cos^2), where 1 - cos^2 cancels near the peak; d ln D / d sin^2 = 2 / (alpha_phi^2 cos^2 + sin^2) for GGX (Walter et al.
 // 2007 eq. 33), alpha_phi the anisotropic roughness along the half vector's azimuth. 0 for no lobe.
 double ndf_conditioning(const Material& bsdf, const GGX<double>& ggx, const Vec3<double>& wi, const Vec3<double>& wo) {
   const DielectricPair<double> p = dielectric_pair(bsdf.transmits() ? bsdf.eta() : 1.0, wi, wo);
