@@ -109,7 +109,8 @@ void print_tests(const ValidationReport& r) {
                pdf.tolerance);
   else if (rounded)
     fmt::print("  (returned pdf, +r: errors above {:.0e} only where rounding the direction to {} (or float32 data's "
-               "rounding) changes the claimed pdf as much)\n",
+               "rounding) changes the claimed pdf as much, or where D computed from cos theta_m loses as much near a "
+               "low roughness's peak)\n",
                pdf.tolerance, to_string(r.precision));
 }
 

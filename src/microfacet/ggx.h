@@ -49,6 +49,17 @@ public:
     return sqr(len2) / (kPi<T> * ax_ * ay_ * sqr(e));
   }
 
+  // How much a renderer's D(m) computed from cos theta_m loses: the factor a unit roundoff of sin^2 theta_m
+  // is amplified by, d ln D / d sin^2 = 2 / (alpha_phi^2 cos^2 + sin^2) (Walter et al. 2007 eq. 33;
+  // alpha_phi the roughness along m's azimuth). pbrt-v4's Tan2Theta = (1 - cos^2) / cos^2 and Karis 2013's
+  // 1 + (alpha^2 - 1) cos^2 cancel near the peak, where this is about 2 / alpha^2.
+  double cancellation_of_D(const Vec3<double>& m) const {
+    const double s2 = sqr(m.x()) + sqr(m.y()), c2 = sqr(m.z());
+    const double ax2 = sqr(double(ax_)), ay2 = sqr(double(ay_));
+    const double a2 = s2 > 0 ? s2 / (sqr(m.x()) / ax2 + sqr(m.y()) / ay2) : std::min(ax2, ay2);
+    return 2 / (a2 * c2 + s2);
+  }
+
   // Density of microfacet slopes (sx, sy) = (-mx/mz, -my/mz) per unit slope area: a bivariate Student-t
   // with nu = 2 (Heitz 2014 eq. 39 for GGX): P22 = 1 / (pi ax ay (1 + sx^2/ax^2 + sy^2/ay^2)^2).
   T slope_pdf(T sx, T sy) const {

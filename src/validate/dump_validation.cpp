@@ -210,10 +210,15 @@ ViewFromOutside seen_from_outside(const Vec3<double>& wi, const std::optional<Ma
 std::shared_ptr<const ReferenceDistribution> dump_reference(const DumpClaims& claims, const GGX<double>& ggx,
                                                             const Vec3<double>& wi, int rows, SampledNormals normals) {
   const ClaimedDensity density = file_claimed_density(claims.pdf, claims.bsdf, ggx, wi, normals);
-  if (!claims.kept_only) return density_reference(density, ggx, wi, rows);
-  // A BSDF's sampling density is 0 where its samples are lost: the kept ones are its own support.
-  return claims.pdf == FilePdf::bsdf ? kept_samples_reference(density, ggx, wi, rows)
-                                     : above_horizon_reference(density, ggx, wi, rows);
+  std::shared_ptr<const ReferenceDistribution> ref;
+  if (!claims.kept_only) ref = density_reference(density, ggx, wi, rows);
+  else  // a BSDF's sampling density is 0 where its samples are lost: the kept ones are its own support
+    ref = claims.pdf == FilePdf::bsdf ? kept_samples_reference(density, ggx, wi, rows)
+                                      : above_horizon_reference(density, ggx, wi, rows);
+  if (claims.pdf != FilePdf::bsdf || !claims.bsdf || !claims.bsdf->transmits()) return ref;
+  ReferenceDistribution with_eta = *ref;  // a dielectric's refractions: their half vectors need its index
+  with_eta.refraction_eta = claims.bsdf->eta();
+  return std::make_shared<const ReferenceDistribution>(std::move(with_eta));
 }
 
 ValidationReport validate_dump(const DirectionSampleReader& samples, std::shared_ptr<const ReferenceDistribution> reference,

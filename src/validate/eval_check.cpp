@@ -201,17 +201,12 @@ double fresnel_amplification(const Material& bsdf, const Vec3<double>& wi, const
   return lobe > 0 ? 1 + std::abs(c * slope) / lobe + (p.reflect ? 0 : p.F / lobe) : 1;
 }
 
-// The factor a unit roundoff of sin^2 of the half vector is amplified by in D: renderers compute D from
-// cos theta_m (pbrt-v4's Tan2Theta = (1 - cos^2) / cos^2, with cos phi clamped; Karis 2013's 1 + (alpha^2 - 1)
-// cos^2), where 1 - cos^2 cancels near the peak; d ln D / d sin^2 = 2 / (alpha_phi^2 cos^2 + sin^2) for GGX (Walter et al.
-// 2007 eq. 33), alpha_phi the anisotropic roughness along the half vector's azimuth. 0 for no lobe.
+// The amplification of a rounded sin^2 of the pair's half vector in D, as renderers compute D
+// (GGX::cancellation_of_D); 0 for no lobe.
 double ndf_conditioning(const Material& bsdf, const GGX<double>& ggx, const Vec3<double>& wi, const Vec3<double>& wo) {
   const DielectricPair<double> p = dielectric_pair(bsdf.transmits() ? bsdf.eta() : 1.0, wi, wo);
   if (!p.valid || (!bsdf.transmits() && !p.reflect)) return 0;
-  const double s2 = sqr(p.h.x()) + sqr(p.h.y()), c2 = sqr(p.h.z());
-  const double ax2 = sqr(ggx.alpha_x()), ay2 = sqr(ggx.alpha_y());
-  const double a2 = s2 > 0 ? s2 / (sqr(p.h.x()) / ax2 + sqr(p.h.y()) / ay2) : std::min(ax2, ay2);
-  return 2 / (a2 * c2 + s2);
+  return ggx.cancellation_of_D(p.h);
 }
 
 // The renderer's rounding of the directions and the half vector is a perturbation of its inputs by its

@@ -110,6 +110,8 @@ struct ReferenceDistribution {
   // probability (kept_samples_reference, above_horizon_reference: pdf and probabilities divided by it).
   double kept_mass = 1;
   bool kept_only = false;  // conditioned on the kept samples (kept_samples_reference, above_horizon_reference)
+  // A dielectric's index across over wi's side, for the half vector of a refracted sample (0: no refraction).
+  double refraction_eta = 0;
   // The pdf the sampler returns with a sample: the claimed pdf before any conditioning on the kept samples.
   double returned_pdf(const Vec3<double>& w) const { return pdf(w) * kept_mass; }
   // The binnings the samples are tested in, in this order (sphere, lobe).

@@ -331,3 +331,32 @@ def test_directions_printed_too_coarsely_for_the_lobe_get_a_hint(tmp_path):
     assert not r.passed
     assert any("print them with more digits" in h and "within 5.0e-05 in most rows" in h for h in r.hints), r.hints
     assert microsim.validate(str(fine), 0.01, 0.0, columns="x,y,z,pdf").passed
+
+
+@pytest.mark.parametrize("d_form", ["pbrt", "ue4"])
+@pytest.mark.parametrize("alpha", [0.01, 1e-3])
+def test_a_float32_dumps_pdfs_with_d_from_cos_theta_pass_and_a_planted_error_is_rejected(tmp_path, d_form, alpha):
+    """A float32 renderer's reflections with the pdfs it returns, D computed from cos theta_m as pbrt-v4 and Karis
+    2013 do (1 - cos^2 cancels near the peak: 0.4% at alpha 0.01, 28% at 1e-3): the returned-pdf check allows that
+    loss and passes them; the same pdfs 0.1% too high are rejected."""
+    import pathlib
+    import sys
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "examples"))
+    from renderer_eval import ggx_d
+
+    a = np.float32(alpha)
+    wi = view(40.0).astype(np.float32)
+    m = numpy_samples(200_000, seed=3, alpha=(alpha, alpha), theta=40.0).astype(np.float32)
+    wo = (2 * (m @ wi)[:, None] * m - wi).astype(np.float32)
+    h = wi + wo
+    h = h / np.linalg.norm(h, axis=1)[:, None]
+    t2 = (wi[0] ** 2 + wi[1] ** 2) / wi[2] ** 2
+    g1 = 2 / (1 + np.sqrt(1 + a * a * t2))
+    pdf = g1 * ggx_d(h, a, d_form) / (4 * wi[2])  # D_wi(h) / (4 |wo.h|) with |wo.h| = |wi.h|
+    kept = wo[:, 2] > 0
+    for scale, passes in ((1.0, True), (1.001, False)):
+        path = tmp_path / f"dump-{scale}.npy"
+        np.save(path, np.column_stack([wo, pdf * np.float32(scale)])[kept].astype(np.float32))
+        r = microsim.validate(path, (alpha, alpha), 40.0, pdf="reflection", columns="x,y,z,pdf", above_horizon=True)
+        check = r.to_dict()["tests"]["returned_pdf"]
+        assert check["passed"] is passes, (scale, check["detail"])
