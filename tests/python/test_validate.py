@@ -360,3 +360,26 @@ def test_a_float32_dumps_pdfs_with_d_from_cos_theta_pass_and_a_planted_error_is_
         r = microsim.validate(path, (alpha, alpha), 40.0, pdf="reflection", columns="x,y,z,pdf", above_horizon=True)
         check = r.to_dict()["tests"]["returned_pdf"]
         assert check["passed"] is passes, (scale, check["detail"])
+
+
+@pytest.mark.parametrize("d_form", ["pbrt", "ue4"])
+def test_float32_normals_with_pdfs_from_cos_theta_pass_e_weight_and_a_planted_error_is_rejected(tmp_path, d_form):
+    """The same for VNDF normals with their pdfs at alpha 0.01: Karis' form biases the mean weight D <wi, m> / pdf by
+    1.6e-4 (rejected by E[weight] at p 1e-54 before it allowed D's cancellation); a pdf 0.1% too high is still
+    rejected."""
+    import pathlib
+    import sys
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "examples"))
+    from renderer_eval import ggx_d
+
+    a = np.float32(0.01)
+    wi = view(40.0).astype(np.float32)
+    m = numpy_samples(1_000_000, seed=1, alpha=(0.01, 0.01), theta=40.0).astype(np.float32)
+    t2 = (wi[0] ** 2 + wi[1] ** 2) / wi[2] ** 2
+    g1 = 2 / (1 + np.sqrt(1 + a * a * t2))
+    pdf = g1 * ggx_d(m, a, d_form) * np.maximum(m @ wi, 0) / wi[2]
+    for scale, passes in ((1.0, True), (1.001, False)):
+        path = tmp_path / f"normals-{scale}.npy"
+        np.save(path, np.column_stack([m, pdf * np.float32(scale)]).astype(np.float32))
+        r = microsim.validate(path, (0.01, 0.01), 40.0, columns="x,y,z,pdf")
+        assert r.passed is passes, (scale, r.failures)
