@@ -12,6 +12,7 @@
 // validate.cpp and compare.cpp choose the expectations and the checks; the stages are shared.
 #pragma once
 
+#include "core/exact_sum.h"
 #include "validate/sample_io.h"
 #include "validate/validate.h"
 
@@ -66,8 +67,9 @@ struct PdfChecks {
   // and the samples whose pdf is printed within its rounding of 0 (their weight is unbounded).
   double weight_rounding = 0;
   std::uint64_t weight_unbounded = 0;
-  // The sum over samples of how far D's cancellation in a renderer's pdf can move the weight (GGX::cancellation_of_D).
-  double weight_cancellation = 0;
+  // The sum over samples of how far D's cancellation in a renderer's pdf can move the weight (GGX::cancellation_of_D):
+  // exact, so that blocks merged in any grouping (threads, ranks, shards) give the same bits.
+  ExactSum weight_cancellation;
   // Returned pdfs checked, and those that are float32 data stored as float64 or printed as a float fills (every
   // one of them: the sampler's arithmetic was float32, and its weights carry float32's rounding).
   std::uint64_t pdfs_checked = 0, pdfs_from_float = 0;

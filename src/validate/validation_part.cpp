@@ -31,7 +31,8 @@ nlohmann::json checks_json(const battery::PdfChecks& c) {
           {"worst_index", c.pdf_worst_index},
           {"outliers", c.pdf_outliers},
           {"direction", {exact_real_json(d.x()), exact_real_json(d.y()), exact_real_json(d.z())}},
-          {"returned", exact_real_json(c.worst_returned)}};
+          {"returned", exact_real_json(c.worst_returned)},
+          {"cancellation", exact_sum_json(c.weight_cancellation)}};
 }
 
 battery::PdfChecks checks_from_json(const nlohmann::json& j, const PartReader& reader, const std::string& where) {
@@ -46,6 +47,7 @@ battery::PdfChecks checks_from_json(const nlohmann::json& j, const PartReader& r
   c.worst_direction = {reader.exact_real(d[0], where + "/direction/0"), reader.exact_real(d[1], where + "/direction/1"),
                        reader.exact_real(d[2], where + "/direction/2")};
   c.worst_returned = reader.exact_real(j, "returned", where);
+  c.weight_cancellation = reader.exact_sum(reader.member(j, "cancellation", where), where + "/cancellation");
   return c;
 }
 
