@@ -154,7 +154,8 @@ def test_returned_pdfs_are_checked():
 def test_float32_data_widened_to_float64_gets_float32s_rounding():
     """A float32 sampler's normals and pdfs widened to float64 (numpy's astype) at alpha 1e-4: their weights carry
     float32's rounding (a mean 1e-8 off, se 2e-11), which the E[weight] test allows as it does for a float32 file;
-    the same data with pdfs 1e-3 too high is still rejected by it."""
+    the same data with pdfs 1e-3 too high is still rejected, by the returned-pdf check (at alpha 1e-4 in float32,
+    E[weight] allows D's cancellation in a renderer's pdf, far more than 1e-3 near the peak)."""
     alpha, theta, wi = (1e-4, 1e-4), 60.0, view(60.0)
     u = np.random.default_rng(3).random((200_000, 2))
     m = heitz2018_numpy(wi, alpha, u)
@@ -163,7 +164,7 @@ def test_float32_data_widened_to_float64_gets_float32s_rounding():
     widened = microsim.validate(m32, alpha, theta, pdfs=p32)
     assert widened.passed, widened.failures
     wrong = microsim.validate(m32, alpha, theta, pdfs=(pdfs * 1.001).astype(np.float32).astype(np.float64))
-    assert not wrong.passed and wrong.p_values["weight_mean"] < 1e-6
+    assert not wrong.passed and wrong.to_dict()["tests"]["returned_pdf"]["passed"] is False
 
 
 def test_identical_to_cli_for_a_zoo_sampler(tmp_path):
