@@ -303,9 +303,8 @@ std::vector<double> BinCubature::band_pieces(int bin) const {
   return zs;
 }
 
-// Phase 1: the bin's band pieces, every cell holding more than
-// max_focus_per_cell focus points, or blind to those it holds, split (down to min_cell_size); the cells
-// that are left evaluated into r.
+// Phase 1: the bin's band pieces, every cell holding more than max_focus_per_cell focus points, or blind
+// to the mass it holds (blind), split (down to min_cell_size); the cells that are left evaluated into r.
 void BinCubature::focus_phase(int bin, const std::vector<FocusPoint>& focus, Refinement& r) const {
   const int col = bin % binning_.cols();
   const std::vector<double> zs = band_pieces(bin);
