@@ -182,7 +182,8 @@ public:
   // `printed`: a text file's digits (zero for binary storage and drawn samples).
   void inside(std::uint64_t i, const Vec3<double>& w, double pdf, const PrintedRounding& printed, PdfChecks& c) const {
     const double claimed = ref_.returned_pdf(w);
-    const bool from_float = check_pdf(i, w, pdf, claimed, printed, c);
+    const double amplification = d_amplification(w);
+    const bool from_float = check_pdf(i, w, pdf, claimed, amplification, printed, c);
     if (!weighs_) return;
     const Vec3<double> m = back_ ? Vec3<double>(-w) : w;
     const double numerator = ref_.ggx.D(m) * std::max(wi_front_.dot(m), 0.0);
@@ -192,7 +193,7 @@ public:
     // The pdf's D computed from cos theta_m biases the mean weight by at most a unit roundoff's effect on
     // average (measured a quarter of it: docs/records/validation.md), where the returned-pdf check allows 16.
     if (std::isfinite(weight))
-      c.weight_cancellation.add(std::min(weight * cancellation(w, from_float || float32_), ExactSum::kMaxTerm));
+      c.weight_cancellation.add(std::min(weight * (unit_roundoff(from_float) * amplification), ExactSum::kMaxTerm));
     c.weight.add(std::isfinite(weight) || printed.pdf == 0 ? weight : 0.0);
   }
 
@@ -224,16 +225,17 @@ private:
   }
 
   // A renderer's pdf holds D computed from cos theta_m, which loses about unit roundoff / alpha^2 near the peak
-  // (GGX::cancellation_of_D; pbrt-v4, Karis 2013): one unit roundoff's effect on D, relative.
-  double cancellation(const Vec3<double>& w, bool float32) const {
+  // (pbrt-v4, Karis 2013): the factor a unit roundoff is amplified by in D at the sample (GGX::cancellation_of_D).
+  double d_amplification(const Vec3<double>& w) const {
     const std::optional<Vec3<double>> h = half_vector(w);
-    if (!h) return 0;
-    return (float32 ? 0x1p-24 : 0x1p-53) * ref_.ggx.cancellation_of_D(*h);
+    return h ? ref_.ggx.cancellation_of_D(*h) : 0.0;
   }
+  // The unit roundoff of the sample's data: float32's for float32 data (or widened from it), else double's.
+  double unit_roundoff(bool from_float) const { return from_float || float32_ ? 0x1p-24 : 0x1p-53; }
 
   // Checks one returned pdf; whether it is float32 data.
-  bool check_pdf(std::uint64_t i, const Vec3<double>& w, double pdf, double claimed, const PrintedRounding& printed,
-                 PdfChecks& c) const {
+  bool check_pdf(std::uint64_t i, const Vec3<double>& w, double pdf, double claimed, double amplification,
+                 const PrintedRounding& printed, PdfChecks& c) const {
     const double e = relative_difference(pdf, claimed);
     const bool text = printed.direction > 0 || printed.pdf > 0;
     // A float32 pdf widened to float64 (numpy's astype, Python's arrays), printed with digits a float32 fills, or
@@ -244,7 +246,7 @@ private:
     const bool from_float =
         widened_ && (text ? off_float <= printed.pdf * (1 + 1e-6) : off_float <= kNineDigits * std::abs(pdf));
     // D's cancellation: 16 times (check-eval's K) one unit roundoff's effect.
-    const double tol = (from_float ? float_tol_ : pdf_tol_) + 16 * cancellation(w, from_float || float32_);
+    const double tol = (from_float ? float_tol_ : pdf_tol_) + 16 * (unit_roundoff(from_float) * amplification);
     ++c.pdfs_checked;
     if (from_float) ++c.pdfs_from_float;
     // Printed digits: the direction moved by up to their half unit per component, the pdf by its own.
